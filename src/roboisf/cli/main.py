@@ -1,0 +1,92 @@
+"""The ``roboisf`` command line.
+
+Every command: ``--help``; ``-o/--output``; exit code 0 on success, 2 on bad input (one line on
+stderr naming the file/field and what was expected), 1 on an internal error. ``-q`` silences
+progress and info, ``-v`` adds detail. Call :func:`main` with an argv list from tests.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+
+import typer
+from rich.markup import escape
+
+from roboisf import __version__
+from roboisf.cli.console import state
+from roboisf.errors import ConvergenceError, InputError
+
+app = typer.Typer(
+    name="roboisf",
+    help=(
+        "Measure, split and remove the geometric error of robot-formed ISF parts.\n\n"
+        "Typical session:  roboisf demo   ·   roboisf analyze study/ -o results/   ·   "
+        "roboisf compensate ...\n\nLengths on the command line are mm, angles degrees; files "
+        "declare their own units."
+    ),
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    rich_markup_mode="rich",
+)
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"roboisf {__version__}")
+        raise typer.Exit(0)
+
+
+@app.callback()
+def _root(
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="Print only errors."),
+    verbose: bool = typer.Option(False, "--verbose", "-v", help="Print more detail."),
+    version: bool = typer.Option(
+        False, "--version", callback=_version, is_eager=True, help="Show the version and exit."
+    ),
+) -> None:
+    state.verbosity = 0 if quiet else (2 if verbose else 1)
+
+
+def _register() -> None:
+    from roboisf.cli import toolpath as _toolpath
+
+    _toolpath.register(app)
+
+
+_register()
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the CLI with ``argv`` (without the program name); return the exit code."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    try:
+        app(args=args, prog_name="roboisf", standalone_mode=False)
+    except InputError as e:
+        state.err.print(f"[red]error:[/red] {escape(str(e))}", soft_wrap=True)
+        return 2
+    except ConvergenceError as e:
+        state.err.print(f"[red]error:[/red] {escape(str(e))}", soft_wrap=True)
+        return 3
+    except typer.Exit as e:
+        return int(e.exit_code or 0)
+    except typer.Abort:
+        return 130
+    except Exception as e:  # click usage errors
+        import click
+
+        if isinstance(e, click.exceptions.UsageError):
+            e.show()
+            return 2
+        if isinstance(e, click.exceptions.ClickException):
+            e.show()
+            return e.exit_code
+        raise
+    finally:
+        state.verbosity = 1
+    return 0
+
+
+def entry() -> None:  # pragma: no cover - console script
+    sys.exit(main())

@@ -1,0 +1,80 @@
+"""Error types of roboisf.
+
+Every problem a user can fix (a bad file, a bad dimension, an unreachable pose) is raised as a
+:class:`RoboisfInputError` subclass whose message names *where* (file, line, field) and *what was
+expected*. The CLI turns these into a one-line message and exit code 2; anything else is a bug.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+__all__ = [
+    "ConvergenceError",
+    "InputError",
+    "RoboisfError",
+    "UnreachableError",
+]
+
+
+class RoboisfError(Exception):
+    """Base class of every error roboisf raises on purpose."""
+
+
+class InputError(RoboisfError, ValueError):
+    """A user-supplied value or file is not what roboisf expects.
+
+    Parameters
+    ----------
+    message
+        What is wrong and what was expected, e.g. ``"wall_angle must be in (0, 90) deg, got 95"``.
+    file
+        The offending file, if any.
+    line
+        1-based line number in ``file`` (data rows count from the header line as line 1).
+    field
+        The key, column or parameter name.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        file: str | Path | None = None,
+        line: int | None = None,
+        field: str | None = None,
+    ) -> None:
+        self.message = message
+        self.file = None if file is None else str(file)
+        self.line = line
+        self.field = field
+        super().__init__(self._format())
+
+    def _format(self) -> str:
+        where = []
+        if self.file is not None:
+            where.append(self.file + (f":{self.line}" if self.line is not None else ""))
+        elif self.line is not None:
+            where.append(f"line {self.line}")
+        if self.field is not None:
+            where.append(f"[{self.field}]")
+        prefix = " ".join(where)
+        return f"{prefix}: {self.message}" if prefix else self.message
+
+
+class UnreachableError(InputError):
+    """Poses that the robot cannot reach (out of workspace or joint limits).
+
+    ``indices`` lists the offending toolpath points (0-based).
+    """
+
+    def __init__(self, message: str, indices: list[int] | None = None, **kw: object) -> None:
+        self.indices = list(indices or [])
+        super().__init__(message, **kw)  # type: ignore[arg-type]
+
+
+class ConvergenceError(RoboisfError):
+    """An iterative estimator (registration, fixed point, fit) did not converge.
+
+    The message says what was tried and where it stopped.
+    """

@@ -1,0 +1,67 @@
+"""Frames, rigid transforms, wrenches and compliances (conventions: ``docs/conventions.md``)."""
+
+from roboisf.frames.compliance import (
+    check_compliance,
+    point_jacobian,
+    robot_part,
+    serial_assembly,
+    to_tip,
+    transform_compliance,
+)
+from roboisf.frames.rotations import (
+    abc_to_matrix,
+    axis_angle_to_matrix,
+    matrix_to_abc,
+    matrix_to_quat,
+    matrix_to_rotvec,
+    matrix_to_rpy,
+    quat_to_matrix,
+    rot_x,
+    rot_y,
+    rot_z,
+    rotvec_to_matrix,
+    rpy_to_matrix,
+)
+from roboisf.frames.se3 import (
+    adjoint,
+    adjoint_inv,
+    compose,
+    invert,
+    make_transform,
+    skew,
+    transform_points,
+    unskew,
+)
+from roboisf.frames.wrench import shift_wrench, transform_wrench, wrench_transform_matrix
+
+__all__ = [
+    "abc_to_matrix",
+    "adjoint",
+    "adjoint_inv",
+    "axis_angle_to_matrix",
+    "check_compliance",
+    "compose",
+    "invert",
+    "make_transform",
+    "matrix_to_abc",
+    "matrix_to_quat",
+    "matrix_to_rotvec",
+    "matrix_to_rpy",
+    "point_jacobian",
+    "quat_to_matrix",
+    "robot_part",
+    "rot_x",
+    "rot_y",
+    "rot_z",
+    "rotvec_to_matrix",
+    "rpy_to_matrix",
+    "serial_assembly",
+    "shift_wrench",
+    "skew",
+    "to_tip",
+    "transform_compliance",
+    "transform_points",
+    "transform_wrench",
+    "unskew",
+    "wrench_transform_matrix",
+]

@@ -1,0 +1,84 @@
+"""Atomic file output: write to a temporary file in the target folder, then rename.
+
+A crash or an error half-way leaves the old file (or nothing), never a half-written one.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import IO
+
+from roboisf.errors import InputError
+
+__all__ = ["atomic_path", "atomic_write", "check_not_input", "staged_directory"]
+
+
+def check_not_input(output: str | Path, inputs: list[str | Path]) -> None:
+    """Refuse to write ``output`` over one of ``inputs`` (never overwrite an input)."""
+    out = Path(output).resolve()
+    for item in inputs:
+        if Path(item).resolve() == out:
+            raise InputError("output would overwrite an input file; choose another -o", file=output)
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | Path, suffix: str | None = None) -> Iterator[Path]:
+    """Yield a temporary path next to ``path``; on success rename it onto ``path``.
+
+    Use for libraries that want a file name (pyarrow, matplotlib). On an exception the temporary
+    file is removed and ``path`` is untouched.
+    """
+    path = Path(path)
+    if path.parent and not path.parent.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(
+        prefix=f".{path.name}.", suffix=suffix or path.suffix or ".tmp", dir=path.parent
+    )
+    os.close(fd)
+    tmp_path = Path(tmp)
+    try:
+        yield tmp_path
+        os.replace(tmp_path, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            tmp_path.unlink()
+        raise
+
+
+@contextlib.contextmanager
+def atomic_write(path: str | Path, mode: str = "w", encoding: str | None = "utf-8") -> Iterator[IO]:
+    """Open a temporary file for writing; rename it onto ``path`` when the block succeeds."""
+    if "b" in mode:
+        encoding = None
+    with atomic_path(path) as tmp, open(tmp, mode, encoding=encoding, newline="" if "b" not in mode else None) as fh:
+        yield fh
+
+
+@contextlib.contextmanager
+def staged_directory(path: str | Path) -> Iterator[Path]:
+    """Build a whole output folder in a sibling staging folder, then move it into place.
+
+    If ``path`` exists it is replaced only when the new folder is complete; on error the staging
+    folder is removed and ``path`` is left as it was.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(prefix=f".{path.name}.staging.", dir=path.parent))
+    try:
+        yield stage
+        if path.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{path.name}.old.", dir=path.parent))
+            old.rmdir()
+            os.replace(path, old)
+            os.replace(stage, path)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(stage, path)
+    except BaseException:
+        shutil.rmtree(stage, ignore_errors=True)
+        raise

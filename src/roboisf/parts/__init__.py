@@ -1,0 +1,30 @@
+"""Nominal part geometry: cone, VWACF, profile parts; exact surface queries; part TOML files."""
+
+from roboisf.parts.axisymmetric import (
+    PAPER_SHEET_THICKNESS,
+    VWACF,
+    AxisymmetricPart,
+    Cone,
+    ProfilePart,
+    SurfaceQuery,
+    sine_law_thickness,
+)
+from roboisf.parts.generatrix import Arc, Generatrix, Segment
+from roboisf.parts.io import load_part, part_from_dict, read_profile_csv, save_part
+
+__all__ = [
+    "PAPER_SHEET_THICKNESS",
+    "VWACF",
+    "Arc",
+    "AxisymmetricPart",
+    "Cone",
+    "Generatrix",
+    "ProfilePart",
+    "Segment",
+    "SurfaceQuery",
+    "load_part",
+    "part_from_dict",
+    "read_profile_csv",
+    "save_part",
+    "sine_law_thickness",
+]

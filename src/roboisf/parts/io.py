@@ -1,0 +1,162 @@
+"""Part files: a small TOML ``[part]`` table (mm and degrees), and profile CSVs.
+
+Example::
+
+    [part]
+    kind = "cone"              # cone | vwacf | profile | mesh
+    opening_diameter = 87.0    # mm
+    wall_angle = 71.0          # deg
+    depth = 102.97             # mm
+    sheet_thickness = 1.22     # mm (optional, default 1.22)
+    flange_width = 10.0        # mm (optional, default 10)
+
+``vwacf`` takes ``opening_diameter``, ``arc_radius``, ``final_wall_angle``; ``profile`` takes
+``file`` (a CSV of ``r,z`` in mm, rim first; relative paths are relative to the TOML file) or
+inline ``r = [...]``, ``z = [...]``; ``mesh`` takes ``file`` (an STL, mm).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import tomli_w
+
+from roboisf.errors import InputError
+from roboisf.io.atomic import atomic_write
+from roboisf.parts.axisymmetric import VWACF, AxisymmetricPart, Cone, ProfilePart
+
+__all__ = ["load_part", "part_from_dict", "read_profile_csv", "save_part"]
+
+_KEYS = {
+    "cone": {"opening_diameter", "wall_angle", "depth"},
+    "vwacf": {"opening_diameter", "arc_radius", "final_wall_angle"},
+    "profile": {"file", "r", "z"},
+    "mesh": {"file"},
+}
+_COMMON = {"kind", "sheet_thickness", "flange_width"}
+
+
+def read_profile_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """Read a generatrix CSV with header ``r,z`` (mm), rim first. Returns (r, z) in m."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("profile file not found", file=path)
+    rows: list[tuple[float, float]] = []
+    with open(path, newline="", encoding="utf-8") as fh:
+        lines = [ln for ln in fh if ln.strip() and not ln.lstrip().startswith("#")]
+    if not lines:
+        raise InputError("profile CSV is empty; expected a header 'r,z' (mm) and rows", file=path)
+    reader = csv.reader(lines)
+    header = [h.strip().lower() for h in next(reader)]
+    if header[:2] != ["r", "z"]:
+        raise InputError(f"header must be 'r,z' (mm), got {','.join(header)!r}", file=path, line=1)
+    for i, row in enumerate(reader, start=2):
+        if len(row) < 2:
+            raise InputError(f"expected 2 columns r,z, got {len(row)}", file=path, line=i)
+        try:
+            r, z = float(row[0]), float(row[1])
+        except ValueError:
+            raise InputError(f"not a number: {row[:2]}", file=path, line=i) from None
+        if not (math.isfinite(r) and math.isfinite(z)):
+            raise InputError("NaN or inf", file=path, line=i)
+        rows.append((r, z))
+    if len(rows) < 2:
+        raise InputError("profile needs at least two points", file=path)
+    a = np.array(rows) * 1e-3
+    return a[:, 0], a[:, 1]
+
+
+def _num(table: dict[str, Any], key: str, where: Path | None, default: float | None = None) -> float:
+    if key not in table:
+        if default is not None:
+            return default
+        raise InputError("missing key", file=where, field=f"part.{key}")
+    v = table[key]
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        raise InputError(f"expected a number, got {v!r}", file=where, field=f"part.{key}")
+    return float(v)
+
+
+def part_from_dict(table: dict[str, Any], *, where: str | Path | None = None) -> AxisymmetricPart:
+    """Build a part from a ``[part]`` table (mm, deg). ``where`` resolves relative files."""
+    src = Path(where) if where is not None else None
+    kind = table.get("kind")
+    if kind not in _KEYS:
+        raise InputError(
+            f"unknown part kind {kind!r}; expected one of {', '.join(_KEYS)}",
+            file=src,
+            field="part.kind",
+        )
+    unknown = set(table) - _KEYS[kind] - _COMMON
+    if unknown:
+        raise InputError(
+            f"unknown key(s) {', '.join(sorted(unknown))} for kind {kind!r}; "
+            f"expected {', '.join(sorted(_KEYS[kind] | _COMMON))}",
+            file=src,
+            field="part",
+        )
+    common = {
+        "sheet_thickness": _num(table, "sheet_thickness", src, 1.22) * 1e-3,
+        "flange_width": _num(table, "flange_width", src, 10.0) * 1e-3,
+    }
+    try:
+        if kind == "cone":
+            return Cone(
+                opening_diameter=_num(table, "opening_diameter", src) * 1e-3,
+                wall_angle=math.radians(_num(table, "wall_angle", src)),
+                depth=_num(table, "depth", src) * 1e-3,
+                **common,
+            )
+        if kind == "vwacf":
+            return VWACF(
+                opening_diameter=_num(table, "opening_diameter", src, 88.15) * 1e-3,
+                arc_radius=_num(table, "arc_radius", src, 40.0) * 1e-3,
+                final_wall_angle=math.radians(_num(table, "final_wall_angle", src, 90.0)),
+                **common,
+            )
+        if kind == "profile":
+            if "file" in table:
+                f = Path(table["file"])
+                fpath = f if f.is_absolute() or src is None else src.parent / f
+                r, z = read_profile_csv(fpath)
+                return ProfilePart(r=tuple(r), z=tuple(z), source=str(table["file"]), **common)
+            if "r" not in table or "z" not in table:
+                raise InputError("profile needs 'file' or both 'r' and 'z'", file=src, field="part")
+            r = np.asarray(table["r"], dtype=float) * 1e-3
+            z = np.asarray(table["z"], dtype=float) * 1e-3
+            return ProfilePart(r=tuple(r), z=tuple(z), **common)
+    except InputError as e:
+        if e.file is None and src is not None:
+            raise InputError(e.message, file=src, field=f"part.{e.field}" if e.field else "part") from None
+        raise
+    # mesh parts are loaded by roboisf.scan (non-axisymmetric nominal surfaces)
+    raise InputError(
+        "a 'mesh' part has no generatrix; it can be used as a scan nominal, not for toolpaths",
+        file=src,
+        field="part.kind",
+    )
+
+
+def load_part(path: str | Path) -> AxisymmetricPart:
+    """Load a part TOML file (see module docstring)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("part file not found", file=path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as e:
+        raise InputError(f"not valid TOML: {e}", file=path) from None
+    if "part" not in data or not isinstance(data["part"], dict):
+        raise InputError("missing [part] table", file=path)
+    return part_from_dict(data["part"], where=path)
+
+
+def save_part(part: AxisymmetricPart, path: str | Path) -> None:
+    """Write ``part`` as a ``[part]`` TOML table (mm, deg), atomically."""
+    with atomic_write(path, "wb") as fh:
+        fh.write(tomli_w.dumps({"part": part.to_dict()}).encode())

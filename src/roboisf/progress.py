@@ -1,0 +1,36 @@
+"""Progress reporting without a UI dependency in the core.
+
+Library functions that take long accept ``progress: Progress | None``; they call
+``with progress.task("assemble", total=n) as advance: advance(k)``. The CLI passes a rich-backed
+implementation (``roboisf.cli.console``); library users get silence by default.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable, Iterator
+from typing import Protocol
+
+__all__ = ["NULL_PROGRESS", "Progress", "task"]
+
+Advance = Callable[[float], None]
+
+
+class Progress(Protocol):
+    def task(self, description: str, total: float | None = None) -> contextlib.AbstractContextManager[Advance]:
+        """Context manager yielding ``advance(amount)``."""
+        ...
+
+
+class _Null:
+    @contextlib.contextmanager
+    def task(self, description: str, total: float | None = None) -> Iterator[Advance]:
+        yield lambda amount=1.0: None
+
+
+NULL_PROGRESS: Progress = _Null()
+
+
+def task(progress: Progress | None, description: str, total: float | None = None) -> contextlib.AbstractContextManager[Advance]:
+    """``progress.task(...)`` or a no-op when ``progress`` is None."""
+    return (progress or NULL_PROGRESS).task(description, total)
