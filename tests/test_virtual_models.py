@@ -93,3 +93,18 @@ def test_bad_model_parameters():
         ForceModel(radial_ratio=-1)
     with pytest.raises(InputError, match="springback.amplitude"):
         SpringbackModel(amplitude=float("nan"))
+
+
+def test_normal_field_reproduces_a_smooth_field_at_the_toolpath_points(cone_path):
+    from roboisf.virtual.formed import NormalField
+
+    part = Cone()
+    q = part.closest_point(cone_path.contact)
+    truth = 3e-4 + 2e-4 * np.cos(cone_path.angle) + 4e-3 * q.s  # smooth in φ, linear in s
+    field = NormalField.from_toolpath(part, cone_path, truth)
+    got = field(q.s, cone_path.angle, q.region)
+    # linear interpolation of cos φ on a 0.5° grid: error ≤ (Δφ²/8)·2e-4 ≈ 2e-9 m
+    np.testing.assert_allclose(got, truth, atol=5e-9)
+    # the flange does not move; the rim is pinned at 0
+    assert field(np.array([0.01]), np.array([0.3]), np.array([0]))[0] == 0.0
+    assert field(np.array([0.0]), np.array([0.3]), np.array([1]))[0] == 0.0
