@@ -172,6 +172,7 @@ def _headline_dict(
         "R_m_total_normal_mm": h.R_m_total_normal,
         "robot_share_percent_normal": h.robot_share_percent_normal,
         "largest_factor": ranked[0],
+        "shares_percent": {f: float(contrib.loc[f, "share_percent"]) for f in FACTORS},
         "n_warnings": len(summary["warnings"]),
     }
 
@@ -452,26 +453,26 @@ def write_index(entries: Sequence[str | Path], out_path: str | Path) -> Path:
         path = path / "report.html" if path.is_dir() else path
         h = read_headline(path)
         href = os.path.relpath(path.resolve(), out.resolve().parent).replace(os.sep, "/")
-        largest = FACTOR_LABELS.get(h.get("largest_factor", ""), h.get("largest_factor", ""))
         warn = h.get("n_warnings", 0)
         rows.append(
             f'<tr><td><a href="{pg.esc(href)}">{pg.esc(h["study"])}</a></td>'
-            f"<td>{pg.esc(h.get('part', ''))}</td>"
-            f"<td>{pg.esc(h.get('robot', ''))}</td><td>{pg.fmt(h['R_m_total_mm'], 3)}</td>"
+            f'<td class="t">{pg.esc(h.get("part", ""))}</td>'
+            f'<td class="t">{pg.esc(h.get("robot", ""))}</td>'
+            f"<td>{pg.fmt(h['R_m_total_mm'], 3)}</td>"
             f"<td>{pg.fmt(h['robot_share_percent'], 1)}</td>"
             f"<td>{pg.fmt(h['springback_share_percent'], 1)}</td>"
-            f"<td>{pg.esc(largest)}</td><td>{warn}</td></tr>"
+            f'<td class="t">{pg.share_bar(h.get("shares_percent") or {})}</td><td>{warn}</td></tr>'
         )
     table = (
-        "<table><thead><tr><th>study</th><th>part</th><th>robot</th><th>R<sub>m</sub> (mm)</th>"
-        "<th>robot share (%)</th><th>springback share (%)</th><th>largest factor</th>"
-        "<th>warnings</th>"
+        '<table><thead><tr><th>study</th><th class="t">part</th><th class="t">robot</th>'
+        "<th>R<sub>m</sub> (mm)</th><th>robot share (%)</th><th>springback share (%)</th>"
+        '<th class="t">shares</th><th>warnings</th>'
         f"</tr></thead><tbody>{''.join(rows)}</tbody></table>"
     )
     body = (
         '<section><h2>Studies</h2><p class="lead">Each row links to a self-contained report. '
         "R<sub>m</sub> and shares are the per-axis (paper's) version; each report also gives them "
-        f"projected on the surface normal.</p>{table}</section>"
+        f"projected on the surface normal.</p>{table}{pg.share_legend()}</section>"
     )
     document = pg.page("roboisf — study reports", body, subtitle=f"{len(rows)} studies")
     with atomic_write(out, "w") as fh:

@@ -24,6 +24,8 @@ __all__ = [
     "force_contribution_table",
     "kv_table",
     "page",
+    "share_bar",
+    "share_legend",
     "vjm_table",
     "warnings_box",
 ]
@@ -44,7 +46,7 @@ header.top h1 { margin:0; font-size:26px; font-weight:650; letter-spacing:-0.01e
 header.top .sub { color:#CBD2D9; font-size:14px; }
 header.top a { color:#F5F7FA; }
 .wrap { max-width:1180px; margin:0 auto; padding:0 24px; }
-main { padding:18px 24px 48px; }
+main.wrap { padding:22px 24px 48px; }
 nav.toc { display:flex; flex-wrap:wrap; gap:6px 18px; font-size:13.5px; margin:0 0 18px; }
 nav.toc a { color:var(--muted); text-decoration:none; border-bottom:1px dotted #9AA5B1; }
 nav.toc a:hover { color:var(--text); }
@@ -74,7 +76,11 @@ caption { text-align:left; font-weight:600; padding:0 0 6px; font-size:14px; }
 caption span { font-weight:400; color:var(--muted); }
 th, td { padding:5px 10px; border-bottom:1px solid var(--line); text-align:right;
     white-space:nowrap; }
-th:first-child, td:first-child { text-align:left; }
+th:first-child, td:first-child, th.t, td.t { text-align:left; }
+.sharebar { display:flex; width:220px; height:12px; border-radius:3px; overflow:hidden;
+    background:var(--line); }
+.sharebar span { display:block; height:100%; }
+.legend { color:var(--muted); font-size:13px; display:flex; gap:16px; flex-wrap:wrap; }
 thead th { color:var(--muted); font-weight:600; font-size:12.5px;
     border-bottom:2px solid #CBD2D9; }
 tr.total td { font-weight:650; border-top:2px solid #CBD2D9; }
@@ -245,6 +251,25 @@ def kv_table(items: Iterable[tuple[str, Any]]) -> str:
         f"<dt>{esc(k)}</dt><dd>{_inline(v)}</dd>" for k, v in items if v not in (None, {}, [])
     )
     return f'<dl class="kv">{body}</dl>'
+
+
+def share_bar(shares: Mapping[str, Any]) -> str:
+    """A stacked bar (pure CSS) of the factors' shares in percent."""
+    spans = []
+    for f in FACTORS:
+        value = shares.get(f)
+        if isinstance(value, int | float) and math.isfinite(value) and value > 0:
+            title = f"{FACTOR_LABELS[f]} {value:.1f} %"
+            spans.append(
+                f'<span title="{esc(title)}" '
+                f'style="width:{min(value, 100.0):.2f}%;background:{FACTOR_COLORS[f]}"></span>'
+            )
+    return f'<div class="sharebar">{"".join(spans)}</div>'
+
+
+def share_legend() -> str:
+    items = "".join(f"<span>{_swatch(f)}{esc(FACTOR_LABELS[f])}</span>" for f in FACTORS)
+    return f'<div class="legend">{items}</div>'
 
 
 def warnings_box(warnings: list[str]) -> str:
