@@ -82,3 +82,21 @@ def test_decimate():
     idx = agg.decimate(10_001, 100)
     assert len(idx) == 100 and idx[0] == 0 and idx[-1] == 10_000
     assert np.all(np.diff(idx) > 0)
+
+
+def test_contour_resultants_sorted_and_closed():
+    f = _frame(n_laps=2, per_lap=4)
+    f["angle_deg"] = np.tile([270.0, -90.0 + 450.0, 180.0, 0.0], 2)  # 450-90 wraps to 0
+    for prefix, v in (("robot_compliance", (3.0, 4.0, 0.0)), ("vjm", (0.0, 0.0, 2.0))):
+        for a, x in zip(("dx", "dy", "dz"), v, strict=True):
+            f[f"{prefix}_{a}"] = x
+    for a in ("dx", "dy", "dz"):
+        f[f"delta_{a}"] = f[f"robot_compliance_{a}"] - f[f"vjm_{a}"]
+    f.loc[2, "robot_valid"] = False  # lap 0, angle 180°
+    c = agg.contour(f, contour_z=-0.1)
+    assert c.lap == 0
+    assert c.angle_deg == pytest.approx([0, 0, 180, 270, 0])
+    assert c.vjm == pytest.approx([2.0] * 5)
+    assert np.isnan(c.experiment[2]) and np.isnan(c.delta[2])
+    assert np.delete(c.experiment, 2) == pytest.approx([5.0] * 4)
+    assert np.delete(c.delta, 2) == pytest.approx([np.sqrt(29.0)] * 4)

@@ -216,6 +216,9 @@ def test_index_links_reports_relatively(study, tmp_path):
     total = contrib.set_index("factor").loc["total", "R_m"]
     assert text.count(f"{total:.3f}") == 2
     assert "<script" not in text
+    robot = contrib.set_index("factor").loc["robot_compliance", "share_percent"]
+    assert text.count('class="sharebar"') == 2
+    assert text.count(f'title="Robot compliance {robot:.1f} %" style="width:{robot:.2f}%') == 2
     assert b.exists()
     with pytest.raises(InputError, match="cannot read"):
         write_index([tmp_path / "nowhere" / "report.html"], tmp_path / "i2.html")

@@ -12,9 +12,12 @@ import numpy as np
 import pandas as pd
 
 __all__ = [
+    "Contour",
     "Headline",
+    "contour",
     "contour_lap",
     "decimate",
+    "force_profile",
     "headline",
     "lap_profile",
     "masked",
@@ -141,6 +144,60 @@ def contour_lap(per_point: pd.DataFrame, contour_z: float) -> tuple[int, float, 
         float(z.loc[first]),
         "no lap has valid scan data; the contour shows the models only",
     )
+
+
+@dataclass(frozen=True)
+class Contour:
+    """Robot deflection magnitudes around one lap, sorted by angle and closed (last = first).
+
+    ``angle_deg`` (M+1,) deg; ``experiment``, ``vjm``, ``delta`` (M+1,) mm: resultant
+    |δc_exp|, |δc_VJM|, |Δ| (NaN at scan holes for experiment and Δ).
+    """
+
+    lap: int
+    z: float
+    note: str | None
+    angle_deg: np.ndarray
+    experiment: np.ndarray
+    vjm: np.ndarray
+    delta: np.ndarray
+
+
+def contour(per_point: pd.DataFrame, contour_z: float) -> Contour:
+    """Resultant robot deflections around the lap chosen by :func:`contour_lap`."""
+    lap, z, note = contour_lap(per_point, contour_z)
+    sel = per_point["lap"].to_numpy() == lap
+    angle = per_point["angle_deg"].to_numpy(dtype=float) % 360.0
+    order = np.argsort(angle[sel], kind="stable")
+
+    def closed(values: np.ndarray) -> np.ndarray:
+        v = values[sel][order]
+        return np.append(v, v[:1])
+
+    def resultant(prefix: str) -> np.ndarray:
+        comps = np.stack([masked(per_point, f"{prefix}_{a}") for a in ("dx", "dy", "dz")])
+        return closed(np.sqrt(np.sum(comps**2, axis=0)))
+
+    return Contour(
+        lap,
+        z,
+        note,
+        closed(angle),
+        resultant("robot_compliance"),
+        resultant("vjm"),
+        resultant("delta"),
+    )
+
+
+def force_profile(per_point: pd.DataFrame) -> pd.DataFrame:
+    """:func:`lap_profile` of ``<run>_Fz`` and the in-plane resultant ``<run>_Fxy`` (N)."""
+    frame = pd.DataFrame(
+        {"lap": per_point["lap"], "depth": per_point["depth"], "time": per_point["time"]}
+    )
+    for run in ("cnc", "robot"):
+        frame[f"{run}_Fz"] = per_point[f"{run}_Fz"]
+        frame[f"{run}_Fxy"] = np.hypot(per_point[f"{run}_Fx"], per_point[f"{run}_Fy"])
+    return lap_profile(frame, [f"{r}_{c}" for r in ("cnc", "robot") for c in ("Fz", "Fxy")])
 
 
 @dataclass(frozen=True)

@@ -67,32 +67,21 @@ def _line_with_band(
     x = _f(prof["depth"])
     group = name
     if band:
-        fig.add_trace(
-            go.Scatter(
-                x=x,
-                y=_f(prof[f"{col}_hi"]),
-                mode="lines",
-                line={"width": 0},
-                hoverinfo="skip",
-                showlegend=False,
-                legendgroup=group,
-            ),
-            **kw,
-        )
-        fig.add_trace(
-            go.Scatter(
-                x=x,
-                y=_f(prof[f"{col}_lo"]),
-                mode="lines",
-                line={"width": 0},
-                fill="tonexty",
-                fillcolor=rgba(color, 0.18),
-                hoverinfo="skip",
-                showlegend=False,
-                legendgroup=group,
-            ),
-            **kw,
-        )
+        for edge, fill in (("hi", None), ("lo", "tonexty")):
+            fig.add_trace(
+                go.Scatter(
+                    x=x,
+                    y=_f(prof[f"{col}_{edge}"]),
+                    mode="lines",
+                    line={"width": 0},
+                    fill=fill,
+                    fillcolor=rgba(color, 0.18) if fill else None,
+                    hoverinfo="skip",
+                    showlegend=False,
+                    legendgroup=group,
+                ),
+                **kw,
+            )
     fig.add_trace(
         go.Scatter(
             x=x,
@@ -140,13 +129,7 @@ def _xtitle_bottom(fig: go.Figure, rows: int, cols: int, text: str) -> None:
 
 def forces_figure(per_point: pd.DataFrame) -> go.Figure:
     """Axial force Fz and in-plane resultant √(Fx²+Fy²) vs depth, CNC vs robot (lap means, N)."""
-    frame = pd.DataFrame(
-        {"lap": per_point["lap"], "depth": per_point["depth"], "time": per_point["time"]}
-    )
-    for run in RUNS:
-        frame[f"{run}_Fz"] = per_point[f"{run}_Fz"]
-        frame[f"{run}_Fxy"] = np.hypot(per_point[f"{run}_Fx"], per_point[f"{run}_Fy"])
-    prof = agg.lap_profile(frame, [f"{r}_{c}" for r in RUNS for c in ("Fz", "Fxy")])
+    prof = agg.force_profile(per_point)
     fig = _subplots(
         1, 2, ["Axial force F<sub>z</sub>", "In-plane force √(F<sub>x</sub>²+F<sub>y</sub>²)"], 400
     )
@@ -312,35 +295,19 @@ def vjm_polar_figure(per_point: pd.DataFrame, contour_z: float) -> tuple[go.Figu
 
     Returns the figure and its caption (which lap, its height, and any substitution).
     """
-    lap, z, note = agg.contour_lap(per_point, contour_z)
-    sel = per_point["lap"].to_numpy() == lap
-    sub = per_point.loc[sel]
-    order = np.argsort(sub["angle_deg"].to_numpy() % 360.0)
-    theta = (sub["angle_deg"].to_numpy() % 360.0)[order]
-
-    def resultant(prefix: str, mask: bool) -> np.ndarray:
-        comps = [
-            (
-                agg.masked(per_point, f"{prefix}_{a}")
-                if mask
-                else per_point[f"{prefix}_{a}"].to_numpy(dtype=float)
-            )[sel]
-            for a in ("dx", "dy", "dz")
-        ]
-        return np.sqrt(np.sum(np.square(comps), axis=0))[order]
-
+    c = agg.contour(per_point, contour_z)
     fig = go.Figure(layout=plotly_layout(height=480, hovermode="closest"))
     series = (
         (
             "experiment |δc<sub>exp</sub>|",
-            resultant("robot_compliance", True),
+            c.experiment,
             SERIES_COLORS["experiment"],
             2.2,
         ),
-        ("VJM |δc<sub>VJM</sub>|", resultant("vjm", False), SERIES_COLORS["vjm"], 1.8),
+        ("VJM |δc<sub>VJM</sub>|", c.vjm, SERIES_COLORS["vjm"], 1.8),
         (
             "|Δ| = |δc<sub>exp</sub> − δc<sub>VJM</sub>|",
-            resultant("delta", True),
+            c.delta,
             SERIES_COLORS["delta"],
             1.6,
         ),
@@ -348,8 +315,8 @@ def vjm_polar_figure(per_point: pd.DataFrame, contour_z: float) -> tuple[go.Figu
     for name, r, color, width in series:
         fig.add_trace(
             go.Scatterpolar(
-                r=_f(np.append(r, r[:1])),
-                theta=_f(np.append(theta, theta[:1])),
+                r=_f(r),
+                theta=_f(c.angle_deg),
                 mode="lines",
                 name=name,
                 line={"color": color, "width": width},
@@ -370,10 +337,10 @@ def vjm_polar_figure(per_point: pd.DataFrame, contour_z: float) -> tuple[go.Figu
         margin={"l": 40, "r": 40, "t": 60, "b": 40},
     )
     caption = (
-        f"Contour at z = {z:.2f} mm (lap {lap}), nearest the requested z = {contour_z:.2f} mm."
+        f"Contour at z = {c.z:.2f} mm (lap {c.lap}), nearest the requested z = {contour_z:.2f} mm."
     )
-    if note:
-        caption += " " + note + "."
+    if c.note:
+        caption += " " + c.note + "."
     return fig, caption
 
 

@@ -69,13 +69,7 @@ def _line_band(
 
 
 def forces_png(per_point: pd.DataFrame) -> Figure:
-    frame = pd.DataFrame(
-        {"lap": per_point["lap"], "depth": per_point["depth"], "time": per_point["time"]}
-    )
-    for run in RUNS:
-        frame[f"{run}_Fz"] = per_point[f"{run}_Fz"]
-        frame[f"{run}_Fxy"] = np.hypot(per_point[f"{run}_Fx"], per_point[f"{run}_Fy"])
-    prof = agg.lap_profile(frame, [f"{r}_{c}" for r in RUNS for c in ("Fz", "Fxy")])
+    prof = agg.force_profile(per_point)
     with _style():
         fig = _figure(7.0, 2.8)
         axes = fig.subplots(1, 2)
@@ -193,38 +187,20 @@ def vjm_path_png(per_point: pd.DataFrame) -> Figure:
 
 
 def vjm_polar_png(per_point: pd.DataFrame, contour_z: float) -> Figure:
-    lap, z, _ = agg.contour_lap(per_point, contour_z)
-    sel = per_point["lap"].to_numpy() == lap
-    theta = np.radians(per_point["angle_deg"].to_numpy()[sel] % 360.0)
-    order = np.argsort(theta)
-
-    def resultant(prefix: str, mask: bool) -> np.ndarray:
-        comps = [
-            (
-                agg.masked(per_point, f"{prefix}_{a}")
-                if mask
-                else per_point[f"{prefix}_{a}"].to_numpy(dtype=float)
-            )[sel]
-            for a in ("dx", "dy", "dz")
-        ]
-        r = np.sqrt(np.sum(np.square(comps), axis=0))[order]
-        return np.append(r, r[:1])
-
-    th = np.append(theta[order], theta[order][:1])
+    c = agg.contour(per_point, contour_z)
+    th = np.radians(c.angle_deg)
     with _style():
         fig = _figure(4.6, 4.4)
         ax = fig.add_subplot(projection="polar")
         ax.plot(
             th,
-            resultant("robot_compliance", True),
+            c.experiment,
             color=SERIES_COLORS["experiment"],
             label="experiment $|\\delta c_{exp}|$",
         )
-        ax.plot(
-            th, resultant("vjm", False), color=SERIES_COLORS["vjm"], label="VJM $|\\delta c_{VJM}|$"
-        )
-        ax.plot(th, resultant("delta", True), color=SERIES_COLORS["delta"], label="$|\\Delta|$")
-        ax.set_title(f"Robot deflection at z = {z:.1f} mm (lap {lap}), mm")
+        ax.plot(th, c.vjm, color=SERIES_COLORS["vjm"], label="VJM $|\\delta c_{VJM}|$")
+        ax.plot(th, c.delta, color=SERIES_COLORS["delta"], label="$|\\Delta|$")
+        ax.set_title(f"Robot deflection at z = {c.z:.1f} mm (lap {c.lap}), mm")
         ax.legend(loc="lower center", bbox_to_anchor=(0.5, -0.28), ncols=3)
     return fig
 
