@@ -34,6 +34,7 @@ def test_staged_directory_replaces_only_on_success(tmp_path):
     with staged_directory(out) as d:
         (d / "a").write_text("1")
     assert (out / "a").read_text() == "1"
+    assert stat.S_IMODE(out.stat().st_mode) & 0o055 == 0o055  # others can read and enter
     with pytest.raises(ValueError), staged_directory(out) as d:
         (d / "b").write_text("2")
         raise ValueError
