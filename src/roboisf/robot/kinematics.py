@@ -1,0 +1,206 @@
+"""Batched forward kinematics and geometric Jacobians of a serial 6R chain.
+
+A chain is stored as seven fixed transforms ``F_0 .. F_6`` and, per joint, a sign and an offset
+mapping the controller angle ``q_i`` to the rotation about the local z-axis::
+
+    θ_i = sign_i · q_i + offset_i
+    T_base_flange = F_0 Rz(θ_1) F_1 Rz(θ_2) F_2 … F_5 Rz(θ_6) F_6
+
+Every kinematic description (OPW parameters, standard DH, a URDF) is converted to this one form,
+so FK and the Jacobian are written once. All functions take ``q`` (N, 6) rad and work on the whole
+batch with stacked-array arithmetic (no Python loop over N).
+
+Jacobian convention: the geometric Jacobian at the tool tip, expressed in the base frame, rows
+``[v; ω]``: ``[v; ω] = J q̇`` with ``v`` the velocity of the tip point. Column i is
+``sign_i · [z_i × (p_tip − o_i); z_i]`` (z_i, o_i: axis and a point of joint i, base frame).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from roboisf.errors import InputError
+
+__all__ = [
+    "Chain",
+    "chain_from_dh",
+    "chain_from_opw",
+    "chain_fk",
+    "chain_fk_jacobian",
+    "rz",
+]
+
+F64 = NDArray[np.float64]
+
+
+def rz(theta: float) -> F64:
+    """(4, 4) rotation about z by ``theta`` rad."""
+    c, s = np.cos(theta), np.sin(theta)
+    T = np.eye(4)
+    T[:2, :2] = [[c, -s], [s, c]]
+    return T
+
+
+def _tr(x: float = 0.0, y: float = 0.0, z: float = 0.0) -> F64:
+    T = np.eye(4)
+    T[:3, 3] = (x, y, z)
+    return T
+
+
+def _rx(alpha: float) -> F64:
+    c, s = np.cos(alpha), np.sin(alpha)
+    T = np.eye(4)
+    T[1:3, 1:3] = [[c, -s], [s, c]]
+    return T
+
+
+@dataclass(frozen=True, eq=False)
+class Chain:
+    """Fixed part of a 6R serial chain (see module docstring).
+
+    F : (7, 4, 4) float — fixed transforms, translations in m
+    sign : (6,) float — ±1, ``θ = sign·q + offset``
+    offset : (6,) float, rad
+    """
+
+    F: F64
+    sign: F64
+    offset: F64
+
+    def __post_init__(self) -> None:
+        F = np.asarray(self.F, dtype=float)
+        sign = np.asarray(self.sign, dtype=float).reshape(-1)
+        offset = np.asarray(self.offset, dtype=float).reshape(-1)
+        if F.shape != (7, 4, 4) or not np.all(np.isfinite(F)):
+            raise InputError(f"chain needs 7 finite 4×4 fixed transforms, got {F.shape}", field="F")
+        R = F[:, :3, :3]
+        if np.max(np.abs(R @ np.swapaxes(R, -1, -2) - np.eye(3))) > 1e-9:
+            raise InputError("fixed transforms must have orthonormal rotations", field="F")
+        if sign.shape != (6,) or not np.all(np.isin(sign, (-1.0, 1.0))):
+            raise InputError(f"sign must be 6 values of ±1, got {sign.tolist()}", field="sign")
+        if offset.shape != (6,) or not np.all(np.isfinite(offset)):
+            raise InputError("offset must be 6 finite angles (rad)", field="offset")
+        for name, v in (("F", F), ("sign", sign), ("offset", offset)):
+            v.setflags(write=False)
+            object.__setattr__(self, name, v)
+
+    def theta(self, q: F64) -> F64:
+        """Model angles ``θ = sign·q + offset`` (N, 6) rad."""
+        return q * self.sign + self.offset
+
+
+def chain_from_opw(
+    a1: float,
+    a2: float,
+    b: float,
+    c1: float,
+    c2: float,
+    c3: float,
+    c4: float,
+    sign: ArrayLike = (1, 1, 1, 1, 1, 1),
+    offset: ArrayLike = (0, 0, 0, 0, 0, 0),
+) -> Chain:
+    """Chain of an ortho-parallel robot with a spherical wrist (Brandstötter et al. 2014).
+
+    At ``θ = 0`` the arm stands straight up: joint 1 about base z at the origin; joint 2 about y
+    at (a1, b, c1); joint 3 about y at (a1, b, c1 + c2); joint 4 about z through
+    (a1 + a2, b, ·); joint 5 about y at the wrist centre (a1 + a2, b, c1 + c2 + c3); joint 6
+    about z; the flange c4 above the wrist centre with axes parallel to the base.
+    """
+    # joint frames at θ = 0 in base coordinates; a y-axis joint gets the frame Rx(-π/2)
+    # (its z-axis is base y)
+    A = [
+        _tr(0, 0, 0),
+        _tr(a1, b, c1) @ _rx(-np.pi / 2),
+        _tr(a1, b, c1 + c2) @ _rx(-np.pi / 2),
+        _tr(a1 + a2, b, c1 + c2),
+        _tr(a1 + a2, b, c1 + c2 + c3) @ _rx(-np.pi / 2),
+        _tr(a1 + a2, b, c1 + c2 + c3),
+    ]
+    M = _tr(a1 + a2, b, c1 + c2 + c3 + c4)
+    F = [A[0]] + [np.linalg.inv(A[i]) @ A[i + 1] for i in range(5)] + [np.linalg.inv(A[5]) @ M]
+    F = np.array(F)
+    F[np.abs(F) < 1e-15] = 0.0
+    return Chain(F, np.asarray(sign, float), np.asarray(offset, float))
+
+
+def chain_from_dh(
+    d: ArrayLike,
+    a: ArrayLike,
+    alpha: ArrayLike,
+    offset: ArrayLike = (0, 0, 0, 0, 0, 0),
+    sign: ArrayLike = (1, 1, 1, 1, 1, 1),
+) -> Chain:
+    """Chain from standard (distal) DH: ``T_{i-1,i} = Rz(θ_i) Tz(d_i) Tx(a_i) Rx(α_i)`` (m, rad)."""
+    d, a, alpha = (np.asarray(x, dtype=float).reshape(-1) for x in (d, a, alpha))
+    for name, v in (("d", d), ("a", a), ("alpha", alpha)):
+        if v.shape != (6,):
+            raise InputError(f"DH needs 6 values, got {v.size}", field=name)
+    F = [np.eye(4)] + [_tr(z=d[i]) @ _tr(x=a[i]) @ _rx(alpha[i]) for i in range(6)]
+    return Chain(np.array(F), np.asarray(sign, float), np.asarray(offset, float))
+
+
+def chain_fk(chain: Chain, q: F64, T_flange_tip: F64 | None = None) -> F64:
+    """Forward kinematics ``T_base_tip`` (N, 4, 4) for ``q`` (N, 6) rad."""
+    R, p, _, _ = _sweep(chain, q, T_flange_tip, want_axes=False)
+    T = np.zeros((q.shape[0], 4, 4))
+    T[:, :3, :3] = R
+    T[:, :3, 3] = p
+    T[:, 3, 3] = 1.0
+    return T
+
+
+def chain_fk_jacobian(
+    chain: Chain, q: F64, T_flange_tip: F64 | None = None
+) -> tuple[F64, F64]:
+    """``T_base_tip`` (N, 4, 4) and the tip Jacobian (N, 6, 6), base frame, rows [v; ω]."""
+    R, p, z, o = _sweep(chain, q, T_flange_tip, want_axes=True)
+    assert z is not None and o is not None
+    n = q.shape[0]
+    T = np.zeros((n, 4, 4))
+    T[:, :3, :3] = R
+    T[:, :3, 3] = p
+    T[:, 3, 3] = 1.0
+    J = np.empty((n, 6, 6))
+    r = p[:, None, :] - o  # (N, 6, 3)
+    J[:, :3, :] = np.swapaxes(np.cross(z, r), 1, 2)
+    J[:, 3:, :] = np.swapaxes(z, 1, 2)
+    J *= chain.sign
+    return T, J
+
+
+def _sweep(
+    chain: Chain, q: F64, T_flange_tip: F64 | None, *, want_axes: bool
+) -> tuple[F64, F64, F64 | None, F64 | None]:
+    """Walk the chain once: rotation (N,3,3), position (N,3), joint axes and origins (N,6,3)."""
+    n = q.shape[0]
+    theta = chain.theta(q)
+    c, s = np.cos(theta), np.sin(theta)
+    F = chain.F
+    R = np.broadcast_to(F[0, :3, :3], (n, 3, 3)).copy()
+    p = np.broadcast_to(F[0, :3, 3], (n, 3)).copy()
+    z = o = None
+    if want_axes:
+        z = np.empty((n, 6, 3))
+        o = np.empty((n, 6, 3))
+    for i in range(6):
+        if i > 0:
+            p = p + R @ F[i, :3, 3]
+            R = R @ F[i, :3, :3]
+        if want_axes:
+            assert z is not None and o is not None
+            z[:, i] = R[:, :, 2]
+            o[:, i] = p
+        # R ← R Rz(θ): only the first two columns change
+        x0 = R[:, :, 0].copy()
+        x1 = R[:, :, 1]
+        ci, si = c[:, i, None], s[:, i, None]
+        R[:, :, 0] = ci * x0 + si * x1
+        R[:, :, 1] = ci * x1 - si * x0
+    Ft = F[6] if T_flange_tip is None else F[6] @ T_flange_tip
+    p = p + R @ Ft[:3, 3]
+    R = R @ Ft[:3, :3]
+    return R, p, z, o
