@@ -50,7 +50,10 @@ def _root(
 
 
 def _register() -> None:
+    from roboisf.cli import robot as _robot
     from roboisf.cli import toolpath as _toolpath
+
+    _robot.register(app)
 
     _toolpath.register(app)
 

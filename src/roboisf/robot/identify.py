@@ -28,6 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import stats
 
 from roboisf.errors import InputError
+from roboisf.io.table import read_table
 from roboisf.io.units import to_si
 from roboisf.robot.model import RobotModel, _check_wrench
 
@@ -202,74 +203,43 @@ _ROT = ["rx", "ry", "rz"]
 def read_calibration_csv(path: str | Path, model: RobotModel | None = None) -> CalibrationData:
     """Read a calibration CSV (format in the module docstring) → :class:`CalibrationData` (SI).
 
-    With ``model`` and ``# frame: tip`` the wrench is rotated from tip to base axes.
+    Units default to deg, mm, N, N*m, rad where the ``# units:`` line leaves them out. With
+    ``model`` and ``# frame: tip`` the wrench is rotated from tip to base axes.
     """
     p = Path(path)
-    if not p.is_file():
-        raise InputError("calibration file not found", file=p)
-    lines = p.read_text(encoding="utf-8").splitlines()
-    meta: dict[str, str] = {}
-    i = 0
-    while i < len(lines) and (lines[i].startswith("#") or not lines[i].strip()):
-        s = lines[i].lstrip("#").strip()
-        if ":" in s:
-            k, v = s.split(":", 1)
-            meta[k.strip().lower()] = v.strip()
-        i += 1
-    if i >= len(lines):
-        raise InputError("no header line found; expected " + ",".join(_REQ), file=p)
-    header = [h.strip() for h in lines[i].split(",")]
-    hline = i + 1
-    missing = [c for c in _REQ if c not in header]
-    if missing:
-        raise InputError(f"missing columns {missing}; expected {','.join(_REQ)}[,rx,ry,rz]", file=p, line=hline)
-    has_rot = all(c in header for c in _ROT)
+    t = read_table(p, _REQ, optional=_ROT, what="calibration CSV")
+    has_rot = t.has(*_ROT)
+    if any(c in t.columns for c in _ROT) and not has_rot:
+        raise InputError("give all of rx, ry, rz or none", file=p, line=t.header_line)
     units = {"angle": "deg", "length": "mm", "force": "N", "moment": "N*m", "rotation": "rad"}
-    if "units" in meta:
-        for tok in meta["units"].split():
-            if "=" not in tok:
-                raise InputError(f"bad units entry {tok!r}; expected key=unit", file=p, field="units")
-            k, v = tok.split("=", 1)
-            units[k.strip()] = v.strip()
+    for tok in t.meta.get("units", "").split():
+        if "=" not in tok:
+            raise InputError(f"bad units entry {tok!r}; expected key=unit", file=p, field="units")
+        k, v = tok.split("=", 1)
+        if k not in units:
+            raise InputError(f"unknown units key {k!r}; expected {', '.join(units)}", file=p, field="units")
+        units[k] = v
     fa = to_si(units["angle"], "angle", file=p, field="units.angle")
     fl = to_si(units["length"], "length", file=p, field="units.length")
     ff = to_si(units["force"], "force", file=p, field="units.force")
     fm = to_si(units["moment"], "moment", file=p, field="units.moment")
     fr = to_si(units["rotation"], "angle", file=p, field="units.rotation")
-    frame = meta.get("frame", "base").lower()
+    frame = t.meta.get("frame", "base").strip().lower()
     if frame not in ("base", "tip"):
         raise InputError(f"frame must be 'base' or 'tip', got {frame!r}", file=p, field="frame")
-    cols = _REQ + (_ROT if has_rot else [])
-    idx = [header.index(c) for c in cols]
-    rows = []
-    for ln in range(i + 1, len(lines)):
-        text = lines[ln].strip()
-        if not text or text.startswith("#"):
-            continue
-        parts = text.split(",")
-        if len(parts) != len(header):
-            raise InputError(f"expected {len(header)} fields, got {len(parts)}", file=p, line=ln + 1)
-        vals = []
-        for c, k in zip(cols, idx, strict=True):
-            try:
-                v = float(parts[k])
-            except ValueError:
-                raise InputError(f"not a number: {parts[k]!r}", file=p, line=ln + 1, field=c) from None
-            if not np.isfinite(v):
-                raise InputError("NaN or inf", file=p, line=ln + 1, field=c)
-            vals.append(v)
-        rows.append(vals)
-    if not rows:
-        raise InputError("no experiments (data rows) in the file", file=p)
-    a = np.array(rows)
-    q = a[:, :6] * fa
-    W = np.concatenate([a[:, 6:9] * ff, a[:, 9:12] * fm], axis=1)
-    d = a[:, 12:15] * fl
+    col = t.column
+    q = np.stack([col(f"q{i}") for i in range(1, 7)], axis=1) * fa
+    W = np.stack([col(c) for c in ("Fx", "Fy", "Fz", "Mx", "My", "Mz")], axis=1)
+    W[:, :3] *= ff
+    W[:, 3:] *= fm
+    d = np.stack([col(c) for c in ("dx", "dy", "dz")], axis=1) * fl
     if has_rot:
-        d = np.concatenate([d, a[:, 15:18] * fr], axis=1)
+        d = np.concatenate([d, np.stack([col(c) for c in _ROT], axis=1) * fr], axis=1)
     if frame == "tip":
         if model is None:
             raise InputError("frame: tip needs the robot model to rotate wrenches", file=p, field="frame")
         R = model.fk(q, check_limits=False)[:, :3, :3]
-        W = np.concatenate([np.einsum("nij,nj->ni", R, W[:, :3]), np.einsum("nij,nj->ni", R, W[:, 3:])], axis=1)
+        W = np.concatenate(
+            [np.einsum("nij,nj->ni", R, W[:, :3]), np.einsum("nij,nj->ni", R, W[:, 3:])], axis=1
+        )
     return CalibrationData(q=q, wrench=W, displacement=d)
