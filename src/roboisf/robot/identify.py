@@ -165,25 +165,28 @@ def identify_stiffness(
     c[free] = cf
     se = np.zeros(6)
     se[free] = se_f
-    if np.any(c[free] <= 0):
-        bad = [int(j) + 1 for j in np.flatnonzero(free & (c <= 0))]
-        raise InputError(
-            f"identified compliance of joint(s) {bad} is not positive: the data do not support a "
-            "stiffness there (noise dominates or the model does not fit)",
-            field="calibration",
-        )
     t = float(stats.t.ppf(0.5 + confidence / 2, dof))
     lo_c = c - t * se
     hi_c = c + t * se
-    K = 1.0 / c
-    K_ci = np.stack([1.0 / hi_c, np.where(lo_c > 0, 1.0 / np.where(lo_c > 0, lo_c, 1.0), np.inf)], axis=1)
-    rel = np.where(free, se / c, 0.0)
-    weak = free & (rel > weak_threshold)
+    if np.any(free & (hi_c <= 0)):
+        bad = [int(j) + 1 for j in np.flatnonzero(free & (hi_c <= 0))]
+        raise InputError(
+            f"identified compliance of joint(s) {bad} is significantly negative: the data do not "
+            "fit the VJM (check units, frames and the tool offset)",
+            field="calibration",
+        )
+    # a non-positive estimate inside the noise: the data cannot tell the joint from a rigid one
+    pos = c > 0
+    with np.errstate(divide="ignore"):
+        K = np.where(pos, 1.0 / np.where(pos, c, 1.0), np.inf)
+        K_ci = np.stack([1.0 / hi_c, np.where(lo_c > 0, 1.0 / np.where(lo_c > 0, lo_c, 1.0), np.inf)], axis=1)
+    rel = np.where(free, se / np.abs(np.where(c != 0, c, 1e-300)), 0.0)
+    weak = free & ((rel > weak_threshold) | ~pos)
     if np.any(weak):
         warnings.warn(
             f"joint(s) {[int(j) + 1 for j in np.flatnonzero(weak)]} are weakly excited by the "
             f"calibration set (relative standard error {np.round(rel[weak], 2).tolist()}); "
-            "their stiffness is poorly determined",
+            "their stiffness is poorly determined (K = inf where the estimate is ≤ 0: indistinguishable from rigid)",
             PoorExcitationWarning,
             stacklevel=2,
         )

@@ -7,6 +7,8 @@ tool points *down* into the sheet, so the tool-tip frame has its z-axis along **
 the tool's free rotation ``γ`` about its own axis (a ball tool does not care)::
 
     R_work_tip = Rx(π) · Rz(γ)        (γ = 0: x_tip = x_work, y_tip = −y_work, z_tip = −z_work)
+
+so x_tip = (cos γ, −sin γ, 0) in work axes: a positive γ turns the tool clockwise seen from above.
     T_base_flange = T_base_work · T_work_tip · T_flange_tip⁻¹
 
 Branch: ``shoulder`` "front" (joint 1 faces the target) or "back"; ``elbow`` "up"/"down";
