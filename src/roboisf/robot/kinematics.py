@@ -175,32 +175,60 @@ def chain_fk_jacobian(
 def _sweep(
     chain: Chain, q: F64, T_flange_tip: F64 | None, *, want_axes: bool
 ) -> tuple[F64, F64, F64 | None, F64 | None]:
-    """Walk the chain once: rotation (N,3,3), position (N,3), joint axes and origins (N,6,3)."""
+    """Walk the chain once: rotation (N,3,3), position (N,3), joint axes and origins (N,6,3).
+
+    Works on component arrays (structure of arrays, each (N,) contiguous) and skips the zero
+    entries of the fixed rotations (OPW/DH chains are mostly axis permutations): this is several
+    times faster than stacked 3×3 matmuls.
+    """
     n = q.shape[0]
     theta = chain.theta(q)
-    c, s = np.cos(theta), np.sin(theta)
+    c = np.cos(theta).T.copy()
+    s = np.sin(theta).T.copy()
     F = chain.F
-    R = np.broadcast_to(F[0, :3, :3], (n, 3, 3)).copy()
-    p = np.broadcast_to(F[0, :3, 3], (n, 3)).copy()
+    R = [[np.full(n, F[0, a, b]) for b in range(3)] for a in range(3)]
+    p = [np.full(n, F[0, a, 3]) for a in range(3)]
     z = o = None
     if want_axes:
         z = np.empty((n, 6, 3))
         o = np.empty((n, 6, 3))
+
+    def mul(R: list[list[F64]], p: list[F64], Fi: F64) -> tuple[list[list[F64]], list[F64]]:
+        t = Fi[:3, 3]
+        p = [p[a] + _lin([(R[a][k], t[k]) for k in range(3)], n) for a in range(3)]
+        R = [[_lin([(R[a][k], Fi[k, b]) for k in range(3)], n) for b in range(3)] for a in range(3)]
+        return R, p
+
     for i in range(6):
         if i > 0:
-            p = p + R @ F[i, :3, 3]
-            R = R @ F[i, :3, :3]
+            R, p = mul(R, p, F[i])
         if want_axes:
             assert z is not None and o is not None
-            z[:, i] = R[:, :, 2]
-            o[:, i] = p
-        # R ← R Rz(θ): only the first two columns change
-        x0 = R[:, :, 0].copy()
-        x1 = R[:, :, 1]
-        ci, si = c[:, i, None], s[:, i, None]
-        R[:, :, 0] = ci * x0 + si * x1
-        R[:, :, 1] = ci * x1 - si * x0
+            for a in range(3):
+                z[:, i, a] = R[a][2]
+                o[:, i, a] = p[a]
+        ci, si = c[i], s[i]
+        for a in range(3):
+            x0, x1 = R[a][0], R[a][1]
+            R[a][0] = ci * x0 + si * x1
+            R[a][1] = ci * x1 - si * x0
     Ft = F[6] if T_flange_tip is None else F[6] @ T_flange_tip
-    p = p + R @ Ft[:3, 3]
-    R = R @ Ft[:3, :3]
-    return R, p, z, o
+    R, p = mul(R, p, Ft)
+    Rm = np.empty((n, 3, 3))
+    pm = np.empty((n, 3))
+    for a in range(3):
+        pm[:, a] = p[a]
+        for b in range(3):
+            Rm[:, a, b] = R[a][b]
+    return Rm, pm, z, o
+
+
+def _lin(terms: list[tuple[F64, float]], n: int) -> F64:
+    """Σ coef·array over the terms with a non-zero coefficient (exact ±1 without a multiply)."""
+    out: F64 | None = None
+    for arr, coef in terms:
+        if coef == 0.0:
+            continue
+        term = arr if coef == 1.0 else (-arr if coef == -1.0 else coef * arr)
+        out = term.copy() if out is None and term is arr else (term if out is None else out + term)
+    return np.zeros(n) if out is None else out
