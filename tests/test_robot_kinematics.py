@@ -171,3 +171,15 @@ def test_bad_robot_file(tmp_path):
     with pytest.raises(InputError, match="missing OPW") as e:
         load_robot(f)
     assert str(f) in str(e.value)
+
+
+@pytest.mark.parametrize("name", ["irb7600-500-2.55", "kr210-r2700-2", "irb4600-60-2.05"])
+def test_opw_closed_form_equals_generic_chain(name):
+    from roboisf.robot.kinematics import chain_fk_jacobian
+
+    m = load_robot(name).with_tool(TOOL)
+    q = _q(m, 40, seed=9)
+    T, J = m.fk_jacobian(q)  # closed form (OPW)
+    Tg, Jg = chain_fk_jacobian(m.chain, q, m.T_flange_tip)  # generic sweep
+    np.testing.assert_allclose(T, Tg, atol=1e-13)
+    np.testing.assert_allclose(J, Jg, atol=1e-13)

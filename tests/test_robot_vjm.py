@@ -109,3 +109,15 @@ def test_bad_wrench_and_compliance_shapes(setup):
         m.deflection(q, W)
     with pytest.raises(InputError):
         compliance_stats(np.zeros((3, 5, 5)))
+
+
+def test_vjm_batch_matches_model_methods(setup):
+    from roboisf.robot import vjm_batch
+
+    m, q = setup
+    W = np.random.default_rng(5).normal(size=(len(q), 6)) * 300
+    k, d = vjm_batch(m, q, W, chunk=7)
+    np.testing.assert_allclose(k, m.compliance(q), rtol=1e-12, atol=1e-22)
+    np.testing.assert_allclose(d, m.deflection(q, W), rtol=1e-12, atol=1e-18)
+    k2, d2 = vjm_batch(m, q, W, want_compliance=False)
+    assert k2 is None and np.allclose(d2, d, rtol=1e-12, atol=1e-18)

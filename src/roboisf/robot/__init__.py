@@ -25,6 +25,7 @@ from roboisf.robot.vjm import (
     rotate_6,
     rotate_6x6,
     tip_compliance,
+    vjm_batch,
 )
 
 __all__ = [
@@ -60,4 +61,5 @@ __all__ = [
     "tip_compliance",
     "to_urdf",
     "tool_poses",
+    "vjm_batch",
 ]

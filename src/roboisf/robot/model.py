@@ -24,7 +24,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
-from roboisf.robot.kinematics import Chain, chain_fk, chain_fk_jacobian
+from roboisf.robot.kinematics import (
+    Chain,
+    chain_fk,
+    chain_fk_jacobian,
+    chain_from_opw,
+    opw_fk_jacobian,
+)
 
 __all__ = ["OPWGeometry", "RobotModel"]
 
@@ -109,6 +115,11 @@ class RobotModel:
         T = _ro(self.T_flange_tip, (4, 4), "T_flange_tip")
         _check_rigid(T, "T_flange_tip")
         object.__setattr__(self, "T_flange_tip", T)
+        if self.opw is not None:
+            g = self.opw
+            ref = chain_from_opw(g.a1, g.a2, g.b, g.c1, g.c2, g.c3, g.c4)
+            if np.max(np.abs(ref.F - self.chain.F)) > 1e-12:
+                raise InputError("chain does not match the OPW parameters", field="chain")
         if self.default_placement is not None:
             P = _ro(self.default_placement, (4, 4), "default_placement")
             _check_rigid(P, "default_placement")
@@ -169,13 +180,29 @@ class RobotModel:
     # ------------------------------------------------------------------ kinematics
     def fk(self, q: ArrayLike, *, check_limits: bool = True) -> F64:
         """``T_base_tip`` (N, 4, 4) for ``q`` (N, 6) rad."""
-        return chain_fk(self.chain, self.check_q(q, limits=check_limits), self.T_flange_tip)
+        qv = self.check_q(q, limits=check_limits)
+        if self.opw is not None:
+            g = self.opw
+            T, _ = opw_fk_jacobian(
+                g.a1, g.a2, g.b, g.c1, g.c2, g.c3, self.chain, qv, self.T_flange_tip,
+                want_jacobian=False,
+            )
+            return T
+        return chain_fk(self.chain, qv, self.T_flange_tip)
 
     def fk_jacobian(self, q: ArrayLike, *, check_limits: bool = True) -> tuple[F64, F64]:
-        """``(T_base_tip (N, 4, 4), J (N, 6, 6))`` in one sweep of the chain."""
-        return chain_fk_jacobian(
-            self.chain, self.check_q(q, limits=check_limits), self.T_flange_tip
-        )
+        """``(T_base_tip (N, 4, 4), J (N, 6, 6))`` in one pass (closed form for OPW robots)."""
+        return self._fk_jacobian(self.check_q(q, limits=check_limits))
+
+    def _fk_jacobian(self, qv: F64) -> tuple[F64, F64]:
+        if self.opw is not None:
+            g = self.opw
+            T, J = opw_fk_jacobian(
+                g.a1, g.a2, g.b, g.c1, g.c2, g.c3, self.chain, qv, self.T_flange_tip
+            )
+            assert J is not None
+            return T, J
+        return chain_fk_jacobian(self.chain, qv, self.T_flange_tip)
 
     def jacobian(self, q: ArrayLike, *, check_limits: bool = True) -> F64:
         """Geometric Jacobian at the tool tip (N, 6, 6), base frame, rows [v (m/rad); ω (1)]."""

@@ -30,6 +30,7 @@ __all__ = [
     "rotate_6x6",
     "rotate_6",
     "tip_compliance",
+    "vjm_batch",
 ]
 
 F64 = NDArray[np.float64]
@@ -199,3 +200,45 @@ def deflection_contributions(k: ArrayLike, wrench: ArrayLike) -> Contributions:
     W = _check_wrench(wrench, k.shape[0])
     c = k * W[:, None, :]
     return Contributions(c, c.mean(0), np.abs(c).mean(0))
+
+
+def vjm_batch(
+    model: RobotModel,
+    q: ArrayLike,
+    wrench: ArrayLike,
+    *,
+    chunk: int = 4096,
+    want_compliance: bool = True,
+    check_limits: bool = True,
+) -> tuple[F64 | None, F64]:
+    """FK + Jacobian + ``k_c`` + ``δ`` for many poses, chunked to bound memory.
+
+    Returns ``(k_c (N, 6, 6) or None, δ (N, 6))`` in the base frame; the same numbers as
+    :meth:`RobotModel.compliance` / :meth:`RobotModel.deflection`. Works component-major inside a
+    chunk (each (chunk,) row contiguous), so a chunk stays in cache.
+    """
+    qv = model.check_q(q, limits=check_limits)
+    n = qv.shape[0]
+    W = _check_wrench(wrench, n)
+    kinv = 1.0 / model.joint_stiffness
+    if chunk < 1:
+        raise InputError("chunk must be ≥ 1", field="chunk")
+    d = np.empty((n, 6))
+    k_out = np.empty((n, 6, 6)) if want_compliance else None
+    iu = np.triu_indices(6)
+    for s in range(0, n, chunk):
+        e = min(n, s + chunk)
+        _, J = model._fk_jacobian(qv[s:e])
+        Jt = np.ascontiguousarray(J.transpose(1, 2, 0))  # (6, 6, m); free when J is a view
+        A = Jt * kinv[None, :, None]
+        Wt = W[s:e].T
+        tau = np.einsum("ain,an->in", Jt, Wt)
+        d[s:e] = np.einsum("ain,in->na", A, tau)
+        if k_out is not None:
+            kt = np.empty((6, 6, e - s))
+            for a, b in zip(*iu, strict=True):
+                v = np.einsum("in,in->n", A[a], Jt[b])
+                kt[a, b] = v
+                kt[b, a] = v
+            k_out[s:e] = kt.transpose(2, 0, 1)
+    return k_out, d
