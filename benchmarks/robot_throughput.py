@@ -53,8 +53,11 @@ def main() -> None:
         t_np = min(t_np, time.perf_counter() - t0)
     rate_np = args.n / t_np
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    print(f"roboisf numpy : {args.n:,} poses (FK+J+k_c+δ, k_c kept) in {t_np:.3f} s = {rate_np:,.0f} poses/s "
-          f"(peak RSS so far {peak_mb:.0f} MB)")
+    print(
+        f"roboisf numpy : {args.n:,} poses (FK+J+k_c+δ, k_c kept) in {t_np:.3f} s "
+        f"= {rate_np:,.0f} poses/s "
+        f"(peak RSS so far {peak_mb:.0f} MB)"
+    )
 
     try:
         import pinocchio as pin
@@ -77,8 +80,10 @@ def main() -> None:
         _pin_loop(pin, pm, pd, fid, q[:ns], W[:ns], kinv, d_pin)
         t_pin = min(t_pin, time.perf_counter() - t0)
     rate_pin = ns / t_pin
-    print(f"pinocchio loop: {ns:,} poses in {t_pin:.3f} s = {rate_pin:,.0f} poses/s "
-          f"(timed on a subset of {ns:,}; {args.n:,} poses extrapolated to {args.n / rate_pin:.1f} s)")
+    print(
+        f"pinocchio loop: {ns:,} poses in {t_pin:.3f} s = {rate_pin:,.0f} poses/s "
+        f"(timed on a subset of {ns:,}; {args.n:,} poses extrapolated to {args.n / rate_pin:.1f} s)"
+    )
     print(f"max |δ_numpy − δ_pinocchio| = {np.abs(d[:ns] - d_pin).max():.2e} m")
     print(f"ratio numpy / pinocchio = {rate_np / rate_pin:.1f}×   (targets: ≥ 1e6 poses/s, ≥ 5×)")
 
@@ -92,8 +97,11 @@ def main() -> None:
     t0 = time.perf_counter()
     r = ik_toolpath(m, tip)
     t_ik = time.perf_counter() - t0
-    print(f"IK along a {len(tip):,}-point toolpath: {t_ik:.3f} s incl. singularity check (target ≤ 2 s); "
-          f"σ_min ≥ {r.sigma_min.min():.3f}")
+    print(
+        f"IK along a {len(tip):,}-point toolpath: {t_ik:.3f} s incl. singularity check "
+        "(target ≤ 2 s); "
+        f"σ_min ≥ {r.sigma_min.min():.3f}"
+    )
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"peak RSS {peak_mb:.0f} MB (target ≤ 2048 MB)")
 

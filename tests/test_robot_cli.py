@@ -1,4 +1,4 @@
-"""``roboisf robot …`` commands: list, show (+PNG), identify, deflect (IK and joint log), bad input."""
+"""``roboisf robot …``: list, show (+PNG), identify, deflect (IK and joint log), bad input."""
 
 from __future__ import annotations
 
@@ -48,7 +48,12 @@ def test_list_and_show(tmp_path, capsys):
     assert main(["robot", "list"]) == 0
     assert "kr210-r2700-2" in capsys.readouterr().out
     png = tmp_path / "map.png"
-    assert main(["robot", "show", "--robot", "irb7600-500-2.55", "-o", str(png), "--half-width", "300"]) == 0
+    assert (
+        main(
+            ["robot", "show", "--robot", "irb7600-500-2.55", "-o", str(png), "--half-width", "300"]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "A2: limits [  -60.0,    85.0]" in out and "3.73e+06" in out
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -57,11 +62,24 @@ def test_list_and_show(tmp_path, capsys):
 def test_deflect_by_ik_matches_library(cell, tmp_path):
     d, tp, n = cell
     out = tmp_path / "defl.csv"
-    rc = main([
-        "robot", "deflect", "--robot", "irb7600-500-2.55", "--placement", "1600,0,800,0",
-        "--tool", "0,0,300", "--toolpath", str(d / "path.csv"), "--forces", str(d / "forces.csv"),
-        "-o", str(out),
-    ])
+    rc = main(
+        [
+            "robot",
+            "deflect",
+            "--robot",
+            "irb7600-500-2.55",
+            "--placement",
+            "1600,0,800,0",
+            "--tool",
+            "0,0,300",
+            "--toolpath",
+            str(d / "path.csv"),
+            "--forces",
+            str(d / "forces.csv"),
+            "-o",
+            str(out),
+        ]
+    )
     assert rc == 0
     m = load_robot("irb7600-500-2.55").with_tool(make_transform(None, [0, 0, 0.3]))
     T = make_transform(None, [1.6, 0, 0.8])
@@ -81,27 +99,48 @@ def test_deflect_with_joint_log(cell, tmp_path):
     jl = read_joint_log(d / "joints.csv")
     np.testing.assert_allclose(jl.q, q, atol=1e-10)
     out = tmp_path / "defl.csv"
-    args = ["robot", "deflect", "--tool", "0,0,300", "--toolpath", str(d / "path.csv"),
-            "--forces", str(d / "forces.csv"), "--joints", str(d / "joints.csv"), "-o", str(out)]
+    args = [
+        "robot",
+        "deflect",
+        "--tool",
+        "0,0,300",
+        "--toolpath",
+        str(d / "path.csv"),
+        "--forces",
+        str(d / "forces.csv"),
+        "--joints",
+        str(d / "joints.csv"),
+        "-o",
+        str(out),
+    ]
     assert main(args) == 0
     assert _read_deflection(out).shape == (n, 3)
 
 
 def test_deflect_bad_input(cell, tmp_path, capsys):
-    d, tp, n = cell
+    d, _tp, _n = cell
     out = tmp_path / "x.csv"
-    base = ["robot", "deflect", "--toolpath", str(d / "path.csv"), "--forces", str(d / "forces.csv"), "-o", str(out)]
-    assert main(base + ["--robot", "nope"]) == 2
+    base = [
+        "robot",
+        "deflect",
+        "--toolpath",
+        str(d / "path.csv"),
+        "--forces",
+        str(d / "forces.csv"),
+        "-o",
+        str(out),
+    ]
+    assert main([*base, "--robot", "nope"]) == 2
     assert "irb7600-500-2.55" in capsys.readouterr().err
-    assert main(base + ["--robot", "kr210-r2700-2"]) == 2  # no stiffness
+    assert main([*base, "--robot", "kr210-r2700-2"]) == 2  # no stiffness
     assert "stiffness" in capsys.readouterr().err
-    assert main(base + ["--placement", "5000,0,800,0"]) == 2  # out of reach
+    assert main([*base, "--placement", "5000,0,800,0"]) == 2  # out of reach
     assert "out of reach" in capsys.readouterr().err
-    assert main(base + ["--placement", "1,2"]) == 2
+    assert main([*base, "--placement", "1,2"]) == 2
     assert not out.exists()
     bad = d / "badjoints.csv"
     bad.write_text("# units: time=s angle=deg\ntime,q1,q2,q3,q4,q5,q6\n0,0,0,0,0,0\n")
-    assert main(base + ["--joints", str(bad)]) == 2
+    assert main([*base, "--joints", str(bad)]) == 2
     assert "badjoints.csv:3" in capsys.readouterr().err
     assert not out.exists()
 
@@ -114,10 +153,29 @@ def test_identify_cli(tmp_path, capsys):
     dd = m.deflection(q, W)[:, :3] + rng.normal(size=(30, 3)) * 2e-6
     f = tmp_path / "calib.csv"
     rows = np.column_stack([np.degrees(q), W, dd * 1e3])
-    f.write_text("# units: angle=deg length=mm force=N moment=N*m\nq1,q2,q3,q4,q5,q6,Fx,Fy,Fz,Mx,My,Mz,dx,dy,dz\n"
-                 + "\n".join(",".join(f"{v:.17g}" for v in r) for r in rows) + "\n")
+    f.write_text(
+        "# units: angle=deg length=mm force=N moment=N*m\n"
+        "q1,q2,q3,q4,q5,q6,Fx,Fy,Fz,Mx,My,Mz,dx,dy,dz\n"
+        + "\n".join(",".join(f"{v:.17g}" for v in r) for r in rows)
+        + "\n"
+    )
     out = tmp_path / "stiffness.toml"
-    assert main(["robot", "identify", str(f), "--tool", "300,100,400", "--sigma", "0.002", "-o", str(out)]) == 0
+    assert (
+        main(
+            [
+                "robot",
+                "identify",
+                str(f),
+                "--tool",
+                "300,100,400",
+                "--sigma",
+                "0.002",
+                "-o",
+                str(out),
+            ]
+        )
+        == 0
+    )
     from roboisf.robot import load_stiffness
 
     np.testing.assert_allclose(load_stiffness(out), m.joint_stiffness, rtol=0.03)

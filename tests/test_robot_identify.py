@@ -48,7 +48,7 @@ def test_recovers_stiffness_within_ci():
 
 
 def test_non_excited_joint_is_an_error_or_fixed():
-    """At the bare flange, translations alone never see joint 6 (its axis passes through the tip)."""
+    """At the bare flange translations never see joint 6 (its axis passes through the tip)."""
     m = load_robot("irb7600-500-2.55")
     data = _experiments(m, 30, 5)
     with pytest.raises(InputError, match=r"joint\(s\) \[6\]"):
@@ -77,11 +77,14 @@ def test_calibration_csv_round_trip(tmp_path):
     m = load_robot("irb7600-500-2.55").with_tool(TOOL)
     data = _experiments(m, 12, 3, rot=True)
     f = tmp_path / "calib.csv"
-    rows = np.column_stack([np.degrees(data.q), data.wrench, data.displacement[:, :3] * 1e3, data.displacement[:, 3:]])
+    rows = np.column_stack(
+        [np.degrees(data.q), data.wrench, data.displacement[:, :3] * 1e3, data.displacement[:, 3:]]
+    )
     f.write_text(
         "# units: angle=deg length=mm force=N moment=N*m rotation=rad\n# frame: base\n"
         "q1,q2,q3,q4,q5,q6,Fx,Fy,Fz,Mx,My,Mz,dx,dy,dz,rx,ry,rz\n"
-        + "\n".join(",".join(f"{v:.17g}" for v in r) for r in rows) + "\n"
+        + "\n".join(",".join(f"{v:.17g}" for v in r) for r in rows)
+        + "\n"
     )
     back = read_calibration_csv(f, m)
     np.testing.assert_allclose(back.q, data.q, rtol=1e-14)
@@ -90,7 +93,9 @@ def test_calibration_csv_round_trip(tmp_path):
 
 def test_calibration_csv_bad_cell(tmp_path):
     f = tmp_path / "calib.csv"
-    f.write_text("q1,q2,q3,q4,q5,q6,Fx,Fy,Fz,Mx,My,Mz,dx,dy,dz\n" + ",".join(["0"] * 14 + ["abc"]) + "\n")
+    f.write_text(
+        "q1,q2,q3,q4,q5,q6,Fx,Fy,Fz,Mx,My,Mz,dx,dy,dz\n" + ",".join(["0"] * 14 + ["abc"]) + "\n"
+    )
     with pytest.raises(InputError) as e:
         read_calibration_csv(f)
     assert "calib.csv:2" in str(e.value)

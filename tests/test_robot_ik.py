@@ -31,7 +31,9 @@ def test_cone_round_trip_and_orientation(cone_path):
     # own (downward) axis, i.e. by −γ about work z (clockwise seen from above)
     Rw = m.default_placement[:3, :3].T @ T[:, :3, :3]
     np.testing.assert_allclose(Rw[:, :, 2], np.tile([0, 0, -1], (len(T), 1)), atol=1e-9)
-    np.testing.assert_allclose(Rw[:, :, 0], np.tile([np.cos(0.3), -np.sin(0.3), 0], (len(T), 1)), atol=1e-9)
+    np.testing.assert_allclose(
+        Rw[:, :, 0], np.tile([np.cos(0.3), -np.sin(0.3), 0], (len(T), 1)), atol=1e-9
+    )
     # one continuous trajectory: joint steps stay small between neighbouring points
     assert np.abs(np.diff(r.q, axis=0)).max() < np.radians(2)
     # chosen branch: elbow up, no wrist flip (OPW θ5 > 0 for ABB)

@@ -42,10 +42,12 @@ def test_irb7600_opw_equals_design_dh():
 
 
 def test_abb_home_pose_is_tool0():
-    """Controller zero of an ABB: flange straight ahead at (a1+c3+c4, 0, c1+c2−a2), z forward, x down."""
+    """ABB controller zero: flange ahead at (a1+c3+c4, 0, c1+c2−a2), z forward, x down."""
     m = load_robot("irb7600-500-2.55")
     T = m.fk(np.zeros(6))[0]
-    np.testing.assert_allclose(T[:3, 3], [0.410 + 1.056 + 0.250, 0, 0.780 + 1.075 + 0.165], atol=1e-12)
+    np.testing.assert_allclose(
+        T[:3, 3], [0.410 + 1.056 + 0.250, 0, 0.780 + 1.075 + 0.165], atol=1e-12
+    )
     np.testing.assert_allclose(T[:3, 2], [1, 0, 0], atol=1e-12)
     np.testing.assert_allclose(T[:3, 0], [0, 0, -1], atol=1e-12)
     # positive A2 leans forward (tip moves +x), positive A3 lowers the forearm
@@ -56,15 +58,22 @@ def test_abb_home_pose_is_tool0():
 
 @pytest.mark.parametrize("name", ["irb7600-500-2.55", "kr210-r2700-2", "irb4600-60-2.05"])
 def test_fk_matches_py_opw_kinematics(name):
-    """Controller-convention mapping vs an independent OPW implementation (θ = s·q − offset there)."""
+    """Controller-angle mapping vs an independent OPW implementation (θ = s·q − offset)."""
     from py_opw_kinematics import KinematicModel, Robot
 
     m = load_robot(name)
     g = m.opw
     s = m.chain.sign
     km = KinematicModel(
-        a1=g.a1, a2=g.a2, b=g.b, c1=g.c1, c2=g.c2, c3=g.c3, c4=g.c4,
-        offsets=tuple(float(x) for x in -m.chain.offset * s), flip_axes=tuple(bool(x < 0) for x in s),
+        a1=g.a1,
+        a2=g.a2,
+        b=g.b,
+        c1=g.c1,
+        c2=g.c2,
+        c3=g.c3,
+        c4=g.c4,
+        offsets=tuple(float(x) for x in -m.chain.offset * s),
+        flip_axes=tuple(bool(x < 0) for x in s),
     )
     q = _q(m, 30)
     T_ref = Robot(km, degrees=False).batch_forward(q).as_matrix()
@@ -122,7 +131,9 @@ def test_compliance_definition_and_deflection():
     np.testing.assert_allclose(k, k_ref, rtol=1e-12, atol=1e-20)
     np.testing.assert_allclose(k, np.swapaxes(k, 1, 2), atol=1e-20)
     W = np.random.default_rng(4).normal(size=(10, 6)) * 300
-    np.testing.assert_allclose(m.deflection(q, W), np.einsum("nij,nj->ni", k, W), rtol=1e-10, atol=1e-16)
+    np.testing.assert_allclose(
+        m.deflection(q, W), np.einsum("nij,nj->ni", k, W), rtol=1e-10, atol=1e-16
+    )
 
 
 def test_with_tool_moves_tip_only():
@@ -135,7 +146,7 @@ def test_with_tool_moves_tip_only():
 
 # ---------------------------------------------------------------- bad input
 def test_unknown_preset_lists_known():
-    with pytest.raises(InputError, match="irb7600-500-2.55"):
+    with pytest.raises(InputError, match=r"irb7600-500-2\.55"):
         load_robot("irb9999")
 
 
@@ -167,7 +178,10 @@ def test_missing_and_bad_stiffness(tmp_path):
 
 def test_bad_robot_file(tmp_path):
     f = tmp_path / "r.toml"
-    f.write_text('name = "x"\n[kinematics]\ntype = "opw"\na1 = 0.1\n[limits]\nq_min_deg=[0,0,0,0,0,0]\nq_max_deg=[1,1,1,1,1,1]\n')
+    f.write_text(
+        'name = "x"\n[kinematics]\ntype = "opw"\na1 = 0.1\n[limits]\n'
+        "q_min_deg=[0,0,0,0,0,0]\nq_max_deg=[1,1,1,1,1,1]\n"
+    )
     with pytest.raises(InputError, match="missing OPW") as e:
         load_robot(f)
     assert str(f) in str(e.value)

@@ -40,7 +40,9 @@ def test_work_frame_compliance_is_rotation_of_base(setup):
     d_work = np.einsum("nij,nj->ni", kw, W_work)
     d_base = m.deflection(q, rotate_6(W_work, Tbw[:3, :3]))
     np.testing.assert_allclose(rotate_6(d_work, Tbw[:3, :3]), d_base, rtol=1e-10, atol=1e-15)
-    np.testing.assert_allclose(np.trace(kw[:, :3, :3], axis1=1, axis2=2), np.trace(kb[:, :3, :3], axis1=1, axis2=2))
+    np.testing.assert_allclose(
+        np.trace(kw[:, :3, :3], axis1=1, axis2=2), np.trace(kb[:, :3, :3], axis1=1, axis2=2)
+    )
 
 
 def test_tool_compliance_added_at_the_tip(setup):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import typer
@@ -10,9 +11,14 @@ import typer
 from roboisf.cli.console import state
 from roboisf.errors import InputError
 
+if TYPE_CHECKING:
+    from roboisf.robot import RobotModel
+
 __all__ = ["register"]
 
-robot_app = typer.Typer(help="Robot models, joint stiffness and VJM deflection along a toolpath.", no_args_is_help=True)
+robot_app = typer.Typer(
+    help="Robot models, joint stiffness and VJM deflection along a toolpath.", no_args_is_help=True
+)
 
 
 def register(app: typer.Typer) -> None:
@@ -23,13 +29,15 @@ def _floats(text: str, n: int, field: str) -> np.ndarray:
     try:
         v = np.array([float(t) for t in text.split(",")])
     except ValueError:
-        raise InputError(f"expected {n} comma-separated numbers, got {text!r}", field=field) from None
+        raise InputError(
+            f"expected {n} comma-separated numbers, got {text!r}", field=field
+        ) from None
     if v.shape != (n,) or not np.all(np.isfinite(v)):
         raise InputError(f"expected {n} comma-separated finite numbers, got {text!r}", field=field)
     return v
 
 
-def _model(robot: str, stiffness: Path | None, tool: str | None):  # type: ignore[no-untyped-def]
+def _model(robot: str, stiffness: Path | None, tool: str | None) -> RobotModel:
     from roboisf.frames import make_transform
     from roboisf.robot import load_robot, load_stiffness
 
@@ -41,19 +49,26 @@ def _model(robot: str, stiffness: Path | None, tool: str | None):  # type: ignor
     return m
 
 
-def _placement(text: str | None, model):  # type: ignore[no-untyped-def]
+def _placement(text: str | None, model: RobotModel) -> np.ndarray:
     from roboisf.frames import make_transform, rot_z
 
     if text is None:
         if model.default_placement is None:
-            raise InputError(f"robot {model.name} has no default placement; give --placement", field="--placement")
+            raise InputError(
+                f"robot {model.name} has no default placement; give --placement",
+                field="--placement",
+            )
         return model.default_placement
     v = _floats(text, 4, "--placement")
     return make_transform(rot_z(np.radians(v[3])), v[:3] * 1e-3)
 
 
-ROBOT_OPT = typer.Option("irb7600-500-2.55", "--robot", "-r", help="Preset name, robot .toml or .urdf.")
-STIFF_OPT = typer.Option(None, "--stiffness", help="Joint stiffness TOML ([stiffness] K = [6] N*m/rad).")
+ROBOT_OPT = typer.Option(
+    "irb7600-500-2.55", "--robot", "-r", help="Preset name, robot .toml or .urdf."
+)
+STIFF_OPT = typer.Option(
+    None, "--stiffness", help="Joint stiffness TOML ([stiffness] K = [6] N*m/rad)."
+)
 TOOL_OPT = typer.Option(None, "--tool", help="Tool tip in the flange frame: x,y,z (mm).")
 
 
@@ -73,8 +88,12 @@ def show_cmd(
     robot: str = ROBOT_OPT,
     stiffness: Path | None = STIFF_OPT,
     tool: str | None = TOOL_OPT,
-    placement: str | None = typer.Option(None, "--placement", help="x,y,z,yaw of the work frame in the base (mm, deg)."),
-    output: Path | None = typer.Option(None, "--output", "-o", help="Stiffness map PNG over the work area."),
+    placement: str | None = typer.Option(
+        None, "--placement", help="x,y,z,yaw of the work frame in the base (mm, deg)."
+    ),
+    output: Path | None = typer.Option(
+        None, "--output", "-o", help="Stiffness map PNG over the work area."
+    ),
     half_width: float = typer.Option(500.0, "--half-width", help="Map half width (mm)."),
 ) -> None:
     """Show a robot's limits and joint stiffness; optionally write a stiffness map PNG."""
@@ -85,7 +104,8 @@ def show_cmd(
     for i in range(6):
         K = "—" if m.stiffness is None else f"{m.stiffness[i]:.4g} N·m/rad"
         state.out.print(
-            f"A{i + 1}: limits [{np.degrees(m.q_min[i]):7.1f}, {np.degrees(m.q_max[i]):7.1f}] deg   K = {K}"
+            f"A{i + 1}: limits [{np.degrees(m.q_min[i]):7.1f}, "
+            f"{np.degrees(m.q_max[i]):7.1f}] deg   K = {K}"
         )
     if m.stiffness is None:
         state.warn("no joint stiffness for this robot; compliance needs --stiffness")
@@ -105,7 +125,9 @@ def identify_cmd(
     robot: str = ROBOT_OPT,
     tool: str | None = TOOL_OPT,
     sigma: float = typer.Option(0.01, "--sigma", help="Measurement std of displacements (mm)."),
-    sigma_rot: float = typer.Option(1e-5, "--sigma-rot", help="Measurement std of rotations (rad)."),
+    sigma_rot: float = typer.Option(
+        1e-5, "--sigma-rot", help="Measurement std of rotations (rad)."
+    ),
 ) -> None:
     """Identify joint stiffness K_1..K_6 from elasto-static experiments."""
     import warnings
@@ -128,7 +150,9 @@ def identify_cmd(
             f"K{i + 1} = {r.K[i]:.4g} N·m/rad  95% CI [{r.K_ci[i, 0]:.4g}, {r.K_ci[i, 1]:.4g}]"
             + ("  (weakly excited)" if r.weak[i] else "")
         )
-    state.out.print(f"residual RMS {r.residual_rms * 1e3:.4g} mm, condition number {r.condition_number:.3g}")
+    state.out.print(
+        f"residual RMS {r.residual_rms * 1e3:.4g} mm, condition number {r.condition_number:.3g}"
+    )
     doc = {
         "stiffness": {
             "K": r.K.tolist(),
@@ -149,14 +173,22 @@ def identify_cmd(
 @robot_app.command("deflect")
 def deflect_cmd(
     toolpath: Path = typer.Option(..., "--toolpath", help="Toolpath CSV (roboisf format)."),
-    forces: Path = typer.Option(..., "--forces", help="Force log CSV, wrench at the tool tip in frame work, base or tip."),
+    forces: Path = typer.Option(
+        ..., "--forces", help="Force log CSV, wrench at the tool tip in frame work, base or tip."
+    ),
     output: Path = typer.Option(..., "--output", "-o", help="Deflection CSV to write."),
     robot: str = ROBOT_OPT,
     stiffness: Path | None = STIFF_OPT,
     tool: str | None = TOOL_OPT,
-    placement: str | None = typer.Option(None, "--placement", help="x,y,z,yaw of the work frame in the base (mm, deg)."),
-    joints: Path | None = typer.Option(None, "--joints", help="Joint log CSV (controller degrees) instead of IK."),
-    tool_rotation: float = typer.Option(0.0, "--tool-rotation", help="Tool rotation about its own axis (deg)."),
+    placement: str | None = typer.Option(
+        None, "--placement", help="x,y,z,yaw of the work frame in the base (mm, deg)."
+    ),
+    joints: Path | None = typer.Option(
+        None, "--joints", help="Joint log CSV (controller degrees) instead of IK."
+    ),
+    tool_rotation: float = typer.Option(
+        0.0, "--tool-rotation", help="Tool rotation about its own axis (deg)."
+    ),
 ) -> None:
     """VJM deflection of the tool tip along a toolpath under the logged forming wrench."""
     from roboisf.io.atomic import atomic_write, check_not_input
@@ -166,7 +198,9 @@ def deflect_cmd(
     from roboisf.io.toolpath_csv import read_toolpath_csv
     from roboisf.robot import ik_toolpath, rotate_6
 
-    inputs: list[str | Path] = [toolpath, forces] + ([joints] if joints else [])
+    inputs: list[str | Path] = [toolpath, forces]
+    if joints is not None:
+        inputs.append(joints)
     check_not_input(output, inputs)
     m = _model(robot, stiffness, tool)
     K = m.joint_stiffness  # fail early, before IK
@@ -181,7 +215,8 @@ def deflect_cmd(
             raise InputError(
                 f"toolpath times [{tp.time[0]:.3f}, {tp.time[-1]:.3f}] s are outside the joint log "
                 f"[{jl.time[0]:.3f}, {jl.time[-1]:.3f}] s",
-                file=joints, field="time",
+                file=joints,
+                field="time",
             )
         q = np.stack([np.interp(tp.time, jl.time, jl.q[:, j]) for j in range(6)], axis=1)
         q = m.check_q(q, field=str(joints))
@@ -200,18 +235,31 @@ def deflect_cmd(
         raise InputError(
             f"force log frame {log.frame!r}: expected work, base or tip (move sensor wrenches to "
             "the tip first, roboisf.frames.transform_wrench)",
-            file=forces, field="frame",
+            file=forces,
+            field="frame",
         )
     d_base = m.deflection(q, W_base)
     d_work = rotate_6(d_base, R_base_work.T)
-    data = np.column_stack([np.arange(len(tp)), tp.time, tp.tip * 1e3, d_work[:, :3] * 1e3, d_work[:, 3:], np.degrees(q)])
+    data = np.column_stack(
+        [
+            np.arange(len(tp)),
+            tp.time,
+            tp.tip * 1e3,
+            d_work[:, :3] * 1e3,
+            d_work[:, 3:],
+            np.degrees(q),
+        ]
+    )
     head = (
         f"# roboisf robot deflection ({m.name})\n"
         "# units: time=s length=mm rotation=rad angle=deg\n# frame: work\n"
         "index,time,tip_x,tip_y,tip_z,dx,dy,dz,rx,ry,rz,q1,q2,q3,q4,q5,q6\n"
     )
     with atomic_write(output) as f:
-        f.write(head + format_rows(data, ["%d", "%.6f"] + ["%.9f"] * 6 + ["%.9e"] * 3 + ["%.9f"] * 6))
+        f.write(
+            head + format_rows(data, ["%d", "%.6f"] + ["%.9f"] * 6 + ["%.9e"] * 3 + ["%.9f"] * 6)
+        )
     state.info(
-        f"wrote {output}: {len(tp)} points, mean |δ| {np.linalg.norm(d_work[:, :3], axis=1).mean() * 1e3:.4f} mm"
+        f"wrote {output}: {len(tp)} points, mean |δ| "
+        f"{np.linalg.norm(d_work[:, :3], axis=1).mean() * 1e3:.4f} mm"
     )

@@ -46,12 +46,15 @@ def read_joint_log(path: str | Path) -> JointLog:
     if "units" not in t.meta:
         raise InputError(
             "missing '# units: time=s angle=deg' line (angles must declare deg or rad)",
-            file=p, field="units",
+            file=p,
+            field="units",
         )
     for tok in t.meta["units"].split():
         k, _, v = tok.partition("=")
         if k not in units or not v:
-            raise InputError(f"bad units entry {tok!r}; expected time=… angle=…", file=p, field="units")
+            raise InputError(
+                f"bad units entry {tok!r}; expected time=… angle=…", file=p, field="units"
+            )
         units[k] = v
     ft = to_si(units["time"], "time", file=p, field="units.time")
     fa = to_si(units["angle"], "angle", file=p, field="units.angle")
@@ -59,7 +62,9 @@ def read_joint_log(path: str | Path) -> JointLog:
     if time.size > 1:
         bad = np.flatnonzero(np.diff(time) <= 0)
         if bad.size:
-            raise InputError("time must increase strictly", file=p, line=int(t.lines[bad[0] + 1]), field="time")
+            raise InputError(
+                "time must increase strictly", file=p, line=int(t.lines[bad[0] + 1]), field="time"
+            )
     q = np.stack([t.column(f"q{i}") for i in range(1, 7)], axis=1) * fa
     return JointLog(time=time, q=q, path=p)
 

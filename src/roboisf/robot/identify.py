@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 from scipy import stats
 
 from roboisf.errors import InputError
@@ -110,8 +110,15 @@ def identify_stiffness(
     experiments cannot excite.
     """
     q = model.check_q(data.q, field="calibration q")
-    if data.displacement.ndim != 2 or data.displacement.shape[1] not in (3, 6) or data.displacement.shape[0] != q.shape[0]:
-        raise InputError(f"displacement must be (M, 3) or (M, 6), got {data.displacement.shape}", field="displacement")
+    if (
+        data.displacement.ndim != 2
+        or data.displacement.shape[1] not in (3, 6)
+        or data.displacement.shape[0] != q.shape[0]
+    ):
+        raise InputError(
+            f"displacement must be (M, 3) or (M, 6), got {data.displacement.shape}",
+            field="displacement",
+        )
     if not np.all(np.isfinite(data.displacement)):
         raise InputError("displacement contains NaN or inf", field="displacement")
     A3, b3 = _design(model, CalibrationData(q, data.wrench, data.displacement))
@@ -122,7 +129,9 @@ def identify_stiffness(
     fixed = dict(fixed or {})
     for j, Kj in fixed.items():
         if not (0 <= j < 6) or not (Kj > 0):
-            raise InputError(f"fixed stiffness needs a joint 0..5 and K > 0, got {j}: {Kj}", field="fixed")
+            raise InputError(
+                f"fixed stiffness needs a joint 0..5 and K > 0, got {j}: {Kj}", field="fixed"
+            )
     free = np.array([j not in fixed for j in range(6)])
     c_fixed = np.array([1.0 / fixed[j] if j in fixed else 0.0 for j in range(6)])
     b = b - A @ c_fixed
@@ -179,23 +188,35 @@ def identify_stiffness(
     pos = c > 0
     with np.errstate(divide="ignore"):
         K = np.where(pos, 1.0 / np.where(pos, c, 1.0), np.inf)
-        K_ci = np.stack([1.0 / hi_c, np.where(lo_c > 0, 1.0 / np.where(lo_c > 0, lo_c, 1.0), np.inf)], axis=1)
+        K_ci = np.stack(
+            [1.0 / hi_c, np.where(lo_c > 0, 1.0 / np.where(lo_c > 0, lo_c, 1.0), np.inf)], axis=1
+        )
     rel = np.where(free, se / np.abs(np.where(c != 0, c, 1e-300)), 0.0)
     weak = free & ((rel > weak_threshold) | ~pos)
     if np.any(weak):
         warnings.warn(
             f"joint(s) {[int(j) + 1 for j in np.flatnonzero(weak)]} are weakly excited by the "
             f"calibration set (relative standard error {np.round(rel[weak], 2).tolist()}); "
-            "their stiffness is poorly determined (K = inf where the estimate is ≤ 0: indistinguishable from rigid)",
+            "their stiffness is poorly determined (K = inf where the estimate is ≤ 0: "
+            "indistinguishable from rigid)",
             PoorExcitationWarning,
             stacklevel=2,
         )
-    res_unw = (r / np.tile(w, q.shape[0]))
+    res_unw = r / np.tile(w, q.shape[0])
     rows_t = np.tile(np.arange(m) < 3, q.shape[0])
     rms = float(np.sqrt(np.mean(res_unw[rows_t] ** 2)))
     return StiffnessIdentification(
-        K=K, K_ci=K_ci, compliance=c, compliance_se=se, rel_se=rel, identified=free, weak=weak,
-        residual=r, residual_rms=rms, condition_number=cond, dof=dof,
+        K=K,
+        K_ci=K_ci,
+        compliance=c,
+        compliance_se=se,
+        rel_se=rel,
+        identified=free,
+        weak=weak,
+        residual=r,
+        residual_rms=rms,
+        condition_number=cond,
+        dof=dof,
     )
 
 
@@ -220,7 +241,9 @@ def read_calibration_csv(path: str | Path, model: RobotModel | None = None) -> C
             raise InputError(f"bad units entry {tok!r}; expected key=unit", file=p, field="units")
         k, v = tok.split("=", 1)
         if k not in units:
-            raise InputError(f"unknown units key {k!r}; expected {', '.join(units)}", file=p, field="units")
+            raise InputError(
+                f"unknown units key {k!r}; expected {', '.join(units)}", file=p, field="units"
+            )
         units[k] = v
     fa = to_si(units["angle"], "angle", file=p, field="units.angle")
     fl = to_si(units["length"], "length", file=p, field="units.length")
@@ -240,7 +263,9 @@ def read_calibration_csv(path: str | Path, model: RobotModel | None = None) -> C
         d = np.concatenate([d, np.stack([col(c) for c in _ROT], axis=1) * fr], axis=1)
     if frame == "tip":
         if model is None:
-            raise InputError("frame: tip needs the robot model to rotate wrenches", file=p, field="frame")
+            raise InputError(
+                "frame: tip needs the robot model to rotate wrenches", file=p, field="frame"
+            )
         R = model.fk(q, check_limits=False)[:, :3, :3]
         W = np.concatenate(
             [np.einsum("nij,nj->ni", R, W[:, :3]), np.einsum("nij,nj->ni", R, W[:, 3:])], axis=1

@@ -59,7 +59,9 @@ def opw_ik(
     handled by :func:`ik_toolpath`). Unreachable rows are NaN in ``q`` and False in ``reachable``.
     """
     if model.opw is None:
-        raise InputError(f"robot {model.name!r} has no OPW geometry; closed-form IK needs it", field="robot")
+        raise InputError(
+            f"robot {model.name!r} has no OPW geometry; closed-form IK needs it", field="robot"
+        )
     g = model.opw
     T = np.asarray(T_base_flange, dtype=float).reshape(-1, 4, 4)
     R = T[:, :3, :3]
@@ -112,9 +114,7 @@ def opw_ik(
     return q, ok
 
 
-def tool_poses(
-    tip_work: ArrayLike, T_base_work: ArrayLike, tool_rotation: ArrayLike = 0.0
-) -> F64:
+def tool_poses(tip_work: ArrayLike, T_base_work: ArrayLike, tool_rotation: ArrayLike = 0.0) -> F64:
     """``T_base_tip`` (N, 4, 4) for tool-tip points (N, 3) m in the work frame.
 
     Tool z along −z_work, rotated by ``tool_rotation`` (scalar or (N,), rad) about its own axis.
@@ -173,12 +173,17 @@ def ik_toolpath(
     tip = getattr(tip_work, "tip", tip_work)
     tip = np.asarray(tip, dtype=float)
     if tip.ndim != 2 or tip.shape[1] != 3 or tip.shape[0] == 0:
-        raise InputError(f"expected tool-tip points of shape (N, 3), got {tip.shape}", field="toolpath")
+        raise InputError(
+            f"expected tool-tip points of shape (N, 3), got {tip.shape}", field="toolpath"
+        )
     if not np.all(np.isfinite(tip)):
         raise InputError("tool-tip points contain NaN or inf", field="toolpath")
     if T_base_work is None:
         if model.default_placement is None:
-            raise InputError(f"robot {model.name!r} has no default placement; give T_base_work", field="placement")
+            raise InputError(
+                f"robot {model.name!r} has no default placement; give T_base_work",
+                field="placement",
+            )
         T_base_work = model.default_placement
     T_tip = tool_poses(tip, T_base_work, tool_rotation)
     T_flange = T_tip @ invert(model.T_flange_tip)
@@ -205,7 +210,7 @@ def ik_toolpath(
     L = length_scale if length_scale is not None else _length_scale(model)
     Js = J.copy()
     Js[:, :3, :] /= L
-    sigma = np.linalg.svd(Js, compute_uv=False)[:, -1]
+    sigma = np.asarray(np.linalg.svd(Js, compute_uv=False)[:, -1], dtype=np.float64)
     near = sigma < singular_threshold
     if np.any(near):
         idx = np.flatnonzero(near)

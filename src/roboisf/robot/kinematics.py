@@ -26,10 +26,10 @@ from roboisf.errors import InputError
 
 __all__ = [
     "Chain",
-    "chain_from_dh",
-    "chain_from_opw",
     "chain_fk",
     "chain_fk_jacobian",
+    "chain_from_dh",
+    "chain_from_opw",
     "rz",
 ]
 
@@ -121,8 +121,8 @@ def chain_from_opw(
         _tr(a1 + a2, b, c1 + c2 + c3),
     ]
     M = _tr(a1 + a2, b, c1 + c2 + c3 + c4)
-    F = [A[0]] + [np.linalg.inv(A[i]) @ A[i + 1] for i in range(5)] + [np.linalg.inv(A[5]) @ M]
-    F = np.array(F)
+    Fl = [A[0]] + [np.linalg.inv(A[i]) @ A[i + 1] for i in range(5)] + [np.linalg.inv(A[5]) @ M]
+    F = np.array(Fl)
     F[np.abs(F) < 1e-15] = 0.0
     return Chain(F, np.asarray(sign, float), np.asarray(offset, float))
 
@@ -153,9 +153,7 @@ def chain_fk(chain: Chain, q: F64, T_flange_tip: F64 | None = None) -> F64:
     return T
 
 
-def chain_fk_jacobian(
-    chain: Chain, q: F64, T_flange_tip: F64 | None = None
-) -> tuple[F64, F64]:
+def chain_fk_jacobian(chain: Chain, q: F64, T_flange_tip: F64 | None = None) -> tuple[F64, F64]:
     """``T_base_tip`` (N, 4, 4) and the tip Jacobian (N, 6, 6), base frame, rows [v; ω]."""
     R, p, z, o = _sweep(chain, q, T_flange_tip, want_axes=True)
     assert z is not None and o is not None
@@ -343,6 +341,6 @@ def opw_fk_jacobian(
         Jt[3, i] = c1_ * wx - s1_ * wy
         Jt[4, i] = s1_ * wx + c1_ * wy
         Jt[5, i] = wz
-    for i in np.flatnonzero(chain.sign != 1.0):
-        Jt[:, i] *= -1.0
+    for j in np.flatnonzero(chain.sign != 1.0):
+        Jt[:, j] *= -1.0
     return T, Jt.transpose(2, 0, 1)

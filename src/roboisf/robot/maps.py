@@ -8,9 +8,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError, UnreachableError
+from roboisf.frames import invert
 from roboisf.robot.ik import opw_ik, tool_poses
 from roboisf.robot.model import RobotModel
-from roboisf.frames import invert
 
 __all__ = ["StiffnessMap", "stiffness_map"]
 
@@ -51,7 +51,9 @@ def stiffness_map(
     if T_base_work is None:
         T_base_work = model.default_placement
     if T_base_work is None:
-        raise InputError(f"robot {model.name!r} has no default placement; give one", field="placement")
+        raise InputError(
+            f"robot {model.name!r} has no default placement; give one", field="placement"
+        )
     if not (half_width > 0) or n < 2:
         raise InputError("need half_width > 0 and n ≥ 2", field="grid")
     x = np.linspace(-half_width, half_width, n)

@@ -160,9 +160,7 @@ class RobotModel:
         bad = ~np.all(np.isfinite(arr), axis=1)
         if np.any(bad):
             idx = np.flatnonzero(bad)
-            raise InputError(
-                f"joint angles contain NaN or inf at rows {_short(idx)}", field=field
-            )
+            raise InputError(f"joint angles contain NaN or inf at rows {_short(idx)}", field=field)
         if limits:
             tol = 1e-9
             out = (arr < self.q_min - tol) | (arr > self.q_max + tol)
@@ -172,7 +170,8 @@ class RobotModel:
                 raise InputError(
                     f"joint angles beyond the limits of {self.name} at rows {_short(rows)}: "
                     f"e.g. row {rows[0]} A{j + 1} = {np.degrees(arr[rows[0], j]):.3f} deg, "
-                    f"limits [{np.degrees(self.q_min[j]):.1f}, {np.degrees(self.q_max[j]):.1f}] deg",
+                    f"limits [{np.degrees(self.q_min[j]):.1f}, "
+                    f"{np.degrees(self.q_max[j]):.1f}] deg",
                     field=field,
                 )
         return arr
@@ -184,7 +183,15 @@ class RobotModel:
         if self.opw is not None:
             g = self.opw
             T, _ = opw_fk_jacobian(
-                g.a1, g.a2, g.b, g.c1, g.c2, g.c3, self.chain, qv, self.T_flange_tip,
+                g.a1,
+                g.a2,
+                g.b,
+                g.c1,
+                g.c2,
+                g.c3,
+                self.chain,
+                qv,
+                self.T_flange_tip,
                 want_jacobian=False,
             )
             return T
@@ -252,10 +259,12 @@ def _check_rigid(T: F64, name: str) -> None:
         or np.linalg.det(R) < 0
         or np.any(T[3] != (0, 0, 0, 1))
     ):
-        raise InputError("must be a rigid transform (orthonormal rotation, last row 0 0 0 1)", field=name)
+        raise InputError(
+            "must be a rigid transform (orthonormal rotation, last row 0 0 0 1)", field=name
+        )
 
 
 def _short(idx: ArrayLike, n: int = 8) -> str:
-    idx = np.asarray(idx).tolist()
-    s = ", ".join(str(i) for i in idx[:n])
-    return s + (f", … ({len(idx)} in all)" if len(idx) > n else "")
+    items: list[int] = [int(i) for i in np.asarray(idx).reshape(-1)]
+    s = ", ".join(str(i) for i in items[:n])
+    return s + (f", … ({len(items)} in all)" if len(items) > n else "")

@@ -45,7 +45,9 @@ def _preset_dir() -> Any:
 
 def list_robots() -> list[str]:
     """Names of the built-in robot presets, sorted."""
-    return sorted(p.name[: -len(".toml")] for p in _preset_dir().iterdir() if p.name.endswith(".toml"))
+    return sorted(
+        p.name[: -len(".toml")] for p in _preset_dir().iterdir() if p.name.endswith(".toml")
+    )
 
 
 def load_robot(name_or_path: str | Path) -> RobotModel:
@@ -81,15 +83,17 @@ def _load_toml_file(p: Path) -> RobotModel:
     return robot_from_dict(data, file=p)
 
 
-def _vec(d: dict[str, Any], key: str, n: int, file: object, section: str) -> np.ndarray:
+def _vec(d: dict[str, Any], key: str, n: int, file: Any, section: str) -> np.ndarray:
     if key not in d:
-        raise InputError(f"missing key {key!r} ({n} numbers)", file=file, field=f"{section}.{key}")  # type: ignore[arg-type]
+        raise InputError(f"missing key {key!r} ({n} numbers)", file=file, field=f"{section}.{key}")
     try:
         v = np.asarray(d[key], dtype=float)
     except (TypeError, ValueError):
-        raise InputError(f"expected {n} numbers", file=file, field=f"{section}.{key}") from None  # type: ignore[arg-type]
+        raise InputError(f"expected {n} numbers", file=file, field=f"{section}.{key}") from None
     if v.shape != (n,) or not np.all(np.isfinite(v)):
-        raise InputError(f"expected {n} finite numbers, got {d[key]!r}", file=file, field=f"{section}.{key}")  # type: ignore[arg-type]
+        raise InputError(
+            f"expected {n} finite numbers, got {d[key]!r}", file=file, field=f"{section}.{key}"
+        )
     return v
 
 
@@ -109,7 +113,11 @@ def robot_from_dict(data: dict[str, Any], *, file: object = None) -> RobotModel:
     except KeyError as e:
         raise InputError(f"missing required key {e.args[0]!r}", file=f, field=e.args[0]) from None
     sign = _vec(kin, "sign", 6, f, "kinematics") if "sign" in kin else np.ones(6)
-    offset = np.radians(_vec(kin, "offset_deg", 6, f, "kinematics")) if "offset_deg" in kin else np.zeros(6)
+    offset = (
+        np.radians(_vec(kin, "offset_deg", 6, f, "kinematics"))
+        if "offset_deg" in kin
+        else np.zeros(6)
+    )
     ktype = kin.get("type", "opw")
     opw = None
     try:
@@ -118,7 +126,9 @@ def robot_from_dict(data: dict[str, Any], *, file: object = None) -> RobotModel:
             if missing:
                 raise InputError(f"missing OPW parameters {missing}", file=f, field="kinematics")
             opw = OPWGeometry(**{k: float(kin[k]) for k in _OPW_KEYS})
-            chain = chain_from_opw(*(getattr(opw, k) for k in _OPW_KEYS), sign=sign, offset=offset)
+            chain = chain_from_opw(
+                opw.a1, opw.a2, opw.b, opw.c1, opw.c2, opw.c3, opw.c4, sign=sign, offset=offset
+            )
         elif ktype == "dh":
             chain = chain_from_dh(
                 _vec(kin, "d", 6, f, "kinematics"),
@@ -128,7 +138,11 @@ def robot_from_dict(data: dict[str, Any], *, file: object = None) -> RobotModel:
                 sign,
             )
         else:
-            raise InputError(f"unknown kinematics type {ktype!r}; expected 'opw' or 'dh'", file=f, field="kinematics.type")
+            raise InputError(
+                f"unknown kinematics type {ktype!r}; expected 'opw' or 'dh'",
+                file=f,
+                field="kinematics.type",
+            )
         K = None
         ksrc = ""
         if "stiffness" in data:
@@ -142,7 +156,9 @@ def robot_from_dict(data: dict[str, Any], *, file: object = None) -> RobotModel:
             stiffness=K,
             T_flange_tip=_pose(data["tool"], f, "tool") if "tool" in data else np.eye(4),
             opw=opw,
-            default_placement=_pose(data["placement"], f, "placement") if "placement" in data else None,
+            default_placement=_pose(data["placement"], f, "placement")
+            if "placement" in data
+            else None,
             source=str(data.get("source", "")),
             stiffness_source=ksrc,
         )
@@ -165,8 +181,12 @@ def load_stiffness(path: str | Path) -> np.ndarray:
     except tomllib.TOMLDecodeError as e:
         raise InputError(f"not valid TOML: {e}", file=p) from None
     if "stiffness" not in data:
-        raise InputError("missing [stiffness] table with K = [6 values] N*m/rad", file=p, field="stiffness")
+        raise InputError(
+            "missing [stiffness] table with K = [6 values] N*m/rad", file=p, field="stiffness"
+        )
     K = _vec(data["stiffness"], "K", 6, p, "stiffness")
     if np.any(K <= 0):
-        raise InputError(f"joint stiffness must be > 0 N·m/rad, got {K.tolist()}", file=p, field="stiffness.K")
+        raise InputError(
+            f"joint stiffness must be > 0 N·m/rad, got {K.tolist()}", file=p, field="stiffness.K"
+        )
     return K

@@ -56,7 +56,9 @@ def load_urdf(path: str | Path, tip_frame: str | None = None) -> RobotModel:
         raise InputError(f"cannot read URDF: {e}", file=p) from None
     joints = [j for j in pm.joints[1:]]
     if pm.nq != 6 or len(joints) != 6:
-        raise InputError(f"expected a 6-joint arm, URDF has {len(joints)} joints (nq={pm.nq})", file=p)
+        raise InputError(
+            f"expected a 6-joint arm, URDF has {len(joints)} joints (nq={pm.nq})", file=p
+        )
     F = []
     prev_align = np.eye(3)
     q_min = np.asarray(pm.lowerPositionLimit, dtype=float).copy()
@@ -138,7 +140,8 @@ def to_urdf(model: RobotModel, name: str | None = None) -> str:
             f'    <parent link="{parent}"/><child link="{child}"/>',
             f"    {origin(T)}",
             f'    <axis xyz="0 0 {int(ch.sign[i])}"/>',
-            f'    <limit lower="{model.q_min[i]:.17g}" upper="{model.q_max[i]:.17g}" effort="1e4" velocity="3"/>',
+            f'    <limit lower="{model.q_min[i]:.17g}" upper="{model.q_max[i]:.17g}" '
+            'effort="1e4" velocity="3"/>',
             "  </joint>",
         ]
         parent = child

@@ -27,8 +27,8 @@ __all__ = [
     "deflection_contributions",
     "geometric_stiffness",
     "loaded_deflection",
-    "rotate_6x6",
     "rotate_6",
+    "rotate_6x6",
     "tip_compliance",
     "vjm_batch",
 ]
@@ -95,7 +95,7 @@ def geometric_stiffness(model: RobotModel, q: ArrayLike, wrench: ArrayLike) -> F
     """
     qv = model.check_q(q, limits=False)
     W = _check_wrench(wrench, qv.shape[0])
-    R, p, z, o = _sweep(model.chain, qv, model.T_flange_tip, want_axes=True)
+    _R, p, z, o = _sweep(model.chain, qv, model.T_flange_tip, want_axes=True)
     assert z is not None and o is not None
     f, m = W[:, :3], W[:, 3:]
     s = model.chain.sign
@@ -213,7 +213,8 @@ def vjm_batch(
 ) -> tuple[F64 | None, F64]:
     """FK + Jacobian + ``k_c`` + ``δ`` for many poses, chunked to bound memory.
 
-    Returns ``(k_c (N, 6, 6) or None, δ (N, 6))`` in the base frame; the same numbers as
+    Returns ``(k_c (N, 6, 6) or None, δ (N, 6))`` in the base frame (``k_c`` is a view of
+    component-major storage; ``np.ascontiguousarray`` it if needed); the same numbers as
     :meth:`RobotModel.compliance` / :meth:`RobotModel.deflection`. Works component-major inside a
     chunk (each (chunk,) row contiguous), so a chunk stays in cache.
     """
@@ -224,7 +225,8 @@ def vjm_batch(
     if chunk < 1:
         raise InputError("chunk must be ≥ 1", field="chunk")
     d = np.empty((n, 6))
-    k_out = np.empty((n, 6, 6)) if want_compliance else None
+    # component-major storage, returned as an (N, 6, 6) view: no transposing copy per chunk
+    k_cm = np.empty((6, 6, n)) if want_compliance else None
     iu = np.triu_indices(6)
     for s in range(0, n, chunk):
         e = min(n, s + chunk)
@@ -234,11 +236,10 @@ def vjm_batch(
         Wt = W[s:e].T
         tau = np.einsum("ain,an->in", Jt, Wt)
         d[s:e] = np.einsum("ain,in->na", A, tau)
-        if k_out is not None:
-            kt = np.empty((6, 6, e - s))
+        if k_cm is not None:
             for a, b in zip(*iu, strict=True):
-                v = np.einsum("in,in->n", A[a], Jt[b])
-                kt[a, b] = v
-                kt[b, a] = v
-            k_out[s:e] = kt.transpose(2, 0, 1)
-    return k_out, d
+                v = k_cm[a, b, s:e]
+                np.einsum("in,in->n", A[a], Jt[b], out=v)
+                if a != b:
+                    k_cm[b, a, s:e] = v
+    return (None if k_cm is None else k_cm.transpose(2, 0, 1)), d
