@@ -39,6 +39,13 @@ def cell(tmp_path_factory):
     return d, tp, n
 
 
+def _deflect(d, out, *extra):
+    return [
+        "robot", "deflect", "--toolpath", str(d / "path.csv"), "--forces", str(d / "forces.csv"),
+        "-o", str(out), *extra,
+    ]  # fmt: skip
+
+
 def _read_deflection(path):
     t = read_table(path, ["index", "time", "dx", "dy", "dz"], allow_extra=True)
     return np.stack([t.column(c) for c in ("dx", "dy", "dz")], axis=1) * 1e-3
@@ -63,22 +70,16 @@ def test_deflect_by_ik_matches_library(cell, tmp_path):
     d, tp, n = cell
     out = tmp_path / "defl.csv"
     rc = main(
-        [
-            "robot",
-            "deflect",
+        _deflect(
+            d,
+            out,
             "--robot",
             "irb7600-500-2.55",
             "--placement",
             "1600,0,800,0",
             "--tool",
             "0,0,300",
-            "--toolpath",
-            str(d / "path.csv"),
-            "--forces",
-            str(d / "forces.csv"),
-            "-o",
-            str(out),
-        ]
+        )
     )
     assert rc == 0
     m = load_robot("irb7600-500-2.55").with_tool(make_transform(None, [0, 0, 0.3]))
@@ -99,20 +100,7 @@ def test_deflect_with_joint_log(cell, tmp_path):
     jl = read_joint_log(d / "joints.csv")
     np.testing.assert_allclose(jl.q, q, atol=1e-10)
     out = tmp_path / "defl.csv"
-    args = [
-        "robot",
-        "deflect",
-        "--tool",
-        "0,0,300",
-        "--toolpath",
-        str(d / "path.csv"),
-        "--forces",
-        str(d / "forces.csv"),
-        "--joints",
-        str(d / "joints.csv"),
-        "-o",
-        str(out),
-    ]
+    args = [*_deflect(d, out, "--tool", "0,0,300"), "--joints", str(d / "joints.csv")]
     assert main(args) == 0
     assert _read_deflection(out).shape == (n, 3)
 
@@ -120,16 +108,7 @@ def test_deflect_with_joint_log(cell, tmp_path):
 def test_deflect_bad_input(cell, tmp_path, capsys):
     d, _tp, _n = cell
     out = tmp_path / "x.csv"
-    base = [
-        "robot",
-        "deflect",
-        "--toolpath",
-        str(d / "path.csv"),
-        "--forces",
-        str(d / "forces.csv"),
-        "-o",
-        str(out),
-    ]
+    base = _deflect(d, out)
     assert main([*base, "--robot", "nope"]) == 2
     assert "irb7600-500-2.55" in capsys.readouterr().err
     assert main([*base, "--robot", "kr210-r2700-2"]) == 2  # no stiffness

@@ -69,6 +69,11 @@ ROBOT_OPT = typer.Option(
 STIFF_OPT = typer.Option(
     None, "--stiffness", help="Joint stiffness TOML ([stiffness] K = [6] N*m/rad)."
 )
+PLACEMENT_OPT = typer.Option(
+    None,
+    "--placement",
+    help="x,y,z,yaw of the work frame in the base (mm, deg); default: preset's.",
+)
 TOOL_OPT = typer.Option(None, "--tool", help="Tool tip in the flange frame: x,y,z (mm).")
 
 
@@ -88,9 +93,7 @@ def show_cmd(
     robot: str = ROBOT_OPT,
     stiffness: Path | None = STIFF_OPT,
     tool: str | None = TOOL_OPT,
-    placement: str | None = typer.Option(
-        None, "--placement", help="x,y,z,yaw of the work frame in the base (mm, deg)."
-    ),
+    placement: str | None = PLACEMENT_OPT,
     output: Path | None = typer.Option(
         None, "--output", "-o", help="Stiffness map PNG over the work area."
     ),
@@ -180,9 +183,7 @@ def deflect_cmd(
     robot: str = ROBOT_OPT,
     stiffness: Path | None = STIFF_OPT,
     tool: str | None = TOOL_OPT,
-    placement: str | None = typer.Option(
-        None, "--placement", help="x,y,z,yaw of the work frame in the base (mm, deg)."
-    ),
+    placement: str | None = PLACEMENT_OPT,
     joints: Path | None = typer.Option(
         None, "--joints", help="Joint log CSV (controller degrees) instead of IK."
     ),

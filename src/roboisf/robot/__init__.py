@@ -10,9 +10,9 @@ from roboisf.robot.identify import (
     read_calibration_csv,
 )
 from roboisf.robot.ik import IKResult, SingularityWarning, ik_toolpath, opw_ik, tool_poses
-from roboisf.robot.kinematics import Chain, chain_from_dh, chain_from_opw
+from roboisf.robot.kinematics import Chain, OPWGeometry, chain_from_dh, chain_from_opw
 from roboisf.robot.maps import StiffnessMap, stiffness_map
-from roboisf.robot.model import OPWGeometry, RobotModel
+from roboisf.robot.model import RobotModel
 from roboisf.robot.presets import list_robots, load_robot, load_stiffness, robot_from_dict
 from roboisf.robot.urdf import load_urdf, to_urdf
 from roboisf.robot.vjm import (

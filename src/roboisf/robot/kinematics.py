@@ -26,6 +26,7 @@ from roboisf.errors import InputError
 
 __all__ = [
     "Chain",
+    "OPWGeometry",
     "chain_fk",
     "chain_fk_jacobian",
     "chain_from_dh",
@@ -92,14 +93,29 @@ class Chain:
         return q * self.sign + self.offset
 
 
+@dataclass(frozen=True)
+class OPWGeometry:
+    """Ortho-parallel-wrist parameters (m), Brandstötter, Angerer & Hofbaur 2014."""
+
+    a1: float
+    a2: float
+    b: float
+    c1: float
+    c2: float
+    c3: float
+    c4: float
+
+    def __post_init__(self) -> None:
+        for k in ("a1", "a2", "b", "c1", "c2", "c3", "c4"):
+            v = getattr(self, k)
+            if not np.isfinite(v):
+                raise InputError(f"OPW parameter must be finite, got {v}", field=k)
+        if self.c2 <= 0 or self.c3 <= 0:
+            raise InputError("OPW link lengths c2, c3 must be > 0", field="c2")
+
+
 def chain_from_opw(
-    a1: float,
-    a2: float,
-    b: float,
-    c1: float,
-    c2: float,
-    c3: float,
-    c4: float,
+    g: OPWGeometry,
     sign: ArrayLike = (1, 1, 1, 1, 1, 1),
     offset: ArrayLike = (0, 0, 0, 0, 0, 0),
 ) -> Chain:
@@ -110,6 +126,7 @@ def chain_from_opw(
     (a1 + a2, b, ·); joint 5 about y at the wrist centre (a1 + a2, b, c1 + c2 + c3); joint 6
     about z; the flange c4 above the wrist centre with axes parallel to the base.
     """
+    a1, a2, b, c1, c2, c3, c4 = g.a1, g.a2, g.b, g.c1, g.c2, g.c3, g.c4
     # joint frames at θ = 0 in base coordinates; a y-axis joint gets the frame Rx(-π/2)
     # (its z-axis is base y)
     A = [
@@ -233,12 +250,7 @@ def _lin(terms: list[tuple[F64, float]], n: int) -> F64:
 
 
 def opw_fk_jacobian(
-    a1: float,
-    a2: float,
-    b: float,
-    c1: float,
-    c2: float,
-    c3: float,
+    g: OPWGeometry,
     chain: Chain,
     q: F64,
     T_flange_tip: F64 | None = None,
@@ -251,6 +263,7 @@ def opw_fk_jacobian(
     is solved in the vertical plane turned by θ1 (joints 2, 3 about that plane's y-axis, the wrist
     as Ry(θ2+θ3) Rz(θ4) Ry(θ5) Rz(θ6)), then rotated about base z once.
     """
+    a1, a2, b, c1, c2, c3 = g.a1, g.a2, g.b, g.c1, g.c2, g.c3
     n = q.shape[0]
     th = chain.theta(q).T  # (6, N), contiguous rows
     c = np.cos(th)

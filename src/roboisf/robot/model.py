@@ -26,36 +26,16 @@ from numpy.typing import ArrayLike, NDArray
 from roboisf.errors import InputError
 from roboisf.robot.kinematics import (
     Chain,
+    OPWGeometry,
     chain_fk,
     chain_fk_jacobian,
     chain_from_opw,
     opw_fk_jacobian,
 )
 
-__all__ = ["OPWGeometry", "RobotModel"]
+__all__ = ["RobotModel"]
 
 F64 = NDArray[np.float64]
-
-
-@dataclass(frozen=True)
-class OPWGeometry:
-    """Ortho-parallel-wrist parameters (m), Brandstötter, Angerer & Hofbaur 2014."""
-
-    a1: float
-    a2: float
-    b: float
-    c1: float
-    c2: float
-    c3: float
-    c4: float
-
-    def __post_init__(self) -> None:
-        for k in ("a1", "a2", "b", "c1", "c2", "c3", "c4"):
-            v = getattr(self, k)
-            if not np.isfinite(v):
-                raise InputError(f"OPW parameter must be finite, got {v}", field=k)
-        if self.c2 <= 0 or self.c3 <= 0:
-            raise InputError("OPW link lengths c2, c3 must be > 0", field="c2")
 
 
 def _ro(a: ArrayLike, shape: tuple[int, ...], name: str) -> F64:
@@ -116,8 +96,7 @@ class RobotModel:
         _check_rigid(T, "T_flange_tip")
         object.__setattr__(self, "T_flange_tip", T)
         if self.opw is not None:
-            g = self.opw
-            ref = chain_from_opw(g.a1, g.a2, g.b, g.c1, g.c2, g.c3, g.c4)
+            ref = chain_from_opw(self.opw)
             if np.max(np.abs(ref.F - self.chain.F)) > 1e-12:
                 raise InputError("chain does not match the OPW parameters", field="chain")
         if self.default_placement is not None:
@@ -181,19 +160,7 @@ class RobotModel:
         """``T_base_tip`` (N, 4, 4) for ``q`` (N, 6) rad."""
         qv = self.check_q(q, limits=check_limits)
         if self.opw is not None:
-            g = self.opw
-            T, _ = opw_fk_jacobian(
-                g.a1,
-                g.a2,
-                g.b,
-                g.c1,
-                g.c2,
-                g.c3,
-                self.chain,
-                qv,
-                self.T_flange_tip,
-                want_jacobian=False,
-            )
+            T, _ = opw_fk_jacobian(self.opw, self.chain, qv, self.T_flange_tip, want_jacobian=False)
             return T
         return chain_fk(self.chain, qv, self.T_flange_tip)
 
@@ -203,10 +170,7 @@ class RobotModel:
 
     def _fk_jacobian(self, qv: F64) -> tuple[F64, F64]:
         if self.opw is not None:
-            g = self.opw
-            T, J = opw_fk_jacobian(
-                g.a1, g.a2, g.b, g.c1, g.c2, g.c3, self.chain, qv, self.T_flange_tip
-            )
+            T, J = opw_fk_jacobian(self.opw, self.chain, qv, self.T_flange_tip)
             assert J is not None
             return T, J
         return chain_fk_jacobian(self.chain, qv, self.T_flange_tip)

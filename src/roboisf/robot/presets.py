@@ -62,9 +62,7 @@ def load_robot(name_or_path: str | Path) -> RobotModel:
 
         return load_urdf(p)
     if p.suffix.lower() == ".toml" or p.exists():
-        if not p.is_file():
-            raise InputError("robot file not found", file=p)
-        return _load_toml_file(p)
+        return robot_from_dict(_read_toml(p, "robot"), file=p)
     known = list_robots()
     if s not in known:
         raise InputError(
@@ -75,12 +73,13 @@ def load_robot(name_or_path: str | Path) -> RobotModel:
     return robot_from_dict(tomllib.loads(text), file=f"<preset {s}>")
 
 
-def _load_toml_file(p: Path) -> RobotModel:
+def _read_toml(p: Path, what: str) -> dict[str, Any]:
+    if not p.is_file():
+        raise InputError(f"{what} file not found", file=p)
     try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
+        return tomllib.loads(p.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as e:
         raise InputError(f"not valid TOML: {e}", file=p) from None
-    return robot_from_dict(data, file=p)
 
 
 def _vec(d: dict[str, Any], key: str, n: int, file: Any, section: str) -> np.ndarray:
@@ -126,9 +125,7 @@ def robot_from_dict(data: dict[str, Any], *, file: object = None) -> RobotModel:
             if missing:
                 raise InputError(f"missing OPW parameters {missing}", file=f, field="kinematics")
             opw = OPWGeometry(**{k: float(kin[k]) for k in _OPW_KEYS})
-            chain = chain_from_opw(
-                opw.a1, opw.a2, opw.b, opw.c1, opw.c2, opw.c3, opw.c4, sign=sign, offset=offset
-            )
+            chain = chain_from_opw(opw, sign=sign, offset=offset)
         elif ktype == "dh":
             chain = chain_from_dh(
                 _vec(kin, "d", 6, f, "kinematics"),
@@ -174,12 +171,7 @@ def load_stiffness(path: str | Path) -> np.ndarray:
     This is the format ``roboisf robot identify`` writes.
     """
     p = Path(path)
-    if not p.is_file():
-        raise InputError("stiffness file not found", file=p)
-    try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as e:
-        raise InputError(f"not valid TOML: {e}", file=p) from None
+    data = _read_toml(p, "stiffness")
     if "stiffness" not in data:
         raise InputError(
             "missing [stiffness] table with K = [6 values] N*m/rad", file=p, field="stiffness"
