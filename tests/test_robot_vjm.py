@@ -123,3 +123,37 @@ def test_vjm_batch_matches_model_methods(setup):
     np.testing.assert_allclose(d, m.deflection(q, W), rtol=1e-12, atol=1e-18)
     k2, d2 = vjm_batch(m, q, W, want_compliance=False)
     assert k2 is None and np.allclose(d2, d, rtol=1e-12, atol=1e-18)
+
+
+def test_work_frame_options_of_the_model(setup):
+    m, q = setup
+    Tbw = make_transform(rot_z(-0.4), [1.5, -0.3, 0.7])
+    Rwb = Tbw[:3, :3].T
+    np.testing.assert_allclose(m.fk(q, T_base_work=Tbw), np.linalg.inv(Tbw) @ m.fk(q), atol=1e-14)
+    J, Jw = m.jacobian(q), m.jacobian(q, T_base_work=Tbw)
+    np.testing.assert_allclose(Jw[:, :3], Rwb @ J[:, :3], atol=1e-14)
+    np.testing.assert_allclose(Jw[:, 3:], Rwb @ J[:, 3:], atol=1e-14)
+    kw = m.compliance(q, T_base_work=Tbw)
+    np.testing.assert_allclose(kw, tip_compliance(m, q, T_base_work=Tbw), rtol=1e-12, atol=1e-22)
+    W_work = np.tile([100.0, -50.0, 450.0, 0.0, 0.0, 0.0], (len(q), 1))
+    np.testing.assert_allclose(
+        m.deflection(q, W_work, T_base_work=Tbw),
+        np.einsum("nij,nj->ni", kw, W_work),
+        rtol=1e-10,
+        atol=1e-16,
+    )
+    with pytest.raises(InputError, match="rigid"):
+        m.compliance(q, T_base_work=np.diag([2.0, 1, 1, 1]))
+
+
+def test_stiffness_map_values(setup):
+    from roboisf.robot import stiffness_map
+    from roboisf.robot.ik import ik_toolpath as ik
+
+    m, _ = setup
+    smap = stiffness_map(m, half_width=0.3, n=5)
+    assert smap.reachable.all()
+    # the centre point equals the compliance of the tool-down pose at the work origin
+    q0 = ik(m, np.zeros((1, 3))).q
+    k0 = m.compliance(q0, T_base_work=m.default_placement)[0]
+    np.testing.assert_allclose(smap.compliance[2, 2], np.diag(k0)[:3], rtol=1e-12)

@@ -31,6 +31,8 @@ from roboisf.robot.kinematics import (
     chain_fk_jacobian,
     chain_from_opw,
     opw_fk_jacobian,
+    rotate_6,
+    rotate_6x6,
 )
 
 __all__ = ["RobotModel"]
@@ -156,13 +158,18 @@ class RobotModel:
         return arr
 
     # ------------------------------------------------------------------ kinematics
-    def fk(self, q: ArrayLike, *, check_limits: bool = True) -> F64:
-        """``T_base_tip`` (N, 4, 4) for ``q`` (N, 6) rad."""
+    def fk(
+        self, q: ArrayLike, *, check_limits: bool = True, T_base_work: ArrayLike | None = None
+    ) -> F64:
+        """``T_base_tip`` (N, 4, 4) for ``q`` (N, 6) rad; ``T_work_tip`` when ``T_base_work``."""
         qv = self.check_q(q, limits=check_limits)
         if self.opw is not None:
             T, _ = opw_fk_jacobian(self.opw, self.chain, qv, self.T_flange_tip, want_jacobian=False)
-            return T
-        return chain_fk(self.chain, qv, self.T_flange_tip)
+        else:
+            T = chain_fk(self.chain, qv, self.T_flange_tip)
+        if T_base_work is not None:
+            T = np.linalg.inv(_placement(T_base_work)) @ T
+        return T
 
     def fk_jacobian(self, q: ArrayLike, *, check_limits: bool = True) -> tuple[F64, F64]:
         """``(T_base_tip (N, 4, 4), J (N, 6, 6))`` in one pass (closed form for OPW robots)."""
@@ -175,30 +182,61 @@ class RobotModel:
             return T, J
         return chain_fk_jacobian(self.chain, qv, self.T_flange_tip)
 
-    def jacobian(self, q: ArrayLike, *, check_limits: bool = True) -> F64:
-        """Geometric Jacobian at the tool tip (N, 6, 6), base frame, rows [v (m/rad); ω (1)]."""
-        return self.fk_jacobian(q, check_limits=check_limits)[1]
+    def jacobian(
+        self, q: ArrayLike, *, check_limits: bool = True, T_base_work: ArrayLike | None = None
+    ) -> F64:
+        """Geometric Jacobian at the tool tip (N, 6, 6), rows [v (m/rad); ω (1)].
+
+        Base axes, or work axes when ``T_base_work`` (4, 4) is given (same tip point).
+        """
+        J = self.fk_jacobian(q, check_limits=check_limits)[1]
+        if T_base_work is None:
+            return J
+        R_wb = _placement(T_base_work)[:3, :3].T
+        out = np.empty_like(J)
+        out[:, :3] = np.einsum("ij,njk->nik", R_wb, J[:, :3])
+        out[:, 3:] = np.einsum("ij,njk->nik", R_wb, J[:, 3:])
+        return out
 
     # ------------------------------------------------------------------ elastostatics
-    def compliance(self, q: ArrayLike, *, check_limits: bool = True) -> F64:
-        """VJM Cartesian compliance ``k_c = J K_θ⁻¹ Jᵀ`` (N, 6, 6) at the tip, base frame.
+    def compliance(
+        self, q: ArrayLike, *, check_limits: bool = True, T_base_work: ArrayLike | None = None
+    ) -> F64:
+        """VJM Cartesian compliance ``k_c = J K_θ⁻¹ Jᵀ`` (N, 6, 6) at the tip.
 
-        Blocks: [:3, :3] m/N, off-diagonal 1/N, [3:, 3:] rad/(N·m).
+        Base axes, or work axes when ``T_base_work`` is given. Blocks: [:3, :3] m/N,
+        off-diagonal 1/N, [3:, 3:] rad/(N·m).
         """
         kinv = 1.0 / self.joint_stiffness
         J = self.jacobian(q, check_limits=check_limits)
-        return (J * kinv) @ np.swapaxes(J, 1, 2)
+        k = (J * kinv) @ np.swapaxes(J, 1, 2)
+        if T_base_work is not None:
+            k = rotate_6x6(k, _placement(T_base_work)[:3, :3].T)
+        return k
 
-    def deflection(self, q: ArrayLike, wrench: ArrayLike, *, check_limits: bool = True) -> F64:
+    def deflection(
+        self,
+        q: ArrayLike,
+        wrench: ArrayLike,
+        *,
+        check_limits: bool = True,
+        T_base_work: ArrayLike | None = None,
+    ) -> F64:
         """Tip deflection ``[δ; θ] = k_c W`` (N, 6) [m; rad] for tip wrenches (N, 6) [N; N·m].
 
-        Wrench and deflection in the base frame; a single (6,) wrench is broadcast.
+        Wrench and deflection in base axes, or both in work axes when ``T_base_work`` is given;
+        a single (6,) wrench is broadcast.
         """
         kinv = 1.0 / self.joint_stiffness
         J = self.jacobian(q, check_limits=check_limits)
         W = _check_wrench(wrench, J.shape[0])
+        if T_base_work is not None:
+            W = rotate_6(W, _placement(T_base_work)[:3, :3])
         tau = np.einsum("nji,nj->ni", J, W)
-        return np.einsum("nij,nj->ni", J, tau * kinv)
+        d = np.einsum("nij,nj->ni", J, tau * kinv)
+        if T_base_work is not None:
+            d = rotate_6(d, _placement(T_base_work)[:3, :3].T)
+        return d
 
     def __repr__(self) -> str:
         K = "unknown" if self.stiffness is None else np.array2string(self.stiffness, precision=3)
@@ -214,6 +252,14 @@ def _check_wrench(wrench: ArrayLike, n: int, field: str = "wrench") -> F64:
     if not np.all(np.isfinite(W)):
         raise InputError("wrench contains NaN or inf", field=field)
     return W
+
+
+def _placement(T_base_work: ArrayLike) -> F64:
+    T = np.asarray(T_base_work, dtype=float)
+    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+        raise InputError(f"expected a finite (4, 4) transform, got {T.shape}", field="T_base_work")
+    _check_rigid(T, "T_base_work")
+    return T
 
 
 def _check_rigid(T: F64, name: str) -> None:

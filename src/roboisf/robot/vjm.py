@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
 from roboisf.frames import serial_assembly
-from roboisf.robot.kinematics import _sweep
+from roboisf.robot.kinematics import _sweep, rotate_6, rotate_6x6
 from roboisf.robot.model import RobotModel, _check_wrench
 
 __all__ = [
@@ -34,31 +34,6 @@ __all__ = [
 ]
 
 F64 = NDArray[np.float64]
-
-
-def _block_rot(R: F64) -> F64:
-    n = R.shape[0]
-    B = np.zeros((n, 6, 6))
-    B[:, :3, :3] = R
-    B[:, 3:, 3:] = R
-    return B
-
-
-def rotate_6x6(k_b: ArrayLike, R_a_b: ArrayLike) -> F64:
-    """Re-express 6×6 compliances (N, 6, 6) from axes *b* to axes *a*, same point."""
-    R = np.broadcast_to(np.asarray(R_a_b, dtype=float), (np.shape(k_b)[0], 3, 3))
-    B = _block_rot(R)
-    return B @ np.asarray(k_b, dtype=float) @ np.swapaxes(B, 1, 2)
-
-
-def rotate_6(v_b: ArrayLike, R_a_b: ArrayLike) -> F64:
-    """Re-express [lin; ang] 6-vectors (N, 6) from axes *b* to axes *a*."""
-    v = np.asarray(v_b, dtype=float)
-    R = np.asarray(R_a_b, dtype=float)
-    out = np.empty_like(v)
-    out[:, :3] = np.einsum("...ij,nj->ni", R, v[:, :3])
-    out[:, 3:] = np.einsum("...ij,nj->ni", R, v[:, 3:])
-    return out
 
 
 def tip_compliance(
