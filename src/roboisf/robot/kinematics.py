@@ -281,7 +281,8 @@ def opw_fk_jacobian(
     T_flange_tip: F64 | None = None,
     *,
     want_jacobian: bool = True,
-) -> tuple[F64, F64 | None]:
+    want_fk: bool = True,
+) -> tuple[F64 | None, F64 | None]:
     """Closed-form FK and tip Jacobian of an OPW chain built by :func:`chain_from_opw`.
 
     Same results as :func:`chain_fk_jacobian` (tested), several times fewer array passes: the arm
@@ -328,57 +329,64 @@ def opw_fk_jacobian(
     pz = cz + r20 * t[0] + r21 * t[1] + r22 * t[2]
     # filled component-major (4, 4, N) / (6, 6, N) so every write is contiguous; returned as
     # (N, 4, 4) / (N, 6, 6) views
-    Tt = np.empty((4, 4, n))
-    Tt[3, :3] = 0.0
-    Tt[3, 3] = 1.0
-    rows = ((r00, r01, r02), (m10, m11, m12), (r20, r21, r22))
-    # tip rotation R_A Rt, then turn x/y rows by θ1
-    tip_rows = [
-        [rows[a][0] * Rt[0, k] + rows[a][1] * Rt[1, k] + rows[a][2] * Rt[2, k] for k in range(3)]
-        for a in range(3)
-    ]
-    for k in range(3):
-        x, y = tip_rows[0][k], tip_rows[1][k]
-        np.multiply(c1_, x, out=Tt[0, k])
-        Tt[0, k] -= s1_ * y
-        np.multiply(s1_, x, out=Tt[1, k])
-        Tt[1, k] += c1_ * y
-        Tt[2, k] = tip_rows[2][k]
-    Tt[0, 3] = c1_ * px - s1_ * py
-    Tt[1, 3] = s1_ * px + c1_ * py
-    Tt[2, 3] = pz
-    T = Tt.transpose(2, 0, 1)
+    bx = c1_ * px - s1_ * py  # tip position, base axes
+    by = s1_ * px + c1_ * py
+    T: F64 | None = None
+    if want_fk:
+        Tt = np.empty((4, 4, n))
+        Tt[3, :3] = 0.0
+        Tt[3, 3] = 1.0
+        rows = ((r00, r01, r02), (m10, m11, m12), (r20, r21, r22))
+        # tip rotation R_A Rt, then turn x/y rows by θ1
+        for k in range(3):
+            x, y, zz = (
+                rows[a][0] * Rt[0, k] + rows[a][1] * Rt[1, k] + rows[a][2] * Rt[2, k]
+                for a in range(3)
+            )
+            Tt[0, k] = c1_ * x - s1_ * y
+            Tt[1, k] = s1_ * x + c1_ * y
+            Tt[2, k] = zz
+        Tt[0, 3] = bx
+        Tt[1, 3] = by
+        Tt[2, 3] = pz
+        T = Tt.transpose(2, 0, 1)
     if not want_jacobian:
         return T, None
     Jt = np.empty((6, 6, n))
-    # arm-plane columns [v; ω]; v_i = z_i × (p − o_i)
-    # joint 1: z = e_z through the origin → v = (−p_y, p_x, 0) (already invariant under Rz(θ1))
-    np.negative(Tt[1, 3], out=Jt[0, 0])
-    Jt[1, 0] = Tt[0, 3]
+    # column 1: z = e_z through the origin → v = (−p_y, p_x, 0), ω = e_z
+    np.negative(by, out=Jt[0, 0])
+    Jt[1, 0] = bx
     Jt[2:5, 0] = 0.0
     Jt[5, 0] = 1.0
-    cols: list[tuple[F64, F64, F64, F64, F64, F64]] = []
-    # joints 2, 3: z = e_y; v = e_y × r = (r_z, 0, −r_x)
-    o2x, o2z = a1, c1
-    o3x, o3z = a1 + c2 * s2_, c1 + c2 * c2_
-    zero = np.zeros(n)
-    one = np.ones(n)
-    cols.append((pz - o2z, zero, o2x - px, zero, one, zero))
-    cols.append((pz - o3z, zero, o3x - px, zero, one, zero))
-    # wrist joints through the wrist centre C = (cx, b, cz)
+    # columns 2, 3: z = Rz(θ1) e_y = (−s1, c1, 0); v = Rz(θ1) (r_z, 0, −r_x)
+    for i, (ox, oz) in ((1, (a1, c1)), (2, (a1 + c2 * s2_, c1 + c2 * c2_))):
+        vx = pz - oz
+        Jt[0, i] = c1_ * vx
+        Jt[1, i] = s1_ * vx
+        Jt[2, i] = ox - px
+        np.negative(s1_, out=Jt[3, i])
+        Jt[4, i] = c1_
+        Jt[5, i] = 0.0
+    # wrist columns through the wrist centre C = (cx, b, cz): v = z × (p − C)
     rx, ry, rz_ = px - cx, py - b, pz - cz
-    z4 = (s23, zero, c23)
-    z5 = (-s4_ * c23, c4_, s4_ * s23)
-    z6 = (r02, m12, r22)
-    for zx, zy, zz in (z4, z5, z6):
-        cols.append((zy * rz_ - zz * ry, zz * rx - zx * rz_, zx * ry - zy * rx, zx, zy, zz))
-    for i, (vx, vy, vz, wx, wy, wz) in enumerate(cols, start=1):
+    z5x, z5z = -s4_ * c23, s4_ * s23
+    for i, (zx, zy, zz) in ((3, (s23, None, c23)), (4, (z5x, c4_, z5z)), (5, (r02, m12, r22))):
+        if zy is None:  # z4 = (s23, 0, c23)
+            vx = -zz * ry
+            vy = zz * rx - zx * rz_
+            vz = zx * ry
+            Jt[3, i] = c1_ * zx
+            Jt[4, i] = s1_ * zx
+        else:
+            vx = zy * rz_ - zz * ry
+            vy = zz * rx - zx * rz_
+            vz = zx * ry - zy * rx
+            Jt[3, i] = c1_ * zx - s1_ * zy
+            Jt[4, i] = s1_ * zx + c1_ * zy
+        Jt[5, i] = zz
         Jt[0, i] = c1_ * vx - s1_ * vy
         Jt[1, i] = s1_ * vx + c1_ * vy
         Jt[2, i] = vz
-        Jt[3, i] = c1_ * wx - s1_ * wy
-        Jt[4, i] = s1_ * wx + c1_ * wy
-        Jt[5, i] = wz
     for j in np.flatnonzero(chain.sign != 1.0):
         Jt[:, j] *= -1.0
     return T, Jt.transpose(2, 0, 1)

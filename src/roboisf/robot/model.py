@@ -164,7 +164,11 @@ class RobotModel:
         """``T_base_tip`` (N, 4, 4) for ``q`` (N, 6) rad; ``T_work_tip`` when ``T_base_work``."""
         qv = self.check_q(q, limits=check_limits)
         if self.opw is not None:
-            T, _ = opw_fk_jacobian(self.opw, self.chain, qv, self.T_flange_tip, want_jacobian=False)
+            Topt, _ = opw_fk_jacobian(
+                self.opw, self.chain, qv, self.T_flange_tip, want_jacobian=False
+            )
+            assert Topt is not None
+            T = Topt
         else:
             T = chain_fk(self.chain, qv, self.T_flange_tip)
         if T_base_work is not None:
@@ -178,9 +182,17 @@ class RobotModel:
     def _fk_jacobian(self, qv: F64) -> tuple[F64, F64]:
         if self.opw is not None:
             T, J = opw_fk_jacobian(self.opw, self.chain, qv, self.T_flange_tip)
-            assert J is not None
+            assert T is not None and J is not None
             return T, J
         return chain_fk_jacobian(self.chain, qv, self.T_flange_tip)
+
+    def _jacobian_only(self, qv: F64) -> F64:
+        """Jacobian of validated angles without assembling T (the hot path of vjm_batch)."""
+        if self.opw is not None:
+            _, J = opw_fk_jacobian(self.opw, self.chain, qv, self.T_flange_tip, want_fk=False)
+            assert J is not None
+            return J
+        return chain_fk_jacobian(self.chain, qv, self.T_flange_tip)[1]
 
     def jacobian(
         self, q: ArrayLike, *, check_limits: bool = True, T_base_work: ArrayLike | None = None

@@ -205,7 +205,7 @@ def vjm_batch(
     iu = np.triu_indices(6)
     for s in range(0, n, chunk):
         e = min(n, s + chunk)
-        _, J = model._fk_jacobian(qv[s:e])
+        J = model._jacobian_only(qv[s:e])
         Jt = np.ascontiguousarray(J.transpose(1, 2, 0))  # (6, 6, m); free when J is a view
         A = Jt * kinv[None, :, None]
         Wt = W[s:e].T
