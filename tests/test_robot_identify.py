@@ -99,3 +99,18 @@ def test_calibration_csv_bad_cell(tmp_path):
     with pytest.raises(InputError) as e:
         read_calibration_csv(f)
     assert "calib.csv:2" in str(e.value)
+
+
+def test_measured_rotations_make_joint6_identifiable():
+    """With rotations measured too, the bare flange identifies all six joints."""
+    m = load_robot("irb7600-500-2.55")
+    data = _experiments(m, 30, 11, rot=True)
+    r = identify_stiffness(m, data, sigma_translation=SIG, sigma_rotation=SIG)
+    np.testing.assert_allclose(r.K, m.joint_stiffness, rtol=0.05)
+    assert r.identified.all() and not r.weak.any()
+
+
+def test_too_few_experiments():
+    m = load_robot("irb7600-500-2.55").with_tool(TOOL)
+    with pytest.raises(InputError, match="add experiments"):
+        identify_stiffness(m, _experiments(m, 2, 0), sigma_translation=SIG)
