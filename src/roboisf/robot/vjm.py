@@ -17,6 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
 from roboisf.frames import serial_assembly
+from roboisf.progress import Progress, task
 from roboisf.robot.kinematics import _sweep, rotate_6, rotate_6x6
 from roboisf.robot.model import RobotModel, _check_wrench
 
@@ -185,6 +186,7 @@ def vjm_batch(
     chunk: int = 4096,
     want_compliance: bool = True,
     check_limits: bool = True,
+    progress: Progress | None = None,
 ) -> tuple[F64 | None, F64]:
     """FK + Jacobian + ``k_c`` + ``δ`` for many poses, chunked to bound memory.
 
@@ -203,18 +205,35 @@ def vjm_batch(
     # component-major storage, returned as an (N, 6, 6) view: no transposing copy per chunk
     k_cm = np.empty((6, 6, n)) if want_compliance else None
     iu = np.triu_indices(6)
-    for s in range(0, n, chunk):
-        e = min(n, s + chunk)
-        J = model._jacobian_only(qv[s:e])
-        Jt = np.ascontiguousarray(J.transpose(1, 2, 0))  # (6, 6, m); free when J is a view
-        A = Jt * kinv[None, :, None]
-        Wt = W[s:e].T
-        tau = np.einsum("ain,an->in", Jt, Wt)
-        d[s:e] = np.einsum("ain,in->na", A, tau)
-        if k_cm is not None:
-            for a, b in zip(*iu, strict=True):
-                v = k_cm[a, b, s:e]
-                np.einsum("in,in->n", A[a], Jt[b], out=v)
-                if a != b:
-                    k_cm[b, a, s:e] = v
+    with task(progress, "VJM deflection", n) as advance:
+        for s in range(0, n, chunk):
+            e = min(n, s + chunk)
+            _vjm_chunk(
+                model, qv[s:e], W[s:e], kinv, d[s:e], None if k_cm is None else k_cm[:, :, s:e], iu
+            )
+            advance(e - s)
     return (None if k_cm is None else k_cm.transpose(2, 0, 1)), d
+
+
+def _vjm_chunk(
+    model: RobotModel,
+    q: F64,
+    W: F64,
+    kinv: F64,
+    d: F64,
+    k_cm: F64 | None,
+    iu: tuple[NDArray[np.intp], NDArray[np.intp]],
+) -> None:
+    """One chunk: δ into ``d`` (m, 6) and, if given, k_c into ``k_cm`` (6, 6, m)."""
+    J = model._jacobian_only(q)
+    Jt = np.ascontiguousarray(J.transpose(1, 2, 0))  # (6, 6, m); free when J is a view
+    A = Jt * kinv[None, :, None]
+    Wt = W.T
+    tau = np.einsum("ain,an->in", Jt, Wt)
+    d[:] = np.einsum("ain,in->na", A, tau)
+    if k_cm is not None:
+        for a, b in zip(*iu, strict=True):
+            v = k_cm[a, b]
+            np.einsum("in,in->n", A[a], Jt[b], out=v)
+            if a != b:
+                k_cm[b, a] = v
