@@ -113,7 +113,7 @@ def write_krl(
         raise InputError("a KRL program must be written to a .src file", file=path)
     tool = tool or RobotTool()
     T = check_placement(T_base_work)
-    prog = (identifier(name, "name") if name else program_identifier(path.stem)).lower()
+    prog = (identifier(name, "name", 19) if name else program_identifier(path.stem, 19)).lower()
     if not (np.isfinite(cdis) and cdis >= 0):
         raise InputError(f"must be ≥ 0 mm, got {cdis * 1e3:g}", field="cdis")
     if not (np.isfinite(safe_height) and safe_height > 0):
@@ -127,7 +127,7 @@ def write_krl(
     cog = tool.cog_xyz * 1e3  # flange frame: ABB-style z along the axis → KUKA x along the axis
     cm = frame_to_krl([cog[2], cog[1], -cog[0]], [0, 0, 0])
     approx = " C_DIS" if cdis > 0 else ""
-    subs = [f"{prog}_{k + 1}"[:24] for k in range(len(chunks))]
+    subs = [f"{prog}_{k + 1}" for k in range(len(chunks))]
     up = np.array([0.0, 0.0, safe_height * 1e3])
     src = [
         "&ACCESS RVP\n&REL 1\n",

@@ -108,7 +108,7 @@ def write_rapid(
     T = check_placement(T_base_work)
     if zone not in ZONES:
         raise InputError(f"unknown zone {zone!r}; expected one of {', '.join(ZONES)}", field="zone")
-    name = identifier(module, "module", 32) if module else program_identifier(path.stem, 28)
+    name = identifier(module, "module", 26) if module else program_identifier(path.stem, 26)
     identifier(wobj_name, "wobj_name", 32)
     if not (np.isfinite(safe_height) and safe_height > 0):
         raise InputError(f"must be > 0 mm, got {safe_height * 1e3:g}", field="safe_height")
