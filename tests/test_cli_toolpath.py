@@ -51,7 +51,7 @@ def test_paper_cone_csv(tmp_path):
     assert tp.n_laps == 206
     assert tp.tool_radius == pytest.approx(5e-3)
     assert tp.feed == pytest.approx(750e-3 / 60)
-    assert tp.contact[:, 2].min() == pytest.approx(-102.97e-3, abs=1e-12)
+    assert tp.tip[:, 2].min() == pytest.approx(-102.97e-3, abs=1e-9)
     # atomic output is renamed from a private temp file: it must get the usual 0o666 & ~umask
     mask = os.umask(0)
     os.umask(mask)

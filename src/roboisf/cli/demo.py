@@ -18,6 +18,7 @@ import numpy as np
 import typer
 
 from roboisf.cli.console import state
+from roboisf.cli.toolpath import warn_truncated
 from roboisf.frames.se3 import make_transform
 from roboisf.io.atomic import staged_directory
 from roboisf.io.export import FORMAT_SUFFIXES, write_toolpath
@@ -50,6 +51,7 @@ def build_demo(folder: Path, progress: Progress | None = None) -> list[Path]:
             save_part(part, sub / "part.toml")
             written.append(sub / "part.toml")
             tp = step_down(part, tool_radius=5e-3, step_down=0.5e-3)
+            warn_truncated(tp, 10.0)
             advance(1)
             for fmt, suffixes in FORMAT_SUFFIXES.items():
                 out = sub / f"toolpath{suffixes[0]}"

@@ -32,7 +32,7 @@ from roboisf.parts.axisymmetric import VWACF_DEFAULT_ARC_RADIUS
 from roboisf.toolpath import spiral, step_down
 from roboisf.toolpath.toolpath import Toolpath
 
-__all__ = ["PathOptions", "generate", "register"]
+__all__ = ["PathOptions", "generate", "register", "warn_truncated"]
 
 # -- options shared by every toolpath command (mm, deg, mm/min) ---------------------------------
 Output = Annotated[
@@ -136,6 +136,16 @@ def generate(part: AxisymmetricPart, opts: PathOptions) -> Toolpath:
     )
 
 
+def warn_truncated(tp: Toolpath, tool_diameter: float) -> None:
+    """Tell the user when the ball does not fit down to the part's full depth."""
+    if tp.meta.get("truncated"):
+        z = float(tp.meta["reachable_tip_z"])  # type: ignore[arg-type]
+        state.warn(
+            f"a Ø{tool_diameter:g} mm ball does not fit in the part below tip z = {z * 1e3:.3f} mm "
+            "(it would touch the wall across the axis); the toolpath stops there"
+        )
+
+
 def write(tp: Toolpath, output: Path, fmt: str | None, opts: PathOptions) -> str:
     """Write ``tp`` with the program options; return the format used."""
     return write_toolpath(
@@ -158,6 +168,7 @@ def _run(
     opts.placement()
     part = part_factory()
     tp = generate(part, opts)
+    warn_truncated(tp, opts.tool_diameter)
     fmt = write(tp, output, fmt, opts)
     state.info(
         f"wrote {output} ({fmt}): {len(tp)} points, {tp.n_laps} laps, "
