@@ -50,8 +50,8 @@ DEFAULT_FEED = 750e-3 / 60.0
 
 #: Bisection iterations for the ball position (interval ≤ 1 m → < 1e-15 m).
 _BISECT = 52
-#: A ball closer than R − _FIT_TOL to the surface is gouging.
-_FIT_TOL = 1e-12
+#: A ball closer than R − _FIT_TOL to the surface is gouging (float noise of d is ~1e-17 m).
+_FIT_TOL = 1e-15
 
 
 def _check(
