@@ -2,18 +2,8 @@
 
 from __future__ import annotations
 
-import sys
-import types
-
 import numpy as np
 import pytest
-
-try:  # main.py registers a `toolpath` command group that is not on every branch yet
-    import roboisf.cli.toolpath  # noqa: F401
-except ModuleNotFoundError:
-    _stub = types.ModuleType("roboisf.cli.toolpath")
-    _stub.register = lambda app: None  # type: ignore[attr-defined]
-    sys.modules["roboisf.cli.toolpath"] = _stub
 
 from roboisf.cli.main import main
 from roboisf.frames import make_transform

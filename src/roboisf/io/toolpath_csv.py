@@ -62,6 +62,7 @@ CONSISTENCY_TOL = 10e-6
 _FORMATS = (
     ["%d", "%d"] + ["%.9f"] * 3 + ["%.12f"] * 3 + ["%.9f"] * 6 + ["%.9f", "%.9f", "%.9f", "%.9f"]
 )
+_DECIMALS = [int(f[2:-1]) if f != "%d" else 0 for f in _FORMATS]
 _UNITS_LINE = "length=mm angle=deg time=s"
 
 
@@ -111,6 +112,8 @@ def write_toolpath_csv(tp: Toolpath, path: str | Path, *, generator: str | None 
             tp.time,
         ]
     )
+    # round to the written resolution first so that tiny negatives do not print as "-0.000"
+    data = np.column_stack([np.round(data[:, j], d) for j, d in enumerate(_DECIMALS)]) + 0.0
     with atomic_write(path) as fh:
         fh.write("\n".join(head) + "\n")
         fh.write(",".join(TOOLPATH_COLUMNS) + "\n")
