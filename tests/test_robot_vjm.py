@@ -157,3 +157,13 @@ def test_stiffness_map_values(setup):
     q0 = ik(m, np.zeros((1, 3))).q
     k0 = m.compliance(q0, T_base_work=m.default_placement)[0]
     np.testing.assert_allclose(smap.compliance[2, 2], np.diag(k0)[:3], rtol=1e-12)
+
+
+def test_docs_example_runs(capsys):
+    """The first python example of docs/robot.md runs as written."""
+    from pathlib import Path
+
+    text = (Path(__file__).parents[1] / "docs" / "robot.md").read_text(encoding="utf-8")
+    code = text.split("```python\n", 1)[1].split("```", 1)[0]
+    exec(compile(code, "docs/robot.md", "exec"), {})
+    assert "k_11" in capsys.readouterr().out
