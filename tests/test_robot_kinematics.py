@@ -197,3 +197,22 @@ def test_opw_closed_form_equals_generic_chain(name):
     Tg, Jg = chain_fk_jacobian(m.chain, q, m.T_flange_tip)  # generic sweep
     np.testing.assert_allclose(T, Tg, atol=1e-13)
     np.testing.assert_allclose(J, Jg, atol=1e-13)
+
+
+def test_urdf_without_pinocchio_is_a_clear_error(tmp_path, monkeypatch):
+    import sys
+
+    f = tmp_path / "r.urdf"
+    f.write_text(to_urdf(load_robot("irb7600-500-2.55")))
+    monkeypatch.setitem(sys.modules, "pinocchio", None)  # import pinocchio → ImportError
+    with pytest.raises(InputError, match=r"roboisf\[urdf\]"):
+        load_robot(f)
+
+
+def test_deflection_does_positive_work():
+    """A wrench on the tool moves the tip along it: Wᵀ δ = Wᵀ k W > 0 (k_c is PSD)."""
+    m = load_robot("irb7600-500-2.55").with_tool(TOOL)
+    q = _q(m, 200, seed=4)
+    W = np.random.default_rng(5).normal(size=(200, 6)) * [300, 300, 500, 20, 20, 20]
+    work = np.einsum("ni,ni->n", W, m.deflection(q, W))
+    assert np.all(work > 0)
