@@ -79,12 +79,14 @@ def test_signed_distance_is_positive_on_the_tool_side():
 
 
 def test_vwacf_geometry():
-    v = VWACF()  # Ø88.15, R 40 mm, 0 → 90°
-    assert math.isclose(v.depth, 0.040, rel_tol=1e-12)
-    r, a = v.wall_at_z(np.array([-0.040, -0.020]))
-    assert math.isclose(r[0], 0.044075 - 0.040, rel_tol=1e-12)
+    v = VWACF()  # Ø88.15, R 39 mm, 0 → 90°
+    assert math.isclose(v.depth, 0.039, rel_tol=1e-12)
+    r, a = v.wall_at_z(np.array([-0.039, -0.0195]))
+    assert math.isclose(r[0], 0.044075 - 0.039, rel_tol=1e-12)
     assert math.isclose(a[0], math.pi / 2, rel_tol=1e-12)
     assert math.isclose(a[1], math.acos(0.5), rel_tol=1e-12)  # z = −ρ(1 − cos β)
+    # a Ø10 ball still fits at the bottom: ball-centre radius R0 − ρ − R ≥ 0
+    assert 0.044075 - 0.039 - 0.005 >= 0
     assert math.isclose(v.opening_radius, 0.044075)
 
 

@@ -124,7 +124,7 @@ def test_cone_spiral_tangency_and_ramp(paper_cone):
 
 
 def test_vwacf_tangency_and_truncation():
-    part = VWACF()  # Ø88.15, 40 mm arc, 0° → 90°: bottom Ø8.15 mm, narrower than the Ø10 ball
+    part = VWACF(arc_radius=40e-3)  # Ø88.15, 40 mm arc, 0° → 90°: bottom Ø8.15 mm < Ø10 ball
     tp = step_down(part, R, 0.5e-3, spacing=2e-3)
     _check_tangent_ball(part, tp)
     assert tp.meta["truncated"] is True
@@ -139,6 +139,14 @@ def test_vwacf_tangency_and_truncation():
     assert z_end >= -(45e-3) * (1 - math.cos(beta)) - 1e-9
     # the wall angle grows from ~0 to the steepest contact
     assert tp.wall_angle[0] < math.radians(10) and tp.wall_angle[-1] > math.radians(75)
+
+
+def test_default_vwacf_is_followed_to_the_bottom_by_a_10mm_ball():
+    part = VWACF()  # 39 mm arc: the largest a Ø10 ball can follow to 90°
+    tp = step_down(part, R, 0.5e-3, spacing=2e-3)
+    _check_tangent_ball(part, tp)
+    assert "truncated" not in tp.meta
+    assert tp.tip[:, 2].min() == pytest.approx(-part.depth, abs=TOL)
 
 
 def test_vwacf_fits_with_a_smaller_tool():

@@ -1,7 +1,7 @@
 """``roboisf demo``: the built-in demonstration.
 
 Interim version (toolpaths only): the paper's cone (Ø87 mm, 71°, 102.97 mm deep) and VWACF
-(Ø88.15 mm, default 40 mm arc, 0° → 90°), Ø10 mm ball, 0.5 mm step, 750 mm/min, written in every
+(Ø88.15 mm, default 39 mm arc, 0° → 90°), Ø10 mm ball, 0.5 mm step, 750 mm/min, written in every
 supported format. The folder is built in a staging folder and moved into place when complete.
 
 A later issue replaces :func:`build_demo` with the full virtual-cell demo; the command, the

@@ -81,7 +81,7 @@ def _vwacf(
     sheet_thickness: Sheet = PAPER_SHEET_THICKNESS * 1e3,
     flange_width: Flange = 10.0,
 ) -> None:
-    """Variable-wall-angle frustum (defaults: Ø88.15 mm, 40 mm arc, 0° → 90°)."""
+    """Variable-wall-angle frustum (defaults: Ø88.15 mm, 39 mm arc, 0° → 90°)."""
     _save(
         lambda: VWACF(
             opening_diameter * 1e-3,

@@ -223,9 +223,12 @@ class Cone(AxisymmetricPart):
         }
 
 
-#: Default VWACF arc radius [m]: with Ø88.15 and 90° final angle the part is 40 mm deep and its
-#: bottom Ø8.15 mm. The paper's Fig. 2b (not in our text copy) gives the true value.
-VWACF_DEFAULT_ARC_RADIUS = 40e-3
+#: Default VWACF arc radius [m]. The paper's Fig. 2b (not in our text copy) gives the true value.
+#: 39 mm is the largest arc a Ø10 mm ball can follow all the way to 90° on a Ø88.15 mm opening
+#: (ball centre radius R0 − ρ − R_ball ≥ 0); the part is then 39 mm deep with a Ø10.15 mm bottom,
+#: and a sheet that fractures at 83° does so 34 mm deep — the paper's VWACF springback "increases
+#: at z = 30–35 mm and diminishes near the fracture area".
+VWACF_DEFAULT_ARC_RADIUS = 39e-3
 
 
 @dataclass(frozen=True)
@@ -236,7 +239,7 @@ class VWACF(AxisymmetricPart):
     Parameters
     ----------
     opening_diameter : float, m — paper: 88.15 mm
-    arc_radius : float, m — radius of the generatrix arc (default 40 mm, a documented assumption)
+    arc_radius : float, m — radius of the generatrix arc (default 39 mm, a documented assumption)
     final_wall_angle : float, rad — in (0, 90°] (paper: 90°)
     Depth follows: ``arc_radius · (1 − cos final_wall_angle)``.
     """

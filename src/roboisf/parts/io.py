@@ -28,7 +28,13 @@ import tomli_w
 
 from roboisf.errors import InputError
 from roboisf.io.atomic import atomic_write
-from roboisf.parts.axisymmetric import VWACF, AxisymmetricPart, Cone, ProfilePart
+from roboisf.parts.axisymmetric import (
+    VWACF,
+    VWACF_DEFAULT_ARC_RADIUS,
+    AxisymmetricPart,
+    Cone,
+    ProfilePart,
+)
 
 __all__ = ["load_part", "part_from_dict", "read_profile_csv", "save_part"]
 
@@ -115,7 +121,7 @@ def part_from_dict(table: dict[str, Any], *, where: str | Path | None = None) ->
         if kind == "vwacf":
             return VWACF(
                 opening_diameter=_num(table, "opening_diameter", src, 88.15) * 1e-3,
-                arc_radius=_num(table, "arc_radius", src, 40.0) * 1e-3,
+                arc_radius=_num(table, "arc_radius", src, VWACF_DEFAULT_ARC_RADIUS * 1e3) * 1e-3,
                 final_wall_angle=math.radians(_num(table, "final_wall_angle", src, 90.0)),
                 **common,
             )

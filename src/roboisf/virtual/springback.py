@@ -14,8 +14,8 @@ Tuning (see ``tests/test_virtual_models.py``): the paper's cone (71°) reports m
 mean |δx| = (2/π) sin α · s and mean |δz| = cos α · s; ``amplitude = 1.33 mm`` lands at
 |δx| ≈ |δy| ≈ 0.75, |δz| ≈ 0.40 mm, R_m ≈ 1.13 mm over the analysed wall (z < −20 mm) — the
 z component cannot match 0.49 with a normal-only field (the paper's vectors include tangential
-parts a scan cannot separate). For the VWACF (40 mm arc, fracture at 83°) an amplitude of
-0.83 mm gives R_m ≈ 0.53 mm.
+parts a scan cannot separate). For the VWACF (39 mm arc, fracture at 78°) an amplitude of
+0.96 mm gives R_m ≈ 0.53 mm.
 """
 
 from __future__ import annotations
