@@ -23,7 +23,12 @@ from roboisf.io.forcelog import ForceLog, attach_to_toolpath
 from roboisf.io.gcode import write_gcode
 from roboisf.io.krl import write_krl
 from roboisf.io.rapid import write_rapid
-from roboisf.io.toolpath_csv import TOOLPATH_COLUMNS, read_toolpath_csv, write_toolpath_csv
+from roboisf.io.toolpath_csv import (
+    TOOLPATH_COLUMNS,
+    read_toolpath_csv,
+    toolpath_table,
+    write_toolpath_csv,
+)
 from roboisf.parts import Cone
 from roboisf.toolpath import spiral, step_down
 
@@ -52,20 +57,7 @@ def main() -> None:
         f = d / "p.csv"
         t_w, _ = timeit(lambda: write_toolpath_csv(tp, f))
         t_r, back = timeit(lambda: read_toolpath_csv(f))
-        data = np.column_stack(
-            [
-                np.arange(len(tp)),
-                tp.lap,
-                tp.contact * 1e3,
-                tp.normal,
-                tp.center * 1e3,
-                tp.tip * 1e3,
-                np.degrees(tp.wall_angle),
-                -tp.contact[:, 2] * 1e3,
-                tp.path_length * 1e3,
-                tp.time,
-            ]
-        )
+        data = toolpath_table(tp)
         df = pd.DataFrame(data, columns=TOOLPATH_COLUMNS)
         g = d / "pd.csv"
         t_pw, _ = timeit(lambda: df.to_csv(g, index=False, float_format="%.9f"))

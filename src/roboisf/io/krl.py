@@ -47,6 +47,7 @@ from roboisf.io.program import (
     ProgramPath,
     RobotTool,
     check_placement,
+    fmt_num,
     identifier,
     orientations,
     program_identifier,
@@ -56,11 +57,6 @@ from roboisf.io.program import (
 from roboisf.toolpath.toolpath import Toolpath
 
 __all__ = ["frame_to_krl", "read_krl", "write_krl"]
-
-
-def _num(v: float, nd: int = 3) -> str:
-    s = f"{v:.{nd}f}".rstrip("0").rstrip(".")
-    return "0" if s in ("-0", "") else s
 
 
 def _abc_deg(R: np.ndarray) -> np.ndarray:
@@ -75,8 +71,8 @@ def frame_to_krl(p_mm: ArrayLike, abc_deg: ArrayLike, nd_angle: int = 6) -> str:
     p = np.asarray(p_mm, dtype=float)
     a = np.asarray(abc_deg, dtype=float)
     return (
-        f"{{X {_num(p[0])},Y {_num(p[1])},Z {_num(p[2])},"
-        f"A {_num(a[0], nd_angle)},B {_num(a[1], nd_angle)},C {_num(a[2], nd_angle)}}}"
+        f"{{X {fmt_num(p[0])},Y {fmt_num(p[1])},Z {fmt_num(p[2])},"
+        f"A {fmt_num(a[0], nd_angle)},B {fmt_num(a[1], nd_angle)},C {fmt_num(a[2], nd_angle)}}}"
     )
 
 
@@ -133,7 +129,7 @@ def write_krl(
         "&ACCESS RVP\n&REL 1\n",
         f"DEF {prog}( )\n",
         f"  ; roboisf {__version__}: ISF toolpath, {len(tp)} points, {tp.n_laps} laps, ball radius "
-        f"{_num(tp.tool_radius * 1e3)} mm\n",
+        f"{fmt_num(tp.tool_radius * 1e3)} mm\n",
         "  ; positions: ball tip in $BASE (mm); A,B,C: R = Rz(A) Ry(B) Rx(C) of the tool frame "
         "(z along the tool)\n",
         "  BAS(#INITMOV,0)\n",
@@ -142,7 +138,7 @@ def write_krl(
         "  $LOAD.M = LOAD_M\n",
         "  $LOAD.CM = LOAD_CM\n",
         f"  $VEL.CP = {tp.feed:.6f}\n",
-        f"  $APO.CDIS = {_num(cdis * 1e3)}\n",
+        f"  $APO.CDIS = {fmt_num(cdis * 1e3)}\n",
         f"  PTP {frame_to_krl(p[0] + up, abc[0])}\n",
     ]
     src += [f"  {s}( )\n" for s in subs]
@@ -158,7 +154,7 @@ def write_krl(
         f"DEFDAT {prog}\n",
         f"  DECL FRAME TOOL_ISF={tool_frame}\n",
         f"  DECL FRAME BASE_ISF={base}\n",
-        f"  DECL REAL LOAD_M={_num(tool.mass)}\n",
+        f"  DECL REAL LOAD_M={fmt_num(tool.mass)}\n",
         f"  DECL FRAME LOAD_CM={cm}\n",
         "ENDDAT\n",
     ]

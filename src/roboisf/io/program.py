@@ -70,6 +70,12 @@ class RobotTool:
         return np.array(self.cog if self.cog is not None else (0.0, 0.0, self.length / 2))
 
 
+def fmt_num(v: float, nd: int = 3) -> str:
+    """Shortest fixed-point text of ``v`` at ``nd`` decimals (``12.500`` → ``12.5``, no ``-0``)."""
+    s = f"{v:.{nd}f}".rstrip("0").rstrip(".")
+    return "0" if s in ("-0", "") else s
+
+
 def identifier(name: str, what: str, max_len: int = 24) -> str:
     """Check a controller identifier (letter first, then letters, digits, ``_``)."""
     if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", name) or len(name) > max_len:

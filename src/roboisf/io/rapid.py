@@ -49,6 +49,7 @@ from roboisf.io.program import (
     ProgramPath,
     RobotTool,
     check_placement,
+    fmt_num,
     identifier,
     orientations,
     program_identifier,
@@ -63,13 +64,9 @@ __all__ = ["ZONES", "read_rapid", "write_rapid"]
 ZONES = ("fine", "z0", "z1", "z5", "z10", "z15", "z20", "z30", "z40", "z50", "z60", "z80", "z100")
 
 
-def _num(v: float, nd: int = 3) -> str:
-    s = f"{v:.{nd}f}".rstrip("0").rstrip(".")
-    return "0" if s in ("-0", "") else s
-
-
 def _pose(p: np.ndarray, q: np.ndarray) -> str:
-    return f"[[{_num(p[0])},{_num(p[1])},{_num(p[2])}],[{','.join(_num(x, 9) for x in q)}]]"
+    xyz = ",".join(fmt_num(x) for x in p)
+    return f"[[{xyz}],[{','.join(fmt_num(x, 9) for x in q)}]]"
 
 
 def write_rapid(
@@ -122,25 +119,26 @@ def write_rapid(
     cf = ",".join(str(int(c)) for c in conf)
     tail = f",vForm,{zone},{tool.name}\\WObj:={wobj_name};\n"
     ext = "[9E9,9E9,9E9,9E9,9E9,9E9]"
+    up = fmt_num(safe_height * 1e3)
     out = [
         f"MODULE {name}\n",
         f"  ! roboisf {__version__}: ISF toolpath, {len(tp)} points, {tp.n_laps} laps, "
-        f"ball radius {_num(tp.tool_radius * 1e3)} mm\n",
+        f"ball radius {fmt_num(tp.tool_radius * 1e3)} mm\n",
         "  ! robtargets: ball tip in the work object (mm); quaternion q1..q4 = (w,x,y,z) of "
         "the tool frame (z along the tool)\n",
-        f"  PERS tooldata {tool.name} := [TRUE,[[0,0,{_num(tool.length * 1e3)}],[1,0,0,0]],"
-        f"[{_num(tool.mass)},[{_num(cog[0])},{_num(cog[1])},{_num(cog[2])}],[1,0,0,0],0,0,0]];\n",
+        f"  PERS tooldata {tool.name} := [TRUE,[[0,0,{fmt_num(tool.length * 1e3)}],[1,0,0,0]],"
+        f"[{fmt_num(tool.mass)},[{fmt_num(cog[0])},{fmt_num(cog[1])},{fmt_num(cog[2])}],[1,0,0,0],0,0,0]];\n",
         f'  PERS wobjdata {wobj_name} := [FALSE,TRUE,"",{_pose(T[:3, 3] * 1e3, qb)},'
         "[[0,0,0],[1,0,0,0]]];\n",
-        f"  CONST speeddata vForm := [{_num(v)},500,5000,1000];\n",
+        f"  CONST speeddata vForm := [{fmt_num(v)},500,5000,1000];\n",
         "  PROC main()\n",
         "    ConfL\\Off;\n",
-        f"    MoveJ Offs({_pose(p[0], q[0])[:-1]},[{cf}],{ext}],0,0,{_num(safe_height * 1e3)}),"
+        f"    MoveJ Offs({_pose(p[0], q[0])[:-1]},[{cf}],{ext}],0,0,{up}),"
         f"v200,fine,{tool.name}\\WObj:={wobj_name};\n",
     ]
     out += [f"    {name}_{k + 1};\n" for k in range(len(chunks))]
     out += [
-        f"    MoveL Offs({_pose(p[-1], q[-1])[:-1]},[{cf}],{ext}],0,0,{_num(safe_height * 1e3)}),"
+        f"    MoveL Offs({_pose(p[-1], q[-1])[:-1]},[{cf}],{ext}],0,0,{up}),"
         f"v50,fine,{tool.name}\\WObj:={wobj_name};\n",
         "  ENDPROC\n",
     ]

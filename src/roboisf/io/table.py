@@ -107,9 +107,9 @@ def read_table(
             continue
         if not s.startswith("#"):
             break
-        body = s.lstrip("#").strip()
-        if ":" in body:
-            key, _, value = body.partition(":")
+        comment = s.lstrip("#").strip()
+        if ":" in comment:
+            key, _, value = comment.partition(":")
             key = key.strip().lower()
             if key in meta and meta[key] != value.strip():
                 raise InputError(
