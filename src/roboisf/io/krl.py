@@ -44,15 +44,13 @@ from roboisf.errors import InputError
 from roboisf.frames.rotations import abc_to_matrix, matrix_to_abc
 from roboisf.io.atomic import atomic_write
 from roboisf.io.program import (
+    NUMBER_RE,
     ProgramPath,
     RobotTool,
-    check_placement,
     fmt_num,
     identifier,
-    orientations,
+    prepare_program,
     program_identifier,
-    split_chunks,
-    tip_mm,
 )
 from roboisf.toolpath.toolpath import Toolpath
 
@@ -107,24 +105,27 @@ def write_krl(
     path = Path(path)
     if path.suffix.lower() != ".src":
         raise InputError("a KRL program must be written to a .src file", file=path)
-    tool = tool or RobotTool()
-    T = check_placement(T_base_work)
     prog = (identifier(name, "name", 19) if name else program_identifier(path.stem, 19)).lower()
     if not (np.isfinite(cdis) and cdis >= 0):
         raise InputError(f"must be ≥ 0 mm, got {cdis * 1e3:g}", field="cdis")
-    if not (np.isfinite(safe_height) and safe_height > 0):
-        raise InputError(f"must be > 0 mm, got {safe_height * 1e3:g}", field="safe_height")
-    R = orientations(tp, tool_rotation, R_work_tool)
-    abc = _abc_deg(R)
-    p = tip_mm(tp)
-    chunks = split_chunks(len(tp), max_moves)
+    inputs = prepare_program(
+        tp,
+        T_base_work=T_base_work,
+        tool=tool,
+        tool_rotation=tool_rotation,
+        R_work_tool=R_work_tool,
+        safe_height=safe_height,
+        max_moves=max_moves,
+    )
+    tool, T, p, chunks = inputs.tool, inputs.T_base_work, inputs.tip_mm, inputs.chunks
+    abc = _abc_deg(inputs.R_work_tool)
     base = frame_to_krl(T[:3, 3] * 1e3, _abc_deg(T[:3, :3]))
     tool_frame = frame_to_krl([tool.length * 1e3, 0, 0], [0, 90, 0])
     cog = tool.cog_xyz * 1e3  # flange frame: ABB-style z along the axis → KUKA x along the axis
     cm = frame_to_krl([cog[2], cog[1], -cog[0]], [0, 0, 0])
     approx = " C_DIS" if cdis > 0 else ""
     subs = [f"{prog}_{k + 1}" for k in range(len(chunks))]
-    up = np.array([0.0, 0.0, safe_height * 1e3])
+    up = np.array([0.0, 0.0, inputs.safe_height_mm])
     src = [
         "&ACCESS RVP\n&REL 1\n",
         f"DEF {prog}( )\n",
@@ -164,7 +165,7 @@ def write_krl(
         fh.write("".join(src))
 
 
-_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_NUM = NUMBER_RE
 _FRAME = re.compile(
     rf"\{{\s*X\s+({_NUM})\s*,\s*Y\s+({_NUM})\s*,\s*Z\s+({_NUM})\s*,\s*A\s+({_NUM})\s*,"
     rf"\s*B\s+({_NUM})\s*,\s*C\s+({_NUM})\s*\}}"

@@ -46,15 +46,13 @@ from roboisf.errors import InputError
 from roboisf.frames.rotations import matrix_to_quat, quat_to_matrix
 from roboisf.io.atomic import atomic_write
 from roboisf.io.program import (
+    NUMBER_RE,
     ProgramPath,
     RobotTool,
-    check_placement,
     fmt_num,
     identifier,
-    orientations,
+    prepare_program,
     program_identifier,
-    split_chunks,
-    tip_mm,
 )
 from roboisf.toolpath.toolpath import Toolpath
 
@@ -101,25 +99,28 @@ def write_rapid(
     module : module name (default: from the file name)
     """
     path = Path(path)
-    tool = tool or RobotTool()
-    T = check_placement(T_base_work)
     if zone not in ZONES:
         raise InputError(f"unknown zone {zone!r}; expected one of {', '.join(ZONES)}", field="zone")
     name = identifier(module, "module", 26) if module else program_identifier(path.stem, 26)
     identifier(wobj_name, "wobj_name", 32)
-    if not (np.isfinite(safe_height) and safe_height > 0):
-        raise InputError(f"must be > 0 mm, got {safe_height * 1e3:g}", field="safe_height")
-    R = orientations(tp, tool_rotation, R_work_tool)
-    q = matrix_to_quat(R)
-    p = tip_mm(tp)
-    chunks = split_chunks(len(tp), max_moves)
+    prog = prepare_program(
+        tp,
+        T_base_work=T_base_work,
+        tool=tool,
+        tool_rotation=tool_rotation,
+        R_work_tool=R_work_tool,
+        safe_height=safe_height,
+        max_moves=max_moves,
+    )
+    tool, T, p, chunks = prog.tool, prog.T_base_work, prog.tip_mm, prog.chunks
+    q = matrix_to_quat(prog.R_work_tool)
     qb = matrix_to_quat(T[:3, :3])
     cog = tool.cog_xyz * 1e3
     v = tp.feed * 1e3
     cf = ",".join(str(int(c)) for c in conf)
     tail = f",vForm,{zone},{tool.name}\\WObj:={wobj_name};\n"
     ext = "[9E9,9E9,9E9,9E9,9E9,9E9]"
-    up = fmt_num(safe_height * 1e3)
+    up = fmt_num(prog.safe_height_mm)
     out = [
         f"MODULE {name}\n",
         f"  ! roboisf {__version__}: ISF toolpath, {len(tp)} points, {tp.n_laps} laps, "
@@ -154,7 +155,7 @@ def write_rapid(
         fh.write("".join(out))
 
 
-_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_NUM = NUMBER_RE
 _MOVEL = re.compile(
     rf"^\s*MoveL\s+\[\[({_NUM}),({_NUM}),({_NUM})\],\[({_NUM}),({_NUM}),({_NUM}),({_NUM})\]"
     rf",\[([^\]]*)\],\[[^\]]*\]\]\s*,\s*(\w+)\s*,\s*(\w+)\s*,\s*(\w+)"
