@@ -255,10 +255,11 @@ def _toolpath_from_part_file(
     opts: PathOptions,
 ) -> None:
     if ctx.invoked_subcommand is not None:
-        if part is not None or output is not None:
+        if part is not None or output is not None or fmt is not None or opts != PathOptions():
             raise InputError(
                 f"give the part either as --part FILE or as the subcommand "
-                f"{ctx.invoked_subcommand!r}, and -o after the subcommand",
+                f"{ctx.invoked_subcommand!r}, and put -o and the other options after the "
+                "subcommand",
                 field="--part",
             )
         return
