@@ -197,6 +197,13 @@ def test_bad_suffix_and_missing_part(tmp_path, capsys):
     assert not (tmp_path / "c.toml").exists()
 
 
+def test_options_before_subcommand_are_not_ignored(tmp_path, capsys):
+    out = tmp_path / "o.csv"
+    code, cap = _run(["toolpath", "--step-down", "1", "cone", "-o", str(out)], capsys)
+    assert code == 2 and "after the subcommand" in cap.err
+    assert not out.exists()
+
+
 def test_never_overwrites_input(tmp_path):
     prof = tmp_path / "profile.csv"
     text = "r,z\n40,0\n30,-10\n"
