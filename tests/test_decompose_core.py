@@ -30,8 +30,16 @@ def synthetic(N=500):
 
 def test_normal_components_are_recovered_exactly():
     n, truth, tool_cnc, dn_cnc, dn_robot = synthetic()
-    d = decompose(n, dn_cnc, dn_robot, tool_cnc, truth["tool"], truth["tool_holder"],
-                  truth["robot_compliance"], np.ones(len(n), bool))
+    d = decompose(
+        n,
+        dn_cnc,
+        dn_robot,
+        tool_cnc,
+        truth["tool"],
+        truth["tool_holder"],
+        truth["robot_compliance"],
+        np.ones(len(n), bool),
+    )
     for f in FACTORS:
         np.testing.assert_allclose(d.normal[f], np.einsum("ij,ij->i", truth[f], n), atol=1e-15)
     np.testing.assert_allclose(d.normal["delta"], 0.0, atol=1e-15)
@@ -45,8 +53,16 @@ def test_resultant_mean_deviation_by_hand():
 
 def test_contribution_rows_shares_sum_to_100_and_total_row():
     n, truth, tool_cnc, dn_cnc, dn_robot = synthetic()
-    d = decompose(n, dn_cnc, dn_robot, tool_cnc, truth["tool"], truth["tool_holder"],
-                  truth["robot_compliance"], np.ones(len(n), bool))
+    d = decompose(
+        n,
+        dn_cnc,
+        dn_robot,
+        tool_cnc,
+        truth["tool"],
+        truth["tool_holder"],
+        truth["robot_compliance"],
+        np.ones(len(n), bool),
+    )
     for projected in (False, True):
         rows = contribution_rows(d, projected=projected)
         assert [r["factor"] for r in rows] == [*FACTORS, "total"]
@@ -57,9 +73,25 @@ def test_contribution_rows_shares_sum_to_100_and_total_row():
 def test_valid_mask_and_shapes():
     n, truth, tool_cnc, dn_cnc, dn_robot = synthetic(10)
     with pytest.raises(InputError, match="shape"):
-        decompose(n, dn_cnc[:5], dn_robot, tool_cnc, truth["tool"], truth["tool_holder"],
-                  truth["robot_compliance"], np.ones(10, bool))
-    d = decompose(n, dn_cnc, dn_robot, tool_cnc, truth["tool"], truth["tool_holder"],
-                  truth["robot_compliance"], np.zeros(10, bool))
+        decompose(
+            n,
+            dn_cnc[:5],
+            dn_robot,
+            tool_cnc,
+            truth["tool"],
+            truth["tool_holder"],
+            truth["robot_compliance"],
+            np.ones(10, bool),
+        )
+    d = decompose(
+        n,
+        dn_cnc,
+        dn_robot,
+        tool_cnc,
+        truth["tool"],
+        truth["tool_holder"],
+        truth["robot_compliance"],
+        np.zeros(10, bool),
+    )
     with pytest.raises(InputError, match="no toolpath point"):
         contribution_rows(d, projected=False)

@@ -1,4 +1,4 @@
-"""Parts: exact closest points (vs dense brute force), normals, sine law, TOML round trip, errors."""
+"""Parts: exact closest points (vs brute force), normals, sine law, TOML round trip, errors."""
 
 import math
 
@@ -172,7 +172,9 @@ def test_part_table_errors(tmp_path):
     with pytest.raises(InputError, match="unknown part kind"):
         part_from_dict({"kind": "pyramid"})
     with pytest.raises(InputError, match="unknown key"):
-        part_from_dict({"kind": "cone", "opening_diameter": 87, "wall_angle": 71, "depth": 50, "x": 1})
+        part_from_dict(
+            {"kind": "cone", "opening_diameter": 87, "wall_angle": 71, "depth": 50, "x": 1}
+        )
     with pytest.raises(InputError, match="missing key"):
         part_from_dict({"kind": "cone", "opening_diameter": 87})
     with pytest.raises(InputError, match="expected a number"):

@@ -23,11 +23,18 @@ def test_pose_to_transform_units_and_errors():
 
 
 def sensors():
-    fixture = ForceSensorSpec(Path("f.csv"), "fixture",
-                              make_transform(rpy_to_matrix([0.1, -0.2, 0.7]), [0.01, -0.02, -0.08]),
-                              "workpiece")
-    flange = ForceSensorSpec(Path("r.csv"), "flange",
-                             make_transform(rpy_to_matrix([math.pi, 0, 0.3]), [0, 0, -0.19]), "tool")
+    fixture = ForceSensorSpec(
+        Path("f.csv"),
+        "fixture",
+        make_transform(rpy_to_matrix([0.1, -0.2, 0.7]), [0.01, -0.02, -0.08]),
+        "workpiece",
+    )
+    flange = ForceSensorSpec(
+        Path("r.csv"),
+        "flange",
+        make_transform(rpy_to_matrix([math.pi, 0, 0.3]), [0, 0, -0.19]),
+        "tool",
+    )
     return fixture, flange
 
 
@@ -55,7 +62,16 @@ def test_fixture_sensor_by_hand():
 
 
 def write_min_study(root: Path, text: str) -> Path:
-    for f in ("path.csv", "cnc.ply", "robot.ply", "cnc_f.csv", "rob_f.csv", "joints.csv", "tool.json", "holder.json"):
+    for f in (
+        "path.csv",
+        "cnc.ply",
+        "robot.ply",
+        "cnc_f.csv",
+        "rob_f.csv",
+        "joints.csv",
+        "tool.json",
+        "holder.json",
+    ):
         (root / f).write_text("x")
     (root / "study.toml").write_text(text)
     return root
@@ -82,7 +98,11 @@ placement = [1800, 0, 500, 0, 0, 0]
 machine = "cnc"
 toolpath = "path.csv"
 scan = "cnc.ply"
-forces = { file = "cnc_f.csv", mount = "fixture", pose = [0, 0, -60, 0, 0, 0], load_on = "workpiece" }
+[runs.cnc.forces]
+file = "cnc_f.csv"
+mount = "fixture"
+pose = [0, 0, -60, 0, 0, 0]
+load_on = "workpiece"
 [runs.robot]
 machine = "robot"
 toolpath = "path.csv"
@@ -102,21 +122,29 @@ def test_good_study_loads(tmp_path):
 
 
 def test_every_problem_is_reported_at_once(tmp_path):
-    bad = (GOOD.replace('scan = "cnc.ply"', 'scan = "missing.ply"')
-           .replace("wall_angle = 71", "wall_angle = 95")
-           .replace('mount = "fixture"', 'mount = "table"')
-           .replace("[study]", "[units]\nforce = \"lbf\"\n[study]\ncolour = 1"))
+    bad = (
+        GOOD.replace('scan = "cnc.ply"', 'scan = "missing.ply"')
+        .replace("wall_angle = 71", "wall_angle = 95")
+        .replace('mount = "fixture"', 'mount = "table"')
+        .replace("[study]", '[units]\nforce = "lbf"\n[study]\ncolour = 1')
+    )
     with pytest.raises(StudyError) as e:
         load_study(write_min_study(tmp_path, bad))
     msg = str(e.value)
-    for expected in ("runs.cnc.scan", "missing.ply", "part.wall_angle", "runs.cnc.forces.mount",
-                     "units.force", "study.colour"):
+    for expected in (
+        "runs.cnc.scan",
+        "missing.ply",
+        "part.wall_angle",
+        "runs.cnc.forces.mount",
+        "units.force",
+        "study.colour",
+    ):
         assert expected in msg, expected
     assert len(e.value.problems) == 5
 
 
 def test_missing_study_file(tmp_path):
-    with pytest.raises(InputError, match="study.toml"):
+    with pytest.raises(InputError, match=r"study\.toml"):
         load_study(tmp_path)
 
 

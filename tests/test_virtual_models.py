@@ -89,9 +89,9 @@ def test_springback_tuned_to_paper_vwacf(vwacf_path):
 
 
 def test_bad_model_parameters():
-    with pytest.raises(InputError, match="force.radial_ratio"):
+    with pytest.raises(InputError, match=r"force\.radial_ratio"):
         ForceModel(radial_ratio=-1)
-    with pytest.raises(InputError, match="springback.amplitude"):
+    with pytest.raises(InputError, match=r"springback\.amplitude"):
         SpringbackModel(amplitude=float("nan"))
 
 

@@ -90,9 +90,13 @@ def decompose(
     n = np.asarray(normal, dtype=float)
     N = n.shape[0]
     for name, a, shape in (
-        ("dn_cnc", dn_cnc, (N,)), ("dn_robot", dn_robot, (N,)), ("tool_cnc", tool_cnc, (N, 3)),
-        ("tool_robot", tool_robot, (N, 3)), ("holder_robot", holder_robot, (N, 3)),
-        ("vjm", vjm, (N, 3)), ("valid", valid, (N,)),
+        ("dn_cnc", dn_cnc, (N,)),
+        ("dn_robot", dn_robot, (N,)),
+        ("tool_cnc", tool_cnc, (N, 3)),
+        ("tool_robot", tool_robot, (N, 3)),
+        ("holder_robot", holder_robot, (N, 3)),
+        ("vjm", vjm, (N, 3)),
+        ("valid", valid, (N,)),
     ):
         if np.shape(a) != shape:
             raise InputError(f"expected shape {shape}, got {np.shape(a)}", field=name)
@@ -122,6 +126,7 @@ def contribution_rows(d: Decomposition, *, projected: bool) -> list[dict[str, fl
     sel = d.valid
     if not np.any(sel):
         raise InputError("no toolpath point is covered by both scans outside the rim band")
+
     def vec(f: str) -> F64:
         if projected:
             return (d.normal[f][:, None] * d.n)[sel]
@@ -133,12 +138,16 @@ def contribution_rows(d: Decomposition, *, projected: bool) -> list[dict[str, fl
     for f in (*FACTORS, "robot"):
         v = vec(f)
         m = np.mean(np.abs(v), axis=0)
-        rows.append({
-            "factor": "total" if f == "robot" else f,
-            "mean_abs_dx": float(m[0]),
-            "mean_abs_dy": float(m[1]),
-            "mean_abs_dz": float(m[2]),
-            "R_m": float(np.sqrt(np.sum(m**2))),
-            "share_percent": 100.0 if f == "robot" else (100.0 * rms[f] / total if total > 0 else 0.0),
-        })
+        rows.append(
+            {
+                "factor": "total" if f == "robot" else f,
+                "mean_abs_dx": float(m[0]),
+                "mean_abs_dy": float(m[1]),
+                "mean_abs_dz": float(m[2]),
+                "R_m": float(np.sqrt(np.sum(m**2))),
+                "share_percent": 100.0
+                if f == "robot"
+                else (100.0 * rms[f] / total if total > 0 else 0.0),
+            }
+        )
     return rows

@@ -39,7 +39,9 @@ def R_work_tip_vertical(tool_rotation: ArrayLike = 0.0) -> F64:
     return R
 
 
-def sensor_to_tip(W_s: ArrayLike, sensor: ForceSensorSpec, tip_work: ArrayLike, R_work_tip: ArrayLike) -> F64:
+def sensor_to_tip(
+    W_s: ArrayLike, sensor: ForceSensorSpec, tip_work: ArrayLike, R_work_tip: ArrayLike
+) -> F64:
     """Sensor wrench (N, 6) [N, N·m] → the sheet's wrench on the tool about the tip, work axes.
 
     tip_work : (N, 3) m — tool-tip positions; R_work_tip : (3, 3) or (N, 3, 3).
@@ -54,7 +56,9 @@ def sensor_to_tip(W_s: ArrayLike, sensor: ForceSensorSpec, tip_work: ArrayLike, 
     return sign * transform_wrench(W_t, make_transform(R))
 
 
-def tip_to_sensor(W_tip: ArrayLike, sensor: ForceSensorSpec, tip_work: ArrayLike, R_work_tip: ArrayLike) -> F64:
+def tip_to_sensor(
+    W_tip: ArrayLike, sensor: ForceSensorSpec, tip_work: ArrayLike, R_work_tip: ArrayLike
+) -> F64:
     """Inverse of :func:`sensor_to_tip`: what the sensor would read."""
     W = np.asarray(W_tip, dtype=float)
     sign = -1.0 if sensor.load_on == "workpiece" else 1.0

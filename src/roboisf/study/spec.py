@@ -16,7 +16,7 @@ import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -59,7 +59,8 @@ def pose_to_transform(values: Any, *, field: str, file: Path | None = None) -> F
         isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in values
     ):
         raise InputError(
-            f"expected [x, y, z, roll, pitch, yaw] in mm and deg (6 finite numbers), got {values!r}",
+            "expected [x, y, z, roll, pitch, yaw] in mm and deg (6 finite numbers), "
+            f"got {values!r}",
             file=file,
             field=field,
         )
@@ -199,12 +200,16 @@ class _Collector:
 
     def catch(self, err: InputError, key: str) -> None:
         f = err.file or self.file
-        fld = err.field if err.field and err.field.startswith(key) else (
-            f"{key}.{err.field}" if err.field else key
+        fld = (
+            err.field
+            if err.field and err.field.startswith(key)
+            else (f"{key}.{err.field}" if err.field else key)
         )
         self.problems.append(InputError(err.message, file=f, line=err.line, field=fld))
 
-    def table(self, data: dict[str, Any], key: str, allowed: set[str], required: bool = True) -> dict[str, Any]:
+    def table(
+        self, data: dict[str, Any], key: str, allowed: set[str], required: bool = True
+    ) -> dict[str, Any]:
         if key not in data:
             if required:
                 self.add("missing table", key)
@@ -217,8 +222,16 @@ class _Collector:
             self.add(f"unknown key; expected one of {', '.join(sorted(allowed))}", f"{key}.{k}")
         return t
 
-    def number(self, t: dict[str, Any], key: str, name: str, *, default: float | None = None,
-               positive: bool = False, required: bool = True) -> float | None:
+    def number(
+        self,
+        t: dict[str, Any],
+        key: str,
+        name: str,
+        *,
+        default: float | None = None,
+        positive: bool = False,
+        required: bool = True,
+    ) -> float | None:
         if name not in t:
             if default is None and required:
                 self.add("missing key", f"{key}.{name}")
@@ -232,7 +245,9 @@ class _Collector:
             return default
         return float(v)
 
-    def path(self, root: Path, t: dict[str, Any], key: str, name: str, *, required: bool = True) -> Path | None:
+    def path(
+        self, root: Path, t: dict[str, Any], key: str, name: str, *, required: bool = True
+    ) -> Path | None:
         if name not in t:
             if required:
                 self.add("missing file", f"{key}.{name}")
@@ -248,8 +263,14 @@ class _Collector:
             return None
         return p
 
-    def choice(self, t: dict[str, Any], key: str, name: str, options: tuple[str, ...],
-               default: str | None = None) -> str | None:
+    def choice(
+        self,
+        t: dict[str, Any],
+        key: str,
+        name: str,
+        options: tuple[str, ...],
+        default: str | None = None,
+    ) -> str | None:
         if name not in t:
             if default is None:
                 self.add(f"missing key; expected one of {', '.join(options)}", f"{key}.{name}")
@@ -263,8 +284,13 @@ class _Collector:
 
 def _units(c: _Collector, data: dict[str, Any]) -> UnitsSpec:
     t = c.table(data, "units", {"length", "angle", "force", "moment", "time"}, required=False)
-    tables = {"length": LENGTH_UNITS, "angle": ANGLE_UNITS, "force": FORCE_UNITS,
-              "moment": MOMENT_UNITS, "time": TIME_UNITS}
+    tables = {
+        "length": LENGTH_UNITS,
+        "angle": ANGLE_UNITS,
+        "force": FORCE_UNITS,
+        "moment": MOMENT_UNITS,
+        "time": TIME_UNITS,
+    }
     out = {}
     for k, table in tables.items():
         if k in t:
@@ -282,14 +308,23 @@ def _forces(c: _Collector, root: Path, t: Any, key: str, machine: str) -> ForceS
     for k in sorted(set(t) - {"file", "mount", "pose", "load_on", "time_offset"}):
         c.add("unknown key; expected file, mount, pose, load_on, time_offset", f"{key}.{k}")
     f = c.path(root, t, key, "file")
-    mount = c.choice(t, key, "mount", ("fixture", "flange"),
-                     default="fixture" if machine == "cnc" else "flange")
-    load_on = c.choice(t, key, "load_on", ("tool", "workpiece"),
-                       default="workpiece" if mount == "fixture" else "tool")
+    mount = c.choice(
+        t, key, "mount", ("fixture", "flange"), default="fixture" if machine == "cnc" else "flange"
+    )
+    load_on = c.choice(
+        t,
+        key,
+        "load_on",
+        ("tool", "workpiece"),
+        default="workpiece" if mount == "fixture" else "tool",
+    )
     pose = None
     if "pose" not in t:
-        c.add("missing key: the sensor pose [x, y, z, roll, pitch, yaw] (mm, deg): "
-              "T_work_sensor for a fixture sensor, T_tip_sensor for a flange sensor", f"{key}.pose")
+        c.add(
+            "missing key: the sensor pose [x, y, z, roll, pitch, yaw] (mm, deg): "
+            "T_work_sensor for a fixture sensor, T_tip_sensor for a flange sensor",
+            f"{key}.pose",
+        )
     else:
         try:
             pose = pose_to_transform(t["pose"], field=f"{key}.pose", file=c.file)
@@ -335,7 +370,9 @@ def load_study(path: str | Path) -> Study:
         except InputError as e:
             c.catch(e, "part")
 
-    tt = c.table(data, "tool", {"ball_diameter", "compliance", "free_length", "shank_diameter", "method"})
+    tt = c.table(
+        data, "tool", {"ball_diameter", "compliance", "free_length", "shank_diameter", "method"}
+    )
     ball = c.number(tt, "tool", "ball_diameter", positive=True) if tt else None
     tool_c = c.path(root, tt, "tool", "compliance", required=False)
     free = c.number(tt, "tool", "free_length", positive=True, required=False)
@@ -345,8 +382,13 @@ def load_study(path: str | Path) -> Study:
         c.add("give either 'compliance' (a JSON file) or 'free_length' (mm) to compute it", "tool")
     tool = None
     if ball is not None:
-        tool = ToolSpec(ball * 1e-3, tool_c, None if free is None else free * 1e-3,
-                        None if shank is None else shank * 1e-3, method)  # type: ignore[arg-type]
+        tool = ToolSpec(
+            ball * 1e-3,
+            tool_c,
+            None if free is None else free * 1e-3,
+            None if shank is None else shank * 1e-3,
+            cast(Literal["beam", "fe"], method),
+        )
 
     ht = c.table(data, "tool_holder", {"compliance", "offset", "rigid"}, required=False)
     rigid = bool(ht.get("rigid", not ht))
@@ -357,7 +399,10 @@ def load_study(path: str | Path) -> Study:
     runs: dict[str, RunSpec] = {}
     rt = data.get("runs")
     if not isinstance(rt, dict) or not rt:
-        c.add("missing: at least one [runs.NAME] table (a 'cnc' and a 'robot' run to decompose)", "runs")
+        c.add(
+            "missing: at least one [runs.NAME] table (a 'cnc' and a 'robot' run to decompose)",
+            "runs",
+        )
         rt = {}
     for rname, r in rt.items():
         key = f"runs.{rname}"
@@ -372,7 +417,10 @@ def load_study(path: str | Path) -> Study:
         sc = c.path(root, r, key, "scan")
         su = r.get("scan_unit", units.length)
         if su not in LENGTH_UNITS:
-            c.add(f"unknown length unit {su!r}; expected one of {', '.join(LENGTH_UNITS)}", f"{key}.scan_unit")
+            c.add(
+                f"unknown length unit {su!r}; expected one of {', '.join(LENGTH_UNITS)}",
+                f"{key}.scan_unit",
+            )
         fs = None
         if "forces" not in r:
             c.add("missing table", f"{key}.forces")
@@ -390,7 +438,11 @@ def load_study(path: str | Path) -> Study:
 
     robot = None
     if "robot" in data:
-        rb = c.table(data, "robot", {"model", "placement", "flange_to_tip", "joint_stiffness", "tool_rotation"})
+        rb = c.table(
+            data,
+            "robot",
+            {"model", "placement", "flange_to_tip", "joint_stiffness", "tool_rotation"},
+        )
         model = rb.get("model")
         if not isinstance(model, str) or not model:
             c.add("missing key: a preset name (roboisf robot list) or a robot file", "robot.model")
@@ -401,32 +453,50 @@ def load_study(path: str | Path) -> Study:
             c.catch(e, "robot.placement")
         if "flange_to_tip" in rb:
             try:
-                T_ft = pose_to_transform(rb["flange_to_tip"], field="robot.flange_to_tip", file=file)
+                T_ft = pose_to_transform(
+                    rb["flange_to_tip"], field="robot.flange_to_tip", file=file
+                )
             except InputError as e:
                 c.catch(e, "robot.flange_to_tip")
         K = rb.get("joint_stiffness")
         if K is not None and not (
-            isinstance(K, list) and len(K) == 6
+            isinstance(K, list)
+            and len(K) == 6
             and all(isinstance(k, int | float) and not isinstance(k, bool) and k > 0 for k in K)
         ):
             c.add(f"expected 6 positive numbers (N·m/rad), got {K!r}", "robot.joint_stiffness")
             K = None
         rot = c.number(rb, "robot", "tool_rotation", default=0.0)
         if isinstance(model, str) and T_bw is not None:
-            robot = RobotSpec(model, T_bw, T_ft, None if K is None else tuple(float(k) for k in K),
-                              math.radians(rot or 0.0))
+            robot = RobotSpec(
+                model,
+                T_bw,
+                T_ft,
+                None if K is None else tuple(float(k) for k in K),
+                math.radians(rot or 0.0),
+            )
 
-    at = c.table(data, "analysis", {"rim_band", "contour_z", "registration", "point_radius"}, required=False)
+    at = c.table(
+        data, "analysis", {"rim_band", "contour_z", "registration", "point_radius"}, required=False
+    )
     rim = c.number(at, "analysis", "rim_band", default=20.0)
     cz = c.number(at, "analysis", "contour_z", default=-11.0)
-    reg = c.choice(at, "analysis", "registration", ("flange", "axisymmetric", "icp", "none"), default="flange")
+    reg = c.choice(
+        at, "analysis", "registration", ("flange", "axisymmetric", "icp", "none"), default="flange"
+    )
     prad = c.number(at, "analysis", "point_radius", default=1.0, positive=True)
     if rim is not None and rim < 0:
         c.add("must be ≥ 0 mm", "analysis.rim_band")
-    analysis = AnalysisSpec((rim or 0.0) * 1e-3, (cz or -11.0) * 1e-3, reg or "flange", (prad or 1.0) * 1e-3)  # type: ignore[arg-type]
+    analysis = AnalysisSpec(
+        (rim or 0.0) * 1e-3,
+        (cz or -11.0) * 1e-3,
+        cast(Literal["flange", "axisymmetric", "icp", "none"], reg or "flange"),
+        (prad or 1.0) * 1e-3,
+    )
 
     if c.problems:
         raise StudyError(c.problems, file)
     assert part is not None and tool is not None
-    return Study(root, name, part, tool, holder, robot, runs, analysis, units,
-                 str(st.get("description", "")))
+    return Study(
+        root, name, part, tool, holder, robot, runs, analysis, units, str(st.get("description", ""))
+    )

@@ -38,7 +38,11 @@ F64 = NDArray[np.float64]
 
 
 def aerens_axial_force(
-    tensile_strength: float, thickness: float, tool_diameter: float, step_down: float, wall_angle: F64 | float
+    tensile_strength: float,
+    thickness: float,
+    tool_diameter: float,
+    step_down: float,
+    wall_angle: F64 | float,
 ) -> F64:
     """Aerens' steady axial force [N] (inputs SI: Pa, m, m, m, rad)."""
     a_deg = np.degrees(np.asarray(wall_angle, dtype=float))
@@ -97,18 +101,23 @@ class ForceModel:
         rise = 1.0 - np.exp(-depth / self.rise_depth)
         a = toolpath.wall_angle
         if self.mode == "aerens":
-            return aerens_axial_force(
-                self.tensile_strength, thickness, 2 * toolpath.tool_radius, step_down, a
-            ) * rise
+            return (
+                aerens_axial_force(
+                    self.tensile_strength, thickness, 2 * toolpath.tool_radius, step_down, a
+                )
+                * rise
+            )
         frac = self.fracture_depth(toolpath)
-        fz = self.peak_force * np.sin(np.minimum(a, self.fracture_wall_angle)) / math.sin(
-            self.fracture_wall_angle
+        fz = (
+            self.peak_force
+            * np.sin(np.minimum(a, self.fracture_wall_angle))
+            / math.sin(self.fracture_wall_angle)
         )
         after = np.clip(depth - frac, 0.0, None)
         return fz * rise * np.exp(-after / self.fracture_drop_depth)
 
     def fracture_depth(self, toolpath: Toolpath) -> float:
-        """Depth [m] at which the wall angle first reaches ``fracture_wall_angle`` (inf if never)."""
+        """Depth [m] where the wall angle first reaches ``fracture_wall_angle`` (inf if never)."""
         if self.mode != "variable":
             return math.inf
         hit = np.nonzero(toolpath.wall_angle >= self.fracture_wall_angle)[0]

@@ -36,7 +36,9 @@ class NormalField:
     bottom: float
 
     @classmethod
-    def from_toolpath(cls, part: AxisymmetricPart, toolpath: Toolpath, dn: ArrayLike, n_angles: int = 720) -> NormalField:
+    def from_toolpath(
+        cls, part: AxisymmetricPart, toolpath: Toolpath, dn: ArrayLike, n_angles: int = 720
+    ) -> NormalField:
         """Build the field from per-toolpath-point normal offsets ``dn`` (N,) [m]."""
         dn = np.asarray(dn, dtype=float)
         if dn.shape != (len(toolpath),) or not np.all(np.isfinite(dn)):
@@ -56,7 +58,8 @@ class NormalField:
         return cls(s_arr[keep], phi, grid[keep], float(np.mean(rows[-1])))
 
     def __call__(self, s: ArrayLike, phi: ArrayLike, region: ArrayLike) -> F64:
-        """dn [m] at wall arc length ``s`` [m], angle ``phi`` [rad], region (0 flange/1 wall/2 bottom)."""
+        """dn [m] at wall arc length ``s`` [m], angle ``phi`` [rad] and region (0 flange, 1 wall,
+        2 bottom)."""
         s = np.asarray(s, dtype=float)
         phi = np.asarray(phi, dtype=float)
         region = np.asarray(region)
