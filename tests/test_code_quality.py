@@ -1,4 +1,4 @@
-"""The tree stays lint-clean, formatted and type-checked (ruff and mypy, configured in pyproject)."""
+"""The tree stays lint-clean, formatted and type-checked (ruff, mypy; config in pyproject)."""
 
 import subprocess
 import sys
