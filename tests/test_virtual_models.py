@@ -104,8 +104,8 @@ def test_normal_field_reproduces_a_smooth_field_at_the_toolpath_points(cone_path
     field = NormalField.from_toolpath(part, cone_path, truth)
     # laps rolling over the rim edge touch it at s = 0, where the field is pinned to 0: skip them
     on_wall = q.s > 1e-9
-    q_s, ang, reg, truth = q.s[on_wall], cone_path.angle[on_wall], q.region[on_wall], truth[on_wall]
-    got = field(q_s, ang, reg)
+    q_s, ang, truth = q.s[on_wall], cone_path.angle[on_wall], truth[on_wall]
+    got = field(q_s, ang)
     # lap points → 0.5° grid → back: near a lap point the grid interpolates the lap's piecewise-
     # linear curve across its kink, error ≤ Δφ_grid · Δφ_lap · |f''| / 4 with |f''| ≤ 2e-4 m
     r = np.hypot(cone_path.contact[on_wall, 0], cone_path.contact[on_wall, 1])
@@ -113,6 +113,8 @@ def test_normal_field_reproduces_a_smooth_field_at_the_toolpath_points(cone_path
     bound = (2 * np.pi / 720) * dphi_lap * 2e-4 / 4
     np.testing.assert_allclose(got, truth, rtol=0, atol=bound)
     assert np.max(np.abs(got - truth)) > bound / 20  # the bound is not vacuous
-    # the flange does not move; the rim is pinned at 0
-    assert field(np.array([0.01]), np.array([0.3]), np.array([0]))[0] == 0.0
-    assert field(np.array([0.0]), np.array([0.3]), np.array([1]))[0] == 0.0
+    # the rim is pinned at 0, and so is the flange (z = 0) through offset(z, φ)
+    assert field(np.array([0.0]), np.array([0.3]))[0] == 0.0
+    offset = field.offset(part)
+    assert offset(np.array([0.0]), np.array([1.0]))[0] == 0.0
+    np.testing.assert_allclose(offset(cone_path.contact[on_wall, 2], ang), got, atol=1e-12)

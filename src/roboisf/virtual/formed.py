@@ -7,11 +7,15 @@ toolpath point that formed it — interpolated between toolpath points:
 * along each lap, periodic linear interpolation in the polar angle φ onto a regular angle grid;
 * between laps, linear in the wall arc length s;
 * from the rim (s = 0, dn = 0: the clamped sheet does not move) to the first lap, linear;
-* on the flange 0, on the flat bottom the mean of the last lap (it moves with the last contour).
+* beyond the last lap (the flat bottom), the last lap's value.
+
+:meth:`NormalField.offset` gives it as a function of (z, φ), the form the scan simulator takes:
+on an axisymmetric part z fixes the point on the wall, the flange (z = 0) shares the rim's 0.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,7 +37,6 @@ class NormalField:
     s_laps: F64
     phi: F64
     grid: F64
-    bottom: float
 
     @classmethod
     def from_toolpath(
@@ -55,16 +58,14 @@ class NormalField:
         s_arr = np.array([0.0, *s_laps])
         grid = np.vstack([np.zeros(n_angles), np.array(rows)])
         keep = np.concatenate([[True], np.diff(s_arr) > 1e-12])  # drop laps at the same s
-        return cls(s_arr[keep], phi, grid[keep], float(np.mean(rows[-1])))
+        return cls(s_arr[keep], phi, grid[keep])
 
-    def __call__(self, s: ArrayLike, phi: ArrayLike, region: ArrayLike) -> F64:
-        """dn [m] at wall arc length ``s`` [m], angle ``phi`` [rad] and region (0 flange, 1 wall,
-        2 bottom)."""
+    def __call__(self, s: ArrayLike, phi: ArrayLike) -> F64:
+        """dn [m] at wall arc length ``s`` [m] and polar angle ``phi`` [rad]."""
         s = np.asarray(s, dtype=float)
         phi = np.asarray(phi, dtype=float)
-        region = np.asarray(region)
         A = self.phi.size
-        u = (np.mod(phi + np.pi, 2 * np.pi)) / (2 * np.pi) * A
+        u = np.mod(phi + np.pi, 2 * np.pi) / (2 * np.pi) * A
         j0 = np.floor(u).astype(np.int64) % A
         j1 = (j0 + 1) % A
         fu = u - np.floor(u)
@@ -74,6 +75,14 @@ class NormalField:
         g = self.grid
         v0 = g[i0, j0] * (1 - fu) + g[i0, j1] * fu
         v1 = g[i1, j0] * (1 - fu) + g[i1, j1] * fu
-        out = v0 * (1 - fs) + v1 * fs
-        out = np.where(region == 0, 0.0, out)
-        return np.where(region == 2, self.bottom, out)
+        return np.asarray(v0 * (1 - fs) + v1 * fs, dtype=float)
+
+    def offset(self, part: AxisymmetricPart) -> Callable[[F64, F64], F64]:
+        """The field as ``offset(z, phi)`` [m] for nominal points of ``part`` at height z."""
+        g = part.generatrix
+        z_lo, z_hi = g.wall_bottom_z, g.wall_top_z
+
+        def offset(z: F64, phi: F64) -> F64:
+            return self(g.wall_s_at_z(np.clip(z, z_lo, z_hi)), phi)
+
+        return offset
