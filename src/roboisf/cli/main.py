@@ -53,6 +53,9 @@ def _register() -> None:
     from roboisf.cli import toolpath as _toolpath
 
     _toolpath.register(app)
+    from roboisf.cli import fem as _fem
+
+    _fem.register(app)
 
 
 _register()
