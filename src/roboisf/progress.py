@@ -17,7 +17,9 @@ Advance = Callable[[float], None]
 
 
 class Progress(Protocol):
-    def task(self, description: str, total: float | None = None) -> contextlib.AbstractContextManager[Advance]:
+    def task(
+        self, description: str, total: float | None = None
+    ) -> contextlib.AbstractContextManager[Advance]:
         """Context manager yielding ``advance(amount)``."""
         ...
 
@@ -31,6 +33,8 @@ class _Null:
 NULL_PROGRESS: Progress = _Null()
 
 
-def task(progress: Progress | None, description: str, total: float | None = None) -> contextlib.AbstractContextManager[Advance]:
+def task(
+    progress: Progress | None, description: str, total: float | None = None
+) -> contextlib.AbstractContextManager[Advance]:
     """``progress.task(...)`` or a no-op when ``progress`` is None."""
     return (progress or NULL_PROGRESS).task(description, total)

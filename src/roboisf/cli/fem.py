@@ -88,14 +88,14 @@ def register(app: typer.Typer) -> None:
 
     @app.command("tool-stiffness")
     def tool_stiffness(
-        ball_diameter: float = typer.Option(10.0, help="Ball diameter [mm]."),
-        length: float = typer.Option(60.0, help="Free length, clamped face to the tip [mm]."),
+        ball_diameter: float = typer.Option(10.0, help="Ball diameter (mm)."),
+        length: float = typer.Option(60.0, help="Free length, clamped face to the tip (mm)."),
         shank_diameter: float | None = typer.Option(
-            None, help="Shank diameter [mm] (default: ball)."
+            None, help="Shank diameter (mm) (default: ball)."
         ),
-        neck_diameter: float | None = typer.Option(None, help="Neck diameter above the ball [mm]."),
-        neck_length: float = typer.Option(0.0, help="Neck length from the ball centre [mm]."),
-        taper_length: float = typer.Option(0.0, help="Neck-to-shank taper length [mm]."),
+        neck_diameter: float | None = typer.Option(None, help="Neck diameter above the ball (mm)."),
+        neck_length: float = typer.Option(0.0, help="Neck length from the ball centre (mm)."),
+        taper_length: float = typer.Option(0.0, help="Neck-to-shank taper length (mm)."),
         step: Path | None = typer.Option(
             None, "--step", help="A STEP solid instead of the ball tool."
         ),
@@ -104,11 +104,11 @@ def register(app: typer.Typer) -> None:
             [], "--coupling", help="STEP: coupling face label/number."
         ),
         reference: tuple[float, float, float] = typer.Option(
-            (0.0, 0.0, 0.0), help="STEP: reference point x y z [mm]."
+            (0.0, 0.0, 0.0), help="STEP: reference point x y z (mm)."
         ),
-        youngs_modulus: float = typer.Option(210.0, "--E", help="Young's modulus [GPa]."),
+        youngs_modulus: float = typer.Option(210.0, "--E", help="Young's modulus (GPa)."),
         poisson: float = typer.Option(0.3, "--nu", help="Poisson's ratio."),
-        mesh_size: float | None = typer.Option(None, help="Element size [mm] (default R/2)."),
+        mesh_size: float | None = typer.Option(None, help="Element size (mm) (default R/2)."),
         method: str = typer.Option("fe", help="fe (finite elements) or beam (Timoshenko)."),
         no_fe: bool = typer.Option(False, "--no-fe", help="Same as --method beam."),
         convergence: bool = typer.Option(
@@ -167,14 +167,14 @@ def register(app: typer.Typer) -> None:
         section: list[str] = typer.Option(
             ...,
             "--section",
-            help="LENGTH:OUTER[:INNER[:OUTER_END]] [mm], repeat from the nose upward.",
+            help="LENGTH:OUTER[:INNER[:OUTER_END]] (mm), repeat from the nose upward.",
         ),
         coupling_diameter: float | None = typer.Option(
-            None, help="Tool footprint on the nose face [mm] (default: whole nose face)."
+            None, help="Tool footprint on the nose face (mm) (default: whole nose face)."
         ),
-        youngs_modulus: float = typer.Option(210.0, "--E", help="Young's modulus [GPa]."),
+        youngs_modulus: float = typer.Option(210.0, "--E", help="Young's modulus (GPa)."),
         poisson: float = typer.Option(0.3, "--nu", help="Poisson's ratio."),
-        mesh_size: float | None = typer.Option(None, help="Element size [mm]."),
+        mesh_size: float | None = typer.Option(None, help="Element size (mm)."),
         method: str = typer.Option("fe", help="fe (finite elements) or beam (Timoshenko)."),
         no_fe: bool = typer.Option(False, "--no-fe", help="Same as --method beam."),
         convergence: bool = typer.Option(

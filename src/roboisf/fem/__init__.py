@@ -9,6 +9,7 @@ from roboisf.fem.assembly import assemble_stiffness, assemble_stiffness_skfem
 from roboisf.fem.beam import beam_compliance, cowper_shear_coefficient, holder_beam, tool_beam
 from roboisf.fem.coupling import SurfaceCoupling, kabsch_fit
 from roboisf.fem.geometry import (
+    PAPER_TOOL_LENGTH,
     BallEndTool,
     HolderSection,
     ShaftSegment,
@@ -38,6 +39,7 @@ from roboisf.fem.stiffness import (
 
 __all__ = [
     "LOAD_CASES",
+    "PAPER_TOOL_LENGTH",
     "STEEL",
     "BallEndTool",
     "ComplianceResult",
