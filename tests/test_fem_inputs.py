@@ -119,8 +119,8 @@ def test_step_file_with_named_faces_matches_parametric_rod(tmp_path):
     top = next(f for f, bb in planes.items() if bb[2] > 49)
     bottom = next(f for f, bb in planes.items() if bb[5] < 1)
     geom = StepGeometry(step, clamped=(top,), coupling=(str(bottom),))
-    k_step = fe_compliance(geom, 3e-3, convergence=False).compliance
-    k_rod = fe_compliance(ToolHolder((HolderSection(50e-3, 10e-3),)), 3e-3, convergence=False)
+    k_step = fe_compliance(geom, 4e-3, convergence=False).compliance
+    k_rod = fe_compliance(ToolHolder((HolderSection(50e-3, 10e-3),)), 4e-3, convergence=False)
     assert np.allclose(np.diag(k_step), np.diag(k_rod.compliance), rtol=0.02)
 
 

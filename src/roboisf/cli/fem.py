@@ -12,6 +12,9 @@ import typer
 
 from roboisf.cli.console import state
 from roboisf.errors import InputError
+from roboisf.fem.geometry import HolderSection
+from roboisf.fem.material import Material
+from roboisf.fem.result import ComplianceResult
 from roboisf.io.atomic import check_not_input
 
 __all__ = ["register"]
@@ -19,9 +22,7 @@ __all__ = ["register"]
 MM = 1e-3
 
 
-def _material(E_gpa: float, nu: float, name: str = "steel"):  # type: ignore[no-untyped-def]
-    from roboisf.fem import Material
-
+def _material(E_gpa: float, nu: float, name: str = "steel") -> Material:
     return Material(E=E_gpa * 1e9, nu=nu, name=name)
 
 
@@ -32,7 +33,7 @@ def _method(method: str, no_fe: bool) -> str:
     return method
 
 
-def _summary(result, what: str) -> None:  # type: ignore[no-untyped-def]
+def _summary(result: ComplianceResult, what: str) -> None:
     k = result.compliance
     state.info(
         f"{what} compliance about {np.round(result.reference_point * 1e3, 4).tolist()} mm "
@@ -54,7 +55,7 @@ def _summary(result, what: str) -> None:  # type: ignore[no-untyped-def]
         )
 
 
-def _write(result, output: Path, inputs: list[Path]) -> None:  # type: ignore[no-untyped-def]
+def _write(result: ComplianceResult, output: Path, inputs: list[Path]) -> None:
     from roboisf.fem import save_compliance_json
 
     check_not_input(output, list(inputs))
@@ -62,9 +63,7 @@ def _write(result, output: Path, inputs: list[Path]) -> None:  # type: ignore[no
     state.info(f"wrote {output}")
 
 
-def _parse_section(text: str):  # type: ignore[no-untyped-def]
-    from roboisf.fem import HolderSection
-
+def _parse_section(text: str) -> HolderSection:
     parts = text.split(":")
     try:
         vals = [float(p) * MM for p in parts]
@@ -108,7 +107,7 @@ def register(app: typer.Typer) -> None:
         ),
         youngs_modulus: float = typer.Option(210.0, "--E", help="Young's modulus (GPa)."),
         poisson: float = typer.Option(0.3, "--nu", help="Poisson's ratio."),
-        mesh_size: float | None = typer.Option(None, help="Element size (mm) (default R/2)."),
+        mesh_size: float | None = typer.Option(None, help="Element size (mm) (default R/3)."),
         method: str = typer.Option("fe", help="fe (finite elements) or beam (Timoshenko)."),
         no_fe: bool = typer.Option(False, "--no-fe", help="Same as --method beam."),
         convergence: bool = typer.Option(
@@ -153,7 +152,7 @@ def register(app: typer.Typer) -> None:
             result = beam_result(geom)  # type: ignore[arg-type]
         else:
             result = fe_compliance(
-                geom,  # type: ignore[arg-type]
+                geom,
                 None if mesh_size is None else mesh_size * MM,
                 convergence=convergence,
                 solver=solver,
@@ -205,9 +204,10 @@ def register(app: typer.Typer) -> None:
             _material(youngs_modulus, poisson),
         )
         tool = None
+        tool_length = 0.0
         if with_tool is not None:
             tool = load_compliance_json(with_tool)
-            tool_length = tool.geometry.get("length")
+            tool_length = tool.geometry.get("length")  # type: ignore[assignment]
             if not isinstance(tool_length, int | float) or tool_length <= 0:
                 raise InputError(
                     "the tool file does not record its free length (geometry.length, m)",
@@ -226,6 +226,6 @@ def register(app: typer.Typer) -> None:
             )
         _summary(result, "holder")
         if tool is not None:
-            result = tool_holder_compliance(tool, result, float(tool_length))
+            result = tool_holder_compliance(tool, result, tool_length)
             _summary(result, "tool + holder")
         _write(result, output, [] if with_tool is None else [with_tool])

@@ -14,6 +14,8 @@ matrix is summed from COO triplets into CSR. DOF numbering: ``3 * node + compone
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
@@ -167,7 +169,7 @@ def _sum_blocks(tets: NDArray[np.int64], blocks: F64, n_nodes: int) -> sp.csr_ma
     return K.tocsr()
 
 
-def to_skfem(mesh: TetMesh):  # type: ignore[no-untyped-def]
+def to_skfem(mesh: TetMesh) -> tuple[Any, NDArray[np.int64]]:
     """The mesh as a scikit-fem ``MeshTet2`` plus, for each skfem P2 DOF node, our node index.
 
     Returns ``(m, node_of_skfem_dof)``; skfem numbers vertex nodes first, then edges.
@@ -196,7 +198,7 @@ def assemble_stiffness_skfem(mesh: TetMesh, lame: F64, *, intorder: int = 2) -> 
     basis = Basis(m, ElementVector(ElementTetP2()), intorder=intorder)
 
     @BilinearForm
-    def elasticity(u, v, w):  # type: ignore[no-untyped-def]
+    def elasticity(u: Any, v: Any, w: Any) -> Any:
         eu, ev = sym_grad(u), sym_grad(v)
         return 2.0 * w["mu"] * ddot(eu, ev) + w["lam"] * trace(eu) * trace(ev)
 

@@ -107,8 +107,8 @@ def mesh_geometry(
     with task(progress, "mesh", 1) as advance, gmsh_session() as (gmsh, _):
         model = gmsh.model
         built = geometry.build(model.occ, model)
-        for role, tags in (("clamped", built.clamped), ("coupling", built.coupling)):
-            if not tags:
+        for role, faces_of_role in (("clamped", built.clamped), ("coupling", built.coupling)):
+            if not faces_of_role:
                 raise InputError(f"the geometry has no {role} face", field=role)
         xmin, ymin, zmin, xmax, ymax, zmax = model.getBoundingBox(-1, -1)
         extent = max(xmax - xmin, ymax - ymin, zmax - zmin)
@@ -139,9 +139,9 @@ def mesh_geometry(
             model.mesh.generate(3)
         except Exception as e:
             raise InputError(f"gmsh could not mesh the geometry: {e}", field="geometry") from None
-        tags, xyz, _ = model.mesh.getNodes()
-        tags = np.asarray(tags, dtype=np.int64)
-        xyz = np.asarray(xyz, dtype=float).reshape(-1, 3) * 1e-3
+        node_tags, node_xyz, _ = model.mesh.getNodes()
+        tags = np.asarray(node_tags, dtype=np.int64)
+        xyz = np.asarray(node_xyz, dtype=float).reshape(-1, 3) * 1e-3
         tets, body = [], []
         for vol, b in built.volumes.items():
             t = _elements(model, 3, vol, 11, 10)

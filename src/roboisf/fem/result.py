@@ -85,7 +85,7 @@ class ComplianceResult:
     @property
     def stiffness(self) -> F64:
         """``K = k⁻¹`` (6, 6) [N/m, N, N·m/rad]."""
-        return np.linalg.inv(self.compliance)
+        return np.asarray(np.linalg.inv(self.compliance), dtype=np.float64)
 
     @property
     def lateral(self) -> float:
