@@ -6,6 +6,7 @@ Lengths in mm, moduli in GPa on the command line; the JSON file is SI.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import typer
@@ -21,6 +22,14 @@ __all__ = ["register"]
 
 MM = 1e-3
 
+# options both commands share
+_E = typer.Option(210.0, "--E", help="Young's modulus (GPa).")
+_NU = typer.Option(0.3, "--nu", help="Poisson's ratio.")
+_METHOD = typer.Option("fe", help="fe (finite elements) or beam (Timoshenko).")
+_NO_FE = typer.Option(False, "--no-fe", help="Same as --method beam.")
+_CONVERGENCE = typer.Option(True, help="Also solve at 2× the element size (Richardson).")
+_SOLVER = typer.Option("auto", help="auto, pardiso or superlu.")
+
 
 def _material(E_gpa: float, nu: float, name: str = "steel") -> Material:
     return Material(E=E_gpa * 1e9, nu=nu, name=name)
@@ -31,6 +40,22 @@ def _method(method: str, no_fe: bool) -> str:
     if method not in ("fe", "beam"):
         raise InputError(f"--method must be fe or beam, got {method!r}", field="--method")
     return method
+
+
+def _compute(
+    geom: Any, how: str, mesh_size: float | None, convergence: bool, solver: str
+) -> ComplianceResult:
+    from roboisf.fem import beam_result, fe_compliance
+
+    if how == "beam":
+        return beam_result(geom)
+    return fe_compliance(
+        geom,
+        None if mesh_size is None else mesh_size * MM,
+        convergence=convergence,
+        solver=solver,
+        progress=state.progress(),
+    )
 
 
 def _summary(result: ComplianceResult, what: str) -> None:
@@ -105,21 +130,19 @@ def register(app: typer.Typer) -> None:
         reference: tuple[float, float, float] = typer.Option(
             (0.0, 0.0, 0.0), help="STEP: reference point x y z (mm)."
         ),
-        youngs_modulus: float = typer.Option(210.0, "--E", help="Young's modulus (GPa)."),
-        poisson: float = typer.Option(0.3, "--nu", help="Poisson's ratio."),
+        youngs_modulus: float = _E,
+        poisson: float = _NU,
         mesh_size: float | None = typer.Option(None, help="Element size (mm) (default R/3)."),
-        method: str = typer.Option("fe", help="fe (finite elements) or beam (Timoshenko)."),
-        no_fe: bool = typer.Option(False, "--no-fe", help="Same as --method beam."),
-        convergence: bool = typer.Option(
-            True, help="Also solve at 2× the element size (Richardson)."
-        ),
-        solver: str = typer.Option("auto", help="auto, pardiso or superlu."),
+        method: str = _METHOD,
+        no_fe: bool = _NO_FE,
+        convergence: bool = _CONVERGENCE,
+        solver: str = _SOLVER,
         output: Path = typer.Option(
             Path("tool_compliance.json"), "-o", "--output", help="JSON file."
         ),
     ) -> None:
         """6×6 compliance of a ball-end tool (or a STEP body) about its tip, by six FE loads."""
-        from roboisf.fem import BallEndTool, StepGeometry, beam_result, fe_compliance
+        from roboisf.fem import BallEndTool, StepGeometry
 
         mat = _material(youngs_modulus, poisson)
         how = _method(method, no_fe)
@@ -148,16 +171,7 @@ def register(app: typer.Typer) -> None:
                 taper_length * MM,
                 mat,
             )
-        if how == "beam":
-            result = beam_result(geom)  # type: ignore[arg-type]
-        else:
-            result = fe_compliance(
-                geom,
-                None if mesh_size is None else mesh_size * MM,
-                convergence=convergence,
-                solver=solver,
-                progress=state.progress(),
-            )
+        result = _compute(geom, how, mesh_size, convergence, solver)
         _summary(result, "tool")
         _write(result, output, inputs)
 
@@ -171,15 +185,13 @@ def register(app: typer.Typer) -> None:
         coupling_diameter: float | None = typer.Option(
             None, help="Tool footprint on the nose face (mm) (default: whole nose face)."
         ),
-        youngs_modulus: float = typer.Option(210.0, "--E", help="Young's modulus (GPa)."),
-        poisson: float = typer.Option(0.3, "--nu", help="Poisson's ratio."),
+        youngs_modulus: float = _E,
+        poisson: float = _NU,
         mesh_size: float | None = typer.Option(None, help="Element size (mm)."),
-        method: str = typer.Option("fe", help="fe (finite elements) or beam (Timoshenko)."),
-        no_fe: bool = typer.Option(False, "--no-fe", help="Same as --method beam."),
-        convergence: bool = typer.Option(
-            True, help="Also solve at 2× the element size (Richardson)."
-        ),
-        solver: str = typer.Option("auto", help="auto, pardiso or superlu."),
+        method: str = _METHOD,
+        no_fe: bool = _NO_FE,
+        convergence: bool = _CONVERGENCE,
+        solver: str = _SOLVER,
         with_tool: Path | None = typer.Option(
             None, help="A tool compliance JSON: write tool + holder in series about the tool tip."
         ),
@@ -191,8 +203,6 @@ def register(app: typer.Typer) -> None:
         --with-tool, of tool + holder in series about the tool tip)."""
         from roboisf.fem import (
             ToolHolder,
-            beam_result,
-            fe_compliance,
             load_compliance_json,
             tool_holder_compliance,
         )
@@ -214,16 +224,7 @@ def register(app: typer.Typer) -> None:
                     file=with_tool,
                     field="geometry.length",
                 )
-        if how == "beam":
-            result = beam_result(holder)
-        else:
-            result = fe_compliance(
-                holder,
-                None if mesh_size is None else mesh_size * MM,
-                convergence=convergence,
-                solver=solver,
-                progress=state.progress(),
-            )
+        result = _compute(holder, how, mesh_size, convergence, solver)
         _summary(result, "holder")
         if tool is not None:
             result = tool_holder_compliance(tool, result, tool_length)

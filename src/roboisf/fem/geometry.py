@@ -142,8 +142,22 @@ def _build_shaft(occ: Any, segments: Sequence[ShaftSegment]) -> list[tuple[int, 
     return solids
 
 
+class _OneBodyAtOrigin:
+    """One body whose reference point is its frame origin."""
+
+    material: Material
+
+    @property
+    def reference_point(self) -> np.ndarray:
+        return np.zeros(3)
+
+    @property
+    def materials(self) -> tuple[Material, ...]:
+        return (self.material,)
+
+
 @dataclass(frozen=True)
-class BallEndTool:
+class BallEndTool(_OneBodyAtOrigin):
     """A ball-end forming tool, clamped at ``length`` above its tip.
 
     Attributes
@@ -211,14 +225,6 @@ class BallEndTool:
     @property
     def radius(self) -> float:
         return 0.5 * self.ball_diameter
-
-    @property
-    def reference_point(self) -> np.ndarray:
-        return np.zeros(3)
-
-    @property
-    def materials(self) -> tuple[Material, ...]:
-        return (self.material,)
 
     @property
     def frame(self) -> str:
@@ -313,7 +319,7 @@ class HolderSection:
 
 
 @dataclass(frozen=True)
-class ToolHolder:
+class ToolHolder(_OneBodyAtOrigin):
     """A stepped/tapered tool holder: sections from the nose (z = 0) up to the clamped end.
 
     Attributes
@@ -362,14 +368,6 @@ class ToolHolder:
     @property
     def height(self) -> float:
         return float(sum(s.length for s in self.sections))
-
-    @property
-    def reference_point(self) -> np.ndarray:
-        return np.zeros(3)
-
-    @property
-    def materials(self) -> tuple[Material, ...]:
-        return (self.material,)
 
     @property
     def frame(self) -> str:
