@@ -187,7 +187,9 @@ def register(app: typer.Typer) -> None:
         ),
         youngs_modulus: float = _E,
         poisson: float = _NU,
-        mesh_size: float | None = typer.Option(None, help="Element size (mm)."),
+        mesh_size: float | None = typer.Option(
+            None, help="Element size (mm) (default: a third of the thinnest section radius)."
+        ),
         method: str = _METHOD,
         no_fe: bool = _NO_FE,
         convergence: bool = _CONVERGENCE,
