@@ -151,3 +151,46 @@ def test_load_rejects_bad_files(tmp_path):
     assert e.value.line == 1
     with pytest.raises(InputError, match="not found"):
         load_compliance_json(tmp_path / "missing.json")
+
+
+class _Recorder:
+    def __init__(self):
+        self.stages = []
+
+    def task(self, description, total=None):
+        import contextlib
+
+        self.stages.append(description)
+        return contextlib.nullcontext(lambda amount=1.0: None)
+
+
+def test_progress_stages_and_reproducible_mesh():
+    rec = _Recorder()
+    tool = BallEndTool(10e-3, 30e-3)
+    fe_compliance(tool, 4e-3, progress=rec)
+    assert rec.stages == [
+        "mesh",
+        "assemble",
+        "factorise",
+        "solve",
+        "mesh (2h check)",
+        "assemble (2h check)",
+        "factorise (2h check)",
+        "solve (2h check)",
+    ]
+    from roboisf.fem import mesh_geometry
+
+    a, b = mesh_geometry(tool, 3e-3), mesh_geometry(tool, 3e-3)
+    assert np.array_equal(a.points, b.points) and np.array_equal(a.tets, b.tets)
+
+
+def test_bored_holder_couples_on_the_footprint_annulus():
+    from roboisf.fem import SurfaceCoupling, mesh_geometry
+
+    holder = ToolHolder((HolderSection(20e-3, 30e-3, 6e-3),), coupling_diameter=16e-3)
+    mesh = mesh_geometry(holder, 3e-3)
+    area = SurfaceCoupling.build(mesh.points, mesh.coupling, holder.reference_point).area
+    # circles as quadratic arcs: area exact to the P2 geometry error (~h⁴/R⁴)
+    assert area == pytest.approx(np.pi / 4 * (16e-3**2 - 6e-3**2), rel=1e-3)
+    assert np.all(np.abs(mesh.points[mesh.coupling][..., 2]) < 1e-12)  # on the nose plane
+    assert np.all(np.abs(mesh.points[mesh.clamped][..., 2] - 20e-3) < 1e-12)

@@ -49,6 +49,16 @@ F64 = NDArray[np.float64]
 RICHARDSON_ORDER = 1.4
 
 
+class _Suffixed:
+    """A progress whose stage names carry a suffix (the coarse convergence run)."""
+
+    def __init__(self, inner: Progress | None, suffix: str) -> None:
+        self.inner, self.suffix = inner, suffix
+
+    def task(self, description: str, total: float | None = None) -> Any:
+        return task(self.inner, description + self.suffix, total)
+
+
 def default_mesh_size(geometry: Geometry) -> float:
     """Default element size [m]: a third of the geometry's characteristic size.
 
@@ -187,7 +197,11 @@ def fe_compliance(
     quality = dict(fine.quality)
     if convergence:
         coarse = solve_six_cases(
-            geometry, 2 * h, intorder=intorder, solver=solver, progress=progress
+            geometry,
+            2 * h,
+            intorder=intorder,
+            solver=solver,
+            progress=None if progress is None else _Suffixed(progress, " (2h check)"),
         )
         Cc = coarse.compliance
         diag_rel = np.abs(np.diag(C) - np.diag(Cc)) / np.abs(np.diag(C))
