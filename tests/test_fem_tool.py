@@ -194,3 +194,41 @@ def test_bored_holder_couples_on_the_footprint_annulus():
     assert area == pytest.approx(np.pi / 4 * (16e-3**2 - 6e-3**2), rel=1e-3)
     assert np.all(np.abs(mesh.points[mesh.coupling][..., 2]) < 1e-12)  # on the nose plane
     assert np.all(np.abs(mesh.points[mesh.clamped][..., 2] - 20e-3) < 1e-12)
+
+
+def test_serial_assembly_lever_arm_against_beam_theory():
+    """Two beam pieces in series equal the beam of the whole shaft (checks v = tip − nose)."""
+    from roboisf.fem import beam_compliance
+    from roboisf.fem.geometry import ShaftSegment
+
+    mat = BallEndTool(10e-3, 60e-3).material
+    whole = beam_compliance([ShaftSegment(0.0, 0.1, 10e-3, 10e-3)], mat)
+    lower = beam_compliance([ShaftSegment(0.0, 0.04, 10e-3, 10e-3)], mat)
+    upper = beam_compliance([ShaftSegment(0.0, 0.06, 10e-3, 10e-3)], mat)  # about its own base
+    res = lambda k: ComplianceResult(k, np.zeros(3), "test")  # noqa: E731
+    ks = tool_holder_compliance(res(lower), res(upper), 0.04).compliance
+    assert np.allclose(ks, whole, rtol=1e-10, atol=1e-14 * np.abs(whole).max())
+    # a holder file whose reference point is off its origin is moved consistently
+    from roboisf.frames import to_tip
+
+    upper_at_10mm = to_tip(upper, np.array([0.0, 0.0, 0.01]))  # the same piece, about z = 10 mm
+    ks2 = tool_holder_compliance(
+        res(lower), ComplianceResult(upper_at_10mm, [0, 0, 0.01], "t"), 0.04
+    )
+    assert np.allclose(ks2.compliance, whole, rtol=1e-10, atol=1e-14 * np.abs(whole).max())
+
+
+def test_inverted_element_is_an_input_error():
+    from roboisf.errors import InputError
+    from roboisf.fem import STEEL, assemble_stiffness, mesh_geometry
+    from roboisf.fem.mesh import TetMesh
+
+    m = mesh_geometry(BallEndTool(10e-3, 30e-3), 5e-3)
+    tets = m.tets.copy()
+    tets[0, [1, 2]] = tets[0, [2, 1]]  # swap two vertices: negative Jacobian
+    tets[0, [4, 6]] = tets[0, [6, 4]]
+    tets[0, [8, 9]] = tets[0, [9, 8]]
+    bad = TetMesh(m.points, tets, m.body, m.clamped, m.coupling, m.mesh_size)
+    with pytest.raises(InputError, match="inverted") as e:
+        assemble_stiffness(bad, np.array([STEEL.lame]))
+    assert e.value.field == "mesh_size"

@@ -247,14 +247,17 @@ def tool_holder_compliance(
 ) -> ComplianceResult:
     """Tool + holder in series about the tool tip (DESIGN eq. 2).
 
-    ``tool`` is about the tip, ``holder`` about its nose centre, which sits ``tool_length`` [m]
-    above the tip on the same axes: ``k = k_t + J k_th Jᵀ`` with ``v = tip − nose = (0, 0, −L)``.
+    ``tool`` is given in the tool frame (origin at the tip), ``holder`` in the holder frame (origin
+    at the nose centre, ``tool_length`` [m] above the tip, same axes); each about its reference
+    point. ``k = J_t k_t J_tᵀ + J_th k_th J_thᵀ`` with ``v = tip − reference point`` — for the
+    usual references (tip; nose centre) ``k_t + J k_th Jᵀ``, ``v_th = (0, 0, −L)``.
     """
     if not (math.isfinite(tool_length) and tool_length > 0):
         raise InputError(
             f"tool length must be positive (m), got {tool_length!r}", field="tool_length"
         )
-    v = np.array([0.0, 0.0, -tool_length]) + holder.reference_point
+    # holder frame: origin at the nose centre, which is (0, 0, L) in the tool frame, same axes
+    v = -(np.array([0.0, 0.0, tool_length]) + holder.reference_point)
     k = serial_assembly([(tool.compliance, -tool.reference_point), (holder.compliance, v)])
     return ComplianceResult(
         compliance=k,
