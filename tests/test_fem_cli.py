@@ -123,3 +123,58 @@ def test_bad_input_exit_2_and_no_output(tmp_path, argv, capsys):
     assert "error" in capsys.readouterr().err
     assert not out.exists()
     assert list(tmp_path.iterdir()) == []
+
+
+def test_tool_stiffness_from_a_step_file(tmp_path):
+    from roboisf.fem import step_faces
+    from roboisf.fem.mesh import gmsh_session
+
+    step = tmp_path / "rod.step"
+    with gmsh_session() as (gmsh, _):
+        gmsh.model.occ.addCylinder(0, 0, 0, 0, 0, 40, 5)
+        gmsh.model.occ.synchronize()
+        gmsh.write(str(step))
+    planes = {r["face"]: r["bbox_mm"] for r in step_faces(step) if r["type"] == "Plane"}
+    top = next(f for f, bb in planes.items() if bb[2] > 39)
+    bottom = next(f for f, bb in planes.items() if bb[5] < 1)
+    out = tmp_path / "rod.json"
+    argv = [
+        "-q",
+        "tool-stiffness",
+        "--step",
+        str(step),
+        "--clamped",
+        str(top),
+        "--coupling",
+        str(bottom),
+        "--reference",
+        "0",
+        "0",
+        "-10",
+        "--mesh-size",
+        "4",
+        "--no-convergence",
+        "-o",
+        str(out),
+    ]
+    assert main(argv) == 0
+    res = load_compliance_json(out)
+    assert np.allclose(res.reference_point, [0, 0, -0.01])
+    assert res.geometry["type"] == "step" and res.geometry["clamped"] == [str(top)]
+    # about a point 10 mm below the end face: the beam with that reference point (lever arm)
+    from roboisf.fem import STEEL, beam_compliance
+    from roboisf.fem.geometry import ShaftSegment
+
+    beam = beam_compliance(
+        [ShaftSegment(0, 0.04, 0.01, 0.01)], STEEL, reference_point=[0, 0, -0.01]
+    )
+    assert abs(res.compliance[0, 0] / beam[0, 0] - 1) < 0.02
+    assert (
+        res.compliance[0, 0]
+        > 1.8 * beam_compliance([ShaftSegment(0, 0.04, 0.01, 0.01)], STEEL)[0, 0]
+    )
+    # the STEP file is an input: -o onto it is refused and the file is left alone
+    before = step.read_bytes()
+    argv[-1] = str(step)
+    assert main(argv) == 2
+    assert step.read_bytes() == before
