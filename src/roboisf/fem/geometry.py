@@ -572,12 +572,9 @@ def _select_faces(model: Any, wanted: Sequence[int | str], role: str, path: Path
             for row in table
             if row["name"] and (row["name"] == w or row["name"].rsplit("/", 1)[-1] == w)
         ]
-        hits += [
-            t
-            for d, t in model.getPhysicalGroups(2)
-            if model.getPhysicalName(d, t) == w
-            for t in model.getEntitiesForPhysicalGroup(d, t)
-        ]
+        for dim, group in model.getPhysicalGroups(2):
+            if model.getPhysicalName(dim, group) == w:
+                hits.extend(int(t) for t in model.getEntitiesForPhysicalGroup(dim, group))
         if not hits:
             listing = "; ".join(
                 f"{row['face']}: {row['type']}{(' ' + repr(row['name'])) if row['name'] else ''} "
