@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 from collections.abc import Callable
 from typing import Any
 
@@ -94,11 +95,17 @@ def _factorize(K: sp.csr_matrix, solver: str) -> tuple[Callable[[F64], F64], str
     return lu.solve, "superlu"
 
 
+@dataclass(frozen=True)
 class FESolution:
-    """Raw outputs of one FE run (kept for tests and diagnostics)."""
+    """Raw outputs of one FE run (for tests, diagnostics and plots).
 
-    def __init__(self, **kw: Any) -> None:
-        self.__dict__.update(kw)
+    compliance : (6, 6) float, SI — about the reference point, before symmetrising
+    mesh : TetMesh
+    coupling : SurfaceCoupling
+    U : (n_dofs, 6) float, m — nodal displacements of the six unit load cases
+    F : (n_dofs, 6) float, N — their consistent nodal loads
+    quality : dict — the quality figures (see ComplianceResult)
+    """
 
     compliance: F64
     mesh: TetMesh
