@@ -17,9 +17,7 @@ Advance = Callable[[float], None]
 
 
 class Progress(Protocol):
-    def task(
-        self, description: str, total: float | None = None
-    ) -> contextlib.AbstractContextManager[Advance]:
+    def task(self, description: str, total: float | None = None) -> contextlib.AbstractContextManager[Advance]:
         """Context manager yielding ``advance(amount)``."""
         ...
 
@@ -33,8 +31,6 @@ class _Null:
 NULL_PROGRESS: Progress = _Null()
 
 
-def task(
-    progress: Progress | None, description: str, total: float | None = None
-) -> contextlib.AbstractContextManager[Advance]:
+def task(progress: Progress | None, description: str, total: float | None = None) -> contextlib.AbstractContextManager[Advance]:
     """``progress.task(...)`` or a no-op when ``progress`` is None."""
     return (progress or NULL_PROGRESS).task(description, total)

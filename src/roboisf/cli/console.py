@@ -54,12 +54,7 @@ class RichProgress:
             self.console.print(f"{description} …")
             yield lambda amount=1.0: None
             return
-        cols = [
-            TextColumn("{task.description}"),
-            BarColumn(),
-            TimeElapsedColumn(),
-            TimeRemainingColumn(),
-        ]
+        cols = [TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(), TimeRemainingColumn()]
         with Progress(*cols, console=self.console, transient=True) as bar:
             tid = bar.add_task(description, total=total)
             yield lambda amount=1.0: bar.advance(tid, amount)

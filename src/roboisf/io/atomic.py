@@ -55,10 +55,7 @@ def atomic_write(path: str | Path, mode: str = "w", encoding: str | None = "utf-
     """Open a temporary file for writing; rename it onto ``path`` when the block succeeds."""
     if "b" in mode:
         encoding = None
-    with (
-        atomic_path(path) as tmp,
-        open(tmp, mode, encoding=encoding, newline="" if "b" not in mode else None) as fh,
-    ):
+    with atomic_path(path) as tmp, open(tmp, mode, encoding=encoding, newline="" if "b" not in mode else None) as fh:
         yield fh
 
 

@@ -309,9 +309,7 @@ class ProfilePart(AxisymmetricPart):
             raise InputError(f"point {i + 1} crosses the axis (r < 0)", file=where, line=i + 2)
         if np.any(z > 1e-12):
             i = int(np.argmax(z > 1e-12))
-            raise InputError(
-                f"point {i + 1} is above the sheet plane (z > 0)", file=where, line=i + 2
-            )
+            raise InputError(f"point {i + 1} is above the sheet plane (z > 0)", file=where, line=i + 2)
         dz = np.diff(z)
         dr = np.diff(r)
         if np.any(dz > 0):
@@ -334,8 +332,7 @@ class ProfilePart(AxisymmetricPart):
     @property
     def generatrix(self) -> Generatrix:
         segs = [
-            Segment(self.r[i], self.z[i], self.r[i + 1], self.z[i + 1])
-            for i in range(len(self.r) - 1)
+            Segment(self.r[i], self.z[i], self.r[i + 1], self.z[i + 1]) for i in range(len(self.r) - 1)
         ]
         return self._with_flange_and_bottom(segs)
 

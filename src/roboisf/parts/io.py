@@ -71,9 +71,7 @@ def read_profile_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     return a[:, 0], a[:, 1]
 
 
-def _num(
-    table: dict[str, Any], key: str, where: Path | None, default: float | None = None
-) -> float:
+def _num(table: dict[str, Any], key: str, where: Path | None, default: float | None = None) -> float:
     if key not in table:
         if default is not None:
             return default
@@ -134,9 +132,7 @@ def part_from_dict(table: dict[str, Any], *, where: str | Path | None = None) ->
             return ProfilePart(r=tuple(r), z=tuple(z), **common)
     except InputError as e:
         if e.file is None and src is not None:
-            raise InputError(
-                e.message, file=src, field=f"part.{e.field}" if e.field else "part"
-            ) from None
+            raise InputError(e.message, file=src, field=f"part.{e.field}" if e.field else "part") from None
         raise
     # mesh parts are loaded by roboisf.scan (non-axisymmetric nominal surfaces)
     raise InputError(

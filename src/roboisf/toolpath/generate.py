@@ -30,15 +30,8 @@ F64 = NDArray[np.float64]
 DEFAULT_FEED = 750e-3 / 60.0
 
 
-def _check(
-    part: AxisymmetricPart, tool_radius: float, step: float, spacing: float, feed: float
-) -> None:
-    for name, v in (
-        ("tool_radius", tool_radius),
-        ("step_down", step),
-        ("spacing", spacing),
-        ("feed", feed),
-    ):
+def _check(part: AxisymmetricPart, tool_radius: float, step: float, spacing: float, feed: float) -> None:
+    for name, v in (("tool_radius", tool_radius), ("step_down", step), ("spacing", spacing), ("feed", feed)):
         if not (math.isfinite(v) and v > 0):
             raise InputError(f"must be > 0, got {v:g} (SI)", field=name)
     if step > part.depth:
@@ -78,13 +71,8 @@ def _lap_points(r: float, spacing: float) -> int:
 
 
 def _assemble(
-    part: AxisymmetricPart,
-    s: F64,
-    phi: F64,
-    lap: NDArray[np.int64],
-    tool_radius: float,
-    feed: float,
-    meta: dict[str, object],
+    part: AxisymmetricPart, s: F64, phi: F64, lap: NDArray[np.int64], tool_radius: float,
+    feed: float, meta: dict[str, object],
 ) -> Toolpath:
     r, z, a = part.generatrix.wall_at_s(s)
     c, sn = np.cos(phi), np.sin(phi)
@@ -130,13 +118,8 @@ def step_down(
         lap_parts.append(np.full(m, k, dtype=np.int64))
     meta = {"kind": "step_down", "step_down": step_down, "spacing": spacing, "part": part.kind}
     return _assemble(
-        part,
-        np.concatenate(s_parts),
-        np.concatenate(phi_parts),
-        np.concatenate(lap_parts),
-        tool_radius,
-        feed,
-        meta,
+        part, np.concatenate(s_parts), np.concatenate(phi_parts), np.concatenate(lap_parts),
+        tool_radius, feed, meta,
     )
 
 
@@ -176,11 +159,6 @@ def spiral(
     lap_parts.append(np.full(m + 1, len(s_levels) - 2, dtype=np.int64))
     meta = {"kind": "spiral", "step_down": step_down, "spacing": spacing, "part": part.kind}
     return _assemble(
-        part,
-        np.concatenate(s_parts),
-        np.concatenate(phi_parts),
-        np.concatenate(lap_parts),
-        tool_radius,
-        feed,
-        meta,
+        part, np.concatenate(s_parts), np.concatenate(phi_parts), np.concatenate(lap_parts),
+        tool_radius, feed, meta,
     )
