@@ -51,14 +51,13 @@ def _root(
 
 def _register() -> None:
     from roboisf.cli import demo as _demo
+    from roboisf.cli import fem as _fem
     from roboisf.cli import part as _part
     from roboisf.cli import robot as _robot
     from roboisf.cli import toolpath as _toolpath
 
-    _toolpath.register(app)
-    _part.register(app)
-    _demo.register(app)
-    _robot.register(app)
+    for group in (_part, _toolpath, _robot, _fem, _demo):
+        group.register(app)
 
 
 _register()
