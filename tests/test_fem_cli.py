@@ -1,12 +1,12 @@
 """``roboisf tool-stiffness`` / ``roboisf holder-stiffness`` end to end."""
 
 import json
+
 import numpy as np
 import pytest
 
-from roboisf.fem import load_compliance_json
-
 from roboisf.cli.main import main
+from roboisf.fem import load_compliance_json
 
 
 def test_tool_stiffness_beam(tmp_path):
