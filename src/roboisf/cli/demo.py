@@ -1,16 +1,15 @@
-"""``roboisf demo``: the built-in demonstration.
+"""``roboisf demo``: the built-in demonstration — the paper's two studies end to end.
 
-Interim version (toolpaths only): the paper's cone (Ø87 mm, 71°, 102.97 mm deep) and VWACF
-(Ø88.15 mm, default 39 mm arc, 0° → 90°), Ø10 mm ball, 0.5 mm step, 750 mm/min, written in every
-supported format. The folder is built in a staging folder and moved into place when complete.
-
-A later issue replaces :func:`build_demo` with the full virtual-cell demo; the command, the
-``-o`` folder handling and the atomic staging stay.
+For the cone (Ø87 mm, 71°, 102.97 mm deep) and the VWACF (Ø88.15 mm, 39 mm arc, 0° → 90°), on an
+ABB IRB 7600-500/2.55 with a Ø10 mm ball: the virtual cell writes a complete study folder (force
+logs in the sensors' frames, joint log, laser scans, ground truth), ``analyze`` decomposes it and
+writes the report, and the toolpath is exported as robot programs (CSV, G-code, RAPID, KRL).
+An index page links both reports. The folder is built in a staging folder and moved into place
+when complete.
 """
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Annotated
 
@@ -23,48 +22,60 @@ from roboisf.frames.se3 import make_transform
 from roboisf.io.atomic import staged_directory
 from roboisf.io.export import FORMAT_SUFFIXES, write_toolpath
 from roboisf.io.program import RobotTool
-from roboisf.parts import VWACF, AxisymmetricPart, Cone, save_part
+from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.progress import Progress, task
-from roboisf.toolpath import step_down
 
-__all__ = ["DEMO_PARTS", "DEMO_PLACEMENT", "build_demo", "register"]
-
-#: The paper's two parts.
-DEMO_PARTS: dict[str, AxisymmetricPart] = {
-    "cone": Cone(87e-3, math.radians(71.0), 102.97e-3),
-    "vwacf": VWACF(88.15e-3),
-}
+__all__ = ["DEMO_PLACEMENT", "build_demo", "register"]
 
 #: Illustrative work-object placement for the robot programs: blank centre 1.8 m in front of an
 #: IRB 7600 base and 0.6 m up, axes parallel to the base (replace with your cell's calibration).
 DEMO_PLACEMENT = make_transform(np.eye(3), [1.8, 0.0, 0.6])
 
 
-def build_demo(folder: Path, progress: Progress | None = None) -> list[Path]:
-    """Write the demo files into ``folder`` (which exists and is empty); return them."""
-    written: list[Path] = []
+def build_demo(
+    folder: Path, progress: Progress | None = None, *, scan_points: int = 1_000_000
+) -> list[Path]:
+    """Write the demo into ``folder`` (which exists and is empty); return the report paths."""
+    from roboisf.decompose.pipeline import analyze, write_results
+    from roboisf.report import write_index
+    from roboisf.virtual.cell import build_study, paper_cone_cell, paper_vwacf_cell
+
+    reports: list[Path] = []
     tool = RobotTool(length=0.2, mass=2.0)
-    with task(progress, "toolpaths", total=len(DEMO_PARTS) * (1 + len(FORMAT_SUFFIXES))) as advance:
-        for name, part in DEMO_PARTS.items():
-            sub = folder / name
-            sub.mkdir()
-            save_part(part, sub / "part.toml")
-            written.append(sub / "part.toml")
-            tp = step_down(part, tool_radius=5e-3, step_down=0.5e-3)
-            warn_truncated(tp, 10.0)
-            advance(1)
+    for cell in (
+        paper_cone_cell(scan_points=scan_points),
+        paper_vwacf_cell(scan_points=scan_points),
+    ):
+        sub = folder / cell.name
+        sub.mkdir()
+        with task(progress, f"{cell.name}: virtual cell"):
+            study = build_study(cell, sub / "study", progress=progress)
+        with task(progress, f"{cell.name}: analyze"):
+            result = analyze(study, progress=progress)
+            write_results(result, sub / "results", progress=progress)
+        reports.append(sub / "results" / "report.html")
+        tp = read_toolpath_csv(study / "toolpath.csv")
+        warn_truncated(tp, 10.0)
+        with task(progress, f"{cell.name}: robot programs", total=len(FORMAT_SUFFIXES)) as advance:
+            (sub / "programs").mkdir()
             for fmt, suffixes in FORMAT_SUFFIXES.items():
-                out = sub / f"toolpath{suffixes[0]}"
-                write_toolpath(tp, out, fmt, T_base_work=DEMO_PLACEMENT, tool=tool)
-                written.append(out)
-                if fmt == "krl":
-                    written.append(out.with_suffix(".dat"))
+                write_toolpath(
+                    tp,
+                    sub / "programs" / f"toolpath{suffixes[0]}",
+                    fmt,
+                    T_base_work=DEMO_PLACEMENT,
+                    tool=tool,
+                )
                 advance(1)
-            state.info(
-                f"{name}: {len(tp)} points, {tp.n_laps} laps, depth {part.depth * 1e3:.2f} mm, "
-                f"{tp.time[-1] / 60:.1f} min at 750 mm/min"
-            )
-    return written
+        row = result.contributions.set_index("factor")
+        state.info(
+            f"{cell.name}: {len(tp)} points, R_m {row.loc['total', 'R_m']:.3f} mm, robot "
+            f"compliance "
+            f"{row.loc['robot_compliance', 'share_percent']:.1f} %, springback "
+            f"{row.loc['springback', 'share_percent']:.1f} %"
+        )
+    write_index(reports, folder / "index.html")
+    return reports
 
 
 def register(app: typer.Typer) -> None:
@@ -75,8 +86,12 @@ def register(app: typer.Typer) -> None:
         output: Annotated[
             Path, typer.Option("--output", "-o", help="Folder to create (replaced if it exists).")
         ] = Path("roboisf-demo"),
+        scan_points: Annotated[int, typer.Option(help="Points per simulated scan.")] = 1_000_000,
     ) -> None:
-        """Write the paper's cone and VWACF toolpaths in every format (CSV, G-code, RAPID, KRL)."""
+        """The paper's cone and VWACF, end to end: virtual cell → analyze → report → robot programs.
+
+        Opens nothing and needs no input: results land in OUTPUT/index.html.
+        """
         with staged_directory(output) as stage:
-            files = build_demo(stage, state.progress())
-        state.info(f"wrote {len(files)} files to {output}/")
+            build_demo(stage, state.progress(), scan_points=scan_points)
+        state.info(f"open {output / 'index.html'}")

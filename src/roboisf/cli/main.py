@@ -50,13 +50,14 @@ def _root(
 
 
 def _register() -> None:
+    from roboisf.cli import analyze as _analyze
     from roboisf.cli import demo as _demo
     from roboisf.cli import fem as _fem
     from roboisf.cli import part as _part
     from roboisf.cli import robot as _robot
     from roboisf.cli import toolpath as _toolpath
 
-    for group in (_part, _toolpath, _robot, _fem, _demo):
+    for group in (_part, _toolpath, _robot, _fem, _analyze, _demo):
         group.register(app)
 
 

@@ -1,0 +1,110 @@
+"""``roboisf analyze`` and ``roboisf virtual-cell``."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from roboisf.cli.console import state
+from roboisf.errors import InputError
+
+__all__ = ["register"]
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``analyze`` and ``virtual-cell`` to ``app``."""
+
+    @app.command("analyze")
+    def _analyze(
+        study: Annotated[
+            Path, typer.Argument(help="Study folder (with study.toml) or the study.toml.")
+        ],
+        output: Annotated[
+            Path, typer.Option("--output", "-o", help="Results folder (replaced when complete).")
+        ] = Path("results"),
+        png: Annotated[
+            bool, typer.Option("--png/--no-png", help="Also write static PNG figures.")
+        ] = True,
+    ) -> None:
+        """Split a robot-formed part's error: springback, tool, tool holder, robot compliance.
+
+        Reads the study folder (docs/study.md): the part, tool and holder compliance, robot and
+        placement, and a CNC and a robot run with their toolpath, force log, joint log and scan.
+        Writes report.html, contributions.csv (mm, %), contributions_normal.csv, per_point.parquet,
+        summary.json and figures/*.png.
+        """
+        from roboisf.decompose.pipeline import analyze, write_results
+
+        progress = state.progress()
+        result = analyze(study, progress=progress)
+        write_results(result, output, png=png, progress=progress)
+        _print_table(result.contributions, result.summary)
+        state.info(f"report: {output / 'report.html'}")
+
+    @app.command("virtual-cell")
+    def _virtual_cell(
+        part: Annotated[str, typer.Argument(help="cone (the paper's 71° cone) or vwacf.")],
+        output: Annotated[
+            Path, typer.Option("--output", "-o", help="Study folder to write.")
+        ] = Path("study"),
+        scan_points: Annotated[int, typer.Option(help="Points per scan.")] = 2_000_000,
+        force_rate: Annotated[float, typer.Option(help="Force log sample rate [Hz].")] = 1000.0,
+        robot: Annotated[
+            str, typer.Option(help="Robot preset (roboisf robot list).")
+        ] = "irb7600-500-2.55",
+        tool_rotation: Annotated[
+            float, typer.Option(help="Tool rotation about its axis [deg].")
+        ] = 0.0,
+        fe: Annotated[
+            bool, typer.Option("--fe/--beam", help="Tool/holder compliance by FE or beam model.")
+        ] = False,
+        seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
+    ) -> None:
+        """Write a synthetic study (CNC and robot runs with known ground truth in truth/).
+
+        The paper's parts on a virtual IRB 7600: Aerens forming force, VJM robot, tool and holder
+        compliance, springback, 25 µm laser scans. Analyse it with `roboisf analyze`.
+        """
+        from roboisf.virtual.cell import build_study, paper_cone_cell, paper_vwacf_cell
+
+        makers = {"cone": paper_cone_cell, "vwacf": paper_vwacf_cell}
+        if part not in makers:
+            raise InputError(
+                f"unknown part {part!r}; expected one of {', '.join(makers)}", field="PART"
+            )
+        cell = makers[part](
+            scan_points=scan_points,
+            force_rate=force_rate,
+            robot=robot,
+            tool_rotation=math.radians(tool_rotation),
+            compliance_method="fe" if fe else "beam",
+            seed=seed,
+        )
+        build_study(cell, output, progress=state.progress())
+        state.info(
+            f"wrote the study {cell.name!r} to {output}/ (analyse: roboisf analyze {output})"
+        )
+
+
+def _print_table(df: object, summary: dict) -> None:
+    import pandas as pd
+    from rich.table import Table
+
+    assert isinstance(df, pd.DataFrame)
+    t = Table(title=f"{summary['study']}: contributions (per-axis, mm)")
+    for c in ("factor", "|δx|", "|δy|", "|δz|", "R_m", "share %"):
+        t.add_column(c, justify="left" if c == "factor" else "right")
+    for r in df.itertuples():
+        t.add_row(
+            str(r.factor),
+            f"{r.mean_abs_dx:.3f}",
+            f"{r.mean_abs_dy:.3f}",
+            f"{r.mean_abs_dz:.3f}",
+            f"{r.R_m:.3f}",
+            f"{r.share_percent:.1f}",
+        )
+    if state.verbosity >= 1:
+        state.out.print(t)

@@ -1,0 +1,401 @@
+"""``roboisf analyze``: the paper's decomposition from a study folder's raw files.
+
+1. Forces from the sensor frames to the tool tip, matched to the toolpath by time.
+2. Tool and holder deflection per toolpath point (``k_t W``, ``J_th k_th J_thᵀ W``).
+3. CNC scan → normal deviation per toolpath point → springback ``δs = δ_CNC − δt``.
+4. Robot scan → deviation → ``δc,exp = δ_robot − δs − δt − δth``.
+5. VJM prediction ``δc,VJM = k_c W`` at the logged joint angles (or IK), ``Δ = δc,exp − δc,VJM``,
+   compliance statistics along the path and the force-component contributions (Table 4).
+6. The contribution table (Table 5), per-axis and normal-projected.
+
+Compliance files from the FE/beam model (``roboisf tool-stiffness``) have z along the tool axis
+pointing up; with the tool vertical in the work frame their axes are the work axes (a tool whose
+compliance is not axisymmetric is assumed to have its FE x-axis along work x).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from roboisf.decompose.core import FACTORS, Decomposition, contribution_rows, decompose
+from roboisf.errors import InputError
+from roboisf.fem import (
+    BallEndTool,
+    ComplianceResult,
+    beam_result,
+    load_compliance_json,
+    tool_compliance,
+)
+from roboisf.frames import to_tip
+from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
+from roboisf.io.forcelog import attach_to_toolpath, read_force_log
+from roboisf.io.jointlog import read_joint_log
+from roboisf.io.toolpath_csv import read_toolpath_csv
+from roboisf.progress import Progress, task
+from roboisf.robot import compliance_stats, deflection_contributions, ik_toolpath, load_robot
+from roboisf.scan import CompareOptions, ScanComparison, compare_scan, read_scan
+from roboisf.study.sensors import R_work_tip_vertical, sensor_to_tip
+from roboisf.study.spec import RunSpec, Study, load_study
+from roboisf.toolpath import Toolpath
+
+__all__ = ["AnalysisResult", "analyze", "write_results"]
+
+F64 = NDArray[np.float64]
+_AX = "xyz"
+_WRENCH = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
+
+
+@dataclass(frozen=True)
+class AnalysisResult:
+    """Everything ``analyze`` found. Tables in mm, N, N·m, deg, s (the report's contract)."""
+
+    study: Study
+    decomposition: Decomposition
+    per_point: pd.DataFrame
+    contributions: pd.DataFrame
+    contributions_normal: pd.DataFrame
+    summary: dict[str, Any]
+    scans: dict[str, ScanComparison]
+
+
+def _declared(path: Path, key: str) -> bool:
+    with open(path, encoding="utf-8") as fh:
+        for line in fh:
+            s = line.strip()
+            if not s.startswith("#"):
+                return False
+            if s[1:].strip().lower().startswith(key + ":"):
+                return True
+    return False
+
+
+def _tip_wrench(study: Study, run: RunSpec, tp: Toolpath) -> F64:
+    f = run.forces
+    kw: dict[str, str] = {}
+    if not _declared(f.file, "units"):
+        u = study.units
+        kw = {"time_unit": u.time, "force_unit": u.force, "moment_unit": u.moment}
+    frame = None if _declared(f.file, "frame") else "sensor"
+    log = read_force_log(f.file, frame=frame, **kw)
+    W_s = attach_to_toolpath(log, tp, by="time", time_offset=f.time_offset)
+    rot = study.robot.tool_rotation if study.robot is not None else 0.0
+    return sensor_to_tip(W_s, f, tp.tip, R_work_tip_vertical(rot))
+
+
+def _tool_compliance(study: Study, progress: Progress | None) -> ComplianceResult:
+    t = study.tool
+    if t.compliance is not None:
+        return load_compliance_json(t.compliance)
+    assert t.free_length is not None
+    tool = BallEndTool(t.ball_diameter, t.free_length, t.shank_diameter)
+    return tool_compliance(tool, progress=progress) if t.method == "fe" else beam_result(tool)
+
+
+def _joint_angles(
+    study: Study, run: RunSpec, tp: Toolpath, model: Any, T_bw: F64
+) -> tuple[F64, str]:
+    if run.joints is None:
+        rot = study.robot.tool_rotation if study.robot is not None else 0.0
+        return ik_toolpath(
+            model, tp, T_bw, tool_rotation=rot
+        ).q, "inverse kinematics of the toolpath"
+    log = read_joint_log(run.joints)
+    t0, t1 = float(tp.time[0]), float(tp.time[-1])
+    if log.time[0] > t0 + 1e-6 or log.time[-1] < t1 - 1e-6:
+        raise InputError(
+            f"the joint log covers {log.time[0]:.3f} … {log.time[-1]:.3f} s but the toolpath runs "
+            f"{t0:.3f} … {t1:.3f} s (a log that stops half-way?)",
+            file=run.joints,
+        )
+    q = np.column_stack([np.interp(tp.time, log.time, log.q[:, j]) for j in range(6)])
+    return q, f"joint log {run.joints.name}"
+
+
+def _compare(study: Study, run: RunSpec, tp: Toolpath, progress: Progress | None) -> ScanComparison:
+    a = study.analysis
+    opts = CompareOptions(
+        register=a.registration, rim_band=a.rim_band, radius=a.point_radius, contour_z=a.contour_z
+    )
+    cloud = read_scan(run.scan, unit=run.scan_unit)
+    return compare_scan(
+        cloud,
+        study.part,
+        toolpath=tp,
+        toolpath_source=str(run.toolpath),
+        options=opts,
+        progress=progress,
+    )
+
+
+def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> AnalysisResult:
+    """Run the decomposition on a study (a :class:`Study` or a folder/``study.toml``)."""
+    if not isinstance(study, Study):
+        study = load_study(study)
+    cnc, rob = study.cnc, study.robot_run
+    with task(progress, "toolpath"):
+        tp = read_toolpath_csv(cnc.toolpath)
+        tp_r = tp if rob.toolpath == cnc.toolpath else read_toolpath_csv(rob.toolpath)
+        if len(tp_r) != len(tp) or np.max(np.abs(tp_r.contact - tp.contact)) > 1e-6:
+            raise InputError(
+                "the CNC and robot runs must use the same toolpath (the method "
+                "compares the two parts point by point)",
+                file=rob.toolpath,
+            )
+    with task(progress, "forces to the tool tip"):
+        W_cnc = _tip_wrench(study, cnc, tp)
+        W_rob = _tip_wrench(study, rob, tp)
+
+    with task(progress, "tool and holder compliance"):
+        k_tool = _tool_compliance(study, progress)
+        k_t = to_tip(k_tool.compliance, -k_tool.reference_point)
+        if study.holder.rigid or study.holder.compliance is None:
+            k_holder = None
+            k_th = np.zeros((6, 6))
+        else:
+            k_holder = load_compliance_json(study.holder.compliance)
+            k_th = to_tip(
+                k_holder.compliance,
+                np.array([0.0, 0.0, -study.holder.offset]) - k_holder.reference_point,
+            )
+    tool_cnc = (W_cnc @ k_t.T)[:, :3]
+    tool_rob = (W_rob @ k_t.T)[:, :3]
+    holder_rob = (W_rob @ k_th.T)[:, :3]
+
+    scans = {}
+    for run in (cnc, rob):
+        with task(progress, f"scan {run.name}"):
+            scans[run.name] = _compare(study, run, tp, progress)
+    dev_c, dev_r = scans[cnc.name].toolpath, scans[rob.name].toolpath
+    assert dev_c is not None and dev_r is not None
+
+    if study.robot is None:
+        raise InputError(
+            "the decomposition needs a [robot] table (model, placement)",
+            file=study.root / "study.toml",
+        )
+    with task(progress, "robot VJM"):
+        model = load_robot(study.robot.model)
+        if study.robot.T_flange_tip is not None:
+            model = model.with_tool(study.robot.T_flange_tip)
+        if study.robot.joint_stiffness is not None:
+            model = model.with_stiffness(study.robot.joint_stiffness, source="study.toml")
+        T_bw = study.robot.T_base_work
+        q, q_source = _joint_angles(study, rob, tp, model, T_bw)
+        k_c = model.compliance(q, T_base_work=T_bw)
+        vjm = np.einsum("nij,nj->ni", k_c, W_rob)[:, :3]
+
+    valid = dev_c.valid & dev_r.valid & (tp.depth > study.analysis.rim_band)
+    d = decompose(tp.normal, dev_c.dn, dev_r.dn, tool_cnc, tool_rob, holder_rob, vjm, valid)
+
+    per_point = _per_point(study, tp, W_cnc, W_rob, dev_c, dev_r, d)
+    contributions = pd.DataFrame(_mm_rows(contribution_rows(d, projected=False)))
+    contributions_normal = pd.DataFrame(_mm_rows(contribution_rows(d, projected=True)))
+    summary = _summary(study, tp, d, k_c, W_rob, valid, k_tool, k_holder, q_source, scans)
+    truth = study.root / "truth" / "per_point.parquet"
+    if truth.is_file():
+        _attach_truth(truth, per_point, summary, d)
+    return AnalysisResult(study, d, per_point, contributions, contributions_normal, summary, scans)
+
+
+def _mm_rows(rows: list[dict[str, float | str]]) -> list[dict[str, float | str]]:
+    out = []
+    for r in rows:
+        out.append({k: (v * 1e3 if k.startswith(("mean_abs", "R_m")) else v) for k, v in r.items()})  # type: ignore[operator]
+    return out
+
+
+def _per_point(
+    study: Study, tp: Toolpath, W_cnc: F64, W_rob: F64, dev_c: Any, dev_r: Any, d: Decomposition
+) -> pd.DataFrame:
+    cols: dict[str, Any] = {
+        "index": np.arange(len(tp)),
+        "lap": tp.lap,
+        "time": tp.time,
+        "angle_deg": np.degrees(tp.angle),
+        "depth": tp.depth * 1e3,
+        "wall_angle_deg": np.degrees(tp.wall_angle),
+    }
+    for j, ax in enumerate(_AX):
+        cols[f"contact_{ax}"] = tp.contact[:, j] * 1e3
+    for j, ax in enumerate(_AX):
+        cols[f"normal_{ax}"] = tp.normal[:, j]
+    for run, W in (("cnc", W_cnc), ("robot", W_rob)):
+        for j, name in enumerate(_WRENCH):
+            cols[f"{run}_{name}"] = W[:, j]
+    for run, dev in (("cnc", dev_c), ("robot", dev_r)):
+        for j, ax in enumerate(_AX):
+            cols[f"{run}_d{ax}"] = dev.delta[:, j] * 1e3
+        cols[f"{run}_dn"] = dev.dn * 1e3
+        cols[f"{run}_n_points"] = dev.n_points
+        cols[f"{run}_valid"] = dev.valid
+    names = {f: f for f in FACTORS} | {"vjm": "vjm", "delta": "delta"}
+    for key, col in names.items():
+        v = d.vectors[key]
+        for j, ax in enumerate(_AX):
+            cols[f"{col}_d{ax}"] = v[:, j] * 1e3
+        cols[f"{col}_dn"] = d.normal[key] * 1e3
+    cols["thickness_predicted"] = study.part.thickness(tp.wall_angle) * 1e3
+    cols["used"] = d.valid
+    return pd.DataFrame(cols)
+
+
+def _summary(
+    study: Study,
+    tp: Toolpath,
+    d: Decomposition,
+    k_c: F64,
+    W: F64,
+    valid: Any,
+    k_tool: ComplianceResult,
+    k_holder: ComplianceResult | None,
+    q_source: str,
+    scans: dict[str, ScanComparison],
+) -> dict[str, Any]:
+    st = compliance_stats(k_c[valid])
+    stats = {
+        f"k_{i + 1}{j + 1}": {
+            "mean": float(st.mean[i, j]),
+            "std": float(st.std[i, j]),
+            "min": float(st.min[i, j]),
+            "max": float(st.max[i, j]),
+        }
+        for i in range(6)
+        for j in range(6)
+    }
+    contrib = deflection_contributions(k_c[valid], W[valid])
+    table4 = {
+        f"d{ax}": {w: float(contrib.mean_abs[i, j]) * 1e3 for j, w in enumerate(_WRENCH)}
+        for i, ax in enumerate(_AX)
+    }
+    delta = d.vectors["delta"][valid]
+    mean_delta = delta.mean(axis=0) * 1e3
+    warnings = []
+    for name, sc in scans.items():
+        dev = sc.toolpath
+        if dev is not None and not dev.valid.all():
+            warnings.append(
+                f"{name} scan: {int((~dev.valid).sum())} toolpath points fall in holes "
+                "of the scan and are left out"
+            )
+    robot = study.robot
+    assert robot is not None
+    return {
+        "study": study.name,
+        "description": study.description,
+        "part": study.part.to_dict(),
+        "robot": {
+            "model": robot.model,
+            "placement_T_base_work_m": robot.T_base_work.tolist(),
+            "joint_angles_from": q_source,
+        },
+        "tool": {
+            "ball_diameter_mm": study.tool.ball_diameter * 1e3,
+            "method": k_tool.method,
+            "lateral_compliance_m_per_N": k_tool.lateral,
+            "holder_lateral_compliance_m_per_N": None if k_holder is None else k_holder.lateral,
+        },
+        "units": {
+            "length": "mm",
+            "force": "N",
+            "moment": "N*m",
+            "angle": "deg",
+            "time": "s",
+            "compliance": "SI",
+        },
+        "n_points": len(tp),
+        "n_points_used": int(np.sum(valid)),
+        "rim_band_mm": study.analysis.rim_band * 1e3,
+        "contour_z": study.analysis.contour_z * 1e3,
+        "compliance_stats": stats,
+        "force_contributions": table4,
+        "vjm_vs_experiment": {
+            "x": float(mean_delta[0]),
+            "y": float(mean_delta[1]),
+            "z": float(mean_delta[2]),
+            "resultant": float(np.linalg.norm(mean_delta)),
+        },
+        "registration": {name: sc.registration.to_dict() for name, sc in scans.items()},
+        "warnings": warnings,
+    }
+
+
+def _attach_truth(
+    path: Path, per_point: pd.DataFrame, summary: dict[str, Any], d: Decomposition
+) -> None:
+    """Virtual-cell studies ship their ground truth: put it beside the recovered values."""
+    truth = pd.read_parquet(path)
+    if len(truth) != len(per_point):
+        summary["warnings"].append(f"truth file {path} does not match the toolpath; ignored")
+        return
+    used = d.valid
+    rms: dict[str, float] = {}
+    for f in FACTORS:
+        per_point[f"truth_{f}_dn"] = truth[f"{f}_dn"].to_numpy()
+        err = per_point[f"{f}_dn"].to_numpy()[used] - per_point[f"truth_{f}_dn"].to_numpy()[used]
+        rms[f] = float(np.sqrt(np.mean(err**2)))
+    summary["truth"] = {"rms_error_dn_mm": rms, "source": str(path)}
+
+
+def write_results(
+    result: AnalysisResult,
+    out_dir: str | Path,
+    *,
+    png: bool = True,
+    progress: Progress | None = None,
+) -> Path:
+    """Write ``report.html``, ``contributions.csv``, ``contributions_normal.csv``,
+    ``per_point.parquet``, ``summary.json`` and ``figures/*.png`` into ``out_dir`` (replaced only
+    when everything is written)."""
+    from roboisf.report import write_report
+
+    out_dir = Path(out_dir)
+    study_root = result.study.root.resolve()
+    if out_dir.resolve() == study_root or study_root in out_dir.resolve().parents:
+        raise InputError(
+            "the output folder must not be the study folder or inside it (never "
+            "overwrite an input)",
+            file=out_dir,
+        )
+    with staged_directory(out_dir) as stage:
+        with task(progress, "tables"):
+            with atomic_path(stage / "per_point.parquet") as tmp:
+                result.per_point.to_parquet(tmp, index=False)
+            for name, df in (
+                ("contributions.csv", result.contributions),
+                ("contributions_normal.csv", result.contributions_normal),
+            ):
+                with atomic_write(stage / name) as fh:  # mm and percent (docs/analyze.md)
+                    df.to_csv(fh, index=False, float_format="%.6g")
+            with atomic_write(stage / "summary.json") as fh:
+                json.dump(_jsonable(result.summary), fh, indent=2)
+        with task(progress, "report"):
+            write_report(
+                result.per_point,
+                result.contributions,
+                result.contributions_normal,
+                result.summary,
+                stage,
+                png=png,
+                progress=progress,
+            )
+    return out_dir
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x

@@ -1,0 +1,440 @@
+"""The virtual forming cell: synthetic CNC and robot experiments with known ground truth.
+
+:func:`build_study` writes a complete study folder in exactly the format ``roboisf analyze``
+reads (``docs/study.md``) — force logs in the sensors' frames, a joint log as the controller
+would write it, binary PLY scans — plus ``truth/`` with every contribution per toolpath point.
+It is the demo, the end-to-end test bed, and a way to plan a part before forming it.
+
+What is simulated, per toolpath point (all at the tool tip, work axes, SI):
+
+1. the forming wrench W on the tool (:mod:`roboisf.virtual.forces`); the robot run's force is
+   a little lower at the start (the paper: "slightly less ... during the initial stage"),
+   ``W_robot = W · (1 − deficit · exp(−depth / 15 mm))``;
+2. tool and holder deflection ``k · W`` (compliances from the beam model or FE, moved to the tip
+   by the serial assembly);
+3. the robot's deflection by the VJM at the IK configuration of the commanded tip
+   (``roboisf.robot``); the CNC is rigid;
+4. springback, a normal field (:mod:`roboisf.virtual.springback`);
+5. the formed wall: the nominal moved along its normal by ``dn = n · (δ_tip) + s``; the scans
+   sample it (:func:`roboisf.scan.synthetic_scan`) with 25 µm noise, outliers, holes and a small
+   misplacement (a z-shift and tilts: the part rests on the fixture plane).
+
+The controller logs the *commanded* joint angles (motor encoders do not see the elastic joint
+deflection), so the joint log is IK of the toolpath.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import tomli_w
+from numpy.typing import NDArray
+
+from roboisf.errors import InputError
+from roboisf.fem import (
+    PAPER_TOOL_LENGTH,
+    BallEndTool,
+    ComplianceResult,
+    HolderSection,
+    ToolHolder,
+    beam_result,
+    holder_compliance,
+    save_compliance_json,
+    tool_compliance,
+)
+from roboisf.frames import make_transform, rpy_to_matrix, to_tip
+from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
+from roboisf.io.forcelog import ForceLog, write_force_log
+from roboisf.io.jointlog import write_joint_log
+from roboisf.io.toolpath_csv import write_toolpath_csv
+from roboisf.parts import VWACF, AxisymmetricPart, Cone
+from roboisf.progress import Progress, task
+from roboisf.robot import ik_toolpath, load_robot
+from roboisf.scan import synthetic_scan, write_ply
+from roboisf.study.sensors import R_work_tip_vertical, tip_to_sensor
+from roboisf.study.spec import ForceSensorSpec
+from roboisf.toolpath import Toolpath, step_down
+from roboisf.virtual.forces import ForceModel, tip_wrench
+from roboisf.virtual.formed import NormalField
+from roboisf.virtual.springback import SpringbackModel
+
+__all__ = [
+    "CellTruth",
+    "VirtualCell",
+    "build_study",
+    "paper_cone_cell",
+    "paper_vwacf_cell",
+    "simulate",
+]
+
+F64 = NDArray[np.float64]
+
+#: Default holder: a Ø40 mm steel shank, 200 mm from flange adapter to nose, loaded through the
+#: tool's Ø10 mm footprint — beam model 1.03e-7 m/N lateral, the paper's holder is 1.07e-7.
+DEFAULT_HOLDER = ToolHolder([HolderSection(0.200, 0.040)], coupling_diameter=0.010)
+#: Distance from the flange to the holder's top (F/T sensor and adapter) [m].
+SENSOR_STACK = 0.040
+
+
+def _pose_list(T: F64) -> list[float]:
+    """4×4 → [x, y, z, roll, pitch, yaw] in mm and deg (for study.toml)."""
+    from roboisf.frames import matrix_to_rpy
+
+    rpy = np.degrees(matrix_to_rpy(T[:3, :3]))
+    return [round(float(v), 9) for v in (*(T[:3, 3] * 1e3), *rpy)]
+
+
+@dataclass(frozen=True)
+class VirtualCell:
+    """A synthetic experiment: part, tool, holder, robot, process and measurement (SI).
+
+    The two paper studies are :func:`paper_cone_cell` and :func:`paper_vwacf_cell`.
+    """
+
+    name: str
+    part: AxisymmetricPart
+    tool: BallEndTool = field(default_factory=lambda: BallEndTool(10e-3, PAPER_TOOL_LENGTH))
+    holder: ToolHolder = DEFAULT_HOLDER
+    compliance_method: str = "beam"  # "beam" or "fe"
+    robot: str = "irb7600-500-2.55"
+    T_base_work: F64 | None = None  # default: the robot preset's default placement
+    tool_rotation: float = 0.0
+    step_down: float = 0.5e-3
+    spacing: float = 1e-3
+    max_wall_step: float | None = None
+    force: ForceModel = field(default_factory=ForceModel)
+    robot_force_deficit: float = 0.06
+    springback: SpringbackModel = field(default_factory=SpringbackModel)
+    force_rate: float = 1000.0  # Hz
+    joint_rate: float = 250.0  # Hz
+    scan_points: int = 2_000_000
+    scan_noise: float = 25e-6
+    outlier_fraction: float = 0.01
+    n_holes: int = 2
+    hole_radius: float = 2.5e-3
+    misplacement: tuple[float, float, float] = (0.4e-3, math.radians(0.15), math.radians(-0.1))
+    fixture_sensor_pose: F64 = field(
+        default_factory=lambda: make_transform(
+            rpy_to_matrix([0.0, 0.0, math.radians(90)]), [0.0, 0.0, -0.060]
+        )
+    )
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.compliance_method not in ("beam", "fe"):
+            raise InputError("must be 'beam' or 'fe'", field="compliance_method")
+        for name in ("force_rate", "joint_rate"):
+            if not getattr(self, name) > 0:
+                raise InputError("must be > 0 Hz", field=name)
+        if self.scan_points < 1000:
+            raise InputError("need at least 1000 scan points", field="scan_points")
+        if not 0 <= self.robot_force_deficit < 1:
+            raise InputError("must be in [0, 1)", field="robot_force_deficit")
+
+    @property
+    def T_flange_tip(self) -> F64:
+        """Tool straight out of the flange: tip at sensor stack + holder + tool free length."""
+        L = SENSOR_STACK + sum(s.length for s in self.holder.sections) + self.tool.length
+        return make_transform(p=[0.0, 0.0, L])
+
+    @property
+    def T_tip_sensor(self) -> F64:
+        """The flange F/T sensor, mid-stack, turned 30° about the tool axis (tip frame)."""
+        z = -(self.T_flange_tip[2, 3] - SENSOR_STACK / 2)
+        return make_transform(rpy_to_matrix([0.0, 0.0, math.radians(30)]), [0.0, 0.0, z])
+
+
+def paper_cone_cell(**overrides: Any) -> VirtualCell:
+    """The paper's cone: Ø87 mm, 71°, 102.97 mm deep, AA1050 1.22 mm, Ø10 ball, IRB 7600."""
+    return replace(VirtualCell("cone-71", Cone()), **overrides)
+
+
+def paper_vwacf_cell(**overrides: Any) -> VirtualCell:
+    """The paper's VWACF: Ø88.15 mm, 0 → 90° (39 mm arc), fracture at 78°, force peak 475 N."""
+    part = VWACF()
+    cell = VirtualCell(
+        "vwacf",
+        part,
+        max_wall_step=0.5e-3,
+        force=ForceModel(mode="variable"),
+        springback=SpringbackModel(amplitude=0.96e-3),
+    )
+    return replace(cell, **overrides)
+
+
+@dataclass(frozen=True)
+class CellTruth:
+    """Everything the cell knows, per toolpath point (work frame, SI)."""
+
+    toolpath: Toolpath
+    wrench_cnc: F64
+    wrench_robot: F64
+    q: F64
+    tool_cnc: F64
+    tool_robot: F64
+    holder_robot: F64
+    robot: F64
+    springback: F64
+    dn_cnc: F64
+    dn_robot: F64
+    tool_compliance: ComplianceResult
+    holder_compliance: ComplianceResult
+    T_base_work: F64
+    fracture_depth: float
+
+
+def _compliances(
+    cell: VirtualCell, progress: Progress | None
+) -> tuple[ComplianceResult, ComplianceResult]:
+    if cell.compliance_method == "fe":
+        return tool_compliance(cell.tool, progress=progress), holder_compliance(
+            cell.holder, progress=progress
+        )
+    return beam_result(cell.tool), beam_result(cell.holder)
+
+
+def simulate(cell: VirtualCell, *, progress: Progress | None = None) -> CellTruth:
+    """Run the virtual experiments (no files): forces, deflections, springback, formed surface."""
+    part = cell.part
+    tp = step_down(
+        part,
+        cell.tool.radius,
+        cell.step_down,
+        spacing=cell.spacing,
+        max_wall_step=cell.max_wall_step,
+    )
+    frac = cell.force.fracture_depth(tp)
+    if math.isfinite(frac):
+        # forming stops shortly after the sheet fractures: keep the laps up to 1 mm past it
+        last = (
+            int(tp.lap[np.argmax(tp.depth >= frac + 1e-3)])
+            if np.any(tp.depth >= frac + 1e-3)
+            else tp.n_laps
+        )
+        keep = tp.lap <= last
+        tp = Toolpath.from_contact(
+            tp.contact[keep],
+            tp.normal[keep],
+            tp.wall_angle[keep],
+            tp.lap[keep],
+            tp.tool_radius,
+            tp.feed,
+            {**tp.meta, "fracture_depth": frac},
+        )
+    sb = replace(cell.springback, fracture_depth=frac) if math.isfinite(frac) else cell.springback
+    W = tip_wrench(tp, cell.force, thickness=part.sheet_thickness, step_down=cell.step_down)
+    W_rob = W * (1.0 - cell.robot_force_deficit * np.exp(-tp.depth / 15e-3))[:, None]
+
+    with task(progress, "tool and holder compliance"):
+        k_tool, k_holder = _compliances(cell, progress)
+    # FE/beam frames: z up the tool axis = work z; tool at the tip, holder at its nose,
+    # which sits one tool free length above the tip
+    k_t = k_tool.compliance
+    k_th = to_tip(
+        k_holder.compliance, np.array([0.0, 0.0, -cell.tool.length]) - k_holder.reference_point
+    )
+    tool_cnc = (W @ k_t.T)[:, :3]
+    tool_rob = (W_rob @ k_t.T)[:, :3]
+    holder_rob = (W_rob @ k_th.T)[:, :3]
+
+    with task(progress, "robot IK and VJM"):
+        model = load_robot(cell.robot).with_tool(cell.T_flange_tip)
+        T_bw = model.default_placement if cell.T_base_work is None else cell.T_base_work
+        if T_bw is None:
+            raise InputError(
+                f"robot {cell.robot!r} has no default placement; give T_base_work",
+                field="T_base_work",
+            )
+        ik = ik_toolpath(model, tp, T_bw, tool_rotation=cell.tool_rotation)
+        robot = model.deflection(ik.q, W_rob, T_base_work=T_bw)[:, :3]
+
+    s = sb.normal(tp.depth, tp.wall_angle)
+    n = tp.normal
+    dn_cnc = np.einsum("ij,ij->i", tool_cnc, n) + s
+    dn_rob = np.einsum("ij,ij->i", tool_rob + holder_rob + robot, n) + s
+    return CellTruth(
+        tp,
+        W,
+        W_rob,
+        ik.q,
+        tool_cnc,
+        tool_rob,
+        holder_rob,
+        robot,
+        s,
+        dn_cnc,
+        dn_rob,
+        k_tool,
+        k_holder,
+        np.asarray(T_bw, dtype=float),
+        frac,
+    )
+
+
+def _force_log(
+    cell: VirtualCell, tp: Toolpath, W_tip: F64, sensor: ForceSensorSpec, rng: np.random.Generator
+) -> ForceLog:
+    t = np.arange(0.0, tp.time[-1] + 0.5 / cell.force_rate, 1.0 / cell.force_rate)
+    W = np.column_stack([np.interp(t, tp.time, W_tip[:, j]) for j in range(6)])
+    tip = np.column_stack([np.interp(t, tp.time, tp.tip[:, j]) for j in range(3)])
+    R = R_work_tip_vertical(cell.tool_rotation)
+    W_s = tip_to_sensor(W, sensor, tip, R)
+    noise = cell.force.noise
+    W_s[:, :3] += rng.normal(scale=noise, size=(t.size, 3))
+    W_s[:, 3:] += rng.normal(scale=noise * 5e-3, size=(t.size, 3))  # ~5 mm lever of noise
+    return ForceLog(t, W_s, "sensor")
+
+
+def _scan(
+    cell: VirtualCell, truth: CellTruth, dn: F64, path: Path, rng: np.random.Generator, seed: int
+) -> None:
+    part = cell.part
+    field_ = NormalField.from_toolpath(part, truth.toolpath, dn)
+    wall = truth.toolpath.contact[truth.toolpath.depth > 0.02]
+    holes = [
+        (wall[i], cell.hole_radius) for i in rng.choice(len(wall), size=cell.n_holes, replace=False)
+    ]
+    dz, tx, ty = cell.misplacement
+    T_scan_work = make_transform(rpy_to_matrix([tx, ty, 0.0]), [0.0, 0.0, dz])
+    scan = synthetic_scan(
+        part,
+        cell.scan_points,
+        offset=field_.offset(part),
+        noise=cell.scan_noise,
+        outlier_fraction=cell.outlier_fraction,
+        holes=holes,
+        T_scan_work=T_scan_work,
+        seed=seed,
+    )
+    write_ply(scan.points, path, unit="mm")
+
+
+def build_study(
+    cell: VirtualCell, out_dir: str | Path, *, progress: Progress | None = None
+) -> Path:
+    """Write the study folder for ``cell`` into ``out_dir`` (replaced atomically). Returns it."""
+    out_dir = Path(out_dir)
+    rng = np.random.default_rng(cell.seed)
+    truth = simulate(cell, progress=progress)
+    tp = truth.toolpath
+    cnc_sensor = ForceSensorSpec(
+        Path("cnc_forces.csv"), "fixture", cell.fixture_sensor_pose, "workpiece"
+    )
+    rob_sensor = ForceSensorSpec(Path("robot_forces.csv"), "flange", cell.T_tip_sensor, "tool")
+    with staged_directory(out_dir) as d:
+        (d / "truth").mkdir()
+        with task(progress, "toolpath and compliances"):
+            write_toolpath_csv(
+                tp, d / "toolpath.csv", generator=f"roboisf virtual-cell ({cell.name})"
+            )
+            save_compliance_json(truth.tool_compliance, d / "tool_compliance.json")
+            save_compliance_json(truth.holder_compliance, d / "holder_compliance.json")
+        with task(progress, "force logs"):
+            write_force_log(
+                _force_log(cell, tp, truth.wrench_cnc, cnc_sensor, rng), d / "cnc_forces.csv"
+            )
+            write_force_log(
+                _force_log(cell, tp, truth.wrench_robot, rob_sensor, rng), d / "robot_forces.csv"
+            )
+        with task(progress, "joint log"):
+            t = np.arange(0.0, tp.time[-1] + 0.5 / cell.joint_rate, 1.0 / cell.joint_rate)
+            q = np.column_stack([np.interp(t, tp.time, truth.q[:, j]) for j in range(6)])
+            write_joint_log(d / "robot_joints.csv", t, q)
+        with task(progress, "scans"):
+            _scan(cell, truth, truth.dn_cnc, d / "cnc_scan.ply", rng, cell.seed + 1)
+            _scan(cell, truth, truth.dn_robot, d / "robot_scan.ply", rng, cell.seed + 2)
+        _write_study_toml(cell, truth, cnc_sensor, rob_sensor, d / "study.toml")
+        _write_truth(cell, truth, d / "truth")
+    return out_dir
+
+
+def _write_study_toml(
+    cell: VirtualCell, truth: CellTruth, cnc: ForceSensorSpec, rob: ForceSensorSpec, path: Path
+) -> None:
+    data: dict[str, Any] = {
+        "study": {
+            "name": cell.name,
+            "description": f"virtual cell: {cell.name} (roboisf virtual-cell)",
+        },
+        "units": {"length": "mm", "angle": "deg", "force": "N", "moment": "N*m", "time": "s"},
+        "part": cell.part.to_dict(),
+        "tool": {
+            "ball_diameter": cell.tool.ball_diameter * 1e3,
+            "compliance": "tool_compliance.json",
+        },
+        "tool_holder": {"compliance": "holder_compliance.json", "offset": cell.tool.length * 1e3},
+        "robot": {
+            "model": cell.robot,
+            "placement": _pose_list(truth.T_base_work),
+            "flange_to_tip": _pose_list(cell.T_flange_tip),
+            "tool_rotation": math.degrees(cell.tool_rotation),
+        },
+        "analysis": {"rim_band": 20.0, "contour_z": -11.0, "registration": "flange"},
+        "runs": {
+            "cnc": {
+                "machine": "cnc",
+                "toolpath": "toolpath.csv",
+                "scan": "cnc_scan.ply",
+                "scan_unit": "mm",
+                "forces": {
+                    "file": str(cnc.file),
+                    "mount": cnc.mount,
+                    "pose": _pose_list(cnc.pose),
+                    "load_on": cnc.load_on,
+                },
+            },
+            "robot": {
+                "machine": "robot",
+                "toolpath": "toolpath.csv",
+                "joints": "robot_joints.csv",
+                "scan": "robot_scan.ply",
+                "scan_unit": "mm",
+                "forces": {
+                    "file": str(rob.file),
+                    "mount": rob.mount,
+                    "pose": _pose_list(rob.pose),
+                    "load_on": rob.load_on,
+                },
+            },
+        },
+    }
+    with atomic_write(path, "wb") as fh:
+        fh.write(tomli_w.dumps(data).encode())
+
+
+def _write_truth(cell: VirtualCell, truth: CellTruth, folder: Path) -> None:
+    tp = truth.toolpath
+    n = tp.normal
+    cols: dict[str, Any] = {"index": np.arange(len(tp)), "lap": tp.lap}
+    for name, v in (
+        ("tool", truth.tool_robot),
+        ("tool_cnc", truth.tool_cnc),
+        ("tool_holder", truth.holder_robot),
+        ("robot_compliance", truth.robot),
+        ("springback", truth.springback[:, None] * n),
+    ):
+        for j, ax in enumerate("xyz"):
+            cols[f"{name}_d{ax}"] = v[:, j] * 1e3
+        cols[f"{name}_dn"] = np.einsum("ij,ij->i", v, n) * 1e3
+    cols["dn_cnc"] = truth.dn_cnc * 1e3
+    cols["dn_robot"] = truth.dn_robot * 1e3
+    df = pd.DataFrame(cols)
+    with atomic_path(folder / "per_point.parquet") as tmp:
+        df.to_parquet(tmp, index=False)
+    meta = {
+        "units": "mm",
+        "cell": cell.name,
+        "fracture_depth_mm": truth.fracture_depth * 1e3
+        if math.isfinite(truth.fracture_depth)
+        else None,
+        "springback_model": {"amplitude_mm": cell.springback.amplitude * 1e3},
+        "robot": cell.robot,
+    }
+    with atomic_write(folder / "truth.json") as fh:
+        json.dump(meta, fh, indent=2)
