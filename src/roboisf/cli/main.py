@@ -50,9 +50,17 @@ def _root(
 
 
 def _register() -> None:
-    from roboisf.cli import toolpath as _toolpath
+    import importlib.util
 
-    _toolpath.register(app)
+    # cli/toolpath.py is imported here but missing from the base commit 4d7f70c; skip it until
+    # it lands rather than breaking every other command group
+    if importlib.util.find_spec("roboisf.cli.toolpath") is not None:
+        from roboisf.cli import toolpath as _toolpath
+
+        _toolpath.register(app)
+    from roboisf.cli import scan as _scan
+
+    _scan.register(app)
 
 
 _register()
