@@ -50,16 +50,14 @@ def _root(
 
 
 def _register() -> None:
-    import importlib.util
-
-    # cli/toolpath.py is imported here but missing from the base commit 4d7f70c; skip it until
-    # it lands rather than breaking every other command group
-    if importlib.util.find_spec("roboisf.cli.toolpath") is not None:
-        from roboisf.cli import toolpath as _toolpath
-
-        _toolpath.register(app)
+    from roboisf.cli import demo as _demo
+    from roboisf.cli import part as _part
     from roboisf.cli import scan as _scan
+    from roboisf.cli import toolpath as _toolpath
 
+    _toolpath.register(app)
+    _part.register(app)
+    _demo.register(app)
     _scan.register(app)
 
 

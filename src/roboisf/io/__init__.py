@@ -1,0 +1,42 @@
+"""File formats at the edge of roboisf: units, atomic output, toolpath CSV, force logs, robot
+programs (G-code, ABB RAPID, KUKA KRL). Everything read is converted to SI here."""
+
+from roboisf.io.atomic import atomic_path, atomic_write, check_not_input, staged_directory
+from roboisf.io.forcelog import (
+    ForceLog,
+    attach_to_toolpath,
+    read_force_log,
+    window_average,
+    write_force_log,
+)
+from roboisf.io.gcode import read_gcode, write_gcode
+from roboisf.io.krl import read_krl, write_krl
+from roboisf.io.program import ProgramPath, RobotTool, tool_down_orientation
+from roboisf.io.rapid import read_rapid, write_rapid
+from roboisf.io.toolpath_csv import TOOLPATH_COLUMNS, read_toolpath_csv, write_toolpath_csv
+from roboisf.io.units import to_si
+
+__all__ = [
+    "TOOLPATH_COLUMNS",
+    "ForceLog",
+    "ProgramPath",
+    "RobotTool",
+    "atomic_path",
+    "atomic_write",
+    "attach_to_toolpath",
+    "check_not_input",
+    "read_force_log",
+    "read_gcode",
+    "read_krl",
+    "read_rapid",
+    "read_toolpath_csv",
+    "staged_directory",
+    "to_si",
+    "tool_down_orientation",
+    "window_average",
+    "write_force_log",
+    "write_gcode",
+    "write_krl",
+    "write_rapid",
+    "write_toolpath_csv",
+]

@@ -9,7 +9,7 @@ import contextlib
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import IO
 
@@ -18,7 +18,18 @@ from roboisf.errors import InputError
 __all__ = ["atomic_path", "atomic_write", "check_not_input", "staged_directory"]
 
 
-def check_not_input(output: str | Path, inputs: list[str | Path]) -> None:
+def _default_mode(base: int) -> int:
+    """``base`` (0o666 files, 0o777 folders) under the process umask — what open()/mkdir() give.
+
+    mkstemp/mkdtemp create private 0o600/0o700 entries; renamed into place as they are, a user's
+    output files would be unreadable to colleagues and web servers.
+    """
+    mask = os.umask(0)
+    os.umask(mask)
+    return base & ~mask
+
+
+def check_not_input(output: str | Path, inputs: Sequence[str | Path]) -> None:
     """Refuse to write ``output`` over one of ``inputs`` (never overwrite an input)."""
     out = Path(output).resolve()
     for item in inputs:
@@ -43,6 +54,7 @@ def atomic_path(path: str | Path, suffix: str | None = None) -> Iterator[Path]:
     tmp_path = Path(tmp)
     try:
         yield tmp_path
+        os.chmod(tmp_path, _default_mode(0o666))
         os.replace(tmp_path, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
@@ -55,7 +67,8 @@ def atomic_write(path: str | Path, mode: str = "w", encoding: str | None = "utf-
     """Open a temporary file for writing; rename it onto ``path`` when the block succeeds."""
     if "b" in mode:
         encoding = None
-    with atomic_path(path) as tmp, open(tmp, mode, encoding=encoding, newline="" if "b" not in mode else None) as fh:
+    newline = "" if "b" not in mode else None
+    with atomic_path(path) as tmp, open(tmp, mode, encoding=encoding, newline=newline) as fh:
         yield fh
 
 
@@ -71,6 +84,7 @@ def staged_directory(path: str | Path) -> Iterator[Path]:
     stage = Path(tempfile.mkdtemp(prefix=f".{path.name}.staging.", dir=path.parent))
     try:
         yield stage
+        os.chmod(stage, _default_mode(0o777))
         if path.exists():
             old = Path(tempfile.mkdtemp(prefix=f".{path.name}.old.", dir=path.parent))
             old.rmdir()

@@ -10,7 +10,7 @@ import math
 
 from roboisf.errors import InputError
 
-__all__ = ["LENGTH_UNITS", "ANGLE_UNITS", "FORCE_UNITS", "MOMENT_UNITS", "TIME_UNITS", "to_si"]
+__all__ = ["ANGLE_UNITS", "FORCE_UNITS", "LENGTH_UNITS", "MOMENT_UNITS", "TIME_UNITS", "to_si"]
 
 LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "cm": 1e-2, "in": 0.0254}
 ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}

@@ -1,0 +1,125 @@
+"""``roboisf part``: write a part TOML file (the nominal geometry other commands reuse).
+
+Examples::
+
+    roboisf part cone --opening-diameter 87 --wall-angle 71 --depth 102.97 -o cone.toml
+    roboisf part vwacf --opening-diameter 88.15 --arc-radius 40 -o vwacf.toml
+    roboisf part profile profile.csv -o part.toml     # the TOML refers to the CSV
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from roboisf.cli.console import state
+from roboisf.errors import InputError
+from roboisf.io.atomic import check_not_input
+from roboisf.parts import VWACF, AxisymmetricPart, Cone, ProfilePart, read_profile_csv, save_part
+from roboisf.parts.axisymmetric import PAPER_SHEET_THICKNESS, VWACF_DEFAULT_ARC_RADIUS
+
+__all__ = ["register"]
+
+Output = Annotated[Path, typer.Option("--output", "-o", help="Part file to write (.toml).")]
+Sheet = Annotated[float, typer.Option(help="Initial sheet thickness \\[mm].")]
+Flange = Annotated[float, typer.Option(help="Flange width outside the opening \\[mm].")]
+
+part_app = typer.Typer(help="Write a part file (TOML, mm and degrees).", no_args_is_help=True)
+
+
+def _save(make: Callable[[], AxisymmetricPart], output: Path, inputs: list[Path]) -> None:
+    if output.suffix.lower() != ".toml":
+        raise InputError("a part file must end in .toml", file=output)
+    check_not_input(output, inputs)
+    part = make()
+    save_part(part, output)
+    state.info(f"wrote {output}: {part.kind}, depth {part.depth * 1e3:.3f} mm")
+
+
+@part_app.command("cone")
+def _cone(
+    output: Output,
+    opening_diameter: Annotated[
+        float, typer.Option(help="Wall diameter at the sheet \\[mm].")
+    ] = 87.0,
+    wall_angle: Annotated[float, typer.Option(help="Wall angle, 0 < α < 90 \\[deg].")] = 71.0,
+    depth: Annotated[float, typer.Option(help="Part depth \\[mm].")] = 102.97,
+    sheet_thickness: Sheet = PAPER_SHEET_THICKNESS * 1e3,
+    flange_width: Flange = 10.0,
+) -> None:
+    """Truncated cone (defaults: the paper's Ø87 mm, 71°, 102.97 mm)."""
+    _save(
+        lambda: Cone(
+            opening_diameter * 1e-3,
+            math.radians(wall_angle),
+            depth * 1e-3,
+            sheet_thickness=sheet_thickness * 1e-3,
+            flange_width=flange_width * 1e-3,
+        ),
+        output,
+        [],
+    )
+
+
+@part_app.command("vwacf")
+def _vwacf(
+    output: Output,
+    opening_diameter: Annotated[
+        float, typer.Option(help="Wall diameter at the sheet \\[mm].")
+    ] = 88.15,
+    arc_radius: Annotated[
+        float, typer.Option(help="Radius of the arc generatrix \\[mm].")
+    ] = VWACF_DEFAULT_ARC_RADIUS * 1e3,
+    final_wall_angle: Annotated[
+        float, typer.Option(help="Wall angle at the bottom \\[deg].")
+    ] = 90.0,
+    sheet_thickness: Sheet = PAPER_SHEET_THICKNESS * 1e3,
+    flange_width: Flange = 10.0,
+) -> None:
+    """Variable-wall-angle frustum (defaults: Ø88.15 mm, 40 mm arc, 0° → 90°)."""
+    _save(
+        lambda: VWACF(
+            opening_diameter * 1e-3,
+            arc_radius * 1e-3,
+            math.radians(final_wall_angle),
+            sheet_thickness=sheet_thickness * 1e-3,
+            flange_width=flange_width * 1e-3,
+        ),
+        output,
+        [],
+    )
+
+
+@part_app.command("profile")
+def _profile(
+    profile: Annotated[
+        Path, typer.Argument(help="Generatrix CSV with header r,z (mm), rim first.")
+    ],
+    output: Output,
+    sheet_thickness: Sheet = PAPER_SHEET_THICKNESS * 1e3,
+    flange_width: Flange = 10.0,
+) -> None:
+    """Part from a generatrix CSV; the TOML stores the CSV's path relative to itself."""
+
+    def make() -> AxisymmetricPart:
+        r, z = read_profile_csv(profile)
+        rel = os.path.relpath(profile.resolve(), output.resolve().parent)
+        return ProfilePart(
+            r=tuple(r),
+            z=tuple(z),
+            source=Path(rel).as_posix(),
+            sheet_thickness=sheet_thickness * 1e-3,
+            flange_width=flange_width * 1e-3,
+        )
+
+    _save(make, output, [profile])
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``roboisf part`` to ``app``."""
+    app.add_typer(part_app, name="part")

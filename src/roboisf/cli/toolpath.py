@@ -1,0 +1,362 @@
+"""``roboisf toolpath``: generate a forming toolpath and write it as CSV, G-code, RAPID or KRL.
+
+Examples (mm and degrees)::
+
+    roboisf toolpath cone --opening-diameter 87 --wall-angle 71 --depth 102.97 \\
+        --step-down 0.5 --tool-diameter 10 -o cone.csv
+    roboisf toolpath vwacf --opening-diameter 88.15 --arc-radius 40 -o vwacf.mod --spiral
+    roboisf toolpath profile profile.csv -o part.src --tool-length 250
+    roboisf toolpath --part part.toml -o path.nc
+
+The format follows the ``-o`` suffix (.csv, .nc/.gcode, .mod, .src) unless ``--format`` is given.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from roboisf.cli.console import state
+from roboisf.errors import InputError
+from roboisf.frames.rotations import abc_to_matrix
+from roboisf.io.atomic import check_not_input
+from roboisf.io.export import infer_format, write_toolpath
+from roboisf.io.program import RobotTool
+from roboisf.parts import VWACF, AxisymmetricPart, Cone, ProfilePart, load_part, read_profile_csv
+from roboisf.parts.axisymmetric import VWACF_DEFAULT_ARC_RADIUS
+from roboisf.toolpath import spiral, step_down
+from roboisf.toolpath.toolpath import Toolpath
+
+__all__ = ["PathOptions", "generate", "register"]
+
+# -- options shared by every toolpath command (mm, deg, mm/min) ---------------------------------
+Output = Annotated[
+    Path, typer.Option("--output", "-o", help="Output file; its suffix picks the format.")
+]
+OptOutput = Annotated[
+    Path | None, typer.Option("--output", "-o", help="Output file; its suffix picks the format.")
+]
+Format = Annotated[
+    str | None, typer.Option("--format", "-f", help="csv | gcode | rapid | krl (default: from -o).")
+]
+StepDown = Annotated[float, typer.Option(help="Depth step between laps \\[mm].")]
+ToolDiameter = Annotated[float, typer.Option(help="Ball diameter \\[mm].")]
+Spiral = Annotated[bool, typer.Option("--spiral", help="Spiral path (z ramps within each lap).")]
+Spacing = Annotated[float, typer.Option(help="Max. distance between points along a lap \\[mm].")]
+Feed = Annotated[float, typer.Option(help="Feed rate \\[mm/min].")]
+MaxWallStep = Annotated[
+    float | None,
+    typer.Option(help="Max. distance between laps along the wall \\[mm] (shallow walls)."),
+]
+ToolLength = Annotated[float, typer.Option(help="Flange to ball tip \\[mm] (RAPID/KRL tool data).")]
+ToolMass = Annotated[float, typer.Option(help="Tool + holder mass \\[kg] (RAPID/KRL).")]
+ToolRotation = Annotated[
+    float, typer.Option(help="Rotation of the tool about its own axis \\[deg] (RAPID/KRL).")
+]
+WorkFrame = Annotated[
+    str | None,
+    typer.Option(
+        help="Work frame in the robot base as 'X,Y,Z,A,B,C' \\[mm, deg; R = Rz(A)Ry(B)Rx(C)] "
+        "(RAPID wobjdata / KRL $BASE). Default: identity."
+    ),
+]
+SafeHeight = Annotated[float, typer.Option(help="Approach/retract height \\[mm].")]
+
+
+@dataclass(frozen=True)
+class PathOptions:
+    """Toolpath and program options as given on the command line (mm, deg, mm/min)."""
+
+    step_down: float = 0.5
+    tool_diameter: float = 10.0
+    spiral: bool = False
+    spacing: float = 1.0
+    feed: float = 750.0
+    max_wall_step: float | None = None
+    tool_length: float = 200.0
+    tool_mass: float = 2.0
+    tool_rotation: float = 0.0
+    work_frame: str | None = None
+    safe_height: float = 10.0
+
+    def check(self) -> None:
+        for flag, v in (
+            ("--step-down", self.step_down),
+            ("--tool-diameter", self.tool_diameter),
+            ("--spacing", self.spacing),
+            ("--feed", self.feed),
+            ("--tool-length", self.tool_length),
+            ("--tool-mass", self.tool_mass),
+            ("--safe-height", self.safe_height),
+        ):
+            if not (math.isfinite(v) and v > 0):
+                raise InputError(f"must be > 0, got {v:g}", field=flag)
+        if self.max_wall_step is not None and not (
+            math.isfinite(self.max_wall_step) and self.max_wall_step > 0
+        ):
+            raise InputError(f"must be > 0, got {self.max_wall_step:g}", field="--max-wall-step")
+        if not math.isfinite(self.tool_rotation):
+            raise InputError("must be finite", field="--tool-rotation")
+
+    def placement(self) -> np.ndarray:
+        """``T_base_work`` (4, 4) m from ``--work-frame``."""
+        T = np.eye(4)
+        if self.work_frame is None:
+            return T
+        try:
+            v = [float(x) for x in self.work_frame.split(",")]
+        except ValueError:
+            v = []
+        if len(v) != 6 or not all(math.isfinite(x) for x in v):
+            raise InputError(
+                f"expected 6 numbers 'X,Y,Z,A,B,C' (mm, deg), got {self.work_frame!r}",
+                field="--work-frame",
+            )
+        T[:3, :3] = abc_to_matrix(np.radians(v[3:]))
+        T[:3, 3] = np.array(v[:3]) * 1e-3
+        return T
+
+
+def generate(part: AxisymmetricPart, opts: PathOptions) -> Toolpath:
+    """The toolpath for ``part`` with the command-line options (converted to SI here)."""
+    opts.check()
+    gen = spiral if opts.spiral else step_down
+    return gen(
+        part,
+        tool_radius=opts.tool_diameter / 2 * 1e-3,
+        step_down=opts.step_down * 1e-3,
+        spacing=opts.spacing * 1e-3,
+        feed=opts.feed / 60e3,
+        max_wall_step=None if opts.max_wall_step is None else opts.max_wall_step * 1e-3,
+    )
+
+
+def write(tp: Toolpath, output: Path, fmt: str | None, opts: PathOptions) -> str:
+    """Write ``tp`` with the program options; return the format used."""
+    return write_toolpath(
+        tp,
+        output,
+        fmt,
+        T_base_work=opts.placement(),
+        tool=RobotTool(length=opts.tool_length * 1e-3, mass=opts.tool_mass),
+        tool_rotation=math.radians(opts.tool_rotation),
+        safe_height=opts.safe_height * 1e-3,
+    )
+
+
+def _run(
+    part_factory, output: Path, fmt: str | None, opts: PathOptions, inputs: list[Path]
+) -> None:
+    check_not_input(output, inputs)
+    fmt = infer_format(output, fmt)  # fail before the (possibly long) generation
+    opts.check()
+    opts.placement()
+    part = part_factory()
+    tp = generate(part, opts)
+    fmt = write(tp, output, fmt, opts)
+    state.info(
+        f"wrote {output} ({fmt}): {len(tp)} points, {tp.n_laps} laps, "
+        f"{tp.path_length[-1]:.2f} m of path, {tp.time[-1] / 60:.1f} min at {opts.feed:g} mm/min"
+    )
+
+
+toolpath_app = typer.Typer(
+    help="Generate a forming toolpath (step-down or spiral); write CSV, G-code, RAPID or KRL.\n\n"
+    "Give the part as a subcommand (cone, vwacf, profile) or as a part file: "
+    "roboisf toolpath --part part.toml -o path.csv",
+    no_args_is_help=True,
+    invoke_without_command=True,
+)
+
+
+@toolpath_app.callback()
+def _toolpath_from_part_file(
+    ctx: typer.Context,
+    part: Annotated[
+        Path | None, typer.Option("--part", help="Part TOML file (see 'roboisf part').")
+    ] = None,
+    output: OptOutput = None,
+    fmt: Format = None,
+    step_down: StepDown = 0.5,
+    tool_diameter: ToolDiameter = 10.0,
+    spiral: Spiral = False,
+    spacing: Spacing = 1.0,
+    feed: Feed = 750.0,
+    max_wall_step: MaxWallStep = None,
+    tool_length: ToolLength = 200.0,
+    tool_mass: ToolMass = 2.0,
+    tool_rotation: ToolRotation = 0.0,
+    work_frame: WorkFrame = None,
+    safe_height: SafeHeight = 10.0,
+) -> None:
+    if ctx.invoked_subcommand is not None:
+        if part is not None or output is not None:
+            raise InputError(
+                f"give the part either as --part FILE or as the subcommand "
+                f"{ctx.invoked_subcommand!r}, and -o after the subcommand",
+                field="--part",
+            )
+        return
+    if part is None:
+        raise InputError(
+            "no part given: use --part part.toml or a subcommand (cone, vwacf, profile)"
+        )
+    if output is None:
+        raise InputError("missing -o/--output", field="--output")
+    opts = PathOptions(
+        step_down,
+        tool_diameter,
+        spiral,
+        spacing,
+        feed,
+        max_wall_step,
+        tool_length,
+        tool_mass,
+        tool_rotation,
+        work_frame,
+        safe_height,
+    )
+    _run(lambda: load_part(part), output, fmt, opts, [part])
+
+
+@toolpath_app.command("cone")
+def _cone(
+    output: Output,
+    opening_diameter: Annotated[
+        float, typer.Option(help="Wall diameter at the sheet \\[mm].")
+    ] = 87.0,
+    wall_angle: Annotated[float, typer.Option(help="Wall angle, 0 < α < 90 \\[deg].")] = 71.0,
+    depth: Annotated[float, typer.Option(help="Part depth \\[mm].")] = 102.97,
+    fmt: Format = None,
+    step_down: StepDown = 0.5,
+    tool_diameter: ToolDiameter = 10.0,
+    spiral: Spiral = False,
+    spacing: Spacing = 1.0,
+    feed: Feed = 750.0,
+    max_wall_step: MaxWallStep = None,
+    tool_length: ToolLength = 200.0,
+    tool_mass: ToolMass = 2.0,
+    tool_rotation: ToolRotation = 0.0,
+    work_frame: WorkFrame = None,
+    safe_height: SafeHeight = 10.0,
+) -> None:
+    """Truncated cone of constant wall angle (defaults: the paper's Ø87 mm, 71°, 102.97 mm)."""
+    opts = PathOptions(
+        step_down,
+        tool_diameter,
+        spiral,
+        spacing,
+        feed,
+        max_wall_step,
+        tool_length,
+        tool_mass,
+        tool_rotation,
+        work_frame,
+        safe_height,
+    )
+    _run(
+        lambda: Cone(opening_diameter * 1e-3, math.radians(wall_angle), depth * 1e-3),
+        output,
+        fmt,
+        opts,
+        [],
+    )
+
+
+@toolpath_app.command("vwacf")
+def _vwacf(
+    output: Output,
+    opening_diameter: Annotated[
+        float, typer.Option(help="Wall diameter at the sheet \\[mm].")
+    ] = 88.15,
+    arc_radius: Annotated[
+        float, typer.Option(help="Radius of the circular-arc generatrix \\[mm].")
+    ] = VWACF_DEFAULT_ARC_RADIUS * 1e3,
+    final_wall_angle: Annotated[
+        float, typer.Option(help="Wall angle at the bottom \\[deg].")
+    ] = 90.0,
+    fmt: Format = None,
+    step_down: StepDown = 0.5,
+    tool_diameter: ToolDiameter = 10.0,
+    spiral: Spiral = False,
+    spacing: Spacing = 1.0,
+    feed: Feed = 750.0,
+    max_wall_step: MaxWallStep = None,
+    tool_length: ToolLength = 200.0,
+    tool_mass: ToolMass = 2.0,
+    tool_rotation: ToolRotation = 0.0,
+    work_frame: WorkFrame = None,
+    safe_height: SafeHeight = 10.0,
+) -> None:
+    """Variable-wall-angle frustum: arc generatrix tangent to the sheet at the rim (0° → final)."""
+    opts = PathOptions(
+        step_down,
+        tool_diameter,
+        spiral,
+        spacing,
+        feed,
+        max_wall_step,
+        tool_length,
+        tool_mass,
+        tool_rotation,
+        work_frame,
+        safe_height,
+    )
+    _run(
+        lambda: VWACF(opening_diameter * 1e-3, arc_radius * 1e-3, math.radians(final_wall_angle)),
+        output,
+        fmt,
+        opts,
+        [],
+    )
+
+
+@toolpath_app.command("profile")
+def _profile(
+    profile: Annotated[
+        Path, typer.Argument(help="Generatrix CSV with header r,z (mm), rim first.")
+    ],
+    output: Output,
+    fmt: Format = None,
+    step_down: StepDown = 0.5,
+    tool_diameter: ToolDiameter = 10.0,
+    spiral: Spiral = False,
+    spacing: Spacing = 1.0,
+    feed: Feed = 750.0,
+    max_wall_step: MaxWallStep = None,
+    tool_length: ToolLength = 200.0,
+    tool_mass: ToolMass = 2.0,
+    tool_rotation: ToolRotation = 0.0,
+    work_frame: WorkFrame = None,
+    safe_height: SafeHeight = 10.0,
+) -> None:
+    """Any axisymmetric part from a generatrix polyline (CSV r,z in mm)."""
+    opts = PathOptions(
+        step_down,
+        tool_diameter,
+        spiral,
+        spacing,
+        feed,
+        max_wall_step,
+        tool_length,
+        tool_mass,
+        tool_rotation,
+        work_frame,
+        safe_height,
+    )
+
+    def make() -> AxisymmetricPart:
+        r, z = read_profile_csv(profile)
+        return ProfilePart(r=tuple(r), z=tuple(z), source=str(profile))
+
+    _run(make, output, fmt, opts, [profile])
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``roboisf toolpath`` to ``app``."""
+    app.add_typer(toolpath_app, name="toolpath")

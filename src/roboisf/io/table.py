@@ -1,0 +1,213 @@
+"""Numeric CSV tables with leading ``# key: value`` metadata lines (the roboisf exchange format).
+
+Layout of every such file::
+
+    # key: value          ← optional metadata, only before the header
+    # another: value
+    col_a,col_b,col_c     ← header (column names, case-sensitive, any order)
+    1.0,2.0,3.0           ← numeric rows; blank lines are skipped
+
+:func:`read_table` parses it once, vectorised, and reports the first bad row with its **file line
+number** (1-based, counting every physical line of the file): rows with a wrong number of
+columns, non-numeric cells, NaN/inf. Callers then check meaning (units, monotonicity) and use
+:attr:`Table.lines` to name the line of a bad row.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from roboisf.errors import InputError
+
+__all__ = ["Table", "format_rows", "read_table"]
+
+F64 = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Table:
+    """A parsed numeric CSV.
+
+    Attributes
+    ----------
+    path : Path — the file read
+    meta : dict[str, str] — ``# key: value`` lines before the header (keys lower-cased)
+    columns : tuple[str, ...] — header names as written
+    data : (N, K) float — the rows, in file units
+    lines : (N,) int — 1-based file line number of each row
+    header_line : int — 1-based line number of the header
+    """
+
+    path: Path
+    meta: dict[str, str]
+    columns: tuple[str, ...]
+    data: F64
+    lines: NDArray[np.int64]
+    header_line: int
+
+    def column(self, name: str) -> F64:
+        """The column ``name`` (N,) (must be in :attr:`columns`)."""
+        return self.data[:, self.columns.index(name)]
+
+    def has(self, *names: str) -> bool:
+        return all(n in self.columns for n in names)
+
+    def error(self, message: str, row: int | None = None, field: str | None = None) -> InputError:
+        """An :class:`InputError` naming this file and the line of data row ``row`` (0-based)."""
+        line = int(self.lines[row]) if row is not None else None
+        return InputError(message, file=self.path, line=line, field=field)
+
+
+def read_table(
+    path: str | Path,
+    required: Sequence[str],
+    *,
+    optional: Iterable[str] = (),
+    what: str = "CSV",
+    allow_extra: bool = False,
+) -> Table:
+    """Read a metadata + header + numeric-rows CSV (see module docstring).
+
+    Parameters
+    ----------
+    path : the file
+    required : column names that must be in the header
+    optional : column names that may be in the header
+    what : what the file is, for messages ("toolpath CSV", "force log")
+    allow_extra : accept (and keep) columns outside ``required`` and ``optional``
+
+    Raises
+    ------
+    InputError
+        file missing or empty, header missing columns or with duplicates/unknown names, a row with
+        the wrong number of cells, a non-numeric cell, NaN or inf — naming file, line and column.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{what} not found", file=path)
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise InputError(f"{what} is not UTF-8 text ({e.reason})", file=path) from None
+    raw = text.splitlines()
+    meta: dict[str, str] = {}
+    i = 0
+    while i < len(raw):
+        s = raw[i].strip()
+        if not s:
+            i += 1
+            continue
+        if not s.startswith("#"):
+            break
+        body = s.lstrip("#").strip()
+        if ":" in body:
+            key, _, value = body.partition(":")
+            key = key.strip().lower()
+            if key in meta and meta[key] != value.strip():
+                raise InputError(
+                    f"metadata key {key!r} given twice with different values",
+                    file=path,
+                    line=i + 1,
+                    field=key,
+                )
+            meta[key] = value.strip()
+        i += 1
+    if i == len(raw):
+        raise InputError(
+            f"{what} is empty; expected a header {','.join(required)} and data rows", file=path
+        )
+    header_line = i + 1
+    columns = tuple(c.strip() for c in raw[i].split(","))
+    dup = {c for c in columns if columns.count(c) > 1}
+    if dup:
+        raise InputError(
+            f"duplicate column(s) {', '.join(sorted(dup))}", file=path, line=header_line
+        )
+    missing = [c for c in required if c not in columns]
+    if missing:
+        raise InputError(
+            f"missing column(s) {', '.join(missing)}; expected header "
+            f"{','.join(required)} (got {','.join(columns)})",
+            file=path,
+            line=header_line,
+            field=missing[0],
+        )
+    if not allow_extra:
+        known = set(required) | set(optional)
+        extra = [c for c in columns if c not in known]
+        if extra:
+            raise InputError(
+                f"unknown column(s) {', '.join(extra)}; expected {','.join(required)}"
+                + (f" and optionally {','.join(optional)}" if optional else ""),
+                file=path,
+                line=header_line,
+                field=extra[0],
+            )
+    body_idx = [j for j in range(i + 1, len(raw)) if raw[j].strip()]
+    if not body_idx:
+        raise InputError(f"{what} has a header but no data rows", file=path)
+    lines = np.asarray(body_idx, dtype=np.int64) + 1
+    cells = [raw[j].split(",") for j in body_idx]
+    k = len(columns)
+    counts = np.fromiter((len(c) for c in cells), dtype=np.int64, count=len(cells))
+    if np.any(counts != k):
+        r = int(np.argmax(counts != k))
+        if raw[body_idx[r]].lstrip().startswith("#"):
+            raise InputError(
+                "comment lines are only allowed before the header", file=path, line=int(lines[r])
+            )
+        raise InputError(
+            f"expected {k} columns ({','.join(columns)}), got {counts[r]}",
+            file=path,
+            line=int(lines[r]),
+        )
+    try:
+        data = np.asarray(cells, dtype=np.str_).astype(np.float64)
+    except ValueError:
+        data = np.empty((len(cells), k))
+        for r, row in enumerate(cells):
+            for c, cell in enumerate(row):
+                try:
+                    data[r, c] = float(cell)
+                except ValueError:
+                    raise InputError(
+                        f"not a number: {cell.strip()!r}",
+                        file=path,
+                        line=int(lines[r]),
+                        field=columns[c],
+                    ) from None
+    finite = np.isfinite(data)
+    if not finite.all():
+        r, c = np.argwhere(~finite)[0]
+        raise InputError(
+            f"{data[r, c]} is not a finite number",
+            file=path,
+            line=int(lines[r]),
+            field=columns[c],
+        )
+    return Table(path, meta, columns, data, lines, header_line)
+
+
+def format_rows(data: F64, formats: Sequence[str]) -> str:
+    """Format an (N, K) array as CSV rows with one printf format per column (vectorised-ish)."""
+    if data.shape[1] != len(formats):
+        raise ValueError("one format per column")
+    fmt = ",".join(formats)
+    return "".join(fmt % tuple(row) + "\n" for row in data.tolist())
+
+
+def finite_float(text: str, *, file: str | Path | None = None, field: str | None = None) -> float:
+    """Parse a metadata number (raising InputError naming the field)."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise InputError(f"expected a number, got {text!r}", file=file, field=field) from None
+    if not math.isfinite(v):
+        raise InputError(f"expected a finite number, got {text!r}", file=file, field=field)
+    return v

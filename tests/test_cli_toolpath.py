@@ -1,0 +1,231 @@
+"""CLI: roboisf toolpath / part / demo — outputs, formats, bad input (exit 2, no output file)."""
+
+from __future__ import annotations
+
+import math
+import os
+import stat
+
+import numpy as np
+import pytest
+
+from roboisf.cli.main import main
+from roboisf.io.gcode import read_gcode
+from roboisf.io.krl import read_krl
+from roboisf.io.rapid import read_rapid
+from roboisf.io.toolpath_csv import read_toolpath_csv
+from roboisf.parts import Cone, load_part
+
+SMALL_CONE = ["--opening-diameter", "60", "--wall-angle", "60", "--depth", "5", "--spacing", "3"]
+
+
+def _run(argv, capsys=None):
+    code = main(argv)
+    if capsys is not None:
+        return code, capsys.readouterr()
+    return code
+
+
+def test_paper_cone_csv(tmp_path):
+    out = tmp_path / "path.csv"
+    argv = [
+        "toolpath",
+        "cone",
+        "--opening-diameter",
+        "87",
+        "--wall-angle",
+        "71",
+        "--depth",
+        "102.97",
+        "--step-down",
+        "0.5",
+        "--tool-diameter",
+        "10",
+        "--spacing",
+        "4",
+        "-o",
+        str(out),
+    ]
+    assert main(argv) == 0
+    tp = read_toolpath_csv(out)
+    assert tp.n_laps == 206
+    assert tp.tool_radius == pytest.approx(5e-3)
+    assert tp.feed == pytest.approx(750e-3 / 60)
+    assert tp.contact[:, 2].min() == pytest.approx(-102.97e-3, abs=1e-12)
+    # atomic output is renamed from a private temp file: it must get the usual 0o666 & ~umask
+    mask = os.umask(0)
+    os.umask(mask)
+    assert stat.S_IMODE(os.stat(out).st_mode) == 0o666 & ~mask
+
+
+@pytest.mark.parametrize(
+    ("name", "reader"),
+    [("p.nc", read_gcode), ("p.gcode", read_gcode), ("p.mod", read_rapid), ("p.src", read_krl)],
+)
+def test_format_from_suffix(tmp_path, name, reader):
+    out = tmp_path / name
+    assert main(["toolpath", "cone", *SMALL_CONE, "-o", str(out)]) == 0
+    back = reader(out)
+    ref = main(["toolpath", "cone", *SMALL_CONE, "-o", str(tmp_path / "ref.csv")])
+    assert ref == 0
+    tp = read_toolpath_csv(tmp_path / "ref.csv")
+    assert np.abs(back.tip - tp.tip).max() <= 0.5e-6 + 1e-12
+
+
+def test_format_option_and_program_options(tmp_path):
+    out = tmp_path / "prog.txt"
+    argv = [
+        "toolpath",
+        "vwacf",
+        "--spiral",
+        "--spacing",
+        "4",
+        "--step-down",
+        "1",
+        "--format",
+        "rapid",
+        "--tool-length",
+        "250",
+        "--tool-rotation",
+        "30",
+        "--work-frame",
+        "1500,100,800,90,0,0",
+        "--feed",
+        "1200",
+        "-o",
+        str(out),
+    ]
+    assert main(argv) == 0
+    back = read_rapid(out)
+    assert back.feed == pytest.approx(0.02)
+    assert back.tool.length == pytest.approx(0.25)
+    np.testing.assert_allclose(back.T_base_work[:3, 3], [1.5, 0.1, 0.8])
+    np.testing.assert_allclose(back.T_base_work[:3, 0], [0, 1, 0], atol=1e-12)
+    g = math.radians(30)
+    np.testing.assert_allclose(
+        back.R_work_tool[0] @ [1, 0, 0], [math.cos(g), -math.sin(g), 0], atol=1e-8
+    )
+
+
+def test_profile_and_part_files(tmp_path):
+    prof = tmp_path / "data" / "profile.csv"
+    prof.parent.mkdir()
+    prof.write_text("r,z\n40,0\n35,-5\n30,-12\n28,-20\n")
+    toml = tmp_path / "parts" / "p.toml"
+    toml.parent.mkdir()
+    assert main(["part", "profile", str(prof), "-o", str(toml)]) == 0
+    assert 'file = "../data/profile.csv"' in toml.read_text()
+    assert load_part(toml).depth == pytest.approx(20e-3)
+    out = tmp_path / "from_toml.src"
+    assert main(["toolpath", "--part", str(toml), "-o", str(out), "--spacing", "3"]) == 0
+    assert out.is_file() and out.with_suffix(".dat").is_file()
+    out2 = tmp_path / "direct.csv"
+    assert main(["toolpath", "profile", str(prof), "-o", str(out2), "--spacing", "3"]) == 0
+    a, b = read_krl(out), read_toolpath_csv(out2)
+    assert np.abs(a.tip - b.tip).max() <= 0.5e-6 + 1e-12
+
+
+def test_part_cone_round_trip(tmp_path):
+    toml = tmp_path / "cone.toml"
+    assert main(["part", "cone", "--wall-angle", "65", "--depth", "50", "-o", str(toml)]) == 0
+    part = load_part(toml)
+    ref = Cone(87e-3, math.radians(65.0), 50e-3).to_dict()
+    assert part.to_dict() == pytest.approx(ref)
+    assert main(["part", "vwacf", "--arc-radius", "30", "-o", str(tmp_path / "v.toml")]) == 0
+    assert load_part(tmp_path / "v.toml").depth == pytest.approx(30e-3)
+
+
+BAD_PROFILES = {
+    "goes_up": "r,z\n40,0\n35,-5\n30,-3\n",
+    "crosses_axis": "r,z\n40,0\n10,-10\n-2,-12\n",
+    "empty": "",
+    "malformed": "r,z\n40,0\n35,abc\n",
+    "header_only": "r,z\n",
+}
+
+
+@pytest.mark.parametrize("kind", sorted(BAD_PROFILES))
+def test_bad_profile_exit_2_no_output(tmp_path, capsys, kind):
+    prof = tmp_path / "prof.csv"
+    prof.write_text(BAD_PROFILES[kind])
+    out = tmp_path / "out.csv"
+    code, cap = _run(["toolpath", "profile", str(prof), "-o", str(out)], capsys)
+    assert code == 2
+    assert not out.exists()
+    err = cap.err.strip()
+    assert err.startswith("error:") and "prof.csv" in err and len(err.splitlines()) == 1
+    code = main(["part", "profile", str(prof), "-o", str(tmp_path / "p.toml")])
+    assert code == 2 and not (tmp_path / "p.toml").exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "expect"),
+    [
+        (["cone", "--depth", "-5"], "depth"),
+        (["cone", "--depth", "0"], "depth"),
+        (["cone", "--opening-diameter", "0"], "opening_diameter"),
+        (["cone", "--wall-angle", "90"], "wall_angle"),
+        (["cone", "--wall-angle", "95"], "wall_angle"),
+        (["cone", "--depth", "10", "--step-down", "20"], "step"),
+        (["cone", "--tool-diameter", "0"], "--tool-diameter"),
+        (["cone", "--step-down", "-0.5"], "--step-down"),
+        (["cone", "--feed", "0"], "--feed"),
+        (["cone", "--work-frame", "1,2,3"], "--work-frame"),
+        (["cone", "--format", "step"], "format"),
+        (["vwacf", "--arc-radius", "100"], "arc_radius"),
+        (["vwacf", "--final-wall-angle", "120"], "final_wall_angle"),
+    ],
+)
+def test_bad_dimensions_exit_2_no_output(tmp_path, capsys, args, expect):
+    out = tmp_path / "out.csv"
+    code, cap = _run(["toolpath", *args, "-o", str(out)], capsys)
+    assert code == 2, cap
+    assert not out.exists()
+    assert expect in cap.err and len(cap.err.strip().splitlines()) == 1
+
+
+def test_bad_suffix_and_missing_part(tmp_path, capsys):
+    code, cap = _run(["toolpath", "cone", "-o", str(tmp_path / "out.xyz")], capsys)
+    assert code == 2 and "--format" in cap.err
+    assert not (tmp_path / "out.xyz").exists()
+    assert (
+        main(["toolpath", "--part", str(tmp_path / "none.toml"), "-o", str(tmp_path / "o.csv")])
+        == 2
+    )
+    assert not (tmp_path / "o.csv").exists()
+    assert main(["part", "cone", "--depth", "-1", "-o", str(tmp_path / "c.toml")]) == 2
+    assert not (tmp_path / "c.toml").exists()
+
+
+def test_never_overwrites_input(tmp_path):
+    prof = tmp_path / "profile.csv"
+    text = "r,z\n40,0\n30,-10\n"
+    prof.write_text(text)
+    assert main(["toolpath", "profile", str(prof), "-o", str(prof)]) == 2
+    assert prof.read_text() == text
+
+
+def test_demo_builds_folder_atomically(tmp_path):
+    out = tmp_path / "demo"
+    out.mkdir()
+    (out / "stale.txt").write_text("old")
+    assert main(["-q", "demo", "-o", str(out)]) == 0
+    assert not (out / "stale.txt").exists()
+    names = sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file())
+    expected = [
+        f"{part}/{f}"
+        for part in ("cone", "vwacf")
+        for f in (
+            "part.toml",
+            "toolpath.csv",
+            "toolpath.dat",
+            "toolpath.mod",
+            "toolpath.nc",
+            "toolpath.src",
+        )
+    ]
+    assert names == expected
+    cone = read_toolpath_csv(out / "cone" / "toolpath.csv")
+    assert cone.n_laps == 206
+    assert np.abs(read_rapid(out / "cone" / "toolpath.mod").tip - cone.tip).max() <= 0.5e-6 + 1e-12
+    assert [p.name for p in tmp_path.iterdir()] == ["demo"]  # no staging leftovers
