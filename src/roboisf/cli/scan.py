@@ -86,21 +86,11 @@ def compare(
         check_not_input(out, inputs)
         if out.suffix.lower() not in (".parquet", ".pq", ".csv", ".json"):
             raise InputError("expected a .parquet or .csv output", file=out)
-    for name, v in (("rim_band", rim_band), ("max_distance", max_distance), ("radius", radius)):
-        if not (math.isfinite(v) and v >= 0) or (name != "rim_band" and v == 0):
-            raise InputError(
-                f"must be {'≥' if name == 'rim_band' else '>'} 0 mm, got {v:g}", field=name
-            )
     nominal = load_part(part)
     tp = None
     if toolpath is not None:
-        try:
-            from roboisf.io.toolpath_csv import read_toolpath_csv
-        except ImportError:  # pragma: no cover - until the io branch is merged
-            raise InputError(
-                "reading toolpath CSVs needs roboisf.io.toolpath_csv, which this build lacks",
-                file=toolpath,
-            ) from None
+        from roboisf.io.toolpath_csv import read_toolpath_csv
+
         tp = read_toolpath_csv(toolpath)
     opts = CompareOptions(
         register=register,

@@ -399,9 +399,10 @@ def tessellate(part: Any, *, chordal_error: float = 0.05e-3, edge: float | None 
     Parameters
     ----------
     part : AxisymmetricPart
-    chordal_error : float, m — max. distance between a facet and the true surface
-        (circumferential sagitta ``r (1 − cos(π/n))`` on every ring; arcs of the generatrix are
-        subdivided to the same sagitta)
+    chordal_error : float, m — max. distance between a facet and the true surface (rings carry
+        enough vertices that a triangle spanning two rings' angular spacings has a sagitta
+        ``r (1 − cos(Δφ/2)) ≤ chordal_error``; arcs of the generatrix are subdivided to the
+        same sagitta)
     edge : float, m, optional — target edge length: rings are spaced by at most ``edge`` along
         the generatrix and carry at least ``2πr/edge`` vertices, so the triangles are near
         equilateral (the mesh then has about ``2.3·area/edge²`` triangles)
@@ -431,12 +432,16 @@ def tessellate(part: Any, *, chordal_error: float = 0.05e-3, edge: float | None 
     start: list[int] = []
     count: list[int] = []
     n_v = 0
-    for ri, zi in zip(r, z, strict=True):
+    # a triangle between two rings spans up to the sum of their angular spacings: with the
+    # count of each ring set for a quarter of the sagitta at the largest radius of its
+    # neighbourhood, that span's sagitta stays within chordal_error
+    r_nb = np.maximum(r, np.maximum(np.r_[r[1:], 0.0], np.r_[0.0, r[:-1]]))
+    for ri, zi, rn in zip(r, z, r_nb, strict=True):
         if ri <= 1e-12:
             m = 1
             ring = np.array([[0.0, 0.0, zi]])
         else:
-            m = math.ceil(math.pi / math.acos(max(-1.0, 1.0 - chordal_error / ri)))
+            m = math.ceil(math.pi / math.acos(max(-1.0, 1.0 - chordal_error / 4 / rn)))
             if edge is not None:
                 m = max(m, math.ceil(2 * math.pi * ri / edge))
             m = max(m, 8)

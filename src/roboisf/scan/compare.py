@@ -25,7 +25,7 @@ from roboisf.scan.deviation import (
     toolpath_deviations,
 )
 from roboisf.scan.readers import ScanCloud, check_units
-from roboisf.scan.register import Registration, register
+from roboisf.scan.register import METHODS, Registration, register
 from roboisf.scan.summary import by_angle, by_depth, deviation_stats
 from roboisf.toolpath.toolpath import Toolpath
 
@@ -67,6 +67,24 @@ class CompareOptions:
     angle_bin: float = math.radians(5.0)
     min_overlap: float = 0.2
     register_kwargs: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.register not in METHODS:
+            raise InputError(
+                f"unknown registration {self.register!r}; expected one of {', '.join(METHODS)}",
+                field="register",
+            )
+        if self.estimator not in ("median", "trimmed"):
+            raise InputError(
+                f"unknown estimator {self.estimator!r}; expected median or trimmed",
+                field="estimator",
+            )
+        for name in ("rim_band", "max_distance", "radius", "bin_width", "band"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and (v > 0 or (name == "rim_band" and v == 0))):
+                raise InputError(f"must be > 0 mm, got {v * 1e3:g}", field=name)
+        if self.min_points < 1 or self.max_points < self.min_points:
+            raise InputError("need 1 ≤ min_points ≤ max_points", field="min_points")
 
 
 @dataclass(frozen=True)

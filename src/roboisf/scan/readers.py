@@ -260,6 +260,11 @@ def _read_pcd(path: Path) -> tuple[F64, F64 | None]:
     if mode == "ascii":
         import pandas as pd
 
+        names = ("x", "y", "z", "normal_x", "normal_y", "normal_z")
+        cols = [col[f] for f in names if f in col]
+        if len(cols) not in (3, 6):
+            cols = cols[:3]
+
         try:
             df = pd.read_csv(
                 path,
@@ -267,14 +272,12 @@ def _read_pcd(path: Path) -> tuple[F64, F64 | None]:
                 header=None,
                 sep=r"\s+",
                 engine="c",
-                usecols=[
-                    col[f] for f in ("x", "y", "z", "normal_x", "normal_y", "normal_z") if f in col
-                ],
+                usecols=cols,
                 dtype=np.float64,
             )
         except Exception as e:
             raise InputError(f"PCD ascii data could not be parsed: {e}", file=path) from None
-        arr = df.to_numpy()
+        arr = df[cols].to_numpy()  # x, y, z[, normals] whatever the file's field order
         if arr.shape[0] != n:
             raise InputError(
                 f"PCD says POINTS {n} but has {arr.shape[0]} rows (truncated?)", file=path

@@ -53,7 +53,8 @@ class Registration:
     Attributes
     ----------
     T_work_scan : (4, 4) — maps scan coordinates into the work frame (``p_work = T · p_scan``)
-    rms : float, m — RMS signed distance of the inlier points after registration
+    rms : float, m — RMS signed distance of the inliers after registration (points within
+        ``max_distance`` and within 3 robust σ — 1.4826·MAD — of the median residual)
     overlap : float — fraction of the fitted points within ``max_distance`` of the nominal
     n_points : int — points used in the fit
     iterations : int
@@ -255,5 +256,13 @@ def register(
             f"{method} registration{where}: only {overlap:.1%} of the points lie within "
             f"{max_distance * 1e3:g} mm of the nominal after the fit (need {min_overlap:.0%})"
         )
-    rms = float(np.sqrt(np.mean(r[inside] ** 2))) if inside.any() else math.inf
+    rms = math.inf
+    if inside.any():
+        # inliers: within max_distance and within 3 robust σ of the median (stray points
+        # — 1 % of reflections a few mm off — would otherwise dominate the figure)
+        ri = r[inside]
+        med = float(np.median(ri))
+        sigma = max(1.4826 * float(np.median(np.abs(ri - med))), 1e-9)
+        core = ri[np.abs(ri - med) <= 3.0 * sigma]
+        rms = float(np.sqrt(np.mean(core**2)))
     return Registration(T, rms, overlap, int(X.shape[0]), it, method, dof)
