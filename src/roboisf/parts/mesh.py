@@ -188,6 +188,7 @@ class MeshPart:
         object.__setattr__(self, "faces", Fc)
         idx: dict[str, Any] = {
             "tree": cKDTree(centroid),
+            "centroid": centroid,
             "a": a,
             "ab": ab,
             "ac": ac,
@@ -292,35 +293,27 @@ class MeshPart:
         ix = self._index
         tree: cKDTree = ix["tree"]
         n = X.shape[0]
-        kk = min(k, self.n_faces)
-        dc, fc = tree.query(X, k=kk, workers=-1)
-        dc = dc.reshape(n, kk)
-        fc = fc.reshape(n, kk)
-        # upper bound: exact distance to the triangle of the nearest centroid
-        best_f = fc[:, 0].copy()
-        best_d = np.sqrt(self._eval(X, best_f))
-        if kk > 1:
-            self._refine(
-                X,
-                np.repeat(np.arange(n), kk - 1),
-                fc[:, 1:].ravel(),
-                dc[:, 1:].ravel(),
-                best_d,
-                best_f,
-            )
-        # a non-candidate triangle is at least d_k − ρ_max away: points where that does not
-        # beat the best distance get every triangle whose bounding ball reaches best_d
-        unproven: NDArray[np.int64] | list[int] = (
-            np.flatnonzero(best_d > dc[:, -1] - ix["rho_max"]) if kk < self.n_faces else []
-        )
-        if len(unproven):
-            lists = tree.query_ball_point(X[unproven], best_d[unproven] + ix["rho_max"], workers=-1)
-            counts = np.fromiter((len(x) for x in lists), dtype=np.int64, count=len(lists))
-            if counts.sum():
-                tri = np.concatenate([np.asarray(x, dtype=np.int64) for x in lists if len(x)])
-                pt = np.repeat(unproven, counts)
-                dcen = np.linalg.norm(X[pt] - tree.data[tri], axis=1)
-                self._refine(X, pt, tri, dcen, best_d, best_f)
+        n_tri = self.n_faces
+        best_f = np.zeros(n, dtype=np.int64)
+        best_d = np.full(n, np.inf)
+        todo = np.arange(n)
+        kk = min(k, n_tri)
+        first = True
+        while todo.size:
+            dc, fc = tree.query(X[todo], k=kk, workers=-1)
+            dc = dc.reshape(todo.size, kk)
+            fc = fc.reshape(todo.size, kk)
+            if first:  # upper bound: the triangle of the nearest centroid
+                best_f[todo] = fc[:, 0]
+                best_d[todo] = np.sqrt(self._eval(X[todo], fc[:, 0]))
+                first = False
+            pt = np.repeat(todo, kk)
+            self._refine(X, pt, fc.ravel(), dc.ravel(), best_d, best_f)
+            if kk >= n_tri:
+                break
+            # a triangle that is not among the kk candidates is at least d_kk − ρ_max away
+            todo = todo[best_d[todo] > dc[:, -1] - ix["rho_max"]]
+            kk = min(kk * 3, n_tri)
         return best_f, best_d**2
 
     def _refine(
@@ -334,15 +327,18 @@ class MeshPart:
     ) -> None:
         """Update ``best_d/best_f`` in place with the (point, triangle) pairs ``pt, tri``.
 
-        A pair is evaluated exactly only if its lower bound — max of the bounding-ball bound
-        ``|x − c| − ρ`` and the distance to the triangle's plane — is below the point's best.
+        A pair is evaluated exactly only if its lower bound is below the point's best: with
+        ``h`` the distance to the triangle's plane and ``q = sqrt(|x − c|² − h²)`` the in-plane
+        distance to its centroid, every point of the triangle is at least
+        ``sqrt(h² + max(0, q − ρ)²)`` away (the triangle lies in its plane within ρ of c).
         """
         ix = self._index
-        lb = dcen - ix["rho"][tri]
-        keep = lb < best_d[pt]
-        pt, tri = pt[keep], tri[keep]
-        h = np.abs(np.einsum("ij,ij->i", X[pt] - ix["a"][tri], ix["normal"][tri]))
-        keep = h < best_d[pt]
+        keep = dcen - ix["rho"][tri] < best_d[pt]  # cheap ball bound first
+        pt, tri, dcen = pt[keep], tri[keep], dcen[keep]
+        h = np.abs(np.einsum("ij,ij->i", X[pt] - ix["centroid"][tri], ix["normal"][tri]))
+        q = np.sqrt(np.maximum(dcen * dcen - h * h, 0.0))
+        gap = np.maximum(q - ix["rho"][tri], 0.0)
+        keep = h * h + gap * gap < best_d[pt] ** 2
         pt, tri = pt[keep], tri[keep]
         if pt.size == 0:
             return
@@ -350,8 +346,8 @@ class MeshPart:
         # per point minimum over its pairs
         order = np.lexsort((d, pt))
         pt, tri, d = pt[order], tri[order], d[order]
-        first = np.concatenate([[True], pt[1:] != pt[:-1]])
-        pt, tri, d = pt[first], tri[first], d[first]
+        head = np.concatenate([[True], pt[1:] != pt[:-1]])
+        pt, tri, d = pt[head], tri[head], d[head]
         better = d < best_d[pt]
         best_d[pt[better]] = d[better]
         best_f[pt[better]] = tri[better]
