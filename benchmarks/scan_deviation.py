@@ -58,8 +58,10 @@ def main() -> None:
     qm = mesh.closest_point(X)
     t_b = time.perf_counter() - t
     dd = np.abs(qm.distance - qa.distance)
-    print(f"(b) mesh (exact):      {t_b:7.2f} s   peak {peak_gb():.2f} GB   "
-          f"|d_mesh − d_analytic| max {dd.max() * 1e6:.2f} µm (chordal error 50 µm)")  # fmt: skip
+    print(
+        f"(b) mesh (exact):      {t_b:7.2f} s   peak {peak_gb():.2f} GB   "
+        f"|d_mesh − d_analytic| max {dd.max() * 1e6:.2f} µm (chordal error 50 µm)"
+    )
 
     t_o3d = math.nan
     if not args.no_open3d:
@@ -79,16 +81,21 @@ def main() -> None:
         P = ans["points"].numpy().astype(float)
         d_o3d = np.linalg.norm(X - P, axis=1)
         agree = np.abs(d_o3d - np.abs(qm.distance))
-        print(f"Open3D RaycastingScene: {t_o3d:6.2f} s   (+{t_o3d_build:.2f} s setup)  "
-              f"peak {peak_gb():.2f} GB   |d − d_ours| max {agree.max() * 1e6:.3f} µm (float32)")  # fmt: skip
+        print(
+            f"Open3D RaycastingScene: {t_o3d:6.2f} s   (+{t_o3d_build:.2f} s setup)  "
+            f"peak {peak_gb():.2f} GB   |d − d_ours| max {agree.max() * 1e6:.3f} µm "
+            "(float32)"
+        )
         print(f"ratio (b)/Open3D = {t_b / t_o3d:.2f}  (target ≤ 1.0)")
         print(f"ratio Open3D/(a) = {t_o3d / t_a:.1f}  (target ≥ 10)")
 
     # the whole pipeline on (a)
     t = time.perf_counter()
     res = compare_scan(ScanCloud(X, None, "synthetic"), cone, options=CompareOptions())
-    print(f"compare_scan (analytic, selection + outlier filter + summaries): "
-          f"{time.perf_counter() - t:.2f} s, {res.counts}")  # fmt: skip
+    print(
+        f"compare_scan (analytic, selection + outlier filter + summaries): "
+        f"{time.perf_counter() - t:.2f} s, {res.counts}"
+    )
     print(f"peak memory (whole run): {peak_gb():.2f} GB  (target ≤ 4 GB)")
 
 
