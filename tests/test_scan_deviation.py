@@ -185,3 +185,20 @@ def test_compare_refuses_a_scan_that_does_not_overlap():
     with pytest.raises(InputError, match="does not overlap") as ei:
         compare_scan(cloud, CONE, options=CompareOptions(outlier_k=0))
     assert "off.ply" in str(ei.value)
+
+
+def test_mesh_nominal_gives_the_same_toolpath_deviations(acceptance):
+    from roboisf.parts import tessellate
+
+    s, tp, res = acceptance
+    mesh = tessellate(CONE, chordal_error=0.02e-3, edge=2e-3)
+    sub = np.random.default_rng(0).random(s.points.shape[0]) < 0.5
+    cloud = ScanCloud(s.points[sub], None, "synthetic.ply")
+    rm = compare_scan(cloud, mesh, toolpath=tp, options=CompareOptions(outlier_k=0))
+    both = rm.toolpath.valid & res.toolpath.valid
+    assert both.sum() > 0.9 * res.toolpath.valid.sum()
+    # ring edges have a sagitta ≤ chordal_error / 4 = 5 µm (a stitched triangle ≤ 20 µm):
+    # the facets sit a few µm off the true surface; the medians of ~30 noisy points (half the
+    # scan) scatter by ~5 µm on top of that
+    diff = rm.toolpath.dn[both] - res.toolpath.dn[both]
+    assert np.abs(np.median(diff)) < 6e-6 and np.sqrt(np.mean(diff**2)) < 10e-6

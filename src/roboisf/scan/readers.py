@@ -148,6 +148,21 @@ def read_scan(
     return ScanCloud(pts, normals, str(path), unit)
 
 
+def _xyz_normals(rec: np.ndarray, normal_names: tuple[str, str, str]) -> tuple[F64, F64 | None]:
+    """Copy x, y, z (and the normals, if all three fields exist) of a structured (memory-mapped)
+    record array into (N, 3) float64 arrays — the only copies the readers make."""
+    names = rec.dtype.names or ()
+    pts = np.empty((len(rec), 3))
+    for j, c in enumerate("xyz"):
+        pts[:, j] = rec[c]
+    normals = None
+    if all(c in names for c in normal_names):
+        normals = np.empty((len(rec), 3))
+        for j, c in enumerate(normal_names):
+            normals[:, j] = rec[c]
+    return pts, normals
+
+
 # -- PLY ----------------------------------------------------------------------------------------
 def _read_ply(path: Path, sample: int | None, seed: int) -> tuple[F64, F64 | None]:
     from plyfile import PlyData
@@ -162,15 +177,7 @@ def _read_ply(path: Path, sample: int | None, seed: int) -> tuple[F64, F64 | Non
             for c in ("x", "y", "z"):
                 if c not in names:
                     raise InputError(f"PLY vertex has no {c!r} property", file=path)
-            n = len(v)
-            pts = np.empty((n, 3))
-            for j, c in enumerate("xyz"):
-                pts[:, j] = v[c]
-            normals = None
-            if all(c in names for c in ("nx", "ny", "nz")):
-                normals = np.empty((n, 3))
-                for j, c in enumerate(("nx", "ny", "nz")):
-                    normals[:, j] = v[c]
+            pts, normals = _xyz_normals(v, ("nx", "ny", "nz"))
             if sample and "face" in ply:
                 F = _ply_faces(ply["face"].data, path)
                 del v, ply
@@ -305,16 +312,9 @@ def _read_pcd(path: Path) -> tuple[F64, F64 | None]:
             file=path,
         )
     rec = np.memmap(path, dtype=dt, mode="r", offset=offset, shape=(n,))
-    pts = np.empty((n, 3))
-    for j, c in enumerate("xyz"):
-        pts[:, j] = rec[c]
-    normals = None
-    if all(c in fields for c in ("normal_x", "normal_y", "normal_z")):
-        normals = np.empty((n, 3))
-        for j, c in enumerate(("normal_x", "normal_y", "normal_z")):
-            normals[:, j] = rec[c]
+    out = _xyz_normals(rec, ("normal_x", "normal_y", "normal_z"))
     del rec
-    return pts, normals
+    return out
 
 
 # -- XYZ / CSV / TXT ---------------------------------------------------------------------------
