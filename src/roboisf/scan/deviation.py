@@ -231,8 +231,9 @@ def toolpath_deviations(
         valid &= ~np.asarray(exclude, dtype=bool)
     if not valid.any():
         raise InputError(
-            f"no toolpath point has {min_points} scan points within {radius * 1e3:g} mm: the "
-            "toolpath lies outside the scanned (and selected) wall — wrong part, unit or frame?",
+            f"no toolpath point has {min_points} scan points within {radius * 1e3:g} mm "
+            "(contacts in the rim band do not count): the toolpath lies outside the scanned "
+            "and selected wall — wrong part, unit or frame?",
             file=source,
         )
     v = _sorted_padded(dev.dn, idx, ok)
