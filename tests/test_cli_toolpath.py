@@ -51,7 +51,7 @@ def test_paper_cone_csv(tmp_path):
     assert tp.n_laps == 206
     assert tp.tool_radius == pytest.approx(5e-3)
     assert tp.feed == pytest.approx(750e-3 / 60)
-    assert tp.contact[:, 2].min() == pytest.approx(-102.97e-3, abs=1e-12)
+    assert tp.tip[:, 2].min() == pytest.approx(-102.97e-3, abs=1e-9)
     # atomic output is renamed from a private temp file: it must get the usual 0o666 & ~umask
     mask = os.umask(0)
     os.umask(mask)
@@ -195,6 +195,13 @@ def test_bad_suffix_and_missing_part(tmp_path, capsys):
     assert not (tmp_path / "o.csv").exists()
     assert main(["part", "cone", "--depth", "-1", "-o", str(tmp_path / "c.toml")]) == 2
     assert not (tmp_path / "c.toml").exists()
+
+
+def test_options_before_subcommand_are_not_ignored(tmp_path, capsys):
+    out = tmp_path / "o.csv"
+    code, cap = _run(["toolpath", "--step-down", "1", "cone", "-o", str(out)], capsys)
+    assert code == 2 and "after the subcommand" in cap.err
+    assert not out.exists()
 
 
 def test_never_overwrites_input(tmp_path):

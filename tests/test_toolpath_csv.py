@@ -63,13 +63,16 @@ def test_values_are_mm_deg_s(tmp_path: Path, cone_path):
     f = tmp_path / "p.csv"
     write_toolpath_csv(cone_path, f)
     rows = [ln.split(",") for ln in f.read_text().splitlines() if ln[:1].isdigit()]
-    first = dict(zip(TOOLPATH_COLUMNS, map(float, rows[0]), strict=True))
-    # first lap of the Ø87 cone at z = −0.5 mm: r = 43.5 − 0.5/tan 71°
-    assert first["contact_x"] == pytest.approx(43.5 - 0.5 / math.tan(math.radians(71)), abs=1e-9)
-    assert first["contact_z"] == pytest.approx(-0.5, abs=1e-12)
-    assert first["depth"] == pytest.approx(0.5, abs=1e-12)
+    recs = [dict(zip(TOOLPATH_COLUMNS, map(float, r), strict=True)) for r in rows]
+    first = next(r for r in recs if r["lap"] == 10)  # tip at −5.5 mm, ball on the 71° wall
+    a = math.radians(71)
+    z_contact = -5.5 + 5 * (1 - math.cos(a))
+    assert first["tip_z"] == pytest.approx(-5.5, abs=1e-9)
+    assert first["contact_z"] == pytest.approx(z_contact, abs=1e-9)
+    assert first["contact_x"] == pytest.approx(43.5 + z_contact / math.tan(a), abs=1e-9)
+    assert first["depth"] == pytest.approx(-z_contact, abs=1e-9)
     assert first["wall_angle_deg"] == pytest.approx(71.0, abs=1e-9)
-    last = dict(zip(TOOLPATH_COLUMNS, map(float, rows[-1]), strict=True))
+    last = recs[-1]
     # 750 mm/min → time = length / 12.5 mm/s
     assert last["time"] == pytest.approx(last["path_length"] / 12.5, rel=1e-9)
 

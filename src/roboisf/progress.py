@@ -11,26 +11,34 @@ import contextlib
 from collections.abc import Callable, Iterator
 from typing import Protocol
 
-__all__ = ["NULL_PROGRESS", "Progress", "task"]
+__all__ = ["NULL_PROGRESS", "Progress", "noop_advance", "task"]
 
 Advance = Callable[[float], None]
 
 
 class Progress(Protocol):
-    def task(self, description: str, total: float | None = None) -> contextlib.AbstractContextManager[Advance]:
+    def task(
+        self, description: str, total: float | None = None
+    ) -> contextlib.AbstractContextManager[Advance]:
         """Context manager yielding ``advance(amount)``."""
         ...
+
+
+def noop_advance(amount: float = 1.0) -> None:
+    """An ``advance`` that does nothing."""
 
 
 class _Null:
     @contextlib.contextmanager
     def task(self, description: str, total: float | None = None) -> Iterator[Advance]:
-        yield lambda amount=1.0: None
+        yield noop_advance
 
 
 NULL_PROGRESS: Progress = _Null()
 
 
-def task(progress: Progress | None, description: str, total: float | None = None) -> contextlib.AbstractContextManager[Advance]:
+def task(
+    progress: Progress | None, description: str, total: float | None = None
+) -> contextlib.AbstractContextManager[Advance]:
     """``progress.task(...)`` or a no-op when ``progress`` is None."""
     return (progress or NULL_PROGRESS).task(description, total)

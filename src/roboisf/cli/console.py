@@ -9,7 +9,7 @@ from collections.abc import Iterator
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-from roboisf.progress import Advance
+from roboisf.progress import Advance, noop_advance
 
 __all__ = ["RichProgress", "state"]
 
@@ -52,9 +52,18 @@ class RichProgress:
         if not self.console.is_terminal and not sys.stderr.isatty():
             # keep logs readable when piped: one line per stage
             self.console.print(f"{description} …")
-            yield lambda amount=1.0: None
+            yield noop_advance
             return
-        cols = [TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(), TimeRemainingColumn()]
+        cols = [
+            TextColumn("{task.description}"),
+            BarColumn(),
+            TimeElapsedColumn(),
+            TimeRemainingColumn(),
+        ]
         with Progress(*cols, console=self.console, transient=True) as bar:
             tid = bar.add_task(description, total=total)
-            yield lambda amount=1.0: bar.advance(tid, amount)
+
+            def advance(amount: float = 1.0) -> None:
+                bar.advance(tid, amount)
+
+            yield advance

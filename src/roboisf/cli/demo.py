@@ -1,7 +1,7 @@
 """``roboisf demo``: the built-in demonstration.
 
 Interim version (toolpaths only): the paper's cone (Ø87 mm, 71°, 102.97 mm deep) and VWACF
-(Ø88.15 mm, default 40 mm arc, 0° → 90°), Ø10 mm ball, 0.5 mm step, 750 mm/min, written in every
+(Ø88.15 mm, default 39 mm arc, 0° → 90°), Ø10 mm ball, 0.5 mm step, 750 mm/min, written in every
 supported format. The folder is built in a staging folder and moved into place when complete.
 
 A later issue replaces :func:`build_demo` with the full virtual-cell demo; the command, the
@@ -18,6 +18,7 @@ import numpy as np
 import typer
 
 from roboisf.cli.console import state
+from roboisf.cli.toolpath import warn_truncated
 from roboisf.frames.se3 import make_transform
 from roboisf.io.atomic import staged_directory
 from roboisf.io.export import FORMAT_SUFFIXES, write_toolpath
@@ -50,6 +51,7 @@ def build_demo(folder: Path, progress: Progress | None = None) -> list[Path]:
             save_part(part, sub / "part.toml")
             written.append(sub / "part.toml")
             tp = step_down(part, tool_radius=5e-3, step_down=0.5e-3)
+            warn_truncated(tp, 10.0)
             advance(1)
             for fmt, suffixes in FORMAT_SUFFIXES.items():
                 out = sub / f"toolpath{suffixes[0]}"

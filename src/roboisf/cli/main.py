@@ -52,12 +52,14 @@ def _root(
 def _register() -> None:
     from roboisf.cli import demo as _demo
     from roboisf.cli import part as _part
+    from roboisf.cli import robot as _robot
     from roboisf.cli import scan as _scan
     from roboisf.cli import toolpath as _toolpath
 
     _toolpath.register(app)
     _part.register(app)
     _demo.register(app)
+    _robot.register(app)
     _scan.register(app)
 
 

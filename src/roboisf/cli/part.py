@@ -26,6 +26,14 @@ from roboisf.parts.axisymmetric import PAPER_SHEET_THICKNESS, VWACF_DEFAULT_ARC_
 __all__ = ["register"]
 
 Output = Annotated[Path, typer.Option("--output", "-o", help="Part file to write (.toml).")]
+# part dimensions, shared with ``roboisf toolpath`` (mm, deg)
+ConeDiameter = Annotated[float, typer.Option(help="Wall diameter at the sheet \\[mm].")]
+WallAngle = Annotated[float, typer.Option(help="Wall angle, 0 < α < 90 \\[deg].")]
+Depth = Annotated[float, typer.Option(help="Part depth \\[mm].")]
+VwacfDiameter = ConeDiameter
+ArcRadius = Annotated[float, typer.Option(help="Radius of the circular-arc generatrix \\[mm].")]
+FinalWallAngle = Annotated[float, typer.Option(help="Wall angle at the bottom \\[deg].")]
+ProfileCsv = Annotated[Path, typer.Argument(help="Generatrix CSV with header r,z (mm), rim first.")]
 Sheet = Annotated[float, typer.Option(help="Initial sheet thickness \\[mm].")]
 Flange = Annotated[float, typer.Option(help="Flange width outside the opening \\[mm].")]
 
@@ -44,11 +52,9 @@ def _save(make: Callable[[], AxisymmetricPart], output: Path, inputs: list[Path]
 @part_app.command("cone")
 def _cone(
     output: Output,
-    opening_diameter: Annotated[
-        float, typer.Option(help="Wall diameter at the sheet \\[mm].")
-    ] = 87.0,
-    wall_angle: Annotated[float, typer.Option(help="Wall angle, 0 < α < 90 \\[deg].")] = 71.0,
-    depth: Annotated[float, typer.Option(help="Part depth \\[mm].")] = 102.97,
+    opening_diameter: ConeDiameter = 87.0,
+    wall_angle: WallAngle = 71.0,
+    depth: Depth = 102.97,
     sheet_thickness: Sheet = PAPER_SHEET_THICKNESS * 1e3,
     flange_width: Flange = 10.0,
 ) -> None:
@@ -69,19 +75,13 @@ def _cone(
 @part_app.command("vwacf")
 def _vwacf(
     output: Output,
-    opening_diameter: Annotated[
-        float, typer.Option(help="Wall diameter at the sheet \\[mm].")
-    ] = 88.15,
-    arc_radius: Annotated[
-        float, typer.Option(help="Radius of the arc generatrix \\[mm].")
-    ] = VWACF_DEFAULT_ARC_RADIUS * 1e3,
-    final_wall_angle: Annotated[
-        float, typer.Option(help="Wall angle at the bottom \\[deg].")
-    ] = 90.0,
+    opening_diameter: VwacfDiameter = 88.15,
+    arc_radius: ArcRadius = VWACF_DEFAULT_ARC_RADIUS * 1e3,
+    final_wall_angle: FinalWallAngle = 90.0,
     sheet_thickness: Sheet = PAPER_SHEET_THICKNESS * 1e3,
     flange_width: Flange = 10.0,
 ) -> None:
-    """Variable-wall-angle frustum (defaults: Ø88.15 mm, 40 mm arc, 0° → 90°)."""
+    """Variable-wall-angle frustum (defaults: Ø88.15 mm, 39 mm arc, 0° → 90°)."""
     _save(
         lambda: VWACF(
             opening_diameter * 1e-3,
@@ -97,9 +97,7 @@ def _vwacf(
 
 @part_app.command("profile")
 def _profile(
-    profile: Annotated[
-        Path, typer.Argument(help="Generatrix CSV with header r,z (mm), rim first.")
-    ],
+    profile: ProfileCsv,
     output: Output,
     sheet_thickness: Sheet = PAPER_SHEET_THICKNESS * 1e3,
     flange_width: Flange = 10.0,

@@ -13,15 +13,27 @@ The format follows the ``-o`` suffix (.csv, .nc/.gcode, .mod, .src) unless ``--f
 
 from __future__ import annotations
 
+import inspect
 import math
+import typing
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import numpy as np
 import typer
 
 from roboisf.cli.console import state
+from roboisf.cli.part import (
+    ArcRadius,
+    ConeDiameter,
+    Depth,
+    FinalWallAngle,
+    ProfileCsv,
+    VwacfDiameter,
+    WallAngle,
+)
 from roboisf.errors import InputError
 from roboisf.frames.rotations import abc_to_matrix
 from roboisf.io.atomic import check_not_input
@@ -32,7 +44,7 @@ from roboisf.parts.axisymmetric import VWACF_DEFAULT_ARC_RADIUS
 from roboisf.toolpath import spiral, step_down
 from roboisf.toolpath.toolpath import Toolpath
 
-__all__ = ["PathOptions", "generate", "register"]
+__all__ = ["PathOptions", "generate", "register", "warn_truncated"]
 
 # -- options shared by every toolpath command (mm, deg, mm/min) ---------------------------------
 Output = Annotated[
@@ -136,6 +148,16 @@ def generate(part: AxisymmetricPart, opts: PathOptions) -> Toolpath:
     )
 
 
+def warn_truncated(tp: Toolpath, tool_diameter: float) -> None:
+    """Tell the user when the ball does not fit down to the part's full depth."""
+    if tp.meta.get("truncated"):
+        z = float(tp.meta["reachable_tip_z"])  # type: ignore[arg-type]
+        state.warn(
+            f"a Ø{tool_diameter:g} mm ball does not fit in the part below tip z = {z * 1e3:.3f} mm "
+            "(it would touch the wall across the axis); the toolpath stops there"
+        )
+
+
 def write(tp: Toolpath, output: Path, fmt: str | None, opts: PathOptions) -> str:
     """Write ``tp`` with the program options; return the format used."""
     return write_toolpath(
@@ -158,11 +180,57 @@ def _run(
     opts.placement()
     part = part_factory()
     tp = generate(part, opts)
+    warn_truncated(tp, opts.tool_diameter)
     fmt = write(tp, output, fmt, opts)
     state.info(
         f"wrote {output} ({fmt}): {len(tp)} points, {tp.n_laps} laps, "
         f"{tp.path_length[-1]:.2f} m of path, {tp.time[-1] / 60:.1f} min at {opts.feed:g} mm/min"
     )
+
+
+_SHARED: list[tuple[str, Any, Any]] = [
+    ("fmt", Format, None),
+    ("step_down", StepDown, 0.5),
+    ("tool_diameter", ToolDiameter, 10.0),
+    ("spiral", Spiral, False),
+    ("spacing", Spacing, 1.0),
+    ("feed", Feed, 750.0),
+    ("max_wall_step", MaxWallStep, None),
+    ("tool_length", ToolLength, 200.0),
+    ("tool_mass", ToolMass, 2.0),
+    ("tool_rotation", ToolRotation, 0.0),
+    ("work_frame", WorkFrame, None),
+    ("safe_height", SafeHeight, 10.0),
+]
+
+
+def _with_path_options(fn: Callable[..., None]) -> Callable[..., None]:
+    """Give a command the shared toolpath/program options.
+
+    ``fn`` declares only its own parameters plus ``fmt`` and ``opts``; typer sees them followed
+    by every option in ``_SHARED`` (one definition, so all commands stay in step), and ``fn``
+    receives them bundled as a :class:`PathOptions`.
+    """
+    hints = typing.get_type_hints(fn, include_extras=True)
+    own = [
+        p.replace(annotation=hints.get(p.name, p.annotation))
+        for p in inspect.signature(fn).parameters.values()
+        if p.name not in ("fmt", "opts")
+    ]
+    shared = [
+        inspect.Parameter(n, inspect.Parameter.KEYWORD_ONLY, annotation=a, default=d)
+        for n, a, d in _SHARED
+    ]
+
+    def command(**kwargs: Any) -> None:
+        fmt = kwargs.pop("fmt")
+        opts = PathOptions(**{n: kwargs.pop(n) for n, _, _ in _SHARED[1:]})
+        fn(**kwargs, fmt=fmt, opts=opts)
+
+    command.__signature__ = inspect.Signature(own + shared)  # type: ignore[attr-defined]
+    command.__name__ = fn.__name__
+    command.__doc__ = fn.__doc__
+    return command
 
 
 toolpath_app = typer.Typer(
@@ -175,30 +243,23 @@ toolpath_app = typer.Typer(
 
 
 @toolpath_app.callback()
+@_with_path_options
 def _toolpath_from_part_file(
     ctx: typer.Context,
     part: Annotated[
         Path | None, typer.Option("--part", help="Part TOML file (see 'roboisf part').")
     ] = None,
     output: OptOutput = None,
-    fmt: Format = None,
-    step_down: StepDown = 0.5,
-    tool_diameter: ToolDiameter = 10.0,
-    spiral: Spiral = False,
-    spacing: Spacing = 1.0,
-    feed: Feed = 750.0,
-    max_wall_step: MaxWallStep = None,
-    tool_length: ToolLength = 200.0,
-    tool_mass: ToolMass = 2.0,
-    tool_rotation: ToolRotation = 0.0,
-    work_frame: WorkFrame = None,
-    safe_height: SafeHeight = 10.0,
+    *,
+    fmt: str | None,
+    opts: PathOptions,
 ) -> None:
     if ctx.invoked_subcommand is not None:
-        if part is not None or output is not None:
+        if part is not None or output is not None or fmt is not None or opts != PathOptions():
             raise InputError(
                 f"give the part either as --part FILE or as the subcommand "
-                f"{ctx.invoked_subcommand!r}, and -o after the subcommand",
+                f"{ctx.invoked_subcommand!r}, and put -o and the other options after the "
+                "subcommand",
                 field="--part",
             )
         return
@@ -208,57 +269,21 @@ def _toolpath_from_part_file(
         )
     if output is None:
         raise InputError("missing -o/--output", field="--output")
-    opts = PathOptions(
-        step_down,
-        tool_diameter,
-        spiral,
-        spacing,
-        feed,
-        max_wall_step,
-        tool_length,
-        tool_mass,
-        tool_rotation,
-        work_frame,
-        safe_height,
-    )
     _run(lambda: load_part(part), output, fmt, opts, [part])
 
 
 @toolpath_app.command("cone")
+@_with_path_options
 def _cone(
     output: Output,
-    opening_diameter: Annotated[
-        float, typer.Option(help="Wall diameter at the sheet \\[mm].")
-    ] = 87.0,
-    wall_angle: Annotated[float, typer.Option(help="Wall angle, 0 < α < 90 \\[deg].")] = 71.0,
-    depth: Annotated[float, typer.Option(help="Part depth \\[mm].")] = 102.97,
-    fmt: Format = None,
-    step_down: StepDown = 0.5,
-    tool_diameter: ToolDiameter = 10.0,
-    spiral: Spiral = False,
-    spacing: Spacing = 1.0,
-    feed: Feed = 750.0,
-    max_wall_step: MaxWallStep = None,
-    tool_length: ToolLength = 200.0,
-    tool_mass: ToolMass = 2.0,
-    tool_rotation: ToolRotation = 0.0,
-    work_frame: WorkFrame = None,
-    safe_height: SafeHeight = 10.0,
+    opening_diameter: ConeDiameter = 87.0,
+    wall_angle: WallAngle = 71.0,
+    depth: Depth = 102.97,
+    *,
+    fmt: str | None,
+    opts: PathOptions,
 ) -> None:
     """Truncated cone of constant wall angle (defaults: the paper's Ø87 mm, 71°, 102.97 mm)."""
-    opts = PathOptions(
-        step_down,
-        tool_diameter,
-        spiral,
-        spacing,
-        feed,
-        max_wall_step,
-        tool_length,
-        tool_mass,
-        tool_rotation,
-        work_frame,
-        safe_height,
-    )
     _run(
         lambda: Cone(opening_diameter * 1e-3, math.radians(wall_angle), depth * 1e-3),
         output,
@@ -269,44 +294,17 @@ def _cone(
 
 
 @toolpath_app.command("vwacf")
+@_with_path_options
 def _vwacf(
     output: Output,
-    opening_diameter: Annotated[
-        float, typer.Option(help="Wall diameter at the sheet \\[mm].")
-    ] = 88.15,
-    arc_radius: Annotated[
-        float, typer.Option(help="Radius of the circular-arc generatrix \\[mm].")
-    ] = VWACF_DEFAULT_ARC_RADIUS * 1e3,
-    final_wall_angle: Annotated[
-        float, typer.Option(help="Wall angle at the bottom \\[deg].")
-    ] = 90.0,
-    fmt: Format = None,
-    step_down: StepDown = 0.5,
-    tool_diameter: ToolDiameter = 10.0,
-    spiral: Spiral = False,
-    spacing: Spacing = 1.0,
-    feed: Feed = 750.0,
-    max_wall_step: MaxWallStep = None,
-    tool_length: ToolLength = 200.0,
-    tool_mass: ToolMass = 2.0,
-    tool_rotation: ToolRotation = 0.0,
-    work_frame: WorkFrame = None,
-    safe_height: SafeHeight = 10.0,
+    opening_diameter: VwacfDiameter = 88.15,
+    arc_radius: ArcRadius = VWACF_DEFAULT_ARC_RADIUS * 1e3,
+    final_wall_angle: FinalWallAngle = 90.0,
+    *,
+    fmt: str | None,
+    opts: PathOptions,
 ) -> None:
     """Variable-wall-angle frustum: arc generatrix tangent to the sheet at the rim (0° → final)."""
-    opts = PathOptions(
-        step_down,
-        tool_diameter,
-        spiral,
-        spacing,
-        feed,
-        max_wall_step,
-        tool_length,
-        tool_mass,
-        tool_rotation,
-        work_frame,
-        safe_height,
-    )
     _run(
         lambda: VWACF(opening_diameter * 1e-3, arc_radius * 1e-3, math.radians(final_wall_angle)),
         output,
@@ -317,38 +315,15 @@ def _vwacf(
 
 
 @toolpath_app.command("profile")
+@_with_path_options
 def _profile(
-    profile: Annotated[
-        Path, typer.Argument(help="Generatrix CSV with header r,z (mm), rim first.")
-    ],
+    profile: ProfileCsv,
     output: Output,
-    fmt: Format = None,
-    step_down: StepDown = 0.5,
-    tool_diameter: ToolDiameter = 10.0,
-    spiral: Spiral = False,
-    spacing: Spacing = 1.0,
-    feed: Feed = 750.0,
-    max_wall_step: MaxWallStep = None,
-    tool_length: ToolLength = 200.0,
-    tool_mass: ToolMass = 2.0,
-    tool_rotation: ToolRotation = 0.0,
-    work_frame: WorkFrame = None,
-    safe_height: SafeHeight = 10.0,
+    *,
+    fmt: str | None,
+    opts: PathOptions,
 ) -> None:
     """Any axisymmetric part from a generatrix polyline (CSV r,z in mm)."""
-    opts = PathOptions(
-        step_down,
-        tool_diameter,
-        spiral,
-        spacing,
-        feed,
-        max_wall_step,
-        tool_length,
-        tool_mass,
-        tool_rotation,
-        work_frame,
-        safe_height,
-    )
 
     def make() -> AxisymmetricPart:
         r, z = read_profile_csv(profile)

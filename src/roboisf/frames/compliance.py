@@ -74,9 +74,7 @@ def serial_assembly(parts: Sequence[tuple[ArrayLike, ArrayLike]]) -> F64:
     return sum((to_tip(k, v) for k, v in parts), start=np.zeros((6, 6)))
 
 
-def robot_part(
-    k_ef: ArrayLike, others: Sequence[tuple[ArrayLike, ArrayLike]]
-) -> F64:
+def robot_part(k_ef: ArrayLike, others: Sequence[tuple[ArrayLike, ArrayLike]]) -> F64:
     """Eq. (3): the robot's compliance from the end-effector total minus holder and tool terms."""
     k = np.array(k_ef, dtype=float, copy=True)
     for k_i, v_i in others:

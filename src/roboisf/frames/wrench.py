@@ -61,4 +61,3 @@ def shift_wrench(W: ArrayLike, from_point: ArrayLike, to_point: ArrayLike) -> F6
     r = np.asarray(from_point, dtype=float) - np.asarray(to_point, dtype=float)
     m = W[..., 3:] + np.cross(r, W[..., :3])
     return np.concatenate([W[..., :3], np.broadcast_to(m, W[..., 3:].shape)], axis=-1)
-

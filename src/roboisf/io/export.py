@@ -84,17 +84,9 @@ def write_toolpath(
         write_toolpath_csv(tp, path)
     elif fmt == "gcode":
         write_gcode(tp, path, safe_height=safe_height)
-    elif fmt == "rapid":
-        write_rapid(
-            tp,
-            path,
-            T_base_work=T_base_work,
-            tool=tool,
-            tool_rotation=tool_rotation,
-            safe_height=safe_height,
-        )
     else:
-        write_krl(
+        writer = write_rapid if fmt == "rapid" else write_krl
+        writer(
             tp,
             path,
             T_base_work=T_base_work,

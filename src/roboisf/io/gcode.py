@@ -31,7 +31,7 @@ import numpy as np
 from roboisf import __version__
 from roboisf.errors import InputError
 from roboisf.io.atomic import atomic_write
-from roboisf.io.program import ProgramPath, tip_mm
+from roboisf.io.program import ProgramPath, check_safe_height, tip_mm
 from roboisf.toolpath.toolpath import Toolpath
 
 __all__ = ["read_gcode", "write_gcode"]
@@ -57,8 +57,7 @@ def write_gcode(
     safe_height : float, m — z of the rapid moves above the sheet plane
     title : text for the leading comment
     """
-    if not (np.isfinite(safe_height) and safe_height > 0):
-        raise InputError(f"must be > 0 mm, got {safe_height * 1e3:g}", field="safe_height")
+    check_safe_height(safe_height)
     p = tip_mm(tp)
     feed = tp.feed * 60e3
     head = [

@@ -44,23 +44,17 @@ from roboisf.errors import InputError
 from roboisf.frames.rotations import abc_to_matrix, matrix_to_abc
 from roboisf.io.atomic import atomic_write
 from roboisf.io.program import (
+    NUMBER_RE,
     ProgramPath,
     RobotTool,
-    check_placement,
+    fmt_num,
     identifier,
-    orientations,
+    prepare_program,
     program_identifier,
-    split_chunks,
-    tip_mm,
 )
 from roboisf.toolpath.toolpath import Toolpath
 
 __all__ = ["frame_to_krl", "read_krl", "write_krl"]
-
-
-def _num(v: float, nd: int = 3) -> str:
-    s = f"{v:.{nd}f}".rstrip("0").rstrip(".")
-    return "0" if s in ("-0", "") else s
 
 
 def _abc_deg(R: np.ndarray) -> np.ndarray:
@@ -75,8 +69,8 @@ def frame_to_krl(p_mm: ArrayLike, abc_deg: ArrayLike, nd_angle: int = 6) -> str:
     p = np.asarray(p_mm, dtype=float)
     a = np.asarray(abc_deg, dtype=float)
     return (
-        f"{{X {_num(p[0])},Y {_num(p[1])},Z {_num(p[2])},"
-        f"A {_num(a[0], nd_angle)},B {_num(a[1], nd_angle)},C {_num(a[2], nd_angle)}}}"
+        f"{{X {fmt_num(p[0])},Y {fmt_num(p[1])},Z {fmt_num(p[2])},"
+        f"A {fmt_num(a[0], nd_angle)},B {fmt_num(a[1], nd_angle)},C {fmt_num(a[2], nd_angle)}}}"
     )
 
 
@@ -111,29 +105,32 @@ def write_krl(
     path = Path(path)
     if path.suffix.lower() != ".src":
         raise InputError("a KRL program must be written to a .src file", file=path)
-    tool = tool or RobotTool()
-    T = check_placement(T_base_work)
     prog = (identifier(name, "name", 19) if name else program_identifier(path.stem, 19)).lower()
     if not (np.isfinite(cdis) and cdis >= 0):
         raise InputError(f"must be ≥ 0 mm, got {cdis * 1e3:g}", field="cdis")
-    if not (np.isfinite(safe_height) and safe_height > 0):
-        raise InputError(f"must be > 0 mm, got {safe_height * 1e3:g}", field="safe_height")
-    R = orientations(tp, tool_rotation, R_work_tool)
-    abc = _abc_deg(R)
-    p = tip_mm(tp)
-    chunks = split_chunks(len(tp), max_moves)
+    inputs = prepare_program(
+        tp,
+        T_base_work=T_base_work,
+        tool=tool,
+        tool_rotation=tool_rotation,
+        R_work_tool=R_work_tool,
+        safe_height=safe_height,
+        max_moves=max_moves,
+    )
+    tool, T, p, chunks = inputs.tool, inputs.T_base_work, inputs.tip_mm, inputs.chunks
+    abc = _abc_deg(inputs.R_work_tool)
     base = frame_to_krl(T[:3, 3] * 1e3, _abc_deg(T[:3, :3]))
     tool_frame = frame_to_krl([tool.length * 1e3, 0, 0], [0, 90, 0])
     cog = tool.cog_xyz * 1e3  # flange frame: ABB-style z along the axis → KUKA x along the axis
     cm = frame_to_krl([cog[2], cog[1], -cog[0]], [0, 0, 0])
     approx = " C_DIS" if cdis > 0 else ""
     subs = [f"{prog}_{k + 1}" for k in range(len(chunks))]
-    up = np.array([0.0, 0.0, safe_height * 1e3])
+    up = np.array([0.0, 0.0, inputs.safe_height_mm])
     src = [
         "&ACCESS RVP\n&REL 1\n",
         f"DEF {prog}( )\n",
         f"  ; roboisf {__version__}: ISF toolpath, {len(tp)} points, {tp.n_laps} laps, ball radius "
-        f"{_num(tp.tool_radius * 1e3)} mm\n",
+        f"{fmt_num(tp.tool_radius * 1e3)} mm\n",
         "  ; positions: ball tip in $BASE (mm); A,B,C: R = Rz(A) Ry(B) Rx(C) of the tool frame "
         "(z along the tool)\n",
         "  BAS(#INITMOV,0)\n",
@@ -142,7 +139,7 @@ def write_krl(
         "  $LOAD.M = LOAD_M\n",
         "  $LOAD.CM = LOAD_CM\n",
         f"  $VEL.CP = {tp.feed:.6f}\n",
-        f"  $APO.CDIS = {_num(cdis * 1e3)}\n",
+        f"  $APO.CDIS = {fmt_num(cdis * 1e3)}\n",
         f"  PTP {frame_to_krl(p[0] + up, abc[0])}\n",
     ]
     src += [f"  {s}( )\n" for s in subs]
@@ -158,7 +155,7 @@ def write_krl(
         f"DEFDAT {prog}\n",
         f"  DECL FRAME TOOL_ISF={tool_frame}\n",
         f"  DECL FRAME BASE_ISF={base}\n",
-        f"  DECL REAL LOAD_M={_num(tool.mass)}\n",
+        f"  DECL REAL LOAD_M={fmt_num(tool.mass)}\n",
         f"  DECL FRAME LOAD_CM={cm}\n",
         "ENDDAT\n",
     ]
@@ -168,7 +165,7 @@ def write_krl(
         fh.write("".join(src))
 
 
-_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_NUM = NUMBER_RE
 _FRAME = re.compile(
     rf"\{{\s*X\s+({_NUM})\s*,\s*Y\s+({_NUM})\s*,\s*Z\s+({_NUM})\s*,\s*A\s+({_NUM})\s*,"
     rf"\s*B\s+({_NUM})\s*,\s*C\s+({_NUM})\s*\}}"

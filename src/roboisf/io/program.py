@@ -29,8 +29,10 @@ from roboisf.frames.rotations import rot_x, rot_z
 from roboisf.toolpath.toolpath import Toolpath
 
 __all__ = [
+    "ProgramInputs",
     "ProgramPath",
     "RobotTool",
+    "prepare_program",
     "tool_down_orientation",
 ]
 
@@ -68,6 +70,12 @@ class RobotTool:
     def cog_xyz(self) -> F64:
         """Centre of gravity (3,) m in the flange frame (z along the flange axis)."""
         return np.array(self.cog if self.cog is not None else (0.0, 0.0, self.length / 2))
+
+
+def fmt_num(v: float, nd: int = 3) -> str:
+    """Shortest fixed-point text of ``v`` at ``nd`` decimals (``12.500`` → ``12.5``, no ``-0``)."""
+    s = f"{v:.{nd}f}".rstrip("0").rstrip(".")
+    return "0" if s in ("-0", "") else s
 
 
 def identifier(name: str, what: str, max_len: int = 24) -> str:
@@ -157,6 +165,51 @@ def split_chunks(n: int, max_moves: int) -> list[slice]:
     if max_moves < 1:
         raise InputError(f"must be ≥ 1, got {max_moves}", field="max_moves")
     return [slice(a, min(a + max_moves, n)) for a in range(0, n, max_moves)]
+
+
+#: A decimal number in program text (parsers).
+NUMBER_RE = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+
+
+@dataclass(frozen=True)
+class ProgramInputs:
+    """Validated writer inputs: tool, placement (4, 4) m, orientations (N, 3, 3), programmed
+    points (N, 3) mm at 1 µm, routine slices, safe height [mm]."""
+
+    tool: RobotTool
+    T_base_work: F64
+    R_work_tool: F64
+    tip_mm: F64
+    chunks: list[slice]
+    safe_height_mm: float
+
+
+def prepare_program(
+    tp: Toolpath,
+    *,
+    T_base_work: ArrayLike | None = None,
+    tool: RobotTool | None = None,
+    tool_rotation: ArrayLike = 0.0,
+    R_work_tool: ArrayLike | None = None,
+    safe_height: float = 10e-3,
+    max_moves: int = 2000,
+) -> ProgramInputs:
+    """Check and convert what every program writer needs (raises InputError naming the field)."""
+    check_safe_height(safe_height)
+    return ProgramInputs(
+        tool=tool or RobotTool(),
+        T_base_work=check_placement(T_base_work),
+        R_work_tool=orientations(tp, tool_rotation, R_work_tool),
+        tip_mm=tip_mm(tp),
+        chunks=split_chunks(len(tp), max_moves),
+        safe_height_mm=safe_height * 1e3,
+    )
+
+
+def check_safe_height(safe_height: float) -> None:
+    """Approach/retract height [m] must be finite and > 0."""
+    if not (math.isfinite(safe_height) and safe_height > 0):
+        raise InputError(f"must be > 0 mm, got {safe_height * 1e3:g}", field="safe_height")
 
 
 @dataclass(frozen=True)

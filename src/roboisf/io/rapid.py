@@ -46,14 +46,13 @@ from roboisf.errors import InputError
 from roboisf.frames.rotations import matrix_to_quat, quat_to_matrix
 from roboisf.io.atomic import atomic_write
 from roboisf.io.program import (
+    NUMBER_RE,
     ProgramPath,
     RobotTool,
-    check_placement,
+    fmt_num,
     identifier,
-    orientations,
+    prepare_program,
     program_identifier,
-    split_chunks,
-    tip_mm,
 )
 from roboisf.toolpath.toolpath import Toolpath
 
@@ -63,13 +62,9 @@ __all__ = ["ZONES", "read_rapid", "write_rapid"]
 ZONES = ("fine", "z0", "z1", "z5", "z10", "z15", "z20", "z30", "z40", "z50", "z60", "z80", "z100")
 
 
-def _num(v: float, nd: int = 3) -> str:
-    s = f"{v:.{nd}f}".rstrip("0").rstrip(".")
-    return "0" if s in ("-0", "") else s
-
-
 def _pose(p: np.ndarray, q: np.ndarray) -> str:
-    return f"[[{_num(p[0])},{_num(p[1])},{_num(p[2])}],[{','.join(_num(x, 9) for x in q)}]]"
+    xyz = ",".join(fmt_num(x) for x in p)
+    return f"[[{xyz}],[{','.join(fmt_num(x, 9) for x in q)}]]"
 
 
 def write_rapid(
@@ -104,43 +99,47 @@ def write_rapid(
     module : module name (default: from the file name)
     """
     path = Path(path)
-    tool = tool or RobotTool()
-    T = check_placement(T_base_work)
     if zone not in ZONES:
         raise InputError(f"unknown zone {zone!r}; expected one of {', '.join(ZONES)}", field="zone")
     name = identifier(module, "module", 26) if module else program_identifier(path.stem, 26)
     identifier(wobj_name, "wobj_name", 32)
-    if not (np.isfinite(safe_height) and safe_height > 0):
-        raise InputError(f"must be > 0 mm, got {safe_height * 1e3:g}", field="safe_height")
-    R = orientations(tp, tool_rotation, R_work_tool)
-    q = matrix_to_quat(R)
-    p = tip_mm(tp)
-    chunks = split_chunks(len(tp), max_moves)
+    prog = prepare_program(
+        tp,
+        T_base_work=T_base_work,
+        tool=tool,
+        tool_rotation=tool_rotation,
+        R_work_tool=R_work_tool,
+        safe_height=safe_height,
+        max_moves=max_moves,
+    )
+    tool, T, p, chunks = prog.tool, prog.T_base_work, prog.tip_mm, prog.chunks
+    q = matrix_to_quat(prog.R_work_tool)
     qb = matrix_to_quat(T[:3, :3])
     cog = tool.cog_xyz * 1e3
     v = tp.feed * 1e3
     cf = ",".join(str(int(c)) for c in conf)
     tail = f",vForm,{zone},{tool.name}\\WObj:={wobj_name};\n"
     ext = "[9E9,9E9,9E9,9E9,9E9,9E9]"
+    up = fmt_num(prog.safe_height_mm)
     out = [
         f"MODULE {name}\n",
         f"  ! roboisf {__version__}: ISF toolpath, {len(tp)} points, {tp.n_laps} laps, "
-        f"ball radius {_num(tp.tool_radius * 1e3)} mm\n",
+        f"ball radius {fmt_num(tp.tool_radius * 1e3)} mm\n",
         "  ! robtargets: ball tip in the work object (mm); quaternion q1..q4 = (w,x,y,z) of "
         "the tool frame (z along the tool)\n",
-        f"  PERS tooldata {tool.name} := [TRUE,[[0,0,{_num(tool.length * 1e3)}],[1,0,0,0]],"
-        f"[{_num(tool.mass)},[{_num(cog[0])},{_num(cog[1])},{_num(cog[2])}],[1,0,0,0],0,0,0]];\n",
+        f"  PERS tooldata {tool.name} := [TRUE,[[0,0,{fmt_num(tool.length * 1e3)}],[1,0,0,0]],"
+        f"[{fmt_num(tool.mass)},[{fmt_num(cog[0])},{fmt_num(cog[1])},{fmt_num(cog[2])}],[1,0,0,0],0,0,0]];\n",
         f'  PERS wobjdata {wobj_name} := [FALSE,TRUE,"",{_pose(T[:3, 3] * 1e3, qb)},'
         "[[0,0,0],[1,0,0,0]]];\n",
-        f"  CONST speeddata vForm := [{_num(v)},500,5000,1000];\n",
+        f"  CONST speeddata vForm := [{fmt_num(v)},500,5000,1000];\n",
         "  PROC main()\n",
         "    ConfL\\Off;\n",
-        f"    MoveJ Offs({_pose(p[0], q[0])[:-1]},[{cf}],{ext}],0,0,{_num(safe_height * 1e3)}),"
+        f"    MoveJ Offs({_pose(p[0], q[0])[:-1]},[{cf}],{ext}],0,0,{up}),"
         f"v200,fine,{tool.name}\\WObj:={wobj_name};\n",
     ]
     out += [f"    {name}_{k + 1};\n" for k in range(len(chunks))]
     out += [
-        f"    MoveL Offs({_pose(p[-1], q[-1])[:-1]},[{cf}],{ext}],0,0,{_num(safe_height * 1e3)}),"
+        f"    MoveL Offs({_pose(p[-1], q[-1])[:-1]},[{cf}],{ext}],0,0,{up}),"
         f"v50,fine,{tool.name}\\WObj:={wobj_name};\n",
         "  ENDPROC\n",
     ]
@@ -156,7 +155,7 @@ def write_rapid(
         fh.write("".join(out))
 
 
-_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_NUM = NUMBER_RE
 _MOVEL = re.compile(
     rf"^\s*MoveL\s+\[\[({_NUM}),({_NUM}),({_NUM})\],\[({_NUM}),({_NUM}),({_NUM}),({_NUM})\]"
     rf",\[([^\]]*)\],\[[^\]]*\]\]\s*,\s*(\w+)\s*,\s*(\w+)\s*,\s*(\w+)"

@@ -15,12 +15,14 @@ columns, non-numeric cells, NaN/inf. Callers then check meaning (units, monotoni
 
 from __future__ import annotations
 
+import io
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 from numpy.typing import NDArray
 
 from roboisf.errors import InputError
@@ -105,9 +107,9 @@ def read_table(
             continue
         if not s.startswith("#"):
             break
-        body = s.lstrip("#").strip()
-        if ":" in body:
-            key, _, value = body.partition(":")
+        comment = s.lstrip("#").strip()
+        if ":" in comment:
+            key, _, value = comment.partition(":")
             key = key.strip().lower()
             if key in meta and meta[key] != value.strip():
                 raise InputError(
@@ -153,12 +155,12 @@ def read_table(
     if not body_idx:
         raise InputError(f"{what} has a header but no data rows", file=path)
     lines = np.asarray(body_idx, dtype=np.int64) + 1
-    cells = [raw[j].split(",") for j in body_idx]
+    body = [raw[j] for j in body_idx]
     k = len(columns)
-    counts = np.fromiter((len(c) for c in cells), dtype=np.int64, count=len(cells))
+    counts = np.fromiter((ln.count(",") + 1 for ln in body), dtype=np.int64, count=len(body))
     if np.any(counts != k):
         r = int(np.argmax(counts != k))
-        if raw[body_idx[r]].lstrip().startswith("#"):
+        if body[r].lstrip().startswith("#"):
             raise InputError(
                 "comment lines are only allowed before the header", file=path, line=int(lines[r])
             )
@@ -168,10 +170,19 @@ def read_table(
             line=int(lines[r]),
         )
     try:
-        data = np.asarray(cells, dtype=np.str_).astype(np.float64)
+        # C parser, exact (round-trip) float conversion; the slow path below only runs to name
+        # the offending cell when a cell is not a number
+        data = pd.read_csv(
+            io.StringIO("\n".join(body)),
+            header=None,
+            dtype=np.float64,
+            engine="c",
+            skip_blank_lines=False,
+            na_filter=False,
+        ).to_numpy()
     except ValueError:
-        data = np.empty((len(cells), k))
-        for r, row in enumerate(cells):
+        data = np.empty((len(body), k))
+        for r, row in enumerate(ln.split(",") for ln in body):
             for c, cell in enumerate(row):
                 try:
                     data[r, c] = float(cell)

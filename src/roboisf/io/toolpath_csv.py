@@ -45,6 +45,7 @@ __all__ = [
     "NORMAL_TOL",
     "TOOLPATH_COLUMNS",
     "read_toolpath_csv",
+    "toolpath_table",
     "write_toolpath_csv",
 ]
 
@@ -62,11 +63,30 @@ CONSISTENCY_TOL = 10e-6
 _FORMATS = (
     ["%d", "%d"] + ["%.9f"] * 3 + ["%.12f"] * 3 + ["%.9f"] * 6 + ["%.9f", "%.9f", "%.9f", "%.9f"]
 )
+_DECIMALS = [int(f[2:-1]) if f != "%d" else 0 for f in _FORMATS]
 _UNITS_LINE = "length=mm angle=deg time=s"
 
 
 def _fmt_num(v: float) -> str:
     return f"{v:.12g}"
+
+
+def toolpath_table(tp: Toolpath) -> np.ndarray:
+    """The CSV columns of ``tp`` as an (N, 18) array in file units (mm, deg, s)."""
+    return np.column_stack(
+        [
+            np.arange(len(tp)),
+            tp.lap,
+            tp.contact * 1e3,
+            tp.normal,
+            tp.center * 1e3,
+            tp.tip * 1e3,
+            np.degrees(tp.wall_angle),
+            -tp.contact[:, 2] * 1e3,
+            tp.path_length * 1e3,
+            tp.time,
+        ]
+    )
 
 
 def write_toolpath_csv(tp: Toolpath, path: str | Path, *, generator: str | None = None) -> None:
@@ -78,7 +98,6 @@ def write_toolpath_csv(tp: Toolpath, path: str | Path, *, generator: str | None 
     path : output file
     generator : text for the ``# generator:`` line (default ``roboisf <version>``)
     """
-    n = len(tp)
     resid = tp.center - (tp.contact + tp.tool_radius * tp.normal)
     from_contact = bool(np.max(np.linalg.norm(resid, axis=1)) <= 1e-9)
     head = [
@@ -97,20 +116,9 @@ def write_toolpath_csv(tp: Toolpath, path: str | Path, *, generator: str | None 
         v = tp.meta.get(key)
         if isinstance(v, int | float):
             head.append(f"# {key}: {_fmt_num(float(v) * 1e3)} mm")
-    data = np.column_stack(
-        [
-            np.arange(n),
-            tp.lap,
-            tp.contact * 1e3,
-            tp.normal,
-            tp.center * 1e3,
-            tp.tip * 1e3,
-            np.degrees(tp.wall_angle),
-            -tp.contact[:, 2] * 1e3,
-            tp.path_length * 1e3,
-            tp.time,
-        ]
-    )
+    data = toolpath_table(tp)
+    # round to the written resolution first so that tiny negatives do not print as "-0.000"
+    data = np.column_stack([np.round(data[:, j], d) for j, d in enumerate(_DECIMALS)]) + 0.0
     with atomic_write(path) as fh:
         fh.write("\n".join(head) + "\n")
         fh.write(",".join(TOOLPATH_COLUMNS) + "\n")

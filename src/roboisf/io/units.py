@@ -15,7 +15,15 @@ __all__ = ["ANGLE_UNITS", "FORCE_UNITS", "LENGTH_UNITS", "MOMENT_UNITS", "TIME_U
 LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "cm": 1e-2, "in": 0.0254}
 ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}
 FORCE_UNITS = {"N": 1.0, "kN": 1e3}
-MOMENT_UNITS = {"N*m": 1.0, "Nm": 1.0, "N.m": 1.0, "N·m": 1.0, "N*mm": 1e-3, "Nmm": 1e-3, "N.mm": 1e-3}
+MOMENT_UNITS = {
+    "N*m": 1.0,
+    "Nm": 1.0,
+    "N.m": 1.0,
+    "N·m": 1.0,
+    "N*mm": 1e-3,
+    "Nmm": 1e-3,
+    "N.mm": 1e-3,
+}
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "min": 60.0}
 
 _KINDS = {

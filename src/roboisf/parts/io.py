@@ -30,7 +30,13 @@ import tomli_w
 
 from roboisf.errors import InputError
 from roboisf.io.atomic import atomic_write
-from roboisf.parts.axisymmetric import VWACF, AxisymmetricPart, Cone, ProfilePart
+from roboisf.parts.axisymmetric import (
+    VWACF,
+    VWACF_DEFAULT_ARC_RADIUS,
+    AxisymmetricPart,
+    Cone,
+    ProfilePart,
+)
 from roboisf.parts.mesh import MeshPart
 
 __all__ = ["load_part", "part_from_dict", "read_profile_csv", "save_part"]
@@ -74,7 +80,9 @@ def read_profile_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     return a[:, 0], a[:, 1]
 
 
-def _num(table: dict[str, Any], key: str, where: Path | None, default: float | None = None) -> float:
+def _num(
+    table: dict[str, Any], key: str, where: Path | None, default: float | None = None
+) -> float:
     if key not in table:
         if default is not None:
             return default
@@ -105,7 +113,7 @@ def part_from_dict(
             file=src,
             field="part",
         )
-    common = {
+    common: dict[str, Any] = {
         "sheet_thickness": _num(table, "sheet_thickness", src, 1.22) * 1e-3,
         "flange_width": _num(table, "flange_width", src, 10.0) * 1e-3,
     }
@@ -120,7 +128,7 @@ def part_from_dict(
         if kind == "vwacf":
             return VWACF(
                 opening_diameter=_num(table, "opening_diameter", src, 88.15) * 1e-3,
-                arc_radius=_num(table, "arc_radius", src, 40.0) * 1e-3,
+                arc_radius=_num(table, "arc_radius", src, VWACF_DEFAULT_ARC_RADIUS * 1e3) * 1e-3,
                 final_wall_angle=math.radians(_num(table, "final_wall_angle", src, 90.0)),
                 **common,
             )
@@ -137,19 +145,27 @@ def part_from_dict(
             return ProfilePart(r=tuple(r), z=tuple(z), **common)
         if kind == "mesh":
             if "flange_width" in table:
-                raise InputError("a mesh part has no flange_width (its flange is in the mesh)",
-                                 file=src, field="part.flange_width")  # fmt: skip
+                raise InputError(
+                    "a mesh part has no flange_width (its flange is in the mesh)",
+                    file=src,
+                    field="part.flange_width",
+                )
             if not isinstance(table.get("file"), str):
                 raise InputError("mesh needs 'file' (an STL/OBJ path)", file=src, field="part.file")
             f = Path(table["file"])
             fpath = f if f.is_absolute() or src is None else src.parent / f
             return MeshPart.from_file(
-                fpath, unit=str(table.get("unit", "mm")), orient=str(table.get("orient", "up")),
-                sheet_thickness=common["sheet_thickness"], source=str(table["file"]),
-            )  # fmt: skip
+                fpath,
+                unit=str(table.get("unit", "mm")),
+                orient=str(table.get("orient", "up")),
+                sheet_thickness=common["sheet_thickness"],
+                source=str(table["file"]),
+            )
     except InputError as e:
         if e.file is None and src is not None:
-            raise InputError(e.message, file=src, field=f"part.{e.field}" if e.field else "part") from None
+            raise InputError(
+                e.message, file=src, field=f"part.{e.field}" if e.field else "part"
+            ) from None
         raise
     raise AssertionError(kind)  # pragma: no cover - every kind returns above
 

@@ -1,11 +1,30 @@
 """Toolpath generation for axisymmetric parts: step-down contours and spirals.
 
-* **Step-down** (the paper's "step toolpath"): closed contours at z = −Δz, −2Δz, …, the last one
-  at the full depth; between contours the tool steps down at the lap's start angle.
-* **Spiral**: z ramps linearly within each lap from one level to the next (no plunge marks).
+Levels are **tool-tip heights** (CAM "Z-level" contours): lap k has its programmed tip at
+z = −kΔz, the last lap at the full part depth. At every height the ball (radius R) is placed as
+far out as it can go **without entering the nominal surface** — tangent to it:
+
+* on a wall the contact P is a wall point, ``C = P + R·n``, ``T = C − R·ẑ`` (at 71°, R = 5 mm:
+  C is R·sin α = 4.73 mm inward and T is R(1 − cos α) = 3.37 mm below P);
+* near a convex edge (the rim of a cone) the ball rolls over the edge: P is the edge and n the
+  direction from it to C;
+* at a concave corner (wall → flat bottom) the last lap's ball touches wall and bottom at once:
+  the part's nominal depth is reached by the tip, never passed.
+
+Why tip levels and not contact levels: with contact levels the last laps of a flat-bottomed part
+put the ball up to R(1 − cos α) below the bottom (3.37 mm on the paper's cone), gouging the
+nominal part, and a part narrower than the ball (the VWACF near 90° with a Ø10 ball) would put the
+ball centre across the axis. Where the ball no longer fits at all (it would touch the wall on the
+other side of the axis), the path stops at the deepest height that fits; ``meta`` records it
+(``"truncated": True``, ``"reachable_tip_z"``) and the CLI warns.
+
+* **Step-down** (the paper's "step toolpath"): closed contours; between contours the tool steps
+  down at the lap's start angle.
+* **Spiral**: the tip height ramps linearly within each lap (no plunge marks); a final closed
+  contour at the last height finishes the bottom edge.
 * **Along-wall step** (``max_wall_step``): where the wall is shallow (VWACF near 0°) a constant
-  Δz gives laps far apart along the wall; extra levels are inserted so that consecutive laps are
-  at most ``max_wall_step`` apart *along the generatrix*.
+  Δz gives contacts far apart along the wall; extra heights are inserted so that consecutive laps
+  touch the wall at most ``max_wall_step`` apart *along the generatrix*.
 
 Point spacing: points on a lap are evenly spaced in angle with at most ``spacing`` of arc between
 neighbours at the contact radius (and at least 8 points per lap).
@@ -16,22 +35,34 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
 from roboisf.parts.axisymmetric import AxisymmetricPart
 from roboisf.toolpath.toolpath import Toolpath
 
-__all__ = ["DEFAULT_FEED", "lap_levels", "spiral", "step_down"]
+__all__ = ["DEFAULT_FEED", "ball_position", "spiral", "step_down", "tip_levels"]
 
 F64 = NDArray[np.float64]
 
 #: Paper feed rate, 750 mm/min in m/s.
 DEFAULT_FEED = 750e-3 / 60.0
 
+#: Bisection iterations for the ball position (interval ≤ 1 m → < 1e-15 m).
+_BISECT = 52
+#: A ball closer than R − _FIT_TOL to the surface is gouging (float noise of d is ~1e-17 m).
+_FIT_TOL = 1e-15
 
-def _check(part: AxisymmetricPart, tool_radius: float, step: float, spacing: float, feed: float) -> None:
-    for name, v in (("tool_radius", tool_radius), ("step_down", step), ("spacing", spacing), ("feed", feed)):
+
+def _check(
+    part: AxisymmetricPart, tool_radius: float, step: float, spacing: float, feed: float
+) -> None:
+    for name, v in (
+        ("tool_radius", tool_radius),
+        ("step_down", step),
+        ("spacing", spacing),
+        ("feed", feed),
+    ):
         if not (math.isfinite(v) and v > 0):
             raise InputError(f"must be > 0, got {v:g} (SI)", field=name)
     if step > part.depth:
@@ -41,29 +72,134 @@ def _check(part: AxisymmetricPart, tool_radius: float, step: float, spacing: flo
         )
 
 
-def lap_levels(part: AxisymmetricPart, step_down: float, max_wall_step: float | None = None) -> F64:
-    """Wall arc-length positions ``s`` [m] of the laps, top to bottom.
-
-    z-levels −Δz, −2Δz, … with the last at the full depth (a level closer than 1e-9 m to the
-    bottom is merged into it); then, if ``max_wall_step`` is given, levels inserted where the
-    along-wall distance between neighbours exceeds it.
-    """
+def _meridian_closest(part: AxisymmetricPart, r: F64, z: F64) -> tuple[F64, F64, F64, F64]:
+    """Closest surface point (rp, zp), signed distance (+ tool side) and wall arc length s for
+    meridian points (r, z); ties within 1e-12 m prefer wall primitives (deterministic contacts at
+    the concave bottom corner, where the last ball touches wall and bottom at once)."""
     g = part.generatrix
+    best = np.full(r.shape, np.inf)
+    rp = np.zeros_like(r)
+    zp = np.zeros_like(r)
+    nr = np.zeros_like(r)
+    nz = np.zeros_like(r)
+    ss = np.zeros_like(r)
+    starts = g._s0  # arc length of each primitive's start, from the top of the wall
+    order = sorted(range(len(g.primitives)), key=lambda i: g.regions[i] != "wall")
+    for i in order:
+        cr, cz, ca, cs = g.primitives[i].closest(r, z)
+        d = np.hypot(cr - r, cz - z)
+        better = d < best - 1e-12
+        best = np.where(better, d, best)
+        rp = np.where(better, cr, rp)
+        zp = np.where(better, cz, zp)
+        nr = np.where(better, -np.sin(ca), nr)
+        nz = np.where(better, np.cos(ca), nz)
+        ss = np.where(better, cs + starts[i], ss)
+    side = (r - rp) * nr + (z - zp) * nz
+    return rp, zp, np.where(side < 0, -best, best), ss
+
+
+def ball_position(
+    part: AxisymmetricPart, tool_radius: float, tip_z: ArrayLike
+) -> tuple[F64, NDArray[np.bool_]]:
+    """Radius of the ball centre ``C_r`` [m] for tip heights ``tip_z`` (M,) [m], and a mask of
+    the heights where the ball fits.
+
+    ``C_r`` is the largest radius (≤ the opening radius) at which the ball centred at
+    ``(C_r, tip_z + R)`` keeps a distance ≥ R from the nominal surface, i.e. is tangent to it.
+    The distance to the material never increases when moving outwards at a fixed height (the
+    material is closed under outward radial shifts), so bisection finds it exactly.
+    """
+    R = tool_radius
+    cz = np.asarray(tip_z, dtype=float) + R
+    lo = np.zeros_like(cz)
+    hi = np.full_like(cz, part.opening_radius)
+    fits = _meridian_closest(part, lo, cz)[2] >= R - _FIT_TOL
+    top = _meridian_closest(part, hi, cz)[2] >= R - _FIT_TOL
+    for _ in range(_BISECT):
+        mid = 0.5 * (lo + hi)
+        ok = _meridian_closest(part, mid, cz)[2] >= R - _FIT_TOL
+        lo = np.where(ok, mid, lo)
+        hi = np.where(ok, hi, mid)
+    return np.where(top, hi, lo), fits
+
+
+def tip_levels(
+    part: AxisymmetricPart,
+    tool_radius: float,
+    step_down: float,
+    max_wall_step: float | None = None,
+) -> tuple[F64, bool]:
+    """Tip heights [m] of the laps, top to bottom, and whether the path was truncated.
+
+    Heights −Δz, −2Δz, … with the last at the full depth (a level closer than 1e-9 m to the bottom
+    is merged into it); heights where the ball does not fit are dropped (truncated = True); then,
+    if ``max_wall_step`` is given, heights inserted where the contacts of neighbouring laps are
+    more than ``max_wall_step`` apart along the generatrix.
+    """
     depth = part.depth
     n = math.ceil(depth / step_down - 1e-9)
-    z = -np.arange(1, n + 1) * step_down
+    z: F64 = -np.arange(1, n + 1, dtype=float) * step_down
     z[-1] = -depth
-    s = g.wall_s_at_z(z)
+    _, fits = ball_position(part, tool_radius, z)
+    truncated = not bool(fits.all())
+    if truncated:
+        if not fits[0]:
+            raise InputError(
+                f"a Ø{2 * tool_radius * 1e3:g} mm ball does not fit in this part even at the first "
+                f"level (tip z = {z[0] * 1e3:g} mm)",
+                field="tool_radius",
+            )
+        z = z[: int(np.argmin(fits))]
+        # the deepest height that fits, to 1 µm, as the last lap
+        lo, hi = z[-1], z[-1] - step_down
+        for _ in range(40):
+            mid = 0.5 * (lo + hi)
+            if ball_position(part, tool_radius, np.array([mid]))[1][0]:
+                lo = mid
+            else:
+                hi = mid
+        if z[-1] - lo > 1e-6:
+            z = np.append(z, lo)
     if max_wall_step is not None:
         if not (max_wall_step > 0):
             raise InputError("must be > 0", field="max_wall_step")
-        s_all = np.concatenate([[0.0], s])
-        pieces = []
-        for a, b in zip(s_all[:-1], s_all[1:], strict=True):
-            k = max(1, math.ceil((b - a) / max_wall_step - 1e-9))
-            pieces.append(a + (b - a) * np.arange(1, k + 1) / k)
-        s = np.concatenate(pieces)
-    return s
+        z = _refine_along_wall(part, tool_radius, z, max_wall_step)
+    return z, truncated
+
+
+def _contact_s(part: AxisymmetricPart, tool_radius: float, tip_z: F64) -> F64:
+    cr, _ = ball_position(part, tool_radius, tip_z)
+    return _meridian_closest(part, cr, tip_z + tool_radius)[3]
+
+
+def _refine_along_wall(part: AxisymmetricPart, R: float, z: F64, max_step: float) -> F64:
+    """Insert tip heights so that neighbouring contacts are ≤ ``max_step`` apart along the wall.
+
+    The contact arc length s(z) is monotone in the tip height, so the heights whose contacts are
+    evenly spaced between two laps are found by one vectorised bisection over all gaps.
+    """
+    z_all = np.concatenate([[0.0], z])
+    s_all = _contact_s(part, R, z_all)
+    m = np.maximum(1, np.ceil(np.abs(np.diff(s_all)) / max_step - 1e-9).astype(np.int64))
+    gap = np.repeat(np.arange(len(z)), m - 1)  # gap index of each inserted height
+    if gap.size == 0:
+        return z
+    j = np.concatenate([np.arange(1, k) for k in m])
+    frac = j / m[gap]
+    targets = s_all[gap] + (s_all[gap + 1] - s_all[gap]) * frac
+    lo, hi = z_all[gap].copy(), z_all[gap + 1].copy()
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        below = _contact_s(part, R, mid) < targets
+        lo = np.where(below, mid, lo)
+        hi = np.where(below, hi, mid)
+    inserted = 0.5 * (lo + hi)
+    # merge: each gap's inserted heights come before the gap's lower level
+    key_new = gap + frac  # in (gap, gap + 1)
+    key_old = np.arange(len(z)) + 1.0
+    order = np.argsort(np.concatenate([key_new, key_old]), kind="stable")
+    return np.concatenate([inserted, z])[order]
 
 
 def _lap_points(r: float, spacing: float) -> int:
@@ -71,14 +207,43 @@ def _lap_points(r: float, spacing: float) -> int:
 
 
 def _assemble(
-    part: AxisymmetricPart, s: F64, phi: F64, lap: NDArray[np.int64], tool_radius: float,
-    feed: float, meta: dict[str, object],
+    part: AxisymmetricPart,
+    tip_z: F64,
+    phi: F64,
+    lap: NDArray[np.int64],
+    tool_radius: float,
+    feed: float,
+    meta: dict[str, object],
 ) -> Toolpath:
-    r, z, a = part.generatrix.wall_at_s(s)
+    """Toolpath from per-point tip heights and polar angles (ball from :func:`ball_position`)."""
+    R = tool_radius
+    levels, inverse = np.unique(tip_z, return_inverse=True)  # step-down: one solve per lap
+    cr = ball_position(part, R, levels)[0][inverse]
+    cz = tip_z + R
+    rp, zp, _, _ = _meridian_closest(part, cr, cz)
+    nr, nz = cr - rp, cz - zp
+    norm = np.hypot(nr, nz)
+    nr, nz = nr / norm, nz / norm
     c, sn = np.cos(phi), np.sin(phi)
-    contact = np.stack([r * c, r * sn, z], axis=1)
-    normal = np.stack([-np.sin(a) * c, -np.sin(a) * sn, np.cos(a)], axis=1)
-    return Toolpath.from_contact(contact, normal, a, lap, tool_radius, feed, meta)
+    contact = np.stack([rp * c, rp * sn, zp], axis=1)
+    normal = np.stack([nr * c, nr * sn, nz], axis=1)
+    wall_angle = np.arctan2(-nr, nz)
+    return Toolpath.from_contact(contact, normal, wall_angle, lap, R, feed, meta)
+
+
+def _meta(
+    kind: str, part: AxisymmetricPart, step: float, spacing: float, z: F64, trunc: bool
+) -> dict[str, object]:
+    meta: dict[str, object] = {
+        "kind": kind,
+        "step_down": step,
+        "spacing": spacing,
+        "part": part.kind,
+    }
+    if trunc:
+        meta["truncated"] = True
+        meta["reachable_tip_z"] = float(z[-1])
+    return meta
 
 
 def step_down(
@@ -92,7 +257,7 @@ def step_down(
     start_angle: float = 0.0,
     clockwise: bool = False,
 ) -> Toolpath:
-    """Step-down contour toolpath.
+    """Step-down contour toolpath: lap k at tip height −kΔz (see the module docstring).
 
     Parameters
     ----------
@@ -106,20 +271,22 @@ def step_down(
     clockwise : bool — direction of travel seen from above (+z)
     """
     _check(part, tool_radius, step_down, spacing, feed)
-    s_levels = lap_levels(part, step_down, max_wall_step)
-    r_levels = part.generatrix.wall_at_s(s_levels)[0]
+    z_levels, trunc = tip_levels(part, tool_radius, step_down, max_wall_step)
+    cr, _ = ball_position(part, tool_radius, z_levels)
+    r_contact = _meridian_closest(part, cr, z_levels + tool_radius)[0]
     sign = -1.0 if clockwise else 1.0
-    s_parts, phi_parts, lap_parts = [], [], []
-    for k, (s_k, r_k) in enumerate(zip(s_levels, r_levels, strict=True)):
-        m = _lap_points(r_k, spacing)
-        # closed contour: m points, the m+1-th would repeat the first
-        phi_parts.append(start_angle + sign * 2 * math.pi * np.arange(m) / m)
-        s_parts.append(np.full(m, s_k))
-        lap_parts.append(np.full(m, k, dtype=np.int64))
-    meta = {"kind": "step_down", "step_down": step_down, "spacing": spacing, "part": part.kind}
+    counts = [_lap_points(float(r), spacing) for r in r_contact]
+    phi = np.concatenate([start_angle + sign * 2 * math.pi * np.arange(m) / m for m in counts])
+    lap = np.repeat(np.arange(len(counts), dtype=np.int64), counts)
+    tip_z = np.repeat(z_levels, counts)
     return _assemble(
-        part, np.concatenate(s_parts), np.concatenate(phi_parts), np.concatenate(lap_parts),
-        tool_radius, feed, meta,
+        part,
+        tip_z,
+        phi,
+        lap,
+        tool_radius,
+        feed,
+        _meta("step_down", part, step_down, spacing, z_levels, trunc),
     )
 
 
@@ -134,31 +301,36 @@ def spiral(
     start_angle: float = 0.0,
     clockwise: bool = False,
 ) -> Toolpath:
-    """Spiral toolpath: within lap k the contact descends continuously from level k−1 to k.
+    """Spiral toolpath: within lap k the tip descends linearly from height k−1 to k.
 
-    Same parameters as :func:`step_down`. The first lap starts at the top of the wall (s = 0);
-    a final closed contour at the full depth finishes the bottom edge.
+    Same parameters as :func:`step_down`. The first lap starts with the tip in the sheet plane
+    (ball resting on the rim); a final closed contour at the last height finishes the bottom edge.
     """
     _check(part, tool_radius, step_down, spacing, feed)
-    s_levels = np.concatenate([[0.0], lap_levels(part, step_down, max_wall_step)])
+    z_levels, trunc = tip_levels(part, tool_radius, step_down, max_wall_step)
+    z_all = np.concatenate([[0.0], z_levels])
     sign = -1.0 if clockwise else 1.0
-    g = part.generatrix
-    s_parts, phi_parts, lap_parts = [], [], []
-    for k in range(len(s_levels) - 1):
-        r_mid = g.wall_at_s(0.5 * (s_levels[k] + s_levels[k + 1]))[0][0]
-        m = _lap_points(r_mid, spacing)
+    z_mid = 0.5 * (z_all[1:] + z_all[:-1])
+    cr_mid, _ = ball_position(part, tool_radius, z_mid)
+    r_mid = _meridian_closest(part, cr_mid, z_mid + tool_radius)[0]
+    z_parts, phi_parts, lap_parts = [], [], []
+    for k in range(len(z_levels)):
+        m = _lap_points(float(r_mid[k]), spacing)
         u = np.arange(m) / m
-        s_parts.append(s_levels[k] + u * (s_levels[k + 1] - s_levels[k]))
+        z_parts.append(z_all[k] + u * (z_all[k + 1] - z_all[k]))
         phi_parts.append(start_angle + sign * 2 * math.pi * u)
         lap_parts.append(np.full(m, k, dtype=np.int64))
-    # closing contour at the bottom level
-    r_last = g.wall_at_s(s_levels[-1])[0][0]
-    m = _lap_points(r_last, spacing)
-    s_parts.append(np.full(m + 1, s_levels[-1]))
+    # closing contour at the last height
+    m = _lap_points(float(r_mid[-1]), spacing)
+    z_parts.append(np.full(m + 1, z_levels[-1]))
     phi_parts.append(start_angle + sign * 2 * math.pi * np.arange(m + 1) / m)
-    lap_parts.append(np.full(m + 1, len(s_levels) - 2, dtype=np.int64))
-    meta = {"kind": "spiral", "step_down": step_down, "spacing": spacing, "part": part.kind}
+    lap_parts.append(np.full(m + 1, len(z_levels) - 1, dtype=np.int64))
     return _assemble(
-        part, np.concatenate(s_parts), np.concatenate(phi_parts), np.concatenate(lap_parts),
-        tool_radius, feed, meta,
+        part,
+        np.concatenate(z_parts),
+        np.concatenate(phi_parts),
+        np.concatenate(lap_parts),
+        tool_radius,
+        feed,
+        _meta("spiral", part, step_down, spacing, z_levels, trunc),
     )

@@ -113,8 +113,16 @@ class Toolpath:
         seg = np.linalg.norm(np.diff(tip, axis=0), axis=1)
         s = np.concatenate([[0.0], np.cumsum(seg)])
         return cls(
-            contact, normal, center, tip, np.asarray(wall_angle, dtype=float),
-            np.asarray(lap, dtype=np.int64), s, s / feed, float(tool_radius), float(feed),
+            contact,
+            normal,
+            center,
+            tip,
+            np.asarray(wall_angle, dtype=float),
+            np.asarray(lap, dtype=np.int64),
+            s,
+            s / feed,
+            float(tool_radius),
+            float(feed),
             dict(meta or {}),
         )
 

@@ -1,0 +1,62 @@
+"""Time and size of the study report at paper scale (run by hand: python benchmarks/report.py).
+
+Paper scale: the 71° cone, 0.5 mm step-down over 103 mm = ~206 laps; 150 points per lap.
+Peer: the naive plotly way — each figure written with ``fig.write_html`` and its own copy of
+plotly.js (what an ad-hoc script does) — against the report's single file with plotly.js once.
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT / "src"), str(ROOT / "tests")]
+
+from report_fixtures import make_study  # noqa: E402
+from roboisf.report import document as doc  # noqa: E402
+from roboisf.report import write_report  # noqa: E402
+from roboisf.report.schema import (  # noqa: E402
+    check_contributions,
+    check_per_point,
+    check_summary,
+)
+
+
+def main() -> None:
+    for laps, per_lap in ((206, 150), (412, 300)):
+        study = make_study(n_laps=laps, points_per_lap=per_lap)
+        n = len(study[0])
+        with tempfile.TemporaryDirectory() as tmp:
+            t0 = time.perf_counter()
+            path = write_report(*study, Path(tmp) / "html", png=False)
+            t_html = time.perf_counter() - t0
+            size = path.stat().st_size
+            t0 = time.perf_counter()
+            write_report(*study, Path(tmp) / "full", png=True)
+            t_full = time.perf_counter() - t0
+
+            pp = check_per_point(study[0])
+            c = check_contributions(study[1], name="c")
+            cn = check_contributions(study[2], name="cn")
+            s = check_summary(study[3])
+            figs = doc._figures(pp, c, cn, s["contour_z"])
+            t0 = time.perf_counter()
+            peer_size = 0
+            for fid, spec in figs.items():
+                out = Path(tmp) / f"peer_{fid}.html"
+                spec.plotly().write_html(out, include_plotlyjs=True)
+                peer_size += out.stat().st_size
+            t_peer = time.perf_counter() - t0
+        print(
+            f"{n:>7} points: HTML only {t_html:5.2f} s ({size / 1e6:4.1f} MB) | HTML + 8 PNG "
+            f"{t_full:5.2f} s | peer (write_html per figure) {t_peer:5.2f} s, "
+            f"{peer_size / 1e6:5.1f} MB in 8 files — size ratio {peer_size / size:4.1f}x, "
+            f"time ratio {t_peer / t_html:4.2f}x"
+        )
+
+
+if __name__ == "__main__":
+    main()

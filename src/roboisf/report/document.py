@@ -1,0 +1,480 @@
+"""Assemble and write the study report (``report.html`` + ``figures/*.png``) and the index page."""
+
+from __future__ import annotations
+
+import html as _html
+import json
+import os
+import re
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+import plotly.graph_objects as go
+import plotly.io as pio
+
+from roboisf.errors import InputError
+from roboisf.io.atomic import atomic_write
+from roboisf.progress import Progress, task
+from roboisf.report import aggregate as agg
+from roboisf.report import interactive as ia
+from roboisf.report import page as pg
+from roboisf.report import static as st
+from roboisf.report.schema import FACTORS, check_contributions, check_per_point, check_summary
+from roboisf.report.style import FACTOR_LABELS
+
+__all__ = ["FIGURES", "read_headline", "write_index", "write_report"]
+
+#: Plot ids of the report, in page order; each is ``<div id="fig-<id>">`` in the HTML and
+#: ``figures/<id>.png``.
+FIGURES: tuple[str, ...] = (
+    "contributions",
+    "forces",
+    "deviation_depth",
+    "deviation_map",
+    "factors_depth",
+    "vjm_path",
+    "vjm_polar",
+    "thickness",
+)
+
+_PLOTLY_CONFIG = {
+    "displaylogo": False,
+    "responsive": True,
+    "modeBarButtonsToRemove": ["lasso2d", "select2d"],
+    "toImageButtonOptions": {"format": "png", "scale": 2},
+}
+
+
+@dataclass(frozen=True)
+class _Figure:
+    id: str
+    title: str
+    caption: str
+    plotly: Callable[[], go.Figure]
+    png: Callable[[], Any]
+
+
+def _figures(
+    pp: pd.DataFrame, contrib: pd.DataFrame, contrib_n: pd.DataFrame, contour_z: float
+) -> dict[str, _Figure]:
+    has_truth = any(f"truth_{f}_dn" in pp.columns for f in FACTORS)
+    has_meas = "thickness_measured" in pp.columns
+    polar_fig, polar_caption = ia.vjm_polar_figure(pp, contour_z)
+    band = "Lines are lap means, bands span the 5th–95th percentile of each lap."
+    specs = [
+        _Figure(
+            "contributions",
+            "Contribution of each factor",
+            "Solid bars: per-axis vectors (the paper's way, eq. 6); hatched bars: the same factors "
+            "projected on the surface normal (what a scan can observe).",
+            lambda: ia.contributions_figure(contrib, contrib_n),
+            lambda: st.contributions_png(contrib, contrib_n),
+        ),
+        _Figure(
+            "forces",
+            "Forming force, CNC vs robot",
+            f"Forces at the tool tip in work axes. {band}",
+            lambda: ia.forces_figure(pp),
+            lambda: st.forces_png(pp),
+        ),
+        _Figure(
+            "deviation_depth",
+            "Measured deviation vs depth",
+            "Deviation of each formed part from the nominal, per work axis and along the surface "
+            f"normal (positive towards the tool). {band} On an axisymmetric part δx and δy "
+            "change sign "
+            "around each lap, so their band is wide and their mean near zero.",
+            lambda: ia.deviation_depth_figure(pp),
+            lambda: st.deviation_depth_png(pp),
+        ),
+        _Figure(
+            "deviation_map",
+            "Deviation map (part unrolled)",
+            "Normal deviation δn binned by angle around the part (3° bins) and lap; both "
+            "maps share "
+            "one colour scale; blank cells are scan holes.",
+            lambda: ia.deviation_map_figure(pp),
+            lambda: st.deviation_map_png(pp),
+        ),
+        _Figure(
+            "factors_depth",
+            "Each factor along the depth",
+            "Normal component of each recovered contribution. "
+            + ("Dashed: the ground truth of the virtual cell. " if has_truth else "")
+            + band,
+            lambda: ia.factors_depth_figure(pp),
+            lambda: st.factors_depth_png(pp),
+        ),
+        _Figure(
+            "vjm_path",
+            "Robot compliance: experiment vs VJM along the path",
+            "δc_exp = δ_robot − δs − δt − δth from the scans, against the Virtual Joint Model "
+            f"prediction k_c·W, per work axis, and their difference Δ. {band}",
+            lambda: ia.vjm_path_figure(pp),
+            lambda: st.vjm_path_png(pp),
+        ),
+        _Figure(
+            "vjm_polar",
+            "Robot compliance around one contour",
+            polar_caption + " Resultant magnitudes; angle measured from the work x axis.",
+            lambda: polar_fig,
+            lambda: st.vjm_polar_png(pp, contour_z),
+        ),
+        _Figure(
+            "thickness",
+            "Wall thickness",
+            "Sine law t = t₀·cos α (dashed)"
+            + (
+                " and the measured thickness (lap mean, 5–95 % band)."
+                if has_meas
+                else "; no measured thickness was given."
+            ),
+            lambda: ia.thickness_figure(pp),
+            lambda: st.thickness_png(pp),
+        ),
+    ]
+    return {s.id: s for s in specs}
+
+
+def _figure_html(spec: _Figure, fig: go.Figure, first: bool) -> str:
+    div = pio.to_html(
+        fig,
+        full_html=False,
+        include_plotlyjs=True if first else False,
+        include_mathjax=False,
+        div_id=f"fig-{spec.id}",
+        config=_PLOTLY_CONFIG,
+        default_height=f"{int(fig.layout.height or 420)}px",
+        default_width="100%",
+    )
+    return (
+        f'<figure id="figure-{spec.id}"><h3>{pg.esc(spec.title)}</h3><div class="plot">{div}</div>'
+        f"<figcaption>{pg.esc(spec.caption)}</figcaption></figure>"
+    )
+
+
+def _headline_dict(
+    h: agg.Headline, summary: Mapping[str, Any], contrib: pd.DataFrame
+) -> dict[str, Any]:
+    ranked = sorted(FACTORS, key=lambda f: -float(contrib.loc[f, "share_percent"]))
+    part = summary.get("part") or {}
+    robot = summary.get("robot") or {}
+    return {
+        "study": str(summary["study"]),
+        "part": str(part.get("kind", "")) if isinstance(part, Mapping) else str(part),
+        "robot": str(robot.get("preset", "")) if isinstance(robot, Mapping) else str(robot),
+        "R_m_total_mm": h.R_m_total,
+        "robot_share_percent": h.robot_share_percent,
+        "springback_share_percent": h.springback_share_percent,
+        "R_m_total_normal_mm": h.R_m_total_normal,
+        "robot_share_percent_normal": h.robot_share_percent_normal,
+        "largest_factor": ranked[0],
+        "shares_percent": {f: float(contrib.loc[f, "share_percent"]) for f in FACTORS},
+        "n_warnings": len(summary["warnings"]),
+    }
+
+
+def _cards(h: agg.Headline, summary: Mapping[str, Any]) -> str:
+    vjm = summary.get("vjm_vs_experiment") or {}
+    resultant = vjm.get("resultant") if isinstance(vjm, Mapping) else None
+    cards = [
+        (
+            "",
+            "Resultant mean deviation R<sub>m</sub>",
+            f"{h.R_m_total:.3f}<small>mm</small>",
+            f"normal projection: {h.R_m_total_normal:.3f} mm",
+        ),
+        (
+            " accent",
+            "Robot compliance share",
+            f"{h.robot_share_percent:.1f}<small>%</small>",
+            f"R<sub>m</sub> {h.robot_R_m:.3f} mm · normal projection: "
+            f"{h.robot_share_percent_normal:.1f} %",
+        ),
+        (
+            "",
+            "Springback share",
+            f"{h.springback_share_percent:.1f}<small>%</small>",
+            "CNC part taken as rigid",
+        ),
+    ]
+    if resultant is not None:
+        cards.append(
+            (
+                "",
+                "VJM − experiment |Δ|",
+                f"{float(resultant):.3f}<small>mm</small>",
+                "mean Δ resultant, see the robot section",
+            )
+        )
+    return (
+        '<div class="cards">'
+        + "".join(
+            f'<div class="card{cls}"><div class="label">{label}</div><div '
+            f'class="value">{value}</div>'
+            f'<div class="note">{note}</div></div>'
+            for cls, label, value, note in cards
+        )
+        + "</div>"
+    )
+
+
+def _verdict(contrib: pd.DataFrame) -> str:
+    ranked = sorted(FACTORS, key=lambda f: -float(contrib.loc[f, "share_percent"]))
+    parts = [
+        f"<b>{FACTOR_LABELS[f].lower()}</b> ({contrib.loc[f, 'share_percent']:.1f} %)"
+        for f in ranked
+    ]
+    return (
+        f'<p class="verdict">Largest contributor: {parts[0]}, then {parts[1]}, {parts[2]} '
+        f"and {parts[3]} "
+        "(shares of the per-axis resultant mean deviation).</p>"
+    )
+
+
+def _section(sid: str, title: str, lead: str, content: str) -> str:
+    return (
+        f'<section id="{sid}"><h2>{pg.esc(title)}</h2><p class="lead">{lead}</p>{content}</section>'
+    )
+
+
+def write_report(
+    per_point: pd.DataFrame,
+    contributions: pd.DataFrame,
+    contributions_normal: pd.DataFrame,
+    summary: Mapping[str, Any],
+    out_dir: str | Path,
+    *,
+    png: bool = True,
+    progress: Progress | None = None,
+) -> Path:
+    """Write ``out_dir/report.html`` (self-contained, offline) and ``out_dir/figures/<id>.png``.
+
+    Parameters
+    ----------
+    per_point : DataFrame
+        One row per toolpath point, columns :data:`roboisf.report.REQUIRED_COLUMNS` (+ optional
+        :data:`~roboisf.report.OPTIONAL_COLUMNS`); mm, deg, N, N·m, s.
+    contributions, contributions_normal : DataFrame
+        The contribution table (paper's Table 5) per-axis and projected on the surface normal:
+        columns ``factor, mean_abs_dx, mean_abs_dy, mean_abs_dz, R_m, share_percent``, rows
+        ``tool, tool_holder, springback, robot_compliance, total`` (mm, %).
+    summary : dict
+        Must have ``study``; uses ``part, robot, tool, units, compliance_stats,
+        force_contributions, vjm_vs_experiment, contour_z`` (mm, default −11) and ``warnings``.
+    out_dir
+        Created if missing. Files are written atomically; other files in it are left alone.
+    png
+        Also write the static matplotlib figures (:data:`FIGURES`, one PNG each).
+    progress
+        Optional :class:`roboisf.progress.Progress`.
+
+    Returns
+    -------
+    Path of ``report.html``.
+
+    Raises
+    ------
+    InputError
+        A required column, row or key is missing or malformed (named in the message), before any
+        file is written.
+    """
+    pp = check_per_point(per_point)
+    contrib = check_contributions(contributions, name="contributions")
+    contrib_n = check_contributions(contributions_normal, name="contributions_normal")
+    summ = check_summary(summary)
+    out = Path(out_dir)
+    figs = _figures(pp, contrib, contrib_n, summ["contour_z"])
+
+    html_parts: dict[str, str] = {}
+    with task(progress, "report", total=len(FIGURES) * (2 if png else 1) + 1) as advance:
+        for k, fid in enumerate(FIGURES):
+            html_parts[fid] = _figure_html(figs[fid], figs[fid].plotly(), first=k == 0)
+            advance(1)
+        if png:
+            out.joinpath("figures").mkdir(parents=True, exist_ok=True)
+            for fid in FIGURES:
+                st.save_png(figs[fid].png(), out / "figures" / f"{fid}.png")
+                advance(1)
+
+        h = agg.headline(contrib, contrib_n)
+        head = _headline_dict(h, summ, contrib)
+        body = [_cards(h, summ), _verdict(contrib), pg.warnings_box(summ["warnings"])]
+        toc = [
+            ("contributions", "Contributions"),
+            ("forces", "Forces"),
+            ("deviations", "Deviations"),
+            ("factors", "Factors"),
+            ("robot", "Robot model"),
+            ("thickness", "Thickness"),
+            ("study", "Study"),
+        ]
+        body.insert(
+            0, '<nav class="toc">' + "".join(f'<a href="#{a}">{t}</a>' for a, t in toc) + "</nav>"
+        )
+        body.append(
+            _section(
+                "contributions",
+                "Contributions (Table 5)",
+                "δR = δc + δs + δt + δth. Per factor: mean absolute deviation per work "
+                "axis, the resultant "
+                "R<sub>m</sub> = √(mean|δx|² + mean|δy|² + mean|δz|²) and its share. Two versions: "
+                "<b>per-axis vectors</b> (the paper's way) and <b>projected on the surface "
+                "normal</b> "
+                "(the only component a scan of the formed surface can observe).",
+                '<div class="tables">'
+                + pg.contribution_table(contrib, "Per-axis vectors", "the paper's way")
+                + pg.contribution_table(
+                    contrib_n, "Projected on the surface normal", "what a scan observes"
+                )
+                + "</div>"
+                + html_parts["contributions"],
+            )
+        )
+        body.append(
+            _section(
+                "forces",
+                "Forming forces",
+                "Wrenches brought from the sensors to the tool tip, CNC vs robot.",
+                html_parts["forces"],
+            )
+        )
+        body.append(
+            _section(
+                "deviations",
+                "Measured deviations",
+                "Scan of each formed part against the nominal surface, per toolpath point.",
+                html_parts["deviation_depth"] + html_parts["deviation_map"],
+            )
+        )
+        body.append(
+            _section(
+                "factors",
+                "Decomposition along the depth",
+                "Tool and holder from their compliances and the measured wrench; "
+                "springback = CNC deviation − "
+                "tool; robot compliance = robot deviation − springback − tool − holder.",
+                html_parts["factors_depth"],
+            )
+        )
+        robot_tables = []
+        if isinstance(summ.get("vjm_vs_experiment"), Mapping):
+            robot_tables.append(pg.vjm_table(summ["vjm_vs_experiment"]))
+        if isinstance(summ.get("force_contributions"), Mapping) and summ["force_contributions"]:
+            robot_tables.append(pg.force_contribution_table(summ["force_contributions"]))
+        if isinstance(summ.get("compliance_stats"), Mapping) and summ["compliance_stats"]:
+            robot_tables.append(pg.compliance_table(summ["compliance_stats"]))
+        body.append(
+            _section(
+                "robot",
+                "Robot compliance: experiment vs Virtual Joint Model",
+                "δc<sub>VJM</sub> = k<sub>c</sub>·W with k<sub>c</sub> = J<sub>θ</sub> "
+                "K<sub>θ</sub><sup>−1</sup> "
+                "J<sub>θ</sub><sup>T</sup> along the path; Δ = δc<sub>exp</sub> − "
+                "δc<sub>VJM</sub>.",
+                html_parts["vjm_path"] + html_parts["vjm_polar"] + "".join(robot_tables),
+            )
+        )
+        body.append(
+            _section(
+                "thickness",
+                "Wall thickness",
+                "Sine law and, when given, measurement.",
+                html_parts["thickness"],
+            )
+        )
+        items = [(k, summ.get(k)) for k in ("study", "part", "robot", "tool", "units")]
+        items.append(("contour for the polar plot", f"z = {summ['contour_z']:g} mm"))
+        items.append(
+            (
+                "toolpath",
+                f"{len(pp)} points, {pp['lap'].nunique()} laps, depth "
+                f"{pp['depth'].min():.2f}–{pp['depth'].max():.2f} mm",
+            )
+        )
+        if png:
+            items.append(("static figures", ", ".join(f"figures/{f}.png" for f in FIGURES)))
+        body.append(_section("study", "Study", "What was analysed.", pg.kv_table(items)))
+
+        part = summ.get("part")
+        kind = part.get("kind") if isinstance(part, Mapping) else part
+        subtitle = pg.esc(" · ".join(str(x) for x in (kind, head["robot"]) if x))
+        document = pg.page(
+            f"roboisf report — {summ['study']}", "".join(body), headline=head, subtitle=subtitle
+        )
+        out.mkdir(parents=True, exist_ok=True)
+        path = out / "report.html"
+        with atomic_write(path, "w") as fh:
+            fh.write(document)
+        advance(1)
+    return path
+
+
+_META_RE = re.compile(r'<meta name="' + pg.HEADLINE_META + r'" content="([^"]*)">')
+
+
+def read_headline(report: str | Path) -> dict[str, Any]:
+    """The headline numbers a report written by :func:`write_report` carries in its ``<head>``."""
+    path = Path(report)
+    if path.is_dir():
+        path = path / "report.html"
+    try:
+        with open(path, encoding="utf-8") as fh:
+            head = fh.read(65536)
+    except OSError as exc:
+        raise InputError(f"cannot read the report ({exc.strerror})", file=path) from None
+    m = _META_RE.search(head)
+    if not m:
+        raise InputError("not a roboisf report (no headline in its <head>)", file=path)
+    result: dict[str, Any] = json.loads(_html.unescape(m.group(1)))
+    return result
+
+
+def write_index(entries: Sequence[str | Path], out_path: str | Path) -> Path:
+    """Write an index page linking several study reports, with their headline numbers.
+
+    Parameters
+    ----------
+    entries
+        Paths of ``report.html`` files written by :func:`write_report` (or their folders).
+        Links are written relative to the index, so the folder can be moved as a whole.
+    out_path
+        The index HTML file (written atomically).
+    """
+    if not entries:
+        raise InputError("no reports to index (expected at least one report.html)", field="entries")
+    out = Path(out_path)
+    rows = []
+    for entry in entries:
+        path = Path(entry)
+        path = path / "report.html" if path.is_dir() else path
+        h = read_headline(path)
+        href = os.path.relpath(path.resolve(), out.resolve().parent).replace(os.sep, "/")
+        warn = h.get("n_warnings", 0)
+        rows.append(
+            f'<tr><td><a href="{pg.esc(href)}">{pg.esc(h["study"])}</a></td>'
+            f'<td class="t">{pg.esc(h.get("part", ""))}</td>'
+            f'<td class="t">{pg.esc(h.get("robot", ""))}</td>'
+            f"<td>{pg.fmt(h['R_m_total_mm'], 3)}</td>"
+            f"<td>{pg.fmt(h['robot_share_percent'], 1)}</td>"
+            f"<td>{pg.fmt(h['springback_share_percent'], 1)}</td>"
+            f'<td class="t">{pg.share_bar(h.get("shares_percent") or {})}</td><td>{warn}</td></tr>'
+        )
+    table = (
+        '<table><thead><tr><th>study</th><th class="t">part</th><th class="t">robot</th>'
+        "<th>R<sub>m</sub> (mm)</th><th>robot share (%)</th><th>springback share (%)</th>"
+        '<th class="t">shares</th><th>warnings</th>'
+        f"</tr></thead><tbody>{''.join(rows)}</tbody></table>"
+    )
+    body = (
+        '<section><h2>Studies</h2><p class="lead">Each row links to a self-contained report. '
+        "R<sub>m</sub> and shares are the per-axis (paper's) version; each report also gives them "
+        f"projected on the surface normal.</p>{table}{pg.share_legend()}</section>"
+    )
+    document = pg.page("roboisf — study reports", body, subtitle=f"{len(rows)} studies")
+    with atomic_write(out, "w") as fh:
+        fh.write(document)
+    return out

@@ -1,0 +1,410 @@
+"""Interactive figures (plotly) of the HTML report. One function per figure, each taking the checked
+per-point table (and what else it needs) and returning a ``plotly.graph_objects.Figure``.
+
+Every x-axis that can be is the depth below the sheet (mm), so the figures read together; lap
+means are drawn as lines with a 5–95 % band showing the spread around the lap.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import plotly.graph_objects as go
+from plotly.subplots import make_subplots
+
+from roboisf.report import aggregate as agg
+from roboisf.report.schema import FACTORS, RUNS
+from roboisf.report.style import (
+    AXIS_LABELS,
+    FACTOR_COLORS,
+    FACTOR_LABELS,
+    RUN_COLORS,
+    RUN_LABELS,
+    SERIES_COLORS,
+    plotly_layout,
+)
+
+__all__ = [
+    "contributions_figure",
+    "deviation_depth_figure",
+    "deviation_map_figure",
+    "factors_depth_figure",
+    "forces_figure",
+    "thickness_figure",
+    "vjm_path_figure",
+    "vjm_polar_figure",
+]
+
+
+def rgba(color: str, alpha: float) -> str:
+    """``#RRGGBB`` → ``rgba(r,g,b,alpha)``."""
+    c = color.lstrip("#")
+    r, g, b = (int(c[i : i + 2], 16) for i in (0, 2, 4))
+    return f"rgba({r},{g},{b},{alpha})"
+
+
+def _f(values: Any) -> np.ndarray:
+    """Float32 keeps the embedded JSON small; report precision is well under 1e-7 relative."""
+    return np.asarray(values, dtype=np.float32)
+
+
+def _line_with_band(
+    fig: go.Figure,
+    prof: pd.DataFrame,
+    col: str,
+    *,
+    name: str,
+    color: str,
+    row: int | None = None,
+    col_: int | None = None,
+    showlegend: bool = True,
+    dash: str | None = None,
+    band: bool = True,
+) -> None:
+    kw: dict[str, Any] = {} if row is None else {"row": row, "col": col_}
+    x = _f(prof["depth"])
+    group = name
+    if band:
+        for edge, fill in (("hi", None), ("lo", "tonexty")):
+            fig.add_trace(
+                go.Scatter(
+                    x=x,
+                    y=_f(prof[f"{col}_{edge}"]),
+                    mode="lines",
+                    line={"width": 0},
+                    fill=fill,
+                    fillcolor=rgba(color, 0.18) if fill else None,
+                    hoverinfo="skip",
+                    showlegend=False,
+                    legendgroup=group,
+                ),
+                **kw,
+            )
+    fig.add_trace(
+        go.Scatter(
+            x=x,
+            y=_f(prof[col]),
+            mode="lines",
+            name=name,
+            legendgroup=group,
+            showlegend=showlegend,
+            line={"color": color, "width": 2, "dash": dash},
+            hovertemplate="%{y:.4f}",
+        ),
+        **kw,
+    )
+
+
+def _style_axes(fig: go.Figure, layout: dict[str, Any]) -> None:
+    fig.update_xaxes(**{k: v for k, v in layout["xaxis"].items() if k != "title"})
+    fig.update_yaxes(**{k: v for k, v in layout["yaxis"].items() if k != "title"})
+
+
+def _subplots(rows: int, cols: int, titles: list[str], height: int, **kw: Any) -> go.Figure:
+    """Subplots in the report style, legend above the subplot titles, x titles on the bottom row."""
+    top, bottom = 96, 56
+    fig = make_subplots(
+        rows=rows,
+        cols=cols,
+        subplot_titles=titles,
+        horizontal_spacing=0.09,
+        vertical_spacing=min(0.34, 80.0 / (height - top - bottom)) if rows > 1 else 0.0,
+        **kw,
+    )
+    layout = plotly_layout(height=height)
+    layout["margin"] = {"l": 64, "r": 24, "t": top, "b": bottom}
+    layout["legend"] = {**layout["legend"], "y": 1.0 + 34.0 / (height - top - bottom)}
+    fig.update_layout({k: v for k, v in layout.items() if k not in ("xaxis", "yaxis")})
+    _style_axes(fig, layout)
+    fig.update_annotations(font={"size": 13})
+    return fig
+
+
+def _xtitle_bottom(fig: go.Figure, rows: int, cols: int, text: str) -> None:
+    for c in range(1, cols + 1):
+        fig.update_xaxes(title_text=text, row=rows, col=c)
+
+
+def forces_figure(per_point: pd.DataFrame) -> go.Figure:
+    """Axial force Fz and in-plane resultant √(Fx²+Fy²) vs depth, CNC vs robot (lap means, N)."""
+    prof = agg.force_profile(per_point)
+    fig = _subplots(
+        1, 2, ["Axial force F<sub>z</sub>", "In-plane force √(F<sub>x</sub>²+F<sub>y</sub>²)"], 400
+    )
+    for j, comp in enumerate(("Fz", "Fxy"), start=1):
+        for run in RUNS:
+            _line_with_band(
+                fig,
+                prof,
+                f"{run}_{comp}",
+                name=RUN_LABELS[run],
+                color=RUN_COLORS[run],
+                row=1,
+                col_=j,
+                showlegend=j == 1,
+            )
+        fig.update_xaxes(title_text="depth (mm)", row=1, col=j)
+        fig.update_yaxes(title_text="force (N)", row=1, col=j)
+    return fig
+
+
+def deviation_depth_figure(per_point: pd.DataFrame) -> go.Figure:
+    """Measured deviation per axis vs depth, CNC vs robot part (lap mean and 5–95 % band, mm)."""
+    cols = [f"{r}_{a}" for r in RUNS for a in ("dx", "dy", "dz", "dn")]
+    prof = agg.lap_profile(per_point, cols)
+    axes = ("dx", "dy", "dz", "dn")
+    fig = _subplots(2, 2, [AXIS_LABELS[a] for a in axes], 660, shared_xaxes=True)
+    for k, a in enumerate(axes):
+        row, col = divmod(k, 2)
+        for run in RUNS:
+            _line_with_band(
+                fig,
+                prof,
+                f"{run}_{a}",
+                name=f"{RUN_LABELS[run]} part",
+                color=RUN_COLORS[run],
+                row=row + 1,
+                col_=col + 1,
+                showlegend=k == 0,
+            )
+        fig.update_yaxes(title_text="deviation (mm)", row=row + 1, col=col + 1)
+    _xtitle_bottom(fig, 2, 2, "depth (mm)")
+    return fig
+
+
+def deviation_map_figure(per_point: pd.DataFrame) -> go.Figure:
+    """Normal deviation of the CNC and robot parts, unrolled: angle around the part × depth (mm)."""
+    maps = {run: agg.unrolled_map(per_point, f"{run}_dn") for run in RUNS}
+    finite = np.concatenate([m[2][np.isfinite(m[2])] for m in maps.values()])
+    vmax = float(np.percentile(np.abs(finite), 99)) if finite.size else 1.0
+    fig = _subplots(1, 2, [f"{RUN_LABELS[r]} part" for r in RUNS], 520, shared_yaxes=True)
+    for j, run in enumerate(RUNS, start=1):
+        angle, depth, grid = maps[run]
+        fig.add_trace(
+            go.Heatmap(
+                x=_f(angle),
+                y=_f(depth),
+                z=_f(grid),
+                zmin=-vmax,
+                zmax=vmax,
+                zmid=0.0,
+                colorscale="RdBu_r",
+                showscale=j == 2,
+                coloraxis=None,
+                colorbar={"title": {"text": "δn (mm)", "side": "right"}, "thickness": 14},
+                hovertemplate=(
+                    "angle %{x:.0f}°<br>depth %{y:.1f} mm<br>δn %{z:.3f} mm<extra></extra>"
+                ),
+                hoverongaps=False,
+            ),
+            row=1,
+            col=j,
+        )
+        fig.update_xaxes(
+            title_text="angle around the part (deg)", range=[0, 360], dtick=60, row=1, col=j
+        )
+    fig.update_yaxes(title_text="depth (mm)", autorange="reversed", row=1, col=1)
+    fig.update_yaxes(autorange="reversed", row=1, col=2)
+    fig.update_layout(hovermode="closest", plot_bgcolor="#F5F7FA")
+    return fig
+
+
+def factors_depth_figure(per_point: pd.DataFrame) -> go.Figure:
+    """Each contribution's normal component vs depth (lap mean, band), truth dashed when known."""
+    cols = [f"{f}_dn" for f in FACTORS]
+    truth = [f"truth_{f}_dn" for f in FACTORS if f"truth_{f}_dn" in per_point.columns]
+    prof = agg.lap_profile(per_point, cols + truth)
+    fig = _subplots(2, 2, [FACTOR_LABELS[f] for f in FACTORS], 660, shared_xaxes=True)
+    for k, f in enumerate(FACTORS):
+        row, col = divmod(k, 2)
+        _line_with_band(
+            fig,
+            prof,
+            f"{f}_dn",
+            name=f"{FACTOR_LABELS[f]} (recovered)",
+            color=FACTOR_COLORS[f],
+            row=row + 1,
+            col_=col + 1,
+        )
+        if f"truth_{f}_dn" in truth:
+            _line_with_band(
+                fig,
+                prof,
+                f"truth_{f}_dn",
+                name="ground truth",
+                color=SERIES_COLORS["truth"],
+                row=row + 1,
+                col_=col + 1,
+                dash="dash",
+                band=False,
+                showlegend=k == 0,
+            )
+        fig.update_yaxes(title_text="δn (mm)", row=row + 1, col=col + 1)
+    _xtitle_bottom(fig, 2, 2, "depth (mm)")
+    return fig
+
+
+def vjm_path_figure(per_point: pd.DataFrame) -> go.Figure:
+    """Robot compliance error along the path, per work axis: experiment δc_exp vs VJM prediction
+    and their difference Δ (lap means vs depth; bands: the variation around each lap)."""
+    axes = ("dx", "dy", "dz")
+    cols = [f"{p}_{a}" for p in ("robot_compliance", "vjm", "delta") for a in axes]
+    prof = agg.lap_profile(per_point, cols)
+    fig = _subplots(
+        3, 1, ["δc<sub>x</sub>", "δc<sub>y</sub>", "δc<sub>z</sub>"], 760, shared_xaxes=True
+    )
+    for k, a in enumerate(axes, start=1):
+        for prefix, name, color, dash, band in (
+            (
+                "robot_compliance",
+                "experiment δc<sub>exp</sub>",
+                SERIES_COLORS["experiment"],
+                None,
+                True,
+            ),
+            ("vjm", "VJM prediction δc<sub>VJM</sub>", SERIES_COLORS["vjm"], "dash", True),
+            (
+                "delta",
+                "Δ = δc<sub>exp</sub> − δc<sub>VJM</sub>",
+                SERIES_COLORS["delta"],
+                None,
+                False,
+            ),
+        ):
+            _line_with_band(
+                fig,
+                prof,
+                f"{prefix}_{a}",
+                name=name,
+                color=color,
+                row=k,
+                col_=1,
+                showlegend=k == 1,
+                dash=dash,
+                band=band,
+            )
+        fig.update_yaxes(title_text="mm", row=k, col=1)
+    fig.update_xaxes(title_text="depth (mm)", row=3, col=1)
+    return fig
+
+
+def vjm_polar_figure(per_point: pd.DataFrame, contour_z: float) -> tuple[go.Figure, str]:
+    """Resultant robot deflection |δc| around the contour nearest ``contour_z``: experiment vs VJM.
+
+    Returns the figure and its caption (which lap, its height, and any substitution).
+    """
+    c = agg.contour(per_point, contour_z)
+    fig = go.Figure(layout=plotly_layout(height=480, hovermode="closest"))
+    series = (
+        (
+            "experiment |δc<sub>exp</sub>|",
+            c.experiment,
+            SERIES_COLORS["experiment"],
+            2.2,
+        ),
+        ("VJM |δc<sub>VJM</sub>|", c.vjm, SERIES_COLORS["vjm"], 1.8),
+        (
+            "|Δ| = |δc<sub>exp</sub> − δc<sub>VJM</sub>|",
+            c.delta,
+            SERIES_COLORS["delta"],
+            1.6,
+        ),
+    )
+    for name, r, color, width in series:
+        fig.add_trace(
+            go.Scatterpolar(
+                r=_f(r),
+                theta=_f(c.angle_deg),
+                mode="lines",
+                name=name,
+                line={"color": color, "width": width},
+                hovertemplate="%{theta:.0f}°: %{r:.3f} mm<extra></extra>",
+            )
+        )
+    fig.update_layout(
+        polar={
+            "bgcolor": "white",
+            "radialaxis": {
+                "gridcolor": "#E4E7EB",
+                "angle": 90,
+                "tickangle": 90,
+                "ticksuffix": " mm",
+            },
+            "angularaxis": {"direction": "counterclockwise", "rotation": 0, "gridcolor": "#E4E7EB"},
+        },
+        margin={"l": 40, "r": 40, "t": 60, "b": 40},
+    )
+    caption = (
+        f"Contour at z = {c.z:.2f} mm (lap {c.lap}), nearest the requested z = {contour_z:.2f} mm."
+    )
+    if c.note:
+        caption += " " + c.note + "."
+    return fig, caption
+
+
+def contributions_figure(
+    contributions: pd.DataFrame, contributions_normal: pd.DataFrame
+) -> go.Figure:
+    """Share (%) and R_m (mm) of each factor, both ways: per-axis vectors and normal projection."""
+    fig = _subplots(1, 2, ["Share of the resultant mean deviation (%)", "R<sub>m</sub> (mm)"], 420)
+    labels = [FACTOR_LABELS[f] for f in FACTORS]
+    colors = [FACTOR_COLORS[f] for f in FACTORS]
+    versions = (
+        ("per-axis vectors (paper)", contributions, ""),
+        ("normal projection (scan)", contributions_normal, "/"),
+    )
+    for j, col in enumerate(("share_percent", "R_m"), start=1):
+        for name, table, pattern in versions:
+            values = table.loc[list(FACTORS), col].to_numpy(dtype=float)
+            fig.add_trace(
+                go.Bar(
+                    x=labels,
+                    y=values,
+                    name=name,
+                    legendgroup=name,
+                    showlegend=j == 1,
+                    marker={
+                        "color": colors if not pattern else [rgba(c, 0.45) for c in colors],
+                        "line": {"color": colors, "width": 1.5},
+                        "pattern": {"shape": pattern, "fgcolor": "#FFFFFF" if pattern else None},
+                    },
+                    text=[f"{v:.1f}" if col == "share_percent" else f"{v:.3f}" for v in values],
+                    textposition="outside",
+                    cliponaxis=False,
+                    hovertemplate="%{x}: %{y:.4g}<extra>" + name + "</extra>",
+                ),
+                row=1,
+                col=j,
+            )
+    fig.update_layout(barmode="group", hovermode="closest", bargap=0.25)
+    fig.update_yaxes(title_text="share (%)", row=1, col=1)
+    fig.update_yaxes(title_text="R_m (mm)", row=1, col=2)
+    return fig
+
+
+def thickness_figure(per_point: pd.DataFrame) -> go.Figure:
+    """Wall thickness vs depth: sine law t₀·cos α, and the measured thickness when given (mm)."""
+    cols = ["thickness_predicted"]
+    has_measured = "thickness_measured" in per_point.columns
+    if has_measured:
+        cols.append("thickness_measured")
+    prof = agg.lap_profile(per_point, cols)
+    fig = go.Figure(layout=plotly_layout(height=380))
+    _line_with_band(
+        fig,
+        prof,
+        "thickness_predicted",
+        name="predicted (sine law)",
+        color=SERIES_COLORS["predicted"],
+        band=False,
+        dash="dash",
+    )
+    if has_measured:
+        _line_with_band(
+            fig, prof, "thickness_measured", name="measured", color=SERIES_COLORS["measured"]
+        )
+    fig.update_xaxes(title_text="depth (mm)")
+    fig.update_yaxes(title_text="wall thickness (mm)", rangemode="tozero")
+    return fig

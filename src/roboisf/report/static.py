@@ -1,0 +1,266 @@
+"""Static figures (matplotlib, Agg, no pyplot global state) — the report's figures for papers.
+
+They draw the same reductions (:mod:`roboisf.report.aggregate`) with the same palette
+(:mod:`roboisf.report.style`) as the interactive ones.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, cast
+
+import matplotlib as mpl
+import numpy as np
+import pandas as pd
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+
+from roboisf.io.atomic import atomic_path
+from roboisf.report import aggregate as agg
+from roboisf.report.schema import FACTORS, RUNS
+from roboisf.report.style import (
+    AXIS_LABELS,
+    FACTOR_COLORS,
+    FACTOR_LABELS,
+    RUN_COLORS,
+    RUN_LABELS,
+    SERIES_COLORS,
+    mpl_rc,
+)
+
+__all__ = [
+    "contributions_png",
+    "deviation_depth_png",
+    "deviation_map_png",
+    "factors_depth_png",
+    "forces_png",
+    "save_png",
+    "thickness_png",
+    "vjm_path_png",
+    "vjm_polar_png",
+]
+
+
+def save_png(fig: Figure, path: Path) -> Path:
+    """Write ``fig`` atomically as PNG (200 dpi)."""
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, format="png", dpi=200, facecolor="white")
+    return path
+
+
+def _style() -> Any:
+    """``rc_context`` with the report rcParams (cast: matplotlib stubs want literal keys)."""
+    return mpl.rc_context(cast(Any, mpl_rc()))
+
+
+def _figure(width: float, height: float) -> Figure:
+    return Figure(figsize=(width, height), layout="constrained")
+
+
+def _line_band(
+    ax: Axes, prof: pd.DataFrame, col: str, color: str, label: str, band: bool = True, **kw: object
+) -> None:
+    x = prof["depth"].to_numpy()
+    if band:
+        ax.fill_between(
+            x, prof[f"{col}_lo"], prof[f"{col}_hi"], color=color, alpha=0.18, linewidth=0
+        )
+    ax.plot(x, prof[col].to_numpy(), color=color, label=label, linewidth=1.4, **kw)  # type: ignore[arg-type]
+
+
+def forces_png(per_point: pd.DataFrame) -> Figure:
+    prof = agg.force_profile(per_point)
+    with _style():
+        fig = _figure(7.0, 2.8)
+        axes = fig.subplots(1, 2)
+        for ax, comp, title in zip(
+            axes,
+            ("Fz", "Fxy"),
+            ("Axial force $F_z$", "In-plane force $\\sqrt{F_x^2+F_y^2}$"),
+            strict=True,
+        ):
+            for run in RUNS:
+                _line_band(ax, prof, f"{run}_{comp}", RUN_COLORS[run], RUN_LABELS[run])
+            ax.set(title=title, xlabel="depth (mm)", ylabel="force (N)")
+        axes[0].legend()
+    return fig
+
+
+def deviation_depth_png(per_point: pd.DataFrame) -> Figure:
+    axes_ = ("dx", "dy", "dz", "dn")
+    prof = agg.lap_profile(per_point, [f"{r}_{a}" for r in RUNS for a in axes_])
+    with _style():
+        fig = _figure(7.0, 5.0)
+        axes = fig.subplots(2, 2, sharex=True)
+        for ax, a in zip(axes.flat, axes_, strict=True):
+            for run in RUNS:
+                _line_band(ax, prof, f"{run}_{a}", RUN_COLORS[run], f"{RUN_LABELS[run]} part")
+            ax.axhline(0, color="#9AA5B1", linewidth=0.6)
+            ax.set(title=AXIS_LABELS[a], ylabel="deviation (mm)")
+        for ax in axes[1]:
+            ax.set_xlabel("depth (mm)")
+        axes[0, 0].legend()
+    return fig
+
+
+def deviation_map_png(per_point: pd.DataFrame) -> Figure:
+    maps = {run: agg.unrolled_map(per_point, f"{run}_dn") for run in RUNS}
+    finite = np.concatenate([m[2][np.isfinite(m[2])] for m in maps.values()])
+    vmax = float(np.percentile(np.abs(finite), 99)) if finite.size else 1.0
+    with _style():
+        fig = _figure(7.0, 3.6)
+        axes = fig.subplots(1, 2, sharey=True)
+        mesh = None
+        for ax, run in zip(axes, RUNS, strict=True):
+            angle, depth, grid = maps[run]
+            mesh = ax.pcolormesh(
+                angle,
+                depth,
+                np.ma.masked_invalid(grid),
+                cmap="RdBu_r",
+                vmin=-vmax,
+                vmax=vmax,
+                shading="nearest",
+            )
+            ax.set(
+                title=f"{RUN_LABELS[run]} part", xlabel="angle around the part (deg)", xlim=(0, 360)
+            )
+            ax.set_xticks(np.arange(0, 361, 60))
+            ax.set_facecolor("#F5F7FA")
+            ax.grid(False)
+        axes[0].set_ylabel("depth (mm)")
+        axes[0].invert_yaxis()
+        assert mesh is not None
+        fig.colorbar(mesh, ax=axes, label="normal deviation δn (mm)", shrink=0.9)
+    return fig
+
+
+def factors_depth_png(per_point: pd.DataFrame) -> Figure:
+    truth = [f"truth_{f}_dn" for f in FACTORS if f"truth_{f}_dn" in per_point.columns]
+    prof = agg.lap_profile(per_point, [f"{f}_dn" for f in FACTORS] + truth)
+    with _style():
+        fig = _figure(7.0, 5.0)
+        axes = fig.subplots(2, 2, sharex=True)
+        for ax, f in zip(axes.flat, FACTORS, strict=True):
+            _line_band(ax, prof, f"{f}_dn", FACTOR_COLORS[f], "recovered")
+            if f"truth_{f}_dn" in truth:
+                _line_band(
+                    ax,
+                    prof,
+                    f"truth_{f}_dn",
+                    SERIES_COLORS["truth"],
+                    "ground truth",
+                    band=False,
+                    linestyle="--",
+                )
+            ax.set(title=FACTOR_LABELS[f], ylabel="δn (mm)")
+            ax.legend()
+        for ax in axes[1]:
+            ax.set_xlabel("depth (mm)")
+    return fig
+
+
+def vjm_path_png(per_point: pd.DataFrame) -> Figure:
+    axes_ = ("dx", "dy", "dz")
+    prof = agg.lap_profile(
+        per_point, [f"{p}_{a}" for p in ("robot_compliance", "vjm", "delta") for a in axes_]
+    )
+    with _style():
+        fig = _figure(7.0, 5.6)
+        axes = fig.subplots(3, 1, sharex=True)
+        for ax, a in zip(axes, axes_, strict=True):
+            _line_band(
+                ax,
+                prof,
+                f"robot_compliance_{a}",
+                SERIES_COLORS["experiment"],
+                "experiment $\\delta c_{exp}$",
+            )
+            _line_band(
+                ax, prof, f"vjm_{a}", SERIES_COLORS["vjm"], "VJM $\\delta c_{VJM}$", linestyle="--"
+            )
+            _line_band(ax, prof, f"delta_{a}", SERIES_COLORS["delta"], "$\\Delta$", band=False)
+            ax.set_ylabel(f"$\\delta c_{a[1]}$ (mm)")
+        axes[0].legend(ncols=3)
+        axes[-1].set_xlabel("depth (mm)")
+    return fig
+
+
+def vjm_polar_png(per_point: pd.DataFrame, contour_z: float) -> Figure:
+    c = agg.contour(per_point, contour_z)
+    th = np.radians(c.angle_deg)
+    with _style():
+        fig = _figure(4.6, 4.4)
+        ax = fig.add_subplot(projection="polar")
+        ax.plot(
+            th,
+            c.experiment,
+            color=SERIES_COLORS["experiment"],
+            label="experiment $|\\delta c_{exp}|$",
+        )
+        ax.plot(th, c.vjm, color=SERIES_COLORS["vjm"], label="VJM $|\\delta c_{VJM}|$")
+        ax.plot(th, c.delta, color=SERIES_COLORS["delta"], label="$|\\Delta|$")
+        ax.set_title(f"Robot deflection at z = {c.z:.1f} mm (lap {c.lap}), mm")
+        ax.legend(loc="lower center", bbox_to_anchor=(0.5, -0.28), ncols=3)
+    return fig
+
+
+def contributions_png(contributions: pd.DataFrame, contributions_normal: pd.DataFrame) -> Figure:
+    x = np.arange(len(FACTORS))
+    colors = [FACTOR_COLORS[f] for f in FACTORS]
+    with _style():
+        fig = _figure(7.0, 3.0)
+        axes = fig.subplots(1, 2)
+        for ax, col, ylabel in zip(
+            axes, ("share_percent", "R_m"), ("share of $R_m$ (%)", "$R_m$ (mm)"), strict=True
+        ):
+            for k, (table, hatch, label) in enumerate(
+                (
+                    (contributions, None, "per-axis vectors (paper)"),
+                    (contributions_normal, "///", "normal projection (scan)"),
+                )
+            ):
+                values = table.loc[list(FACTORS), col].to_numpy(dtype=float)
+                bars = ax.bar(
+                    x + (k - 0.5) * 0.38,
+                    values,
+                    width=0.36,
+                    color=colors if hatch is None else "white",
+                    edgecolor=colors,
+                    hatch=hatch,
+                    linewidth=1.2,
+                    label=label,
+                )
+                ax.bar_label(
+                    bars, fmt="%.1f" if col == "share_percent" else "%.3f", fontsize=7, padding=1
+                )
+            ax.set_xticks(x, [FACTOR_LABELS[f] for f in FACTORS], rotation=15)
+            ax.set_ylabel(ylabel)
+            ax.grid(axis="x", visible=False)
+            ax.margins(y=0.12)
+        fig.legend(*axes[0].get_legend_handles_labels(), loc="outside upper center", ncols=2)
+    return fig
+
+
+def thickness_png(per_point: pd.DataFrame) -> Figure:
+    cols = ["thickness_predicted"] + (
+        ["thickness_measured"] if "thickness_measured" in per_point.columns else []
+    )
+    prof = agg.lap_profile(per_point, cols)
+    with _style():
+        fig = _figure(5.0, 3.0)
+        ax = fig.subplots()
+        _line_band(
+            ax,
+            prof,
+            "thickness_predicted",
+            SERIES_COLORS["predicted"],
+            "predicted (sine law)",
+            band=False,
+            linestyle="--",
+        )
+        if len(cols) > 1:
+            _line_band(ax, prof, "thickness_measured", SERIES_COLORS["measured"], "measured")
+        ax.set(xlabel="depth (mm)", ylabel="wall thickness (mm)", ylim=(0, None))
+        ax.legend()
+    return fig

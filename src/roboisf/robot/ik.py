@@ -1,0 +1,249 @@
+"""Closed-form inverse kinematics of OPW robots and IK along a forming toolpath.
+
+Tool orientation convention for forming
+---------------------------------------
+The toolpath lives in the work frame (origin at the blank centre, z up along the tool axis). The
+tool points *down* into the sheet, so the tool-tip frame has its z-axis along **−z_work**. With
+the tool's free rotation ``γ`` about its own axis (a ball tool does not care)::
+
+    R_work_tip = Rx(π) · Rz(γ)        (γ = 0: x_tip = x_work, y_tip = −y_work, z_tip = −z_work)
+
+so x_tip = (cos γ, −sin γ, 0) in work axes: a positive γ turns the tool clockwise seen from above.
+    T_base_flange = T_base_work · T_work_tip · T_flange_tip⁻¹
+
+Branch: ``shoulder`` "front" (joint 1 faces the target) or "back"; ``elbow`` "up"/"down";
+``wrist`` "noflip" (OPW θ5 ≥ 0) or "flip". One branch is used for the whole path, so the joint
+trajectory is continuous; joints with more than ±180° of travel are unwrapped along the path and
+shifted by whole turns to sit inside their limits.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from roboisf.errors import InputError, UnreachableError
+from roboisf.frames import invert
+from roboisf.robot.model import RobotModel, _short
+
+__all__ = [
+    "IKResult",
+    "SingularityWarning",
+    "ik_toolpath",
+    "opw_ik",
+    "tool_poses",
+]
+
+F64 = NDArray[np.float64]
+
+
+class SingularityWarning(UserWarning):
+    """A pose is close to a kinematic singularity (compliance there is huge and unreliable)."""
+
+
+def opw_ik(
+    model: RobotModel,
+    T_base_flange: ArrayLike,
+    *,
+    shoulder: Literal["front", "back"] = "front",
+    elbow: Literal["up", "down"] = "up",
+    wrist: Literal["noflip", "flip"] = "noflip",
+) -> tuple[F64, NDArray[np.bool_]]:
+    """Closed-form IK of one branch for flange poses (N, 4, 4) → (q (N, 6) rad, reachable (N,)).
+
+    ``q`` is in the controller convention, each angle wrapped to (−π, π] (continuity and limits are
+    handled by :func:`ik_toolpath`). Unreachable rows are NaN in ``q`` and False in ``reachable``.
+    """
+    if model.opw is None:
+        raise InputError(
+            f"robot {model.name!r} has no OPW geometry; closed-form IK needs it", field="robot"
+        )
+    g = model.opw
+    T = np.asarray(T_base_flange, dtype=float).reshape(-1, 4, 4)
+    R = T[:, :3, :3]
+    # wrist centre
+    C = T[:, :3, 3] - g.c4 * R[:, :, 2]
+    cx, cy, cz = C[:, 0], C[:, 1], C[:, 2]
+    rho2 = cx * cx + cy * cy - g.b * g.b
+    ok = rho2 >= 0
+    r = np.sqrt(np.where(ok, rho2, 0.0))
+    front = shoulder == "front"
+    xr = r if front else -r  # a1 + x in the arm plane
+    th1 = np.arctan2(cy, cx) - np.arctan2(g.b, xr)
+    x = xr - g.a1
+    z = cz - g.c1
+    kappa2 = g.a2 * g.a2 + g.c3 * g.c3
+    kappa = np.sqrt(kappa2)
+    D = (x * x + z * z - g.c2 * g.c2 - kappa2) / (2.0 * g.c2 * kappa)
+    ok &= np.abs(D) <= 1.0 + 1e-12
+    acos_d = np.arccos(np.clip(D, -1.0, 1.0))
+    phi = np.arctan2(g.a2, g.c3)
+    # elbow up (forearm above the upper arm, the usual working posture): θ3 + φ ≥ 0 in front
+    up = elbow == "up"
+    sgn = 1.0 if (up == front) else -1.0
+    th3 = sgn * acos_d - phi
+    s3, c3 = np.sin(th3), np.cos(th3)
+    wx = g.a2 * c3 + g.c3 * s3
+    wz = g.c2 - g.a2 * s3 + g.c3 * c3
+    th2 = np.arctan2(x, z) - np.arctan2(wx, wz)
+    # wrist: R = Rz(θ1) Ry(θ2+θ3) · Rz(θ4) Ry(θ5) Rz(θ6)
+    c1, s1 = np.cos(th1), np.sin(th1)
+    c23, s23 = np.cos(th2 + th3), np.sin(th2 + th3)
+    # rows of (Rz(θ1) Ry(θ23))ᵀ
+    e0 = np.stack([c1 * c23, s1 * c23, -s23], axis=1)
+    e1 = np.stack([-s1, c1, np.zeros_like(c1)], axis=1)
+    e2 = np.stack([c1 * s23, s1 * s23, c23], axis=1)
+    W = np.empty_like(R)
+    for i, e in enumerate((e0, e1, e2)):
+        W[:, i, :] = np.einsum("nk,nkj->nj", e, R)
+    th5 = np.arctan2(np.hypot(W[:, 0, 2], W[:, 1, 2]), W[:, 2, 2])
+    th4 = np.arctan2(W[:, 1, 2], W[:, 0, 2])
+    th6 = np.arctan2(W[:, 2, 1], -W[:, 2, 0])
+    if wrist == "flip":
+        th4 = th4 + np.pi
+        th5 = -th5
+        th6 = th6 + np.pi
+    theta = np.stack([th1, th2, th3, th4, th5, th6], axis=1)
+    q = (theta - model.chain.offset) * model.chain.sign
+    q = np.mod(q + np.pi, 2 * np.pi) - np.pi
+    q[~ok] = np.nan
+    return q, ok
+
+
+def tool_poses(tip_work: ArrayLike, T_base_work: ArrayLike, tool_rotation: ArrayLike = 0.0) -> F64:
+    """``T_base_tip`` (N, 4, 4) for tool-tip points (N, 3) m in the work frame.
+
+    Tool z along −z_work, rotated by ``tool_rotation`` (scalar or (N,), rad) about its own axis.
+    """
+    p = np.asarray(tip_work, dtype=float)
+    n = p.shape[0]
+    g = np.broadcast_to(np.asarray(tool_rotation, dtype=float), (n,))
+    c, s = np.cos(g), np.sin(g)
+    T = np.zeros((n, 4, 4))
+    # Rx(π) Rz(γ) = [[c, -s, 0], [-s, -c, 0], [0, 0, -1]]
+    T[:, 0, 0], T[:, 0, 1] = c, -s
+    T[:, 1, 0], T[:, 1, 1] = -s, -c
+    T[:, 2, 2] = -1.0
+    T[:, :3, 3] = p
+    T[:, 3, 3] = 1.0
+    return np.asarray(T_base_work, dtype=float) @ T
+
+
+@dataclass(frozen=True, eq=False)
+class IKResult:
+    """A joint trajectory along a toolpath.
+
+    q : (N, 6) float, rad — controller convention, continuous
+    T_base_tip : (N, 4, 4) float — the commanded tip poses
+    sigma_min : (N,) float — smallest singular value of the scaled Jacobian
+        (linear rows divided by ``length_scale``)
+    near_singular : (N,) bool — ``sigma_min < singular_threshold``
+    """
+
+    q: F64
+    T_base_tip: F64
+    sigma_min: F64
+    near_singular: NDArray[np.bool_]
+
+
+def ik_toolpath(
+    model: RobotModel,
+    tip_work: ArrayLike,
+    T_base_work: ArrayLike | None = None,
+    *,
+    tool_rotation: ArrayLike = 0.0,
+    shoulder: Literal["front", "back"] = "front",
+    elbow: Literal["up", "down"] = "up",
+    wrist: Literal["noflip", "flip"] = "noflip",
+    singular_threshold: float = 0.02,
+    length_scale: float | None = None,
+) -> IKResult:
+    """One continuous joint trajectory for tool-tip points (N, 3) m in the work frame.
+
+    ``tip_work`` may be a :class:`roboisf.toolpath.Toolpath` (its ``tip`` is used).
+    ``T_base_work`` defaults to the model's ``default_placement``. Raises
+    :class:`~roboisf.errors.UnreachableError` listing the indices of points that are out of
+    reach or beyond the joint limits; emits :class:`SingularityWarning` when the smallest singular
+    value of the scaled Jacobian drops below ``singular_threshold``.
+    """
+    tip = getattr(tip_work, "tip", tip_work)
+    tip = np.asarray(tip, dtype=float)
+    if tip.ndim != 2 or tip.shape[1] != 3 or tip.shape[0] == 0:
+        raise InputError(
+            f"expected tool-tip points of shape (N, 3), got {tip.shape}", field="toolpath"
+        )
+    if not np.all(np.isfinite(tip)):
+        raise InputError("tool-tip points contain NaN or inf", field="toolpath")
+    if T_base_work is None:
+        if model.default_placement is None:
+            raise InputError(
+                f"robot {model.name!r} has no default placement; give T_base_work",
+                field="placement",
+            )
+        T_base_work = model.default_placement
+    T_tip = tool_poses(tip, T_base_work, tool_rotation)
+    T_flange = T_tip @ invert(model.T_flange_tip)
+    q, ok = opw_ik(model, T_flange, shoulder=shoulder, elbow=elbow, wrist=wrist)
+    if not np.all(ok):
+        bad = np.flatnonzero(~ok)
+        raise UnreachableError(
+            f"{bad.size} of {len(ok)} toolpath points are out of reach of {model.name} "
+            f"(branch {shoulder}/{elbow}/{wrist}) at indices {_short(bad)}",
+            indices=bad.tolist(),
+        )
+    q = _continuous(model, q)
+    out = (q < model.q_min - 1e-9) | (q > model.q_max + 1e-9)
+    if np.any(out):
+        bad = np.flatnonzero(np.any(out, axis=1))
+        joints = sorted({int(j) + 1 for j in np.nonzero(out)[1]})
+        raise UnreachableError(
+            f"{bad.size} of {len(q)} toolpath points need joint angles beyond the limits of "
+            f"{model.name} (axes {joints}) at indices {_short(bad)}; try another placement, "
+            "tool rotation or branch",
+            indices=bad.tolist(),
+        )
+    _, J = model.fk_jacobian(q, check_limits=False)
+    L = length_scale if length_scale is not None else _length_scale(model)
+    Js = J.copy()
+    Js[:, :3, :] /= L
+    # σ_min² = smallest eigenvalue of JᵀJ (≈2× faster than a batched SVD; absolute accuracy
+    # ~1e-8·σ_max, ample for a threshold of order 1e-2)
+    lam = np.linalg.eigvalsh(np.swapaxes(Js, 1, 2) @ Js)[:, 0]
+    sigma = np.sqrt(np.clip(lam, 0.0, None))
+    near = sigma < singular_threshold
+    if np.any(near):
+        idx = np.flatnonzero(near)
+        warnings.warn(
+            f"{idx.size} toolpath points are near a singularity (σ_min < {singular_threshold}) "
+            f"at indices {_short(idx)}; the compliance there is unreliable",
+            SingularityWarning,
+            stacklevel=2,
+        )
+    return IKResult(q=q, T_base_tip=T_tip, sigma_min=sigma, near_singular=near)
+
+
+def _length_scale(model: RobotModel) -> float:
+    g = model.opw
+    return 1.0 if g is None else g.c2 + g.c3
+
+
+def _continuous(model: RobotModel, q: F64) -> F64:
+    """Unwrap every joint along the path, then shift by whole turns into the limits."""
+    q = np.unwrap(q, axis=0)
+    two_pi = 2 * np.pi
+    mid = 0.5 * (model.q_min + model.q_max)
+    # the whole-turn shift that brings the path's mean closest to the middle of the range
+    k = np.round((mid - q.mean(axis=0)) / two_pi)
+    q = q + k * two_pi
+    # if the path still leaves the range, try the neighbouring turns
+    for j in range(6):
+        for dk in (0.0, 1.0, -1.0):
+            qj = q[:, j] + dk * two_pi
+            if np.all(qj >= model.q_min[j] - 1e-9) and np.all(qj <= model.q_max[j] + 1e-9):
+                q[:, j] = qj
+                break
+    return q

@@ -1,0 +1,184 @@
+"""Robot presets (TOML data files a user can copy and edit) and :func:`load_robot`.
+
+A robot file has the keys (angles in degrees, lengths in metres, stiffness N·m/rad)::
+
+    name = "my-robot"
+    source = "where the numbers come from"
+    [kinematics]
+    type = "opw"                      # or "dh"
+    a1 = …  a2 = …  b = …  c1 = …  c2 = …  c3 = …  c4 = …      # opw
+    # d = [6], a = [6], alpha_deg = [6]                          # dh (standard, distal)
+    sign = [1, 1, 1, 1, 1, 1]         # θ = sign·q + offset (q: controller angle)
+    offset_deg = [0, 0, 90, 0, 0, 0]
+    [limits]
+    q_min_deg = [6]  q_max_deg = [6]
+    [stiffness]                       # optional: leave out when no value is known
+    K = [6]  source = "…"
+    [tool]                            # optional flange → tip
+    xyz_m = [3]  rpy_deg = [3]
+    [placement]                       # optional default T_base_work
+    xyz_m = [3]  rpy_deg = [3]
+"""
+
+from __future__ import annotations
+
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from roboisf.errors import InputError
+from roboisf.frames import make_transform, rpy_to_matrix
+from roboisf.robot.kinematics import chain_from_dh, chain_from_opw
+from roboisf.robot.model import OPWGeometry, RobotModel
+
+__all__ = ["list_robots", "load_robot", "load_stiffness", "robot_from_dict"]
+
+_OPW_KEYS = ("a1", "a2", "b", "c1", "c2", "c3", "c4")
+
+
+def _preset_dir() -> Any:
+    return resources.files("roboisf.robot") / "presets"
+
+
+def list_robots() -> list[str]:
+    """Names of the built-in robot presets, sorted."""
+    return sorted(
+        p.name[: -len(".toml")] for p in _preset_dir().iterdir() if p.name.endswith(".toml")
+    )
+
+
+def load_robot(name_or_path: str | Path) -> RobotModel:
+    """Load a preset by name (see :func:`list_robots`), a robot TOML file, or a URDF file.
+
+    URDF needs the optional extra ``roboisf[urdf]`` (pinocchio).
+    """
+    s = str(name_or_path)
+    p = Path(s)
+    if p.suffix.lower() == ".urdf":
+        from roboisf.robot.urdf import load_urdf
+
+        return load_urdf(p)
+    if p.suffix.lower() == ".toml" or p.exists():
+        return robot_from_dict(_read_toml(p, "robot"), file=p)
+    known = list_robots()
+    if s not in known:
+        raise InputError(
+            f"unknown robot {s!r}; known presets: {', '.join(known)} (or give a .toml/.urdf path)",
+            field="robot",
+        )
+    text = (_preset_dir() / f"{s}.toml").read_text(encoding="utf-8")
+    return robot_from_dict(tomllib.loads(text), file=f"<preset {s}>")
+
+
+def _read_toml(p: Path, what: str) -> dict[str, Any]:
+    if not p.is_file():
+        raise InputError(f"{what} file not found", file=p)
+    try:
+        return tomllib.loads(p.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as e:
+        raise InputError(f"not valid TOML: {e}", file=p) from None
+
+
+def _vec(d: dict[str, Any], key: str, n: int, file: Any, section: str) -> np.ndarray:
+    if key not in d:
+        raise InputError(f"missing key {key!r} ({n} numbers)", file=file, field=f"{section}.{key}")
+    try:
+        v = np.asarray(d[key], dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"expected {n} numbers", file=file, field=f"{section}.{key}") from None
+    if v.shape != (n,) or not np.all(np.isfinite(v)):
+        raise InputError(
+            f"expected {n} finite numbers, got {d[key]!r}", file=file, field=f"{section}.{key}"
+        )
+    return v
+
+
+def _pose(d: dict[str, Any], file: object, section: str) -> np.ndarray:
+    xyz = _vec(d, "xyz_m", 3, file, section)
+    rpy = np.radians(_vec(d, "rpy_deg", 3, file, section)) if "rpy_deg" in d else np.zeros(3)
+    return make_transform(rpy_to_matrix(rpy), xyz)
+
+
+def robot_from_dict(data: dict[str, Any], *, file: object = None) -> RobotModel:
+    """Build and validate a :class:`RobotModel` from parsed robot-file data."""
+    f: Any = file
+    try:
+        name = str(data["name"])
+        kin = data["kinematics"]
+        lim = data["limits"]
+    except KeyError as e:
+        raise InputError(f"missing required key {e.args[0]!r}", file=f, field=e.args[0]) from None
+    sign = _vec(kin, "sign", 6, f, "kinematics") if "sign" in kin else np.ones(6)
+    offset = (
+        np.radians(_vec(kin, "offset_deg", 6, f, "kinematics"))
+        if "offset_deg" in kin
+        else np.zeros(6)
+    )
+    ktype = kin.get("type", "opw")
+    opw = None
+    try:
+        if ktype == "opw":
+            missing = [k for k in _OPW_KEYS if k not in kin]
+            if missing:
+                raise InputError(f"missing OPW parameters {missing}", file=f, field="kinematics")
+            opw = OPWGeometry(**{k: float(kin[k]) for k in _OPW_KEYS})
+            chain = chain_from_opw(opw, sign=sign, offset=offset)
+        elif ktype == "dh":
+            chain = chain_from_dh(
+                _vec(kin, "d", 6, f, "kinematics"),
+                _vec(kin, "a", 6, f, "kinematics"),
+                np.radians(_vec(kin, "alpha_deg", 6, f, "kinematics")),
+                offset,
+                sign,
+            )
+        else:
+            raise InputError(
+                f"unknown kinematics type {ktype!r}; expected 'opw' or 'dh'",
+                file=f,
+                field="kinematics.type",
+            )
+        K = None
+        ksrc = ""
+        if "stiffness" in data:
+            K = _vec(data["stiffness"], "K", 6, f, "stiffness")
+            ksrc = str(data["stiffness"].get("source", ""))
+        return RobotModel(
+            name=name,
+            chain=chain,
+            q_min=np.radians(_vec(lim, "q_min_deg", 6, f, "limits")),
+            q_max=np.radians(_vec(lim, "q_max_deg", 6, f, "limits")),
+            stiffness=K,
+            T_flange_tip=_pose(data["tool"], f, "tool") if "tool" in data else np.eye(4),
+            opw=opw,
+            default_placement=_pose(data["placement"], f, "placement")
+            if "placement" in data
+            else None,
+            source=str(data.get("source", "")),
+            stiffness_source=ksrc,
+        )
+    except InputError as e:
+        if e.file is None and f is not None:
+            raise InputError(e.message, file=f, field=e.field) from None
+        raise
+
+
+def load_stiffness(path: str | Path) -> np.ndarray:
+    """Joint stiffness (6,) N·m/rad from a TOML file with ``[stiffness] K = [...]``.
+
+    This is the format ``roboisf robot identify`` writes.
+    """
+    p = Path(path)
+    data = _read_toml(p, "stiffness")
+    if "stiffness" not in data:
+        raise InputError(
+            "missing [stiffness] table with K = [6 values] N*m/rad", file=p, field="stiffness"
+        )
+    K = _vec(data["stiffness"], "K", 6, p, "stiffness")
+    if np.any(K <= 0):
+        raise InputError(
+            f"joint stiffness must be > 0 N·m/rad, got {K.tolist()}", file=p, field="stiffness.K"
+        )
+    return K

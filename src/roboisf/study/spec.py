@@ -1,0 +1,502 @@
+"""The study folder: ``study.toml`` and the files it names.
+
+A study is what a user hands ``roboisf analyze``: the part, the tool and tool holder, the robot,
+the units of every file, and one or more runs (``cnc``, ``robot``) with their files. The whole
+file is validated before anything is computed and **every** problem is reported at once, each
+with its file and key (:class:`StudyError`). The full format, with a complete example, is in
+``docs/study.md``.
+
+Poses are written ``[x, y, z, roll, pitch, yaw]`` in mm and degrees, rotation
+``Rz(yaw) Ry(pitch) Rx(roll)``.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal, cast
+
+import numpy as np
+from numpy.typing import NDArray
+
+from roboisf.errors import InputError
+from roboisf.frames import make_transform, rpy_to_matrix
+from roboisf.io.units import ANGLE_UNITS, FORCE_UNITS, LENGTH_UNITS, MOMENT_UNITS, TIME_UNITS
+from roboisf.parts import AxisymmetricPart, part_from_dict
+
+__all__ = [
+    "AnalysisSpec",
+    "ForceSensorSpec",
+    "HolderSpec",
+    "RobotSpec",
+    "RunSpec",
+    "Study",
+    "StudyError",
+    "ToolSpec",
+    "UnitsSpec",
+    "load_study",
+    "pose_to_transform",
+]
+
+F64 = NDArray[np.float64]
+STUDY_FILE = "study.toml"
+
+
+class StudyError(InputError):
+    """Every problem found in a study, listed one per line."""
+
+    def __init__(self, problems: list[InputError], file: Path) -> None:
+        self.problems = problems
+        lines = "\n".join(f"  - {p}" for p in problems)
+        super().__init__(f"{len(problems)} problem(s) in the study:\n{lines}", file=file)
+
+
+def pose_to_transform(values: Any, *, field: str, file: Path | None = None) -> F64:
+    """``[x, y, z, roll, pitch, yaw]`` (mm, deg) → 4×4 transform (m)."""
+    if not (isinstance(values, list) and len(values) == 6) or not all(
+        isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in values
+    ):
+        raise InputError(
+            "expected [x, y, z, roll, pitch, yaw] in mm and deg (6 finite numbers), "
+            f"got {values!r}",
+            file=file,
+            field=field,
+        )
+    v = np.asarray(values, dtype=float)
+    return make_transform(rpy_to_matrix(np.radians(v[3:])), v[:3] * 1e-3)
+
+
+@dataclass(frozen=True)
+class UnitsSpec:
+    """Default units of files that do not declare their own (``[units]``)."""
+
+    length: str = "mm"
+    angle: str = "deg"
+    force: str = "N"
+    moment: str = "N*m"
+    time: str = "s"
+
+
+@dataclass(frozen=True)
+class ToolSpec:
+    """``[tool]``: the ball tool. Lengths in m.
+
+    ``compliance`` is a compliance JSON (``roboisf tool-stiffness``) about the tool tip; without
+    it the compliance is computed from ``free_length``/``shank_diameter`` by ``method``.
+    """
+
+    ball_diameter: float
+    compliance: Path | None = None
+    free_length: float | None = None
+    shank_diameter: float | None = None
+    method: Literal["beam", "fe"] = "beam"
+
+    @property
+    def radius(self) -> float:
+        return self.ball_diameter / 2
+
+
+@dataclass(frozen=True)
+class HolderSpec:
+    """``[tool_holder]``: compliance JSON about the holder's reference point (its nose), and the
+    distance from that point down the tool axis to the tool tip (``offset``, m)."""
+
+    compliance: Path | None = None
+    offset: float = 0.0
+    rigid: bool = False
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """``[robot]``: preset name or file, placement ``T_base_work``, flange → tip, stiffness."""
+
+    model: str
+    T_base_work: F64
+    T_flange_tip: F64 | None = None
+    joint_stiffness: tuple[float, ...] | None = None
+    tool_rotation: float = 0.0
+
+
+@dataclass(frozen=True)
+class ForceSensorSpec:
+    """A force log and where its sensor sits.
+
+    ``mount = "fixture"``: fixed in the work frame at ``pose`` = ``T_work_sensor`` (CNC
+    dynamometer under the fixture). ``mount = "flange"``: moves with the tool, ``pose`` =
+    ``T_tip_sensor`` (robot F/T sensor). ``load_on`` says which body's load the sensor reports:
+    ``"workpiece"`` (the tool pushing the sheet; a dynamometer) or ``"tool"``.
+    """
+
+    file: Path
+    mount: Literal["fixture", "flange"]
+    pose: F64
+    load_on: Literal["tool", "workpiece"]
+    time_offset: float = 0.0
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """``[runs.NAME]``: one formed part."""
+
+    name: str
+    machine: Literal["cnc", "robot"]
+    toolpath: Path
+    forces: ForceSensorSpec
+    scan: Path
+    scan_unit: str = "mm"
+    joints: Path | None = None
+    thickness: Path | None = None
+
+
+@dataclass(frozen=True)
+class AnalysisSpec:
+    """``[analysis]``: rim band excluded (m), contour of the polar plot (m), scan registration,
+    radius around a toolpath point's normal line within which scan points are averaged (m)."""
+
+    rim_band: float = 20e-3
+    contour_z: float = -11e-3
+    registration: Literal["flange", "axisymmetric", "icp", "none"] = "flange"
+    point_radius: float = 1.0e-3
+
+
+@dataclass(frozen=True)
+class Study:
+    """A validated study. Paths are absolute."""
+
+    root: Path
+    name: str
+    part: AxisymmetricPart
+    tool: ToolSpec
+    holder: HolderSpec
+    robot: RobotSpec | None
+    runs: dict[str, RunSpec]
+    analysis: AnalysisSpec = field(default_factory=AnalysisSpec)
+    units: UnitsSpec = field(default_factory=UnitsSpec)
+    description: str = ""
+
+    @property
+    def cnc(self) -> RunSpec:
+        return next(r for r in self.runs.values() if r.machine == "cnc")
+
+    @property
+    def robot_run(self) -> RunSpec:
+        return next(r for r in self.runs.values() if r.machine == "robot")
+
+
+# -- loading -----------------------------------------------------------------------------------
+
+_TOP = {"study", "units", "part", "tool", "tool_holder", "robot", "analysis", "runs"}
+
+
+class _Collector:
+    def __init__(self, file: Path) -> None:
+        self.file = file
+        self.problems: list[InputError] = []
+
+    def add(self, message: str, key: str) -> None:
+        self.problems.append(InputError(message, file=self.file, field=key))
+
+    def catch(self, err: InputError, key: str) -> None:
+        f = err.file or self.file
+        fld = (
+            err.field
+            if err.field and err.field.startswith(key)
+            else (f"{key}.{err.field}" if err.field else key)
+        )
+        self.problems.append(InputError(err.message, file=f, line=err.line, field=fld))
+
+    def table(
+        self, data: dict[str, Any], key: str, allowed: set[str], required: bool = True
+    ) -> dict[str, Any]:
+        if key not in data:
+            if required:
+                self.add("missing table", key)
+            return {}
+        t = data[key]
+        if not isinstance(t, dict):
+            self.add("expected a table", key)
+            return {}
+        for k in sorted(set(t) - allowed):
+            self.add(f"unknown key; expected one of {', '.join(sorted(allowed))}", f"{key}.{k}")
+        return t
+
+    def number(
+        self,
+        t: dict[str, Any],
+        key: str,
+        name: str,
+        *,
+        default: float | None = None,
+        positive: bool = False,
+        required: bool = True,
+    ) -> float | None:
+        if name not in t:
+            if default is None and required:
+                self.add("missing key", f"{key}.{name}")
+            return default
+        v = t[name]
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            self.add(f"expected a finite number, got {v!r}", f"{key}.{name}")
+            return default
+        if positive and v <= 0:
+            self.add(f"must be > 0, got {v}", f"{key}.{name}")
+            return default
+        return float(v)
+
+    def path(
+        self, root: Path, t: dict[str, Any], key: str, name: str, *, required: bool = True
+    ) -> Path | None:
+        if name not in t:
+            if required:
+                self.add("missing file", f"{key}.{name}")
+            return None
+        v = t[name]
+        if not isinstance(v, str) or not v:
+            self.add(f"expected a file name, got {v!r}", f"{key}.{name}")
+            return None
+        p = Path(v)
+        p = p if p.is_absolute() else root / p
+        if not p.is_file():
+            self.add(f"file not found: {p}", f"{key}.{name}")
+            return None
+        return p
+
+    def choice(
+        self,
+        t: dict[str, Any],
+        key: str,
+        name: str,
+        options: tuple[str, ...],
+        default: str | None = None,
+    ) -> str | None:
+        if name not in t:
+            if default is None:
+                self.add(f"missing key; expected one of {', '.join(options)}", f"{key}.{name}")
+            return default
+        v = t[name]
+        if v not in options:
+            self.add(f"expected one of {', '.join(options)}, got {v!r}", f"{key}.{name}")
+            return default
+        return str(v)
+
+
+def _units(c: _Collector, data: dict[str, Any]) -> UnitsSpec:
+    t = c.table(data, "units", {"length", "angle", "force", "moment", "time"}, required=False)
+    tables = {
+        "length": LENGTH_UNITS,
+        "angle": ANGLE_UNITS,
+        "force": FORCE_UNITS,
+        "moment": MOMENT_UNITS,
+        "time": TIME_UNITS,
+    }
+    out = {}
+    for k, table in tables.items():
+        if k in t:
+            if t[k] not in table:
+                c.add(f"unknown unit {t[k]!r}; expected one of {', '.join(table)}", f"units.{k}")
+            else:
+                out[k] = t[k]
+    return UnitsSpec(**out)
+
+
+def _forces(c: _Collector, root: Path, t: Any, key: str, machine: str) -> ForceSensorSpec | None:
+    if not isinstance(t, dict):
+        c.add("expected a table {file, mount, pose, load_on}", key)
+        return None
+    for k in sorted(set(t) - {"file", "mount", "pose", "load_on", "time_offset"}):
+        c.add("unknown key; expected file, mount, pose, load_on, time_offset", f"{key}.{k}")
+    f = c.path(root, t, key, "file")
+    mount = c.choice(
+        t, key, "mount", ("fixture", "flange"), default="fixture" if machine == "cnc" else "flange"
+    )
+    load_on = c.choice(
+        t,
+        key,
+        "load_on",
+        ("tool", "workpiece"),
+        default="workpiece" if mount == "fixture" else "tool",
+    )
+    pose = None
+    if "pose" not in t:
+        c.add(
+            "missing key: the sensor pose [x, y, z, roll, pitch, yaw] (mm, deg): "
+            "T_work_sensor for a fixture sensor, T_tip_sensor for a flange sensor",
+            f"{key}.pose",
+        )
+    else:
+        try:
+            pose = pose_to_transform(t["pose"], field=f"{key}.pose", file=c.file)
+        except InputError as e:
+            c.catch(e, f"{key}.pose")
+    off = c.number(t, key, "time_offset", default=0.0)
+    if f is None or pose is None or mount is None or load_on is None or off is None:
+        return None
+    return ForceSensorSpec(f, mount, pose, load_on, off)  # type: ignore[arg-type]
+
+
+def load_study(path: str | Path) -> Study:
+    """Load and validate ``study.toml`` (or a folder containing it).
+
+    Raises
+    ------
+    StudyError
+        listing every problem (file, key, what was expected).
+    """
+    path = Path(path)
+    file = path / STUDY_FILE if path.is_dir() else path
+    if not file.is_file():
+        raise InputError(f"no {STUDY_FILE} found", file=file)
+    root = file.parent.resolve()
+    try:
+        data = tomllib.loads(file.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as e:
+        raise InputError(f"not valid TOML: {e}", file=file) from None
+    c = _Collector(file)
+    for k in sorted(set(data) - _TOP):
+        c.add(f"unknown table; expected {', '.join(sorted(_TOP))}", k)
+
+    st = c.table(data, "study", {"name", "description"}, required=False)
+    name = str(st.get("name", root.name))
+    units = _units(c, data)
+
+    part = None
+    if "part" not in data:
+        c.add("missing table", "part")
+    else:
+        try:
+            part = part_from_dict(data["part"], where=file)
+        except InputError as e:
+            c.catch(e, "part")
+
+    tt = c.table(
+        data, "tool", {"ball_diameter", "compliance", "free_length", "shank_diameter", "method"}
+    )
+    ball = c.number(tt, "tool", "ball_diameter", positive=True) if tt else None
+    tool_c = c.path(root, tt, "tool", "compliance", required=False)
+    free = c.number(tt, "tool", "free_length", positive=True, required=False)
+    shank = c.number(tt, "tool", "shank_diameter", positive=True, required=False)
+    method = c.choice(tt, "tool", "method", ("beam", "fe"), default="beam")
+    if tt and tool_c is None and "compliance" not in tt and free is None:
+        c.add("give either 'compliance' (a JSON file) or 'free_length' (mm) to compute it", "tool")
+    tool = None
+    if ball is not None:
+        tool = ToolSpec(
+            ball * 1e-3,
+            tool_c,
+            None if free is None else free * 1e-3,
+            None if shank is None else shank * 1e-3,
+            cast(Literal["beam", "fe"], method),
+        )
+
+    ht = c.table(data, "tool_holder", {"compliance", "offset", "rigid"}, required=False)
+    rigid = bool(ht.get("rigid", not ht))
+    holder_c = c.path(root, ht, "tool_holder", "compliance", required=not rigid)
+    offset = c.number(ht, "tool_holder", "offset", default=0.0)
+    holder = HolderSpec(holder_c, (offset or 0.0) * 1e-3, rigid)
+
+    runs: dict[str, RunSpec] = {}
+    rt = data.get("runs")
+    if not isinstance(rt, dict) or not rt:
+        c.add(
+            "missing: at least one [runs.NAME] table (a 'cnc' and a 'robot' run to decompose)",
+            "runs",
+        )
+        rt = {}
+    for rname, r in rt.items():
+        key = f"runs.{rname}"
+        if not isinstance(r, dict):
+            c.add("expected a table", key)
+            continue
+        allowed = {"machine", "toolpath", "forces", "scan", "scan_unit", "joints", "thickness"}
+        for k in sorted(set(r) - allowed):
+            c.add(f"unknown key; expected one of {', '.join(sorted(allowed))}", f"{key}.{k}")
+        machine = c.choice(r, key, "machine", ("cnc", "robot"))
+        tp = c.path(root, r, key, "toolpath")
+        sc = c.path(root, r, key, "scan")
+        su = r.get("scan_unit", units.length)
+        if su not in LENGTH_UNITS:
+            c.add(
+                f"unknown length unit {su!r}; expected one of {', '.join(LENGTH_UNITS)}",
+                f"{key}.scan_unit",
+            )
+        fs = None
+        if "forces" not in r:
+            c.add("missing table", f"{key}.forces")
+        else:
+            fs = _forces(c, root, r["forces"], f"{key}.forces", machine or "cnc")
+        joints = c.path(root, r, key, "joints", required=False)
+        thick = c.path(root, r, key, "thickness", required=False)
+        if machine == "robot" and joints is None and "joints" not in r and "robot" not in data:
+            c.add("a robot run needs 'joints' (a joint log) or a [robot] table to solve IK", key)
+        if None not in (machine, tp, sc, fs):
+            runs[rname] = RunSpec(rname, machine, tp, fs, sc, su, joints, thick)  # type: ignore[arg-type]
+    machines = [r.get("machine") for r in rt.values() if isinstance(r, dict)]
+    if rt and ("cnc" not in machines or "robot" not in machines):
+        c.add("the decomposition needs one run with machine = 'cnc' and one with 'robot'", "runs")
+
+    robot = None
+    if "robot" in data:
+        rb = c.table(
+            data,
+            "robot",
+            {"model", "placement", "flange_to_tip", "joint_stiffness", "tool_rotation"},
+        )
+        model = rb.get("model")
+        if not isinstance(model, str) or not model:
+            c.add("missing key: a preset name (roboisf robot list) or a robot file", "robot.model")
+        T_bw = T_ft = None
+        try:
+            T_bw = pose_to_transform(rb.get("placement"), field="robot.placement", file=file)
+        except InputError as e:
+            c.catch(e, "robot.placement")
+        if "flange_to_tip" in rb:
+            try:
+                T_ft = pose_to_transform(
+                    rb["flange_to_tip"], field="robot.flange_to_tip", file=file
+                )
+            except InputError as e:
+                c.catch(e, "robot.flange_to_tip")
+        K = rb.get("joint_stiffness")
+        if K is not None and not (
+            isinstance(K, list)
+            and len(K) == 6
+            and all(isinstance(k, int | float) and not isinstance(k, bool) and k > 0 for k in K)
+        ):
+            c.add(f"expected 6 positive numbers (N·m/rad), got {K!r}", "robot.joint_stiffness")
+            K = None
+        rot = c.number(rb, "robot", "tool_rotation", default=0.0)
+        if isinstance(model, str) and T_bw is not None:
+            robot = RobotSpec(
+                model,
+                T_bw,
+                T_ft,
+                None if K is None else tuple(float(k) for k in K),
+                math.radians(rot or 0.0),
+            )
+
+    at = c.table(
+        data, "analysis", {"rim_band", "contour_z", "registration", "point_radius"}, required=False
+    )
+    rim = c.number(at, "analysis", "rim_band", default=20.0)
+    cz = c.number(at, "analysis", "contour_z", default=-11.0)
+    reg = c.choice(
+        at, "analysis", "registration", ("flange", "axisymmetric", "icp", "none"), default="flange"
+    )
+    prad = c.number(at, "analysis", "point_radius", default=1.0, positive=True)
+    if rim is not None and rim < 0:
+        c.add("must be ≥ 0 mm", "analysis.rim_band")
+    analysis = AnalysisSpec(
+        (rim or 0.0) * 1e-3,
+        (cz or -11.0) * 1e-3,
+        cast(Literal["flange", "axisymmetric", "icp", "none"], reg or "flange"),
+        (prad or 1.0) * 1e-3,
+    )
+
+    if c.problems:
+        raise StudyError(c.problems, file)
+    assert part is not None and tool is not None
+    return Study(
+        root, name, part, tool, holder, robot, runs, analysis, units, str(st.get("description", ""))
+    )

@@ -1,0 +1,191 @@
+"""The report in a real headless browser (Debian's chromium): it loads with no console errors, no
+network access, every plot renders, and a screenshot is not blank.
+
+Console errors are collected by a small script injected at the top of ``<head>`` of a copy of the
+page (window ``error`` events — script errors and failed resource loads, capture phase —
+unhandled promise rejections, ``console.error``) and read back from ``--dump-dom``; chromium's own
+log of uncaught exceptions on stderr is checked as well. Name resolution is mapped to nothing
+(``--host-resolver-rules``), so any attempt to reach the network fails loudly.
+Skipped (with the reason) when no chromium is installed; CI installs it (``.ci/run``).
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import os
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from report_fixtures import make_study
+from roboisf.report import FIGURES, write_index, write_report
+
+pytestmark = pytest.mark.browser
+
+
+def _chromium() -> str | None:
+    explicit = os.environ.get("ROBOISF_CHROMIUM")
+    if explicit:
+        return explicit
+    for name in ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable"):
+        found = shutil.which(name)
+        if found:
+            return found
+    return None
+
+
+CHROMIUM = _chromium()
+if CHROMIUM is None:
+    pytest.skip(
+        "headless browser test: no chromium on PATH (apt-get install chromium, or set "
+        "ROBOISF_CHROMIUM); CI installs it",
+        allow_module_level=True,
+    )
+
+COLLECTOR = """<script>
+window.__roboisf_errors = [];
+(function () {
+  var push = function (s) { window.__roboisf_errors.push(String(s)); };
+  window.addEventListener('error', function (e) {
+    var t = e.target;
+    if (t && t !== window && (t.src || t.href)) { push('resource failed: ' + (t.src || t.href)); }
+    else { push('error: ' + e.message + ' @' + e.filename + ':' + e.lineno); }
+  }, true);
+  window.addEventListener('unhandledrejection', function (e) { push('rejection: ' + e.reason); });
+  var ce = console.error;
+  console.error = function () { push('console.error: ' + Array.prototype.join.call(arguments, ' '));
+                                return ce.apply(console, arguments); };
+  window.addEventListener('load', function () {
+    setTimeout(function () {
+      var pre = document.createElement('pre');
+      pre.id = '__roboisf_errors';
+      pre.textContent = JSON.stringify(window.__roboisf_errors);
+      document.body.appendChild(pre);
+    }, 1000);
+  });
+})();
+</script>"""
+
+
+def _run(args: list[str], profile: Path) -> subprocess.CompletedProcess[str]:
+    cmd = [
+        CHROMIUM,
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        "--disable-dev-shm-usage",
+        "--disable-extensions",
+        "--hide-scrollbars",
+        "--mute-audio",
+        "--host-resolver-rules=MAP * ~NOTFOUND",
+        "--enable-logging=stderr",
+        "--v=0",
+        f"--user-data-dir={profile}",
+        *args,
+    ]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=180, check=False)
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("browser")
+    path = write_report(*make_study(n_laps=60, points_per_lap=80), out / "cone", png=False)
+    write_index([path], out / "index.html")
+    return path
+
+
+def _uncaught(stderr: str) -> list[str]:
+    return [ln for ln in stderr.splitlines() if "CONSOLE" in ln and "Uncaught" in ln]
+
+
+def _load(page: Path, profile: Path) -> tuple[str, list[str], str]:
+    """Open a copy of ``page`` with the collector; return (DOM after JS ran, errors, stderr)."""
+    probe = page.with_name(f"probe-{page.name}")
+    text = page.read_text(encoding="utf-8")
+    probe.write_text(text.replace("<head>", "<head>" + COLLECTOR, 1), encoding="utf-8")
+    result = _run(
+        ["--virtual-time-budget=20000", "--window-size=1280,2000", "--dump-dom", probe.as_uri()],
+        profile,
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    dom = result.stdout
+    m = re.search(r'<pre id="__roboisf_errors">(.*?)</pre>', dom, flags=re.S)
+    assert m, "the page did not finish loading (no error report in the DOM)"
+    errors = json.loads(html.unescape(m.group(1)))
+    return dom, errors + _uncaught(result.stderr), result.stderr
+
+
+def test_harness_sees_errors(tmp_path):
+    """The checks below can fail: a script error, console.error and a network fetch are caught."""
+    page = tmp_path / "broken.html"
+    page.write_text(
+        "<!DOCTYPE html><html><head><title>x</title></head><body>"
+        "<script>console.error('boom');</script><script>undefinedFunction();</script>"
+        '<img src="https://example.invalid/logo.png"></body></html>',
+        encoding="utf-8",
+    )
+    _, errors, _ = _load(page, tmp_path / "profile")
+    joined = "\n".join(errors)
+    assert "console.error: boom" in joined
+    assert "undefinedFunction" in joined
+    assert "resource failed: https://example.invalid/logo.png" in joined
+
+
+def test_page_loads_without_errors_and_every_plot_renders(report, tmp_path):
+    dom, errors, _ = _load(report, tmp_path / "profile")
+    assert errors == [], errors
+
+    starts = sorted((dom.index(f'id="fig-{fid}"'), fid) for fid in FIGURES)
+    assert [fid for _, fid in starts] == list(FIGURES)  # page order
+    for k, (pos, fid) in enumerate(starts):
+        end = starts[k + 1][0] if k + 1 < len(starts) else len(dom)
+        chunk = dom[pos:end]
+        assert 'class="main-svg"' in chunk, f"{fid}: plotly did not render"
+        # data drawn, not just empty axes: line/bar traces, heatmap image or polar traces
+        assert re.search(r'class="(trace|hm|scatterlayer|barlayer)', chunk), f"{fid}: no trace"
+    assert dom.count('class="plot-container plotly"') == len(FIGURES)
+
+
+def test_screenshot_is_not_blank(report, tmp_path):
+    shot = tmp_path / "report.png"
+    result = _run(
+        [
+            "--virtual-time-budget=20000",
+            "--window-size=1280,3200",
+            f"--screenshot={shot}",
+            report.as_uri(),
+        ],
+        tmp_path / "profile",
+    )
+    assert result.returncode == 0 and shot.exists(), result.stderr[-3000:]
+    import matplotlib.image as mpimg
+
+    img = mpimg.imread(shot)[..., :3]
+    assert img.shape[:2] == (3200, 1280)
+    grey = img.mean(axis=2)
+    assert grey.std() > 0.1  # not a blank page
+    # plots drew coloured ink: the factor and run colours, not only grey text on white
+    saturation = img.max(axis=2) - img.min(axis=2)
+    assert np.mean(saturation > 0.3) > 0.01
+    keep = os.environ.get("ROBOISF_SCREENSHOT_DIR")
+    if keep:
+        Path(keep).mkdir(parents=True, exist_ok=True)
+        shutil.copy(shot, Path(keep) / "report.png")
+
+
+def test_index_page_loads(report, tmp_path):
+    index = report.parent.parent / "index.html"
+    result = _run(["--virtual-time-budget=3000", "--dump-dom", index.as_uri()], tmp_path / "p")
+    assert result.returncode == 0
+    assert 'href="cone/report.html"' in result.stdout
+    assert _uncaught(result.stderr) == []

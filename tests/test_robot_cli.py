@@ -1,0 +1,158 @@
+"""``roboisf robot …``: list, show (+PNG), identify, deflect (IK and joint log), bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from roboisf.cli.main import main
+from roboisf.frames import make_transform
+from roboisf.io.forcelog import ForceLog, write_force_log
+from roboisf.io.jointlog import read_joint_log, write_joint_log
+from roboisf.io.table import read_table
+from roboisf.io.toolpath_csv import write_toolpath_csv
+from roboisf.parts import Cone
+from roboisf.robot import ik_toolpath, load_robot, rotate_6
+from roboisf.toolpath import step_down
+
+
+@pytest.fixture(scope="module")
+def cell(tmp_path_factory):
+    d = tmp_path_factory.mktemp("cell")
+    tp = step_down(Cone(), step_down=5e-3)  # coarse: fast
+    write_toolpath_csv(tp, d / "path.csv")
+    n = len(tp)
+    t = np.linspace(tp.time[0] - 1, tp.time[-1] + 1, 400)
+    W = np.zeros((t.size, 6))
+    W[:, 0], W[:, 1], W[:, 2] = 120.0, -80.0, 450.0
+    write_force_log(ForceLog(time=t, wrench=W, frame="work", path=None), d / "forces.csv")
+    return d, tp, n
+
+
+def _deflect(d, out, *extra):
+    return [
+        "robot", "deflect", "--toolpath", str(d / "path.csv"), "--forces", str(d / "forces.csv"),
+        "-o", str(out), *extra,
+    ]  # fmt: skip
+
+
+def _read_deflection(path):
+    t = read_table(path, ["index", "time", "dx", "dy", "dz"], allow_extra=True)
+    return np.stack([t.column(c) for c in ("dx", "dy", "dz")], axis=1) * 1e-3
+
+
+def test_list_and_show(tmp_path, capsys):
+    assert main(["robot", "list"]) == 0
+    assert "kr210-r2700-2" in capsys.readouterr().out
+    png = tmp_path / "map.png"
+    assert (
+        main(
+            ["robot", "show", "--robot", "irb7600-500-2.55", "-o", str(png), "--half-width", "300"]
+        )
+        == 0
+    )
+    out = capsys.readouterr().out
+    assert "A2: limits [  -60.0,    85.0]" in out and "3.73e+06" in out
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_deflect_by_ik_matches_library(cell, tmp_path):
+    d, tp, n = cell
+    out = tmp_path / "defl.csv"
+    rc = main(
+        _deflect(
+            d,
+            out,
+            "--robot",
+            "irb7600-500-2.55",
+            "--placement",
+            "1600,0,800,0",
+            "--tool",
+            "0,0,300",
+        )
+    )
+    assert rc == 0
+    m = load_robot("irb7600-500-2.55").with_tool(make_transform(None, [0, 0, 0.3]))
+    T = make_transform(None, [1.6, 0, 0.8])
+    q = ik_toolpath(m, tp, T).q
+    W = np.tile([120.0, -80.0, 450.0, 0, 0, 0], (n, 1))
+    ref = m.deflection(q, rotate_6(W, T[:3, :3]))[:, :3]
+    got = _read_deflection(out)
+    np.testing.assert_allclose(got, ref, atol=2e-12)
+    assert 1e-5 < np.abs(ref).max() < 5e-3  # tenths of a mm, as the paper
+
+
+def test_deflect_with_joint_log(cell, tmp_path):
+    d, tp, n = cell
+    m = load_robot("irb7600-500-2.55").with_tool(make_transform(None, [0, 0, 0.3]))
+    q = ik_toolpath(m, tp, make_transform(None, [1.6, 0, 0.8])).q
+    write_joint_log(d / "joints.csv", tp.time, q)
+    jl = read_joint_log(d / "joints.csv")
+    np.testing.assert_allclose(jl.q, q, atol=1e-10)
+    out = tmp_path / "defl.csv"
+    args = [*_deflect(d, out, "--tool", "0,0,300"), "--joints", str(d / "joints.csv")]
+    assert main(args) == 0
+    assert _read_deflection(out).shape == (n, 3)
+
+
+def test_deflect_bad_input(cell, tmp_path, capsys):
+    d, _tp, _n = cell
+    out = tmp_path / "x.csv"
+    base = _deflect(d, out)
+    assert main([*base, "--robot", "nope"]) == 2
+    assert "irb7600-500-2.55" in capsys.readouterr().err
+    assert main([*base, "--robot", "kr210-r2700-2"]) == 2  # no stiffness
+    assert "stiffness" in capsys.readouterr().err
+    assert main([*base, "--placement", "5000,0,800,0"]) == 2  # out of reach
+    assert "out of reach" in capsys.readouterr().err
+    assert main([*base, "--placement", "1,2"]) == 2
+    assert not out.exists()
+    bad = d / "badjoints.csv"
+    bad.write_text("# units: time=s angle=deg\ntime,q1,q2,q3,q4,q5,q6\n0,0,0,0,0,0\n")
+    assert main([*base, "--joints", str(bad)]) == 2
+    assert "badjoints.csv:3" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_identify_cli(tmp_path, capsys):
+    m = load_robot("irb7600-500-2.55").with_tool(make_transform(None, [0.3, 0.1, 0.4]))
+    rng = np.random.default_rng(0)
+    q = rng.uniform(m.q_min * 0.7, m.q_max * 0.7, (30, 6))
+    W = rng.normal(size=(30, 6)) * [1500, 1500, 1500, 150, 150, 150]
+    dd = m.deflection(q, W)[:, :3] + rng.normal(size=(30, 3)) * 2e-6
+    f = tmp_path / "calib.csv"
+    rows = np.column_stack([np.degrees(q), W, dd * 1e3])
+    f.write_text(
+        "# units: angle=deg length=mm force=N moment=N*m\n"
+        "q1,q2,q3,q4,q5,q6,Fx,Fy,Fz,Mx,My,Mz,dx,dy,dz\n"
+        + "\n".join(",".join(f"{v:.17g}" for v in r) for r in rows)
+        + "\n"
+    )
+    out = tmp_path / "stiffness.toml"
+    assert (
+        main(
+            [
+                "robot",
+                "identify",
+                str(f),
+                "--tool",
+                "300,100,400",
+                "--sigma",
+                "0.002",
+                "-o",
+                str(out),
+            ]
+        )
+        == 0
+    )
+    from roboisf.robot import load_stiffness
+
+    np.testing.assert_allclose(load_stiffness(out), m.joint_stiffness, rtol=0.03)
+    # the identified file feeds a robot without published stiffness
+    capsys.readouterr()
+    assert main(["robot", "show", "--robot", "kr210-r2700-2", "--stiffness", str(out)]) == 0
+    assert "3.7" in capsys.readouterr().out
+    # bare flange: joint 6 cannot be identified → exit 2, no output
+    out2 = tmp_path / "s2.toml"
+    assert main(["robot", "identify", str(f), "-o", str(out2)]) == 2
+    assert not out2.exists()
