@@ -95,3 +95,30 @@ def test_refuses_non_overlap_and_non_convergence(shifted_scan):
         register(far, CONE, "axisymmetric")
     with pytest.raises(ConvergenceError, match="did not converge"):
         register(shifted_scan.points, CONE, "axisymmetric", max_iterations=1)
+
+
+def test_flange_registration_is_not_fooled_by_a_wall_offset():
+    # formed wall 0.5 mm off the nominal + the pose of the acceptance test: a wall fit trades
+    # the offset for a z shift, the flange fit does not
+    T_scan_work = _pose((0.3, -0.2, 0.8), 0.5)
+    s = synthetic_scan(
+        CONE,
+        150_000,
+        offset=lambda z, phi: np.where(z < -1e-9, -0.5e-3, 0.0),
+        noise=25e-6,
+        outlier_fraction=0.01,
+        T_scan_work=T_scan_work,
+        seed=8,
+    )
+    T_true = invert(T_scan_work)
+    reg = register(s.points, CONE, "flange")
+    assert reg.dof == 5 and reg.rotvec[2] == pytest.approx(0.0, abs=1e-15)
+    assert np.abs(reg.T_work_scan[:3, 3] - T_true[:3, 3]).max() < 10e-6
+    dR = reg.T_work_scan[:3, :3] @ T_true[:3, :3].T
+    assert math.degrees(math.acos(np.clip((np.trace(dR) - 1) / 2, -1, 1))) < 0.01
+    wall_fit = register(s.points, CONE, "axisymmetric")
+    assert abs(wall_fit.T_work_scan[2, 3] - T_true[2, 3]) > 0.1e-3  # the caveat is real
+    # no flange in view: refused
+    wall_only = s.points[s.region == 1]
+    with pytest.raises(ConvergenceError, match="flange"):
+        register(wall_only, CONE, "flange")

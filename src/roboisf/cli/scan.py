@@ -33,7 +33,7 @@ def compare(
         None, "--toolpath", "-t", help="Toolpath CSV: deviations per contact point."
     ),
     register: str = typer.Option(
-        "none", "--register", "-r", help="Registration: none | axisymmetric | icp."
+        "none", "--register", "-r", help="Registration: none | flange | axisymmetric | icp."
     ),
     rim_band: float = typer.Option(20.0, help="Rim band excluded below the sheet plane [mm]."),
     unit: str = typer.Option("mm", "--unit", "-u", help="Length unit of the scan file."),

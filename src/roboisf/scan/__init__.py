@@ -26,7 +26,7 @@ from roboisf.scan.readers import (
     read_scan,
     sample_faces,
 )
-from roboisf.scan.register import METHODS, Registration, register
+from roboisf.scan.registration import METHODS, Registration, register
 from roboisf.scan.summary import (
     DeviationStats,
     by_angle,

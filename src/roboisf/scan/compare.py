@@ -25,7 +25,7 @@ from roboisf.scan.deviation import (
     toolpath_deviations,
 )
 from roboisf.scan.readers import ScanCloud, check_units
-from roboisf.scan.register import METHODS, Registration, register
+from roboisf.scan.registration import METHODS, Registration, register
 from roboisf.scan.summary import by_angle, by_depth, deviation_stats
 from roboisf.toolpath.toolpath import Toolpath
 
@@ -43,7 +43,7 @@ def part_size(part: AxisymmetricPart | MeshPart) -> float:
 class CompareOptions:
     """Settings of :func:`compare_scan` (SI).
 
-    register : ``none | axisymmetric | icp``; rim_band : m below the sheet plane excluded;
+    register : ``none | flange | axisymmetric | icp``; rim_band : m below the sheet plane excluded;
     max_distance : m — points farther from the nominal are not the part; outlier_k,
     outlier_std : statistical outlier removal (``outlier_k = 0`` disables); radius,
     max_points, min_points, estimator : per-toolpath-point averaging (see

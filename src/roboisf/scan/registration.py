@@ -20,9 +20,10 @@ unchanged. A free 6-DOF ICP on such a part is refused (the problem is singular),
 drift.
 
 Caveat (physics, not numerics): on a cone wall a uniform normal offset ``e`` of the formed part
-is indistinguishable from a z shift of ``e / cos α``. A registration on the wall alone absorbs
-such offsets; keep the undeformed flange (the clamped sheet) in the scan — it anchors z and the
-tilts — or use ``none`` when the scan is already in the work frame.
+is indistinguishable from a z shift of ``e / cos α``. A registration on the wall absorbs such
+offsets. ``flange`` avoids it: the undeformed clamped sheet (flange, z = 0) alone fixes z and the
+two tilts, the wall only the x/y position of the axis (a rotationally uniform deviation does not
+move the axis). Use ``none`` when the scan is already in the work frame.
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ __all__ = ["METHODS", "Registration", "register"]
 
 F64 = NDArray[np.float64]
 
-METHODS = ("none", "axisymmetric", "icp")
+METHODS = ("none", "flange", "axisymmetric", "icp")
 
 
 @dataclass(frozen=True)
@@ -146,8 +147,10 @@ def register(
 
     Parameters
     ----------
-    method : ``"none"`` (identity, only the quality figures), ``"axisymmetric"`` (5 DOF:
-        x, y, z shift and two tilts; rotation about the part axis locked) or ``"icp"`` (6 DOF
+    method : ``"none"`` (identity, only the quality figures), ``"flange"`` (5 DOF like
+        axisymmetric, but z and the tilts from the flange points only and the x/y shift from the
+        wall: wall deviations cannot leak into z), ``"axisymmetric"`` (5 DOF: x, y, z shift and
+        two tilts from all points; rotation about the part axis locked) or ``"icp"`` (6 DOF
         point-to-plane, for non-axisymmetric parts)
     T_init : (4, 4), optional — starting ``T_work_scan`` (default identity); the scan must
         start within a few mm and degrees of the nominal
@@ -173,11 +176,11 @@ def register(
         X = X[rng.choice(X.shape[0], max_points, replace=False)]
     T = np.eye(4) if T_init is None else np.asarray(T_init, dtype=float).copy()
     where = f" ({source})" if source else ""
-    if method == "axisymmetric" and not isinstance(part, AxisymmetricPart):
+    if method in ("axisymmetric", "flange") and not isinstance(part, AxisymmetricPart):
         raise InputError(
             "axisymmetric registration needs an axisymmetric part; use icp", field="register"
         )
-    dof = {"none": 0, "axisymmetric": 5, "icp": 6}[method]
+    dof = {"none": 0, "flange": 5, "axisymmetric": 5, "icp": 6}[method]
     it = 0
     step_norm = math.inf
     converged = dof == 0
@@ -202,6 +205,31 @@ def register(
         J = np.concatenate([q.normal, pxn], axis=1)
         if dof == 5:
             J = J[:, :5]
+        if method == "flange":
+            # z and the tilts from the flange only, x/y (the axis position) from the rest
+            # 2 mm clear of the rim edge on both sides: the bend there is neither, and points
+            # that switch sides between iterations would make the fit oscillate
+            assert isinstance(part, AxisymmetricPart)  # checked on entry
+            r_foot = np.hypot(q.point[:, 0], q.point[:, 1])
+            on_flange = (q.region == 0) & (w > 0) & (r_foot >= part.opening_radius + 2e-3)
+            on_wall = (q.region == 1) & (q.point[:, 2] <= -2e-3) & (w > 0)
+            # the wall only locates the axis: remove its mean offset (which cannot move the axis,
+            # by symmetry) so that its residuals are noise-sized and the Huber fit stays in its
+            # quadratic zone (else IRLS degenerates to a slowly converging L1 fit)
+            r = r.copy()
+            r[on_wall] -= np.median(r[on_wall]) if on_wall.any() else 0.0
+            w = np.zeros_like(r)
+            for grp in (on_flange, on_wall):
+                if grp.any():
+                    w[grp] = _huber_weights(r[grp], max_distance)[0]
+            if np.count_nonzero(on_flange) < 50:
+                raise ConvergenceError(
+                    f"flange registration{where}: only {np.count_nonzero(on_flange)} scan points "
+                    "on the flange; scan the clamped sheet around the part, or use axisymmetric"
+                )
+            J[on_flange, :2] = 0.0
+            J[~on_flange, 2:] = 0.0
+            J[~(on_flange | on_wall)] = 0.0
         # rotation columns × 1/L (L = RMS lever arm): every column in m, so the conditioning
         # test compares like with like (a column that vanishes, as rotation about the axis of
         # a surface of revolution does, stays ~0 instead of being normalised up to 1)
