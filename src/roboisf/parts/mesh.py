@@ -298,22 +298,22 @@ class MeshPart:
         best_d = np.full(n, np.inf)
         todo = np.arange(n)
         kk = min(k, n_tri)
-        first = True
+        done = 0  # candidate ranks 1..done were evaluated already
         while todo.size:
-            dc, fc = tree.query(X[todo], k=kk, workers=-1)
-            dc = dc.reshape(todo.size, kk)
-            fc = fc.reshape(todo.size, kk)
-            if first:  # upper bound: the triangle of the nearest centroid
+            ranks = list(range(done + 1, kk + 1))
+            dc, fc = tree.query(X[todo], k=ranks, workers=-1)
+            dc = dc.reshape(todo.size, len(ranks))
+            fc = fc.reshape(todo.size, len(ranks))
+            if done == 0:  # upper bound: the triangle of the nearest centroid
                 best_f[todo] = fc[:, 0]
                 best_d[todo] = np.sqrt(self._eval(X[todo], fc[:, 0]))
-                first = False
-            pt = np.repeat(todo, kk)
+            pt = np.repeat(todo, len(ranks))
             self._refine(X, pt, fc.ravel(), dc.ravel(), best_d, best_f)
             if kk >= n_tri:
                 break
             # a triangle that is not among the kk candidates is at least d_kk − ρ_max away
             todo = todo[best_d[todo] > dc[:, -1] - ix["rho_max"]]
-            kk = min(kk * 3, n_tri)
+            done, kk = kk, min(kk * 3, n_tri)
         return best_f, best_d**2
 
     def _refine(
