@@ -84,6 +84,7 @@ def test_compare_per_point_csv_with_registration(files, tmp_path):
         (["--register", "bogus"], 2, "unknown registration"),
         (["--rim-band", "-1"], 2, "rim_band"),
         (["--estimator", "mean"], 2, "estimator"),
+        (["--points", "p.txt"], 2, "expected a .parquet or .csv table"),
     ],
 )
 def test_bad_input_exit_codes_and_no_output(files, tmp_path, capsys, extra, code, msg):

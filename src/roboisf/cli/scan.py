@@ -84,8 +84,9 @@ def compare(
 
     for out in outputs:
         check_not_input(out, inputs)
-        if out.suffix.lower() not in (".parquet", ".pq", ".csv", ".json"):
-            raise InputError("expected a .parquet or .csv output", file=out)
+    for out in [output] + ([points_output] if points_output else []):
+        if out.suffix.lower() not in (".parquet", ".pq", ".csv"):
+            raise InputError("expected a .parquet or .csv table", file=out)
     nominal = load_part(part)
     tp = None
     if toolpath is not None:
