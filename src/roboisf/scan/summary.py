@@ -5,7 +5,8 @@ Resultant mean deviation (paper eq. 6)::
     R_m = sqrt( (mean|δx|)² + (mean|δy|)² + (mean|δz|)² )
 
 i.e. the norm of the per-axis *mean absolute* deviations — the paper's springback figures
-(0.72 mm in x and y, 0.49 mm in z) give its resultant 1.132 mm this way.
+(0.72 mm in x and y, 0.49 mm in z) give its resultant 1.132 mm this way. The function is
+:func:`roboisf.decompose.resultant_mean_deviation` (one implementation), re-exported here.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 
+from roboisf.decompose.core import resultant_mean_deviation
 from roboisf.errors import InputError
 
 __all__ = [
@@ -28,14 +30,6 @@ __all__ = [
 ]
 
 F64 = NDArray[np.float64]
-
-
-def resultant_mean_deviation(delta: ArrayLike) -> float:
-    """``R_m`` [m] of deviation vectors ``delta`` (N, 3) [m] (paper eq. 6)."""
-    d = np.atleast_2d(np.asarray(delta, dtype=float))
-    if d.shape[0] == 0:
-        raise InputError("no deviations to summarise")
-    return float(np.linalg.norm(np.mean(np.abs(d), axis=0)))
 
 
 @dataclass(frozen=True)
@@ -84,7 +78,7 @@ def deviation_stats(delta: ArrayLike, dn: ArrayLike) -> DeviationStats:
         float(n_.mean()),
         float(np.abs(n_).mean()),
         float(np.abs(n_).max()),
-        float(np.linalg.norm(a.mean(axis=0))),
+        resultant_mean_deviation(d),
     )
 
 
