@@ -145,3 +145,20 @@ def test_tessellate_facets_within_chordal_error():
         assert d.max() <= e
         assert d.max() > 0.3 * e / 3  # centroid sits ~e/3..e off the circle
     assert math.isclose(np.abs(tessellate(cone).vertices[:, 2]).max(), cone.depth)
+
+
+def test_spatial_order_is_a_permutation_and_results_do_not_depend_on_it():
+    from roboisf.parts.mesh import spatial_order
+    from roboisf.scan import point_deviations
+
+    mesh = tessellate(Cone(), chordal_error=0.3e-3, edge=6e-3)
+    rng = np.random.default_rng(5)
+    X = mesh.vertices[rng.integers(0, mesh.vertices.shape[0], 5000)] + rng.normal(
+        scale=1e-3, size=(5000, 3)
+    )
+    o = spatial_order(X)
+    assert np.array_equal(np.sort(o), np.arange(5000))
+    dev = point_deviations(X, mesh, chunk=700)  # ordered, chunked, threaded
+    q = mesh.closest_point(X)  # one plain call
+    np.testing.assert_array_equal(dev.dn, q.distance)
+    np.testing.assert_array_equal(dev.foot, q.point)

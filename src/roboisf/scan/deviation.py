@@ -24,7 +24,7 @@ from scipy.spatial import cKDTree
 
 from roboisf.errors import InputError
 from roboisf.parts.axisymmetric import AxisymmetricPart
-from roboisf.parts.mesh import MeshPart
+from roboisf.parts.mesh import MeshPart, spatial_order
 from roboisf.progress import Progress, task
 
 __all__ = [
@@ -106,15 +106,14 @@ def point_deviations(
     dn = np.empty(n)
     region = np.empty(n, dtype=np.int64)
 
+    # a mesh query is ~1.5× faster on spatially ordered points (tree and triangle locality)
+    order = spatial_order(X) if isinstance(part, MeshPart) else None
+
     def run(lo: int) -> int:
         hi = min(lo + chunk, n)
-        q = part.closest_point(X[lo:hi])
-        foot[lo:hi], normal[lo:hi], dn[lo:hi], region[lo:hi] = (
-            q.point,
-            q.normal,
-            q.distance,
-            q.region,
-        )
+        rows = slice(lo, hi) if order is None else order[lo:hi]
+        q = part.closest_point(X[rows])
+        foot[rows], normal[rows], dn[rows], region[rows] = q.point, q.normal, q.distance, q.region
         return hi - lo
 
     with task(progress, "closest points", total=n) as advance:
