@@ -11,6 +11,7 @@ from roboisf.parts.axisymmetric import (
 )
 from roboisf.parts.generatrix import Arc, Generatrix, Segment
 from roboisf.parts.io import load_part, part_from_dict, read_profile_csv, save_part
+from roboisf.parts.mesh import MeshPart, tessellate
 
 __all__ = [
     "PAPER_SHEET_THICKNESS",
@@ -19,6 +20,7 @@ __all__ = [
     "AxisymmetricPart",
     "Cone",
     "Generatrix",
+    "MeshPart",
     "ProfilePart",
     "Segment",
     "SurfaceQuery",
@@ -27,4 +29,5 @@ __all__ = [
     "read_profile_csv",
     "save_part",
     "sine_law_thickness",
+    "tessellate",
 ]

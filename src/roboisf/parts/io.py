@@ -12,7 +12,9 @@ Example::
 
 ``vwacf`` takes ``opening_diameter``, ``arc_radius``, ``final_wall_angle``; ``profile`` takes
 ``file`` (a CSV of ``r,z`` in mm, rim first; relative paths are relative to the TOML file) or
-inline ``r = [...]``, ``z = [...]``; ``mesh`` takes ``file`` (an STL, mm).
+inline ``r = [...]``, ``z = [...]``; ``mesh`` takes ``file`` (an STL/OBJ, relative to the TOML
+file), optional ``unit`` (default ``"mm"``) and ``orient`` (``"up"`` default, or
+``"winding"``; see :class:`roboisf.parts.MeshPart`) and no ``flange_width``.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ from roboisf.parts.axisymmetric import (
     Cone,
     ProfilePart,
 )
+from roboisf.parts.mesh import MeshPart
 
 __all__ = ["load_part", "part_from_dict", "read_profile_csv", "save_part"]
 
@@ -42,7 +45,7 @@ _KEYS = {
     "cone": {"opening_diameter", "wall_angle", "depth"},
     "vwacf": {"opening_diameter", "arc_radius", "final_wall_angle"},
     "profile": {"file", "r", "z"},
-    "mesh": {"file"},
+    "mesh": {"file", "unit", "orient"},
 }
 _COMMON = {"kind", "sheet_thickness", "flange_width"}
 
@@ -90,7 +93,9 @@ def _num(
     return float(v)
 
 
-def part_from_dict(table: dict[str, Any], *, where: str | Path | None = None) -> AxisymmetricPart:
+def part_from_dict(
+    table: dict[str, Any], *, where: str | Path | None = None
+) -> AxisymmetricPart | MeshPart:
     """Build a part from a ``[part]`` table (mm, deg). ``where`` resolves relative files."""
     src = Path(where) if where is not None else None
     kind = table.get("kind")
@@ -138,21 +143,34 @@ def part_from_dict(table: dict[str, Any], *, where: str | Path | None = None) ->
             r = np.asarray(table["r"], dtype=float) * 1e-3
             z = np.asarray(table["z"], dtype=float) * 1e-3
             return ProfilePart(r=tuple(r), z=tuple(z), **common)
+        if kind == "mesh":
+            if "flange_width" in table:
+                raise InputError(
+                    "a mesh part has no flange_width (its flange is in the mesh)",
+                    file=src,
+                    field="part.flange_width",
+                )
+            if not isinstance(table.get("file"), str):
+                raise InputError("mesh needs 'file' (an STL/OBJ path)", file=src, field="part.file")
+            f = Path(table["file"])
+            fpath = f if f.is_absolute() or src is None else src.parent / f
+            return MeshPart.from_file(
+                fpath,
+                unit=str(table.get("unit", "mm")),
+                orient=str(table.get("orient", "up")),
+                sheet_thickness=common["sheet_thickness"],
+                source=str(table["file"]),
+            )
     except InputError as e:
         if e.file is None and src is not None:
             raise InputError(
                 e.message, file=src, field=f"part.{e.field}" if e.field else "part"
             ) from None
         raise
-    # mesh parts are loaded by roboisf.scan (non-axisymmetric nominal surfaces)
-    raise InputError(
-        "a 'mesh' part has no generatrix; it can be used as a scan nominal, not for toolpaths",
-        file=src,
-        field="part.kind",
-    )
+    raise AssertionError(kind)  # pragma: no cover - every kind returns above
 
 
-def load_part(path: str | Path) -> AxisymmetricPart:
+def load_part(path: str | Path) -> AxisymmetricPart | MeshPart:
     """Load a part TOML file (see module docstring)."""
     path = Path(path)
     if not path.is_file():
@@ -166,7 +184,7 @@ def load_part(path: str | Path) -> AxisymmetricPart:
     return part_from_dict(data["part"], where=path)
 
 
-def save_part(part: AxisymmetricPart, path: str | Path) -> None:
+def save_part(part: AxisymmetricPart | MeshPart, path: str | Path) -> None:
     """Write ``part`` as a ``[part]`` TOML table (mm, deg), atomically."""
     with atomic_write(path, "wb") as fh:
         fh.write(tomli_w.dumps({"part": part.to_dict()}).encode())

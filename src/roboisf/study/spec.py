@@ -366,7 +366,11 @@ def load_study(path: str | Path) -> Study:
         c.add("missing table", "part")
     else:
         try:
-            part = part_from_dict(data["part"], where=file)
+            loaded = part_from_dict(data["part"], where=file)
+            if isinstance(loaded, AxisymmetricPart):
+                part = loaded
+            else:  # a mesh nominal has no generatrix, so no toolpath: not a study part (yet)
+                c.add("a study needs an axisymmetric part (cone, vwacf, profile)", "part.kind")
         except InputError as e:
             c.catch(e, "part")
 

@@ -1,0 +1,116 @@
+"""Benchmark: closest points of a 3 M point scan on the nominal, vs Open3D's RaycastingScene.
+
+    PYTHONPATH=src python benchmarks/scan_deviation.py [--points 3000000] [--edge 0.4]
+
+(a) the analytic cone (``Cone.closest_point``), (b) an STL-like mesh of the same cone with
+~300 k triangles (``MeshPart.closest_point``, exact), and Open3D's
+``RaycastingScene.compute_closest_points`` on the same mesh (float32). Also the whole
+``compare_scan`` pipeline on (a). Prints times, ratios, agreement and peak memory (ru_maxrss).
+Targets (issue 5): (b)/Open3D ≤ 1.0, Open3D/(a) ≥ 10, peak ≤ 4 GB.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import resource
+import time
+
+import numpy as np
+
+from roboisf.parts import Cone, tessellate
+from roboisf.scan import (
+    CompareOptions,
+    ScanCloud,
+    compare_scan,
+    point_deviations,
+    radial_offset,
+    synthetic_scan,
+)
+
+
+def peak_gb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024**2
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--points", type=int, default=3_000_000)
+    ap.add_argument("--edge", type=float, default=0.40, help="mesh edge length [mm]")
+    ap.add_argument("--no-open3d", action="store_true")
+    args = ap.parse_args()
+    print(f"cores: {os.cpu_count()}, points: {args.points:,}")
+
+    cone = Cone()
+    # a realistic formed cone: 0.5 mm radial offset growing to ~1.3 mm at the bottom
+    off = radial_offset(lambda z, phi: 0.5e-3 + 8e-3 * (-z), cone)
+    t = time.perf_counter()
+    scan = synthetic_scan(cone, args.points, offset=off, outlier_fraction=0.01, seed=1)
+    X = scan.points
+    print(f"synthetic scan: {time.perf_counter() - t:.2f} s, peak {peak_gb():.2f} GB")
+
+    # (a) analytic: the scan path (chunked, threaded) around Cone.closest_point
+    t = time.perf_counter()
+    qa = point_deviations(X, cone)
+    t_a = time.perf_counter() - t
+    t = time.perf_counter()
+    cone.closest_point(X)
+    t_a1 = time.perf_counter() - t
+    print(
+        f"(a) analytic cone:     {t_a:7.2f} s   peak {peak_gb():.2f} GB   "
+        f"(one unchunked Cone.closest_point call: {t_a1:.2f} s)"
+    )
+
+    # (b) mesh
+    t = time.perf_counter()
+    mesh = tessellate(cone, chordal_error=0.05e-3, edge=args.edge * 1e-3)
+    t_build = time.perf_counter() - t
+    print(f"mesh: {mesh.n_faces:,} triangles, built + indexed in {t_build:.2f} s")
+    t = time.perf_counter()
+    qm = point_deviations(X, mesh)
+    t_b = time.perf_counter() - t
+    dd = np.abs(qm.dn - qa.dn)
+    print(
+        f"(b) mesh (exact):      {t_b:7.2f} s   peak {peak_gb():.2f} GB   "
+        f"|d_mesh − d_analytic| max {dd.max() * 1e6:.2f} µm (chordal error 50 µm)"
+    )
+
+    t_o3d = math.nan
+    if not args.no_open3d:
+        import open3d as o3d
+
+        t = time.perf_counter()
+        scene = o3d.t.geometry.RaycastingScene()
+        scene.add_triangles(
+            o3d.core.Tensor(mesh.vertices.astype(np.float32)),
+            o3d.core.Tensor(mesh.faces.astype(np.uint32)),
+        )
+        q = o3d.core.Tensor(X.astype(np.float32))
+        t_o3d_build = time.perf_counter() - t
+        t = time.perf_counter()
+        ans = scene.compute_closest_points(q)
+        t_o3d = time.perf_counter() - t
+        P = ans["points"].numpy().astype(float)
+        d_o3d = np.linalg.norm(X - P, axis=1)
+        agree = np.abs(d_o3d - np.abs(qm.dn))
+        print(
+            f"Open3D RaycastingScene: {t_o3d:6.2f} s   (+{t_o3d_build:.2f} s setup)  "
+            f"peak {peak_gb():.2f} GB   |d − d_ours| max {agree.max() * 1e6:.3f} µm "
+            "(float32)"
+        )
+        print(f"ratio (b)/Open3D = {t_b / t_o3d:.2f}  (target ≤ 1.0)")
+        print(f"ratio Open3D/(a) = {t_o3d / t_a:.1f}  (target ≥ 10)")
+
+    # the whole pipeline on (a)
+    t = time.perf_counter()
+    res = compare_scan(ScanCloud(X, None, "synthetic"), cone, options=CompareOptions())
+    print(
+        f"compare_scan (analytic, selection + outlier filter + summaries): "
+        f"{time.perf_counter() - t:.2f} s, {res.counts}"
+    )
+    print(f"peak memory (whole run): {peak_gb():.2f} GB  (target ≤ 4 GB)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,148 @@
+"""``roboisf scan …``: compare a laser scan with the nominal part (and a toolpath)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import typer
+
+from roboisf.cli.console import state
+from roboisf.errors import InputError
+
+__all__ = ["register"]
+
+scan_app = typer.Typer(
+    help="Laser scans vs the nominal part: registration and signed deviation vectors.",
+    no_args_is_help=True,
+)
+
+
+@scan_app.command("compare")
+def compare(
+    scan: Path = typer.Argument(..., help="Scan file: PLY, PCD, XYZ/CSV/TXT, STL/OBJ."),
+    part: Path = typer.Option(..., "--part", "-p", help="Part TOML (cone, vwacf, profile, mesh)."),
+    output: Path = typer.Option(
+        ...,
+        "--output",
+        "-o",
+        help="Deviation table: .parquet or .csv. Per toolpath point with --toolpath, else per "
+        "scan point (selected wall points).",
+    ),
+    toolpath: Path | None = typer.Option(
+        None, "--toolpath", "-t", help="Toolpath CSV: deviations per contact point."
+    ),
+    register: str = typer.Option(
+        "none", "--register", "-r", help="Registration: none | flange | axisymmetric | icp."
+    ),
+    rim_band: float = typer.Option(20.0, help="Rim band excluded below the sheet plane [mm]."),
+    unit: str = typer.Option("mm", "--unit", "-u", help="Length unit of the scan file."),
+    max_distance: float = typer.Option(
+        3.0, help="Points farther from the nominal are not the part [mm]."
+    ),
+    radius: float = typer.Option(1.0, help="Radius around each contact's normal line [mm]."),
+    min_points: int = typer.Option(5, help="Fewer scan points at a contact: a hole."),
+    estimator: str = typer.Option("median", help="Robust average: median | trimmed."),
+    outlier_k: int = typer.Option(8, help="Neighbours of the outlier filter (0: off)."),
+    outlier_std: float = typer.Option(3.0, help="Outlier threshold in standard deviations."),
+    bin_width: float = typer.Option(0.5, help="z-level bin width of the summary [mm]."),
+    contour_z: float = typer.Option(-11.0, help="Contour of the polar summary [mm]."),
+    angle_bin: float = typer.Option(5.0, help="Angle bin of the polar summary [deg]."),
+    sample: int | None = typer.Option(
+        None, help="Mesh scans (STL/OBJ): sample this many points on the faces."
+    ),
+    summary: Path | None = typer.Option(
+        None, help="JSON summary path (default: next to the output, <stem>.summary.json)."
+    ),
+    points_output: Path | None = typer.Option(
+        None, "--points", help="Also write the per-scan-point table (.parquet or .csv)."
+    ),
+) -> None:
+    """Signed deviations of a scan from the nominal, per scan point and per toolpath point.
+
+    Sign: dn > 0 where the scanned material sits on the tool side of the nominal; the vector
+    (dx, dy, dz) = dn · n along the nominal's tool-side normal, work frame, mm.
+    """
+    from roboisf.parts.io import load_part
+    from roboisf.scan.compare import CompareOptions, compare_scan
+    from roboisf.scan.output import (
+        POINT_COLUMNS,
+        TOOLPATH_COLUMNS,
+        point_table,
+        toolpath_table,
+        write_summary_json,
+        write_table,
+    )
+    from roboisf.scan.readers import read_scan
+
+    summary_path = summary or output.with_name(output.stem + ".summary.json")
+    outputs = [output, summary_path] + ([points_output] if points_output else [])
+    inputs: list[str | Path] = [scan, part]
+    if toolpath:
+        inputs.append(toolpath)
+    from roboisf.io.atomic import check_not_input
+
+    for out in outputs:
+        check_not_input(out, inputs)
+    for out in [output] + ([points_output] if points_output else []):
+        if out.suffix.lower() not in (".parquet", ".pq", ".csv"):
+            raise InputError("expected a .parquet or .csv table", file=out)
+    nominal = load_part(part)
+    tp = None
+    if toolpath is not None:
+        from roboisf.io.toolpath_csv import read_toolpath_csv
+
+        tp = read_toolpath_csv(toolpath)
+    opts = CompareOptions(
+        register=register,
+        rim_band=rim_band * 1e-3,
+        max_distance=max_distance * 1e-3,
+        outlier_k=outlier_k,
+        outlier_std=outlier_std,
+        radius=radius * 1e-3,
+        min_points=min_points,
+        estimator=estimator,
+        bin_width=bin_width * 1e-3,
+        contour_z=contour_z * 1e-3,
+        angle_bin=math.radians(angle_bin),
+    )
+    progress = state.progress()
+    cloud = read_scan(scan, unit=unit, sample=sample)
+    state.debug(f"read {cloud.n_points} points from {scan}")
+    tp_src = str(toolpath) if toolpath else None
+    res = compare_scan(
+        cloud, nominal, toolpath=tp, toolpath_source=tp_src, options=opts, progress=progress
+    )
+    reg = res.registration
+    if reg.dof:
+        state.info(
+            f"registration {reg.method}: shift "
+            f"{', '.join(f'{v * 1e3:.4f}' for v in reg.translation)} mm, "
+            f"tilt {math.degrees(reg.tilt):.4f}°, rms {reg.rms * 1e3:.4f} mm, "
+            f"overlap {reg.overlap:.1%}"
+        )
+    if res.toolpath is not None:
+        t = res.toolpath
+        if (~t.valid).any():
+            state.warn(
+                f"{int((~t.valid).sum())} of {t.valid.size} toolpath points have no deviation "
+                "(rim band or holes in the scan): valid = false"
+            )
+        write_table(toolpath_table(t), output, TOOLPATH_COLUMNS, "toolpath_deviations")
+    else:
+        write_table(point_table(res.points), output, POINT_COLUMNS, "point_deviations")
+    if points_output is not None:
+        write_table(point_table(res.points), points_output, POINT_COLUMNS, "point_deviations")
+    s = res.summary()
+    s["inputs"] = {"scan": str(scan), "part": str(part), "toolpath": tp_src, "unit": unit}
+    write_summary_json(s, summary_path)
+    pts = s["points"]
+    state.info(
+        f"{res.counts['used']} wall points: mean |dn| {pts['mean_abs_dn_mm']:.4f} mm, "
+        f"R_m {pts['R_m_mm']:.4f} mm → {output}, {summary_path}"
+    )
+
+
+def register(app: typer.Typer) -> None:
+    """Add the ``scan`` command group to the root app."""
+    app.add_typer(scan_app, name="scan")

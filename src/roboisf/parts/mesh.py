@@ -1,0 +1,487 @@
+"""Triangle-mesh nominal surface (STL/OBJ) with exact, fast closest-point queries.
+
+For parts that are not surfaces of revolution. The query has the same shape as the analytic
+parts' :meth:`~roboisf.parts.AxisymmetricPart.closest_point` (a :class:`SurfaceQuery`), so the
+scan code does not care which kind of nominal it compares against.
+
+Closest point algorithm (exact, not approximate):
+
+1. a k-d tree (``scipy.spatial.cKDTree``) over the triangle centroids ``c_j``; every triangle
+   lies inside the ball of radius ``ρ_j = max |v − c_j|`` (over its vertices) around its centroid;
+2. for each query point x, the ``k`` nearest centroids are candidates; the exact point–triangle
+   distance (Ericson, *Real-Time Collision Detection* §5.1.5, vectorised) is evaluated on them,
+   nearest centroid first, skipping a candidate whose lower bound ``|x − c_j| − ρ_j`` already
+   exceeds the best distance found;
+3. every triangle that is not a candidate is at least ``d_k − ρ_max`` away (``d_k`` = k-th
+   centroid distance). Where the best distance is larger than that bound the answer is not
+   proven; those points are queried again with 4× more candidates, until proven (or all
+   triangles were candidates). The result is therefore the true closest triangle.
+
+Orientation: the tool-side normal of an ISF part (tool along +z, part below the sheet) has
+``n_z ≥ 0``. By default (``orient="up"``) faces whose winding normal points down are flipped;
+``orient="winding"`` keeps the file's winding (outward normals of a closed solid point away
+from the material, which for a sheet's tool-side surface must then be the tool side).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import cKDTree
+
+from roboisf.errors import InputError
+from roboisf.io.units import to_si
+from roboisf.parts.axisymmetric import PAPER_SHEET_THICKNESS, SurfaceQuery
+
+__all__ = ["MeshPart", "point_triangle_distance2", "read_mesh", "spatial_order", "tessellate"]
+
+F64 = NDArray[np.float64]
+
+#: Points per chunk of the closest-point query (bounds the temporary memory to ~100 MB).
+CHUNK = 200_000
+
+
+def _part1by2(v: NDArray[np.uint64]) -> NDArray[np.uint64]:
+    """Spread the low 21 bits of ``v`` to every third bit (Morton code helper)."""
+    v = v & np.uint64(0x1FFFFF)
+    v = (v | (v << np.uint64(32))) & np.uint64(0x1F00000000FFFF)
+    v = (v | (v << np.uint64(16))) & np.uint64(0x1F0000FF0000FF)
+    v = (v | (v << np.uint64(8))) & np.uint64(0x100F00F00F00F00F)
+    v = (v | (v << np.uint64(4))) & np.uint64(0x10C30C30C30C30C3)
+    return (v | (v << np.uint64(2))) & np.uint64(0x1249249249249249)
+
+
+def spatial_order(points: ArrayLike, bits: int = 16) -> NDArray[np.int64]:
+    """Permutation that sorts ``points`` (N, 3) along a Morton (Z-order) curve.
+
+    Neighbouring queries then touch neighbouring tree nodes and triangles: the mesh query runs
+    ~1.5× faster on a scan in random order. Pure reordering, results are unchanged.
+    """
+    X = np.asarray(points, dtype=float)
+    if X.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64)
+    lo = X.min(axis=0)
+    span = float(np.max(X.max(axis=0) - lo)) or 1.0
+    q = ((X - lo) * ((2**bits - 1) / span)).astype(np.uint64)
+    code = _part1by2(q[:, 0]) | (_part1by2(q[:, 1]) << np.uint64(1))
+    code |= _part1by2(q[:, 2]) << np.uint64(2)
+    return np.argsort(code, kind="stable")
+
+
+def point_triangle_distance2(
+    p: F64, a: F64, ab: F64, ac: F64, abab: F64, abac: F64, acac: F64
+) -> tuple[F64, F64, F64]:
+    """Squared distance from points to triangles, and the barycentric (v, w) of the closest point.
+
+    Broadcasting arrays: ``p, a, ab, ac`` (..., 3) [m] with ``ab = b − a``, ``ac = c − a``;
+    ``abab = ab·ab``, ``abac = ab·ac``, ``acac = ac·ac`` (...,). The closest point is
+    ``a + v·ab + w·ac``. Exact for every Voronoi region (vertices, edges, face); degenerate
+    (zero-area) triangles fall back to their edges.
+    """
+    ap = p - a
+    d1 = np.einsum("...i,...i->...", ab, ap)
+    d2 = np.einsum("...i,...i->...", ac, ap)
+    d3 = d1 - abab  # ab·(p − b)
+    d4 = d2 - abac  # ac·(p − b)
+    d5 = d1 - abac  # ab·(p − c)
+    d6 = d2 - acac  # ac·(p − c)
+    va = d3 * d6 - d5 * d4
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t_ab = d1 / (d1 - d3)
+        t_ac = d2 / (d2 - d6)
+        t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        den = va + vb + vc
+        v_in = vb / den
+        w_in = vc / den
+    in_a = (d1 <= 0) & (d2 <= 0)
+    in_b = (d3 >= 0) & (d4 <= d3)
+    in_c = (d6 >= 0) & (d5 <= d6)
+    on_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
+    on_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
+    on_bc = (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0)
+    conds = [in_a, in_b, on_ab, in_c, on_ac, on_bc]
+    zero = np.zeros_like(d1)
+    one = np.ones_like(d1)
+    v = np.select(conds, [zero, one, t_ab, zero, zero, 1.0 - t_bc], v_in)
+    w = np.select(conds, [zero, zero, zero, one, t_ac, t_bc], w_in)
+    # |ap − v ab − w ac|² expanded (no closest point needed for the comparison)
+    d2_ = (
+        np.einsum("...i,...i->...", ap, ap)
+        - 2.0 * (v * d1 + w * d2)
+        + v * v * abab
+        + 2.0 * v * w * abac
+        + w * w * acac
+    )
+    return np.maximum(d2_, 0.0), v, w
+
+
+def read_mesh(path: str | Path, *, unit: str = "mm") -> tuple[F64, NDArray[np.int64]]:
+    """Read a triangle mesh (STL ascii/binary, OBJ, PLY with faces) with trimesh.
+
+    Returns ``vertices (V, 3) [m]`` (converted from ``unit``) and ``faces (F, 3) int``.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("mesh file not found", file=path)
+    scale = to_si(unit, "length", file=path, field="unit")
+    if path.stat().st_size == 0:
+        raise InputError("file is empty", file=path)
+    import trimesh
+
+    try:
+        mesh = trimesh.load(str(path), force="mesh", process=True)
+    except Exception as e:
+        raise InputError(f"not a readable mesh ({type(e).__name__}: {e})", file=path) from None
+    V: F64 = np.array(getattr(mesh, "vertices", np.empty((0, 3))), dtype=np.float64)
+    F: NDArray[np.int64] = np.array(getattr(mesh, "faces", np.empty((0, 3))), dtype=np.int64)
+    if V.shape[0] == 0 or F.ndim != 2 or F.shape[0] == 0:
+        raise InputError("mesh has no triangles (empty or truncated file?)", file=path)
+    if not np.all(np.isfinite(V)):
+        raise InputError("mesh has NaN or inf vertex coordinates", file=path)
+    return V * scale, F
+
+
+@dataclass(frozen=True)
+class MeshPart:
+    """A nominal surface given as a triangle mesh (work frame, m).
+
+    Parameters
+    ----------
+    vertices : (V, 3) float, m
+    faces : (F, 3) int — vertex indices
+    orient : ``"up"`` (default: flip faces so that n_z ≥ 0, the tool side of a part formed
+        with the tool along +z) or ``"winding"`` (keep the file's winding)
+    sheet_thickness : float, m
+    source : the file it came from (for the TOML round trip), or None
+
+    ``closest_point`` fills :class:`SurfaceQuery` as follows: ``normal`` is the tool-side face
+    normal of the closest triangle, ``distance`` is signed with it (+ on the tool side),
+    ``wall_angle = arccos n_z``, ``depth = −z`` of the closest point, ``s`` (arc length along a
+    generatrix) does not exist for a mesh and is ``NaN``, ``region`` is 1 (wall) except for
+    faces within 1° of horizontal: 0 (flange) at the sheet plane (|z| ≤ 0.1 mm), 2 (bottom)
+    below it.
+    """
+
+    kind: ClassVar[str] = "mesh"
+    vertices: F64
+    faces: NDArray[np.int64]
+    orient: str = "up"
+    sheet_thickness: float = PAPER_SHEET_THICKNESS
+    source: str | None = None
+    _index: dict[str, Any] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        V = np.ascontiguousarray(np.asarray(self.vertices, dtype=float))
+        Fc = np.ascontiguousarray(np.asarray(self.faces, dtype=np.int64))
+        where = self.source
+        if V.ndim != 2 or V.shape[1] != 3 or V.shape[0] < 3:
+            raise InputError(f"mesh vertices must be (V ≥ 3, 3), got {V.shape}", file=where)
+        if Fc.ndim != 2 or Fc.shape[1] != 3 or Fc.shape[0] < 1:
+            raise InputError(f"mesh faces must be (F ≥ 1, 3) triangles, got {Fc.shape}", file=where)
+        if not np.all(np.isfinite(V)):
+            raise InputError("mesh has NaN or inf vertex coordinates", file=where)
+        if Fc.min() < 0 or Fc.max() >= V.shape[0]:
+            raise InputError("mesh face refers to a vertex that does not exist", file=where)
+        if self.orient not in ("up", "winding"):
+            raise InputError(
+                f"orient must be 'up' or 'winding', got {self.orient!r}", field="orient"
+            )
+        if not (self.sheet_thickness > 0 and math.isfinite(self.sheet_thickness)):
+            raise InputError("must be > 0 mm", field="sheet_thickness")
+        a, b, c = V[Fc[:, 0]], V[Fc[:, 1]], V[Fc[:, 2]]
+        nrm = np.cross(b - a, c - a)
+        area2 = np.linalg.norm(nrm, axis=1)
+        if not np.any(area2 > 0):
+            raise InputError("mesh has no triangle with a non-zero area", file=where)
+        if self.orient == "up":
+            flip = nrm[:, 2] < 0
+            Fc = Fc.copy()
+            Fc[flip] = Fc[flip][:, ::-1]
+            nrm[flip] *= -1.0
+            a, b, c = V[Fc[:, 0]], V[Fc[:, 1]], V[Fc[:, 2]]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            unit_n = np.where(area2[:, None] > 0, nrm / area2[:, None], 0.0)
+        centroid = (a + b + c) / 3.0
+        rho = np.sqrt(np.max(np.stack([((x - centroid) ** 2).sum(1) for x in (a, b, c)]), axis=0))
+        ab, ac = b - a, c - a
+        object.__setattr__(self, "vertices", V)
+        object.__setattr__(self, "faces", Fc)
+        idx: dict[str, Any] = {
+            "tree": cKDTree(centroid),
+            "centroid": centroid,
+            "a": a,
+            "ab": ab,
+            "ac": ac,
+            "abab": (ab * ab).sum(1),
+            "abac": (ab * ac).sum(1),
+            "acac": (ac * ac).sum(1),
+            "rho": rho,
+            "rho_max": float(rho.max()),
+            "normal": unit_n,
+        }
+        object.__setattr__(self, "_index", idx)
+
+    # -- construction ---------------------------------------------------------------------------
+    @classmethod
+    def from_file(
+        cls,
+        path: str | Path,
+        *,
+        unit: str = "mm",
+        orient: str = "up",
+        sheet_thickness: float = PAPER_SHEET_THICKNESS,
+        source: str | None = None,
+    ) -> MeshPart:
+        """Load an STL/OBJ/PLY mesh (trimesh) whose coordinates are in ``unit`` (default mm).
+
+        ``source`` is what :meth:`to_dict` records as the file (default: ``path``)."""
+        V, F = read_mesh(path, unit=unit)
+        return cls(
+            V,
+            F,
+            orient=orient,
+            sheet_thickness=sheet_thickness,
+            source=str(path) if source is None else source,
+        )
+
+    @property
+    def n_faces(self) -> int:
+        return int(self.faces.shape[0])
+
+    @property
+    def bounds(self) -> tuple[F64, F64]:
+        """Lower and upper corners (3,) [m] of the mesh's bounding box."""
+        return self.vertices.min(axis=0), self.vertices.max(axis=0)
+
+    @property
+    def size(self) -> float:
+        """Largest extent of the bounding box [m] (for unit plausibility checks)."""
+        lo, hi = self.bounds
+        return float(np.max(hi - lo))
+
+    @property
+    def generatrix(self) -> Any:
+        raise InputError(
+            "a 'mesh' part has no generatrix; it can be used as a scan nominal, not for toolpaths",
+            file=self.source,
+            field="part.kind",
+        )
+
+    def to_dict(self) -> dict[str, object]:
+        if self.source is None:
+            raise InputError("a mesh part built in memory has no file to save; write an STL first")
+        return {"kind": "mesh", "file": self.source, "sheet_thickness": self.sheet_thickness * 1e3}
+
+    # -- queries ----------------------------------------------------------------------------------
+    def closest_faces(self, points: ArrayLike, k: int = 24) -> tuple[NDArray[np.int64], F64, F64]:
+        """Exact closest triangle of each point: ``(face (N,), squared distance (N,) m², closest
+        point (N, 3) m)``. ``k`` is the first candidate count (a speed knob, not an accuracy one).
+        """
+        X = np.atleast_2d(np.asarray(points, dtype=float))
+        if X.ndim != 2 or X.shape[1] != 3:
+            raise InputError(f"points must have shape (N, 3), got {X.shape}")
+        n = X.shape[0]
+        face = np.empty(n, dtype=np.int64)
+        d2 = np.empty(n)
+        for lo in range(0, n, CHUNK):
+            hi = min(lo + CHUNK, n)
+            face[lo:hi], d2[lo:hi] = self._closest_chunk(X[lo:hi], k)
+        closest = self._closest_on(X, face)
+        return face, d2, closest
+
+    def _closest_on(self, X: F64, face: NDArray[np.int64]) -> F64:
+        ix = self._index
+        _, v, w = point_triangle_distance2(
+            X,
+            ix["a"][face],
+            ix["ab"][face],
+            ix["ac"][face],
+            ix["abab"][face],
+            ix["abac"][face],
+            ix["acac"][face],
+        )
+        return ix["a"][face] + v[:, None] * ix["ab"][face] + w[:, None] * ix["ac"][face]
+
+    def _eval(self, X: F64, f: NDArray[np.int64]) -> F64:
+        ix = self._index
+        d2, _, _ = point_triangle_distance2(
+            X, ix["a"][f], ix["ab"][f], ix["ac"][f], ix["abab"][f], ix["abac"][f], ix["acac"][f]
+        )
+        return d2
+
+    def _closest_chunk(self, X: F64, k: int) -> tuple[NDArray[np.int64], F64]:
+        ix = self._index
+        tree: cKDTree = ix["tree"]
+        n = X.shape[0]
+        n_tri = self.n_faces
+        best_f = np.zeros(n, dtype=np.int64)
+        best_d = np.full(n, np.inf)
+        todo = np.arange(n)
+        kk = min(k, n_tri)
+        done = 0  # candidate ranks 1..done were evaluated already
+        while todo.size:
+            ranks = list(range(done + 1, kk + 1))
+            dc, fc = tree.query(X[todo], k=ranks, workers=-1)
+            dc = dc.reshape(todo.size, len(ranks))
+            fc = fc.reshape(todo.size, len(ranks))
+            if done == 0:  # upper bound: the triangle of the nearest centroid
+                best_f[todo] = fc[:, 0]
+                best_d[todo] = np.sqrt(self._eval(X[todo], fc[:, 0]))
+            pt = np.repeat(todo, len(ranks))
+            self._refine(X, pt, fc.ravel(), dc.ravel(), best_d, best_f)
+            if kk >= n_tri:
+                break
+            # a triangle that is not among the kk candidates is at least d_kk − ρ_max away
+            todo = todo[best_d[todo] > dc[:, -1] - ix["rho_max"]]
+            done, kk = kk, min(kk * 3, n_tri)
+        return best_f, best_d**2
+
+    def _refine(
+        self,
+        X: F64,
+        pt: NDArray[np.int64],
+        tri: NDArray[np.int64],
+        dcen: F64,
+        best_d: F64,
+        best_f: NDArray[np.int64],
+    ) -> None:
+        """Update ``best_d/best_f`` in place with the (point, triangle) pairs ``pt, tri``.
+
+        ``pt`` must be sorted. A pair is evaluated exactly only if its lower bound is below the
+        point's best: with
+        ``h`` the distance to the triangle's plane and ``q = sqrt(|x − c|² − h²)`` the in-plane
+        distance to its centroid, every point of the triangle is at least
+        ``sqrt(h² + max(0, q − ρ)²)`` away (the triangle lies in its plane within ρ of c).
+        """
+        ix = self._index
+        keep = dcen - ix["rho"][tri] < best_d[pt]  # cheap ball bound first
+        pt, tri, dcen = pt[keep], tri[keep], dcen[keep]
+        h = np.abs(np.einsum("ij,ij->i", X[pt] - ix["centroid"][tri], ix["normal"][tri]))
+        q = np.sqrt(np.maximum(dcen * dcen - h * h, 0.0))
+        gap = np.maximum(q - ix["rho"][tri], 0.0)
+        keep = h * h + gap * gap < best_d[pt] ** 2
+        pt, tri = pt[keep], tri[keep]
+        if pt.size == 0:
+            return
+        d = np.sqrt(self._eval(X[pt], tri))
+        # per point minimum over its pairs (``pt`` comes sorted: one contiguous run per point)
+        starts = np.flatnonzero(np.concatenate([[True], pt[1:] != pt[:-1]]))
+        mins = np.minimum.reduceat(d, starts)
+        hit = np.flatnonzero(d == np.repeat(mins, np.diff(np.append(starts, d.size))))
+        grp = np.searchsorted(starts, hit, side="right") - 1
+        first = hit[np.concatenate([[True], grp[1:] != grp[:-1]])]
+        pt, tri, d = pt[first], tri[first], d[first]
+        better = d < best_d[pt]
+        best_d[pt[better]] = d[better]
+        best_f[pt[better]] = tri[better]
+
+    def closest_point(self, points: ArrayLike) -> SurfaceQuery:
+        """Exact closest point on the mesh for each of ``points`` (N, 3) [m] (see class doc)."""
+        X = np.atleast_2d(np.asarray(points, dtype=float))
+        face, d2, P = self.closest_faces(X)
+        N = self._index["normal"][face]
+        side = np.einsum("ij,ij->i", X - P, N)
+        dist = np.sqrt(d2)
+        signed = np.where(side < 0, -dist, dist)
+        nz = np.clip(N[:, 2], -1.0, 1.0)
+        alpha = np.arccos(nz)
+        flat = nz > math.cos(math.radians(1.0))
+        region = np.where(flat, np.where(P[:, 2] >= -1e-4, 0, 2), 1).astype(np.int64)
+        return SurfaceQuery(P, N, signed, alpha, -P[:, 2], np.full(X.shape[0], np.nan), region)
+
+    def signed_distance(self, points: ArrayLike) -> F64:
+        """Signed distance [m] of ``points`` (N, 3) to the mesh (+ on the tool side)."""
+        return self.closest_point(points).distance
+
+
+def _stitch(a0: int, m: int, b0: int, n: int) -> NDArray[np.int64]:
+    """Triangles between ring A (``m`` vertices from index ``a0``) and ring B (``n`` from
+    ``b0``), both starting at angle 0: a merge of the two angle sequences (m + n triangles)."""
+    ua = np.arange(1, m + 1) / m
+    ub = np.arange(1, n + 1) / n
+    u = np.concatenate([ua, ub])
+    from_a = np.concatenate([np.ones(m, bool), np.zeros(n, bool)])
+    order = np.argsort(u, kind="stable")
+    from_a = from_a[order]
+    i = np.cumsum(from_a)  # A vertices passed after each event
+    j = np.cumsum(~from_a)
+    ia_prev = (i - from_a) % m
+    jb_prev = (j - ~from_a) % n
+    tri_a = np.stack([a0 + ia_prev, b0 + jb_prev, a0 + i % m], axis=1)
+    tri_b = np.stack([a0 + ia_prev, b0 + jb_prev, b0 + j % n], axis=1)
+    return np.where(from_a[:, None], tri_a, tri_b)
+
+
+def tessellate(part: Any, *, chordal_error: float = 0.05e-3, edge: float | None = None) -> MeshPart:
+    """Triangle mesh of an axisymmetric part's nominal surface (flange, wall, bottom).
+
+    Parameters
+    ----------
+    part : AxisymmetricPart
+    chordal_error : float, m — max. distance between a facet and the true surface (rings carry
+        enough vertices that a triangle spanning two rings' angular spacings has a sagitta
+        ``r (1 − cos(Δφ/2)) ≤ chordal_error``; arcs of the generatrix are subdivided to the
+        same sagitta)
+    edge : float, m, optional — target edge length: rings are spaced by at most ``edge`` along
+        the generatrix and carry at least ``2πr/edge`` vertices, so the triangles are near
+        equilateral (the mesh then has about ``2.3·area/edge²`` triangles)
+
+    The vertices lie exactly on the nominal surface; every facet is within ``chordal_error``
+    of it.
+    """
+    if not (chordal_error > 0 and math.isfinite(chordal_error)):
+        raise InputError("must be > 0", field="chordal_error")
+    g = part.generatrix
+    r_list: list[F64] = []
+    z_list: list[F64] = []
+    for prim in g.primitives:
+        n = 1
+        if isinstance(getattr(prim, "radius", None), float):  # arc: sagitta ρ(1 − cos(Δβ/2))
+            dbeta = 2.0 * math.acos(max(-1.0, 1.0 - chordal_error / prim.radius))
+            n = max(n, math.ceil((prim.beta1 - prim.beta0) / dbeta))
+        if edge is not None:
+            n = max(n, math.ceil(prim.length / edge))
+        r, z, _ = prim.at(np.linspace(0.0, prim.length, n + 1))
+        r_list.append(r[1:] if r_list else r)
+        z_list.append(z[1:] if z_list else z)
+    r = np.concatenate(r_list)
+    z = np.concatenate(z_list)
+    verts: list[F64] = []
+    faces: list[NDArray[np.int64]] = []
+    start: list[int] = []
+    count: list[int] = []
+    n_v = 0
+    # a triangle between two rings spans up to the sum of their angular spacings: with the
+    # count of each ring set for a quarter of the sagitta at the largest radius of its
+    # neighbourhood, that span's sagitta stays within chordal_error
+    r_nb = np.maximum(r, np.maximum(np.r_[r[1:], 0.0], np.r_[0.0, r[:-1]]))
+    for ri, zi, rn in zip(r, z, r_nb, strict=True):
+        if ri <= 1e-12:
+            m = 1
+            ring = np.array([[0.0, 0.0, zi]])
+        else:
+            m = math.ceil(math.pi / math.acos(max(-1.0, 1.0 - chordal_error / 4 / rn)))
+            if edge is not None:
+                m = max(m, math.ceil(2 * math.pi * ri / edge))
+            m = max(m, 8)
+            phi = 2 * math.pi * np.arange(m) / m
+            ring = np.stack([ri * np.cos(phi), ri * np.sin(phi), np.full(m, zi)], axis=1)
+        verts.append(ring)
+        start.append(n_v)
+        count.append(m)
+        n_v += m
+    for k in range(len(start) - 1):
+        tri = _stitch(start[k], count[k], start[k + 1], count[k + 1])
+        # a ring of one vertex (on the axis) makes degenerate triangles: drop them
+        ok = (tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 0] != tri[:, 2])
+        faces.append(tri[ok])
+    return MeshPart(
+        np.concatenate(verts), np.concatenate(faces), sheet_thickness=part.sheet_thickness
+    )

@@ -1,0 +1,76 @@
+"""Scans vs nominal: read point clouds and meshes, register them to the nominal part, signed
+deviation vectors per scan point, per toolpath point, per depth and per angle."""
+
+from roboisf.scan.compare import CompareOptions, ScanComparison, compare_scan, part_size
+from roboisf.scan.deviation import (
+    PointDeviations,
+    ToolpathDeviations,
+    point_deviations,
+    select_wall,
+    statistical_outliers,
+    toolpath_deviations,
+)
+from roboisf.scan.output import (
+    POINT_COLUMNS,
+    TOOLPATH_COLUMNS,
+    point_table,
+    toolpath_table,
+    write_summary_json,
+    write_table,
+)
+from roboisf.scan.readers import (
+    SCAN_FORMATS,
+    ScanCloud,
+    check_units,
+    read_mesh,
+    read_scan,
+    sample_faces,
+)
+from roboisf.scan.registration import METHODS, Registration, register
+from roboisf.scan.summary import (
+    DeviationStats,
+    by_angle,
+    by_depth,
+    deviation_stats,
+    resultant_mean_deviation,
+)
+from roboisf.scan.synthetic import OffsetField, SyntheticScan, radial_offset, synthetic_scan
+from roboisf.scan.writers import write_ply
+
+__all__ = [
+    "METHODS",
+    "POINT_COLUMNS",
+    "SCAN_FORMATS",
+    "TOOLPATH_COLUMNS",
+    "CompareOptions",
+    "DeviationStats",
+    "OffsetField",
+    "PointDeviations",
+    "Registration",
+    "ScanCloud",
+    "ScanComparison",
+    "SyntheticScan",
+    "ToolpathDeviations",
+    "by_angle",
+    "by_depth",
+    "check_units",
+    "compare_scan",
+    "deviation_stats",
+    "part_size",
+    "point_deviations",
+    "point_table",
+    "radial_offset",
+    "read_mesh",
+    "read_scan",
+    "register",
+    "resultant_mean_deviation",
+    "sample_faces",
+    "select_wall",
+    "statistical_outliers",
+    "synthetic_scan",
+    "toolpath_deviations",
+    "toolpath_table",
+    "write_ply",
+    "write_summary_json",
+    "write_table",
+]

@@ -1,0 +1,249 @@
+"""The whole scan-to-nominal comparison: read → check units → register → deviations → select →
+per toolpath point → summaries. ``roboisf scan compare`` is a thin shell over
+:func:`compare_scan`."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from roboisf.errors import InputError
+from roboisf.frames.se3 import transform_points
+from roboisf.parts.axisymmetric import AxisymmetricPart
+from roboisf.parts.mesh import MeshPart
+from roboisf.progress import Progress, task
+from roboisf.scan.deviation import (
+    PointDeviations,
+    ToolpathDeviations,
+    point_deviations,
+    select_wall,
+    statistical_outliers,
+    toolpath_deviations,
+)
+from roboisf.scan.readers import ScanCloud, check_units
+from roboisf.scan.registration import METHODS, Registration, register
+from roboisf.scan.summary import by_angle, by_depth, deviation_stats
+from roboisf.toolpath.toolpath import Toolpath
+
+__all__ = ["CompareOptions", "ScanComparison", "compare_scan", "part_size"]
+
+
+def part_size(part: AxisymmetricPart | MeshPart) -> float:
+    """Largest extent [m] of the nominal (for the unit plausibility check)."""
+    if isinstance(part, MeshPart):
+        return part.size
+    return max(2.0 * (part.opening_radius + part.flange_width), part.depth)
+
+
+@dataclass(frozen=True)
+class CompareOptions:
+    """Settings of :func:`compare_scan` (SI).
+
+    register : ``none | flange | axisymmetric | icp``; rim_band : m below the sheet plane excluded;
+    max_distance : m — points farther from the nominal are not the part; outlier_k,
+    outlier_std : statistical outlier removal (``outlier_k = 0`` disables); radius,
+    max_points, min_points, estimator : per-toolpath-point averaging (see
+    :func:`toolpath_deviations`); bin_width : m, z-level bins; contour_z : m, band : m,
+    angle_bin : rad — the polar summary; min_overlap : fraction of the scan that must lie
+    within ``max_distance`` of the nominal.
+    """
+
+    register: str = "none"
+    rim_band: float = 20e-3
+    max_distance: float = 3e-3
+    outlier_k: int = 8
+    outlier_std: float = 3.0
+    radius: float = 1e-3
+    max_points: int = 64
+    min_points: int = 5
+    estimator: str = "median"
+    bin_width: float = 0.5e-3
+    contour_z: float = -11e-3
+    band: float = 0.25e-3
+    angle_bin: float = math.radians(5.0)
+    min_overlap: float = 0.2
+    register_kwargs: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.register not in METHODS:
+            raise InputError(
+                f"unknown registration {self.register!r}; expected one of {', '.join(METHODS)}",
+                field="register",
+            )
+        if self.estimator not in ("median", "trimmed"):
+            raise InputError(
+                f"unknown estimator {self.estimator!r}; expected median or trimmed",
+                field="estimator",
+            )
+        for name in ("rim_band", "max_distance", "radius", "bin_width", "band"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and (v > 0 or (name == "rim_band" and v == 0))):
+                raise InputError(f"must be > 0 mm, got {v * 1e3:g}", field=name)
+        if self.min_points < 1 or self.max_points < self.min_points:
+            raise InputError("need 1 ≤ min_points ≤ max_points", field="min_points")
+
+
+@dataclass(frozen=True)
+class ScanComparison:
+    """Result of :func:`compare_scan`.
+
+    points : PointDeviations — the selected wall points (registered, work frame)
+    toolpath : ToolpathDeviations or None
+    registration : Registration
+    counts : dict — points read / near the nominal / on the selected wall / outliers dropped
+    by_depth : DataFrame (SI) of the selected points (of the valid toolpath points when a
+    toolpath is given); by_angle : DataFrame (SI) of the wall's scan points at the contour
+    (rim band *not* excluded there: the paper's contour, z = −11 mm, lies inside it)
+    """
+
+    points: PointDeviations
+    toolpath: ToolpathDeviations | None
+    registration: Registration
+    counts: dict[str, int]
+    by_depth: pd.DataFrame
+    by_angle: pd.DataFrame
+    options: CompareOptions
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-friendly summary (mm, deg)."""
+        o = self.options
+        out: dict[str, Any] = {
+            "units": {"length": "mm", "angle": "deg"},
+            "sign_convention": "dn > 0: material on the tool side of the nominal; "
+            "delta = dn * n (n: nominal tool-side normal), work frame",
+            "registration": self.registration.to_dict(),
+            "counts": dict(self.counts),
+            "selection": {
+                "rim_band_mm": o.rim_band * 1e3,
+                "max_distance_mm": o.max_distance * 1e3,
+                "outlier_k": o.outlier_k,
+                "outlier_std": o.outlier_std,
+            },
+            "points": deviation_stats(self.points.delta, self.points.dn).to_dict(),
+        }
+        if self.toolpath is not None:
+            t = self.toolpath
+            v = t.valid
+            out["toolpath"] = {
+                "n": int(v.size),
+                "n_valid": int(v.sum()),
+                "n_holes": int((~v).sum()),
+                "radius_mm": o.radius * 1e3,
+                "estimator": o.estimator,
+                **deviation_stats(t.delta[v], t.dn[v]).to_dict(),
+            }
+        out["by_depth"] = _frame_mm(self.by_depth, length=("z_lo", "z_hi"))
+        out["by_angle"] = {
+            "z_mm": o.contour_z * 1e3,
+            "band_mm": o.band * 1e3,
+            "bins": _frame_mm(self.by_angle, angle=("angle_lo", "angle_hi")),
+        }
+        return out
+
+
+def _frame_mm(
+    df: pd.DataFrame, *, length: tuple[str, ...] = (), angle: tuple[str, ...] = ()
+) -> list[dict[str, Any]]:
+    out = df.copy()
+    for c in out.columns:
+        if c in angle:
+            out[c] = np.degrees(out[c])
+        elif c != "n" and (c in length or c.startswith(("mean", "max")) or c == "R_m"):
+            out[c] = out[c] * 1e3
+    out = out.rename(columns={c: f"{c}_mm" for c in out.columns if c != "n" and c not in angle})
+    out = out.rename(columns={c: f"{c}_deg" for c in angle})
+    return list(out.to_dict(orient="records"))
+
+
+def compare_scan(
+    cloud: ScanCloud,
+    part: AxisymmetricPart | MeshPart,
+    *,
+    toolpath: Toolpath | None = None,
+    toolpath_source: str | None = None,
+    options: CompareOptions | None = None,
+    progress: Progress | None = None,
+) -> ScanComparison:
+    """Compare a scan with the nominal ``part`` (and a toolpath's contact points).
+
+    Steps: unit plausibility (scan size vs part size) → registration (``options.register``) →
+    closest nominal point of every scan point → refuse if less than ``min_overlap`` of the scan
+    lies within ``max_distance`` of the nominal → keep the wall below the rim band
+    (:func:`select_wall`) → statistical outlier removal → per toolpath point deviations →
+    summaries.
+    """
+    o = options or CompareOptions()
+    src = cloud.source
+    check_units(cloud.points, part_size(part), unit=cloud.unit, source=src)
+    with task(progress, f"register ({o.register})", total=None):
+        reg = register(cloud.points, part, o.register, source=src, **o.register_kwargs)
+    pts = cloud.points if o.register == "none" else transform_points(reg.T_work_scan, cloud.points)
+    dev = point_deviations(pts, part, progress=progress)
+    near = np.abs(dev.dn) <= o.max_distance
+    frac = float(near.mean())
+    if frac < o.min_overlap:
+        raise InputError(
+            f"the scan does not overlap the part: only {frac:.1%} of its points lie within "
+            f"{o.max_distance * 1e3:g} mm of the nominal (need {o.min_overlap:.0%}); check the "
+            "part file, the unit and the frame (try --register)",
+            file=src,
+        )
+    # the whole wall (rim band included: the polar summary sits at z = −11 mm, in the band)
+    full = select_wall(dev, rim_band=0.0, max_distance=o.max_distance)
+    n_out = 0
+    if o.outlier_k > 0:
+        with task(progress, "outlier removal", total=None):
+            sel = np.flatnonzero(full)
+            inl = statistical_outliers(pts[sel], o.outlier_k, o.outlier_std)
+            n_out = int((~inl).sum())
+            full[sel[~inl]] = False
+    mask = full & (dev.foot[:, 2] < -o.rim_band)
+    n_wall = int(mask.sum())
+    if n_wall == 0:
+        raise InputError(
+            f"no scan point on the wall below the {o.rim_band * 1e3:g} mm rim band", file=src
+        )
+    wall = dev.subset(mask)
+    ring = dev.subset(full & (np.abs(dev.foot[:, 2] - o.contour_z) <= o.band))
+    tdev = None
+    if toolpath is not None:
+        with task(progress, "toolpath deviations", total=None):
+            tdev = toolpath_deviations(
+                wall,
+                toolpath.contact,
+                toolpath.normal,
+                radius=o.radius,
+                max_points=o.max_points,
+                min_points=o.min_points,
+                estimator=o.estimator,
+                exclude=toolpath.contact[:, 2] >= -o.rim_band,
+                source=toolpath_source,
+            )
+    if tdev is not None:
+        v = tdev.valid
+        z, delta, dn = tdev.contact[v, 2], tdev.delta[v], tdev.dn[v]
+    else:
+        z, delta, dn = wall.foot[:, 2], wall.delta, wall.dn
+    depth_tab = by_depth(z, delta, dn, bin_width=o.bin_width)
+    angle_tab = by_angle(
+        ring.angle,
+        ring.foot[:, 2],
+        ring.delta,
+        ring.dn,
+        z_level=o.contour_z,
+        band=o.band,
+        bin_width=o.angle_bin,
+    )
+    counts = {
+        "read": cloud.n_points,
+        "near_nominal": int(near.sum()),
+        "wall_below_rim_band": n_wall,
+        "contour": ring.n_points,
+        "outliers_removed": n_out,
+        "used": wall.n_points,
+    }
+    return ScanComparison(wall, tdev, reg, counts, depth_tab, angle_tab, o)

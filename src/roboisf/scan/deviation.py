@@ -1,0 +1,278 @@
+"""Deviations of a (registered) scan from the nominal: per scan point and per toolpath point.
+
+Sign and vector convention (stated once, used everywhere):
+
+* ``dn`` — signed normal deviation [m] of a scan point: its signed distance to the nominal
+  surface, **+ = material on the tool side** of the nominal (the sign of
+  :attr:`roboisf.parts.SurfaceQuery.distance`; on a cone: the formed wall sits inwards/up of
+  the nominal, i.e. under-formed).
+* ``δ = dn · n`` — the deviation vector [m] in the work frame, along the nominal tool-side
+  normal ``n`` at the closest nominal point. A scan sees only this normal component of the
+  formed surface's displacement; the tangential part (sliding along the surface) leaves no
+  trace in a point cloud. ``δx, δy, δz`` of the paper are the components of this vector.
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import cKDTree
+
+from roboisf.errors import InputError
+from roboisf.parts.axisymmetric import AxisymmetricPart
+from roboisf.parts.mesh import MeshPart, spatial_order
+from roboisf.progress import Progress, task
+
+__all__ = [
+    "PointDeviations",
+    "ToolpathDeviations",
+    "point_deviations",
+    "select_wall",
+    "statistical_outliers",
+    "toolpath_deviations",
+]
+
+F64 = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class PointDeviations:
+    """Per scan point deviation (work frame, SI).
+
+    Attributes
+    ----------
+    points : (N, 3) float, m — scan points (registered)
+    foot : (N, 3) float, m — closest nominal point
+    normal : (N, 3) float — tool-side unit normal there
+    dn : (N,) float, m — signed normal deviation (+ tool side)
+    region : (N,) int — nominal region of the foot: 0 flange, 1 wall, 2 bottom
+    """
+
+    points: F64
+    foot: F64
+    normal: F64
+    dn: F64
+    region: NDArray[np.int64]
+
+    @property
+    def n_points(self) -> int:
+        return int(self.dn.shape[0])
+
+    @property
+    def delta(self) -> F64:
+        """(N, 3) m — deviation vector ``dn · n``."""
+        return self.dn[:, None] * self.normal
+
+    @property
+    def depth(self) -> F64:
+        """(N,) m — depth ``−z`` of the foot below the sheet plane."""
+        return -self.foot[:, 2]
+
+    @property
+    def angle(self) -> F64:
+        """(N,) rad — polar angle of the foot about the work z axis, in (−π, π]."""
+        return np.arctan2(self.foot[:, 1], self.foot[:, 0])
+
+    def subset(self, mask: NDArray[np.bool_]) -> PointDeviations:
+        return PointDeviations(
+            self.points[mask], self.foot[mask], self.normal[mask], self.dn[mask], self.region[mask]
+        )
+
+
+def point_deviations(
+    points: ArrayLike,
+    part: AxisymmetricPart | MeshPart,
+    *,
+    chunk: int | None = None,
+    workers: int | None = None,
+    progress: Progress | None = None,
+) -> PointDeviations:
+    """Closest nominal point, normal and signed deviation of each scan point (N, 3) [m, work].
+
+    The points are processed in chunks of ``chunk`` (default 65 536: the temporaries then stay
+    in cache — 5× faster than one call on 3 M points) on ``workers`` threads (default: all
+    cores; numpy and the k-d tree release the GIL). The result does not depend on either.
+    """
+    X = np.atleast_2d(np.asarray(points, dtype=float))
+    n = X.shape[0]
+    chunk = chunk or 65_536
+    nw = workers or os.cpu_count() or 1
+    foot = np.empty((n, 3))
+    normal = np.empty((n, 3))
+    dn = np.empty(n)
+    region = np.empty(n, dtype=np.int64)
+
+    # a mesh query is ~1.5× faster on spatially ordered points (tree and triangle locality)
+    order = spatial_order(X) if isinstance(part, MeshPart) else None
+
+    def run(lo: int) -> int:
+        hi = min(lo + chunk, n)
+        rows = slice(lo, hi) if order is None else order[lo:hi]
+        q = part.closest_point(X[rows])
+        foot[rows], normal[rows], dn[rows], region[rows] = q.point, q.normal, q.distance, q.region
+        return hi - lo
+
+    with task(progress, "closest points", total=n) as advance:
+        starts = range(0, n, chunk)
+        if nw == 1 or len(starts) == 1:
+            for lo in starts:
+                advance(run(lo))
+        else:
+            with ThreadPoolExecutor(max_workers=nw) as pool:
+                for done in pool.map(run, starts):
+                    advance(done)
+    return PointDeviations(X, foot, normal, dn, region)
+
+
+def statistical_outliers(
+    points: ArrayLike, k: int = 8, std_ratio: float = 3.0
+) -> NDArray[np.bool_]:
+    """Statistical outlier removal: ``True`` for *inliers*.
+
+    For each point the mean distance to its ``k`` nearest neighbours; points whose mean exceeds
+    the global mean + ``std_ratio`` standard deviations are outliers (the PCL/Open3D filter).
+    """
+    X = np.asarray(points, dtype=float)
+    if X.shape[0] <= k:
+        return np.ones(X.shape[0], dtype=bool)
+    d, _ = cKDTree(X).query(X, k=k + 1, workers=-1)
+    m = d[:, 1:].mean(axis=1)
+    return m <= m.mean() + std_ratio * m.std()
+
+
+def select_wall(
+    dev: PointDeviations,
+    *,
+    rim_band: float = 20e-3,
+    max_distance: float = 3e-3,
+    regions: tuple[int, ...] = (1,),
+    z_top: float = 0.0,
+) -> NDArray[np.bool_]:
+    """Mask of the scan points that measure the formed wall.
+
+    Keeps points whose foot lies in ``regions`` (default: the wall only — no flange, no
+    bottom), more than ``rim_band`` [m] below the sheet plane ``z_top`` (the rim zone is
+    dominated by sheet bending; paper: 20 mm on the cone), and within ``max_distance`` [m] of the
+    nominal (farther points are fixture, clamps, or the far side of the sheet).
+    """
+    if rim_band < 0:
+        raise InputError("must be ≥ 0 mm", field="rim_band")
+    m = np.isin(dev.region, regions)
+    m &= dev.foot[:, 2] < z_top - rim_band
+    m &= np.abs(dev.dn) <= max_distance
+    return m
+
+
+@dataclass(frozen=True)
+class ToolpathDeviations:
+    """Deviation of the scanned surface at each toolpath contact point (work frame, SI).
+
+    Attributes
+    ----------
+    contact : (M, 3) float, m — nominal contact points, toolpath order
+    normal : (M, 3) float — tool-side unit normal at the contact
+    dn : (M,) float, m — robust average of the scan's normal deviation there (0 where invalid)
+    n_points : (M,) int — scan points used
+    spread : (M,) float, m — robust spread (1.4826·MAD) of those points (0 where invalid)
+    valid : (M,) bool — False where the scan has a hole (fewer than ``min_points``)
+    """
+
+    contact: F64
+    normal: F64
+    dn: F64
+    n_points: NDArray[np.int64]
+    spread: F64
+    valid: NDArray[np.bool_]
+
+    @property
+    def delta(self) -> F64:
+        """(M, 3) m — deviation vector ``dn · n`` (0 where invalid)."""
+        return self.dn[:, None] * self.normal
+
+
+def _sorted_padded(values: F64, idx: NDArray[np.int64], ok: NDArray[np.bool_]) -> F64:
+    v = np.where(ok, values[np.where(ok, idx, 0)], np.inf)
+    v.sort(axis=1)
+    return v
+
+
+def toolpath_deviations(
+    dev: PointDeviations,
+    contact: ArrayLike,
+    normal: ArrayLike,
+    *,
+    radius: float = 1e-3,
+    max_points: int = 64,
+    min_points: int = 5,
+    estimator: str = "median",
+    trim: float = 0.2,
+    exclude: ArrayLike | None = None,
+    source: str | None = None,
+) -> ToolpathDeviations:
+    """Robust deviation of the scanned surface around each contact point's normal line.
+
+    The scan points used for contact P are those whose closest nominal point (foot) lies
+    within ``radius`` [m] of P — exactly the points within ``radius`` of P's normal line, as
+    measured along the nominal surface — up to the ``max_points`` nearest. Their ``dn`` is
+    averaged robustly: ``"median"`` or ``"trimmed"`` (mean without the lowest and highest
+    ``trim`` fraction). Fewer than ``min_points`` points: a hole — ``valid = False``, ``dn = 0``
+    (never NaN). ``exclude`` (M,) bool marks contacts to flag invalid regardless (e.g. in the
+    rim band: their neighbourhood would be one-sided).
+
+    Raises :class:`InputError` if no contact point at all is covered by the scan (the toolpath
+    is not of this part/scan); ``source`` names the toolpath file in that message.
+    """
+    P = np.atleast_2d(np.asarray(contact, dtype=float))
+    N = np.atleast_2d(np.asarray(normal, dtype=float))
+    if estimator not in ("median", "trimmed"):
+        raise InputError(
+            f"unknown estimator {estimator!r}; expected median or trimmed", field="estimator"
+        )
+    if not (radius > 0):
+        raise InputError("must be > 0 mm", field="radius")
+    M = P.shape[0]
+    if dev.n_points == 0:
+        raise InputError(
+            "no scan points left on the wall to compare with the toolpath", file=source
+        )
+    k = min(max_points, dev.n_points)
+    d, idx = cKDTree(dev.foot).query(P, k=k, distance_upper_bound=radius, workers=-1)
+    d = d.reshape(M, k)
+    idx = idx.reshape(M, k)
+    ok = np.isfinite(d)
+    cnt = ok.sum(axis=1)
+    valid = cnt >= min_points
+    if exclude is not None:
+        valid &= ~np.asarray(exclude, dtype=bool)
+    if not valid.any():
+        raise InputError(
+            f"no toolpath point has {min_points} scan points within {radius * 1e3:g} mm "
+            "(contacts in the rim band do not count): the toolpath lies outside the scanned "
+            "and selected wall — wrong part, unit or frame?",
+            file=source,
+        )
+    v = _sorted_padded(dev.dn, idx, ok)
+    rows = np.arange(M)
+    c = np.maximum(cnt, 1)
+    lo_mid = (c - 1) // 2
+    hi_mid = c // 2
+    vv = np.where(np.isfinite(v), v, 0.0)
+    med = 0.5 * (vv[rows, lo_mid] + vv[rows, hi_mid])
+    if estimator == "median":
+        est = med
+    else:
+        cut = np.floor(c * trim).astype(np.int64)
+        cs = np.concatenate([np.zeros((M, 1)), np.cumsum(vv, axis=1)], axis=1)
+        a, b = cut, c - cut
+        est = (cs[rows, b] - cs[rows, a]) / np.maximum(b - a, 1)
+    absdev = np.where(ok, np.abs(vv - med[:, None]), np.inf)
+    absdev.sort(axis=1)
+    absdev = np.where(np.isfinite(absdev), absdev, 0.0)
+    mad = 0.5 * (absdev[rows, lo_mid] + absdev[rows, hi_mid])
+    dn = np.where(valid, est, 0.0)
+    spread = np.where(valid, 1.4826 * mad, 0.0)
+    return ToolpathDeviations(P, N, dn, cnt.astype(np.int64), spread, valid)

@@ -1,0 +1,428 @@
+"""Scan readers: PLY, PCD, XYZ/CSV/TXT point lists, STL/OBJ meshes → points in m.
+
+Library choices (one per format, for memory and robustness):
+
+* **PLY** — ``plyfile``: reads ascii and binary (both endians); binary files are memory-mapped
+  (``mmap``), so a 3 M point file is not loaded twice — the only copy made is the (N, 3)
+  float64 array of coordinates. Open3D would copy into its own tensor and drop extra fields.
+* **PCD** — a small reader here: a PCD file is a text header plus one raw array (``DATA ascii``
+  or ``binary``); ``numpy.memmap`` / ``pandas.read_csv`` read it without extra copies. The
+  ``binary_compressed`` variant (LZF) needs Open3D or PCL: re-save it as binary.
+* **XYZ/CSV/TXT** — ``pandas.read_csv`` (C engine): the fastest robust text parser at hand; the
+  delimiter (comma, semicolon, tab or spaces) and an optional header (``x,y,z[,nx,ny,nz]``) are
+  detected.
+* **STL/OBJ** (and PLY meshes as nominals) — ``trimesh``: ascii and binary STL, OBJ with any
+  polygons (triangulated), merged vertices. Scans exported as meshes give their vertices, or
+  ``sample`` points drawn uniformly over the faces.
+
+Units: the file's numbers are in ``unit`` (default mm) and converted to m here, the only place.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from roboisf.errors import InputError
+from roboisf.io.units import LENGTH_UNITS, to_si
+from roboisf.parts.mesh import read_mesh
+
+__all__ = [
+    "SCAN_FORMATS",
+    "ScanCloud",
+    "check_units",
+    "read_mesh",
+    "read_scan",
+    "sample_faces",
+]
+
+F64 = NDArray[np.float64]
+
+SCAN_FORMATS = {
+    ".ply": "ply",
+    ".pcd": "pcd",
+    ".xyz": "xyz",
+    ".csv": "xyz",
+    ".txt": "xyz",
+    ".asc": "xyz",
+    ".pts": "xyz",
+    ".stl": "mesh",
+    ".obj": "mesh",
+}
+
+
+@dataclass(frozen=True)
+class ScanCloud:
+    """A scan as points in the scanner's frame, SI.
+
+    Attributes
+    ----------
+    points : (N, 3) float, m
+    normals : (N, 3) float or None — unit normals if the file has them
+    source : str — the file it was read from
+    unit : str — the unit the file's numbers were in
+    """
+
+    points: F64
+    normals: F64 | None
+    source: str
+    unit: str = "mm"
+
+    def __post_init__(self) -> None:
+        check_finite(self.points, self.source)
+        if self.points.shape[0] == 0:
+            raise InputError("scan has no points", file=self.source)
+
+    @property
+    def n_points(self) -> int:
+        return int(self.points.shape[0])
+
+
+def check_finite(points: F64, source: str | Path | None) -> None:
+    """Raise an :class:`InputError` naming ``source`` if ``points`` (N, 3) has NaN/inf."""
+    bad = ~np.isfinite(points).all(axis=1)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise InputError(
+            f"{int(bad.sum())} point(s) have NaN or inf coordinates (first: point {i}); "
+            "remove them or export the scan without invalid points",
+            file=source,
+        )
+
+
+def read_scan(
+    path: str | Path,
+    *,
+    unit: str = "mm",
+    sample: int | None = None,
+    seed: int = 0,
+) -> ScanCloud:
+    """Read a scan file (PLY, PCD, XYZ/CSV/TXT, STL/OBJ) into points in m.
+
+    Parameters
+    ----------
+    path : the file; its format is chosen by extension (see :data:`SCAN_FORMATS`)
+    unit : the length unit of the file's numbers (``mm`` default, ``m``, ``um``, ``cm``, ``in``)
+    sample : for mesh files (STL/OBJ, or a PLY with faces when given): draw this many points
+        uniformly over the faces instead of returning the vertices
+    seed : random seed of the face sampling
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("scan file not found", file=path)
+    scale = to_si(unit, "length", file=path, field="unit")
+    fmt = SCAN_FORMATS.get(path.suffix.lower())
+    if fmt is None:
+        raise InputError(
+            f"unknown scan format {path.suffix!r}; expected one of {', '.join(SCAN_FORMATS)}",
+            file=path,
+        )
+    if path.stat().st_size == 0:
+        raise InputError("file is empty", file=path)
+    normals: F64 | None
+    if fmt == "ply":
+        pts, normals = _read_ply(path, sample, seed)
+    elif fmt == "pcd":
+        pts, normals = _read_pcd(path)
+    elif fmt == "xyz":
+        pts, normals = _read_xyz(path)
+    else:
+        V, F = read_mesh(path, unit="m")
+        if sample:
+            pts, normals = sample_faces(V, F, sample, seed)
+        else:
+            pts, normals = V, None
+    if pts.shape[0] == 0:
+        raise InputError("scan has no points", file=path)
+    check_finite(pts, path)
+    pts *= scale  # in place: pts is our own float64 copy
+    if normals is not None:
+        nn = np.linalg.norm(normals, axis=1, keepdims=True)
+        ok = np.isfinite(nn[:, 0]) & (nn[:, 0] > 0)
+        normals = np.where(ok[:, None], normals / np.where(ok[:, None], nn, 1.0), 0.0)
+    return ScanCloud(pts, normals, str(path), unit)
+
+
+def _xyz_normals(rec: np.ndarray, normal_names: tuple[str, str, str]) -> tuple[F64, F64 | None]:
+    """Copy x, y, z (and the normals, if all three fields exist) of a structured (memory-mapped)
+    record array into (N, 3) float64 arrays — the only copies the readers make."""
+    names = rec.dtype.names or ()
+    pts = np.empty((len(rec), 3))
+    for j, c in enumerate("xyz"):
+        pts[:, j] = rec[c]
+    normals = None
+    if all(c in names for c in normal_names):
+        normals = np.empty((len(rec), 3))
+        for j, c in enumerate(normal_names):
+            normals[:, j] = rec[c]
+    return pts, normals
+
+
+# -- PLY ----------------------------------------------------------------------------------------
+def _read_ply(path: Path, sample: int | None, seed: int) -> tuple[F64, F64 | None]:
+    from plyfile import PlyData
+
+    try:
+        with open(path, "rb") as fh:
+            ply = PlyData.read(fh, mmap="r")
+            if "vertex" not in ply:
+                raise InputError("PLY has no 'vertex' element", file=path)
+            v = ply["vertex"].data
+            names = v.dtype.names or ()
+            for c in ("x", "y", "z"):
+                if c not in names:
+                    raise InputError(f"PLY vertex has no {c!r} property", file=path)
+            pts, normals = _xyz_normals(v, ("nx", "ny", "nz"))
+            if sample and "face" in ply:
+                F = _ply_faces(ply["face"].data, path)
+                del v, ply
+                return sample_faces(pts, F, sample, seed)
+            del v, ply
+    except InputError:
+        raise
+    except Exception as e:  # plyfile's parse errors, short reads, bad headers
+        raise InputError(
+            f"not a readable PLY file ({type(e).__name__}: {e}); the file may be truncated",
+            file=path,
+        ) from None
+    return pts, normals
+
+
+def _ply_faces(data: np.ndarray, path: Path) -> NDArray[np.int64]:
+    name = next(
+        (n for n in ("vertex_indices", "vertex_index") if n in (data.dtype.names or ())), None
+    )
+    if name is None:
+        raise InputError("PLY face element has no vertex_indices", file=path)
+    rows = [np.asarray(f, dtype=np.int64) for f in data[name]]
+    tris = [np.stack([r[[0] * (len(r) - 2)], r[1:-1], r[2:]], axis=1) for r in rows if len(r) >= 3]
+    if not tris:
+        raise InputError("PLY has no faces with 3 or more vertices", file=path)
+    return np.concatenate(tris)
+
+
+# -- PCD ----------------------------------------------------------------------------------------
+_PCD_TYPES = {
+    ("F", 4): "f4",
+    ("F", 8): "f8",
+    ("I", 1): "i1",
+    ("I", 2): "i2",
+    ("I", 4): "i4",
+    ("I", 8): "i8",
+    ("U", 1): "u1",
+    ("U", 2): "u2",
+    ("U", 4): "u4",
+    ("U", 8): "u8",
+}
+
+
+def _read_pcd(path: Path) -> tuple[F64, F64 | None]:
+    header: dict[str, list[str]] = {}
+    offset = 0
+    with open(path, "rb") as fh:
+        for line_no in range(1, 21):  # noqa: B007 - used after the loop
+            raw = fh.readline()
+            if not raw:
+                raise InputError(
+                    "PCD header ends before the DATA line (truncated file?)", file=path
+                )
+            offset += len(raw)
+            text = raw.decode("ascii", errors="replace").strip()
+            if not text or text.startswith("#"):
+                continue
+            key, *vals = text.split()
+            header[key.upper()] = vals
+            if key.upper() == "DATA":
+                break
+        else:
+            raise InputError("no DATA line in the first 20 header lines; not a PCD file", file=path)
+    for key in ("FIELDS", "SIZE", "TYPE", "POINTS", "DATA"):
+        if key not in header:
+            raise InputError(f"PCD header has no {key} line", file=path, line=line_no)
+    fields = header["FIELDS"]
+    count = [int(c) for c in header.get("COUNT", ["1"] * len(fields))]
+    try:
+        n = int(header["POINTS"][0])
+        dtypes = [
+            _PCD_TYPES[(t.upper(), int(s))]
+            for t, s in zip(header["TYPE"], header["SIZE"], strict=True)
+        ]
+    except (KeyError, ValueError, IndexError):
+        raise InputError("PCD header has bad SIZE/TYPE/POINTS values", file=path) from None
+    for c in ("x", "y", "z"):
+        if c not in fields:
+            raise InputError(f"PCD has no field {c!r} (FIELDS {' '.join(fields)})", file=path)
+    mode = header["DATA"][0].lower()
+    # column index of each field in the flat record
+    col: dict[str, int] = {}
+    k = 0
+    for f, cnt in zip(fields, count, strict=True):
+        col[f] = k
+        k += cnt
+    if mode == "ascii":
+        import pandas as pd
+
+        names = ("x", "y", "z", "normal_x", "normal_y", "normal_z")
+        cols = [col[f] for f in names if f in col]
+        if len(cols) not in (3, 6):
+            cols = cols[:3]
+
+        try:
+            df = pd.read_csv(
+                path,
+                skiprows=line_no,
+                header=None,
+                sep=r"\s+",
+                engine="c",
+                usecols=cols,
+                dtype=np.float64,
+            )
+        except Exception as e:
+            raise InputError(f"PCD ascii data could not be parsed: {e}", file=path) from None
+        arr = df[cols].to_numpy()  # x, y, z[, normals] whatever the file's field order
+        if arr.shape[0] != n:
+            raise InputError(
+                f"PCD says POINTS {n} but has {arr.shape[0]} rows (truncated?)", file=path
+            )
+        pts = np.ascontiguousarray(arr[:, :3])
+        normals = np.ascontiguousarray(arr[:, 3:6]) if arr.shape[1] >= 6 else None
+        return pts, normals
+    if mode != "binary":
+        raise InputError(
+            f"PCD DATA {mode} is not supported; re-save the cloud as 'binary' or 'ascii' "
+            "(e.g. pcl_convert_pcd_ascii_binary, or Open3D write_point_cloud(compressed=False))",
+            file=path,
+        )
+    dt = np.dtype(
+        [
+            (f"{f}", dtypes[i], (count[i],)) if count[i] > 1 else (f"{f}", dtypes[i])
+            for i, f in enumerate(fields)
+        ]
+    )
+    need = offset + n * dt.itemsize
+    size = path.stat().st_size
+    if size < need:
+        raise InputError(
+            f"PCD binary data is truncated: {n} points need {need} bytes, file has {size}",
+            file=path,
+        )
+    rec = np.memmap(path, dtype=dt, mode="r", offset=offset, shape=(n,))
+    out = _xyz_normals(rec, ("normal_x", "normal_y", "normal_z"))
+    del rec
+    return out
+
+
+# -- XYZ / CSV / TXT ---------------------------------------------------------------------------
+_NUM = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^[+-]?(nan|inf)$", re.IGNORECASE)
+
+
+def _read_xyz(path: Path) -> tuple[F64, F64 | None]:
+    import pandas as pd
+
+    first = None
+    skip = 0
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        for line in fh:
+            if line.strip() and not line.lstrip().startswith(("#", "//")):
+                first = line.strip()
+                break
+            skip += 1
+    if first is None:
+        raise InputError("point list has no data (only blank or comment lines)", file=path)
+    if "," in first:
+        sep = ","
+    elif ";" in first:
+        sep = ";"
+    else:
+        sep = r"\s+"
+    tokens = [t for t in re.split(sep if sep != r"\s+" else r"\s+", first) if t != ""]
+    has_header = not all(_NUM.match(t.strip()) for t in tokens)
+    names = [t.strip().lower() for t in tokens] if has_header else None
+    if has_header:
+        assert names is not None
+        want = ["x", "y", "z"]
+        if not all(c in names for c in want):
+            raise InputError(
+                f"header {first!r} has no x, y, z columns; "
+                "expected 'x,y,z[,nx,ny,nz]' or no header",
+                file=path,
+                line=skip + 1,
+            )
+        ncols = [c for c in ("nx", "ny", "nz") if c in names]
+        usecols = [names.index(c) for c in want + (ncols if len(ncols) == 3 else [])]
+    else:
+        if len(tokens) < 3:
+            raise InputError(
+                f"expected at least 3 columns x y z, got {len(tokens)}", file=path, line=skip + 1
+            )
+        usecols = list(range(6 if len(tokens) >= 6 else 3))
+    try:
+        df = pd.read_csv(
+            path,
+            sep=sep,
+            header=None,
+            skiprows=skip + (1 if has_header else 0),
+            usecols=usecols,
+            comment="#",
+            dtype=np.float64,
+            skip_blank_lines=True,
+            engine="c",
+        )
+    except ValueError as e:
+        raise InputError(f"not a number in the point list: {e}", file=path) from None
+    except Exception as e:
+        raise InputError(f"could not parse the point list: {e}", file=path) from None
+    arr = df[usecols].to_numpy()  # x, y, z[, nx, ny, nz] in that order
+    if arr.shape[0] == 0:
+        raise InputError("point list has a header but no data rows", file=path)
+    pts = np.ascontiguousarray(arr[:, :3])
+    normals = np.ascontiguousarray(arr[:, 3:6]) if arr.shape[1] >= 6 else None
+    return pts, normals
+
+
+# -- meshes ---------------------------------------------------------------------------------------
+def sample_faces(V: F64, F: NDArray[np.int64], n: int, seed: int = 0) -> tuple[F64, F64]:
+    """``n`` points uniformly distributed over the triangles' area, and their face normals."""
+    rng = np.random.default_rng(seed)
+    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+    cr = np.cross(b - a, c - a)
+    area = np.linalg.norm(cr, axis=1)
+    if not np.any(area > 0):
+        raise InputError("mesh has no triangle with a non-zero area")
+    f = rng.choice(F.shape[0], size=n, p=area / area.sum())
+    u, v = rng.random(n), rng.random(n)
+    flip = u + v > 1
+    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
+    pts = a[f] + u[:, None] * (b[f] - a[f]) + v[:, None] * (c[f] - a[f])
+    return pts, cr[f] / area[f][:, None]
+
+
+# -- plausibility ----------------------------------------------------------------------------------
+def check_units(points: F64, part_size: float, *, unit: str, source: str | Path | None) -> None:
+    """Refuse a scan whose extent is implausible for a part of ``part_size`` [m].
+
+    The scan's largest bounding-box extent must lie within 1/20 .. 20 × the part's size; else
+    the declared ``unit`` is almost surely wrong, and the error names the unit that would fit.
+    """
+    lo = points.min(axis=0)
+    hi = points.max(axis=0)
+    extent = float(np.max(hi - lo))
+    if part_size <= 0:
+        return
+    ratio = extent / part_size
+    if 1 / 20 <= ratio <= 20:
+        return
+    factor = LENGTH_UNITS[unit.strip()]
+    # the unit that brings the extent closest to the part size
+    best = min(LENGTH_UNITS, key=lambda u: abs(math.log(ratio * LENGTH_UNITS[u] / factor)))
+    raise InputError(
+        f"scan extent is {extent * 1e3:.6g} mm read as {unit!r}, {ratio:.3g}× the part's size "
+        f"({part_size * 1e3:.4g} mm); the file is probably in {best!r} — pass --unit {best}",
+        file=source,
+        field="unit",
+    )

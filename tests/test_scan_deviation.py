@@ -1,0 +1,204 @@
+"""Deviations: ground truth recovered per toolpath point; selection, holes, signs, summaries."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from roboisf.errors import InputError
+from roboisf.parts import Cone
+from roboisf.scan import (
+    CompareOptions,
+    ScanCloud,
+    by_angle,
+    by_depth,
+    compare_scan,
+    deviation_stats,
+    point_deviations,
+    radial_offset,
+    resultant_mean_deviation,
+    statistical_outliers,
+    synthetic_scan,
+    toolpath_deviations,
+)
+from roboisf.toolpath import step_down
+
+CONE = Cone()
+RIM = 20e-3
+
+
+def _dr(z, phi):
+    """Known radial offset: 0.5 mm plus a depth-dependent part (1 µm per mm of depth)."""
+    return 0.5e-3 + 1e-3 * (-z)
+
+
+OFFSET = radial_offset(_dr, CONE)
+
+
+@pytest.fixture(scope="module")
+def acceptance():
+    s = synthetic_scan(CONE, 600_000, offset=OFFSET, noise=25e-6, outlier_fraction=0.01, seed=11)
+    tp = step_down(CONE, 5e-3, 0.5e-3, spacing=3e-3)
+    cloud = ScanCloud(s.points, None, "synthetic.ply")
+    res = compare_scan(cloud, CONE, toolpath=tp, toolpath_source="path.csv")
+    return s, tp, res
+
+
+def test_toolpath_deviation_recovers_truth_within_10um_rms(acceptance):
+    _, tp, res = acceptance
+    t = res.toolpath
+    truth = OFFSET(tp.contact[:, 2], tp.angle)
+    v = t.valid
+    below = tp.contact[:, 2] < -RIM - 1e-3
+    bottom_edge = tp.contact[:, 2] < -CONE.depth + 1e-3  # one-sided neighbourhood there
+    assert v[below & ~bottom_edge].all()
+    err = t.dn[v] - truth[v]
+    rms = float(np.sqrt(np.mean(err**2)))
+    assert rms < 10e-6, rms
+    # the offset is really there (−0.5 mm·sin 71° and more): the test could fail
+    assert np.mean(t.dn[v]) < -0.5e-3
+    # deviation vector = dn · n, in the work frame
+    np.testing.assert_allclose(t.delta[v], t.dn[v, None] * tp.normal[v])
+    assert np.all(np.isfinite(t.dn)) and np.all(t.dn[~v] == 0.0)
+
+
+def test_rim_band_and_flange_are_excluded(acceptance):
+    s, tp, res = acceptance
+    p = res.points
+    assert p.n_points > 0
+    assert np.all(p.foot[:, 2] < -RIM)
+    assert np.all(p.region == 1)
+    # the scan did contain flange and rim points (test can fail)
+    assert np.any(s.region == 0) and np.any(s.nominal[:, 2] > -RIM)
+    in_band = tp.contact[:, 2] >= -RIM
+    assert in_band.any() and not res.toolpath.valid[in_band].any()
+    assert res.counts["outliers_removed"] > 0.3 * s.is_outlier.sum()
+
+
+def test_summary_tables(acceptance):
+    _, _, res = acceptance
+    s = res.summary()
+    assert s["toolpath"]["n_valid"] == int(res.toolpath.valid.sum())
+    d = res.by_depth
+    assert (d["z_hi"] - d["z_lo"]).round(12).eq(0.5e-3).all()
+    # mean |dn| per bin follows 0.5 mm + 1 µm/mm·depth times sin 71°
+    zc = 0.5 * (d["z_lo"] + d["z_hi"]).to_numpy()
+    expect = (0.5e-3 + 1e-3 * -zc) * math.sin(CONE.wall_angle)
+    inner = (zc < -RIM - 1e-3) & (zc > -CONE.depth + 1e-3)
+    np.testing.assert_allclose(d["mean_abs_dn"].to_numpy()[inner], expect[inner], atol=5e-6)
+    a = res.by_angle  # at z = −11 mm: inside the rim band but reported (paper's polar plot)
+    assert len(a) == 72 and a["n"].min() > 0
+    expect_11 = -(0.5e-3 + 11e-6) * math.sin(CONE.wall_angle)
+    # bin means are plain means (the paper's): an outlier that survived the filter moves one
+    # bin of ~40 points; the typical bin is on the truth
+    assert abs(np.median(a["mean_dn"]) - expect_11) < 3e-6
+
+
+def test_polar_summary_per_bin_without_outliers():
+    s = synthetic_scan(CONE, 300_000, offset=OFFSET, noise=25e-6, seed=12)
+    res = compare_scan(ScanCloud(s.points, None, "s.ply"), CONE)
+    a = res.by_angle
+    sigma = 25e-6 / np.sqrt(a["n"].to_numpy())  # standard error of each bin mean
+    expect_11 = -(0.5e-3 + 11e-6) * math.sin(CONE.wall_angle)
+    assert np.all(np.abs(a["mean_dn"].to_numpy() - expect_11) < 5 * sigma + 1e-6)
+
+
+def test_holes_are_flagged_not_nan():
+    centre = np.array([CONE.wall_at_z(-50e-3)[0][0], 0.0, -50e-3])
+    s = synthetic_scan(CONE, 200_000, offset=-0.3e-3, noise=0.0, holes=[(centre, 4e-3)], seed=3)
+    dev = point_deviations(s.points, CONE)
+    contacts = np.array([centre, [-centre[0], 0.0, -50e-3]])
+    nrm = CONE.closest_point(contacts).normal
+    t = toolpath_deviations(dev, contacts, nrm, radius=1e-3)
+    assert t.valid.tolist() == [False, True]
+    assert t.n_points[0] == 0 and t.dn[0] == 0.0 and np.isfinite(t.dn).all()
+    np.testing.assert_allclose(t.dn[1], -0.3e-3, atol=1e-12)
+    tt = toolpath_deviations(dev, contacts, nrm, radius=1e-3, estimator="trimmed")
+    np.testing.assert_allclose(tt.dn[1], -0.3e-3, atol=1e-12)
+
+
+def test_toolpath_outside_the_scan_is_refused():
+    s = synthetic_scan(CONE, 20_000, seed=1)
+    dev = point_deviations(s.points, CONE)
+    far = np.array([[0.5, 0.5, -0.05]])
+    with pytest.raises(InputError, match="outside the scanned") as ei:
+        toolpath_deviations(dev, far, [[0, 0, 1.0]], source="path.csv")
+    assert "path.csv" in str(ei.value)
+
+
+def test_sign_convention_tool_side_positive():
+    # a point inside the cone (tool side) 0.2 mm off the wall along the normal
+    r, a = CONE.wall_at_z(-40e-3)
+    n = np.array([-math.sin(a[0]), 0.0, math.cos(a[0])])
+    p = np.array([r[0], 0.0, -40e-3]) + 0.2e-3 * n
+    dev = point_deviations(p[None], CONE)
+    assert dev.dn[0] == pytest.approx(0.2e-3, rel=1e-9)
+    np.testing.assert_allclose(dev.delta[0], 0.2e-3 * n, atol=1e-15)
+    assert dev.delta[0, 0] < 0 and dev.delta[0, 2] > 0  # inwards and up
+
+
+def test_resultant_mean_deviation_matches_the_paper():
+    # springback of the paper's cone: 0.72 mm in x and y, 0.49 mm in z → 1.132 mm
+    rng = np.random.default_rng(0)
+    signs = rng.choice([-1.0, 1.0], (1000, 3))
+    d = signs * np.array([0.72e-3, 0.72e-3, 0.49e-3])
+    # (the paper's per-axis figures are rounded to 10 µm, so its 1.132 is matched to ~3 µm)
+    assert resultant_mean_deviation(d) == pytest.approx(math.sqrt(2 * 0.72**2 + 0.49**2) * 1e-3)
+    assert resultant_mean_deviation(d) == pytest.approx(1.132e-3, abs=3e-6)
+    st = deviation_stats(d, d[:, 0])
+    np.testing.assert_allclose(st.mean_abs, [0.72e-3, 0.72e-3, 0.49e-3])
+    assert st.R_m == pytest.approx(resultant_mean_deviation(d))
+    with pytest.raises(InputError):
+        resultant_mean_deviation(np.empty((0, 3)))
+
+
+def test_by_depth_and_by_angle_bins_on_known_data():
+    z = np.array([-0.1e-3, -0.4e-3, -0.6e-3, -1.2e-3])
+    delta = np.array([[1.0, 0, 0], [3.0, 0, 0], [0, 2.0, 0], [0, 0, -4.0]]) * 1e-3
+    dn = np.array([1.0, 3.0, 2.0, -4.0]) * 1e-3
+    d = by_depth(z, delta, dn)
+    assert d["n"].tolist() == [2, 1, 1]
+    np.testing.assert_allclose(d["z_lo"], [-0.5e-3, -1.0e-3, -1.5e-3])
+    np.testing.assert_allclose(d["mean_dx"], [2e-3, 0, 0])
+    np.testing.assert_allclose(d["max_abs_dz"], [0, 0, 4e-3])
+    np.testing.assert_allclose(d["R_m"], [2e-3, 2e-3, 4e-3])
+    ang = np.radians([1.0, 2.0, 91.0, 359.0])
+    a = by_angle(ang, np.full(4, -11e-3), delta, dn, bin_width=math.radians(90))
+    assert a["n"].tolist() == [2, 1, 1]
+    np.testing.assert_allclose(np.degrees(a["angle_lo"]), [0, 90, 270])
+
+
+def test_statistical_outlier_removal():
+    rng = np.random.default_rng(0)
+    g = np.stack(np.meshgrid(np.arange(60), np.arange(60)), -1).reshape(-1, 2) * 1e-4
+    pts = np.column_stack([g, rng.normal(0, 1e-6, len(g))])
+    stray = np.array([[3e-3, 3e-3, 2e-3], [1e-3, 4e-3, -1.5e-3]])
+    keep = statistical_outliers(np.vstack([pts, stray]))
+    assert keep[: len(pts)].mean() > 0.99 and not keep[-2:].any()
+
+
+def test_compare_refuses_a_scan_that_does_not_overlap():
+    s = synthetic_scan(CONE, 20_000, seed=1)
+    cloud = ScanCloud(s.points + np.array([0.0, 0.0, 0.03]), None, "off.ply")
+    with pytest.raises(InputError, match="does not overlap") as ei:
+        compare_scan(cloud, CONE, options=CompareOptions(outlier_k=0))
+    assert "off.ply" in str(ei.value)
+
+
+def test_mesh_nominal_gives_the_same_toolpath_deviations(acceptance):
+    from roboisf.parts import tessellate
+
+    s, tp, res = acceptance
+    mesh = tessellate(CONE, chordal_error=0.02e-3, edge=2e-3)
+    sub = np.random.default_rng(0).random(s.points.shape[0]) < 0.5
+    cloud = ScanCloud(s.points[sub], None, "synthetic.ply")
+    rm = compare_scan(cloud, mesh, toolpath=tp, options=CompareOptions(outlier_k=0))
+    both = rm.toolpath.valid & res.toolpath.valid
+    assert both.sum() > 0.9 * res.toolpath.valid.sum()
+    # ring edges have a sagitta ≤ chordal_error / 4 = 5 µm (a stitched triangle ≤ 20 µm):
+    # the facets sit a few µm off the true surface; the medians of ~30 noisy points (half the
+    # scan) scatter by ~5 µm on top of that
+    diff = rm.toolpath.dn[both] - res.toolpath.dn[both]
+    assert np.abs(np.median(diff)) < 6e-6 and np.sqrt(np.mean(diff**2)) < 10e-6

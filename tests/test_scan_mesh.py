@@ -1,0 +1,164 @@
+"""MeshPart: exact closest points (vs brute force), orientation, STL vs analytic cone, TOML."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import trimesh
+
+from roboisf.errors import InputError
+from roboisf.parts import Cone, MeshPart, load_part, tessellate
+from roboisf.parts.mesh import point_triangle_distance2
+
+
+def _brute(mesh: MeshPart, X: np.ndarray) -> np.ndarray:
+    ix = mesh._index
+    d2, _, _ = point_triangle_distance2(
+        X[:, None, :],
+        ix["a"][None],
+        ix["ab"][None],
+        ix["ac"][None],
+        ix["abab"][None],
+        ix["abac"][None],
+        ix["acac"][None],
+    )
+    return d2.min(axis=1)
+
+
+def test_point_triangle_distance_matches_dense_sampling():
+    rng = np.random.default_rng(3)
+    for _ in range(6):
+        a, b, c = rng.normal(size=(3, 3))
+        # points around the triangle hit all 7 Voronoi regions
+        X = rng.normal(size=(150, 3)) * 2.0
+        d2, v, w = point_triangle_distance2(
+            X, a, b - a, c - a, (b - a) @ (b - a), (b - a) @ (c - a), (c - a) @ (c - a)
+        )
+        u = np.linspace(0, 1, 201)
+        U, V = np.meshgrid(u, u)
+        keep = U + V <= 1
+        S = a + U[keep][:, None] * (b - a) + V[keep][:, None] * (c - a)
+        dense = ((X[:, None, :] - S[None]) ** 2).sum(-1).min(1)
+        assert np.all(d2 <= dense + 1e-12)  # exact is never worse than any sample
+        h = np.linalg.norm(b - a) / 200 + np.linalg.norm(c - a) / 200
+        assert np.all(np.sqrt(dense) - np.sqrt(d2) <= h)
+        # the barycentrics describe a point on the triangle at that distance
+        assert np.all((v >= -1e-12) & (w >= -1e-12) & (v + w <= 1 + 1e-12))
+        P = a + v[:, None] * (b - a) + w[:, None] * (c - a)
+        np.testing.assert_allclose(((X - P) ** 2).sum(1), d2, rtol=1e-9, atol=1e-14)
+
+
+@pytest.mark.parametrize("spread", [0.001, 0.02, 0.3])
+def test_closest_faces_exact_vs_brute_force_on_cone_mesh(spread):
+    mesh = tessellate(Cone(), chordal_error=0.3e-3, edge=6e-3)
+    rng = np.random.default_rng(0)
+    base = mesh.vertices[rng.integers(0, mesh.vertices.shape[0], 1000)]
+    X = base + rng.normal(scale=spread, size=base.shape)
+    _, d2, P = mesh.closest_faces(X, k=4)
+    np.testing.assert_allclose(d2, _brute(mesh, X), rtol=1e-12, atol=1e-20)
+    np.testing.assert_allclose(((X - P) ** 2).sum(1), d2, rtol=1e-9, atol=1e-18)
+
+
+def test_closest_faces_exact_on_a_triangle_soup():
+    # badly shaped, intersecting, varied triangles: the bound must still hold
+    rng = np.random.default_rng(1)
+    V = rng.uniform(-1, 1, (600, 3)) * np.array([1.0, 1.0, 0.2])
+    F = rng.integers(0, 600, (400, 3))
+    F = F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 0] != F[:, 2])]
+    mesh = MeshPart(V, F)
+    X = rng.uniform(-1.5, 1.5, (2000, 3))
+    _, d2, _ = mesh.closest_faces(X, k=2)
+    np.testing.assert_allclose(d2, _brute(mesh, X), rtol=1e-12, atol=1e-20)
+
+
+def test_orientation_up_flips_down_facing_faces_and_signs_distance():
+    V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    down = MeshPart(V, np.array([[0, 2, 1]]))  # winding normal −z, flipped to +z
+    q = down.closest_point([[0.2, 0.2, 0.5], [0.2, 0.2, -0.5]])
+    np.testing.assert_allclose(q.normal[:, 2], [1.0, 1.0])
+    np.testing.assert_allclose(q.distance, [0.5, -0.5])
+    keep = MeshPart(V, np.array([[0, 2, 1]]), orient="winding")
+    np.testing.assert_allclose(keep.closest_point([[0.2, 0.2, 0.5]]).distance, [-0.5])
+    # a horizontal face at z = 0 is flange, below it bottom, tilted is wall
+    assert q.region.tolist() == [0, 0]
+    assert np.isnan(q.s).all()
+
+
+def test_stl_cone_agrees_with_analytic_cone_within_chordal_error(tmp_path):
+    cone = Cone()
+    e = 0.05e-3
+    mesh = tessellate(cone, chordal_error=e, edge=2e-3)
+    stl = tmp_path / "cone.stl"
+    trimesh.Trimesh(mesh.vertices * 1e3, mesh.faces, process=False).export(stl)
+    toml = tmp_path / "cone_mesh.toml"
+    toml.write_text('[part]\nkind = "mesh"\nfile = "cone.stl"\n')
+    part = load_part(toml)
+    assert isinstance(part, MeshPart) and part.n_faces == mesh.n_faces
+    rng = np.random.default_rng(2)
+    pts, nrm = cone.surface_grid(60, 120)
+    inner = (pts[:, 2] < -1e-3) & (pts[:, 2] > -cone.depth + 1e-3)
+    pts, nrm = pts[inner], nrm[inner]
+    X = pts + nrm * rng.uniform(-2e-3, 2e-3, (pts.shape[0], 1))
+    qa = cone.closest_point(X)
+    qm = part.closest_point(X)
+    diff = np.abs(qm.distance - qa.distance)
+    assert diff.max() <= e * (1 + 1e-6)
+    assert diff.max() > 0.2 * e  # the facets really are off the true surface (test can fail)
+    np.testing.assert_allclose(np.degrees(qm.wall_angle).mean(), 71.0, atol=0.05)
+    assert np.all(qm.region == 1)
+
+
+def test_mesh_part_rejects_bad_input(tmp_path):
+    V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    with pytest.raises(InputError, match="NaN"):
+        MeshPart(np.where(V == 1, np.nan, V), np.array([[0, 1, 2]]))
+    with pytest.raises(InputError, match="does not exist"):
+        MeshPart(V, np.array([[0, 1, 3]]))
+    with pytest.raises(InputError, match="non-zero area"):
+        MeshPart(V, np.array([[0, 1, 1]]))
+    with pytest.raises(InputError, match="generatrix"):
+        _ = MeshPart(V, np.array([[0, 1, 2]])).generatrix
+    toml = tmp_path / "m.toml"
+    toml.write_text('[part]\nkind = "mesh"\nfile = "nope.stl"\n')
+    with pytest.raises(InputError, match="not found") as ei:
+        load_part(toml)
+    assert "nope.stl" in str(ei.value)
+    toml.write_text('[part]\nkind = "mesh"\nfile = "x.stl"\nflange_width = 10\n')
+    with pytest.raises(InputError, match="flange_width"):
+        load_part(toml)
+    empty = tmp_path / "e.stl"
+    empty.write_bytes(b"")
+    toml.write_text('[part]\nkind = "mesh"\nfile = "e.stl"\n')
+    with pytest.raises(InputError, match="empty"):
+        load_part(toml)
+
+
+def test_tessellate_facets_within_chordal_error():
+    cone = Cone()
+    for e in (0.5e-3, 0.05e-3):
+        mesh = tessellate(cone, chordal_error=e)
+        ix = mesh._index
+        centroids = ix["a"] + (ix["ab"] + ix["ac"]) / 3
+        d = np.abs(cone.closest_point(centroids).distance)
+        assert d.max() <= e
+        assert d.max() > 0.3 * e / 3  # centroid sits ~e/3..e off the circle
+    assert math.isclose(np.abs(tessellate(cone).vertices[:, 2]).max(), cone.depth)
+
+
+def test_spatial_order_is_a_permutation_and_results_do_not_depend_on_it():
+    from roboisf.parts.mesh import spatial_order
+    from roboisf.scan import point_deviations
+
+    mesh = tessellate(Cone(), chordal_error=0.3e-3, edge=6e-3)
+    rng = np.random.default_rng(5)
+    X = mesh.vertices[rng.integers(0, mesh.vertices.shape[0], 5000)] + rng.normal(
+        scale=1e-3, size=(5000, 3)
+    )
+    o = spatial_order(X)
+    assert np.array_equal(np.sort(o), np.arange(5000))
+    dev = point_deviations(X, mesh, chunk=700)  # ordered, chunked, threaded
+    q = mesh.closest_point(X)  # one plain call
+    np.testing.assert_array_equal(dev.dn, q.distance)
+    np.testing.assert_array_equal(dev.foot, q.point)
