@@ -44,7 +44,7 @@ __all__ = ["METHODS", "Registration", "register"]
 
 F64 = NDArray[np.float64]
 
-METHODS = ("none", "flange", "axisymmetric", "icp")
+METHODS = ("none", "fixture", "flange", "axisymmetric", "icp")
 
 
 @dataclass(frozen=True)
@@ -147,7 +147,10 @@ def register(
 
     Parameters
     ----------
-    method : ``"none"`` (identity, only the quality figures), ``"flange"`` (5 DOF like
+    method : ``"none"`` (identity, only the quality figures), ``"fixture"`` (3 DOF: z and the
+        two tilts from the flange points only; the axis stays where the fixture puts it, so a
+        uniform lateral deflection of the wall — a robot pushed sideways — is measured, not
+        registered away), ``"flange"`` (5 DOF like
         axisymmetric, but z and the tilts from the flange points only and the x/y shift from the
         wall: wall deviations cannot leak into z), ``"axisymmetric"`` (5 DOF: x, y, z shift and
         two tilts from all points; rotation about the part axis locked) or ``"icp"`` (6 DOF
@@ -176,11 +179,11 @@ def register(
         X = X[rng.choice(X.shape[0], max_points, replace=False)]
     T = np.eye(4) if T_init is None else np.asarray(T_init, dtype=float).copy()
     where = f" ({source})" if source else ""
-    if method in ("axisymmetric", "flange") and not isinstance(part, AxisymmetricPart):
+    if method in ("axisymmetric", "flange", "fixture") and not isinstance(part, AxisymmetricPart):
         raise InputError(
             "axisymmetric registration needs an axisymmetric part; use icp", field="register"
         )
-    dof = {"none": 0, "flange": 5, "axisymmetric": 5, "icp": 6}[method]
+    dof = {"none": 0, "fixture": 3, "flange": 5, "axisymmetric": 5, "icp": 6}[method]
     it = 0
     step_norm = math.inf
     converged = dof == 0
@@ -205,6 +208,17 @@ def register(
         J = np.concatenate([q.normal, pxn], axis=1)
         if dof == 5:
             J = J[:, :5]
+        if method == "fixture":
+            assert isinstance(part, AxisymmetricPart)  # checked on entry
+            r_foot = np.hypot(q.point[:, 0], q.point[:, 1])
+            on_flange = (q.region == 0) & (w > 0) & (r_foot >= part.opening_radius + 2e-3)
+            if np.count_nonzero(on_flange) < 50:
+                raise ConvergenceError(
+                    f"fixture registration{where}: only {np.count_nonzero(on_flange)} scan "
+                    "points on the flange; scan the clamped sheet around the part"
+                )
+            w = np.where(on_flange, w, 0.0)
+            J = J[:, 2:5]  # z shift, tilt about x, tilt about y
         if method == "flange":
             # z and the tilts from the flange only, x/y (the axis position) from the rest
             # 2 mm clear of the rim edge on both sides: the bend there is neither, and points
@@ -234,20 +248,24 @@ def register(
         # test compares like with like (a column that vanishes, as rotation about the axis of
         # a surface of revolution does, stays ~0 instead of being normalised up to 1)
         L = math.sqrt(float(np.average(np.einsum("ij,ij->i", P, P), weights=w)))
-        scale = np.array([1.0, 1.0, 1.0, L, L, L])[: J.shape[1]]
+        scale = np.array([1.0, L, L]) if dof == 3 else np.array([1.0, 1.0, 1.0, L, L, L])[:dof]
         Js = J / scale
         A = Js.T @ (Js * w[:, None])
         b = Js.T @ (w * r)
         ev = np.linalg.eigvalsh(A)
         if ev[0] <= 1e-9 * ev[-1]:
-            names = [
-                "x shift",
-                "y shift",
-                "z shift",
-                "tilt about x",
-                "tilt about y",
-                "rotation about z",
-            ][:dof]
+            names = (
+                ["z shift", "tilt about x", "tilt about y"]
+                if dof == 3
+                else [
+                    "x shift",
+                    "y shift",
+                    "z shift",
+                    "tilt about x",
+                    "tilt about y",
+                    "rotation about z",
+                ][:dof]
+            )
             null = np.linalg.eigh(A)[1][:, 0]
             worst = names[int(np.argmax(np.abs(null)))]
             hint = (
@@ -260,10 +278,12 @@ def register(
                 f"the scanned surface{hint}"
             )
         xi = -np.linalg.solve(A, b) / scale
+        if dof == 3:
+            xi = np.concatenate([[0.0, 0.0], xi, [0.0]])
         if dof == 5:
             xi = np.concatenate([xi, [0.0]])
         T = make_transform(rotvec_to_matrix(xi[3:]), xi[:3]) @ T
-        if dof == 5:
+        if dof in (3, 5):
             T = _untwist(T)
         step_norm = float(np.linalg.norm(xi))
         converged = step_norm < tolerance

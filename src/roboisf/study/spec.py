@@ -157,7 +157,7 @@ class AnalysisSpec:
 
     rim_band: float = 20e-3
     contour_z: float = -11e-3
-    registration: Literal["flange", "axisymmetric", "icp", "none"] = "flange"
+    registration: Literal["fixture", "flange", "axisymmetric", "icp", "none"] = "fixture"
     point_radius: float = 1.0e-3
 
 
@@ -486,7 +486,11 @@ def load_study(path: str | Path) -> Study:
     rim = c.number(at, "analysis", "rim_band", default=20.0)
     cz = c.number(at, "analysis", "contour_z", default=-11.0)
     reg = c.choice(
-        at, "analysis", "registration", ("flange", "axisymmetric", "icp", "none"), default="flange"
+        at,
+        "analysis",
+        "registration",
+        ("fixture", "flange", "axisymmetric", "icp", "none"),
+        default="fixture",
     )
     prad = c.number(at, "analysis", "point_radius", default=1.0, positive=True)
     if rim is not None and rim < 0:
@@ -494,7 +498,7 @@ def load_study(path: str | Path) -> Study:
     analysis = AnalysisSpec(
         (rim or 0.0) * 1e-3,
         (cz or -11.0) * 1e-3,
-        cast(Literal["flange", "axisymmetric", "icp", "none"], reg or "flange"),
+        cast(Literal["fixture", "flange", "axisymmetric", "icp", "none"], reg or "fixture"),
         (prad or 1.0) * 1e-3,
     )
 
