@@ -25,7 +25,13 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from roboisf.decompose.core import FACTORS, Decomposition, contribution_rows, decompose
+from roboisf.decompose.core import (
+    FACTORS,
+    Decomposition,
+    contribution_rows,
+    decompose,
+    resultant_mean_deviation,
+)
 from roboisf.errors import InputError
 from roboisf.fem import (
     BallEndTool,
@@ -148,6 +154,14 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
                 "the CNC and robot runs must use the same toolpath (the method "
                 "compares the two parts point by point)",
                 file=rob.toolpath,
+            )
+        off = np.abs(study.part.closest_point(tp.contact).distance)
+        if off.max() > 0.1e-3:
+            i = int(np.argmax(off))
+            raise InputError(
+                f"toolpath point {i} is {off[i] * 1e3:.2f} mm off the part: the contact points are "
+                "not on the nominal surface of [part] (a toolpath of another part?)",
+                file=cnc.toolpath,
             )
     with task(progress, "forces to the tool tip"):
         W_cnc = _tip_wrench(study, cnc, tp)
@@ -352,18 +366,50 @@ def _vjm_vs_experiment(d: Decomposition, valid: Any) -> dict[str, dict[str, floa
 def _attach_truth(
     path: Path, per_point: pd.DataFrame, summary: dict[str, Any], d: Decomposition
 ) -> None:
-    """Virtual-cell studies ship their ground truth: put it beside the recovered values."""
+    """Virtual-cell studies ship their ground truth: put it beside the recovered values.
+
+    Two references. ``shares_normal`` — the physical truth projected on the normal (what a scan
+    can observe), to compare with the normal book. ``shares_per_axis`` — the paper's recipe
+    applied to the *noise-free* truth, to compare with the per-axis book: that book's robot
+    term lacks the VJM's tangential part on any data, so only the recipe's own truth isolates
+    the estimation error. ``R_m_physical`` gives the full-vector truth for the record.
+    """
     truth = pd.read_parquet(path)
     if len(truth) != len(per_point):
         summary["warnings"].append(f"truth file {path} does not match the toolpath; ignored")
         return
     used = d.valid
+
+    def vec(name: str) -> F64:
+        return truth[[f"{name}_d{ax}" for ax in _AX]].to_numpy() * 1e-3
+
     rms: dict[str, float] = {}
     for f in FACTORS:
         per_point[f"truth_{f}_dn"] = truth[f"{f}_dn"].to_numpy()
         err = per_point[f"{f}_dn"].to_numpy()[used] - per_point[f"truth_{f}_dn"].to_numpy()[used]
         rms[f] = float(np.sqrt(np.mean(err**2)))
-    summary["truth"] = {"rms_error_dn_mm": rms, "source": str(path)}
+    ideal = decompose(
+        d.n,
+        truth["dn_cnc"].to_numpy() * 1e-3,
+        truth["dn_robot"].to_numpy() * 1e-3,
+        vec("tool_cnc"),
+        vec("tool"),
+        vec("tool_holder"),
+        vec("robot_compliance"),
+        used,
+    )
+    shares = {}
+    for book, projected in (("per_axis", False), ("normal", True)):
+        rows = contribution_rows(ideal, projected=projected)
+        shares[book] = {str(r["factor"]): float(r["share_percent"]) for r in rows[:-1]}
+    physical = {f: resultant_mean_deviation(vec(f)[used]) * 1e3 for f in FACTORS}
+    summary["truth"] = {
+        "rms_error_dn_mm": rms,
+        "shares_per_axis": shares["per_axis"],
+        "shares_normal": shares["normal"],
+        "R_m_physical_mm": physical,
+        "source": str(path),
+    }
 
 
 def write_results(

@@ -1,0 +1,99 @@
+"""Bad study folders: clear errors naming the file; nothing half-written in the output folder."""
+
+import math
+import shutil
+
+import pytest
+
+from roboisf.cli.main import main
+from roboisf.decompose.pipeline import analyze
+from roboisf.errors import InputError, RoboisfError
+from roboisf.parts import Cone
+from roboisf.scan import synthetic_scan, write_ply
+from roboisf.virtual.cell import build_study, paper_cone_cell
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    root = tmp_path_factory.mktemp("bad")
+    cell = paper_cone_cell(
+        scan_points=150_000, force_rate=50.0, joint_rate=20.0, step_down=2e-3, spacing=4e-3
+    )
+    return build_study(cell, root / "study")
+
+
+def copy(study, tmp_path):
+    dst = tmp_path / "s"
+    shutil.copytree(study, dst)
+    return dst
+
+
+def test_missing_file(study, tmp_path):
+    s = copy(study, tmp_path)
+    (s / "robot_scan.ply").unlink()
+    assert main(["-q", "analyze", str(s), "-o", str(tmp_path / "out")]) == 2
+    assert not (tmp_path / "out").exists()
+
+
+def test_joint_log_that_stops_half_way(study, tmp_path):
+    s = copy(study, tmp_path)
+    lines = (s / "robot_joints.csv").read_text().splitlines()
+    (s / "robot_joints.csv").write_text("\n".join(lines[: len(lines) // 2]) + "\n")
+    with pytest.raises(InputError, match=r"robot_joints\.csv.*half-way"):
+        analyze(s)
+
+
+def test_force_log_in_the_wrong_unit(study, tmp_path):
+    s = copy(study, tmp_path)
+    text = (s / "cnc_forces.csv").read_text().replace("force=N", "force=lbf", 1)
+    (s / "cnc_forces.csv").write_text(text)
+    with pytest.raises(InputError, match=r"cnc_forces\.csv"):
+        analyze(s)
+
+
+def test_force_log_shorter_than_the_toolpath(study, tmp_path):
+    s = copy(study, tmp_path)
+    lines = (s / "robot_forces.csv").read_text().splitlines()
+    (s / "robot_forces.csv").write_text("\n".join(lines[: len(lines) // 3]) + "\n")
+    with pytest.raises(InputError, match=r"robot_forces\.csv"):
+        analyze(s)
+
+
+def test_scan_of_the_wrong_part(study, tmp_path):
+    s = copy(study, tmp_path)
+    other = synthetic_scan(
+        Cone(opening_diameter=0.07, wall_angle=math.radians(50), depth=0.04), 100_000, seed=1
+    )
+    write_ply(other.points, s / "robot_scan.ply")
+    # registration or the overlap check refuses it, naming the file
+    with pytest.raises(RoboisfError, match=r"robot_scan\.ply"):
+        analyze(s)
+
+
+def test_toolpath_of_another_part(study, tmp_path):
+    s = copy(study, tmp_path)
+    text = (
+        (s / "study.toml").read_text().replace("opening_diameter = 87.0", "opening_diameter = 90.0")
+    )
+    (s / "study.toml").write_text(text)
+    with pytest.raises(InputError, match=r"toolpath\.csv.*not on the nominal"):
+        analyze(s)
+
+
+def test_output_inside_the_study_is_refused(study, tmp_path):
+    s = copy(study, tmp_path)
+    assert main(["-q", "analyze", str(s), "-o", str(s / "results")]) == 2
+    assert not (s / "results").exists()
+
+
+def test_cli_analyze_writes_everything(study, tmp_path):
+    out = tmp_path / "res"
+    assert main(["-q", "analyze", str(study), "-o", str(out), "--no-png"]) == 0
+    for name in (
+        "report.html",
+        "contributions.csv",
+        "contributions_normal.csv",
+        "per_point.parquet",
+        "summary.json",
+    ):
+        assert (out / name).is_file(), name
