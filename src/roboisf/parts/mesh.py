@@ -8,14 +8,17 @@ Closest point algorithm (exact, not approximate):
 
 1. a k-d tree (``scipy.spatial.cKDTree``) over the triangle centroids ``c_j``; every triangle
    lies inside the ball of radius ``ρ_j = max |v − c_j|`` (over its vertices) around its centroid;
-2. for each query point x, the ``k`` nearest centroids are candidates; the exact point–triangle
-   distance (Ericson, *Real-Time Collision Detection* §5.1.5, vectorised) is evaluated on them,
-   nearest centroid first, skipping a candidate whose lower bound ``|x − c_j| − ρ_j`` already
-   exceeds the best distance found;
+2. for each query point x, the ``k`` nearest centroids (k = 24) are candidates; a candidate is
+   evaluated exactly (Ericson, *Real-Time Collision Detection* §5.1.5, vectorised) only if its
+   lower bound ``sqrt(h² + max(0, q − ρ_j)²)`` — h the distance to the triangle's plane, q the
+   in-plane distance to its centroid — is below the best distance found so far;
 3. every triangle that is not a candidate is at least ``d_k − ρ_max`` away (``d_k`` = k-th
    centroid distance). Where the best distance is larger than that bound the answer is not
-   proven; those points are queried again with 4× more candidates, until proven (or all
+   proven; those points are queried again with 2× more candidates, until proven (or all
    triangles were candidates). The result is therefore the true closest triangle.
+
+Scans should be passed in spatial order (:func:`spatial_order`, done by
+:func:`roboisf.scan.point_deviations`): the query is then ~1.5× faster.
 
 Orientation: the tool-side normal of an ISF part (tool along +z, part below the sheet) has
 ``n_z ≥ 0``. By default (``orient="up"``) faces whose winding normal points down are flipped;
@@ -340,7 +343,7 @@ class MeshPart:
                 break
             # a triangle that is not among the kk candidates is at least d_kk − ρ_max away
             todo = todo[best_d[todo] > dc[:, -1] - ix["rho_max"]]
-            done, kk = kk, min(kk * 3, n_tri)
+            done, kk = kk, min(kk * 2, n_tri)
         return best_f, best_d**2
 
     def _refine(
