@@ -210,29 +210,3 @@ def test_never_overwrites_input(tmp_path):
     prof.write_text(text)
     assert main(["toolpath", "profile", str(prof), "-o", str(prof)]) == 2
     assert prof.read_text() == text
-
-
-def test_demo_builds_folder_atomically(tmp_path):
-    out = tmp_path / "demo"
-    out.mkdir()
-    (out / "stale.txt").write_text("old")
-    assert main(["-q", "demo", "-o", str(out)]) == 0
-    assert not (out / "stale.txt").exists()
-    names = sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file())
-    expected = [
-        f"{part}/{f}"
-        for part in ("cone", "vwacf")
-        for f in (
-            "part.toml",
-            "toolpath.csv",
-            "toolpath.dat",
-            "toolpath.mod",
-            "toolpath.nc",
-            "toolpath.src",
-        )
-    ]
-    assert names == expected
-    cone = read_toolpath_csv(out / "cone" / "toolpath.csv")
-    assert cone.n_laps == 206
-    assert np.abs(read_rapid(out / "cone" / "toolpath.mod").tip - cone.tip).max() <= 0.5e-6 + 1e-12
-    assert [p.name for p in tmp_path.iterdir()] == ["demo"]  # no staging leftovers

@@ -33,7 +33,11 @@ DEMO_PLACEMENT = make_transform(np.eye(3), [1.8, 0.0, 0.6])
 
 
 def build_demo(
-    folder: Path, progress: Progress | None = None, *, scan_points: int = 1_000_000
+    folder: Path,
+    progress: Progress | None = None,
+    *,
+    scan_points: int = 1_000_000,
+    force_rate: float = 1000.0,
 ) -> list[Path]:
     """Write the demo into ``folder`` (which exists and is empty); return the report paths."""
     from roboisf.decompose.pipeline import analyze, write_results
@@ -43,8 +47,8 @@ def build_demo(
     reports: list[Path] = []
     tool = RobotTool(length=0.2, mass=2.0)
     for cell in (
-        paper_cone_cell(scan_points=scan_points),
-        paper_vwacf_cell(scan_points=scan_points),
+        paper_cone_cell(scan_points=scan_points, force_rate=force_rate),
+        paper_vwacf_cell(scan_points=scan_points, force_rate=force_rate),
     ):
         sub = folder / cell.name
         sub.mkdir()
@@ -87,11 +91,12 @@ def register(app: typer.Typer) -> None:
             Path, typer.Option("--output", "-o", help="Folder to create (replaced if it exists).")
         ] = Path("roboisf-demo"),
         scan_points: Annotated[int, typer.Option(help="Points per simulated scan.")] = 1_000_000,
+        force_rate: Annotated[float, typer.Option(help="Force-log sample rate [Hz].")] = 1000.0,
     ) -> None:
         """The paper's cone and VWACF, end to end: virtual cell → analyze → report → robot programs.
 
         Opens nothing and needs no input: results land in OUTPUT/index.html.
         """
         with staged_directory(output) as stage:
-            build_demo(stage, state.progress(), scan_points=scan_points)
+            build_demo(stage, state.progress(), scan_points=scan_points, force_rate=force_rate)
         state.info(f"open {output / 'index.html'}")

@@ -80,15 +80,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(e.exit_code or 0)
     except typer.Abort:
         return 130
-    except Exception as e:  # click usage errors
-        import click
-
-        if isinstance(e, click.exceptions.UsageError):
-            e.show()
-            return 2
-        if isinstance(e, click.exceptions.ClickException):
-            e.show()
-            return e.exit_code
+    except Exception as e:
+        # usage errors (unknown option, missing argument): click's ClickException interface —
+        # typer ≥ 0.16 vendors its own click, so match the interface, not the class
+        show, code = getattr(e, "show", None), getattr(e, "exit_code", None)
+        if callable(show) and isinstance(code, int):
+            show()
+            return code
         raise
     finally:
         state.verbosity = 1

@@ -96,11 +96,7 @@ def read_table(
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{what} not found", file=path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as e:
-        raise InputError(f"{what} is not UTF-8 text ({e.reason})", file=path) from None
-    raw = text.splitlines()
+    raw = _head(path, what)  # metadata and header only; the body is parsed in C below
     meta: dict[str, str] = {}
     i = 0
     while i < len(raw):
@@ -154,6 +150,16 @@ def read_table(
                 line=header_line,
                 field=extra[0],
             )
+    fast = _fast_body(path, header_line, len(columns))
+    if fast is not None:
+        n = fast.shape[0]
+        lines_fast = np.arange(header_line + 1, header_line + 1 + n, dtype=np.int64)
+        return Table(path, meta, columns, fast, lines_fast, header_line)
+    # slow path: find and name the offending line
+    try:
+        raw = path.read_text(encoding="utf-8-sig").splitlines()
+    except UnicodeDecodeError as e:
+        raise InputError(f"{what} is not UTF-8 text ({e.reason})", file=path) from None
     body_idx = [j for j in range(i + 1, len(raw)) if raw[j].strip()]
     if not body_idx:
         raise InputError(f"{what} has a header but no data rows", file=path)
@@ -224,10 +230,55 @@ def _round_column(col: F64, fmt: str) -> F64 | NDArray[np.int64]:
     sig = digits if kind == "g" else digits + 1
     out = col.copy()
     nz = (col != 0) & np.isfinite(col)
-    exp10 = np.floor(np.log10(np.abs(col[nz])))
-    scale = 10.0 ** (sig - 1 - exp10)
-    out[nz] = np.round(col[nz] * scale) / scale
+    x = col[nz]
+    k = sig - 1 - np.floor(np.log10(np.abs(x)))  # decimals to keep (may be negative)
+    # scale by an exact power of ten: 10**k for k ≥ 0 is exact up to 1e22, so divide by it
+    # afterwards; for k < 0 divide first by the exact 10**−k and multiply back
+    pos = k >= 0
+    p = 10.0 ** np.abs(k)
+    out_nz = np.where(pos, np.round(x * p) / p, np.round(x / p) * p)
+    out[nz] = out_nz
     return out
+
+
+def _head(path: Path, what: str) -> list[str]:
+    """The file's lines up to and including the first non-blank, non-comment line."""
+    out: list[str] = []
+    try:
+        with open(path, encoding="utf-8-sig") as fh:
+            for line in fh:
+                out.append(line.rstrip("\r\n"))
+                s = line.strip()
+                if s and not s.startswith("#"):
+                    break
+    except UnicodeDecodeError as e:
+        raise InputError(f"{what} is not UTF-8 text ({e.reason})", file=path) from None
+    return out
+
+
+def _fast_body(path: Path, header_line: int, k: int) -> F64 | None:
+    """All rows after the header through pandas' C parser, or None when anything is off
+    (a blank or comment line, a wrong cell count, a non-number, NaN/inf): the careful reader
+    then finds the line to name. Trailing blank lines are fine."""
+    try:
+        data = pd.read_csv(
+            path,
+            skiprows=header_line,
+            header=None,
+            dtype=np.float64,
+            engine="c",
+            skip_blank_lines=False,
+            na_filter=False,
+            encoding="utf-8-sig",
+            float_precision="round_trip",
+        ).to_numpy()
+    except (ValueError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError):
+        return None
+    if data.ndim != 2 or data.shape[1] != k or data.shape[0] == 0:
+        return None
+    if not np.all(np.isfinite(data)):
+        return None
+    return data
 
 
 def format_rows(data: F64, formats: Sequence[str]) -> str:
@@ -240,8 +291,10 @@ def format_rows(data: F64, formats: Sequence[str]) -> str:
     """
     if data.shape[1] != len(formats):
         raise ValueError("one format per column")
-    arrays = [pa.array(_round_column(np.asarray(data[:, j], dtype=float), f))
-              for j, f in enumerate(formats)]
+    arrays = [
+        pa.array(_round_column(np.asarray(data[:, j], dtype=float), f))
+        for j, f in enumerate(formats)
+    ]
     table = pa.Table.from_arrays(arrays, names=[f"c{j}" for j in range(len(formats))])
     buf = io.BytesIO()
     pacsv.write_csv(table, buf, pacsv.WriteOptions(include_header=False, quoting_style="none"))

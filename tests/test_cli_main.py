@@ -1,0 +1,51 @@
+"""The CLI's conventions: --help everywhere, exit codes, one-line errors."""
+
+import pytest
+
+from roboisf.cli.main import app, main
+
+COMMANDS = [
+    [],
+    ["part"],
+    ["toolpath"],
+    ["robot"],
+    ["scan"],
+    ["analyze"],
+    ["virtual-cell"],
+    ["demo"],
+    ["tool-stiffness"],
+    ["holder-stiffness"],
+]
+
+
+@pytest.mark.parametrize("cmd", COMMANDS, ids=lambda c: " ".join(c) or "roboisf")
+def test_help_on_every_command(cmd, capsys):
+    assert main([*cmd, "--help"]) == 0
+    out = capsys.readouterr().out
+    assert "Usage" in out and len(out) > 200
+
+
+def test_usage_errors_exit_2(capsys):
+    assert main(["--bogus"]) == 2
+    assert main(["analyze"]) == 2  # missing argument
+    assert main(["no-such-command"]) == 2
+    assert "No such" in capsys.readouterr().err
+
+
+def test_input_errors_are_one_line_and_exit_2(tmp_path, capsys):
+    code = main(["analyze", str(tmp_path / "nowhere"), "-o", str(tmp_path / "out")])
+    assert code == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error:") and "study.toml" in err and "\n" not in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_version(capsys):
+    assert main(["--version"]) == 0
+    assert "roboisf" in capsys.readouterr().out
+
+
+def test_every_registered_command_is_covered():
+    names = {c.name for c in app.registered_commands} | {g.name for g in app.registered_groups}
+    covered = {c[0] for c in COMMANDS if c}
+    assert names <= covered, names - covered
