@@ -308,6 +308,7 @@ def _summary(
         "part": study.part.to_dict(),
         "robot": {
             "model": robot.model,
+            "preset": robot.model,
             "placement_T_base_work_m": robot.T_base_work.tolist(),
             "joint_angles_from": q_source,
         },
