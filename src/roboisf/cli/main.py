@@ -54,11 +54,12 @@ def _register() -> None:
     from roboisf.cli import demo as _demo
     from roboisf.cli import fem as _fem
     from roboisf.cli import part as _part
+    from roboisf.cli import plan as _plan
     from roboisf.cli import robot as _robot
     from roboisf.cli import scan as _scan
     from roboisf.cli import toolpath as _toolpath
 
-    for group in (_part, _toolpath, _robot, _fem, _scan, _analyze, _demo):
+    for group in (_part, _toolpath, _robot, _fem, _scan, _analyze, _demo, _plan):
         group.register(app)
 
 

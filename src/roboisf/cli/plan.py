@@ -1,0 +1,339 @@
+"""``roboisf plan``: stiffest work-object placement and tool rotation for a part."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import typer
+
+from roboisf.cli.console import state
+from roboisf.errors import InputError
+
+__all__ = ["parse_range", "register"]
+
+
+def register(app: typer.Typer) -> None:
+    app.command("plan")(plan_cmd)
+
+
+def parse_range(text: str, field: str) -> np.ndarray:
+    """``"start:stop:count"`` (inclusive, evenly spaced) or ``"a,b,c"`` → values (CLI units)."""
+    t = text.strip()
+    if not t:
+        raise InputError("empty range: give start:stop:count or a comma list", field=field)
+    try:
+        if ":" in t:
+            parts = t.split(":")
+            if len(parts) != 3:
+                raise ValueError
+            a, b, n = float(parts[0]), float(parts[1]), float(parts[2])
+            if not (math.isfinite(a) and math.isfinite(b)):
+                raise ValueError
+            if n != int(n) or n < 1:
+                raise InputError(
+                    f"the count must be a positive integer, got {parts[2]!r} in {text!r}",
+                    field=field,
+                )
+            if b < a:
+                raise InputError(f"empty range {text!r}: stop < start", field=field)
+            if n == 1 and b != a:
+                raise InputError(f"count 1 needs start = stop, got {text!r}", field=field)
+            return np.linspace(a, b, int(n))
+        v = np.array([float(x) for x in t.split(",")])
+    except ValueError:
+        raise InputError(
+            f"expected start:stop:count or comma-separated numbers, got {text!r}", field=field
+        ) from None
+    if not np.all(np.isfinite(v)):
+        raise InputError(f"values must be finite, got {text!r}", field=field)
+    return v
+
+
+def _default_range(center: float, half: float, n: int) -> str:
+    return f"{center - half:g}:{center + half:g}:{n}"
+
+
+def plan_cmd(
+    output: Path = typer.Option(..., "--output", "-o", help="Output folder."),
+    part: Path | None = typer.Option(None, "--part", help="Part TOML (force model forces)."),
+    study: Path | None = typer.Option(
+        None, "--study", help="Study folder/study.toml: its toolpath, robot-run forces, robot."
+    ),
+    robot: str = typer.Option("irb7600-500-2.55", "--robot", "-r", help="Preset, .toml or .urdf."),
+    stiffness: Path | None = typer.Option(None, "--stiffness", help="Joint stiffness TOML."),
+    tool: str | None = typer.Option(
+        None, "--tool", help="Tool tip in the flange frame x,y,z (mm); default: the paper cell's."
+    ),
+    x_range: str | None = typer.Option(None, "--x-range", help="start:stop:count or list (mm)."),
+    y_range: str | None = typer.Option(None, "--y-range", help="start:stop:count or list (mm)."),
+    z_range: str | None = typer.Option(None, "--z-range", help="start:stop:count or list (mm)."),
+    yaw_range: str = typer.Option("0", "--yaw-range", help="start:stop:count or list (deg)."),
+    tool_rotations: str = typer.Option(
+        "0", "--tool-rotations", help="Candidate tool rotations about the tool axis (deg)."
+    ),
+    baseline: str | None = typer.Option(
+        None,
+        "--baseline",
+        help="Reference placement x,y,z,yaw (mm, deg); default: the study's, else the paper cell's "
+        "(2200,0,200,0) for the IRB 7600, else the preset's.",
+    ),
+    objective: str = typer.Option("mean", "--objective", help="Rank by mean, max or normal."),
+    sigma_min: float = typer.Option(0.02, "--sigma-min", help="Singularity margin (σ_min)."),
+    max_joint_step: float = typer.Option(
+        5.0, "--max-joint-step", help="Largest joint change between points (deg)."
+    ),
+    no_tool_compliance: bool = typer.Option(
+        False, "--no-tool-compliance", help="Robot only (no tool/holder beam compliance)."
+    ),
+    scheduler: str | None = typer.Option(
+        None, "--scheduler", help="Dask scheduler address (default: a local cluster)."
+    ),
+    serial: bool = typer.Option(False, "--serial", help="No Dask: evaluate in this process."),
+    workers: int = typer.Option(2, "--workers", help="Local cluster worker processes."),
+    top: int = typer.Option(10, "--top", help="Candidates shown in the summary."),
+) -> None:
+    """Rank work-object placements (x, y, z, yaw) and tool rotations by predicted deflection."""
+    from roboisf.frames import make_transform, rot_z
+    from roboisf.io.atomic import check_not_input, staged_directory
+    from roboisf.plan import placement_grid, plan_placements
+    from roboisf.report.plan_maps import plot_placement_map, write_plan_html
+    from roboisf.report.robot_maps import plot_stiffness_map
+    from roboisf.robot import stiffness_map
+
+    if (part is None) == (study is None):
+        raise InputError("give exactly one of --part or --study", field="--part/--study")
+    for flag, v in (("--workers", workers), ("--top", top)):
+        if v < 1:
+            raise InputError(f"must be ≥ 1, got {v}", field=flag)
+    if objective not in ("mean", "max", "normal"):
+        raise InputError(f"expected mean, max or normal, got {objective!r}", field="--objective")
+    if not (math.isfinite(max_joint_step) and max_joint_step > 0):
+        raise InputError(f"must be > 0, got {max_joint_step}", field="--max-joint-step")
+    if not (math.isfinite(sigma_min) and sigma_min >= 0):
+        raise InputError(f"must be ≥ 0, got {sigma_min}", field="--sigma-min")
+    inputs = [p for p in (part, study, stiffness) if p is not None]
+    check_not_input(output, inputs)
+    gammas = np.radians(parse_range(tool_rotations, "--tool-rotations"))
+    opts: dict[str, Any] = {
+        "objective": objective,
+        "sigma_threshold": sigma_min,
+        "max_joint_step": math.radians(max_joint_step),
+    }
+    prob, model, base_T, source = _problem(
+        part, study, robot, stiffness, tool, not no_tool_compliance, opts
+    )
+    base_T = _baseline(baseline, base_T, model)
+    c = model.default_placement if model.default_placement is not None else base_T
+    cx, cy, cz = (float(v) * 1e3 for v in c[:3, 3])
+    xs = parse_range(x_range or _default_range(cx, 600, 7), "--x-range") * 1e-3
+    ys = parse_range(y_range or _default_range(cy, 400, 5), "--y-range") * 1e-3
+    zs = parse_range(z_range or _default_range(cz, 400, 5), "--z-range") * 1e-3
+    yaws = np.radians(parse_range(yaw_range, "--yaw-range"))
+    P = placement_grid(xs, ys, zs, yaws)
+    state.info(
+        f"{len(P)} placements × {gammas.size} tool rotations, {prob.n_points} toolpath points "
+        f"({source})"
+    )
+    sched: Any = "serial" if serial else (scheduler or "local")
+    res = plan_placements(
+        prob,
+        P,
+        gammas,
+        baseline=base_T,
+        scheduler=sched,
+        n_workers=workers,
+        progress=state.progress(),
+    )
+    for n in res.notes:
+        state.warn(n)
+    summary = _summary(res, model.name, source, sched if isinstance(sched, str) else "client")
+    b = res.best_placement
+    smap = stiffness_map(
+        model,
+        make_transform(rot_z(b[3]), [0.5 * (xs[0] + xs[-1]), 0.5 * (ys[0] + ys[-1]), b[2]]),
+        half_width=max(0.25, 0.5 * max(xs[-1] - xs[0], ys[-1] - ys[0]) + 0.1),
+        n=41,
+    )
+    with staged_directory(output) as d:
+        _write_tables(res, d, summary)
+        images = {
+            "predicted mean robot deflection per placement": plot_placement_map(
+                res, d / "placement_map.png"
+            ),
+            "robot stiffness over the workspace": plot_stiffness_map(smap, d / "stiffness_map.png"),
+        }
+        write_plan_html(res, d / "plan.html", images, summary=summary, top=top)
+    _print(res, summary, top)
+    state.info(f"wrote {output}/ (placements.csv, plan.json, plan.html, *.png)")
+
+
+def _problem(
+    part: Path | None,
+    study: Path | None,
+    robot: str,
+    stiffness: Path | None,
+    tool: str | None,
+    with_tool: bool,
+    opts: dict[str, Any],
+) -> tuple[Any, Any, np.ndarray | None, str]:
+    from roboisf.cli.robot import _floats
+    from roboisf.frames import make_transform
+    from roboisf.parts import AxisymmetricPart, load_part
+    from roboisf.plan import PlanProblem, problem_from_cell
+    from roboisf.robot import load_robot, load_stiffness
+    from roboisf.virtual.cell import VirtualCell
+
+    def _model(name: str, T_ft: np.ndarray) -> Any:
+        m = load_robot(name).with_tool(T_ft)
+        if stiffness is not None:
+            m = m.with_stiffness(load_stiffness(stiffness), source=str(stiffness))
+        if tool is not None:
+            m = m.with_tool(make_transform(None, _floats(tool, 3, "--tool") * 1e-3))
+        return m
+
+    if part is not None:
+        p = load_part(part)
+        if not isinstance(p, AxisymmetricPart):
+            raise InputError("plan needs a parametric (axisymmetric) part", file=part)
+        cell = VirtualCell(p.__class__.__name__.lower(), p, robot=robot)
+        m = _model(robot, cell.T_flange_tip)
+        prob, _ = problem_from_cell(cell, with_tool=with_tool, model=m, **opts)
+        return prob, m, None, f"part {part.name}, force model"
+    assert study is not None
+    from roboisf.decompose.pipeline import _tip_wrench
+    from roboisf.io.toolpath_csv import read_toolpath_csv
+    from roboisf.study.spec import load_study
+
+    s = load_study(study)
+    if s.robot is None:
+        raise InputError("the study has no [robot] table", file=s.root / "study.toml")
+    T_ft = s.robot.T_flange_tip if s.robot.T_flange_tip is not None else np.eye(4)
+    m = _model(s.robot.model, T_ft)
+    if s.robot.joint_stiffness is not None and stiffness is None:
+        m = m.with_stiffness(s.robot.joint_stiffness, source="study")
+    rob = s.robot_run
+    tp = read_toolpath_csv(rob.toolpath)
+    W = _tip_wrench(s, rob, tp)
+    prob = PlanProblem(m, tp.tip, tp.normal, tp.lap, W, **opts)
+    return prob, m, s.robot.T_base_work, f"study {s.name}, robot-run forces, robot only"
+
+
+def _baseline(text: str | None, study_T: np.ndarray | None, model: Any) -> np.ndarray:
+    from roboisf.cli.robot import _floats
+    from roboisf.frames import make_transform, rot_z
+    from roboisf.virtual.cell import PAPER_CELL_PLACEMENT
+
+    if text is not None:
+        v = _floats(text, 4, "--baseline")
+        return make_transform(rot_z(math.radians(v[3])), v[:3] * 1e-3)
+    if study_T is not None:
+        return study_T
+    if model.name.startswith("irb7600"):
+        return PAPER_CELL_PLACEMENT
+    if model.default_placement is None:
+        raise InputError(
+            f"robot {model.name} has no default placement; give --baseline", field="--baseline"
+        )
+    return model.default_placement
+
+
+def _summary(res: Any, robot: str, source: str, scheduler: str) -> dict[str, Any]:
+    b, p = res.best, res.best_placement
+    out: dict[str, Any] = {
+        "robot": robot,
+        "input": source,
+        "objective": res.objective,
+        "candidates": len(res.scores),
+        "feasible": int(res.order.size),
+        "rejected": res.rejected(),
+        "scheduler": scheduler,
+        "best placement x,y,z [mm], yaw [deg]": [
+            round(p[0] * 1e3, 3),
+            round(p[1] * 1e3, 3),
+            round(p[2] * 1e3, 3),
+            round(math.degrees(p[3]), 3),
+        ],
+        "best tool rotation per lap [deg] (min..max)": [
+            round(math.degrees(float(b.gamma.min())), 3),
+            round(math.degrees(float(b.gamma.max())), 3),
+        ],
+        "best mean robot |δ| [mm]": round(b.mean_robot * 1e3, 5),
+        "best max robot |δ| [mm]": round(b.max_robot * 1e3, 5),
+        "best mean |δ| (robot + tool) [mm]": round(b.mean_abs * 1e3, 5),
+        "best max |δ| (robot + tool) [mm]": round(b.max_abs * 1e3, 5),
+        "best mean |δ·n| [mm]": round(b.mean_abs_normal * 1e3, 5),
+    }
+    if res.baseline is not None:
+        T = res.baseline_T
+        out["baseline placement x,y,z [mm], yaw [deg]"] = [
+            *(round(float(v) * 1e3, 3) for v in T[:3, 3]),
+            round(math.degrees(math.atan2(T[1, 0], T[0, 0])), 3),
+        ]
+        if res.baseline.ok:
+            out["baseline mean robot |δ| [mm]"] = round(res.baseline.mean_robot * 1e3, 5)
+            out["baseline mean |δ| (robot + tool) [mm]"] = round(res.baseline.mean_abs * 1e3, 5)
+            out["mean robot |δ| reduction vs baseline [%]"] = round(
+                100 * res.improvement("mean_robot"), 2
+            )
+            out["mean |δ| reduction vs baseline [%]"] = round(100 * res.improvement("mean_abs"), 2)
+        else:
+            out["baseline status"] = f"{res.baseline.status}: {res.baseline.reason}"
+    return out
+
+
+def _write_tables(res: Any, d: Path, summary: dict[str, Any]) -> None:
+    import pandas as pd
+
+    from roboisf.io.atomic import atomic_path, atomic_write
+
+    df = pd.DataFrame(res.table())
+    with atomic_path(d / "placements.csv") as tmp:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write("# roboisf plan: candidates ranked by predicted deflection\n")
+            fh.write("# units: length=mm angle=deg\n")
+            df.to_csv(fh, index=False, float_format="%.6f")
+    doc = {
+        "summary": summary,
+        "notes": res.notes,
+        "best_gamma_per_lap_deg": np.degrees(res.best.gamma).round(6).tolist(),
+        "candidates": res.table(),
+    }
+    with atomic_write(d / "plan.json") as fh:
+        json.dump(doc, fh, indent=1, default=_json_default)
+
+
+def _json_default(o: Any) -> Any:
+    if isinstance(o, np.generic):
+        return o.item()
+    raise TypeError(type(o).__name__)
+
+
+def _print(res: Any, summary: dict[str, Any], top: int) -> None:
+    from roboisf.report.page import fmt
+
+    rows = [r for r in res.table() if r["status"] == "ok"][:top]
+    state.info(
+        "rank      x       y       z   yaw  mean_robot  max_robot  mean|δ|  mean|δ·n|  [mm, deg]"
+    )
+    for r in rows:
+        state.info(
+            f"{r['rank']:>4} {r['x_mm']:7.0f} {r['y_mm']:7.0f} {r['z_mm']:7.0f} {r['yaw_deg']:5.0f}"
+            f"  {fmt(r['mean_robot_mm'], 4):>10} {fmt(r['max_robot_mm'], 4):>10}"
+            f" {fmt(r['mean_abs_mm'], 4):>8} {fmt(r['mean_abs_normal_mm'], 4):>10}"
+        )
+    rej = res.rejected()
+    if rej:
+        state.info("rejected: " + ", ".join(f"{v} {k}" for k, v in rej.items()))
+    if "mean robot |δ| reduction vs baseline [%]" in summary:
+        state.info(
+            f"baseline {summary['baseline placement x,y,z [mm], yaw [deg]']}: mean robot |δ| "
+            f"{summary['baseline mean robot |δ| [mm]']:.4f} mm → best "
+            f"{summary['best mean robot |δ| [mm]']:.4f} mm "
+            f"({summary['mean robot |δ| reduction vs baseline [%]']:.1f} % lower)"
+        )
+    elif "baseline status" in summary:
+        state.warn(f"baseline not feasible: {summary['baseline status']}")

@@ -1,0 +1,25 @@
+"""Placement and tool orientation: where to put the fixture in the robot's workspace and how to
+turn the ball tool about its own axis so the robot gives way least (``docs/plan.md``)."""
+
+from roboisf.plan.evaluate import (
+    PlacementScore,
+    evaluate_batch,
+    evaluate_placement,
+    smooth_schedule,
+)
+from roboisf.plan.problem import PlanProblem, placement_grid, placement_transforms
+from roboisf.plan.setup import problem_from_cell
+from roboisf.plan.sweep import PlanResult, plan_placements
+
+__all__ = [
+    "PlacementScore",
+    "PlanProblem",
+    "PlanResult",
+    "evaluate_batch",
+    "evaluate_placement",
+    "placement_grid",
+    "placement_transforms",
+    "plan_placements",
+    "problem_from_cell",
+    "smooth_schedule",
+]

@@ -1,0 +1,240 @@
+"""Evaluate many placements, serially or on a Dask cluster, and rank them.
+
+Parallel layout: the :class:`PlanProblem` (toolpath, wrench, robot — the big, shared part) is
+scattered to every worker once; each task carries a batch of placements (a (B, 4, 4) array) and
+the tool-rotation candidates, and returns their scores. Tasks run the same numpy code as the
+serial path on the same inputs, so the scores are bit-for-bit those of the serial run (tested).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from roboisf.errors import InputError, UnreachableError
+from roboisf.plan.evaluate import PlacementScore, evaluate_batch, evaluate_placement
+from roboisf.plan.problem import PlanProblem, placement_transforms
+from roboisf.progress import Progress, task
+
+__all__ = ["PlanResult", "plan_placements"]
+
+F64 = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class PlanResult:
+    """Scores of every candidate placement, ranked.
+
+    placements : (M, 4) float — [x, y, z, yaw] (m, rad), T_base_work of the work frame
+    scores : list of M :class:`PlacementScore`, in the order of ``placements``
+    order : (K,) int — indices of the feasible candidates, best first
+    tool_rotations : (G,) float, rad — the γ candidates
+    baseline : PlacementScore or None — the reference placement (e.g. the paper-like cell)
+    baseline_T : (4, 4) or None
+    objective : str
+    notes : list of str — e.g. "γ has no effect: coaxial tool"
+    """
+
+    placements: F64
+    scores: list[PlacementScore]
+    order: NDArray[np.intp]
+    tool_rotations: F64
+    baseline: PlacementScore | None
+    baseline_T: F64 | None
+    objective: str
+    notes: list[str]
+
+    @property
+    def best(self) -> PlacementScore:
+        return self.scores[int(self.order[0])]
+
+    @property
+    def best_placement(self) -> F64:
+        """(4,) [x, y, z, yaw] of the best candidate (m, rad)."""
+        return self.placements[int(self.order[0])]
+
+    def improvement(self, field: str = "mean_robot") -> float:
+        """Relative reduction of ``field`` from the baseline to the best candidate (0.25 = 25 %)."""
+        if self.baseline is None or not self.baseline.ok:
+            return math.nan
+        b = getattr(self.baseline, field)
+        return float((b - getattr(self.best, field)) / b)
+
+    def rejected(self) -> dict[str, int]:
+        """Count of candidates per non-ok status."""
+        out: dict[str, int] = {}
+        for s in self.scores:
+            if not s.ok:
+                out[s.status] = out.get(s.status, 0) + 1
+        return out
+
+    def table(self) -> list[dict[str, Any]]:
+        """One row per candidate, ranked ones first (rank 1 = best), then the rejected ones.
+
+        Units: mm and degrees (for files and screens).
+        """
+        rank = {int(i): r + 1 for r, i in enumerate(self.order)}
+        idx = list(self.order) + [i for i in range(len(self.scores)) if i not in rank]
+        rows = []
+        for i in idx:
+            s, p = self.scores[int(i)], self.placements[int(i)]
+            g = s.gamma
+            rows.append(
+                {
+                    "rank": rank.get(int(i), ""),
+                    "x_mm": p[0] * 1e3,
+                    "y_mm": p[1] * 1e3,
+                    "z_mm": p[2] * 1e3,
+                    "yaw_deg": math.degrees(p[3]),
+                    "status": s.status,
+                    "mean_abs_mm": s.mean_abs * 1e3,
+                    "max_abs_mm": s.max_abs * 1e3,
+                    "mean_abs_normal_mm": s.mean_abs_normal * 1e3,
+                    "mean_robot_mm": s.mean_robot * 1e3,
+                    "max_robot_mm": s.max_robot * 1e3,
+                    "sigma_min": s.sigma_min,
+                    "max_joint_step_deg": math.degrees(s.max_joint_step),
+                    "gamma_first_deg": math.nan if g is None else math.degrees(g[0]),
+                    "gamma_min_deg": math.nan if g is None else math.degrees(g.min()),
+                    "gamma_max_deg": math.nan if g is None else math.degrees(g.max()),
+                    "reason": s.reason,
+                }
+            )
+        return rows
+
+
+def _batches(n: int, size: int) -> list[slice]:
+    return [slice(s, min(n, s + size)) for s in range(0, n, size)]
+
+
+def plan_placements(
+    problem: PlanProblem,
+    placements: ArrayLike,
+    tool_rotations: ArrayLike = (0.0,),
+    *,
+    baseline: ArrayLike | None = None,
+    scheduler: str | Any | None = "local",
+    n_workers: int | None = None,
+    batch_size: int | None = None,
+    progress: Progress | None = None,
+) -> PlanResult:
+    """Score candidate placements (M, 4) ``[x, y, z, yaw]`` (m, rad) over tool rotations (G,) rad.
+
+    ``scheduler``: ``"serial"`` (this process), ``"local"`` (a Dask ``LocalCluster`` of
+    ``n_workers`` single-threaded worker processes, started and closed here), an address
+    ``"tcp://host:8786"`` of a running Dask scheduler, or a ``dask.distributed.Client``.
+    ``baseline``: a reference ``T_base_work`` (4, 4) scored at γ = 0 (e.g. the current cell).
+
+    Raises :class:`~roboisf.errors.UnreachableError` when no candidate is feasible (the message
+    gives the reasons); infeasible candidates are otherwise kept in ``scores`` with their reason.
+    """
+    P = np.asarray(placements, dtype=float)
+    Ts = placement_transforms(P)
+    g = np.atleast_1d(np.asarray(tool_rotations, dtype=float))
+    if g.ndim != 1 or g.size == 0 or not np.all(np.isfinite(g)):
+        raise InputError(
+            f"expected at least one finite tool rotation, got {g.size}", field="tool rotations"
+        )
+    notes: list[str] = []
+    if g.size > 1 and problem.tool_is_coaxial():
+        notes.append(
+            "the tool is coaxial with axis 6 and its compliance is axisymmetric: turning it about "
+            "its own axis only turns A6 and cannot change the deflection; evaluated γ = "
+            f"{math.degrees(g[0]):g}° only"
+        )
+        g = g[:1]
+    if n_workers is not None and n_workers < 1:
+        raise InputError(f"must be ≥ 1, got {n_workers}", field="workers")
+    if batch_size is not None and batch_size < 1:
+        raise InputError(f"must be ≥ 1, got {batch_size}", field="batch size")
+    m = Ts.shape[0]
+    with task(progress, f"placements ({m} × {g.size} tool rotations)", m) as advance:
+        if scheduler is None or scheduler == "serial":
+            scores: list[PlacementScore] = []
+            for sl in _batches(m, batch_size or 8):
+                scores.extend(evaluate_batch(problem, Ts[sl], g))
+                advance(sl.stop - sl.start)
+        else:
+            scores = _dask_map(problem, Ts, g, scheduler, n_workers, batch_size, advance)
+    base = base_T = None
+    if baseline is not None:
+        base_T = np.asarray(baseline, dtype=float)
+        if base_T.shape != (4, 4):
+            raise InputError(f"expected a (4, 4) transform, got {base_T.shape}", field="baseline")
+        base = evaluate_placement(problem, base_T, (0.0,))
+    key = np.array([s.objective(problem.objective) for s in scores])
+    ok = np.flatnonzero(np.isfinite(key))
+    if ok.size == 0:
+        reasons = sorted({f"{s.status}: {s.reason}" for s in scores})
+        raise UnreachableError(
+            f"none of the {m} candidate placements is feasible; e.g. "
+            + " | ".join(reasons[:3])
+            + (f" (and {len(reasons) - 3} more reasons)" if len(reasons) > 3 else ""),
+            indices=list(range(m)),
+        )
+    order = ok[np.argsort(key[ok], kind="stable")]
+    return PlanResult(P, scores, order, g, base, base_T, problem.objective, notes)
+
+
+def _dask_map(
+    problem: PlanProblem,
+    Ts: F64,
+    g: F64,
+    scheduler: str | Any,
+    n_workers: int | None,
+    batch_size: int | None,
+    advance: Any,
+) -> list[PlacementScore]:
+    from dask.distributed import Client, LocalCluster, as_completed
+
+    own: list[Any] = []
+    try:
+        if isinstance(scheduler, Client):
+            client = scheduler
+        elif scheduler == "local":
+            cluster = LocalCluster(
+                n_workers=n_workers or 2,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+            )
+            own.append(cluster)
+            client = Client(cluster)
+            own.append(client)
+        elif isinstance(scheduler, str):
+            try:
+                client = Client(scheduler, timeout=10)
+            except OSError as e:
+                raise InputError(
+                    f"cannot reach the Dask scheduler at {scheduler!r}: {e}", field="--scheduler"
+                ) from None
+            own.append(client)
+        else:
+            raise InputError(
+                f"expected 'serial', 'local', a scheduler address or a Client, got {scheduler!r}",
+                field="scheduler",
+            )
+        nw = max(1, len(client.scheduler_info().get("workers", {})) or (n_workers or 1))
+        m = Ts.shape[0]
+        # a few tasks per worker for load balance; a task long enough to hide the overhead
+        size = batch_size or max(1, min(64, math.ceil(m / (4 * nw))))
+        shared = client.scatter(problem, broadcast=True)
+        futures = {}
+        for sl in _batches(m, size):
+            fut = client.submit(evaluate_batch, shared, Ts[sl], g, pure=False)
+            futures[fut] = sl
+        results: list[PlacementScore | None] = [None] * m
+        for fut in as_completed(futures):
+            sl = futures[fut]
+            results[sl] = fut.result()
+            advance(sl.stop - sl.start)
+        out = [r for r in results if r is not None]
+        assert len(out) == m
+        return out
+    finally:
+        for obj in reversed(own):
+            obj.close()
