@@ -1,0 +1,217 @@
+"""Placement planning: scores against independent computations, γ physics, the lap schedule,
+acceptance on the paper's cone, bad input."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from roboisf.errors import InputError, UnreachableError
+from roboisf.frames import make_transform, rpy_to_matrix
+from roboisf.plan import (
+    PlanProblem,
+    evaluate_placement,
+    placement_grid,
+    placement_transforms,
+    plan_placements,
+    problem_from_cell,
+    smooth_schedule,
+)
+from roboisf.plan.evaluate import _realise, _solve
+from roboisf.robot import ik_toolpath, load_robot
+from roboisf.virtual.cell import PAPER_CELL_PLACEMENT, paper_cone_cell
+
+CELL = paper_cone_cell(spacing=4e-3)
+
+
+@pytest.fixture(scope="module")
+def cone():
+    return problem_from_cell(CELL)
+
+
+@pytest.fixture(scope="module")
+def cone_robot_only():
+    return problem_from_cell(CELL, with_tool=False)[0]
+
+
+def _angled_model():
+    # an angled holder: tool axis 30° off the flange axis, 150 mm off to the side
+    T_ft = make_transform(rpy_to_matrix([0.0, math.radians(30), 0.0]), [0.15, 0.0, 0.25])
+    return load_robot("irb7600-500-2.55").with_tool(T_ft)
+
+
+def test_score_equals_direct_vjm(cone_robot_only):
+    """Robot-only score = IK + RobotModel.deflection in work axes (a different code path)."""
+    prob = cone_robot_only
+    s = evaluate_placement(prob, PAPER_CELL_PLACEMENT)
+    q = ik_toolpath(prob.model, prob.tip, PAPER_CELL_PLACEMENT).q
+    d = prob.model.deflection(q, prob.wrench, T_base_work=PAPER_CELL_PLACEMENT)[:, :3]
+    a = np.linalg.norm(d, axis=1)
+    assert s.ok and s.status == "ok" and s.reason == ""
+    assert s.mean_robot == pytest.approx(a.mean(), rel=1e-12)
+    assert s.max_robot == pytest.approx(a.max(), rel=1e-12)
+    assert s.mean_abs == pytest.approx(a.mean(), rel=1e-12)
+    dn = np.abs(np.einsum("ij,ij->i", d, prob.normal))
+    assert s.mean_abs_normal == pytest.approx(dn.mean(), rel=1e-12)
+    # the paper-like cell's order of magnitude (virtual/cell.py: R_m ≈ 0.5 mm there)
+    assert 0.2e-3 < s.mean_robot < 1.0e-3
+
+
+def test_tool_compliance_added_as_in_the_virtual_cell(cone, cone_robot_only):
+    prob, _ = cone
+    s = evaluate_placement(prob, PAPER_CELL_PLACEMENT)
+    ev = _solve(cone_robot_only, PAPER_CELL_PLACEMENT, 0.0)
+    d = ev.d_robot + (prob.wrench @ prob.tool_compliance.T)[:, :3]  # γ = 0: tool axes = work
+    assert s.mean_abs == pytest.approx(np.linalg.norm(d, axis=1).mean(), rel=1e-12)
+    assert s.mean_robot == pytest.approx(np.linalg.norm(ev.d_robot, axis=1).mean(), rel=1e-12)
+    assert s.mean_abs > s.mean_robot
+
+
+def test_tool_compliance_turns_with_gamma(cone_robot_only):
+    """k = diag(a, b, …) in tool axes; γ = 90° puts x_tool along −y_work, so a force along
+    x_work loads the tool's y axis: δx_work = b·Fx."""
+    p = cone_robot_only
+    k = np.diag([1e-6, 3e-6, 1e-8, 0.0, 0.0, 0.0])
+    W = np.zeros_like(p.wrench)
+    W[:, 0] = 100.0
+    prob = PlanProblem(p.model, p.tip, p.normal, p.lap, W, tool_compliance=k)
+    ev = _solve(prob, PAPER_CELL_PLACEMENT, math.pi / 2)
+    dt = ev.d_total - ev.d_robot
+    np.testing.assert_allclose(dt[:, 0], 3e-6 * 100.0, rtol=1e-12)
+    np.testing.assert_allclose(dt[:, 1:], 0.0, atol=1e-18)
+    ev0 = _solve(prob, PAPER_CELL_PLACEMENT, 0.0)
+    np.testing.assert_allclose((ev0.d_total - ev0.d_robot)[:, 0], 1e-6 * 100.0, rtol=1e-12)
+    assert not prob.tool_is_coaxial()
+
+
+def test_gamma_cannot_matter_for_a_coaxial_tool(cone):
+    """Tool along A6: γ only turns A6, so k_c and δ are the same for every γ."""
+    prob, _ = cone
+    assert prob.tool_is_coaxial()
+    a = _solve(prob, PAPER_CELL_PLACEMENT, 0.0)
+    b = _solve(prob, PAPER_CELL_PLACEMENT, 1.1)
+    assert not np.allclose(a.q[:, 5], b.q[:, 5])
+    np.testing.assert_allclose(a.q[:, :5], b.q[:, :5], atol=1e-9)
+    np.testing.assert_allclose(b.d_total, a.d_total, rtol=1e-9, atol=1e-15)
+    r = plan_placements(prob, [[1.6, 0.0, 0.6, 0.0]], [0.0, 0.5], scheduler="serial")
+    assert r.tool_rotations.tolist() == [0.0] and "coaxial" in r.notes[0]
+
+
+def test_gamma_matters_for_an_angled_tool_and_the_best_is_kept():
+    prob, _ = problem_from_cell(CELL, model=_angled_model())
+    assert not prob.tool_is_coaxial()
+    T = placement_transforms([[1.6, 0.0, 0.6, 0.0]])[0]
+    gs = np.radians([0.0, 60.0, 120.0, 180.0])
+    each = [evaluate_placement(prob, T, [g]) for g in gs]
+    means = [s.mean_abs for s in each]
+    assert max(means) > 1.1 * min(means)  # the wrist posture changes the compliance
+    best = evaluate_placement(prob, T, gs)
+    assert best.ok
+    assert best.mean_abs <= min(m for m, s in zip(means, each, strict=True) if s.ok) + 1e-15
+
+
+def test_schedule_known_optimum_rate_limit_and_infeasible():
+    g = np.radians([0.0, 30.0, 60.0])
+    # lap costs: γ=60 best on laps 0-1, γ=0 best on laps 2-3
+    C = np.array([[5, 5, 1, 1], [4, 4, 4, 4], [1, 1, 5, 5]], dtype=float)
+    F = np.ones_like(C, dtype=bool)
+    free = smooth_schedule(C, F, g, max_step=math.radians(90), penalty=0.0)
+    assert free.tolist() == [2, 2, 0, 0]
+    # rate limit 30°/lap: 60 → 0 takes two laps through 30
+    lim = smooth_schedule(C, F, g, max_step=math.radians(30), penalty=0.0)
+    assert lim.tolist() in ([2, 2, 1, 0], [2, 1, 0, 0])
+    # a large penalty: stay constant
+    stay = smooth_schedule(C, F, g, max_step=math.radians(90), penalty=100.0)
+    assert len(set(stay.tolist())) == 1
+    F2 = F.copy()
+    F2[:, 1] = False
+    assert smooth_schedule(C, F2, g, max_step=1.0, penalty=0.0) is None
+    F3 = F.copy()
+    F3[2, :] = False  # γ=60 forbidden: best is γ=0 except where 30 is cheaper (never)
+    assert smooth_schedule(C, F3, g, max_step=1.0, penalty=0.0).tolist() == [1, 1, 0, 0]
+
+
+def test_realised_schedule_is_continuous(cone):
+    prob, _ = cone
+    L = prob.n_laps
+    gl = np.zeros(L)
+    gl[L // 2 :] = math.radians(30)
+    g = _realise(prob, gl)
+    step = np.abs(np.diff(g)).max()
+    assert step <= math.radians(30) / min(prob.ramp_points, 10) + 1e-12
+    lap = prob.lap_id
+    assert np.all(g[lap < L // 2] == 0.0)
+    last = lap == L - 1
+    assert np.all(g[last] == math.radians(30))
+
+
+def test_acceptance_chosen_placement_beats_the_paper_cell(cone):
+    """On the paper's cone with an IRB 7600 the best candidate predicts a lower mean robot
+    deflection than the paper-like placement (2.2 m in front, γ = 0)."""
+    prob, _ = cone
+    P = placement_grid([1.4, 1.8, 2.2], [0.0, 0.3], [0.2, 0.6], [0.0])
+    r = plan_placements(prob, P, [0.0], baseline=PAPER_CELL_PLACEMENT, scheduler="serial")
+    assert r.baseline is not None and r.baseline.ok
+    assert r.best.mean_robot < r.baseline.mean_robot
+    gain = r.improvement("mean_robot")
+    assert 0.2 < gain < 1.0
+    # ranking is by the objective and the table says so
+    means = [r.scores[i].mean_abs for i in r.order]
+    assert means == sorted(means)
+    assert r.table()[0]["rank"] == 1
+
+
+def test_unreachable_candidates_are_reported_and_none_feasible_is_an_error(cone):
+    prob, _ = cone
+    P = np.array([[1.6, 0.0, 0.6, 0.0], [6.0, 0.0, 0.6, 0.0]])
+    r = plan_placements(prob, P, scheduler="serial")
+    far = r.scores[1]
+    assert far.status == "unreachable" and "out of reach" in far.reason
+    assert r.rejected() == {"unreachable": 1}
+    assert r.order.tolist() == [0]
+    with pytest.raises(UnreachableError, match="none of the 1 candidate"):
+        plan_placements(prob, [[6.0, 0.0, 0.6, 0.0]], scheduler="serial")
+
+
+def test_singularity_margin_rejects(cone):
+    prob, _ = cone
+    import dataclasses
+
+    strict = dataclasses.replace(prob, sigma_threshold=10.0)
+    s = evaluate_placement(strict, PAPER_CELL_PLACEMENT)
+    assert s.status == "singular" and "σ_min" in s.reason
+    jumpy = dataclasses.replace(prob, max_joint_step=1e-9)
+    s = evaluate_placement(jumpy, PAPER_CELL_PLACEMENT)
+    assert s.status == "discontinuous" and "joint jump" in s.reason
+
+
+def test_bad_input(cone):
+    prob, _ = cone
+    with pytest.raises(InputError, match="at least one value"):
+        placement_grid([], [0.0], [0.0])
+    with pytest.raises(InputError, match="NaN"):
+        placement_grid([np.nan], [0.0], [0.0])
+    with pytest.raises(InputError, match=r"\(M, 4\)"):
+        placement_transforms(np.zeros((0, 4)))
+    with pytest.raises(InputError, match=r"\(M, 4\)"):
+        plan_placements(prob, np.zeros((3, 3)), scheduler="serial")
+    with pytest.raises(InputError, match="tool rotation"):
+        plan_placements(prob, [[1.6, 0, 0.6, 0]], [], scheduler="serial")
+    with pytest.raises(InputError, match="≥ 1"):
+        plan_placements(prob, [[1.6, 0, 0.6, 0]], n_workers=0)
+    with pytest.raises(InputError, match="≥ 1"):
+        plan_placements(prob, [[1.6, 0, 0.6, 0]], batch_size=0, scheduler="serial")
+    with pytest.raises(InputError, match="non-decreasing"):
+        PlanProblem(prob.model, prob.tip, prob.normal, prob.lap[::-1].copy(), prob.wrench)
+    with pytest.raises(InputError, match="ramp_points"):
+        PlanProblem(prob.model, prob.tip, prob.normal, prob.lap, prob.wrench, ramp_points=0)
+    with pytest.raises(InputError, match="objective"):
+        PlanProblem(prob.model, prob.tip, prob.normal, prob.lap, prob.wrench, objective="x")
+    with pytest.raises(InputError, match="joint stiffness"):
+        PlanProblem(
+            load_robot("kr210-r2700-2"), prob.tip, prob.normal, prob.lap, prob.wrench
+        )
+    with pytest.raises(InputError, match="wrench"):
+        PlanProblem(prob.model, prob.tip, prob.normal, prob.lap, prob.wrench[:-1])
