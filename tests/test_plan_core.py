@@ -210,8 +210,6 @@ def test_bad_input(cone):
     with pytest.raises(InputError, match="objective"):
         PlanProblem(prob.model, prob.tip, prob.normal, prob.lap, prob.wrench, objective="x")
     with pytest.raises(InputError, match="joint stiffness"):
-        PlanProblem(
-            load_robot("kr210-r2700-2"), prob.tip, prob.normal, prob.lap, prob.wrench
-        )
+        PlanProblem(load_robot("kr210-r2700-2"), prob.tip, prob.normal, prob.lap, prob.wrench)
     with pytest.raises(InputError, match="wrench"):
         PlanProblem(prob.model, prob.tip, prob.normal, prob.lap, prob.wrench[:-1])

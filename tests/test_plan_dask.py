@@ -64,8 +64,12 @@ def test_existing_client_with_threads(problem):
 
     P = placement_grid([1.4, 1.8], [0.0], [0.4, 0.8], [0.0])
     serial = plan_placements(problem, P, [0.0, 1.0], scheduler="serial")
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
-                      dashboard_address=None) as cluster, Client(cluster) as client:
+    with (
+        LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None
+        ) as cluster,
+        Client(cluster) as client,
+    ):
         par = plan_placements(problem, P, [0.0, 1.0], scheduler=client)
         assert client.status == "running"  # a client given by the caller stays open
     _same(serial, par)

@@ -25,29 +25,32 @@ def parse_range(text: str, field: str) -> np.ndarray:
     t = text.strip()
     if not t:
         raise InputError("empty range: give start:stop:count or a comma list", field=field)
+    bad = InputError(
+        f"expected start:stop:count or comma-separated numbers, got {text!r}", field=field
+    )
+    if ":" in t:
+        parts = t.split(":")
+        if len(parts) != 3:
+            raise bad
+        try:
+            a, b, n = (float(x) for x in parts)
+        except ValueError:
+            raise bad from None
+        if not (math.isfinite(a) and math.isfinite(b)):
+            raise InputError(f"values must be finite, got {text!r}", field=field)
+        if not (math.isfinite(n) and n == int(n) and n >= 1):
+            raise InputError(
+                f"the count must be a positive integer, got {parts[2]!r} in {text!r}", field=field
+            )
+        if b < a:
+            raise InputError(f"empty range {text!r}: stop < start", field=field)
+        if n == 1 and b != a:
+            raise InputError(f"count 1 needs start = stop, got {text!r}", field=field)
+        return np.linspace(a, b, int(n))
     try:
-        if ":" in t:
-            parts = t.split(":")
-            if len(parts) != 3:
-                raise ValueError
-            a, b, n = float(parts[0]), float(parts[1]), float(parts[2])
-            if not (math.isfinite(a) and math.isfinite(b)):
-                raise ValueError
-            if n != int(n) or n < 1:
-                raise InputError(
-                    f"the count must be a positive integer, got {parts[2]!r} in {text!r}",
-                    field=field,
-                )
-            if b < a:
-                raise InputError(f"empty range {text!r}: stop < start", field=field)
-            if n == 1 and b != a:
-                raise InputError(f"count 1 needs start = stop, got {text!r}", field=field)
-            return np.linspace(a, b, int(n))
         v = np.array([float(x) for x in t.split(",")])
     except ValueError:
-        raise InputError(
-            f"expected start:stop:count or comma-separated numbers, got {text!r}", field=field
-        ) from None
+        raise bad from None
     if not np.all(np.isfinite(v)):
         raise InputError(f"values must be finite, got {text!r}", field=field)
     return v
@@ -129,9 +132,18 @@ def plan_cmd(
     base_T = _baseline(baseline, base_T, model)
     c = model.default_placement if model.default_placement is not None else base_T
     cx, cy, cz = (float(v) * 1e3 for v in c[:3, 3])
-    xs = parse_range(x_range or _default_range(cx, 600, 7), "--x-range") * 1e-3
-    ys = parse_range(y_range or _default_range(cy, 400, 5), "--y-range") * 1e-3
-    zs = parse_range(z_range or _default_range(cz, 400, 5), "--z-range") * 1e-3
+    xs = (
+        parse_range(x_range if x_range is not None else _default_range(cx, 600, 7), "--x-range")
+        * 1e-3
+    )
+    ys = (
+        parse_range(y_range if y_range is not None else _default_range(cy, 400, 5), "--y-range")
+        * 1e-3
+    )
+    zs = (
+        parse_range(z_range if z_range is not None else _default_range(cz, 400, 5), "--z-range")
+        * 1e-3
+    )
     yaws = np.radians(parse_range(yaw_range, "--yaw-range"))
     P = placement_grid(xs, ys, zs, yaws)
     state.info(
@@ -328,12 +340,12 @@ def _print(res: Any, summary: dict[str, Any], top: int) -> None:
     rej = res.rejected()
     if rej:
         state.info("rejected: " + ", ".join(f"{v} {k}" for k, v in rej.items()))
-    if "mean robot |δ| reduction vs baseline [%]" in summary:
+    if res.baseline is not None and res.baseline.ok:
         state.info(
             f"baseline {summary['baseline placement x,y,z [mm], yaw [deg]']}: mean robot |δ| "
-            f"{summary['baseline mean robot |δ| [mm]']:.4f} mm → best "
-            f"{summary['best mean robot |δ| [mm]']:.4f} mm "
-            f"({summary['mean robot |δ| reduction vs baseline [%]']:.1f} % lower)"
+            f"{res.baseline.mean_robot * 1e3:.4f} mm → best {res.best.mean_robot * 1e3:.4f} mm "
+            f"({100 * res.improvement('mean_robot'):.1f} % lower; mean |δ| with the tool "
+            f"{res.baseline.mean_abs * 1e3:.4f} → {res.best.mean_abs * 1e3:.4f} mm)"
         )
     elif "baseline status" in summary:
         state.warn(f"baseline not feasible: {summary['baseline status']}")

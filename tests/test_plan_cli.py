@@ -1,0 +1,117 @@
+"""``roboisf plan``: outputs, the acceptance figure in the output, bad input (exit 2, no output)."""
+
+from __future__ import annotations
+
+import json
+
+import pandas as pd
+import pytest
+
+from roboisf.cli.main import main
+from roboisf.cli.plan import parse_range
+from roboisf.errors import InputError
+from roboisf.parts import Cone
+from roboisf.parts.io import save_part
+from roboisf.virtual.cell import build_study, paper_cone_cell
+
+SMALL = ["--x-range", "1400:2200:3", "--y-range", "0,300", "--z-range", "200", "--serial"]
+
+
+@pytest.fixture(scope="module")
+def cone_toml(tmp_path_factory):
+    p = tmp_path_factory.mktemp("part") / "cone.toml"
+    save_part(Cone(), p)
+    return p
+
+
+def test_plan_part_writes_ranked_outputs(cone_toml, tmp_path, capsys):
+    out = tmp_path / "plan"
+    code = main(["plan", "--part", str(cone_toml), *SMALL, "-o", str(out)])
+    assert code == 0
+    for f in ("placements.csv", "plan.json", "plan.html", "stiffness_map.png", "placement_map.png"):
+        assert (out / f).is_file(), f
+    df = pd.read_csv(out / "placements.csv", comment="#")
+    assert len(df) == 6
+    ok = df[df.status == "ok"]
+    assert list(ok["rank"].astype(int)) == list(range(1, len(ok) + 1))
+    assert ok["mean_abs_mm"].is_monotonic_increasing
+    doc = json.loads((out / "plan.json").read_text())
+    s = doc["summary"]
+    # the paper-like placement is the default baseline for the IRB 7600; the best beats it
+    assert s["baseline placement x,y,z [mm], yaw [deg]"] == [2200.0, 0.0, 200.0, 0.0]
+    assert s["best mean robot |δ| [mm]"] < s["baseline mean robot |δ| [mm]"]
+    assert s["mean robot |δ| reduction vs baseline [%]"] > 20
+    html = (out / "plan.html").read_text()
+    assert "Placement and tool rotation" in html and "data:image/png;base64" in html
+    text = capsys.readouterr().out
+    assert "% lower" in text
+
+
+def test_plan_study(tmp_path):
+    study = tmp_path / "study"
+    build_study(
+        paper_cone_cell(spacing=6e-3, scan_points=20000, force_rate=50.0, joint_rate=50.0), study
+    )
+    out = tmp_path / "plan"
+    code = main(
+        [
+            "plan",
+            "--study",
+            str(study),
+            "--x-range",
+            "1600,2200",
+            "--y-range",
+            "0",
+            "--z-range",
+            "200",
+            "--serial",
+            "-o",
+            str(out),
+        ]
+    )
+    assert code == 0
+    s = json.loads((out / "plan.json").read_text())["summary"]
+    assert "robot-run forces" in s["input"]
+    assert s["best placement x,y,z [mm], yaw [deg]"][0] == 1600.0
+    assert s["mean robot |δ| reduction vs baseline [%]"] > 0
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--x-range", ""], "empty range"),
+        (["--x-range", "1400:2200:0"], "positive integer"),
+        (["--x-range", "1400:2200:-3"], "positive integer"),
+        (["--x-range", "2200:1400:3"], "stop < start"),
+        (["--x-range", "a,b"], "start:stop:count"),
+        (["--workers", "0"], "--workers"),
+        (["--tool-rotations", "0:90:0"], "positive integer"),
+        (["--x-range", "6000,7000"], "none of the"),
+        (["--objective", "median"], "--objective"),
+    ],
+)
+def test_plan_bad_input(cone_toml, tmp_path, capsys, args, message):
+    out = tmp_path / "plan"
+    base = ["--y-range", "0", "--z-range", "200", "--serial"]
+    code = main(["plan", "--part", str(cone_toml), *base, *args, "-o", str(out)])
+    assert code == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_plan_needs_one_source(cone_toml, tmp_path, capsys):
+    out = tmp_path / "plan"
+    assert main(["plan", "-o", str(out)]) == 2
+    assert main(["plan", "--part", str(cone_toml), "--study", str(tmp_path), "-o", str(out)]) == 2
+    assert "exactly one of --part or --study" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_parse_range():
+    assert parse_range("0:90:4", "f").tolist() == [0.0, 30.0, 60.0, 90.0]
+    assert parse_range("5", "f").tolist() == [5.0]
+    assert parse_range("5:5:1", "f").tolist() == [5.0]
+    with pytest.raises(InputError, match="count 1"):
+        parse_range("0:5:1", "f")
+    with pytest.raises(InputError, match="finite"):
+        parse_range("1,inf", "f")
