@@ -20,9 +20,22 @@ from roboisf.plan.evaluate import PlacementScore, evaluate_batch, evaluate_place
 from roboisf.plan.problem import PlanProblem, placement_transforms
 from roboisf.progress import Progress, task
 
-__all__ = ["PlanResult", "plan_placements"]
+__all__ = ["WORKER_ENV", "PlanResult", "plan_placements"]
 
 F64 = NDArray[np.float64]
+
+#: Environment of the local cluster's worker processes. Dask's default trims the heap at 64 KiB
+#: (``MALLOC_TRIM_THRESHOLD_``), so every multi-MB temporary of a 20k-point evaluation is mmapped
+#: and page-faulted afresh: measured 1.7× slower per placement. Keeping large blocks on the heap
+#: removes the faults (0 minor faults per placement instead of ~30,000). Single-threaded BLAS as
+#: in Dask's default. Set the same variables on the workers of an external cluster.
+WORKER_ENV = {
+    "MALLOC_TRIM_THRESHOLD_": 268435456,
+    "MALLOC_MMAP_THRESHOLD_": 134217728,
+    "OMP_NUM_THREADS": 1,
+    "MKL_NUM_THREADS": 1,
+    "OPENBLAS_NUM_THREADS": 1,
+}
 
 
 @dataclass(frozen=True, eq=False)
@@ -189,6 +202,7 @@ def _dask_map(
     batch_size: int | None,
     advance: Any,
 ) -> list[PlacementScore]:
+    import dask
     from dask.distributed import Client, LocalCluster, as_completed
 
     own: list[Any] = []
@@ -196,12 +210,13 @@ def _dask_map(
         if isinstance(scheduler, Client):
             client = scheduler
         elif scheduler == "local":
-            cluster = LocalCluster(
-                n_workers=n_workers or 2,
-                threads_per_worker=1,
-                processes=True,
-                dashboard_address=None,
-            )
+            with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENV}):
+                cluster = LocalCluster(
+                    n_workers=n_workers or 2,
+                    threads_per_worker=1,
+                    processes=True,
+                    dashboard_address=None,
+                )
             own.append(cluster)
             client = Client(cluster)
             own.append(client)
