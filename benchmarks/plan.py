@@ -16,12 +16,14 @@ from __future__ import annotations
 import argparse
 import os
 import time
+import warnings
 
 import numpy as np
 
+from roboisf.errors import UnreachableError
 from roboisf.plan import placement_grid, plan_placements, problem_from_cell
 from roboisf.plan.problem import placement_transforms
-from roboisf.robot import ik_toolpath
+from roboisf.robot import SingularityWarning, ik_toolpath
 from roboisf.virtual.cell import PAPER_CELL_PLACEMENT, paper_cone_cell
 
 
@@ -46,7 +48,7 @@ def main() -> None:
 
     # spacing for ≈ the asked number of points (the cone path is ~34.8 m long at 1 mm spacing)
     spacing = 34.8 / a.points
-    prob, tp = problem_from_cell(paper_cone_cell(spacing=spacing))
+    prob, _ = problem_from_cell(paper_cone_cell(spacing=spacing))
     P = _grid(a.placements)
     n_pose = len(P) * prob.n_points
     print(
@@ -70,12 +72,14 @@ def main() -> None:
     # the peer: a hand loop over the robot module's public calls (IK + deflection per placement)
     Ts = placement_transforms(sub)
     t = time.perf_counter()
-    for T in Ts:
-        try:
-            q = ik_toolpath(prob.model, prob.tip, T).q
-        except Exception:  # noqa: BLE001 - unreachable: skipped like the sweep does
-            continue
-        prob.model.deflection(q, prob.wrench, T_base_work=T)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SingularityWarning)
+        for T in Ts:
+            try:
+                q = ik_toolpath(prob.model, prob.tip, T).q
+            except UnreachableError:  # skipped, as the sweep does
+                continue
+            prob.model.deflection(q, prob.wrench, T_base_work=T)
     t_peer = (time.perf_counter() - t) / len(sub)
     print(f"peer loop (ik_toolpath + RobotModel.deflection): {t_peer * 1e3:.1f} ms/placement")
 
