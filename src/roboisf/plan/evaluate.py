@@ -95,13 +95,13 @@ def _solve(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) -> _PathEva
     if problem.tool_compliance is not None:
         # tool axes → work: z stays, x_tool = (cos γ, −sin γ, 0), i.e. R_work_tool = Rz(−γ)
         R_wt = rot_z(-np.asarray(gamma, dtype=float))  # (3, 3) or (N, 3, 3)
+        back, fwd = ("nji,nj->ni", "nij,nj->ni") if R_wt.ndim == 3 else ("ji,nj->ni", "ij,nj->ni")
         W = problem.wrench
         W_t = np.concatenate(
-            [np.einsum("...ji,nj->ni", R_wt, W[:, :3]), np.einsum("...ji,nj->ni", R_wt, W[:, 3:])],
-            axis=1,
+            [np.einsum(back, R_wt, W[:, :3]), np.einsum(back, R_wt, W[:, 3:])], axis=1
         )
         d_tool = W_t @ problem.tool_compliance[:3].T  # (N, 3) tool axes
-        d_total = d_robot + np.einsum("...ij,nj->ni", R_wt, d_tool)
+        d_total = d_robot + np.einsum(fwd, R_wt, d_tool)
     return _PathEval(ik.q, ik.sigma_min, d_total, d_robot)
 
 
@@ -166,7 +166,9 @@ def smooth_schedule(
 
 
 def _realise(problem: PlanProblem, gamma_lap: F64) -> F64:
-    """Per-point γ (N,): constant per lap, ramped over the first points of a lap after a change.
+    """Per-point γ (N,): constant per lap, ramped over the first points of a lap after a change
+    (``ramp_points``, more if needed so that γ steps ≤ max_joint_step / 2 per point; at most the
+    lap).
 
     γ is unwrapped along the laps first, so a ramp takes the short way round.
     """
@@ -177,7 +179,9 @@ def _realise(problem: PlanProblem, gamma_lap: F64) -> F64:
     ends = np.r_[starts[1:], problem.n_points]
     for k in np.flatnonzero(np.diff(g) != 0) + 1:
         s, e = starts[k], ends[k]
-        r = min(problem.ramp_points, max(1, (e - s) // 2))
+        # long enough that γ itself never steps more than half the joint-step limit
+        need = math.ceil(abs(g[k] - g[k - 1]) / (0.5 * problem.max_joint_step))
+        r = min(max(problem.ramp_points, need), e - s)
         t = (np.arange(r) + 1) / r
         out[s : s + r] = g[k - 1] + t * (g[k] - g[k - 1])
     return out

@@ -52,8 +52,9 @@ class PlanProblem:
         (as :func:`roboisf.robot.ik_toolpath`) allowed along the path
     max_joint_step : float, rad — largest joint change between consecutive points (continuity)
     max_rotation_step : float, rad — largest change of the tool rotation from one lap to the next
-    ramp_points : int — a change of γ between laps is ramped linearly over this many points at the
-        start of the new lap (at most half the lap)
+    ramp_points : int — a change of γ between laps is ramped linearly over at least this many
+        points at the start of the new lap (more when needed so γ steps ≤ max_joint_step / 2 per
+        point; at most the whole lap)
     smoothness : float ≥ 0 — penalty on changing γ: a change of π costs this fraction of an
         average lap's summed |δ|
     objective : "mean" (mean |δ|), "max" (max |δ|) or "normal" (mean |δ·n|) — what is ranked
