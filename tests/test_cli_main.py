@@ -15,6 +15,7 @@ COMMANDS = [
     ["demo"],
     ["tool-stiffness"],
     ["holder-stiffness"],
+    ["plan"],
 ]
 
 
