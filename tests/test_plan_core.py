@@ -246,3 +246,27 @@ def test_per_lap_schedule_beats_every_constant_rotation(cone_robot_only):
     ev = _solve(prob, PAPER_CELL_PLACEMENT, _realise(prob, s.gamma))
     assert s.mean_abs == pytest.approx(np.linalg.norm(ev.d_total, axis=1).mean(), rel=1e-12)
     assert s.max_joint_step <= prob.max_joint_step
+
+
+def test_margin_test_agrees_with_the_singular_values(cone_robot_only):
+    """The LDLᵀ pivot test says σ_min > threshold exactly where eigvalsh does."""
+    from roboisf.plan import margin_ok, sigma_min
+
+    ev = _solve(cone_robot_only, PAPER_CELL_PLACEMENT, 0.0)
+    rng = np.random.default_rng(3)
+    R = rng.normal(size=(2000, 6, 6))
+    R[:500, :, 5] = R[:500, :, 4] + 1e-4 * rng.normal(size=(500, 6))  # nearly singular
+    for Js in (ev.J_scaled, R):
+        sig = sigma_min(Js)
+        for thr in np.quantile(sig, [0.05, 0.5, 0.95]):
+            ok = margin_ok(Js, thr)
+            far = np.abs(sig - thr) > 1e-9 * max(1.0, thr)
+            assert np.array_equal(ok[far], (sig > thr)[far])
+            assert 0 < ok.sum() < len(ok)
+    # and the path value reported for a shortlisted placement is ik_toolpath's
+    from roboisf.plan import path_sigma_min
+
+    L = cone_robot_only.n_laps
+    ref = ik_toolpath(cone_robot_only.model, cone_robot_only.tip, PAPER_CELL_PLACEMENT).sigma_min
+    got = path_sigma_min(cone_robot_only, PAPER_CELL_PLACEMENT, np.zeros(L))
+    assert got == pytest.approx(ref.min(), rel=1e-9)

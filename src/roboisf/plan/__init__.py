@@ -5,6 +5,9 @@ from roboisf.plan.evaluate import (
     PlacementScore,
     evaluate_batch,
     evaluate_placement,
+    margin_ok,
+    path_sigma_min,
+    sigma_min,
     smooth_schedule,
 )
 from roboisf.plan.problem import PlanProblem, placement_grid, placement_transforms
@@ -17,9 +20,12 @@ __all__ = [
     "PlanResult",
     "evaluate_batch",
     "evaluate_placement",
+    "margin_ok",
+    "path_sigma_min",
     "placement_grid",
     "placement_transforms",
     "plan_placements",
     "problem_from_cell",
+    "sigma_min",
     "smooth_schedule",
 ]

@@ -9,14 +9,19 @@ serial path on the same inputs, so the scores are bit-for-bit those of the seria
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError, UnreachableError
-from roboisf.plan.evaluate import PlacementScore, evaluate_batch, evaluate_placement
+from roboisf.plan.evaluate import (
+    PlacementScore,
+    evaluate_batch,
+    evaluate_placement,
+    path_sigma_min,
+)
 from roboisf.plan.problem import PlanProblem, placement_transforms
 from roboisf.progress import Progress, task
 
@@ -133,6 +138,7 @@ def plan_placements(
     scheduler: str | Any | None = "local",
     n_workers: int | None = None,
     batch_size: int | None = None,
+    detail: int = 20,
     progress: Progress | None = None,
 ) -> PlanResult:
     """Score candidate placements (M, 4) ``[x, y, z, yaw]`` (m, rad) over tool rotations (G,) rad.
@@ -141,6 +147,8 @@ def plan_placements(
     ``n_workers`` single-threaded worker processes, started and closed here), an address
     ``"tcp://host:8786"`` of a running Dask scheduler, or a ``dask.distributed.Client``.
     ``baseline``: a reference ``T_base_work`` (4, 4) scored at γ = 0 (e.g. the current cell).
+    ``detail``: for the best ``detail`` candidates and the baseline, the value of σ_min along the
+    path is computed (all feasible candidates passed the exact margin test).
 
     Raises :class:`~roboisf.errors.UnreachableError` when no candidate is feasible (the message
     gives the reasons); infeasible candidates are otherwise kept in ``scores`` with their reason.
@@ -190,6 +198,15 @@ def plan_placements(
             indices=list(range(m)),
         )
     order = ok[np.argsort(key[ok], kind="stable")]
+    if detail < 0:
+        raise InputError(f"must be ≥ 0, got {detail}", field="detail")
+    for i in order[:detail]:
+        s = scores[int(i)]
+        assert s.gamma is not None
+        scores[int(i)] = replace(s, sigma_min=path_sigma_min(problem, Ts[int(i)], s.gamma))
+    if base is not None and base.ok:
+        assert base.gamma is not None and base_T is not None
+        base = replace(base, sigma_min=path_sigma_min(problem, base_T, base.gamma))
     return PlanResult(P, scores, order, g, base, base_T, problem.objective, notes)
 
 

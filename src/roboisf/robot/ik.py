@@ -159,7 +159,7 @@ def ik_toolpath(
     shoulder: Literal["front", "back"] = "front",
     elbow: Literal["up", "down"] = "up",
     wrist: Literal["noflip", "flip"] = "noflip",
-    singular_threshold: float = 0.02,
+    singular_threshold: float | None = 0.02,
     length_scale: float | None = None,
 ) -> IKResult:
     """One continuous joint trajectory for tool-tip points (N, 3) m in the work frame.
@@ -168,7 +168,9 @@ def ik_toolpath(
     ``T_base_work`` defaults to the model's ``default_placement``. Raises
     :class:`~roboisf.errors.UnreachableError` listing the indices of points that are out of
     reach or beyond the joint limits; emits :class:`SingularityWarning` when the smallest singular
-    value of the scaled Jacobian drops below ``singular_threshold``.
+    value of the scaled Jacobian drops below ``singular_threshold``. ``singular_threshold=None``
+    skips the singularity check (``sigma_min`` NaN, nothing flagged) for callers that check the
+    margin themselves (``roboisf.plan``).
     """
     tip = getattr(tip_work, "tip", tip_work)
     tip = np.asarray(tip, dtype=float)
@@ -205,6 +207,13 @@ def ik_toolpath(
             f"{model.name} (axes {joints}) at indices {_short(bad)}; try another placement, "
             "tool rotation or branch",
             indices=bad.tolist(),
+        )
+    if singular_threshold is None:
+        return IKResult(
+            q=q,
+            T_base_tip=T_tip,
+            sigma_min=np.full(len(q), np.nan),
+            near_singular=np.zeros(len(q), dtype=bool),
         )
     _, J = model.fk_jacobian(q, check_limits=False)
     L = length_scale if length_scale is not None else _length_scale(model)
