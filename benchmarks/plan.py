@@ -37,6 +37,26 @@ def _grid(n: int) -> np.ndarray:
     return P[rng.permutation(len(P))[:n]]
 
 
+def _malloc_as_workers() -> str:
+    """Give this process the allocator settings of the local cluster's workers
+    (``roboisf.plan.sweep.WORKER_ENV``), so serial and parallel run under the same conditions."""
+    import ctypes
+    import ctypes.util
+
+    from roboisf.plan.sweep import WORKER_ENV
+
+    name = ctypes.util.find_library("c")
+    try:
+        libc = ctypes.CDLL(name)
+        m_trim, m_mmap = -1, -3  # glibc mallopt parameters
+        ok = libc.mallopt(m_mmap, WORKER_ENV["MALLOC_MMAP_THRESHOLD_"]) and libc.mallopt(
+            m_trim, WORKER_ENV["MALLOC_TRIM_THRESHOLD_"]
+        )
+    except (OSError, AttributeError):
+        ok = 0
+    return "as the workers (mallopt)" if ok else "default (mallopt unavailable)"
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--placements", type=int, default=1000)
@@ -44,7 +64,11 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--serial-subset", type=int, default=40)
     ap.add_argument("--scheduler", default="local")
+    ap.add_argument(
+        "--default-malloc", action="store_true", help="Keep this process's allocator defaults."
+    )
     a = ap.parse_args()
+    alloc = "default" if a.default_malloc else _malloc_as_workers()
 
     # spacing for ≈ the asked number of points (the cone path is ~34.8 m long at 1 mm spacing)
     spacing = 34.8 / a.points
@@ -54,7 +78,7 @@ def main() -> None:
     print(
         f"toolpath {prob.n_points} points ({prob.n_laps} laps), {len(P)} placements → "
         f"{n_pose / 1e6:.1f} M pose evaluations; {os.cpu_count()} CPUs, load "
-        f"{os.getloadavg()[0]:.1f}"
+        f"{os.getloadavg()[0]:.1f}; serial allocator {alloc}"
     )
 
     sub = P[: a.serial_subset]
