@@ -73,3 +73,10 @@ def test_existing_client_with_threads(problem):
         par = plan_placements(problem, P, [0.0, 1.0], scheduler=client)
         assert client.status == "running"  # a client given by the caller stays open
     _same(serial, par)
+
+
+def test_unreachable_scheduler_is_a_clear_error(problem):
+    from roboisf.errors import InputError
+
+    with pytest.raises(InputError, match="cannot reach the Dask scheduler"):
+        plan_placements(problem, [[1.6, 0.0, 0.6, 0.0]], scheduler="tcp://127.0.0.1:1")
