@@ -164,9 +164,10 @@ def plan_cmd(
         state.warn(n)
     summary = _summary(res, model.name, source, sched if isinstance(sched, str) else "client")
     b = res.best_placement
+    c_map = [0.5 * (xs[0] + xs[-1]), 0.5 * (ys[0] + ys[-1]), b[2]]
     smap = stiffness_map(
         model,
-        make_transform(rot_z(b[3]), [0.5 * (xs[0] + xs[-1]), 0.5 * (ys[0] + ys[-1]), b[2]]),
+        make_transform(rot_z(b[3]), c_map),
         half_width=max(0.25, 0.5 * max(xs[-1] - xs[0], ys[-1] - ys[0]) + 0.1),
         n=41,
     )
@@ -176,7 +177,9 @@ def plan_cmd(
             "predicted mean robot deflection per placement": plot_placement_map(
                 res, d / "placement_map.png"
             ),
-            "robot stiffness over the workspace": plot_stiffness_map(smap, d / "stiffness_map.png"),
+            "robot stiffness over the swept area, tool down, work axes centred at "
+            f"({c_map[0] * 1e3:.0f}, {c_map[1] * 1e3:.0f}, {c_map[2] * 1e3:.0f}) mm in the base, "
+            f"yaw {math.degrees(b[3]):.0f}°": plot_stiffness_map(smap, d / "stiffness_map.png"),
         }
         write_plan_html(res, d / "plan.html", images, summary=summary, top=top)
     _print(res, summary, top)
