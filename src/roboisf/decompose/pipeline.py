@@ -44,6 +44,7 @@ from roboisf.frames import to_tip
 from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
 from roboisf.io.forcelog import attach_to_toolpath, read_force_log
 from roboisf.io.jointlog import read_joint_log
+from roboisf.io.thickness import read_thickness_csv
 from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.progress import Progress, task
 from roboisf.robot import compliance_stats, deflection_contributions, ik_toolpath, load_robot
@@ -210,6 +211,9 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
     d = decompose(tp.normal, dev_c.dn, dev_r.dn, tool_cnc, tool_rob, holder_rob, vjm, valid)
 
     per_point = _per_point(study, tp, W_cnc, W_rob, dev_c, dev_r, d)
+    thick = rob.thickness or cnc.thickness
+    if thick is not None:
+        per_point["thickness_measured"] = read_thickness_csv(thick).at(tp.depth) * 1e3
     contributions = pd.DataFrame(_mm_rows(contribution_rows(d, projected=False)))
     contributions_normal = pd.DataFrame(_mm_rows(contribution_rows(d, projected=True)))
     summary = _summary(study, tp, d, k_c, W_rob, valid, k_tool, k_holder, q_source, scans)
