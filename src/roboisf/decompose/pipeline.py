@@ -111,9 +111,8 @@ def _joint_angles(
 ) -> tuple[F64, str]:
     if run.joints is None:
         rot = study.robot.tool_rotation if study.robot is not None else 0.0
-        return ik_toolpath(
-            model, tp, T_bw, tool_rotation=rot
-        ).q, "inverse kinematics of the toolpath"
+        q = ik_toolpath(model, tp.tip, T_bw, tool_rotation=rot).q
+        return q, "inverse kinematics of the toolpath"
     log = read_joint_log(run.joints)
     t0, t1 = float(tp.time[0]), float(tp.time[-1])
     if log.time[0] > t0 + 1e-6 or log.time[-1] < t1 - 1e-6:
