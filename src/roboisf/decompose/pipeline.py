@@ -127,8 +127,10 @@ def _joint_angles(
 
 def _compare(study: Study, run: RunSpec, tp: Toolpath, progress: Progress | None) -> ScanComparison:
     a = study.analysis
+    # per-point deviations over the whole wall (the paper's polar plot sits at z = −11 mm, inside
+    # the rim band); the rim band leaves the statistics through the ``used`` mask
     opts = CompareOptions(
-        register=a.registration, rim_band=a.rim_band, radius=a.point_radius, contour_z=a.contour_z
+        register=a.registration, rim_band=0.0, radius=a.point_radius, contour_z=a.contour_z
     )
     cloud = read_scan(run.scan, unit=run.scan_unit)
     return compare_scan(
