@@ -120,7 +120,7 @@ def smooth_on_laps(
     vw = np.where(w > 0, v, 0.0) * w
     L = tp.n_laps
     if n_angles is None:
-        n_angles = max(256, 1 << int(math.ceil(math.log2(2 * np.bincount(tp.lap).max()))))
+        n_angles = max(256, 1 << math.ceil(math.log2(2 * np.bincount(tp.lap).max())))
     A = n_angles
     phi_grid = np.linspace(-np.pi, np.pi, A, endpoint=False)
     # all laps in one interpolation: key = lap·8π + φ, each lap padded by ±2π (periodic)
