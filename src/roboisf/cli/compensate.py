@@ -46,6 +46,12 @@ def register(app: typer.Typer) -> None:
         iterations: Annotated[
             int, typer.Option(help="Virtual cell: form–measure–adjust iterations.")
         ] = 3,
+        step_down: Annotated[
+            float, typer.Option(help="Virtual cell: step-down between laps \\[mm].")
+        ] = 0.5,
+        spacing: Annotated[
+            float, typer.Option(help="Virtual cell: point spacing along a lap \\[mm].")
+        ] = 1.0,
         compliance: Annotated[
             bool,
             typer.Option(
@@ -104,9 +110,13 @@ def register(app: typer.Typer) -> None:
             ("--smooth-across", smooth_across),
             ("--tol", tol),
             ("--max-overbend", max_overbend),
+            ("--step-down", step_down),
+            ("--spacing", spacing),
         ):
-            if not (math.isfinite(v) and v >= 0):
-                raise InputError(f"must be ≥ 0, got {v:g}", field=flag)
+            if not (math.isfinite(v) and v >= 0) or (
+                flag in ("--step-down", "--spacing") and v == 0
+            ):
+                raise InputError(f"must be ≥ 0 (step and spacing > 0), got {v:g}", field=flag)
         opts = CompensationOptions(
             compliance=compliance,
             springback=springback,
@@ -124,7 +134,8 @@ def register(app: typer.Typer) -> None:
         if (study is None) == (virtual is None):
             raise InputError("give either a STUDY folder or --virtual cone|vwacf", field="STUDY")
         if virtual is not None:
-            _virtual(virtual, iterations, opts, output, tool_mass, png, progress)
+            cell_kw = {"step_down": step_down * 1e-3, "spacing": spacing * 1e-3}
+            _virtual(virtual, iterations, cell_kw, opts, output, tool_mass, png, progress)
             return
         from roboisf.compensate.study import compensate_study
 
@@ -156,6 +167,7 @@ def register(app: typer.Typer) -> None:
 def _virtual(
     name: str,
     iterations: int,
+    cell_kw: dict[str, float],
     opts: object,
     output: Path,
     tool_mass: float,
@@ -175,7 +187,7 @@ def _virtual(
     if iterations < 1:
         raise InputError(f"must be ≥ 1, got {iterations}", field="--iterations")
     assert isinstance(opts, CompensationOptions)
-    cell = makers[name]()
+    cell = makers[name](**cell_kw)
     run = iterate_virtual(cell, iterations=iterations, options=opts, progress=progress)  # type: ignore[arg-type]
     comp = run.commands[-1]
     means = (run.mean_abs_dn * 1e3).tolist()

@@ -89,7 +89,10 @@ def compensation_png(laps: pd.DataFrame, summary: dict[str, Any]) -> Figure:
         a1.set_xlabel("lap")
         a1.set_ylabel("mean |dn| [mm]")
         a1.set_title("Deviation per lap")
-        a1.legend(loc="best")
+        if a1.get_legend_handles_labels()[0]:
+            a1.legend(loc="best")
+        else:
+            a1.text(0.5, 0.5, "no measured deviation", ha="center", transform=a1.transAxes)
         a2.plot(x, laps["command_dn"].to_numpy(), color=_CMD, label="normal offset n·Δ")
         a2.plot(x, laps["command_norm"].to_numpy(), color=_NORM, ls="--", label="|Δ|")
         a2.set_xlabel("lap")
