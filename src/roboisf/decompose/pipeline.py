@@ -148,7 +148,7 @@ def _joint_angles(
     if run.joints is None:
         rot = study.robot.tool_rotation if study.robot is not None else 0.0
         return ik_toolpath(
-            model, tp, T_bw, tool_rotation=rot
+            model, tp.tip, T_bw, tool_rotation=rot
         ).q, "inverse kinematics of the toolpath"
     log = read_joint_log(run.joints)
     t0, t1 = float(tp.time[0]), float(tp.time[-1])

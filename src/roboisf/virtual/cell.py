@@ -80,7 +80,7 @@ F64 = NDArray[np.float64]
 
 #: Default holder: a Ø40 mm steel shank, 200 mm from flange adapter to nose, loaded through the
 #: tool's Ø10 mm footprint — beam model 1.03e-7 m/N lateral, the paper's holder is 1.07e-7.
-DEFAULT_HOLDER = ToolHolder([HolderSection(0.200, 0.040)], coupling_diameter=0.010)
+DEFAULT_HOLDER = ToolHolder((HolderSection(0.200, 0.040),), coupling_diameter=0.010)
 #: Distance from the flange to the holder's top (F/T sensor and adapter) [m].
 SENSOR_STACK = 0.040
 
@@ -313,7 +313,7 @@ def simulate(
 
     with task(progress, "robot IK and VJM"):
         model, T_bw = cell_robot(cell)
-        ik = ik_toolpath(model, tp, T_bw, tool_rotation=cell.tool_rotation)
+        ik = ik_toolpath(model, tp.tip, T_bw, tool_rotation=cell.tool_rotation)
         robot = model.deflection(ik.q, W_rob, T_base_work=T_bw)[:, :3]
 
     s = sb.normal(tp.depth, tp.wall_angle)
