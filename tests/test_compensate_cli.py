@@ -38,7 +38,7 @@ def test_virtual_cell_outputs(tmp_path):
     assert s["complete"] and s["gouge"]["ok"] and s["compliance"]["converged"]
     m = s["mean_abs_dn_per_iteration_mm"]
     assert len(m) == 3 and m[-1] < 0.1 < m[0]
-    assert s["mean_abs_dn_after_virtual cell_mm"] == pytest.approx(m[-1])
+    assert s["mean_abs_dn_after_virtual_cell_mm"] == pytest.approx(m[-1])
     tp = read_toolpath_csv(out / "compensated.csv")
     pp = pd.read_csv(out / "per_point.csv")
     assert len(pp) == len(tp)

@@ -359,7 +359,8 @@ def write_compensation(
     if dn_before is not None:
         summary["mean_abs_dn_before_mm"] = float(np.nanmean(series["abs_dn_before"]))
     if dn_after is not None:
-        summary[f"mean_abs_dn_after_{after_label}_mm"] = float(np.nanmean(series["abs_dn_after"]))
+        key = after_label.replace(" ", "_")
+        summary[f"mean_abs_dn_after_{key}_mm"] = float(np.nanmean(series["abs_dn_after"]))
     summary["after"] = after_label
     with staged_directory(out_dir) as d:
         with task(progress, "programs"):

@@ -106,7 +106,10 @@ def _kv_rows(summary: dict[str, Any]) -> str:
     keys = [
         ("terms", "terms compensated"),
         ("mean_abs_dn_before_mm", "mean |dn| before [mm]"),
-        (f"mean_abs_dn_after_{summary.get('after', 'predicted')}_mm", _after_label(summary)),
+        (
+            f"mean_abs_dn_after_{str(summary.get('after', 'predicted')).replace(' ', '_')}_mm",
+            _after_label(summary),
+        ),
         ("max_command_offset_mm", "max commanded offset [mm]"),
         ("complete", "complete"),
     ]
