@@ -43,13 +43,14 @@ def main() -> None:
     out = np.empty((idx.size, 3))
     t0 = time.perf_counter()
     for j, i in enumerate(idx):
-        target, w = tp.tip[i], W[i : i + 1]
+        target, w = tp.tip[i].copy(), W[i : i + 1]
 
-        def f(p: np.ndarray, target: np.ndarray = target, w: np.ndarray = w) -> np.ndarray:
-            d, _ = model.deflection(p[None, :], w)
-            return np.asarray(p + d[0] - target)
+        # unknown u = p − target (MINPACK's relative difference step needs |x| well away from 0)
+        def f(u: np.ndarray, target: np.ndarray = target, w: np.ndarray = w) -> np.ndarray:
+            d, _ = model.deflection((target + u)[None, :], w)
+            return np.asarray(u + d[0])
 
-        out[j] = root(f, target, tol=1e-12).x
+        out[j] = target + root(f, np.zeros(3), tol=1e-12).x
     t_loop = (time.perf_counter() - t0) / idx.size * n
     err = np.max(np.linalg.norm(out - res.commanded[idx], axis=1))
     print(
