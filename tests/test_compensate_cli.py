@@ -99,18 +99,53 @@ def test_results_folder_without_per_point(tmp_path, capsys):
     assert not out.exists()
 
 
-@pytest.mark.slow
-def test_end_to_end_study_analyze_compensate_form_again(tmp_path):
-    """Virtual study → analyze → compensate from the measured part → form the command again."""
-    from roboisf.virtual.cell import build_study, paper_cone_cell, simulate
+@pytest.fixture(scope="module")
+def analyzed(tmp_path_factory):
+    """A coarse virtual cone study and its analyze results (300 k scan points)."""
+    from roboisf.virtual.cell import build_study, paper_cone_cell
 
+    root = tmp_path_factory.mktemp("e2e")
     cell = paper_cone_cell(
         step_down=2e-3, spacing=3e-3, scan_points=300_000, force_rate=200.0, joint_rate=50.0
     )
-    st = build_study(cell, tmp_path / "st")
-    assert main(["-q", "analyze", str(st), "-o", str(tmp_path / "res"), "--no-png"]) == 0
+    st = build_study(cell, root / "st")
+    assert main(["-q", "analyze", str(st), "-o", str(root / "res"), "--no-png"]) == 0
+    return cell, st, root / "res"
+
+
+def test_scan_gap_where_compensation_is_asked(analyzed, tmp_path, capsys):
+    """Laps without scan data: exit 2 naming the points, or --hold-gaps with per-point flags."""
+    _, st, res = analyzed
+    pp = pd.read_parquet(res / "per_point.parquet")
+    gap = pp["lap"] >= pp["lap"].max() - 5  # the bottom 12 mm were not scanned
+    pp.loc[gap, "robot_valid"] = False
+    pp.loc[gap, "robot_dn"] = 0.0  # what a scan comparison reports in a hole
+    bad = tmp_path / "res"
+    bad.mkdir()
+    pp.to_parquet(bad / "per_point.parquet")
+    out = tmp_path / "o"
+    args = ["compensate", str(st), "--results", str(bad), "-o", str(out), "--no-png"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "no valid measurement" in err and "indices" in err
+    assert not out.exists()
+    assert main(["-q", *args, "--hold-gaps"]) == 0
+    got = pd.read_csv(out / "per_point.csv")
+    held = got["held"].to_numpy()
+    assert held.any() and np.all(held <= gap.to_numpy())
+    assert np.all(got["springback_offset_dn"][held] == 0)  # held at c_k = 0, not fed back
+    s = json.loads((out / "compensation.json").read_text())
+    assert s["springback"]["held_indices"] == np.flatnonzero(held).tolist()
+
+
+@pytest.mark.slow
+def test_end_to_end_study_analyze_compensate_form_again(analyzed, tmp_path):
+    """Virtual study → analyze → compensate from the measured part → form the command again."""
+    from roboisf.virtual.cell import simulate
+
+    cell, st, res = analyzed
     out = tmp_path / "comp"
-    code = main(["-q", "compensate", str(st), "--results", str(tmp_path / "res"), "-o", str(out)])
+    code = main(["-q", "compensate", str(st), "--results", str(res), "-o", str(out)])
     assert code == 0
     s = json.loads((out / "compensation.json").read_text())
     assert s["complete"] and s["gouge"]["ok"]
