@@ -164,3 +164,28 @@ def test_end_to_end_study_analyze_compensate_form_again(analyzed, tmp_path):
     assert m1 < 0.25 * m0  # one measured step with λ = 0.8 (ideal: 0.2)
     # the predicted "after" of the report agrees with forming the command
     assert s["mean_abs_dn_after_predicted_mm"] == pytest.approx(m1 * 1e3, rel=0.05)
+
+
+def test_previous_offsets_are_the_iteration_state(analyzed, tmp_path):
+    """With λ = 1 the new offset is −S[D] whatever c_k was (D_k accounts for c_k): the same
+    command with or without --previous; a wrong-length --previous is refused."""
+    _, st, res = analyzed
+    base = ["-q", "compensate", str(st), "--results", str(res), "--gain", "1", "--no-png"]
+    assert main([*base, "-o", str(tmp_path / "a")]) == 0
+    prev = tmp_path / "prev"
+    prev.mkdir()
+    pp = pd.read_csv(tmp_path / "a" / "per_point.csv")
+    pd.DataFrame({"springback_offset_dn": np.full(len(pp), -0.4)}).to_csv(
+        prev / "per_point.csv", index=False
+    )
+    assert main([*base, "--previous", str(prev), "-o", str(tmp_path / "b")]) == 0
+    a = pd.read_csv(tmp_path / "a" / "per_point.csv")
+    b = pd.read_csv(tmp_path / "b" / "per_point.csv")
+    rim = a["springback_offset_dn"] == 0  # out of the region: c_k is kept there
+    np.testing.assert_allclose(
+        b["springback_offset_dn"][~rim], a["springback_offset_dn"][~rim], atol=1e-9
+    )
+    np.testing.assert_allclose(b["springback_offset_dn"][rim], -0.4)
+    pd.DataFrame({"springback_offset_dn": [0.0]}).to_csv(prev / "per_point.csv", index=False)
+    assert main([*base, "--previous", str(prev), "-o", str(tmp_path / "c")]) == 2
+    assert not (tmp_path / "c").exists()

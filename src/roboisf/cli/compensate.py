@@ -39,6 +39,12 @@ def register(app: typer.Typer) -> None:
             Path | None,
             typer.Option(help="An `roboisf analyze` results folder of STUDY to reuse."),
         ] = None,
+        previous: Annotated[
+            Path | None,
+            typer.Option(
+                help="The compensate output that formed STUDY's robot part (next iteration)."
+            ),
+        ] = None,
         virtual: Annotated[
             str | None,
             typer.Option(help="Iterate on the virtual cell instead: cone or vwacf."),
@@ -141,7 +147,12 @@ def register(app: typer.Typer) -> None:
 
         assert study is not None
         sc = compensate_study(
-            study, results=results, options=opts, tool_mass=tool_mass, progress=progress
+            study,
+            results=results,
+            previous=previous,
+            options=opts,
+            tool_mass=tool_mass,
+            progress=progress,
         )
         write_compensation(
             sc.compensation,

@@ -80,6 +80,7 @@ def compensate_study(
     study: Study | str | Path,
     *,
     results: str | Path | None = None,
+    previous: str | Path | None = None,
     options: CompensationOptions | None = None,
     tool_mass: float = 2.0,
     progress: Progress | None = None,
@@ -87,6 +88,9 @@ def compensate_study(
     """Compensate the robot part of ``study`` (a folder, ``study.toml`` or :class:`Study`).
 
     ``results`` — an earlier ``roboisf analyze`` output folder to reuse (else analyze runs).
+    ``previous`` — the ``roboisf compensate`` output folder of the command that formed the
+    study's robot part (its ``springback_offset_dn`` is ``c_k``; the study's robot toolpath is
+    that command): the next step of the iteration. Without it ``c_k = 0``.
     """
     if not isinstance(study, Study):
         study = load_study(study)
@@ -108,6 +112,7 @@ def compensate_study(
     dn = pp["robot_dn"].to_numpy(dtype=float) * 1e-3
     valid = pp["robot_valid"].to_numpy(dtype=bool)
     region = formed.depth > study.analysis.rim_band
+    c_prev = None if previous is None else _previous_offset(Path(previous), len(formed))
     with task(progress, "deflection model"):
         model = study_deflection_model(study, progress=progress)
     comp = compensate(
@@ -119,6 +124,7 @@ def compensate_study(
         valid=valid,
         region=region,
         formed=formed.tip,
+        previous_offset=c_prev,
         options=o,
         progress=progress,
     )
@@ -129,7 +135,7 @@ def compensate_study(
     dn_after = np.where(valid, dn + np.einsum("ij,ij->i", land_new - land_old, n), np.nan)
     T_ft = model.robot.T_flange_tip
     tool = RobotTool(length=float(T_ft[2, 3]), mass=tool_mass)
-    inputs = (study.root, *(() if results is None else (Path(results),)))
+    inputs = (study.root, *(Path(p) for p in (results, previous) if p is not None))
     meta = {
         "study": study.name,
         "robot": study.robot.model,
@@ -146,3 +152,21 @@ def compensate_study(
         float(study.robot.tool_rotation),
         inputs,
     )
+
+
+def _previous_offset(folder: Path, n: int) -> F64:
+    """``c_k`` [m] (n,) from an earlier ``roboisf compensate`` output folder."""
+    f = folder / "per_point.csv"
+    if not f.is_file():
+        raise InputError(
+            "expected a `roboisf compensate` output folder with per_point.csv", file=folder
+        )
+    df = pd.read_csv(f)
+    if "springback_offset_dn" not in df:
+        raise InputError("missing column springback_offset_dn", file=f)
+    c = df["springback_offset_dn"].to_numpy(dtype=float) * 1e-3
+    if c.shape != (n,) or not np.all(np.isfinite(c)):
+        raise InputError(
+            f"expected {n} finite offsets (one per toolpath point), got {c.shape[0]}", file=f
+        )
+    return c
