@@ -97,3 +97,17 @@ def test_cli_analyze_writes_everything(study, tmp_path):
         "summary.json",
     ):
         assert (out / name).is_file(), name
+
+
+def test_without_a_joint_log_the_configurations_come_from_ik(study, tmp_path):
+    s = copy(study, tmp_path)
+    text = (s / "study.toml").read_text().replace('joints = "robot_joints.csv"\n', "")
+    (s / "study.toml").write_text(text)
+    (s / "robot_joints.csv").unlink()
+    with_log = analyze(study)
+    with_ik = analyze(s)
+    assert with_ik.summary["robot"]["joint_angles_from"] == "inverse kinematics of the toolpath"
+    # the log holds the commanded angles, so IK of the same toolpath predicts the same VJM term
+    a = with_log.per_point.vjm_dn.to_numpy()
+    b = with_ik.per_point.vjm_dn.to_numpy()
+    assert abs(a - b).max() < 1e-3  # mm; the log is sampled at 20 Hz and interpolated

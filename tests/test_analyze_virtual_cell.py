@@ -90,3 +90,14 @@ def test_paper_like_magnitudes(analysed):
     else:
         assert rows.loc["springback", "R_m"] == pytest.approx(0.53, rel=0.15)
     assert rows.loc["robot_compliance", "share_percent"] > 10.0
+
+
+def test_measured_thickness_attached(analysed):
+    result, _ = analysed
+    pp = result.per_point
+    assert "thickness_measured" in pp
+    if result.study.name == "cone-71":
+        near_rim = pp.thickness_measured[(pp.depth > 1.5) & (pp.depth < 2.5)].mean()
+        deep = pp.thickness_measured[pp.depth > 40].mean()
+        assert near_rim == pytest.approx(0.25, abs=0.03)  # the paper: ~0.25 mm near the rim
+        assert deep == pytest.approx(0.397, abs=0.01)  # sine law 1.22·cos 71°

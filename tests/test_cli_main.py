@@ -11,6 +11,7 @@ COMMANDS = [
     ["robot"],
     ["scan"],
     ["analyze"],
+    ["compensate"],
     ["virtual-cell"],
     ["demo"],
     ["tool-stiffness"],

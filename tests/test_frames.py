@@ -234,3 +234,12 @@ def test_check_compliance_rejects_bad_matrices():
         check_compliance(np.full((6, 6), np.nan))
     ok = check_compliance(random_spd())
     assert ok.shape == (6, 6)
+
+
+def test_vertical_tool_by_hand():
+    from roboisf.frames import vertical_tool
+
+    R = vertical_tool(0.0)
+    np.testing.assert_allclose(R @ [0, 0, 1], [0, 0, -1], atol=1e-15)  # tool z points down
+    np.testing.assert_allclose(vertical_tool(0.3), rot_x(np.pi) @ rot_z(0.3), atol=1e-15)
+    assert vertical_tool(np.zeros(4)).shape == (4, 3, 3)

@@ -51,6 +51,7 @@ def _root(
 
 def _register() -> None:
     from roboisf.cli import analyze as _analyze
+    from roboisf.cli import compensate as _compensate
     from roboisf.cli import demo as _demo
     from roboisf.cli import fem as _fem
     from roboisf.cli import part as _part
@@ -59,7 +60,7 @@ def _register() -> None:
     from roboisf.cli import scan as _scan
     from roboisf.cli import toolpath as _toolpath
 
-    for group in (_part, _toolpath, _robot, _fem, _scan, _analyze, _demo, _plan):
+    for group in (_part, _toolpath, _robot, _fem, _scan, _analyze, _compensate, _demo, _plan):
         group.register(app)
 
 

@@ -44,15 +44,22 @@ from roboisf.frames import to_tip
 from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
 from roboisf.io.forcelog import attach_to_toolpath, read_force_log
 from roboisf.io.jointlog import read_joint_log
+from roboisf.io.thickness import read_thickness_csv
 from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.progress import Progress, task
-from roboisf.robot import compliance_stats, deflection_contributions, ik_toolpath, load_robot
+from roboisf.robot import (
+    RobotModel,
+    compliance_stats,
+    deflection_contributions,
+    ik_toolpath,
+    load_robot,
+)
 from roboisf.scan import CompareOptions, ScanComparison, compare_scan, read_scan
 from roboisf.study.sensors import R_work_tip_vertical, sensor_to_tip
 from roboisf.study.spec import RunSpec, Study, load_study
 from roboisf.toolpath import Toolpath
 
-__all__ = ["AnalysisResult", "analyze", "write_results"]
+__all__ = ["AnalysisResult", "analyze", "study_robot", "tip_compliances", "write_results"]
 
 F64 = NDArray[np.float64]
 _AX = "xyz"
@@ -105,14 +112,44 @@ def _tool_compliance(study: Study, progress: Progress | None) -> ComplianceResul
     return tool_compliance(tool, progress=progress) if t.method == "fe" else beam_result(tool)
 
 
+def tip_compliances(
+    study: Study, *, progress: Progress | None = None
+) -> tuple[ComplianceResult, ComplianceResult | None, F64, F64]:
+    """Tool and holder compliance of a study: the results (holder None when rigid) and both
+    moved to the tool tip, (6, 6) each, work axes (the tool vertical)."""
+    k_tool = _tool_compliance(study, progress)
+    k_t = to_tip(k_tool.compliance, -k_tool.reference_point)
+    if study.holder.rigid or study.holder.compliance is None:
+        return k_tool, None, k_t, np.zeros((6, 6))
+    k_holder = load_compliance_json(study.holder.compliance)
+    k_th = to_tip(
+        k_holder.compliance,
+        np.array([0.0, 0.0, -study.holder.offset]) - k_holder.reference_point,
+    )
+    return k_tool, k_holder, k_t, k_th
+
+
+def study_robot(study: Study) -> RobotModel:
+    """The study's robot model with its tool (flange → tip) and joint stiffness."""
+    if study.robot is None:
+        raise InputError(
+            "the study needs a [robot] table (model, placement)", file=study.root / "study.toml"
+        )
+    model = load_robot(study.robot.model)
+    if study.robot.T_flange_tip is not None:
+        model = model.with_tool(study.robot.T_flange_tip)
+    if study.robot.joint_stiffness is not None:
+        model = model.with_stiffness(study.robot.joint_stiffness, source="study.toml")
+    return model
+
+
 def _joint_angles(
     study: Study, run: RunSpec, tp: Toolpath, model: Any, T_bw: F64
 ) -> tuple[F64, str]:
     if run.joints is None:
         rot = study.robot.tool_rotation if study.robot is not None else 0.0
-        return ik_toolpath(
-            model, tp, T_bw, tool_rotation=rot
-        ).q, "inverse kinematics of the toolpath"
+        q = ik_toolpath(model, tp.tip, T_bw, tool_rotation=rot).q
+        return q, "inverse kinematics of the toolpath"
     log = read_joint_log(run.joints)
     t0, t1 = float(tp.time[0]), float(tp.time[-1])
     if log.time[0] > t0 + 1e-6 or log.time[-1] < t1 - 1e-6:
@@ -127,8 +164,10 @@ def _joint_angles(
 
 def _compare(study: Study, run: RunSpec, tp: Toolpath, progress: Progress | None) -> ScanComparison:
     a = study.analysis
+    # per-point deviations over the whole wall (the paper's polar plot sits at z = −11 mm, inside
+    # the rim band); the rim band leaves the statistics through the ``used`` mask
     opts = CompareOptions(
-        register=a.registration, rim_band=a.rim_band, radius=a.point_radius, contour_z=a.contour_z
+        register=a.registration, rim_band=0.0, radius=a.point_radius, contour_z=a.contour_z
     )
     cloud = read_scan(run.scan, unit=run.scan_unit)
     return compare_scan(
@@ -168,17 +207,7 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
         W_rob = _tip_wrench(study, rob, tp)
 
     with task(progress, "tool and holder compliance"):
-        k_tool = _tool_compliance(study, progress)
-        k_t = to_tip(k_tool.compliance, -k_tool.reference_point)
-        if study.holder.rigid or study.holder.compliance is None:
-            k_holder = None
-            k_th = np.zeros((6, 6))
-        else:
-            k_holder = load_compliance_json(study.holder.compliance)
-            k_th = to_tip(
-                k_holder.compliance,
-                np.array([0.0, 0.0, -study.holder.offset]) - k_holder.reference_point,
-            )
+        k_tool, k_holder, k_t, k_th = tip_compliances(study, progress=progress)
     tool_cnc = (W_cnc @ k_t.T)[:, :3]
     tool_rob = (W_rob @ k_t.T)[:, :3]
     holder_rob = (W_rob @ k_th.T)[:, :3]
@@ -196,11 +225,7 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
             file=study.root / "study.toml",
         )
     with task(progress, "robot VJM"):
-        model = load_robot(study.robot.model)
-        if study.robot.T_flange_tip is not None:
-            model = model.with_tool(study.robot.T_flange_tip)
-        if study.robot.joint_stiffness is not None:
-            model = model.with_stiffness(study.robot.joint_stiffness, source="study.toml")
+        model = study_robot(study)
         T_bw = study.robot.T_base_work
         q, q_source = _joint_angles(study, rob, tp, model, T_bw)
         k_c = model.compliance(q, T_base_work=T_bw)
@@ -210,6 +235,9 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
     d = decompose(tp.normal, dev_c.dn, dev_r.dn, tool_cnc, tool_rob, holder_rob, vjm, valid)
 
     per_point = _per_point(study, tp, W_cnc, W_rob, dev_c, dev_r, d)
+    thick = rob.thickness or cnc.thickness
+    if thick is not None:
+        per_point["thickness_measured"] = read_thickness_csv(thick).at(tp.depth) * 1e3
     contributions = pd.DataFrame(_mm_rows(contribution_rows(d, projected=False)))
     contributions_normal = pd.DataFrame(_mm_rows(contribution_rows(d, projected=True)))
     summary = _summary(study, tp, d, k_c, W_rob, valid, k_tool, k_holder, q_source, scans)

@@ -21,6 +21,7 @@ from roboisf.frames.rotations import (
     rot_z,
     rotvec_to_matrix,
     rpy_to_matrix,
+    vertical_tool,
 )
 from roboisf.frames.se3 import (
     adjoint,
@@ -63,5 +64,6 @@ __all__ = [
     "transform_points",
     "transform_wrench",
     "unskew",
+    "vertical_tool",
     "wrench_transform_matrix",
 ]

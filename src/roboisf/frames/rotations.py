@@ -27,6 +27,7 @@ __all__ = [
     "rot_z",
     "rotvec_to_matrix",
     "rpy_to_matrix",
+    "vertical_tool",
 ]
 
 F64 = NDArray[np.float64]
@@ -113,6 +114,19 @@ def matrix_to_rotvec(R: ArrayLike) -> F64:
     """Rotation matrix (..., 3, 3) → rotation vector [rad] (..., 3)."""
     R = np.asarray(R, dtype=float)
     return Rotation.from_matrix(R.reshape(-1, 3, 3)).as_rotvec().reshape(*R.shape[:-2], 3)
+
+
+def vertical_tool(tool_rotation: ArrayLike = 0.0) -> F64:
+    """``R_work_tool = Rx(π) · Rz(γ)``: the tool's z-axis along −z_work (pointing down into the
+    sheet), turned by ``tool_rotation`` γ [rad] about its own axis (positive γ turns it clockwise
+    seen from above). (...,) → (..., 3, 3)."""
+    g = np.asarray(tool_rotation, dtype=float)
+    c, s = np.cos(g), np.sin(g)
+    R = np.zeros((*g.shape, 3, 3))
+    R[..., 0, 0], R[..., 0, 1] = c, -s
+    R[..., 1, 0], R[..., 1, 1] = -s, -c
+    R[..., 2, 2] = -1.0
+    return R
 
 
 def axis_angle_to_matrix(axis: ArrayLike, angle: ArrayLike) -> F64:

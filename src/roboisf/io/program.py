@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
-from roboisf.frames.rotations import rot_x, rot_z
+from roboisf.frames.rotations import vertical_tool
 from roboisf.toolpath.toolpath import Toolpath
 
 __all__ = [
@@ -105,7 +105,7 @@ def tool_down_orientation(tool_rotation: ArrayLike = 0.0, n: int | None = None) 
     g = np.asarray(tool_rotation, dtype=float)
     if g.ndim == 0:
         g = np.full(1 if n is None else n, float(g))
-    return rot_x(np.pi) @ rot_z(g)
+    return vertical_tool(g)
 
 
 def orientations(

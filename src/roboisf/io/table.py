@@ -270,7 +270,6 @@ def _fast_body(path: Path, header_line: int, k: int) -> F64 | None:
             skip_blank_lines=False,
             na_filter=False,
             encoding="utf-8-sig",
-            float_precision="round_trip",
         ).to_numpy()
     except (ValueError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError):
         return None

@@ -361,8 +361,16 @@ def write_report(
             )
         )
         robot_tables = []
-        if isinstance(summ.get("vjm_vs_experiment"), Mapping):
-            robot_tables.append(pg.vjm_table(summ["vjm_vs_experiment"]))
+        books = [
+            (label, summ[key])
+            for key, label in (
+                ("vjm_vs_experiment", "projected on the surface normal (what a scan observes)"),
+                ("vjm_vs_experiment_per_axis", "per-axis vectors (the paper's way)"),
+            )
+            if isinstance(summ.get(key), Mapping)
+        ]
+        if books:
+            robot_tables.append(pg.vjm_table(books))
         if isinstance(summ.get("force_contributions"), Mapping) and summ["force_contributions"]:
             robot_tables.append(pg.force_contribution_table(summ["force_contributions"]))
         if isinstance(summ.get("compliance_stats"), Mapping) and summ["compliance_stats"]:

@@ -6,7 +6,7 @@ import html
 import json
 import math
 import re
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 import pandas as pd
@@ -217,20 +217,26 @@ def force_contribution_table(fc: Mapping[str, Any]) -> str:
     )
 
 
-def vjm_table(vjm: Mapping[str, Any]) -> str:
-    """Mean Δ = δc_exp − δc_VJM per axis and resultant (mm)."""
-    keys = [k for k in ("x", "y", "z", "resultant") if k in vjm] + [
-        k for k in vjm if k not in ("x", "y", "z", "resultant")
-    ]
+def vjm_table(books: Sequence[tuple[str, Mapping[str, Any]]]) -> str:
+    """Δ_i = mean|δc_exp,i| − mean|δc_VJM,i| per axis and its resultant (mm), one row per book
+    (label, values)."""
+    keys = ["x", "y", "z", "resultant"]
     head = (
-        "<thead><tr>"
+        "<thead><tr><th>book</th>"
         + "".join(f"<th>Δ{esc(k) if k != 'resultant' else ' resultant'} (mm)</th>" for k in keys)
         + "</tr></thead>"
     )
-    body = "<tr>" + "".join(f"<td>{fmt(vjm[k], 4)}</td>" for k in keys) + "</tr>"
+    body = "".join(
+        f'<tr><td class="t">{esc(label)}</td>'
+        + "".join(f"<td>{fmt(vjm.get(k, float('nan')), 4)}</td>" for k in keys)
+        + "</tr>"
+        for label, vjm in books
+    )
     return (
         "<table><caption>VJM vs experiment "
-        "<span>— mean Δ = δc<sub>exp</sub> − δc<sub>VJM</sub></span>"
+        "<span>— Δ<sub>i</sub> = mean|δc<sub>exp,i</sub>| − mean|δc<sub>VJM,i</sub>| (the "
+        "paper's comparison). Only the normal projection can vanish when the model is right: "
+        "no scan sees the VJM's tangential deflection.</span>"
         f"</caption>{head}<tbody>{body}</tbody></table>"
     )
 

@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError, UnreachableError
-from roboisf.frames import invert
+from roboisf.frames import invert, vertical_tool
 from roboisf.robot.model import RobotModel, _short
 
 __all__ = [
@@ -122,12 +122,8 @@ def tool_poses(tip_work: ArrayLike, T_base_work: ArrayLike, tool_rotation: Array
     p = np.asarray(tip_work, dtype=float)
     n = p.shape[0]
     g = np.broadcast_to(np.asarray(tool_rotation, dtype=float), (n,))
-    c, s = np.cos(g), np.sin(g)
     T = np.zeros((n, 4, 4))
-    # Rx(π) Rz(γ) = [[c, -s, 0], [-s, -c, 0], [0, 0, -1]]
-    T[:, 0, 0], T[:, 0, 1] = c, -s
-    T[:, 1, 0], T[:, 1, 1] = -s, -c
-    T[:, 2, 2] = -1.0
+    T[:, :3, :3] = vertical_tool(g)
     T[:, :3, 3] = p
     T[:, 3, 3] = 1.0
     return np.asarray(T_base_work, dtype=float) @ T

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from roboisf.frames import invert, shift_wrench, transform_wrench
+from roboisf.frames import invert, shift_wrench, transform_wrench, vertical_tool
 from roboisf.frames.se3 import make_transform
 from roboisf.study.spec import ForceSensorSpec
 
@@ -28,15 +28,8 @@ F64 = NDArray[np.float64]
 
 
 def R_work_tip_vertical(tool_rotation: ArrayLike = 0.0) -> F64:
-    """Tip axes in work axes for a vertical tool (tip z = −z_work) turned by ``tool_rotation``
-    [rad] about its own axis: ``Rx(π) Rz(γ)``; (3, 3) or (N, 3, 3)."""
-    g = np.asarray(tool_rotation, dtype=float)
-    c, s = np.cos(g), np.sin(g)
-    R = np.zeros((*g.shape, 3, 3))
-    R[..., 0, 0], R[..., 0, 1] = c, -s
-    R[..., 1, 0], R[..., 1, 1] = -s, -c
-    R[..., 2, 2] = -1.0
-    return R
+    """Tip axes in work axes for a vertical tool: :func:`roboisf.frames.vertical_tool`."""
+    return vertical_tool(tool_rotation)
 
 
 def sensor_to_tip(

@@ -52,10 +52,11 @@ from roboisf.frames import make_transform, rpy_to_matrix, to_tip
 from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
 from roboisf.io.forcelog import ForceLog, write_force_log
 from roboisf.io.jointlog import write_joint_log
+from roboisf.io.thickness import write_thickness_csv
 from roboisf.io.toolpath_csv import write_toolpath_csv
 from roboisf.parts import VWACF, AxisymmetricPart, Cone
 from roboisf.progress import Progress, task
-from roboisf.robot import ik_toolpath, load_robot
+from roboisf.robot import RobotModel, ik_toolpath, load_robot
 from roboisf.scan import synthetic_scan, write_ply
 from roboisf.study.sensors import R_work_tip_vertical, tip_to_sensor
 from roboisf.study.spec import ForceSensorSpec
@@ -68,16 +69,19 @@ __all__ = [
     "CellTruth",
     "VirtualCell",
     "build_study",
+    "cell_robot",
+    "cell_toolpath",
     "paper_cone_cell",
     "paper_vwacf_cell",
     "simulate",
+    "tip_compliances",
 ]
 
 F64 = NDArray[np.float64]
 
 #: Default holder: a Ø40 mm steel shank, 200 mm from flange adapter to nose, loaded through the
 #: tool's Ø10 mm footprint — beam model 1.03e-7 m/N lateral, the paper's holder is 1.07e-7.
-DEFAULT_HOLDER = ToolHolder([HolderSection(0.200, 0.040)], coupling_diameter=0.010)
+DEFAULT_HOLDER = ToolHolder((HolderSection(0.200, 0.040),), coupling_diameter=0.010)
 #: Distance from the flange to the holder's top (F/T sensor and adapter) [m].
 SENSOR_STACK = 0.040
 
@@ -124,6 +128,11 @@ class VirtualCell:
             rpy_to_matrix([0.0, 0.0, math.radians(90)]), [0.0, 0.0, -0.060]
         )
     )
+    #: measured thinning near the rim, as a fraction of the sine-law thickness at the sheet
+    #: plane, decaying over ``rim_thinning_depth`` (the paper's cone: 1.22 → 0.25 mm at the rim,
+    #: stable 0.4 mm below 20 mm: 0.375 over 8 mm); 0 for a gradual wall (VWACF)
+    rim_thinning: float = 0.375
+    rim_thinning_depth: float = 8e-3
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -172,6 +181,7 @@ def paper_vwacf_cell(**overrides: Any) -> VirtualCell:
         max_wall_step=0.5e-3,
         force=ForceModel(mode="variable"),
         springback=SpringbackModel(amplitude=0.96e-3),
+        rim_thinning=0.0,
     )
     return replace(cell, **overrides)
 
@@ -195,6 +205,8 @@ class CellTruth:
     holder_compliance: ComplianceResult
     T_base_work: F64
     fracture_depth: float
+    #: (N, 3) m — commanded tip − nominal tip (zeros for the nominal command)
+    command_offset: F64 | None = None
 
 
 def _compliances(
@@ -207,11 +219,38 @@ def _compliances(
     return beam_result(cell.tool), beam_result(cell.holder)
 
 
-def simulate(cell: VirtualCell, *, progress: Progress | None = None) -> CellTruth:
-    """Run the virtual experiments (no files): forces, deflections, springback, formed surface."""
-    part = cell.part
+def tip_compliances(
+    cell: VirtualCell, *, progress: Progress | None = None
+) -> tuple[ComplianceResult, ComplianceResult, F64, F64]:
+    """Tool and holder compliance of ``cell``: the results and both at the tool tip (6, 6).
+
+    FE/beam frames: z up the tool axis = work z; the tool at the tip, the holder at its nose,
+    which sits one tool free length above the tip.
+    """
+    k_tool, k_holder = _compliances(cell, progress)
+    k_t = k_tool.compliance
+    k_th = to_tip(
+        k_holder.compliance, np.array([0.0, 0.0, -cell.tool.length]) - k_holder.reference_point
+    )
+    return k_tool, k_holder, k_t, k_th
+
+
+def cell_robot(cell: VirtualCell) -> tuple[RobotModel, F64]:
+    """The cell's robot model (with the tool) and its placement ``T_base_work`` (4, 4) m."""
+    model = load_robot(cell.robot).with_tool(cell.T_flange_tip)
+    T_bw = model.default_placement if cell.T_base_work is None else cell.T_base_work
+    if T_bw is None:
+        raise InputError(
+            f"robot {cell.robot!r} has no default placement; give T_base_work",
+            field="T_base_work",
+        )
+    return model, np.asarray(T_bw, dtype=float)
+
+
+def cell_toolpath(cell: VirtualCell) -> Toolpath:
+    """The nominal toolpath the cell forms (step-down; cut 1 mm past a fracture)."""
     tp = step_down(
-        part,
+        cell.part,
         cell.tool.radius,
         cell.step_down,
         spacing=cell.spacing,
@@ -235,37 +274,59 @@ def simulate(cell: VirtualCell, *, progress: Progress | None = None) -> CellTrut
             tp.feed,
             {**tp.meta, "fracture_depth": frac},
         )
+    return tp
+
+
+def simulate(
+    cell: VirtualCell,
+    *,
+    commanded: Toolpath | None = None,
+    progress: Progress | None = None,
+) -> CellTruth:
+    """Run the virtual experiments (no files): forces, deflections, springback, formed surface.
+
+    ``commanded`` — a commanded (e.g. compensated) version of the cell's toolpath: the same
+    contact points, another ``tip``. The robot run then forms with it::
+
+        dn_robot = n · (C_cmd − C_nominal) + n · δ(at the commanded configuration) + s
+
+    Model assumptions: the forming wrench and the springback ``s`` are those of the nominal path
+    (a command a millimetre off does not change the force or the springback — displacement
+    adjustment iterates on exactly this assumption); the CNC run keeps the nominal path.
+    """
+    part = cell.part
+    tp = cell_toolpath(cell)
+    frac = float(tp.meta.get("fracture_depth", math.inf))  # type: ignore[arg-type]
     sb = replace(cell.springback, fracture_depth=frac) if math.isfinite(frac) else cell.springback
+    # the wrench of the nominal path: the moment arm is contact − tip of the ball as it touches
     W = tip_wrench(tp, cell.force, thickness=part.sheet_thickness, step_down=cell.step_down)
     W_rob = W * (1.0 - cell.robot_force_deficit * np.exp(-tp.depth / 15e-3))[:, None]
+    cmd_offset = np.zeros_like(tp.tip)
+    if commanded is not None:
+        if len(commanded) != len(tp) or np.max(np.abs(commanded.contact - tp.contact)) > 1e-9:
+            raise InputError(
+                f"the commanded toolpath ({len(commanded)} points) is not a version of the "
+                f"cell's toolpath ({len(tp)} points, same contact points expected)",
+                field="commanded",
+            )
+        cmd_offset = commanded.tip - tp.tip
+        tp = tp.with_tip(commanded.tip)
 
     with task(progress, "tool and holder compliance"):
-        k_tool, k_holder = _compliances(cell, progress)
-    # FE/beam frames: z up the tool axis = work z; tool at the tip, holder at its nose,
-    # which sits one tool free length above the tip
-    k_t = k_tool.compliance
-    k_th = to_tip(
-        k_holder.compliance, np.array([0.0, 0.0, -cell.tool.length]) - k_holder.reference_point
-    )
+        k_tool, k_holder, k_t, k_th = tip_compliances(cell, progress=progress)
     tool_cnc = (W @ k_t.T)[:, :3]
     tool_rob = (W_rob @ k_t.T)[:, :3]
     holder_rob = (W_rob @ k_th.T)[:, :3]
 
     with task(progress, "robot IK and VJM"):
-        model = load_robot(cell.robot).with_tool(cell.T_flange_tip)
-        T_bw = model.default_placement if cell.T_base_work is None else cell.T_base_work
-        if T_bw is None:
-            raise InputError(
-                f"robot {cell.robot!r} has no default placement; give T_base_work",
-                field="T_base_work",
-            )
-        ik = ik_toolpath(model, tp, T_bw, tool_rotation=cell.tool_rotation)
+        model, T_bw = cell_robot(cell)
+        ik = ik_toolpath(model, tp.tip, T_bw, tool_rotation=cell.tool_rotation)
         robot = model.deflection(ik.q, W_rob, T_base_work=T_bw)[:, :3]
 
     s = sb.normal(tp.depth, tp.wall_angle)
     n = tp.normal
     dn_cnc = np.einsum("ij,ij->i", tool_cnc, n) + s
-    dn_rob = np.einsum("ij,ij->i", tool_rob + holder_rob + robot, n) + s
+    dn_rob = np.einsum("ij,ij->i", tool_rob + holder_rob + robot + cmd_offset, n) + s
     return CellTruth(
         tp,
         W,
@@ -280,9 +341,20 @@ def simulate(cell: VirtualCell, *, progress: Progress | None = None) -> CellTrut
         dn_rob,
         k_tool,
         k_holder,
-        np.asarray(T_bw, dtype=float),
+        T_bw,
         frac,
+        cmd_offset,
     )
+
+
+def _thickness(cell: VirtualCell, tp: Toolpath, path: Path, rng: np.random.Generator) -> None:
+    """A gauged thickness profile: sine law with near-rim thinning, 10 µm gauge noise, every mm."""
+    depth = np.arange(1e-3, tp.depth.max(), 1e-3)
+    angle = np.interp(depth, tp.depth[np.argsort(tp.depth)], tp.wall_angle[np.argsort(tp.depth)])
+    t = cell.part.thickness(angle) * (
+        1 - cell.rim_thinning * np.exp(-depth / cell.rim_thinning_depth)
+    )
+    write_thickness_csv(path, depth, t + rng.normal(scale=10e-6, size=depth.size))
 
 
 def _log_times(tp: Toolpath, rate: float) -> F64:
@@ -361,6 +433,8 @@ def build_study(
             t = _log_times(tp, cell.joint_rate)
             q = np.column_stack([np.interp(t, tp.time, truth.q[:, j]) for j in range(6)])
             write_joint_log(d / "robot_joints.csv", t, q)
+        with task(progress, "thickness"):
+            _thickness(cell, tp, d / "robot_thickness.csv", rng)
         with task(progress, "scans"):
             _scan(cell, truth, truth.dn_cnc, d / "cnc_scan.ply", rng, cell.seed + 1)
             _scan(cell, truth, truth.dn_robot, d / "robot_scan.ply", rng, cell.seed + 2)
@@ -410,6 +484,7 @@ def _write_study_toml(
                 "joints": "robot_joints.csv",
                 "scan": "robot_scan.ply",
                 "scan_unit": "mm",
+                "thickness": "robot_thickness.csv",
                 "forces": {
                     "file": str(rob.file),
                     "mount": rob.mount,

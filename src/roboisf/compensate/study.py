@@ -1,0 +1,172 @@
+"""Compensation from a study folder: the measured robot part and its forces (``analyze``).
+
+The robot run of the study is the part to correct. Its toolpath is the command that formed it
+(``formed``; its contacts define the nominal), its tip wrench per point (measured, brought to the
+tip by ``analyze``) loads the deflection model, and its normal deviation ``robot_dn`` with the
+scan's ``robot_valid`` flags is ``D``. Points in the analysis' rim band (sheet bending, excluded by
+the method) are not springback-compensated: they keep the previous offset (0) and only get the
+compliance pre-deflection. The "after" of the comparison is predicted by superposition::
+
+    dn_after = dn_before + n · ((p_new + δ(p_new)) − (p_formed + δ(p_formed)))
+
+(springback unchanged: the model's assumption); it is labelled ``predicted``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from roboisf.compensate.compliance import DeflectionModel
+from roboisf.compensate.pipeline import Compensation, CompensationOptions, compensate
+from roboisf.decompose.pipeline import analyze, study_robot, tip_compliances
+from roboisf.errors import InputError
+from roboisf.io.program import RobotTool
+from roboisf.io.toolpath_csv import read_toolpath_csv
+from roboisf.progress import Progress, task
+from roboisf.study.spec import Study, load_study
+
+__all__ = ["StudyCompensation", "compensate_study", "study_deflection_model"]
+
+F64 = NDArray[np.float64]
+_WRENCH = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
+
+
+def study_deflection_model(study: Study, *, progress: Progress | None = None) -> DeflectionModel:
+    """Robot (tool, stiffness), placement and tool + holder tip compliance of a study."""
+    model = study_robot(study)
+    assert study.robot is not None
+    _, _, k_t, k_th = tip_compliances(study, progress=progress)
+    return DeflectionModel(
+        model, study.robot.T_base_work, k_t + k_th, tool_rotation=study.robot.tool_rotation
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class StudyCompensation:
+    """A compensation of a study's robot part, with what the writers need."""
+
+    study: Study
+    compensation: Compensation
+    dn_before: F64
+    dn_after: F64
+    T_base_work: F64
+    tool: RobotTool
+    tool_rotation: float
+    inputs: tuple[Path, ...]
+
+
+def _per_point(study: Study, results: Path | None, progress: Progress | None) -> pd.DataFrame:
+    if results is None:
+        return analyze(study, progress=progress).per_point
+    f = Path(results) / "per_point.parquet"
+    if not f.is_file():
+        raise InputError(
+            "expected an `roboisf analyze` results folder with per_point.parquet", file=results
+        )
+    df = pd.read_parquet(f)
+    need = ["robot_dn", "robot_valid", *(f"robot_{w}" for w in _WRENCH)]
+    missing = [c for c in need if c not in df]
+    if missing:
+        raise InputError(f"missing columns {', '.join(missing)}", file=f)
+    return df
+
+
+def compensate_study(
+    study: Study | str | Path,
+    *,
+    results: str | Path | None = None,
+    previous: str | Path | None = None,
+    options: CompensationOptions | None = None,
+    tool_mass: float = 2.0,
+    progress: Progress | None = None,
+) -> StudyCompensation:
+    """Compensate the robot part of ``study`` (a folder, ``study.toml`` or :class:`Study`).
+
+    ``results`` — an earlier ``roboisf analyze`` output folder to reuse (else analyze runs).
+    ``previous`` — the ``roboisf compensate`` output folder of the command that formed the
+    study's robot part (its ``springback_offset_dn`` is ``c_k``; the study's robot toolpath is
+    that command): the next step of the iteration. Without it ``c_k = 0``.
+    """
+    if not isinstance(study, Study):
+        study = load_study(study)
+    if study.robot is None:
+        raise InputError(
+            "compensation needs a [robot] table (model, placement)", file=study.root / "study.toml"
+        )
+    o = options or CompensationOptions()
+    run = study.robot_run
+    formed = read_toolpath_csv(run.toolpath)
+    pp = _per_point(study, None if results is None else Path(results), progress)
+    if len(pp) != len(formed):
+        raise InputError(
+            f"the results have {len(pp)} points but the robot toolpath {len(formed)} (results "
+            "of another study?)",
+            file=results,
+        )
+    W = pp[[f"robot_{w}" for w in _WRENCH]].to_numpy(dtype=float)
+    dn = pp["robot_dn"].to_numpy(dtype=float) * 1e-3
+    valid = pp["robot_valid"].to_numpy(dtype=bool)
+    region = formed.depth > study.analysis.rim_band
+    c_prev = None if previous is None else _previous_offset(Path(previous), len(formed))
+    with task(progress, "deflection model"):
+        model = study_deflection_model(study, progress=progress)
+    comp = compensate(
+        study.part,
+        formed,
+        model=model,
+        wrench=W,
+        deviation=np.where(valid, dn, np.nan),
+        valid=valid,
+        region=region,
+        formed=formed.tip,
+        previous_offset=c_prev,
+        options=o,
+        progress=progress,
+    )
+    d_formed = model.deflection(formed.tip, W)[0]
+    n = comp.nominal.normal
+    land_new = comp.toolpath.tip + comp.deflection
+    land_old = formed.tip + d_formed
+    dn_after = np.where(valid, dn + np.einsum("ij,ij->i", land_new - land_old, n), np.nan)
+    T_ft = model.robot.T_flange_tip
+    tool = RobotTool(length=float(T_ft[2, 3]), mass=tool_mass)
+    inputs = (study.root, *(Path(p) for p in (results, previous) if p is not None))
+    meta = {
+        "study": study.name,
+        "robot": study.robot.model,
+        "rim_band_mm": study.analysis.rim_band * 1e3,
+    }
+    comp = replace(comp, meta=meta)
+    return StudyCompensation(
+        study,
+        comp,
+        np.where(valid, dn, np.nan),
+        dn_after,
+        study.robot.T_base_work,
+        tool,
+        float(study.robot.tool_rotation),
+        inputs,
+    )
+
+
+def _previous_offset(folder: Path, n: int) -> F64:
+    """``c_k`` [m] (n,) from an earlier ``roboisf compensate`` output folder."""
+    f = folder / "per_point.csv"
+    if not f.is_file():
+        raise InputError(
+            "expected a `roboisf compensate` output folder with per_point.csv", file=folder
+        )
+    df = pd.read_csv(f)
+    if "springback_offset_dn" not in df:
+        raise InputError("missing column springback_offset_dn", file=f)
+    c = df["springback_offset_dn"].to_numpy(dtype=float) * 1e-3
+    if c.shape != (n,) or not np.all(np.isfinite(c)):
+        raise InputError(
+            f"expected {n} finite offsets (one per toolpath point), got {c.shape[0]}", file=f
+        )
+    return c
