@@ -132,7 +132,9 @@ def compensate_study(
     n = comp.nominal.normal
     land_new = comp.toolpath.tip + comp.deflection
     land_old = formed.tip + d_formed
-    dn_after = np.where(valid, dn + np.einsum("ij,ij->i", land_new - land_old, n), np.nan)
+    # before/after over the analysed wall (below the rim band), as the analysis' statistics
+    judged = valid & region
+    dn_after = np.where(judged, dn + np.einsum("ij,ij->i", land_new - land_old, n), np.nan)
     T_ft = model.robot.T_flange_tip
     tool = RobotTool(length=float(T_ft[2, 3]), mass=tool_mass)
     inputs = (study.root, *(Path(p) for p in (results, previous) if p is not None))
@@ -145,7 +147,7 @@ def compensate_study(
     return StudyCompensation(
         study,
         comp,
-        np.where(valid, dn, np.nan),
+        np.where(judged, dn, np.nan),
         dn_after,
         study.robot.T_base_work,
         tool,
