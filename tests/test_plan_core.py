@@ -110,6 +110,9 @@ def test_gamma_matters_for_an_angled_tool_and_the_best_is_kept():
     best = evaluate_placement(prob, T, gs)
     assert best.ok
     assert best.mean_abs <= min(m for m, s in zip(means, each, strict=True) if s.ok) + 1e-15
+    r = plan_placements(prob, [[1.6, 0.0, 0.6, 0.0]], gs, scheduler="serial")
+    assert r.best.mean_abs == best.mean_abs
+    assert r.best_gamma0 is not None and r.best_gamma0.mean_abs == each[0].mean_abs
 
 
 def test_schedule_known_optimum_rate_limit_and_infeasible():

@@ -282,6 +282,11 @@ def _summary(res: Any, robot: str, source: str, scheduler: str) -> dict[str, Any
         "best max |δ| (robot + tool) [mm]": round(b.max_abs * 1e3, 5),
         "best mean |δ·n| [mm]": round(b.mean_abs_normal * 1e3, 5),
     }
+    b0 = res.best_gamma0
+    if b0 is not None:
+        out["best placement at γ = 0: mean robot |δ| [mm]"] = (
+            round(b0.mean_robot * 1e3, 5) if b0.ok else f"{b0.status}: {b0.reason}"
+        )
     if res.baseline is not None:
         T = res.baseline_T
         out["baseline placement x,y,z [mm], yaw [deg]"] = [

@@ -55,6 +55,8 @@ class PlanResult:
     baseline_T : (4, 4) or None
     objective : str
     notes : list of str — e.g. "γ has no effect: coaxial tool"
+    best_gamma0 : PlacementScore or None — the best placement with the tool at γ = 0 (set when
+        several tool rotations were evaluated: what the rotation adds to the placement)
     """
 
     placements: F64
@@ -65,6 +67,7 @@ class PlanResult:
     baseline_T: F64 | None
     objective: str
     notes: list[str]
+    best_gamma0: PlacementScore | None = None
 
     @property
     def best(self) -> PlacementScore:
@@ -207,7 +210,10 @@ def plan_placements(
     if base is not None and base.ok:
         assert base.gamma is not None and base_T is not None
         base = replace(base, sigma_min=path_sigma_min(problem, base_T, base.gamma))
-    return PlanResult(P, scores, order, g, base, base_T, problem.objective, notes)
+    best0 = None
+    if g.size > 1:
+        best0 = evaluate_placement(problem, Ts[int(order[0])], (0.0,))
+    return PlanResult(P, scores, order, g, base, base_T, problem.objective, notes, best0)
 
 
 def _dask_map(
