@@ -219,7 +219,7 @@ def _problem(
         prob, _ = problem_from_cell(cell, with_tool=with_tool, model=m, **opts)
         return prob, m, None, f"part {part.name}, force model"
     assert study is not None
-    from roboisf.decompose.pipeline import _tip_wrench
+    from roboisf.decompose.pipeline import run_tip_wrench
     from roboisf.io.toolpath_csv import read_toolpath_csv
     from roboisf.study.spec import load_study
 
@@ -232,7 +232,7 @@ def _problem(
         m = m.with_stiffness(s.robot.joint_stiffness, source="study")
     rob = s.robot_run
     tp = read_toolpath_csv(rob.toolpath)
-    W = _tip_wrench(s, rob, tp)
+    W = run_tip_wrench(s, rob, tp)
     prob = PlanProblem(m, tp.tip, tp.normal, tp.lap, W, **opts)
     return prob, m, s.robot.T_base_work, f"study {s.name}, robot-run forces, robot only"
 

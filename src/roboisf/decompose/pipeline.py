@@ -59,7 +59,14 @@ from roboisf.study.sensors import R_work_tip_vertical, sensor_to_tip
 from roboisf.study.spec import RunSpec, Study, load_study
 from roboisf.toolpath import Toolpath
 
-__all__ = ["AnalysisResult", "analyze", "study_robot", "tip_compliances", "write_results"]
+__all__ = [
+    "AnalysisResult",
+    "analyze",
+    "run_tip_wrench",
+    "study_robot",
+    "tip_compliances",
+    "write_results",
+]
 
 F64 = NDArray[np.float64]
 _AX = "xyz"
@@ -90,7 +97,9 @@ def _declared(path: Path, key: str) -> bool:
     return False
 
 
-def _tip_wrench(study: Study, run: RunSpec, tp: Toolpath) -> F64:
+def run_tip_wrench(study: Study, run: RunSpec, tp: Toolpath) -> F64:
+    """A run's force log at each toolpath point, moved to the tool tip: (N, 6) [N, N·m], work
+    axes, the sheet's load on the tool (units from the log or the study's ``[units]``)."""
     f = run.forces
     kw: dict[str, str] = {}
     if not _declared(f.file, "units"):
@@ -203,8 +212,8 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
                 file=cnc.toolpath,
             )
     with task(progress, "forces to the tool tip"):
-        W_cnc = _tip_wrench(study, cnc, tp)
-        W_rob = _tip_wrench(study, rob, tp)
+        W_cnc = run_tip_wrench(study, cnc, tp)
+        W_rob = run_tip_wrench(study, rob, tp)
 
     with task(progress, "tool and holder compliance"):
         k_tool, k_holder, k_t, k_th = tip_compliances(study, progress=progress)
