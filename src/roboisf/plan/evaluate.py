@@ -358,7 +358,9 @@ def evaluate_placement(
             if not _check(problem, ev):
                 return _score(problem, ev, gamma_lap)
         except UnreachableError:
-            pass
+            # the ramped per-lap schedule is out of reach: fall back to the best constant γ below
+            # (documented in docs/plan.md)
+            path = None
     if best_const >= 0:
         ev_c = evals[best_const]
         assert ev_c is not None
