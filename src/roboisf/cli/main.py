@@ -60,7 +60,8 @@ def _register() -> None:
     from roboisf.cli import scan as _scan
     from roboisf.cli import toolpath as _toolpath
 
-    for group in (_part, _toolpath, _robot, _fem, _scan, _analyze, _compensate, _demo, _plan):
+    # --help lists commands in this order: the workflow first, then the building blocks
+    for group in (_demo, _analyze, _compensate, _plan, _part, _toolpath, _robot, _fem, _scan):
         group.register(app)
 
 
