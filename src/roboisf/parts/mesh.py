@@ -267,7 +267,7 @@ class MeshPart:
             "normal": unit_n,
         }
         if self.backend != "numpy" and mesh_kernel.HAVE_NUMBA:
-            idx["grid"] = mesh_kernel.build_grid(a, b, c)
+            idx["grid"] = mesh_kernel.build_grid(a, b, c, spatial_order(centroid))
         object.__setattr__(self, "_index", idx)
 
     # -- construction ---------------------------------------------------------------------------
@@ -357,15 +357,18 @@ class MeshPart:
         d2 = np.empty(n)
         P = np.empty((n, 3))
         if "grid" not in ix:  # a part built with backend="numpy", asked for numba once
-            ix["grid"] = mesh_kernel.build_grid(ix["a"], ix["a"] + ix["ab"], ix["a"] + ix["ac"])
-        origin, h, dims, start, items = ix["grid"]
+            a = ix["a"]
+            ix["grid"] = mesh_kernel.build_grid(
+                a, a + ix["ab"], a + ix["ac"], spatial_order(ix["centroid"])
+            )
+        origin, h, dims, start, items, bvh = ix["grid"]
         tri = (ix["a"], ix["ab"], ix["ac"], ix["abab"], ix["abac"], ix["acac"])
 
         def run(lo: int) -> None:
             hi = min(lo + NUMBA_CHUNK, n)
             mesh_kernel.closest_grid(
                 X[lo:hi], origin, h, dims, start, items, *tri, ix["centroid"], ix["rho"],
-                face[lo:hi], d2[lo:hi], P[lo:hi],
+                *bvh, face[lo:hi], d2[lo:hi], P[lo:hi],
             )  # fmt: skip
 
         starts = range(0, n, NUMBA_CHUNK)
