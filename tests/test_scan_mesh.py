@@ -9,8 +9,11 @@ import pytest
 import trimesh
 
 from roboisf.errors import InputError
-from roboisf.parts import Cone, MeshPart, load_part, tessellate
+from roboisf.parts import Cone, MeshPart, load_part, mesh_kernel, tessellate
 from roboisf.parts.mesh import point_triangle_distance2
+
+needs_numba = pytest.mark.skipif(not mesh_kernel.HAVE_NUMBA, reason="numba not installed")
+BACKENDS = [pytest.param("numba", marks=needs_numba), "numpy"]
 
 
 def _brute(mesh: MeshPart, X: np.ndarray) -> np.ndarray:
@@ -50,18 +53,20 @@ def test_point_triangle_distance_matches_dense_sampling():
         np.testing.assert_allclose(((X - P) ** 2).sum(1), d2, rtol=1e-9, atol=1e-14)
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("spread", [0.001, 0.02, 0.3])
-def test_closest_faces_exact_vs_brute_force_on_cone_mesh(spread):
+def test_closest_faces_exact_vs_brute_force_on_cone_mesh(spread, backend):
     mesh = tessellate(Cone(), chordal_error=0.3e-3, edge=6e-3)
     rng = np.random.default_rng(0)
     base = mesh.vertices[rng.integers(0, mesh.vertices.shape[0], 1000)]
     X = base + rng.normal(scale=spread, size=base.shape)
-    _, d2, P = mesh.closest_faces(X, k=4)
+    _, d2, P = mesh.closest_faces(X, k=4, backend=backend)
     np.testing.assert_allclose(d2, _brute(mesh, X), rtol=1e-12, atol=1e-20)
     np.testing.assert_allclose(((X - P) ** 2).sum(1), d2, rtol=1e-9, atol=1e-18)
 
 
-def test_closest_faces_exact_on_a_triangle_soup():
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_closest_faces_exact_on_a_triangle_soup(backend):
     # badly shaped, intersecting, varied triangles: the bound must still hold
     rng = np.random.default_rng(1)
     V = rng.uniform(-1, 1, (600, 3)) * np.array([1.0, 1.0, 0.2])
@@ -69,7 +74,7 @@ def test_closest_faces_exact_on_a_triangle_soup():
     F = F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 0] != F[:, 2])]
     mesh = MeshPart(V, F)
     X = rng.uniform(-1.5, 1.5, (2000, 3))
-    _, d2, _ = mesh.closest_faces(X, k=2)
+    _, d2, _ = mesh.closest_faces(X, k=2, backend=backend)
     np.testing.assert_allclose(d2, _brute(mesh, X), rtol=1e-12, atol=1e-20)
 
 
@@ -162,3 +167,51 @@ def test_spatial_order_is_a_permutation_and_results_do_not_depend_on_it():
     q = mesh.closest_point(X)  # one plain call
     np.testing.assert_array_equal(dev.dn, q.distance)
     np.testing.assert_array_equal(dev.foot, q.point)
+
+
+@needs_numba
+def test_numba_and_numpy_backends_give_the_same_answers(monkeypatch):
+    # near, far, far outside the grid, exactly on vertices; split over threads (small chunks)
+    monkeypatch.setattr("roboisf.parts.mesh.NUMBA_CHUNK", 997)
+    mesh = tessellate(Cone(), chordal_error=0.3e-3, edge=4e-3)
+    rng = np.random.default_rng(7)
+    base = mesh.vertices[rng.integers(0, mesh.vertices.shape[0], 6000)]
+    scale = np.repeat([0.0, 1e-4, 2e-3, 3e-2, 1.0], 1200)[:, None]
+    X = base + rng.normal(size=base.shape) * scale
+    f1, d1, P1 = mesh.closest_faces(X, backend="numba")
+    f2, d2, P2 = mesh.closest_faces(X, backend="numpy")
+    same = f1 == f2
+    assert same.mean() > 0.5  # ties (points nearest a shared vertex/edge) name either face
+    np.testing.assert_array_equal(d1[same], d2[same])  # same arithmetic: bit-identical
+    np.testing.assert_array_equal(P1[same], P2[same])
+    np.testing.assert_allclose(d1, d2, rtol=1e-12, atol=1e-20)
+    np.testing.assert_allclose(P1, P2, rtol=0, atol=1e-12)
+    q1 = mesh.closest_point(X, backend="numba")
+    q2 = MeshPart(mesh.vertices, mesh.faces, backend="numpy").closest_point(X)
+    np.testing.assert_allclose(np.abs(q1.distance), np.abs(q2.distance), rtol=1e-12, atol=1e-12)
+    off = np.abs(q2.distance) > 1e-9  # off the surface the side is unambiguous
+    np.testing.assert_array_equal(np.sign(q1.distance[off]), np.sign(q2.distance[off]))
+
+
+def test_without_numba_the_numpy_path_is_used(monkeypatch):
+    monkeypatch.setattr(mesh_kernel, "HAVE_NUMBA", False)
+    mesh = tessellate(Cone(), chordal_error=0.3e-3, edge=6e-3)
+    assert "grid" not in mesh._index
+    X = mesh.vertices[:300] + 1e-3
+    np.testing.assert_array_equal(
+        mesh.closest_faces(X)[1], mesh.closest_faces(X, backend="numpy")[1]
+    )
+    with pytest.raises(InputError, match=r"roboisf\[fast\]"):
+        mesh.closest_faces(X, backend="numba")
+    with pytest.raises(InputError, match="numba"):
+        MeshPart(mesh.vertices, mesh.faces, backend="numba")
+
+
+def test_mesh_query_rejects_bad_backend_and_nan_points():
+    mesh = tessellate(Cone(), chordal_error=0.3e-3, edge=6e-3)
+    with pytest.raises(InputError, match="backend must be"):
+        mesh.closest_faces(mesh.vertices[:3], backend="cuda")
+    with pytest.raises(InputError, match="backend must be"):
+        MeshPart(mesh.vertices, mesh.faces, backend="fast")
+    with pytest.raises(InputError, match="NaN"):
+        mesh.closest_point([[0.0, np.nan, 0.0]])
