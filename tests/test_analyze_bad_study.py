@@ -51,6 +51,13 @@ def test_force_log_in_the_wrong_unit(study, tmp_path):
         analyze(s)
 
 
+def test_force_log_that_is_not_text(study, tmp_path):
+    s = copy(study, tmp_path)
+    (s / "robot_forces.csv").write_bytes(bytes(range(256)) * 40)
+    with pytest.raises(InputError, match=r"robot_forces\.csv"):
+        analyze(s)
+
+
 def test_force_log_shorter_than_the_toolpath(study, tmp_path):
     s = copy(study, tmp_path)
     lines = (s / "robot_forces.csv").read_text().splitlines()

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from roboisf.errors import InputError
-from roboisf.frames import make_transform, rpy_to_matrix
+from roboisf.frames import make_transform, rpy_to_matrix, vertical_tool
 from roboisf.study import ForceSensorSpec, StudyError, load_study, pose_to_transform
-from roboisf.study.sensors import R_work_tip_vertical, sensor_to_tip, tip_to_sensor
+from roboisf.study.sensors import sensor_to_tip, tip_to_sensor
 
 rng = np.random.default_rng(5)
 
@@ -43,7 +43,7 @@ def test_sensor_tip_round_trip(which):
     s = sensors()[which]
     W = rng.normal(size=(20, 6)) * [100, 100, 500, 1, 1, 1]
     tip = rng.normal(size=(20, 3)) * 0.05
-    R = R_work_tip_vertical(rng.uniform(-1, 1, 20))
+    R = vertical_tool(rng.uniform(-1, 1, 20))
     back = sensor_to_tip(tip_to_sensor(W, s, tip, R), s, tip, R)
     np.testing.assert_allclose(back, W, atol=1e-10)
 

@@ -40,7 +40,7 @@ from roboisf.fem import (
     load_compliance_json,
     tool_compliance,
 )
-from roboisf.frames import to_tip
+from roboisf.frames import to_tip, vertical_tool
 from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
 from roboisf.io.forcelog import attach_to_toolpath, read_force_log
 from roboisf.io.jointlog import read_joint_log
@@ -55,7 +55,7 @@ from roboisf.robot import (
     load_robot,
 )
 from roboisf.scan import CompareOptions, ScanComparison, compare_scan, read_scan
-from roboisf.study.sensors import R_work_tip_vertical, sensor_to_tip
+from roboisf.study.sensors import sensor_to_tip
 from roboisf.study.spec import RunSpec, Study, load_study
 from roboisf.toolpath import Toolpath
 
@@ -87,7 +87,8 @@ class AnalysisResult:
 
 
 def _declared(path: Path, key: str) -> bool:
-    with open(path, encoding="utf-8") as fh:
+    # a file that is not text is left to the log reader, which names it
+    with open(path, encoding="utf-8", errors="replace") as fh:
         for line in fh:
             s = line.strip()
             if not s.startswith("#"):
@@ -109,7 +110,7 @@ def run_tip_wrench(study: Study, run: RunSpec, tp: Toolpath) -> F64:
     log = read_force_log(f.file, frame=frame, **kw)
     W_s = attach_to_toolpath(log, tp, by="time", time_offset=f.time_offset)
     rot = study.robot.tool_rotation if study.robot is not None else 0.0
-    return sensor_to_tip(W_s, f, tp.tip, R_work_tip_vertical(rot))
+    return sensor_to_tip(W_s, f, tp.tip, vertical_tool(rot))
 
 
 def _tool_compliance(study: Study, progress: Progress | None) -> ComplianceResult:

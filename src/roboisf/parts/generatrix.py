@@ -184,7 +184,8 @@ class Generatrix:
         """Exact closest point on the chain for query points in the (r, z) half-plane.
 
         Returns ``rp, zp, alpha, s, primitive_index`` (each (N,)); ``s`` is the arc length
-        from the start of the wall.
+        from the start of the wall. Ties within 1e-12 m go to a wall primitive (deterministic
+        contacts at a concave corner, where a ball touches wall and bottom at once).
         """
         r = np.asarray(r, dtype=float)
         z = np.asarray(z, dtype=float)
@@ -194,11 +195,12 @@ class Generatrix:
         al = np.zeros_like(r)
         ss = np.zeros_like(r)
         idx = np.zeros(r.shape, dtype=np.int64)
-        for i, p in enumerate(self.primitives):
-            cr, cz, ca, cs = p.closest(r, z)
-            d2 = (cr - r) ** 2 + (cz - z) ** 2
-            better = d2 < best
-            best = np.where(better, d2, best)
+        wall_first = sorted(range(len(self.primitives)), key=lambda i: self.regions[i] != "wall")
+        for i in wall_first:
+            cr, cz, ca, cs = self.primitives[i].closest(r, z)
+            d = np.hypot(cr - r, cz - z)
+            better = d < best - 1e-12
+            best = np.where(better, d, best)
             rp = np.where(better, cr, rp)
             zp = np.where(better, cz, zp)
             al = np.where(better, ca, al)

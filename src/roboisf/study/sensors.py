@@ -18,18 +18,13 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from roboisf.frames import invert, shift_wrench, transform_wrench, vertical_tool
+from roboisf.frames import invert, shift_wrench, transform_wrench
 from roboisf.frames.se3 import make_transform
 from roboisf.study.spec import ForceSensorSpec
 
-__all__ = ["R_work_tip_vertical", "sensor_to_tip", "tip_to_sensor"]
+__all__ = ["sensor_to_tip", "tip_to_sensor"]
 
 F64 = NDArray[np.float64]
-
-
-def R_work_tip_vertical(tool_rotation: ArrayLike = 0.0) -> F64:
-    """Tip axes in work axes for a vertical tool: :func:`roboisf.frames.vertical_tool`."""
-    return vertical_tool(tool_rotation)
 
 
 def sensor_to_tip(

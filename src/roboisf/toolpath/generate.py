@@ -76,25 +76,9 @@ def _meridian_closest(part: AxisymmetricPart, r: F64, z: F64) -> tuple[F64, F64,
     """Closest surface point (rp, zp), signed distance (+ tool side) and wall arc length s for
     meridian points (r, z); ties within 1e-12 m prefer wall primitives (deterministic contacts at
     the concave bottom corner, where the last ball touches wall and bottom at once)."""
-    g = part.generatrix
-    best = np.full(r.shape, np.inf)
-    rp = np.zeros_like(r)
-    zp = np.zeros_like(r)
-    nr = np.zeros_like(r)
-    nz = np.zeros_like(r)
-    ss = np.zeros_like(r)
-    starts = g._s0  # arc length of each primitive's start, from the top of the wall
-    order = sorted(range(len(g.primitives)), key=lambda i: g.regions[i] != "wall")
-    for i in order:
-        cr, cz, ca, cs = g.primitives[i].closest(r, z)
-        d = np.hypot(cr - r, cz - z)
-        better = d < best - 1e-12
-        best = np.where(better, d, best)
-        rp = np.where(better, cr, rp)
-        zp = np.where(better, cz, zp)
-        nr = np.where(better, -np.sin(ca), nr)
-        nz = np.where(better, np.cos(ca), nz)
-        ss = np.where(better, cs + starts[i], ss)
+    rp, zp, alpha, ss, _ = part.generatrix.closest(r, z)
+    nr, nz = -np.sin(alpha), np.cos(alpha)
+    best = np.hypot(r - rp, z - zp)
     side = (r - rp) * nr + (z - zp) * nz
     return rp, zp, np.where(side < 0, -best, best), ss
 

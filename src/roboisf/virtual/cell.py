@@ -48,7 +48,7 @@ from roboisf.fem import (
     save_compliance_json,
     tool_compliance,
 )
-from roboisf.frames import make_transform, rpy_to_matrix, to_tip
+from roboisf.frames import make_transform, matrix_to_rpy, rpy_to_matrix, to_tip, vertical_tool
 from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
 from roboisf.io.forcelog import ForceLog, write_force_log
 from roboisf.io.jointlog import write_joint_log
@@ -58,7 +58,7 @@ from roboisf.parts import VWACF, AxisymmetricPart, Cone
 from roboisf.progress import Progress, task
 from roboisf.robot import RobotModel, ik_toolpath, load_robot
 from roboisf.scan import synthetic_scan, write_ply
-from roboisf.study.sensors import R_work_tip_vertical, tip_to_sensor
+from roboisf.study.sensors import tip_to_sensor
 from roboisf.study.spec import ForceSensorSpec
 from roboisf.toolpath import Toolpath, step_down
 from roboisf.virtual.forces import ForceModel, tip_wrench
@@ -88,8 +88,6 @@ SENSOR_STACK = 0.040
 
 def _pose_list(T: F64) -> list[float]:
     """4×4 → [x, y, z, roll, pitch, yaw] in mm and deg (for study.toml)."""
-    from roboisf.frames import matrix_to_rpy
-
     rpy = np.degrees(matrix_to_rpy(T[:3, :3]))
     return [round(float(v), 9) for v in (*(T[:3, 3] * 1e3), *rpy)]
 
@@ -370,7 +368,7 @@ def _force_log(
     t = _log_times(tp, cell.force_rate)
     W = np.column_stack([np.interp(t, tp.time, W_tip[:, j]) for j in range(6)])
     tip = np.column_stack([np.interp(t, tp.time, tp.tip[:, j]) for j in range(3)])
-    R = R_work_tip_vertical(cell.tool_rotation)
+    R = vertical_tool(cell.tool_rotation)
     W_s = tip_to_sensor(W, sensor, tip, R)
     noise = cell.force.noise
     W_s[:, :3] += rng.normal(scale=noise, size=(t.size, 3))
