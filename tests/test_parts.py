@@ -187,3 +187,20 @@ def test_part_table_errors(tmp_path):
     with pytest.raises(InputError) as e:
         load_part(p)
     assert "bad.toml" in str(e.value) and "wall_angle" in str(e.value)
+
+
+def test_every_part_kind_implements_the_part_protocol():
+    """Cone, VWACF, profile and mesh parts all satisfy :class:`roboisf.parts.Part`; bounds and
+    symmetry are what their geometry says."""
+    from roboisf.parts import VWACF, Cone, Part, tessellate
+
+    cone = Cone(opening_diameter=87e-3, wall_angle=np.deg2rad(71.0), depth=102.97e-3)
+    mesh = tessellate(cone, chordal_error=0.5e-3)
+    for part in (cone, VWACF(opening_diameter=88.15e-3), mesh):
+        assert isinstance(part, Part)
+    lo, hi = cone.bounds
+    assert hi[2] == 0.0 and lo[2] == pytest.approx(-102.97e-3)
+    assert hi[0] == pytest.approx(87e-3 / 2 + cone.flange_width)
+    assert cone.symmetry.continuous and cone.symmetry.angle == 0.0
+    assert mesh.symmetry.order == 1 and mesh.symmetry.angle == pytest.approx(2 * np.pi)
+    assert mesh.depth == pytest.approx(cone.depth, abs=1e-9)

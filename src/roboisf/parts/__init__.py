@@ -9,6 +9,7 @@ from roboisf.parts.axisymmetric import (
     SurfaceQuery,
     sine_law_thickness,
 )
+from roboisf.parts.base import Part, Symmetry
 from roboisf.parts.generatrix import Arc, Generatrix, Segment
 from roboisf.parts.io import load_part, part_from_dict, read_profile_csv, save_part
 from roboisf.parts.mesh import MeshPart, tessellate
@@ -21,9 +22,11 @@ __all__ = [
     "Cone",
     "Generatrix",
     "MeshPart",
+    "Part",
     "ProfilePart",
     "Segment",
     "SurfaceQuery",
+    "Symmetry",
     "load_part",
     "part_from_dict",
     "read_profile_csv",

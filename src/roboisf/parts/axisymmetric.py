@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
+from roboisf.parts.base import Symmetry
 from roboisf.parts.generatrix import Arc, Generatrix, Segment
 
 __all__ = [
@@ -88,6 +89,19 @@ class AxisymmetricPart:
     def depth(self) -> float:
         """Depth of the wall's bottom below the sheet plane [m] (positive)."""
         return -self.generatrix.wall_bottom_z
+
+    @property
+    def bounds(self) -> tuple[F64, F64]:
+        """Lower and upper corners (3,) [m] of the surface (flange included)."""
+        g = self.generatrix
+        r_max = max(self.opening_radius + self.flange_width, self.opening_radius)
+        lo = np.array([-r_max, -r_max, g.wall_bottom_z])
+        return lo, np.array([r_max, r_max, 0.0])
+
+    @property
+    def symmetry(self) -> Symmetry:
+        """A surface of revolution: continuous symmetry about z."""
+        return Symmetry(0)
 
     def _check_common(self) -> None:
         if not (self.sheet_thickness > 0 and math.isfinite(self.sheet_thickness)):

@@ -53,6 +53,7 @@ from roboisf.errors import InputError
 from roboisf.io.units import to_si
 from roboisf.parts import mesh_kernel
 from roboisf.parts.axisymmetric import PAPER_SHEET_THICKNESS, SurfaceQuery
+from roboisf.parts.base import Symmetry
 
 __all__ = ["MeshPart", "point_triangle_distance2", "read_mesh", "spatial_order", "tessellate"]
 
@@ -301,6 +302,16 @@ class MeshPart:
     def bounds(self) -> tuple[F64, F64]:
         """Lower and upper corners (3,) [m] of the mesh's bounding box."""
         return self.vertices.min(axis=0), self.vertices.max(axis=0)
+
+    @property
+    def depth(self) -> float:
+        """Depth of the lowest vertex below the sheet plane [m] (positive)."""
+        return float(-self.vertices[:, 2].min())
+
+    @property
+    def symmetry(self) -> Symmetry:
+        """No symmetry is assumed for a mesh (order 1)."""
+        return Symmetry(1)
 
     @property
     def size(self) -> float:
