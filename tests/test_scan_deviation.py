@@ -179,6 +179,42 @@ def test_statistical_outlier_removal():
     assert keep[: len(pts)].mean() > 0.99 and not keep[-2:].any()
 
 
+def test_statistical_outliers_match_the_brute_force_definition_in_any_order():
+    """The Morton-ordered query gives exactly the PCL/Open3D definition: mean distance to the k
+    nearest neighbours (brute force over all pairs here), threshold mean + r·std — whatever
+    order the points come in."""
+    rng = np.random.default_rng(5)
+    pts = rng.normal(0.0, 1e-3, (700, 3))
+    pts[:7] *= 8.0  # a few far points
+    k, r = 6, 2.0
+    d = np.sqrt(((pts[:, None, :] - pts[None, :, :]) ** 2).sum(-1))
+    m = np.sort(d, axis=1)[:, 1 : k + 1].mean(axis=1)
+    expect = m <= m.mean() + r * m.std()
+    assert 0 < (~expect).sum() < 60  # the test data has outliers to find
+    perm = rng.permutation(len(pts))
+    np.testing.assert_array_equal(statistical_outliers(pts, k, r), expect)
+    np.testing.assert_array_equal(statistical_outliers(pts[perm], k, r), expect[perm])
+
+
+def test_toolpath_deviation_does_not_depend_on_scan_order():
+    s = synthetic_scan(CONE, 100_000, offset=OFFSET, noise=25e-6, seed=4)
+    perm = np.random.default_rng(1).permutation(len(s.points))
+    contacts = CONE.closest_point(
+        np.array(
+            [
+                [CONE.wall_at_z(z)[0][0] * np.cos(a), CONE.wall_at_z(z)[0][0] * np.sin(a), z]
+                for z in (-30e-3, -60e-3)
+                for a in np.linspace(0, 6, 12)
+            ]
+        )
+    )
+    a = toolpath_deviations(point_deviations(s.points, CONE), contacts.point, contacts.normal)
+    b = toolpath_deviations(point_deviations(s.points[perm], CONE), contacts.point, contacts.normal)
+    assert a.valid.all()
+    np.testing.assert_array_equal(a.n_points, b.n_points)
+    np.testing.assert_allclose(a.dn, b.dn, rtol=0, atol=1e-15)
+
+
 def test_compare_refuses_a_scan_that_does_not_overlap():
     s = synthetic_scan(CONE, 20_000, seed=1)
     cloud = ScanCloud(s.points + np.array([0.0, 0.0, 0.03]), None, "off.ply")
