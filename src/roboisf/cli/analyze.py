@@ -81,9 +81,9 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Write a synthetic study (CNC and robot runs with known ground truth in truth/).
 
-        The paper's parts, or the part of --part PART.toml, on a virtual IRB 7600: Aerens forming
-        force, VJM robot, tool and holder compliance, springback, 25 µm laser scans. Analyse it
-        with `roboisf analyze`. Lengths in the part file are mm.
+        The paper's parts, or any part file (--part PART.toml, lengths in mm),
+        on a virtual IRB 7600: Aerens forming force, VJM robot, tool and holder
+        compliance, springback, 25 µm laser scans. Analyse it with `roboisf analyze`.
         """
         from roboisf.cell import PAPER_CELL_PLACEMENT
         from roboisf.parts import load_part
