@@ -31,7 +31,7 @@ def main() -> None:
     truth = simulate(cell)
     tp, W = truth.toolpath, truth.wrench_robot
     n = len(tp)
-    model = cell_deflection_model(cell)
+    model = cell_deflection_model(cell.cell)
     precompensate(tp, W[:], model)  # warm-up
     t0 = time.perf_counter()
     res = precompensate(tp, W, model)

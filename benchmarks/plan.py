@@ -72,7 +72,8 @@ def main() -> None:
 
     # spacing for ≈ the asked number of points (the cone path is ~34.8 m long at 1 mm spacing)
     spacing = 34.8 / a.points
-    prob, _ = problem_from_cell(paper_cone_cell(spacing=spacing))
+    vc = paper_cone_cell(spacing=spacing)
+    prob, _ = problem_from_cell(vc.cell, **vc.path_settings)
     P = _grid(a.placements)
     n_pose = len(P) * prob.n_points
     print(

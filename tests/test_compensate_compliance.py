@@ -29,7 +29,7 @@ def _dn(v, n):
 def test_constant_compliance_known_answer(cone):
     """Tool/holder only (configuration-independent): the exact answer is p = target − k W."""
     cell, truth = cone
-    m = replace(cell_deflection_model(cell), include_robot=False)
+    m = replace(cell_deflection_model(cell.cell), include_robot=False)
     W = truth.wrench_robot
     res = precompensate(truth.toolpath, W, m, relax=0.5, tol=1e-10)
     expected = truth.toolpath.tip - (W @ m.k_tip.T)[:, :3]
@@ -41,7 +41,7 @@ def test_constant_compliance_known_answer(cone):
 
 def test_joint_configurations_resolved_for_the_command(cone):
     cell, truth = cone
-    m = cell_deflection_model(cell)
+    m = cell_deflection_model(cell.cell)
     res = precompensate(truth.toolpath, truth.wrench_robot, m)
     q = ik_toolpath(m.robot, res.commanded, m.T_base_work).q
     np.testing.assert_allclose(res.q, q, atol=1e-12)
@@ -59,7 +59,7 @@ def test_acceptance_robot_compliance_cut_by_90_percent(make):
     before = simulate(cell)
     n = before.toolpath.normal
     # robot term only: compensate the robot, leave tool and holder to show they stay
-    m = replace(cell_deflection_model(cell), k_tip=np.zeros((6, 6)))
+    m = replace(cell_deflection_model(cell.cell), k_tip=np.zeros((6, 6)))
     res = precompensate(before.toolpath, before.wrench_robot, m)
     after = simulate(cell, commanded=before.toolpath.with_tip(res.commanded))
     others = _dn(after.tool_robot + after.holder_robot, n) + after.springback
@@ -69,7 +69,7 @@ def test_acceptance_robot_compliance_cut_by_90_percent(make):
     assert np.mean(np.abs(robot_before)) > 0.1e-3  # a real robot error to remove
     assert ratio <= 0.10, ratio
     # and the whole deflection (robot + tool + holder) with the full model
-    full = precompensate(before.toolpath, before.wrench_robot, cell_deflection_model(cell))
+    full = precompensate(before.toolpath, before.wrench_robot, cell_deflection_model(cell.cell))
     after2 = simulate(cell, commanded=before.toolpath.with_tip(full.commanded))
     e_before = before.dn_robot - before.springback
     e_after = after2.dn_robot - after2.springback
@@ -78,7 +78,7 @@ def test_acceptance_robot_compliance_cut_by_90_percent(make):
 
 def test_not_converged_raises_naming_indices(cone):
     cell, truth = cone
-    m = cell_deflection_model(cell)
+    m = cell_deflection_model(cell.cell)
     with pytest.raises(ConvergenceError, match=r"did not converge at \d+ of \d+ points.*indices"):
         precompensate(truth.toolpath, truth.wrench_robot, m, max_iter=2, tol=1e-9)
     res = precompensate(truth.toolpath, truth.wrench_robot, m, max_iter=2, tol=1e-9, partial=True)
@@ -93,7 +93,7 @@ def test_partial_compensation_is_not_written_unless_asked(cone, tmp_path):
     from roboisf.io.program import RobotTool
 
     cell, truth = cone
-    m = cell_deflection_model(cell)
+    m = cell_deflection_model(cell.cell)
     opts = CompensationOptions(springback=False, max_iter=2, tol=1e-9, partial=True)
     comp = compensate(cell.part, truth.toolpath, model=m, wrench=truth.wrench_robot, options=opts)
     assert not comp.complete
@@ -111,7 +111,7 @@ def test_partial_compensation_is_not_written_unless_asked(cone, tmp_path):
 
 def test_target_outside_workspace_names_indices(cone):
     cell, truth = cone
-    m = cell_deflection_model(cell)
+    m = cell_deflection_model(cell.cell)
     target = truth.toolpath.tip.copy()
     far = np.array([5, 17, 300])
     target[far, 0] += 3.0  # 3 m further from the robot: beyond its reach
@@ -124,7 +124,7 @@ def test_deflection_model_needs_stiffness(cone):
     from roboisf.errors import InputError
 
     cell, _ = cone
-    m = cell_deflection_model(cell)
+    m = cell_deflection_model(cell.cell)
     soft = replace(m.robot, stiffness=None)
     with pytest.raises(InputError, match="joint stiffness"):
         DeflectionModel(soft, m.T_base_work)

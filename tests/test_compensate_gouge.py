@@ -53,7 +53,7 @@ def test_unintended_push_into_the_part_is_flagged_at_its_indices(cone):
 def test_loaded_position_is_checked_not_the_unloaded_command(cone):
     """A pre-deflected command sits inside the surface unloaded; under load it lands on it."""
     cell, truth = cone
-    m = cell_deflection_model(cell)
+    m = cell_deflection_model(cell.cell)
     comp = compensate(
         cell.part,
         truth.toolpath,
@@ -70,7 +70,7 @@ def test_loaded_position_is_checked_not_the_unloaded_command(cone):
 
 def test_a_gouging_command_is_never_written(cone, tmp_path):
     cell, truth = cone
-    m = cell_deflection_model(cell)
+    m = cell_deflection_model(cell.cell)
     D = truth.dn_robot.copy()
     opts = CompensationOptions(gain=1.0, max_overbend=0.5e-3)  # springback needs ≈ 1.3 mm
     comp = compensate(

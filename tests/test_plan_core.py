@@ -28,12 +28,12 @@ CELL = paper_cone_cell(spacing=4e-3)
 
 @pytest.fixture(scope="module")
 def cone():
-    return problem_from_cell(CELL)
+    return problem_from_cell(CELL.cell, **CELL.path_settings)
 
 
 @pytest.fixture(scope="module")
 def cone_robot_only():
-    return problem_from_cell(CELL, with_tool=False)[0]
+    return problem_from_cell(CELL.cell, **CELL.path_settings, with_tool=False)[0]
 
 
 def _angled_model():
@@ -100,7 +100,7 @@ def test_gamma_cannot_matter_for_a_coaxial_tool(cone):
 
 
 def test_gamma_matters_for_an_angled_tool_and_the_best_is_kept():
-    prob, _ = problem_from_cell(CELL, model=_angled_model())
+    prob, _ = problem_from_cell(CELL.cell, **CELL.path_settings, model=_angled_model())
     assert not prob.tool_is_coaxial()
     T = placement_transforms([[1.6, 0.0, 0.6, 0.0]])[0]
     gs = np.radians([0.0, 60.0, 120.0, 180.0])

@@ -42,7 +42,8 @@ def problem():
     # an angled tool so that several tool rotations are really evaluated
     T_ft = make_transform(rpy_to_matrix([0.0, math.radians(30), 0.0]), [0.15, 0.0, 0.25])
     model = load_robot("irb7600-500-2.55").with_tool(T_ft)
-    return problem_from_cell(paper_cone_cell(spacing=6e-3), model=model)[0]
+    vc = paper_cone_cell(spacing=6e-3)
+    return problem_from_cell(vc.cell, **vc.path_settings, model=model)[0]
 
 
 def test_local_cluster_equals_serial(problem):

@@ -5,10 +5,10 @@ import math
 import numpy as np
 import pytest
 
+from roboisf.cell.forces import ForceModel, aerens_axial_force, tip_wrench
 from roboisf.errors import InputError
 from roboisf.parts import VWACF, Cone
 from roboisf.toolpath import step_down
-from roboisf.virtual.forces import ForceModel, aerens_axial_force, tip_wrench
 from roboisf.virtual.springback import SpringbackModel
 
 

@@ -2,14 +2,19 @@
 
 from __future__ import annotations
 
+import functools
 import math
+from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from roboisf.cli.console import state
 from roboisf.errors import InputError
+
+if TYPE_CHECKING:
+    from roboisf.virtual.cell import VirtualCell
 
 __all__ = ["register"]
 
@@ -46,7 +51,10 @@ def register(app: typer.Typer) -> None:
 
     @app.command("virtual-cell")
     def _virtual_cell(
-        part: Annotated[str, typer.Argument(help="cone (the paper's 71° cone) or vwacf.")],
+        part: Annotated[
+            str | None,
+            typer.Argument(help="cone (the paper's 71° cone) or vwacf; or give --part instead."),
+        ] = None,
         output: Annotated[
             Path, typer.Option("--output", "-o", help="Study folder to write.")
         ] = Path("study"),
@@ -62,20 +70,48 @@ def register(app: typer.Typer) -> None:
             bool, typer.Option("--fe/--beam", help="Tool/holder compliance by FE or beam model.")
         ] = False,
         seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
+        part_file: Annotated[
+            Path | None,
+            typer.Option(
+                "--part",
+                help="Any part file (roboisf part …): the paper-like cell around it (Ø10 mm "
+                "ball, IRB 7600 at 2.2 m, Aerens force). Instead of PART.",
+            ),
+        ] = None,
     ) -> None:
         """Write a synthetic study (CNC and robot runs with known ground truth in truth/).
 
-        The paper's parts on a virtual IRB 7600: Aerens forming force, VJM robot, tool and holder
+        The paper's parts, or any part file (--part PART.toml, lengths in mm),
+        on a virtual IRB 7600: Aerens forming force, VJM robot, tool and holder
         compliance, springback, 25 µm laser scans. Analyse it with `roboisf analyze`.
         """
-        from roboisf.virtual.cell import build_study, paper_cone_cell, paper_vwacf_cell
+        from roboisf.cell import PAPER_CELL_PLACEMENT
+        from roboisf.parts import load_part
+        from roboisf.virtual.cell import (
+            build_study,
+            paper_cone_cell,
+            paper_vwacf_cell,
+            virtual_cell,
+        )
 
         makers = {"cone": paper_cone_cell, "vwacf": paper_vwacf_cell}
-        if part not in makers:
+        if (part is None) == (part_file is None):
+            raise InputError("give either PART (cone or vwacf) or --part PART.toml", field="PART")
+        if part is not None and part not in makers:
             raise InputError(
-                f"unknown part {part!r}; expected one of {', '.join(makers)}", field="PART"
+                f"unknown part {part!r}; expected one of {', '.join(makers)} (or --part FILE)",
+                field="PART",
             )
-        cell = makers[part](
+        make: Callable[..., VirtualCell]
+        if part_file is not None:
+            p = load_part(part_file)
+            make = functools.partial(
+                virtual_cell, part_file.stem, p, T_base_work=PAPER_CELL_PLACEMENT
+            )
+        else:
+            assert part is not None
+            make = makers[part]
+        cell = make(
             scan_points=scan_points,
             force_rate=force_rate,
             robot=robot,

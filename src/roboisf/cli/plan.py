@@ -195,15 +195,14 @@ def _problem(
     with_tool: bool,
     opts: dict[str, Any],
 ) -> tuple[Any, Any, np.ndarray | None, str]:
+    from roboisf.cell import ForceModel, build_robot, cell_from_study, make_cell
     from roboisf.cli.robot import _floats
     from roboisf.frames import make_transform
-    from roboisf.parts import AxisymmetricPart, load_part
+    from roboisf.parts import load_part
     from roboisf.plan import PlanProblem, problem_from_cell
-    from roboisf.robot import load_robot, load_stiffness
-    from roboisf.virtual.cell import VirtualCell
+    from roboisf.robot import load_stiffness
 
-    def _model(name: str, T_ft: np.ndarray) -> Any:
-        m = load_robot(name).with_tool(T_ft)
+    def _override(m: Any) -> Any:
         if stiffness is not None:
             m = m.with_stiffness(load_stiffness(stiffness), source=str(stiffness))
         if tool is not None:
@@ -211,11 +210,8 @@ def _problem(
         return m
 
     if part is not None:
-        p = load_part(part)
-        if not isinstance(p, AxisymmetricPart):
-            raise InputError("plan needs a parametric (axisymmetric) part", file=part)
-        cell = VirtualCell(p.__class__.__name__.lower(), p, robot=robot)
-        m = _model(robot, cell.T_flange_tip)
+        cell = make_cell(load_part(part), robot=robot, force=ForceModel())
+        m = _override(cell.robot)
         prob, _ = problem_from_cell(cell, with_tool=with_tool, model=m, **opts)
         return prob, m, None, f"part {part.name}, force model"
     assert study is not None
@@ -226,21 +222,21 @@ def _problem(
     s = load_study(study)
     if s.robot is None:
         raise InputError("the study has no [robot] table", file=s.root / "study.toml")
-    T_ft = s.robot.T_flange_tip if s.robot.T_flange_tip is not None else np.eye(4)
-    m = _model(s.robot.model, T_ft)
-    if s.robot.joint_stiffness is not None and stiffness is None:
-        m = m.with_stiffness(s.robot.joint_stiffness, source="study")
+    c = cell_from_study(s)
+    # the study's robot and tool; --stiffness wins over the study's joint stiffness
+    m = c.robot if stiffness is None else build_robot(c.robot_name, T_flange_tip=c.T_flange_tip)
+    m = _override(m)
     rob = s.robot_run
     tp = read_toolpath_csv(rob.toolpath)
     W = run_tip_wrench(s, rob, tp)
     prob = PlanProblem(m, tp.tip, tp.normal, tp.lap, W, **opts)
-    return prob, m, s.robot.T_base_work, f"study {s.name}, robot-run forces, robot only"
+    return prob, m, c.T_base_work, f"study {s.name}, robot-run forces, robot only"
 
 
 def _baseline(text: str | None, study_T: np.ndarray | None, model: Any) -> np.ndarray:
+    from roboisf.cell import PAPER_CELL_PLACEMENT
     from roboisf.cli.robot import _floats
     from roboisf.frames import make_transform, rot_z
-    from roboisf.virtual.cell import PAPER_CELL_PLACEMENT
 
     if text is not None:
         v = _floats(text, 4, "--baseline")

@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
-from roboisf.parts.axisymmetric import AxisymmetricPart
+from roboisf.parts.base import Part
 from roboisf.robot.model import _short
 
 __all__ = ["GougeReport", "gouge_check"]
@@ -86,7 +86,7 @@ class GougeReport:
 
 
 def gouge_check(
-    part: AxisymmetricPart,
+    part: Part,
     tip: ArrayLike,
     tool_radius: float,
     *,

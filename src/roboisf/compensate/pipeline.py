@@ -41,7 +41,7 @@ from roboisf.errors import InputError
 from roboisf.io.atomic import atomic_write, staged_directory
 from roboisf.io.export import write_toolpath
 from roboisf.io.program import RobotTool
-from roboisf.parts.axisymmetric import AxisymmetricPart
+from roboisf.parts.base import Part
 from roboisf.progress import Progress, task
 from roboisf.toolpath.toolpath import Toolpath
 
@@ -178,7 +178,7 @@ def nominal_of(toolpath: Toolpath) -> Toolpath:
 
 
 def compensate(
-    part: AxisymmetricPart,
+    part: Part,
     nominal: Toolpath,
     *,
     model: DeflectionModel | None = None,

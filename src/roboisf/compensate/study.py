@@ -21,9 +21,11 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
+from roboisf.cell import Cell, cell_from_study
+from roboisf.compensate.cell import cell_deflection_model
 from roboisf.compensate.compliance import DeflectionModel
 from roboisf.compensate.pipeline import Compensation, CompensationOptions, compensate
-from roboisf.decompose.pipeline import analyze, study_robot, tip_compliances
+from roboisf.decompose.pipeline import analyze
 from roboisf.errors import InputError
 from roboisf.io.program import RobotTool
 from roboisf.io.toolpath_csv import read_toolpath_csv
@@ -37,13 +39,8 @@ _WRENCH = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
 
 
 def study_deflection_model(study: Study, *, progress: Progress | None = None) -> DeflectionModel:
-    """Robot (tool, stiffness), placement and tool + holder tip compliance of a study."""
-    model = study_robot(study)
-    assert study.robot is not None
-    _, _, k_t, k_th = tip_compliances(study, progress=progress)
-    return DeflectionModel(
-        model, study.robot.T_base_work, k_t + k_th, tool_rotation=study.robot.tool_rotation
-    )
+    """Robot (tool, stiffness), placement and tool + holder tip compliance of a study's cell."""
+    return cell_deflection_model(cell_from_study(study), progress=progress)
 
 
 @dataclass(frozen=True, eq=False)
@@ -51,6 +48,7 @@ class StudyCompensation:
     """A compensation of a study's robot part, with what the writers need."""
 
     study: Study
+    cell: Cell
     compensation: Compensation
     dn_before: F64
     dn_after: F64
@@ -98,6 +96,7 @@ def compensate_study(
         raise InputError(
             "compensation needs a [robot] table (model, placement)", file=study.root / "study.toml"
         )
+    cell = cell_from_study(study)
     o = options or CompensationOptions()
     run = study.robot_run
     formed = read_toolpath_csv(run.toolpath)
@@ -114,9 +113,9 @@ def compensate_study(
     region = formed.depth > study.analysis.rim_band
     c_prev = None if previous is None else _previous_offset(Path(previous), len(formed))
     with task(progress, "deflection model"):
-        model = study_deflection_model(study, progress=progress)
+        model = cell_deflection_model(cell, progress=progress)
     comp = compensate(
-        study.part,
+        cell.part,
         formed,
         model=model,
         wrench=W,
@@ -140,18 +139,19 @@ def compensate_study(
     inputs = (study.root, *(Path(p) for p in (results, previous) if p is not None))
     meta = {
         "study": study.name,
-        "robot": study.robot.model,
+        "robot": cell.robot_name,
         "rim_band_mm": study.analysis.rim_band * 1e3,
     }
     comp = replace(comp, meta=meta)
     return StudyCompensation(
         study,
+        cell,
         comp,
         np.where(judged, dn, np.nan),
         dn_after,
-        study.robot.T_base_work,
+        cell.T_base_work,
         tool,
-        float(study.robot.tool_rotation),
+        float(cell.tool_rotation),
         inputs,
     )
 

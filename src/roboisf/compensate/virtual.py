@@ -12,23 +12,14 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from roboisf.compensate.compliance import DeflectionModel
+from roboisf.compensate.cell import cell_deflection_model
 from roboisf.compensate.pipeline import Compensation, CompensationOptions, compensate
 from roboisf.progress import Progress
-from roboisf.virtual.cell import CellTruth, VirtualCell, cell_robot, simulate, tip_compliances
+from roboisf.virtual.cell import CellTruth, VirtualCell, simulate
 
 __all__ = ["VirtualIterations", "cell_deflection_model", "iterate_virtual"]
 
 F64 = NDArray[np.float64]
-
-
-def cell_deflection_model(cell: VirtualCell, *, include_robot: bool = True) -> DeflectionModel:
-    """The cell's robot (with tool, placement) and its tool + holder compliance at the tip."""
-    model, T_bw = cell_robot(cell)
-    _, _, k_t, k_th = tip_compliances(cell)
-    return DeflectionModel(
-        model, T_bw, k_t + k_th, tool_rotation=cell.tool_rotation, include_robot=include_robot
-    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,7 +48,7 @@ def iterate_virtual(
     With springback off, every iteration is the same compliance pre-deflection (one suffices).
     """
     o = options or CompensationOptions()
-    model = cell_deflection_model(cell)
+    model = cell_deflection_model(cell.cell)
     truth = simulate(cell, progress=progress)
     nominal = truth.toolpath
     truths, commands = [truth], []

@@ -25,6 +25,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
+from roboisf.cell import Cell, cell_from_study, tip_compliances
 from roboisf.decompose.core import (
     FACTORS,
     Decomposition,
@@ -33,27 +34,16 @@ from roboisf.decompose.core import (
     resultant_mean_deviation,
 )
 from roboisf.errors import InputError
-from roboisf.fem import (
-    BallEndTool,
-    ComplianceResult,
-    beam_result,
-    load_compliance_json,
-    tool_compliance,
-)
-from roboisf.frames import to_tip, vertical_tool
+from roboisf.fem import ComplianceResult
+from roboisf.frames import vertical_tool
 from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
 from roboisf.io.forcelog import attach_to_toolpath, read_force_log
 from roboisf.io.jointlog import read_joint_log
 from roboisf.io.thickness import read_thickness_csv
 from roboisf.io.toolpath_csv import read_toolpath_csv
+from roboisf.parts import sine_law_thickness
 from roboisf.progress import Progress, task
-from roboisf.robot import (
-    RobotModel,
-    compliance_stats,
-    deflection_contributions,
-    ik_toolpath,
-    load_robot,
-)
+from roboisf.robot import compliance_stats, deflection_contributions, ik_toolpath
 from roboisf.scan import CompareOptions, ScanComparison, compare_scan, read_scan
 from roboisf.study.sensors import sensor_to_tip
 from roboisf.study.spec import RunSpec, Study, load_study
@@ -63,8 +53,6 @@ __all__ = [
     "AnalysisResult",
     "analyze",
     "run_tip_wrench",
-    "study_robot",
-    "tip_compliances",
     "write_results",
 ]
 
@@ -78,6 +66,7 @@ class AnalysisResult:
     """Everything ``analyze`` found. Tables in mm, N, N·m, deg, s (the report's contract)."""
 
     study: Study
+    cell: Cell
     decomposition: Decomposition
     per_point: pd.DataFrame
     contributions: pd.DataFrame
@@ -113,52 +102,9 @@ def run_tip_wrench(study: Study, run: RunSpec, tp: Toolpath) -> F64:
     return sensor_to_tip(W_s, f, tp.tip, vertical_tool(rot))
 
 
-def _tool_compliance(study: Study, progress: Progress | None) -> ComplianceResult:
-    t = study.tool
-    if t.compliance is not None:
-        return load_compliance_json(t.compliance)
-    assert t.free_length is not None
-    tool = BallEndTool(t.ball_diameter, t.free_length, t.shank_diameter)
-    return tool_compliance(tool, progress=progress) if t.method == "fe" else beam_result(tool)
-
-
-def tip_compliances(
-    study: Study, *, progress: Progress | None = None
-) -> tuple[ComplianceResult, ComplianceResult | None, F64, F64]:
-    """Tool and holder compliance of a study: the results (holder None when rigid) and both
-    moved to the tool tip, (6, 6) each, work axes (the tool vertical)."""
-    k_tool = _tool_compliance(study, progress)
-    k_t = to_tip(k_tool.compliance, -k_tool.reference_point)
-    if study.holder.rigid or study.holder.compliance is None:
-        return k_tool, None, k_t, np.zeros((6, 6))
-    k_holder = load_compliance_json(study.holder.compliance)
-    k_th = to_tip(
-        k_holder.compliance,
-        np.array([0.0, 0.0, -study.holder.offset]) - k_holder.reference_point,
-    )
-    return k_tool, k_holder, k_t, k_th
-
-
-def study_robot(study: Study) -> RobotModel:
-    """The study's robot model with its tool (flange → tip) and joint stiffness."""
-    if study.robot is None:
-        raise InputError(
-            "the study needs a [robot] table (model, placement)", file=study.root / "study.toml"
-        )
-    model = load_robot(study.robot.model)
-    if study.robot.T_flange_tip is not None:
-        model = model.with_tool(study.robot.T_flange_tip)
-    if study.robot.joint_stiffness is not None:
-        model = model.with_stiffness(study.robot.joint_stiffness, source="study.toml")
-    return model
-
-
-def _joint_angles(
-    study: Study, run: RunSpec, tp: Toolpath, model: Any, T_bw: F64
-) -> tuple[F64, str]:
+def _joint_angles(cell: Cell, run: RunSpec, tp: Toolpath) -> tuple[F64, str]:
     if run.joints is None:
-        rot = study.robot.tool_rotation if study.robot is not None else 0.0
-        q = ik_toolpath(model, tp.tip, T_bw, tool_rotation=rot).q
+        q = ik_toolpath(cell.robot, tp.tip, cell.T_base_work, tool_rotation=cell.tool_rotation).q
         return q, "inverse kinematics of the toolpath"
     log = read_joint_log(run.joints)
     t0, t1 = float(tp.time[0]), float(tp.time[-1])
@@ -172,7 +118,9 @@ def _joint_angles(
     return q, f"joint log {run.joints.name}"
 
 
-def _compare(study: Study, run: RunSpec, tp: Toolpath, progress: Progress | None) -> ScanComparison:
+def _compare(
+    study: Study, cell: Cell, run: RunSpec, tp: Toolpath, progress: Progress | None
+) -> ScanComparison:
     a = study.analysis
     # per-point deviations over the whole wall (the paper's polar plot sits at z = −11 mm, inside
     # the rim band); the rim band leaves the statistics through the ``used`` mask
@@ -182,7 +130,7 @@ def _compare(study: Study, run: RunSpec, tp: Toolpath, progress: Progress | None
     cloud = read_scan(run.scan, unit=run.scan_unit)
     return compare_scan(
         cloud,
-        study.part,
+        cell.part,  # type: ignore[arg-type]  # any Part once scan/ is typed on the protocol
         toolpath=tp,
         toolpath_source=str(run.toolpath),
         options=opts,
@@ -194,6 +142,7 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
     """Run the decomposition on a study (a :class:`Study` or a folder/``study.toml``)."""
     if not isinstance(study, Study):
         study = load_study(study)
+    cell = cell_from_study(study)
     cnc, rob = study.cnc, study.robot_run
     with task(progress, "toolpath"):
         tp = read_toolpath_csv(cnc.toolpath)
@@ -204,7 +153,7 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
                 "compares the two parts point by point)",
                 file=rob.toolpath,
             )
-        off = np.abs(study.part.closest_point(tp.contact).distance)
+        off = np.abs(cell.part.closest_point(tp.contact).distance)
         if off.max() > 0.1e-3:
             i = int(np.argmax(off))
             raise InputError(
@@ -217,7 +166,7 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
         W_rob = run_tip_wrench(study, rob, tp)
 
     with task(progress, "tool and holder compliance"):
-        k_tool, k_holder, k_t, k_th = tip_compliances(study, progress=progress)
+        k_tool, k_holder, k_t, k_th = tip_compliances(cell, progress=progress)
     tool_cnc = (W_cnc @ k_t.T)[:, :3]
     tool_rob = (W_rob @ k_t.T)[:, :3]
     holder_rob = (W_rob @ k_th.T)[:, :3]
@@ -225,36 +174,31 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
     scans = {}
     for run in (cnc, rob):
         with task(progress, f"scan {run.name}"):
-            scans[run.name] = _compare(study, run, tp, progress)
+            scans[run.name] = _compare(study, cell, run, tp, progress)
     dev_c, dev_r = scans[cnc.name].toolpath, scans[rob.name].toolpath
     assert dev_c is not None and dev_r is not None
 
-    if study.robot is None:
-        raise InputError(
-            "the decomposition needs a [robot] table (model, placement)",
-            file=study.root / "study.toml",
-        )
     with task(progress, "robot VJM"):
-        model = study_robot(study)
-        T_bw = study.robot.T_base_work
-        q, q_source = _joint_angles(study, rob, tp, model, T_bw)
-        k_c = model.compliance(q, T_base_work=T_bw)
+        q, q_source = _joint_angles(cell, rob, tp)
+        k_c = cell.robot.compliance(q, T_base_work=cell.T_base_work)
         vjm = np.einsum("nij,nj->ni", k_c, W_rob)[:, :3]
 
     valid = dev_c.valid & dev_r.valid & (tp.depth > study.analysis.rim_band)
     d = decompose(tp.normal, dev_c.dn, dev_r.dn, tool_cnc, tool_rob, holder_rob, vjm, valid)
 
-    per_point = _per_point(study, tp, W_cnc, W_rob, dev_c, dev_r, d)
+    per_point = _per_point(cell, tp, W_cnc, W_rob, dev_c, dev_r, d)
     thick = rob.thickness or cnc.thickness
     if thick is not None:
         per_point["thickness_measured"] = read_thickness_csv(thick).at(tp.depth) * 1e3
     contributions = pd.DataFrame(_mm_rows(contribution_rows(d, projected=False)))
     contributions_normal = pd.DataFrame(_mm_rows(contribution_rows(d, projected=True)))
-    summary = _summary(study, tp, d, k_c, W_rob, valid, k_tool, k_holder, q_source, scans)
+    summary = _summary(study, cell, tp, d, k_c, W_rob, valid, k_tool, k_holder, q_source, scans)
     truth = study.root / "truth" / "per_point.parquet"
     if truth.is_file():
         _attach_truth(truth, per_point, summary, d)
-    return AnalysisResult(study, d, per_point, contributions, contributions_normal, summary, scans)
+    return AnalysisResult(
+        study, cell, d, per_point, contributions, contributions_normal, summary, scans
+    )
 
 
 def _mm_rows(rows: list[dict[str, float | str]]) -> list[dict[str, float | str]]:
@@ -265,7 +209,7 @@ def _mm_rows(rows: list[dict[str, float | str]]) -> list[dict[str, float | str]]
 
 
 def _per_point(
-    study: Study, tp: Toolpath, W_cnc: F64, W_rob: F64, dev_c: Any, dev_r: Any, d: Decomposition
+    cell: Cell, tp: Toolpath, W_cnc: F64, W_rob: F64, dev_c: Any, dev_r: Any, d: Decomposition
 ) -> pd.DataFrame:
     cols: dict[str, Any] = {
         "index": np.arange(len(tp)),
@@ -294,13 +238,14 @@ def _per_point(
         for j, ax in enumerate(_AX):
             cols[f"{col}_d{ax}"] = v[:, j] * 1e3
         cols[f"{col}_dn"] = d.normal[key] * 1e3
-    cols["thickness_predicted"] = study.part.thickness(tp.wall_angle) * 1e3
+    cols["thickness_predicted"] = sine_law_thickness(tp.wall_angle, cell.part.sheet_thickness) * 1e3
     cols["used"] = d.valid
     return pd.DataFrame(cols)
 
 
 def _summary(
     study: Study,
+    cell: Cell,
     tp: Toolpath,
     d: Decomposition,
     k_c: F64,
@@ -338,20 +283,18 @@ def _summary(
                 f"{name} scan: {holes} toolpath points below the rim band fall in holes of the "
                 "scan and are left out"
             )
-    robot = study.robot
-    assert robot is not None
     return {
         "study": study.name,
         "description": study.description,
-        "part": study.part.to_dict(),
+        "part": cell.part.to_dict(),
         "robot": {
-            "model": robot.model,
-            "preset": robot.model,
-            "placement_T_base_work_m": robot.T_base_work.tolist(),
+            "model": cell.robot_name,
+            "preset": cell.robot_name,
+            "placement_T_base_work_m": cell.T_base_work.tolist(),
             "joint_angles_from": q_source,
         },
         "tool": {
-            "ball_diameter_mm": study.tool.ball_diameter * 1e3,
+            "ball_diameter_mm": cell.tool.ball_diameter * 1e3,
             "method": k_tool.method,
             "lateral_compliance_m_per_N": k_tool.lateral,
             "holder_lateral_compliance_m_per_N": None if k_holder is None else k_holder.lateral,

@@ -58,7 +58,11 @@ class Part(Protocol):
     """
 
     kind: ClassVar[str]
-    sheet_thickness: float
+
+    @property
+    def sheet_thickness(self) -> float:
+        """Initial sheet thickness [m] (read-only: parts are frozen values)."""
+        ...
 
     @property
     def depth(self) -> float:

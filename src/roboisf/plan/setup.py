@@ -1,4 +1,4 @@
-"""Build a :class:`PlanProblem` from a part (+ the force model) or from a virtual cell."""
+"""Build a :class:`PlanProblem` from a part (+ the force model) or from a cell."""
 
 from __future__ import annotations
 
@@ -6,20 +6,17 @@ from typing import Any
 
 import numpy as np
 
-from roboisf.fem import beam_result
-from roboisf.frames import to_tip
-from roboisf.parts import AxisymmetricPart
+from roboisf.cell import Cell, ForceModel, nominal_toolpath, tip_compliances, tip_wrench
+from roboisf.parts import Part
 from roboisf.plan.problem import PlanProblem
 from roboisf.robot.model import RobotModel
-from roboisf.toolpath import Toolpath, step_down
-from roboisf.virtual.cell import VirtualCell
-from roboisf.virtual.forces import ForceModel, tip_wrench
+from roboisf.toolpath import Toolpath
 
 __all__ = ["problem_from_cell", "problem_from_part"]
 
 
 def problem_from_part(
-    part: AxisymmetricPart,
+    part: Part,
     model: RobotModel,
     *,
     tool_radius: float = 5e-3,
@@ -32,9 +29,10 @@ def problem_from_part(
 ) -> tuple[PlanProblem, Toolpath]:
     """Step-down toolpath of ``part`` and the force model's wrench on it → (problem, toolpath).
 
-    Lengths in m. ``options`` go to :class:`PlanProblem` (limits, smoothing, objective).
+    Lengths in m. ``tool_compliance`` (6, 6) SI at the tip. ``options`` go to
+    :class:`PlanProblem` (limits, smoothing, objective).
     """
-    tp = step_down(part, tool_radius, step, spacing=spacing, max_wall_step=max_wall_step)
+    tp = nominal_toolpath(part, tool_radius, step, spacing=spacing, max_wall_step=max_wall_step)
     W = tip_wrench(tp, force or ForceModel(), thickness=part.sheet_thickness, step_down=step)
     prob = PlanProblem(
         model, tp.tip, tp.normal, tp.lap, W, tool_compliance=tool_compliance, **options
@@ -43,34 +41,30 @@ def problem_from_part(
 
 
 def problem_from_cell(
-    cell: VirtualCell,
+    cell: Cell,
     *,
+    step: float = 0.5e-3,
+    spacing: float = 1e-3,
+    max_wall_step: float | None = None,
     with_tool: bool = True,
     model: RobotModel | None = None,
     **options: Any,
 ) -> tuple[PlanProblem, Toolpath]:
-    """The virtual cell's part, toolpath, force model, robot (with its tool) and — with
-    ``with_tool`` — the beam-model tool + holder compliance at the tip, as
-    :func:`roboisf.virtual.simulate` uses them (γ = 0: the same axes). ``model`` replaces the
-    cell's robot (e.g. another tool mounting)."""
-    from roboisf.robot import load_robot
-
-    if model is None:
-        model = load_robot(cell.robot).with_tool(cell.T_flange_tip)
+    """The cell's part, nominal toolpath (``step``, ``spacing``, ``max_wall_step`` m), force model
+    (default :class:`ForceModel` when the cell has none), robot (with its tool) and — with
+    ``with_tool`` — the tool + holder compliance at the tip (:func:`roboisf.cell.tip_compliances`,
+    γ = 0: the same axes). ``model`` replaces the cell's robot (e.g. another tool mounting)."""
     k = None
     if with_tool:
-        kt = beam_result(cell.tool)
-        kh = beam_result(cell.holder)
-        k = kt.compliance + to_tip(
-            kh.compliance, np.array([0.0, 0.0, -cell.tool.length]) - kh.reference_point
-        )
+        _, _, k_t, k_th = tip_compliances(cell)
+        k = k_t + k_th
     return problem_from_part(
         cell.part,
-        model,
+        cell.robot if model is None else model,
         tool_radius=cell.tool.radius,
-        step=cell.step_down,
-        spacing=cell.spacing,
-        max_wall_step=cell.max_wall_step,
+        step=step,
+        spacing=spacing,
+        max_wall_step=max_wall_step,
         force=cell.force,
         tool_compliance=k,
         **options,

@@ -7,7 +7,7 @@ It is the demo, the end-to-end test bed, and a way to plan a part before forming
 
 What is simulated, per toolpath point (all at the tool tip, work axes, SI):
 
-1. the forming wrench W on the tool (:mod:`roboisf.virtual.forces`); the robot run's force is
+1. the forming wrench W on the tool (:mod:`roboisf.cell.forces`); the robot run's force is
    a little lower at the start (the paper: "slightly less ... during the initial stage"),
    ``W_robot = W · (1 − deficit · exp(−depth / 15 mm))``;
 2. tool and holder deflection ``k · W`` (compliances from the beam model or FE, moved to the tip
@@ -36,54 +36,63 @@ import pandas as pd
 import tomli_w
 from numpy.typing import NDArray
 
-from roboisf.errors import InputError
-from roboisf.fem import (
-    PAPER_TOOL_LENGTH,
-    BallEndTool,
-    ComplianceResult,
-    HolderSection,
-    ToolHolder,
-    beam_result,
-    holder_compliance,
-    save_compliance_json,
-    tool_compliance,
+from roboisf.cell import (
+    DEFAULT_HOLDER,
+    PAPER_CELL_PLACEMENT,
+    SENSOR_STACK,
+    Cell,
+    ForceModel,
+    make_cell,
+    require_axisymmetric,
+    tip_compliances,
+    tip_wrench,
 )
-from roboisf.frames import make_transform, matrix_to_rpy, rpy_to_matrix, to_tip, vertical_tool
+from roboisf.errors import InputError
+from roboisf.fem import ComplianceResult, save_compliance_json
+from roboisf.frames import make_transform, matrix_to_rpy, rpy_to_matrix, vertical_tool
 from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
 from roboisf.io.forcelog import ForceLog, write_force_log
 from roboisf.io.jointlog import write_joint_log
 from roboisf.io.thickness import write_thickness_csv
 from roboisf.io.toolpath_csv import write_toolpath_csv
-from roboisf.parts import VWACF, AxisymmetricPart, Cone
+from roboisf.parts import VWACF, Cone, Part, sine_law_thickness
 from roboisf.progress import Progress, task
-from roboisf.robot import RobotModel, ik_toolpath, load_robot
+from roboisf.robot import ik_toolpath, load_robot
 from roboisf.scan import synthetic_scan, write_ply
 from roboisf.study.sensors import tip_to_sensor
 from roboisf.study.spec import ForceSensorSpec
-from roboisf.toolpath import Toolpath, step_down
-from roboisf.virtual.forces import ForceModel, tip_wrench
+from roboisf.toolpath import Toolpath
 from roboisf.virtual.formed import NormalField
 from roboisf.virtual.springback import SpringbackModel
 
 __all__ = [
+    "DEFAULT_HOLDER",
+    "PAPER_CELL_PLACEMENT",
+    "SENSOR_STACK",
     "CellTruth",
     "VirtualCell",
     "build_study",
-    "cell_robot",
     "cell_toolpath",
     "paper_cone_cell",
     "paper_vwacf_cell",
     "simulate",
-    "tip_compliances",
+    "virtual_cell",
 ]
 
 F64 = NDArray[np.float64]
 
-#: Default holder: a Ø40 mm steel shank, 200 mm from flange adapter to nose, loaded through the
-#: tool's Ø10 mm footprint — beam model 1.03e-7 m/N lateral, the paper's holder is 1.07e-7.
-DEFAULT_HOLDER = ToolHolder((HolderSection(0.200, 0.040),), coupling_diameter=0.010)
-#: Distance from the flange to the holder's top (F/T sensor and adapter) [m].
-SENSOR_STACK = 0.040
+#: Keyword arguments of :func:`virtual_cell` that describe the physical cell (:func:`make_cell`);
+#: the others are the synthetic experiment's settings (:class:`VirtualCell` fields).
+CELL_KEYS = (
+    "tool",
+    "holder",
+    "compliance_method",
+    "robot",
+    "joint_stiffness",
+    "T_base_work",
+    "tool_rotation",
+    "force",
+)
 
 
 def _pose_list(T: F64) -> list[float]:
@@ -92,25 +101,23 @@ def _pose_list(T: F64) -> list[float]:
     return [round(float(v), 9) for v in (*(T[:3, 3] * 1e3), *rpy)]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class VirtualCell:
-    """A synthetic experiment: part, tool, holder, robot, process and measurement (SI).
+    """A synthetic experiment: the physical :class:`~roboisf.cell.Cell` (part, tool, holder,
+    robot, placement, force model) and how it is formed and measured (SI).
 
-    The two paper studies are :func:`paper_cone_cell` and :func:`paper_vwacf_cell`.
+    Build one with :func:`virtual_cell`; the two paper studies are :func:`paper_cone_cell` and
+    :func:`paper_vwacf_cell`. ``step_down``, ``spacing`` and ``max_wall_step`` [m] make the nominal
+    toolpath; the rest models the process (robot force deficit, springback) and the measurement
+    (log rates [Hz], scan density, noise [m], holes, misplacement [m, rad], sensor poses, gauged
+    thickness, seed).
     """
 
     name: str
-    part: AxisymmetricPart
-    tool: BallEndTool = field(default_factory=lambda: BallEndTool(10e-3, PAPER_TOOL_LENGTH))
-    holder: ToolHolder = DEFAULT_HOLDER
-    compliance_method: str = "beam"  # "beam" or "fe"
-    robot: str = "irb7600-500-2.55"
-    T_base_work: F64 | None = None  # default: the robot preset's default placement
-    tool_rotation: float = 0.0
+    cell: Cell
     step_down: float = 0.5e-3
     spacing: float = 1e-3
     max_wall_step: float | None = None
-    force: ForceModel = field(default_factory=ForceModel)
     robot_force_deficit: float = 0.06
     springback: SpringbackModel = field(default_factory=SpringbackModel)
     force_rate: float = 1000.0  # Hz
@@ -134,8 +141,10 @@ class VirtualCell:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        if self.compliance_method not in ("beam", "fe"):
-            raise InputError("must be 'beam' or 'fe'", field="compliance_method")
+        if not isinstance(self.cell, Cell):
+            raise InputError(f"expected a Cell, got {type(self.cell).__name__}", field="cell")
+        if self.cell.force is None:
+            raise InputError("the virtual cell needs a force model", field="cell.force")
         for name in ("force_rate", "joint_rate"):
             if not getattr(self, name) > 0:
                 raise InputError("must be > 0 Hz", field=name)
@@ -145,10 +154,33 @@ class VirtualCell:
             raise InputError("must be in [0, 1)", field="robot_force_deficit")
 
     @property
+    def part(self) -> Part:
+        return self.cell.part
+
+    @property
+    def force(self) -> ForceModel:
+        assert self.cell.force is not None
+        return self.cell.force
+
+    @property
+    def tool_rotation(self) -> float:
+        return self.cell.tool_rotation
+
+    @property
     def T_flange_tip(self) -> F64:
-        """Tool straight out of the flange: tip at sensor stack + holder + tool free length."""
-        L = SENSOR_STACK + sum(s.length for s in self.holder.sections) + self.tool.length
-        return make_transform(p=[0.0, 0.0, L])
+        """(4, 4) m — the tool tip in the flange frame (the cell robot's tool)."""
+        return self.cell.T_flange_tip
+
+    @property
+    def path_settings(self) -> dict[str, Any]:
+        """The nominal toolpath's settings as :meth:`roboisf.cell.Cell.toolpath` and
+        :func:`roboisf.plan.problem_from_cell` take them (``step``, ``spacing``,
+        ``max_wall_step``; m)."""
+        return {
+            "step": self.step_down,
+            "spacing": self.spacing,
+            "max_wall_step": self.max_wall_step,
+        }
 
     @property
     def T_tip_sensor(self) -> F64:
@@ -157,31 +189,30 @@ class VirtualCell:
         return make_transform(rpy_to_matrix([0.0, 0.0, math.radians(30)]), [0.0, 0.0, z])
 
 
-#: Where the paper-like cells put the blank: 2.2 m in front of an IRB 7600 base, 0.2 m up, axes
-#: parallel to the base. The paper does not give its placement; at 86 % of the robot's reach the
-#: VJM with the quoted joint stiffness gives a robot error of the paper's order (R_m ≈ 0.5 mm on
-#: the cone; 0.17 mm at the preset's 1.6 m default placement). A choice, documented, not data.
-PAPER_CELL_PLACEMENT = make_transform(p=[2.2, 0.0, 0.2])
+def virtual_cell(name: str, part: Part, **settings: Any) -> VirtualCell:
+    """A virtual cell for ``part``: the keys of :data:`CELL_KEYS` build the physical cell
+    (:func:`roboisf.cell.make_cell`; ``force`` defaults to :class:`ForceModel`), the others are
+    :class:`VirtualCell` settings."""
+    cell_kw = {k: settings.pop(k) for k in CELL_KEYS if k in settings}
+    cell_kw.setdefault("force", ForceModel())
+    return VirtualCell(name, make_cell(part, **cell_kw), **settings)
 
 
 def paper_cone_cell(**overrides: Any) -> VirtualCell:
     """The paper's cone: Ø87 mm, 71°, 102.97 mm deep, AA1050 1.22 mm, Ø10 ball, IRB 7600."""
-    return replace(VirtualCell("cone-71", Cone(), T_base_work=PAPER_CELL_PLACEMENT), **overrides)
+    return virtual_cell("cone-71", Cone(), **{"T_base_work": PAPER_CELL_PLACEMENT, **overrides})
 
 
 def paper_vwacf_cell(**overrides: Any) -> VirtualCell:
     """The paper's VWACF: Ø88.15 mm, 0 → 90° (39 mm arc), fracture at 78°, force peak 475 N."""
-    part = VWACF()
-    cell = VirtualCell(
-        "vwacf",
-        part,
-        T_base_work=PAPER_CELL_PLACEMENT,
-        max_wall_step=0.5e-3,
-        force=ForceModel(mode="variable"),
-        springback=SpringbackModel(amplitude=0.96e-3),
-        rim_thinning=0.0,
-    )
-    return replace(cell, **overrides)
+    settings: dict[str, Any] = {
+        "T_base_work": PAPER_CELL_PLACEMENT,
+        "max_wall_step": 0.5e-3,
+        "force": ForceModel(mode="variable"),
+        "springback": SpringbackModel(amplitude=0.96e-3),
+        "rim_thinning": 0.0,
+    }
+    return virtual_cell("vwacf", VWACF(), **{**settings, **overrides})
 
 
 @dataclass(frozen=True)
@@ -200,60 +231,16 @@ class CellTruth:
     dn_cnc: F64
     dn_robot: F64
     tool_compliance: ComplianceResult
-    holder_compliance: ComplianceResult
+    holder_compliance: ComplianceResult | None
     T_base_work: F64
     fracture_depth: float
     #: (N, 3) m — commanded tip − nominal tip (zeros for the nominal command)
     command_offset: F64 | None = None
 
 
-def _compliances(
-    cell: VirtualCell, progress: Progress | None
-) -> tuple[ComplianceResult, ComplianceResult]:
-    if cell.compliance_method == "fe":
-        return tool_compliance(cell.tool, progress=progress), holder_compliance(
-            cell.holder, progress=progress
-        )
-    return beam_result(cell.tool), beam_result(cell.holder)
-
-
-def tip_compliances(
-    cell: VirtualCell, *, progress: Progress | None = None
-) -> tuple[ComplianceResult, ComplianceResult, F64, F64]:
-    """Tool and holder compliance of ``cell``: the results and both at the tool tip (6, 6).
-
-    FE/beam frames: z up the tool axis = work z; the tool at the tip, the holder at its nose,
-    which sits one tool free length above the tip.
-    """
-    k_tool, k_holder = _compliances(cell, progress)
-    k_t = k_tool.compliance
-    k_th = to_tip(
-        k_holder.compliance, np.array([0.0, 0.0, -cell.tool.length]) - k_holder.reference_point
-    )
-    return k_tool, k_holder, k_t, k_th
-
-
-def cell_robot(cell: VirtualCell) -> tuple[RobotModel, F64]:
-    """The cell's robot model (with the tool) and its placement ``T_base_work`` (4, 4) m."""
-    model = load_robot(cell.robot).with_tool(cell.T_flange_tip)
-    T_bw = model.default_placement if cell.T_base_work is None else cell.T_base_work
-    if T_bw is None:
-        raise InputError(
-            f"robot {cell.robot!r} has no default placement; give T_base_work",
-            field="T_base_work",
-        )
-    return model, np.asarray(T_bw, dtype=float)
-
-
 def cell_toolpath(cell: VirtualCell) -> Toolpath:
     """The nominal toolpath the cell forms (step-down; cut 1 mm past a fracture)."""
-    tp = step_down(
-        cell.part,
-        cell.tool.radius,
-        cell.step_down,
-        spacing=cell.spacing,
-        max_wall_step=cell.max_wall_step,
-    )
+    tp = cell.cell.toolpath(**cell.path_settings)
     frac = cell.force.fracture_depth(tp)
     if math.isfinite(frac):
         # forming stops shortly after the sheet fractures: keep the laps up to 1 mm past it
@@ -311,13 +298,13 @@ def simulate(
         tp = tp.with_tip(commanded.tip)
 
     with task(progress, "tool and holder compliance"):
-        k_tool, k_holder, k_t, k_th = tip_compliances(cell, progress=progress)
+        k_tool, k_holder, k_t, k_th = tip_compliances(cell.cell, progress=progress)
     tool_cnc = (W @ k_t.T)[:, :3]
     tool_rob = (W_rob @ k_t.T)[:, :3]
     holder_rob = (W_rob @ k_th.T)[:, :3]
 
     with task(progress, "robot IK and VJM"):
-        model, T_bw = cell_robot(cell)
+        model, T_bw = cell.cell.robot, cell.cell.T_base_work
         ik = ik_toolpath(model, tp.tip, T_bw, tool_rotation=cell.tool_rotation)
         robot = model.deflection(ik.q, W_rob, T_base_work=T_bw)[:, :3]
 
@@ -349,7 +336,7 @@ def _thickness(cell: VirtualCell, tp: Toolpath, path: Path, rng: np.random.Gener
     """A gauged thickness profile: sine law with near-rim thinning, 10 µm gauge noise, every mm."""
     depth = np.arange(1e-3, tp.depth.max(), 1e-3)
     angle = np.interp(depth, tp.depth[np.argsort(tp.depth)], tp.wall_angle[np.argsort(tp.depth)])
-    t = cell.part.thickness(angle) * (
+    t = sine_law_thickness(angle, cell.part.sheet_thickness) * (
         1 - cell.rim_thinning * np.exp(-depth / cell.rim_thinning_depth)
     )
     write_thickness_csv(path, depth, t + rng.normal(scale=10e-6, size=depth.size))
@@ -379,7 +366,7 @@ def _force_log(
 def _scan(
     cell: VirtualCell, truth: CellTruth, dn: F64, path: Path, rng: np.random.Generator, seed: int
 ) -> None:
-    part = cell.part
+    part = require_axisymmetric(cell.part, "the virtual cell's synthetic scan")
     field_ = NormalField.from_toolpath(part, truth.toolpath, dn)
     wall = truth.toolpath.contact[truth.toolpath.depth > 0.02]
     holes = [
@@ -419,7 +406,8 @@ def build_study(
                 tp, d / "toolpath.csv", generator=f"roboisf virtual-cell ({cell.name})"
             )
             save_compliance_json(truth.tool_compliance, d / "tool_compliance.json")
-            save_compliance_json(truth.holder_compliance, d / "holder_compliance.json")
+            if truth.holder_compliance is not None:
+                save_compliance_json(truth.holder_compliance, d / "holder_compliance.json")
         with task(progress, "force logs"):
             write_force_log(
                 _force_log(cell, tp, truth.wrench_cnc, cnc_sensor, rng), d / "cnc_forces.csv"
@@ -444,24 +432,32 @@ def build_study(
 def _write_study_toml(
     cell: VirtualCell, truth: CellTruth, cnc: ForceSensorSpec, rob: ForceSensorSpec, path: Path
 ) -> None:
+    c = cell.cell
+    robot: dict[str, Any] = {
+        "model": c.robot_name,
+        "placement": _pose_list(c.T_base_work),
+        "flange_to_tip": _pose_list(c.T_flange_tip),
+        "tool_rotation": math.degrees(c.tool_rotation),
+    }
+    preset = load_robot(c.robot_name).stiffness
+    K = c.robot.stiffness
+    if K is not None and (preset is None or not np.array_equal(K, preset)):
+        robot["joint_stiffness"] = [float(k) for k in K]
     data: dict[str, Any] = {
         "study": {
             "name": cell.name,
             "description": f"virtual cell: {cell.name} (roboisf virtual-cell)",
         },
         "units": {"length": "mm", "angle": "deg", "force": "N", "moment": "N*m", "time": "s"},
-        "part": cell.part.to_dict(),
+        "part": c.part.to_dict(),
         "tool": {
-            "ball_diameter": cell.tool.ball_diameter * 1e3,
+            "ball_diameter": c.tool.ball_diameter * 1e3,
             "compliance": "tool_compliance.json",
         },
-        "tool_holder": {"compliance": "holder_compliance.json", "offset": cell.tool.length * 1e3},
-        "robot": {
-            "model": cell.robot,
-            "placement": _pose_list(truth.T_base_work),
-            "flange_to_tip": _pose_list(cell.T_flange_tip),
-            "tool_rotation": math.degrees(cell.tool_rotation),
-        },
+        "tool_holder": {"rigid": True}
+        if c.holder.rigid
+        else {"compliance": "holder_compliance.json", "offset": c.holder.offset * 1e3},
+        "robot": robot,
         "analysis": {"rim_band": 20.0, "contour_z": -11.0, "registration": "fixture"},
         "runs": {
             "cnc": {
@@ -522,7 +518,7 @@ def _write_truth(cell: VirtualCell, truth: CellTruth, folder: Path) -> None:
         if math.isfinite(truth.fracture_depth)
         else None,
         "springback_model": {"amplitude_mm": cell.springback.amplitude * 1e3},
-        "robot": cell.robot,
+        "robot": cell.cell.robot_name,
     }
     with atomic_write(folder / "truth.json") as fh:
         json.dump(meta, fh, indent=2)
