@@ -544,6 +544,13 @@ def check_units(points: F64, part_size: float, *, unit: str, source: str | Path 
     extent = float(np.max(hi - lo))
     if part_size <= 0:
         return
+    if not extent > 0:
+        raise InputError(
+            f"scan has zero extent: all {points.shape[0]} point(s) are at the same position "
+            f"({', '.join(f'{v * 1e3:.6g}' for v in lo)} mm); expected a scan of the part "
+            f"({part_size * 1e3:.4g} mm across)",
+            file=source,
+        )
     ratio = extent / part_size
     if 1 / 20 <= ratio <= 20:
         return
