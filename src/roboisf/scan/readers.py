@@ -176,6 +176,17 @@ _PLY_FORMATS = ("ascii", "binary_little_endian", "binary_big_endian")
 _PLY_MAX_HEADER = 1 << 20
 
 
+@dataclass
+class _PlyElement:
+    """An ``element`` of a PLY header: its smallest row (list properties empty) in bytes."""
+
+    name: str
+    count: int
+    line: int
+    row_bytes: int = 0
+    n_props: int = 0
+
+
 def check_ply_header(path: Path) -> None:
     """Validate a PLY header before ``plyfile``/``numpy.memmap`` see it.
 
@@ -196,7 +207,7 @@ def check_ply_header(path: Path) -> None:
         raise InputError("PLY header has no 'end_header' line (truncated file?)", file=path)
     body = size - end.end()
     fmt = None
-    elements: list[list[object]] = []  # [name, count, line, fixed bytes, has_list, n_props]
+    elements: list[_PlyElement] = []
     text = head[: end.start()].decode("ascii", errors="replace").splitlines()
     for i, raw in enumerate(text[1:], start=2):
         tok = raw.split()
@@ -219,7 +230,7 @@ def check_ply_header(path: Path) -> None:
                     file=path,
                     line=i,
                 )
-            elements.append([tok[1], int(tok[2]), i, 0, False, 0])
+            elements.append(_PlyElement(tok[1], int(tok[2]), i))
         elif tok[0] == "property":
             if not elements:
                 raise InputError("PLY property before any element", file=path, line=i)
@@ -232,10 +243,9 @@ def check_ply_header(path: Path) -> None:
                         file=path,
                         line=i,
                     )
-                el[3] = int(el[3]) + _PLY_TYPES[tok[2]]  # type: ignore[call-overload]
-                el[4] = True
+                el.row_bytes += _PLY_TYPES[tok[2]]
             elif len(tok) == 3 and tok[1] in _PLY_TYPES:
-                el[3] = int(el[3]) + _PLY_TYPES[tok[1]]  # type: ignore[call-overload]
+                el.row_bytes += _PLY_TYPES[tok[1]]
             else:
                 raise InputError(
                     f"bad PLY property {raw.strip()!r}; expected 'property TYPE NAME' with TYPE "
@@ -243,19 +253,19 @@ def check_ply_header(path: Path) -> None:
                     file=path,
                     line=i,
                 )
-            el[5] = int(el[5]) + 1  # type: ignore[call-overload]
+            el.n_props += 1
         else:
             raise InputError(f"unknown PLY header line {raw.strip()!r}", file=path, line=i)
     if fmt is None:
         raise InputError("PLY header has no 'format' line", file=path)
     need = 0
-    for name, count, line, row, _has_list, n_props in elements:
-        assert isinstance(count, int) and isinstance(row, int) and isinstance(n_props, int)
-        if n_props == 0 and count > 0:
+    for el in elements:
+        name, count, line = el.name, el.count, el.line
+        if el.n_props == 0 and count > 0:
             raise InputError(f"PLY element {name!r} has no properties", file=path, line=line)
         # smallest possible row: binary → its bytes (lists empty), ascii → a digit + a separator
         # per property
-        need += count * (row if fmt != "ascii" else 2 * n_props)
+        need += count * (el.row_bytes if fmt != "ascii" else 2 * el.n_props)
         if need > body:
             raise InputError(
                 f"PLY element {name!r} declares {count} rows, which need at least {need} bytes "
