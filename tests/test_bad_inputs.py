@@ -346,3 +346,10 @@ def test_cli_toolpath_with_a_tiny_step_down_exits_2(tmp_path):
     out = tmp_path / "p.csv"
     assert main(["-q", "toolpath", "cone", "--step-down", "0.0001", "-o", str(out)]) == 2
     assert not out.exists()
+
+
+def test_latin1_point_list_is_refused_with_line(tmp_path):
+    f = tmp_path / "s.xyz"
+    f.write_bytes("x,y,z\n1,2,3\n4,5,6\n7,8,9\xb5\n".encode("latin-1"))
+    with pytest.raises(InputError, match=r"s\.xyz:4.*not UTF-8"):
+        read_scan(f)

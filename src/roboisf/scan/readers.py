@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.errors import InputError
+from roboisf.io.text import read_text
 from roboisf.io.units import LENGTH_UNITS, to_si
 from roboisf.parts.mesh import read_mesh
 
@@ -513,6 +514,9 @@ def _read_xyz(path: Path) -> tuple[F64, F64 | None]:
             skip_blank_lines=True,
             engine="c",
         )
+    except UnicodeDecodeError:
+        read_text(path, what="point list")  # raises, naming the line and byte offset
+        raise  # pragma: no cover - read_text raised above
     except ValueError as e:
         raise InputError(f"not a number in the point list: {e}", file=path) from None
     except Exception as e:
