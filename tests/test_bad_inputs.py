@@ -353,3 +353,13 @@ def test_latin1_point_list_is_refused_with_line(tmp_path):
     f.write_bytes("x,y,z\n1,2,3\n4,5,6\n7,8,9\xb5\n".encode("latin-1"))
     with pytest.raises(InputError, match=r"s\.xyz:4.*not UTF-8"):
         read_scan(f)
+
+
+def test_latin1_robot_file_of_a_study_is_refused(tmp_path):
+    preset = (_preset_dir() / "irb7600-500-2.55.toml").read_text(encoding="utf-8")
+    (tmp_path / "mine.toml").write_bytes(b"# r\xe9glages\n" + preset.encode())
+    text = STUDY.replace('model = "irb7600-500-2.55"', 'model = "mine.toml"')
+    with pytest.raises(StudyError, match=r"mine\.toml:1 \[robot\.model\].*not UTF-8"):
+        load_study(study(tmp_path, text))
+    (tmp_path / "mine.toml").write_bytes(b"\xef\xbb\xbf" + preset.encode())  # BOM: fine
+    assert load_study(tmp_path).robot is not None
