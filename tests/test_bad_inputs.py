@@ -363,3 +363,40 @@ def test_latin1_robot_file_of_a_study_is_refused(tmp_path):
         load_study(study(tmp_path, text))
     (tmp_path / "mine.toml").write_bytes(b"\xef\xbb\xbf" + preset.encode())  # BOM: fine
     assert load_study(tmp_path).robot is not None
+
+
+@pytest.mark.parametrize(
+    ("table", "key", "expected"),
+    [
+        ('kind = ["cone"]', "part.kind", "unknown part kind"),
+        ('kind = "profile"\nfile = 5', "part.file", "expected a non-empty string"),
+        ('kind = "profile"\nr = "40, 30"\nz = [0, -10]', "part.r", "list of finite numbers"),
+        ('kind = "profile"\nr = [40, true]\nz = [0, -10]', "part.r", "list of finite numbers"),
+        (
+            'kind = "cone"\nopening_diameter = "87"\nwall_angle = 71\ndepth = 5',
+            "part.opening_d",
+            "a number",
+        ),
+        ('kind = "mesh"\nfile = "m.stl"\nunit = 1', "part.unit", "expected a non-empty string"),
+    ],
+)
+def test_part_toml_wrong_types_name_the_key(tmp_path, table, key, expected):
+    f = tmp_path / "p.toml"
+    f.write_text("[part]\n" + table + "\n")
+    with pytest.raises(InputError) as e:
+        load_part(f)
+    assert f"[{key}" in str(e.value) and expected in str(e.value), str(e.value)
+
+
+def test_part_table_that_is_not_a_table(tmp_path):
+    f = tmp_path / "p.toml"
+    f.write_text('part = "x"\n')
+    with pytest.raises(InputError, match=r"p\.toml.*\[part\]"):
+        load_part(f)
+
+
+def test_bom_profile_csv_is_accepted(tmp_path):
+    f = tmp_path / "p.csv"
+    f.write_bytes(b"\xef\xbb\xbfr,z\n40,0\n30,-10\n")
+    r, z = read_profile_csv(f)
+    np.testing.assert_allclose(np.column_stack([r, z]), [[0.04, 0.0], [0.03, -0.01]])
