@@ -400,3 +400,15 @@ def test_bom_profile_csv_is_accepted(tmp_path):
     f.write_bytes(b"\xef\xbb\xbfr,z\n40,0\n30,-10\n")
     r, z = read_profile_csv(f)
     np.testing.assert_allclose(np.column_stack([r, z]), [[0.04, 0.0], [0.03, -0.01]])
+
+
+def test_pcd_with_a_signalling_nan_is_refused(tmp_path):
+    # found by the fuzz test: float32 0xff908e23 warned "invalid value encountered in cast"
+    f = tmp_path / "s.pcd"
+    pts = np.zeros((2, 3), "<f4")
+    raw = bytearray(pts.tobytes())
+    raw[4:8] = b"\x23\x8e\x90\xff"
+    head = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nPOINTS 2\nDATA binary\n"
+    f.write_bytes(head.encode() + bytes(raw))
+    with pytest.raises(InputError, match=r"s\.pcd.*NaN or inf"):
+        read_scan(f)

@@ -154,13 +154,15 @@ def _xyz_normals(rec: np.ndarray, normal_names: tuple[str, str, str]) -> tuple[F
     record array into (N, 3) float64 arrays — the only copies the readers make."""
     names = rec.dtype.names or ()
     pts = np.empty((len(rec), 3))
-    for j, c in enumerate("xyz"):
-        pts[:, j] = rec[c]
-    normals = None
-    if all(c in names for c in normal_names):
-        normals = np.empty((len(rec), 3))
-        for j, c in enumerate(normal_names):
-            normals[:, j] = rec[c]
+    # a signalling NaN in the file warns on the cast; NaN/inf are refused by check_finite
+    with np.errstate(invalid="ignore"):
+        for j, c in enumerate("xyz"):
+            pts[:, j] = rec[c]
+        normals = None
+        if all(c in names for c in normal_names):
+            normals = np.empty((len(rec), 3))
+            for j, c in enumerate(normal_names):
+                normals[:, j] = rec[c]
     return pts, normals
 
 
