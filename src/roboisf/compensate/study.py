@@ -66,11 +66,27 @@ def _per_point(study: Study, results: Path | None, progress: Progress | None) ->
         raise InputError(
             "expected an `roboisf analyze` results folder with per_point.parquet", file=results
         )
-    df = pd.read_parquet(f)
+    try:
+        df = pd.read_parquet(f)
+    except Exception as e:  # pyarrow raises many types for a damaged file
+        raise InputError(
+            f"not a readable Parquet file ({type(e).__name__}: {e}); run `roboisf analyze` "
+            "again to rewrite it",
+            file=f,
+        ) from None
     need = ["robot_dn", "robot_valid", *(f"robot_{w}" for w in _WRENCH)]
     missing = [c for c in need if c not in df]
     if missing:
-        raise InputError(f"missing columns {', '.join(missing)}", file=f)
+        raise InputError(f"missing columns {', '.join(missing)}", file=f, field=missing[0])
+    for c in need:
+        try:
+            v = df[c].to_numpy(dtype=float)
+        except (TypeError, ValueError):
+            raise InputError("expected numbers", file=f, field=c) from None
+        # robot_dn is NaN where the scan has no points (robot_valid false); the rest is finite
+        bad = np.isinf(v) if c == "robot_dn" else ~np.isfinite(v)
+        if bad.any():
+            raise InputError(f"NaN or inf in row {int(np.argmax(bad))}", file=f, field=c)
     return df
 
 
@@ -163,10 +179,16 @@ def _previous_offset(folder: Path, n: int) -> F64:
         raise InputError(
             "expected a `roboisf compensate` output folder with per_point.csv", file=folder
         )
-    df = pd.read_csv(f)
+    try:
+        df = pd.read_csv(f)
+    except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as e:
+        raise InputError(f"not a readable CSV ({type(e).__name__}: {e})", file=f) from None
     if "springback_offset_dn" not in df:
         raise InputError("missing column springback_offset_dn", file=f)
-    c = df["springback_offset_dn"].to_numpy(dtype=float) * 1e-3
+    try:
+        c = df["springback_offset_dn"].to_numpy(dtype=float) * 1e-3
+    except (TypeError, ValueError):
+        raise InputError("expected numbers (mm)", file=f, field="springback_offset_dn") from None
     if c.shape != (n,) or not np.all(np.isfinite(c)):
         raise InputError(
             f"expected {n} finite offsets (one per toolpath point), got {c.shape[0]}", file=f
