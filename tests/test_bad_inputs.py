@@ -247,9 +247,9 @@ def test_robot_file_is_relative_to_the_study_folder(tmp_path, monkeypatch):
     monkeypatch.chdir(elsewhere)
     s = load_study(root)
     assert Path(s.robot.model) == (root / "robots" / "mine.toml").resolve()
-    from roboisf.cell import cell_from_study
+    from roboisf.cell import build_robot
 
-    assert cell_from_study(s).robot.name  # loads from the study folder, not the cwd
+    assert build_robot(s.robot.model).name  # loads from the study folder, not the cwd
 
 
 def test_missing_robot_file_names_the_study_folder(tmp_path):
