@@ -20,7 +20,15 @@ import typer
 from roboisf.cli.console import state
 from roboisf.errors import InputError
 from roboisf.io.atomic import check_not_input
-from roboisf.parts import VWACF, AxisymmetricPart, Cone, ProfilePart, read_profile_csv, save_part
+from roboisf.parts import (
+    VWACF,
+    AxisymmetricPart,
+    Cone,
+    Part,
+    ProfilePart,
+    read_profile_csv,
+    save_part,
+)
 from roboisf.parts.axisymmetric import PAPER_SHEET_THICKNESS, VWACF_DEFAULT_ARC_RADIUS
 
 __all__ = ["register"]
@@ -40,7 +48,7 @@ Flange = Annotated[float, typer.Option(help="Flange width outside the opening \\
 part_app = typer.Typer(help="Write a part file (TOML, mm and degrees).", no_args_is_help=True)
 
 
-def _save(make: Callable[[], AxisymmetricPart], output: Path, inputs: list[Path]) -> None:
+def _save(make: Callable[[], Part], output: Path, inputs: list[Path]) -> None:
     if output.suffix.lower() != ".toml":
         raise InputError("a part file must end in .toml", file=output)
     check_not_input(output, inputs)
