@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import ClassVar
 
 import numpy as np
@@ -77,40 +78,54 @@ def rounded_rectangle_closest(p: F64, a: float, b: float, r: float) -> tuple[F64
     return s * c, sd
 
 
-def _segment_closest(X: F64, A: F64, B: F64) -> F64:
-    """Closest points (N, 3) on segments A→B ((3,) each) to points X (N, 3)."""
-    d = B - A
-    t = np.clip((X - A) @ d / float(d @ d), 0.0, 1.0)
-    return A + t[:, None] * d
+@dataclass(frozen=True)
+class _PlanarPolygon:
+    """A closed convex planar polygon, in its own frame: origin ``o``, in-plane axes ``e1, e2``,
+    normal ``n`` (3,) and the vertices ``uv`` (k, 2) in (e1, e2), counter-clockwise about n."""
 
+    o: F64
+    e1: F64
+    e2: F64
+    n: F64
+    uv: F64
 
-def _polygon_closest(X: F64, V: F64) -> F64:
-    """Exact closest points (N, 3) on a closed convex planar polygon with vertices V (k, 3)."""
-    keep = np.linalg.norm(V - np.roll(V, 1, axis=0), axis=1) > 0
-    V = V[keep]
-    m = np.zeros(3)
-    for i in range(len(V)):
-        m += np.cross(V[i], V[(i + 1) % len(V)])
-    n = m / np.linalg.norm(m)
-    proj = X - ((X - V[0]) @ n)[:, None] * n
-    inside = np.ones(len(X), dtype=bool)
-    for i in range(len(V)):
-        e = V[(i + 1) % len(V)] - V[i]
-        inside &= np.cross(e, proj - V[i]) @ n >= 0.0
-    best = proj.copy()
-    if not inside.all():
-        out = ~inside
-        Xo = X[out]
-        bd = np.full(len(Xo), np.inf)
-        bp = np.zeros_like(Xo)
-        for i in range(len(V)):
-            c = _segment_closest(Xo, V[i], V[(i + 1) % len(V)])
-            d = np.einsum("ij,ij->i", Xo - c, Xo - c)
-            better = d < bd
-            bd[better] = d[better]
-            bp[better] = c[better]
-        best[out] = bp
-    return best
+    @classmethod
+    def from_vertices(cls, V: F64, n: F64) -> _PlanarPolygon:
+        keep = np.linalg.norm(V - np.roll(V, 1, axis=0), axis=1) > 0
+        V = V[keep]
+        e1 = V[1] - V[0]
+        e1 = e1 / np.linalg.norm(e1)
+        e2 = np.cross(n, e1)
+        uv = np.c_[(V - V[0]) @ e1, (V - V[0]) @ e2]
+        area = 0.5 * np.sum(uv[:, 0] * np.roll(uv[:, 1], -1) - np.roll(uv[:, 0], -1) * uv[:, 1])
+        if area < 0:
+            uv = uv[::-1]
+        return cls(V[0], e1, e2, n, uv)
+
+    def closest(self, X: F64) -> F64:
+        """Exact closest points (N, 3) of the polygon (interior and edges) to X (N, 3)."""
+        Y = X - self.o
+        u, v = Y @ self.e1, Y @ self.e2
+        uv = self.uv
+        k = len(uv)
+        inside = np.ones(len(X), dtype=bool)
+        best = np.full(len(X), np.inf)
+        bu, bv = u.copy(), v.copy()
+        for i in range(k):
+            a, b = uv[i], uv[(i + 1) % k]
+            eu, ev = b[0] - a[0], b[1] - a[1]
+            du, dv = u - a[0], v - a[1]
+            inside &= eu * dv - ev * du >= 0.0
+            t = np.clip((du * eu + dv * ev) / (eu * eu + ev * ev), 0.0, 1.0)
+            cu, cv = a[0] + t * eu, a[1] + t * ev
+            d2 = (u - cu) ** 2 + (v - cv) ** 2
+            better = d2 < best
+            best = np.where(better, d2, best)
+            bu = np.where(better, cu, bu)
+            bv = np.where(better, cv, bv)
+        bu = np.where(inside, u, bu)
+        bv = np.where(inside, v, bv)
+        return self.o + bu[:, None] * self.e1 + bv[:, None] * self.e2
 
 
 @dataclass(frozen=True)
@@ -237,6 +252,10 @@ class Pyramid:
         return d
 
     # -- patches ---------------------------------------------------------------------------------
+    @cached_property
+    def _wall_polygons(self) -> list[tuple[_PlanarPolygon, F64, float]]:
+        return [(_PlanarPolygon.from_vertices(V, n), n, a) for V, n, a in self._walls()]
+
     def _walls(self) -> list[tuple[F64, F64, float]]:
         """The four planar wall polygons: (vertices (k, 3), tool-side normal (3,), wall angle)."""
         d, hc = self.depth, self.corner_depth
@@ -299,8 +318,8 @@ class Pyramid:
             best_r[better] = region
 
         wall = REGION_CODES["wall"]
-        for V, nrm, alpha in self._walls():
-            P = _polygon_closest(X, V)
+        for V, nrm, alpha in self._wall_polygons:
+            P = V.closest(X)
             take(P, nrm, alpha, -P[:, 2] / math.sin(alpha), wall)
         # corner cones (one wall angle): apex below the corner centre, generatrix in (r, z)
         hc = self.corner_depth
