@@ -228,3 +228,64 @@ def test_bad_options():
     z_last = tp.meta["reachable_tip_z"]
     assert small.signed_distance(np.array([[0.0, 0.0, z_last + 9.5e-3]]))[0] >= 9.5e-3 - 1e-12
     assert small.signed_distance(np.array([[0.0, 0.0, z_last - 1e-3 + 9.5e-3]]))[0] < 9.5e-3
+
+
+def test_cli_toolpath_on_pyramid_and_mesh_part_files(tmp_path, dome):
+    """`roboisf toolpath --part` takes any part file; the CSV keeps the toolpath contract."""
+    from roboisf.cli.main import main
+    from roboisf.io.toolpath_csv import read_toolpath_csv
+    from roboisf.parts import save_part
+
+    p = Pyramid(100e-3, 80e-3, math.radians(60.0), 12e-3, corner_radius=6e-3)
+    toml = tmp_path / "pyr.toml"
+    save_part(p, toml)
+    out = tmp_path / "pyr.csv"
+    args = ["--step-down", "1", "--tool-diameter", "10", "--spacing", "2"]
+    assert main(["toolpath", "--part", str(toml), "-o", str(out), *args]) == 0
+    tp = read_toolpath_csv(out)
+    assert tp.n_laps == 12
+    d = p.closest_point(tp.center).distance
+    assert np.abs(d - R).max() < 2e-6  # the CSV rounds to its printed precision
+    out2 = tmp_path / "pyr_scallop.csv"
+    assert (
+        main(
+            [
+                "toolpath",
+                "--part",
+                str(toml),
+                "-o",
+                str(out2),
+                *args,
+                "--scallop-height",
+                "0.02",
+                "--spiral",
+            ]
+        )
+        == 0
+    )
+    assert read_toolpath_csv(out2).n_laps > 12
+    # a mesh part file (the dome STL)
+    mtoml = tmp_path / "dome.toml"
+    save_part(dome, mtoml)
+    out3 = tmp_path / "dome.nc"
+    assert (
+        main(
+            [
+                "toolpath",
+                "--part",
+                str(mtoml),
+                "-o",
+                str(out3),
+                "--step-down",
+                "2",
+                "--spacing",
+                "3",
+            ]
+        )
+        == 0
+    )
+    assert out3.stat().st_size > 0
+    # --max-wall-step is for axisymmetric parts: exit 2, no output
+    bad = tmp_path / "bad.csv"
+    assert main(["toolpath", "--part", str(toml), "-o", str(bad), "--max-wall-step", "1"]) == 2
+    assert not bad.exists()

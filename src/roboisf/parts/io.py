@@ -166,7 +166,9 @@ def part_from_dict(table: dict[str, Any], *, where: str | Path | None = None) ->
                     field="part.flange_width",
                 )
             if not isinstance(table.get("file"), str):
-                raise InputError("mesh needs 'file' (an STL/OBJ path)", file=src, field="part.file")
+                raise InputError(
+                    "mesh needs 'file' (an STL/OBJ/PLY/STEP/IGES path)", file=src, field="part.file"
+                )
             f = Path(table["file"])
             fpath = f if f.is_absolute() or src is None else src.parent / f
             return MeshPart.from_file(
@@ -175,6 +177,7 @@ def part_from_dict(table: dict[str, Any], *, where: str | Path | None = None) ->
                 orient=str(table.get("orient", "up")),
                 sheet_thickness=common["sheet_thickness"],
                 source=str(table["file"]),
+                tolerance=_num(table, "tolerance", src, 0.01) * 1e-3,
             )
     except InputError as e:
         if e.file is None and src is not None:
