@@ -60,22 +60,21 @@ def rounded_rectangle_closest(p: F64, a: float, b: float, r: float) -> tuple[F64
     closest : (N, 2) float, m — closest point of the boundary
     sd : (N,) float, m — signed distance, negative inside (exact inside and outside)
     """
-    s = np.where(p >= 0.0, 1.0, -1.0)
-    ap = np.abs(p)
-    core = np.array([a - r, b - r])
-    q = ap - core
-    corner = (q[:, 0] > 0.0) & (q[:, 1] > 0.0)
-    nq = np.hypot(q[:, 0], q[:, 1])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        u = np.where(corner[:, None], q / np.where(nq > 0, nq, 1.0)[:, None], 0.0)
-    c_arc = core + r * u
-    xside = q[:, 0] >= q[:, 1]
-    c_side = np.where(
-        xside[:, None], np.c_[np.full(len(p), a), ap[:, 1]], np.c_[ap[:, 0], np.full(len(p), b)]
-    )
-    sd = np.where(corner, nq - r, np.where(xside, ap[:, 0] - a, ap[:, 1] - b))
-    c = np.where(corner[:, None], c_arc, c_side)
-    return s * c, sd
+    x, y = p[:, 0], p[:, 1]
+    ax, ay = np.abs(x), np.abs(y)
+    qx, qy = ax - (a - r), ay - (b - r)
+    corner = (qx > 0.0) & (qy > 0.0)
+    nq = np.hypot(qx, qy)
+    scale = np.where(corner, r / np.where(nq > 0, nq, 1.0), 0.0)
+    xside = qx >= qy
+    # |closest| per axis: on the arc, on the x-side (a, |y|) or on the y-side (|x|, b)
+    cx = np.where(corner, (a - r) + qx * scale, np.where(xside, a, ax))
+    cy = np.where(corner, (b - r) + qy * scale, np.where(xside, ay, b))
+    sd = np.where(corner, nq - r, np.where(xside, qx, qy) - r)
+    closest = np.empty_like(p)
+    closest[:, 0] = np.copysign(cx, x)
+    closest[:, 1] = np.copysign(cy, y)
+    return closest, sd
 
 
 @dataclass(frozen=True)
@@ -305,22 +304,46 @@ class Pyramid:
         best_s = np.zeros(n)
         best_r = np.zeros(n, dtype=np.int64)
 
-        def take(P: F64, N: F64, alpha: F64 | float, s: F64, region: int, mask=None) -> None:
-            d = np.einsum("ij,ij->i", X - P, X - P)
-            better = d < best_d
-            if mask is not None:
-                better &= mask
-            best_d[better] = d[better]
-            best_p[better] = P[better]
-            best_n[better] = N[better] if N.ndim == 2 else N
-            best_a[better] = alpha[better] if isinstance(alpha, np.ndarray) else alpha
-            best_s[better] = s[better]
-            best_r[better] = region
+        def take(idx: NDArray[np.int64], P: F64, N: F64, alpha: float, s: F64, region: int) -> None:
+            """Keep patch results (for the points ``idx``) that are strictly nearer."""
+            Y = X[idx] - P
+            d = np.einsum("ij,ij->i", Y, Y)
+            better = d < best_d[idx]
+            j = idx[better]
+            best_d[j] = d[better]
+            best_p[j] = P[better]
+            best_n[j] = N[better] if N.ndim == 2 else N
+            best_a[j] = alpha
+            best_s[j] = s[better]
+            best_r[j] = region
 
+        everyone = np.arange(n)
+        up = np.array([0.0, 0.0, 1.0])
+        # bottom and flange first (cheap): their distance bounds which walls can be nearer
+        bx, by, br = self.section(self.depth)
+        c2, sd = rounded_rectangle_closest(X[:, :2], bx, by, br)
+        P_bot = np.c_[np.where((sd <= 0)[:, None], X[:, :2], c2), np.full(n, -self.depth)]
+        slope = self.depth / math.sin(min(self.alpha_x, self.alpha_y))
+        s_bot = slope - np.minimum(sd, 0.0)
+        bound = np.einsum("ij,ij->i", X - P_bot, X - P_bot)
+        if self.flange_width > 0:
+            ox, oy, orc = self.top_length / 2, self.top_width / 2, self.corner_radius
+            fw = self.flange_width
+            ci, sdo = rounded_rectangle_closest(X[:, :2], ox, oy, orc)
+            co, _ = rounded_rectangle_closest(X[:, :2], ox + fw, oy + fw, orc + fw)
+            xy = np.where((sdo < 0)[:, None], ci, np.where((sdo > fw)[:, None], co, X[:, :2]))
+            P_fl = np.c_[xy, np.zeros(n)]
+            s_fl = -np.clip(sdo, 0.0, fw)
+            bound = np.minimum(bound, np.einsum("ij,ij->i", X - P_fl, X - P_fl))
+        # the patches in priority order (ties keep the first): walls, corners, bottom, flange
         wall = REGION_CODES["wall"]
-        for V, nrm, alpha in self._wall_polygons:
-            P = V.closest(X)
-            take(P, nrm, alpha, -P[:, 2] / math.sin(alpha), wall)
+        for poly, nrm, alpha in self._wall_polygons:
+            h = (X - poly.o) @ nrm
+            lim = np.minimum(bound, best_d)
+            idx = np.flatnonzero(h * h <= lim * (1 + 1e-9) + 1e-30)
+            if idx.size:
+                P = poly.closest(X[idx])
+                take(idx, P, nrm, alpha, -P[:, 2] / math.sin(alpha), wall)
         # corner cones (one wall angle): apex below the corner centre, generatrix in (r, z)
         hc = self.corner_depth
         if hc > 0:
@@ -333,34 +356,22 @@ class Pyramid:
                 for sy in (1.0, -1.0):
                     cx = sx * (self.top_length / 2 - rc)
                     cy = sy * (self.top_width / 2 - rc)
-                    vx, vy = X[:, 0] - cx, X[:, 1] - cy
-                    inq = (vx * sx >= 0) & (vy * sy >= 0)
+                    idx = np.flatnonzero(((X[:, 0] - cx) * sx >= 0) & ((X[:, 1] - cy) * sy >= 0))
+                    if idx.size == 0:
+                        continue
+                    vx, vy, z = X[idx, 0] - cx, X[idx, 1] - cy, X[idx, 2]
                     r = np.hypot(vx, vy)
-                    ux = np.where(r > 0, vx / np.where(r > 0, r, 1.0), sx / math.sqrt(2))
-                    uy = np.where(r > 0, vy / np.where(r > 0, r, 1.0), sy / math.sqrt(2))
-                    t = np.clip(((r - r0) * dr + X[:, 2] * dz) / L2, 0.0, 1.0)
+                    safe = np.where(r > 0, r, 1.0)
+                    ux = np.where(r > 0, vx / safe, sx / math.sqrt(2))
+                    uy = np.where(r > 0, vy / safe, sy / math.sqrt(2))
+                    t = np.clip(((r - r0) * dr + z * dz) / L2, 0.0, 1.0)
                     rp, zp = r0 + t * dr, t * dz
                     P = np.c_[cx + rp * ux, cy + rp * uy, zp]
-                    N = np.c_[-math.sin(a) * ux, -math.sin(a) * uy, np.full(n, math.cos(a))]
-                    take(P, N, a, -zp / math.sin(a), wall, inq)
-        # bottom: the section at full depth
-        bx, by, br = self.section(self.depth)
-        c2, sd = rounded_rectangle_closest(X[:, :2], bx, by, br)
-        xy = np.where((sd <= 0)[:, None], X[:, :2], c2)
-        P = np.c_[xy, np.full(n, -self.depth)]
-        slope = self.depth / math.sin(min(self.alpha_x, self.alpha_y))
-        _, sd_at = rounded_rectangle_closest(xy, bx, by, br)
-        take(P, np.array([0.0, 0.0, 1.0]), 0.0, slope - sd_at, REGION_CODES["bottom"])
-        # flange: between the opening and the opening grown by flange_width
+                    N = np.c_[-math.sin(a) * ux, -math.sin(a) * uy, np.full(idx.size, math.cos(a))]
+                    take(idx, P, N, a, -zp / math.sin(a), wall)
+        take(everyone, P_bot, up, 0.0, s_bot, REGION_CODES["bottom"])
         if self.flange_width > 0:
-            ox, oy, orc = self.top_length / 2, self.top_width / 2, self.corner_radius
-            fw = self.flange_width
-            ci, sdo = rounded_rectangle_closest(X[:, :2], ox, oy, orc)
-            co, _ = rounded_rectangle_closest(X[:, :2], ox + fw, oy + fw, orc + fw)
-            xy = np.where((sdo < 0)[:, None], ci, np.where((sdo > fw)[:, None], co, X[:, :2]))
-            P = np.c_[xy, np.zeros(n)]
-            s = -np.clip(sdo, 0.0, fw)
-            take(P, np.array([0.0, 0.0, 1.0]), 0.0, s, REGION_CODES["flange"])
+            take(everyone, P_fl, up, 0.0, s_fl, REGION_CODES["flange"])
         dist = np.sqrt(best_d)
         side = np.einsum("ij,ij->i", X - best_p, best_n)
         signed = np.where(side < 0, -dist, dist)
