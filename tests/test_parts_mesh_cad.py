@@ -127,3 +127,18 @@ def test_part_pyramid_command(tmp_path):
         == 0
     )
     assert load_part(bad).alpha_y == pytest.approx(math.radians(50))
+
+
+def test_mesh_outside_the_work_frame(tmp_path, capsys):
+    """A mesh above the sheet plane: `part mesh` warns, the slicer refuses (exit 2, one line)."""
+    import trimesh
+
+    stl = tmp_path / "up.stl"
+    trimesh.Trimesh([[0, 0, 10], [50, 0, 10], [0, 50, 20]], [[0, 1, 2]], process=False).export(stl)
+    toml = tmp_path / "up.toml"
+    assert main(["part", "mesh", str(stl), "-o", str(toml)]) == 0
+    assert "sheet plane at z = 0" in capsys.readouterr().err
+    out = tmp_path / "up.csv"
+    assert main(["toolpath", "--part", str(toml), "-o", str(out)]) == 2
+    assert "below the sheet plane" in capsys.readouterr().err
+    assert not out.exists()

@@ -87,13 +87,14 @@ Tolerance = Annotated[
 part_app = typer.Typer(help="Write a part file (TOML, mm and degrees).", no_args_is_help=True)
 
 
-def _save(make: Callable[[], Part], output: Path, inputs: list[Path]) -> None:
+def _save(make: Callable[[], Part], output: Path, inputs: list[Path]) -> Part:
     if output.suffix.lower() != ".toml":
         raise InputError("a part file must end in .toml", file=output)
     check_not_input(output, inputs)
     part = make()
     save_part(part, output)
     state.info(f"wrote {output}: {part.kind}, depth {part.depth * 1e3:.3f} mm")
+    return part
 
 
 @part_app.command("cone")
@@ -217,7 +218,12 @@ def _mesh(
             tolerance=tolerance * 1e-3,
         )
 
-    _save(make, output, [mesh])
+    lo, hi = _save(make, output, [mesh]).bounds
+    if abs(hi[2]) > 0.1e-3 or lo[2] >= 0:
+        state.warn(
+            f"the mesh spans z = {lo[2] * 1e3:.3f} … {hi[2] * 1e3:.3f} mm; roboisf expects the "
+            "work frame: the sheet plane at z = 0 and the part below it"
+        )
 
 
 def register(app: typer.Typer) -> None:

@@ -290,6 +290,12 @@ def _check(part: Part, R: float, step: float, spacing: float, feed: float) -> No
     for name, v in (("tool_radius", R), ("step_down", step), ("spacing", spacing), ("feed", feed)):
         if not (math.isfinite(v) and v > 0):
             raise InputError(f"must be > 0, got {v:g} (SI)", field=name)
+    if not part.depth > 0:
+        raise InputError(
+            "the part does not reach below the sheet plane z = 0; give its surface in the work "
+            "frame (sheet plane z = 0, part below, tool along +z)",
+            field="part",
+        )
     if step > part.depth:
         raise InputError(
             f"step-down {step * 1e3:g} mm is larger than the part depth {part.depth * 1e3:g} mm",
