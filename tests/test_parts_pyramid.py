@@ -175,3 +175,17 @@ def test_pyramid_toml_round_trip(tmp_path):
         part_from_dict(bad)
     with pytest.raises(InputError, match="corner_radius"):
         part_from_dict({**bad, "depth": 20, "corner_radius": 80})
+
+
+@pytest.mark.parametrize("name", list(PYRAMIDS))
+def test_inside_outside_matches_the_height_field(name):
+    """Signed distance < 0 exactly where a point is in the material: below the height field
+    (over the part's footprint), independently of the patch decomposition."""
+    p = PYRAMIDS[name]
+    lo, hi = p.bounds
+    X = rng.uniform(lo - np.array([0, 0, 0.01]), hi + np.array([0, 0, 0.01]), (20000, 3))
+    z = height_field(p, X[:, :2])
+    X = X[np.isfinite(z) & (np.abs(X[:, 2] - z) > 1e-9)]
+    z = height_field(p, X[:, :2])
+    d = p.signed_distance(X)
+    np.testing.assert_array_equal(d < 0, X[:, 2] < z)
