@@ -289,3 +289,23 @@ def test_cli_toolpath_on_pyramid_and_mesh_part_files(tmp_path, dome):
     bad = tmp_path / "bad.csv"
     assert main(["toolpath", "--part", str(toml), "-o", str(bad), "--max-wall-step", "1"]) == 2
     assert not bad.exists()
+
+
+def test_level_contour_is_the_section_of_the_surface_and_of_its_offset():
+    from roboisf.toolpath import level_contour
+
+    p = PYRAMIDS["rounded"]
+    z = -10e-3
+    P = level_contour(p, z, n=720)
+    np.testing.assert_allclose(p.signed_distance(P), 0.0, atol=1e-10)
+    # the nominal section: the opening shrunk by |z| / tan α (corner radius shrunk alike)
+    sx, sy, rc = p.section(-z)
+    from roboisf.parts.pyramid import rounded_rectangle_closest
+
+    _, sd = rounded_rectangle_closest(P[:, :2], sx, sy, rc)
+    np.testing.assert_allclose(sd, 0.0, atol=1e-10)
+    C = level_contour(p, z, offset=R, n=720)
+    np.testing.assert_allclose(p.signed_distance(C), R, atol=1e-10)
+    cone = Cone(opening_diameter=87e-3, wall_angle=math.radians(71.0), depth=40e-3)
+    r = np.hypot(*level_contour(cone, -20e-3)[:, :2].T)
+    np.testing.assert_allclose(r, 43.5e-3 - 20e-3 / math.tan(math.radians(71.0)), atol=1e-10)

@@ -60,7 +60,7 @@ from roboisf.parts.base import Part
 from roboisf.toolpath.generate import DEFAULT_FEED
 from roboisf.toolpath.toolpath import Toolpath
 
-__all__ = ["ball_centre_rays", "scallop_step", "sliced_spiral", "sliced_step_down"]
+__all__ = ["ball_centre_rays", "level_contour", "scallop_step", "sliced_spiral", "sliced_step_down"]
 
 F64 = NDArray[np.float64]
 
@@ -191,6 +191,36 @@ def ball_centre_rays(
         active = active[~done]
     rho = np.where(out, hi, lo)
     return np.where(fits, rho, 0.0), fits
+
+
+def level_contour(
+    part: Part,
+    z: float,
+    offset: float = 0.0,
+    *,
+    n: int = 360,
+    center: tuple[float, float] | None = None,
+) -> F64:
+    """Closed horizontal contour (n, 3) [m] at height ``z`` [m] of the part's surface offset by
+    ``offset`` [m] to the tool side (0: the nominal's own section; R: the ball centres of a
+    ball of radius R, trimmed) — n rays at equal angles about ``center`` (default: the centre
+    of ``part.bounds``), counter-clockwise from +x. Same method and limits as the toolpaths
+    (module docstring). Raises :class:`InputError` where the centre itself is not on the
+    tool side at that height."""
+    if not (math.isfinite(offset) and offset >= 0):
+        raise InputError(f"must be ≥ 0 m, got {offset:g}", field="offset")
+    if n < 3:
+        raise InputError(f"need at least 3 points, got {n}", field="n")
+    c = _centre(part, center)
+    phi = 2.0 * math.pi * np.arange(n) / n
+    rho, fits = ball_centre_rays(part, offset, np.full(n, float(z)), phi, center=c)
+    if not fits.all():
+        raise InputError(
+            f"at z = {z * 1e3:g} mm the centre ({c[0] * 1e3:g}, {c[1] * 1e3:g}) mm is not "
+            f"{offset * 1e3:g} mm on the tool side of the part",
+            field="z",
+        )
+    return np.c_[c[0] + rho * np.cos(phi), c[1] + rho * np.sin(phi), np.full(n, float(z))]
 
 
 @dataclass
