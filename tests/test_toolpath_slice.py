@@ -309,3 +309,15 @@ def test_level_contour_is_the_section_of_the_surface_and_of_its_offset():
     cone = Cone(opening_diameter=87e-3, wall_angle=math.radians(71.0), depth=40e-3)
     r = np.hypot(*level_contour(cone, -20e-3)[:, :2].T)
     np.testing.assert_allclose(r, 43.5e-3 - 20e-3 / math.tan(math.radians(71.0)), atol=1e-10)
+
+
+def test_cli_never_overwrites_the_file_a_part_refers_to(tmp_path):
+    from roboisf.cli.main import main
+
+    prof = tmp_path / "profile.csv"
+    prof.write_text("r,z\n40,0\n30,-10\n25,-20\n")
+    toml = tmp_path / "p.toml"
+    assert main(["part", "profile", str(prof), "-o", str(toml)]) == 0
+    before = prof.read_text()
+    assert main(["toolpath", "--part", str(toml), "-o", str(prof)]) == 2
+    assert prof.read_text() == before

@@ -50,6 +50,7 @@ from roboisf.parts import (
     read_profile_csv,
 )
 from roboisf.parts.axisymmetric import VWACF_DEFAULT_ARC_RADIUS
+from roboisf.parts.io import part_files
 from roboisf.toolpath import sliced_spiral, sliced_step_down, spiral, step_down
 from roboisf.toolpath.toolpath import Toolpath
 
@@ -315,7 +316,7 @@ def _toolpath_from_part_file(
         )
     if output is None:
         raise InputError("missing -o/--output", field="--output")
-    _run(lambda: load_part(part), output, fmt, opts, [part])
+    _run(lambda: load_part(part), output, fmt, opts, part_files(part))
 
 
 @toolpath_app.command("cone")

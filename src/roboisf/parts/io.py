@@ -44,7 +44,7 @@ from roboisf.parts.base import Part
 from roboisf.parts.mesh import MeshPart
 from roboisf.parts.pyramid import Pyramid
 
-__all__ = ["load_part", "part_from_dict", "read_profile_csv", "save_part"]
+__all__ = ["load_part", "part_files", "part_from_dict", "read_profile_csv", "save_part"]
 
 _KEYS = {
     "cone": {"opening_diameter", "wall_angle", "depth"},
@@ -200,6 +200,23 @@ def load_part(path: str | Path) -> Part:
     if "part" not in data or not isinstance(data["part"], dict):
         raise InputError("missing [part] table", file=path)
     return part_from_dict(data["part"], where=path)
+
+
+def part_files(path: str | Path) -> list[Path]:
+    """The part TOML and the file it refers to (profile CSV, mesh, CAD), if any: the inputs an
+    output must never overwrite. A TOML that cannot be read yields just itself (its errors are
+    :func:`load_part`'s to report)."""
+    path = Path(path)
+    files = [path]
+    try:
+        table = tomllib.loads(path.read_text(encoding="utf-8")).get("part", {})
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return files
+    f = table.get("file") if isinstance(table, dict) else None
+    if isinstance(f, str):
+        fp = Path(f)
+        files.append(fp if fp.is_absolute() else path.parent / fp)
+    return files
 
 
 def save_part(part: Part, path: str | Path) -> None:

@@ -19,12 +19,13 @@ so ``C = P + R n`` holds as the :class:`~roboisf.toolpath.Toolpath` contract say
 
 Limits: the horizontal slices of F must be **star-shaped about c** (every ray leaves F once).
 That holds for every pit whose horizontal sections are convex — cones, VWACF, pyramids, elliptic
-domes — and is not checked; a part with re-entrant sections (a cross-shaped pit, two pockets)
-needs a general contouring that this module does not do. Consecutive centres are joined by
-straight chords; inside a convex slice a chord never leaves F, so the path does not gouge
-between points either. A centre path with sharp corners (a concave corner of radius < R sin α:
-the trimmed offset) is sampled on both sides of the corner, not at the corner itself; the chord
-then cuts the corner by at most the point spacing.
+domes — and is not checked. On a part with re-entrant sections (a cross-shaped pit, two
+pockets) each ray stops at its first exit: the path stays free of gouges but leaves the
+re-entrant pockets unformed; such parts need a general contouring that this module does not do.
+Consecutive centres are joined by straight chords; inside a convex slice a chord never leaves
+F, so the path does not gouge between points either. A centre path with sharp corners (a
+concave corner of radius < R sin α: the trimmed offset) is sampled on both sides of the corner,
+not at the corner itself; the chord then cuts the corner by at most the point spacing.
 
 Levels are tool-tip heights as in :mod:`roboisf.toolpath.generate` (−Δz, −2Δz, …, the last at
 the full depth; truncated where the ball no longer fits at c). With ``scallop_height`` h the
