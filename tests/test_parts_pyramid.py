@@ -189,3 +189,17 @@ def test_inside_outside_matches_the_height_field(name):
     z = height_field(p, X[:, :2])
     d = p.signed_distance(X)
     np.testing.assert_array_equal(d < 0, X[:, 2] < z)
+
+
+def test_square_pyramid_with_half_side_corner_radius_is_the_cone():
+    """Corner radius = half the side: four quarter cones make a full cone, and the walls have
+    zero width; the exact distances must be the Cone part's (an independent generatrix code)."""
+    from roboisf.parts import Cone
+
+    a, d = math.radians(60.0), 30e-3
+    p = Pyramid(100e-3, 100e-3, a, d, corner_radius=50e-3)
+    c = Cone(100e-3, a, d)
+    X = rng.uniform([-0.07, -0.07, -0.05], [0.07, 0.07, 0.02], (20000, 3))
+    qp, qc = p.closest_point(X), c.closest_point(X)
+    np.testing.assert_allclose(qp.distance, qc.distance, atol=1e-12)
+    np.testing.assert_allclose(qp.point, qc.point, atol=1e-9)
