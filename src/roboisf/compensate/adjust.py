@@ -174,8 +174,9 @@ def displacement_adjustment(
     across: float = 1e-3,
     min_support: float = 0.05,
     on_gap: Literal["raise", "hold"] = "raise",
+    blend: ArrayLike | None = None,
 ) -> Adjustment:
-    """One displacement-adjustment step ``c_{k+1} = c_k − λ · S[D_k]``.
+    """One displacement-adjustment step ``c_{k+1} = c_k − λ · b · S[D_k]``.
 
     Parameters
     ----------
@@ -189,6 +190,8 @@ def displacement_adjustment(
     along, across : m — Gaussian smoothing widths along a lap and across laps
     min_support : a region point whose smoothing support is below this cannot be filled
     on_gap : "raise" (InputError naming the indices) or "hold" (keep ``c_k``, flag ``held``)
+    blend : (N,) float in [0, 1] — share ``b`` of the update applied at each point (default 1): a
+        ramp across the edge of the region keeps the command free of a step there
     """
     tp = toolpath
     n = len(tp)
@@ -208,6 +211,9 @@ def displacement_adjustment(
         )
     if on_gap not in ("raise", "hold"):
         raise InputError("must be 'raise' or 'hold'", field="on_gap")
+    b = np.ones(n) if blend is None else np.asarray(blend, dtype=float)
+    if b.shape != (n,) or not np.all((b >= 0) & (b <= 1)):
+        raise InputError(f"expected ({n},) blend weights in [0, 1]", field="blend")
     w = (ok & reg).astype(float)
     S, support = smooth_on_laps(tp, D, w, along=along, across=across)
     gap = reg & ~(support >= min_support)
@@ -220,7 +226,7 @@ def displacement_adjustment(
             field="deviation",
         )
     update = reg & ~gap
-    c_new = np.where(update, c - gain * np.where(update, S, 0.0), c)
+    c_new = np.where(update, c - gain * b * np.where(update, S, 0.0), c)
     return Adjustment(
         offset=c_new,
         previous=c,

@@ -24,7 +24,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 import pandas as pd
@@ -45,12 +45,16 @@ from roboisf.parts.axisymmetric import AxisymmetricPart
 from roboisf.progress import Progress, task
 from roboisf.toolpath.toolpath import Toolpath
 
+if TYPE_CHECKING:
+    from roboisf.robot.model import RobotModel
+
 __all__ = [
     "Compensation",
     "CompensationOptions",
     "compensate",
     "lap_table",
     "nominal_of",
+    "rim_blend",
     "write_compensation",
 ]
 
@@ -68,6 +72,9 @@ class CompensationOptions:
     relax, tol, max_iter, partial : the compliance fixed point
         (``partial``: return non-converged points flagged instead of raising)
     gouge_tol, max_overbend : m — gouge rule (:mod:`roboisf.compensate.gouge`)
+    rim_blend : m — depth over which the springback adjustment ramps in below the rim band
+        (a smoothstep from 0 at the band's edge to 1; 0: a hard edge). Without it the command
+        steps by the full offset between the last lap of the band and the first below it.
     """
 
     compliance: bool = True
@@ -83,11 +90,12 @@ class CompensationOptions:
     partial: bool = False
     gouge_tol: float = 10e-6
     max_overbend: float = 2e-3
+    rim_blend: float = 5e-3
 
     def __post_init__(self) -> None:
         if not (self.compliance or self.springback):
             raise InputError("nothing to compensate: enable compliance or springback")
-        for name in ("along", "across", "gouge_tol", "max_overbend"):
+        for name in ("along", "across", "gouge_tol", "max_overbend", "rim_blend"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise InputError(f"must be ≥ 0, got {v:g}", field=name)
@@ -147,15 +155,31 @@ class Compensation:
         cols["gouge"] = self.gouge.gouge
         return pd.DataFrame(cols)
 
+    def lap_steps(self) -> dict[str, float]:
+        """Largest change [m] between consecutive laps of the per-lap mean springback offset
+        ``c`` and of the commanded normal offset (a ledge in the next part if large)."""
+        cdn = np.einsum("ij,ij->i", self.command_offset, self.nominal.normal)
+        t = lap_table(self.toolpath.lap, offset=self.offset, command_dn=cdn)
+        out = {}
+        for col in ("offset", "command_dn"):
+            d = np.abs(np.diff(t[col].to_numpy()))
+            d = d[np.isfinite(d)]
+            out[col] = float(d.max()) if d.size else 0.0
+        return out
+
     def summary(self) -> dict[str, Any]:
         o = self.options
         off = np.linalg.norm(self.command_offset, axis=1)
+        steps = self.lap_steps()
         return {
             "complete": self.complete,
             "terms": {"compliance": o.compliance, "springback": o.springback},
             "n_points": len(self.toolpath),
             "max_command_offset_mm": float(off.max()) * 1e3,
             "mean_command_offset_mm": float(off.mean()) * 1e3,
+            "rim_blend_mm": o.rim_blend * 1e3,
+            "max_lap_step_springback_offset_mm": steps["offset"] * 1e3,
+            "max_lap_step_command_dn_mm": steps["command_dn"] * 1e3,
             "compliance": None if self.compliance is None else self.compliance.report(),
             "springback": None if self.adjustment is None else self.adjustment.report(),
             "gouge": self.gouge.report(),
@@ -186,6 +210,7 @@ def compensate(
     deviation: ArrayLike | None = None,
     valid: ArrayLike | None = None,
     region: ArrayLike | None = None,
+    blend: ArrayLike | None = None,
     formed: ArrayLike | None = None,
     previous_offset: ArrayLike | None = None,
     options: CompensationOptions | None = None,
@@ -203,6 +228,8 @@ def compensate(
     deviation : (N,) float, m — measured normal deviation ``dn`` of the part formed by ``formed``
     valid : (N,) bool — where ``deviation`` is a measurement (holes are filled and flagged)
     region : (N,) bool — points to springback-compensate (default all)
+    blend : (N,) float in [0, 1] — share of the springback update applied per point (default 1;
+        :func:`rim_blend` ramps it in below a rim band)
     formed : (N, 3) float, m — the commanded tip that formed the measured part (default nominal)
     previous_offset : (N,) float, m — ``c_k`` of the command that formed it (default 0)
     """
@@ -243,6 +270,7 @@ def compensate(
             offset=c_prev,
             valid=valid,
             region=region,
+            blend=blend,
             gain=o.gain,
             along=o.along,
             across=o.across,
@@ -285,6 +313,16 @@ def compensate(
     return Compensation(tp, nom, c, target, defl, adj, comp, gouge, o, complete)
 
 
+def rim_blend(depth: ArrayLike, rim_band: float, width: float) -> F64:
+    """Blend weights (N,) in [0, 1]: 0 in the rim band (``depth ≤ rim_band``), a smoothstep
+    ``3t² − 2t³`` over ``width`` [m] of depth below it (slope at most 1.5/width), 1 deeper."""
+    d = np.asarray(depth, dtype=float)
+    if width <= 0:
+        return (d > rim_band).astype(float)
+    t = np.clip((d - rim_band) / width, 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
 def lap_table(lap: ArrayLike, **series: ArrayLike) -> pd.DataFrame:
     """Per-lap means of per-point series (NaN-aware); ``lap`` (N,) int. Columns as given."""
     lap = np.asarray(lap)
@@ -307,6 +345,7 @@ def write_compensation(
     T_base_work: ArrayLike,
     tool: RobotTool,
     tool_rotation: float = 0.0,
+    robot: RobotModel | None = None,
     dn_before: ArrayLike | None = None,
     dn_after: ArrayLike | None = None,
     after_label: str = "predicted",
@@ -316,12 +355,19 @@ def write_compensation(
 ) -> Path:
     """Write the compensated command and the before/after comparison into ``out_dir``.
 
-    Files: ``compensated.csv`` (toolpath CSV), ``compensated.mod`` (RAPID), ``compensated.src``
-    + ``.dat`` (KRL), ``compensated.nc`` (G-code), ``per_point.csv`` (mm, flags),
+    Files: ``compensated.csv`` (toolpath CSV), ``compensated.mod`` (RAPID; with part modules
+    ``compensated_<k>.mod`` for a long path), ``compensated.src`` + ``.dat`` (KRL),
+    ``compensated.ls`` (FANUC), ``compensated.nc`` (G-code), ``per_point.csv`` (mm, flags),
     ``compensation.json``, ``compensation.html`` and ``compensation.png`` (with ``png``). The
     folder is replaced only when everything is written. Refuses a gouging command, and a
     partial (non-converged) one unless the options asked for it (then ``complete`` is false in
     the JSON and the per-point ``converged`` flags say where).
+
+    The robot programs carry the full command (robot/tool/holder pre-deflection + springback
+    adjustment) in the frames given (``T_base_work``, ``tool``), with the configuration data of
+    the IK branch of ``robot`` (the robot model with its tool) along the command. The G-code
+    carries only what applies to any machine: the nominal tip + the springback adjustment
+    (``target``), not the robot's compliance pre-deflection.
     """
     from roboisf.report.compensation import write_compensation_report
 
@@ -362,16 +408,36 @@ def write_compensation(
         key = after_label.replace(" ", "_")
         summary[f"mean_abs_dn_after_{key}_mm"] = float(np.nanmean(series["abs_dn_after"]))
     summary["after"] = after_label
+    config = None
+    if robot is not None:
+        from roboisf.io.program import program_config
+
+        with task(progress, "IK along the compensated command"):
+            config = program_config(robot, comp.toolpath, T_base_work, tool_rotation)
+    cnc = comp.nominal.with_tip(comp.target)
+    summary["gcode"] = (
+        "compensated.nc: nominal tip + springback adjustment only (no robot/tool pre-deflection)"
+    )
     with staged_directory(out_dir) as d:
         with task(progress, "programs"):
-            for name in ("compensated.csv", "compensated.mod", "compensated.src", "compensated.nc"):
+            for name in ("compensated.csv", "compensated.mod", "compensated.src", "compensated.ls"):
                 write_toolpath(
                     comp.toolpath,
                     d / name,
                     T_base_work=T_base_work,
                     tool=tool,
                     tool_rotation=tool_rotation,
+                    config=config,
                 )
+            sb = "on" if comp.options.springback else "off"
+            write_toolpath(
+                cnc,
+                d / "compensated.nc",
+                gcode_notes=(
+                    f"roboisf compensate: CNC program = nominal + springback adjustment ({sb}),",
+                    "the robot/tool/holder pre-deflection of the robot programs is NOT in it",
+                ),
+            )
         with atomic_write(d / "per_point.csv") as fh:
             pp.to_csv(fh, index=False, float_format="%.6g")
         with atomic_write(d / "compensation.json") as fh:

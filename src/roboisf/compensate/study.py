@@ -5,7 +5,9 @@ The robot run of the study is the part to correct. Its toolpath is the command t
 tip by ``analyze``) loads the deflection model, and its normal deviation ``robot_dn`` with the
 scan's ``robot_valid`` flags is ``D``. Points in the analysis' rim band (sheet bending, excluded by
 the method) are not springback-compensated: they keep the previous offset (0) and only get the
-compliance pre-deflection. The "after" of the comparison is predicted by superposition::
+compliance pre-deflection. Below the band the adjustment ramps in over ``rim_blend`` of depth
+(:func:`roboisf.compensate.pipeline.rim_blend`), so the command has no step at the band's edge.
+The "after" of the comparison is predicted by superposition::
 
     dn_after = dn_before + n · ((p_new + δ(p_new)) − (p_formed + δ(p_formed)))
 
@@ -22,12 +24,18 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from roboisf.compensate.compliance import DeflectionModel
-from roboisf.compensate.pipeline import Compensation, CompensationOptions, compensate
+from roboisf.compensate.pipeline import (
+    Compensation,
+    CompensationOptions,
+    compensate,
+    rim_blend,
+)
 from roboisf.decompose.pipeline import analyze, study_robot, tip_compliances
 from roboisf.errors import InputError
 from roboisf.io.program import RobotTool
 from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.progress import Progress, task
+from roboisf.robot.model import RobotModel
 from roboisf.study.spec import Study, load_study
 
 __all__ = ["StudyCompensation", "compensate_study", "study_deflection_model"]
@@ -58,6 +66,7 @@ class StudyCompensation:
     tool: RobotTool
     tool_rotation: float
     inputs: tuple[Path, ...]
+    robot: RobotModel | None = None
 
 
 def _per_point(study: Study, results: Path | None, progress: Progress | None) -> pd.DataFrame:
@@ -112,6 +121,7 @@ def compensate_study(
     dn = pp["robot_dn"].to_numpy(dtype=float) * 1e-3
     valid = pp["robot_valid"].to_numpy(dtype=bool)
     region = formed.depth > study.analysis.rim_band
+    blend = rim_blend(formed.depth, study.analysis.rim_band, o.rim_blend)
     c_prev = None if previous is None else _previous_offset(Path(previous), len(formed))
     with task(progress, "deflection model"):
         model = study_deflection_model(study, progress=progress)
@@ -123,6 +133,7 @@ def compensate_study(
         deviation=np.where(valid, dn, np.nan),
         valid=valid,
         region=region,
+        blend=blend,
         formed=formed.tip,
         previous_offset=c_prev,
         options=o,
@@ -153,6 +164,7 @@ def compensate_study(
         tool,
         float(study.robot.tool_rotation),
         inputs,
+        model.robot,
     )
 
 

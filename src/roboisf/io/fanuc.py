@@ -261,7 +261,7 @@ def write_fanuc(
     with contextlib.ExitStack() as stack:
         for f, text in files:
             stack.enter_context(atomic_write(f)).write(text)
-    return [f for f, _ in reversed(files)]
+    return [files[-1][0], *(f for f, _ in files[:-1])]  # main first, then the parts
 
 
 _NUM = NUMBER_RE

@@ -4,8 +4,8 @@ Dialect written::
 
     %
     (roboisf 0.1.0 ISF toolpath: ...)
-    (units mm, absolute; work offset G54 = blank centre in the sheet plane, z up)
-    (T1 = the ball tool; H1 = its length to the ball TIP: programmed Z is the tool tip)
+    (units mm, absolute, work offset G54 = blank centre in the sheet plane, z up)
+    (T1 = the ball tool, H1 = its length to the ball TIP: programmed Z is the tool tip)
     G21 G90 G17 G94 G40 G49 G80        ← safe start: mm, absolute, XY plane, no compensations
     G54                                ← work offset (selectable: G54…G59)
     T1 M06                             ← tool call
@@ -88,8 +88,8 @@ def write_gcode(
         f"(roboisf {__version__} ISF toolpath{': ' + _clean(title) if title else ''})",
         f"({len(tp)} points, {tp.n_laps} laps, ball radius {tp.tool_radius * 1e3:g} mm)",
         *(f"({_clean(n)})" for n in notes),
-        f"(units mm, absolute; work offset {work_offset} = blank centre in the sheet plane, z up)",
-        f"(T{t} = the ball tool; H{t} = its length to the ball TIP: programmed Z is the tool tip)",
+        f"(units mm, absolute, work offset {work_offset} = blank centre in the sheet plane, z up)",
+        f"(T{t} = the ball tool, H{t} = its length to the ball TIP: programmed Z is the tool tip)",
         "G21 G90 G17 G94 G40 G49 G80",
         work_offset,
         f"T{t} M06",
@@ -105,7 +105,8 @@ def write_gcode(
 
 
 def _clean(text: str) -> str:
-    return text.replace("(", "[").replace(")", "]").replace("\n", " ")
+    # no parentheses or ';' inside a comment: some readers end the comment there
+    return text.replace("(", "[").replace(")", "]").replace(";", ",").replace("\n", " ")
 
 
 _WORD = re.compile(r"([A-Z])\s*([-+]?\d*\.?\d+(?:[eE][-+]?\d+)?)")

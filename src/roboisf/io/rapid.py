@@ -262,7 +262,7 @@ def write_rapid(
     with contextlib.ExitStack() as stack:
         for f, text in files:
             stack.enter_context(atomic_write(f)).write(text)
-    return [f for f, _ in reversed(files)]
+    return [files[-1][0], *(f for f, _ in files[:-1])]  # main first, then the parts
 
 
 def _module_name(path: Path, module: str | None) -> str:
