@@ -79,7 +79,8 @@ def max_step(tip: np.ndarray) -> float:
 
 _N = r"-?\d+(?:\.\d+)?(?:E9)?"
 _POSE = rf"\[\[{_N},{_N},{_N}\],\[{_N},{_N},{_N},{_N}\]\]"
-_RT = rf"\[\[{_N},{_N},{_N}\],\[{_N},{_N},{_N},{_N}\],\[-?\d+,-?\d+,-?\d+,[0-7]\],\[(?:9E9,){{5}}9E9\]\]"
+_CONF = r"\[-?\d+,-?\d+,-?\d+,[0-7]\]"
+_RT = rf"\[\[{_N},{_N},{_N}\],\[{_N},{_N},{_N},{_N}\],{_CONF},\[(?:9E9,){{5}}9E9\]\]"
 _RAPID_LINES = [
     r"MODULE (\w+)",
     r"ENDMODULE",
@@ -461,7 +462,7 @@ def test_krl_round_trip(tmp_path, tp, placement, gamma):
 def test_krl_names_must_be_the_file_name(tmp_path, tp):
     with pytest.raises(InputError, match=r"\.src"):
         write_krl(tp, tmp_path / "p.krl", T_base_work=BASE)
-    with pytest.raises(InputError, match="next_part.src"):  # refused, with the name to use
+    with pytest.raises(InputError, match=r"next_part\.src"):  # refused, with the name to use
         write_krl(tp, tmp_path / "next-part.src", T_base_work=BASE)
     with pytest.raises(InputError, match="24 characters"):
         write_krl(tp, tmp_path / ("a" * 25 + ".src"), T_base_work=BASE)
@@ -476,7 +477,7 @@ def test_krl_names_must_be_the_file_name(tmp_path, tp):
 
 
 def test_fanuc_round_trip_and_split(tmp_path, cell):
-    model, T, path, cfg = cell
+    _, T, path, cfg = cell
     f = tmp_path / "cone.ls"
     files = write_fanuc(path, f, T_base_work=T, config=cfg, tool=RobotTool(length=0.306))
     assert files == [f]
