@@ -18,6 +18,7 @@ configuration data (confdata, S/T, CONFIG).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 from numpy.typing import ArrayLike
@@ -107,7 +108,12 @@ def write_toolpath(
             tp, path, safe_height=safe_height, notes=gcode_notes, work_offset=work_offset
         )
         return fmt, files
-    writer = {"rapid": write_rapid, "krl": write_krl, "fanuc": write_fanuc}[fmt]
+    writers: dict[str, Callable[..., list[Path]]] = {
+        "rapid": write_rapid,
+        "krl": write_krl,
+        "fanuc": write_fanuc,
+    }
+    writer = writers[fmt]
     files = writer(
         tp,
         path,

@@ -260,8 +260,8 @@ def write_rapid(
     ]
     files.append((path, "".join(out)))
     with contextlib.ExitStack() as stack:
-        for f, text in files:
-            stack.enter_context(atomic_write(f)).write(text)
+        for f, body in files:
+            stack.enter_context(atomic_write(f)).write(body)
     return [files[-1][0], *(f for f, _ in files[:-1])]  # main first, then the parts
 
 
