@@ -221,7 +221,8 @@ def test_rim_band_edge_has_no_step(analyzed, tmp_path):
     pp = pd.read_csv(tmp_path / "b" / "per_point.csv")
     lap_mean = pp.groupby("lap")["springback_offset_dn"].mean().to_numpy()
     assert np.abs(np.diff(lap_mean)).max() == pytest.approx(
-        sb["max_lap_step_springback_offset_mm"], rel=1e-5  # per_point.csv: 6 digits
+        sb["max_lap_step_springback_offset_mm"],
+        rel=1e-5,  # per_point.csv: 6 digits
     )
 
 

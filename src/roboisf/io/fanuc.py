@@ -111,7 +111,7 @@ def _pos_block(i: int, p: np.ndarray, wpr: np.ndarray, conf: str) -> str:
 
 def _attr(name: str, n_lines: int) -> str:
     return (
-        f"/PROG  {name}\n/ATTR\nOWNER\t\t= MNEDITOR;\nCOMMENT\t\t= \"roboisf ISF\";\n"
+        f'/PROG  {name}\n/ATTR\nOWNER\t\t= MNEDITOR;\nCOMMENT\t\t= "roboisf ISF";\n'
         "PROG_SIZE\t= 0;\nCREATE\t\t= DATE 00-01-01  TIME 00:00:00;\n"
         "MODIFIED\t= DATE 00-01-01  TIME 00:00:00;\nFILE_NAME\t= ;\nVERSION\t\t= 0;\n"
         f"LINE_COUNT\t= {n_lines};\nMEMORY_SIZE\t= 0;\nPROTECT\t\t= READ_WRITE;\n"

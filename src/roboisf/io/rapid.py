@@ -233,9 +233,7 @@ def write_rapid(
         for k, sl in enumerate(modules, start=1):
             mod = f"{name}_{k}"
             if k < len(modules):
-                out.append(
-                    f'    StartLoad \\Dynamic, sDir \\File:="{name}_{k + 1}.mod", ldNext;\n'
-                )
+                out.append(f'    StartLoad \\Dynamic, sDir \\File:="{name}_{k + 1}.mod", ldNext;\n')
             out.append(f'    %"{mod}_run"%;\n')
             if k < len(modules):
                 out.append("    WaitLoad ldNext;\n")
@@ -310,9 +308,7 @@ def _strip_comment(line: str) -> str:
     return line
 
 
-def _parse_module(
-    path: Path, procs: dict[str, list[_Item]], files: list[str]
-) -> str:
+def _parse_module(path: Path, procs: dict[str, list[_Item]], files: list[str]) -> str:
     """Add the PROCs of the module at ``path`` to ``procs`` (items: moves and calls in order) and
     the module files it loads to ``files``; return its text."""
     if not path.is_file():
