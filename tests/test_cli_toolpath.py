@@ -272,3 +272,13 @@ def _csv(tmp_path):
     ref = tmp_path / "ref.csv"
     assert main(["toolpath", "cone", *SMALL_CONE, "-o", str(ref)]) == 0
     return ref
+
+
+@pytest.mark.parametrize("name", ["next-part.src", "2nd.mod", "my part.ls"])
+def test_program_name_refused_before_generation(tmp_path, capsys, name):
+    """KRL DEF/DEFDAT, RAPID module and FANUC program are named after the file: an invalid name is
+    refused with the name to use, never cut or renamed silently."""
+    out = tmp_path / name
+    code, cap = _run(["toolpath", "cone", *SMALL_CONE, *ROBOT, "-o", str(out)], capsys)
+    assert code == 2 and "name" in cap.err and len(cap.err.strip().splitlines()) == 1
+    assert not list(tmp_path.iterdir())

@@ -41,7 +41,7 @@ from roboisf.errors import InputError
 from roboisf.frames.rotations import abc_to_matrix, rpy_to_matrix
 from roboisf.frames.se3 import make_transform
 from roboisf.io.atomic import check_not_input
-from roboisf.io.export import ROBOT_FORMATS, infer_format, write_toolpath
+from roboisf.io.export import ROBOT_FORMATS, check_program_name, infer_format, write_toolpath
 from roboisf.io.program import RobotTool, program_config
 from roboisf.parts import VWACF, AxisymmetricPart, Cone, ProfilePart, load_part, read_profile_csv
 from roboisf.parts.axisymmetric import VWACF_DEFAULT_ARC_RADIUS
@@ -272,7 +272,7 @@ def write(tp: Toolpath, output: Path, fmt: str | None, opts: PathOptions) -> str
     study's) IK along the path gives the configuration data.
     """
     fmt = infer_format(output, fmt)
-    T, tool, model = program_frames(fmt, opts)
+    T, tool, model = program_frames(fmt, opts, output)
     config = None
     if model is not None and T is not None and tool is not None:
         model = model.with_tool(make_transform(p=[0.0, 0.0, tool.length]))
@@ -291,9 +291,11 @@ def write(tp: Toolpath, output: Path, fmt: str | None, opts: PathOptions) -> str
 
 
 def program_frames(
-    fmt: str, opts: PathOptions
+    fmt: str, opts: PathOptions, output: Path
 ) -> tuple[np.ndarray | None, RobotTool | None, RobotModel | None]:
-    """Placement, tool and robot of a program; a robot program must have the first two."""
+    """Placement, tool and robot of a program; a robot program must have the first two and a
+    file name that is a valid program name."""
+    check_program_name(output, fmt)
     T = opts.placement()
     tool = opts.robot_tool()
     model = None
@@ -320,7 +322,7 @@ def _run(
     check_not_input(output, inputs)
     fmt = infer_format(output, fmt)  # fail before the (possibly long) generation
     opts.check()
-    program_frames(fmt, opts)  # placement, tool and robot are checked before the generation
+    program_frames(fmt, opts, output)  # name, placement, tool, robot: before the generation
     part = part_factory()
     tp = generate(part, opts)
     warn_truncated(tp, opts.tool_diameter)

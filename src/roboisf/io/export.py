@@ -18,6 +18,7 @@ configuration data (confdata, S/T, CONFIG).
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from pathlib import Path
 
@@ -32,7 +33,14 @@ from roboisf.io.rapid import write_rapid
 from roboisf.io.toolpath_csv import write_toolpath_csv
 from roboisf.toolpath.toolpath import Toolpath
 
-__all__ = ["FORMAT_SUFFIXES", "ROBOT_FORMATS", "infer_format", "output_files", "write_toolpath"]
+__all__ = [
+    "FORMAT_SUFFIXES",
+    "ROBOT_FORMATS",
+    "check_program_name",
+    "infer_format",
+    "output_files",
+    "write_toolpath",
+]
 
 #: Format name → accepted file suffixes (the first is the default).
 FORMAT_SUFFIXES: dict[str, tuple[str, ...]] = {
@@ -70,6 +78,26 @@ def infer_format(path: str | Path, fmt: str | None = None) -> str:
         "or pass --format",
         file=path,
     )
+
+
+def check_program_name(path: str | Path, fmt: str) -> None:
+    """Refuse, before any computation, a file name that is not a valid program name for ``fmt``
+    (KRL DEF/DEFDAT, RAPID module, FANUC program: the writers name the program after the file)."""
+    path = Path(path)
+    if fmt == "krl":
+        from roboisf.io.krl import krl_name
+
+        krl_name(path)
+    elif fmt == "rapid":
+        from roboisf.io.rapid import _module_name
+
+        _module_name(path, None)
+    elif fmt == "fanuc" and not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]{0,31}", path.stem):
+        raise InputError(
+            f"the file name {path.stem!r} does not give a FANUC program name (a letter, then "
+            "letters, digits or _)",
+            file=path,
+        )
 
 
 def output_files(path: str | Path, fmt: str) -> list[Path]:
