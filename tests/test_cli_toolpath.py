@@ -282,3 +282,23 @@ def test_program_name_refused_before_generation(tmp_path, capsys, name):
     code, cap = _run(["toolpath", "cone", *SMALL_CONE, *ROBOT, "-o", str(out)], capsys)
     assert code == 2 and "name" in cap.err and len(cap.err.strip().splitlines()) == 1
     assert not list(tmp_path.iterdir())
+
+
+def test_frames_and_robot_from_a_study(tmp_path):
+    """--placement STUDY / --tool STUDY: the study's [robot] placement, flange_to_tip and robot
+    (for the S/T of the first PTP)."""
+    from roboisf.study.spec import load_study
+    from roboisf.virtual.cell import build_study, paper_cone_cell
+
+    st = tmp_path / "study"
+    build_study(
+        paper_cone_cell(spacing=6e-3, scan_points=20000, force_rate=50.0, joint_rate=50.0), st
+    )
+    robot = load_study(st).robot
+    out = tmp_path / "cell.src"
+    argv = ["toolpath", "cone", *SMALL_CONE, "--placement", str(st), "--tool", str(st)]
+    assert main([*argv, "-o", str(out)]) == 0
+    back = read_krl(out)
+    np.testing.assert_allclose(back.T_base_work, robot.T_base_work, atol=1e-8)
+    assert back.tool.length == pytest.approx(robot.T_flange_tip[2, 3])
+    assert back.meta["status_turn"] is not None  # the study's robot gave the IK branch
