@@ -429,13 +429,13 @@ def write_compensation(
                     tool_rotation=tool_rotation,
                     config=config,
                 )
-            sb = "on" if comp.options.springback else "off"
+            sb = "with" if comp.options.springback else "without"
             write_toolpath(
                 cnc,
                 d / "compensated.nc",
                 gcode_notes=(
-                    f"roboisf compensate: CNC program = nominal + springback adjustment ({sb}),",
-                    "the robot/tool/holder pre-deflection of the robot programs is NOT in it",
+                    f"roboisf compensate: nominal path {sb} the springback adjustment",
+                    "NOT in it: the robot/tool/holder pre-deflection of the robot programs",
                 ),
             )
         with atomic_write(d / "per_point.csv") as fh:
