@@ -82,7 +82,7 @@ ToolOpt = Annotated[
     typer.Option(
         "--tool",
         help="The tool of a robot program: flange to ball tip \\[mm], or a study folder / "
-        "study.toml whose [robot] flange_to_tip is used. Required for .mod/.src/.ls.",
+        "study.toml whose \\[robot] flange_to_tip is used. Required for .mod/.src/.ls.",
     ),
 ]
 Placement = Annotated[
@@ -91,7 +91,7 @@ Placement = Annotated[
         "--placement",
         help="Work object (blank centre, sheet plane) in the robot base: 'X,Y,Z' or "
         "'X,Y,Z,RX,RY,RZ' \\[mm, deg; R = Rz(RZ)Ry(RY)Rx(RX), as study.toml], 'base' for the "
-        "robot base itself, or a study folder / study.toml (its [robot] placement). Required "
+        "robot base itself, or a study folder / study.toml (its \\[robot] placement). Required "
         "for .mod/.src/.ls.",
     ),
 ]
