@@ -183,6 +183,7 @@ def test_bad_profile_exit_2_no_output(tmp_path, capsys, kind):
         (["cone", "--step-down", "-0.5"], "--step-down"),
         (["cone", "--feed", "0"], "--feed"),
         (["cone", "--work-frame", "1,2,3"], "--work-frame"),
+        (["cone", "--work-offset", "G92"], "--work-offset"),
         (["cone", "--format", "step"], "format"),
         (["vwacf", "--arc-radius", "100"], "arc_radius"),
         (["vwacf", "--final-wall-angle", "120"], "final_wall_angle"),
@@ -302,3 +303,10 @@ def test_frames_and_robot_from_a_study(tmp_path):
     np.testing.assert_allclose(back.T_base_work, robot.T_base_work, atol=1e-8)
     assert back.tool.length == pytest.approx(robot.T_flange_tip[2, 3])
     assert back.meta["status_turn"] is not None  # the study's robot gave the IK branch
+
+
+def test_gcode_work_offset_flag(tmp_path):
+    out = tmp_path / "p.nc"
+    assert main(["toolpath", "cone", *SMALL_CONE, "--work-offset", "G56", "-o", str(out)]) == 0
+    back = read_gcode(out)
+    assert back.meta["work_offsets"] == ["G56"] and back.meta["length_compensation"] == [1]

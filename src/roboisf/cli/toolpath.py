@@ -42,6 +42,7 @@ from roboisf.frames.rotations import abc_to_matrix, rpy_to_matrix
 from roboisf.frames.se3 import make_transform
 from roboisf.io.atomic import check_not_input
 from roboisf.io.export import ROBOT_FORMATS, check_program_name, infer_format, write_toolpath
+from roboisf.io.gcode import WORK_OFFSETS
 from roboisf.io.program import RobotTool, program_config
 from roboisf.parts import VWACF, AxisymmetricPart, Cone, ProfilePart, load_part, read_profile_csv
 from roboisf.parts.axisymmetric import VWACF_DEFAULT_ARC_RADIUS
@@ -104,6 +105,13 @@ Robot = Annotated[
     ),
 ]
 ToolMass = Annotated[float, typer.Option(help="Tool + holder mass \\[kg] (robot programs).")]
+WorkOffset = Annotated[
+    str,
+    typer.Option(
+        help="G-code work offset holding the blank centre (G54 … G59); the program also calls "
+        "T1 M06 and G43 H1 (length to the ball tip)."
+    ),
+]
 ToolRotation = Annotated[
     float, typer.Option(help="Rotation of the tool about its own axis \\[deg] (RAPID/KRL).")
 ]
@@ -135,6 +143,7 @@ class PathOptions:
     placement_: str | None = None
     tool: str | None = None
     robot: str | None = None
+    work_offset: str = "G54"
 
     def check(self) -> None:
         for flag, v in (
@@ -286,6 +295,7 @@ def write(tp: Toolpath, output: Path, fmt: str | None, opts: PathOptions) -> str
         tool_rotation=math.radians(opts.tool_rotation),
         config=config,
         safe_height=opts.safe_height * 1e-3,
+        work_offset=opts.work_offset,
     )
     return fmt
 
@@ -296,6 +306,11 @@ def program_frames(
     """Placement, tool and robot of a program; a robot program must have the first two and a
     file name that is a valid program name."""
     check_program_name(output, fmt)
+    if opts.work_offset not in WORK_OFFSETS:
+        raise InputError(
+            f"expected one of {', '.join(WORK_OFFSETS)}, got {opts.work_offset!r}",
+            field="--work-offset",
+        )
     T = opts.placement()
     tool = opts.robot_tool()
     model = None
@@ -349,6 +364,7 @@ _SHARED: list[tuple[str, Any, Any]] = [
     ("placement_", Placement, None),
     ("tool", ToolOpt, None),
     ("robot", Robot, None),
+    ("work_offset", WorkOffset, "G54"),
 ]
 
 
