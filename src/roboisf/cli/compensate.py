@@ -103,8 +103,8 @@ def register(app: typer.Typer) -> None:
         rim_blend: Annotated[
             float,
             typer.Option(
-                help="Depth below the rim band over which the springback adjustment ramps in "
-                "\\[mm] (0: a hard edge, a step in the command).",
+                help="Last part of the rim band over which the springback offset of the first "
+                "lap below it ramps in \\[mm] (0: a hard edge, a step in the command).",
             ),
         ] = 5.0,
         tool_mass: Annotated[float, typer.Option(help="Tool + holder mass \\[kg].")] = 2.0,

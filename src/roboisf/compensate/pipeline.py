@@ -53,6 +53,7 @@ __all__ = [
     "CompensationOptions",
     "compensate",
     "lap_table",
+    "edge_source",
     "nominal_of",
     "rim_blend",
     "write_compensation",
@@ -72,8 +73,8 @@ class CompensationOptions:
     relax, tol, max_iter, partial : the compliance fixed point
         (``partial``: return non-converged points flagged instead of raising)
     gouge_tol, max_overbend : m — gouge rule (:mod:`roboisf.compensate.gouge`)
-    rim_blend : m — depth over which the springback adjustment ramps in below the rim band
-        (a smoothstep from 0 at the band's edge to 1; 0: a hard edge). Without it the command
+    rim_blend : m — depth over which the springback adjustment ramps in inside the rim band, up
+        to its edge (a smoothstep, :func:`rim_blend`; 0: a hard edge). Without it the command
         steps by the full offset between the last lap of the band and the first below it.
     """
 
@@ -211,6 +212,7 @@ def compensate(
     valid: ArrayLike | None = None,
     region: ArrayLike | None = None,
     blend: ArrayLike | None = None,
+    source: ArrayLike | None = None,
     formed: ArrayLike | None = None,
     previous_offset: ArrayLike | None = None,
     options: CompensationOptions | None = None,
@@ -228,8 +230,9 @@ def compensate(
     deviation : (N,) float, m — measured normal deviation ``dn`` of the part formed by ``formed``
     valid : (N,) bool — where ``deviation`` is a measurement (holes are filled and flagged)
     region : (N,) bool — points to springback-compensate (default all)
-    blend : (N,) float in [0, 1] — share of the springback update applied per point (default 1;
-        :func:`rim_blend` ramps it in below a rim band)
+    blend : (N,) float in [0, 1] — share of the springback update applied per point (default 1
+        in the region; :func:`rim_blend` ramps it in across a rim band's edge)
+    source : (N,) int — the point whose smoothed deviation each point takes (:func:`edge_source`)
     formed : (N, 3) float, m — the commanded tip that formed the measured part (default nominal)
     previous_offset : (N,) float, m — ``c_k`` of the command that formed it (default 0)
     """
@@ -271,6 +274,7 @@ def compensate(
             valid=valid,
             region=region,
             blend=blend,
+            source=source,
             gain=o.gain,
             along=o.along,
             across=o.across,
@@ -314,13 +318,45 @@ def compensate(
 
 
 def rim_blend(depth: ArrayLike, rim_band: float, width: float) -> F64:
-    """Blend weights (N,) in [0, 1]: 0 in the rim band (``depth ≤ rim_band``), a smoothstep
-    ``3t² − 2t³`` over ``width`` [m] of depth below it (slope at most 1.5/width), 1 deeper."""
+    """Blend weights (N,) in [0, 1]: 1 below the rim band (``depth > rim_band``: the analysed
+    wall gets the whole adjustment), a smoothstep ``3t² − 2t³`` over the last ``width`` [m] of the
+    band (slope at most 1.5/width), 0 above ``rim_band − width``. ``width`` 0: the hard edge.
+
+    The ramp lies inside the band, where the method has no deviation of its own: blended band
+    points take the offset of the first lap below it (:func:`edge_source`), scaled by the weight.
+    Iterations keep the shape (a band point never feeds back a residual of its own, so it
+    converges to ``b`` × the edge's offset) and the analysed wall loses nothing."""
     d = np.asarray(depth, dtype=float)
     if width <= 0:
         return (d > rim_band).astype(float)
-    t = np.clip((d - rim_band) / width, 0.0, 1.0)
+    t = np.clip((d - rim_band + width) / width, 0.0, 1.0)
     return t * t * (3.0 - 2.0 * t)
+
+
+def edge_source(toolpath: Toolpath, rim_band: float, blend: ArrayLike) -> NDArray[np.int64]:
+    """For the blended points in the rim band (``depth ≤ rim_band``, ``blend > 0``): the point
+    nearest in angle on the first lap below the band, whose smoothed deviation they take (the
+    method has none of their own); every other point is its own source."""
+    tp = toolpath
+    b = np.asarray(blend, dtype=float)
+    src = np.arange(len(tp))
+    need = (tp.depth <= rim_band) & (b > 0)
+    below = tp.depth > rim_band
+    if not need.any() or not below.any():
+        return src
+    first = tp.lap[below].min()
+    cand = np.flatnonzero((tp.lap == first) & below)
+    ang = tp.angle[cand]
+    order = np.argsort(ang)
+    a_s, c_s = ang[order], cand[order]
+    a = tp.angle[need]
+    # periodic nearest neighbour in angle
+    ext_a = np.concatenate([a_s - 2 * np.pi, a_s, a_s + 2 * np.pi])
+    ext_c = np.concatenate([c_s, c_s, c_s])
+    j = np.clip(np.searchsorted(ext_a, a), 1, len(ext_a) - 1)
+    left_closer = (a - ext_a[j - 1]) <= (ext_a[j] - a)
+    src[need] = np.where(left_closer, ext_c[j - 1], ext_c[j])
+    return src
 
 
 def lap_table(lap: ArrayLike, **series: ArrayLike) -> pd.DataFrame:

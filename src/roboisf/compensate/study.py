@@ -5,8 +5,9 @@ The robot run of the study is the part to correct. Its toolpath is the command t
 tip by ``analyze``) loads the deflection model, and its normal deviation ``robot_dn`` with the
 scan's ``robot_valid`` flags is ``D``. Points in the analysis' rim band (sheet bending, excluded by
 the method) are not springback-compensated: they keep the previous offset (0) and only get the
-compliance pre-deflection. Below the band the adjustment ramps in over ``rim_blend`` of depth
-(:func:`roboisf.compensate.pipeline.rim_blend`), so the command has no step at the band's edge.
+compliance pre-deflection — except the last ``rim_blend`` of the band, where the offset of the
+first lap below the band ramps in (:func:`roboisf.compensate.pipeline.rim_blend`), so the
+command has no step at the band's edge.
 The "after" of the comparison is predicted by superposition::
 
     dn_after = dn_before + n · ((p_new + δ(p_new)) − (p_formed + δ(p_formed)))
@@ -28,6 +29,7 @@ from roboisf.compensate.pipeline import (
     Compensation,
     CompensationOptions,
     compensate,
+    edge_source,
     rim_blend,
 )
 from roboisf.decompose.pipeline import analyze, study_robot, tip_compliances
@@ -122,6 +124,7 @@ def compensate_study(
     valid = pp["robot_valid"].to_numpy(dtype=bool)
     region = formed.depth > study.analysis.rim_band
     blend = rim_blend(formed.depth, study.analysis.rim_band, o.rim_blend)
+    source = edge_source(formed, study.analysis.rim_band, blend)
     c_prev = None if previous is None else _previous_offset(Path(previous), len(formed))
     with task(progress, "deflection model"):
         model = study_deflection_model(study, progress=progress)
@@ -134,6 +137,7 @@ def compensate_study(
         valid=valid,
         region=region,
         blend=blend,
+        source=source,
         formed=formed.tip,
         previous_offset=c_prev,
         options=o,
