@@ -227,7 +227,9 @@ def displacement_adjustment(
     S, support = S[src], support[src]
     todo = b > 0
     if np.any(todo & ~reg & ~reg[src]):
-        raise InputError("a blended point outside the region needs a source inside it", field="source")
+        raise InputError(
+            "a blended point outside the region needs a source inside it", field="source"
+        )
     gap = todo & ~(support >= min_support)
     if np.any(gap) and on_gap == "raise":
         idx = np.flatnonzero(gap)
