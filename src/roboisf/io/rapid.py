@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import contextlib
 import re
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -79,7 +80,7 @@ __all__ = ["ZONES", "read_rapid", "write_rapid"]
 ZONES = ("fine", "z0", "z1", "z5", "z10", "z15", "z20", "z30", "z40", "z50", "z60", "z80", "z100")
 
 
-def _pose(p: np.ndarray, q: np.ndarray) -> str:
+def _pose(p: Sequence[float], q: Sequence[float]) -> str:
     xyz = ",".join(fmt_num(x) for x in p)
     return f"[[{xyz}],[{','.join(fmt_num(x, 9) for x in q)}]]"
 
@@ -87,7 +88,7 @@ def _pose(p: np.ndarray, q: np.ndarray) -> str:
 _EXT = "[9E9,9E9,9E9,9E9,9E9,9E9]"
 
 
-def _target(p: np.ndarray, q: np.ndarray, cf: np.ndarray) -> str:
+def _target(p: Sequence[float], q: Sequence[float], cf: Sequence[int]) -> str:
     return f"{_pose(p, q)[:-1]},[{','.join(str(int(c)) for c in cf)}],{_EXT}]"
 
 
@@ -161,7 +162,7 @@ def write_rapid(
     )
     tool, T, p = prog.tool, prog.T_base_work, prog.tip_mm
     q = matrix_to_quat(prog.R_work_tool)
-    qb = matrix_to_quat(T[:3, :3])
+    wobj_pose = _pose((T[:3, 3] * 1e3).tolist(), matrix_to_quat(T[:3, :3]).tolist())
     cog = tool.cog_xyz * 1e3
     if config is not None:
         if len(config) != len(tp):
@@ -178,7 +179,10 @@ def write_rapid(
         conf_j = "ConfJ\\Off"
     tail = f",vForm,{zone},{tool.name}\\WObj:={wobj_name};\n"
     up = fmt_num(prog.safe_height_mm)
-    moves = [_target(pp, qq, cc) for pp, qq, cc in zip(p, q, cf, strict=True)]
+    # Python floats: formatting numpy scalars one by one is several times slower
+    moves = [
+        _target(pp, qq, cc) for pp, qq, cc in zip(p.tolist(), q.tolist(), cf.tolist(), strict=True)
+    ]
     modules = split_modules(tp.lap, max_module_moves) if len(tp) > max_module_moves else []
     if modules and len(f"{name}_{len(modules)}_run") > 32:
         raise InputError(
@@ -204,8 +208,7 @@ def write_rapid(
         f"  PERS tooldata {tool.name} := [TRUE,[[0,0,{fmt_num(tool.length * 1e3)}],[1,0,0,0]],"
         f"[{fmt_num(tool.mass)},[{fmt_num(cog[0])},{fmt_num(cog[1])},{fmt_num(cog[2])}],"
         "[1,0,0,0],0,0,0]];\n",
-        f'  PERS wobjdata {wobj_name} := [FALSE,TRUE,"",{_pose(T[:3, 3] * 1e3, qb)},'
-        "[[0,0,0],[1,0,0,0]]];\n",
+        f'  PERS wobjdata {wobj_name} := [FALSE,TRUE,"",{wobj_pose},[[0,0,0],[1,0,0,0]]];\n',
         f"  CONST speeddata vForm := [{fmt_num(tp.feed * 1e3)},500,5000,1000];\n",
     ]
     if modules:
