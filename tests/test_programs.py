@@ -530,3 +530,30 @@ def test_output_mode(tmp_path, tp):
     mask = os.umask(0)
     os.umask(mask)
     assert stat.S_IMODE(os.stat(out).st_mode) == 0o666 & ~mask
+
+
+def test_readers_refuse_broken_program_sets(tmp_path, tp):
+    """A missing part module, a bad LS line number or a non-UTF-8 file: InputError naming the
+    file, never a traceback."""
+    write_rapid(tp, tmp_path / "s.mod", T_base_work=BASE, max_module_moves=400)
+    (tmp_path / "s_2.mod").unlink()
+    with pytest.raises(InputError, match="not found") as ei:
+        read_rapid(tmp_path / "s.mod")
+    assert ei.value.file.endswith("s_2.mod")
+    write_fanuc(tp, tmp_path / "f.ls", T_base_work=BASE)
+    text = (tmp_path / "f.ls").read_text()
+    (tmp_path / "f.ls").write_text(text.replace("   5:", "   7:", 1))
+    with pytest.raises(InputError, match="expected line 5"):
+        read_fanuc(tmp_path / "f.ls")
+    (tmp_path / "f.ls").write_bytes(b"/PROG \xff\xfe\n")
+    with pytest.raises(InputError, match="UTF-8"):
+        read_fanuc(tmp_path / "f.ls")
+
+
+@pytest.mark.parametrize("name", ["p.nc", "p.src", "p.mod"])
+def test_non_utf8_program_is_an_input_error(tmp_path, name):
+    f = tmp_path / name
+    f.write_bytes(b"\xff\xfe garbage\n")
+    reader = {"p.nc": read_gcode, "p.src": read_krl, "p.mod": read_rapid}[name]
+    with pytest.raises(InputError, match="UTF-8"):
+        reader(f)

@@ -71,6 +71,7 @@ from roboisf.io.program import (
     fanuc_config,
     prepare_program,
     program_identifier,
+    read_program_text,
     split_modules,
 )
 from roboisf.toolpath.toolpath import Toolpath
@@ -282,10 +283,7 @@ _MOVE = re.compile(r"^([JL])\s+P\[(\d+)\]\s+(\S+)\s+(FINE|CNT\d+)")
 def _read_ls(path: Path) -> tuple[str, list[str], dict[int, tuple]]:
     if not path.is_file():
         raise InputError("FANUC .ls program not found", file=path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as e:
-        raise InputError(f"not UTF-8 text ({e.reason})", file=path) from None
+    text = read_program_text(path)
     m = re.search(r"^/PROG\s+(\w+)", text, re.M)
     if not m or "/MN" not in text or "/END" not in text:
         raise InputError("not a TP program (expected /PROG, /MN and /END)", file=path)

@@ -36,7 +36,7 @@ import numpy as np
 from roboisf import __version__
 from roboisf.errors import InputError
 from roboisf.io.atomic import atomic_write
-from roboisf.io.program import ProgramPath, check_safe_height, tip_mm
+from roboisf.io.program import ProgramPath, check_safe_height, read_program_text, tip_mm
 from roboisf.toolpath.toolpath import Toolpath
 
 __all__ = ["read_gcode", "write_gcode"]
@@ -130,7 +130,7 @@ def read_gcode(path: str | Path) -> ProgramPath:
     offsets: list[str] = []
     tools: list[int] = []
     length_comp: list[int] = []
-    for lineno, raw in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+    for lineno, raw in enumerate(read_program_text(path).splitlines(), start=1):
         line = re.sub(r"\(.*?\)", "", raw).split(";", 1)[0].strip().upper()
         if not line or line == "%":
             continue

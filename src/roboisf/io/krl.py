@@ -69,6 +69,7 @@ from roboisf.io.program import (
     kuka_status_turn,
     prepare_program,
     program_identifier,
+    read_program_text,
 )
 from roboisf.toolpath.toolpath import Toolpath
 
@@ -255,7 +256,7 @@ def read_krl(path: str | Path) -> ProgramPath:
     path = Path(path)
     if not path.is_file():
         raise InputError("KRL .src not found", file=path)
-    lines = path.read_text(encoding="utf-8").splitlines()
+    lines = read_program_text(path).splitlines()
     defs: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
     calls: list[str] = []
     main = None
@@ -309,7 +310,7 @@ def read_krl(path: str | Path) -> ProgramPath:
     defdat = None
     dat = path.with_suffix(".dat")
     if dat.is_file():
-        text = dat.read_text(encoding="utf-8")
+        text = read_program_text(dat)
         dd = re.search(r"^\s*DEFDAT\s+(\w+)", text, re.MULTILINE | re.IGNORECASE)
         defdat = dd.group(1) if dd else None
         b = re.search(r"BASE_ISF\s*=\s*(\{[^}]*\})", text)

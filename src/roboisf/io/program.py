@@ -21,6 +21,7 @@ import math
 import re
 import warnings
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -327,6 +328,16 @@ def fanuc_config(cfg: ArmConfig) -> list[str]:
             d[:, 4].tolist(), up.tolist(), cfg.front.tolist(), turns.tolist(), strict=True
         )
     ]
+
+
+def read_program_text(path: Path) -> str:
+    """The text of a program file (UTF-8, a BOM allowed); InputError naming the file otherwise."""
+    try:
+        return path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise InputError(f"not UTF-8 text ({e.reason} at byte {e.start})", file=path) from None
+    except OSError as e:
+        raise InputError(f"cannot read the file ({e.strerror})", file=path) from None
 
 
 #: A decimal number in program text (parsers).

@@ -69,6 +69,7 @@ from roboisf.io.program import (
     identifier,
     prepare_program,
     program_identifier,
+    read_program_text,
     split_chunks,
     split_modules,
 )
@@ -316,10 +317,7 @@ def _parse_module(path: Path, procs: dict[str, list[_Item]], files: list[str]) -
     the module files it loads to ``files``; return its text."""
     if not path.is_file():
         raise InputError("RAPID module not found", file=path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as e:
-        raise InputError(f"not UTF-8 text ({e.reason})", file=path) from None
+    text = read_program_text(path)
     current: list[_Item] | None = None
     cname = ""
     for lineno, ln in enumerate(text.splitlines(), start=1):
