@@ -282,3 +282,34 @@ def test_compensated_programs_are_a_loadable_set(analyzed, tmp_path):
     assert main([*args, "-o", str(tmp_path / "d")]) == 0
     a = (out / "compensation.html").read_bytes()
     assert a == (tmp_path / "d" / "compensation.html").read_bytes()
+
+
+def test_confdata_from_the_joint_log_agrees_with_ik(analyzed, tmp_path):
+    """Configuration data from the study's logged joints (the controller's commanded angles,
+    interpolated at the toolpath points) equals the IK branch's, q6 around ±180° included:
+    they differ only where q6 sits within the interpolation error of the 180° boundary."""
+    from roboisf.decompose.pipeline import study_robot
+    from roboisf.io.jointlog import read_joint_log
+    from roboisf.io.program import abb_confdata, arm_config, program_config
+    from roboisf.io.rapid import read_rapid, write_rapid
+    from roboisf.study.spec import load_study
+
+    _, st, _ = analyzed
+    study = load_study(st)
+    run = study.robot_run
+    tp = read_toolpath_csv(run.toolpath)
+    log = read_joint_log(run.joints)
+    q = np.column_stack([np.interp(tp.time, log.time, log.q[:, j]) for j in range(6)])
+    model = study_robot(study)
+    T = study.robot.T_base_work
+    from_log = arm_config(model, q)
+    write_rapid(tp, tmp_path / "log.mod", T_base_work=T, config=from_log)
+    conf = read_rapid(tmp_path / "log.mod").meta["confdata"]
+    d = np.degrees(q)
+    np.testing.assert_array_equal(conf[:, :3], np.floor(np.round(d[:, [0, 3, 5]], 6) / 90))
+    # the path crosses q6 = ±180° (this one at +180°: quadrants 1 and 2)
+    assert set(conf[:, 2].tolist()) in ({1, 2}, {-3, -2})
+    ik = abb_confdata(program_config(model, tp, T, study.robot.tool_rotation))
+    differ = np.any(conf != ik, axis=1)
+    assert differ.mean() < 0.01
+    assert np.all(np.abs(np.abs(d[differ, 5]) - 180) < 0.05)
