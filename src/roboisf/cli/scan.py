@@ -33,7 +33,11 @@ def compare(
         None, "--toolpath", "-t", help="Toolpath CSV: deviations per contact point."
     ),
     register: str = typer.Option(
-        "none", "--register", "-r", help="Registration: none | flange | axisymmetric | icp."
+        "fixture",
+        "--register",
+        "-r",
+        help="Registration: fixture (default, as analyze: z and the two tilts from the flange "
+        "of an axisymmetric part) | flange | axisymmetric | icp | none.",
     ),
     rim_band: float = typer.Option(20.0, help="Rim band excluded below the sheet plane [mm]."),
     unit: str = typer.Option("mm", "--unit", "-u", help="Length unit of the scan file."),
