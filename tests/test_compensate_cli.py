@@ -234,8 +234,8 @@ def test_compensated_programs_are_a_loadable_set(analyzed, tmp_path):
     """The compensate output as a controller would load it: frames = the study's, confdata /
     S-T / CONFIG = the IK of the commanded path, names = files, the CNC program without the
     robot's pre-deflection, continuity, and a byte-identical report on a second run."""
-    from roboisf.compensate.pipeline import nominal_of
     from roboisf.cell import cell_from_study
+    from roboisf.compensate.pipeline import nominal_of
     from roboisf.io.fanuc import read_fanuc
     from roboisf.io.gcode import read_gcode
     from roboisf.io.krl import read_krl
