@@ -61,7 +61,9 @@ _CALL = 1 << 20
 def check_backend(backend: str, field: str = "backend") -> str:
     """Validate a ``backend`` name; ``"numba"`` needs numba installed."""
     if backend not in BACKENDS:
-        raise InputError(f"backend must be 'auto', 'numba' or 'numpy', got {backend!r}", field=field)
+        raise InputError(
+            f"backend must be 'auto', 'numba' or 'numpy', got {backend!r}", field=field
+        )
     if backend == "numba" and not HAVE_NUMBA:
         raise InputError("backend 'numba' needs numba: pip install 'roboisf[fast]'", field=field)
     return backend
