@@ -361,3 +361,21 @@ def test_single_blas_thread_pins_and_restores():
     with single_blas_thread():
         assert all(n == 1 for n in blas())
     assert blas() == before
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_fused_margin_test_is_the_singularity_check(engine):
+    """RobotModel.vjm(margin=…) runs the margin test of robot.singularity inside the VJM pass."""
+    from roboisf.robot.singularity import scaled_jacobian, sigma_min
+
+    m = _robot("irb7600-500-2.55")
+    q, W = _poses(m, 4000, seed=9)
+    q[:1500, 4] = np.random.default_rng(1).normal(0, 0.03, 1500)  # wrist near singular
+    L = m.opw.c2 + m.opw.c3
+    sig = sigma_min(scaled_jacobian(m.jacobian(q), L))
+    for thr in np.quantile(sig, [0.1, 0.5]):
+        r = m.vjm(q, W, margin=(L, thr), backend=engine)
+        assert r.k is None and r.J is None
+        far = np.abs(sig - thr) > 1e-8
+        np.testing.assert_array_equal(r.margin_ok[far], (sig > thr)[far])
+        assert _rel_d(r.d, *_reference(m, q, W)[::-1], W).max() <= 1e-14

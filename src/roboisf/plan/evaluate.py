@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -89,11 +90,18 @@ class PlacementScore:
 class _PathEval:
     q: F64
     margin_ok: NDArray[np.bool_]  # (N,) σ_min ≥ threshold (exact test)
-    J_scaled: F64  # (N, 6, 6) Jacobian, linear rows divided by the length scale
+    problem: PlanProblem
     d_total: F64  # (N, 3) work axes
     d_robot: F64
     steps: F64  # (N,) largest joint change from the previous point
     abs_total: F64  # (N,) |d_total|
+
+    @cached_property
+    def J_scaled(self) -> F64:
+        """(N, 6, 6) Jacobian, linear rows divided by the length scale (on demand: the margin
+        test runs inside the VJM kernel)."""
+        J = self.problem.model.jacobian(self.q, check_limits=False)
+        return scaled_jacobian(J, _length_scale(self.problem))
 
 
 def _length_scale(problem: PlanProblem) -> float:
@@ -110,12 +118,11 @@ def _solve(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) -> _PathEva
     ik = ik_toolpath(model, problem.tip, T_base_work, tool_rotation=gamma, singular_threshold=None)
     R = T_base_work[:3, :3]
     W_b = rotate_6(problem.wrench, R)
-    # VJM: δ = J K⁻¹ Jᵀ W, the fused path of RobotModel.deflection, and J (base axes, tip)
-    d_b, _, J = model.vjm(ik.q, W_b, want_jacobian=True)
-    assert J is not None
-    d_robot = d_b[:, :3] @ R  # rows Rᵀ δ: base → work axes
-    Js = scaled_jacobian(J, _length_scale(problem))
-    ok = margin_ok(Js, problem.sigma_threshold)
+    # VJM δ = J K⁻¹ Jᵀ W and the singularity-margin test in one pass (RobotModel.vjm)
+    r = model.vjm(ik.q, W_b, margin=(_length_scale(problem), problem.sigma_threshold))
+    ok = r.margin_ok
+    assert ok is not None
+    d_robot = r.d[:, :3] @ R  # rows Rᵀ δ: base → work axes
     d_total = d_robot
     if problem.tool_compliance is not None:
         # tool axes → work: z stays, x_tool = (cos γ, −sin γ, 0), i.e. R_work_tool = Rz(−γ)
@@ -130,7 +137,7 @@ def _solve(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) -> _PathEva
     return _PathEval(
         ik.q,
         ok,
-        Js,
+        problem,
         d_total,
         d_robot,
         _joint_steps(ik.q),
@@ -242,7 +249,8 @@ def _check(problem: PlanProblem, ev: _PathEval) -> str:
     """'' when the path passes the singularity and continuity checks, else the reason."""
     if not np.all(ev.margin_ok):
         i = int(np.argmin(ev.margin_ok))
-        smin = float(sigma_min(ev.J_scaled[i : i + 1])[0])
+        J_i = problem.model.jacobian(ev.q[i : i + 1], check_limits=False)
+        smin = float(sigma_min(scaled_jacobian(J_i, _length_scale(problem)))[0])
         return f"near a singularity: σ_min = {smin:.4f} < {problem.sigma_threshold:g} at point {i}"
     steps = ev.steps
     if steps.max() > problem.max_joint_step:

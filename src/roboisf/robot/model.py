@@ -238,7 +238,7 @@ class RobotModel:
         call. Chunked: the only memory is the result.
         """
         qv = self.check_q(q, limits=check_limits)
-        _, k, _ = self.vjm(qv, np.zeros(6), want_compliance=True, backend=backend)
+        k = self.vjm(qv, np.zeros(6), want_compliance=True, backend=backend).k
         assert k is not None
         if T_base_work is not None:
             k = rotate_6x6(k, _placement(T_base_work)[:3, :3].T)
@@ -264,7 +264,7 @@ class RobotModel:
         W = _check_wrench(wrench, qv.shape[0])
         if T_base_work is not None:
             W = rotate_6(W, _placement(T_base_work)[:3, :3])
-        d, _, _ = self.vjm(qv, W, backend=backend)
+        d = self.vjm(qv, W, backend=backend).d
         if T_base_work is not None:
             d = rotate_6(d, _placement(T_base_work)[:3, :3].T)
         return d
@@ -276,16 +276,18 @@ class RobotModel:
         *,
         want_compliance: bool = False,
         want_jacobian: bool = False,
+        margin: tuple[float, float] | None = None,
         backend: str | None = None,
         chunk: int = vjm_kernel.CHUNK,
         progress: Progress | None = None,
-    ) -> tuple[F64, F64 | None, F64 | None]:
-        """``(δ (N, 6), k_c (N, 6, 6) or None, J (N, 6, 6) or None)`` at the tip, base axes.
+    ) -> vjm_kernel.VJMResult:
+        """``VJMResult(d (N, 6), k (N, 6, 6), J (N, 6, 6), margin_ok (N,))`` at the tip, base axes.
 
         The one VJM path (:func:`roboisf.robot.vjm_kernel.vjm_eval`) for already validated
         angles ``qv`` (N, 6) rad (:meth:`check_q`) and wrenches ``W`` (N, 6) or (6,) [N; N·m],
-        base axes. ``k_c`` and ``J`` are computed only when asked; ``chunk``: poses per chunk of
-        the numpy engine.
+        base axes. ``k``, ``J`` and ``margin_ok`` (the singularity-margin test for ``margin`` =
+        (length scale m, threshold), :func:`roboisf.robot.singularity.margin_ok`) are computed
+        only when asked, else None; ``chunk``: poses per chunk of the numpy engine.
         """
         kinv = 1.0 / self.joint_stiffness
         Wv = _check_wrench(W, qv.shape[0])
@@ -302,6 +304,7 @@ class RobotModel:
             self._jacobian_only,
             want_compliance=want_compliance,
             want_jacobian=want_jacobian,
+            margin=margin,
             backend=b,
             chunk=chunk,
             progress=progress,

@@ -198,7 +198,7 @@ def vjm_batch(
     """
     qv = model.check_q(q, limits=check_limits)
     W = _check_wrench(wrench, qv.shape[0])
-    d, k, _ = model.vjm(
+    r = model.vjm(
         qv, W, want_compliance=want_compliance, backend=backend, chunk=chunk, progress=progress
     )
-    return k, d
+    return r.k, r.d

@@ -28,7 +28,7 @@ import math
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,7 +36,18 @@ from numpy.typing import NDArray
 from roboisf.errors import InputError
 from roboisf.progress import Progress, task
 
-__all__ = ["BACKENDS", "BLOCK", "CHUNK", "HAVE_NUMBA", "check_backend", "single_blas_thread"]
+__all__ = [
+    "BACKENDS",
+    "BLOCK",
+    "CHUNK",
+    "HAVE_NUMBA",
+    "VJMResult",
+    "check_backend",
+    "margin_numba",
+    "margin_numpy",
+    "single_blas_thread",
+    "vjm_eval",
+]
 
 F64 = NDArray[np.float64]
 
@@ -137,16 +148,22 @@ def _rows(
     d: F64,
     k: F64,
     J: F64,
+    margin: F64,
+    ok: NDArray[np.bool_],
 ) -> None:  # pragma: no cover - compiled (its results are tested against the numpy engine)
-    """Poses ``s:e``: δ into ``d``; k_c into ``k`` and J into ``J`` when those have N rows.
+    """Poses ``s:e``: δ into ``d``; k_c into ``k``, J into ``J`` and the singularity-margin test
+    into ``ok`` when those have N rows.
 
     ``F`` (7, 4, 4) with the tool folded into ``F[6]``; ``W`` (N, 6) or (1, 6) (one wrench for
-    every pose); ``k``/``J`` of zero rows are not written.
+    every pose); ``k``/``J``/``ok`` of zero rows are not written; ``margin`` = (1 / length
+    scale, threshold²) of :func:`margin_pivots_ok`.
     """
     want_k = k.shape[0] > 0
     want_j = J.shape[0] > 0
+    want_ok = ok.shape[0] > 0
     one_w = W.shape[0] == 1
     oz = np.empty((6, 6))  # per joint: z axis (3) and origin (3), base frame
+    M = np.empty((6, 6))
     Jl = np.empty((6, 6))
     a = np.empty(6)
     for n in range(s, e):
@@ -226,23 +243,103 @@ def _rows(
             for i in range(6):
                 for j in range(6):
                     J[n, i, j] = Jl[i, j]
+        if want_ok:
+            ok[n] = margin_pivots_ok(Jl, margin[0], margin[1], M)
+
+
+@_njit()
+def margin_pivots_ok(J: F64, lin_scale: float, c: float, M: F64) -> bool:  # pragma: no cover
+    """``σ_min(J_s) > √c`` for one Jacobian (6, 6), ``J_s`` = J with rows 0–2 times
+    ``lin_scale``: all LDLᵀ pivots of ``J_sᵀJ_s − c I`` are > 0 (``M`` (6, 6) scratch).
+
+    The one compiled form of :func:`roboisf.robot.singularity.margin_ok`.
+    """
+    for i in range(6):
+        for j in range(i, 6):
+            acc = 0.0
+            for r in range(3):
+                acc += (J[r, i] * lin_scale) * (J[r, j] * lin_scale)
+            for r in range(3, 6):
+                acc += J[r, i] * J[r, j]
+            M[i, j] = acc
+        M[i, i] -= c
+    for p in range(6):
+        piv = M[p, p]
+        if not piv > 0.0:
+            return False
+        for i in range(p + 1, 6):
+            lk = M[p, i] / piv  # the upper triangle holds the symmetric matrix
+            for j in range(i, 6):
+                M[i, j] -= lk * M[p, j]
+    return True
+
+
+@_njit()
+def _margin_rows(
+    Js: F64, lin_scale: float, c: float, ok: NDArray[np.bool_], s: int, e: int
+) -> None:  # pragma: no cover - compiled
+    M = np.empty((6, 6))
+    for n in range(s, e):
+        ok[n] = margin_pivots_ok(Js[n], lin_scale, c, M)
+
+
+@_njit(parallel=True)
+def _margin_parallel(
+    Js: F64, lin_scale: float, c: float, ok: NDArray[np.bool_]
+) -> None:  # pragma: no cover - compiled
+    n = Js.shape[0]
+    nb = (n + BLOCK - 1) // BLOCK
+    for b in _PRANGE(nb):
+        _margin_rows(Js, lin_scale, c, ok, b * BLOCK, min(n, (b + 1) * BLOCK))
+
+
+def margin_numba(Js: F64, lin_scale: float, c: float) -> NDArray[np.bool_]:
+    """:func:`margin_pivots_ok` over Jacobians (N, 6, 6) (parallel from the main thread)."""
+    ok = np.empty(Js.shape[0], dtype=np.bool_)
+    Jc = _c64(Js)
+    if threading.current_thread() is threading.main_thread():
+        _margin_parallel(Jc, float(lin_scale), float(c), ok)
+    else:
+        _margin_rows(Jc, float(lin_scale), float(c), ok, 0, Jc.shape[0])
+    return ok
 
 
 @_njit(parallel=True)
 def _kernel_parallel(
-    F: F64, sign: F64, offset: F64, kinv: F64, q: F64, W: F64, d: F64, k: F64, J: F64
+    F: F64,
+    sign: F64,
+    offset: F64,
+    kinv: F64,
+    q: F64,
+    W: F64,
+    d: F64,
+    k: F64,
+    J: F64,
+    margin: F64,
+    ok: NDArray[np.bool_],
 ) -> None:  # pragma: no cover - compiled
     n = q.shape[0]
     nb = (n + BLOCK - 1) // BLOCK
     for b in _PRANGE(nb):
-        _rows(F, sign, offset, kinv, q, W, b * BLOCK, min(n, (b + 1) * BLOCK), d, k, J)
+        s = b * BLOCK
+        _rows(F, sign, offset, kinv, q, W, s, min(n, s + BLOCK), d, k, J, margin, ok)
 
 
 @_njit()
 def _kernel_serial(
-    F: F64, sign: F64, offset: F64, kinv: F64, q: F64, W: F64, d: F64, k: F64, J: F64
+    F: F64,
+    sign: F64,
+    offset: F64,
+    kinv: F64,
+    q: F64,
+    W: F64,
+    d: F64,
+    k: F64,
+    J: F64,
+    margin: F64,
+    ok: NDArray[np.bool_],
 ) -> None:  # pragma: no cover - compiled
-    _rows(F, sign, offset, kinv, q, W, 0, q.shape[0], d, k, J)
+    _rows(F, sign, offset, kinv, q, W, 0, q.shape[0], d, k, J, margin, ok)
 
 
 def _c64(a: Any) -> F64:
@@ -251,6 +348,22 @@ def _c64(a: Any) -> F64:
     if not arr.flags.c_contiguous or not arr.flags.writeable:
         arr = np.array(arr, dtype=np.float64, order="C")
     return arr
+
+
+class VJMResult(NamedTuple):
+    """What :func:`vjm_eval` computed (base axes, at the tip); None where not asked.
+
+    d : (N, 6) [m; rad] — deflection ``J K⁻¹ Jᵀ W``
+    k : (N, 6, 6) or None — compliance ``J K⁻¹ Jᵀ``
+    J : (N, 6, 6) or None — tip Jacobian
+    margin_ok : (N,) bool or None — ``σ_min(J_s) > threshold`` (exact elimination test of
+        :func:`roboisf.robot.singularity.margin_ok`)
+    """
+
+    d: F64
+    k: F64 | None
+    J: F64 | None
+    margin_ok: NDArray[np.bool_] | None
 
 
 def vjm_eval(
@@ -264,18 +377,21 @@ def vjm_eval(
     *,
     want_compliance: bool = False,
     want_jacobian: bool = False,
+    margin: tuple[float, float] | None = None,
     backend: str = "auto",
     chunk: int = CHUNK,
     progress: Progress | None = None,
     label: str = "VJM deflection",
-) -> tuple[F64, F64 | None, F64 | None]:
-    """δ (N, 6), and k_c (N, 6, 6) / J (N, 6, 6) when asked, for validated inputs (base axes).
+) -> VJMResult:
+    """δ (N, 6), and k_c, J, the singularity-margin test when asked, for validated inputs.
 
     F_tip : (7, 4, 4) — the chain's fixed transforms with ``T_flange_tip`` folded into the last
     sign, offset : (6,) — ``θ = sign·q + offset``
     kinv : (6,) rad/(N·m) — ``1 / K_θ``
     q : (N, 6) rad (already checked); W : (N, 6) [N; N·m], or a (N, 6) broadcast of one wrench
     jacobian : the numpy engine's Jacobian of a chunk of angles (m, 6) → (m, 6, 6)
+    margin : (length scale (m), threshold) — test ``σ_min(J_s) > threshold`` per pose, ``J_s``
+        the Jacobian with its linear rows divided by the length scale
     chunk : poses per chunk of the numpy engine (bounds its temporaries)
     """
     if chunk < 1:
@@ -284,6 +400,8 @@ def vjm_eval(
     d = np.empty((n, 6))
     k = np.empty((n, 6, 6)) if want_compliance else None
     J = np.empty((n, 6, 6)) if want_jacobian else None
+    ok = None if margin is None else np.empty(n, dtype=np.bool_)
+    lin_scale, c = (1.0, 0.0) if margin is None else (1.0 / margin[0], float(margin[1]) ** 2)
     if use_numba(backend):
         one = W.strides[0] == 0 or n == 0
         Wc = _c64(W[:1] if one else W)
@@ -295,6 +413,8 @@ def vjm_eval(
             else _kernel_serial
         )
         none = np.empty((0, 6, 6))
+        no_ok = np.empty(0, dtype=np.bool_)
+        mg = np.array([lin_scale, c])
         with task(progress, label, n) as advance:
             for s in range(0, n, _CALL):
                 e = min(n, s + _CALL)
@@ -305,9 +425,11 @@ def vjm_eval(
                     d[s:e],
                     none if k is None else k[s:e],
                     none if J is None else J[s:e],
+                    mg,
+                    no_ok if ok is None else ok[s:e],
                 )
                 advance(e - s)
-        return d, k, J
+        return VJMResult(d, k, J, ok)
     with task(progress, label, n) as advance:
         for s in range(0, n, chunk):
             e = min(n, s + chunk)
@@ -315,8 +437,37 @@ def vjm_eval(
             _numpy_chunk(Jc, W[s:e], kinv, d[s:e], None if k is None else k[s:e])
             if J is not None:
                 J[s:e] = Jc
+            if ok is not None:
+                Js = Jc.copy()
+                Js[:, :3] *= lin_scale
+                ok[s:e] = margin_numpy(Js, c)
             advance(e - s)
-    return d, k, J
+    return VJMResult(d, k, J, ok)
+
+
+def margin_numpy(Js: F64, c: float) -> NDArray[np.bool_]:
+    """The elimination of :func:`margin_pivots_ok` vectorised over scaled Jacobians (N, 6, 6):
+    component-major arrays, no per-pose LAPACK call."""
+    Jt = np.ascontiguousarray(Js.transpose(1, 2, 0))  # (6 rows, 6 cols, N)
+    n = Js.shape[0]
+    M = np.empty((6, 6, n))
+    for i in range(6):
+        for j in range(i, 6):
+            v = np.einsum("kn,kn->n", Jt[:, i], Jt[:, j])
+            M[i, j] = v
+            M[j, i] = v
+    for i in range(6):
+        M[i, i] -= c
+    ok = np.ones(n, dtype=bool)
+    for p in range(6):
+        piv = M[p, p]
+        ok &= piv > 0.0
+        if p == 5:
+            break
+        inv = 1.0 / np.where(piv > 0.0, piv, 1.0)
+        lk = M[p + 1 :, p] * inv  # (m, N)
+        M[p + 1 :, p + 1 :] -= lk[:, None, :] * M[p, p + 1 :][None, :, :]
+    return ok
 
 
 def _numpy_chunk(J: F64, W: F64, kinv: F64, d: F64, k: F64 | None) -> None:
