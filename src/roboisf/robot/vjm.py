@@ -52,10 +52,9 @@ def tip_compliance(
     when ``T_base_work`` is given.
     """
     qv = model.check_q(q)
-    T, J = model.fk_jacobian(qv)
-    k = (J * (1.0 / model.joint_stiffness)) @ np.swapaxes(J, 1, 2)
+    k = model.compliance(qv, check_limits=False)  # the fused, chunked VJM path
     if tool_parts:
-        R_base_tip = T[:, :3, :3]
+        R_base_tip = model.fk(qv, check_limits=False)[:, :3, :3]
         k_tool_tip = serial_assembly(list(tool_parts))  # tip axes
         k = k + rotate_6x6(np.broadcast_to(k_tool_tip, k.shape), R_base_tip)
     if T_base_work is not None:
