@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
 import pytest
 
@@ -379,3 +381,25 @@ def test_fused_margin_test_is_the_singularity_check(engine):
         far = np.abs(sig - thr) > 1e-8
         np.testing.assert_array_equal(r.margin_ok[far], (sig > thr)[far])
         assert _rel_d(r.d, *_reference(m, q, W)[::-1], W).max() <= 1e-14
+
+
+@needs_numba
+def test_numba_calls_in_pieces_give_the_same_bits(monkeypatch):
+    """Inputs longer than one kernel call are cut into calls (progress between them)."""
+    m = _robot("kr210-r2700-2")
+    q, W = _poses(m, 2500, seed=10)
+    r = m.vjm(q, W, want_compliance=True, margin=(2.0, 0.05), backend="numba")
+    seen = []
+
+    class P:
+        @contextlib.contextmanager
+        def task(self, description, total=None):
+            seen.append(total)
+            yield seen.append
+
+    monkeypatch.setattr(vjm_kernel, "_CALL", 1000)
+    r2 = m.vjm(q, W[0], want_compliance=True, margin=(2.0, 0.05), backend="numba", progress=P())
+    np.testing.assert_array_equal(r2.k, r.k)
+    np.testing.assert_array_equal(r2.margin_ok, r.margin_ok)
+    np.testing.assert_array_equal(r2.d, m.vjm(q, np.tile(W[0], (len(q), 1)), backend="numba").d)
+    assert seen == [2500, 1000, 1000, 500]
