@@ -324,7 +324,7 @@ def test_deflection_memory_is_the_result(engine):
 def test_sincos_within_one_ulp_of_numpy():
     import numba
 
-    from roboisf.robot.vjm_kernel import sincos
+    from roboisf.robot.vjm_numba import sincos
 
     @numba.njit
     def run(x, s, c):

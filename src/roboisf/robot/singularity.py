@@ -48,7 +48,9 @@ def margin_ok(J_scaled: ArrayLike, threshold: float, *, backend: str = "auto") -
     Js = _check(J_scaled)
     c = float(threshold) ** 2
     if vjm_kernel.use_numba(backend):
-        return vjm_kernel.margin_numba(Js, 1.0, c)
+        from roboisf.robot.vjm_numba import margin_numba
+
+        return margin_numba(Js, 1.0, c)
     return vjm_kernel.margin_numpy(Js, c)
 
 
