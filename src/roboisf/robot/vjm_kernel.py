@@ -49,8 +49,16 @@ __all__ = [
 
 F64 = NDArray[np.float64]
 
+
+def _numba_installed() -> bool:
+    try:
+        return importlib.util.find_spec("numba") is not None
+    except (ImportError, ValueError):  # pragma: no cover - a broken or blocked install
+        return False
+
+
 #: numba is installed (imported only when the compiled engine is first used).
-HAVE_NUMBA = importlib.util.find_spec("numba") is not None
+HAVE_NUMBA = _numba_installed()
 
 #: Engines accepted by ``backend=``.
 BACKENDS = ("auto", "numba", "numpy")
@@ -72,8 +80,24 @@ def check_backend(backend: str, field: str = "backend") -> str:
 
 
 def use_numba(backend: str) -> bool:
-    """True when ``backend`` ("auto", "numba" or "numpy") resolves to the compiled engine."""
-    return check_backend(backend) != "numpy" and HAVE_NUMBA
+    """True when ``backend`` ("auto", "numba" or "numpy") resolves to the compiled engine.
+
+    The first time, imports :mod:`roboisf.robot.vjm_numba`; if numba is installed but fails to
+    import, "auto" falls back to numpy and "numba" is an :class:`InputError` saying why.
+    """
+    global HAVE_NUMBA
+    if check_backend(backend) == "numpy" or not HAVE_NUMBA:
+        return False
+    try:
+        import roboisf.robot.vjm_numba  # noqa: F401
+    except ImportError as e:  # pragma: no cover - a broken numba install
+        if backend == "numba":
+            raise InputError(
+                f"backend 'numba': numba fails to import ({e})", field="backend"
+            ) from None
+        HAVE_NUMBA = False
+        return False
+    return True
 
 
 class VJMResult(NamedTuple):
