@@ -145,3 +145,26 @@ def test_ik_flags_with_the_elimination_and_gives_sigma_on_demand(cone_path):
     skip = ik_toolpath(m, cone_path, singular_threshold=None)
     assert skip.J_scaled is None and np.isnan(skip.sigma_min).all()
     assert not skip.near_singular.any()
+
+
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+def test_fused_singularity_check_needs_no_stiffness(backend):
+    """The IK check runs in the VJM kernel with unit stiffness: robots without a published
+    stiffness are checked too, with the same answer as the eigenvalues."""
+    from roboisf.robot import vjm_kernel
+    from roboisf.robot.singularity import scaled_jacobian, sigma_min
+
+    if backend == "numba" and not vjm_kernel.HAVE_NUMBA:
+        pytest.skip("numba not installed")
+    m = load_robot("irb4600-60-2.05").with_tool(TOOL)
+    assert m.stiffness is None
+    rng = np.random.default_rng(22)
+    q = rng.uniform(m.q_min, m.q_max, (2000, 6))
+    q[:700, 4] = rng.normal(0, 0.02, 700)
+    L = m.opw.c2 + m.opw.c3
+    sig = sigma_min(scaled_jacobian(m.jacobian(q), L))
+    thr = float(np.quantile(sig, 0.3))
+    ok = m.singularity_margin_ok(q, L, thr, backend=backend)
+    far = np.abs(sig - thr) > 1e-8
+    np.testing.assert_array_equal(ok[far], (sig > thr)[far])
+    assert 0.2 < 1 - ok.mean() < 0.4

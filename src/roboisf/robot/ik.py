@@ -20,7 +20,7 @@ shifted by whole turns to sit inside their limits.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Literal
 
@@ -30,7 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 from roboisf.errors import InputError, UnreachableError
 from roboisf.frames import invert, vertical_tool
 from roboisf.robot.model import RobotModel, _short
-from roboisf.robot.singularity import margin_ok, scaled_jacobian
+from roboisf.robot.singularity import scaled_jacobian
 from roboisf.robot.singularity import sigma_min as _sigma_min
 
 __all__ = [
@@ -139,9 +139,10 @@ class IKResult:
     q : (N, 6) float, rad — controller convention, continuous
     T_base_tip : (N, 4, 4) float — the commanded tip poses
     near_singular : (N,) bool — ``sigma_min < singular_threshold`` (exact elimination test,
-        :func:`roboisf.robot.singularity.margin_ok`)
-    J_scaled : (N, 6, 6) float or None — tip Jacobian with the linear rows divided by
-        ``length_scale`` (None when the check was skipped)
+        :func:`roboisf.robot.singularity.margin_ok`, run in the fused kernel)
+    length_scale : float or None, m — divides the Jacobian's linear rows (None when the check
+        was skipped)
+    J_scaled : (N, 6, 6) float or None — the scaled tip Jacobian; computed on first access
     sigma_min : (N,) float — smallest singular value of ``J_scaled`` (NaN when the check was
         skipped); computed on first access
     """
@@ -149,14 +150,21 @@ class IKResult:
     q: F64
     T_base_tip: F64
     near_singular: NDArray[np.bool_]
-    J_scaled: F64 | None = None
+    length_scale: float | None = None
+    model: RobotModel | None = field(default=None, repr=False)
+
+    @cached_property
+    def J_scaled(self) -> F64 | None:
+        """(N, 6, 6) scaled tip Jacobian, or None (see the class doc)."""
+        if self.model is None or self.length_scale is None:
+            return None
+        return scaled_jacobian(self.model.jacobian(self.q, check_limits=False), self.length_scale)
 
     @cached_property
     def sigma_min(self) -> F64:
         """(N,) smallest singular value of the scaled Jacobian (see the class doc)."""
-        if self.J_scaled is None:
-            return np.full(len(self.q), np.nan)
-        return _sigma_min(self.J_scaled)
+        Js = self.J_scaled
+        return np.full(len(self.q), np.nan) if Js is None else _sigma_min(Js)
 
 
 def ik_toolpath(
@@ -220,8 +228,7 @@ def ik_toolpath(
     if singular_threshold is None:
         return IKResult(q=q, T_base_tip=T_tip, near_singular=np.zeros(len(q), dtype=bool))
     L = length_scale if length_scale is not None else _length_scale(model)
-    Js = scaled_jacobian(model._jacobian_only(q), L)
-    near = ~margin_ok(Js, singular_threshold)
+    near = ~model.singularity_margin_ok(q, L, singular_threshold)
     if np.any(near):
         idx = np.flatnonzero(near)
         warnings.warn(
@@ -230,7 +237,7 @@ def ik_toolpath(
             SingularityWarning,
             stacklevel=2,
         )
-    return IKResult(q=q, T_base_tip=T_tip, near_singular=near, J_scaled=Js)
+    return IKResult(q=q, T_base_tip=T_tip, near_singular=near, length_scale=L, model=model)
 
 
 def _length_scale(model: RobotModel) -> float:

@@ -289,11 +289,50 @@ class RobotModel:
         (length scale m, threshold), :func:`roboisf.robot.singularity.margin_ok`) are computed
         only when asked, else None; ``chunk``: poses per chunk of the numpy engine.
         """
-        kinv = 1.0 / self.joint_stiffness
-        Wv = _check_wrench(W, qv.shape[0])
+        return self._vjm(
+            qv,
+            W,
+            1.0 / self.joint_stiffness,
+            want_compliance=want_compliance,
+            want_jacobian=want_jacobian,
+            margin=margin,
+            backend=backend,
+            chunk=chunk,
+            progress=progress,
+        )
+
+    def singularity_margin_ok(
+        self, qv: F64, length_scale: float, threshold: float, *, backend: str | None = None
+    ) -> NDArray[np.bool_]:
+        """(N,) bool: ``σ_min(J_s) > threshold`` for validated angles ``qv`` (N, 6) rad, ``J_s``
+        the tip Jacobian with its linear rows divided by ``length_scale`` (m).
+
+        The exact elimination test of :func:`roboisf.robot.singularity.margin_ok`, run in the
+        fused kernel without materialising the Jacobians; needs no joint stiffness.
+        """
+        ok = self._vjm(
+            qv, np.zeros(6), np.ones(6), margin=(length_scale, threshold), backend=backend
+        ).margin_ok
+        assert ok is not None
+        return ok
+
+    def _vjm(
+        self,
+        qv: F64,
+        W: F64,
+        kinv: F64,
+        *,
+        want_compliance: bool = False,
+        want_jacobian: bool = False,
+        margin: tuple[float, float] | None = None,
+        backend: str | None = None,
+        chunk: int = vjm_kernel.CHUNK,
+        progress: Progress | None = None,
+    ) -> vjm_kernel.VJMResult:
         b = self.backend if backend is None else vjm_kernel.check_backend(backend)
         F = self.chain.F.copy()
         F[6] = F[6] @ self.T_flange_tip
+        Wv = _check_wrench(W, qv.shape[0])
         return vjm_kernel.vjm_eval(
             F,
             self.chain.sign,
