@@ -403,3 +403,11 @@ def test_numba_calls_in_pieces_give_the_same_bits(monkeypatch):
     np.testing.assert_array_equal(r2.margin_ok, r.margin_ok)
     np.testing.assert_array_equal(r2.d, m.vjm(q, np.tile(W[0], (len(q), 1)), backend="numba").d)
     assert seen == [2500, 1000, 1000, 500]
+
+
+def test_bad_margin_is_an_input_error():
+    m = _robot("irb7600-500-2.55")
+    q, W = _poses(m, 5, seed=12)
+    for bad in ((0.0, 0.02), (2.0, -1.0), (np.nan, 0.02)):
+        with pytest.raises(InputError, match="margin"):
+            m.vjm(q, W, margin=bad)

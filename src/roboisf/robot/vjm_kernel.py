@@ -26,6 +26,7 @@ already parallel (the plan's placements).
 from __future__ import annotations
 
 import importlib.util
+import math
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any, NamedTuple
@@ -146,6 +147,13 @@ def vjm_eval(
     """
     if chunk < 1:
         raise InputError(f"chunk must be ≥ 1, got {chunk}", field="chunk")
+    if margin is not None and not (
+        math.isfinite(margin[0]) and margin[0] > 0 and math.isfinite(margin[1]) and margin[1] >= 0
+    ):
+        raise InputError(
+            f"singularity margin needs a length scale > 0 m and a threshold ≥ 0, got {margin}",
+            field="margin",
+        )
     n = q.shape[0]
     d = np.empty((n, 6))
     k = np.empty((n, 6, 6)) if want_compliance else None
