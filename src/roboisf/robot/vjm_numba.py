@@ -94,7 +94,7 @@ def _rows(
     want_ok = ok.shape[0] > 0
     one_w = W.shape[0] == 1
     oz = np.empty((6, 6))  # per joint: z axis (3) and origin (3), base frame
-    M = np.empty((6, 6))
+    M = np.empty((12, 6))
     Jl = np.empty((6, 6))
     a = np.empty(6)
     for n in range(s, e):
@@ -181,25 +181,30 @@ def _rows(
 @_njit()
 def margin_pivots_ok(J: F64, lin_scale: float, c: float, M: F64) -> bool:  # pragma: no cover
     """``σ_min(J_s) > √c`` for one Jacobian (6, 6), ``J_s`` = J with rows 0–2 times
-    ``lin_scale``: all LDLᵀ pivots of ``J_sᵀJ_s − c I`` are > 0 (``M`` (6, 6) scratch).
+    ``lin_scale``: all LDLᵀ pivots of ``J_sᵀJ_s − c I`` are > 0 (``M`` (12, 6) scratch).
 
-    The one compiled form of :func:`roboisf.robot.singularity.margin_ok`.
+    The one compiled form of :func:`roboisf.robot.singularity.margin_ok` (same elimination as
+    the numpy form: the multipliers use the pivot's reciprocal).
     """
+    for i in range(6):  # rows 6..11: columns of J_s, contiguous
+        for r in range(3):
+            M[6 + i, r] = J[r, i] * lin_scale
+        for r in range(3, 6):
+            M[6 + i, r] = J[r, i]
     for i in range(6):
         for j in range(i, 6):
             acc = 0.0
-            for r in range(3):
-                acc += (J[r, i] * lin_scale) * (J[r, j] * lin_scale)
-            for r in range(3, 6):
-                acc += J[r, i] * J[r, j]
+            for r in range(6):
+                acc += M[6 + i, r] * M[6 + j, r]
             M[i, j] = acc
         M[i, i] -= c
     for p in range(6):
         piv = M[p, p]
         if not piv > 0.0:
             return False
+        inv = 1.0 / piv
         for i in range(p + 1, 6):
-            lk = M[p, i] / piv  # the upper triangle holds the symmetric matrix
+            lk = M[p, i] * inv  # the upper triangle holds the symmetric matrix
             for j in range(i, 6):
                 M[i, j] -= lk * M[p, j]
     return True
@@ -209,7 +214,7 @@ def margin_pivots_ok(J: F64, lin_scale: float, c: float, M: F64) -> bool:  # pra
 def _margin_rows(
     Js: F64, lin_scale: float, c: float, ok: NDArray[np.bool_], s: int, e: int
 ) -> None:  # pragma: no cover - compiled
-    M = np.empty((6, 6))
+    M = np.empty((12, 6))
     for n in range(s, e):
         ok[n] = margin_pivots_ok(Js[n], lin_scale, c, M)
 
