@@ -9,6 +9,7 @@ from typing import Annotated
 import typer
 
 from roboisf.cli.console import state
+from roboisf.cli.outputs import DIR_HELP, Overwrite, output_dir, study_inputs
 from roboisf.errors import InputError
 
 __all__ = ["register"]
@@ -23,8 +24,9 @@ def register(app: typer.Typer) -> None:
             Path, typer.Argument(help="Study folder (with study.toml) or the study.toml.")
         ],
         output: Annotated[
-            Path, typer.Option("--output", "-o", help="Results folder (replaced when complete).")
+            Path, typer.Option("--output", "-o", help=f"Results folder. {DIR_HELP}")
         ] = Path("results"),
+        overwrite: Overwrite = False,
         png: Annotated[
             bool, typer.Option("--png/--no-png", help="Also write static PNG figures.")
         ] = True,
@@ -38,6 +40,7 @@ def register(app: typer.Typer) -> None:
         """
         from roboisf.decompose.pipeline import analyze, write_results
 
+        output_dir(output, "analyze", overwrite, study_inputs(study))
         progress = state.progress()
         result = analyze(study, progress=progress)
         write_results(result, output, png=png, progress=progress)
@@ -48,8 +51,9 @@ def register(app: typer.Typer) -> None:
     def _virtual_cell(
         part: Annotated[str, typer.Argument(help="cone (the paper's 71° cone) or vwacf.")],
         output: Annotated[
-            Path, typer.Option("--output", "-o", help="Study folder to write.")
+            Path, typer.Option("--output", "-o", help=f"Study folder to write. {DIR_HELP}")
         ] = Path("study"),
+        overwrite: Overwrite = False,
         scan_points: Annotated[int, typer.Option(help="Points per scan.")] = 2_000_000,
         force_rate: Annotated[float, typer.Option(help="Force log sample rate [Hz].")] = 1000.0,
         robot: Annotated[
@@ -70,6 +74,7 @@ def register(app: typer.Typer) -> None:
         """
         from roboisf.virtual.cell import build_study, paper_cone_cell, paper_vwacf_cell
 
+        output_dir(output, "virtual-cell", overwrite)
         makers = {"cone": paper_cone_cell, "vwacf": paper_vwacf_cell}
         if part not in makers:
             raise InputError(
@@ -91,10 +96,11 @@ def register(app: typer.Typer) -> None:
 
 def _print_table(df: object, summary: dict) -> None:
     import pandas as pd
+    from rich.markup import escape
     from rich.table import Table
 
     assert isinstance(df, pd.DataFrame)
-    t = Table(title=f"{summary['study']}: contributions (per-axis, mm)")
+    t = Table(title=f"{escape(str(summary['study']))}: contributions (per-axis, mm)")
     for c in ("factor", "|δx|", "|δy|", "|δz|", "R_m", "share %"):
         t.add_column(c, justify="left" if c == "factor" else "right")
     for r in df.itertuples():

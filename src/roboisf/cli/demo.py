@@ -17,6 +17,7 @@ import numpy as np
 import typer
 
 from roboisf.cli.console import state
+from roboisf.cli.outputs import DIR_HELP, Overwrite, output_dir
 from roboisf.cli.toolpath import warn_truncated
 from roboisf.frames.se3 import make_transform
 from roboisf.io.atomic import staged_directory
@@ -88,8 +89,9 @@ def register(app: typer.Typer) -> None:
     @app.command("demo")
     def _demo(
         output: Annotated[
-            Path, typer.Option("--output", "-o", help="Folder to create (replaced if it exists).")
+            Path, typer.Option("--output", "-o", help=f"Folder to write. {DIR_HELP}")
         ] = Path("roboisf-demo"),
+        overwrite: Overwrite = False,
         scan_points: Annotated[int, typer.Option(help="Points per simulated scan.")] = 1_000_000,
         force_rate: Annotated[float, typer.Option(help="Force-log sample rate [Hz].")] = 1000.0,
     ) -> None:
@@ -97,6 +99,7 @@ def register(app: typer.Typer) -> None:
 
         Opens nothing and needs no input: results land in OUTPUT/index.html.
         """
-        with staged_directory(output) as stage:
+        output_dir(output, "demo", overwrite)
+        with staged_directory(output, "demo") as stage:
             build_demo(stage, state.progress(), scan_points=scan_points, force_rate=force_rate)
         state.info(f"open {output / 'index.html'}")

@@ -18,6 +18,7 @@ from typing import Annotated
 import typer
 
 from roboisf.cli.console import state
+from roboisf.cli.outputs import FILE_HELP, Overwrite, output_file
 from roboisf.errors import InputError
 from roboisf.io.atomic import check_not_input
 from roboisf.parts import VWACF, AxisymmetricPart, Cone, ProfilePart, read_profile_csv, save_part
@@ -25,7 +26,9 @@ from roboisf.parts.axisymmetric import PAPER_SHEET_THICKNESS, VWACF_DEFAULT_ARC_
 
 __all__ = ["register"]
 
-Output = Annotated[Path, typer.Option("--output", "-o", help="Part file to write (.toml).")]
+Output = Annotated[
+    Path, typer.Option("--output", "-o", help=f"Part file to write (.toml). {FILE_HELP}")
+]
 # part dimensions, shared with ``roboisf toolpath`` (mm, deg)
 ConeDiameter = Annotated[float, typer.Option(help="Wall diameter at the sheet \\[mm].")]
 WallAngle = Annotated[float, typer.Option(help="Wall angle, 0 < α < 90 \\[deg].")]
@@ -40,10 +43,13 @@ Flange = Annotated[float, typer.Option(help="Flange width outside the opening \\
 part_app = typer.Typer(help="Write a part file (TOML, mm and degrees).", no_args_is_help=True)
 
 
-def _save(make: Callable[[], AxisymmetricPart], output: Path, inputs: list[Path]) -> None:
+def _save(
+    make: Callable[[], AxisymmetricPart], output: Path, inputs: list[Path], overwrite: bool
+) -> None:
     if output.suffix.lower() != ".toml":
         raise InputError("a part file must end in .toml", file=output)
     check_not_input(output, inputs)
+    output_file(output, "part", overwrite, inputs)
     part = make()
     save_part(part, output)
     state.info(f"wrote {output}: {part.kind}, depth {part.depth * 1e3:.3f} mm")
@@ -57,6 +63,7 @@ def _cone(
     depth: Depth = 102.97,
     sheet_thickness: Sheet = PAPER_SHEET_THICKNESS * 1e3,
     flange_width: Flange = 10.0,
+    overwrite: Overwrite = False,
 ) -> None:
     """Truncated cone (defaults: the paper's Ø87 mm, 71°, 102.97 mm)."""
     _save(
@@ -69,6 +76,7 @@ def _cone(
         ),
         output,
         [],
+        overwrite,
     )
 
 
@@ -80,6 +88,7 @@ def _vwacf(
     final_wall_angle: FinalWallAngle = 90.0,
     sheet_thickness: Sheet = PAPER_SHEET_THICKNESS * 1e3,
     flange_width: Flange = 10.0,
+    overwrite: Overwrite = False,
 ) -> None:
     """Variable-wall-angle frustum (defaults: Ø88.15 mm, 39 mm arc, 0° → 90°)."""
     _save(
@@ -92,6 +101,7 @@ def _vwacf(
         ),
         output,
         [],
+        overwrite,
     )
 
 
@@ -101,6 +111,7 @@ def _profile(
     output: Output,
     sheet_thickness: Sheet = PAPER_SHEET_THICKNESS * 1e3,
     flange_width: Flange = 10.0,
+    overwrite: Overwrite = False,
 ) -> None:
     """Part from a generatrix CSV; the TOML stores the CSV's path relative to itself."""
 
@@ -115,7 +126,7 @@ def _profile(
             flange_width=flange_width * 1e-3,
         )
 
-    _save(make, output, [profile])
+    _save(make, output, [profile], overwrite)
 
 
 def register(app: typer.Typer) -> None:

@@ -362,7 +362,7 @@ def write_compensation(
         key = after_label.replace(" ", "_")
         summary[f"mean_abs_dn_after_{key}_mm"] = float(np.nanmean(series["abs_dn_after"]))
     summary["after"] = after_label
-    with staged_directory(out_dir) as d:
+    with staged_directory(out_dir, "compensate") as d:
         with task(progress, "programs"):
             for name in ("compensated.csv", "compensated.mod", "compensated.src", "compensated.nc"):
                 write_toolpath(
