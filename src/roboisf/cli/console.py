@@ -26,7 +26,7 @@ class _State:
 
     def info(self, msg: str) -> None:
         if self.verbosity >= 1:
-            self.out.print(msg, markup=False)
+            self.out.print(msg, markup=False, soft_wrap=True)
 
     def debug(self, msg: str) -> None:
         if self.verbosity >= 2:
@@ -34,7 +34,7 @@ class _State:
 
     def warn(self, msg: str) -> None:
         if self.verbosity >= 1:
-            self.err.print(f"[yellow]warning:[/yellow] {escape(msg)}")
+            self.err.print(f"[yellow]warning:[/yellow] {escape(msg)}", soft_wrap=True)
 
     def progress(self) -> RichProgress | None:
         return RichProgress(self.err) if self.verbosity >= 1 else None

@@ -80,14 +80,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         with signal_handlers(), output_session() as session:
             try:
-                return _run(args)
+                code = _run(args)
             except (Interrupted, KeyboardInterrupt, typer.Abort) as e:
                 code = e.exit_code if isinstance(e, Interrupted) else 130
-                with contextlib.suppress(Interrupted), deferred_signals():
-                    what = "; ".join(c.outcome() for c in session.claims) or "nothing written"
-                    how = "terminated (SIGTERM)" if code == 143 else "interrupted (SIGINT)"
-                    state.err.print(f"{how}; {what}", markup=False, soft_wrap=True)
+            if code not in (130, 143):  # typer turns a KeyboardInterrupt into exit code 130
                 return code
+            with contextlib.suppress(Interrupted), deferred_signals():
+                what = "; ".join(c.outcome() for c in session.claims) or "nothing written"
+                how = "terminated (SIGTERM)" if code == 143 else "interrupted (SIGINT)"
+                state.err.print(f"{how}; {what}", markup=False, soft_wrap=True)
+            return code
     finally:
         state.verbosity = 1
 
