@@ -1,7 +1,9 @@
 """The ``roboisf`` command line.
 
-Every command: ``--help``; ``-o/--output``; exit code 0 on success, 2 on bad input (one line on
-stderr naming the file/field and what was expected), 1 on an internal error. ``-q`` silences
+Every command: ``--help``; ``-o/--output`` (checked and locked before computing, never loses a
+file roboisf did not write: docs/conventions.md, Outputs); exit code 0 on success, 2 on bad input
+(one line on stderr naming the file/field and what was expected), 1 on an internal error, 130/143
+when interrupted by SIGINT/SIGTERM. ``-q`` silences
 progress and info, ``-v`` adds detail. Call :func:`main` with an argv list from tests.
 """
 

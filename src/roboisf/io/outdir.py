@@ -300,11 +300,12 @@ def _claim_dir(
     out: Path, shown: str | Path, command: str, overwrite: bool, inputs: Sequence[str | Path]
 ) -> OutputClaim:
     _check_location(out, shown, "dir", inputs)
-    existed = out.is_dir()
-    if existed:
-        _check_previous(out, shown, command, overwrite)
+    # lock first, then look inside: a run finishing meanwhile cannot change what was checked
     lock = _Lock.acquire(out, shown, command)
     try:
+        existed = out.is_dir()
+        if existed:
+            _check_previous(out, shown, command, overwrite)
         _clean_stale(out)
     except BaseException:
         lock.release()
@@ -490,9 +491,14 @@ class _Lock:
         import fcntl
 
         lp = cls.lock_path(out)
-        out.parent.mkdir(parents=True, exist_ok=True)
         for _ in range(20):
-            fd = os.open(lp, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                out.parent.mkdir(parents=True, exist_ok=True)
+                fd = os.open(lp, os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError as e:
+                raise InputError(
+                    f"cannot create the output here: {e.strerror or e}", file=shown
+                ) from None
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError as e:
