@@ -33,7 +33,7 @@ def test_virtual_cell_outputs(tmp_path):
         )
         == 0
     )
-    assert {p.name for p in out.iterdir()} == FILES
+    assert {p.name for p in out.iterdir()} == FILES | {".roboisf-output.json"}
     s = json.loads((out / "compensation.json").read_text())
     assert s["complete"] and s["gouge"]["ok"] and s["compliance"]["converged"]
     m = s["mean_abs_dn_per_iteration_mm"]
