@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import IO
 
 from roboisf.errors import InputError
-from roboisf.io.outdir import mark_written, staged_output_dir
+from roboisf.io.outdir import deferred_signals, mark_written, staged_output_dir
 
 __all__ = ["atomic_path", "atomic_write", "check_not_input", "staged_directory"]
 
@@ -48,19 +48,22 @@ def atomic_path(path: str | Path, suffix: str | None = None) -> Iterator[Path]:
     path = Path(path)
     if path.parent and not path.parent.exists():
         path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(
-        prefix=f".{path.name}.", suffix=suffix or path.suffix or ".tmp", dir=path.parent
-    )
-    os.close(fd)
-    tmp_path = Path(tmp)
+    tmp_path: Path | None = None
     try:
+        with deferred_signals():  # a signal right after mkstemp still finds `tmp_path` set
+            fd, tmp = tempfile.mkstemp(
+                prefix=f".{path.name}.", suffix=suffix or path.suffix or ".tmp", dir=path.parent
+            )
+            os.close(fd)
+            tmp_path = Path(tmp)
         yield tmp_path
         os.chmod(tmp_path, _default_mode(0o666))
         os.replace(tmp_path, path)
         mark_written(path)
     except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            tmp_path.unlink()
+        if tmp_path is not None:
+            with contextlib.suppress(FileNotFoundError):
+                tmp_path.unlink()
         raise
 
 

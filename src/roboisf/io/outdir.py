@@ -629,16 +629,19 @@ def staged_output_dir(
     if claim is None:
         own = _claim_dir(out, path, command or "python", overwrite, ())
         claim = own
+    stage: Path | None = None
     try:
-        stage = _make_work_dir(out, "staging")
         try:
+            with deferred_signals():  # a signal right after mkdtemp still finds `stage` set
+                stage = _make_work_dir(out, "staging")
             yield stage
             with deferred_signals():
                 _commit(stage, out, path, claim.command)
                 claim.committed = True
         except BaseException:
-            with deferred_signals():
-                shutil.rmtree(stage, ignore_errors=True)
+            if stage is not None:
+                with deferred_signals():
+                    shutil.rmtree(stage, ignore_errors=True)
             raise
     finally:
         if own is not None:
