@@ -517,3 +517,24 @@ def test_echoed_values_are_never_markup_or_emoji(value, tmp_path, capsys, monkey
 
     state.warn(value)
     assert value in capsys.readouterr().err
+
+
+def test_lock_without_flock_takes_over_a_dead_pid_and_refuses_a_live_one(tmp_path, monkeypatch):
+    """The O_EXCL fallback (no fcntl, or a file system without flock)."""
+    from roboisf.io import outdir
+
+    monkeypatch.setattr(
+        outdir._Lock, "acquire", classmethod(lambda cls, o, s, c: cls._acquire_excl(o, s, c))
+    )
+    lock = tmp_path / ".x.roboisf-lock"
+    lock.write_text(f"pid {_dead_pid()} roboisf plan\n")
+    claim = outdir._claim_dir(tmp_path / "x", "x", "t", False, ())
+    assert lock.read_text().startswith(f"pid {os.getpid()} ")
+    with pytest.raises(InputError, match=f"another roboisf run .*pid {os.getpid()}"):
+        outdir._claim_dir(tmp_path / "x", "x", "t", False, ())
+    claim.release()
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+    lock.write_text(f"pid {os.getppid()} roboisf plan\n")  # alive: never taken over
+    with pytest.raises(InputError, match=f"pid {os.getppid()}"):
+        outdir._claim_dir(tmp_path / "x", "x", "t", False, ())
+    assert lock.read_text() == f"pid {os.getppid()} roboisf plan\n"

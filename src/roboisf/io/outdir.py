@@ -476,7 +476,11 @@ def _marker_data(command: str, folder: Path, files: Iterable[PurePosixPath]) -> 
 
 
 class _Lock:
-    """``fcntl.flock`` on ``.NAME.roboisf-lock`` next to the output; holds the pid and command."""
+    """``fcntl.flock`` on ``.NAME.roboisf-lock`` next to the output; holds the pid and command.
+
+    Without ``fcntl`` (or on a file system that refuses flock) the lock file itself is the lock:
+    created with ``O_CREAT | O_EXCL``; one left by a dead pid is taken over.
+    """
 
     def __init__(self, path: Path, fd: int) -> None:
         self.path = path
@@ -488,8 +492,10 @@ class _Lock:
 
     @classmethod
     def acquire(cls, out: Path, shown: str | Path, command: str) -> _Lock:
-        import fcntl
-
+        try:
+            import fcntl
+        except ImportError:  # pragma: no cover - not POSIX
+            return cls._acquire_excl(out, shown, command)
         lp = cls.lock_path(out)
         for _ in range(20):
             try:
@@ -504,12 +510,8 @@ class _Lock:
             except OSError as e:
                 os.close(fd)
                 if e.errno not in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
-                    raise InputError(f"cannot lock the output: {e.strerror}", file=shown) from None
-                raise InputError(
-                    f"another roboisf run is writing this output ({_holder(lp)}); wait for it "
-                    "to finish or choose another -o",
-                    file=shown,
-                ) from None
+                    return cls._acquire_excl(out, shown, command)  # no flock on this FS
+                raise _busy(lp, shown) from None
             # the file may have been removed by its previous holder between open and flock
             try:
                 same = os.stat(lp).st_ino == os.fstat(fd).st_ino
@@ -522,6 +524,30 @@ class _Lock:
             os.close(fd)
         raise InputError("cannot lock the output (lock file keeps changing)", file=shown)
 
+    @classmethod
+    def _acquire_excl(cls, out: Path, shown: str | Path, command: str) -> _Lock:
+        lp = cls.lock_path(out)
+        for _ in range(20):
+            try:
+                out.parent.mkdir(parents=True, exist_ok=True)
+                fd = os.open(lp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+            except FileExistsError:
+                pid = _holder_pid(lp)
+                if pid is None or _pid_alive(pid):
+                    raise _busy(lp, shown) from None
+                # stale: move it aside under a unique name (only one taker wins), then retry
+                with contextlib.suppress(FileNotFoundError):
+                    os.replace(lp, lp.with_name(f"{lp.name}.stale.{os.getpid()}"))
+                    os.unlink(lp.with_name(f"{lp.name}.stale.{os.getpid()}"))
+                continue
+            except OSError as e:
+                raise InputError(
+                    f"cannot create the output here: {e.strerror or e}", file=shown
+                ) from None
+            os.write(fd, f"pid {os.getpid()} roboisf {command}\n".encode())
+            return cls(lp, fd)
+        raise InputError("cannot lock the output (lock file keeps changing)", file=shown)
+
     def release(self) -> None:
         if self.fd is None:
             return
@@ -529,6 +555,22 @@ class _Lock:
             os.unlink(self.path)  # unlink while still holding it: see the inode check above
         os.close(self.fd)
         self.fd = None
+
+
+def _busy(lock_file: Path, shown: str | Path) -> InputError:
+    return InputError(
+        f"another roboisf run is writing this output ({_holder(lock_file)}); wait for it to "
+        "finish or choose another -o",
+        file=shown,
+    )
+
+
+def _holder_pid(lock_file: Path) -> int | None:
+    """The pid written in a lock file (``pid N …``); None while it is being written."""
+    parts = _holder(lock_file).split()
+    if len(parts) >= 2 and parts[0] == "pid" and parts[1].isdigit():
+        return int(parts[1])
+    return None
 
 
 def _holder(lock_file: Path) -> str:
