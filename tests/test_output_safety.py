@@ -524,7 +524,7 @@ def test_lock_without_flock_takes_over_a_dead_pid_and_refuses_a_live_one(tmp_pat
     from roboisf.io import outdir
 
     monkeypatch.setattr(
-        outdir._Lock, "acquire", classmethod(lambda cls, o, s, c: cls._acquire_excl(o, s, c))
+        outdir._Lock, "_acquire", classmethod(lambda cls, o, s, c: cls._acquire_excl(o, s, c))
     )
     lock = tmp_path / ".x.roboisf-lock"
     lock.write_text(f"pid {_dead_pid()} roboisf plan\n")
@@ -538,3 +538,13 @@ def test_lock_without_flock_takes_over_a_dead_pid_and_refuses_a_live_one(tmp_pat
     with pytest.raises(InputError, match=f"pid {os.getppid()}"):
         outdir._claim_dir(tmp_path / "x", "x", "t", False, ())
     assert lock.read_text() == f"pid {os.getppid()} roboisf plan\n"
+
+
+def test_a_failed_run_leaves_no_empty_parent_folders(tmp_path, capsys):
+    argv = ["analyze", str(tmp_path / "nowhere"), "-o", str(tmp_path / "a" / "b" / "out")]
+    assert main(argv) == 2  # no study.toml: fails after the output was claimed
+    assert "study.toml" in _err_line(capsys)
+    assert list(tmp_path.iterdir()) == []
+    out = tmp_path / "c" / "d.toml"
+    assert main(["-q", "part", "cone", "-o", str(out)]) == 0
+    assert out.is_file()  # a written output keeps the folders made for it

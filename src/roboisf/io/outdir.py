@@ -145,9 +145,9 @@ class OutputClaim:
     _lock: _Lock | None = field(default=None, repr=False)
 
     def release(self) -> None:
-        """Drop the lock (idempotent)."""
+        """Drop the lock (idempotent); without a result, remove the empty parents made for it."""
         if self._lock is not None:
-            self._lock.release()
+            self._lock.release(remove_made=not self.committed)
             self._lock = None
 
     def outcome(self) -> str:
@@ -485,6 +485,7 @@ class _Lock:
     def __init__(self, path: Path, fd: int) -> None:
         self.path = path
         self.fd: int | None = fd
+        self.made: list[Path] = []  # parent folders created for the output, outermost first
 
     @staticmethod
     def lock_path(out: Path) -> Path:
@@ -492,6 +493,13 @@ class _Lock:
 
     @classmethod
     def acquire(cls, out: Path, shown: str | Path, command: str) -> _Lock:
+        missing = [p for p in reversed(out.parents) if not p.exists()]
+        lock = cls._acquire(out, shown, command)
+        lock.made = [p for p in missing if p.is_dir()]
+        return lock
+
+    @classmethod
+    def _acquire(cls, out: Path, shown: str | Path, command: str) -> _Lock:
         try:
             import fcntl
         except ImportError:  # pragma: no cover - not POSIX
@@ -548,13 +556,17 @@ class _Lock:
             return cls(lp, fd)
         raise InputError("cannot lock the output (lock file keeps changing)", file=shown)
 
-    def release(self) -> None:
+    def release(self, remove_made: bool = False) -> None:
         if self.fd is None:
             return
         with contextlib.suppress(FileNotFoundError):
             os.unlink(self.path)  # unlink while still holding it: see the inode check above
         os.close(self.fd)
         self.fd = None
+        if remove_made:  # nothing was written: take back the empty parents made for it
+            for d in reversed(self.made):
+                with contextlib.suppress(OSError):
+                    d.rmdir()
 
 
 def _busy(lock_file: Path, shown: str | Path) -> InputError:
