@@ -8,6 +8,7 @@ from pathlib import Path
 import typer
 
 from roboisf.cli.console import state
+from roboisf.cli.outputs import FILE_HELP, Overwrite, output_file
 from roboisf.errors import InputError
 
 __all__ = ["register"]
@@ -27,8 +28,9 @@ def compare(
         "--output",
         "-o",
         help="Deviation table: .parquet or .csv. Per toolpath point with --toolpath, else per "
-        "scan point (selected wall points).",
+        f"scan point (selected wall points). {FILE_HELP}",
     ),
+    overwrite: Overwrite = False,
     toolpath: Path | None = typer.Option(
         None, "--toolpath", "-t", help="Toolpath CSV: deviations per contact point."
     ),
@@ -88,6 +90,10 @@ def compare(
 
     for out in outputs:
         check_not_input(out, inputs)
+    if len({p.resolve() for p in outputs}) < len(outputs):
+        raise InputError("the output, summary and --points files must differ", file=output)
+    for out in outputs:
+        output_file(out, "scan compare", overwrite, inputs)
     for out in [output] + ([points_output] if points_output else []):
         if out.suffix.lower() not in (".parquet", ".pq", ".csv"):
             raise InputError("expected a .parquet or .csv table", file=out)

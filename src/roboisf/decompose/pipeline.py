@@ -475,7 +475,7 @@ def write_results(
             "overwrite an input)",
             file=out_dir,
         )
-    with staged_directory(out_dir) as stage:
+    with staged_directory(out_dir, "analyze") as stage:
         with task(progress, "tables"):
             with atomic_path(stage / "per_point.parquet") as tmp:
                 result.per_point.to_parquet(tmp, index=False)

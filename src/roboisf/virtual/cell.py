@@ -399,7 +399,7 @@ def build_study(
         Path("cnc_forces.csv"), "fixture", cell.fixture_sensor_pose, "workpiece"
     )
     rob_sensor = ForceSensorSpec(Path("robot_forces.csv"), "flange", cell.T_tip_sensor, "tool")
-    with staged_directory(out_dir) as d:
+    with staged_directory(out_dir, "virtual-cell") as d:
         (d / "truth").mkdir()
         with task(progress, "toolpath and compliances"):
             write_toolpath_csv(
