@@ -37,9 +37,10 @@ __all__ = [
 
 #: Part kinds that are surfaces of revolution (continuous symmetry about z).
 ROUND_KINDS = frozenset({"cone", "vwacf", "profile"})
-#: A part whose every lap keeps its radius within this fraction of the lap's mean radius is
-#: drawn as round when the summary does not say (a spiral's descent within a lap stays below it).
-ROUND_TOLERANCE = 0.05
+#: A part whose every lap keeps its radius (less its linear trend with z: a spiral descends
+#: within a lap) within this fraction of the lap's mean radius is drawn as round when the summary
+#: does not say. A square's radius varies by 41 %, an ellipse's by its axis ratio.
+ROUND_TOLERANCE = 0.02
 #: Most cells across the unrolled map (keeps the embedded figure data small).
 MAX_MAP_BINS = 360
 #: Most points per part drawn in the top view.
@@ -268,20 +269,29 @@ def is_round(per_point: pd.DataFrame, symmetry: int | None = None, kind: str | N
 
     ``symmetry`` (the order of :class:`roboisf.parts.Symmetry`: 0 continuous) decides when given;
     else a ``kind`` of cone, VWACF or profile is round; else the data decides: round when every
-    lap of at least 8 points keeps its contact radius within :data:`ROUND_TOLERANCE` of its mean.
+    lap of at least 8 points keeps its contact radius, less its linear trend in z, within
+    :data:`ROUND_TOLERANCE` of its mean.
     """
     if symmetry is not None:
         return symmetry == 0
     if kind is not None and kind in ROUND_KINDS:
         return True
     r = np.hypot(per_point["contact_x"].to_numpy(float), per_point["contact_y"].to_numpy(float))
-    g = pd.Series(r).groupby(per_point["lap"].to_numpy())
-    stats = g.agg(["min", "max", "mean", "size"])
-    stats = stats[(stats["size"] >= 8) & (stats["mean"] > 0)]
-    if stats.empty:
-        return True
-    spread = (stats["max"] - stats["min"]) / stats["mean"]
-    return bool((spread <= ROUND_TOLERANCE).all())
+    z = per_point["contact_z"].to_numpy(float)
+    laps, lap_idx = np.unique(per_point["lap"].to_numpy(), return_inverse=True)
+    order = np.argsort(lap_idx, kind="stable")
+    bounds = np.concatenate([[0], np.cumsum(np.bincount(lap_idx))])
+    for k in range(len(laps)):
+        idx = order[bounds[k] : bounds[k + 1]]
+        if idx.size < 8 or r[idx].mean() <= 0:
+            continue
+        # a spiral lap descends as it goes round: take out the radius' linear trend in z
+        A = np.column_stack([np.ones(idx.size), z[idx] - z[idx].mean()])
+        coef, *_ = np.linalg.lstsq(A, r[idx], rcond=None)
+        resid = r[idx] - A @ coef
+        if np.ptp(resid) > ROUND_TOLERANCE * r[idx].mean():
+            return False
+    return True
 
 
 @dataclass(frozen=True)
@@ -327,7 +337,9 @@ def lap_map(per_point: pd.DataFrame, column: str, n_bins: int | None = None) -> 
     B = n_bins
     with np.errstate(invalid="ignore", divide="ignore"):
         u = np.where(length > 0, s / np.where(length > 0, length, 1.0), 0.0)
-    cell = np.minimum((u * B).astype(np.intp), B - 1)
+    # cells are [lo, hi): a point on an edge (u·B integral up to the rounding of the chord sums)
+    # belongs to the cell above it
+    cell = np.minimum((u * B + 1e-9).astype(np.intp), B - 1)
     flat = lap_idx * B + cell
     size = len(laps) * B
     ok = np.isfinite(values)

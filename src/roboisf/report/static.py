@@ -250,7 +250,7 @@ def vjm_contour_png(per_point: pd.DataFrame, contour_z: float) -> Figure:
         ax0, ax1 = fig.subplots(1, 2, width_ratios=(1, 1.5))
         ax0.plot(c.x, c.y, color="#CBD2D9", linewidth=0.8)
         sc = ax0.scatter(c.x, c.y, c=c.experiment, s=8, cmap="viridis", linewidths=0)
-        ax0.set(xlabel="x (mm)", ylabel="y (mm)", aspect="equal", title="outline")
+        ax0.set(xlabel="x (mm)", ylabel="y (mm)", aspect="equal")
         fig.colorbar(sc, ax=ax0, label="$|\\delta c_{exp}|$ (mm)", shrink=0.8)
         ax1.plot(c.s, c.experiment, color=SERIES_COLORS["experiment"], label="$|\\delta c_{exp}|$")
         ax1.plot(c.s, c.vjm, color=SERIES_COLORS["vjm"], label="$|\\delta c_{VJM}|$")
@@ -260,9 +260,9 @@ def vjm_contour_png(per_point: pd.DataFrame, contour_z: float) -> Figure:
             ylabel="$|\\delta c|$ (mm)",
             xlim=(0, c.length),
             ylim=(0, None),
-            title=f"Robot deflection at z = {c.z:.1f} mm (lap {c.lap})",
         )
-        ax1.legend(ncols=3, fontsize=7)
+        ax1.legend(ncols=3, fontsize=7, loc="upper center")
+        fig.suptitle(f"Robot deflection along the lap at z = {c.z:.1f} mm (lap {c.lap})")
     return fig
 
 
