@@ -104,14 +104,16 @@ def _style_axes(fig: go.Figure, layout: dict[str, Any]) -> None:
     fig.update_yaxes(**{k: v for k, v in layout["yaxis"].items() if k != "title"})
 
 
-def _subplots(rows: int, cols: int, titles: list[str], height: int, **kw: Any) -> go.Figure:
+def _subplots(
+    rows: int, cols: int, titles: list[str], height: int, hspace: float = 0.09, **kw: Any
+) -> go.Figure:
     """Subplots in the report style, legend above the subplot titles, x titles on the bottom row."""
     top, bottom = 96, 56
     fig = make_subplots(
         rows=rows,
         cols=cols,
         subplot_titles=titles,
-        horizontal_spacing=0.09,
+        horizontal_spacing=hspace,
         vertical_spacing=min(0.34, 80.0 / (height - top - bottom)) if rows > 1 else 0.0,
         **kw,
     )
@@ -408,7 +410,7 @@ def vjm_contour_figure(per_point: pd.DataFrame, contour_z: float) -> tuple[go.Fi
     Returns the figure and its caption (which lap, its height, its length, any substitution).
     """
     c = agg.contour_along(per_point, contour_z)
-    fig = _subplots(1, 2, ["Outline, colour |δc<sub>exp</sub>|", "Along the lap"], 480)
+    fig = _subplots(1, 2, ["Outline, colour |δc<sub>exp</sub>|", "Along the lap"], 480, hspace=0.2)
     fig.add_trace(
         go.Scatter(
             x=_f(c.x),
@@ -420,7 +422,12 @@ def vjm_contour_figure(per_point: pd.DataFrame, contour_z: float) -> tuple[go.Fi
                 "colorscale": "Viridis",
                 "size": 6,
                 "showscale": True,
-                "colorbar": {"title": {"text": "mm", "side": "right"}, "thickness": 12, "x": 0.44},
+                "colorbar": {
+                    "title": {"text": "mm", "side": "right"},
+                    "thickness": 12,
+                    "x": 0.41,
+                    "xanchor": "left",
+                },
             },
             showlegend=False,
             customdata=_f(c.s),

@@ -169,7 +169,7 @@ def deviation_top_png(per_point: pd.DataFrame) -> Figure:
             ax.grid(False)
         axes[0].set_ylabel("y (mm)")
         assert sc is not None
-        fig.colorbar(sc, ax=axes, label="normal deviation δn (mm)", shrink=0.9)
+        fig.colorbar(sc, ax=axes, label="normal deviation δn (mm)", shrink=0.7)
     return fig
 
 
@@ -261,7 +261,7 @@ def vjm_contour_png(per_point: pd.DataFrame, contour_z: float) -> Figure:
             xlim=(0, c.length),
             ylim=(0, None),
         )
-        ax1.legend(ncols=3, fontsize=7, loc="upper center")
+        ax1.legend(ncols=3, fontsize=7, loc="lower center", bbox_to_anchor=(0.5, 1.0))
         fig.suptitle(f"Robot deflection along the lap at z = {c.z:.1f} mm (lap {c.lap})")
     return fig
 
