@@ -37,7 +37,7 @@ def compare(
     ),
     rim_band: float | None = typer.Option(
         None,
-        help="Rim band excluded below the sheet plane [mm] (sheet bending at the clamp). "
+        help="Rim band excluded below the sheet plane, mm (sheet bending at the clamp). "
         "Default: min(20, 0.6 × part depth) — the paper's 20 mm, capped on shallow parts.",
     ),
     unit: str = typer.Option("mm", "--unit", "-u", help="Length unit of the scan file."),

@@ -108,7 +108,10 @@ def decimate(n: int, max_points: int) -> np.ndarray:
 def unrolled_map(
     per_point: pd.DataFrame, column: str, n_angle_bins: int = 120
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The part unrolled: mean of ``column`` per (lap, angle bin).
+    """The part unrolled by polar angle: mean of ``column`` per (lap, angle bin).
+
+    Meaningful on round parts only, and a fixed angle grid leaves empty bins on sparse laps; the
+    report draws :func:`lap_map` (position along each lap, any part) instead.
 
     Returns
     -------
