@@ -178,6 +178,7 @@ def test_is_round_dispatch():
     assert agg.is_round(cone) and not agg.is_round(pyr)  # from the data
     assert not agg.is_round(cone, symmetry=4) and agg.is_round(pyr, symmetry=0)  # stated order
     assert agg.is_round(pyr, kind="cone") and not agg.is_round(pyr, kind="pyramid")
+    assert agg.is_round(cone, kind="mesh") and not agg.is_round(pyr, kind="mesh")  # the data
 
 
 def test_contour_along_a_square_lap():
