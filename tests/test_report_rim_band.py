@@ -79,3 +79,24 @@ def test_shallow_funnel_with_the_paper_band_is_all_rim(funnel, tmp_path, capsys)
     assert main(argv) == 2
     assert "rim band" in capsys.readouterr().err
     assert not out.exists()
+
+
+@pytest.mark.slow
+def test_shallow_part_through_virtual_cell_and_analyze(tmp_path):
+    """A 15 mm deep cone: the generated study carries the 9 mm band, the scan holes fall below
+    it (they were placed below a fixed 20 mm: no room, a numpy error) and every term is
+    recovered within the issue's 20 µm on the wall below the band."""
+    from roboisf.decompose.pipeline import analyze
+
+    (tmp_path / "shallow.toml").write_text(
+        '[part]\nkind = "cone"\nopening_diameter = 60.0\nwall_angle = 45.0\ndepth = 15.0\n'
+    )
+    argv = ["virtual-cell", "--part", str(tmp_path / "shallow.toml"), "--scan-points", "40000",
+            "--force-rate", "100", "-o", str(tmp_path / "study")]  # fmt: skip
+    assert main(argv) == 0
+    assert "rim_band = 9.0\n" in (tmp_path / "study" / "study.toml").read_text()
+    result = analyze(tmp_path / "study")
+    s = result.summary
+    assert s["rim_band_mm"] == pytest.approx(9.0) and s["part_symmetry"] == 0
+    assert 0 < s["n_points_used"] < s["n_points"]
+    assert max(s["truth"]["rms_error_dn_mm"].values()) < 0.020

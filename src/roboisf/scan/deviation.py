@@ -178,7 +178,7 @@ def default_rim_band(depth: float) -> float:
     """
     if not (math.isfinite(depth) and depth > 0):
         raise InputError(f"part depth must be > 0 mm, got {depth * 1e3:g}", field="depth")
-    return min(RIM_BAND, RIM_BAND_DEPTH_FRACTION * depth)
+    return round(min(RIM_BAND, RIM_BAND_DEPTH_FRACTION * depth), 9)  # to the nm: 9 mm, not 9.000…2
 
 
 def select_wall(

@@ -368,7 +368,8 @@ def _scan(
 ) -> None:
     part = require_axisymmetric(cell.part, "the virtual cell's synthetic scan")
     field_ = NormalField.from_toolpath(part, truth.toolpath, dn)
-    wall = truth.toolpath.contact[truth.toolpath.depth > 0.02]
+    # holes where the analysis looks: below the rim band (20 mm on the paper's parts)
+    wall = truth.toolpath.contact[truth.toolpath.depth > default_rim_band(part.depth)]
     holes = [
         (wall[i], cell.hole_radius) for i in rng.choice(len(wall), size=cell.n_holes, replace=False)
     ]
