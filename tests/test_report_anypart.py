@@ -168,6 +168,7 @@ def test_top_view_drops_holes_and_decimates():
     pp, *_ = make_study(n_laps=12, points_per_lap=50, shape="pyramid")
     v = agg.top_view(pp, "robot_dn", max_points=100)
     assert v.x.size == 100 and np.isfinite(v.values).all()
+    assert np.array_equal(v.x, agg.top_view(pp, "robot_dn", max_points=100).x)  # reproducible
     full = agg.top_view(pp, "robot_dn")
     assert full.x.size == int(pp["robot_valid"].sum())
 

@@ -375,7 +375,8 @@ def lap_map(per_point: pd.DataFrame, column: str, n_bins: int | None = None) -> 
 @dataclass(frozen=True)
 class TopView:
     """Points of the part seen from +z, coloured by a column: ``x``, ``y`` (M,) mm, ``values``
-    (M,) — every scan hole left out, at most ``max_points`` evenly strided in toolpath order."""
+    (M,) — every scan hole left out, at most ``max_points`` (a seeded random subset, in toolpath
+    order)."""
 
     x: np.ndarray
     y: np.ndarray
@@ -383,10 +384,18 @@ class TopView:
 
 
 def top_view(per_point: pd.DataFrame, column: str, max_points: int = MAX_TOP_POINTS) -> TopView:
-    """The top view (x, y) of ``column`` — the points themselves, decimated, no binning."""
+    """The top view (x, y) of ``column`` — the points themselves, no binning.
+
+    Beyond ``max_points`` valid points a random subset is drawn (seed 0: the same figure every
+    time). An even stride along the path would alias with the laps' own point pattern — laps
+    with points at the same angles show spokes, and the stride's phase jumping at a hole shows
+    rings that are not in the data.
+    """
     values = masked(per_point, column)
     keep = np.flatnonzero(np.isfinite(values))
-    keep = keep[decimate(keep.size, max_points)]
+    if keep.size > max_points:
+        rng = np.random.default_rng(0)
+        keep = np.sort(rng.choice(keep, size=max_points, replace=False))
     return TopView(
         per_point["contact_x"].to_numpy(dtype=float)[keep],
         per_point["contact_y"].to_numpy(dtype=float)[keep],

@@ -125,7 +125,8 @@ def _figures(
             "deviation_top",
             "Deviation map (top view)",
             "The same δn at the toolpath points seen from above (x, y in the work frame), at "
-            f"most {agg.MAX_TOP_POINTS} points per part evenly strided along the path; "
+            f"most {agg.MAX_TOP_POINTS} points per part (a fixed random subset: an even stride "
+            "would alias with the laps into spokes and rings); "
             "gaps are scan holes. Same colour scale rule as the unrolled map.",
             lambda: ia.deviation_top_figure(pp),
             lambda: st.deviation_top_png(pp),

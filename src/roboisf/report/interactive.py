@@ -233,7 +233,7 @@ def deviation_map_figure(per_point: pd.DataFrame) -> go.Figure:
 
 def deviation_top_figure(per_point: pd.DataFrame) -> go.Figure:
     """Normal deviation of the CNC and robot parts seen from above: the toolpath points (x, y),
-    decimated, coloured by δn (mm); scan holes are left blank."""
+    at most 12 000 per part, coloured by δn (mm); scan holes are left blank."""
     views = {run: agg.top_view(per_point, f"{run}_dn") for run in RUNS}
     vmax = _vmax(*(v.values for v in views.values()))
     fig = _subplots(1, 2, [f"{RUN_LABELS[r]} part" for r in RUNS], 520)
