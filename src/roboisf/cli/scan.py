@@ -41,7 +41,11 @@ def compare(
         help="Registration: fixture (default, as analyze: z and the two tilts from the flange "
         "of an axisymmetric part) | flange | axisymmetric | icp | none.",
     ),
-    rim_band: float = typer.Option(20.0, help="Rim band excluded below the sheet plane [mm]."),
+    rim_band: float | None = typer.Option(
+        None,
+        help="Rim band excluded below the sheet plane, mm (sheet bending at the clamp). "
+        "Default: min(20, 0.6 × part depth) — the paper's 20 mm, capped on shallow parts.",
+    ),
     unit: str = typer.Option("mm", "--unit", "-u", help="Length unit of the scan file."),
     max_distance: float = typer.Option(
         3.0, help="Points farther from the nominal are not the part [mm]."
@@ -112,7 +116,7 @@ def compare(
         tp = read_toolpath_csv(toolpath)
     opts = CompareOptions(
         register=register,
-        rim_band=rim_band * 1e-3,
+        rim_band=None if rim_band is None else rim_band * 1e-3,
         max_distance=max_distance * 1e-3,
         outlier_k=outlier_k,
         outlier_std=outlier_std,

@@ -304,6 +304,7 @@ def _summary(
         "study": study.name,
         "description": study.description,
         "part": cell.part.to_dict(),
+        "part_symmetry": cell.part.symmetry.order,  # the report: polar plot only when 0
         "robot": {
             "model": cell.robot_name,
             "preset": cell.robot_name,

@@ -58,7 +58,7 @@ from roboisf.io.toolpath_csv import write_toolpath_csv
 from roboisf.parts import VWACF, Cone, Part, sine_law_thickness
 from roboisf.progress import Progress, task
 from roboisf.robot import ik_toolpath, load_robot
-from roboisf.scan import synthetic_scan, write_ply
+from roboisf.scan import default_rim_band, synthetic_scan, write_ply
 from roboisf.study.sensors import tip_to_sensor
 from roboisf.study.spec import ForceSensorSpec
 from roboisf.toolpath import Toolpath
@@ -368,7 +368,8 @@ def _scan(
 ) -> None:
     part = require_axisymmetric(cell.part, "the virtual cell's synthetic scan")
     field_ = NormalField.from_toolpath(part, truth.toolpath, dn)
-    wall = truth.toolpath.contact[truth.toolpath.depth > 0.02]
+    # holes where the analysis looks: below the rim band (20 mm on the paper's parts)
+    wall = truth.toolpath.contact[truth.toolpath.depth > default_rim_band(part.depth)]
     holes = [
         (wall[i], cell.hole_radius) for i in rng.choice(len(wall), size=cell.n_holes, replace=False)
     ]
@@ -458,7 +459,11 @@ def _write_study_toml(
         if c.holder.rigid
         else {"compliance": "holder_compliance.json", "offset": c.holder.offset * 1e3},
         "robot": robot,
-        "analysis": {"rim_band": 20.0, "contour_z": -11.0, "registration": "fixture"},
+        "analysis": {
+            "rim_band": default_rim_band(c.part.depth) * 1e3,  # 20 mm unless the part is shallow
+            "contour_z": -11.0,
+            "registration": "fixture",
+        },
         "runs": {
             "cnc": {
                 "machine": "cnc",
