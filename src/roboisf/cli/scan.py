@@ -33,7 +33,13 @@ def compare(
         None, "--toolpath", "-t", help="Toolpath CSV: deviations per contact point."
     ),
     register: str = typer.Option(
-        "none", "--register", "-r", help="Registration: none | flange | axisymmetric | icp."
+        "none",
+        "--register",
+        "-r",
+        help="Registration, any part: none | fixture (z, tilts from the flange) | flange (z, "
+        "tilts from the flange; x, y, rz from the wall) | axisymmetric | icp (6 DOF on the "
+        "surface). A symmetry about z (declared, or detected on a mesh) locks rz (continuous) "
+        "or makes it defined modulo 360°/n (n-fold; reported).",
     ),
     rim_band: float = typer.Option(20.0, help="Rim band excluded below the sheet plane [mm]."),
     unit: str = typer.Option("mm", "--unit", "-u", help="Length unit of the scan file."),
@@ -121,6 +127,7 @@ def compare(
             f"tilt {math.degrees(reg.tilt):.4f}°, rms {reg.rms * 1e3:.4f} mm, "
             f"overlap {reg.overlap:.1%}"
         )
+        state.info(f"registration {reg.describe()}")
     if res.toolpath is not None:
         t = res.toolpath
         if (~t.valid).any():

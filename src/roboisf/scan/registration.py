@@ -75,6 +75,8 @@ DOF_NAMES = {
 
 #: flange points must have flange all round them within this distance [m] (not the rim bend)
 FLANGE_CLEARANCE = 2e-3
+#: iteration after which the Huber scale is kept fixed
+FREEZE_SCALE = 5
 
 
 @dataclass(frozen=True)
@@ -214,13 +216,16 @@ def twist_about_z(T: ArrayLike) -> float:
     return 2.0 * math.atan2(float(q[3]), float(q[0]))
 
 
-def _huber_weights(r: F64, max_distance: float) -> tuple[F64, float]:
+def _huber_weights(r: F64, max_distance: float, sigma: float | None = None) -> tuple[F64, float]:
+    """Huber weights (k = 1.345 σ) and σ (1.4826·MAD of the residuals within ``max_distance``,
+    unless given); weight 0 beyond ``max_distance``."""
     inside = np.abs(r) <= max_distance
     if not inside.any():
         return np.zeros_like(r), math.inf
-    ri = r[inside]
-    sigma = 1.4826 * float(np.median(np.abs(ri - np.median(ri))))
-    sigma = max(sigma, 1e-7)  # 0.1 µm floor: a noise-free synthetic scan
+    if sigma is None:
+        ri = r[inside]
+        sigma = 1.4826 * float(np.median(np.abs(ri - np.median(ri))))
+        sigma = max(sigma, 1e-7)  # 0.1 µm floor: a noise-free synthetic scan
     k = 1.345 * sigma
     a = np.abs(r)
     w = np.where(a <= k, 1.0, k / np.maximum(a, 1e-300))
@@ -359,8 +364,8 @@ def register(
         free[:] = True
         if method == "fixture":
             free[[0, 1, 5]] = False
-            for k in ("x", "y", "rz"):
-                locked[k] = "fixture registration: kept where the fixture puts it"
+            for name in ("x", "y", "rz"):
+                locked[name] = "fixture registration: kept where the fixture puts it"
         if sym.order == 0 and free[5]:
             free[5] = False
             locked["rz"] = f"continuous symmetry about z, {sym.describe()}: changes no distance"
@@ -380,9 +385,12 @@ def register(
     converged = not free.any()
     flange_mask: NDArray[np.bool_] | None = None
     A = np.zeros((7, 7))
+    H = np.zeros((7, 7))
+    G = np.zeros((7, 7))
     fit_cols: list[int] = []
     sigma = math.nan
     L = 1.0
+    scales: dict[str, float] = {}
     while not converged:
         if it >= max_iterations:
             raise ConvergenceError(
@@ -394,15 +402,25 @@ def register(
         P = transform_points(T, X)
         q = part.closest_point(P)
         r = q.distance
-        w, sigma = _huber_weights(r, max_distance)
+        # the robust scale is re-estimated for the first iterations, then frozen: IRLS with a
+        # fixed scale cannot cycle (a moving MAD on a non-smooth surface — points crossing a
+        # pyramid's edges — can, at the 0.1 µm level)
+        w, sigma = _huber_weights(r, max_distance, scales.get("all"))
+        if it == FREEZE_SCALE:
+            scales["all"] = sigma
         if np.count_nonzero(w) < 3 * int(free.sum()):
             raise ConvergenceError(
                 f"{method} registration{where}: only {np.count_nonzero(w)} points within "
                 f"{max_distance * 1e3:g} mm of the nominal; the scan does not overlap the part"
             )
+        # gradient of the signed distance: (p − q)/r — the face normal on a face, the direction
+        # from the edge or vertex where the foot is one (a mesh's or a pyramid's edges: with the
+        # face normal there Gauss–Newton creeps instead of converging quadratically)
+        off = np.abs(r) > 1e-9
+        g = np.where(off[:, None], (P - q.point) / np.where(off, r, 1.0)[:, None], q.normal)
         J = np.zeros((X.shape[0], 7))
-        J[:, :3] = q.normal
-        J[:, 3:6] = np.cross(P, q.normal)
+        J[:, :3] = g
+        J[:, 3:6] = np.cross(P, g)
         if method in ("fixture", "flange"):
             if flange_mask is None or it <= 3:  # then frozen: no point switches sides
                 flange_mask = _flange_points(part, q, w)
@@ -423,11 +441,13 @@ def register(
                 if on_wall.any():
                     r[on_wall] -= np.median(r[on_wall])
                 w = np.zeros_like(r)
-                for grp in (on_flange, on_wall):
+                for name, grp in (("flange", on_flange), ("wall", on_wall)):
                     if grp.any():
-                        w[grp] = _huber_weights(r[grp], max_distance)[0]
-                J[np.ix_(on_flange, [0, 1, 5])] = 0.0
-                J[np.ix_(~on_flange, [2, 3, 4])] = 0.0
+                        w[grp], sg = _huber_weights(r[grp], max_distance, scales.get(name))
+                        if it == FREEZE_SCALE:
+                            scales[name] = sg
+                J[np.ix_(np.flatnonzero(on_flange), np.array([0, 1, 5]))] = 0.0
+                J[np.ix_(np.flatnonzero(~on_flange), np.array([2, 3, 4]))] = 0.0
                 J[~(on_flange | on_wall)] = 0.0
                 J[on_wall, 6] = -1.0  # r_i − e
         # rotation columns × 1/L (L = RMS lever arm): every column in m, so observability
@@ -437,7 +457,13 @@ def register(
         scale = np.array([1.0, 1.0, 1.0, L, L, L, 1.0])
         Js = J / scale
         A = Js.T @ (Js * w[:, None])
-        b = Js.T @ (w * r)
+        b = Js.T @ (w * r)  # = Jᵀψ(r): the gradient of the Huber cost
+        # Newton on the Huber cost once its scale is frozen: Hessian Jᵀ·1{|r| ≤ k}·J (ψ' = 1 in
+        # the quadratic zone, 0 outside) instead of IRLS's Jᵀ·(ψ/r)·J, which converges only
+        # linearly when many points sit in the linear zone (a wall offset against the flange)
+        quad = (w >= 1.0).astype(float)
+        H = Js.T @ (Js * quad[:, None])
+        G = Js.T @ (Js * ((w * r) ** 2)[:, None])  # Σ ψ² J Jᵀ: the sandwich's meat
         # lock what the surface does not determine, worst first, until the rest is well posed
         while True:
             fit_cols = [int(k) for k in np.flatnonzero(free)] + ([6] if nuisance else [])
@@ -453,15 +479,19 @@ def register(
             )
         if not free.any():
             raise ConvergenceError(
-                f"{method} registration{where}: no coordinate is determined by the scanned "
-                "surface"
+                f"{method} registration{where}: no coordinate is determined by the scanned surface"
             )
-        sol = -np.linalg.solve(A[np.ix_(fit_cols, fit_cols)], b[fit_cols])
+        Hf = H[np.ix_(fit_cols, fit_cols)]
+        newton = it > FREEZE_SCALE and np.count_nonzero(quad) >= 10 * len(fit_cols)
+        if newton and np.linalg.cond(Hf) < 1e12:
+            sol = -np.linalg.solve(Hf, b[fit_cols])
+        else:
+            sol = -np.linalg.solve(A[np.ix_(fit_cols, fit_cols)], b[fit_cols])
         xi = np.zeros(7)
         xi[fit_cols] = sol
         xi[:6] /= scale[:6]
         T = make_transform(rotvec_to_matrix(xi[3:6]), xi[:3]) @ T
-        if not free[5] and (sym is not None and sym.order == 0 or method == "fixture"):
+        if not free[5] and ((sym is not None and sym.order == 0) or method == "fixture"):
             T = _untwist(T)
         step_norm = float(np.linalg.norm(xi[:6]))
         converged = step_norm < tolerance
@@ -505,7 +535,10 @@ def register(
         Af = A[np.ix_(fit_cols, fit_cols)]
         ev = np.linalg.eigvalsh(Af)
         cond = float(ev[-1] / ev[0]) if ev[0] > 0 else math.inf
-        cov = np.linalg.inv(Af) * sigma**2
+        # robust (sandwich) covariance of the M-estimate: H⁻¹ (Σ ψ² J Jᵀ) H⁻¹
+        Hf = H[np.ix_(fit_cols, fit_cols)]
+        Hi = np.linalg.pinv(Hf if np.linalg.cond(Hf) < 1e12 else Af, hermitian=True)
+        cov = Hi @ G[np.ix_(fit_cols, fit_cols)] @ Hi
         sc = np.array([1.0, 1.0, 1.0, L, L, L, 1.0])
         for i, c in enumerate(fit_cols):
             if c < 6:
