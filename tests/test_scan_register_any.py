@@ -294,3 +294,22 @@ def test_cli_icp_on_an_axisymmetric_mesh_exits_0_and_says_rz_is_locked(tmp_path,
     assert r["method"] == "icp" and r["dof"] == 5 and "rz" in r["locked"]
     assert r["symmetry"] == {"order": 0, "kind": "continuous", "source": "detected"}
     assert r["ambiguity_deg"] is None
+
+
+def test_cli_square_pyramid_reports_the_ambiguity_and_takes_a_hint(tmp_path, capsys):
+    T_true = _pose((0.2, 0.1, 0.3), 0.2, rz_deg=100.0)
+    s = synthetic_scan(SQUARE, 40_000, noise=10e-6, T_scan_work=invert(T_true), seed=71)
+    write_ply(s.points, tmp_path / "scan.ply")
+    trimesh.Trimesh(SQUARE.vertices * 1e3, SQUARE.faces, process=False).export(tmp_path / "p.stl")
+    (tmp_path / "p.toml").write_text('[part]\nkind = "mesh"\nfile = "p.stl"\n')
+    base = ["scan", "compare", str(tmp_path / "scan.ply"), "-p", str(tmp_path / "p.toml"),
+            "-r", "icp", "--rim-band", "5"]  # fmt: skip
+    assert main([*base, "-o", str(tmp_path / "a.csv")]) == 0
+    cap = capsys.readouterr()
+    assert "modulo 90°" in " ".join((cap.out + cap.err).split())
+    a = json.loads((tmp_path / "a.summary.json").read_text())["registration"]
+    assert a["ambiguity_deg"] == pytest.approx(90.0) and a["symmetry"]["order"] == 4
+    assert a["rotation_about_z_deg"] == pytest.approx(10.0, abs=1e-3)
+    assert main([*base, "--rz-hint", "95", "-o", str(tmp_path / "b.csv")]) == 0
+    b = json.loads((tmp_path / "b.summary.json").read_text())["registration"]
+    assert b["rotation_about_z_deg"] == pytest.approx(100.0, abs=1e-3)

@@ -41,6 +41,12 @@ def compare(
         "surface). A symmetry about z (declared, or detected on a mesh) locks rz (continuous) "
         "or makes it defined modulo 360°/n (n-fold; reported).",
     ),
+    rz_hint: float | None = typer.Option(
+        None,
+        "--rz-hint",
+        help="n-fold symmetric part: report the rotation about z nearest to this angle, "
+        "degrees (default: nearest to 0, |rz| ≤ 180°/n).",
+    ),
     rim_band: float = typer.Option(20.0, help="Rim band excluded below the sheet plane [mm]."),
     unit: str = typer.Option("mm", "--unit", "-u", help="Length unit of the scan file."),
     max_distance: float = typer.Option(
@@ -111,6 +117,7 @@ def compare(
         bin_width=bin_width * 1e-3,
         contour_z=contour_z * 1e-3,
         angle_bin=math.radians(angle_bin),
+        register_kwargs={} if rz_hint is None else {"rz_hint": math.radians(rz_hint)},
     )
     progress = state.progress()
     cloud = read_scan(scan, unit=unit, sample=sample)

@@ -34,6 +34,7 @@ from roboisf.scan.summary import (
     deviation_stats,
     resultant_mean_deviation,
 )
+from roboisf.scan.symmetry import SymmetryEstimate, detect_symmetry, part_symmetry
 from roboisf.scan.synthetic import OffsetField, SyntheticScan, radial_offset, synthetic_scan
 from roboisf.scan.writers import write_ply
 
@@ -49,14 +50,17 @@ __all__ = [
     "Registration",
     "ScanCloud",
     "ScanComparison",
+    "SymmetryEstimate",
     "SyntheticScan",
     "ToolpathDeviations",
     "by_angle",
     "by_depth",
     "check_units",
     "compare_scan",
+    "detect_symmetry",
     "deviation_stats",
     "part_size",
+    "part_symmetry",
     "point_deviations",
     "point_table",
     "radial_offset",

@@ -335,7 +335,8 @@ def register(
         continuous, n discrete, 1 none); default: declared by the part, else detected
         (:func:`roboisf.scan.symmetry.part_symmetry`)
     rz_hint : float, rad, optional — expected rotation about z: the search is centred on it and
-        the representative modulo 2π/n nearest to it is returned (default: nearest to 0)
+        the representative modulo 2π/n nearest to it is returned (default: the rotation about
+        z of ``T_init``, i.e. nearest to the identity when no ``T_init`` is given)
     search_rz : bool — coarse search of the rotation about z before Gauss–Newton
     min_observability : float — coordinates with ρ below this are locked and reported
 
@@ -377,7 +378,7 @@ def register(
             )
     nuisance = method == "flange"  # a uniform wall offset, fitted alongside, never applied
     period = 2.0 * math.pi / sym.order if sym is not None and sym.order >= 2 else 2.0 * math.pi
-    centre = 0.0 if rz_hint is None else float(rz_hint)
+    centre = twist_about_z(T) if rz_hint is None else float(rz_hint)
     if free[5] and search_rz:
         T = _search_rz(part, X, T, period, centre, max_distance, seed)
     it = 0
