@@ -238,19 +238,23 @@ def _untwist(T: F64) -> F64:
 
 
 def _flange_points(part: Part, q: SurfaceQuery, w: F64) -> NDArray[np.bool_]:
-    """Points whose foot is on the flange (region 0) with flange all round it: probes
-    ``FLANGE_CLEARANCE`` away in 8 horizontal directions must land on the flange at distance
-    0 (not over the opening, not past the flange's outer edge, not on the rim bend)."""
+    """Points whose foot is on the flange (region 0) and clear of the opening: probes
+    ``FLANGE_CLEARANCE`` away in 8 horizontal directions must land on the flange at distance 0,
+    or past its outer edge (their foot on the flange, farther from the z axis than the point's):
+    not over the opening, not on the rim bend, whatever the opening's shape."""
     cand = np.flatnonzero((q.region == 0) & (w > 0))
     out = np.zeros(w.shape, dtype=bool)
     if cand.size == 0:
         return out
     F = q.point[cand]
+    rho = np.hypot(F[:, 0], F[:, 1])
     ok = np.ones(cand.size, dtype=bool)
     for a in np.arange(8) * (math.pi / 4):
         d = np.array([math.cos(a), math.sin(a), 0.0]) * FLANGE_CLEARANCE
         qq = part.closest_point(F + d)
-        ok &= (qq.region == 0) & (np.abs(qq.distance) <= 1e-6)
+        on = np.abs(qq.distance) <= 1e-6
+        outward = np.hypot(qq.point[:, 0], qq.point[:, 1]) > rho + 1e-9
+        ok &= (qq.region == 0) & (on | outward)
     out[cand[ok]] = True
     return out
 
