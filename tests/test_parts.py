@@ -170,7 +170,7 @@ def test_profile_csv_errors_name_the_line(tmp_path):
 
 def test_part_table_errors(tmp_path):
     with pytest.raises(InputError, match="unknown part kind"):
-        part_from_dict({"kind": "pyramid"})
+        part_from_dict({"kind": "hemisphere"})
     with pytest.raises(InputError, match="unknown key"):
         part_from_dict(
             {"kind": "cone", "opening_diameter": 87, "wall_angle": 71, "depth": 50, "x": 1}

@@ -5,6 +5,9 @@ Examples::
     roboisf part cone --opening-diameter 87 --wall-angle 71 --depth 102.97 -o cone.toml
     roboisf part vwacf --opening-diameter 88.15 --arc-radius 40 -o vwacf.toml
     roboisf part profile profile.csv -o part.toml     # the TOML refers to the CSV
+    roboisf part pyramid --top-length 150 --top-width 150 --wall-angle 60 --depth 50 \\
+        --corner-radius 10 -o pyramid.toml
+    roboisf part mesh dome.stl -o dome.toml           # or .obj/.ply/.step/.iges
 """
 
 from __future__ import annotations
@@ -20,7 +23,17 @@ import typer
 from roboisf.cli.console import state
 from roboisf.errors import InputError
 from roboisf.io.atomic import check_not_input
-from roboisf.parts import VWACF, AxisymmetricPart, Cone, ProfilePart, read_profile_csv, save_part
+from roboisf.parts import (
+    VWACF,
+    AxisymmetricPart,
+    Cone,
+    MeshPart,
+    Part,
+    ProfilePart,
+    Pyramid,
+    read_profile_csv,
+    save_part,
+)
 from roboisf.parts.axisymmetric import PAPER_SHEET_THICKNESS, VWACF_DEFAULT_ARC_RADIUS
 
 __all__ = ["register"]
@@ -37,16 +50,51 @@ ProfileCsv = Annotated[Path, typer.Argument(help="Generatrix CSV with header r,z
 Sheet = Annotated[float, typer.Option(help="Initial sheet thickness \\[mm].")]
 Flange = Annotated[float, typer.Option(help="Flange width outside the opening \\[mm].")]
 
+TopLength = Annotated[float, typer.Option(help="Opening along x at the sheet plane \\[mm].")]
+TopWidth = Annotated[float, typer.Option(help="Opening along y at the sheet plane \\[mm].")]
+PyrWallAngle = Annotated[
+    float, typer.Option(help="Wall angle of the x-walls (and y-walls), 0 < α < 90 \\[deg].")
+]
+PyrWallAngleY = Annotated[
+    float | None,
+    typer.Option(
+        help="Wall angle of the y-walls \\[deg] (default: --wall-angle; needs "
+        "--corner-radius 0 if different)."
+    ),
+]
+CornerRadius = Annotated[
+    float,
+    typer.Option(
+        help="Rounding of the opening's corners about vertical axes \\[mm]; it shrinks with the "
+        "wall (corners are cones of the wall angle, sharp below depth r·tan α)."
+    ),
+]
+MeshFile = Annotated[
+    Path, typer.Argument(help="Nominal surface: STL, OBJ, PLY, or STEP/IGES (tessellated).")
+]
+MeshUnit = Annotated[str, typer.Option(help="Length unit of the mesh coordinates (mm, m, in).")]
+MeshOrient = Annotated[
+    str,
+    typer.Option(help="'up': flip faces so normals point up (tool side); 'winding': keep them."),
+]
+Tolerance = Annotated[
+    float,
+    typer.Option(
+        help="STEP/IGES only: max. distance of the tessellation from the CAD surface \\[mm]."
+    ),
+]
+
 part_app = typer.Typer(help="Write a part file (TOML, mm and degrees).", no_args_is_help=True)
 
 
-def _save(make: Callable[[], AxisymmetricPart], output: Path, inputs: list[Path]) -> None:
+def _save(make: Callable[[], Part], output: Path, inputs: list[Path]) -> Part:
     if output.suffix.lower() != ".toml":
         raise InputError("a part file must end in .toml", file=output)
     check_not_input(output, inputs)
     part = make()
     save_part(part, output)
     state.info(f"wrote {output}: {part.kind}, depth {part.depth * 1e3:.3f} mm")
+    return part
 
 
 @part_app.command("cone")
@@ -116,6 +164,66 @@ def _profile(
         )
 
     _save(make, output, [profile])
+
+
+@part_app.command("pyramid")
+def _pyramid(
+    output: Output,
+    top_length: TopLength = 150.0,
+    top_width: TopWidth = 150.0,
+    wall_angle: PyrWallAngle = 60.0,
+    depth: Depth = 50.0,
+    corner_radius: CornerRadius = 10.0,
+    wall_angle_y: PyrWallAngleY = None,
+    sheet_thickness: Sheet = PAPER_SHEET_THICKNESS * 1e3,
+    flange_width: Flange = 10.0,
+) -> None:
+    """Truncated pyramid, square or rectangular, flat bottom (docs/parts.md)."""
+    _save(
+        lambda: Pyramid(
+            top_length * 1e-3,
+            top_width * 1e-3,
+            math.radians(wall_angle),
+            depth * 1e-3,
+            wall_angle_y=None if wall_angle_y is None else math.radians(wall_angle_y),
+            corner_radius=corner_radius * 1e-3,
+            sheet_thickness=sheet_thickness * 1e-3,
+            flange_width=flange_width * 1e-3,
+        ),
+        output,
+        [],
+    )
+
+
+@part_app.command("mesh")
+def _mesh(
+    mesh: MeshFile,
+    output: Output,
+    unit: MeshUnit = "mm",
+    orient: MeshOrient = "up",
+    tolerance: Tolerance = 0.01,
+    sheet_thickness: Sheet = PAPER_SHEET_THICKNESS * 1e3,
+) -> None:
+    """Any part from a mesh or CAD file (work frame: sheet plane z = 0, part below); the TOML
+    stores the file's path relative to itself. The surface must be the tool-side surface."""
+
+    def make() -> Part:
+        rel = Path(os.path.relpath(mesh.resolve(), output.resolve().parent)).as_posix()
+        return MeshPart.from_file(
+            mesh,
+            unit=unit,
+            orient=orient,
+            sheet_thickness=sheet_thickness * 1e-3,
+            source=rel,
+            tolerance=tolerance * 1e-3,
+        )
+
+    lo, hi = _save(make, output, [mesh]).bounds
+    if abs(hi[2]) > 0.1e-3 or lo[2] >= 0:
+        state.warn(
+            f"the mesh spans z = {lo[2] * 1e3:.3f} … {hi[2] * 1e3:.3f} mm; roboisf expects the "
+            "work frame: the sheet plane at z = 0 and the part below it"
+        )
 
 
 def register(app: typer.Typer) -> None:

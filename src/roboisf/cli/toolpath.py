@@ -6,7 +6,8 @@ Examples (mm and degrees)::
         --step-down 0.5 --tool-diameter 10 -o cone.csv
     roboisf toolpath vwacf --opening-diameter 88.15 --arc-radius 40 -o vwacf.mod --spiral
     roboisf toolpath profile profile.csv -o part.src --tool-length 250
-    roboisf toolpath --part part.toml -o path.nc
+    roboisf toolpath --part part.toml -o path.nc          # any part: cone … pyramid, mesh
+    roboisf toolpath --part pyramid.toml --scallop-height 0.01 -o path.csv
 
 The format follows the ``-o`` suffix (.csv, .nc/.gcode, .mod, .src) unless ``--format`` is given.
 """
@@ -39,9 +40,18 @@ from roboisf.frames.rotations import abc_to_matrix
 from roboisf.io.atomic import check_not_input
 from roboisf.io.export import infer_format, write_toolpath
 from roboisf.io.program import RobotTool
-from roboisf.parts import VWACF, AxisymmetricPart, Cone, ProfilePart, load_part, read_profile_csv
+from roboisf.parts import (
+    VWACF,
+    AxisymmetricPart,
+    Cone,
+    Part,
+    ProfilePart,
+    load_part,
+    read_profile_csv,
+)
 from roboisf.parts.axisymmetric import VWACF_DEFAULT_ARC_RADIUS
-from roboisf.toolpath import spiral, step_down
+from roboisf.parts.io import part_files
+from roboisf.toolpath import sliced_spiral, sliced_step_down, spiral, step_down
 from roboisf.toolpath.toolpath import Toolpath
 
 __all__ = ["PathOptions", "generate", "register", "warn_truncated"]
@@ -64,6 +74,13 @@ Feed = Annotated[float, typer.Option(help="Feed rate \\[mm/min].")]
 MaxWallStep = Annotated[
     float | None,
     typer.Option(help="Max. distance between laps along the wall \\[mm] (shallow walls)."),
+]
+ScallopHeight = Annotated[
+    float | None,
+    typer.Option(
+        help="Space the laps for this cusp height between them \\[mm]: Δz = 2 sin α "
+        "sqrt(h(2R − h)) per lap from its shallowest wall, ≤ --step-down (any part)."
+    ),
 ]
 ToolLength = Annotated[float, typer.Option(help="Flange to ball tip \\[mm] (RAPID/KRL tool data).")]
 ToolMass = Annotated[float, typer.Option(help="Tool + holder mass \\[kg] (RAPID/KRL).")]
@@ -90,6 +107,7 @@ class PathOptions:
     spacing: float = 1.0
     feed: float = 750.0
     max_wall_step: float | None = None
+    scallop_height: float | None = None
     tool_length: float = 200.0
     tool_mass: float = 2.0
     tool_rotation: float = 0.0
@@ -112,6 +130,12 @@ class PathOptions:
             math.isfinite(self.max_wall_step) and self.max_wall_step > 0
         ):
             raise InputError(f"must be > 0, got {self.max_wall_step:g}", field="--max-wall-step")
+        h = self.scallop_height
+        if h is not None and not (math.isfinite(h) and 0 < h < self.tool_diameter / 2):
+            raise InputError(
+                f"must be > 0 and < the ball radius {self.tool_diameter / 2:g} mm, got {h:g}",
+                field="--scallop-height",
+            )
         if not math.isfinite(self.tool_rotation):
             raise InputError("must be finite", field="--tool-rotation")
 
@@ -134,9 +158,30 @@ class PathOptions:
         return T
 
 
-def generate(part: AxisymmetricPart, opts: PathOptions) -> Toolpath:
-    """The toolpath for ``part`` with the command-line options (converted to SI here)."""
+def generate(part: Part, opts: PathOptions) -> Toolpath:
+    """The toolpath for ``part`` with the command-line options (converted to SI here).
+
+    Axisymmetric parts (cone, VWACF, profile) use the generatrix generator
+    (:mod:`roboisf.toolpath.generate`); every other part — and any part with
+    ``--scallop-height`` — the ball-centre slicer (:mod:`roboisf.toolpath.slice`).
+    """
     opts.check()
+    if not isinstance(part, AxisymmetricPart) or opts.scallop_height is not None:
+        if opts.max_wall_step is not None:
+            raise InputError(
+                "applies to axisymmetric parts only; use --scallop-height to space the laps "
+                "along the wall of any part",
+                field="--max-wall-step",
+            )
+        sliced = sliced_spiral if opts.spiral else sliced_step_down
+        return sliced(
+            part,
+            tool_radius=opts.tool_diameter / 2 * 1e-3,
+            step_down=opts.step_down * 1e-3,
+            scallop_height=None if opts.scallop_height is None else opts.scallop_height * 1e-3,
+            spacing=opts.spacing * 1e-3,
+            feed=opts.feed / 60e3,
+        )
     gen = spiral if opts.spiral else step_down
     return gen(
         part,
@@ -196,6 +241,7 @@ _SHARED: list[tuple[str, Any, Any]] = [
     ("spacing", Spacing, 1.0),
     ("feed", Feed, 750.0),
     ("max_wall_step", MaxWallStep, None),
+    ("scallop_height", ScallopHeight, None),
     ("tool_length", ToolLength, 200.0),
     ("tool_mass", ToolMass, 2.0),
     ("tool_rotation", ToolRotation, 0.0),
@@ -235,7 +281,8 @@ def _with_path_options(fn: Callable[..., None]) -> Callable[..., None]:
 
 toolpath_app = typer.Typer(
     help="Generate a forming toolpath (step-down or spiral); write CSV, G-code, RAPID or KRL.\n\n"
-    "Give the part as a subcommand (cone, vwacf, profile) or as a part file: "
+    "Give the part as a subcommand (cone, vwacf, profile) or as a part file of any kind "
+    "(also pyramid, mesh from STL/OBJ/PLY/STEP; see 'roboisf part'): "
     "roboisf toolpath --part part.toml -o path.csv",
     no_args_is_help=True,
     invoke_without_command=True,
@@ -269,7 +316,7 @@ def _toolpath_from_part_file(
         )
     if output is None:
         raise InputError("missing -o/--output", field="--output")
-    _run(lambda: load_part(part), output, fmt, opts, [part])
+    _run(lambda: load_part(part), output, fmt, opts, part_files(part))
 
 
 @toolpath_app.command("cone")

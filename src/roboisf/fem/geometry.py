@@ -531,7 +531,9 @@ def step_faces(path: str | Path) -> list[dict[str, Any]]:
         return _face_table(gmsh.model)
 
 
-def _import_step(gmsh: Any, path: Path) -> list[tuple[int, int]]:
+def _import_step(gmsh: Any, path: Path, *, require_solid: bool = True) -> list[tuple[int, int]]:
+    """Import a STEP (or IGES) file into the current gmsh model, in mm; ``require_solid=False``
+    accepts surfaces and shells (a part's nominal surface, :mod:`roboisf.parts.cad`)."""
     if not path.is_file():
         raise InputError("STEP file not found", file=path)
     gmsh.option.setString("Geometry.OCCTargetUnit", "MM")
@@ -540,7 +542,7 @@ def _import_step(gmsh: Any, path: Path) -> list[tuple[int, int]]:
     except Exception as e:  # gmsh raises a bare Exception with its log line
         raise InputError(f"could not read the STEP file: {e}", file=path) from None
     gmsh.model.occ.synchronize()
-    if not any(d == 3 for d, _ in out):
+    if require_solid and not any(d == 3 for d, _ in out):
         raise InputError("the STEP file holds no solid body", file=path)
     return out
 

@@ -1,4 +1,5 @@
-"""Nominal part geometry: cone, VWACF, profile parts; exact surface queries; part TOML files."""
+"""Nominal part geometry: cone, VWACF, profile, pyramid and mesh parts; exact surface queries;
+part TOML files."""
 
 from roboisf.parts.axisymmetric import (
     PAPER_SHEET_THICKNESS,
@@ -13,6 +14,7 @@ from roboisf.parts.base import Part, Symmetry
 from roboisf.parts.generatrix import Arc, Generatrix, Segment
 from roboisf.parts.io import load_part, part_from_dict, read_profile_csv, save_part
 from roboisf.parts.mesh import MeshPart, tessellate
+from roboisf.parts.pyramid import Pyramid
 
 __all__ = [
     "PAPER_SHEET_THICKNESS",
@@ -24,6 +26,7 @@ __all__ = [
     "MeshPart",
     "Part",
     "ProfilePart",
+    "Pyramid",
     "Segment",
     "SurfaceQuery",
     "Symmetry",

@@ -53,15 +53,16 @@ class Symmetry:
 class Part(Protocol):
     """A nominal part surface (work frame, m).
 
-    Implemented by :class:`~roboisf.parts.AxisymmetricPart` (cone, VWACF, profile) and
-    :class:`~roboisf.parts.MeshPart` (STL/OBJ/STEP), and by any new part kind.
+    Implemented by :class:`~roboisf.parts.AxisymmetricPart` (cone, VWACF, profile),
+    :class:`~roboisf.parts.Pyramid` and :class:`~roboisf.parts.MeshPart` (STL/OBJ/PLY/STEP/IGES),
+    and by any new part kind.
     """
 
     kind: ClassVar[str]
 
     @property
     def sheet_thickness(self) -> float:
-        """Initial sheet thickness [m] (read-only: parts are frozen values)."""
+        """Initial sheet thickness [m] (read-only, so frozen dataclasses implement it)."""
         ...
 
     @property

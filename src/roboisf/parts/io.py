@@ -3,7 +3,7 @@
 Example::
 
     [part]
-    kind = "cone"              # cone | vwacf | profile | mesh
+    kind = "cone"              # cone | vwacf | profile | pyramid | mesh
     opening_diameter = 87.0    # mm
     wall_angle = 71.0          # deg
     depth = 102.97             # mm
@@ -12,8 +12,12 @@ Example::
 
 ``vwacf`` takes ``opening_diameter``, ``arc_radius``, ``final_wall_angle``; ``profile`` takes
 ``file`` (a CSV of ``r,z`` in mm, rim first; relative paths are relative to the TOML file) or
-inline ``r = [...]``, ``z = [...]``; ``mesh`` takes ``file`` (an STL/OBJ, relative to the TOML
-file), optional ``unit`` (default ``"mm"``) and ``orient`` (``"up"`` default, or
+inline ``r = [...]``, ``z = [...]``; ``pyramid`` takes ``top_length``, ``top_width`` (mm),
+``wall_angle`` (deg), optional ``wall_angle_y`` (deg, default ``wall_angle``), ``depth`` (mm) and
+optional ``corner_radius`` (mm, default 0; see :class:`roboisf.parts.Pyramid`); ``mesh`` takes
+``file`` (an STL/OBJ/PLY, relative to the TOML
+file; ``.step``/``.stp``/``.iges``/``.igs`` are tessellated with gmsh to ``tolerance`` mm,
+default 0.01), optional ``unit`` (default ``"mm"``) and ``orient`` (``"up"`` default, or
 ``"winding"``; see :class:`roboisf.parts.MeshPart`) and no ``flange_width``.
 """
 
@@ -33,19 +37,21 @@ from roboisf.io.atomic import atomic_write
 from roboisf.parts.axisymmetric import (
     VWACF,
     VWACF_DEFAULT_ARC_RADIUS,
-    AxisymmetricPart,
     Cone,
     ProfilePart,
 )
+from roboisf.parts.base import Part
 from roboisf.parts.mesh import MeshPart
+from roboisf.parts.pyramid import Pyramid
 
-__all__ = ["load_part", "part_from_dict", "read_profile_csv", "save_part"]
+__all__ = ["load_part", "part_files", "part_from_dict", "read_profile_csv", "save_part"]
 
 _KEYS = {
     "cone": {"opening_diameter", "wall_angle", "depth"},
     "vwacf": {"opening_diameter", "arc_radius", "final_wall_angle"},
     "profile": {"file", "r", "z"},
-    "mesh": {"file", "unit", "orient"},
+    "pyramid": {"top_length", "top_width", "wall_angle", "wall_angle_y", "depth", "corner_radius"},
+    "mesh": {"file", "unit", "orient", "tolerance"},
 }
 _COMMON = {"kind", "sheet_thickness", "flange_width"}
 
@@ -93,9 +99,7 @@ def _num(
     return float(v)
 
 
-def part_from_dict(
-    table: dict[str, Any], *, where: str | Path | None = None
-) -> AxisymmetricPart | MeshPart:
+def part_from_dict(table: dict[str, Any], *, where: str | Path | None = None) -> Part:
     """Build a part from a ``[part]`` table (mm, deg). ``where`` resolves relative files."""
     src = Path(where) if where is not None else None
     kind = table.get("kind")
@@ -143,6 +147,17 @@ def part_from_dict(
             r = np.asarray(table["r"], dtype=float) * 1e-3
             z = np.asarray(table["z"], dtype=float) * 1e-3
             return ProfilePart(r=tuple(r), z=tuple(z), **common)
+        if kind == "pyramid":
+            ay = table.get("wall_angle_y")
+            return Pyramid(
+                top_length=_num(table, "top_length", src) * 1e-3,
+                top_width=_num(table, "top_width", src) * 1e-3,
+                wall_angle=math.radians(_num(table, "wall_angle", src)),
+                depth=_num(table, "depth", src) * 1e-3,
+                wall_angle_y=None if ay is None else math.radians(_num(table, "wall_angle_y", src)),
+                corner_radius=_num(table, "corner_radius", src, 0.0) * 1e-3,
+                **common,
+            )
         if kind == "mesh":
             if "flange_width" in table:
                 raise InputError(
@@ -151,7 +166,9 @@ def part_from_dict(
                     field="part.flange_width",
                 )
             if not isinstance(table.get("file"), str):
-                raise InputError("mesh needs 'file' (an STL/OBJ path)", file=src, field="part.file")
+                raise InputError(
+                    "mesh needs 'file' (an STL/OBJ/PLY/STEP/IGES path)", file=src, field="part.file"
+                )
             f = Path(table["file"])
             fpath = f if f.is_absolute() or src is None else src.parent / f
             return MeshPart.from_file(
@@ -160,6 +177,7 @@ def part_from_dict(
                 orient=str(table.get("orient", "up")),
                 sheet_thickness=common["sheet_thickness"],
                 source=str(table["file"]),
+                tolerance=_num(table, "tolerance", src, 0.01) * 1e-3,
             )
     except InputError as e:
         if e.file is None and src is not None:
@@ -170,7 +188,7 @@ def part_from_dict(
     raise AssertionError(kind)  # pragma: no cover - every kind returns above
 
 
-def load_part(path: str | Path) -> AxisymmetricPart | MeshPart:
+def load_part(path: str | Path) -> Part:
     """Load a part TOML file (see module docstring)."""
     path = Path(path)
     if not path.is_file():
@@ -184,7 +202,24 @@ def load_part(path: str | Path) -> AxisymmetricPart | MeshPart:
     return part_from_dict(data["part"], where=path)
 
 
-def save_part(part: AxisymmetricPart | MeshPart, path: str | Path) -> None:
+def part_files(path: str | Path) -> list[Path]:
+    """The part TOML and the file it refers to (profile CSV, mesh, CAD), if any: the inputs an
+    output must never overwrite. A TOML that cannot be read yields just itself (its errors are
+    :func:`load_part`'s to report)."""
+    path = Path(path)
+    files = [path]
+    try:
+        table = tomllib.loads(path.read_text(encoding="utf-8")).get("part", {})
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return files
+    f = table.get("file") if isinstance(table, dict) else None
+    if isinstance(f, str):
+        fp = Path(f)
+        files.append(fp if fp.is_absolute() else path.parent / fp)
+    return files
+
+
+def save_part(part: Part, path: str | Path) -> None:
     """Write ``part`` as a ``[part]`` TOML table (mm, deg), atomically."""
     with atomic_write(path, "wb") as fh:
         fh.write(tomli_w.dumps({"part": part.to_dict()}).encode())

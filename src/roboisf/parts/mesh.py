@@ -199,6 +199,11 @@ class MeshPart:
         Both are exact and compute the point–triangle distance with the same arithmetic; at
         exact ties (a point equally far from two triangles) they may name different faces.
         Not saved by :meth:`to_dict` (a choice of the run, not of the part).
+    tolerance : float or None, m — for a part tessellated from a STEP/IGES file
+        (:meth:`from_file`), the chordal tolerance it was tessellated to (saved by
+        :meth:`to_dict`, so the TOML reproduces the mesh); None for a mesh file
+    unit : the length unit of ``source``'s coordinates (recorded for :meth:`to_dict`; the
+        vertices are always m)
 
     ``closest_point`` fills :class:`SurfaceQuery` as follows: ``normal`` is the tool-side face
     normal of the closest triangle, ``distance`` is signed with it (+ on the tool side),
@@ -215,6 +220,8 @@ class MeshPart:
     sheet_thickness: float = PAPER_SHEET_THICKNESS
     source: str | None = None
     backend: str = "auto"
+    tolerance: float | None = None
+    unit: str = "mm"
     _index: dict[str, Any] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -281,18 +288,34 @@ class MeshPart:
         orient: str = "up",
         sheet_thickness: float = PAPER_SHEET_THICKNESS,
         source: str | None = None,
+        tolerance: float = 0.01e-3,
     ) -> MeshPart:
-        """Load an STL/OBJ/PLY mesh (trimesh) whose coordinates are in ``unit`` (default mm).
+        """Load an STL/OBJ/PLY mesh (trimesh) whose coordinates are in ``unit`` (default mm), or
+        tessellate a STEP/IGES file with gmsh to ``tolerance`` [m] (:mod:`roboisf.parts.cad`;
+        the CAD file declares its own unit, so ``unit`` must stay ``"mm"``).
 
         ``source`` is what :meth:`to_dict` records as the file (default: ``path``)."""
+        from roboisf.parts.cad import CAD_SUFFIXES, tessellate_cad
+
+        src = str(path) if source is None else source
+        if Path(path).suffix.lower() in CAD_SUFFIXES:
+            if unit != "mm":
+                raise InputError(
+                    "a STEP/IGES file declares its own unit; leave unit at 'mm'",
+                    file=path,
+                    field="unit",
+                )
+            V, F, _ = tessellate_cad(path, tolerance)
+            return cls(
+                V,
+                F,
+                orient=orient,
+                sheet_thickness=sheet_thickness,
+                source=src,
+                tolerance=tolerance,
+            )
         V, F = read_mesh(path, unit=unit)
-        return cls(
-            V,
-            F,
-            orient=orient,
-            sheet_thickness=sheet_thickness,
-            source=str(path) if source is None else source,
-        )
+        return cls(V, F, orient=orient, sheet_thickness=sheet_thickness, source=src, unit=unit)
 
     @property
     def n_faces(self) -> int:
@@ -322,7 +345,7 @@ class MeshPart:
     @property
     def generatrix(self) -> Any:
         raise InputError(
-            "a 'mesh' part has no generatrix; it can be used as a scan nominal, not for toolpaths",
+            "a 'mesh' part has no generatrix (its toolpaths come from roboisf.toolpath.slice)",
             file=self.source,
             field="part.kind",
         )
@@ -330,7 +353,18 @@ class MeshPart:
     def to_dict(self) -> dict[str, object]:
         if self.source is None:
             raise InputError("a mesh part built in memory has no file to save; write an STL first")
-        return {"kind": "mesh", "file": self.source, "sheet_thickness": self.sheet_thickness * 1e3}
+        d: dict[str, object] = {
+            "kind": "mesh",
+            "file": self.source,
+            "sheet_thickness": self.sheet_thickness * 1e3,
+        }
+        if self.unit != "mm":
+            d["unit"] = self.unit
+        if self.orient != "up":
+            d["orient"] = self.orient
+        if self.tolerance is not None:
+            d["tolerance"] = self.tolerance * 1e3
+        return d
 
     # -- queries ----------------------------------------------------------------------------------
     def closest_faces(
