@@ -313,3 +313,63 @@ def test_cli_square_pyramid_reports_the_ambiguity_and_takes_a_hint(tmp_path, cap
     assert main([*base, "--rz-hint", "95", "-o", str(tmp_path / "b.csv")]) == 0
     b = json.loads((tmp_path / "b.summary.json").read_text())["registration"]
     assert b["rotation_about_z_deg"] == pytest.approx(100.0, abs=1e-3)
+
+
+# -- an analytic part that declares its symmetry (roboisf.parts.Pyramid) -------------------------
+
+
+def _surface_points(part, n, seed):
+    """Points on an analytic part's surface: feet of random points of its bounding box."""
+    rng = np.random.default_rng(seed)
+    lo, hi = part.bounds
+    X = lo - 0.002 + rng.random((n, 3)) * (hi - lo + 0.004)
+    q = part.closest_point(X)
+    return q.point, q.normal, q.region
+
+
+def test_analytic_pyramid_declares_order_4_and_flange_keeps_a_wall_offset():
+    from roboisf.parts import Pyramid
+
+    pyr = Pyramid(top_length=0.1, top_width=0.1, wall_angle=math.radians(60), depth=0.03,
+                  corner_radius=0.01)  # fmt: skip
+    assert part_symmetry(pyr).source == "part" and part_symmetry(pyr).order == 4
+    assert detect_symmetry(pyr).order == 4  # the detection agrees with the declaration
+    T_true = _pose((0.3, -0.2, 0.6), 0.4, rz_deg=-100.0)
+    P, N, reg_code = _surface_points(pyr, 60_000, 81)
+    rng = np.random.default_rng(82)
+    dn = np.where(reg_code == 0, 0.0, -0.25e-3) + rng.normal(0.0, 25e-6, len(P))
+    scan = transform_points(invert(T_true), P + dn[:, None] * N)
+    ref = make_transform(rot_z(math.pi / 2)) @ T_true  # −100° → −10° modulo 90°
+    icp = register(scan, pyr, "icp")
+    assert icp.ambiguity == pytest.approx(math.pi / 2)
+    assert math.degrees(icp.rotation_about_z) == pytest.approx(-10.0, abs=0.01)
+    assert abs(icp.T_work_scan[2, 3] - ref[2, 3]) > 0.1e-3  # the wall fit absorbs the offset
+    fl = register(scan, pyr, "flange")
+    dt, da = _errors(fl.T_work_scan, ref)
+    assert dt < 10e-6 and math.degrees(da) < 0.01
+    assert fl.symmetry is not None and fl.symmetry.source == "part"
+
+
+def test_cli_flange_on_a_pyramid_part_file(tmp_path, capsys):
+    toml = tmp_path / "p.toml"
+    argv = ["part", "pyramid", "--top-length", "100", "--top-width", "100", "--wall-angle", "60",
+            "--depth", "30", "--corner-radius", "10", "-o", str(toml)]  # fmt: skip
+    assert main(argv) == 0
+    from roboisf.parts import load_part
+
+    pyr = load_part(toml)
+    P, N, code = _surface_points(pyr, 60_000, 91)
+    rng = np.random.default_rng(92)
+    dn = np.where(code == 0, 0.0, -0.25e-3) + rng.normal(0.0, 25e-6, len(P))
+    T_true = _pose((0.3, -0.2, 0.6), 0.3, rz_deg=100.0)
+    write_ply(transform_points(invert(T_true), P + dn[:, None] * N), tmp_path / "scan.ply")
+    out = tmp_path / "dev.csv"
+    argv = ["scan", "compare", str(tmp_path / "scan.ply"), "-p", str(toml), "-r", "flange",
+            "--rim-band", "5", "-o", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    s = json.loads((tmp_path / "dev.summary.json").read_text())
+    r = s["registration"]
+    assert r["symmetry"] == {"order": 4, "kind": "discrete", "source": "part"}
+    assert r["rotation_about_z_deg"] == pytest.approx(10.0, abs=0.01)
+    assert r["ambiguity_deg"] == pytest.approx(90.0)
+    assert s["points"]["mean_dn_mm"] == pytest.approx(-0.25, abs=0.005)  # offset kept

@@ -100,13 +100,6 @@ def compare(
         if out.suffix.lower() not in (".parquet", ".pq", ".csv"):
             raise InputError("expected a .parquet or .csv table", file=out)
     nominal = load_part(part)
-    from roboisf.parts import AxisymmetricPart, MeshPart
-
-    if not isinstance(nominal, AxisymmetricPart | MeshPart):  # registration on any part: later
-        raise InputError(
-            f"scan compare takes a cone, vwacf, profile or mesh part, not {nominal.kind!r} (yet)",
-            file=part,
-        )
     tp = None
     if toolpath is not None:
         from roboisf.io.toolpath_csv import read_toolpath_csv

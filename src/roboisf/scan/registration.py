@@ -159,7 +159,7 @@ class Registration:
         if self.ambiguity is not None:
             parts.append(
                 f"rotation about z {math.degrees(self.rotation_about_z):.4f}°, defined only "
-                f"modulo {math.degrees(self.ambiguity):g}° ({self.symmetry.describe()})"  # type: ignore[union-attr]
+                f"modulo {math.degrees(self.ambiguity):g}° (symmetry {self.symmetry.describe()})"  # type: ignore[union-attr]
             )
         return "; ".join(parts)
 
@@ -373,7 +373,7 @@ def register(
                 locked[name] = "fixture registration: kept where the fixture puts it"
         if sym.order == 0 and free[5]:
             free[5] = False
-            locked["rz"] = f"continuous symmetry about z, {sym.describe()}: changes no distance"
+            locked["rz"] = f"continuous symmetry about z ({sym.how}): changes no distance"
         if method == "axisymmetric" and sym.order != 0:
             raise InputError(
                 "the axisymmetric registration needs a part with a continuous symmetry about z; "

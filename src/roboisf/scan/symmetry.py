@@ -64,11 +64,16 @@ class SymmetryEstimate:
         return self.symmetry.order
 
     def describe(self) -> str:
-        """Human-readable one-liner (``"continuous (declared by the part)"``)."""
+        """Human-readable one-liner (``"continuous, declared by the part"``)."""
         o = self.order
         kind = "continuous" if o == 0 else ("none" if o == 1 else f"{o}-fold")
-        how = {"part": "declared by the part", "detected": "detected", "given": "given"}
-        return f"{kind} ({how.get(self.source, self.source)})"
+        return f"{kind}, {self.how}"
+
+    @property
+    def how(self) -> str:
+        """Where the symmetry came from, in words."""
+        words = {"part": "declared by the part", "detected": "detected", "given": "given"}
+        return words.get(self.source, self.source)
 
 
 def _surface_samples(part: Part, n: int, seed: int) -> F64:
