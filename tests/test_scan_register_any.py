@@ -151,6 +151,20 @@ def test_cone_with_scanner_noise_within_its_standard_errors(which, cone_mesh):
     assert reg.rms == pytest.approx(25e-6, rel=0.15)
 
 
+def test_reported_standard_errors_match_the_scatter_over_repeated_scans():
+    # 24 scans of the cone with 25 µm noise: the spread of the estimates is what `std` says
+    est, std = [], []
+    for seed in range(24):
+        s = synthetic_scan(CONE, 8000, noise=25e-6, seed=100 + seed)
+        reg = register(s.points, CONE, "icp")
+        est.append(np.r_[reg.T_work_scan[:3, 3], reg.rotvec[:2]])
+        std.append([reg.std[k] for k in ("x", "y", "z", "rx", "ry")])
+    ratio = np.std(est, axis=0, ddof=1) / np.mean(std, axis=0)
+    pooled = math.sqrt(float(np.mean(ratio**2)))  # ~115 degrees of freedom: ±7 %
+    assert 0.75 < pooled < 1.3, ratio
+    assert np.all((ratio > 0.5) & (ratio < 1.6)), ratio
+
+
 # -- (b) square pyramid: discrete order 4 -------------------------------------------------------
 
 
