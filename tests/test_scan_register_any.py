@@ -387,3 +387,15 @@ def test_cli_flange_on_a_pyramid_part_file(tmp_path, capsys):
     assert r["rotation_about_z_deg"] == pytest.approx(10.0, abs=0.01)
     assert r["ambiguity_deg"] == pytest.approx(90.0)
     assert s["points"]["mean_dn_mm"] == pytest.approx(-0.25, abs=0.005)  # offset kept
+
+
+def test_bad_points_and_start_pose_are_input_errors():
+    from roboisf.errors import InputError
+
+    good = np.zeros((10, 3))
+    with pytest.raises(InputError, match="finite"):
+        register(np.c_[good, good[:, :1]], CONE, "icp")
+    with pytest.raises(InputError, match="finite"):
+        register(np.where(np.eye(10, 3) > 0, np.nan, 0.0), CONE, "icp")
+    with pytest.raises(InputError, match="T_init"):
+        register(good, CONE, "icp", T_init=np.eye(3))

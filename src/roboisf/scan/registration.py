@@ -356,6 +356,16 @@ def register(
             field="register",
         )
     X = np.atleast_2d(np.asarray(points, dtype=float))
+    if X.ndim != 2 or X.shape[1] != 3 or not np.all(np.isfinite(X)):
+        raise InputError(
+            f"scan points must be finite (N, 3) coordinates, got shape {X.shape}",
+            file=source,
+            field="points",
+        )
+    if T_init is not None:
+        T0 = np.asarray(T_init, dtype=float)
+        if T0.shape != (4, 4) or not np.all(np.isfinite(T0)):
+            raise InputError("T_init must be a finite 4×4 transform", field="T_init")
     if X.shape[0] > max_points:
         rng = np.random.default_rng(seed)
         X = X[rng.choice(X.shape[0], max_points, replace=False)]
@@ -407,9 +417,9 @@ def register(
         P = transform_points(T, X)
         q = part.closest_point(P)
         r = q.distance
-        # the robust scale is re-estimated for the first iterations, then frozen: IRLS with a
-        # fixed scale cannot cycle (a moving MAD on a non-smooth surface — points crossing a
-        # pyramid's edges — can, at the 0.1 µm level)
+        # the robust scale is re-estimated for the first iterations, then frozen: the Huber
+        # cost is then a fixed function, which the Newton steps below minimise (a moving scale
+        # moves the minimum)
         w, sigma = _huber_weights(r, max_distance, scales.get("all"))
         if it == FREEZE_SCALE:
             scales["all"] = sigma
