@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from roboisf.io.fanuc import write_fanuc
 from roboisf.io.forcelog import ForceLog, attach_to_toolpath
 from roboisf.io.gcode import write_gcode
 from roboisf.io.krl import write_krl
@@ -72,12 +73,14 @@ def main() -> None:
         )
         assert np.abs(back.tip - tp.tip).max() < 1e-11
 
-        for name, fn, suffix in (
-            ("RAPID", write_rapid, ".mod"),
-            ("KRL", write_krl, ".src"),
-            ("G-code", write_gcode, ".nc"),
+        base = {"T_base_work": np.eye(4)}  # robot programs have no default placement
+        for name, fn, suffix, kw in (
+            ("RAPID", write_rapid, ".mod", base),
+            ("KRL", write_krl, ".src", base),
+            ("FANUC", write_fanuc, ".ls", base),
+            ("G-code", write_gcode, ".nc", {}),
         ):
-            t, _ = timeit(lambda fn=fn, suffix=suffix: fn(tp, d / f"p{suffix}"))
+            t, _ = timeit(lambda fn=fn, suffix=suffix, kw=kw: fn(tp, d / f"p{suffix}", **kw))
             print(f"{name:7s} write {len(tp)} moves: {t * 1e3:7.1f} ms")
 
     rng = np.random.default_rng(0)

@@ -118,3 +118,82 @@ def test_without_a_joint_log_the_configurations_come_from_ik(study, tmp_path):
     a = with_log.per_point.vjm_dn.to_numpy()
     b = with_ik.per_point.vjm_dn.to_numpy()
     assert abs(a - b).max() < 1e-3  # mm; the log is sampled at 20 Hz and interpolated
+
+
+# -- plausibility across the study's files (issue #11) --------------------------------------------
+def _fail_fast(s, match):
+    """analyze raises ``match`` before the scans (the long work): scans are removed, so reaching
+    them would raise a different error."""
+    for name in ("cnc_scan.ply", "robot_scan.ply"):
+        (s / name).write_bytes(b"ply\nformat ascii 1.0\nend_header\n")
+    with pytest.raises(InputError, match=match):
+        analyze(s)
+
+
+def test_ball_diameter_that_contradicts_the_toolpath(study, tmp_path):
+    s = copy(study, tmp_path)
+    text = (s / "study.toml").read_text()
+    assert "ball_diameter = 10.0" in text
+    (s / "study.toml").write_text(text.replace("ball_diameter = 10.0", "ball_diameter = 12.0"))
+    _fail_fast(s, r"study\.toml \[tool\.ball_diameter\].*Ø10 mm ball")
+
+
+def test_forces_declared_in_kN_but_logged_in_N(study, tmp_path):
+    s = copy(study, tmp_path)
+    text = (s / "robot_forces.csv").read_text()
+    assert "force=N " in text
+    (s / "robot_forces.csv").write_text(text.replace("force=N ", "force=kN ", 1))
+    _fail_fast(s, r"robot_forces\.csv.*kN.*units")
+
+
+def test_joint_log_of_another_path(study, tmp_path):
+    s = copy(study, tmp_path)
+    lines = (s / "robot_joints.csv").read_text().splitlines()
+    head = next(i for i, ln in enumerate(lines) if ln.startswith("time,"))
+    out = lines[: head + 1]
+    for ln in lines[head + 1 :]:
+        v = ln.split(",")
+        v[1] = repr(float(v[1]) + 5.0)  # q1 + 5°: the robot is ~0.2 m elsewhere
+        out.append(",".join(v))
+    (s / "robot_joints.csv").write_text("\n".join(out) + "\n")
+    _fail_fast(s, r"robot_joints\.csv.*forward kinematics.*another path")
+
+
+def test_placement_of_1e9_mm(study, tmp_path):
+    s = copy(study, tmp_path)
+    text = (s / "study.toml").read_text()
+    i = text.index("placement = [") + len("placement = [")
+    (s / "study.toml").write_text(text[:i] + "1e9, " + text[text.index(",", i) + 1 :])
+    with pytest.raises(InputError, match=r"\[robot\.placement\].*out of reach"):
+        analyze(s)
+
+
+def test_corrupt_truth_file_fails_before_the_analysis(study, tmp_path):
+    s = copy(study, tmp_path)
+    f = s / "truth" / "per_point.parquet"
+    f.write_bytes(f.read_bytes()[:200])
+    _fail_fast(s, r"truth/per_point\.parquet.*not a readable Parquet")
+
+
+def test_truth_file_without_its_columns(study, tmp_path):
+    import pandas as pd
+
+    s = copy(study, tmp_path)
+    f = s / "truth" / "per_point.parquet"
+    pd.read_parquet(f).drop(columns=["dn_cnc"]).to_parquet(f)
+    _fail_fast(s, r"per_point\.parquet \[dn_cnc\].*missing column")
+
+
+def test_compensate_with_a_corrupt_per_point_parquet(study, tmp_path):
+    from roboisf.compensate.study import compensate_study
+
+    res = tmp_path / "res"
+    res.mkdir()
+    (res / "per_point.parquet").write_bytes(b"PAR1 not really")
+    with pytest.raises(InputError, match=r"res/per_point\.parquet.*not a readable Parquet"):
+        compensate_study(study, results=res)
+    assert (
+        main(["-q", "compensate", str(study), "--results", str(res), "-o", str(tmp_path / "o")])
+        == 2
+    )
+    assert not (tmp_path / "o").exists()

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from roboisf.cli.main import main
+from roboisf.io.fanuc import read_fanuc
 from roboisf.io.gcode import read_gcode
 from roboisf.io.krl import read_krl
 from roboisf.io.rapid import read_rapid
@@ -58,13 +59,23 @@ def test_paper_cone_csv(tmp_path):
     assert stat.S_IMODE(os.stat(out).st_mode) == 0o666 & ~mask
 
 
+ROBOT = ["--placement", "base", "--tool", "200"]
+
+
 @pytest.mark.parametrize(
     ("name", "reader"),
-    [("p.nc", read_gcode), ("p.gcode", read_gcode), ("p.mod", read_rapid), ("p.src", read_krl)],
+    [
+        ("p.nc", read_gcode),
+        ("p.gcode", read_gcode),
+        ("p.mod", read_rapid),
+        ("p.src", read_krl),
+        ("p.ls", read_fanuc),
+    ],
 )
 def test_format_from_suffix(tmp_path, name, reader):
     out = tmp_path / name
-    assert main(["toolpath", "cone", *SMALL_CONE, "-o", str(out)]) == 0
+    extra = [] if name.endswith(("nc", "gcode")) else ROBOT
+    assert main(["toolpath", "cone", *SMALL_CONE, *extra, "-o", str(out)]) == 0
     back = reader(out)
     ref = main(["toolpath", "cone", *SMALL_CONE, "-o", str(tmp_path / "ref.csv")])
     assert ref == 0
@@ -117,7 +128,8 @@ def test_profile_and_part_files(tmp_path):
     assert 'file = "../data/profile.csv"' in toml.read_text()
     assert load_part(toml).depth == pytest.approx(20e-3)
     out = tmp_path / "from_toml.src"
-    assert main(["toolpath", "--part", str(toml), "-o", str(out), "--spacing", "3"]) == 0
+    argv = ["toolpath", "--part", str(toml), "-o", str(out), "--spacing", "3", *ROBOT]
+    assert main(argv) == 0
     assert out.is_file() and out.with_suffix(".dat").is_file()
     out2 = tmp_path / "direct.csv"
     assert main(["toolpath", "profile", str(prof), "-o", str(out2), "--spacing", "3"]) == 0
@@ -171,6 +183,7 @@ def test_bad_profile_exit_2_no_output(tmp_path, capsys, kind):
         (["cone", "--step-down", "-0.5"], "--step-down"),
         (["cone", "--feed", "0"], "--feed"),
         (["cone", "--work-frame", "1,2,3"], "--work-frame"),
+        (["cone", "--work-offset", "G92"], "--work-offset"),
         (["cone", "--format", "step"], "format"),
         (["vwacf", "--arc-radius", "100"], "arc_radius"),
         (["vwacf", "--final-wall-angle", "120"], "final_wall_angle"),
@@ -210,3 +223,90 @@ def test_never_overwrites_input(tmp_path):
     prof.write_text(text)
     assert main(["toolpath", "profile", str(prof), "-o", str(prof)]) == 2
     assert prof.read_text() == text
+
+
+@pytest.mark.parametrize("suffix", [".mod", ".src", ".ls"])
+def test_robot_program_needs_placement_and_tool(tmp_path, capsys, suffix):
+    """Never a silent robot-base frame or a made-up tool: exit 2 before generating."""
+    out = tmp_path / f"p{suffix}"
+    code, cap = _run(["toolpath", "cone", *SMALL_CONE, "--tool", "250", "-o", str(out)], capsys)
+    assert code == 2 and "--placement" in cap.err and "base" in cap.err
+    code, cap = _run(
+        ["toolpath", "cone", *SMALL_CONE, "--placement", "1,2,3", "-o", str(out)], capsys
+    )
+    assert code == 2 and "--tool" in cap.err
+    code, cap = _run(
+        ["toolpath", "cone", "--placement", "1,2", "--tool", "9", "-o", str(out)], capsys
+    )
+    assert code == 2 and "X,Y,Z[,RX,RY,RZ]" in cap.err
+    assert not list(tmp_path.iterdir())
+
+
+def test_placement_tool_and_robot_flags(tmp_path):
+    """--placement X,Y,Z,RX,RY,RZ (R = Rz Ry Rx as study.toml), --tool, --robot → confdata of the
+    IK branch; --placement base is the identity, said explicitly."""
+    from roboisf.frames.rotations import rpy_to_matrix
+    from roboisf.frames.se3 import make_transform
+    from roboisf.io.program import abb_confdata, program_config
+    from roboisf.robot.presets import load_robot
+
+    out = tmp_path / "cell.mod"
+    argv = ["toolpath", "cone", *SMALL_CONE, "--placement", "2200,0,200,0,0,10", "--tool", "306"]
+    assert main([*argv, "--robot", "irb7600-500-2.55", "-o", str(out)]) == 0
+    back = read_rapid(out)
+    T = np.eye(4)
+    T[:3, :3] = rpy_to_matrix(np.radians([0, 0, 10]))
+    T[:3, 3] = [2.2, 0, 0.2]
+    np.testing.assert_allclose(back.T_base_work, T, atol=1e-9)
+    assert back.tool.length == pytest.approx(0.306)
+    model = load_robot("irb7600-500-2.55").with_tool(make_transform(p=[0, 0, 0.306]))
+    tp = read_toolpath_csv(_csv(tmp_path))
+    cfg = program_config(model, tp, T)
+    np.testing.assert_array_equal(back.meta["confdata"], abb_confdata(cfg))
+    assert "ConfJ\\On" in out.read_text()
+    base = tmp_path / "base.src"
+    assert main(["toolpath", "cone", *SMALL_CONE, *ROBOT, "-o", str(base)]) == 0
+    np.testing.assert_allclose(read_krl(base).T_base_work, np.eye(4), atol=1e-12)
+
+
+def _csv(tmp_path):
+    ref = tmp_path / "ref.csv"
+    assert main(["toolpath", "cone", *SMALL_CONE, "-o", str(ref)]) == 0
+    return ref
+
+
+@pytest.mark.parametrize("name", ["next-part.src", "2nd.mod", "my part.ls"])
+def test_program_name_refused_before_generation(tmp_path, capsys, name):
+    """KRL DEF/DEFDAT, RAPID module and FANUC program are named after the file: an invalid name is
+    refused with the name to use, never cut or renamed silently."""
+    out = tmp_path / name
+    code, cap = _run(["toolpath", "cone", *SMALL_CONE, *ROBOT, "-o", str(out)], capsys)
+    assert code == 2 and "name" in cap.err and len(cap.err.strip().splitlines()) == 1
+    assert not list(tmp_path.iterdir())
+
+
+def test_frames_and_robot_from_a_study(tmp_path):
+    """--placement STUDY / --tool STUDY: the study's [robot] placement, flange_to_tip and robot
+    (for the S/T of the first PTP)."""
+    from roboisf.study.spec import load_study
+    from roboisf.virtual.cell import build_study, paper_cone_cell
+
+    st = tmp_path / "study"
+    build_study(
+        paper_cone_cell(spacing=6e-3, scan_points=20000, force_rate=50.0, joint_rate=50.0), st
+    )
+    robot = load_study(st).robot
+    out = tmp_path / "cell.src"
+    argv = ["toolpath", "cone", *SMALL_CONE, "--placement", str(st), "--tool", str(st)]
+    assert main([*argv, "-o", str(out)]) == 0
+    back = read_krl(out)
+    np.testing.assert_allclose(back.T_base_work, robot.T_base_work, atol=1e-8)
+    assert back.tool.length == pytest.approx(robot.T_flange_tip[2, 3])
+    assert back.meta["status_turn"] is not None  # the study's robot gave the IK branch
+
+
+def test_gcode_work_offset_flag(tmp_path):
+    out = tmp_path / "p.nc"
+    assert main(["toolpath", "cone", *SMALL_CONE, "--work-offset", "G56", "-o", str(out)]) == 0
+    back = read_gcode(out)
+    assert back.meta["work_offsets"] == ["G56"] and back.meta["length_compensation"] == [1]

@@ -113,3 +113,42 @@ def test_springback_only_absorbs_the_deflection_too():
     run = iterate_virtual(paper_cone_cell(**COARSE), iterations=3, options=opts)
     assert run.mean_abs_dn[-1] < 0.1e-3
     assert all(c.compliance is None for c in run.commands)
+
+
+def test_rim_blend_ramp_identities():
+    """Smoothstep ramp inside the band: 0 above edge − width, 1 at the edge and below (the wall
+    keeps the whole adjustment), monotone, slope ≤ 1.5/w; width 0 is the hard edge."""
+    from roboisf.compensate.pipeline import rim_blend
+
+    d = np.linspace(0.0, 40e-3, 4001)
+    b = rim_blend(d, 20e-3, 5e-3)
+    assert np.all(b[d <= 15e-3] == 0) and np.all(b[d >= 20e-3] == 1)
+    assert np.all(np.diff(b) >= 0)
+    assert np.max(np.diff(b) / np.diff(d)) <= 1.5 / 5e-3 * (1 + 1e-9)
+    assert rim_blend([17.5e-3], 20e-3, 5e-3)[0] == pytest.approx(0.5)
+    np.testing.assert_array_equal(rim_blend(d, 20e-3, 0.0), (d > 20e-3).astype(float))
+
+
+def test_blend_scales_the_update(tp):
+    """c_{k+1} = c_k − λ·b·S[D]: a constant deviation gives exactly −λ·b·D, b = 0 keeps c_k;
+    a blended point outside the region takes the deviation of its source, never its own."""
+    D = np.full(len(tp), 0.5e-3)
+    b = np.linspace(0.0, 1.0, len(tp))
+    c0 = np.full(len(tp), 0.1e-3)
+    adj = displacement_adjustment(tp, D, offset=c0, gain=0.8, blend=b)
+    np.testing.assert_allclose(adj.offset, c0 - 0.8 * b * 0.5e-3, atol=1e-12)
+    with pytest.raises(InputError, match="blend"):
+        displacement_adjustment(tp, D, blend=np.full(len(tp), 1.5))
+    # region = laps ≥ 5; laps 3-4 blended from lap 5 (deviation 2 mm outside the region: unused)
+    from roboisf.compensate.pipeline import edge_source
+
+    reg = tp.lap >= 5
+    D2 = np.where(reg, 0.5e-3, 2e-3)
+    b2 = np.where(reg, 1.0, np.where(tp.lap >= 3, 0.5, 0.0))
+    src = edge_source(tp, tp.depth[tp.lap == 4].max() + 1e-9, b2)
+    assert np.all(tp.lap[src[(tp.lap >= 3) & ~reg]] == 5)  # nearest in angle on the first lap
+    np.testing.assert_array_equal(src[reg], np.flatnonzero(reg))
+    a2 = displacement_adjustment(tp, D2, gain=1.0, region=reg, blend=b2, source=src)
+    np.testing.assert_allclose(a2.offset, -b2 * 0.5e-3, atol=1e-12)
+    ang = np.angle(np.exp(1j * (tp.angle[src] - tp.angle)))
+    assert np.abs(ang[(tp.lap >= 3) & ~reg]).max() < np.radians(5)

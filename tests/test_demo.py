@@ -4,6 +4,9 @@ import numpy as np
 import pytest
 
 from roboisf.cli.main import main
+from roboisf.io.fanuc import read_fanuc
+from roboisf.io.krl import read_krl
+from roboisf.io.program import MAX_MODULE_MOVES
 from roboisf.io.rapid import read_rapid
 from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.report import read_headline
@@ -29,6 +32,7 @@ def test_demo_builds_both_studies_atomically(tmp_path):
             "programs/toolpath.mod",
             "programs/toolpath.src",
             "programs/toolpath.nc",
+            "programs/toolpath.ls",
             "programs/toolpath.csv",
         ):
             assert (sub / f).is_file(), f"{name}/{f}"
@@ -38,4 +42,21 @@ def test_demo_builds_both_studies_atomically(tmp_path):
     assert cone.n_laps == 206
     rapid = read_rapid(out / "cone-71" / "programs" / "toolpath.mod")
     assert np.abs(rapid.tip - cone.tip).max() <= 0.5e-6 + 1e-12
+    # the programs carry the cell's frames: blank at (2200, 0, 200) mm, the cell's 306 mm tool
+    from roboisf.virtual.cell import PAPER_CELL_PLACEMENT, paper_cone_cell
+
+    c = paper_cone_cell()
+    model, T = c.cell.robot, c.cell.T_base_work
+    np.testing.assert_allclose(T, PAPER_CELL_PLACEMENT)
+    progs = out / "cone-71" / "programs"
+    for back in (rapid, read_krl(progs / "toolpath.src"), read_fanuc(progs / "toolpath.ls")):
+        np.testing.assert_allclose(back.T_base_work, T, atol=1e-8)
+        assert back.tool.length == pytest.approx(model.T_flange_tip[2, 3])
+    assert rapid.tool.length == pytest.approx(0.306)
+    # RAPID: a program set under the module limit, confdata of the IK branch (q6 around −180°)
+    parts = rapid.meta["modules"][1:]
+    assert len(parts) >= -(-len(cone) // MAX_MODULE_MOVES) > 1
+    for name in parts:
+        assert 0 < (progs / name).read_text().count("MoveL [[") <= MAX_MODULE_MOVES
+    assert set(rapid.meta["confdata"][:, 2].tolist()) <= {-3, -2}
     assert [p.name for p in tmp_path.iterdir()] == ["demo"]  # no staging leftovers

@@ -43,6 +43,11 @@ def test_plan_part_writes_ranked_outputs(cone_toml, tmp_path, capsys):
     assert s["mean robot |δ| reduction vs baseline [%]"] > 20
     html = (out / "plan.html").read_text()
     assert "Placement and tool rotation" in html and "data:image/png;base64" in html
+    # the 13-column table and the summary scroll inside the card, long values wrap (no overflow)
+    assert '<div class="scroll"><table class="data">' in html
+    assert '<div class="scroll"><dl class="kv">' in html
+    assert "#plan .scroll{max-width:100%;overflow-x:auto}" in html
+    assert "overflow-wrap:anywhere" in html
     text = capsys.readouterr().out
     assert "% lower" in text
 

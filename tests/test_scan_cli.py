@@ -35,7 +35,7 @@ def files(tmp_path_factory):
 def test_compare_per_toolpath_point_parquet(files, tmp_path):
     out = tmp_path / "dev.parquet"
     argv = ["scan", "compare", str(files / "scan.ply"), "--part", str(files / "cone.toml"),
-            "--toolpath", str(files / "path.csv"), "-o", str(out)]  # fmt: skip
+            "--toolpath", str(files / "path.csv"), "-r", "none", "-o", str(out)]  # fmt: skip
     assert main(argv) == 0
     t = pq.read_table(out)
     meta = t.schema.metadata
@@ -115,3 +115,15 @@ def test_bad_files(files, tmp_path, capsys):
     err = capsys.readouterr().err.replace("\n", "")
     assert "big.csv" in err and "outside the scanned" in err
     assert not out.exists()
+
+
+def test_default_registration_is_fixture_as_analyze(files, tmp_path):
+    """`scan compare` registers like `analyze` unless told otherwise ([analysis] registration)."""
+    from roboisf.study.spec import AnalysisSpec
+
+    out = tmp_path / "d.csv"
+    argv = ["scan", "compare", str(files / "scan.ply"), "--part", str(files / "cone.toml"),
+            "-o", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    summary = json.loads((tmp_path / "d.summary.json").read_text())
+    assert summary["registration"]["method"] == AnalysisSpec().registration == "fixture"

@@ -100,14 +100,24 @@ def register(app: typer.Typer) -> None:
         max_overbend: Annotated[
             float, typer.Option(help="Largest intended over-bend into the part \\[mm].")
         ] = 2.0,
+        rim_blend: Annotated[
+            float,
+            typer.Option(
+                help="Last part of the rim band over which the springback offset of the first "
+                "lap below it ramps in \\[mm] (0: a hard edge, a step in the command).",
+            ),
+        ] = 5.0,
         tool_mass: Annotated[float, typer.Option(help="Tool + holder mass \\[kg].")] = 2.0,
         png: Annotated[bool, typer.Option("--png/--no-png", help="Also write the PNG.")] = True,
     ) -> None:
         """Compensate the toolpath: robot/tool/holder pre-deflection and springback adjustment.
 
-        Writes compensated.csv, compensated.mod (RAPID), compensated.src/.dat (KRL),
-        compensated.nc (G-code), per_point.csv (mm, flags), compensation.json and
-        compensation.html/.png (mean |dn| per lap before/after, commanded offset per lap).
+        Writes compensated.csv, compensated.mod (RAPID; + part modules compensated_<k>.mod for
+        long paths), compensated.src/.dat (KRL), compensated.ls (FANUC) — all in the study's
+        frames (placement, tool) with the configuration data of its IK branch —,
+        compensated.nc (G-code: nominal + springback adjustment only, no robot pre-deflection),
+        per_point.csv (mm, flags), compensation.json and compensation.html/.png (mean |dn| per
+        lap before/after, commanded offset per lap, the largest lap-to-lap step).
         """
         from roboisf.compensate import CompensationOptions, write_compensation
 
@@ -116,6 +126,7 @@ def register(app: typer.Typer) -> None:
             ("--smooth-across", smooth_across),
             ("--tol", tol),
             ("--max-overbend", max_overbend),
+            ("--rim-blend", rim_blend),
             ("--step-down", step_down),
             ("--spacing", spacing),
         ):
@@ -135,6 +146,7 @@ def register(app: typer.Typer) -> None:
             max_iter=max_iter,
             partial=partial,
             max_overbend=max_overbend * 1e-3,
+            rim_blend=rim_blend * 1e-3,
         )
         progress = state.progress()
         if (study is None) == (virtual is None):
@@ -160,6 +172,7 @@ def register(app: typer.Typer) -> None:
             T_base_work=sc.T_base_work,
             tool=sc.tool,
             tool_rotation=sc.tool_rotation,
+            robot=sc.robot,
             dn_before=sc.dn_before,
             dn_after=sc.dn_after,
             after_label="predicted",
@@ -203,12 +216,14 @@ def _virtual(
     comp = run.commands[-1]
     means = (run.mean_abs_dn * 1e3).tolist()
     comp = replace(comp, meta={"cell": cell.name, "mean_abs_dn_per_iteration_mm": means})
+    robot, T_base_work = cell.cell.robot, cell.cell.T_base_work  # frames, tool, IK branch
     write_compensation(
         comp,
         output,
-        T_base_work=run.truths[0].T_base_work,
-        tool=RobotTool(length=float(cell.T_flange_tip[2, 3]), mass=tool_mass),
+        T_base_work=T_base_work,
+        tool=RobotTool(length=float(robot.T_flange_tip[2, 3]), mass=tool_mass),
         tool_rotation=cell.tool_rotation,
+        robot=robot,
         dn_before=run.truths[0].dn_robot,
         dn_after=run.truths[-1].dn_robot,
         after_label="virtual cell",

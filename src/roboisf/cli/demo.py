@@ -3,7 +3,9 @@
 For the cone (Ø87 mm, 71°, 102.97 mm deep) and the VWACF (Ø88.15 mm, 39 mm arc, 0° → 90°), on an
 ABB IRB 7600-500/2.55 with a Ø10 mm ball: the virtual cell writes a complete study folder (force
 logs in the sensors' frames, joint log, laser scans, ground truth), ``analyze`` decomposes it and
-writes the report, and the toolpath is exported as robot programs (CSV, G-code, RAPID, KRL).
+writes the report, and the toolpath is exported as programs (CSV, G-code, RAPID, KRL, FANUC LS)
+with the cell's own frames: the work object where the cell puts the blank, the cell's tool
+(sensor + holder + tool, flange to ball tip) and the configuration data of the cell's IK branch.
 An index page links both reports. The folder is built in a staging folder and moved into place
 when complete.
 """
@@ -13,23 +15,17 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
 
 from roboisf.cli.console import state
 from roboisf.cli.toolpath import warn_truncated
-from roboisf.frames.se3 import make_transform
 from roboisf.io.atomic import staged_directory
 from roboisf.io.export import FORMAT_SUFFIXES, write_toolpath
-from roboisf.io.program import RobotTool
+from roboisf.io.program import RobotTool, program_config
 from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.progress import Progress, task
 
-__all__ = ["DEMO_PLACEMENT", "build_demo", "register"]
-
-#: Illustrative work-object placement for the robot programs: blank centre 1.8 m in front of an
-#: IRB 7600 base and 0.6 m up, axes parallel to the base (replace with your cell's calibration).
-DEMO_PLACEMENT = make_transform(np.eye(3), [1.8, 0.0, 0.6])
+__all__ = ["build_demo", "register"]
 
 
 def build_demo(
@@ -45,7 +41,6 @@ def build_demo(
     from roboisf.virtual.cell import build_study, paper_cone_cell, paper_vwacf_cell
 
     reports: list[Path] = []
-    tool = RobotTool(length=0.2, mass=2.0)
     for cell in (
         paper_cone_cell(scan_points=scan_points, force_rate=force_rate),
         paper_vwacf_cell(scan_points=scan_points, force_rate=force_rate),
@@ -60,6 +55,10 @@ def build_demo(
         reports.append(sub / "results" / "report.html")
         tp = read_toolpath_csv(study / "toolpath.csv")
         warn_truncated(tp, 10.0)
+        # the programs carry the cell's frames: its placement, its tool, its IK branch
+        model, T_base_work = cell.cell.robot, cell.cell.T_base_work
+        tool = RobotTool(length=float(model.T_flange_tip[2, 3]), mass=2.0)
+        config = program_config(model, tp, T_base_work, cell.tool_rotation)
         with task(progress, f"{cell.name}: robot programs", total=len(FORMAT_SUFFIXES)) as advance:
             (sub / "programs").mkdir()
             for fmt, suffixes in FORMAT_SUFFIXES.items():
@@ -67,8 +66,10 @@ def build_demo(
                     tp,
                     sub / "programs" / f"toolpath{suffixes[0]}",
                     fmt,
-                    T_base_work=DEMO_PLACEMENT,
+                    T_base_work=T_base_work,
                     tool=tool,
+                    tool_rotation=cell.tool_rotation,
+                    config=config,
                 )
                 advance(1)
         row = result.contributions.set_index("factor")

@@ -33,13 +33,14 @@ def compare(
         None, "--toolpath", "-t", help="Toolpath CSV: deviations per contact point."
     ),
     register: str = typer.Option(
-        "none",
+        "fixture",
         "--register",
         "-r",
-        help="Registration, any part: none | fixture (z, tilts from the flange) | flange (z, "
-        "tilts from the flange; x, y, rz from the wall) | axisymmetric | icp (6 DOF on the "
-        "surface). A symmetry about z (declared, or detected on a mesh) locks rz (continuous) "
-        "or makes it defined modulo 360°/n (n-fold; reported).",
+        help="Registration, any part: fixture (default, as analyze: z and the two tilts from "
+        "the flange) | flange (z, tilts from the flange; x, y, rz from the wall) | "
+        "axisymmetric | icp (6 DOF on the surface) | none. A symmetry about z (declared, or "
+        "detected on a mesh) locks rz (continuous) or makes it defined modulo 360°/n (n-fold; "
+        "reported).",
     ),
     rz_hint: float | None = typer.Option(
         None,

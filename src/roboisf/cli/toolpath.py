@@ -5,11 +5,14 @@ Examples (mm and degrees)::
     roboisf toolpath cone --opening-diameter 87 --wall-angle 71 --depth 102.97 \\
         --step-down 0.5 --tool-diameter 10 -o cone.csv
     roboisf toolpath vwacf --opening-diameter 88.15 --arc-radius 40 -o vwacf.mod --spiral
-    roboisf toolpath profile profile.csv -o part.src --tool-length 250
+    roboisf toolpath profile profile.csv -o part.src --tool 250 --placement 2200,0,200
+    roboisf toolpath --part part.toml -o path.mod --placement study/ --tool study/
     roboisf toolpath --part part.toml -o path.nc          # any part: cone … pyramid, mesh
     roboisf toolpath --part pyramid.toml --scallop-height 0.01 -o path.csv
 
-The format follows the ``-o`` suffix (.csv, .nc/.gcode, .mod, .src) unless ``--format`` is given.
+The format follows the ``-o`` suffix (.csv, .nc/.gcode, .mod, .src, .ls) unless ``--format`` is
+given. A robot program (.mod, .src, .ls) needs the work-object placement and the tool: there is no
+default robot-base frame (``--placement base`` says so explicitly).
 """
 
 from __future__ import annotations
@@ -36,10 +39,12 @@ from roboisf.cli.part import (
     WallAngle,
 )
 from roboisf.errors import InputError
-from roboisf.frames.rotations import abc_to_matrix
+from roboisf.frames.rotations import abc_to_matrix, rpy_to_matrix
+from roboisf.frames.se3 import make_transform
 from roboisf.io.atomic import check_not_input
-from roboisf.io.export import infer_format, write_toolpath
-from roboisf.io.program import RobotTool
+from roboisf.io.export import ROBOT_FORMATS, check_program_name, infer_format, write_toolpath
+from roboisf.io.gcode import WORK_OFFSETS
+from roboisf.io.program import RobotTool, program_config
 from roboisf.parts import (
     VWACF,
     AxisymmetricPart,
@@ -54,6 +59,9 @@ from roboisf.parts.io import part_files
 from roboisf.toolpath import sliced_spiral, sliced_step_down, spiral, step_down
 from roboisf.toolpath.toolpath import Toolpath
 
+if typing.TYPE_CHECKING:
+    from roboisf.robot.model import RobotModel
+
 __all__ = ["PathOptions", "generate", "register", "warn_truncated"]
 
 # -- options shared by every toolpath command (mm, deg, mm/min) ---------------------------------
@@ -64,7 +72,8 @@ OptOutput = Annotated[
     Path | None, typer.Option("--output", "-o", help="Output file; its suffix picks the format.")
 ]
 Format = Annotated[
-    str | None, typer.Option("--format", "-f", help="csv | gcode | rapid | krl (default: from -o).")
+    str | None,
+    typer.Option("--format", "-f", help="csv | gcode | rapid | krl | fanuc (default: from -o)."),
 ]
 StepDown = Annotated[float, typer.Option(help="Depth step between laps \\[mm].")]
 ToolDiameter = Annotated[float, typer.Option(help="Ball diameter \\[mm].")]
@@ -82,16 +91,52 @@ ScallopHeight = Annotated[
         "sqrt(h(2R − h)) per lap from its shallowest wall, ≤ --step-down (any part)."
     ),
 ]
-ToolLength = Annotated[float, typer.Option(help="Flange to ball tip \\[mm] (RAPID/KRL tool data).")]
-ToolMass = Annotated[float, typer.Option(help="Tool + holder mass \\[kg] (RAPID/KRL).")]
+ToolLength = Annotated[
+    float | None,
+    typer.Option(help="Flange to ball tip \\[mm] (robot programs; same as --tool LENGTH)."),
+]
+ToolOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--tool",
+        help="The tool of a robot program: flange to ball tip \\[mm], or a study folder / "
+        "study.toml whose \\[robot] flange_to_tip is used. Required for .mod/.src/.ls.",
+    ),
+]
+Placement = Annotated[
+    str | None,
+    typer.Option(
+        "--placement",
+        help="Work object (blank centre, sheet plane) in the robot base: 'X,Y,Z' or "
+        "'X,Y,Z,RX,RY,RZ' \\[mm, deg; R = Rz(RZ)Ry(RY)Rx(RX), as study.toml], 'base' for the "
+        "robot base itself, or a study folder / study.toml (its \\[robot] placement). Required "
+        "for .mod/.src/.ls.",
+    ),
+]
+Robot = Annotated[
+    str | None,
+    typer.Option(
+        "--robot",
+        help="Robot preset or file: IK along the path gives the configuration data "
+        "(confdata, S/T, CONFIG). Default: the study's with --placement STUDY, else none.",
+    ),
+]
+ToolMass = Annotated[float, typer.Option(help="Tool + holder mass \\[kg] (robot programs).")]
+WorkOffset = Annotated[
+    str,
+    typer.Option(
+        help="G-code work offset holding the blank centre (G54 … G59); the program also calls "
+        "T1 M06 and G43 H1 (length to the ball tip)."
+    ),
+]
 ToolRotation = Annotated[
     float, typer.Option(help="Rotation of the tool about its own axis \\[deg] (RAPID/KRL).")
 ]
 WorkFrame = Annotated[
     str | None,
     typer.Option(
-        help="Work frame in the robot base as 'X,Y,Z,A,B,C' \\[mm, deg; R = Rz(A)Ry(B)Rx(C)] "
-        "(RAPID wobjdata / KRL $BASE). Default: identity."
+        help="Work frame in the robot base as 'X,Y,Z,A,B,C' \\[mm, deg; R = Rz(A)Ry(B)Rx(C), "
+        "KUKA's order] — the same as --placement with the angles given the KUKA way."
     ),
 ]
 SafeHeight = Annotated[float, typer.Option(help="Approach/retract height \\[mm].")]
@@ -108,11 +153,15 @@ class PathOptions:
     feed: float = 750.0
     max_wall_step: float | None = None
     scallop_height: float | None = None
-    tool_length: float = 200.0
+    tool_length: float | None = None
     tool_mass: float = 2.0
     tool_rotation: float = 0.0
     work_frame: str | None = None
     safe_height: float = 10.0
+    placement_: str | None = None
+    tool: str | None = None
+    robot: str | None = None
+    work_offset: str = "G54"
 
     def check(self) -> None:
         for flag, v in (
@@ -120,7 +169,7 @@ class PathOptions:
             ("--tool-diameter", self.tool_diameter),
             ("--spacing", self.spacing),
             ("--feed", self.feed),
-            ("--tool-length", self.tool_length),
+            ("--tool-length", 1.0 if self.tool_length is None else self.tool_length),
             ("--tool-mass", self.tool_mass),
             ("--safe-height", self.safe_height),
         ):
@@ -139,23 +188,90 @@ class PathOptions:
         if not math.isfinite(self.tool_rotation):
             raise InputError("must be finite", field="--tool-rotation")
 
-    def placement(self) -> np.ndarray:
-        """``T_base_work`` (4, 4) m from ``--work-frame``."""
-        T = np.eye(4)
-        if self.work_frame is None:
+    def placement(self) -> np.ndarray | None:
+        """``T_base_work`` (4, 4) m from ``--placement`` or ``--work-frame`` (None: not given)."""
+        if self.placement_ is not None and self.work_frame is not None:
+            raise InputError("give --placement or --work-frame, not both", field="--placement")
+        if self.work_frame is not None:
+            v = _numbers(self.work_frame, "--work-frame", (6,), "'X,Y,Z,A,B,C' (mm, deg)")
+            T = np.eye(4)
+            T[:3, :3] = abc_to_matrix(np.radians(v[3:]))
+            T[:3, 3] = np.array(v[:3]) * 1e-3
             return T
-        try:
-            v = [float(x) for x in self.work_frame.split(",")]
-        except ValueError:
-            v = []
-        if len(v) != 6 or not all(math.isfinite(x) for x in v):
-            raise InputError(
-                f"expected 6 numbers 'X,Y,Z,A,B,C' (mm, deg), got {self.work_frame!r}",
-                field="--work-frame",
-            )
-        T[:3, :3] = abc_to_matrix(np.radians(v[3:]))
+        if self.placement_ is None:
+            return None
+        text = self.placement_.strip()
+        if text.lower() == "base":
+            return np.eye(4)
+        if _is_study(text):
+            return _study_robot(text).T_base_work
+        v = _numbers(text, "--placement", (3, 6), "'X,Y,Z[,RX,RY,RZ]' (mm, deg), 'base' or a study")
+        T = np.eye(4)
+        if len(v) == 6:
+            T[:3, :3] = rpy_to_matrix(np.radians(v[3:]))
         T[:3, 3] = np.array(v[:3]) * 1e-3
         return T
+
+    def robot_tool(self) -> RobotTool | None:
+        """The tool from ``--tool`` / ``--tool-length`` (None: not given)."""
+        if self.tool is not None and self.tool_length is not None:
+            raise InputError("give --tool or --tool-length, not both", field="--tool")
+        length = self.tool_length
+        if self.tool is not None:
+            if _is_study(self.tool):
+                T_ft = _study_robot(self.tool).T_flange_tip
+                if T_ft is None:
+                    raise InputError(
+                        "the study's [robot] table has no flange_to_tip", field="--tool"
+                    )
+                off_axis = np.abs(T_ft[:2, 3]).max() > 1e-9
+                if off_axis or np.abs(T_ft[:3, :3] - np.eye(3)).max() > 1e-9:
+                    raise InputError(
+                        "only a straight tool on the flange axis is written to programs",
+                        field="--tool",
+                    )
+                length = float(T_ft[2, 3]) * 1e3
+            else:
+                length = float(_numbers(self.tool, "--tool", (1,), "a length in mm or a study")[0])
+            if not length > 0:
+                raise InputError(f"must be > 0 mm, got {length:g}", field="--tool")
+        if length is None:
+            return None
+        return RobotTool(length=length * 1e-3, mass=self.tool_mass)
+
+    def robot_model(self) -> RobotModel | None:
+        """The robot for the configuration data: ``--robot``, else the study of ``--placement``."""
+        from roboisf.robot.presets import load_robot
+
+        if self.robot is not None:
+            return load_robot(self.robot)
+        if self.placement_ is not None and _is_study(self.placement_):
+            return load_robot(_study_robot(self.placement_).model)
+        return None
+
+
+def _numbers(text: str, flag: str, counts: tuple[int, ...], expected: str) -> list[float]:
+    try:
+        v = [float(x) for x in text.split(",")]
+    except ValueError:
+        v = []
+    if len(v) not in counts or not all(math.isfinite(x) for x in v):
+        raise InputError(f"expected {expected}, got {text!r}", field=flag)
+    return v
+
+
+def _is_study(text: str) -> bool:
+    p = Path(text)
+    return p.is_dir() or p.suffix.lower() == ".toml"
+
+
+def _study_robot(text: str) -> Any:
+    from roboisf.study.spec import load_study
+
+    study = load_study(Path(text))
+    if study.robot is None:
+        raise InputError("the study has no [robot] table (placement, flange_to_tip)", file=text)
+    return study.robot
 
 
 def generate(part: Part, opts: PathOptions) -> Toolpath:
@@ -204,16 +320,60 @@ def warn_truncated(tp: Toolpath, tool_diameter: float) -> None:
 
 
 def write(tp: Toolpath, output: Path, fmt: str | None, opts: PathOptions) -> str:
-    """Write ``tp`` with the program options; return the format used."""
-    return write_toolpath(
+    """Write ``tp`` with the program options; return the format used.
+
+    A robot program needs ``--placement`` and ``--tool``; with a robot (``--robot`` or the
+    study's) IK along the path gives the configuration data.
+    """
+    fmt = infer_format(output, fmt)
+    T, tool, model = program_frames(fmt, opts, output)
+    config = None
+    if model is not None and T is not None and tool is not None:
+        model = model.with_tool(make_transform(p=[0.0, 0.0, tool.length]))
+        config = program_config(model, tp, T, math.radians(opts.tool_rotation))
+    fmt, _ = write_toolpath(
         tp,
         output,
         fmt,
-        T_base_work=opts.placement(),
-        tool=RobotTool(length=opts.tool_length * 1e-3, mass=opts.tool_mass),
+        T_base_work=T,
+        tool=tool,
         tool_rotation=math.radians(opts.tool_rotation),
+        config=config,
         safe_height=opts.safe_height * 1e-3,
+        work_offset=opts.work_offset,
     )
+    return fmt
+
+
+def program_frames(
+    fmt: str, opts: PathOptions, output: Path
+) -> tuple[np.ndarray | None, RobotTool | None, RobotModel | None]:
+    """Placement, tool and robot of a program; a robot program must have the first two and a
+    file name that is a valid program name."""
+    check_program_name(output, fmt)
+    if opts.work_offset not in WORK_OFFSETS:
+        raise InputError(
+            f"expected one of {', '.join(WORK_OFFSETS)}, got {opts.work_offset!r}",
+            field="--work-offset",
+        )
+    T = opts.placement()
+    tool = opts.robot_tool()
+    model = None
+    if fmt in ROBOT_FORMATS:
+        if T is None:
+            raise InputError(
+                "a robot program needs the work-object placement: --placement X,Y,Z[,RX,RY,RZ] "
+                "(mm, deg), --placement STUDY, or --placement base for the robot base itself",
+                field="--placement",
+            )
+        if tool is None:
+            raise InputError(
+                "a robot program needs the tool: --tool LENGTH (flange to ball tip, mm) or "
+                "--tool STUDY",
+                field="--tool",
+            )
+        model = opts.robot_model()
+    return T, tool, model
 
 
 def _run(
@@ -222,7 +382,7 @@ def _run(
     check_not_input(output, inputs)
     fmt = infer_format(output, fmt)  # fail before the (possibly long) generation
     opts.check()
-    opts.placement()
+    program_frames(fmt, opts, output)  # name, placement, tool, robot: before the generation
     part = part_factory()
     tp = generate(part, opts)
     warn_truncated(tp, opts.tool_diameter)
@@ -242,11 +402,15 @@ _SHARED: list[tuple[str, Any, Any]] = [
     ("feed", Feed, 750.0),
     ("max_wall_step", MaxWallStep, None),
     ("scallop_height", ScallopHeight, None),
-    ("tool_length", ToolLength, 200.0),
+    ("tool_length", ToolLength, None),
     ("tool_mass", ToolMass, 2.0),
     ("tool_rotation", ToolRotation, 0.0),
     ("work_frame", WorkFrame, None),
     ("safe_height", SafeHeight, 10.0),
+    ("placement_", Placement, None),
+    ("tool", ToolOpt, None),
+    ("robot", Robot, None),
+    ("work_offset", WorkOffset, "G54"),
 ]
 
 

@@ -174,8 +174,10 @@ def displacement_adjustment(
     across: float = 1e-3,
     min_support: float = 0.05,
     on_gap: Literal["raise", "hold"] = "raise",
+    blend: ArrayLike | None = None,
+    source: ArrayLike | None = None,
 ) -> Adjustment:
-    """One displacement-adjustment step ``c_{k+1} = c_k − λ · S[D_k]``.
+    """One displacement-adjustment step ``c_{k+1} = c_k − λ · b · S[D_k]``.
 
     Parameters
     ----------
@@ -189,6 +191,12 @@ def displacement_adjustment(
     along, across : m — Gaussian smoothing widths along a lap and across laps
     min_support : a region point whose smoothing support is below this cannot be filled
     on_gap : "raise" (InputError naming the indices) or "hold" (keep ``c_k``, flag ``held``)
+    blend : (N,) float in [0, 1] — share ``b`` of the update applied at each point (default 1 in
+        the region, 0 outside): a ramp across the edge of the region keeps the command free of a
+        step there. Points outside the region with ``b > 0`` are updated too, with the smoothed
+        deviation of their ``source`` point.
+    source : (N,) int — the point whose smoothed deviation each point uses (default itself; a
+        point outside the region needs a source inside it)
     """
     tp = toolpath
     n = len(tp)
@@ -208,9 +216,21 @@ def displacement_adjustment(
         )
     if on_gap not in ("raise", "hold"):
         raise InputError("must be 'raise' or 'hold'", field="on_gap")
+    b = reg.astype(float) if blend is None else np.asarray(blend, dtype=float)
+    if b.shape != (n,) or not np.all((b >= 0) & (b <= 1)):
+        raise InputError(f"expected ({n},) blend weights in [0, 1]", field="blend")
+    src = np.arange(n) if source is None else np.asarray(source)
+    if src.shape != (n,) or src.dtype.kind not in "iu" or np.any((src < 0) | (src >= n)):
+        raise InputError(f"expected ({n},) point indices", field="source")
     w = (ok & reg).astype(float)
     S, support = smooth_on_laps(tp, D, w, along=along, across=across)
-    gap = reg & ~(support >= min_support)
+    S, support = S[src], support[src]
+    todo = b > 0
+    if np.any(todo & ~reg & ~reg[src]):
+        raise InputError(
+            "a blended point outside the region needs a source inside it", field="source"
+        )
+    gap = todo & ~(support >= min_support)
     if np.any(gap) and on_gap == "raise":
         idx = np.flatnonzero(gap)
         raise InputError(
@@ -219,14 +239,14 @@ def displacement_adjustment(
             "smoothing, rescan, leave them out of the region, or hold them (on_gap='hold')",
             field="deviation",
         )
-    update = reg & ~gap
-    c_new = np.where(update, c - gain * np.where(update, S, 0.0), c)
+    update = todo & ~gap
+    c_new = np.where(update, c - gain * b * np.where(update, S, 0.0), c)
     return Adjustment(
         offset=c_new,
         previous=c,
         deviation=np.where(update, S, np.nan),
         support=support,
-        filled=update & ~ok,
+        filled=update & ~(ok & reg),
         held=gap,
         region=reg,
         gain=float(gain),

@@ -24,7 +24,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 import pandas as pd
@@ -45,12 +45,17 @@ from roboisf.parts.base import Part
 from roboisf.progress import Progress, task
 from roboisf.toolpath.toolpath import Toolpath
 
+if TYPE_CHECKING:
+    from roboisf.robot.model import RobotModel
+
 __all__ = [
     "Compensation",
     "CompensationOptions",
     "compensate",
+    "edge_source",
     "lap_table",
     "nominal_of",
+    "rim_blend",
     "write_compensation",
 ]
 
@@ -68,6 +73,9 @@ class CompensationOptions:
     relax, tol, max_iter, partial : the compliance fixed point
         (``partial``: return non-converged points flagged instead of raising)
     gouge_tol, max_overbend : m — gouge rule (:mod:`roboisf.compensate.gouge`)
+    rim_blend : m — depth over which the springback adjustment ramps in inside the rim band, up
+        to its edge (a smoothstep, :func:`rim_blend`; 0: a hard edge). Without it the command
+        steps by the full offset between the last lap of the band and the first below it.
     """
 
     compliance: bool = True
@@ -83,11 +91,12 @@ class CompensationOptions:
     partial: bool = False
     gouge_tol: float = 10e-6
     max_overbend: float = 2e-3
+    rim_blend: float = 5e-3
 
     def __post_init__(self) -> None:
         if not (self.compliance or self.springback):
             raise InputError("nothing to compensate: enable compliance or springback")
-        for name in ("along", "across", "gouge_tol", "max_overbend"):
+        for name in ("along", "across", "gouge_tol", "max_overbend", "rim_blend"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise InputError(f"must be ≥ 0, got {v:g}", field=name)
@@ -147,15 +156,31 @@ class Compensation:
         cols["gouge"] = self.gouge.gouge
         return pd.DataFrame(cols)
 
+    def lap_steps(self) -> dict[str, float]:
+        """Largest change [m] between consecutive laps of the per-lap mean springback offset
+        ``c`` and of the commanded normal offset (a ledge in the next part if large)."""
+        cdn = np.einsum("ij,ij->i", self.command_offset, self.nominal.normal)
+        t = lap_table(self.toolpath.lap, offset=self.offset, command_dn=cdn)
+        out = {}
+        for col in ("offset", "command_dn"):
+            d = np.abs(np.diff(t[col].to_numpy()))
+            d = d[np.isfinite(d)]
+            out[col] = float(d.max()) if d.size else 0.0
+        return out
+
     def summary(self) -> dict[str, Any]:
         o = self.options
         off = np.linalg.norm(self.command_offset, axis=1)
+        steps = self.lap_steps()
         return {
             "complete": self.complete,
             "terms": {"compliance": o.compliance, "springback": o.springback},
             "n_points": len(self.toolpath),
             "max_command_offset_mm": float(off.max()) * 1e3,
             "mean_command_offset_mm": float(off.mean()) * 1e3,
+            "rim_blend_mm": o.rim_blend * 1e3,
+            "max_lap_step_springback_offset_mm": steps["offset"] * 1e3,
+            "max_lap_step_command_dn_mm": steps["command_dn"] * 1e3,
             "compliance": None if self.compliance is None else self.compliance.report(),
             "springback": None if self.adjustment is None else self.adjustment.report(),
             "gouge": self.gouge.report(),
@@ -186,6 +211,8 @@ def compensate(
     deviation: ArrayLike | None = None,
     valid: ArrayLike | None = None,
     region: ArrayLike | None = None,
+    blend: ArrayLike | None = None,
+    source: ArrayLike | None = None,
     formed: ArrayLike | None = None,
     previous_offset: ArrayLike | None = None,
     options: CompensationOptions | None = None,
@@ -203,6 +230,9 @@ def compensate(
     deviation : (N,) float, m — measured normal deviation ``dn`` of the part formed by ``formed``
     valid : (N,) bool — where ``deviation`` is a measurement (holes are filled and flagged)
     region : (N,) bool — points to springback-compensate (default all)
+    blend : (N,) float in [0, 1] — share of the springback update applied per point (default 1
+        in the region; :func:`rim_blend` ramps it in across a rim band's edge)
+    source : (N,) int — the point whose smoothed deviation each point takes (:func:`edge_source`)
     formed : (N, 3) float, m — the commanded tip that formed the measured part (default nominal)
     previous_offset : (N,) float, m — ``c_k`` of the command that formed it (default 0)
     """
@@ -243,6 +273,8 @@ def compensate(
             offset=c_prev,
             valid=valid,
             region=region,
+            blend=blend,
+            source=source,
             gain=o.gain,
             along=o.along,
             across=o.across,
@@ -285,6 +317,48 @@ def compensate(
     return Compensation(tp, nom, c, target, defl, adj, comp, gouge, o, complete)
 
 
+def rim_blend(depth: ArrayLike, rim_band: float, width: float) -> F64:
+    """Blend weights (N,) in [0, 1]: 1 below the rim band (``depth > rim_band``: the analysed
+    wall gets the whole adjustment), a smoothstep ``3t² − 2t³`` over the last ``width`` [m] of the
+    band (slope at most 1.5/width), 0 above ``rim_band − width``. ``width`` 0: the hard edge.
+
+    The ramp lies inside the band, where the method has no deviation of its own: blended band
+    points take the offset of the first lap below it (:func:`edge_source`), scaled by the weight.
+    Iterations keep the shape (a band point never feeds back a residual of its own, so it
+    converges to ``b`` × the edge's offset) and the analysed wall loses nothing."""
+    d = np.asarray(depth, dtype=float)
+    if width <= 0:
+        return (d > rim_band).astype(float)
+    t = np.clip((d - rim_band + width) / width, 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+def edge_source(toolpath: Toolpath, rim_band: float, blend: ArrayLike) -> NDArray[np.int64]:
+    """For the blended points in the rim band (``depth ≤ rim_band``, ``blend > 0``): the point
+    nearest in angle on the first lap below the band, whose smoothed deviation they take (the
+    method has none of their own); every other point is its own source."""
+    tp = toolpath
+    b = np.asarray(blend, dtype=float)
+    src = np.arange(len(tp))
+    need = (tp.depth <= rim_band) & (b > 0)
+    below = tp.depth > rim_band
+    if not need.any() or not below.any():
+        return src
+    first = tp.lap[below].min()
+    cand = np.flatnonzero((tp.lap == first) & below)
+    ang = tp.angle[cand]
+    order = np.argsort(ang)
+    a_s, c_s = ang[order], cand[order]
+    a = tp.angle[need]
+    # periodic nearest neighbour in angle
+    ext_a = np.concatenate([a_s - 2 * np.pi, a_s, a_s + 2 * np.pi])
+    ext_c = np.concatenate([c_s, c_s, c_s])
+    j = np.clip(np.searchsorted(ext_a, a), 1, len(ext_a) - 1)
+    left_closer = (a - ext_a[j - 1]) <= (ext_a[j] - a)
+    src[need] = np.where(left_closer, ext_c[j - 1], ext_c[j])
+    return src
+
+
 def lap_table(lap: ArrayLike, **series: ArrayLike) -> pd.DataFrame:
     """Per-lap means of per-point series (NaN-aware); ``lap`` (N,) int. Columns as given."""
     lap = np.asarray(lap)
@@ -307,6 +381,7 @@ def write_compensation(
     T_base_work: ArrayLike,
     tool: RobotTool,
     tool_rotation: float = 0.0,
+    robot: RobotModel | None = None,
     dn_before: ArrayLike | None = None,
     dn_after: ArrayLike | None = None,
     after_label: str = "predicted",
@@ -316,12 +391,19 @@ def write_compensation(
 ) -> Path:
     """Write the compensated command and the before/after comparison into ``out_dir``.
 
-    Files: ``compensated.csv`` (toolpath CSV), ``compensated.mod`` (RAPID), ``compensated.src``
-    + ``.dat`` (KRL), ``compensated.nc`` (G-code), ``per_point.csv`` (mm, flags),
+    Files: ``compensated.csv`` (toolpath CSV), ``compensated.mod`` (RAPID; with part modules
+    ``compensated_<k>.mod`` for a long path), ``compensated.src`` + ``.dat`` (KRL),
+    ``compensated.ls`` (FANUC), ``compensated.nc`` (G-code), ``per_point.csv`` (mm, flags),
     ``compensation.json``, ``compensation.html`` and ``compensation.png`` (with ``png``). The
     folder is replaced only when everything is written. Refuses a gouging command, and a
     partial (non-converged) one unless the options asked for it (then ``complete`` is false in
     the JSON and the per-point ``converged`` flags say where).
+
+    The robot programs carry the full command (robot/tool/holder pre-deflection + springback
+    adjustment) in the frames given (``T_base_work``, ``tool``), with the configuration data of
+    the IK branch of ``robot`` (the robot model with its tool) along the command. The G-code
+    carries only what applies to any machine: the nominal tip + the springback adjustment
+    (``target``), not the robot's compliance pre-deflection.
     """
     from roboisf.report.compensation import write_compensation_report
 
@@ -362,16 +444,36 @@ def write_compensation(
         key = after_label.replace(" ", "_")
         summary[f"mean_abs_dn_after_{key}_mm"] = float(np.nanmean(series["abs_dn_after"]))
     summary["after"] = after_label
+    config = None
+    if robot is not None:
+        from roboisf.io.program import program_config
+
+        with task(progress, "IK along the compensated command"):
+            config = program_config(robot, comp.toolpath, T_base_work, tool_rotation)
+    cnc = comp.nominal.with_tip(comp.target)
+    summary["gcode"] = (
+        "compensated.nc: nominal tip + springback adjustment only (no robot/tool pre-deflection)"
+    )
     with staged_directory(out_dir) as d:
         with task(progress, "programs"):
-            for name in ("compensated.csv", "compensated.mod", "compensated.src", "compensated.nc"):
+            for name in ("compensated.csv", "compensated.mod", "compensated.src", "compensated.ls"):
                 write_toolpath(
                     comp.toolpath,
                     d / name,
                     T_base_work=T_base_work,
                     tool=tool,
                     tool_rotation=tool_rotation,
+                    config=config,
                 )
+            sb = "with" if comp.options.springback else "without"
+            write_toolpath(
+                cnc,
+                d / "compensated.nc",
+                gcode_notes=(
+                    f"roboisf compensate: nominal path {sb} the springback adjustment",
+                    "NOT in it: the robot/tool/holder pre-deflection of the robot programs",
+                ),
+            )
         with atomic_write(d / "per_point.csv") as fh:
             pp.to_csv(fh, index=False, float_format="%.6g")
         with atomic_write(d / "compensation.json") as fh:

@@ -5,7 +5,10 @@ The robot run of the study is the part to correct. Its toolpath is the command t
 tip by ``analyze``) loads the deflection model, and its normal deviation ``robot_dn`` with the
 scan's ``robot_valid`` flags is ``D``. Points in the analysis' rim band (sheet bending, excluded by
 the method) are not springback-compensated: they keep the previous offset (0) and only get the
-compliance pre-deflection. The "after" of the comparison is predicted by superposition::
+compliance pre-deflection — except the last ``rim_blend`` of the band, where the offset of the
+first lap below the band ramps in (:func:`roboisf.compensate.pipeline.rim_blend`), so the
+command has no step at the band's edge.
+The "after" of the comparison is predicted by superposition::
 
     dn_after = dn_before + n · ((p_new + δ(p_new)) − (p_formed + δ(p_formed)))
 
@@ -24,12 +27,19 @@ from numpy.typing import NDArray
 from roboisf.cell import Cell, cell_from_study
 from roboisf.compensate.cell import cell_deflection_model
 from roboisf.compensate.compliance import DeflectionModel
-from roboisf.compensate.pipeline import Compensation, CompensationOptions, compensate
+from roboisf.compensate.pipeline import (
+    Compensation,
+    CompensationOptions,
+    compensate,
+    edge_source,
+    rim_blend,
+)
 from roboisf.decompose.pipeline import analyze
 from roboisf.errors import InputError
 from roboisf.io.program import RobotTool
 from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.progress import Progress, task
+from roboisf.robot.model import RobotModel
 from roboisf.study.spec import Study, load_study
 
 __all__ = ["StudyCompensation", "compensate_study", "study_deflection_model"]
@@ -56,6 +66,7 @@ class StudyCompensation:
     tool: RobotTool
     tool_rotation: float
     inputs: tuple[Path, ...]
+    robot: RobotModel | None = None
 
 
 def _per_point(study: Study, results: Path | None, progress: Progress | None) -> pd.DataFrame:
@@ -66,11 +77,27 @@ def _per_point(study: Study, results: Path | None, progress: Progress | None) ->
         raise InputError(
             "expected an `roboisf analyze` results folder with per_point.parquet", file=results
         )
-    df = pd.read_parquet(f)
+    try:
+        df = pd.read_parquet(f)
+    except Exception as e:  # pyarrow raises many types for a damaged file
+        raise InputError(
+            f"not a readable Parquet file ({type(e).__name__}: {e}); run `roboisf analyze` "
+            "again to rewrite it",
+            file=f,
+        ) from None
     need = ["robot_dn", "robot_valid", *(f"robot_{w}" for w in _WRENCH)]
     missing = [c for c in need if c not in df]
     if missing:
-        raise InputError(f"missing columns {', '.join(missing)}", file=f)
+        raise InputError(f"missing columns {', '.join(missing)}", file=f, field=missing[0])
+    for c in need:
+        try:
+            v = df[c].to_numpy(dtype=float)
+        except (TypeError, ValueError):
+            raise InputError("expected numbers", file=f, field=c) from None
+        # robot_dn is NaN where the scan has no points (robot_valid false); the rest is finite
+        bad = np.isinf(v) if c == "robot_dn" else ~np.isfinite(v)
+        if bad.any():
+            raise InputError(f"NaN or inf in row {int(np.argmax(bad))}", file=f, field=c)
     return df
 
 
@@ -111,6 +138,8 @@ def compensate_study(
     dn = pp["robot_dn"].to_numpy(dtype=float) * 1e-3
     valid = pp["robot_valid"].to_numpy(dtype=bool)
     region = formed.depth > study.analysis.rim_band
+    blend = rim_blend(formed.depth, study.analysis.rim_band, o.rim_blend)
+    source = edge_source(formed, study.analysis.rim_band, blend)
     c_prev = None if previous is None else _previous_offset(Path(previous), len(formed))
     with task(progress, "deflection model"):
         model = cell_deflection_model(cell, progress=progress)
@@ -122,6 +151,8 @@ def compensate_study(
         deviation=np.where(valid, dn, np.nan),
         valid=valid,
         region=region,
+        blend=blend,
+        source=source,
         formed=formed.tip,
         previous_offset=c_prev,
         options=o,
@@ -153,6 +184,7 @@ def compensate_study(
         tool,
         float(cell.tool_rotation),
         inputs,
+        model.robot,
     )
 
 
@@ -163,10 +195,16 @@ def _previous_offset(folder: Path, n: int) -> F64:
         raise InputError(
             "expected a `roboisf compensate` output folder with per_point.csv", file=folder
         )
-    df = pd.read_csv(f)
+    try:
+        df = pd.read_csv(f)
+    except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as e:
+        raise InputError(f"not a readable CSV ({type(e).__name__}: {e})", file=f) from None
     if "springback_offset_dn" not in df:
         raise InputError("missing column springback_offset_dn", file=f)
-    c = df["springback_offset_dn"].to_numpy(dtype=float) * 1e-3
+    try:
+        c = df["springback_offset_dn"].to_numpy(dtype=float) * 1e-3
+    except (TypeError, ValueError):
+        raise InputError("expected numbers (mm)", file=f, field="springback_offset_dn") from None
     if c.shape != (n,) or not np.all(np.isfinite(c)):
         raise InputError(
             f"expected {n} finite offsets (one per toolpath point), got {c.shape[0]}", file=f

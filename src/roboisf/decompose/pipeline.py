@@ -45,6 +45,7 @@ from roboisf.parts import sine_law_thickness
 from roboisf.progress import Progress, task
 from roboisf.robot import compliance_stats, deflection_contributions, ik_toolpath
 from roboisf.scan import CompareOptions, ScanComparison, compare_scan, read_scan
+from roboisf.study.checks import check_force_log, check_joint_log, check_tool_radius
 from roboisf.study.sensors import sensor_to_tip
 from roboisf.study.spec import RunSpec, Study, load_study
 from roboisf.toolpath import Toolpath
@@ -87,9 +88,15 @@ def _declared(path: Path, key: str) -> bool:
     return False
 
 
-def run_tip_wrench(study: Study, run: RunSpec, tp: Toolpath) -> F64:
+def run_tip_wrench(
+    study: Study, run: RunSpec, tp: Toolpath, *, warnings: list[str] | None = None
+) -> F64:
     """A run's force log at each toolpath point, moved to the tool tip: (N, 6) [N, N·m], work
-    axes, the sheet's load on the tool (units from the log or the study's ``[units]``)."""
+    axes, the sheet's load on the tool (units from the log or the study's ``[units]``).
+
+    The log is checked against the toolpath first (:func:`roboisf.study.checks.check_force_log`:
+    forming-force magnitudes, logged positions on the path); its warnings are appended to
+    ``warnings``."""
     f = run.forces
     kw: dict[str, str] = {}
     if not _declared(f.file, "units"):
@@ -97,6 +104,9 @@ def run_tip_wrench(study: Study, run: RunSpec, tp: Toolpath) -> F64:
         kw = {"time_unit": u.time, "force_unit": u.force, "moment_unit": u.moment}
     frame = None if _declared(f.file, "frame") else "sensor"
     log = read_force_log(f.file, frame=frame, **kw)
+    notes = check_force_log(log, tp, time_offset=f.time_offset)
+    if warnings is not None:
+        warnings.extend(notes)
     W_s = attach_to_toolpath(log, tp, by="time", time_offset=f.time_offset)
     rot = study.robot.tool_rotation if study.robot is not None else 0.0
     return sensor_to_tip(W_s, f, tp.tip, vertical_tool(rot))
@@ -114,6 +124,7 @@ def _joint_angles(cell: Cell, run: RunSpec, tp: Toolpath) -> tuple[F64, str]:
             f"{t0:.3f} … {t1:.3f} s (a log that stops half-way?)",
             file=run.joints,
         )
+    check_joint_log(cell.robot, cell.T_base_work, log, tp, file=run.joints)
     q = np.column_stack([np.interp(tp.time, log.time, log.q[:, j]) for j in range(6)])
     return q, f"joint log {run.joints.name}"
 
@@ -153,6 +164,8 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
                 "compares the two parts point by point)",
                 file=rob.toolpath,
             )
+        for path in (tp, tp_r):
+            check_tool_radius(study.tool.ball_diameter, path, study_file=study.root / "study.toml")
         off = np.abs(cell.part.closest_point(tp.contact).distance)
         if off.max() > 0.1e-3:
             i = int(np.argmax(off))
@@ -161,9 +174,14 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
                 "not on the nominal surface of [part] (a toolpath of another part?)",
                 file=cnc.toolpath,
             )
+    truth_file = study.root / "truth" / "per_point.parquet"
+    truth = _read_truth(truth_file) if truth_file.is_file() else None  # before the long work
+    with task(progress, "robot joint angles"):
+        q, q_source = _joint_angles(cell, rob, tp)
+    input_warnings: list[str] = []
     with task(progress, "forces to the tool tip"):
-        W_cnc = run_tip_wrench(study, cnc, tp)
-        W_rob = run_tip_wrench(study, rob, tp)
+        W_cnc = run_tip_wrench(study, cnc, tp, warnings=input_warnings)
+        W_rob = run_tip_wrench(study, rob, tp, warnings=input_warnings)
 
     with task(progress, "tool and holder compliance"):
         k_tool, k_holder, k_t, k_th = tip_compliances(cell, progress=progress)
@@ -179,7 +197,6 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
     assert dev_c is not None and dev_r is not None
 
     with task(progress, "robot VJM"):
-        q, q_source = _joint_angles(cell, rob, tp)
         k_c = cell.robot.compliance(q, T_base_work=cell.T_base_work)
         vjm = np.einsum("nij,nj->ni", k_c, W_rob)[:, :3]
 
@@ -193,9 +210,9 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
     contributions = pd.DataFrame(_mm_rows(contribution_rows(d, projected=False)))
     contributions_normal = pd.DataFrame(_mm_rows(contribution_rows(d, projected=True)))
     summary = _summary(study, cell, tp, d, k_c, W_rob, valid, k_tool, k_holder, q_source, scans)
-    truth = study.root / "truth" / "per_point.parquet"
-    if truth.is_file():
-        _attach_truth(truth, per_point, summary, d)
+    summary["warnings"].extend(input_warnings)
+    if truth is not None:
+        _attach_truth(truth_file, per_point, summary, d, truth)
     return AnalysisResult(
         study, cell, d, per_point, contributions, contributions_normal, summary, scans
     )
@@ -345,8 +362,52 @@ def _vjm_vs_experiment(d: Decomposition, valid: Any) -> dict[str, dict[str, floa
     return out
 
 
+#: Columns of a virtual cell's ``truth/per_point.parquet`` that ``analyze`` reads (mm).
+TRUTH_COLUMNS = (
+    *(f"{f}_dn" for f in FACTORS),
+    "dn_cnc",
+    "dn_robot",
+    *(f"{f}_d{ax}" for f in ("tool_cnc", *FACTORS) for ax in _AX),
+)
+
+
+def _read_truth(path: Path) -> pd.DataFrame:
+    """A virtual cell's ground truth, validated: readable Parquet, the columns ``analyze`` uses
+    (:data:`TRUTH_COLUMNS`), finite numbers. Read before the analysis so that a corrupt file
+    fails in a second, not after the scans."""
+    try:
+        df = pd.read_parquet(path)
+    except Exception as e:  # pyarrow raises many types for a damaged file
+        raise InputError(
+            f"not a readable Parquet file ({type(e).__name__}: {e}); delete the truth/ folder "
+            "to analyze without ground truth, or regenerate the study (roboisf virtual-cell)",
+            file=path,
+        ) from None
+    missing = [c for c in TRUTH_COLUMNS if c not in df.columns]
+    if missing:
+        raise InputError(
+            f"missing column(s) {', '.join(missing)} (not a virtual-cell truth file?)",
+            file=path,
+            field=missing[0],
+        )
+    for c in TRUTH_COLUMNS:
+        try:
+            v = df[c].to_numpy(dtype=float)
+        except (TypeError, ValueError):
+            raise InputError("expected numbers (mm)", file=path, field=c) from None
+        if not np.all(np.isfinite(v)):
+            raise InputError(
+                f"NaN or inf in row {int(np.argmax(~np.isfinite(v)))}", file=path, field=c
+            )
+    return df
+
+
 def _attach_truth(
-    path: Path, per_point: pd.DataFrame, summary: dict[str, Any], d: Decomposition
+    path: Path,
+    per_point: pd.DataFrame,
+    summary: dict[str, Any],
+    d: Decomposition,
+    truth: pd.DataFrame | None = None,
 ) -> None:
     """Virtual-cell studies ship their ground truth: put it beside the recovered values.
 
@@ -356,7 +417,7 @@ def _attach_truth(
     term lacks the VJM's tangential part on any data, so only the recipe's own truth isolates
     the estimation error. ``R_m_physical`` gives the full-vector truth for the record.
     """
-    truth = pd.read_parquet(path)
+    truth = _read_truth(path) if truth is None else truth
     if len(truth) != len(per_point):
         summary["warnings"].append(f"truth file {path} does not match the toolpath; ignored")
         return

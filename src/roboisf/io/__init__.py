@@ -1,7 +1,8 @@
 """File formats at the edge of roboisf: units, atomic output, toolpath CSV, force logs, robot
-programs (G-code, ABB RAPID, KUKA KRL). Everything read is converted to SI here."""
+programs (G-code, ABB RAPID, KUKA KRL, FANUC LS). Everything read is converted to SI here."""
 
 from roboisf.io.atomic import atomic_path, atomic_write, check_not_input, staged_directory
+from roboisf.io.fanuc import read_fanuc, write_fanuc
 from roboisf.io.forcelog import (
     ForceLog,
     attach_to_toolpath,
@@ -25,6 +26,7 @@ __all__ = [
     "atomic_write",
     "attach_to_toolpath",
     "check_not_input",
+    "read_fanuc",
     "read_force_log",
     "read_gcode",
     "read_krl",
@@ -34,6 +36,7 @@ __all__ = [
     "to_si",
     "tool_down_orientation",
     "window_average",
+    "write_fanuc",
     "write_force_log",
     "write_gcode",
     "write_krl",

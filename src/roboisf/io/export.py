@@ -7,24 +7,40 @@ format            suffixes                    writer
 ``gcode``         ``.nc .gcode .ngc .tap``    :func:`roboisf.io.gcode.write_gcode`
 ``rapid``         ``.mod``                    :func:`roboisf.io.rapid.write_rapid`
 ``krl``           ``.src`` (+ ``.dat``)       :func:`roboisf.io.krl.write_krl`
+``fanuc``         ``.ls``                     :func:`roboisf.io.fanuc.write_fanuc`
 ================  ==========================  ===========================================
+
+Robot programs (RAPID, KRL, FANUC) need the work-object placement ``T_base_work``: there is no
+default (the identity, passed explicitly, means the robot base). With ``config`` (the joint angles
+of every point, :func:`roboisf.io.program.program_config`) they carry the controller's
+configuration data (confdata, S/T, CONFIG).
 """
 
 from __future__ import annotations
 
+import re
+from collections.abc import Callable
 from pathlib import Path
 
 from numpy.typing import ArrayLike
 
 from roboisf.errors import InputError
+from roboisf.io.fanuc import write_fanuc
 from roboisf.io.gcode import write_gcode
 from roboisf.io.krl import write_krl
-from roboisf.io.program import RobotTool
+from roboisf.io.program import ArmConfig, RobotTool
 from roboisf.io.rapid import write_rapid
 from roboisf.io.toolpath_csv import write_toolpath_csv
 from roboisf.toolpath.toolpath import Toolpath
 
-__all__ = ["FORMAT_SUFFIXES", "infer_format", "output_files", "write_toolpath"]
+__all__ = [
+    "FORMAT_SUFFIXES",
+    "ROBOT_FORMATS",
+    "check_program_name",
+    "infer_format",
+    "output_files",
+    "write_toolpath",
+]
 
 #: Format name → accepted file suffixes (the first is the default).
 FORMAT_SUFFIXES: dict[str, tuple[str, ...]] = {
@@ -32,7 +48,11 @@ FORMAT_SUFFIXES: dict[str, tuple[str, ...]] = {
     "gcode": (".nc", ".gcode", ".ngc", ".tap"),
     "rapid": (".mod",),
     "krl": (".src",),
+    "fanuc": (".ls",),
 }
+
+#: Formats that are robot programs (they need the placement and the tool).
+ROBOT_FORMATS = ("rapid", "krl", "fanuc")
 
 
 def infer_format(path: str | Path, fmt: str | None = None) -> str:
@@ -46,6 +66,8 @@ def infer_format(path: str | Path, fmt: str | None = None) -> str:
             )
         if fmt == "krl" and suffix != ".src":
             raise InputError("a KRL program must be written to a .src file", file=path)
+        if fmt == "fanuc" and suffix != ".ls":
+            raise InputError("a FANUC TP program must be written to a .ls file", file=path)
         return fmt
     for name, suffixes in FORMAT_SUFFIXES.items():
         if suffix in suffixes:
@@ -58,8 +80,29 @@ def infer_format(path: str | Path, fmt: str | None = None) -> str:
     )
 
 
+def check_program_name(path: str | Path, fmt: str) -> None:
+    """Refuse, before any computation, a file name that is not a valid program name for ``fmt``
+    (KRL DEF/DEFDAT, RAPID module, FANUC program: the writers name the program after the file)."""
+    path = Path(path)
+    if fmt == "krl":
+        from roboisf.io.krl import krl_name
+
+        krl_name(path)
+    elif fmt == "rapid":
+        from roboisf.io.rapid import _module_name
+
+        _module_name(path, None)
+    elif fmt == "fanuc" and not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]{0,31}", path.stem):
+        raise InputError(
+            f"the file name {path.stem!r} does not give a FANUC program name (a letter, then "
+            "letters, digits or _)",
+            file=path,
+        )
+
+
 def output_files(path: str | Path, fmt: str) -> list[Path]:
-    """Files a write produces (KRL writes the ``.dat`` beside the ``.src``)."""
+    """Main files a write produces (KRL writes the ``.dat`` beside the ``.src``; long RAPID and
+    FANUC programs also write part modules ``<stem>_<k>``, returned by :func:`write_toolpath`)."""
     path = Path(path)
     return [path, path.with_suffix(".dat")] if fmt == "krl" else [path]
 
@@ -72,26 +115,40 @@ def write_toolpath(
     T_base_work: ArrayLike | None = None,
     tool: RobotTool | None = None,
     tool_rotation: ArrayLike = 0.0,
+    config: ArmConfig | None = None,
     safe_height: float = 10e-3,
-) -> str:
-    """Write ``tp`` to ``path`` in ``fmt`` (inferred from the suffix if None); return the format.
+    gcode_notes: tuple[str, ...] = (),
+    work_offset: str = "G54",
+) -> tuple[str, list[Path]]:
+    """Write ``tp`` to ``path`` in ``fmt`` (inferred from the suffix if None).
 
-    ``T_base_work``, ``tool`` and ``tool_rotation`` [rad] apply to the robot programs (RAPID,
-    KRL); ``safe_height`` [m] to every program format.
+    ``T_base_work`` (required for robot programs), ``tool``, ``tool_rotation`` [rad] and
+    ``config`` apply to the robot programs (RAPID, KRL, FANUC); ``work_offset`` and
+    ``gcode_notes`` to G-code; ``safe_height`` [m] to every program format. Returns the format
+    and the files written.
     """
     fmt = infer_format(path, fmt)
     if fmt == "csv":
         write_toolpath_csv(tp, path)
-    elif fmt == "gcode":
-        write_gcode(tp, path, safe_height=safe_height)
-    else:
-        writer = write_rapid if fmt == "rapid" else write_krl
-        writer(
-            tp,
-            path,
-            T_base_work=T_base_work,
-            tool=tool,
-            tool_rotation=tool_rotation,
-            safe_height=safe_height,
+        return fmt, [Path(path)]
+    if fmt == "gcode":
+        files = write_gcode(
+            tp, path, safe_height=safe_height, notes=gcode_notes, work_offset=work_offset
         )
-    return fmt
+        return fmt, files
+    writers: dict[str, Callable[..., list[Path]]] = {
+        "rapid": write_rapid,
+        "krl": write_krl,
+        "fanuc": write_fanuc,
+    }
+    writer = writers[fmt]
+    files = writer(
+        tp,
+        path,
+        T_base_work=T_base_work,
+        tool=tool,
+        tool_rotation=tool_rotation,
+        config=config,
+        safe_height=safe_height,
+    )
+    return fmt, files

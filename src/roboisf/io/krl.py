@@ -1,32 +1,49 @@
 """KUKA KRL program (``.src`` + ``.dat``) for a forming toolpath.
 
-Layout written (``path.src``; the ``.dat`` next to it holds the frames)::
+Layout written (``cone.src``; the ``.dat`` next to it holds the frames)::
 
-    DEF isf_cone( )
-      ; roboisf 0.1.0: ...
-      BAS(#INITMOV,0)
-      $TOOL = TOOL_ISF            ; DECL FRAME TOOL_ISF={X 200,Y 0,Z 0,A 0,B 90,C 0} in the .dat
+    &ACCESS RVP
+    &REL 1
+    DEF cone( )                   ; DEF and DEFDAT name = the file stem
+      ;FOLD INI
+        GLOBAL INTERRUPT DECL 3 WHEN $STOPMESS==TRUE DO IR_STOPM ( )
+        INTERRUPT ON 3
+        BAS(#INITMOV,0)
+      ;ENDFOLD (INI)
+      $H_POS = XHOME
+      PTP XHOME                   ; HOME at the start …
+      $TOOL = TOOL_ISF            ; DECL FRAME TOOL_ISF={X 306,Y 0,Z 0,A 0,B 90,C 0} in the .dat
       $BASE = BASE_ISF            ; DECL FRAME BASE_ISF = T_base_work (mm, deg)
-      $LOAD.M = 2 ; $LOAD.CM = {...}
+      $LOAD.M = LOAD_M
+      $LOAD.CM = LOAD_CM
       $VEL.CP = 0.0125            ; m/s
       $APO.CDIS = 0.3             ; mm, with C_DIS
-      PTP {X 38.671,Y 0,Z 6.138,A 0,B 0,C 180}      ; approach above the first point
-      isf_cone_1( )
+      PTP {X 38.671,Y 0,Z 6.138,A 0,B 0,C 180,S 2,T 35}   ; approach: S and T of the IK branch
+      form_1( )
       ...
-      LIN {X ...,Z <last + safe>,...}                ; retract
+      LIN {X ...,Z <last + safe>,...}                     ; retract
+      PTP XHOME                   ; … and at the end
     END
 
-    DEF isf_cone_1( )
+    DEF form_1( )
       LIN {X 38.671,Y 0,Z -3.862,A 0,B 0,C 180} C_DIS
       ...
     END
 
+* Names: the ``DEF`` and ``DEFDAT`` name is the file stem, which must be a KRL name — a letter,
+  then letters, digits or ``_``, at most 24 characters (the KRL limit for names, KUKA System
+  Software 8 "Operating and Programming Instructions for System Integrators", section on names).
+  Any other stem is refused with the name to use; nothing is cut silently.
 * Positions: the toolpath tip in $BASE (= the work frame), mm at 1 µm.
 * Orientation: ``R = Rz(A) Ry(B) Rx(C)`` (degrees) of the tool frame, whose z axis runs along the
   tool (see :mod:`roboisf.io.program`); tool pointing down is ``A, B, C = 0, 0, 180``, a rotation
   γ about the tool axis gives ``A = −γ`` (``Rx(180°) Rz(γ) = Rz(−γ) Rx(180°)``).
+* ``S``/``T`` of the first PTP from the joint angles of the IK branch
+  (:func:`~roboisf.io.program.kuka_status_turn`); LIN moves keep the status of their start (KSS),
+  so the forming moves carry none. Without joint angles the PTP has none either (header note).
 * ``$TOOL``: TCP at the ball tip, ``X = L`` along the flange's x axis (KUKA's flange x points out
   of the flange) and ``B = 90°`` so that the tool z axis lies on the flange x axis.
+* ``XHOME`` is the HOME position of the controller's ``$config.dat``.
 * Forming moves are split into local subroutines of at most ``max_moves`` LINs.
 """
 
@@ -45,16 +62,18 @@ from roboisf.frames.rotations import abc_to_matrix, matrix_to_abc
 from roboisf.io.atomic import atomic_write
 from roboisf.io.program import (
     NUMBER_RE,
+    ArmConfig,
     ProgramPath,
     RobotTool,
     fmt_num,
-    identifier,
+    kuka_status_turn,
     prepare_program,
     program_identifier,
+    read_program_text,
 )
 from roboisf.toolpath.toolpath import Toolpath
 
-__all__ = ["frame_to_krl", "read_krl", "write_krl"]
+__all__ = ["KRL_NAME", "frame_to_krl", "krl_name", "read_krl", "write_krl"]
 
 
 def _abc_deg(R: np.ndarray) -> np.ndarray:
@@ -66,46 +85,64 @@ def _abc_deg(R: np.ndarray) -> np.ndarray:
 
 def frame_to_krl(p_mm: ArrayLike, abc_deg: ArrayLike, nd_angle: int = 6) -> str:
     """``{X x,Y y,Z z,A a,B b,C c}`` (mm at 1 µm, degrees at 1e-6°)."""
-    p = np.asarray(p_mm, dtype=float)
-    a = np.asarray(abc_deg, dtype=float)
+    p = np.asarray(p_mm, dtype=float).tolist()  # Python floats format several times faster
+    a = np.asarray(abc_deg, dtype=float).tolist()
     return (
         f"{{X {fmt_num(p[0])},Y {fmt_num(p[1])},Z {fmt_num(p[2])},"
         f"A {fmt_num(a[0], nd_angle)},B {fmt_num(a[1], nd_angle)},C {fmt_num(a[2], nd_angle)}}}"
     )
 
 
+#: KRL names: a letter, then letters, digits or _, at most 24 characters (KSS 8).
+KRL_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,23}")
+
+
+def krl_name(path: Path) -> str:
+    """The DEF/DEFDAT name of ``path``: its stem, refused unless it is a valid KRL name."""
+    stem = path.stem
+    if not KRL_NAME.fullmatch(stem):
+        raise InputError(
+            f"the file name {stem!r} is not a KRL program name (DEF and DEFDAT must equal the file "
+            "name: a letter, then letters, digits or _, at most 24 characters); rename it, e.g. "
+            f"{program_identifier(stem, 24)}.src",
+            file=path,
+        )
+    return stem
+
+
 def write_krl(
     tp: Toolpath,
     path: str | Path,
     *,
-    T_base_work: ArrayLike | None = None,
+    T_base_work: ArrayLike | None,
     tool: RobotTool | None = None,
     tool_rotation: ArrayLike = 0.0,
     R_work_tool: ArrayLike | None = None,
+    config: ArmConfig | None = None,
     cdis: float = 0.3e-3,
     safe_height: float = 10e-3,
     max_moves: int = 2000,
-    name: str | None = None,
-) -> None:
-    """Write ``tp`` as KUKA KRL: ``path`` (``.src``) and the ``.dat`` beside it.
+) -> list[Path]:
+    """Write ``tp`` as KUKA KRL: ``path`` (``.src``) and the ``.dat`` beside it; return both.
 
     Parameters
     ----------
     tp : the toolpath (work frame)
-    path : output ``.src``; the data list goes to ``path.with_suffix(".dat")``
-    T_base_work : (4, 4) float, m — the work frame in the robot base/world ($BASE)
+    path : output ``.src`` whose stem is a KRL name; the data list goes to the ``.dat``
+    T_base_work : (4, 4) float, m — the work frame in the robot base/world ($BASE; required,
+        the identity means the robot base)
     tool : tool data (length, mass, cog); default :class:`RobotTool`
     tool_rotation : float or (N,) float, rad — rotation about the tool axis per point
     R_work_tool : (N, 3, 3), optional — full orientations (override ``tool_rotation``)
+    config : ArmConfig, optional — joint angles of every point for S and T of the first PTP
     cdis : float, m — approximation distance ($APO.CDIS, with ``C_DIS``); 0 → exact stops
     safe_height : float, m — approach/retract height above the first/last point
     max_moves : int — LINs per subroutine
-    name : program name (default: from the file name; KRL allows 24 characters)
     """
     path = Path(path)
     if path.suffix.lower() != ".src":
         raise InputError("a KRL program must be written to a .src file", file=path)
-    prog = (identifier(name, "name", 19) if name else program_identifier(path.stem, 19)).lower()
+    prog = krl_name(path)
     if not (np.isfinite(cdis) and cdis >= 0):
         raise InputError(f"must be ≥ 0 mm, got {cdis * 1e3:g}", field="cdis")
     inputs = prepare_program(
@@ -124,8 +161,20 @@ def write_krl(
     cog = tool.cog_xyz * 1e3  # flange frame: ABB-style z along the axis → KUKA x along the axis
     cm = frame_to_krl([cog[2], cog[1], -cog[0]], [0, 0, 0])
     approx = " C_DIS" if cdis > 0 else ""
-    subs = [f"{prog}_{k + 1}" for k in range(len(chunks))]
+    subs = [f"form_{k + 1}" for k in range(len(chunks))]
     up = np.array([0.0, 0.0, inputs.safe_height_mm])
+    first = frame_to_krl(p[0] + up, abc[0])
+    if config is not None:
+        if len(config) != len(tp):
+            raise InputError(
+                f"expected joint angles for the {len(tp)} points, got {len(config)}",
+                field="config",
+            )
+        st = kuka_status_turn(config)[0]
+        first = f"{first[:-1]},S {int(st[0])},T {int(st[1])}}}"
+        st_note = "S and T of the first PTP from the joint angles of the IK branch"
+    else:
+        st_note = "no robot model given: the first PTP has no S and T (the controller picks)"
     src = [
         "&ACCESS RVP\n&REL 1\n",
         f"DEF {prog}( )\n",
@@ -133,17 +182,24 @@ def write_krl(
         f"{fmt_num(tp.tool_radius * 1e3)} mm\n",
         "  ; positions: ball tip in $BASE (mm); A,B,C: R = Rz(A) Ry(B) Rx(C) of the tool frame "
         "(z along the tool)\n",
-        "  BAS(#INITMOV,0)\n",
+        f"  ; {st_note}\n",
+        "  ;FOLD INI\n",
+        "    GLOBAL INTERRUPT DECL 3 WHEN $STOPMESS==TRUE DO IR_STOPM ( )\n",
+        "    INTERRUPT ON 3\n",
+        "    BAS(#INITMOV,0)\n",
+        "  ;ENDFOLD (INI)\n",
+        "  $H_POS = XHOME\n",
+        "  PTP XHOME\n",
         "  $TOOL = TOOL_ISF\n",
         "  $BASE = BASE_ISF\n",
         "  $LOAD.M = LOAD_M\n",
         "  $LOAD.CM = LOAD_CM\n",
         f"  $VEL.CP = {tp.feed:.6f}\n",
         f"  $APO.CDIS = {fmt_num(cdis * 1e3)}\n",
-        f"  PTP {frame_to_krl(p[0] + up, abc[0])}\n",
+        f"  PTP {first}\n",
     ]
     src += [f"  {s}( )\n" for s in subs]
-    src += [f"  LIN {frame_to_krl(p[-1] + up, abc[-1])}\n", "END\n"]
+    src += [f"  LIN {frame_to_krl(p[-1] + up, abc[-1])}\n", "  PTP XHOME\n", "END\n"]
     for s, sl in zip(subs, chunks, strict=True):
         src.append(f"\nDEF {s}( )\n")
         src.extend(
@@ -159,10 +215,12 @@ def write_krl(
         f"  DECL FRAME LOAD_CM={cm}\n",
         "ENDDAT\n",
     ]
-    with atomic_write(path.with_suffix(".dat")) as fh:
+    dat_path = path.with_suffix(".dat")
+    with atomic_write(dat_path) as fh:
         fh.write("".join(dat))
     with atomic_write(path) as fh:
         fh.write("".join(src))
+    return [path, dat_path]
 
 
 _NUM = NUMBER_RE
@@ -177,6 +235,18 @@ def _frame(m: re.Match[str]) -> tuple[np.ndarray, np.ndarray]:
     return v[:3], v[3:]
 
 
+_ST = re.compile(r",\s*S\s+(\d+)\s*,\s*T\s+(\d+)\s*\}")
+
+
+def _status_turn(ptps: list[str]) -> tuple[int, int] | None:
+    """S and T of the first Cartesian PTP of the main program (None if it has none)."""
+    for t in ptps:
+        if t.startswith("{"):
+            m = _ST.search(t)
+            return (int(m.group(1)), int(m.group(2))) if m else None
+    return None
+
+
 def read_krl(path: str | Path) -> ProgramPath:
     """Parse a KRL ``.src`` (and its ``.dat`` if present) written by :func:`write_krl`.
 
@@ -186,12 +256,14 @@ def read_krl(path: str | Path) -> ProgramPath:
     path = Path(path)
     if not path.is_file():
         raise InputError("KRL .src not found", file=path)
-    lines = path.read_text(encoding="utf-8").splitlines()
+    lines = read_program_text(path).splitlines()
     defs: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
     calls: list[str] = []
     main = None
     current = None
     feed = None
+    ptps: list[str] = []
+    main_name = ""
     for lineno, raw in enumerate(lines, start=1):
         s = raw.split(";", 1)[0].strip()
         if not s:
@@ -201,6 +273,7 @@ def read_krl(path: str | Path) -> ProgramPath:
             current = m.group(1).lower()
             defs[current] = []
             main = main or current
+            main_name = main_name or m.group(1)
             continue
         if re.match(r"^END$", s, re.IGNORECASE):
             current = None
@@ -214,6 +287,9 @@ def read_krl(path: str | Path) -> ProgramPath:
             v = re.match(rf"^\$VEL\.CP\s*=\s*({_NUM})$", s, re.IGNORECASE)
             if v:
                 feed = float(v.group(1))
+            ptp = re.match(r"^PTP\s+(.*)$", s, re.IGNORECASE)
+            if ptp:
+                ptps.append(ptp.group(1).strip())
             continue
         if re.match(r"^LIN\b", s, re.IGNORECASE):
             f = _FRAME.search(s)
@@ -231,9 +307,12 @@ def read_krl(path: str | Path) -> ProgramPath:
     abc = np.array([r[1] for r in rows])
     T = None
     tool = None
+    defdat = None
     dat = path.with_suffix(".dat")
     if dat.is_file():
-        text = dat.read_text(encoding="utf-8")
+        text = read_program_text(dat)
+        dd = re.search(r"^\s*DEFDAT\s+(\w+)", text, re.MULTILINE | re.IGNORECASE)
+        defdat = dd.group(1) if dd else None
         b = re.search(r"BASE_ISF\s*=\s*(\{[^}]*\})", text)
         if b and (fb := _FRAME.search(b.group(1))):
             pb, ab = _frame(fb)
@@ -251,5 +330,12 @@ def read_krl(path: str | Path) -> ProgramPath:
         feed=feed,
         T_base_work=T,
         tool=tool,
-        meta={"abc_deg": abc, "routines": calls},
+        meta={
+            "abc_deg": abc,
+            "routines": calls,
+            "def": main_name,
+            "defdat": defdat,
+            "ptp": ptps,
+            "status_turn": _status_turn(ptps),
+        },
     )

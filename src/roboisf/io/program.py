@@ -19,7 +19,10 @@ from __future__ import annotations
 
 import math
 import re
+import warnings
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -28,11 +31,21 @@ from roboisf.errors import InputError
 from roboisf.frames.rotations import vertical_tool
 from roboisf.toolpath.toolpath import Toolpath
 
+if TYPE_CHECKING:
+    from roboisf.robot.model import RobotModel
+
 __all__ = [
+    "MAX_MODULE_MOVES",
+    "ArmConfig",
     "ProgramInputs",
     "ProgramPath",
     "RobotTool",
+    "abb_confdata",
+    "arm_config",
+    "fanuc_config",
+    "kuka_status_turn",
     "prepare_program",
+    "program_config",
     "tool_down_orientation",
 ]
 
@@ -141,9 +154,14 @@ def tip_mm(tp: Toolpath) -> F64:
 
 
 def check_placement(T_base_work: ArrayLike | None) -> F64:
-    """Validate ``T_base_work`` (4, 4) m (identity if None)."""
+    """Validate ``T_base_work`` (4, 4) m. ``None`` is refused: a robot program never puts the work
+    object at the robot base silently (pass ``np.eye(4)`` to mean the base)."""
     if T_base_work is None:
-        return np.eye(4)
+        raise InputError(
+            "a robot program needs the work-object placement T_base_work (the blank in the robot "
+            "base frame); pass the identity explicitly to mean the robot base",
+            field="T_base_work",
+        )
     T = np.asarray(T_base_work, dtype=float)
     if T.shape != (4, 4) or not np.all(np.isfinite(T)):
         raise InputError(
@@ -165,6 +183,161 @@ def split_chunks(n: int, max_moves: int) -> list[slice]:
     if max_moves < 1:
         raise InputError(f"must be ≥ 1, got {max_moves}", field="max_moves")
     return [slice(a, min(a + max_moves, n)) for a in range(0, n, max_moves)]
+
+
+#: Forming moves per loadable program module / sub-program (RAPID part modules, FANUC
+#: sub-programs). A choice, not a controller number: at ~110 bytes a move it keeps one module near
+#: 0.55 MB of text, far below the RAPID program memory of an IRC5/OmniCore controller (tens of MB,
+#: depending on the memory option) even with two modules loaded at a time, and it is a size the
+#: pendant's editor still opens. The writers take ``max_module_moves`` to change it.
+MAX_MODULE_MOVES = 5000
+
+
+def split_modules(lap: NDArray[np.int64], max_moves: int) -> list[slice]:
+    """Split moves into consecutive modules of at most ``max_moves``, at lap ends where possible.
+
+    Whole laps are packed greedily; a lap longer than ``max_moves`` is cut into pieces. A module
+    boundary at a lap change puts any pause of the module change where the tool steps down.
+    """
+    if max_moves < 1:
+        raise InputError(f"must be ≥ 1, got {max_moves}", field="max_module_moves")
+    n = len(lap)
+    starts = [0, *(np.flatnonzero(np.diff(lap) != 0) + 1).tolist(), n]
+    out: list[slice] = []
+    a = 0
+    for b in starts[1:]:
+        if b - a > max_moves:
+            # the current module cannot take this lap: close it at the previous lap end if any
+            prev = max((s for s in starts if a < s < b), default=a)
+            if prev > a:
+                out.append(slice(a, prev))
+                a = prev
+            while b - a > max_moves:
+                out.append(slice(a, a + max_moves))
+                a += max_moves
+    if a < n:
+        out.append(slice(a, n))
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class ArmConfig:
+    """Joint angles and arm configuration of every programmed point (controller convention).
+
+    Attributes
+    ----------
+    q : (N, 6) float, rad — joint angles, continuous along the path (IK or a joint log)
+    front : (N,) bool — wrist centre in front of axis 1 (x > 0 in the axis-1 frame)
+    ahead : (N,) bool — wrist centre ahead of the lower arm (on the +x side, in the axis-1 frame,
+        of the line through axes 2 and 3)
+
+    ``front`` and ``ahead`` are computed from the geometry, not copied from an IK branch name:
+    the IK branch "front"/"back" is ``front`` and "up" is ``ahead == front`` (tested).
+    """
+
+    q: F64
+    front: NDArray[np.bool_]
+    ahead: NDArray[np.bool_]
+
+    def __len__(self) -> int:
+        return int(self.q.shape[0])
+
+
+def arm_config(model: RobotModel, q: ArrayLike) -> ArmConfig:
+    """The arm configuration of joint angles ``q`` (N, 6) rad of an OPW ``model``."""
+    if model.opw is None:
+        raise InputError(
+            f"robot {model.name!r} has no OPW geometry; the configuration bits need it",
+            field="robot",
+        )
+    qa = np.asarray(q, dtype=float)
+    if qa.ndim != 2 or qa.shape[1] != 6 or not np.all(np.isfinite(qa)):
+        raise InputError(f"expected finite joint angles (N, 6), got {qa.shape}", field="q")
+    g = model.opw
+    th = qa * model.chain.sign + model.chain.offset
+    t2, t3 = th[:, 1], th[:, 2]
+    wx = g.a2 * np.cos(t3) + g.c3 * np.sin(t3)  # wrist centre ⟂ the lower arm (+: ahead of it)
+    wz = g.c2 - g.a2 * np.sin(t3) + g.c3 * np.cos(t3)
+    x_arm = g.a1 + wx * np.cos(t2) + wz * np.sin(t2)  # wrist centre x in the axis-1 frame
+    return ArmConfig(q=qa, front=x_arm > 0, ahead=wx > 0)
+
+
+def program_config(
+    model: RobotModel, tp: Toolpath, T_base_work: ArrayLike, tool_rotation: ArrayLike = 0.0
+) -> ArmConfig:
+    """IK along ``tp`` (``model`` carries the tool) and the arm configuration of every point.
+
+    Uses :func:`roboisf.robot.ik.ik_toolpath` (one continuous branch: front, elbow up, no flip).
+    """
+    from roboisf.robot.ik import SingularityWarning, ik_toolpath
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SingularityWarning)
+        ik = ik_toolpath(model, tp.tip, T_base_work, tool_rotation=tool_rotation)
+    return arm_config(model, ik.q)
+
+
+def _deg(q: ArrayLike) -> F64:
+    """Degrees rounded to 1e-6° so that a joint at a quadrant boundary (q6 = −180°) computed as
+    −180.0000000001° or −179.9999999999° lands in the same quadrant."""
+    return np.round(np.degrees(np.asarray(q, dtype=float)), 6)
+
+
+def abb_confdata(cfg: ArmConfig) -> NDArray[np.int64]:
+    """ABB ``confdata [cf1, cf4, cf6, cfx]`` (N, 4) of every point.
+
+    cf1, cf4, cf6: the quadrant of axis 1, 4, 6 — ``floor(q / 90°)`` (0 for [0°, 90°), −1 for
+    [−90°, 0°), −2 for [−180°, −90°), 2 for [180°, 270°), …), as the ABB RAPID reference defines
+    confdata for serial robots. cfx (0…7) = 4·(wrist centre behind axis 1) + 2·(wrist centre behind
+    the lower arm) + (axis 5 negative).
+    """
+    d = _deg(cfg.q)
+    cf = np.floor(d[:, [0, 3, 5]] / 90.0).astype(np.int64)
+    cfx = 4 * (~cfg.front) + 2 * (~cfg.ahead) + (d[:, 4] < 0)
+    return np.column_stack([cf, cfx.astype(np.int64)])
+
+
+def kuka_status_turn(cfg: ArmConfig) -> NDArray[np.int64]:
+    """KUKA ``S`` and ``T`` (N, 2) of every point (KSS "Status" and "Turn").
+
+    S bit 0: wrist centre in the overhead area (x < 0 in the A1 frame); bit 1: the arm bit, set
+    with the wrist centre ahead of the lower arm (A3 ≥ φ: the usual elbow-up posture, S = 2 or 6);
+    bit 2: A5 in [−180°, 0°) or ≥ 180°. T bit i: axis i+1 negative.
+    """
+    d = _deg(cfg.q)
+    a5 = d[:, 4]
+    b2 = ((a5 >= -180) & (a5 < 0)) | (a5 >= 180)
+    s = (~cfg.front).astype(np.int64) + 2 * cfg.ahead + 4 * b2
+    t = ((d < 0).astype(np.int64) << np.arange(6)).sum(axis=1)
+    return np.column_stack([s, t])
+
+
+def fanuc_config(cfg: ArmConfig) -> list[str]:
+    """FANUC ``CONFIG : 'F U T, t1, t4, t6'`` strings of every point.
+
+    F/N: wrist flipped (J5 < 0) or not; U/D: elbow up (wrist centre ahead of the lower arm, seen
+    from the front) or down; T/B: wrist centre in front of (toward) or behind axis 1. Turn numbers
+    of J1, J4, J6: ``floor((q + 180°) / 360°)`` — 0 for [−180°, 180°), 1 for [180°, 540°), …
+    """
+    d = _deg(cfg.q)
+    up = cfg.ahead == cfg.front
+    turns = np.floor((d[:, [0, 3, 5]] + 180.0) / 360.0).astype(np.int64)
+    return [
+        f"{'F' if d5 < 0 else 'N'} {'U' if u else 'D'} {'T' if f else 'B'}, {a}, {b}, {c}"
+        for d5, u, f, (a, b, c) in zip(
+            d[:, 4].tolist(), up.tolist(), cfg.front.tolist(), turns.tolist(), strict=True
+        )
+    ]
+
+
+def read_program_text(path: Path) -> str:
+    """The text of a program file (UTF-8, a BOM allowed); InputError naming the file otherwise."""
+    try:
+        return path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise InputError(f"not UTF-8 text ({e.reason} at byte {e.start})", file=path) from None
+    except OSError as e:
+        raise InputError(f"cannot read the file ({e.strerror})", file=path) from None
 
 
 #: A decimal number in program text (parsers).

@@ -29,6 +29,7 @@ import pyarrow.csv as pacsv
 from numpy.typing import NDArray
 
 from roboisf.errors import InputError
+from roboisf.io.text import read_text
 
 __all__ = ["Table", "format_rows", "read_table"]
 
@@ -156,10 +157,7 @@ def read_table(
         lines_fast = np.arange(header_line + 1, header_line + 1 + n, dtype=np.int64)
         return Table(path, meta, columns, fast, lines_fast, header_line)
     # slow path: find and name the offending line
-    try:
-        raw = path.read_text(encoding="utf-8-sig").splitlines()
-    except UnicodeDecodeError as e:
-        raise InputError(f"{what} is not UTF-8 text ({e.reason})", file=path) from None
+    raw = read_text(path, what=what).splitlines()
     body_idx = [j for j in range(i + 1, len(raw)) if raw[j].strip()]
     if not body_idx:
         raise InputError(f"{what} has a header but no data rows", file=path)
@@ -251,8 +249,9 @@ def _head(path: Path, what: str) -> list[str]:
                 s = line.strip()
                 if s and not s.startswith("#"):
                     break
-    except UnicodeDecodeError as e:
-        raise InputError(f"{what} is not UTF-8 text ({e.reason})", file=path) from None
+    except UnicodeDecodeError:
+        read_text(path, what=what)  # raises, naming the line and byte offset
+        raise  # pragma: no cover - read_text raised above
     return out
 
 

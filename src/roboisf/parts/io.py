@@ -34,6 +34,7 @@ import tomli_w
 
 from roboisf.errors import InputError
 from roboisf.io.atomic import atomic_write
+from roboisf.io.text import read_text
 from roboisf.parts.axisymmetric import (
     VWACF,
     VWACF_DEFAULT_ARC_RADIUS,
@@ -62,8 +63,8 @@ def read_profile_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     if not path.is_file():
         raise InputError("profile file not found", file=path)
     rows: list[tuple[float, float]] = []
-    with open(path, newline="", encoding="utf-8") as fh:
-        lines = [ln for ln in fh if ln.strip() and not ln.lstrip().startswith("#")]
+    text = read_text(path, what="profile CSV")
+    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise InputError("profile CSV is empty; expected a header 'r,z' (mm) and rows", file=path)
     reader = csv.reader(lines)
@@ -94,16 +95,47 @@ def _num(
             return default
         raise InputError("missing key", file=where, field=f"part.{key}")
     v = table[key]
-    if isinstance(v, bool) or not isinstance(v, int | float):
-        raise InputError(f"expected a number, got {v!r}", file=where, field=f"part.{key}")
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        raise InputError(f"expected a number (finite), got {v!r}", file=where, field=f"part.{key}")
     return float(v)
+
+
+def _str(table: dict[str, Any], key: str, where: Path | None, default: str | None = None) -> str:
+    """``table[key]`` as a string (TOML string), else an InputError naming ``part.<key>``."""
+    if key not in table:
+        if default is not None:
+            return default
+        raise InputError("missing key (a string)", file=where, field=f"part.{key}")
+    v = table[key]
+    if not isinstance(v, str) or not v:
+        raise InputError(f"expected a non-empty string, got {v!r}", file=where, field=f"part.{key}")
+    return v
+
+
+def _numbers(table: dict[str, Any], key: str, where: Path | None) -> np.ndarray:
+    """``table[key]`` as a list of finite numbers (mm), else an InputError naming the key."""
+    v = table[key]
+    if not (
+        isinstance(v, list)
+        and all(
+            isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x) for x in v
+        )
+    ):
+        raise InputError(
+            f"expected a list of finite numbers (mm), got {v!r}", file=where, field=f"part.{key}"
+        )
+    return np.asarray(v, dtype=float)
 
 
 def part_from_dict(table: dict[str, Any], *, where: str | Path | None = None) -> Part:
     """Build a part from a ``[part]`` table (mm, deg). ``where`` resolves relative files."""
     src = Path(where) if where is not None else None
+    if not isinstance(table, dict):
+        raise InputError(
+            f"expected a table [part] with a 'kind', got {table!r}", file=src, field="part"
+        )
     kind = table.get("kind")
-    if kind not in _KEYS:
+    if not isinstance(kind, str) or kind not in _KEYS:
         raise InputError(
             f"unknown part kind {kind!r}; expected one of {', '.join(_KEYS)}",
             file=src,
@@ -138,14 +170,14 @@ def part_from_dict(table: dict[str, Any], *, where: str | Path | None = None) ->
             )
         if kind == "profile":
             if "file" in table:
-                f = Path(table["file"])
+                f = Path(_str(table, "file", src))
                 fpath = f if f.is_absolute() or src is None else src.parent / f
                 r, z = read_profile_csv(fpath)
                 return ProfilePart(r=tuple(r), z=tuple(z), source=str(table["file"]), **common)
             if "r" not in table or "z" not in table:
                 raise InputError("profile needs 'file' or both 'r' and 'z'", file=src, field="part")
-            r = np.asarray(table["r"], dtype=float) * 1e-3
-            z = np.asarray(table["z"], dtype=float) * 1e-3
+            r = _numbers(table, "r", src) * 1e-3
+            z = _numbers(table, "z", src) * 1e-3
             return ProfilePart(r=tuple(r), z=tuple(z), **common)
         if kind == "pyramid":
             ay = table.get("wall_angle_y")
@@ -173,8 +205,8 @@ def part_from_dict(table: dict[str, Any], *, where: str | Path | None = None) ->
             fpath = f if f.is_absolute() or src is None else src.parent / f
             return MeshPart.from_file(
                 fpath,
-                unit=str(table.get("unit", "mm")),
-                orient=str(table.get("orient", "up")),
+                unit=_str(table, "unit", src, "mm"),
+                orient=_str(table, "orient", src, "up"),
                 sheet_thickness=common["sheet_thickness"],
                 source=str(table["file"]),
                 tolerance=_num(table, "tolerance", src, 0.01) * 1e-3,
@@ -194,7 +226,7 @@ def load_part(path: str | Path) -> Part:
     if not path.is_file():
         raise InputError("part file not found", file=path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        data = tomllib.loads(read_text(path, what="part TOML"))
     except tomllib.TOMLDecodeError as e:
         raise InputError(f"not valid TOML: {e}", file=path) from None
     if "part" not in data or not isinstance(data["part"], dict):

@@ -111,6 +111,8 @@ def _kv_rows(summary: dict[str, Any]) -> str:
             _after_label(summary),
         ),
         ("max_command_offset_mm", "max commanded offset [mm]"),
+        ("max_lap_step_springback_offset_mm", "max lap-to-lap step of the springback offset [mm]"),
+        ("max_lap_step_command_dn_mm", "max lap-to-lap step of the commanded offset [mm]"),
         ("complete", "complete"),
     ]
     rows = []
@@ -133,7 +135,14 @@ def write_compensation_report(
     """Write ``compensation.html`` (and ``compensation.png``) into ``out_dir``; return the HTML."""
     out = Path(out_dir)
     fig = compensation_figure(laps, summary)
-    div = pio.to_html(fig, full_html=False, include_plotlyjs=True, include_mathjax=False)
+    # a fixed div id (plotly draws a random one otherwise): two runs give the same bytes
+    div = pio.to_html(
+        fig,
+        full_html=False,
+        include_plotlyjs=True,
+        include_mathjax=False,
+        div_id="roboisf-compensation",
+    )
     page = (
         "<!DOCTYPE html><html><head><meta charset='utf-8'><title>roboisf compensation</title>"
         "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto}"

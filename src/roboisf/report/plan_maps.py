@@ -106,11 +106,20 @@ def plan_section(
         f"<figure>{_img(p, k)}<figcaption>{pg.esc(k)}</figcaption></figure>"
         for k, p in images.items()
     )
+    # wide tables scroll inside their box and long values wrap, so nothing spills out of the
+    # page's card (13 columns do not fit a narrow window)
+    style = (
+        "<style>#plan .scroll{max-width:100%;overflow-x:auto}"
+        "#plan td,#plan th,#plan dd{overflow-wrap:anywhere}"
+        "#plan figure{margin:1em 0;max-width:100%}"
+        "</style>"
+    )
     return (
-        '<section id="plan"><h2>Placement and tool rotation</h2>'
+        f'<section id="plan">{style}<h2>Placement and tool rotation</h2>'
         f'<p class="lead">Predicted deflection of the tool tip (VJM robot + tool) for each '
-        f"candidate placement of the work object; best {len(rows)} shown.</p>{kv}{notes}"
-        f"{_rows_table(rows, cols)}{figs}</section>"
+        f"candidate placement of the work object; best {len(rows)} shown.</p>"
+        f'<div class="scroll">{kv}</div>{notes}'
+        f'<div class="scroll">{_rows_table(rows, cols)}</div>{figs}</section>'
     )
 
 

@@ -31,6 +31,7 @@ import numpy as np
 
 from roboisf.errors import InputError
 from roboisf.frames import make_transform, rpy_to_matrix
+from roboisf.io.text import read_text
 from roboisf.robot.kinematics import chain_from_dh, chain_from_opw
 from roboisf.robot.model import OPWGeometry, RobotModel
 
@@ -77,7 +78,7 @@ def _read_toml(p: Path, what: str) -> dict[str, Any]:
     if not p.is_file():
         raise InputError(f"{what} file not found", file=p)
     try:
-        return tomllib.loads(p.read_text(encoding="utf-8"))
+        return tomllib.loads(read_text(p, what=f"{what} file"))
     except tomllib.TOMLDecodeError as e:
         raise InputError(f"not valid TOML: {e}", file=p) from None
 

@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.errors import InputError
+from roboisf.io.text import read_text
 from roboisf.io.units import LENGTH_UNITS, to_si
 from roboisf.parts.mesh import read_mesh
 
@@ -153,20 +154,135 @@ def _xyz_normals(rec: np.ndarray, normal_names: tuple[str, str, str]) -> tuple[F
     record array into (N, 3) float64 arrays — the only copies the readers make."""
     names = rec.dtype.names or ()
     pts = np.empty((len(rec), 3))
-    for j, c in enumerate("xyz"):
-        pts[:, j] = rec[c]
-    normals = None
-    if all(c in names for c in normal_names):
-        normals = np.empty((len(rec), 3))
-        for j, c in enumerate(normal_names):
-            normals[:, j] = rec[c]
+    # a signalling NaN in the file warns on the cast; NaN/inf are refused by check_finite
+    with np.errstate(invalid="ignore"):
+        for j, c in enumerate("xyz"):
+            pts[:, j] = rec[c]
+        normals = None
+        if all(c in names for c in normal_names):
+            normals = np.empty((len(rec), 3))
+            for j, c in enumerate(normal_names):
+                normals[:, j] = rec[c]
     return pts, normals
 
 
 # -- PLY ----------------------------------------------------------------------------------------
+#: PLY scalar types (the spec's names, their sized aliases and plyfile's numpy codes) → bytes.
+_PLY_TYPES = {
+    "char": 1, "int8": 1, "i1": 1, "uchar": 1, "uint8": 1, "u1": 1,
+    "short": 2, "int16": 2, "i2": 2, "ushort": 2, "uint16": 2, "u2": 2,
+    "int": 4, "int32": 4, "i4": 4, "uint": 4, "uint32": 4, "u4": 4,
+    "float": 4, "float32": 4, "f4": 4, "double": 8, "float64": 8, "f8": 8,
+}  # fmt: skip
+_PLY_FORMATS = ("ascii", "binary_little_endian", "binary_big_endian")
+#: Longest PLY header read (a real header is a few hundred bytes).
+_PLY_MAX_HEADER = 1 << 20
+
+
+@dataclass
+class _PlyElement:
+    """An ``element`` of a PLY header: its smallest row (list properties empty) in bytes."""
+
+    name: str
+    count: int
+    line: int
+    row_bytes: int = 0
+    n_props: int = 0
+
+
+def check_ply_header(path: Path) -> None:
+    """Validate a PLY header before ``plyfile``/``numpy.memmap`` see it.
+
+    Checks the magic line, the format, every ``element`` count (a non-negative integer),
+    every ``property`` type, and that the counts fit in the file: a binary body without list
+    properties must hold exactly ``Σ count × row size`` bytes (at least), a body with lists or
+    in ascii at least the smallest possible row per element. A negative or absurd count would
+    otherwise reach numpy as a memory map of negative size (the process dies with SIGFPE) or an
+    allocation of petabytes.
+    """
+    size = path.stat().st_size
+    with open(path, "rb") as fh:
+        head = fh.read(min(size, _PLY_MAX_HEADER))
+    end = re.search(rb"(^|\n)end_header[ \t]*\r?\n", head)
+    if not head.startswith(b"ply") or head[3:4] not in (b"\n", b"\r"):
+        raise InputError("not a PLY file (the first line must be 'ply')", file=path, line=1)
+    if end is None:
+        raise InputError("PLY header has no 'end_header' line (truncated file?)", file=path)
+    body = size - end.end()
+    fmt = None
+    elements: list[_PlyElement] = []
+    text = head[: end.start()].decode("ascii", errors="replace").splitlines()
+    for i, raw in enumerate(text[1:], start=2):
+        tok = raw.split()
+        if not tok or tok[0] in ("comment", "obj_info"):
+            continue
+        if tok[0] == "format":
+            if len(tok) != 3 or tok[1] not in _PLY_FORMATS:
+                raise InputError(
+                    f"bad PLY format line {raw.strip()!r}; expected 'format "
+                    f"{{{'|'.join(_PLY_FORMATS)}}} 1.0'",
+                    file=path,
+                    line=i,
+                )
+            fmt = tok[1]
+        elif tok[0] == "element":
+            if len(tok) != 3 or not re.fullmatch(r"\d{1,19}", tok[2]):
+                raise InputError(
+                    f"bad PLY element line {raw.strip()!r}; expected 'element NAME COUNT' with "
+                    "COUNT a non-negative integer",
+                    file=path,
+                    line=i,
+                )
+            elements.append(_PlyElement(tok[1], int(tok[2]), i))
+        elif tok[0] == "property":
+            if not elements:
+                raise InputError("PLY property before any element", file=path, line=i)
+            el = elements[-1]
+            if len(tok) == 5 and tok[1] == "list":
+                if tok[2] not in _PLY_TYPES or tok[3] not in _PLY_TYPES or tok[2][0] == "f":
+                    raise InputError(
+                        f"bad PLY list property {raw.strip()!r}; expected 'property list "
+                        "<integer type> <type> NAME'",
+                        file=path,
+                        line=i,
+                    )
+                el.row_bytes += _PLY_TYPES[tok[2]]
+            elif len(tok) == 3 and tok[1] in _PLY_TYPES:
+                el.row_bytes += _PLY_TYPES[tok[1]]
+            else:
+                raise InputError(
+                    f"bad PLY property {raw.strip()!r}; expected 'property TYPE NAME' with TYPE "
+                    "one of char uchar short ushort int uint float double",
+                    file=path,
+                    line=i,
+                )
+            el.n_props += 1
+        else:
+            raise InputError(f"unknown PLY header line {raw.strip()!r}", file=path, line=i)
+    if fmt is None:
+        raise InputError("PLY header has no 'format' line", file=path)
+    need = 0
+    for el in elements:
+        name, count, line = el.name, el.count, el.line
+        if el.n_props == 0 and count > 0:
+            raise InputError(f"PLY element {name!r} has no properties", file=path, line=line)
+        # smallest possible row: binary → its bytes (lists empty), ascii → a digit + a separator
+        # per property
+        need += count * (el.row_bytes if fmt != "ascii" else 2 * el.n_props)
+        if need > body:
+            raise InputError(
+                f"PLY element {name!r} declares {count} rows, which need at least {need} bytes "
+                f"of data, but the file has {body} after the header (truncated file or a wrong "
+                "count)",
+                file=path,
+                line=line,
+            )
+
+
 def _read_ply(path: Path, sample: int | None, seed: int) -> tuple[F64, F64 | None]:
     from plyfile import PlyData
 
+    check_ply_header(path)
     try:
         with open(path, "rb") as fh:
             ply = PlyData.read(fh, mmap="r")
@@ -221,6 +337,13 @@ _PCD_TYPES = {
 }
 
 
+def _pcd_int(text: str) -> int:
+    """A non-negative integer of a PCD header (at most 19 digits: no absurd counts)."""
+    if not re.fullmatch(r"\d{1,19}", text):
+        raise ValueError(text)
+    return int(text)
+
+
 def _read_pcd(path: Path) -> tuple[F64, F64 | None]:
     header: dict[str, list[str]] = {}
     offset = 0
@@ -245,25 +368,45 @@ def _read_pcd(path: Path) -> tuple[F64, F64 | None]:
         if key not in header:
             raise InputError(f"PCD header has no {key} line", file=path, line=line_no)
     fields = header["FIELDS"]
-    count = [int(c) for c in header.get("COUNT", ["1"] * len(fields))]
+    k = len(fields)
+    count_text = header.get("COUNT", ["1"] * k)
+    for key, vals in (("SIZE", header["SIZE"]), ("TYPE", header["TYPE"]), ("COUNT", count_text)):
+        if len(vals) != k:
+            raise InputError(
+                f"PCD {key} has {len(vals)} entries but FIELDS has {k}", file=path, field=key
+            )
+    if len(set(fields)) != k:
+        raise InputError(f"PCD FIELDS repeats a name: {' '.join(fields)}", file=path)
+    if not header["DATA"] or len(header["POINTS"]) != 1:
+        raise InputError("PCD DATA and POINTS need one value each", file=path)
     try:
-        n = int(header["POINTS"][0])
+        n = _pcd_int(header["POINTS"][0])
+        count = [_pcd_int(c) for c in count_text]
         dtypes = [
             _PCD_TYPES[(t.upper(), int(s))]
             for t, s in zip(header["TYPE"], header["SIZE"], strict=True)
         ]
     except (KeyError, ValueError, IndexError):
-        raise InputError("PCD header has bad SIZE/TYPE/POINTS values", file=path) from None
+        raise InputError(
+            "PCD header has bad SIZE/TYPE/COUNT/POINTS values (TYPE F/I/U with SIZE 1/2/4/8, "
+            "COUNT and POINTS non-negative integers)",
+            file=path,
+        ) from None
+    if min(count, default=1) < 1:
+        raise InputError("PCD COUNT entries must be ≥ 1", file=path, field="COUNT")
     for c in ("x", "y", "z"):
         if c not in fields:
             raise InputError(f"PCD has no field {c!r} (FIELDS {' '.join(fields)})", file=path)
+    for c in ("x", "y", "z", "normal_x", "normal_y", "normal_z"):
+        if c in fields and count[fields.index(c)] != 1:
+            raise InputError(f"PCD field {c!r} must have COUNT 1", file=path, field="COUNT")
     mode = header["DATA"][0].lower()
     # column index of each field in the flat record
     col: dict[str, int] = {}
-    k = 0
+    j = 0
     for f, cnt in zip(fields, count, strict=True):
-        col[f] = k
-        k += cnt
+        col[f] = j
+        j += cnt
     if mode == "ascii":
         import pandas as pd
 
@@ -373,6 +516,9 @@ def _read_xyz(path: Path) -> tuple[F64, F64 | None]:
             skip_blank_lines=True,
             engine="c",
         )
+    except UnicodeDecodeError:
+        read_text(path, what="point list")  # raises, naming the line and byte offset
+        raise  # pragma: no cover - read_text raised above
     except ValueError as e:
         raise InputError(f"not a number in the point list: {e}", file=path) from None
     except Exception as e:
@@ -414,6 +560,13 @@ def check_units(points: F64, part_size: float, *, unit: str, source: str | Path 
     extent = float(np.max(hi - lo))
     if part_size <= 0:
         return
+    if not extent > 0:
+        raise InputError(
+            f"scan has zero extent: all {points.shape[0]} point(s) are at the same position "
+            f"({', '.join(f'{v * 1e3:.6g}' for v in lo)} mm); expected a scan of the part "
+            f"({part_size * 1e3:.4g} mm across)",
+            file=source,
+        )
     ratio = extent / part_size
     if 1 / 20 <= ratio <= 20:
         return

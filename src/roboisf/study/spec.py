@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from roboisf.errors import InputError
 from roboisf.frames import make_transform, rpy_to_matrix
+from roboisf.io.text import read_text
 from roboisf.io.units import ANGLE_UNITS, FORCE_UNITS, LENGTH_UNITS, MOMENT_UNITS, TIME_UNITS
 from roboisf.parts import AxisymmetricPart, part_from_dict
 
@@ -263,6 +264,31 @@ class _Collector:
             return None
         return p
 
+    def string(
+        self, t: dict[str, Any], key: str, name: str, default: str | None = None
+    ) -> str | None:
+        """``t[name]`` as a TOML string; a problem (and ``default``) for any other type."""
+        if name not in t:
+            return default
+        v = t[name]
+        if not isinstance(v, str):
+            self.add(f"expected a string, got {v!r}", f"{key}.{name}")
+            return default
+        return v
+
+    def boolean(self, t: dict[str, Any], key: str, name: str, default: bool) -> bool:
+        """``t[name]`` as a TOML boolean (``true``/``false``, unquoted): ``"no"`` is a string and
+        would be truthy in Python, silently meaning the opposite."""
+        if name not in t:
+            return default
+        v = t[name]
+        if not isinstance(v, bool):
+            self.add(
+                f"expected true or false (a TOML boolean, unquoted), got {v!r}", f"{key}.{name}"
+            )
+            return default
+        return v
+
     def choice(
         self,
         t: dict[str, Any],
@@ -276,7 +302,7 @@ class _Collector:
                 self.add(f"missing key; expected one of {', '.join(options)}", f"{key}.{name}")
             return default
         v = t[name]
-        if v not in options:
+        if not isinstance(v, str) or v not in options:
             self.add(f"expected one of {', '.join(options)}, got {v!r}", f"{key}.{name}")
             return default
         return str(v)
@@ -294,7 +320,7 @@ def _units(c: _Collector, data: dict[str, Any]) -> UnitsSpec:
     out = {}
     for k, table in tables.items():
         if k in t:
-            if t[k] not in table:
+            if not isinstance(t[k], str) or t[k] not in table:
                 c.add(f"unknown unit {t[k]!r}; expected one of {', '.join(table)}", f"units.{k}")
             else:
                 out[k] = t[k]
@@ -336,6 +362,58 @@ def _forces(c: _Collector, root: Path, t: Any, key: str, machine: str) -> ForceS
     return ForceSensorSpec(f, mount, pose, load_on, off)  # type: ignore[arg-type]
 
 
+def _robot_model(c: _Collector, root: Path, model: str) -> str | None:
+    """A preset name as is; anything else is a robot file (.toml/.urdf) resolved relative to
+    the study folder (never the working directory) and returned as an absolute path."""
+    from roboisf.robot import list_robots
+
+    if model in list_robots():
+        return model
+    p = Path(model)
+    p = p if p.is_absolute() else root / p
+    if not p.is_file():
+        c.add(
+            f"{model!r} is neither a preset ({', '.join(list_robots())}) nor a robot file "
+            f"(looked for {p}; relative paths are relative to the study folder)",
+            "robot.model",
+        )
+        return None
+    return str(p)
+
+
+def _check_reach(
+    c: _Collector, model: str, T_bw: F64, T_ft: F64 | None, part: AxisymmetricPart | None
+) -> None:
+    """Refuse a placement that puts the part outside any pose the robot could reach.
+
+    The bound is generous and cheap: no point is farther from the base origin than the sum of
+    the chain's link offsets plus the flange → tip distance, and the part extends at most its
+    opening radius + flange and its depth from the work origin. A placement of 1e9 mm (metres
+    typed as mm, or a stray digit) fails here instead of as an IK failure, or silently when the
+    joints come from a log.
+    """
+    from roboisf.robot import load_robot
+
+    try:
+        robot = load_robot(model)
+    except InputError as e:
+        c.catch(e, "robot.model")
+        return
+    tip = robot.T_flange_tip if T_ft is None else T_ft
+    reach = float(
+        np.linalg.norm(robot.chain.F[:, :3, 3], axis=1).sum() + np.linalg.norm(tip[:3, 3])
+    )
+    size = 0.0 if part is None else math.hypot(part.opening_radius + part.flange_width, part.depth)
+    dist = float(np.linalg.norm(T_bw[:3, 3]))
+    if dist - size > reach:
+        c.add(
+            f"puts the work origin {dist:.4g} m from the robot base, but {robot.name} reaches at "
+            f"most {reach:.3g} m (links + tool) and the part spans {size * 1e3:.4g} mm: the part "
+            "is out of reach (placement is [x, y, z, roll, pitch, yaw] in mm and deg)",
+            "robot.placement",
+        )
+
+
 def load_study(path: str | Path) -> Study:
     """Load and validate ``study.toml`` (or a folder containing it).
 
@@ -350,7 +428,7 @@ def load_study(path: str | Path) -> Study:
         raise InputError(f"no {STUDY_FILE} found", file=file)
     root = file.parent.resolve()
     try:
-        data = tomllib.loads(file.read_text(encoding="utf-8"))
+        data = tomllib.loads(read_text(file, what=STUDY_FILE))
     except tomllib.TOMLDecodeError as e:
         raise InputError(f"not valid TOML: {e}", file=file) from None
     c = _Collector(file)
@@ -358,7 +436,8 @@ def load_study(path: str | Path) -> Study:
         c.add(f"unknown table; expected {', '.join(sorted(_TOP))}", k)
 
     st = c.table(data, "study", {"name", "description"}, required=False)
-    name = str(st.get("name", root.name))
+    name = c.string(st, "study", "name", root.name) or root.name
+    description = c.string(st, "study", "description", "") or ""
     units = _units(c, data)
 
     part = None
@@ -395,7 +474,7 @@ def load_study(path: str | Path) -> Study:
         )
 
     ht = c.table(data, "tool_holder", {"compliance", "offset", "rigid"}, required=False)
-    rigid = bool(ht.get("rigid", not ht))
+    rigid = c.boolean(ht, "tool_holder", "rigid", not ht)
     holder_c = c.path(root, ht, "tool_holder", "compliance", required=not rigid)
     offset = c.number(ht, "tool_holder", "offset", default=0.0)
     holder = HolderSpec(holder_c, (offset or 0.0) * 1e-3, rigid)
@@ -420,7 +499,7 @@ def load_study(path: str | Path) -> Study:
         tp = c.path(root, r, key, "toolpath")
         sc = c.path(root, r, key, "scan")
         su = r.get("scan_unit", units.length)
-        if su not in LENGTH_UNITS:
+        if not isinstance(su, str) or su not in LENGTH_UNITS:
             c.add(
                 f"unknown length unit {su!r}; expected one of {', '.join(LENGTH_UNITS)}",
                 f"{key}.scan_unit",
@@ -450,6 +529,9 @@ def load_study(path: str | Path) -> Study:
         model = rb.get("model")
         if not isinstance(model, str) or not model:
             c.add("missing key: a preset name (roboisf robot list) or a robot file", "robot.model")
+            model = None
+        else:
+            model = _robot_model(c, root, model)
         T_bw = T_ft = None
         try:
             T_bw = pose_to_transform(rb.get("placement"), field="robot.placement", file=file)
@@ -472,6 +554,7 @@ def load_study(path: str | Path) -> Study:
             K = None
         rot = c.number(rb, "robot", "tool_rotation", default=0.0)
         if isinstance(model, str) and T_bw is not None:
+            _check_reach(c, model, T_bw, T_ft, part)
             robot = RobotSpec(
                 model,
                 T_bw,
@@ -505,6 +588,4 @@ def load_study(path: str | Path) -> Study:
     if c.problems:
         raise StudyError(c.problems, file)
     assert part is not None and tool is not None
-    return Study(
-        root, name, part, tool, holder, robot, runs, analysis, units, str(st.get("description", ""))
-    )
+    return Study(root, name, part, tool, holder, robot, runs, analysis, units, description)
