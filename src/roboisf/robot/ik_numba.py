@@ -1,0 +1,395 @@
+"""The compiled (numba) engine of :mod:`roboisf.robot.ik`; imported on first use.
+
+Kept apart so that ``import roboisf.robot`` does not import numba. Same arithmetic as the numpy
+path of :func:`roboisf.robot.ik.opw_ik` / :func:`roboisf.robot.ik.ik_toolpath` (tested to
+≤ 1e-12 rad with identical branch choices, reachability and limit flags), in scalar registers
+per pose, with no temporary arrays:
+
+* :func:`path_ik` — tool-tip points in the work frame → ``T_base_tip`` → ``T_base_flange`` → the
+  chosen OPW branch → controller angles wrapped to (−π, π] (``prange`` over blocks of poses from
+  the main thread, the same loop serially without the GIL from any other thread: bit-identical);
+  then, serially along the path, ``np.unwrap`` and the whole-turn shift into the joint limits of
+  :func:`roboisf.robot.ik._continuous`, and the limit check.
+* :func:`flange_ik` — the same OPW branch for given flange poses (what ``opw_ik`` returns).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from typing import Any
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from roboisf.robot.vjm_numba import BLOCK, _c64, sincos
+
+__all__ = ["flange_ik", "path_ik"]
+
+F64 = NDArray[np.float64]
+
+_PRANGE: Any = numba.prange
+_TWO_PI = 2.0 * np.pi
+_PI = np.pi
+
+
+def _njit(**kw: Any) -> Any:
+    return numba.njit(cache=True, nogil=True, **kw)
+
+
+@_njit(inline="always")
+def _wrap(x: float) -> float:  # pragma: no cover - compiled
+    """``np.mod(x + π, 2π) − π`` (numpy's float modulo: the sign of the divisor)."""
+    return (x + _PI) % _TWO_PI - _PI  # Python's float modulo = numpy's
+
+
+@_njit(inline="always")
+def _opw(
+    r00: float,
+    r01: float,
+    r02: float,
+    r10: float,
+    r11: float,
+    r12: float,
+    r20: float,
+    r21: float,
+    r22: float,
+    px: float,
+    py: float,
+    pz: float,
+    geo: F64,
+    flags: F64,
+    sign: F64,
+    offset: F64,
+    q: F64,
+    n: int,
+) -> bool:  # pragma: no cover - compiled
+    """One flange pose (R, p) → ``q[n]`` (controller angles, wrapped) of the branch ``flags``
+    = (front, sgn, flip); returns reachability (the row is NaN when False), as ``opw_ik``."""
+    a1, a2, b, c1, c2, c3g, c4 = geo[0], geo[1], geo[2], geo[3], geo[4], geo[5], geo[6]
+    kappa2, kappa, phi = geo[7], geo[8], geo[9]  # a2² + c3², its root, atan2(a2, c3)
+    front = flags[0] > 0.0
+    sgn = flags[1]
+    flip = flags[2] > 0.0
+    cx = px - c4 * r02
+    cy = py - c4 * r12
+    cz = pz - c4 * r22
+    rho2 = cx * cx + cy * cy - b * b
+    ok = rho2 >= 0
+    r = math.sqrt(rho2) if ok else 0.0
+    xr = r if front else -r
+    # θ1 = atan2(cy, cx) − atan2(b, xr), as one atan2 of the rotated vector (the same angle up
+    # to a whole turn, which the wrap removes); its sine and cosine without trigonometry
+    u = cx * xr + cy * b
+    v = cy * xr - cx * b
+    th1 = math.atan2(v, u)
+    h2 = u * u + v * v
+    if h2 > 0.0:
+        h = 1.0 / math.sqrt(h2)
+        cc1, s1 = u * h, v * h
+    else:  # wrist centre on the A1 axis (b = 0): θ1 is arbitrary, as atan2(0, 0) = 0
+        s1, cc1 = sincos(th1)
+    x = xr - a1
+    z = cz - c1
+    D = (x * x + z * z - c2 * c2 - kappa2) / (2.0 * c2 * kappa)
+    ok = ok and abs(D) <= 1.0 + 1e-12
+    acos_d = math.acos(min(max(D, -1.0), 1.0))
+    th3 = sgn * acos_d - phi
+    s3, cc3 = sincos(th3)
+    wx = a2 * cc3 + c3g * s3
+    wz = c2 - a2 * s3 + c3g * cc3
+    # θ2 = atan2(x, z) − atan2(wx, wz), one atan2 (up to a whole turn; θ2 + θ3 only enters
+    # through its sine and cosine, and θ2 is wrapped)
+    th2 = math.atan2(x * wz - z * wx, z * wz + x * wx)
+    s23, c23 = sincos(th2 + th3)
+    # W = (Rz(θ1) Ry(θ23))ᵀ R: rows e0 = (c1 c23, s1 c23, −s23), e1 = (−s1, c1, 0),
+    # e2 = (c1 s23, s1 s23, c23); only the entries the wrist angles need
+    e00, e01, e02 = cc1 * c23, s1 * c23, -s23
+    e20, e21, e22 = cc1 * s23, s1 * s23, c23
+    w02 = e00 * r02 + e01 * r12 + e02 * r22
+    w12 = -s1 * r02 + cc1 * r12
+    w20 = e20 * r00 + e21 * r10 + e22 * r20
+    w21 = e20 * r01 + e21 * r11 + e22 * r21
+    w22 = e20 * r02 + e21 * r12 + e22 * r22
+    th5 = math.atan2(math.sqrt(w02 * w02 + w12 * w12), w22)
+    th4 = math.atan2(w12, w02)
+    th6 = math.atan2(w21, -w20)
+    if flip:
+        th4 = th4 + _PI
+        th5 = -th5
+        th6 = th6 + _PI
+    if not ok:
+        for j in range(6):
+            q[n, j] = np.nan
+        return False
+    q[n, 0] = _wrap((th1 - offset[0]) * sign[0])
+    q[n, 1] = _wrap((th2 - offset[1]) * sign[1])
+    q[n, 2] = _wrap((th3 - offset[2]) * sign[2])
+    q[n, 3] = _wrap((th4 - offset[3]) * sign[3])
+    q[n, 4] = _wrap((th5 - offset[4]) * sign[4])
+    q[n, 5] = _wrap((th6 - offset[5]) * sign[5])
+    return True
+
+
+@_njit()
+def _flange_rows(
+    T: F64,
+    geo: F64,
+    flags: F64,
+    sign: F64,
+    offset: F64,
+    q: F64,
+    ok: NDArray[np.bool_],
+    s: int,
+    e: int,
+) -> None:  # pragma: no cover - compiled
+    for n in range(s, e):
+        ok[n] = _opw(
+            T[n, 0, 0],
+            T[n, 0, 1],
+            T[n, 0, 2],
+            T[n, 1, 0],
+            T[n, 1, 1],
+            T[n, 1, 2],
+            T[n, 2, 0],
+            T[n, 2, 1],
+            T[n, 2, 2],
+            T[n, 0, 3],
+            T[n, 1, 3],
+            T[n, 2, 3],
+            geo,
+            flags,
+            sign,
+            offset,
+            q,
+            n,
+        )
+
+
+@_njit(parallel=True)
+def _flange_parallel(
+    T: F64, geo: F64, flags: F64, sign: F64, offset: F64, q: F64, ok: NDArray[np.bool_]
+) -> None:  # pragma: no cover - compiled
+    n = T.shape[0]
+    nb = (n + BLOCK - 1) // BLOCK
+    for b in _PRANGE(nb):
+        _flange_rows(T, geo, flags, sign, offset, q, ok, b * BLOCK, min(n, (b + 1) * BLOCK))
+
+
+@_njit()
+def _tip_rows(
+    A: F64,
+    B: F64,
+    tip: F64,
+    gam: F64,
+    geo: F64,
+    flags: F64,
+    sign: F64,
+    offset: F64,
+    q: F64,
+    ok: NDArray[np.bool_],
+    T_tip: F64,
+    s: int,
+    e: int,
+) -> None:  # pragma: no cover - compiled
+    """Poses ``s:e``: ``T_base_tip = A · [vertical_tool(γ), tip]``, ``T_base_flange = T_base_tip
+    · B`` (``A`` = T_base_work, ``B`` = T_flange_tip⁻¹), then the OPW branch; ``T_tip`` is
+    written when it has N rows."""
+    one_g = gam.shape[0] == 1
+    want_t = T_tip.shape[0] > 0
+    for n in range(s, e):
+        sg, cg = sincos(gam[0] if one_g else gam[n])
+        # vertical_tool(γ) = [[c, −s, 0], [−s, −c, 0], [0, 0, −1]]
+        t0, t1, t2 = tip[n, 0], tip[n, 1], tip[n, 2]
+        m00 = A[0, 0] * cg - A[0, 1] * sg
+        m01 = -A[0, 0] * sg - A[0, 1] * cg
+        m02 = -A[0, 2]
+        m10 = A[1, 0] * cg - A[1, 1] * sg
+        m11 = -A[1, 0] * sg - A[1, 1] * cg
+        m12 = -A[1, 2]
+        m20 = A[2, 0] * cg - A[2, 1] * sg
+        m21 = -A[2, 0] * sg - A[2, 1] * cg
+        m22 = -A[2, 2]
+        p0 = A[0, 0] * t0 + A[0, 1] * t1 + A[0, 2] * t2 + A[0, 3]
+        p1 = A[1, 0] * t0 + A[1, 1] * t1 + A[1, 2] * t2 + A[1, 3]
+        p2 = A[2, 0] * t0 + A[2, 1] * t1 + A[2, 2] * t2 + A[2, 3]
+        if want_t:
+            T_tip[n, 0, 0], T_tip[n, 0, 1], T_tip[n, 0, 2], T_tip[n, 0, 3] = m00, m01, m02, p0
+            T_tip[n, 1, 0], T_tip[n, 1, 1], T_tip[n, 1, 2], T_tip[n, 1, 3] = m10, m11, m12, p1
+            T_tip[n, 2, 0], T_tip[n, 2, 1], T_tip[n, 2, 2], T_tip[n, 2, 3] = m20, m21, m22, p2
+            T_tip[n, 3, 0], T_tip[n, 3, 1], T_tip[n, 3, 2], T_tip[n, 3, 3] = 0.0, 0.0, 0.0, 1.0
+        ok[n] = _opw(
+            m00 * B[0, 0] + m01 * B[1, 0] + m02 * B[2, 0],
+            m00 * B[0, 1] + m01 * B[1, 1] + m02 * B[2, 1],
+            m00 * B[0, 2] + m01 * B[1, 2] + m02 * B[2, 2],
+            m10 * B[0, 0] + m11 * B[1, 0] + m12 * B[2, 0],
+            m10 * B[0, 1] + m11 * B[1, 1] + m12 * B[2, 1],
+            m10 * B[0, 2] + m11 * B[1, 2] + m12 * B[2, 2],
+            m20 * B[0, 0] + m21 * B[1, 0] + m22 * B[2, 0],
+            m20 * B[0, 1] + m21 * B[1, 1] + m22 * B[2, 1],
+            m20 * B[0, 2] + m21 * B[1, 2] + m22 * B[2, 2],
+            m00 * B[0, 3] + m01 * B[1, 3] + m02 * B[2, 3] + p0,
+            m10 * B[0, 3] + m11 * B[1, 3] + m12 * B[2, 3] + p1,
+            m20 * B[0, 3] + m21 * B[1, 3] + m22 * B[2, 3] + p2,
+            geo,
+            flags,
+            sign,
+            offset,
+            q,
+            n,
+        )
+
+
+@_njit(parallel=True)
+def _tip_parallel(
+    A: F64,
+    B: F64,
+    tip: F64,
+    gam: F64,
+    geo: F64,
+    flags: F64,
+    sign: F64,
+    offset: F64,
+    q: F64,
+    ok: NDArray[np.bool_],
+    T_tip: F64,
+) -> None:  # pragma: no cover - compiled
+    n = tip.shape[0]
+    nb = (n + BLOCK - 1) // BLOCK
+    for b in _PRANGE(nb):
+        s = b * BLOCK
+        _tip_rows(A, B, tip, gam, geo, flags, sign, offset, q, ok, T_tip, s, min(n, s + BLOCK))
+
+
+@_njit(inline="always")
+def _round_half_even(x: float) -> float:  # pragma: no cover - compiled
+    r = math.floor(x + 0.5)
+    if r - x == 0.5 and r % 2.0 != 0.0:
+        r -= 1.0
+    return r
+
+
+@_njit()
+def _continuous(q: F64, q_min: F64, q_max: F64) -> bool:  # pragma: no cover - compiled
+    """In place: ``np.unwrap`` along axis 0, the whole-turn shift of
+    :func:`roboisf.robot.ik._continuous`; returns True when every angle is within the limits
+    (± 1e-9 rad)."""
+    n = q.shape[0]
+    for j in range(6):
+        # np.unwrap: period 2π, discont π, the ambiguous boundary to +π when the step is > 0
+        acc = 0.0
+        prev = q[0, j]
+        for i in range(1, n):
+            cur = q[i, j]
+            dd = cur - prev
+            prev = cur
+            if not abs(dd) < _PI:  # np.unwrap corrects only these steps
+                ddmod = (dd + _PI) % _TWO_PI - _PI
+                if ddmod == -_PI and dd > 0:
+                    ddmod = _PI
+                acc += ddmod - dd
+            q[i, j] = cur + acc
+    all_in = True
+    for j in range(6):
+        tot = 0.0
+        for i in range(n):
+            tot += q[i, j]
+        mean = tot / n
+        mid = 0.5 * (q_min[j] + q_max[j])
+        k = _round_half_even((mid - mean) / _TWO_PI)
+        lo = q_min[j] - 1e-9
+        hi = q_max[j] + 1e-9
+        for i in range(n):
+            q[i, j] = q[i, j] + k * _TWO_PI
+        for t in range(3):
+            dk = 0.0 if t == 0 else (1.0 if t == 1 else -1.0)
+            inside = True
+            for i in range(n):
+                v = q[i, j] + dk * _TWO_PI
+                if not (v >= lo and v <= hi):
+                    inside = False
+                    break
+            if inside:
+                if dk != 0.0:
+                    for i in range(n):
+                        q[i, j] = q[i, j] + dk * _TWO_PI
+                break
+        for i in range(n):
+            if q[i, j] < lo or q[i, j] > hi:
+                all_in = False
+                break
+    return all_in
+
+
+def _args(model: Any, shoulder: str, elbow: str, wrist: str) -> tuple[F64, F64, F64, F64]:
+    g = model.opw
+    kappa2 = g.a2 * g.a2 + g.c3 * g.c3
+    geo = np.array(
+        [g.a1, g.a2, g.b, g.c1, g.c2, g.c3, g.c4, kappa2, np.sqrt(kappa2), np.arctan2(g.a2, g.c3)],
+        dtype=np.float64,
+    )
+    front = shoulder == "front"
+    up = elbow == "up"
+    flags = np.array(
+        [1.0 if front else 0.0, 1.0 if up == front else -1.0, 1.0 if wrist == "flip" else 0.0]
+    )
+    return geo, flags, _c64(model.chain.sign), _c64(model.chain.offset)
+
+
+def _main() -> bool:
+    return threading.current_thread() is threading.main_thread()
+
+
+def flange_ik(
+    model: Any, T_base_flange: F64, shoulder: str, elbow: str, wrist: str
+) -> tuple[F64, NDArray[np.bool_]]:
+    """``opw_ik`` on the compiled engine: flange poses (N, 4, 4) → (q (N, 6) rad, ok (N,))."""
+    T = _c64(T_base_flange)
+    n = T.shape[0]
+    q = np.empty((n, 6))
+    ok = np.empty(n, dtype=np.bool_)
+    geo, flags, sign, offset = _args(model, shoulder, elbow, wrist)
+    if _main():
+        _flange_parallel(T, geo, flags, sign, offset, q, ok)
+    else:
+        _flange_rows(T, geo, flags, sign, offset, q, ok, 0, n)
+    return q, ok
+
+
+def path_ik(
+    model: Any,
+    tip: F64,
+    T_base_work: F64,
+    T_flange_tip_inv: F64,
+    gamma: F64,
+    shoulder: str,
+    elbow: str,
+    wrist: str,
+    *,
+    want_tip_poses: bool = True,
+) -> tuple[F64, NDArray[np.bool_], bool, F64 | None]:
+    """IK along a path: tip points (N, 3) m (work), ``T_base_work`` (4, 4), ``T_flange_tip⁻¹``
+    (4, 4), γ (N,) or (1,) rad → (q (N, 6) rad, reachable (N,), within limits, T_base_tip
+    (N, 4, 4) or None).
+
+    When every point is reachable, ``q`` is the continuous trajectory (unwrapped and shifted by
+    whole turns as :func:`roboisf.robot.ik._continuous`) and ``within`` says whether it stays
+    inside the joint limits; otherwise ``q`` is the wrapped per-point solution (NaN where
+    unreachable) and ``within`` is False.
+    """
+    tip = _c64(tip)
+    n = tip.shape[0]
+    q = np.empty((n, 6))
+    ok = np.empty(n, dtype=np.bool_)
+    T_tip = np.empty((n if want_tip_poses else 0, 4, 4))
+    geo, flags, sign, offset = _args(model, shoulder, elbow, wrist)
+    args = (_c64(T_base_work), _c64(T_flange_tip_inv), tip, _c64(gamma), geo, flags, sign, offset)
+    if _main():
+        _tip_parallel(*args, q, ok, T_tip)
+    else:
+        _tip_rows(*args, q, ok, T_tip, 0, n)
+    within = False
+    if bool(ok.all()):
+        within = bool(_continuous(q, _c64(model.q_min), _c64(model.q_max)))
+    return q, ok, within, (T_tip if want_tip_poses else None)
