@@ -274,25 +274,11 @@ def ik_toolpath(
         q, ok = _opw_ik_numpy(model, T_flange, shoulder, elbow, wrist)
         within = False  # tested below
     if not np.all(ok):
-        bad = np.flatnonzero(~ok)
-        raise UnreachableError(
-            f"{bad.size} of {len(ok)} toolpath points are out of reach of {model.name} "
-            f"(branch {shoulder}/{elbow}/{wrist}) at indices {_short(bad)}",
-            indices=bad.tolist(),
-        )
+        raise_out_of_reach(model, ok, (shoulder, elbow, wrist))
     if not compiled:
         q = _continuous(model, q)
-    # the compiled pass checked the limits already; the error message needs the numpy test
-    out = None if within else (q < model.q_min - 1e-9) | (q > model.q_max + 1e-9)
-    if out is not None and np.any(out):
-        bad = np.flatnonzero(np.any(out, axis=1))
-        joints = sorted({int(j) + 1 for j in np.nonzero(out)[1]})
-        raise UnreachableError(
-            f"{bad.size} of {len(q)} toolpath points need joint angles beyond the limits of "
-            f"{model.name} (axes {joints}) at indices {_short(bad)}; try another placement, "
-            "tool rotation or branch",
-            indices=bad.tolist(),
-        )
+    if not within:  # (the compiled pass checked the limits already)
+        raise_beyond_limits(model, q)
     if singular_threshold is None:
         return IKResult(q=q, T_base_tip=T_tip, near_singular=np.zeros(len(q), dtype=bool))
     L = length_scale if length_scale is not None else _length_scale(model)
@@ -306,6 +292,31 @@ def ik_toolpath(
             stacklevel=2,
         )
     return IKResult(q=q, T_base_tip=T_tip, near_singular=near, length_scale=L, model=model)
+
+
+def raise_out_of_reach(model: RobotModel, ok: NDArray[np.bool_], branch: tuple[str, ...]) -> None:
+    """Raise the :class:`UnreachableError` naming the points with ``ok`` False."""
+    bad = np.flatnonzero(~ok)
+    raise UnreachableError(
+        f"{bad.size} of {len(ok)} toolpath points are out of reach of {model.name} "
+        f"(branch {'/'.join(branch)}) at indices {_short(bad)}",
+        indices=bad.tolist(),
+    )
+
+
+def raise_beyond_limits(model: RobotModel, q: F64) -> None:
+    """Raise the :class:`UnreachableError` naming the points of ``q`` (N, 6) rad beyond the
+    joint limits (± 1e-9 rad); return when there are none."""
+    out = (q < model.q_min - 1e-9) | (q > model.q_max + 1e-9)
+    if np.any(out):
+        bad = np.flatnonzero(np.any(out, axis=1))
+        joints = sorted({int(j) + 1 for j in np.nonzero(out)[1]})
+        raise UnreachableError(
+            f"{bad.size} of {len(q)} toolpath points need joint angles beyond the limits of "
+            f"{model.name} (axes {joints}) at indices {_short(bad)}; try another placement, "
+            "tool rotation or branch",
+            indices=bad.tolist(),
+        )
 
 
 def _length_scale(model: RobotModel) -> float:

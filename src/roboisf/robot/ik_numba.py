@@ -11,21 +11,25 @@ per pose, with no temporary arrays:
   then, serially along the path, ``np.unwrap`` and the whole-turn shift into the joint limits of
   :func:`roboisf.robot.ik._continuous`, and the limit check.
 * :func:`flange_ik` — the same OPW branch for given flange poses (what ``opw_ik`` returns).
+* :func:`path_vjm` — ``roboisf.plan``'s inner loop: :func:`path_ik`, then per block of poses the
+  VJM kernel of :mod:`roboisf.robot.vjm_numba` (δ and the singularity-margin test), δ in work
+  axes, the tool's own deflection, |δ| and the joint steps — no numpy temporaries.
 """
 
 from __future__ import annotations
 
 import math
 import threading
-from typing import Any
+from typing import Any, NamedTuple
 
 import numba
 import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.robot.vjm_numba import BLOCK, _c64, sincos
+from roboisf.robot.vjm_numba import _rows as _vjm_kernel_rows
 
-__all__ = ["flange_ik", "path_ik"]
+__all__ = ["PathVJM", "flange_ik", "path_ik", "path_vjm"]
 
 F64 = NDArray[np.float64]
 
@@ -393,3 +397,214 @@ def path_ik(
     if bool(ok.all()):
         within = bool(_continuous(q, _c64(model.q_min), _c64(model.q_max)))
     return q, ok, within, (T_tip if want_tip_poses else None)
+
+
+@_njit(inline="always")
+def _row6(
+    C: F64, i: int, a0: float, a1: float, a2: float, a3: float, a4: float, a5: float
+) -> float:  # pragma: no cover - compiled
+    return (
+        a0 * C[i, 0] + a1 * C[i, 1] + a2 * C[i, 2] + a3 * C[i, 3] + a4 * C[i, 4] + a5 * C[i, 5]
+    )
+
+
+@_njit()
+def _vjm_rows(
+    F: F64,
+    sign: F64,
+    offset: F64,
+    kinv: F64,
+    q: F64,
+    W_work: F64,
+    A: F64,
+    C_tool: F64,
+    gam: F64,
+    mg: F64,
+    W_base: F64,
+    d: F64,
+    margin_ok: NDArray[np.bool_],
+    d_robot: F64,
+    d_total: F64,
+    abs_total: F64,
+    steps: F64,
+    s: int,
+    e: int,
+) -> None:  # pragma: no cover - compiled
+    """Poses ``s:e`` of a solved path: the wrench into base axes, the VJM kernel of
+    :mod:`roboisf.robot.vjm_numba` (δ and the margin test), δ back into work axes, the tool's
+    own deflection (``C_tool`` (3, 6) in tool axes, ``R_work_tool = Rz(−γ)``; none when it has
+    no rows), |δ| and the largest joint step from the previous pose."""
+    one_w = W_work.shape[0] == 1
+    one_g = gam.shape[0] == 1
+    want_tool = C_tool.shape[0] > 0
+    for n in range(s, e):
+        w = 0 if one_w else n
+        for i in range(3):
+            W_base[n, i] = A[i, 0] * W_work[w, 0] + A[i, 1] * W_work[w, 1] + A[i, 2] * W_work[w, 2]
+            W_base[n, 3 + i] = (
+                A[i, 0] * W_work[w, 3] + A[i, 1] * W_work[w, 4] + A[i, 2] * W_work[w, 5]
+            )
+    no_k = np.empty((0, 6, 6))
+    _vjm_kernel_rows(F, sign, offset, kinv, q, W_base, s, e, d, no_k, no_k, mg, margin_ok)
+    for n in range(s, e):
+        x0 = d[n, 0] * A[0, 0] + d[n, 1] * A[1, 0] + d[n, 2] * A[2, 0]
+        x1 = d[n, 0] * A[0, 1] + d[n, 1] * A[1, 1] + d[n, 2] * A[2, 1]
+        x2 = d[n, 0] * A[0, 2] + d[n, 1] * A[1, 2] + d[n, 2] * A[2, 2]
+        d_robot[n, 0], d_robot[n, 1], d_robot[n, 2] = x0, x1, x2
+        if want_tool:
+            sg, cg = sincos(gam[0] if one_g else gam[n])
+            w = 0 if one_w else n
+            f0, f1 = W_work[w, 0], W_work[w, 1]
+            m0, m1 = W_work[w, 3], W_work[w, 4]
+            wt0 = cg * f0 - sg * f1
+            wt1 = sg * f0 + cg * f1
+            wt3 = cg * m0 - sg * m1
+            wt4 = sg * m0 + cg * m1
+            f2, m2 = W_work[w, 2], W_work[w, 5]
+            t0 = _row6(C_tool, 0, wt0, wt1, f2, wt3, wt4, m2)
+            t1 = _row6(C_tool, 1, wt0, wt1, f2, wt3, wt4, m2)
+            t2 = _row6(C_tool, 2, wt0, wt1, f2, wt3, wt4, m2)
+            x0 += cg * t0 + sg * t1
+            x1 += -sg * t0 + cg * t1
+            x2 += t2
+        d_total[n, 0], d_total[n, 1], d_total[n, 2] = x0, x1, x2
+        abs_total[n] = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+        st = 0.0
+        if n > 0:
+            for j in range(6):
+                st = max(st, abs(q[n, j] - q[n - 1, j]))
+        steps[n] = st
+
+
+@_njit(parallel=True)
+def _vjm_parallel(
+    F: F64,
+    sign: F64,
+    offset: F64,
+    kinv: F64,
+    q: F64,
+    W_work: F64,
+    A: F64,
+    C_tool: F64,
+    gam: F64,
+    mg: F64,
+    W_base: F64,
+    d: F64,
+    margin_ok: NDArray[np.bool_],
+    d_robot: F64,
+    d_total: F64,
+    abs_total: F64,
+    steps: F64,
+) -> None:  # pragma: no cover - compiled
+    n = q.shape[0]
+    nb = (n + BLOCK - 1) // BLOCK
+    for b in _PRANGE(nb):
+        s = b * BLOCK
+        _vjm_rows(
+            F,
+            sign,
+            offset,
+            kinv,
+            q,
+            W_work,
+            A,
+            C_tool,
+            gam,
+            mg,
+            W_base,
+            d,
+            margin_ok,
+            d_robot,
+            d_total,
+            abs_total,
+            steps,
+            s,
+            min(n, s + BLOCK),
+        )
+
+
+class PathVJM(NamedTuple):
+    """What :func:`path_vjm` computed for one placement (work axes).
+
+    q : (N, 6) rad — continuous when ``status`` is 0; reachable : (N,) bool
+    status : 0 solved within the limits, 1 some point out of reach, 2 beyond the joint limits
+    (the arrays below are filled only for status 0)
+    margin_ok : (N,) bool; d_robot, d_total : (N, 3) m; abs_total, steps : (N,) (m, rad)
+    """
+
+    q: F64
+    reachable: NDArray[np.bool_]
+    status: int
+    margin_ok: NDArray[np.bool_] | None = None
+    d_robot: F64 | None = None
+    d_total: F64 | None = None
+    abs_total: F64 | None = None
+    steps: F64 | None = None
+
+
+def path_vjm(
+    model: Any,
+    tip: F64,
+    T_base_work: F64,
+    gamma: F64,
+    W_work: F64,
+    C_tool: F64 | None,
+    margin: tuple[float, float],
+    shoulder: str = "front",
+    elbow: str = "up",
+    wrist: str = "noflip",
+) -> PathVJM:
+    """IK, continuity, joint limits, VJM δ, the singularity-margin test and the tool's deflection
+    along one placement's path, compiled end to end (``roboisf.plan``'s inner loop).
+
+    tip (N, 3) m work; T_base_work (4, 4); γ (N,) or (1,) rad; W_work (N, 6) or (1, 6) [N; N·m]
+    in work axes; C_tool (6, 6) tool compliance in tool axes (its force-to-displacement rows
+    are used) or None; margin = (length scale m, threshold).
+    """
+    from roboisf.frames import invert
+
+    T_bw = _c64(T_base_work)
+    q, ok, within, _ = path_ik(
+        model,
+        tip,
+        T_bw,
+        invert(model.T_flange_tip),
+        gamma,
+        shoulder,
+        elbow,
+        wrist,
+        want_tip_poses=False,
+    )
+    if not bool(ok.all()):
+        return PathVJM(q, ok, 1)
+    if not within:
+        return PathVJM(q, ok, 2)
+    n = q.shape[0]
+    F = model.chain.F.copy()
+    F[6] = F[6] @ model.T_flange_tip
+    args = (
+        _c64(F),
+        _c64(model.chain.sign),
+        _c64(model.chain.offset),
+        _c64(1.0 / model.joint_stiffness),
+        q,
+        _c64(W_work),
+        _c64(T_bw[:3, :3]),
+        np.empty((0, 6)) if C_tool is None else _c64(np.asarray(C_tool)[:3]),
+        _c64(gamma),
+        np.array([1.0 / margin[0], float(margin[1]) ** 2]),
+    )
+    out = (
+        np.empty((n, 6)),  # W_base (scratch)
+        np.empty((n, 6)),  # δ base
+        np.empty(n, dtype=np.bool_),
+        np.empty((n, 3)),
+        np.empty((n, 3)),
+        np.empty(n),
+        np.empty(n),
+    )
+    if _main():
+        _vjm_parallel(*args, *out)
+    else:
+        _vjm_rows(*args, *out, 0, n)
+    return PathVJM(q, ok, 0, out[2], out[3], out[4], out[5], out[6])
