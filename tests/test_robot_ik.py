@@ -375,3 +375,61 @@ def test_numba_ik_from_a_worker_thread_is_bit_identical(cone_path):
         ).result()
     np.testing.assert_array_equal(main.q, other.q)
     np.testing.assert_array_equal(main.T_base_tip, other.T_base_tip)
+
+
+@pytest.fixture(scope="module")
+def plan_problem():
+    from roboisf.plan import problem_from_cell
+    from roboisf.virtual.cell import paper_cone_cell
+
+    vc = paper_cone_cell(spacing=34.8 / 3000)
+    prob, _ = problem_from_cell(vc.cell, **vc.path_settings)
+    return prob
+
+
+@pytest.mark.parametrize("tool", [True, False])
+def test_plan_path_kernel_matches_the_numpy_solve(plan_problem, tool):
+    """roboisf.plan's fused per-path kernel (ik_numba.path_vjm) against the numpy pipeline
+    (ik_toolpath + RobotModel.vjm + numpy post-processing): the same angles (≤ 1e-12 rad), δ
+    (≤ 1e-15 m absolute on ~1e-3 m), margin verdicts and joint steps, for a constant and a
+    per-point γ, with and without the tool's compliance; the same errors for placements out of
+    reach and beyond the limits; the worker-thread twin gives the same bits."""
+    _needs_numba()
+    from concurrent.futures import ThreadPoolExecutor
+    from dataclasses import replace
+
+    from roboisf.plan import evaluate as E
+    from roboisf.virtual.cell import PAPER_CELL_PLACEMENT
+
+    prob = plan_problem if tool else replace(plan_problem, tool_compliance=None)
+    prob_np = replace(prob, model=prob.model.with_backend("numpy"))
+    T = np.asarray(PAPER_CELL_PLACEMENT, dtype=float)
+    for g in (0.3, np.linspace(-0.5, 1.0, prob.n_points)):
+        a, b = E._solve(prob, T, g), E._solve(prob_np, T, g)
+        assert np.abs(a.q - b.q).max() <= 1e-12
+        assert np.abs(a.steps - b.steps).max() <= 1e-12
+        np.testing.assert_array_equal(a.margin_ok, b.margin_ok)
+        for k in ("d_total", "d_robot", "abs_total"):
+            assert np.abs(getattr(a, k) - getattr(b, k)).max() <= 1e-15
+        if not tool:
+            np.testing.assert_array_equal(a.d_total, a.d_robot)
+        with ThreadPoolExecutor(1) as ex:
+            c = ex.submit(E._solve, prob, T, g).result()
+        np.testing.assert_array_equal(a.q, c.q)
+        np.testing.assert_array_equal(a.d_total, c.d_total)
+    # a margin threshold inside the path's σ_min range (0.20–0.22): a mix of verdicts
+    mid = replace(prob, sigma_threshold=0.21)
+    a = E._solve(mid, T, 0.3)
+    b = E._solve(replace(mid, model=mid.model.with_backend("numpy")), T, 0.3)
+    assert 0.05 < a.margin_ok.mean() < 0.95
+    np.testing.assert_array_equal(a.margin_ok, b.margin_ok)
+    # out of reach; beyond the limits (A5, and A1 for part of the path)
+    far = T.copy()
+    far[0, 3] += 5.0
+    for Tb in (far, make_transform(None, [0.6, 0, 2.2]), make_transform(None, [-1.5, 0, 0.5])):
+        errs = []
+        for p in (prob, prob_np):
+            with pytest.raises(UnreachableError) as e:
+                E._solve(p, Tb, 0.3)
+            errs.append((str(e.value), e.value.indices))
+        assert errs[0] == errs[1]
