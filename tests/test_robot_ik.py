@@ -433,3 +433,20 @@ def test_plan_path_kernel_matches_the_numpy_solve(plan_problem, tool):
                 E._solve(p, Tb, 0.3)
             errs.append((str(e.value), e.value.indices))
         assert errs[0] == errs[1]
+
+
+def test_compiled_atan2_within_one_ulp_of_libm():
+    """The IK kernel's fdlibm atan2 against libm's over 20 decades, signs, zeros and infinities."""
+    _needs_numba()
+    from roboisf.robot.ik_numba import _atan2_many
+
+    rng = np.random.default_rng(3)
+    n = 200_000
+    y = rng.normal(size=n) * 10.0 ** rng.uniform(-20, 20, n)
+    x = rng.normal(size=n) * 10.0 ** rng.uniform(-20, 20, n)
+    y[:100], x[100:200], x[200:300], y[300:310], x[310:320] = 0.0, 0.0, -1e-300, np.inf, -np.inf
+    y[320:330] = x[320:330] = -0.0
+    a = _atan2_many(y, x)
+    b = np.arctan2(y, x)
+    assert np.all(np.abs(a - b) <= np.spacing(np.abs(b)))  # ≤ 1 ulp
+    np.testing.assert_array_equal(np.signbit(a), np.signbit(b))
