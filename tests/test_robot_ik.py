@@ -173,7 +173,9 @@ def test_fused_singularity_check_needs_no_stiffness(backend):
 # --- the compiled IK engine (robot.ik_numba) against the numpy engine and py-opw-kinematics ---
 
 PRESETS = ["irb7600-500-2.55", "kr210-r2700-2", "irb4600-60-2.05"]
-BRANCHES = [(s, e, w) for s in ("front", "back") for e in ("up", "down") for w in ("noflip", "flip")]
+BRANCHES = [
+    (s, e, w) for s in ("front", "back") for e in ("up", "down") for w in ("noflip", "flip")
+]
 
 
 def _needs_numba():
