@@ -273,8 +273,10 @@ def _tip_rows(
     written when it has N rows."""
     one_g = gam.shape[0] == 1
     want_t = T_tip.shape[0] > 0
+    sg, cg = sincos(gam[0])  # one γ for the path: once
     for n in range(s, e):
-        sg, cg = sincos(gam[0] if one_g else gam[n])
+        if not one_g:
+            sg, cg = sincos(gam[n])
         # vertical_tool(γ) = [[c, −s, 0], [−s, −c, 0], [0, 0, −1]]
         t0, t1, t2 = tip[n, 0], tip[n, 1], tip[n, 2]
         m00 = A[0, 0] * cg - A[0, 1] * sg
@@ -514,6 +516,7 @@ def _vjm_rows(
                 A[i, 0] * W_work[w, 3] + A[i, 1] * W_work[w, 4] + A[i, 2] * W_work[w, 5]
             )
     no_k = np.empty((0, 6, 6))
+    sg, cg = sincos(gam[0])  # one γ for the path: once
     _vjm_kernel_rows(F, sign, offset, kinv, q, W_base, s, e, d, no_k, no_k, mg, margin_ok)
     for n in range(s, e):
         x0 = d[n, 0] * A[0, 0] + d[n, 1] * A[1, 0] + d[n, 2] * A[2, 0]
@@ -521,7 +524,8 @@ def _vjm_rows(
         x2 = d[n, 0] * A[0, 2] + d[n, 1] * A[1, 2] + d[n, 2] * A[2, 2]
         d_robot[n, 0], d_robot[n, 1], d_robot[n, 2] = x0, x1, x2
         if want_tool:
-            sg, cg = sincos(gam[0] if one_g else gam[n])
+            if not one_g:
+                sg, cg = sincos(gam[n])
             w = 0 if one_w else n
             f0, f1 = W_work[w, 0], W_work[w, 1]
             m0, m1 = W_work[w, 3], W_work[w, 4]
