@@ -199,60 +199,6 @@ def main() -> None:
 
     _ik_section(m, args.repeat)
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    print(f"peak RSS so far {peak_mb:.0f} MB (inputs {2 * q.nbytes / 1e6:.0f} MB)")
-
-    try:
-        import pinocchio as pin
-    except ImportError:
-        print("pinocchio not installed: no peer comparison")
-        return
-    with tempfile.TemporaryDirectory() as td:
-        f = Path(td) / "r.urdf"
-        f.write_text(to_urdf(m))
-        pm = pin.buildModelFromUrdf(str(f))
-    pd = pm.createData()
-    fid = pm.getFrameId("tip")
-    kinv = 1.0 / m.joint_stiffness
-    ns = min(args.pin_subset, n)
-    d_pin = np.empty((ns, 6))
-    t_pin, c_pin, _ = _best(
-        lambda: _pin_loop(pin, pm, pd, fid, q[:ns], W[:ns], kinv, d_pin), args.repeat
-    )
-    rate_pin, cpu_pin = ns / t_pin, ns / c_pin
-    print(
-        f"pinocchio loop: {ns:,} poses in {t_pin:.3f} s = {rate_pin:,.0f} poses/s "
-        f"(timed on a subset; {n:,} poses extrapolated to {n / rate_pin:.1f} s)"
-    )
-    print(f"max |δ_roboisf − δ_pinocchio| = {np.abs(d_ref[:ns] - d_pin).max():.2e} (m, rad)")
-    for engine in engines:
-        print(
-            f"ratio {engine} / pinocchio = {rates[engine] / rate_pin:.1f}× wall-clock, "
-            f"{cpu_rates[engine] / cpu_pin:.1f}× per CPU-second"
-        )
-    if "numba" in rates:
-        ok = rates["numba"] >= 3e6 and rates["numba"] / rate_pin >= 20
-        print(
-            f"targets (2 idle cores): ≥ 3,000,000 poses/s and ≥ 20× pinocchio: "
-            f"{'met' if ok else 'not met in this run'}"
-        )
-
-    from roboisf.parts import Cone
-    from roboisf.toolpath import step_down
-
-    tp = step_down(Cone(), spacing=0.3e-3)
-    tip = tp.tip[:100_000]
-    if len(tip) < 100_000:
-        tip = np.resize(tp.tip, (100_000, 3))
-    ik_toolpath(m, tip[:1000])  # compile / load the margin kernel
-    t_ik, _, r = _best(lambda: ik_toolpath(m, tip), args.repeat)
-    t_no, _, _ = _best(lambda: ik_toolpath(m, tip, singular_threshold=None), args.repeat)
-    print(f"IK without the singularity check: {t_no:.3f} s (the check costs {t_ik - t_no:.3f} s)")
-    print(
-        f"IK along a {len(tip):,}-point toolpath: {t_ik:.3f} s incl. the singularity check "
-        f"by elimination (target ≤ 2 s); {int(r.near_singular.sum())} points flagged; "
-        f"σ_min ≥ {r.sigma_min.min():.3f} (computed on demand)"
-    )
-    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"peak RSS {peak_mb:.0f} MB (target ≤ 2048 MB)")
 
 
