@@ -7,7 +7,8 @@ numba kernel (:mod:`roboisf.robot.vjm_kernel`) and the chunked numpy fallback �
 ``RobotModel.compliance``, side by side with a per-pose pinocchio loop doing the same work (FK,
 frame Jacobian, δ = J K⁻¹ Jᵀ W) IN THE SAME RUN; the loop is timed on a subset and extrapolated
 (said in the printout). Also the kernel's cold compile / cache load, IK along a 100,000-point
-toolpath with the singularity check, and the peak memory.
+toolpath on both IK engines against py-opw-kinematics in the same run (``--ik-only``: just
+that), and the peak memory.
 Targets (issue #16, 2 idle cores): deflection ≥ 3 M poses/s and ≥ 20× the pinocchio loop.
 On a shared machine the wall-clock figures are contended: the CPU-time ratios are printed too.
 """
@@ -48,13 +49,85 @@ def _best(f, repeat):  # type: ignore[no-untyped-def]
     return t_best, c_best, out
 
 
+def _ik_section(m, repeat):  # type: ignore[no-untyped-def]
+    """IK along a 100,000-point cone toolpath: both engines, and py-opw-kinematics (the peer:
+    its batch IK with the closest-to-previous branch choice) on the same flange poses."""
+    from roboisf.frames import invert
+    from roboisf.parts import Cone
+    from roboisf.robot import tool_poses
+    from roboisf.toolpath import step_down
+
+    tp = step_down(Cone(), spacing=0.3e-3)
+    tip = np.resize(tp.tip, (100_000, 3))
+    n = len(tip)
+    print(f"IK along a {n:,}-point toolpath (load {os.getloadavg()[0]:.1f}: contended if > ~0.5)")
+    engines = ["numba", "numpy"] if vjm_kernel.HAVE_NUMBA else ["numpy"]
+    rate: dict[str, float] = {}
+    cpu: dict[str, float] = {}
+    q_ref = None
+    for engine in engines:
+        ik_toolpath(m, tip[:1000], backend=engine)  # compile / load the kernels
+        t_no, c_no, r = _best(
+            lambda e=engine: ik_toolpath(m, tip, singular_threshold=None, backend=e), repeat
+        )
+        t_ik, c_ik, rs = _best(lambda e=engine: ik_toolpath(m, tip, backend=e), repeat)
+        rate[engine], cpu[engine] = n / t_no, n / c_no
+        print(
+            f"IK {engine}: {n / t_no:,.0f} points/s wall, {n / c_no:,.0f} per CPU-second "
+            f"({c_no / n * 1e6:.2f} µs CPU/point); with the singularity check {t_ik:.3f} s "
+            f"wall, {c_ik:.3f} s CPU (target ≤ 2 s); {int(rs.near_singular.sum())} flagged"
+        )
+        if q_ref is None:
+            q_ref = r.q
+        else:
+            print(f"max |q_numba − q_{engine}| = {np.abs(q_ref - r.q).max():.1e} rad")
+    try:
+        from py_opw_kinematics import KinematicModel, Robot
+        from scipy.spatial.transform import RigidTransform
+    except ImportError:
+        print("py-opw-kinematics not installed: no peer ratio")
+        return
+    g = m.opw
+    s = m.chain.sign
+    km = KinematicModel(
+        a1=g.a1,
+        a2=g.a2,
+        b=g.b,
+        c1=g.c1,
+        c2=g.c2,
+        c3=g.c3,
+        c4=g.c4,
+        offsets=tuple(float(x) for x in -m.chain.offset * s),
+        flip_axes=tuple(bool(x < 0) for x in s),
+    )
+    robot = Robot(km, degrees=False)
+    T_fl = tool_poses(tip, m.default_placement) @ invert(m.T_flange_tip)
+    poses = RigidTransform.from_matrix(T_fl)
+    start = tuple(float(x) for x in q_ref[0])  # type: ignore[index]
+    t_p, c_p, q_p = _best(lambda: robot.batch_inverse(poses, current_joints=start), repeat)
+    print(
+        f"py-opw-kinematics batch_inverse: {n / t_p:,.0f} points/s wall, {n / c_p:,.0f} per "
+        f"CPU-second; max |Δq| to roboisf (wrapped) "
+        f"{np.abs(np.angle(np.exp(1j * (q_p - q_ref)))).max():.1e} rad"
+    )
+    for engine in engines:
+        print(
+            f"ratio IK {engine} / py-opw-kinematics = {rate[engine] * t_p / n:.1f}× wall-clock, "
+            f"{cpu[engine] * c_p / n:.1f}× per CPU-second"
+        )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--n", type=int, default=2_000_000)
     ap.add_argument("--pin-subset", type=int, default=50_000)
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--ik-only", action="store_true", help="Run only the IK section.")
     args = ap.parse_args()
     m = load_robot("irb7600-500-2.55").with_tool(make_transform(None, [0.0, 0.0, 0.3]))
+    if args.ik_only:
+        _ik_section(m, args.repeat)
+        return
     rng = np.random.default_rng(0)
     q = rng.uniform(m.q_min, m.q_max, (args.n, 6))
     W = rng.normal(size=(args.n, 6)) * [300, 300, 500, 10, 10, 10]
@@ -124,22 +197,7 @@ def main() -> None:
             f"{'met' if ok else 'not met in this run'}"
         )
 
-    from roboisf.parts import Cone
-    from roboisf.toolpath import step_down
-
-    tp = step_down(Cone(), spacing=0.3e-3)
-    tip = tp.tip[:100_000]
-    if len(tip) < 100_000:
-        tip = np.resize(tp.tip, (100_000, 3))
-    ik_toolpath(m, tip[:1000])  # compile / load the margin kernel
-    t_ik, _, r = _best(lambda: ik_toolpath(m, tip), args.repeat)
-    t_no, _, _ = _best(lambda: ik_toolpath(m, tip, singular_threshold=None), args.repeat)
-    print(f"IK without the singularity check: {t_no:.3f} s (the check costs {t_ik - t_no:.3f} s)")
-    print(
-        f"IK along a {len(tip):,}-point toolpath: {t_ik:.3f} s incl. the singularity check "
-        f"by elimination (target ≤ 2 s); {int(r.near_singular.sum())} points flagged; "
-        f"σ_min ≥ {r.sigma_min.min():.3f} (computed on demand)"
-    )
+    _ik_section(m, args.repeat)
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"peak RSS {peak_mb:.0f} MB (target ≤ 2048 MB)")
 

@@ -28,7 +28,8 @@ from numpy.typing import ArrayLike, NDArray
 from roboisf.errors import UnreachableError
 from roboisf.frames import rot_z
 from roboisf.plan.problem import PlanProblem
-from roboisf.robot import ik_toolpath, rotate_6
+from roboisf.robot import ik_toolpath, rotate_6, vjm_kernel
+from roboisf.robot.ik import raise_beyond_limits, raise_out_of_reach
 from roboisf.robot.singularity import margin_ok, scaled_jacobian, sigma_min
 from roboisf.robot.vjm_kernel import single_blas_thread
 
@@ -114,6 +115,8 @@ def _solve(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) -> _PathEva
     """IK (raises UnreachableError), the singularity-margin test and the tip deflection in work
     axes for a tool rotation γ (scalar or (N,), rad)."""
     model = problem.model
+    if vjm_kernel.use_numba(model.backend) and model.stiffness is not None:
+        return _solve_compiled(problem, T_base_work, gamma)
     # the margin is tested here (exact, per point, no warnings: thread-safe)
     ik = ik_toolpath(model, problem.tip, T_base_work, tool_rotation=gamma, singular_threshold=None)
     R = T_base_work[:3, :3]
@@ -143,6 +146,31 @@ def _solve(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) -> _PathEva
         _joint_steps(ik.q),
         np.sqrt(np.einsum("ij,ij->i", d_total, d_total)),
     )
+
+
+def _solve_compiled(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) -> _PathEval:
+    """:func:`_solve` as one compiled pass per path (:func:`roboisf.robot.ik_numba.path_vjm`):
+    the same numbers (≤ 1e-12 rad, ~1e-15 relative in δ), the same errors."""
+    from roboisf.robot.ik_numba import path_vjm
+
+    model = problem.model
+    g = np.asarray(gamma, dtype=float).reshape(-1)
+    r = path_vjm(
+        model,
+        problem.tip,
+        T_base_work,
+        g,
+        problem.wrench,
+        problem.tool_compliance,
+        (_length_scale(problem), problem.sigma_threshold),
+    )
+    if r.status == 1:
+        raise_out_of_reach(model, r.reachable, ("front", "up", "noflip"))
+    if r.status == 2:
+        raise_beyond_limits(model, r.q)
+    assert r.margin_ok is not None and r.d_total is not None and r.d_robot is not None
+    assert r.steps is not None and r.abs_total is not None
+    return _PathEval(r.q, r.margin_ok, problem, r.d_total, r.d_robot, r.steps, r.abs_total)
 
 
 def _joint_steps(q: F64) -> F64:

@@ -29,6 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError, UnreachableError
 from roboisf.frames import invert, vertical_tool
+from roboisf.robot import vjm_kernel
 from roboisf.robot.model import RobotModel, _short
 from roboisf.robot.singularity import scaled_jacobian
 from roboisf.robot.singularity import sigma_min as _sigma_min
@@ -55,18 +56,44 @@ def opw_ik(
     shoulder: Literal["front", "back"] = "front",
     elbow: Literal["up", "down"] = "up",
     wrist: Literal["noflip", "flip"] = "noflip",
+    backend: str | None = None,
 ) -> tuple[F64, NDArray[np.bool_]]:
     """Closed-form IK of one branch for flange poses (N, 4, 4) → (q (N, 6) rad, reachable (N,)).
 
     ``q`` is in the controller convention, each angle wrapped to (−π, π] (continuity and limits are
     handled by :func:`ik_toolpath`). Unreachable rows are NaN in ``q`` and False in ``reachable``.
+    ``backend`` ("auto", "numba", "numpy"; default the model's :attr:`RobotModel.backend`) picks
+    the engine; both give the same angles (≤ 1e-12 rad) and the same reachability.
     """
     if model.opw is None:
         raise InputError(
             f"robot {model.name!r} has no OPW geometry; closed-form IK needs it", field="robot"
         )
-    g = model.opw
+    _check_branch(shoulder, elbow, wrist)
     T = np.asarray(T_base_flange, dtype=float).reshape(-1, 4, 4)
+    if vjm_kernel.use_numba(model.backend if backend is None else backend):
+        from roboisf.robot.ik_numba import flange_ik
+
+        return flange_ik(model, T, shoulder, elbow, wrist)
+    return _opw_ik_numpy(model, T, shoulder, elbow, wrist)
+
+
+def _check_branch(shoulder: str, elbow: str, wrist: str) -> None:
+    for name, v, allowed in (
+        ("shoulder", shoulder, ("front", "back")),
+        ("elbow", elbow, ("up", "down")),
+        ("wrist", wrist, ("noflip", "flip")),
+    ):
+        if v not in allowed:
+            raise InputError(f"{name} must be one of {allowed}, got {v!r}", field=name)
+
+
+def _opw_ik_numpy(
+    model: RobotModel, T: F64, shoulder: str, elbow: str, wrist: str
+) -> tuple[F64, NDArray[np.bool_]]:
+    """The numpy engine of :func:`opw_ik` (validated flange poses T (N, 4, 4))."""
+    g = model.opw
+    assert g is not None
     R = T[:, :3, :3]
     # wrist centre
     C = T[:, :3, 3] - g.c4 * R[:, :, 2]
@@ -178,6 +205,7 @@ def ik_toolpath(
     wrist: Literal["noflip", "flip"] = "noflip",
     singular_threshold: float | None = 0.02,
     length_scale: float | None = None,
+    backend: str | None = None,
 ) -> IKResult:
     """One continuous joint trajectory for tool-tip points (N, 3) m in the work frame.
 
@@ -187,7 +215,10 @@ def ik_toolpath(
     reach or beyond the joint limits; emits :class:`SingularityWarning` when the smallest singular
     value of the scaled Jacobian drops below ``singular_threshold``. ``singular_threshold=None``
     skips the singularity check (``sigma_min`` NaN, nothing flagged) for callers that check the
-    margin themselves (``roboisf.plan``).
+    margin themselves (``roboisf.plan``). ``backend`` ("auto", "numba", "numpy"; default the
+    model's :attr:`RobotModel.backend`) picks the IK engine: "numba" runs tool poses, the OPW
+    branch, unwrapping and the limit shift in one compiled pass per path; both engines give the
+    same angles (≤ 1e-12 rad), the same unreachable indices and the same limit verdicts.
     """
     tip = getattr(tip_work, "tip", tip_work)
     tip = np.asarray(tip, dtype=float)
@@ -204,27 +235,50 @@ def ik_toolpath(
                 field="placement",
             )
         T_base_work = model.default_placement
-    T_tip = tool_poses(tip, T_base_work, tool_rotation)
-    T_flange = T_tip @ invert(model.T_flange_tip)
-    q, ok = opw_ik(model, T_flange, shoulder=shoulder, elbow=elbow, wrist=wrist)
+    if model.opw is None:
+        raise InputError(
+            f"robot {model.name!r} has no OPW geometry; closed-form IK needs it", field="robot"
+        )
+    _check_branch(shoulder, elbow, wrist)
+    T_bw = np.asarray(T_base_work, dtype=float)
+    gam = np.asarray(tool_rotation, dtype=float)
+    if gam.ndim > 1 or (gam.ndim == 1 and gam.shape[0] not in (1, tip.shape[0])):
+        raise InputError(
+            f"tool_rotation must be a scalar or one angle per point ({tip.shape[0]},), "
+            f"got shape {gam.shape}",
+            field="tool_rotation",
+        )
+    if not np.all(np.isfinite(gam)):
+        raise InputError("tool_rotation contains NaN or inf", field="tool_rotation")
+    compiled = T_bw.shape == (4, 4) and vjm_kernel.use_numba(
+        model.backend if backend is None else backend
+    )
+    if compiled:
+        from roboisf.robot.ik_numba import path_ik
+
+        q, ok, within, T_opt = path_ik(
+            model,
+            tip,
+            T_bw,
+            invert(model.T_flange_tip),
+            gam.reshape(-1),
+            shoulder,
+            elbow,
+            wrist,
+        )
+        assert T_opt is not None
+        T_tip = T_opt
+    else:
+        T_tip = tool_poses(tip, T_bw, gam)
+        T_flange = T_tip @ invert(model.T_flange_tip)
+        q, ok = _opw_ik_numpy(model, T_flange, shoulder, elbow, wrist)
+        within = False  # tested below
     if not np.all(ok):
-        bad = np.flatnonzero(~ok)
-        raise UnreachableError(
-            f"{bad.size} of {len(ok)} toolpath points are out of reach of {model.name} "
-            f"(branch {shoulder}/{elbow}/{wrist}) at indices {_short(bad)}",
-            indices=bad.tolist(),
-        )
-    q = _continuous(model, q)
-    out = (q < model.q_min - 1e-9) | (q > model.q_max + 1e-9)
-    if np.any(out):
-        bad = np.flatnonzero(np.any(out, axis=1))
-        joints = sorted({int(j) + 1 for j in np.nonzero(out)[1]})
-        raise UnreachableError(
-            f"{bad.size} of {len(q)} toolpath points need joint angles beyond the limits of "
-            f"{model.name} (axes {joints}) at indices {_short(bad)}; try another placement, "
-            "tool rotation or branch",
-            indices=bad.tolist(),
-        )
+        raise_out_of_reach(model, ok, (shoulder, elbow, wrist))
+    if not compiled:
+        q = _continuous(model, q)
+    if not within:  # (the compiled pass checked the limits already)
+        raise_beyond_limits(model, q)
     if singular_threshold is None:
         return IKResult(q=q, T_base_tip=T_tip, near_singular=np.zeros(len(q), dtype=bool))
     L = length_scale if length_scale is not None else _length_scale(model)
@@ -238,6 +292,31 @@ def ik_toolpath(
             stacklevel=2,
         )
     return IKResult(q=q, T_base_tip=T_tip, near_singular=near, length_scale=L, model=model)
+
+
+def raise_out_of_reach(model: RobotModel, ok: NDArray[np.bool_], branch: tuple[str, ...]) -> None:
+    """Raise the :class:`UnreachableError` naming the points with ``ok`` False."""
+    bad = np.flatnonzero(~ok)
+    raise UnreachableError(
+        f"{bad.size} of {len(ok)} toolpath points are out of reach of {model.name} "
+        f"(branch {'/'.join(branch)}) at indices {_short(bad)}",
+        indices=bad.tolist(),
+    )
+
+
+def raise_beyond_limits(model: RobotModel, q: F64) -> None:
+    """Raise the :class:`UnreachableError` naming the points of ``q`` (N, 6) rad beyond the
+    joint limits (± 1e-9 rad); return when there are none."""
+    out = (q < model.q_min - 1e-9) | (q > model.q_max + 1e-9)
+    if np.any(out):
+        bad = np.flatnonzero(np.any(out, axis=1))
+        joints = sorted({int(j) + 1 for j in np.nonzero(out)[1]})
+        raise UnreachableError(
+            f"{bad.size} of {len(q)} toolpath points need joint angles beyond the limits of "
+            f"{model.name} (axes {joints}) at indices {_short(bad)}; try another placement, "
+            "tool rotation or branch",
+            indices=bad.tolist(),
+        )
 
 
 def _length_scale(model: RobotModel) -> float:
