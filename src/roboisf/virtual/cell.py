@@ -43,7 +43,6 @@ from roboisf.cell import (
     Cell,
     ForceModel,
     make_cell,
-    require_axisymmetric,
     tip_compliances,
     tip_wrench,
 )
@@ -55,14 +54,14 @@ from roboisf.io.forcelog import ForceLog, write_force_log
 from roboisf.io.jointlog import write_joint_log
 from roboisf.io.thickness import write_thickness_csv
 from roboisf.io.toolpath_csv import write_toolpath_csv
-from roboisf.parts import VWACF, Cone, Part, sine_law_thickness
+from roboisf.parts import VWACF, AxisymmetricPart, Cone, Part, Pyramid, sine_law_thickness
 from roboisf.progress import Progress, task
 from roboisf.robot import ik_toolpath, load_robot
 from roboisf.scan import synthetic_scan, write_ply
 from roboisf.study.sensors import tip_to_sensor
 from roboisf.study.spec import ForceSensorSpec
 from roboisf.toolpath import Toolpath
-from roboisf.virtual.formed import NormalField
+from roboisf.virtual.formed import NormalField, PointField
 from roboisf.virtual.springback import SpringbackModel
 
 __all__ = [
@@ -75,6 +74,7 @@ __all__ = [
     "cell_toolpath",
     "paper_cone_cell",
     "paper_vwacf_cell",
+    "pyramid_cell",
     "simulate",
     "virtual_cell",
 ]
@@ -213,6 +213,18 @@ def paper_vwacf_cell(**overrides: Any) -> VirtualCell:
         "rim_thinning": 0.0,
     }
     return virtual_cell("vwacf", VWACF(), **{**settings, **overrides})
+
+
+#: The built-in pyramid of ``roboisf virtual-cell pyramid``: the common ISF benchmark's size, a
+#: square 100 × 100 mm opening, 60° walls, 40 mm deep, 10 mm corner radius (shrinking with the
+#: wall), 10 mm flange, 1.22 mm AA1050 (the paper's sheet). A choice, not data from the paper.
+PYRAMID = Pyramid(100e-3, 100e-3, math.radians(60.0), 40e-3, corner_radius=10e-3)
+
+
+def pyramid_cell(part: Pyramid = PYRAMID, **overrides: Any) -> VirtualCell:
+    """The paper-like cell (Ø10 ball, IRB 7600 at :data:`PAPER_CELL_PLACEMENT`, Aerens force,
+    the cone's springback model) around a pyramid (default :data:`PYRAMID`)."""
+    return virtual_cell("pyramid", part, **{"T_base_work": PAPER_CELL_PLACEMENT, **overrides})
 
 
 @dataclass(frozen=True)
@@ -363,27 +375,41 @@ def _force_log(
     return ForceLog(t, W_s, "sensor")
 
 
+def registration_for(part: Part) -> str:
+    """The registration the virtual cell's study declares for ``part``: ``fixture`` (z and the
+    tilts from the clamped flange) for an axisymmetric part; ``none`` for any other part kind
+    until the fixture registration works on any part — its scans are then written in the work
+    frame (no misplacement)."""
+    return "fixture" if isinstance(part, AxisymmetricPart) else "none"
+
+
 def _scan(
     cell: VirtualCell, truth: CellTruth, dn: F64, path: Path, rng: np.random.Generator, seed: int
 ) -> None:
-    part = require_axisymmetric(cell.part, "the virtual cell's synthetic scan")
-    field_ = NormalField.from_toolpath(part, truth.toolpath, dn)
-    wall = truth.toolpath.contact[truth.toolpath.depth > 0.02]
+    part = cell.part
+    tp = truth.toolpath
+    wall = tp.contact[tp.depth > min(0.02, 0.5 * float(tp.depth.max()))]
     holes = [
         (wall[i], cell.hole_radius) for i in rng.choice(len(wall), size=cell.n_holes, replace=False)
     ]
     dz, tx, ty = cell.misplacement
+    if registration_for(part) == "none":
+        dz, tx, ty = 0.0, 0.0, 0.0
     T_scan_work = make_transform(rpy_to_matrix([tx, ty, 0.0]), [0.0, 0.0, dz])
-    scan = synthetic_scan(
-        part,
-        cell.scan_points,
-        offset=field_.offset(part),
-        noise=cell.scan_noise,
-        outlier_fraction=cell.outlier_fraction,
-        holes=holes,
-        T_scan_work=T_scan_work,
-        seed=seed,
-    )
+    common: dict[str, Any] = {
+        "noise": cell.scan_noise,
+        "outlier_fraction": cell.outlier_fraction,
+        "holes": holes,
+        "T_scan_work": T_scan_work,
+        "seed": seed,
+    }
+    if isinstance(part, AxisymmetricPart):
+        field_ = NormalField.from_toolpath(part, tp, dn)
+        scan = synthetic_scan(part, cell.scan_points, offset=field_.offset(part), **common)
+    else:
+        scan = synthetic_scan(
+            part, cell.scan_points, offset_at=PointField.from_toolpath(tp, dn), **common
+        )
     write_ply(scan.points, path, unit="mm")
 
 
@@ -458,7 +484,11 @@ def _write_study_toml(
         if c.holder.rigid
         else {"compliance": "holder_compliance.json", "offset": c.holder.offset * 1e3},
         "robot": robot,
-        "analysis": {"rim_band": 20.0, "contour_z": -11.0, "registration": "fixture"},
+        "analysis": {
+            "rim_band": 20.0,
+            "contour_z": -11.0,
+            "registration": registration_for(c.part),
+        },
         "runs": {
             "cnc": {
                 "machine": "cnc",
