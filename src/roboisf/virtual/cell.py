@@ -54,7 +54,15 @@ from roboisf.io.forcelog import ForceLog, write_force_log
 from roboisf.io.jointlog import write_joint_log
 from roboisf.io.thickness import write_thickness_csv
 from roboisf.io.toolpath_csv import write_toolpath_csv
-from roboisf.parts import VWACF, AxisymmetricPart, Cone, Part, Pyramid, sine_law_thickness
+from roboisf.parts import (
+    VWACF,
+    AxisymmetricPart,
+    Cone,
+    MeshPart,
+    Part,
+    Pyramid,
+    sine_law_thickness,
+)
 from roboisf.progress import Progress, task
 from roboisf.robot import ik_toolpath, load_robot
 from roboisf.scan import synthetic_scan, write_ply
@@ -455,6 +463,36 @@ def build_study(
     return out_dir
 
 
+#: The mesh of a mesh part, copied into the study folder (binary PLY, float64, metres).
+PART_MESH = "part_mesh.ply"
+
+
+def _part_table(part: Part, folder: Path) -> dict[str, object]:
+    """The study's ``[part]`` table; a mesh part's mesh is written into the study folder
+    (:data:`PART_MESH`, exact float64 vertices in m, faces as oriented) so the study stands
+    alone whatever file the part came from."""
+    if not isinstance(part, MeshPart):
+        return part.to_dict()
+    V = np.ascontiguousarray(part.vertices, dtype="<f8")
+    F = np.ascontiguousarray(part.faces, dtype="<i4")
+    header = (
+        "ply\nformat binary_little_endian 1.0\ncomment roboisf virtual-cell: the part's mesh, m\n"
+        f"element vertex {len(V)}\nproperty double x\nproperty double y\nproperty double z\n"
+        f"element face {len(F)}\nproperty list uchar int vertex_indices\nend_header\n"
+    )
+    rows = np.empty(len(F), dtype=[("n", "u1"), ("v", "<i4", (3,))])
+    rows["n"], rows["v"] = 3, F
+    with atomic_write(folder / PART_MESH, "wb") as fh:
+        fh.write(header.encode("ascii") + V.tobytes() + rows.tobytes())
+    return {
+        "kind": "mesh",
+        "file": PART_MESH,
+        "unit": "m",
+        "orient": "winding",
+        "sheet_thickness": part.sheet_thickness * 1e3,
+    }
+
+
 def _write_study_toml(
     cell: VirtualCell, truth: CellTruth, cnc: ForceSensorSpec, rob: ForceSensorSpec, path: Path
 ) -> None:
@@ -475,7 +513,7 @@ def _write_study_toml(
             "description": f"virtual cell: {cell.name} (roboisf virtual-cell)",
         },
         "units": {"length": "mm", "angle": "deg", "force": "N", "moment": "N*m", "time": "s"},
-        "part": c.part.to_dict(),
+        "part": _part_table(c.part, path.parent),
         "tool": {
             "ball_diameter": c.tool.ball_diameter * 1e3,
             "compliance": "tool_compliance.json",
