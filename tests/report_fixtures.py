@@ -33,6 +33,30 @@ def _table(vectors: dict[str, np.ndarray]) -> pd.DataFrame:
     )
 
 
+def square_lap(
+    a: np.ndarray, t: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Point at fraction ``t`` ∈ [0, 1) of the perimeter of the square of half-width ``a``,
+    starting at (a, 0), counter-clockwise: ``x, y`` and the side's outward unit direction
+    ``ex, ey`` (arc length ``8·a·t`` from the start)."""
+    u = 8.0 * np.asarray(t, dtype=float)  # arc length in units of a
+    a = np.broadcast_to(np.asarray(a, dtype=float), u.shape)
+    x, y, ex, ey = (np.zeros_like(u) for _ in range(4))
+    sides = [  # (start of the side in units of a, start point, direction of travel, outward)
+        (0.0, (1.0, 0.0), (0.0, 1.0), (1.0, 0.0)),
+        (1.0, (1.0, 1.0), (-1.0, 0.0), (0.0, 1.0)),
+        (3.0, (-1.0, 1.0), (0.0, -1.0), (-1.0, 0.0)),
+        (5.0, (-1.0, -1.0), (1.0, 0.0), (0.0, -1.0)),
+        (7.0, (1.0, -1.0), (0.0, 1.0), (1.0, 0.0)),
+    ]
+    for u0, p0, d, e in sides:
+        m = u >= u0
+        x[m] = a[m] * (p0[0] + d[0] * (u[m] - u0))
+        y[m] = a[m] * (p0[1] + d[1] * (u[m] - u0))
+        ex[m], ey[m] = e
+    return x, y, ex, ey
+
+
 def make_study(
     n_laps: int = 200,
     points_per_lap: int = 150,
@@ -41,7 +65,12 @@ def make_study(
     measured_thickness: bool = True,
     seed: int = 0,
     name: str = "cone-71",
+    shape: str = "cone",
 ) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame, dict[str, Any]]:
+    """``shape="pyramid"``: a square 71° pyramid (43.5 mm top half-width, sharp corners), each lap
+    ``points_per_lap`` points at equal arc length from the middle of the +x side,
+    counter-clockwise; the fields use the wall's outward direction where the cone uses the radial
+    one. The summary then names ``kind = "pyramid"`` and ``part_symmetry = 4``."""
     rng = np.random.default_rng(seed)
     alpha = np.radians(71.0)
     step = 102.97 / max(n_laps, 1) if n_laps < 150 else 0.5
@@ -50,8 +79,13 @@ def make_study(
     phi = 2 * np.pi * k / points_per_lap
     depth = step * (lap + 1) + step * k / points_per_lap  # a touch of spiral within the lap
     r = 43.5 - depth / np.tan(alpha)
-    c, s = np.cos(phi), np.sin(phi)
-    contact = np.column_stack([r * c, r * s, -depth])
+    if shape == "pyramid":
+        x, y, c, s = square_lap(r, k / points_per_lap)
+        contact = np.column_stack([x, y, -depth])
+        phi = np.arctan2(y, x) % (2 * np.pi)
+    else:
+        c, s = np.cos(phi), np.sin(phi)
+        contact = np.column_stack([r * c, r * s, -depth])
     normal = np.column_stack(
         [-np.sin(alpha) * c, -np.sin(alpha) * s, np.full_like(c, np.cos(alpha))]
     )
@@ -200,6 +234,11 @@ def make_study(
         "part": {
             "kind": "cone",
             "dims": {"wall_angle_deg": 71.0, "opening_diameter_mm": 87.0, "depth_mm": 102.97},
+        }
+        if shape != "pyramid"
+        else {
+            "kind": "pyramid",
+            "dims": {"wall_angle_deg": 71.0, "top_length_mm": 87.0, "depth_mm": 102.97},
         },
         "robot": {
             "preset": "abb_irb7600_500_255",
@@ -218,4 +257,6 @@ def make_study(
         "contour_z": -11.0,
         "warnings": ["robot scan: 2 holes (3.1 % of the wall) — deviations there are left out"],
     }
+    if shape == "pyramid":
+        summary["part_symmetry"] = 4
     return per_point, contributions, contributions_normal, summary

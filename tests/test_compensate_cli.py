@@ -38,7 +38,7 @@ def test_virtual_cell_outputs(tmp_path):
         == 0
     )
     names = {p.name for p in out.iterdir()}
-    parts = names - FILES
+    parts = names - FILES - {".roboisf-output.json"}
     assert FILES <= names and parts  # this path is above the module limit: a program set
     assert all(re.fullmatch(r"compensated_\d+\.(mod|ls)", n) for n in parts)
     for n in parts:  # each part module holds at most MAX_MODULE_MOVES forming moves

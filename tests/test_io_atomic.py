@@ -7,6 +7,7 @@ import pytest
 
 from roboisf.errors import InputError
 from roboisf.io.atomic import atomic_write, check_not_input, staged_directory
+from roboisf.io.outdir import MARKER
 
 
 def test_failed_write_leaves_the_old_file(tmp_path):
@@ -38,7 +39,7 @@ def test_staged_directory_replaces_only_on_success(tmp_path):
     with pytest.raises(ValueError), staged_directory(out) as d:
         (d / "b").write_text("2")
         raise ValueError
-    assert sorted(p.name for p in out.iterdir()) == ["a"]
+    assert sorted(p.name for p in out.iterdir()) == [MARKER, "a"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["res"]
 
 

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 from report_fixtures import make_study
-from roboisf.report import FIGURES, write_index, write_report
+from roboisf.report import FIGURES, figure_ids, write_index, write_report
 
 pytestmark = pytest.mark.browser
 
@@ -104,6 +104,13 @@ def report(tmp_path_factory) -> Path:
     return path
 
 
+@pytest.fixture(scope="module")
+def pyramid_report(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("browser_pyramid")
+    study = make_study(n_laps=60, points_per_lap=80, shape="pyramid", name="pyramid-71")
+    return write_report(*study, out / "pyramid", png=False)
+
+
 def _uncaught(stderr: str) -> list[str]:
     return [ln for ln in stderr.splitlines() if "CONSOLE" in ln and "Uncaught" in ln]
 
@@ -141,19 +148,22 @@ def test_harness_sees_errors(tmp_path):
     assert "resource failed: https://example.invalid/logo.png" in joined
 
 
-def test_page_loads_without_errors_and_every_plot_renders(report, tmp_path):
+@pytest.mark.parametrize("part", ["cone", "pyramid"])
+def test_page_loads_without_errors_and_every_plot_renders(part, request, tmp_path):
+    report = request.getfixturevalue("report" if part == "cone" else "pyramid_report")
+    ids = FIGURES if part == "cone" else figure_ids(round_part=False)
     dom, errors, _ = _load(report, tmp_path / "profile")
     assert errors == [], errors
 
-    starts = sorted((dom.index(f'id="fig-{fid}"'), fid) for fid in FIGURES)
-    assert [fid for _, fid in starts] == list(FIGURES)  # page order
+    starts = sorted((dom.index(f'id="fig-{fid}"'), fid) for fid in ids)
+    assert [fid for _, fid in starts] == list(ids)  # page order
     for k, (pos, fid) in enumerate(starts):
         end = starts[k + 1][0] if k + 1 < len(starts) else len(dom)
         chunk = dom[pos:end]
         assert 'class="main-svg"' in chunk, f"{fid}: plotly did not render"
         # data drawn, not just empty axes: line/bar traces, heatmap image or polar traces
         assert re.search(r'class="(trace|hm|scatterlayer|barlayer)', chunk), f"{fid}: no trace"
-    assert dom.count('class="plot-container plotly"') == len(FIGURES)
+    assert dom.count('class="plot-container plotly"') == len(ids)
 
 
 def test_screenshot_is_not_blank(report, tmp_path):

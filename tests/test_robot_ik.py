@@ -97,3 +97,74 @@ def test_singularity_warning():
         r = ik_toolpath(m, np.zeros((1, 3)), T @ Rx)
     assert r.near_singular[0]
     assert any(issubclass(x.category, SingularityWarning) for x in w)
+
+
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+def test_margin_test_by_elimination_agrees_with_eigvalsh(backend):
+    """robot.singularity.margin_ok (the check of ik_toolpath and plan) says σ_min > thr exactly
+    where the eigenvalues do, on real and on random nearly singular Jacobians."""
+    from roboisf.robot import vjm_kernel
+    from roboisf.robot.singularity import margin_ok, scaled_jacobian, sigma_min
+
+    if backend == "numba" and not vjm_kernel.HAVE_NUMBA:
+        pytest.skip("numba not installed")
+    m = load_robot("irb7600-500-2.55").with_tool(TOOL)
+    rng = np.random.default_rng(21)
+    q = rng.uniform(m.q_min, m.q_max, (3000, 6))
+    q[:1000, 4] = rng.normal(0, 0.02, 1000)  # wrist near θ5 = 0
+    J_real = scaled_jacobian(m.jacobian(q), m.opw.c2 + m.opw.c3)
+    R = rng.normal(size=(3000, 6, 6))
+    R[:800, :, 5] = R[:800, :, 4] + 1e-4 * rng.normal(size=(800, 6))
+    for Js in (J_real, R):
+        sig = sigma_min(Js)
+        for thr in (*np.quantile(sig, [0.02, 0.3, 0.5, 0.9]), 0.0):
+            ok = margin_ok(Js, thr, backend=backend)
+            far = np.abs(sig - thr) > 1e-8 * max(1.0, thr)
+            np.testing.assert_array_equal(ok[far], (sig > thr)[far])
+
+
+def test_ik_flags_with_the_elimination_and_gives_sigma_on_demand(cone_path):
+    from roboisf.robot.singularity import margin_ok, sigma_min
+
+    m = load_robot("irb7600-500-2.55").with_tool(TOOL)
+    r = ik_toolpath(m, cone_path)
+    assert r.J_scaled is not None
+    np.testing.assert_array_equal(r.near_singular, ~margin_ok(r.J_scaled, 0.02))
+    J = m.jacobian(r.q)
+    J[:, :3] /= m.opw.c2 + m.opw.c3
+    np.testing.assert_array_equal(r.sigma_min, sigma_min(J))
+    assert "sigma_min" in vars(r)  # computed once, then cached
+    # a threshold between the path's σ values flags exactly the points below it
+    thr = float(np.median(r.sigma_min))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SingularityWarning)
+        r2 = ik_toolpath(m, cone_path, singular_threshold=thr)
+    far = np.abs(r.sigma_min - thr) > 1e-8  # eigvalsh's own accuracy; the path repeats σ
+    np.testing.assert_array_equal(r2.near_singular[far], (r.sigma_min < thr)[far])
+    assert 0.3 < r2.near_singular.mean() < 0.7
+    skip = ik_toolpath(m, cone_path, singular_threshold=None)
+    assert skip.J_scaled is None and np.isnan(skip.sigma_min).all()
+    assert not skip.near_singular.any()
+
+
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+def test_fused_singularity_check_needs_no_stiffness(backend):
+    """The IK check runs in the VJM kernel with unit stiffness: robots without a published
+    stiffness are checked too, with the same answer as the eigenvalues."""
+    from roboisf.robot import vjm_kernel
+    from roboisf.robot.singularity import scaled_jacobian, sigma_min
+
+    if backend == "numba" and not vjm_kernel.HAVE_NUMBA:
+        pytest.skip("numba not installed")
+    m = load_robot("irb4600-60-2.05").with_tool(TOOL)
+    assert m.stiffness is None
+    rng = np.random.default_rng(22)
+    q = rng.uniform(m.q_min, m.q_max, (2000, 6))
+    q[:700, 4] = rng.normal(0, 0.02, 700)
+    L = m.opw.c2 + m.opw.c3
+    sig = sigma_min(scaled_jacobian(m.jacobian(q), L))
+    thr = float(np.quantile(sig, 0.3))
+    ok = m.singularity_margin_ok(q, L, thr, backend=backend)
+    far = np.abs(sig - thr) > 1e-8
+    np.testing.assert_array_equal(ok[far], (sig > thr)[far])
+    assert 0.2 < 1 - ok.mean() < 0.4

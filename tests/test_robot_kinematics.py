@@ -216,3 +216,63 @@ def test_deflection_does_positive_work():
     W = np.random.default_rng(5).normal(size=(200, 6)) * [300, 300, 500, 20, 20, 20]
     work = np.einsum("ni,ni->n", W, m.deflection(q, W))
     assert np.all(work > 0)
+
+
+ENGINES = ["numpy", "numba"]
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("name", ["irb7600-500-2.55", "kr210-r2700-2"])
+def test_deflection_and_compliance_match_pinocchio(tmp_path, name, engine):
+    """δ = J K⁻¹ Jᵀ W and k_c from pinocchio's frame Jacobian, pose by pose, for each engine."""
+    pin = pytest.importorskip("pinocchio")
+    from roboisf.robot import vjm_kernel
+
+    if engine == "numba" and not vjm_kernel.HAVE_NUMBA:
+        pytest.skip("numba not installed")
+    m = load_robot(name).with_tool(TOOL)
+    if m.stiffness is None:
+        m = m.with_stiffness([3.0e6, 4.0e6, 3.5e6, 6.0e5, 7.0e5, 4.5e5])
+    f = tmp_path / "r.urdf"
+    f.write_text(to_urdf(m))
+    pm = pin.buildModelFromUrdf(str(f))
+    pd = pm.createData()
+    fid = pm.getFrameId("tip")
+    q = _q(m, 40, seed=12)
+    W = np.random.default_rng(13).normal(size=(40, 6)) * [300, 300, 500, 10, 10, 10]
+    d = m.deflection(q, W, backend=engine)
+    k = m.compliance(q, backend=engine)
+    kinv = np.diag(1.0 / m.joint_stiffness)
+    for n in range(len(q)):
+        pin.forwardKinematics(pm, pd, q[n])
+        pin.updateFramePlacements(pm, pd)
+        Jp = pin.computeFrameJacobian(pm, pd, q[n], fid, pin.LOCAL_WORLD_ALIGNED)
+        kp = Jp @ kinv @ Jp.T
+        np.testing.assert_allclose(k[n], kp, rtol=1e-11, atol=1e-11 * np.abs(kp).max())
+        dp = kp @ W[n]
+        np.testing.assert_allclose(d[n], dp, rtol=1e-11, atol=1e-11 * np.abs(dp).max())
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_deflection_is_the_fk_displacement_of_the_joint_deflection(engine):
+    """Independent of any Jacobian code: joints yield Δq = K⁻¹ JᵀW, so the tip moves by
+    FK(q + εΔq) − FK(q) ≈ ε δ (central differences of the FK, O(ε²))."""
+    from roboisf.robot import vjm_kernel
+
+    if engine == "numba" and not vjm_kernel.HAVE_NUMBA:
+        pytest.skip("numba not installed")
+    m = load_robot("irb7600-500-2.55").with_tool(TOOL)
+    q = _q(m, 30, seed=14) * 0.9
+    W = np.random.default_rng(15).normal(size=(30, 6)) * [300, 300, 500, 10, 10, 10]
+    d = m.deflection(q, W, backend=engine)
+    J = m.jacobian(q)
+    dq = np.einsum("nji,nj->ni", J, W) / m.joint_stiffness  # joint deflection (rad)
+    eps = 1e-3 / np.abs(dq).max()  # a joint step of ~1 mrad
+    Tp = m.fk(q + eps * dq, check_limits=False)
+    Tm = m.fk(q - eps * dq, check_limits=False)
+    v = (Tp[:, :3, 3] - Tm[:, :3, 3]) / (2 * eps)
+    dR = (Tp[:, :3, :3] - Tm[:, :3, :3]) / (2 * eps)
+    Om = dR @ np.swapaxes(m.fk(q)[:, :3, :3], 1, 2)  # [θ]×
+    w = np.stack([Om[:, 2, 1], Om[:, 0, 2], Om[:, 1, 0]], axis=1)
+    np.testing.assert_allclose(d[:, :3], v, rtol=0, atol=1e-6 * np.abs(d[:, :3]).max())
+    np.testing.assert_allclose(d[:, 3:], w, rtol=0, atol=1e-6 * np.abs(d[:, 3:]).max())

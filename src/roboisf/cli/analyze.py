@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from roboisf.cli.console import state
+from roboisf.cli.outputs import DIR_HELP, Overwrite, output_dir, study_inputs
 from roboisf.errors import InputError
 
 if TYPE_CHECKING:
@@ -28,8 +29,9 @@ def register(app: typer.Typer) -> None:
             Path, typer.Argument(help="Study folder (with study.toml) or the study.toml.")
         ],
         output: Annotated[
-            Path, typer.Option("--output", "-o", help="Results folder (replaced when complete).")
+            Path, typer.Option("--output", "-o", help=f"Results folder. {DIR_HELP}")
         ] = Path("results"),
+        overwrite: Overwrite = False,
         png: Annotated[
             bool, typer.Option("--png/--no-png", help="Also write static PNG figures.")
         ] = True,
@@ -43,6 +45,7 @@ def register(app: typer.Typer) -> None:
         """
         from roboisf.decompose.pipeline import analyze, write_results
 
+        output_dir(output, "analyze", overwrite, study_inputs(study))
         progress = state.progress()
         result = analyze(study, progress=progress)
         write_results(result, output, png=png, progress=progress)
@@ -60,8 +63,9 @@ def register(app: typer.Typer) -> None:
             ),
         ] = None,
         output: Annotated[
-            Path, typer.Option("--output", "-o", help="Study folder to write.")
+            Path, typer.Option("--output", "-o", help=f"Study folder to write. {DIR_HELP}")
         ] = Path("study"),
+        overwrite: Overwrite = False,
         scan_points: Annotated[int, typer.Option(help="Points per scan.")] = 2_000_000,
         force_rate: Annotated[float, typer.Option(help="Force log sample rate [Hz].")] = 1000.0,
         robot: Annotated[
@@ -119,6 +123,7 @@ def register(app: typer.Typer) -> None:
             virtual_cell,
         )
 
+        output_dir(output, "virtual-cell", overwrite)
         makers = {"cone": paper_cone_cell, "vwacf": paper_vwacf_cell, "pyramid": pyramid_cell}
         shape = {
             "top_length": top_length,
@@ -178,10 +183,11 @@ def register(app: typer.Typer) -> None:
 
 def _print_table(df: object, summary: dict) -> None:
     import pandas as pd
+    from rich.markup import escape
     from rich.table import Table
 
     assert isinstance(df, pd.DataFrame)
-    t = Table(title=f"{summary['study']}: contributions (per-axis, mm)")
+    t = Table(title=f"{escape(str(summary['study']))}: contributions (per-axis, mm)")
     for c in ("factor", "|δx|", "|δy|", "|δz|", "R_m", "share %"):
         t.add_column(c, justify="left" if c == "factor" else "right")
     for r in df.itertuples():

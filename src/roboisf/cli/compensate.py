@@ -18,6 +18,7 @@ import numpy as np
 import typer
 
 from roboisf.cli.console import state
+from roboisf.cli.outputs import DIR_HELP, Overwrite, output_dir, study_inputs
 from roboisf.errors import InputError
 
 __all__ = ["register"]
@@ -33,8 +34,9 @@ def register(app: typer.Typer) -> None:
             typer.Argument(help="Study folder (or its study.toml) whose robot part to correct."),
         ] = None,
         output: Annotated[
-            Path, typer.Option("--output", "-o", help="Output folder (replaced when complete).")
+            Path, typer.Option("--output", "-o", help=f"Output folder. {DIR_HELP}")
         ] = Path("compensated"),
+        overwrite: Overwrite = False,
         results: Annotated[
             Path | None,
             typer.Option(help="An `roboisf analyze` results folder of STUDY to reuse."),
@@ -156,6 +158,7 @@ def register(app: typer.Typer) -> None:
             raise InputError(
                 "give either a STUDY folder or --virtual cone|vwacf|pyramid", field="STUDY"
             )
+        output_dir(output, "compensate", overwrite, [*study_inputs(study), results, previous])
         if virtual is not None:
             cell_kw = {"step_down": step_down * 1e-3, "spacing": spacing * 1e-3}
             _virtual(virtual, iterations, cell_kw, opts, output, tool_mass, png, progress)

@@ -7,6 +7,7 @@ import sys
 from collections.abc import Iterator
 
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
 from roboisf.progress import Advance, noop_advance
@@ -19,20 +20,21 @@ class _State:
 
     def __init__(self) -> None:
         self.verbosity = 1
-        self.out = Console(highlight=False)
-        self.err = Console(stderr=True, highlight=False)
+        # messages carry user values (paths, names): never read them as emoji codes or markup
+        self.out = Console(highlight=False, emoji=False)
+        self.err = Console(stderr=True, highlight=False, emoji=False)
 
     def info(self, msg: str) -> None:
         if self.verbosity >= 1:
-            self.out.print(msg)
+            self.out.print(msg, markup=False, soft_wrap=True)
 
     def debug(self, msg: str) -> None:
         if self.verbosity >= 2:
-            self.err.print(f"[dim]{msg}[/dim]")
+            self.err.print(f"[dim]{escape(msg)}[/dim]")
 
     def warn(self, msg: str) -> None:
         if self.verbosity >= 1:
-            self.err.print(f"[yellow]warning:[/yellow] {msg}")
+            self.err.print(f"[yellow]warning:[/yellow] {escape(msg)}", soft_wrap=True)
 
     def progress(self) -> RichProgress | None:
         return RichProgress(self.err) if self.verbosity >= 1 else None
@@ -51,7 +53,7 @@ class RichProgress:
     def task(self, description: str, total: float | None = None) -> Iterator[Advance]:
         if not self.console.is_terminal and not sys.stderr.isatty():
             # keep logs readable when piped: one line per stage
-            self.console.print(f"{description} …")
+            self.console.print(f"{description} …", markup=False)
             yield noop_advance
             return
         cols = [
@@ -61,7 +63,7 @@ class RichProgress:
             TimeRemainingColumn(),
         ]
         with Progress(*cols, console=self.console, transient=True) as bar:
-            tid = bar.add_task(description, total=total)
+            tid = bar.add_task(escape(description), total=total)
 
             def advance(amount: float = 1.0) -> None:
                 bar.advance(tid, amount)

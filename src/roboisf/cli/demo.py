@@ -18,6 +18,7 @@ from typing import Annotated
 import typer
 
 from roboisf.cli.console import state
+from roboisf.cli.outputs import DIR_HELP, Overwrite, output_dir
 from roboisf.cli.toolpath import warn_truncated
 from roboisf.io.atomic import staged_directory
 from roboisf.io.export import FORMAT_SUFFIXES, write_toolpath
@@ -89,8 +90,9 @@ def register(app: typer.Typer) -> None:
     @app.command("demo")
     def _demo(
         output: Annotated[
-            Path, typer.Option("--output", "-o", help="Folder to create (replaced if it exists).")
+            Path, typer.Option("--output", "-o", help=f"Folder to write. {DIR_HELP}")
         ] = Path("roboisf-demo"),
+        overwrite: Overwrite = False,
         scan_points: Annotated[int, typer.Option(help="Points per simulated scan.")] = 1_000_000,
         force_rate: Annotated[float, typer.Option(help="Force-log sample rate [Hz].")] = 1000.0,
     ) -> None:
@@ -98,6 +100,7 @@ def register(app: typer.Typer) -> None:
 
         Opens nothing and needs no input: results land in OUTPUT/index.html.
         """
-        with staged_directory(output) as stage:
+        output_dir(output, "demo", overwrite)
+        with staged_directory(output, "demo") as stage:
             build_demo(stage, state.progress(), scan_points=scan_points, force_rate=force_rate)
         state.info(f"open {output / 'index.html'}")

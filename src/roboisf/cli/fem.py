@@ -12,6 +12,7 @@ import numpy as np
 import typer
 
 from roboisf.cli.console import state
+from roboisf.cli.outputs import FILE_HELP, Overwrite, output_file
 from roboisf.errors import InputError
 from roboisf.fem.geometry import HolderSection
 from roboisf.fem.material import Material
@@ -138,12 +139,14 @@ def register(app: typer.Typer) -> None:
         convergence: bool = _CONVERGENCE,
         solver: str = _SOLVER,
         output: Path = typer.Option(
-            Path("tool_compliance.json"), "-o", "--output", help="JSON file."
+            Path("tool_compliance.json"), "-o", "--output", help=f"JSON file. {FILE_HELP}"
         ),
+        overwrite: Overwrite = False,
     ) -> None:
         """6×6 compliance of a ball-end tool (or a STEP body) about its tip, by six FE loads."""
         from roboisf.fem import BallEndTool, StepGeometry
 
+        output_file(output, "tool-stiffness", overwrite, [step])
         mat = _material(youngs_modulus, poisson)
         how = _method(method, no_fe)
         inputs: list[Path] = []
@@ -198,8 +201,9 @@ def register(app: typer.Typer) -> None:
             None, help="A tool compliance JSON: write tool + holder in series about the tool tip."
         ),
         output: Path = typer.Option(
-            Path("holder_compliance.json"), "-o", "--output", help="JSON file."
+            Path("holder_compliance.json"), "-o", "--output", help=f"JSON file. {FILE_HELP}"
         ),
+        overwrite: Overwrite = False,
     ) -> None:
         """6×6 compliance of a stepped/tapered tool holder about its nose centre (or, with
         --with-tool, of tool + holder in series about the tool tip)."""
@@ -209,6 +213,7 @@ def register(app: typer.Typer) -> None:
             tool_holder_compliance,
         )
 
+        output_file(output, "holder-stiffness", overwrite, [with_tool])
         how = _method(method, no_fe)
         holder = ToolHolder(
             tuple(_parse_section(s) for s in section),

@@ -1,12 +1,15 @@
 """The ``roboisf`` command line.
 
-Every command: ``--help``; ``-o/--output``; exit code 0 on success, 2 on bad input (one line on
-stderr naming the file/field and what was expected), 1 on an internal error. ``-q`` silences
+Every command: ``--help``; ``-o/--output`` (checked and locked before computing, never loses a
+file roboisf did not write: docs/conventions.md, Outputs); exit code 0 on success, 2 on bad input
+(one line on stderr naming the file/field and what was expected), 1 on an internal error, 130/143
+when interrupted by SIGINT/SIGTERM. ``-q`` silences
 progress and info, ``-v`` adds detail. Call :func:`main` with an argv list from tests.
 """
 
 from __future__ import annotations
 
+import contextlib
 import sys
 from collections.abc import Sequence
 
@@ -16,6 +19,7 @@ from rich.markup import escape
 from roboisf import __version__
 from roboisf.cli.console import state
 from roboisf.errors import ConvergenceError, InputError
+from roboisf.io.outdir import Interrupted, deferred_signals, output_session, signal_handlers
 
 app = typer.Typer(
     name="roboisf",
@@ -69,10 +73,32 @@ _register()
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the CLI with ``argv`` (without the program name); return the exit code."""
+    """Run the CLI with ``argv`` (without the program name); return the exit code.
+
+    SIGINT and SIGTERM unwind the stack (outputs in progress are discarded, previous results
+    kept) and give 130 and 143 with one line on stderr saying what happened to the outputs.
+    """
     args = list(sys.argv[1:] if argv is None else argv)
     try:
-        app(args=args, prog_name="roboisf", standalone_mode=False)
+        with signal_handlers(), output_session() as session:
+            try:
+                code = _run(args)
+            except (Interrupted, KeyboardInterrupt, typer.Abort) as e:
+                code = e.exit_code if isinstance(e, Interrupted) else 130
+            if code not in (130, 143):  # typer turns a KeyboardInterrupt into exit code 130
+                return code
+            with contextlib.suppress(Interrupted), deferred_signals():
+                what = "; ".join(c.outcome() for c in session.claims) or "nothing written"
+                how = "terminated (SIGTERM)" if code == 143 else "interrupted (SIGINT)"
+                state.err.print(f"{how}; {what}", markup=False, soft_wrap=True)
+            return code
+    finally:
+        state.verbosity = 1
+
+
+def _run(args: list[str]) -> int:
+    try:
+        rv = app(args=args, prog_name="roboisf", standalone_mode=False)
     except InputError as e:
         state.err.print(f"[red]error:[/red] {escape(str(e))}", soft_wrap=True)
         return 2
@@ -81,8 +107,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 3
     except typer.Exit as e:
         return int(e.exit_code or 0)
-    except typer.Abort:
-        return 130
     except Exception as e:
         # usage errors (unknown option, missing argument): click's ClickException interface —
         # typer ≥ 0.16 vendors its own click, so match the interface, not the class
@@ -91,8 +115,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             show()
             return code
         raise
-    finally:
-        state.verbosity = 1
+    # without standalone mode click returns the code of typer.Exit/ctx.exit instead of raising
+    if isinstance(rv, int) and not isinstance(rv, bool):
+        return rv
     return 0
 
 

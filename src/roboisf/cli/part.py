@@ -21,6 +21,7 @@ from typing import Annotated
 import typer
 
 from roboisf.cli.console import state
+from roboisf.cli.outputs import FILE_HELP, Overwrite, output_file
 from roboisf.errors import InputError
 from roboisf.io.atomic import check_not_input
 from roboisf.parts import (
@@ -38,7 +39,9 @@ from roboisf.parts.axisymmetric import PAPER_SHEET_THICKNESS, VWACF_DEFAULT_ARC_
 
 __all__ = ["register"]
 
-Output = Annotated[Path, typer.Option("--output", "-o", help="Part file to write (.toml).")]
+Output = Annotated[
+    Path, typer.Option("--output", "-o", help=f"Part file to write (.toml). {FILE_HELP}")
+]
 # part dimensions, shared with ``roboisf toolpath`` (mm, deg)
 ConeDiameter = Annotated[float, typer.Option(help="Wall diameter at the sheet \\[mm].")]
 WallAngle = Annotated[float, typer.Option(help="Wall angle, 0 < α < 90 \\[deg].")]
@@ -87,10 +90,11 @@ Tolerance = Annotated[
 part_app = typer.Typer(help="Write a part file (TOML, mm and degrees).", no_args_is_help=True)
 
 
-def _save(make: Callable[[], Part], output: Path, inputs: list[Path]) -> Part:
+def _save(make: Callable[[], Part], output: Path, inputs: list[Path], overwrite: bool) -> Part:
     if output.suffix.lower() != ".toml":
         raise InputError("a part file must end in .toml", file=output)
     check_not_input(output, inputs)
+    output_file(output, "part", overwrite, inputs)
     part = make()
     save_part(part, output)
     state.info(f"wrote {output}: {part.kind}, depth {part.depth * 1e3:.3f} mm")
@@ -105,6 +109,7 @@ def _cone(
     depth: Depth = 102.97,
     sheet_thickness: Sheet = PAPER_SHEET_THICKNESS * 1e3,
     flange_width: Flange = 10.0,
+    overwrite: Overwrite = False,
 ) -> None:
     """Truncated cone (defaults: the paper's Ø87 mm, 71°, 102.97 mm)."""
     _save(
@@ -117,6 +122,7 @@ def _cone(
         ),
         output,
         [],
+        overwrite,
     )
 
 
@@ -128,6 +134,7 @@ def _vwacf(
     final_wall_angle: FinalWallAngle = 90.0,
     sheet_thickness: Sheet = PAPER_SHEET_THICKNESS * 1e3,
     flange_width: Flange = 10.0,
+    overwrite: Overwrite = False,
 ) -> None:
     """Variable-wall-angle frustum (defaults: Ø88.15 mm, 39 mm arc, 0° → 90°)."""
     _save(
@@ -140,6 +147,7 @@ def _vwacf(
         ),
         output,
         [],
+        overwrite,
     )
 
 
@@ -149,6 +157,7 @@ def _profile(
     output: Output,
     sheet_thickness: Sheet = PAPER_SHEET_THICKNESS * 1e3,
     flange_width: Flange = 10.0,
+    overwrite: Overwrite = False,
 ) -> None:
     """Part from a generatrix CSV; the TOML stores the CSV's path relative to itself."""
 
@@ -163,7 +172,7 @@ def _profile(
             flange_width=flange_width * 1e-3,
         )
 
-    _save(make, output, [profile])
+    _save(make, output, [profile], overwrite)
 
 
 @part_app.command("pyramid")
@@ -177,6 +186,7 @@ def _pyramid(
     wall_angle_y: PyrWallAngleY = None,
     sheet_thickness: Sheet = PAPER_SHEET_THICKNESS * 1e3,
     flange_width: Flange = 10.0,
+    overwrite: Overwrite = False,
 ) -> None:
     """Truncated pyramid, square or rectangular, flat bottom (docs/parts.md)."""
     _save(
@@ -192,6 +202,7 @@ def _pyramid(
         ),
         output,
         [],
+        overwrite,
     )
 
 
@@ -203,6 +214,7 @@ def _mesh(
     orient: MeshOrient = "up",
     tolerance: Tolerance = 0.01,
     sheet_thickness: Sheet = PAPER_SHEET_THICKNESS * 1e3,
+    overwrite: Overwrite = False,
 ) -> None:
     """Any part from a mesh or CAD file (work frame: sheet plane z = 0, part below); the TOML
     stores the file's path relative to itself. The surface must be the tool-side surface."""
@@ -218,7 +230,7 @@ def _mesh(
             tolerance=tolerance * 1e-3,
         )
 
-    lo, hi = _save(make, output, [mesh]).bounds
+    lo, hi = _save(make, output, [mesh], overwrite).bounds
     if abs(hi[2]) > 0.1e-3 or lo[2] >= 0:
         state.warn(
             f"the mesh spans z = {lo[2] * 1e3:.3f} … {hi[2] * 1e3:.3f} mm; roboisf expects the "

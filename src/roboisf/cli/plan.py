@@ -11,6 +11,7 @@ import numpy as np
 import typer
 
 from roboisf.cli.console import state
+from roboisf.cli.outputs import DIR_HELP, Overwrite, output_dir, study_inputs
 from roboisf.errors import InputError
 
 __all__ = ["parse_range", "register"]
@@ -61,7 +62,8 @@ def _default_range(center: float, half: float, n: int) -> str:
 
 
 def plan_cmd(
-    output: Path = typer.Option(..., "--output", "-o", help="Output folder."),
+    output: Path = typer.Option(..., "--output", "-o", help=f"Output folder. {DIR_HELP}"),
+    overwrite: Overwrite = False,
     part: Path | None = typer.Option(None, "--part", help="Part TOML (force model forces)."),
     study: Path | None = typer.Option(
         None, "--study", help="Study folder/study.toml: its toolpath, robot-run forces, robot."
@@ -101,7 +103,7 @@ def plan_cmd(
 ) -> None:
     """Rank work-object placements (x, y, z, yaw) and tool rotations by predicted deflection."""
     from roboisf.frames import make_transform, rot_z
-    from roboisf.io.atomic import check_not_input, staged_directory
+    from roboisf.io.atomic import staged_directory
     from roboisf.plan import placement_grid, plan_placements
     from roboisf.report.plan_maps import plot_placement_map, write_plan_html
     from roboisf.report.robot_maps import plot_stiffness_map
@@ -119,7 +121,7 @@ def plan_cmd(
     if not (math.isfinite(sigma_min) and sigma_min >= 0):
         raise InputError(f"must be ≥ 0, got {sigma_min}", field="--sigma-min")
     inputs = [p for p in (part, study, stiffness) if p is not None]
-    check_not_input(output, inputs)
+    output_dir(output, "plan", overwrite, [*inputs, *study_inputs(study)])
     gammas = np.radians(parse_range(tool_rotations, "--tool-rotations"))
     opts: dict[str, Any] = {
         "objective": objective,

@@ -7,8 +7,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import typer
+from rich.markup import escape
 
 from roboisf.cli.console import state
+from roboisf.cli.outputs import FILE_HELP, Overwrite, output_file
 from roboisf.errors import InputError
 
 if TYPE_CHECKING:
@@ -88,6 +90,11 @@ def list_cmd() -> None:
         state.out.print(f"{name:20s}  {k}")
 
 
+def _files(*names: str | None) -> list[Path]:
+    """The robot/tool arguments that name files (inputs the output may not overwrite)."""
+    return [Path(n) for n in names if n is not None and Path(n).is_file()]
+
+
 @robot_app.command("show")
 def show_cmd(
     robot: str = ROBOT_OPT,
@@ -95,15 +102,18 @@ def show_cmd(
     tool: str | None = TOOL_OPT,
     placement: str | None = PLACEMENT_OPT,
     output: Path | None = typer.Option(
-        None, "--output", "-o", help="Stiffness map PNG over the work area."
+        None, "--output", "-o", help=f"Stiffness map PNG over the work area. {FILE_HELP}"
     ),
+    overwrite: Overwrite = False,
     half_width: float = typer.Option(500.0, "--half-width", help="Map half width (mm)."),
 ) -> None:
     """Show a robot's limits and joint stiffness; optionally write a stiffness map PNG."""
+    if output is not None:
+        output_file(output, "robot show", overwrite, [stiffness, *_files(robot, tool)])
     m = _model(robot, stiffness, tool)
-    state.out.print(f"[bold]{m.name}[/bold]")
+    state.out.print(f"[bold]{escape(m.name)}[/bold]")
     if m.source:
-        state.out.print(m.source)
+        state.out.print(m.source, markup=False)
     for i in range(6):
         K = "—" if m.stiffness is None else f"{m.stiffness[i]:.4g} N·m/rad"
         state.out.print(
@@ -124,7 +134,10 @@ def show_cmd(
 @robot_app.command("identify")
 def identify_cmd(
     calib: Path = typer.Argument(..., help="Calibration CSV (see docs/robot.md)."),
-    output: Path = typer.Option(..., "--output", "-o", help="stiffness TOML to write."),
+    output: Path = typer.Option(
+        ..., "--output", "-o", help=f"stiffness TOML to write. {FILE_HELP}"
+    ),
+    overwrite: Overwrite = False,
     robot: str = ROBOT_OPT,
     tool: str | None = TOOL_OPT,
     sigma: float = typer.Option(0.01, "--sigma", help="Measurement std of displacements (mm)."),
@@ -141,6 +154,7 @@ def identify_cmd(
     from roboisf.robot import PoorExcitationWarning, identify_stiffness, read_calibration_csv
 
     check_not_input(output, [calib])
+    output_file(output, "robot identify", overwrite, [calib, *_files(robot, tool)])
     m = _model(robot, None, tool)
     data = read_calibration_csv(calib, m)
     with warnings.catch_warnings(record=True) as caught:
@@ -179,7 +193,10 @@ def deflect_cmd(
     forces: Path = typer.Option(
         ..., "--forces", help="Force log CSV, wrench at the tool tip in frame work, base or tip."
     ),
-    output: Path = typer.Option(..., "--output", "-o", help="Deflection CSV to write."),
+    output: Path = typer.Option(
+        ..., "--output", "-o", help=f"Deflection CSV to write. {FILE_HELP}"
+    ),
+    overwrite: Overwrite = False,
     robot: str = ROBOT_OPT,
     stiffness: Path | None = STIFF_OPT,
     tool: str | None = TOOL_OPT,
@@ -203,6 +220,7 @@ def deflect_cmd(
     if joints is not None:
         inputs.append(joints)
     check_not_input(output, inputs)
+    output_file(output, "robot deflect", overwrite, [*inputs, stiffness, *_files(robot, tool)])
     m = _model(robot, stiffness, tool)
     K = m.joint_stiffness  # fail early, before IK
     del K

@@ -8,6 +8,7 @@ from pathlib import Path
 import typer
 
 from roboisf.cli.console import state
+from roboisf.cli.outputs import FILE_HELP, Overwrite, output_file
 from roboisf.errors import InputError
 
 __all__ = ["register"]
@@ -27,8 +28,9 @@ def compare(
         "--output",
         "-o",
         help="Deviation table: .parquet or .csv. Per toolpath point with --toolpath, else per "
-        "scan point (selected wall points).",
+        f"scan point (selected wall points). {FILE_HELP}",
     ),
+    overwrite: Overwrite = False,
     toolpath: Path | None = typer.Option(
         None, "--toolpath", "-t", help="Toolpath CSV: deviations per contact point."
     ),
@@ -39,7 +41,11 @@ def compare(
         help="Registration: fixture (default, as analyze: z and the two tilts from the flange "
         "of an axisymmetric part) | flange | axisymmetric | icp | none.",
     ),
-    rim_band: float = typer.Option(20.0, help="Rim band excluded below the sheet plane [mm]."),
+    rim_band: float | None = typer.Option(
+        None,
+        help="Rim band excluded below the sheet plane, mm (sheet bending at the clamp). "
+        "Default: min(20, 0.6 × part depth) — the paper's 20 mm, capped on shallow parts.",
+    ),
     unit: str = typer.Option("mm", "--unit", "-u", help="Length unit of the scan file."),
     max_distance: float = typer.Option(
         3.0, help="Points farther from the nominal are not the part [mm]."
@@ -88,6 +94,10 @@ def compare(
 
     for out in outputs:
         check_not_input(out, inputs)
+    if len({p.resolve() for p in outputs}) < len(outputs):
+        raise InputError("the output, summary and --points files must differ", file=output)
+    for out in outputs:
+        output_file(out, "scan compare", overwrite, inputs)
     for out in [output] + ([points_output] if points_output else []):
         if out.suffix.lower() not in (".parquet", ".pq", ".csv"):
             raise InputError("expected a .parquet or .csv table", file=out)
@@ -106,7 +116,7 @@ def compare(
         tp = read_toolpath_csv(toolpath)
     opts = CompareOptions(
         register=register,
-        rim_band=rim_band * 1e-3,
+        rim_band=None if rim_band is None else rim_band * 1e-3,
         max_distance=max_distance * 1e-3,
         outlier_k=outlier_k,
         outlier_std=outlier_std,

@@ -29,6 +29,7 @@ import numpy as np
 import typer
 
 from roboisf.cli.console import state
+from roboisf.cli.outputs import FILE_HELP, Overwrite, output_file
 from roboisf.cli.part import (
     ArcRadius,
     ConeDiameter,
@@ -66,10 +67,12 @@ __all__ = ["PathOptions", "generate", "register", "warn_truncated"]
 
 # -- options shared by every toolpath command (mm, deg, mm/min) ---------------------------------
 Output = Annotated[
-    Path, typer.Option("--output", "-o", help="Output file; its suffix picks the format.")
+    Path,
+    typer.Option("--output", "-o", help=f"Output file; its suffix picks the format. {FILE_HELP}"),
 ]
 OptOutput = Annotated[
-    Path | None, typer.Option("--output", "-o", help="Output file; its suffix picks the format.")
+    Path | None,
+    typer.Option("--output", "-o", help=f"Output file; its suffix picks the format. {FILE_HELP}"),
 ]
 Format = Annotated[
     str | None,
@@ -414,6 +417,17 @@ _SHARED: list[tuple[str, Any, Any]] = [
 ]
 
 
+def _claim_output(kwargs: dict[str, Any], overwrite: bool) -> None:
+    """Check and lock -o (and the .dat of a KRL program) before generating anything."""
+    output = kwargs.get("output")
+    if output is None:
+        return
+    inputs = [kwargs.get("part"), kwargs.get("profile")]
+    output_file(output, "toolpath", overwrite, inputs)
+    if kwargs.get("fmt") == "krl" or output.suffix.lower() == ".src":
+        output_file(output.with_suffix(".dat"), "toolpath", overwrite, inputs)
+
+
 def _with_path_options(fn: Callable[..., None]) -> Callable[..., None]:
     """Give a command the shared toolpath/program options.
 
@@ -431,8 +445,14 @@ def _with_path_options(fn: Callable[..., None]) -> Callable[..., None]:
         inspect.Parameter(n, inspect.Parameter.KEYWORD_ONLY, annotation=a, default=d)
         for n, a, d in _SHARED
     ]
+    shared.append(
+        inspect.Parameter(
+            "overwrite", inspect.Parameter.KEYWORD_ONLY, annotation=Overwrite, default=False
+        )
+    )
 
     def command(**kwargs: Any) -> None:
+        _claim_output(kwargs, kwargs.pop("overwrite"))
         fmt = kwargs.pop("fmt")
         opts = PathOptions(**{n: kwargs.pop(n) for n, _, _ in _SHARED[1:]})
         fn(**kwargs, fmt=fmt, opts=opts)

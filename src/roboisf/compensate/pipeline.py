@@ -454,7 +454,7 @@ def write_compensation(
     summary["gcode"] = (
         "compensated.nc: nominal tip + springback adjustment only (no robot/tool pre-deflection)"
     )
-    with staged_directory(out_dir) as d:
+    with staged_directory(out_dir, "compensate") as d:
         with task(progress, "programs"):
             for name in ("compensated.csv", "compensated.mod", "compensated.src", "compensated.ls"):
                 write_toolpath(

@@ -304,6 +304,7 @@ def _summary(
         "study": study.name,
         "description": study.description,
         "part": cell.part.to_dict(),
+        "part_symmetry": cell.part.symmetry.order,  # the report: polar plot only when 0
         "robot": {
             "model": cell.robot_name,
             "preset": cell.robot_name,
@@ -475,7 +476,7 @@ def write_results(
             "overwrite an input)",
             file=out_dir,
         )
-    with staged_directory(out_dir) as stage:
+    with staged_directory(out_dir, "analyze") as stage:
         with task(progress, "tables"):
             with atomic_path(stage / "per_point.parquet") as tmp:
                 result.per_point.to_parquet(tmp, index=False)

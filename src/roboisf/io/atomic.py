@@ -1,19 +1,20 @@
 """Atomic file output: write to a temporary file in the target folder, then rename.
 
-A crash or an error half-way leaves the old file (or nothing), never a half-written one.
+A crash or an error half-way leaves the old file (or nothing), never a half-written one. The
+policy of where roboisf may write (markers, locks, signals) is :mod:`roboisf.io.outdir`.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
-import shutil
 import tempfile
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import IO
 
 from roboisf.errors import InputError
+from roboisf.io.outdir import deferred_signals, mark_written, staged_output_dir
 
 __all__ = ["atomic_path", "atomic_write", "check_not_input", "staged_directory"]
 
@@ -47,18 +48,22 @@ def atomic_path(path: str | Path, suffix: str | None = None) -> Iterator[Path]:
     path = Path(path)
     if path.parent and not path.parent.exists():
         path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(
-        prefix=f".{path.name}.", suffix=suffix or path.suffix or ".tmp", dir=path.parent
-    )
-    os.close(fd)
-    tmp_path = Path(tmp)
+    tmp_path: Path | None = None
     try:
+        with deferred_signals():  # a signal right after mkstemp still finds `tmp_path` set
+            fd, tmp = tempfile.mkstemp(
+                prefix=f".{path.name}.", suffix=suffix or path.suffix or ".tmp", dir=path.parent
+            )
+            os.close(fd)
+            tmp_path = Path(tmp)
         yield tmp_path
         os.chmod(tmp_path, _default_mode(0o666))
         os.replace(tmp_path, path)
+        mark_written(path)
     except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            tmp_path.unlink()
+        if tmp_path is not None:
+            with contextlib.suppress(FileNotFoundError):
+                tmp_path.unlink()
         raise
 
 
@@ -73,26 +78,16 @@ def atomic_write(path: str | Path, mode: str = "w", encoding: str | None = "utf-
 
 
 @contextlib.contextmanager
-def staged_directory(path: str | Path) -> Iterator[Path]:
+def staged_directory(
+    path: str | Path, command: str | None = None, *, overwrite: bool = False
+) -> Iterator[Path]:
     """Build a whole output folder in a sibling staging folder, then move it into place.
 
-    If ``path`` exists it is replaced only when the new folder is complete; on error the staging
-    folder is removed and ``path`` is left as it was.
+    The output policy of :mod:`roboisf.io.outdir`: ``path`` must be new, empty or a previous
+    result of ``command`` (its marker) unless ``overwrite``; only files roboisf wrote there are
+    replaced, a user's files are kept. On an error or interruption the staging folder is removed
+    and ``path`` is left as it was. Inside a command that claimed ``path``
+    (:func:`roboisf.io.outdir.claim_output_dir`) that claim's command and ``overwrite`` apply.
     """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=f".{path.name}.staging.", dir=path.parent))
-    try:
+    with staged_output_dir(path, command, overwrite=overwrite) as stage:
         yield stage
-        os.chmod(stage, _default_mode(0o777))
-        if path.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{path.name}.old.", dir=path.parent))
-            old.rmdir()
-            os.replace(path, old)
-            os.replace(stage, path)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(stage, path)
-    except BaseException:
-        shutil.rmtree(stage, ignore_errors=True)
-        raise

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -28,6 +29,8 @@ from roboisf.errors import UnreachableError
 from roboisf.frames import rot_z
 from roboisf.plan.problem import PlanProblem
 from roboisf.robot import ik_toolpath, rotate_6
+from roboisf.robot.singularity import margin_ok, scaled_jacobian, sigma_min
+from roboisf.robot.vjm_kernel import single_blas_thread
 
 __all__ = [
     "PlacementScore",
@@ -87,11 +90,18 @@ class PlacementScore:
 class _PathEval:
     q: F64
     margin_ok: NDArray[np.bool_]  # (N,) σ_min ≥ threshold (exact test)
-    J_scaled: F64  # (N, 6, 6) Jacobian, linear rows divided by the length scale
+    problem: PlanProblem
     d_total: F64  # (N, 3) work axes
     d_robot: F64
     steps: F64  # (N,) largest joint change from the previous point
     abs_total: F64  # (N,) |d_total|
+
+    @cached_property
+    def J_scaled(self) -> F64:
+        """(N, 6, 6) Jacobian, linear rows divided by the length scale (on demand: the margin
+        test runs inside the VJM kernel)."""
+        J = self.problem.model.jacobian(self.q, check_limits=False)
+        return scaled_jacobian(J, _length_scale(self.problem))
 
 
 def _length_scale(problem: PlanProblem) -> float:
@@ -100,60 +110,19 @@ def _length_scale(problem: PlanProblem) -> float:
     return g.c2 + g.c3  # as roboisf.robot.ik_toolpath
 
 
-def margin_ok(J_scaled: ArrayLike, threshold: float) -> NDArray[np.bool_]:
-    """Exact test ``σ_min(J_s) > threshold`` per pose for scaled Jacobians (N, 6, 6).
-
-    ``σ_min² = λ_min(J_sᵀ J_s)``, so the test is "``J_sᵀ J_s − threshold² I`` is positive
-    definite": all pivots of its LDLᵀ elimination are > 0. Vectorised over N in component-major
-    arrays (no per-pose LAPACK call): ≈ 5× cheaper than the batched ``eigvalsh`` that gives the
-    value itself (which is computed for the shortlisted candidates only).
-    """
-    Js = np.asarray(J_scaled, dtype=float)
-    Jt = np.ascontiguousarray(Js.transpose(1, 2, 0))  # (6 rows, 6 cols, N)
-    n = Js.shape[0]
-    M = np.empty((6, 6, n))
-    for i in range(6):
-        for j in range(i, 6):
-            v = np.einsum("kn,kn->n", Jt[:, i], Jt[:, j])
-            M[i, j] = v
-            M[j, i] = v
-    c = float(threshold) ** 2
-    for i in range(6):
-        M[i, i] -= c
-    ok = np.ones(n, dtype=bool)
-    for k in range(6):
-        piv = M[k, k]
-        ok &= piv > 0.0
-        if k == 5:
-            break
-        inv = 1.0 / np.where(piv > 0.0, piv, 1.0)
-        lk = M[k + 1 :, k] * inv  # (m, N)
-        M[k + 1 :, k + 1 :] -= lk[:, None, :] * M[k, k + 1 :][None, :, :]
-    return ok
-
-
-def sigma_min(J_scaled: ArrayLike) -> F64:
-    """Smallest singular value (N,) of scaled Jacobians (N, 6, 6), as ``ik_toolpath``."""
-    Js = np.asarray(J_scaled, dtype=float)
-    lam = np.linalg.eigvalsh(np.swapaxes(Js, 1, 2) @ Js)[:, 0]
-    return np.sqrt(np.clip(lam, 0.0, None))
-
-
 def _solve(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) -> _PathEval:
     """IK (raises UnreachableError), the singularity-margin test and the tip deflection in work
     axes for a tool rotation γ (scalar or (N,), rad)."""
     model = problem.model
     # the margin is tested here (exact, per point, no warnings: thread-safe)
     ik = ik_toolpath(model, problem.tip, T_base_work, tool_rotation=gamma, singular_threshold=None)
-    J = model.jacobian(ik.q, check_limits=False)  # (N, 6, 6) base axes, at the tip
     R = T_base_work[:3, :3]
     W_b = rotate_6(problem.wrench, R)
-    # VJM: δ = J K⁻¹ Jᵀ W (translation rows only), as RobotModel.deflection
-    tau = np.einsum("nji,nj->ni", J, W_b) / model.joint_stiffness
-    d_robot = np.einsum("nij,nj->ni", J[:, :3], tau) @ R  # rows Rᵀ δ: base → work axes
-    Js = J.copy()
-    Js[:, :3] /= _length_scale(problem)
-    ok = margin_ok(Js, problem.sigma_threshold)
+    # VJM δ = J K⁻¹ Jᵀ W and the singularity-margin test in one pass (RobotModel.vjm)
+    r = model.vjm(ik.q, W_b, margin=(_length_scale(problem), problem.sigma_threshold))
+    ok = r.margin_ok
+    assert ok is not None
+    d_robot = r.d[:, :3] @ R  # rows Rᵀ δ: base → work axes
     d_total = d_robot
     if problem.tool_compliance is not None:
         # tool axes → work: z stays, x_tool = (cos γ, −sin γ, 0), i.e. R_work_tool = Rz(−γ)
@@ -168,7 +137,7 @@ def _solve(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) -> _PathEva
     return _PathEval(
         ik.q,
         ok,
-        Js,
+        problem,
         d_total,
         d_robot,
         _joint_steps(ik.q),
@@ -280,7 +249,8 @@ def _check(problem: PlanProblem, ev: _PathEval) -> str:
     """'' when the path passes the singularity and continuity checks, else the reason."""
     if not np.all(ev.margin_ok):
         i = int(np.argmin(ev.margin_ok))
-        smin = float(sigma_min(ev.J_scaled[i : i + 1])[0])
+        J_i = problem.model.jacobian(ev.q[i : i + 1], check_limits=False)
+        smin = float(sigma_min(scaled_jacobian(J_i, _length_scale(problem)))[0])
         return f"near a singularity: σ_min = {smin:.4f} < {problem.sigma_threshold:g} at point {i}"
     steps = ev.steps
     if steps.max() > problem.max_joint_step:
@@ -383,7 +353,8 @@ def evaluate_batch(
 ) -> list[PlacementScore]:
     """:func:`evaluate_placement` for placements (B, 4, 4) — one Dask task's worth of work."""
     Ts = np.asarray(T_base_work, dtype=float).reshape(-1, 4, 4)
-    return [evaluate_placement(problem, T, tool_rotations) for T in Ts]
+    with single_blas_thread():  # the placements are the parallel work: idle BLAS threads spin
+        return [evaluate_placement(problem, T, tool_rotations) for T in Ts]
 
 
 def path_sigma_min(problem: PlanProblem, T_base_work: ArrayLike, gamma_lap: ArrayLike) -> float:
@@ -393,6 +364,5 @@ def path_sigma_min(problem: PlanProblem, T_base_work: ArrayLike, gamma_lap: Arra
     g = np.asarray(gamma_lap, dtype=float)
     gp = float(g[0]) if np.all(g == g[0]) else _realise(problem, g)
     ik = ik_toolpath(problem.model, problem.tip, T, tool_rotation=gp, singular_threshold=None)
-    Js = problem.model.jacobian(ik.q, check_limits=False)
-    Js[:, :3] /= _length_scale(problem)
+    Js = scaled_jacobian(problem.model.jacobian(ik.q, check_limits=False), _length_scale(problem))
     return float(sigma_min(Js).min())

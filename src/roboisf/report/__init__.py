@@ -4,7 +4,13 @@ Plotting lives only here; the rest of roboisf never imports plotly or matplotlib
 data contract of :mod:`roboisf.report.schema` (mm, deg, N, N·m, s).
 """
 
-from roboisf.report.document import FIGURES, read_headline, write_index, write_report
+from roboisf.report.document import (
+    FIGURES,
+    figure_ids,
+    read_headline,
+    write_index,
+    write_report,
+)
 from roboisf.report.schema import (
     CONTRIBUTION_COLUMNS,
     CONTRIBUTION_ROWS,
@@ -22,6 +28,7 @@ __all__ = [
     "OPTIONAL_COLUMNS",
     "REQUIRED_COLUMNS",
     "RUN_COLORS",
+    "figure_ids",
     "read_headline",
     "write_index",
     "write_report",

@@ -1,6 +1,7 @@
-"""Reductions of the per-point table that the figures draw: lap profiles, the unrolled map, the
-contour nearest a height, and the headline numbers. Pure pandas/numpy — no plotting here, so both
-renderers (plotly for HTML, matplotlib for PNG) draw the very same numbers.
+"""Reductions of the per-point table that the figures draw: lap profiles, the unrolled map (by
+position along each lap, any part), the top view, the contour nearest a height, and the headline
+numbers. Pure pandas/numpy — no plotting here, so both renderers (plotly for HTML, matplotlib for
+PNG) draw the very same numbers.
 """
 
 from __future__ import annotations
@@ -11,18 +12,39 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from roboisf.scan.summary import lap_arc_length
+
 __all__ = [
     "Contour",
+    "ContourPath",
     "Headline",
+    "LapMap",
+    "TopView",
+    "arc_length",
     "contour",
+    "contour_along",
     "contour_lap",
     "decimate",
     "force_profile",
     "headline",
+    "is_round",
+    "lap_map",
     "lap_profile",
     "masked",
+    "top_view",
     "unrolled_map",
 ]
+
+#: Part kinds that are surfaces of revolution (continuous symmetry about z).
+ROUND_KINDS = frozenset({"cone", "vwacf", "profile"})
+#: A part whose every lap keeps its radius (less its linear trend with z: a spiral descends
+#: within a lap) within this fraction of the lap's mean radius is drawn as round when the summary
+#: does not say. A square's radius varies by 41 %, an ellipse's by its axis ratio.
+ROUND_TOLERANCE = 0.02
+#: Most cells across the unrolled map (keeps the embedded figure data small).
+MAX_MAP_BINS = 360
+#: Most points per part drawn in the top view.
+MAX_TOP_POINTS = 12_000
 
 #: Percentiles of the spread band drawn around a lap mean.
 BAND = (5.0, 95.0)
@@ -86,7 +108,10 @@ def decimate(n: int, max_points: int) -> np.ndarray:
 def unrolled_map(
     per_point: pd.DataFrame, column: str, n_angle_bins: int = 120
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The part unrolled: mean of ``column`` per (lap, angle bin).
+    """The part unrolled by polar angle: mean of ``column`` per (lap, angle bin).
+
+    Meaningful on round parts only, and a fixed angle grid leaves empty bins on sparse laps; the
+    report draws :func:`lap_map` (position along each lap, any part) instead.
 
     Returns
     -------
@@ -223,4 +248,210 @@ def headline(contributions: pd.DataFrame, contributions_normal: pd.DataFrame) ->
         robot_share_percent_normal=float(
             contributions_normal.loc["robot_compliance", "share_percent"]
         ),
+    )
+
+
+def arc_length(per_point: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+    """Position of each point along its lap and the lap's length (mm).
+
+    :func:`roboisf.scan.summary.lap_arc_length` of the contact points: ``s = 0`` at the lap's
+    point nearest the +x axis, growing in toolpath order, wrapping at the lap's closed length
+    (on a round part ``s = r·φ``). ``per_point`` must be in toolpath order (as
+    :func:`~roboisf.report.schema.check_per_point` returns it).
+
+    Returns
+    -------
+    s, length : (N,) float, mm
+    """
+    contact = per_point[["contact_x", "contact_y", "contact_z"]].to_numpy(dtype=float)
+    return lap_arc_length(contact, per_point["lap"].to_numpy())
+
+
+def is_round(per_point: pd.DataFrame, symmetry: int | None = None, kind: str | None = None) -> bool:
+    """Whether the part is a surface of revolution, i.e. gets the polar contour plot.
+
+    ``symmetry`` (the order of :class:`roboisf.parts.Symmetry`: 0 continuous) decides when given;
+    else a ``kind`` of cone, VWACF or profile is round; else the data decides: round when every
+    lap of at least 8 points keeps its contact radius, less its linear trend in z, within
+    :data:`ROUND_TOLERANCE` of its mean.
+    """
+    if symmetry is not None:
+        return symmetry == 0
+    if kind is not None and kind in ROUND_KINDS:
+        return True
+    r = np.hypot(per_point["contact_x"].to_numpy(float), per_point["contact_y"].to_numpy(float))
+    z = per_point["contact_z"].to_numpy(float)
+    laps, lap_idx = np.unique(per_point["lap"].to_numpy(), return_inverse=True)
+    order = np.argsort(lap_idx, kind="stable")
+    bounds = np.concatenate([[0], np.cumsum(np.bincount(lap_idx))])
+    for k in range(len(laps)):
+        idx = order[bounds[k] : bounds[k + 1]]
+        if idx.size < 8 or r[idx].mean() <= 0:
+            continue
+        # a spiral lap descends as it goes round: take out the radius' linear trend in z
+        A = np.column_stack([np.ones(idx.size), z[idx] - z[idx].mean()])
+        coef, *_ = np.linalg.lstsq(A, r[idx], rcond=None)
+        resid = r[idx] - A @ coef
+        if np.ptp(resid) > ROUND_TOLERANCE * r[idx].mean():
+            return False
+    return True
+
+
+@dataclass(frozen=True)
+class LapMap:
+    """A column unrolled by lap and position along the lap.
+
+    Attributes
+    ----------
+    position : (B,) float
+        Cell centres as a fraction of the lap's length, in [0, 1), from the lap's point nearest
+        the +x axis, in toolpath order (on a round part: φ/2π).
+    depth : (L,) float, mm
+        Mean depth of each lap, ascending lap order.
+    length : (L,) float, mm
+        Closed length of each lap (cell ``b`` of lap ``l`` is ``position[b]·length[l]`` mm along
+        it).
+    values : (L, B) float
+        Mean of the lap's points in the cell; a cell no point falls in takes the value of the
+        lap's nearest point (so a lap sparser than the grid leaves no empty cells); NaN where
+        that is a scan hole.
+    """
+
+    position: np.ndarray
+    depth: np.ndarray
+    length: np.ndarray
+    values: np.ndarray
+
+
+def lap_map(per_point: pd.DataFrame, column: str, n_bins: int | None = None) -> LapMap:
+    """``column`` unrolled by lap × position along the lap — the deviation map of any part.
+
+    The cell count follows the data: by default the median number of points per lap (at most
+    :data:`MAX_MAP_BINS`), so a typical lap has about one point per cell and the dense laps are
+    averaged; the sparse ones (short laps at the bottom) fill their cells from the nearest point,
+    never leaving the empty-bin stripes (moiré) of a fixed grid.
+    """
+    values = masked(per_point, column)
+    s, length = arc_length(per_point)
+    laps, lap_idx = np.unique(per_point["lap"].to_numpy(), return_inverse=True)
+    counts = np.bincount(lap_idx)
+    if n_bins is None:
+        n_bins = int(min(MAX_MAP_BINS, max(4, np.median(counts))))
+    B = n_bins
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u = np.where(length > 0, s / np.where(length > 0, length, 1.0), 0.0)
+    # cells are [lo, hi): a point on an edge (u·B integral up to the rounding of the chord sums)
+    # belongs to the cell above it
+    cell = np.minimum((u * B + 1e-9).astype(np.intp), B - 1)
+    flat = lap_idx * B + cell
+    size = len(laps) * B
+    ok = np.isfinite(values)
+    total = np.bincount(flat[ok], weights=values[ok], minlength=size)
+    n_ok = np.bincount(flat[ok], minlength=size)
+    n_any = np.bincount(flat, minlength=size)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        grid = np.where(n_ok > 0, total / np.maximum(n_ok, 1), np.nan)
+    grid = grid.reshape(len(laps), B)
+    empty = (n_any == 0).reshape(len(laps), B)
+    centres = (np.arange(B) + 0.5) / B
+    order = np.lexsort((u, lap_idx))
+    bounds = np.concatenate([[0], np.cumsum(counts)])
+    for k in np.flatnonzero(empty.any(axis=1)):
+        idx = order[bounds[k] : bounds[k + 1]]
+        uk, vk = u[idx], values[idx]
+        cells = np.flatnonzero(empty[k])
+        c = centres[cells]
+        j = np.searchsorted(uk, c)
+        lo, hi = (j - 1) % len(uk), j % len(uk)
+        d_lo = np.mod(c - uk[lo], 1.0)
+        d_hi = np.mod(uk[hi] - c, 1.0)
+        grid[k, cells] = np.where(d_lo <= d_hi, vk[lo], vk[hi])
+    depth = np.bincount(lap_idx, weights=per_point["depth"].to_numpy(dtype=float)) / counts
+    lap_len = np.zeros(len(laps))
+    lap_len[lap_idx] = length
+    return LapMap(centres, depth, lap_len, grid)
+
+
+@dataclass(frozen=True)
+class TopView:
+    """Points of the part seen from +z, coloured by a column: ``x``, ``y`` (M,) mm, ``values``
+    (M,) — every scan hole left out, at most ``max_points`` (a seeded random subset, in toolpath
+    order)."""
+
+    x: np.ndarray
+    y: np.ndarray
+    values: np.ndarray
+
+
+def top_view(per_point: pd.DataFrame, column: str, max_points: int = MAX_TOP_POINTS) -> TopView:
+    """The top view (x, y) of ``column`` — the points themselves, no binning.
+
+    Beyond ``max_points`` valid points a random subset is drawn (seed 0: the same figure every
+    time). An even stride along the path would alias with the laps' own point pattern — laps
+    with points at the same angles show spokes, and the stride's phase jumping at a hole shows
+    rings that are not in the data.
+    """
+    values = masked(per_point, column)
+    keep = np.flatnonzero(np.isfinite(values))
+    if keep.size > max_points:
+        rng = np.random.default_rng(0)
+        keep = np.sort(rng.choice(keep, size=max_points, replace=False))
+    return TopView(
+        per_point["contact_x"].to_numpy(dtype=float)[keep],
+        per_point["contact_y"].to_numpy(dtype=float)[keep],
+        values[keep],
+    )
+
+
+@dataclass(frozen=True)
+class ContourPath:
+    """Robot deflection magnitudes along one lap, in toolpath order from the lap's point nearest
+    the +x axis, closed (last = first, at ``s = length``).
+
+    ``s`` (M+1,) mm along the lap; ``x``, ``y`` (M+1,) mm, the lap's outline; ``experiment``,
+    ``vjm``, ``delta`` (M+1,) mm: resultant |δc_exp|, |δc_VJM|, |Δ| (NaN at scan holes for
+    experiment and Δ).
+    """
+
+    lap: int
+    z: float
+    note: str | None
+    length: float
+    s: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    experiment: np.ndarray
+    vjm: np.ndarray
+    delta: np.ndarray
+
+
+def contour_along(per_point: pd.DataFrame, contour_z: float) -> ContourPath:
+    """Resultant robot deflections along the lap chosen by :func:`contour_lap`, by arc length —
+    the contour plot of a part that is not round."""
+    lap, z, note = contour_lap(per_point, contour_z)
+    s_all, length = arc_length(per_point)
+    sel = np.flatnonzero(per_point["lap"].to_numpy() == lap)
+    order = sel[np.argsort(s_all[sel], kind="stable")]
+    L = float(length[order[0]])
+
+    def closed(values: np.ndarray) -> np.ndarray:
+        v = values[order]
+        return np.append(v, v[:1])
+
+    def resultant(prefix: str) -> np.ndarray:
+        comps = np.stack([masked(per_point, f"{prefix}_{a}") for a in ("dx", "dy", "dz")])
+        return closed(np.sqrt(np.sum(comps**2, axis=0)))
+
+    s = np.append(s_all[order], L)
+    return ContourPath(
+        lap,
+        z,
+        note,
+        L,
+        s,
+        closed(per_point["contact_x"].to_numpy(dtype=float)),
+        closed(per_point["contact_y"].to_numpy(dtype=float)),
+        resultant("robot_compliance"),
+        resultant("vjm"),
+        resultant("delta"),
     )

@@ -25,20 +25,31 @@ from roboisf.report import static as st
 from roboisf.report.schema import FACTORS, check_contributions, check_per_point, check_summary
 from roboisf.report.style import FACTOR_LABELS
 
-__all__ = ["FIGURES", "read_headline", "write_index", "write_report"]
+__all__ = ["FIGURES", "figure_ids", "read_headline", "write_index", "write_report"]
 
-#: Plot ids of the report, in page order; each is ``<div id="fig-<id>">`` in the HTML and
-#: ``figures/<id>.png``.
+#: Plot ids of the report of a round part, in page order; each is ``<div id="fig-<id>">`` in
+#: the HTML and ``figures/<id>.png``. A part that is not round has ``vjm_contour`` (the contour
+#: by arc length) in place of ``vjm_polar`` (:func:`figure_ids`).
 FIGURES: tuple[str, ...] = (
     "contributions",
     "forces",
     "deviation_depth",
     "deviation_map",
+    "deviation_top",
     "factors_depth",
     "vjm_path",
     "vjm_polar",
     "thickness",
 )
+
+
+def figure_ids(round_part: bool = True) -> tuple[str, ...]:
+    """The report's plot ids in page order: :data:`FIGURES`, with ``vjm_contour`` in place of
+    ``vjm_polar`` when the part is not round (see :func:`roboisf.report.aggregate.is_round`)."""
+    if round_part:
+        return FIGURES
+    return tuple("vjm_contour" if f == "vjm_polar" else f for f in FIGURES)
+
 
 _PLOTLY_CONFIG = {
     "displaylogo": False,
@@ -58,11 +69,19 @@ class _Figure:
 
 
 def _figures(
-    pp: pd.DataFrame, contrib: pd.DataFrame, contrib_n: pd.DataFrame, contour_z: float
+    pp: pd.DataFrame,
+    contrib: pd.DataFrame,
+    contrib_n: pd.DataFrame,
+    contour_z: float,
+    round_part: bool,
 ) -> dict[str, _Figure]:
     has_truth = any(f"truth_{f}_dn" in pp.columns for f in FACTORS)
     has_meas = "thickness_measured" in pp.columns
-    polar_fig, polar_caption = ia.vjm_polar_figure(pp, contour_z)
+    if round_part:
+        contour_fig, contour_caption = ia.vjm_polar_figure(pp, contour_z)
+    else:
+        contour_fig, contour_caption = ia.vjm_contour_figure(pp, contour_z)
+    n_cells = agg.lap_map(pp, "robot_dn").position.size
     band = "Lines are lap means, bands span the 5th–95th percentile of each lap."
     specs = [
         _Figure(
@@ -93,11 +112,24 @@ def _figures(
         _Figure(
             "deviation_map",
             "Deviation map (part unrolled)",
-            "Normal deviation δn binned by angle around the part (3° bins) and lap; both "
-            "maps share "
-            "one colour scale; blank cells are scan holes.",
+            "Normal deviation δn, one row per lap (at its mean depth), against the position "
+            "along the lap as a fraction of its length, from its point nearest the +x axis in "
+            "toolpath order (on a round part: the angle φ/360°; the hover gives the arc length "
+            f"in mm). {n_cells} cells per lap (the median number of points per lap): dense laps "
+            "are averaged, a cell no point falls in takes its lap's nearest point; blank cells "
+            "are scan holes. Both maps share one colour scale.",
             lambda: ia.deviation_map_figure(pp),
             lambda: st.deviation_map_png(pp),
+        ),
+        _Figure(
+            "deviation_top",
+            "Deviation map (top view)",
+            "The same δn at the toolpath points seen from above (x, y in the work frame), at "
+            f"most {agg.MAX_TOP_POINTS} points per part (a fixed random subset: an even stride "
+            "would alias with the laps into spokes and rings); "
+            "gaps are scan holes. Same colour scale rule as the unrolled map.",
+            lambda: ia.deviation_top_figure(pp),
+            lambda: st.deviation_top_png(pp),
         ),
         _Figure(
             "factors_depth",
@@ -119,9 +151,19 @@ def _figures(
         _Figure(
             "vjm_polar",
             "Robot compliance around one contour",
-            polar_caption + " Resultant magnitudes; angle measured from the work x axis.",
-            lambda: polar_fig,
+            contour_caption + " Resultant magnitudes; angle measured from the work x axis.",
+            lambda: contour_fig,
             lambda: st.vjm_polar_png(pp, contour_z),
+        )
+        if round_part
+        else _Figure(
+            "vjm_contour",
+            "Robot compliance along one contour",
+            contour_caption + " Resultant magnitudes against the arc length along the lap "
+            "from its point nearest the +x axis, in toolpath order (the part is not round, so "
+            "no polar plot).",
+            lambda: contour_fig,
+            lambda: st.vjm_contour_png(pp, contour_z),
         ),
         _Figure(
             "thickness",
@@ -287,16 +329,21 @@ def write_report(
     contrib_n = check_contributions(contributions_normal, name="contributions_normal")
     summ = check_summary(summary)
     out = Path(out_dir)
-    figs = _figures(pp, contrib, contrib_n, summ["contour_z"])
+    part = summ.get("part")
+    kind = part.get("kind") if isinstance(part, Mapping) else part
+    round_part = agg.is_round(pp, summ["part_symmetry"], None if kind is None else str(kind))
+    ids = figure_ids(round_part)
+    contour_id = ids[ids.index("vjm_path") + 1]
+    figs = _figures(pp, contrib, contrib_n, summ["contour_z"], round_part)
 
     html_parts: dict[str, str] = {}
-    with task(progress, "report", total=len(FIGURES) * (2 if png else 1) + 1) as advance:
-        for k, fid in enumerate(FIGURES):
+    with task(progress, "report", total=len(ids) * (2 if png else 1) + 1) as advance:
+        for k, fid in enumerate(ids):
             html_parts[fid] = _figure_html(figs[fid], figs[fid].plotly(), first=k == 0)
             advance(1)
         if png:
             out.joinpath("figures").mkdir(parents=True, exist_ok=True)
-            for fid in FIGURES:
+            for fid in ids:
                 st.save_png(figs[fid].png(), out / "figures" / f"{fid}.png")
                 advance(1)
 
@@ -347,7 +394,9 @@ def write_report(
                 "deviations",
                 "Measured deviations",
                 "Scan of each formed part against the nominal surface, per toolpath point.",
-                html_parts["deviation_depth"] + html_parts["deviation_map"],
+                html_parts["deviation_depth"]
+                + html_parts["deviation_map"]
+                + html_parts["deviation_top"],
             )
         )
         body.append(
@@ -383,7 +432,7 @@ def write_report(
                 "K<sub>θ</sub><sup>−1</sup> "
                 "J<sub>θ</sub><sup>T</sup> along the path; Δ = δc<sub>exp</sub> − "
                 "δc<sub>VJM</sub>.",
-                html_parts["vjm_path"] + html_parts["vjm_polar"] + "".join(robot_tables),
+                html_parts["vjm_path"] + html_parts[contour_id] + "".join(robot_tables),
             )
         )
         body.append(
@@ -395,7 +444,12 @@ def write_report(
             )
         )
         items = [(k, summ.get(k)) for k in ("study", "part", "robot", "tool", "units")]
-        items.append(("contour for the polar plot", f"z = {summ['contour_z']:g} mm"))
+        items.append(
+            (
+                "contour for the polar plot" if round_part else "contour plot (part not round)",
+                f"z = {summ['contour_z']:g} mm",
+            )
+        )
         items.append(
             (
                 "toolpath",
@@ -404,11 +458,9 @@ def write_report(
             )
         )
         if png:
-            items.append(("static figures", ", ".join(f"figures/{f}.png" for f in FIGURES)))
+            items.append(("static figures", ", ".join(f"figures/{f}.png" for f in ids)))
         body.append(_section("study", "Study", "What was analysed.", pg.kv_table(items)))
 
-        part = summ.get("part")
-        kind = part.get("kind") if isinstance(part, Mapping) else part
         subtitle = pg.esc(" · ".join(str(x) for x in (kind, head["robot"]) if x))
         document = pg.page(
             f"roboisf report — {summ['study']}", "".join(body), headline=head, subtitle=subtitle

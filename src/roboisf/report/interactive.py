@@ -30,9 +30,11 @@ __all__ = [
     "contributions_figure",
     "deviation_depth_figure",
     "deviation_map_figure",
+    "deviation_top_figure",
     "factors_depth_figure",
     "forces_figure",
     "thickness_figure",
+    "vjm_contour_figure",
     "vjm_path_figure",
     "vjm_polar_figure",
 ]
@@ -102,14 +104,16 @@ def _style_axes(fig: go.Figure, layout: dict[str, Any]) -> None:
     fig.update_yaxes(**{k: v for k, v in layout["yaxis"].items() if k != "title"})
 
 
-def _subplots(rows: int, cols: int, titles: list[str], height: int, **kw: Any) -> go.Figure:
+def _subplots(
+    rows: int, cols: int, titles: list[str], height: int, hspace: float = 0.09, **kw: Any
+) -> go.Figure:
     """Subplots in the report style, legend above the subplot titles, x titles on the bottom row."""
     top, bottom = 96, 56
     fig = make_subplots(
         rows=rows,
         cols=cols,
         subplot_titles=titles,
-        horizontal_spacing=0.09,
+        horizontal_spacing=hspace,
         vertical_spacing=min(0.34, 80.0 / (height - top - bottom)) if rows > 1 else 0.0,
         **kw,
     )
@@ -174,19 +178,30 @@ def deviation_depth_figure(per_point: pd.DataFrame) -> go.Figure:
     return fig
 
 
+def _vmax(*arrays: np.ndarray) -> float:
+    """Symmetric colour limit: the 99th percentile of |value| over the finite values."""
+    finite = np.concatenate([a[np.isfinite(a)] for a in arrays])
+    return float(np.percentile(np.abs(finite), 99)) if finite.size else 1.0
+
+
 def deviation_map_figure(per_point: pd.DataFrame) -> go.Figure:
-    """Normal deviation of the CNC and robot parts, unrolled: angle around the part × depth (mm)."""
-    maps = {run: agg.unrolled_map(per_point, f"{run}_dn") for run in RUNS}
-    finite = np.concatenate([m[2][np.isfinite(m[2])] for m in maps.values()])
-    vmax = float(np.percentile(np.abs(finite), 99)) if finite.size else 1.0
+    """Normal deviation of the CNC and robot parts unrolled: position along each lap × depth.
+
+    Any part: x is the fraction of the lap's length from its point nearest the +x axis, in
+    toolpath order (on a round part φ/360°); the hover gives the arc length in mm.
+    """
+    maps = {run: agg.lap_map(per_point, f"{run}_dn") for run in RUNS}
+    vmax = _vmax(*(m.values for m in maps.values()))
     fig = _subplots(1, 2, [f"{RUN_LABELS[r]} part" for r in RUNS], 520, shared_yaxes=True)
     for j, run in enumerate(RUNS, start=1):
-        angle, depth, grid = maps[run]
+        m = maps[run]
+        arc = np.outer(m.length, m.position)
         fig.add_trace(
             go.Heatmap(
-                x=_f(angle),
-                y=_f(depth),
-                z=_f(grid),
+                x=_f(100.0 * m.position),
+                y=_f(m.depth),
+                z=_f(m.values),
+                customdata=_f(arc),
                 zmin=-vmax,
                 zmax=vmax,
                 zmid=0.0,
@@ -195,7 +210,8 @@ def deviation_map_figure(per_point: pd.DataFrame) -> go.Figure:
                 coloraxis=None,
                 colorbar={"title": {"text": "δn (mm)", "side": "right"}, "thickness": 14},
                 hovertemplate=(
-                    "angle %{x:.0f}°<br>depth %{y:.1f} mm<br>δn %{z:.3f} mm<extra></extra>"
+                    "%{x:.1f} % of the lap (%{customdata:.1f} mm)<br>depth %{y:.1f} mm<br>"
+                    "δn %{z:.3f} mm<extra></extra>"
                 ),
                 hoverongaps=False,
             ),
@@ -203,10 +219,52 @@ def deviation_map_figure(per_point: pd.DataFrame) -> go.Figure:
             col=j,
         )
         fig.update_xaxes(
-            title_text="angle around the part (deg)", range=[0, 360], dtick=60, row=1, col=j
+            title_text="position along the lap (% of its length, from +x)",
+            range=[0, 100],
+            dtick=25,
+            row=1,
+            col=j,
         )
     fig.update_yaxes(title_text="depth (mm)", autorange="reversed", row=1, col=1)
     fig.update_yaxes(autorange="reversed", row=1, col=2)
+    fig.update_layout(hovermode="closest", plot_bgcolor="#F5F7FA")
+    return fig
+
+
+def deviation_top_figure(per_point: pd.DataFrame) -> go.Figure:
+    """Normal deviation of the CNC and robot parts seen from above: the toolpath points (x, y),
+    at most 12 000 per part, coloured by δn (mm); scan holes are left blank."""
+    views = {run: agg.top_view(per_point, f"{run}_dn") for run in RUNS}
+    vmax = _vmax(*(v.values for v in views.values()))
+    fig = _subplots(1, 2, [f"{RUN_LABELS[r]} part" for r in RUNS], 520)
+    for j, run in enumerate(RUNS, start=1):
+        v = views[run]
+        fig.add_trace(
+            go.Scatter(
+                x=_f(v.x),
+                y=_f(v.y),
+                mode="markers",
+                marker={
+                    "color": _f(v.values),
+                    "colorscale": "RdBu_r",
+                    "cmin": -vmax,
+                    "cmax": vmax,
+                    "cmid": 0.0,
+                    "size": 3,
+                    "showscale": j == 2,
+                    "colorbar": {"title": {"text": "δn (mm)", "side": "right"}, "thickness": 14},
+                },
+                showlegend=False,
+                hovertemplate="x %{x:.1f} mm, y %{y:.1f} mm<br>δn %{marker.color:.3f} mm"
+                "<extra></extra>",
+            ),
+            row=1,
+            col=j,
+        )
+        axis = "" if j == 1 else str(j)
+        fig.update_xaxes(title_text="x (mm)", row=1, col=j)
+        fig.update_yaxes(scaleanchor=f"x{axis}", scaleratio=1, row=1, col=j)
+    fig.update_yaxes(title_text="y (mm)", row=1, col=1)
     fig.update_layout(hovermode="closest", plot_bgcolor="#F5F7FA")
     return fig
 
@@ -338,6 +396,74 @@ def vjm_polar_figure(per_point: pd.DataFrame, contour_z: float) -> tuple[go.Figu
     )
     caption = (
         f"Contour at z = {c.z:.2f} mm (lap {c.lap}), nearest the requested z = {contour_z:.2f} mm."
+    )
+    if c.note:
+        caption += " " + c.note + "."
+    return fig, caption
+
+
+def vjm_contour_figure(per_point: pd.DataFrame, contour_z: float) -> tuple[go.Figure, str]:
+    """Resultant robot deflection along the contour nearest ``contour_z`` on a part that is not
+    round: the lap's outline seen from above coloured by |δc_exp| (left) and |δc_exp|, |δc_VJM|,
+    |Δ| against the arc length along the lap (right), in mm.
+
+    Returns the figure and its caption (which lap, its height, its length, any substitution).
+    """
+    c = agg.contour_along(per_point, contour_z)
+    fig = _subplots(1, 2, ["Outline, colour |δc<sub>exp</sub>|", "Along the lap"], 480, hspace=0.2)
+    fig.add_trace(
+        go.Scatter(
+            x=_f(c.x),
+            y=_f(c.y),
+            mode="lines+markers",
+            line={"color": "#CBD2D9", "width": 1},
+            marker={
+                "color": _f(c.experiment),
+                "colorscale": "Viridis",
+                "size": 6,
+                "showscale": True,
+                "colorbar": {
+                    "title": {"text": "mm", "side": "right"},
+                    "thickness": 12,
+                    "x": 0.41,
+                    "xanchor": "left",
+                },
+            },
+            showlegend=False,
+            customdata=_f(c.s),
+            hovertemplate="s %{customdata:.1f} mm<br>|δc<sub>exp</sub>| %{marker.color:.3f} mm"
+            "<extra></extra>",
+        ),
+        row=1,
+        col=1,
+    )
+    fig.update_xaxes(title_text="x (mm)", row=1, col=1)
+    fig.update_yaxes(title_text="y (mm)", scaleanchor="x", scaleratio=1, row=1, col=1)
+    for name, r, color, width in (
+        ("experiment |δc<sub>exp</sub>|", c.experiment, SERIES_COLORS["experiment"], 2.2),
+        ("VJM |δc<sub>VJM</sub>|", c.vjm, SERIES_COLORS["vjm"], 1.8),
+        ("|Δ| = |δc<sub>exp</sub> − δc<sub>VJM</sub>|", c.delta, SERIES_COLORS["delta"], 1.6),
+    ):
+        fig.add_trace(
+            go.Scatter(
+                x=_f(c.s),
+                y=_f(r),
+                mode="lines",
+                name=name,
+                line={"color": color, "width": width},
+                hovertemplate="s %{x:.1f} mm: %{y:.3f} mm",
+            ),
+            row=1,
+            col=2,
+        )
+    fig.update_xaxes(
+        title_text="arc length along the lap from +x (mm)", range=[0, c.length], row=1, col=2
+    )
+    fig.update_yaxes(title_text="|δc| (mm)", rangemode="tozero", row=1, col=2)
+    fig.update_layout(hovermode="closest")
+    caption = (
+        f"Contour at z = {c.z:.2f} mm (lap {c.lap}, {c.length:.1f} mm long), nearest the "
+        f"requested z = {contour_z:.2f} mm."
     )
     if c.note:
         caption += " " + c.note + "."

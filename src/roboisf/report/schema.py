@@ -165,7 +165,9 @@ def check_contributions(table: Any, *, name: str) -> pd.DataFrame:
 
 
 def check_summary(summary: Any) -> dict[str, Any]:
-    """Check the summary dict and fill the defaults (``contour_z`` −11 mm, empty ``warnings``)."""
+    """Check the summary dict and fill the defaults (``contour_z`` −11 mm, empty ``warnings``,
+    ``part_symmetry`` None: decided from the part kind or the data, see
+    :func:`roboisf.report.aggregate.is_round`)."""
     if not isinstance(summary, Mapping):
         raise InputError(f"expected a dict, got {type(summary).__name__}", field="summary")
     if "study" not in summary:
@@ -178,6 +180,15 @@ def check_summary(summary: Any) -> dict[str, Any]:
         raise InputError(
             f"contour_z must be a number in mm, got {out['contour_z']!r}", field="contour_z"
         ) from None
+    sym = out.get("part_symmetry")
+    if sym is not None and (
+        isinstance(sym, bool) or not isinstance(sym, int | np.integer) or sym < 0
+    ):
+        raise InputError(
+            f"part_symmetry must be the symmetry order (0 continuous, n ≥ 1), got {sym!r}",
+            field="part_symmetry",
+        )
+    out["part_symmetry"] = None if sym is None else int(sym)
     warnings = out.get("warnings") or []
     if isinstance(warnings, str) or not all(isinstance(w, str) for w in warnings):
         raise InputError("warnings must be a list of strings", field="warnings")

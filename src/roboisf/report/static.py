@@ -32,10 +32,12 @@ __all__ = [
     "contributions_png",
     "deviation_depth_png",
     "deviation_map_png",
+    "deviation_top_png",
     "factors_depth_png",
     "forces_png",
     "save_png",
     "thickness_png",
+    "vjm_contour_png",
     "vjm_path_png",
     "vjm_polar_png",
 ]
@@ -103,35 +105,71 @@ def deviation_depth_png(per_point: pd.DataFrame) -> Figure:
     return fig
 
 
+def _vmax(*arrays: np.ndarray) -> float:
+    finite = np.concatenate([a[np.isfinite(a)] for a in arrays])
+    return float(np.percentile(np.abs(finite), 99)) if finite.size else 1.0
+
+
 def deviation_map_png(per_point: pd.DataFrame) -> Figure:
-    maps = {run: agg.unrolled_map(per_point, f"{run}_dn") for run in RUNS}
-    finite = np.concatenate([m[2][np.isfinite(m[2])] for m in maps.values()])
-    vmax = float(np.percentile(np.abs(finite), 99)) if finite.size else 1.0
+    maps = {run: agg.lap_map(per_point, f"{run}_dn") for run in RUNS}
+    vmax = _vmax(*(m.values for m in maps.values()))
     with _style():
         fig = _figure(7.0, 3.6)
         axes = fig.subplots(1, 2, sharey=True)
         mesh = None
         for ax, run in zip(axes, RUNS, strict=True):
-            angle, depth, grid = maps[run]
+            m = maps[run]
             mesh = ax.pcolormesh(
-                angle,
-                depth,
-                np.ma.masked_invalid(grid),
+                100.0 * m.position,
+                m.depth,
+                np.ma.masked_invalid(m.values),
                 cmap="RdBu_r",
                 vmin=-vmax,
                 vmax=vmax,
                 shading="nearest",
+                rasterized=True,
             )
             ax.set(
-                title=f"{RUN_LABELS[run]} part", xlabel="angle around the part (deg)", xlim=(0, 360)
+                title=f"{RUN_LABELS[run]} part",
+                xlabel="position along the lap (% from +x)",
+                xlim=(0, 100),
             )
-            ax.set_xticks(np.arange(0, 361, 60))
+            ax.set_xticks(np.arange(0, 101, 25))
             ax.set_facecolor("#F5F7FA")
             ax.grid(False)
         axes[0].set_ylabel("depth (mm)")
         axes[0].invert_yaxis()
         assert mesh is not None
         fig.colorbar(mesh, ax=axes, label="normal deviation δn (mm)", shrink=0.9)
+    return fig
+
+
+def deviation_top_png(per_point: pd.DataFrame) -> Figure:
+    views = {run: agg.top_view(per_point, f"{run}_dn") for run in RUNS}
+    vmax = _vmax(*(v.values for v in views.values()))
+    with _style():
+        fig = _figure(7.0, 3.6)
+        axes = fig.subplots(1, 2, sharex=True, sharey=True)
+        sc = None
+        for ax, run in zip(axes, RUNS, strict=True):
+            v = views[run]
+            sc = ax.scatter(
+                v.x,
+                v.y,
+                c=v.values,
+                s=1.5,
+                cmap="RdBu_r",
+                vmin=-vmax,
+                vmax=vmax,
+                linewidths=0,
+                rasterized=True,
+            )
+            ax.set(title=f"{RUN_LABELS[run]} part", xlabel="x (mm)", aspect="equal")
+            ax.set_facecolor("#F5F7FA")
+            ax.grid(False)
+        axes[0].set_ylabel("y (mm)")
+        assert sc is not None
+        fig.colorbar(sc, ax=axes, label="normal deviation δn (mm)", shrink=0.7)
     return fig
 
 
@@ -202,6 +240,29 @@ def vjm_polar_png(per_point: pd.DataFrame, contour_z: float) -> Figure:
         ax.plot(th, c.delta, color=SERIES_COLORS["delta"], label="$|\\Delta|$")
         ax.set_title(f"Robot deflection at z = {c.z:.1f} mm (lap {c.lap}), mm")
         ax.legend(loc="lower center", bbox_to_anchor=(0.5, -0.28), ncols=3)
+    return fig
+
+
+def vjm_contour_png(per_point: pd.DataFrame, contour_z: float) -> Figure:
+    c = agg.contour_along(per_point, contour_z)
+    with _style():
+        fig = _figure(7.0, 3.2)
+        ax0, ax1 = fig.subplots(1, 2, width_ratios=(1, 1.5))
+        ax0.plot(c.x, c.y, color="#CBD2D9", linewidth=0.8)
+        sc = ax0.scatter(c.x, c.y, c=c.experiment, s=8, cmap="viridis", linewidths=0)
+        ax0.set(xlabel="x (mm)", ylabel="y (mm)", aspect="equal")
+        fig.colorbar(sc, ax=ax0, label="$|\\delta c_{exp}|$ (mm)", shrink=0.8)
+        ax1.plot(c.s, c.experiment, color=SERIES_COLORS["experiment"], label="$|\\delta c_{exp}|$")
+        ax1.plot(c.s, c.vjm, color=SERIES_COLORS["vjm"], label="$|\\delta c_{VJM}|$")
+        ax1.plot(c.s, c.delta, color=SERIES_COLORS["delta"], label="$|\\Delta|$")
+        ax1.set(
+            xlabel="arc length along the lap from +x (mm)",
+            ylabel="$|\\delta c|$ (mm)",
+            xlim=(0, c.length),
+            ylim=(0, None),
+        )
+        ax1.legend(ncols=3, fontsize=7, loc="lower center", bbox_to_anchor=(0.5, 1.0))
+        fig.suptitle(f"Robot deflection along the lap at z = {c.z:.1f} mm (lap {c.lap})")
     return fig
 
 

@@ -20,7 +20,8 @@ shifted by whole turns to sit inside their limits.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Literal
 
 import numpy as np
@@ -29,6 +30,8 @@ from numpy.typing import ArrayLike, NDArray
 from roboisf.errors import InputError, UnreachableError
 from roboisf.frames import invert, vertical_tool
 from roboisf.robot.model import RobotModel, _short
+from roboisf.robot.singularity import scaled_jacobian
+from roboisf.robot.singularity import sigma_min as _sigma_min
 
 __all__ = [
     "IKResult",
@@ -135,15 +138,33 @@ class IKResult:
 
     q : (N, 6) float, rad — controller convention, continuous
     T_base_tip : (N, 4, 4) float — the commanded tip poses
-    sigma_min : (N,) float — smallest singular value of the scaled Jacobian
-        (linear rows divided by ``length_scale``)
-    near_singular : (N,) bool — ``sigma_min < singular_threshold``
+    near_singular : (N,) bool — ``sigma_min < singular_threshold`` (exact elimination test,
+        :func:`roboisf.robot.singularity.margin_ok`, run in the fused kernel)
+    length_scale : float or None, m — divides the Jacobian's linear rows (None when the check
+        was skipped)
+    J_scaled : (N, 6, 6) float or None — the scaled tip Jacobian; computed on first access
+    sigma_min : (N,) float — smallest singular value of ``J_scaled`` (NaN when the check was
+        skipped); computed on first access
     """
 
     q: F64
     T_base_tip: F64
-    sigma_min: F64
     near_singular: NDArray[np.bool_]
+    length_scale: float | None = None
+    model: RobotModel | None = field(default=None, repr=False)
+
+    @cached_property
+    def J_scaled(self) -> F64 | None:
+        """(N, 6, 6) scaled tip Jacobian, or None (see the class doc)."""
+        if self.model is None or self.length_scale is None:
+            return None
+        return scaled_jacobian(self.model.jacobian(self.q, check_limits=False), self.length_scale)
+
+    @cached_property
+    def sigma_min(self) -> F64:
+        """(N,) smallest singular value of the scaled Jacobian (see the class doc)."""
+        Js = self.J_scaled
+        return np.full(len(self.q), np.nan) if Js is None else _sigma_min(Js)
 
 
 def ik_toolpath(
@@ -205,21 +226,9 @@ def ik_toolpath(
             indices=bad.tolist(),
         )
     if singular_threshold is None:
-        return IKResult(
-            q=q,
-            T_base_tip=T_tip,
-            sigma_min=np.full(len(q), np.nan),
-            near_singular=np.zeros(len(q), dtype=bool),
-        )
-    _, J = model.fk_jacobian(q, check_limits=False)
+        return IKResult(q=q, T_base_tip=T_tip, near_singular=np.zeros(len(q), dtype=bool))
     L = length_scale if length_scale is not None else _length_scale(model)
-    Js = J.copy()
-    Js[:, :3, :] /= L
-    # σ_min² = smallest eigenvalue of JᵀJ (≈2× faster than a batched SVD; absolute accuracy
-    # ~1e-8·σ_max, ample for a threshold of order 1e-2)
-    lam = np.linalg.eigvalsh(np.swapaxes(Js, 1, 2) @ Js)[:, 0]
-    sigma = np.sqrt(np.clip(lam, 0.0, None))
-    near = sigma < singular_threshold
+    near = ~model.singularity_margin_ok(q, L, singular_threshold)
     if np.any(near):
         idx = np.flatnonzero(near)
         warnings.warn(
@@ -228,7 +237,7 @@ def ik_toolpath(
             SingularityWarning,
             stacklevel=2,
         )
-    return IKResult(q=q, T_base_tip=T_tip, sigma_min=sigma, near_singular=near)
+    return IKResult(q=q, T_base_tip=T_tip, near_singular=near, length_scale=L, model=model)
 
 
 def _length_scale(model: RobotModel) -> float:

@@ -24,6 +24,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
+from roboisf.progress import Progress
+from roboisf.robot import vjm_kernel
 from roboisf.robot.kinematics import (
     Chain,
     OPWGeometry,
@@ -64,6 +66,11 @@ class RobotModel:
     opw : OPWGeometry or None — set for ortho-parallel robots; enables closed-form IK
     default_placement : (4, 4) float or None — a sensible ``T_base_work`` for this robot
     source : str — where the numbers come from
+    backend : VJM engine of :meth:`compliance`, :meth:`deflection` and
+        :func:`~roboisf.robot.vjm_batch`: ``"auto"`` (default: ``"numba"`` when numba is
+        installed, else ``"numpy"``), ``"numba"`` (fused compiled kernel, install
+        ``roboisf[fast]``) or ``"numpy"`` (chunked vectorised numpy); same numbers to ≤ 1e-14
+        relative (:mod:`roboisf.robot.vjm_kernel`). A choice of the run, not saved with the robot.
     """
 
     name: str
@@ -76,8 +83,10 @@ class RobotModel:
     default_placement: F64 | None = None
     source: str = ""
     stiffness_source: str = ""
+    backend: str = "auto"
 
     def __post_init__(self) -> None:
+        vjm_kernel.check_backend(self.backend)
         q_min = _ro(self.q_min, (6,), "q_min")
         q_max = _ro(self.q_max, (6,), "q_max")
         if np.any(q_min >= q_max):
@@ -115,6 +124,10 @@ class RobotModel:
         """A copy with joint stiffness ``K`` (6,) N·m/rad."""
         return replace(self, stiffness=np.asarray(K, dtype=float), stiffness_source=source)
 
+    def with_backend(self, backend: str) -> RobotModel:
+        """A copy whose VJM runs on ``backend`` ("auto", "numba" or "numpy")."""
+        return replace(self, backend=backend)
+
     @property
     def joint_stiffness(self) -> F64:
         """K_θ (6,) N·m/rad; raises :class:`InputError` when the model has none."""
@@ -138,9 +151,8 @@ class RobotModel:
                 f"expected joint angles of shape (N, 6) for a 6-axis robot, got {arr.shape}",
                 field=field,
             )
-        bad = ~np.all(np.isfinite(arr), axis=1)
-        if np.any(bad):
-            idx = np.flatnonzero(bad)
+        if not np.isfinite(arr).all():  # one pass; the rows only for the message
+            idx = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
             raise InputError(f"joint angles contain NaN or inf at rows {_short(idx)}", field=field)
         if limits:
             tol = 1e-9
@@ -212,16 +224,22 @@ class RobotModel:
 
     # ------------------------------------------------------------------ elastostatics
     def compliance(
-        self, q: ArrayLike, *, check_limits: bool = True, T_base_work: ArrayLike | None = None
+        self,
+        q: ArrayLike,
+        *,
+        check_limits: bool = True,
+        T_base_work: ArrayLike | None = None,
+        backend: str | None = None,
     ) -> F64:
         """VJM Cartesian compliance ``k_c = J K_θ⁻¹ Jᵀ`` (N, 6, 6) at the tip.
 
         Base axes, or work axes when ``T_base_work`` is given. Blocks: [:3, :3] m/N,
-        off-diagonal 1/N, [3:, 3:] rad/(N·m).
+        off-diagonal 1/N, [3:, 3:] rad/(N·m). ``backend`` overrides :attr:`backend` for this
+        call. Chunked: the only memory is the result.
         """
-        kinv = 1.0 / self.joint_stiffness
-        J = self.jacobian(q, check_limits=check_limits)
-        k = (J * kinv) @ np.swapaxes(J, 1, 2)
+        qv = self.check_q(q, limits=check_limits)
+        k = self.vjm(qv, np.zeros(6), want_compliance=True, backend=backend).k
+        assert k is not None
         if T_base_work is not None:
             k = rotate_6x6(k, _placement(T_base_work)[:3, :3].T)
         return k
@@ -233,22 +251,103 @@ class RobotModel:
         *,
         check_limits: bool = True,
         T_base_work: ArrayLike | None = None,
+        backend: str | None = None,
     ) -> F64:
         """Tip deflection ``[δ; θ] = k_c W`` (N, 6) [m; rad] for tip wrenches (N, 6) [N; N·m].
 
         Wrench and deflection in base axes, or both in work axes when ``T_base_work`` is given;
-        a single (6,) wrench is broadcast.
+        a single (6,) wrench is broadcast. ``backend`` overrides :attr:`backend` for this call.
+        Chunked and fused (FK, Jacobian, ``τ = JᵀW``, ``δ = J K_θ⁻¹ τ`` per pose): the only
+        memory is the result.
         """
-        kinv = 1.0 / self.joint_stiffness
-        J = self.jacobian(q, check_limits=check_limits)
-        W = _check_wrench(wrench, J.shape[0])
+        qv = self.check_q(q, limits=check_limits)
+        W = _check_wrench(wrench, qv.shape[0])
         if T_base_work is not None:
             W = rotate_6(W, _placement(T_base_work)[:3, :3])
-        tau = np.einsum("nji,nj->ni", J, W)
-        d = np.einsum("nij,nj->ni", J, tau * kinv)
+        d = self.vjm(qv, W, backend=backend).d
         if T_base_work is not None:
             d = rotate_6(d, _placement(T_base_work)[:3, :3].T)
         return d
+
+    def vjm(
+        self,
+        qv: F64,
+        W: F64,
+        *,
+        want_compliance: bool = False,
+        want_jacobian: bool = False,
+        margin: tuple[float, float] | None = None,
+        backend: str | None = None,
+        chunk: int = vjm_kernel.CHUNK,
+        progress: Progress | None = None,
+    ) -> vjm_kernel.VJMResult:
+        """``VJMResult(d (N, 6), k (N, 6, 6), J (N, 6, 6), margin_ok (N,))`` at the tip, base axes.
+
+        The one VJM path (:func:`roboisf.robot.vjm_kernel.vjm_eval`) for already validated
+        angles ``qv`` (N, 6) rad (:meth:`check_q`) and wrenches ``W`` (N, 6) or (6,) [N; N·m],
+        base axes. ``k``, ``J`` and ``margin_ok`` (the singularity-margin test for ``margin`` =
+        (length scale m, threshold), :func:`roboisf.robot.singularity.margin_ok`) are computed
+        only when asked, else None; ``chunk``: poses per chunk of the numpy engine.
+        """
+        return self._vjm(
+            qv,
+            W,
+            1.0 / self.joint_stiffness,
+            want_compliance=want_compliance,
+            want_jacobian=want_jacobian,
+            margin=margin,
+            backend=backend,
+            chunk=chunk,
+            progress=progress,
+        )
+
+    def singularity_margin_ok(
+        self, qv: F64, length_scale: float, threshold: float, *, backend: str | None = None
+    ) -> NDArray[np.bool_]:
+        """(N,) bool: ``σ_min(J_s) > threshold`` for validated angles ``qv`` (N, 6) rad, ``J_s``
+        the tip Jacobian with its linear rows divided by ``length_scale`` (m).
+
+        The exact elimination test of :func:`roboisf.robot.singularity.margin_ok`, run in the
+        fused kernel without materialising the Jacobians; needs no joint stiffness.
+        """
+        ok = self._vjm(
+            qv, np.zeros(6), np.ones(6), margin=(length_scale, threshold), backend=backend
+        ).margin_ok
+        assert ok is not None
+        return ok
+
+    def _vjm(
+        self,
+        qv: F64,
+        W: F64,
+        kinv: F64,
+        *,
+        want_compliance: bool = False,
+        want_jacobian: bool = False,
+        margin: tuple[float, float] | None = None,
+        backend: str | None = None,
+        chunk: int = vjm_kernel.CHUNK,
+        progress: Progress | None = None,
+    ) -> vjm_kernel.VJMResult:
+        b = self.backend if backend is None else vjm_kernel.check_backend(backend)
+        F = self.chain.F.copy()
+        F[6] = F[6] @ self.T_flange_tip
+        Wv = _check_wrench(W, qv.shape[0])
+        return vjm_kernel.vjm_eval(
+            F,
+            self.chain.sign,
+            self.chain.offset,
+            kinv,
+            qv,
+            Wv,
+            self._jacobian_only,
+            want_compliance=want_compliance,
+            want_jacobian=want_jacobian,
+            margin=margin,
+            backend=b,
+            chunk=chunk,
+            progress=progress,
+        )
 
     def __repr__(self) -> str:
         K = "unknown" if self.stiffness is None else np.array2string(self.stiffness, precision=3)
@@ -257,8 +356,10 @@ class RobotModel:
 
 def _check_wrench(wrench: ArrayLike, n: int, field: str = "wrench") -> F64:
     W = np.asarray(wrench, dtype=float)
-    if W.shape == (6,):
-        W = np.broadcast_to(W, (n, 6))
+    if W.shape == (6,):  # one wrench for every pose: checked once, then broadcast
+        if not np.isfinite(W).all():
+            raise InputError("wrench contains NaN or inf", field=field)
+        return np.broadcast_to(W, (n, 6))
     if W.shape != (n, 6):
         raise InputError(f"expected wrenches of shape ({n}, 6) [f; m], got {W.shape}", field=field)
     if not np.all(np.isfinite(W)):

@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
 from roboisf.frames import serial_assembly
-from roboisf.progress import Progress, task
+from roboisf.progress import Progress
 from roboisf.robot.kinematics import _sweep, rotate_6, rotate_6x6
 from roboisf.robot.model import RobotModel, _check_wrench
 
@@ -52,10 +52,9 @@ def tip_compliance(
     when ``T_base_work`` is given.
     """
     qv = model.check_q(q)
-    T, J = model.fk_jacobian(qv)
-    k = (J * (1.0 / model.joint_stiffness)) @ np.swapaxes(J, 1, 2)
+    k = model.compliance(qv, check_limits=False)  # the fused, chunked VJM path
     if tool_parts:
-        R_base_tip = T[:, :3, :3]
+        R_base_tip = model.fk(qv, check_limits=False)[:, :3, :3]
         k_tool_tip = serial_assembly(list(tool_parts))  # tip axes
         k = k + rotate_6x6(np.broadcast_to(k_tool_tip, k.shape), R_base_tip)
     if T_base_work is not None:
@@ -186,54 +185,19 @@ def vjm_batch(
     chunk: int = 4096,
     want_compliance: bool = True,
     check_limits: bool = True,
+    backend: str | None = None,
     progress: Progress | None = None,
 ) -> tuple[F64 | None, F64]:
     """FK + Jacobian + ``k_c`` + ``δ`` for many poses, chunked to bound memory.
 
-    Returns ``(k_c (N, 6, 6) or None, δ (N, 6))`` in the base frame (``k_c`` is a view of
-    component-major storage; ``np.ascontiguousarray`` it if needed); the same numbers as
-    :meth:`RobotModel.compliance` / :meth:`RobotModel.deflection`. Works component-major inside a
-    chunk (each (chunk,) row contiguous), so a chunk stays in cache.
+    Returns ``(k_c (N, 6, 6) or None, δ (N, 6))`` in the base frame; the same numbers as
+    :meth:`RobotModel.compliance` / :meth:`RobotModel.deflection` (the same fused path,
+    :mod:`roboisf.robot.vjm_kernel`). ``chunk``: poses per chunk of the numpy engine;
+    ``backend`` overrides ``model.backend``.
     """
     qv = model.check_q(q, limits=check_limits)
-    n = qv.shape[0]
-    W = _check_wrench(wrench, n)
-    kinv = 1.0 / model.joint_stiffness
-    if chunk < 1:
-        raise InputError("chunk must be ≥ 1", field="chunk")
-    d = np.empty((n, 6))
-    # component-major storage, returned as an (N, 6, 6) view: no transposing copy per chunk
-    k_cm = np.empty((6, 6, n)) if want_compliance else None
-    iu = np.triu_indices(6)
-    with task(progress, "VJM deflection", n) as advance:
-        for s in range(0, n, chunk):
-            e = min(n, s + chunk)
-            _vjm_chunk(
-                model, qv[s:e], W[s:e], kinv, d[s:e], None if k_cm is None else k_cm[:, :, s:e], iu
-            )
-            advance(e - s)
-    return (None if k_cm is None else k_cm.transpose(2, 0, 1)), d
-
-
-def _vjm_chunk(
-    model: RobotModel,
-    q: F64,
-    W: F64,
-    kinv: F64,
-    d: F64,
-    k_cm: F64 | None,
-    iu: tuple[NDArray[np.intp], NDArray[np.intp]],
-) -> None:
-    """One chunk: δ into ``d`` (m, 6) and, if given, k_c into ``k_cm`` (6, 6, m)."""
-    J = model._jacobian_only(q)
-    Jt = np.ascontiguousarray(J.transpose(1, 2, 0))  # (6, 6, m); free when J is a view
-    A = Jt * kinv[None, :, None]
-    Wt = W.T
-    tau = np.einsum("ain,an->in", Jt, Wt)
-    d[:] = np.einsum("ain,in->na", A, tau)
-    if k_cm is not None:
-        for a, b in zip(*iu, strict=True):
-            v = k_cm[a, b]
-            np.einsum("in,in->n", A[a], Jt[b], out=v)
-            if a != b:
-                k_cm[b, a] = v
+    W = _check_wrench(wrench, qv.shape[0])
+    r = model.vjm(
+        qv, W, want_compliance=want_compliance, backend=backend, chunk=chunk, progress=progress
+    )
+    return r.k, r.d

@@ -1,10 +1,12 @@
 """Scans vs nominal: read point clouds and meshes, register them to the nominal part, signed
-deviation vectors per scan point, per toolpath point, per depth and per angle."""
+deviation vectors per scan point, per toolpath point, per depth, per angle and per arc length
+along a lap."""
 
 from roboisf.scan.compare import CompareOptions, ScanComparison, compare_scan, part_size
 from roboisf.scan.deviation import (
     PointDeviations,
     ToolpathDeviations,
+    default_rim_band,
     point_deviations,
     select_wall,
     statistical_outliers,
@@ -30,8 +32,10 @@ from roboisf.scan.registration import METHODS, Registration, register
 from roboisf.scan.summary import (
     DeviationStats,
     by_angle,
+    by_arc_length,
     by_depth,
     deviation_stats,
+    lap_arc_length,
     resultant_mean_deviation,
 )
 from roboisf.scan.synthetic import OffsetField, SyntheticScan, radial_offset, synthetic_scan
@@ -52,10 +56,13 @@ __all__ = [
     "SyntheticScan",
     "ToolpathDeviations",
     "by_angle",
+    "by_arc_length",
     "by_depth",
     "check_units",
     "compare_scan",
+    "default_rim_band",
     "deviation_stats",
+    "lap_arc_length",
     "part_size",
     "point_deviations",
     "point_table",

@@ -5,7 +5,7 @@ per toolpath point → summaries. ``roboisf scan compare`` is a thin shell over
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -19,6 +19,7 @@ from roboisf.progress import Progress, task
 from roboisf.scan.deviation import (
     PointDeviations,
     ToolpathDeviations,
+    default_rim_band,
     point_deviations,
     select_wall,
     statistical_outliers,
@@ -43,7 +44,9 @@ def part_size(part: AxisymmetricPart | MeshPart) -> float:
 class CompareOptions:
     """Settings of :func:`compare_scan` (SI).
 
-    register : ``none | flange | axisymmetric | icp``; rim_band : m below the sheet plane excluded;
+    register : ``none | flange | axisymmetric | icp``; rim_band : m below the sheet plane excluded
+    (None: :func:`~roboisf.scan.deviation.default_rim_band` of the part's depth, min(20 mm,
+    0.6·depth); :func:`compare_scan` stores the value it used);
     max_distance : m — points farther from the nominal are not the part; outlier_k,
     outlier_std : statistical outlier removal (``outlier_k = 0`` disables); radius,
     max_points, min_points, estimator : per-toolpath-point averaging (see
@@ -53,7 +56,7 @@ class CompareOptions:
     """
 
     register: str = "none"
-    rim_band: float = 20e-3
+    rim_band: float | None = None
     max_distance: float = 3e-3
     outlier_k: int = 8
     outlier_std: float = 3.0
@@ -81,6 +84,8 @@ class CompareOptions:
             )
         for name in ("rim_band", "max_distance", "radius", "bin_width", "band"):
             v = getattr(self, name)
+            if v is None and name == "rim_band":
+                continue
             if not (math.isfinite(v) and (v > 0 or (name == "rim_band" and v == 0))):
                 raise InputError(f"must be > 0 mm, got {v * 1e3:g}", field=name)
         if self.min_points < 1 or self.max_points < self.min_points:
@@ -118,7 +123,7 @@ class ScanComparison:
             "registration": self.registration.to_dict(),
             "counts": dict(self.counts),
             "selection": {
-                "rim_band_mm": o.rim_band * 1e3,
+                "rim_band_mm": None if o.rim_band is None else o.rim_band * 1e3,
                 "max_distance_mm": o.max_distance * 1e3,
                 "outlier_k": o.outlier_k,
                 "outlier_std": o.outlier_std,
@@ -177,6 +182,8 @@ def compare_scan(
     summaries.
     """
     o = options or CompareOptions()
+    rim_band = default_rim_band(part.depth) if o.rim_band is None else o.rim_band
+    o = replace(o, rim_band=rim_band)
     src = cloud.source
     check_units(cloud.points, part_size(part), unit=cloud.unit, source=src)
     with task(progress, f"register ({o.register})", total=None):
@@ -201,11 +208,11 @@ def compare_scan(
             inl = statistical_outliers(pts[sel], o.outlier_k, o.outlier_std)
             n_out = int((~inl).sum())
             full[sel[~inl]] = False
-    mask = full & (dev.foot[:, 2] < -o.rim_band)
+    mask = full & (dev.foot[:, 2] < -rim_band)
     n_wall = int(mask.sum())
     if n_wall == 0:
         raise InputError(
-            f"no scan point on the wall below the {o.rim_band * 1e3:g} mm rim band", file=src
+            f"no scan point on the wall below the {rim_band * 1e3:g} mm rim band", file=src
         )
     wall = dev.subset(mask)
     ring = dev.subset(full & (np.abs(dev.foot[:, 2] - o.contour_z) <= o.band))
@@ -220,7 +227,7 @@ def compare_scan(
                 max_points=o.max_points,
                 min_points=o.min_points,
                 estimator=o.estimator,
-                exclude=toolpath.contact[:, 2] >= -o.rim_band,
+                exclude=toolpath.contact[:, 2] >= -rim_band,
                 source=toolpath_source,
             )
     if tdev is not None:

@@ -14,6 +14,7 @@ Sign and vector convention (stated once, used everywhere):
 
 from __future__ import annotations
 
+import math
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -28,8 +29,11 @@ from roboisf.parts.mesh import MeshPart, spatial_order
 from roboisf.progress import Progress, task
 
 __all__ = [
+    "RIM_BAND",
+    "RIM_BAND_DEPTH_FRACTION",
     "PointDeviations",
     "ToolpathDeviations",
+    "default_rim_band",
     "point_deviations",
     "select_wall",
     "statistical_outliers",
@@ -148,6 +152,33 @@ def statistical_outliers(
     m = np.empty(X.shape[0])
     m[order] = d[:, 1:].mean(axis=1)
     return m <= m.mean() + std_ratio * m.std()
+
+
+#: The paper's rim band [m]: 20 mm of its 103 mm cone are left out (sheet bending at the clamp).
+RIM_BAND = 20e-3
+#: The default rim band never takes more than this fraction of the part's depth, so a shallow
+#: part keeps at least 40 % of its wall (a 15 mm deep funnel: 9 mm band, 6 mm analysed).
+RIM_BAND_DEPTH_FRACTION = 0.6
+
+
+def default_rim_band(depth: float) -> float:
+    """Rim band [m] used when none is given: ``min(20 mm, 0.6 · depth)``.
+
+    The rim zone is where bending of the sheet over the backing plate dominates: a band of a few
+    tool radii and sheet thicknesses below the clamp, which does not grow with the part, hence
+    the paper's fixed 20 mm. On a part not much deeper than that band the fixed value would
+    leave nothing (or too little) to analyse, so the band is capped at 60 % of the depth. Every
+    part at least 33.3 mm deep keeps the paper's 20 mm — the 103 mm cone and the 39 mm VWACF
+    (default arc) included, so their results do not change.
+
+    Parameters
+    ----------
+    depth : float, m
+        Depth of the part below the sheet plane (:attr:`roboisf.parts.Part.depth`), > 0.
+    """
+    if not (math.isfinite(depth) and depth > 0):
+        raise InputError(f"part depth must be > 0 mm, got {depth * 1e3:g}", field="depth")
+    return round(min(RIM_BAND, RIM_BAND_DEPTH_FRACTION * depth), 9)  # to the nm: 9 mm, not 9.000…2
 
 
 def select_wall(

@@ -1,4 +1,5 @@
-"""Summaries of deviation vectors: overall, per z-level bin, per angle at a contour.
+"""Summaries of deviation vectors: overall, per z-level bin, per angle (round parts) or per arc
+length (any part) at a contour.
 
 Resultant mean deviation (paper eq. 6)::
 
@@ -24,8 +25,10 @@ from roboisf.errors import InputError
 __all__ = [
     "DeviationStats",
     "by_angle",
+    "by_arc_length",
     "by_depth",
     "deviation_stats",
+    "lap_arc_length",
     "resultant_mean_deviation",
 ]
 
@@ -146,4 +149,93 @@ def by_angle(
     out = _binned(key, d, np.asarray(dn, dtype=float)[sel])
     out.insert(0, "angle_hi", (out.index.to_numpy() + 1) * bin_width)
     out.insert(0, "angle_lo", out.index.to_numpy() * bin_width)
+    return out.reset_index(drop=True)
+
+
+def lap_arc_length(contact: ArrayLike, lap: ArrayLike) -> tuple[F64, F64]:
+    """Arc length of each toolpath point along its lap, from the lap's point nearest the +x axis.
+
+    A lap is a run of consecutive points (toolpath order) with the same ``lap`` number. Its
+    length is the polyline through its contact points, closed back to its first point. Each
+    lap's reference (``s = 0``) is its point of smallest ``|atan2(y, x)|`` — the one nearest the
+    ray φ = 0 from the work z axis — so that laps line up however the toolpath starts them; ``s``
+    then grows in the toolpath's own direction and wraps at the lap length. On a surface of
+    revolution (a lap at constant radius r, counter-clockwise) ``s = r·φ`` up to the chord error
+    of the polyline (≈ r θ³/24 per chord of angle θ).
+
+    Parameters
+    ----------
+    contact : (N, 3) float
+        Contact points in toolpath order (any length unit; the result has the same unit).
+    lap : (N,) int
+        Lap number of each point.
+
+    Returns
+    -------
+    s : (N,) float
+        Arc length from the lap's reference, in ``[0, length)``.
+    length : (N,) float
+        Closed length of the point's lap (0 for a lap of one point).
+    """
+    P = np.asarray(contact, dtype=float)
+    laps = np.asarray(lap)
+    if P.ndim != 2 or P.shape[1] != 3 or laps.shape != (P.shape[0],):
+        raise InputError(
+            f"expected contact (N, 3) and lap (N,), got {P.shape} and {laps.shape}",
+            field="contact",
+        )
+    n = P.shape[0]
+    if n == 0:
+        return np.zeros(0), np.zeros(0)
+    new = np.ones(n, dtype=bool)
+    new[1:] = laps[1:] != laps[:-1]
+    run = np.cumsum(new) - 1
+    starts = np.flatnonzero(new)
+    ends = np.append(starts[1:], n) - 1
+    seg = np.zeros(n)
+    seg[1:] = np.linalg.norm(np.diff(P, axis=0), axis=1)
+    seg[new] = 0.0
+    cum = np.cumsum(seg)
+    c = cum - cum[starts][run]
+    closing = np.linalg.norm(P[ends] - P[starts], axis=1)
+    length = c[ends] + closing
+    phi = np.abs(np.arctan2(P[:, 1], P[:, 0]))
+    order = np.lexsort((np.arange(n), phi, run))
+    first = np.ones(n, dtype=bool)
+    first[1:] = run[order][1:] != run[order][:-1]
+    ref = order[first]
+    L = length[run]
+    rel = c - c[ref][run]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        s = np.where(L > 0, np.mod(rel, np.where(L > 0, L, 1.0)), 0.0)
+    return s, L
+
+
+def by_arc_length(
+    arc: ArrayLike,
+    z: ArrayLike,
+    delta: ArrayLike,
+    dn: ArrayLike,
+    *,
+    z_level: float = -11e-3,
+    band: float = 0.25e-3,
+    bin_width: float = 5e-3,
+) -> pd.DataFrame:
+    """Statistics per arc-length bin along the contour ``z_level`` — :func:`by_angle` for any part.
+
+    ``arc`` (N,) m is each point's position along its lap (:func:`lap_arc_length`: from the point
+    nearest the +x axis, in the toolpath's direction). Uses the points with
+    ``|z − z_level| ≤ band``; bins ``[s_lo, s_hi)`` of ``bin_width`` [m] from 0. Columns
+    ``s_lo, s_hi`` (m) then as :func:`by_depth`. Empty if the contour has no points.
+    """
+    if not (math.isfinite(bin_width) and bin_width > 0):
+        raise InputError("must be > 0 mm", field="arc_bin")
+    s = np.asarray(arc, dtype=float)
+    zz = np.asarray(z, dtype=float)
+    sel = np.abs(zz - z_level) <= band
+    key = np.floor(s[sel] / bin_width).astype(np.int64)
+    d = np.atleast_2d(np.asarray(delta, dtype=float))[sel]
+    out = _binned(key, d, np.asarray(dn, dtype=float)[sel])
+    out.insert(0, "s_hi", (out.index.to_numpy() + 1) * bin_width)
+    out.insert(0, "s_lo", out.index.to_numpy() * bin_width)
     return out.reset_index(drop=True)

@@ -26,6 +26,7 @@ from roboisf.frames import make_transform, rpy_to_matrix
 from roboisf.io.text import read_text
 from roboisf.io.units import ANGLE_UNITS, FORCE_UNITS, LENGTH_UNITS, MOMENT_UNITS, TIME_UNITS
 from roboisf.parts import Part, part_from_dict
+from roboisf.scan.deviation import default_rim_band
 
 __all__ = [
     "AnalysisSpec",
@@ -563,7 +564,7 @@ def load_study(path: str | Path) -> Study:
     at = c.table(
         data, "analysis", {"rim_band", "contour_z", "registration", "point_radius"}, required=False
     )
-    rim = c.number(at, "analysis", "rim_band", default=20.0)
+    rim = c.number(at, "analysis", "rim_band", required=False)
     cz = c.number(at, "analysis", "contour_z", default=-11.0)
     reg = c.choice(
         at,
@@ -575,8 +576,12 @@ def load_study(path: str | Path) -> Study:
     prad = c.number(at, "analysis", "point_radius", default=1.0, positive=True)
     if rim is not None and rim < 0:
         c.add("must be ≥ 0 mm", "analysis.rim_band")
+    if rim is None:  # scaled with the part's depth: min(20 mm, 0.6·depth)
+        rim_band = default_rim_band(part.depth) if part is not None else 20e-3
+    else:
+        rim_band = rim * 1e-3
     analysis = AnalysisSpec(
-        (rim or 0.0) * 1e-3,
+        rim_band,
         (cz or -11.0) * 1e-3,
         cast(Literal["fixture", "flange", "axisymmetric", "icp", "none"], reg or "fixture"),
         (prad or 1.0) * 1e-3,

@@ -65,7 +65,7 @@ from roboisf.parts import (
 )
 from roboisf.progress import Progress, task
 from roboisf.robot import ik_toolpath, load_robot
-from roboisf.scan import synthetic_scan, write_ply
+from roboisf.scan import default_rim_band, synthetic_scan, write_ply
 from roboisf.study.sensors import tip_to_sensor
 from roboisf.study.spec import ForceSensorSpec
 from roboisf.toolpath import Toolpath
@@ -396,7 +396,8 @@ def _scan(
 ) -> None:
     part = cell.part
     tp = truth.toolpath
-    wall = tp.contact[tp.depth > min(0.02, 0.5 * float(tp.depth.max()))]
+    # holes where the analysis looks: below the rim band (20 mm on the paper's parts)
+    wall = tp.contact[tp.depth > default_rim_band(part.depth)]
     holes = [
         (wall[i], cell.hole_radius) for i in rng.choice(len(wall), size=cell.n_holes, replace=False)
     ]
@@ -433,7 +434,7 @@ def build_study(
         Path("cnc_forces.csv"), "fixture", cell.fixture_sensor_pose, "workpiece"
     )
     rob_sensor = ForceSensorSpec(Path("robot_forces.csv"), "flange", cell.T_tip_sensor, "tool")
-    with staged_directory(out_dir) as d:
+    with staged_directory(out_dir, "virtual-cell") as d:
         (d / "truth").mkdir()
         with task(progress, "toolpath and compliances"):
             write_toolpath_csv(
@@ -523,7 +524,7 @@ def _write_study_toml(
         else {"compliance": "holder_compliance.json", "offset": c.holder.offset * 1e3},
         "robot": robot,
         "analysis": {
-            "rim_band": 20.0,
+            "rim_band": default_rim_band(c.part.depth) * 1e3,  # 20 mm unless the part is shallow
             "contour_z": -11.0,
             "registration": registration_for(c.part),
         },

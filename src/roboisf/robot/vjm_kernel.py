@@ -1,0 +1,264 @@
+"""Fused, chunked VJM evaluation: FK → tip Jacobian → ``τ = JᵀW`` → ``δ = J K⁻¹ τ`` (→ ``k_c``).
+
+One entry point, :func:`vjm_eval`, behind :meth:`RobotModel.deflection`,
+:meth:`RobotModel.compliance`, :func:`roboisf.robot.vjm_batch` and ``roboisf.plan``. Two engines
+give the same numbers (≤ 1e-14 relative, tested on every preset):
+
+``"numba"`` (used when numba is installed, ``pip install roboisf[fast]``)
+    one compiled loop over the poses that walks the chain of
+    :mod:`roboisf.robot.kinematics` (seven fixed transforms ``F_0 .. F_6``, the tool folded into
+    ``F_6``; ``θ = sign·q + offset``) in scalar registers and writes only the results: no
+    temporary arrays. Called from the main thread it runs ``parallel=True`` with ``prange``
+    over blocks of 1,024 poses (numba's threads, ``NUMBA_NUM_THREADS``); called from
+    any other thread (a Dask worker, a thread pool) the same loop runs serially without the GIL,
+    so the caller's own parallelism is not oversubscribed and no numba threading layer is ever
+    entered from two threads at once. The kernels live in :mod:`roboisf.robot.vjm_numba`,
+    imported (so numba too) only on first use, compiled then and cached on disk (``cache=True``).
+``"numpy"``
+    the vectorised closed-form / chain-walk Jacobian of :mod:`roboisf.robot.kinematics` on
+    chunks of :data:`CHUNK` poses (memory bounded by the chunk), ~3× slower.
+
+``backend="auto"`` picks numba when it is importable. No BLAS call is made by either engine;
+:func:`single_blas_thread` pins OpenBLAS/MKL to one thread for batched numpy work that is
+already parallel (the plan's placements).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any, NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from roboisf.errors import InputError
+from roboisf.progress import Progress, task
+
+__all__ = [
+    "BACKENDS",
+    "CHUNK",
+    "HAVE_NUMBA",
+    "VJMResult",
+    "check_backend",
+    "margin_numpy",
+    "single_blas_thread",
+    "vjm_eval",
+]
+
+F64 = NDArray[np.float64]
+
+
+def _numba_installed() -> bool:
+    try:
+        return importlib.util.find_spec("numba") is not None
+    except (ImportError, ValueError):  # pragma: no cover - a broken or blocked install
+        return False
+
+
+#: numba is installed (imported only when the compiled engine is first used).
+HAVE_NUMBA = _numba_installed()
+
+#: Engines accepted by ``backend=``.
+BACKENDS = ("auto", "numba", "numpy")
+#: Poses per chunk of the numpy engine (its temporaries stay in cache).
+CHUNK = 4096
+#: Poses per kernel call (progress is reported between calls).
+_CALL = 1 << 20
+
+
+def check_backend(backend: str, field: str = "backend") -> str:
+    """Validate a ``backend`` name; ``"numba"`` needs numba installed."""
+    if backend not in BACKENDS:
+        raise InputError(
+            f"backend must be 'auto', 'numba' or 'numpy', got {backend!r}", field=field
+        )
+    if backend == "numba" and not HAVE_NUMBA:
+        raise InputError("backend 'numba' needs numba: pip install 'roboisf[fast]'", field=field)
+    return backend
+
+
+def use_numba(backend: str) -> bool:
+    """True when ``backend`` ("auto", "numba" or "numpy") resolves to the compiled engine.
+
+    The first time, imports :mod:`roboisf.robot.vjm_numba`; if numba is installed but fails to
+    import, "auto" falls back to numpy and "numba" is an :class:`InputError` saying why.
+    """
+    global HAVE_NUMBA
+    if check_backend(backend) == "numpy" or not HAVE_NUMBA:
+        return False
+    try:
+        import roboisf.robot.vjm_numba  # noqa: F401
+    except ImportError as e:  # pragma: no cover - a broken numba install
+        if backend == "numba":
+            raise InputError(
+                f"backend 'numba': numba fails to import ({e})", field="backend"
+            ) from None
+        HAVE_NUMBA = False
+        return False
+    return True
+
+
+class VJMResult(NamedTuple):
+    """What :func:`vjm_eval` computed (base axes, at the tip); None where not asked.
+
+    d : (N, 6) [m; rad] — deflection ``J K⁻¹ Jᵀ W``
+    k : (N, 6, 6) or None — compliance ``J K⁻¹ Jᵀ``
+    J : (N, 6, 6) or None — tip Jacobian
+    margin_ok : (N,) bool or None — ``σ_min(J_s) > threshold`` (exact elimination test of
+        :func:`roboisf.robot.singularity.margin_ok`)
+    """
+
+    d: F64
+    k: F64 | None
+    J: F64 | None
+    margin_ok: NDArray[np.bool_] | None
+
+
+def vjm_eval(
+    F_tip: F64,
+    sign: F64,
+    offset: F64,
+    kinv: F64,
+    q: F64,
+    W: F64,
+    jacobian: Callable[[F64], F64],
+    *,
+    want_compliance: bool = False,
+    want_jacobian: bool = False,
+    margin: tuple[float, float] | None = None,
+    backend: str = "auto",
+    chunk: int = CHUNK,
+    progress: Progress | None = None,
+    label: str = "VJM deflection",
+) -> VJMResult:
+    """δ (N, 6), and k_c, J, the singularity-margin test when asked, for validated inputs.
+
+    F_tip : (7, 4, 4) — the chain's fixed transforms with ``T_flange_tip`` folded into the last
+    sign, offset : (6,) — ``θ = sign·q + offset``
+    kinv : (6,) rad/(N·m) — ``1 / K_θ``
+    q : (N, 6) rad (already checked); W : (N, 6) [N; N·m], or a (N, 6) broadcast of one wrench
+    jacobian : the numpy engine's Jacobian of a chunk of angles (m, 6) → (m, 6, 6)
+    margin : (length scale (m), threshold) — test ``σ_min(J_s) > threshold`` per pose, ``J_s``
+        the Jacobian with its linear rows divided by the length scale
+    chunk : poses per chunk of the numpy engine (bounds its temporaries)
+    """
+    if chunk < 1:
+        raise InputError(f"chunk must be ≥ 1, got {chunk}", field="chunk")
+    if margin is not None and not (
+        math.isfinite(margin[0]) and margin[0] > 0 and math.isfinite(margin[1]) and margin[1] >= 0
+    ):
+        raise InputError(
+            f"singularity margin needs a length scale > 0 m and a threshold ≥ 0, got {margin}",
+            field="margin",
+        )
+    n = q.shape[0]
+    d = np.empty((n, 6))
+    k = np.empty((n, 6, 6)) if want_compliance else None
+    J = np.empty((n, 6, 6)) if want_jacobian else None
+    ok = None if margin is None else np.empty(n, dtype=np.bool_)
+    lin_scale, c = (1.0, 0.0) if margin is None else (1.0 / margin[0], float(margin[1]) ** 2)
+    if use_numba(backend):
+        from roboisf.robot import vjm_numba as nb
+
+        one = W.strides[0] == 0 or n == 0
+        Wc = nb._c64(W[:1] if one else W)
+        qc = nb._c64(q)
+        args = (nb._c64(F_tip), nb._c64(sign), nb._c64(offset), nb._c64(kinv))
+        kern = nb.kernel()
+        none = np.empty((0, 6, 6))
+        no_ok = np.empty(0, dtype=np.bool_)
+        mg = np.array([lin_scale, c])
+        with task(progress, label, n) as advance:
+            for s in range(0, n, _CALL):
+                e = min(n, s + _CALL)
+                kern(
+                    *args,
+                    qc[s:e],
+                    Wc if one else Wc[s:e],
+                    d[s:e],
+                    none if k is None else k[s:e],
+                    none if J is None else J[s:e],
+                    mg,
+                    no_ok if ok is None else ok[s:e],
+                )
+                advance(e - s)
+        return VJMResult(d, k, J, ok)
+    with task(progress, label, n) as advance:
+        for s in range(0, n, chunk):
+            e = min(n, s + chunk)
+            Jc = jacobian(q[s:e])
+            _numpy_chunk(Jc, W[s:e], kinv, d[s:e], None if k is None else k[s:e])
+            if J is not None:
+                J[s:e] = Jc
+            if ok is not None:
+                Js = Jc.copy()
+                Js[:, :3] *= lin_scale
+                ok[s:e] = margin_numpy(Js, c)
+            advance(e - s)
+    return VJMResult(d, k, J, ok)
+
+
+def margin_numpy(Js: F64, c: float) -> NDArray[np.bool_]:
+    """The elimination of :func:`margin_pivots_ok` vectorised over scaled Jacobians (N, 6, 6):
+    component-major arrays, no per-pose LAPACK call."""
+    Jt = np.ascontiguousarray(Js.transpose(1, 2, 0))  # (6 rows, 6 cols, N)
+    n = Js.shape[0]
+    M = np.empty((6, 6, n))
+    for i in range(6):
+        for j in range(i, 6):
+            v = np.einsum("kn,kn->n", Jt[:, i], Jt[:, j])
+            M[i, j] = v
+            M[j, i] = v
+    for i in range(6):
+        M[i, i] -= c
+    ok = np.ones(n, dtype=bool)
+    for p in range(6):
+        piv = M[p, p]
+        ok &= piv > 0.0
+        if p == 5:
+            break
+        inv = 1.0 / np.where(piv > 0.0, piv, 1.0)
+        lk = M[p + 1 :, p] * inv  # (m, N)
+        M[p + 1 :, p + 1 :] -= lk[:, None, :] * M[p, p + 1 :][None, :, :]
+    return ok
+
+
+def _numpy_chunk(J: F64, W: F64, kinv: F64, d: F64, k: F64 | None) -> None:
+    """One chunk of the numpy engine: δ into ``d`` (m, 6), k_c into ``k`` (m, 6, 6) if given."""
+    Jt = np.ascontiguousarray(J.transpose(1, 2, 0))  # (6, 6, m) component-major
+    A = Jt * kinv[None, :, None]
+    tau = np.einsum("ain,an->in", Jt, W.T)
+    d[:] = np.einsum("ain,in->na", A, tau)
+    if k is not None:
+        kt = np.empty((6, 6, J.shape[0]))
+        for a in range(6):
+            for b in range(a, 6):
+                v = kt[a, b]
+                np.einsum("in,in->n", A[a], Jt[b], out=v)
+                if a != b:
+                    kt[b, a] = v
+        k[:] = kt.transpose(2, 0, 1)
+
+
+_CONTROLLER: list[Any] = []
+
+
+@contextmanager
+def single_blas_thread() -> Iterator[None]:
+    """Pin the BLAS libraries numpy/scipy loaded (OpenBLAS, MKL, …) to one thread inside.
+
+    For batched numpy work that is already parallel (Dask workers, the plan's placements): idle
+    BLAS threads spin and steal the cores. Uses ``threadpoolctl``; a no-op when it is missing.
+    """
+    try:
+        from threadpoolctl import ThreadpoolController
+    except ImportError:  # pragma: no cover - threadpoolctl is a dependency
+        yield
+        return
+    if not _CONTROLLER:
+        _CONTROLLER.append(ThreadpoolController())
+    with _CONTROLLER[0].limit(limits=1, user_api="blas"):
+        yield
