@@ -19,6 +19,12 @@ What is simulated, per toolpath point (all at the tool tip, work axes, SI):
    sample it (:func:`roboisf.scan.synthetic_scan`) with 25 µm noise, outliers, holes and a small
    misplacement (a z-shift and tilts: the part rests on the fixture plane).
 
+Any part kind (:class:`~roboisf.parts.Part`): axisymmetric parts keep the generatrix toolpath and
+the (lap, angle) formed-surface field; every other part (pyramid, mesh, CAD) gets the sliced
+toolpath (:mod:`roboisf.toolpath.slice`), the point field
+:class:`~roboisf.virtual.formed.PointField` and scans sampled on its surface; its study declares
+the registration :func:`registration_for` gives for the part.
+
 The controller logs the *commanded* joint angles (motor encoders do not see the elastic joint
 deflection), so the joint log is IK of the toolpath.
 """
