@@ -89,6 +89,7 @@ __all__ = [
     "paper_cone_cell",
     "paper_vwacf_cell",
     "pyramid_cell",
+    "registration_for",
     "simulate",
     "virtual_cell",
 ]
