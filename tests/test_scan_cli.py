@@ -80,7 +80,6 @@ def test_compare_per_point_csv_with_registration(files, tmp_path):
     ("extra", "code", "msg"),
     [
         (["--unit", "m"], 2, "--unit mm"),
-        (["--register", "icp"], 3, "rotation about z"),
         (["--register", "bogus"], 2, "unknown registration"),
         (["--rim-band", "-1"], 2, "rim_band"),
         (["--estimator", "mean"], 2, "estimator"),

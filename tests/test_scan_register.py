@@ -65,9 +65,12 @@ def test_none_keeps_identity_and_reports_quality(shifted_scan):
     assert reg.dof == 0 and reg.rms > 0.1e-3  # 0.8 mm off: visible in the residual
 
 
-def test_free_icp_on_a_cone_is_refused(shifted_scan):
-    with pytest.raises(ConvergenceError, match="rotation about z"):
-        register(shifted_scan.points, CONE, "icp")
+def test_icp_on_a_cone_locks_the_rotation_about_its_axis(shifted_scan):
+    # issue #12: icp on a surface of revolution used to refuse; now rz is locked and reported
+    reg = register(shifted_scan.points, CONE, "icp")
+    ref = register(shifted_scan.points, CONE, "axisymmetric")
+    assert reg.dof == 5 and "rz" in reg.locked and "continuous" in reg.locked["rz"]
+    np.testing.assert_allclose(reg.T_work_scan, ref.T_work_scan, atol=1e-12)
 
 
 @pytest.fixture(scope="module")

@@ -38,8 +38,17 @@ def compare(
         "fixture",
         "--register",
         "-r",
-        help="Registration: fixture (default, as analyze: z and the two tilts from the flange "
-        "of an axisymmetric part) | flange | axisymmetric | icp | none.",
+        help="Registration, any part: fixture (default, as analyze: z and the two tilts from "
+        "the flange) | flange (z, tilts from the flange; x, y, rz from the wall) | "
+        "axisymmetric | icp (6 DOF on the surface) | none. A symmetry about z (declared, or "
+        "detected on a mesh) locks rz (continuous) or makes it defined modulo 360°/n (n-fold; "
+        "reported).",
+    ),
+    rz_hint: float | None = typer.Option(
+        None,
+        "--rz-hint",
+        help="n-fold symmetric part: report the rotation about z nearest to this angle, "
+        "degrees (default: nearest to 0, |rz| ≤ 180°/n).",
     ),
     rim_band: float | None = typer.Option(
         None,
@@ -102,13 +111,6 @@ def compare(
         if out.suffix.lower() not in (".parquet", ".pq", ".csv"):
             raise InputError("expected a .parquet or .csv table", file=out)
     nominal = load_part(part)
-    from roboisf.parts import AxisymmetricPart, MeshPart
-
-    if not isinstance(nominal, AxisymmetricPart | MeshPart):  # registration on any part: later
-        raise InputError(
-            f"scan compare takes a cone, vwacf, profile or mesh part, not {nominal.kind!r} (yet)",
-            file=part,
-        )
     tp = None
     if toolpath is not None:
         from roboisf.io.toolpath_csv import read_toolpath_csv
@@ -126,6 +128,7 @@ def compare(
         bin_width=bin_width * 1e-3,
         contour_z=contour_z * 1e-3,
         angle_bin=math.radians(angle_bin),
+        register_kwargs={} if rz_hint is None else {"rz_hint": math.radians(rz_hint)},
     )
     progress = state.progress()
     cloud = read_scan(scan, unit=unit, sample=sample)
@@ -142,6 +145,7 @@ def compare(
             f"tilt {math.degrees(reg.tilt):.4f}°, rms {reg.rms * 1e3:.4f} mm, "
             f"overlap {reg.overlap:.1%}"
         )
+        state.info(f"registration {reg.describe()}")
     if res.toolpath is not None:
         t = res.toolpath
         if (~t.valid).any():

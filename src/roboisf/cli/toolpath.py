@@ -58,6 +58,7 @@ from roboisf.parts import (
 from roboisf.parts.axisymmetric import VWACF_DEFAULT_ARC_RADIUS
 from roboisf.parts.io import part_files
 from roboisf.toolpath import sliced_spiral, sliced_step_down, spiral, step_down
+from roboisf.toolpath.generate import MAX_POINTS
 from roboisf.toolpath.toolpath import Toolpath
 
 if typing.TYPE_CHECKING:
@@ -97,6 +98,14 @@ ScallopHeight = Annotated[
 ToolLength = Annotated[
     float | None,
     typer.Option(help="Flange to ball tip \\[mm] (robot programs; same as --tool LENGTH)."),
+]
+MaxPoints = Annotated[
+    int,
+    typer.Option(
+        min=1,
+        help="Refuse, before generating, a path estimated above this many points (≈ 1 kB each "
+        "to generate and write).",
+    ),
 ]
 ToolOpt = Annotated[
     str | None,
@@ -156,6 +165,7 @@ class PathOptions:
     feed: float = 750.0
     max_wall_step: float | None = None
     scallop_height: float | None = None
+    max_points: int = MAX_POINTS
     tool_length: float | None = None
     tool_mass: float = 2.0
     tool_rotation: float = 0.0
@@ -300,6 +310,7 @@ def generate(part: Part, opts: PathOptions) -> Toolpath:
             scallop_height=None if opts.scallop_height is None else opts.scallop_height * 1e-3,
             spacing=opts.spacing * 1e-3,
             feed=opts.feed / 60e3,
+            max_points=opts.max_points,
         )
     gen = spiral if opts.spiral else step_down
     return gen(
@@ -309,6 +320,7 @@ def generate(part: Part, opts: PathOptions) -> Toolpath:
         spacing=opts.spacing * 1e-3,
         feed=opts.feed / 60e3,
         max_wall_step=None if opts.max_wall_step is None else opts.max_wall_step * 1e-3,
+        max_points=opts.max_points,
     )
 
 
@@ -405,6 +417,7 @@ _SHARED: list[tuple[str, Any, Any]] = [
     ("feed", Feed, 750.0),
     ("max_wall_step", MaxWallStep, None),
     ("scallop_height", ScallopHeight, None),
+    ("max_points", MaxPoints, MAX_POINTS),
     ("tool_length", ToolLength, None),
     ("tool_mass", ToolMass, 2.0),
     ("tool_rotation", ToolRotation, 0.0),

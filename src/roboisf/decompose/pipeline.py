@@ -141,7 +141,7 @@ def _compare(
     cloud = read_scan(run.scan, unit=run.scan_unit)
     return compare_scan(
         cloud,
-        cell.part,  # type: ignore[arg-type]  # any Part once scan/ is typed on the protocol
+        cell.part,
         toolpath=tp,
         toolpath_source=str(run.toolpath),
         options=opts,

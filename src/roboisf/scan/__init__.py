@@ -38,6 +38,7 @@ from roboisf.scan.summary import (
     lap_arc_length,
     resultant_mean_deviation,
 )
+from roboisf.scan.symmetry import SymmetryEstimate, detect_symmetry, part_symmetry
 from roboisf.scan.synthetic import OffsetField, SyntheticScan, radial_offset, synthetic_scan
 from roboisf.scan.writers import write_ply
 
@@ -53,6 +54,7 @@ __all__ = [
     "Registration",
     "ScanCloud",
     "ScanComparison",
+    "SymmetryEstimate",
     "SyntheticScan",
     "ToolpathDeviations",
     "by_angle",
@@ -61,9 +63,11 @@ __all__ = [
     "check_units",
     "compare_scan",
     "default_rim_band",
+    "detect_symmetry",
     "deviation_stats",
     "lap_arc_length",
     "part_size",
+    "part_symmetry",
     "point_deviations",
     "point_table",
     "radial_offset",

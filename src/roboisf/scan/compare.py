@@ -13,8 +13,7 @@ import pandas as pd
 
 from roboisf.errors import InputError
 from roboisf.frames.se3 import transform_points
-from roboisf.parts.axisymmetric import AxisymmetricPart
-from roboisf.parts.mesh import MeshPart
+from roboisf.parts.base import Part
 from roboisf.progress import Progress, task
 from roboisf.scan.deviation import (
     PointDeviations,
@@ -33,20 +32,21 @@ from roboisf.toolpath.toolpath import Toolpath
 __all__ = ["CompareOptions", "ScanComparison", "compare_scan", "part_size"]
 
 
-def part_size(part: AxisymmetricPart | MeshPart) -> float:
-    """Largest extent [m] of the nominal (for the unit plausibility check)."""
-    if isinstance(part, MeshPart):
-        return part.size
-    return max(2.0 * (part.opening_radius + part.flange_width), part.depth)
+def part_size(part: Part) -> float:
+    """Largest extent [m] of the nominal (for the unit plausibility check): of its bounding box,
+    or its depth if that is larger."""
+    lo, hi = part.bounds
+    return max(float(np.max(np.asarray(hi) - np.asarray(lo))), float(part.depth))
 
 
 @dataclass(frozen=True)
 class CompareOptions:
     """Settings of :func:`compare_scan` (SI).
 
-    register : ``none | flange | axisymmetric | icp``; rim_band : m below the sheet plane excluded
-    (None: :func:`~roboisf.scan.deviation.default_rim_band` of the part's depth, min(20 mm,
-    0.6·depth); :func:`compare_scan` stores the value it used);
+    register : ``none | fixture | flange | axisymmetric | icp`` (:func:`register`, any part);
+    rim_band : m below the sheet plane excluded (None:
+    :func:`~roboisf.scan.deviation.default_rim_band` of the part's depth, min(20 mm, 0.6·depth);
+    :func:`compare_scan` stores the value it used);
     max_distance : m — points farther from the nominal are not the part; outlier_k,
     outlier_std : statistical outlier removal (``outlier_k = 0`` disables); radius,
     max_points, min_points, estimator : per-toolpath-point averaging (see
@@ -166,7 +166,7 @@ def _frame_mm(
 
 def compare_scan(
     cloud: ScanCloud,
-    part: AxisymmetricPart | MeshPart,
+    part: Part,
     *,
     toolpath: Toolpath | None = None,
     toolpath_source: str | None = None,

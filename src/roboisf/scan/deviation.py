@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from roboisf.errors import InputError
-from roboisf.parts.axisymmetric import AxisymmetricPart
+from roboisf.parts.base import Part
 from roboisf.parts.mesh import MeshPart, spatial_order
 from roboisf.progress import Progress, task
 
@@ -89,7 +89,7 @@ class PointDeviations:
 
 def point_deviations(
     points: ArrayLike,
-    part: AxisymmetricPart | MeshPart,
+    part: Part,
     *,
     chunk: int | None = None,
     workers: int | None = None,

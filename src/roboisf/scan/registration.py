@@ -1,4 +1,4 @@
-"""Registration of a scan to the nominal: none, constrained axisymmetric (5 DOF), 6-DOF ICP.
+"""Registration of a scan to the nominal of any part: none, fixture, flange, axisymmetric, icp.
 
 All methods minimise the robustly weighted sum of squared **signed point-to-surface distances**
 ``r_i = d(T·x_i)`` (the nominal's exact closest point, analytic or mesh) by Gauss–Newton on a
@@ -8,28 +8,43 @@ left perturbation ``T ← exp([v; ω]) T``::
 
 which is point-to-plane ICP with the nominal surface itself as the target (no correspondence
 search). Weights: Huber (k = 1.345 σ, σ = 1.4826·MAD of the residuals); points farther than
-``max_distance`` from the nominal get weight 0 (not part of the surface: fixture, clamps).
+``max_distance`` from the nominal get weight 0 (not part of the surface: fixture, clamps). Only
+the :class:`~roboisf.parts.Part` interface is used (closest point with its region code, bounds,
+symmetry), so every part kind registers the same way.
 
-Axisymmetric parts: rotation about the part axis does not change any distance (``(p × n)_z ≡ 0``
-for a surface of revolution), so it is **locked**: 5 unknowns — the x, y, z shift and the two
-tilts. The x/y shift *is* observable (it is where the axis sits) and must be fitted, otherwise
-an off-centre part biases every deviation by ``±e·sin α`` around the circumference. After each
-step the transform is brought back to a pure tilt (its rotation vector has no z component,
-exactly) by left-multiplying with a rotation about the work z axis, which leaves every distance
-unchanged. A free 6-DOF ICP on such a part is refused (the problem is singular), not allowed to
-drift.
+**Symmetry** (:mod:`roboisf.scan.symmetry`: declared by the part, or detected on a mesh).
+A *continuous* symmetry about z (a surface of revolution, ``(p × n)_z ≡ 0``) makes the rotation
+about z unobservable: it is **locked** and the result is kept a pure tilt (its rotation has no
+twist about z, exactly: after each step the transform is left-multiplied by the rotation about
+work z that removes the twist, which changes no distance). A *discrete* symmetry of order n (a
+square pyramid: 4) leaves the fit well posed locally, but its answer is defined only modulo
+2π/n: the rotation about z is searched over one period (coarse grid of ≤ 5°, then Gauss–Newton)
+and the result is reported as the representative nearest to the identity, |rz| ≤ π/n (or to the
+caller's ``rz_hint``), with the ambiguity stated. A part with no symmetry is searched over the
+full turn. The x/y shift of a symmetric part *is* observable (it is where the axis sits) and is
+fitted.
 
-Caveat (physics, not numerics): on a cone wall a uniform normal offset ``e`` of the formed part
-is indistinguishable from a z shift of ``e / cos α``. A registration on the wall absorbs such
-offsets. ``flange`` avoids it: the undeformed clamped sheet (flange, z = 0) alone fixes z and the
-two tilts, the wall only the x/y position of the axis (a rotationally uniform deviation does not
-move the axis). Use ``none`` when the scan is already in the work frame.
+**Observability.** At every iteration each fitted coordinate's share of the normal matrix not
+explained by the others (``ρ_k = √(S_k / max_j A_jj)``, S_k the Schur complement, columns of the
+rotations scaled by the RMS lever arm so that all are in metres) is checked; a coordinate with
+``ρ_k < min_observability`` (a flat plate's x, y and rotation about z) is locked and reported —
+never left to drift. The result carries ρ of every coordinate, the condition number of the fitted
+normal matrix and the standard errors of the fitted coordinates (σ² A⁻¹, σ the robust residual
+scale).
+
+Caveat (physics, not numerics): on a wall a uniform normal offset ``e`` of the formed part is
+indistinguishable from a shift along the wall's mean normal (``e / cos α`` in z on a cone). A
+registration on the wall absorbs such offsets. ``flange`` avoids it: the undeformed clamped sheet
+(flange, z = 0, region 0 of the part's closest-point query) alone fixes z and the two tilts, the
+wall only x, y (and the rotation about z when the part is not a surface of revolution), with a
+uniform wall offset fitted alongside as a nuisance parameter so that it cannot move them. Use
+``none`` when the scan is already in the work frame.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -37,14 +52,31 @@ from numpy.typing import ArrayLike, NDArray
 from roboisf.errors import ConvergenceError, InputError
 from roboisf.frames.rotations import matrix_to_quat, matrix_to_rotvec, rot_z, rotvec_to_matrix
 from roboisf.frames.se3 import make_transform, transform_points
-from roboisf.parts.axisymmetric import AxisymmetricPart
-from roboisf.parts.mesh import MeshPart
+from roboisf.parts.axisymmetric import SurfaceQuery
+from roboisf.parts.base import Part, Symmetry
+from roboisf.scan.symmetry import SymmetryEstimate, part_symmetry
 
-__all__ = ["METHODS", "Registration", "register"]
+__all__ = ["DOF", "DOF_NAMES", "METHODS", "Registration", "register", "twist_about_z"]
 
 F64 = NDArray[np.float64]
 
 METHODS = ("none", "fixture", "flange", "axisymmetric", "icp")
+
+#: the six coordinates of a registration, in the order of the Gauss–Newton step [v; ω]
+DOF = ("x", "y", "z", "rx", "ry", "rz")
+DOF_NAMES = {
+    "x": "x shift",
+    "y": "y shift",
+    "z": "z shift",
+    "rx": "tilt about x",
+    "ry": "tilt about y",
+    "rz": "rotation about z",
+}
+
+#: flange points must have flange all round them within this distance [m] (not the rim bend)
+FLANGE_CLEARANCE = 2e-3
+#: iteration after which the Huber scale is kept fixed
+FREEZE_SCALE = 5
 
 
 @dataclass(frozen=True)
@@ -59,8 +91,18 @@ class Registration:
     overlap : float — fraction of the fitted points within ``max_distance`` of the nominal
     n_points : int — points used in the fit
     iterations : int
-    method : ``"none" | "axisymmetric" | "icp"``
-    dof : int — 0, 5 or 6
+    method : one of :data:`METHODS`
+    dof : int — number of coordinates fitted (0 … 6)
+    fitted : tuple of str — the fitted coordinates (:data:`DOF` keys)
+    locked : dict — locked coordinate → why (symmetry, fixture, not observable)
+    symmetry : SymmetryEstimate or None — the part's symmetry about z and its source (None for
+        ``none``)
+    observability : dict — coordinate → ρ ∈ [0, 1]: the part of its column of the (lever-arm
+        scaled) normal matrix not explained by the other fitted coordinates, relative to the
+        strongest column (0: not determined by the scanned surface)
+    condition : float — condition number of the fitted normal matrix (NaN for ``none``)
+    std : dict — fitted coordinate → standard error (m for shifts, rad for rotations), from the
+        robust residual scale and the normal matrix (independent noise assumed)
     """
 
     T_work_scan: F64
@@ -70,6 +112,12 @@ class Registration:
     iterations: int
     method: str
     dof: int
+    fitted: tuple[str, ...] = ()
+    locked: dict[str, str] = field(default_factory=dict)
+    symmetry: SymmetryEstimate | None = None
+    observability: dict[str, float] = field(default_factory=dict)
+    condition: float = math.nan
+    std: dict[str, float] = field(default_factory=dict)
 
     @property
     def translation(self) -> F64:
@@ -78,7 +126,8 @@ class Registration:
 
     @property
     def rotvec(self) -> F64:
-        """(3,) rad — rotation vector of ``T_work_scan`` (z component 0 for axisymmetric)."""
+        """(3,) rad — rotation vector of ``T_work_scan`` (z component 0 when rz is locked by a
+        continuous symmetry)."""
         return matrix_to_rotvec(self.T_work_scan[:3, :3])
 
     @property
@@ -86,8 +135,42 @@ class Registration:
         """rad — angle between the scan's z axis and the work z axis."""
         return float(math.acos(np.clip(self.T_work_scan[2, 2], -1.0, 1.0)))
 
+    @property
+    def rotation_about_z(self) -> float:
+        """rad — twist of ``T_work_scan`` about work z (swing–twist decomposition), in (−π, π];
+        for a discrete symmetry of order n the representative with |rz| ≤ π/n (or nearest to
+        the hint)."""
+        return twist_about_z(self.T_work_scan)
+
+    @property
+    def ambiguity(self) -> float | None:
+        """rad — the rotation about z is defined only modulo this (2π/n for a discrete symmetry
+        of order n); None when the answer is unique or the rotation is locked."""
+        s = self.symmetry
+        if s is None or s.order < 2 or "rz" not in self.fitted:
+            return None
+        return s.symmetry.angle
+
+    def describe(self) -> str:
+        """One line for a log: what was fitted, what was locked and why, the ambiguity."""
+        parts = [f"{self.method}: {self.dof} DOF fitted ({', '.join(self.fitted) or '-'})"]
+        for k, why in self.locked.items():
+            parts.append(f"{DOF_NAMES[k]} locked: {why}")
+        if self.ambiguity is not None:
+            parts.append(
+                f"rotation about z {math.degrees(self.rotation_about_z):.4f}°, defined only "
+                f"modulo {math.degrees(self.ambiguity):g}° (symmetry {self.symmetry.describe()})"  # type: ignore[union-attr]
+            )
+        return "; ".join(parts)
+
     def to_dict(self) -> dict[str, object]:
         """JSON-friendly summary (mm, deg)."""
+        sym = self.symmetry
+        amb = self.ambiguity
+
+        def unit(k: str, v: float) -> float:
+            return float(v) * 1e3 if k in ("x", "y", "z") else math.degrees(float(v))
+
         return {
             "method": self.method,
             "dof": self.dof,
@@ -95,10 +178,27 @@ class Registration:
             "translation_mm": [float(v) * 1e3 for v in self.translation],
             "rotation_vector_deg": [math.degrees(float(v)) for v in self.rotvec],
             "tilt_deg": math.degrees(self.tilt),
+            "rotation_about_z_deg": math.degrees(self.rotation_about_z),
             "rms_mm": self.rms * 1e3,
             "overlap": self.overlap,
             "n_points": self.n_points,
             "iterations": self.iterations,
+            "fitted": list(self.fitted),
+            "locked": {k: v for k, v in self.locked.items()},
+            "symmetry": None
+            if sym is None
+            else {
+                "order": sym.order,
+                "kind": "continuous"
+                if sym.order == 0
+                else ("none" if sym.order == 1 else "discrete"),
+                "source": sym.source,
+            },
+            "ambiguity_deg": None if amb is None else math.degrees(amb),
+            "observability": {k: float(v) for k, v in self.observability.items()},
+            "condition_number": float(self.condition),
+            "std_mm_deg": {k: unit(k, v) for k, v in self.std.items()},
+            "summary": self.describe(),
         }
 
 
@@ -108,13 +208,24 @@ def _to_mm(T: F64) -> F64:
     return out
 
 
-def _huber_weights(r: F64, max_distance: float) -> tuple[F64, float]:
+def twist_about_z(T: ArrayLike) -> float:
+    """Twist angle [rad] about work z of the rotation of ``T`` (4, 4) or ``R`` (3, 3): the γ of
+    ``R = R_swing · Rz(γ)``-style swing–twist decomposition, in (−π, π]."""
+    M = np.asarray(T, dtype=float)
+    q = matrix_to_quat(M[:3, :3])  # (w, x, y, z), w ≥ 0; twist about z = normalise(w, 0, 0, z)
+    return 2.0 * math.atan2(float(q[3]), float(q[0]))
+
+
+def _huber_weights(r: F64, max_distance: float, sigma: float | None = None) -> tuple[F64, float]:
+    """Huber weights (k = 1.345 σ) and σ (1.4826·MAD of the residuals within ``max_distance``,
+    unless given); weight 0 beyond ``max_distance``."""
     inside = np.abs(r) <= max_distance
     if not inside.any():
         return np.zeros_like(r), math.inf
-    ri = r[inside]
-    sigma = 1.4826 * float(np.median(np.abs(ri - np.median(ri))))
-    sigma = max(sigma, 1e-7)  # 0.1 µm floor: a noise-free synthetic scan
+    if sigma is None:
+        ri = r[inside]
+        sigma = 1.4826 * float(np.median(np.abs(ri - np.median(ri))))
+        sigma = max(sigma, 1e-7)  # 0.1 µm floor: a noise-free synthetic scan
     k = 1.345 * sigma
     a = np.abs(r)
     w = np.where(a <= k, 1.0, k / np.maximum(a, 1e-300))
@@ -123,14 +234,69 @@ def _huber_weights(r: F64, max_distance: float) -> tuple[F64, float]:
 
 def _untwist(T: F64) -> F64:
     """Left-multiply by the rotation about work z that removes the rotation's twist about z."""
-    q = matrix_to_quat(T[:3, :3])  # (w, x, y, z); twist about z = normalise(w, 0, 0, z)
-    gamma = 2.0 * math.atan2(float(q[3]), float(q[0]))
-    return make_transform(rot_z(-gamma)) @ T
+    return make_transform(rot_z(-twist_about_z(T))) @ T
+
+
+def _flange_points(part: Part, q: SurfaceQuery, w: F64) -> NDArray[np.bool_]:
+    """Points whose foot is on the flange (region 0) and clear of the opening: probes
+    ``FLANGE_CLEARANCE`` away in 8 horizontal directions must land on the flange at distance 0,
+    or past its outer edge (their foot on the flange, farther from the z axis than the point's):
+    not over the opening, not on the rim bend, whatever the opening's shape."""
+    cand = np.flatnonzero((q.region == 0) & (w > 0))
+    out = np.zeros(w.shape, dtype=bool)
+    if cand.size == 0:
+        return out
+    F = q.point[cand]
+    rho = np.hypot(F[:, 0], F[:, 1])
+    ok = np.ones(cand.size, dtype=bool)
+    for a in np.arange(8) * (math.pi / 4):
+        d = np.array([math.cos(a), math.sin(a), 0.0]) * FLANGE_CLEARANCE
+        qq = part.closest_point(F + d)
+        on = np.abs(qq.distance) <= 1e-6
+        outward = np.hypot(qq.point[:, 0], qq.point[:, 1]) > rho + 1e-9
+        ok &= (qq.region == 0) & (on | outward)
+    out[cand[ok]] = True
+    return out
+
+
+def _observability(A: F64, cols: list[int], k: int) -> float:
+    """ρ_k = √(S_k / max diag): Schur complement of coordinate ``k`` given ``cols``."""
+    amax = float(np.max(np.diag(A)))
+    if amax <= 0:
+        return 0.0
+    o = [c for c in cols if c != k]
+    s = float(A[k, k])
+    if o:
+        Aoo = A[np.ix_(o, o)]
+        s -= float(A[k, o] @ np.linalg.pinv(Aoo, rcond=1e-12, hermitian=True) @ A[o, k])
+    return math.sqrt(max(s, 0.0) / amax)
+
+
+def _search_rz(
+    part: Part, X: F64, T: F64, period: float, centre: float, max_distance: float, seed: int
+) -> F64:
+    """Coarse search of the rotation about work z over one ``period`` centred on ``centre``
+    [rad] (steps ≤ 5°): the candidate with the lowest truncated mean squared distance, unless it
+    improves on the centre by less than 1 % (a flat part: keep the start)."""
+    rng = np.random.default_rng(seed)
+    S = X if X.shape[0] <= 3000 else X[rng.choice(X.shape[0], 3000, replace=False)]
+    n = max(4, math.ceil(period / math.radians(5.0)))
+    offsets = (np.arange(n) - n // 2) * (period / n)
+    base = make_transform(rot_z(centre - twist_about_z(T))) @ T
+    cost = np.empty(n)
+    for i, off in enumerate(offsets):
+        Tc = make_transform(rot_z(float(off))) @ base
+        d = part.signed_distance(transform_points(Tc, S))
+        cost[i] = float(np.mean(np.minimum(d * d, max_distance**2)))
+    best = int(np.argmin(cost))
+    if cost[best] >= 0.99 * cost[n // 2]:
+        best = n // 2
+    return make_transform(rot_z(float(offsets[best]))) @ base
 
 
 def register(
     points: ArrayLike,
-    part: AxisymmetricPart | MeshPart,
+    part: Part,
     method: str = "axisymmetric",
     *,
     T_init: ArrayLike | None = None,
@@ -142,31 +308,47 @@ def register(
     min_overlap: float = 0.5,
     seed: int = 0,
     source: str | None = None,
+    symmetry: Symmetry | int | None = None,
+    rz_hint: float | None = None,
+    search_rz: bool = True,
+    min_observability: float = 1e-3,
 ) -> Registration:
-    """Register scan ``points`` (N, 3) [m, scanner frame] to the nominal ``part``.
+    """Register scan ``points`` (N, 3) [m, scanner frame] to the nominal ``part`` (any Part).
 
     Parameters
     ----------
     method : ``"none"`` (identity, only the quality figures), ``"fixture"`` (3 DOF: z and the
-        two tilts from the flange points only; the axis stays where the fixture puts it, so a
-        uniform lateral deflection of the wall — a robot pushed sideways — is measured, not
-        registered away), ``"flange"`` (5 DOF like
-        axisymmetric, but z and the tilts from the flange points only and the x/y shift from the
-        wall: wall deviations cannot leak into z), ``"axisymmetric"`` (5 DOF: x, y, z shift and
-        two tilts from all points; rotation about the part axis locked) or ``"icp"`` (6 DOF
-        point-to-plane, for non-axisymmetric parts)
+        two tilts from the flange points only; x, y and the rotation about z stay where the
+        fixture puts them, so a uniform lateral deflection of the wall — a robot pushed
+        sideways — is measured, not registered away), ``"flange"`` (z and the tilts from the
+        flange points only; x, y — and the rotation about z unless the part is a surface of
+        revolution — from the wall, with a uniform wall offset fitted as a nuisance: wall
+        deviations cannot leak into z), ``"axisymmetric"`` (5 DOF from all points, rotation
+        about z locked; needs a continuous symmetry) or ``"icp"`` (6 DOF point-to-plane on the
+        part's own surface; the rotation about z locked for a continuous symmetry, searched and
+        reported modulo 2π/n for a discrete one)
     T_init : (4, 4), optional — starting ``T_work_scan`` (default identity); the scan must
-        start within a few mm and degrees of the nominal
+        start within a few mm and degrees of the nominal, except for the rotation about z of a
+        part without continuous symmetry (searched)
     max_distance : float, m — points farther from the nominal are ignored (fixture, clamps)
     max_points : int — random subset used for the fit (the transform is then applied to all)
     tolerance : float — convergence on the step (m and rad)
-    max_rotation : float, rad — ICP sanity limit: a larger rotation is refused
+    max_rotation : float, rad — ``icp`` sanity limit on the tilt: a larger tilt is refused
     min_overlap : float — refuse if fewer of the points end within ``max_distance``
+    symmetry : Symmetry or int, optional — override the part's symmetry about z (order: 0
+        continuous, n discrete, 1 none); default: declared by the part, else detected
+        (:func:`roboisf.scan.symmetry.part_symmetry`)
+    rz_hint : float, rad, optional — expected rotation about z: the search is centred on it and
+        the representative modulo 2π/n nearest to it is returned (default: the rotation about
+        z of ``T_init``, i.e. nearest to the identity when no ``T_init`` is given)
+    search_rz : bool — coarse search of the rotation about z before Gauss–Newton
+    min_observability : float — coordinates with ρ below this are locked and reported
 
     Raises
     ------
-    ConvergenceError — no convergence in ``max_iterations``, singular problem (e.g. ``icp`` on an
-        axisymmetric part), rotation beyond ``max_rotation``, or too little overlap.
+    InputError — unknown method; ``axisymmetric`` on a part without continuous symmetry.
+    ConvergenceError — no convergence in ``max_iterations``, tilt beyond ``max_rotation``
+        (``icp``), too little overlap, no flange in the scan (``fixture``, ``flange``).
     """
     if method not in METHODS:
         raise InputError(
@@ -174,19 +356,56 @@ def register(
             field="register",
         )
     X = np.atleast_2d(np.asarray(points, dtype=float))
+    if X.ndim != 2 or X.shape[1] != 3 or not np.all(np.isfinite(X)):
+        raise InputError(
+            f"scan points must be finite (N, 3) coordinates, got shape {X.shape}",
+            file=source,
+            field="points",
+        )
+    if T_init is not None:
+        T0 = np.asarray(T_init, dtype=float)
+        if T0.shape != (4, 4) or not np.all(np.isfinite(T0)):
+            raise InputError("T_init must be a finite 4×4 transform", field="T_init")
     if X.shape[0] > max_points:
         rng = np.random.default_rng(seed)
         X = X[rng.choice(X.shape[0], max_points, replace=False)]
     T = np.eye(4) if T_init is None else np.asarray(T_init, dtype=float).copy()
     where = f" ({source})" if source else ""
-    if method in ("axisymmetric", "flange", "fixture") and not isinstance(part, AxisymmetricPart):
-        raise InputError(
-            "axisymmetric registration needs an axisymmetric part; use icp", field="register"
-        )
-    dof = {"none": 0, "fixture": 3, "flange": 5, "axisymmetric": 5, "icp": 6}[method]
+    sym: SymmetryEstimate | None = None
+    free = np.zeros(6, dtype=bool)
+    locked: dict[str, str] = {}
+    if method != "none":
+        sym = part_symmetry(part, symmetry=symmetry)
+        free[:] = True
+        if method == "fixture":
+            free[[0, 1, 5]] = False
+            for name in ("x", "y", "rz"):
+                locked[name] = "fixture registration: kept where the fixture puts it"
+        if sym.order == 0 and free[5]:
+            free[5] = False
+            locked["rz"] = f"continuous symmetry about z ({sym.how}): changes no distance"
+        if method == "axisymmetric" and sym.order != 0:
+            raise InputError(
+                "the axisymmetric registration needs a part with a continuous symmetry about z; "
+                f"this part's symmetry: {sym.describe()}; use icp or flange",
+                field="register",
+            )
+    nuisance = method == "flange"  # a uniform wall offset, fitted alongside, never applied
+    period = 2.0 * math.pi / sym.order if sym is not None and sym.order >= 2 else 2.0 * math.pi
+    centre = twist_about_z(T) if rz_hint is None else float(rz_hint)
+    if free[5] and search_rz:
+        T = _search_rz(part, X, T, period, centre, max_distance, seed)
     it = 0
     step_norm = math.inf
-    converged = dof == 0
+    converged = not free.any()
+    flange_mask: NDArray[np.bool_] | None = None
+    A = np.zeros((7, 7))
+    H = np.zeros((7, 7))
+    G = np.zeros((7, 7))
+    fit_cols: list[int] = []
+    sigma = math.nan
+    L = 1.0
+    scales: dict[str, float] = {}
     while not converged:
         if it >= max_iterations:
             raise ConvergenceError(
@@ -198,108 +417,116 @@ def register(
         P = transform_points(T, X)
         q = part.closest_point(P)
         r = q.distance
-        w, _ = _huber_weights(r, max_distance)
-        if np.count_nonzero(w) < 3 * dof:
+        # the robust scale is re-estimated for the first iterations, then frozen: the Huber
+        # cost is then a fixed function, which the Newton steps below minimise (a moving scale
+        # moves the minimum)
+        w, sigma = _huber_weights(r, max_distance, scales.get("all"))
+        if it == FREEZE_SCALE:
+            scales["all"] = sigma
+        if np.count_nonzero(w) < 3 * int(free.sum()):
             raise ConvergenceError(
                 f"{method} registration{where}: only {np.count_nonzero(w)} points within "
                 f"{max_distance * 1e3:g} mm of the nominal; the scan does not overlap the part"
             )
-        pxn = np.cross(P, q.normal)
-        J = np.concatenate([q.normal, pxn], axis=1)
-        if dof == 5:
-            J = J[:, :5]
-        if method == "fixture":
-            assert isinstance(part, AxisymmetricPart)  # checked on entry
-            r_foot = np.hypot(q.point[:, 0], q.point[:, 1])
-            on_flange = (q.region == 0) & (w > 0) & (r_foot >= part.opening_radius + 2e-3)
+        # gradient of the signed distance: (p − q)/r — the face normal on a face, the direction
+        # from the edge or vertex where the foot is one (a mesh's or a pyramid's edges: with the
+        # face normal there Gauss–Newton creeps instead of converging quadratically)
+        off = np.abs(r) > 1e-9
+        g = np.where(off[:, None], (P - q.point) / np.where(off, r, 1.0)[:, None], q.normal)
+        J = np.zeros((X.shape[0], 7))
+        J[:, :3] = g
+        J[:, 3:6] = np.cross(P, g)
+        if method in ("fixture", "flange"):
+            if flange_mask is None or it <= 3:  # then frozen: no point switches sides
+                flange_mask = _flange_points(part, q, w)
+            on_flange = flange_mask & (w > 0)
             if np.count_nonzero(on_flange) < 50:
                 raise ConvergenceError(
-                    f"fixture registration{where}: only {np.count_nonzero(on_flange)} scan "
+                    f"{method} registration{where}: only {np.count_nonzero(on_flange)} scan "
                     "points on the flange; scan the clamped sheet around the part"
+                    + (", or use icp" if method == "flange" else "")
                 )
-            w = np.where(on_flange, w, 0.0)
-            J = J[:, 2:5]  # z shift, tilt about x, tilt about y
-        if method == "flange":
-            # z and the tilts from the flange only, x/y (the axis position) from the rest
-            # 2 mm clear of the rim edge on both sides: the bend there is neither, and points
-            # that switch sides between iterations would make the fit oscillate
-            assert isinstance(part, AxisymmetricPart)  # checked on entry
-            r_foot = np.hypot(q.point[:, 0], q.point[:, 1])
-            on_flange = (q.region == 0) & (w > 0) & (r_foot >= part.opening_radius + 2e-3)
-            on_wall = (q.region == 1) & (q.point[:, 2] <= -2e-3) & (w > 0)
-            # the wall only locates the axis: remove its mean offset (which cannot move the axis,
-            # by symmetry) so that its residuals are noise-sized and the Huber fit stays in its
-            # quadratic zone (else IRLS degenerates to a slowly converging L1 fit)
-            r = r.copy()
-            r[on_wall] -= np.median(r[on_wall]) if on_wall.any() else 0.0
-            w = np.zeros_like(r)
-            for grp in (on_flange, on_wall):
-                if grp.any():
-                    w[grp] = _huber_weights(r[grp], max_distance)[0]
-            if np.count_nonzero(on_flange) < 50:
-                raise ConvergenceError(
-                    f"flange registration{where}: only {np.count_nonzero(on_flange)} scan points "
-                    "on the flange; scan the clamped sheet around the part, or use axisymmetric"
-                )
-            J[on_flange, :2] = 0.0
-            J[~on_flange, 2:] = 0.0
-            J[~(on_flange | on_wall)] = 0.0
-        # rotation columns × 1/L (L = RMS lever arm): every column in m, so the conditioning
-        # test compares like with like (a column that vanishes, as rotation about the axis of
-        # a surface of revolution does, stays ~0 instead of being normalised up to 1)
+            if method == "fixture":
+                w = np.where(on_flange, w, 0.0)
+            else:
+                on_wall = (q.region == 1) & (q.point[:, 2] <= -FLANGE_CLEARANCE) & (w > 0)
+                # the wall's median offset removed before weighting (the nuisance column takes
+                # the rest): its residuals stay noise-sized, in Huber's quadratic zone
+                r = r.copy()
+                if on_wall.any():
+                    r[on_wall] -= np.median(r[on_wall])
+                w = np.zeros_like(r)
+                for name, grp in (("flange", on_flange), ("wall", on_wall)):
+                    if grp.any():
+                        w[grp], sg = _huber_weights(r[grp], max_distance, scales.get(name))
+                        if it == FREEZE_SCALE:
+                            scales[name] = sg
+                J[np.ix_(np.flatnonzero(on_flange), np.array([0, 1, 5]))] = 0.0
+                J[np.ix_(np.flatnonzero(~on_flange), np.array([2, 3, 4]))] = 0.0
+                J[~(on_flange | on_wall)] = 0.0
+                J[on_wall, 6] = -1.0  # r_i − e
+        # rotation columns × 1/L (L = RMS lever arm): every column in m, so observability
+        # compares like with like (a column that vanishes, as rotation about the axis of a
+        # surface of revolution does, stays ~0 instead of being normalised up to 1)
         L = math.sqrt(float(np.average(np.einsum("ij,ij->i", P, P), weights=w)))
-        scale = np.array([1.0, L, L]) if dof == 3 else np.array([1.0, 1.0, 1.0, L, L, L])[:dof]
+        scale = np.array([1.0, 1.0, 1.0, L, L, L, 1.0])
         Js = J / scale
         A = Js.T @ (Js * w[:, None])
-        b = Js.T @ (w * r)
-        ev = np.linalg.eigvalsh(A)
-        if ev[0] <= 1e-9 * ev[-1]:
-            names = (
-                ["z shift", "tilt about x", "tilt about y"]
-                if dof == 3
-                else [
-                    "x shift",
-                    "y shift",
-                    "z shift",
-                    "tilt about x",
-                    "tilt about y",
-                    "rotation about z",
-                ][:dof]
+        b = Js.T @ (w * r)  # = Jᵀψ(r): the gradient of the Huber cost
+        # Newton on the Huber cost once its scale is frozen: Hessian Jᵀ·1{|r| ≤ k}·J (ψ' = 1 in
+        # the quadratic zone, 0 outside) instead of IRLS's Jᵀ·(ψ/r)·J, which converges only
+        # linearly when many points sit in the linear zone (a wall offset against the flange)
+        quad = (w >= 1.0).astype(float)
+        H = Js.T @ (Js * quad[:, None])
+        G = Js.T @ (Js * ((w * r) ** 2)[:, None])  # Σ ψ² J Jᵀ: the sandwich's meat
+        # lock what the surface does not determine, worst first, until the rest is well posed
+        while True:
+            fit_cols = [int(k) for k in np.flatnonzero(free)] + ([6] if nuisance else [])
+            rho = {k: _observability(A, fit_cols, k) for k in fit_cols if k < 6}
+            if not rho:
+                break
+            worst = min(rho, key=lambda k: rho[k])
+            if rho[worst] >= min_observability:
+                break
+            free[worst] = False
+            locked[DOF[worst]] = (
+                f"not determined by the scanned surface (observability {rho[worst]:.1e})"
             )
-            null = np.linalg.eigh(A)[1][:, 0]
-            worst = names[int(np.argmax(np.abs(null)))]
-            hint = (
-                " (an axisymmetric part: use the axisymmetric registration)"
-                if worst == "rotation about z"
-                else ""
-            )
+        if not free.any():
             raise ConvergenceError(
-                f"{method} registration{where} is singular: the {worst} is not determined by "
-                f"the scanned surface{hint}"
+                f"{method} registration{where}: no coordinate is determined by the scanned surface"
             )
-        xi = -np.linalg.solve(A, b) / scale
-        if dof == 3:
-            xi = np.concatenate([[0.0, 0.0], xi, [0.0]])
-        if dof == 5:
-            xi = np.concatenate([xi, [0.0]])
-        T = make_transform(rotvec_to_matrix(xi[3:]), xi[:3]) @ T
-        if dof in (3, 5):
+        Hf = H[np.ix_(fit_cols, fit_cols)]
+        newton = it > FREEZE_SCALE and np.count_nonzero(quad) >= 10 * len(fit_cols)
+        if newton and np.linalg.cond(Hf) < 1e12:
+            sol = -np.linalg.solve(Hf, b[fit_cols])
+        else:
+            sol = -np.linalg.solve(A[np.ix_(fit_cols, fit_cols)], b[fit_cols])
+        xi = np.zeros(7)
+        xi[fit_cols] = sol
+        xi[:6] /= scale[:6]
+        T = make_transform(rotvec_to_matrix(xi[3:6]), xi[:3]) @ T
+        if not free[5] and ((sym is not None and sym.order == 0) or method == "fixture"):
             T = _untwist(T)
-        step_norm = float(np.linalg.norm(xi))
+        step_norm = float(np.linalg.norm(xi[:6]))
         converged = step_norm < tolerance
-    if dof == 6:
-        angle = float(np.linalg.norm(matrix_to_rotvec(T[:3, :3])))
-        if angle > max_rotation:
+    if free[5] and sym is not None and sym.order >= 2:
+        # the representative modulo 2π/n nearest to the hint (the part maps onto itself)
+        k = round((twist_about_z(T) - centre) / period)
+        T = make_transform(rot_z(-k * period)) @ T
+    if method == "icp":
+        tilt = float(math.acos(np.clip(T[2, 2], -1.0, 1.0)))
+        if tilt > max_rotation:
             raise ConvergenceError(
-                f"icp registration{where} rotated the scan by {math.degrees(angle):.3g}°, more "
-                f"than the limit of {math.degrees(max_rotation):.3g}°; it slid along a symmetry "
-                "of the part, or the start pose is far off"
+                f"icp registration{where} tilted the scan by {math.degrees(tilt):.3g}°, more "
+                f"than the limit of {math.degrees(max_rotation):.3g}°; the start pose is far "
+                "off, or the scan does not show enough of the part"
             )
     P = transform_points(T, X)
     r = part.closest_point(P).distance
     inside = np.abs(r) <= max_distance
     overlap = float(np.mean(inside))
-    if dof > 0 and overlap < min_overlap:
+    if method != "none" and overlap < min_overlap:
         raise ConvergenceError(
             f"{method} registration{where}: only {overlap:.1%} of the points lie within "
             f"{max_distance * 1e3:g} mm of the nominal after the fit (need {min_overlap:.0%})"
@@ -310,7 +537,39 @@ def register(
         # — 1 % of reflections a few mm off — would otherwise dominate the figure)
         ri = r[inside]
         med = float(np.median(ri))
-        sigma = max(1.4826 * float(np.median(np.abs(ri - med))), 1e-9)
-        core = ri[np.abs(ri - med) <= 3.0 * sigma]
+        s_in = max(1.4826 * float(np.median(np.abs(ri - med))), 1e-9)
+        core = ri[np.abs(ri - med) <= 3.0 * s_in]
         rms = float(np.sqrt(np.mean(core**2)))
-    return Registration(T, rms, overlap, int(X.shape[0]), it, method, dof)
+    fitted = tuple(DOF[k] for k in range(6) if free[k])
+    obs: dict[str, float] = {}
+    std: dict[str, float] = {}
+    cond = math.nan
+    if fitted:
+        for k in range(6):
+            obs[DOF[k]] = _observability(A, sorted(set(fit_cols) | {k}), k)
+        Af = A[np.ix_(fit_cols, fit_cols)]
+        ev = np.linalg.eigvalsh(Af)
+        cond = float(ev[-1] / ev[0]) if ev[0] > 0 else math.inf
+        # robust (sandwich) covariance of the M-estimate: H⁻¹ (Σ ψ² J Jᵀ) H⁻¹
+        Hf = H[np.ix_(fit_cols, fit_cols)]
+        Hi = np.linalg.pinv(Hf if np.linalg.cond(Hf) < 1e12 else Af, hermitian=True)
+        cov = Hi @ G[np.ix_(fit_cols, fit_cols)] @ Hi
+        sc = np.array([1.0, 1.0, 1.0, L, L, L, 1.0])
+        for i, c in enumerate(fit_cols):
+            if c < 6:
+                std[DOF[c]] = float(math.sqrt(max(cov[i, i], 0.0)) / sc[c])
+    return Registration(
+        T,
+        rms,
+        overlap,
+        int(X.shape[0]),
+        it,
+        method,
+        len(fitted),
+        fitted,
+        locked,
+        sym,
+        obs,
+        cond,
+        std,
+    )

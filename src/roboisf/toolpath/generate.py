@@ -131,13 +131,18 @@ def _check_size(
     """Refuse, before generating, a toolpath larger than ``max_points`` (None: no limit)."""
     if max_points is None:
         return
-    n = estimate_points(part, tool_radius, step, spacing, max_wall_step)
-    if n > max_points:
+    refuse_size(estimate_points(part, tool_radius, step, spacing, max_wall_step), part.depth,
+                step, spacing, max_points)  # fmt: skip
+
+
+def refuse_size(n: int, depth: float, step: float, spacing: float, max_points: int | None) -> None:
+    """InputError when an estimated ``n`` points exceed ``max_points`` (None: no limit)."""
+    if max_points is not None and n > max_points:
         raise InputError(
             f"this toolpath would have about {n:,} points (≈ {n * BYTES_PER_POINT / 1e9:.1f} GB "
             f"to generate and write; step-down {step * 1e3:g} mm, spacing {spacing * 1e3:g} mm "
-            f"over a {part.depth * 1e3:g} mm deep part), above the limit of {max_points:,}; "
-            "use a larger step-down or spacing, or raise the limit (max_points)",
+            f"over a {depth * 1e3:g} mm deep part), above the limit of {max_points:,}; "
+            "use a larger step-down or spacing, or raise the limit (--max-points)",
             field="step_down",
         )
 

@@ -58,7 +58,7 @@ from numpy.typing import NDArray
 
 from roboisf.errors import InputError
 from roboisf.parts.base import Part
-from roboisf.toolpath.generate import DEFAULT_FEED
+from roboisf.toolpath.generate import DEFAULT_FEED, MAX_POINTS, refuse_size
 from roboisf.toolpath.toolpath import Toolpath
 
 __all__ = ["ball_centre_rays", "level_contour", "scallop_step", "sliced_spiral", "sliced_step_down"]
@@ -428,6 +428,17 @@ def _meta(
     return meta
 
 
+def estimate_sliced_points(part: Part, step_down: float, spacing: float) -> int:
+    """Upper estimate of a sliced path's points, before slicing: ``ceil(depth / step_down)`` laps
+    (with a scallop height the steps are at most ``step_down``, so there may be more laps) of at
+    most the perimeter of the part's bounding rectangle over ``spacing`` each (every lap lies
+    inside the opening). Cost: nothing, whatever the step."""
+    lo, hi = part.bounds
+    laps = math.ceil(part.depth / step_down - 1e-9) + 1
+    per_lap = max(8.0, 2.0 * float((hi[0] - lo[0]) + (hi[1] - lo[1])) / spacing)
+    return math.ceil(laps * per_lap)
+
+
 def sliced_step_down(
     part: Part,
     tool_radius: float = 5e-3,
@@ -440,6 +451,7 @@ def sliced_step_down(
     start_angle: float = 0.0,
     clockwise: bool = False,
     center: tuple[float, float] | None = None,
+    max_points: int | None = MAX_POINTS,
 ) -> Toolpath:
     """Z-level contour toolpath on any part (see the module docstring).
 
@@ -455,8 +467,12 @@ def sliced_step_down(
     start_angle : float, rad — direction (about ``center``) of each lap's first point
     clockwise : bool — direction of travel seen from above (+z)
     center : (x, y) m, optional — origin of the rays (default: centre of ``part.bounds``)
+    max_points : int or None — refuse (:class:`InputError`, before slicing) a path estimated
+        above this many points (:func:`estimate_sliced_points`); None: no limit
     """
     _check(part, tool_radius, step_down, spacing, feed)
+    refuse_size(estimate_sliced_points(part, step_down, spacing), part.depth, step_down, spacing,
+                max_points)  # fmt: skip
     slicer = _Slicer(part, tool_radius, _centre(part, center), start_angle, clockwise)
     z, trunc = _levels(slicer, step_down, scallop_height, min_step)
     laps = _Laps(z, z, np.r_[0.0, z[:-1]], spiral=False)
@@ -477,11 +493,14 @@ def sliced_spiral(
     start_angle: float = 0.0,
     clockwise: bool = False,
     center: tuple[float, float] | None = None,
+    max_points: int | None = MAX_POINTS,
 ) -> Toolpath:
     """Continuous spiral on any part: within lap k the tip descends linearly from the height of
     lap k − 1 (0 for the first) to that of lap k; a final closed contour at the last height
     finishes the bottom edge. Same parameters as :func:`sliced_step_down`."""
     _check(part, tool_radius, step_down, spacing, feed)
+    refuse_size(estimate_sliced_points(part, step_down, spacing), part.depth, step_down, spacing,
+                max_points)  # fmt: skip
     slicer = _Slicer(part, tool_radius, _centre(part, center), start_angle, clockwise)
     z, trunc = _levels(slicer, step_down, scallop_height, min_step)
     z0 = np.r_[0.0, z[:-1], z[-1]]
