@@ -22,8 +22,8 @@ What is simulated, per toolpath point (all at the tool tip, work axes, SI):
 Any part kind (:class:`~roboisf.parts.Part`): axisymmetric parts keep the generatrix toolpath and
 the (lap, angle) formed-surface field; every other part (pyramid, mesh, CAD) gets the sliced
 toolpath (:mod:`roboisf.toolpath.slice`), the point field
-:class:`~roboisf.virtual.formed.PointField` and scans sampled on its surface; its study declares
-the registration :func:`registration_for` gives for the part.
+:class:`~roboisf.virtual.formed.PointField` and scans sampled on its surface. Every study
+declares the fixture registration (:func:`roboisf.scan.register`, any part).
 
 The controller logs the *commanded* joint angles (motor encoders do not see the elastic joint
 deflection), so the joint log is IK of the toolpath.
@@ -89,7 +89,6 @@ __all__ = [
     "paper_cone_cell",
     "paper_vwacf_cell",
     "pyramid_cell",
-    "registration_for",
     "simulate",
     "virtual_cell",
 ]
@@ -390,14 +389,6 @@ def _force_log(
     return ForceLog(t, W_s, "sensor")
 
 
-def registration_for(part: Part) -> str:
-    """The registration the virtual cell's study declares for ``part``: ``fixture`` (z and the
-    tilts from the clamped flange) for an axisymmetric part; ``none`` for any other part kind
-    until the fixture registration works on any part — its scans are then written in the work
-    frame (no misplacement)."""
-    return "fixture" if isinstance(part, AxisymmetricPart) else "none"
-
-
 def _scan(
     cell: VirtualCell, truth: CellTruth, dn: F64, path: Path, rng: np.random.Generator, seed: int
 ) -> None:
@@ -409,8 +400,6 @@ def _scan(
         (wall[i], cell.hole_radius) for i in rng.choice(len(wall), size=cell.n_holes, replace=False)
     ]
     dz, tx, ty = cell.misplacement
-    if registration_for(part) == "none":
-        dz, tx, ty = 0.0, 0.0, 0.0
     T_scan_work = make_transform(rpy_to_matrix([tx, ty, 0.0]), [0.0, 0.0, dz])
     common: dict[str, Any] = {
         "noise": cell.scan_noise,
@@ -533,7 +522,7 @@ def _write_study_toml(
         "analysis": {
             "rim_band": default_rim_band(c.part.depth) * 1e3,  # 20 mm unless the part is shallow
             "contour_z": -11.0,
-            "registration": registration_for(c.part),
+            "registration": "fixture",  # z and tilts from the clamped flange, any part
         },
         "runs": {
             "cnc": {
