@@ -190,10 +190,18 @@ def mesh_part_file(tmp_path_factory):
     return f
 
 
-def test_toolpath_dispatch_says_what_is_not_yet_supported(mesh_part_file):
+def test_toolpath_dispatch_slices_any_other_part(mesh_part_file):
+    """A non-axisymmetric part kind gets the sliced step-down path with the same settings;
+    ``max_wall_step`` (a generatrix refinement) is refused for it."""
+    from roboisf.toolpath.slice import sliced_step_down
+
     part = load_part(mesh_part_file)
-    with pytest.raises(InputError, match=r"not yet available for part kind 'mesh'"):
-        nominal_toolpath(part, 5e-3)
+    tp = nominal_toolpath(part, 5e-3, 5e-3, spacing=5e-3)
+    ref = sliced_step_down(part, 5e-3, 5e-3, spacing=5e-3)
+    np.testing.assert_array_equal(tp.tip, ref.tip)
+    np.testing.assert_array_equal(tp.lap, ref.lap)
+    with pytest.raises(InputError, match=r"axisymmetric parts only.*'mesh'"):
+        nominal_toolpath(part, 5e-3, 5e-3, spacing=5e-3, max_wall_step=0.5e-3)
 
 
 def test_virtual_cell_cli_takes_a_part_file(tmp_path, mesh_part_file, capsys):
@@ -210,11 +218,11 @@ def test_virtual_cell_cli_takes_a_part_file(tmp_path, mesh_part_file, capsys):
     c, ref = cell_from_study(s), paper_cone_cell().cell
     np.testing.assert_allclose(c.T_base_work, ref.T_base_work, atol=1e-12)
     np.testing.assert_allclose(tip_compliances(c)[3], tip_compliances(ref)[3], rtol=1e-12)
-    # any other part kind reaches the dispatch point and says so, on one line, exit 2
+    # a part file carries its own shape: the built-in pyramid's options are refused, exit 2
     bad = tmp_path / "bad"
-    assert main(["-q", "virtual-cell", "--part", str(mesh_part_file), "-o", str(bad)]) == 2
-    err = capsys.readouterr().err
-    assert "not yet available for part kind 'mesh'" in err.replace("\n", " ")
+    args = ["--part", str(mesh_part_file), "--depth", "30", "-o", str(bad)]
+    assert main(["-q", "virtual-cell", *args]) == 2
+    assert "--depth" in capsys.readouterr().err
     assert not bad.exists()
     # exactly one of PART and --part
     assert main(["-q", "virtual-cell", "cone", "--part", str(cone), "-o", str(bad)]) == 2

@@ -13,8 +13,10 @@ Variable-wall-angle parts (VWACF): Aerens' formula is a constant-angle steady st
 fracture. We model ``F_z = F_peak · sin α / sin α_f`` up to the fracture wall angle ``α_f`` and an
 exponential drop after it (``mode="variable"``).
 
-In-plane components are ratios of F_z: radial (pushing the tool towards the part axis) and
-tangential (friction, opposing the direction of travel). The force acts at the contact point P, so
+In-plane components are ratios of F_z: "radial" (pushing the tool into the part, along the
+horizontal part of the wall normal — the radial direction on a surface of revolution, the wall's
+own normal on a pyramid or freeform part) and tangential (friction, opposing the direction of
+travel, horizontal and perpendicular to the former). The force acts at the contact point P, so
 about the tool tip T the moment is ``(P − T) × F``.
 
 The wrench is the one **the sheet exerts on the tool** (``F_z > 0``), at the tip, in work axes.
@@ -124,11 +126,23 @@ class ForceModel:
         return float(toolpath.depth[hit[0]]) if hit.size else math.inf
 
 
+def _outward(toolpath: Toolpath) -> F64:
+    """(N, 2) unit horizontal direction out of the part at each contact point: minus the
+    horizontal part of the tool-side wall normal (on any part the sheet pushes the tool back
+    along it; on a surface of revolution it is the radial direction). Where the wall is flat
+    (|n_xy| < 1e-6: bottom, flange) the radial direction from the z axis."""
+    P = toolpath.contact
+    radial = P[:, :2] / np.maximum(np.linalg.norm(P[:, :2], axis=1, keepdims=True), 1e-12)
+    nxy = -toolpath.normal[:, :2]
+    norm = np.linalg.norm(nxy, axis=1, keepdims=True)
+    return np.where(norm > 1e-6, nxy / np.maximum(norm, 1e-300), radial)
+
+
 def tip_wrench(toolpath: Toolpath, model: ForceModel, *, thickness: float, step_down: float) -> F64:
     """Wrench [f; m] (N, 6) the sheet exerts on the tool, about the tip, in work axes."""
     fz = model.axial(toolpath, thickness, step_down)
     P = toolpath.contact
-    r_hat = P[:, :2] / np.maximum(np.linalg.norm(P[:, :2], axis=1, keepdims=True), 1e-12)
+    r_hat = _outward(toolpath)
     # direction of travel: ±φ̂, the sign taken per lap from its net angular travel (robust at the
     # step-down plunges, where the local path direction is vertical)
     phi_hat = np.stack([-r_hat[:, 1], r_hat[:, 0]], axis=1)

@@ -46,6 +46,7 @@ from roboisf.parts import AxisymmetricPart, Part
 from roboisf.progress import Progress
 from roboisf.robot import RobotModel, load_robot
 from roboisf.toolpath import Toolpath, step_down
+from roboisf.toolpath.slice import sliced_step_down
 
 __all__ = [
     "DEFAULT_HOLDER",
@@ -374,6 +375,19 @@ def nominal_toolpath(
     max_wall_step: float | None = None,
 ) -> Toolpath:
     """The nominal step-down toolpath of ``part`` (lengths m): the one toolpath generator the
-    cell's consumers call, whatever the part kind."""
-    p = require_axisymmetric(part, "a generated toolpath")
-    return step_down(p, tool_radius, step, spacing=spacing, max_wall_step=max_wall_step)
+    cell's consumers call, whatever the part kind.
+
+    Axisymmetric parts (cone, VWACF, profile) use the generatrix generator
+    (:func:`roboisf.toolpath.step_down`; results unchanged); every other part kind (pyramid,
+    mesh, CAD) z-level contours sliced from its ball-centre surface
+    (:func:`roboisf.toolpath.slice.sliced_step_down`) with the same ``step`` and ``spacing``.
+    ``max_wall_step`` (laps refined along a steep generatrix) exists only for axisymmetric parts.
+    """
+    if isinstance(part, AxisymmetricPart):
+        return step_down(part, tool_radius, step, spacing=spacing, max_wall_step=max_wall_step)
+    if max_wall_step is not None:
+        raise InputError(
+            f"applies to axisymmetric parts only, not to part kind {part.kind!r}",
+            field="max_wall_step",
+        )
+    return sliced_step_down(part, tool_radius, step, spacing=spacing)

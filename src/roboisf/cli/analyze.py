@@ -56,7 +56,11 @@ def register(app: typer.Typer) -> None:
     def _virtual_cell(
         part: Annotated[
             str | None,
-            typer.Argument(help="cone (the paper's 71° cone) or vwacf; or give --part instead."),
+            typer.Argument(
+                help="cone (the paper's 71° cone), vwacf, or pyramid (a square truncated "
+                "pyramid, 100 × 100 mm, 60°, 40 mm deep, 10 mm corner radius unless the "
+                "--top-length … options say otherwise); or give --part instead."
+            ),
         ] = None,
         output: Annotated[
             Path, typer.Option("--output", "-o", help=f"Study folder to write. {DIR_HELP}")
@@ -82,24 +86,59 @@ def register(app: typer.Typer) -> None:
                 "ball, IRB 7600 at 2.2 m, Aerens force). Instead of PART.",
             ),
         ] = None,
+        top_length: Annotated[
+            float | None, typer.Option(help="pyramid: opening along x [mm] (default 100).")
+        ] = None,
+        top_width: Annotated[
+            float | None, typer.Option(help="pyramid: opening along y [mm] (default: square).")
+        ] = None,
+        wall_angle: Annotated[
+            float | None, typer.Option(help="pyramid: wall angle [deg] (default 60).")
+        ] = None,
+        depth: Annotated[
+            float | None, typer.Option(help="pyramid: depth [mm] (default 40).")
+        ] = None,
+        corner_radius: Annotated[
+            float | None,
+            typer.Option(help="pyramid: corner radius of the opening [mm] (default 10)."),
+        ] = None,
     ) -> None:
         """Write a synthetic study (CNC and robot runs with known ground truth in truth/).
 
-        The paper's parts, or any part file (--part PART.toml, lengths in mm),
-        on a virtual IRB 7600: Aerens forming force, VJM robot, tool and holder
+        The paper's parts, a pyramid, or any part file (--part PART.toml from `roboisf part …`,
+        lengths in mm: cone, vwacf, profile, pyramid, an STL/STEP mesh) on a virtual IRB 7600:
+        Aerens forming force (wall angle from the part's surface), VJM robot, tool and holder
         compliance, springback, 25 µm laser scans. Analyse it with `roboisf analyze`.
+
+        Example: roboisf virtual-cell pyramid --wall-angle 50 --depth 30 -o S && roboisf analyze S
         """
         from roboisf.cell import PAPER_CELL_PLACEMENT
-        from roboisf.parts import load_part
+        from roboisf.parts import Pyramid, load_part
         from roboisf.virtual.cell import (
+            PYRAMID,
             build_study,
             paper_cone_cell,
             paper_vwacf_cell,
+            pyramid_cell,
             virtual_cell,
         )
 
         output_dir(output, "virtual-cell", overwrite)
-        makers = {"cone": paper_cone_cell, "vwacf": paper_vwacf_cell}
+        makers = {"cone": paper_cone_cell, "vwacf": paper_vwacf_cell, "pyramid": pyramid_cell}
+        shape = {
+            "top_length": top_length,
+            "top_width": top_width,
+            "wall_angle": wall_angle,
+            "depth": depth,
+            "corner_radius": corner_radius,
+        }
+        given = [k for k, v in shape.items() if v is not None]
+        if given and part != "pyramid":
+            raise InputError(
+                "applies to the built-in pyramid only (PART = pyramid); a part file carries "
+                "its own shape",
+                field="--" + given[0].replace("_", "-"),
+            )
         if (part is None) == (part_file is None):
             raise InputError("give either PART (cone or vwacf) or --part PART.toml", field="PART")
         if part is not None and part not in makers:
@@ -113,6 +152,18 @@ def register(app: typer.Typer) -> None:
             make = functools.partial(
                 virtual_cell, part_file.stem, p, T_base_work=PAPER_CELL_PLACEMENT
             )
+        elif part == "pyramid":
+            length = PYRAMID.top_length if top_length is None else top_length * 1e-3
+            pyr = Pyramid(
+                length,
+                length if top_width is None else top_width * 1e-3,
+                PYRAMID.wall_angle if wall_angle is None else math.radians(wall_angle),
+                PYRAMID.depth if depth is None else depth * 1e-3,
+                corner_radius=PYRAMID.corner_radius
+                if corner_radius is None
+                else corner_radius * 1e-3,
+            )
+            make = functools.partial(pyramid_cell, pyr)
         else:
             assert part is not None
             make = makers[part]

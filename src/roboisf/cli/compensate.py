@@ -49,7 +49,10 @@ def register(app: typer.Typer) -> None:
         ] = None,
         virtual: Annotated[
             str | None,
-            typer.Option(help="Iterate on the virtual cell instead: cone or vwacf."),
+            typer.Option(
+                help="Iterate on the virtual cell instead: cone, vwacf or pyramid (the "
+                "virtual-cell pyramid: 100 mm, 60°, 40 mm deep)."
+            ),
         ] = None,
         iterations: Annotated[
             int, typer.Option(help="Virtual cell: form–measure–adjust iterations.")
@@ -152,7 +155,9 @@ def register(app: typer.Typer) -> None:
         )
         progress = state.progress()
         if (study is None) == (virtual is None):
-            raise InputError("give either a STUDY folder or --virtual cone|vwacf", field="STUDY")
+            raise InputError(
+                "give either a STUDY folder or --virtual cone|vwacf|pyramid", field="STUDY"
+            )
         output_dir(output, "compensate", overwrite, [*study_inputs(study), results, previous])
         if virtual is not None:
             cell_kw = {"step_down": step_down * 1e-3, "spacing": spacing * 1e-3}
@@ -206,11 +211,13 @@ def _virtual(
     from roboisf.compensate import CompensationOptions, write_compensation
     from roboisf.compensate.virtual import iterate_virtual
     from roboisf.io.program import RobotTool
-    from roboisf.virtual.cell import paper_cone_cell, paper_vwacf_cell
+    from roboisf.virtual.cell import paper_cone_cell, paper_vwacf_cell, pyramid_cell
 
-    makers = {"cone": paper_cone_cell, "vwacf": paper_vwacf_cell}
+    makers = {"cone": paper_cone_cell, "vwacf": paper_vwacf_cell, "pyramid": pyramid_cell}
     if name not in makers:
-        raise InputError(f"unknown part {name!r}; expected cone or vwacf", field="--virtual")
+        raise InputError(
+            f"unknown part {name!r}; expected cone, vwacf or pyramid", field="--virtual"
+        )
     if iterations < 1:
         raise InputError(f"must be ≥ 1, got {iterations}", field="--iterations")
     assert isinstance(opts, CompensationOptions)

@@ -3,11 +3,21 @@
 Used by the tests (ground-truth recovery) and by the virtual cell (scanner model). The truth is
 a **normal offset field** ``offset(z, phi) → dn`` [m] on the nominal surface (+ = towards the
 tool side, the sign of :attr:`roboisf.parts.SurfaceQuery.distance`): a scanner sees only the
-normal component of a surface deviation, so that is what a scan can encode.
+normal component of a surface deviation, so that is what a scan can encode. On a part that is
+not a surface of revolution (pyramid, freeform) give it as ``offset_at(points) → dn`` of the
+nominal points instead.
+
+Sampling: an axisymmetric part analytically (area-weighted on its generatrix), a mesh on its
+triangles; any other part (a :class:`~roboisf.parts.Pyramid`, a CAD part …) through its
+:meth:`~roboisf.parts.Part.signed_distance` only: a height-field tessellation (the surface met by
+vertical lines on a grid over ``part.bounds``, found by bisection — ISF parts are seen whole from
+above), points drawn by area on its triangles, then moved onto the exact surface by
+:meth:`~roboisf.parts.Part.closest_point` (normal and region from there).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -17,14 +27,24 @@ from numpy.typing import ArrayLike, NDArray
 from roboisf.errors import InputError
 from roboisf.frames.se3 import transform_points
 from roboisf.parts.axisymmetric import REGION_CODES, AxisymmetricPart
+from roboisf.parts.base import Part
 from roboisf.parts.mesh import MeshPart
 
-__all__ = ["OffsetField", "SyntheticScan", "radial_offset", "synthetic_scan"]
+__all__ = [
+    "OffsetField",
+    "PointOffset",
+    "SyntheticScan",
+    "height_field_mesh",
+    "radial_offset",
+    "synthetic_scan",
+]
 
 F64 = NDArray[np.float64]
 
 #: ``offset(z, phi)`` [m, rad] of the *nominal* point → normal offset [m], (N,) → (N,).
 OffsetField = Callable[[F64, F64], F64]
+#: ``offset_at(points)`` (N, 3) m nominal points → (N,) m normal offset (any part).
+PointOffset = Callable[[F64], F64]
 
 
 @dataclass(frozen=True)
@@ -102,11 +122,67 @@ def _sample_axisymmetric(
     return pts, nrm, reg
 
 
+def height_field_mesh(
+    part: Part, spacing: float = 0.5e-3, *, tolerance: float = 1e-7
+) -> tuple[F64, NDArray[np.int64]]:
+    """Triangulate ``part``'s surface as a height field z(x, y) on a square grid (m).
+
+    Every grid vertex over ``part.bounds`` is placed where the vertical line through it crosses
+    the surface (bisection on the signed distance, + above, to ``tolerance``); vertices where the
+    line misses the surface (beyond a rounded flange's corners) are dropped with their
+    triangles. Holds for any part whose surface is met once by every vertical line (every ISF
+    part formed from above with wall angles < 90°).
+
+    Returns
+    -------
+    vertices : (V, 3) float, m — on the surface within ``tolerance``
+    faces : (F, 3) int — two triangles per grid cell
+    """
+    if not (math.isfinite(spacing) and spacing > 0):
+        raise InputError(f"must be > 0 m, got {spacing}", field="spacing")
+    lo, hi = (np.asarray(b, dtype=float) for b in part.bounds)
+    inset = 1e-6
+    nx = max(2, math.ceil((hi[0] - lo[0]) / spacing) + 1)
+    ny = max(2, math.ceil((hi[1] - lo[1]) / spacing) + 1)
+    x = np.linspace(lo[0] + inset, hi[0] - inset, nx)
+    y = np.linspace(lo[1] + inset, hi[1] - inset, ny)
+    X, Y = (a.ravel() for a in np.meshgrid(x, y, indexing="xy"))
+    z_lo = np.full(X.size, lo[2] - 1e-3)
+    z_hi = np.full(X.size, hi[2] + 1e-3)
+    for _ in range(math.ceil(math.log2((z_hi[0] - z_lo[0]) / tolerance))):
+        zm = 0.5 * (z_lo + z_hi)
+        above = part.signed_distance(np.column_stack([X, Y, zm])) > 0
+        z_hi = np.where(above, zm, z_hi)
+        z_lo = np.where(above, z_lo, zm)
+    V = np.column_stack([X, Y, 0.5 * (z_lo + z_hi)])
+    on = np.abs(part.signed_distance(V)) <= 10 * tolerance
+    i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1), indexing="xy")
+    a = (j * nx + i).ravel()
+    b, c, d = a + 1, a + nx, a + nx + 1
+    F = np.concatenate([np.column_stack([a, b, d]), np.column_stack([a, d, c])])
+    F = F[np.all(on[F], axis=1)]
+    return V, F.astype(np.int64)
+
+
+def _sample_any(part: Part, n: int, seed: int) -> tuple[F64, F64, NDArray[np.int64]]:
+    from roboisf.scan.readers import sample_faces
+
+    if isinstance(part, MeshPart):
+        V, F = part.vertices, part.faces
+    else:
+        lo, hi = part.bounds
+        V, F = height_field_mesh(part, max(0.25e-3, float(np.max(hi[:2] - lo[:2])) / 400))
+    nom, _ = sample_faces(V, F, n, seed)
+    q = part.closest_point(nom)
+    return q.point, q.normal, np.asarray(q.region, dtype=np.int64)
+
+
 def synthetic_scan(
-    part: AxisymmetricPart | MeshPart,
+    part: Part,
     n_points: int,
     *,
     offset: OffsetField | float | None = None,
+    offset_at: PointOffset | None = None,
     noise: float = 25e-6,
     outlier_fraction: float = 0.0,
     outlier_distance: tuple[float, float] = (0.3e-3, 3e-3),
@@ -119,15 +195,17 @@ def synthetic_scan(
 
     Parameters
     ----------
-    part : the nominal (analytic axisymmetric part, or a mesh)
+    part : the nominal (any part kind; see the module doc for how each is sampled)
     n_points : int — points drawn uniformly by area (before holes are cut)
     offset : ``offset(z, phi)`` → (N,) m normal offset of the formed surface at the nominal
         point (z, polar angle phi), or a constant [m], or None (0)
+    offset_at : ``offset_at(points)`` → (N,) m normal offset at the nominal points (N, 3) m —
+        instead of ``offset``, for any part
     noise : float, m — standard deviation of Gaussian noise along the normal (scanner: 25 µm)
     outlier_fraction : fraction of points displaced along the normal by a random distance in
         ``±outlier_distance`` [m] (stray reflections)
     holes : ``(centre (3,) m, radius m)`` pairs: no points within ``radius`` of ``centre``
-    regions : which regions of an axisymmetric part to scan (a mesh is scanned whole)
+    regions : which regions of an axisymmetric part to scan (any other part is scanned whole)
     T_scan_work : (4, 4), optional — pose of the work frame in the scanner frame; the returned
         points are ``T_scan_work · p_work`` (default identity)
     seed : random seed
@@ -136,22 +214,22 @@ def synthetic_scan(
         raise InputError("must be ≥ 1", field="n_points")
     if not (0.0 <= outlier_fraction < 1.0):
         raise InputError("must be in [0, 1)", field="outlier_fraction")
+    if offset is not None and offset_at is not None:
+        raise InputError("give offset or offset_at, not both", field="offset_at")
     rng = np.random.default_rng(seed)
-    if isinstance(part, MeshPart):
-        from roboisf.scan.readers import sample_faces
-
-        nom, nrm = sample_faces(part.vertices, part.faces, n_points, seed)
-        q = part.closest_point(nom)
-        nrm, reg = q.normal, q.region
-    else:
+    if isinstance(part, AxisymmetricPart):
         nom, nrm, reg = _sample_axisymmetric(part, n_points, tuple(regions), rng)
+    else:
+        nom, nrm, reg = _sample_any(part, n_points, seed)
     keep = np.ones(nom.shape[0], dtype=bool)
     for centre, radius in holes:
         keep &= np.linalg.norm(nom - np.asarray(centre, dtype=float), axis=1) > radius
     nom, nrm, reg = nom[keep], nrm[keep], reg[keep]
     n = nom.shape[0]
     phi = np.arctan2(nom[:, 1], nom[:, 0])
-    if offset is None:
+    if offset_at is not None:
+        dn = np.asarray(offset_at(nom), dtype=float) * np.ones(n)
+    elif offset is None:
         dn = np.zeros(n)
     elif callable(offset):
         dn = np.asarray(offset(nom[:, 2], phi), dtype=float) * np.ones(n)

@@ -25,7 +25,7 @@ from roboisf.errors import InputError
 from roboisf.frames import make_transform, rpy_to_matrix
 from roboisf.io.text import read_text
 from roboisf.io.units import ANGLE_UNITS, FORCE_UNITS, LENGTH_UNITS, MOMENT_UNITS, TIME_UNITS
-from roboisf.parts import AxisymmetricPart, part_from_dict
+from roboisf.parts import Part, part_from_dict
 from roboisf.scan.deviation import default_rim_band
 
 __all__ = [
@@ -169,7 +169,7 @@ class Study:
 
     root: Path
     name: str
-    part: AxisymmetricPart
+    part: Part
     tool: ToolSpec
     holder: HolderSpec
     robot: RobotSpec | None
@@ -382,16 +382,14 @@ def _robot_model(c: _Collector, root: Path, model: str) -> str | None:
     return str(p)
 
 
-def _check_reach(
-    c: _Collector, model: str, T_bw: F64, T_ft: F64 | None, part: AxisymmetricPart | None
-) -> None:
+def _check_reach(c: _Collector, model: str, T_bw: F64, T_ft: F64 | None, part: Part | None) -> None:
     """Refuse a placement that puts the part outside any pose the robot could reach.
 
     The bound is generous and cheap: no point is farther from the base origin than the sum of
-    the chain's link offsets plus the flange → tip distance, and the part extends at most its
-    opening radius + flange and its depth from the work origin. A placement of 1e9 mm (metres
-    typed as mm, or a stray digit) fails here instead of as an IK failure, or silently when the
-    joints come from a log.
+    the chain's link offsets plus the flange → tip distance, and the part extends at most to the
+    farthest corner of its bounding box (``part.bounds``, any part kind) from the work origin.
+    A placement of 1e9 mm (metres typed as mm, or a stray digit) fails here instead of as an IK
+    failure, or silently when the joints come from a log.
     """
     from roboisf.robot import load_robot
 
@@ -404,7 +402,10 @@ def _check_reach(
     reach = float(
         np.linalg.norm(robot.chain.F[:, :3, 3], axis=1).sum() + np.linalg.norm(tip[:3, 3])
     )
-    size = 0.0 if part is None else math.hypot(part.opening_radius + part.flange_width, part.depth)
+    size = 0.0
+    if part is not None:
+        lo, hi = (np.asarray(b, dtype=float) for b in part.bounds)
+        size = float(np.linalg.norm(np.maximum(np.abs(lo), np.abs(hi))))
     dist = float(np.linalg.norm(T_bw[:3, 3]))
     if dist - size > reach:
         c.add(
@@ -446,11 +447,7 @@ def load_study(path: str | Path) -> Study:
         c.add("missing table", "part")
     else:
         try:
-            loaded = part_from_dict(data["part"], where=file)
-            if isinstance(loaded, AxisymmetricPart):
-                part = loaded
-            else:  # a mesh nominal has no generatrix, so no toolpath: not a study part (yet)
-                c.add("a study needs an axisymmetric part (cone, vwacf, profile)", "part.kind")
+            part = part_from_dict(data["part"], where=file)  # any part kind
         except InputError as e:
             c.catch(e, "part")
 

@@ -19,6 +19,12 @@ What is simulated, per toolpath point (all at the tool tip, work axes, SI):
    sample it (:func:`roboisf.scan.synthetic_scan`) with 25 µm noise, outliers, holes and a small
    misplacement (a z-shift and tilts: the part rests on the fixture plane).
 
+Any part kind (:class:`~roboisf.parts.Part`): axisymmetric parts keep the generatrix toolpath and
+the (lap, angle) formed-surface field; every other part (pyramid, mesh, CAD) gets the sliced
+toolpath (:mod:`roboisf.toolpath.slice`), the point field
+:class:`~roboisf.virtual.formed.PointField` and scans sampled on its surface. Every study
+declares the fixture registration (:func:`roboisf.scan.register`, any part).
+
 The controller logs the *commanded* joint angles (motor encoders do not see the elastic joint
 deflection), so the joint log is IK of the toolpath.
 """
@@ -43,7 +49,6 @@ from roboisf.cell import (
     Cell,
     ForceModel,
     make_cell,
-    require_axisymmetric,
     tip_compliances,
     tip_wrench,
 )
@@ -55,14 +60,22 @@ from roboisf.io.forcelog import ForceLog, write_force_log
 from roboisf.io.jointlog import write_joint_log
 from roboisf.io.thickness import write_thickness_csv
 from roboisf.io.toolpath_csv import write_toolpath_csv
-from roboisf.parts import VWACF, Cone, Part, sine_law_thickness
+from roboisf.parts import (
+    VWACF,
+    AxisymmetricPart,
+    Cone,
+    MeshPart,
+    Part,
+    Pyramid,
+    sine_law_thickness,
+)
 from roboisf.progress import Progress, task
 from roboisf.robot import ik_toolpath, load_robot
 from roboisf.scan import default_rim_band, synthetic_scan, write_ply
 from roboisf.study.sensors import tip_to_sensor
 from roboisf.study.spec import ForceSensorSpec
 from roboisf.toolpath import Toolpath
-from roboisf.virtual.formed import NormalField
+from roboisf.virtual.formed import NormalField, PointField
 from roboisf.virtual.springback import SpringbackModel
 
 __all__ = [
@@ -75,6 +88,7 @@ __all__ = [
     "cell_toolpath",
     "paper_cone_cell",
     "paper_vwacf_cell",
+    "pyramid_cell",
     "simulate",
     "virtual_cell",
 ]
@@ -213,6 +227,18 @@ def paper_vwacf_cell(**overrides: Any) -> VirtualCell:
         "rim_thinning": 0.0,
     }
     return virtual_cell("vwacf", VWACF(), **{**settings, **overrides})
+
+
+#: The built-in pyramid of ``roboisf virtual-cell pyramid``: the common ISF benchmark's size, a
+#: square 100 × 100 mm opening, 60° walls, 40 mm deep, 10 mm corner radius (shrinking with the
+#: wall), 10 mm flange, 1.22 mm AA1050 (the paper's sheet). A choice, not data from the paper.
+PYRAMID = Pyramid(100e-3, 100e-3, math.radians(60.0), 40e-3, corner_radius=10e-3)
+
+
+def pyramid_cell(part: Pyramid = PYRAMID, **overrides: Any) -> VirtualCell:
+    """The paper-like cell (Ø10 ball, IRB 7600 at :data:`PAPER_CELL_PLACEMENT`, Aerens force,
+    the cone's springback model) around a pyramid (default :data:`PYRAMID`)."""
+    return virtual_cell("pyramid", part, **{"T_base_work": PAPER_CELL_PLACEMENT, **overrides})
 
 
 @dataclass(frozen=True)
@@ -366,25 +392,29 @@ def _force_log(
 def _scan(
     cell: VirtualCell, truth: CellTruth, dn: F64, path: Path, rng: np.random.Generator, seed: int
 ) -> None:
-    part = require_axisymmetric(cell.part, "the virtual cell's synthetic scan")
-    field_ = NormalField.from_toolpath(part, truth.toolpath, dn)
+    part = cell.part
+    tp = truth.toolpath
     # holes where the analysis looks: below the rim band (20 mm on the paper's parts)
-    wall = truth.toolpath.contact[truth.toolpath.depth > default_rim_band(part.depth)]
+    wall = tp.contact[tp.depth > default_rim_band(part.depth)]
     holes = [
         (wall[i], cell.hole_radius) for i in rng.choice(len(wall), size=cell.n_holes, replace=False)
     ]
     dz, tx, ty = cell.misplacement
     T_scan_work = make_transform(rpy_to_matrix([tx, ty, 0.0]), [0.0, 0.0, dz])
-    scan = synthetic_scan(
-        part,
-        cell.scan_points,
-        offset=field_.offset(part),
-        noise=cell.scan_noise,
-        outlier_fraction=cell.outlier_fraction,
-        holes=holes,
-        T_scan_work=T_scan_work,
-        seed=seed,
-    )
+    common: dict[str, Any] = {
+        "noise": cell.scan_noise,
+        "outlier_fraction": cell.outlier_fraction,
+        "holes": holes,
+        "T_scan_work": T_scan_work,
+        "seed": seed,
+    }
+    if isinstance(part, AxisymmetricPart):
+        field_ = NormalField.from_toolpath(part, tp, dn)
+        scan = synthetic_scan(part, cell.scan_points, offset=field_.offset(part), **common)
+    else:
+        scan = synthetic_scan(
+            part, cell.scan_points, offset_at=PointField.from_toolpath(tp, dn), **common
+        )
     write_ply(scan.points, path, unit="mm")
 
 
@@ -430,6 +460,36 @@ def build_study(
     return out_dir
 
 
+#: The mesh of a mesh part, copied into the study folder (binary PLY, float64, metres).
+PART_MESH = "part_mesh.ply"
+
+
+def _part_table(part: Part, folder: Path) -> dict[str, object]:
+    """The study's ``[part]`` table; a mesh part's mesh is written into the study folder
+    (:data:`PART_MESH`, exact float64 vertices in m, faces as oriented) so the study stands
+    alone whatever file the part came from."""
+    if not isinstance(part, MeshPart):
+        return part.to_dict()
+    V = np.ascontiguousarray(part.vertices, dtype="<f8")
+    F = np.ascontiguousarray(part.faces, dtype="<i4")
+    header = (
+        "ply\nformat binary_little_endian 1.0\ncomment roboisf virtual-cell: the part's mesh, m\n"
+        f"element vertex {len(V)}\nproperty double x\nproperty double y\nproperty double z\n"
+        f"element face {len(F)}\nproperty list uchar int vertex_indices\nend_header\n"
+    )
+    rows = np.empty(len(F), dtype=[("n", "u1"), ("v", "<i4", (3,))])
+    rows["n"], rows["v"] = 3, F
+    with atomic_write(folder / PART_MESH, "wb") as fh:
+        fh.write(header.encode("ascii") + V.tobytes() + rows.tobytes())
+    return {
+        "kind": "mesh",
+        "file": PART_MESH,
+        "unit": "m",
+        "orient": "winding",
+        "sheet_thickness": part.sheet_thickness * 1e3,
+    }
+
+
 def _write_study_toml(
     cell: VirtualCell, truth: CellTruth, cnc: ForceSensorSpec, rob: ForceSensorSpec, path: Path
 ) -> None:
@@ -450,7 +510,7 @@ def _write_study_toml(
             "description": f"virtual cell: {cell.name} (roboisf virtual-cell)",
         },
         "units": {"length": "mm", "angle": "deg", "force": "N", "moment": "N*m", "time": "s"},
-        "part": c.part.to_dict(),
+        "part": _part_table(c.part, path.parent),
         "tool": {
             "ball_diameter": c.tool.ball_diameter * 1e3,
             "compliance": "tool_compliance.json",
@@ -462,7 +522,7 @@ def _write_study_toml(
         "analysis": {
             "rim_band": default_rim_band(c.part.depth) * 1e3,  # 20 mm unless the part is shallow
             "contour_z": -11.0,
-            "registration": "fixture",
+            "registration": "fixture",  # z and tilts from the clamped flange, any part
         },
         "runs": {
             "cnc": {

@@ -11,6 +11,13 @@ toolpath point that formed it — interpolated between toolpath points:
 
 :meth:`NormalField.offset` gives it as a function of (z, φ), the form the scan simulator takes:
 on an axisymmetric part z fixes the point on the wall, the flange (z = 0) shares the rim's 0.
+
+Any other part (pyramid, mesh, CAD): :class:`PointField` interpolates ``dn`` in 3-D from the
+toolpath's contact points — inverse-distance weights of the ``k`` nearest contacts — and ramps it
+linearly in z from the first lap's mean height to 0 at the sheet plane (the clamped rim); points
+beyond the last lap (the bottom) take their nearest laps' values. On a wall the nearest contacts
+sit on the laps just above and below, spaced by the step-down, so the field is the per-lap
+values interpolated across the laps as the axisymmetric one is.
 """
 
 from __future__ import annotations
@@ -20,12 +27,13 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import cKDTree
 
 from roboisf.errors import InputError
 from roboisf.parts.axisymmetric import AxisymmetricPart
 from roboisf.toolpath.toolpath import Toolpath
 
-__all__ = ["NormalField"]
+__all__ = ["NormalField", "PointField"]
 
 F64 = NDArray[np.float64]
 
@@ -86,3 +94,58 @@ class NormalField:
             return self(g.wall_s_at_z(np.clip(z, z_lo, z_hi)), phi)
 
         return offset
+
+
+@dataclass(frozen=True, eq=False)
+class PointField:
+    """``dn`` at any nominal point of any part, from per-toolpath-point values (work frame, m).
+
+    Attributes
+    ----------
+    contact : (N, 3) float, m — toolpath contact points
+    dn : (N,) float, m — normal offset of the formed surface there
+    z_first : float, m — mean contact height of the first lap below the sheet plane (< 0):
+        above it the field ramps linearly to 0 at z = 0
+    k : int — neighbours of the inverse-distance interpolation
+    """
+
+    contact: F64
+    dn: F64
+    z_first: float
+    k: int = 8
+
+    @classmethod
+    def from_toolpath(cls, toolpath: Toolpath, dn: ArrayLike, k: int = 8) -> PointField:
+        """Build the field from per-toolpath-point normal offsets ``dn`` (N,) [m]."""
+        dn = np.asarray(dn, dtype=float)
+        if dn.shape != (len(toolpath),) or not np.all(np.isfinite(dn)):
+            raise InputError(f"dn must be finite with shape ({len(toolpath)},)", field="dn")
+        # laps whose ball only rolls over the rim edge touch it at z = 0: the ramp starts at the
+        # first lap that touches the wall
+        z_lap = np.bincount(toolpath.lap, weights=toolpath.contact[:, 2]) / np.maximum(
+            np.bincount(toolpath.lap), 1
+        )
+        below = z_lap[z_lap < -1e-6]
+        if below.size == 0:
+            raise InputError(
+                "no lap of the toolpath touches the wall below the sheet plane", field="toolpath"
+            )
+        z_first = float(below.max())
+        return cls(np.array(toolpath.contact, dtype=float), dn, z_first, min(k, len(toolpath)))
+
+    @property
+    def _tree(self) -> cKDTree:
+        tree = self.__dict__.get("_kd")
+        if tree is None:
+            tree = cKDTree(self.contact)
+            object.__setattr__(self, "_kd", tree)
+        return tree
+
+    def __call__(self, points: ArrayLike) -> F64:
+        """dn [m] (M,) at nominal points (M, 3) [m]."""
+        X = np.atleast_2d(np.asarray(points, dtype=float))
+        dist, idx = self._tree.query(X, k=list(range(1, self.k + 1)))  # (M, k) even for k = 1
+        w = 1.0 / np.maximum(dist, 1e-9) ** 2
+        v = np.sum(w * self.dn[idx], axis=1) / np.sum(w, axis=1)
+        ramp = np.clip(X[:, 2] / self.z_first, 0.0, 1.0)
+        return np.asarray(v * ramp, dtype=float)
