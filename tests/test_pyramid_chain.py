@@ -24,6 +24,8 @@ from roboisf.compensate import precompensate
 from roboisf.compensate.virtual import cell_deflection_model
 from roboisf.decompose import FACTORS
 from roboisf.errors import InputError
+from roboisf.io.rapid import read_rapid
+from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.parts import Pyramid
 from roboisf.parts.io import save_part
 from roboisf.scan.synthetic import height_field_mesh, synthetic_scan
@@ -162,9 +164,8 @@ def test_compensate_cli_virtual_pyramid(tmp_path):
     assert m[0] > 0.5 and m[-1] < 0.1 * m[0], m
 
 
-def test_compensate_study_route_on_the_pyramid(analysed, tmp_path):
-    if not (analysed / "S" / "study.toml").read_text().count('kind = "pyramid"'):
-        pytest.skip("the study route is exercised on the pyramid")
+def test_compensate_study_route_writes_programs_for_any_part(analysed, tmp_path):
+    """The pyramid and the freeform STL part: the compensated path and its program set."""
     out = tmp_path / "o"
     _run(
         [
@@ -181,6 +182,11 @@ def test_compensate_study_route_on_the_pyramid(analysed, tmp_path):
     tp = pd.read_csv(analysed / "S" / "toolpath.csv", comment="#")
     assert len(pp) == len(tp)
     assert json.loads((out / "compensation.json").read_text())["gouge"]["ok"]
+    cmd = read_toolpath_csv(out / "compensated.csv")
+    rapid = read_rapid(out / "compensated.mod")
+    assert np.abs(rapid.tip - cmd.tip).max() <= 0.5e-6 + 1e-12  # the program is the path
+    for name in ("compensated.src", "compensated.ls", "compensated.nc"):
+        assert (out / name).stat().st_size > 0
 
 
 def test_plan_ranks_pyramid_placements(tmp_path):
