@@ -1,21 +1,50 @@
 """File formats at the edge of roboisf: units, atomic output, toolpath CSV, force logs, robot
-programs (G-code, ABB RAPID, KUKA KRL, FANUC LS). Everything read is converted to SI here."""
+programs (G-code, ABB RAPID, KUKA KRL, FANUC LS). Everything read is converted to SI here.
 
-from roboisf.io.atomic import atomic_path, atomic_write, check_not_input, staged_directory
-from roboisf.io.fanuc import read_fanuc, write_fanuc
-from roboisf.io.forcelog import (
-    ForceLog,
-    attach_to_toolpath,
-    read_force_log,
-    window_average,
-    write_force_log,
-)
-from roboisf.io.gcode import read_gcode, write_gcode
-from roboisf.io.krl import read_krl, write_krl
-from roboisf.io.program import ProgramPath, RobotTool, tool_down_orientation
-from roboisf.io.rapid import read_rapid, write_rapid
-from roboisf.io.toolpath_csv import TOOLPATH_COLUMNS, read_toolpath_csv, write_toolpath_csv
-from roboisf.io.units import to_si
+The names below load their module on first use (PEP 562), so a command that only checks its
+output folder (``roboisf.io.outdir``) does not import pandas and scipy.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from roboisf.io.atomic import atomic_path, atomic_write, check_not_input, staged_directory
+    from roboisf.io.fanuc import read_fanuc, write_fanuc
+    from roboisf.io.forcelog import (
+        ForceLog,
+        attach_to_toolpath,
+        read_force_log,
+        window_average,
+        write_force_log,
+    )
+    from roboisf.io.gcode import read_gcode, write_gcode
+    from roboisf.io.krl import read_krl, write_krl
+    from roboisf.io.program import ProgramPath, RobotTool, tool_down_orientation
+    from roboisf.io.rapid import read_rapid, write_rapid
+    from roboisf.io.toolpath_csv import TOOLPATH_COLUMNS, read_toolpath_csv, write_toolpath_csv
+    from roboisf.io.units import to_si
+
+_WHERE = {
+    "atomic": ("atomic_path", "atomic_write", "check_not_input", "staged_directory"),
+    "fanuc": ("read_fanuc", "write_fanuc"),
+    "forcelog": (
+        "ForceLog",
+        "attach_to_toolpath",
+        "read_force_log",
+        "window_average",
+        "write_force_log",
+    ),
+    "gcode": ("read_gcode", "write_gcode"),
+    "krl": ("read_krl", "write_krl"),
+    "program": ("ProgramPath", "RobotTool", "tool_down_orientation"),
+    "rapid": ("read_rapid", "write_rapid"),
+    "toolpath_csv": ("TOOLPATH_COLUMNS", "read_toolpath_csv", "write_toolpath_csv"),
+    "units": ("to_si",),
+}
+_MODULE_OF = {name: module for module, names in _WHERE.items() for name in names}
 
 __all__ = [
     "TOOLPATH_COLUMNS",
@@ -43,3 +72,17 @@ __all__ = [
     "write_rapid",
     "write_toolpath_csv",
 ]
+assert sorted(__all__) == sorted(_MODULE_OF)
+
+
+def __getattr__(name: str) -> Any:
+    module = _MODULE_OF.get(name)
+    if module is None:
+        raise AttributeError(f"module 'roboisf.io' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"roboisf.io.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *__all__])
