@@ -14,7 +14,6 @@ from roboisf.cell.model import (
     flange_to_tip,
     make_cell,
     nominal_toolpath,
-    require_axisymmetric,
     tip_compliances,
 )
 from roboisf.cell.study import cell_from_study
@@ -33,7 +32,6 @@ __all__ = [
     "flange_to_tip",
     "make_cell",
     "nominal_toolpath",
-    "require_axisymmetric",
     "tip_compliances",
     "tip_wrench",
 ]

@@ -42,11 +42,10 @@ from roboisf.fem import (
     tool_compliance,
 )
 from roboisf.frames import make_transform, to_tip
-from roboisf.parts import AxisymmetricPart, Part
+from roboisf.parts import Part
 from roboisf.progress import Progress
 from roboisf.robot import RobotModel, load_robot
-from roboisf.toolpath import Toolpath, step_down
-from roboisf.toolpath.slice import sliced_step_down
+from roboisf.toolpath import Toolpath, toolpath_for_part
 
 __all__ = [
     "DEFAULT_HOLDER",
@@ -59,7 +58,6 @@ __all__ = [
     "flange_to_tip",
     "make_cell",
     "nominal_toolpath",
-    "require_axisymmetric",
     "tip_compliances",
 ]
 
@@ -350,22 +348,6 @@ def make_cell(
     )
 
 
-# -- dispatch points for what is still axisymmetric-only ------------------------------------------
-
-
-def require_axisymmetric(part: Part, what: str) -> AxisymmetricPart:
-    """``part`` as an :class:`~roboisf.parts.AxisymmetricPart`, or an InputError saying that
-    ``what`` is not yet available for its kind. The one place the cell's consumers check a
-    concrete part class."""
-    if isinstance(part, AxisymmetricPart):
-        return part
-    raise InputError(
-        f"{what} is not yet available for part kind {part.kind!r} (today: axisymmetric parts — "
-        "cone, vwacf, profile)",
-        field="part.kind",
-    )
-
-
 def nominal_toolpath(
     part: Part,
     tool_radius: float,
@@ -379,15 +361,8 @@ def nominal_toolpath(
 
     Axisymmetric parts (cone, VWACF, profile) use the generatrix generator
     (:func:`roboisf.toolpath.step_down`; results unchanged); every other part kind (pyramid,
-    mesh, CAD) z-level contours sliced from its ball-centre surface
-    (:func:`roboisf.toolpath.slice.sliced_step_down`) with the same ``step`` and ``spacing``.
+    mesh, CAD) z-level contours sliced from its ball-centre surface — the choice of
+    :func:`roboisf.toolpath.toolpath_for_part`, shared with ``roboisf toolpath``.
     ``max_wall_step`` (laps refined along a steep generatrix) exists only for axisymmetric parts.
     """
-    if isinstance(part, AxisymmetricPart):
-        return step_down(part, tool_radius, step, spacing=spacing, max_wall_step=max_wall_step)
-    if max_wall_step is not None:
-        raise InputError(
-            f"applies to axisymmetric parts only, not to part kind {part.kind!r}",
-            field="max_wall_step",
-        )
-    return sliced_step_down(part, tool_radius, step, spacing=spacing)
+    return toolpath_for_part(part, tool_radius, step, spacing=spacing, max_wall_step=max_wall_step)

@@ -57,7 +57,7 @@ from roboisf.parts import (
 )
 from roboisf.parts.axisymmetric import VWACF_DEFAULT_ARC_RADIUS
 from roboisf.parts.io import part_files
-from roboisf.toolpath import sliced_spiral, sliced_step_down, spiral, step_down
+from roboisf.toolpath import toolpath_for_part
 from roboisf.toolpath.generate import MAX_POINTS
 from roboisf.toolpath.toolpath import Toolpath
 
@@ -295,31 +295,15 @@ def generate(part: Part, opts: PathOptions) -> Toolpath:
     ``--scallop-height`` — the ball-centre slicer (:mod:`roboisf.toolpath.slice`).
     """
     opts.check()
-    if not isinstance(part, AxisymmetricPart) or opts.scallop_height is not None:
-        if opts.max_wall_step is not None:
-            raise InputError(
-                "applies to axisymmetric parts only; use --scallop-height to space the laps "
-                "along the wall of any part",
-                field="--max-wall-step",
-            )
-        sliced = sliced_spiral if opts.spiral else sliced_step_down
-        return sliced(
-            part,
-            tool_radius=opts.tool_diameter / 2 * 1e-3,
-            step_down=opts.step_down * 1e-3,
-            scallop_height=None if opts.scallop_height is None else opts.scallop_height * 1e-3,
-            spacing=opts.spacing * 1e-3,
-            feed=opts.feed / 60e3,
-            max_points=opts.max_points,
-        )
-    gen = spiral if opts.spiral else step_down
-    return gen(
+    return toolpath_for_part(
         part,
-        tool_radius=opts.tool_diameter / 2 * 1e-3,
-        step_down=opts.step_down * 1e-3,
+        opts.tool_diameter / 2 * 1e-3,
+        opts.step_down * 1e-3,
         spacing=opts.spacing * 1e-3,
         feed=opts.feed / 60e3,
+        spiral=opts.spiral,
         max_wall_step=None if opts.max_wall_step is None else opts.max_wall_step * 1e-3,
+        scallop_height=None if opts.scallop_height is None else opts.scallop_height * 1e-3,
         max_points=opts.max_points,
     )
 
