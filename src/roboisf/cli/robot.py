@@ -80,14 +80,36 @@ TOOL_OPT = typer.Option(None, "--tool", help="Tool tip in the flange frame: x,y,
 
 
 @robot_app.command("list")
-def list_cmd() -> None:
-    """List the built-in robot presets."""
-    from roboisf.robot import list_robots, load_robot
+def list_cmd(
+    sources: bool = typer.Option(
+        False, "--sources", help="Also print where every preset's numbers come from."
+    ),
+) -> None:
+    """List the built-in robot presets: reach, payload, joint stiffness and source.
 
+    Reach is the wrist-centre reach from the preset's geometry (a1 + c2 + √(a2² + c3²)).
+    "unknown — identify": no published joint stiffness; measure it with
+    `roboisf robot identify calib.csv -o K.toml` and pass `--stiffness K.toml`.
+    Copy a preset's TOML (docs/robot.md) to describe your own robot.
+    """
+    from roboisf.robot.presets import list_robots, preset_info
+
+    state.out.print(
+        f"{'preset':18s} {'robot':34s} {'reach m':>7s} {'payload kg':>10s}  joint stiffness",
+        markup=False,
+        soft_wrap=True,
+    )
     for name in list_robots():
-        m = load_robot(name)
-        k = "K_θ given" if m.stiffness is not None else "K_θ: user input"
-        state.out.print(f"{name:20s}  {k}")
+        i = preset_info(name)
+        reach = "—" if i.reach_m is None else f"{i.reach_m:.3f}"
+        pay = "—" if i.payload_kg is None else f"{i.payload_kg:g}"
+        k = "unknown — identify" if i.stiffness_source is None else i.stiffness_source
+        desc = i.description.split(" (")[0]
+        state.out.print(
+            f"{name:18s} {desc:34s} {reach:>7s} {pay:>10s}  {k}", markup=False, soft_wrap=True
+        )
+        src = i.source if sources else i.source_brief
+        state.out.print(f"{'':18s} source: {src}", markup=False, soft_wrap=True)
 
 
 def _files(*names: str | None) -> list[Path]:

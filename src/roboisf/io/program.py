@@ -254,7 +254,7 @@ def arm_config(model: RobotModel, q: ArrayLike) -> ArmConfig:
     if qa.ndim != 2 or qa.shape[1] != 6 or not np.all(np.isfinite(qa)):
         raise InputError(f"expected finite joint angles (N, 6), got {qa.shape}", field="q")
     g = model.opw
-    th = qa * model.chain.sign + model.chain.offset
+    th = model.chain.theta(qa)
     t2, t3 = th[:, 1], th[:, 2]
     wx = g.a2 * np.cos(t3) + g.c3 * np.sin(t3)  # wrist centre ⟂ the lower arm (+: ahead of it)
     wz = g.c2 - g.a2 * np.sin(t3) + g.c3 * np.cos(t3)

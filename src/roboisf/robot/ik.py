@@ -71,7 +71,9 @@ def opw_ik(
         )
     _check_branch(shoulder, elbow, wrist)
     T = np.asarray(T_base_flange, dtype=float).reshape(-1, 4, 4)
-    if vjm_kernel.use_numba(model.backend if backend is None else backend):
+    if model.chain.couple23 == 0.0 and vjm_kernel.use_numba(
+        model.backend if backend is None else backend
+    ):
         from roboisf.robot.ik_numba import flange_ik
 
         return flange_ik(model, T, shoulder, elbow, wrist)
@@ -138,7 +140,7 @@ def _opw_ik_numpy(
         th5 = -th5
         th6 = th6 + np.pi
     theta = np.stack([th1, th2, th3, th4, th5, th6], axis=1)
-    q = (theta - model.chain.offset) * model.chain.sign
+    q = model.chain.q_from_theta(theta)
     q = np.mod(q + np.pi, 2 * np.pi) - np.pi
     q[~ok] = np.nan
     return q, ok
@@ -250,8 +252,10 @@ def ik_toolpath(
         )
     if not np.all(np.isfinite(gam)):
         raise InputError("tool_rotation contains NaN or inf", field="tool_rotation")
-    compiled = T_bw.shape == (4, 4) and vjm_kernel.use_numba(
-        model.backend if backend is None else backend
+    compiled = (
+        T_bw.shape == (4, 4)
+        and model.chain.couple23 == 0.0  # (the compiled IK has no J2/J3 coupling)
+        and vjm_kernel.use_numba(model.backend if backend is None else backend)
     )
     if compiled:
         from roboisf.robot.ik_numba import path_ik

@@ -4,6 +4,7 @@ A chain is stored as seven fixed transforms ``F_0 .. F_6`` and, per joint, a sig
 mapping the controller angle ``q_i`` to the rotation about the local z-axis::
 
     θ_i = sign_i · q_i + offset_i
+    θ_3 = sign_3 · (q_3 + couple23 · q_2) + offset_3      (FANUC's J2/J3 coupling; else 0)
     T_base_flange = F_0 Rz(θ_1) F_1 Rz(θ_2) F_2 … F_5 Rz(θ_6) F_6
 
 Every kinematic description (OPW parameters, standard DH, a URDF) is converted to this one form,
@@ -65,11 +66,17 @@ class Chain:
     F : (7, 4, 4) float — fixed transforms, translations in m
     sign : (6,) float — ±1, ``θ = sign·q + offset``
     offset : (6,) float, rad
+    couple23 : float — J2/J3 coupling: ``θ_3 = sign_3·(q_3 + couple23·q_2) + offset_3``. FANUC
+        controllers measure J3 from the horizontal (a parallelogram drives the forearm), so the
+        kinematic (relative) J3 angle is the pendant's J3 + J2: ``couple23 = 1``. 0 for ABB and
+        KUKA. The Jacobian with respect to the controller angles then has column 2 = its
+        uncoupled column 2 + ``couple23`` × column 3.
     """
 
     F: F64
     sign: F64
     offset: F64
+    couple23: float = 0.0
 
     def __post_init__(self) -> None:
         F = np.asarray(self.F, dtype=float)
@@ -84,13 +91,26 @@ class Chain:
             raise InputError(f"sign must be 6 values of ±1, got {sign.tolist()}", field="sign")
         if offset.shape != (6,) or not np.all(np.isfinite(offset)):
             raise InputError("offset must be 6 finite angles (rad)", field="offset")
+        if not np.isfinite(self.couple23):
+            raise InputError("couple23 must be finite", field="couple23")
         for name, v in (("F", F), ("sign", sign), ("offset", offset)):
             v.setflags(write=False)
             object.__setattr__(self, name, v)
+        object.__setattr__(self, "couple23", float(self.couple23))
 
     def theta(self, q: F64) -> F64:
-        """Model angles ``θ = sign·q + offset`` (N, 6) rad."""
-        return q * self.sign + self.offset
+        """Model angles ``θ = sign·q + offset`` (+ the J2/J3 coupling) (N, 6) rad."""
+        th = q * self.sign + self.offset
+        if self.couple23 != 0.0:
+            th[:, 2] += self.sign[2] * self.couple23 * q[:, 1]
+        return th
+
+    def q_from_theta(self, theta: F64) -> F64:
+        """Controller angles of model angles ``theta`` (N, 6) rad (the inverse of :meth:`theta`)."""
+        q = (theta - self.offset) * self.sign
+        if self.couple23 != 0.0:
+            q[:, 2] -= self.couple23 * q[:, 1]
+        return q
 
 
 @dataclass(frozen=True)
@@ -118,6 +138,7 @@ def chain_from_opw(
     g: OPWGeometry,
     sign: ArrayLike = (1, 1, 1, 1, 1, 1),
     offset: ArrayLike = (0, 0, 0, 0, 0, 0),
+    couple23: float = 0.0,
 ) -> Chain:
     """Chain of an ortho-parallel robot with a spherical wrist (Brandstötter et al. 2014).
 
@@ -141,7 +162,7 @@ def chain_from_opw(
     Fl = [A[0]] + [np.linalg.inv(A[i]) @ A[i + 1] for i in range(5)] + [np.linalg.inv(A[5]) @ M]
     F = np.array(Fl)
     F[np.abs(F) < 1e-15] = 0.0
-    return Chain(F, np.asarray(sign, float), np.asarray(offset, float))
+    return Chain(F, np.asarray(sign, float), np.asarray(offset, float), couple23)
 
 
 def _block_rot(R: F64) -> F64:
@@ -209,6 +230,8 @@ def chain_fk_jacobian(chain: Chain, q: F64, T_flange_tip: F64 | None = None) -> 
     J[:, :3, :] = np.swapaxes(np.cross(z, r), 1, 2)
     J[:, 3:, :] = np.swapaxes(z, 1, 2)
     J *= chain.sign
+    if chain.couple23 != 0.0:
+        J[:, :, 1] += chain.couple23 * J[:, :, 2]
     return T, J
 
 
@@ -389,4 +412,6 @@ def opw_fk_jacobian(
         Jt[2, i] = vz
     for j in np.flatnonzero(chain.sign != 1.0):
         Jt[:, j] *= -1.0
+    if chain.couple23 != 0.0:
+        Jt[:, 1] += chain.couple23 * Jt[:, 2]
     return T, Jt.transpose(2, 0, 1)

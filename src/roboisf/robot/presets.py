@@ -10,6 +10,7 @@ A robot file has the keys (angles in degrees, lengths in metres, stiffness N·m/
     # d = [6], a = [6], alpha_deg = [6]                          # dh (standard, distal)
     sign = [1, 1, 1, 1, 1, 1]         # θ = sign·q + offset (q: controller angle)
     offset_deg = [0, 0, 90, 0, 0, 0]
+    couple23 = 0                      # optional, FANUC: θ3 = sign3·(q3 + couple23·q2) + offset3
     [limits]
     q_min_deg = [6]  q_max_deg = [6]
     [stiffness]                       # optional: leave out when no value is known
@@ -22,7 +23,9 @@ A robot file has the keys (angles in degrees, lengths in metres, stiffness N·m/
 
 from __future__ import annotations
 
+import math
 import tomllib
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -32,10 +35,17 @@ import numpy as np
 from roboisf.errors import InputError
 from roboisf.frames import make_transform, rpy_to_matrix
 from roboisf.io.text import read_text
-from roboisf.robot.kinematics import chain_from_dh, chain_from_opw
+from roboisf.robot.kinematics import Chain, chain_from_dh, chain_from_opw
 from roboisf.robot.model import OPWGeometry, RobotModel
 
-__all__ = ["list_robots", "load_robot", "load_stiffness", "robot_from_dict"]
+__all__ = [
+    "PresetInfo",
+    "list_robots",
+    "load_robot",
+    "load_stiffness",
+    "preset_info",
+    "robot_from_dict",
+]
 
 _OPW_KEYS = ("a1", "a2", "b", "c1", "c2", "c3", "c4")
 
@@ -119,6 +129,17 @@ def robot_from_dict(data: dict[str, Any], *, file: object = None) -> RobotModel:
         else np.zeros(6)
     )
     ktype = kin.get("type", "opw")
+    couple23 = kin.get("couple23", 0.0)
+    if (
+        not isinstance(couple23, (int, float))
+        or isinstance(couple23, bool)
+        or not np.isfinite(couple23)
+    ):
+        raise InputError(
+            f"expected a number (FANUC J2/J3 coupling, 1 or 0), got {couple23!r}",
+            file=f,
+            field="kinematics.couple23",
+        )
     opw = None
     try:
         if ktype == "opw":
@@ -126,7 +147,7 @@ def robot_from_dict(data: dict[str, Any], *, file: object = None) -> RobotModel:
             if missing:
                 raise InputError(f"missing OPW parameters {missing}", file=f, field="kinematics")
             opw = OPWGeometry(**{k: float(kin[k]) for k in _OPW_KEYS})
-            chain = chain_from_opw(opw, sign=sign, offset=offset)
+            chain = chain_from_opw(opw, sign=sign, offset=offset, couple23=float(couple23))
         elif ktype == "dh":
             chain = chain_from_dh(
                 _vec(kin, "d", 6, f, "kinematics"),
@@ -135,6 +156,8 @@ def robot_from_dict(data: dict[str, Any], *, file: object = None) -> RobotModel:
                 offset,
                 sign,
             )
+            if couple23:
+                chain = Chain(chain.F, chain.sign, chain.offset, float(couple23))
         else:
             raise InputError(
                 f"unknown kinematics type {ktype!r}; expected 'opw' or 'dh'",
@@ -164,6 +187,47 @@ def robot_from_dict(data: dict[str, Any], *, file: object = None) -> RobotModel:
         if e.file is None and f is not None:
             raise InputError(e.message, file=f, field=e.field) from None
         raise
+
+
+@dataclass(frozen=True)
+class PresetInfo:
+    """What ``roboisf robot list`` shows of a preset.
+
+    name, manufacturer, description, source : str
+    source_brief : str — one line of ``source``
+    reach_m : float or None — wrist-centre reach from the geometry, ``a1 + c2 + √(a2² + c3²)`` (m;
+        the data sheets' "reach" is this distance, limits aside)
+    payload_kg : float or None — rated payload (the preset's ``payload_kg``)
+    stiffness_source : str or None — where K_θ comes from; None: unknown — identify
+    """
+
+    name: str
+    manufacturer: str
+    description: str
+    source: str
+    source_brief: str
+    reach_m: float | None
+    payload_kg: float | None
+    stiffness_source: str | None
+
+
+def preset_info(name: str) -> PresetInfo:
+    """:class:`PresetInfo` of the built-in preset ``name``."""
+    m = load_robot(name)
+    data = tomllib.loads((_preset_dir() / f"{name}.toml").read_text(encoding="utf-8"))
+    g = m.opw
+    reach = None if g is None else g.a1 + g.c2 + math.hypot(g.a2, g.c3)
+    pl = data.get("payload_kg")
+    return PresetInfo(
+        name=name,
+        manufacturer=str(data.get("manufacturer", "")),
+        description=str(data.get("description", "")),
+        source=m.source,
+        source_brief=str(data.get("source_brief", m.source.split(". ")[0])),
+        reach_m=reach,
+        payload_kg=None if pl is None else float(pl),
+        stiffness_source=None if m.stiffness is None else (m.stiffness_source or "given"),
+    )
 
 
 def load_stiffness(path: str | Path) -> np.ndarray:

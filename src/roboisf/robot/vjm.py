@@ -94,6 +94,10 @@ def geometric_stiffness(model: RobotModel, q: ArrayLike, wrench: ArrayLike) -> F
                 + np.einsum("nk,nk->n", zi, np.cross(dr, f))
             )
             K[:, i, j] = s[i] * s[j] * dtau
+    if model.chain.couple23 != 0.0:  # τ_q = Aᵀ τ, ∂/∂q = (∂/∂q') A, q' = A q (q'_3 = q_3 + c q_2)
+        A = np.eye(6)
+        A[2, 1] = model.chain.couple23
+        K = A.T @ K @ A
     return K
 
 
