@@ -267,10 +267,11 @@ def load_urdf(path: str | Path, tip_frame: str | None = None, *, opw: bool = Tru
     """A :class:`RobotModel` of the 6R arm of a URDF.
 
     ``tip_frame``: the URDF link used as the flange (default ``tool0``/``flange`` if present,
-    else the leaf link behind the most revolute joints, the deepest of those). With ``opw`` (default) the chain is re-expressed as an OPW robot when
-    its structure fits (:func:`roboisf.robot.opw_fit.fit_opw`: parameters, signs and offsets,
-    accepted only when FK agrees to 1e-9 m / rad at random configurations): closed-form IK and the
-    compiled kernels then apply. Otherwise the model has no OPW geometry and
+    else the leaf link behind the most revolute joints, the deepest of those). With ``opw``
+    (default) the chain is re-expressed as an OPW robot when its structure fits
+    (:func:`roboisf.robot.opw_fit.fit_opw`: parameters, signs and offsets, accepted only when FK
+    agrees to 1e-9 m / rad at random configurations): closed-form IK and the compiled kernels
+    then apply. Otherwise the model has no OPW geometry and
     :func:`~roboisf.robot.ik.ik_toolpath` uses the numerical IK.
     """
     from roboisf.robot.opw_fit import fit_opw
