@@ -39,6 +39,13 @@ def _floats(text: str, n: int, field: str) -> np.ndarray:
     return v
 
 
+def _ints(text: str, n: int, field: str) -> np.ndarray:
+    v = _floats(text, n, field)
+    if np.any(v != np.round(v)):
+        raise InputError(f"expected {n} comma-separated integers, got {text!r}", field=field)
+    return v.astype(np.int64)
+
+
 def _model(robot: str, stiffness: Path | None, tool: str | None) -> RobotModel:
     from roboisf.frames import make_transform
     from roboisf.robot import load_robot, load_stiffness
@@ -229,8 +236,32 @@ def deflect_cmd(
     tool_rotation: float = typer.Option(
         0.0, "--tool-rotation", help="Tool rotation about its own axis (deg)."
     ),
+    start_joints: str | None = typer.Option(
+        None,
+        "--start-joints",
+        help="IK: start at the solution nearest these joints q1..q6 (deg, controller), e.g. the "
+        "robot's pose at the first point; branch and turns then follow continuously.",
+    ),
+    confdata: str | None = typer.Option(
+        None,
+        "--confdata",
+        help="IK: ABB confdata cf1,cf4,cf6,cfx of the first point (as in the RAPID program).",
+    ),
+    kuka_st: str | None = typer.Option(
+        None, "--kuka-st", help="IK: KUKA Status,Turn of the first point, e.g. 2,10."
+    ),
 ) -> None:
-    """VJM deflection of the tool tip along a toolpath under the logged forming wrench."""
+    """VJM deflection of the tool tip along a toolpath under the logged forming wrench.
+
+    The joints come from --joints, or from IK: closed form for OPW robots (presets, and URDFs
+    whose structure fits), numerical otherwise. Without --start-joints/--confdata/--kuka-st the
+    IK branch is front / elbow up / no flip (numerical IK: the solution nearest the middle of the
+    joint ranges). A robot without published stiffness needs --stiffness (from
+    `roboisf robot identify`). Example with a URDF robot, no joint log:
+
+        roboisf robot deflect --robot arm.urdf --stiffness K.toml --toolpath P.csv
+            --forces F.csv --placement 1600,0,800,0 --tool 0,0,300 -o deflection.csv
+    """
     from roboisf.io.atomic import atomic_write, check_not_input
     from roboisf.io.forcelog import attach_to_toolpath, read_force_log
     from roboisf.io.jointlog import read_joint_log
@@ -262,7 +293,22 @@ def deflect_cmd(
         q = np.stack([np.interp(tp.time, jl.time, jl.q[:, j]) for j in range(6)], axis=1)
         q = m.check_q(q, field=str(joints))
     else:
-        q = ik_toolpath(m, tp.tip, T_base_work, tool_rotation=np.radians(tool_rotation)).q
+        given = [x for x in (start_joints, confdata, kuka_st) if x is not None]
+        if len(given) > 1:
+            raise InputError(
+                "give at most one of --start-joints, --confdata, --kuka-st", field="--confdata"
+            )
+        q = ik_toolpath(
+            m,
+            tp.tip,
+            T_base_work,
+            tool_rotation=np.radians(tool_rotation),
+            match_q=None
+            if start_joints is None
+            else np.radians(_floats(start_joints, 6, "--start-joints")),
+            confdata=None if confdata is None else _ints(confdata, 4, "--confdata"),
+            kuka_st=None if kuka_st is None else _ints(kuka_st, 2, "--kuka-st"),
+        ).q
     frame = log.frame.strip().lower()
     R_base_work = T_base_work[:3, :3]
     T_tip = m.fk(q)

@@ -263,17 +263,36 @@ def arm_config(model: RobotModel, q: ArrayLike) -> ArmConfig:
 
 
 def program_config(
-    model: RobotModel, tp: Toolpath, T_base_work: ArrayLike, tool_rotation: ArrayLike = 0.0
+    model: RobotModel,
+    tp: Toolpath,
+    T_base_work: ArrayLike,
+    tool_rotation: ArrayLike = 0.0,
+    *,
+    match_q: ArrayLike | None = None,
+    confdata: ArrayLike | None = None,
+    kuka_st: ArrayLike | None = None,
 ) -> ArmConfig:
     """IK along ``tp`` (``model`` carries the tool) and the arm configuration of every point.
 
-    Uses :func:`roboisf.robot.ik.ik_toolpath` (one continuous branch: front, elbow up, no flip).
+    Uses :func:`roboisf.robot.ik.ik_toolpath` (one continuous branch: by default front, elbow
+    up, no flip; or the branch and turns of the first point matching ``match_q`` (6,) rad,
+    ABB ``confdata`` (cf1, cf4, cf6, cfx) or KUKA ``kuka_st`` (S, T)). The confdata / S, T / FANUC
+    CONFIG the writers put in the program are computed from these joints, so the chosen branch
+    drives the program.
     """
     from roboisf.robot.ik import SingularityWarning, ik_toolpath
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SingularityWarning)
-        ik = ik_toolpath(model, tp.tip, T_base_work, tool_rotation=tool_rotation)
+        ik = ik_toolpath(
+            model,
+            tp.tip,
+            T_base_work,
+            tool_rotation=tool_rotation,
+            match_q=match_q,
+            confdata=confdata,
+            kuka_st=kuka_st,
+        )
     return arm_config(model, ik.q)
 
 

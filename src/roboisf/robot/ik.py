@@ -22,7 +22,7 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Literal
+from typing import Any, Literal, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -208,8 +208,27 @@ def ik_toolpath(
     singular_threshold: float | None = 0.02,
     length_scale: float | None = None,
     backend: str | None = None,
+    match_q: ArrayLike | None = None,
+    confdata: ArrayLike | None = None,
+    kuka_st: ArrayLike | None = None,
 ) -> IKResult:
     """One continuous joint trajectory for tool-tip points (N, 3) m in the work frame.
+
+    **Branch and turns.** By default the branch ``shoulder``/``elbow``/``wrist`` and, for every
+    joint, the whole turn that puts the path nearest the middle of its range. Or the first point
+    is matched, over all 8 OPW branches and every whole turn of every joint within its limits, to
+    one of (the branch then holds along the path, the turns follow continuously):
+
+    * ``match_q`` (6,) rad — the nearest solution to these joints (e.g. the robot's logged
+      joints at the first point; largest joint difference);
+    * ``confdata`` (cf1, cf4, cf6, cfx) — ABB RAPID confdata
+      (:func:`roboisf.io.program.abb_confdata`);
+    * ``kuka_st`` (S, T) — KUKA Status and Turn (:func:`roboisf.io.program.kuka_status_turn`).
+
+    No solution with the requested configuration at the first point → InputError listing the
+    ones there are. Robots without OPW geometry (a URDF that is not OPW) are solved numerically
+    (:mod:`roboisf.robot.numik`, seeded point to point, so the branch holds too); there only
+    ``match_q`` applies.
 
     ``tip_work`` may be a :class:`roboisf.toolpath.Toolpath` (its ``tip`` is used).
     ``T_base_work`` defaults to the model's ``default_placement``. Raises
@@ -237,12 +256,26 @@ def ik_toolpath(
                 field="placement",
             )
         T_base_work = model.default_placement
-    if model.opw is None:
-        raise InputError(
-            f"robot {model.name!r} has no OPW geometry; closed-form IK needs it", field="robot"
-        )
-    _check_branch(shoulder, elbow, wrist)
     T_bw = np.asarray(T_base_work, dtype=float)
+    chosen = [x is not None for x in (match_q, confdata, kuka_st)]
+    if sum(chosen) > 1:
+        raise InputError(
+            "give at most one of match_q, confdata, kuka_st (the configuration of the first point)",
+            field="branch",
+        )
+    if model.opw is None:
+        return _numerical_path(
+            model, tip, T_bw, tool_rotation, match_q, any(chosen[1:]), singular_threshold,
+            length_scale,
+        )  # fmt: skip
+    q_first: F64 | None = None
+    if any(chosen):
+        T0 = tool_poses(tip[:1], T_bw, np.asarray(tool_rotation, dtype=float).reshape(-1)[:1])
+        br, q_first = choose_start(
+            model, T0[0], match_q=match_q, confdata=confdata, kuka_st=kuka_st
+        )
+        shoulder, elbow, wrist = cast(Any, br)
+    _check_branch(shoulder, elbow, wrist)
     gam = np.asarray(tool_rotation, dtype=float)
     if gam.ndim > 1 or (gam.ndim == 1 and gam.shape[0] not in (1, tip.shape[0])):
         raise InputError(
@@ -281,6 +314,9 @@ def ik_toolpath(
         raise_out_of_reach(model, ok, (shoulder, elbow, wrist))
     if not compiled:
         q = _continuous(model, q)
+    if q_first is not None:  # the chosen turns at the first point, continuous from there
+        q = q + 2 * np.pi * np.round((q_first - q[0]) / (2 * np.pi))
+        within = False
     if not within:  # (the compiled pass checked the limits already)
         raise_beyond_limits(model, q)
     if singular_threshold is None:
@@ -294,6 +330,128 @@ def ik_toolpath(
             f"at indices {_short(idx)}; the compliance there is unreliable",
             SingularityWarning,
             stacklevel=2,
+        )
+    return IKResult(q=q, T_base_tip=T_tip, near_singular=near, length_scale=L, model=model)
+
+
+BRANCHES: tuple[tuple[str, str, str], ...] = tuple(
+    (s, e, w) for s in ("front", "back") for e in ("up", "down") for w in ("noflip", "flip")
+)
+
+
+def start_candidates(model: RobotModel, T_base_tip: F64) -> list[tuple[tuple[str, str, str], F64]]:
+    """Every IK solution of one tip pose (4, 4): (branch, q (6,) rad) for the 8 OPW branches and
+    every whole turn of every joint that stays within the limits."""
+    from itertools import product
+
+    T_fl = (np.asarray(T_base_tip, dtype=float) @ invert(model.T_flange_tip))[None]
+    out: list[tuple[tuple[str, str, str], F64]] = []
+    for br in BRANCHES:
+        q, ok = _opw_ik_numpy(model, T_fl, *br)
+        if not ok[0]:
+            continue
+        options = []
+        for j in range(6):
+            ks = np.arange(-3, 4)
+            v = q[0, j] + 2 * np.pi * ks
+            options.append(v[(v >= model.q_min[j] - 1e-9) & (v <= model.q_max[j] + 1e-9)])
+        for combo in product(*options):
+            out.append((br, np.array(combo)))
+    return out
+
+
+def choose_start(
+    model: RobotModel,
+    T_base_tip: F64,
+    *,
+    match_q: ArrayLike | None = None,
+    confdata: ArrayLike | None = None,
+    kuka_st: ArrayLike | None = None,
+) -> tuple[tuple[str, str, str], F64]:
+    """The (branch, q (6,) rad) of one tip pose matching logged joints, ABB confdata or KUKA S/T
+    (see :func:`ik_toolpath`)."""
+    from roboisf.io.program import abb_confdata, arm_config, kuka_status_turn
+
+    cands = start_candidates(model, T_base_tip)
+    if not cands:
+        raise UnreachableError(
+            f"the first toolpath point is out of reach of {model.name} (no IK branch, or none "
+            "within the joint limits)",
+            indices=[0],
+        )
+    if match_q is not None:
+        ref = np.asarray(match_q, dtype=float).reshape(-1)
+        if ref.shape != (6,) or not np.all(np.isfinite(ref)):
+            raise InputError(f"expected 6 finite joint angles (rad), got {ref}", field="match_q")
+        dist = [float(np.max(np.abs(q - ref))) for _, q in cands]
+        return cands[int(np.argmin(dist))]
+    qs = np.array([q for _, q in cands])
+    cfg = arm_config(model, qs)
+    if confdata is not None:
+        want = np.asarray(confdata).reshape(-1)
+        have = abb_confdata(cfg)
+        what, field = "confdata [cf1, cf4, cf6, cfx]", "confdata"
+    else:
+        want = np.asarray(kuka_st).reshape(-1)
+        have = kuka_status_turn(cfg)
+        what, field = "KUKA (S, T)", "kuka_st"
+    if want.shape != (have.shape[1],) or not np.all(np.isfinite(want.astype(float))):
+        raise InputError(f"expected {what} as {have.shape[1]} integers, got {want}", field=field)
+    hit = np.flatnonzero(np.all(have == want.astype(np.int64), axis=1))
+    if hit.size == 0:
+        avail = sorted({tuple(int(x) for x in h) for h in have})
+        raise InputError(
+            f"no IK solution at the first toolpath point has {what} = {want.tolist()}; "
+            f"available there: {avail}",
+            field=field,
+        )
+    return cands[int(hit[0])]
+
+
+def _numerical_path(
+    model: RobotModel,
+    tip: F64,
+    T_bw: F64,
+    tool_rotation: ArrayLike,
+    match_q: ArrayLike | None,
+    config_given: bool,
+    singular_threshold: float | None,
+    length_scale: float | None,
+) -> IKResult:
+    """:func:`ik_toolpath` for a robot without OPW geometry (numerical IK)."""
+    from roboisf.robot.numik import numerical_ik_path
+
+    if config_given:
+        raise InputError(
+            f"robot {model.name!r} has no OPW geometry: its IK is numerical and the configuration "
+            "can be chosen only by joints (match_q / --start-joints), not by confdata or S/T",
+            field="branch",
+        )
+    gam = np.asarray(tool_rotation, dtype=float)
+    T_tip = tool_poses(tip, T_bw, gam if gam.ndim == 0 else gam.reshape(-1))
+    q0 = None if match_q is None else np.asarray(match_q, dtype=float).reshape(6)
+    q, ok = numerical_ik_path(model, T_tip, q0)
+    if not np.all(ok):
+        bad = np.flatnonzero(~ok)
+        raise UnreachableError(
+            f"{bad.size} of {len(ok)} toolpath points: the numerical IK of {model.name} did not "
+            f"converge (out of reach, or a jump the path cannot follow) at indices {_short(bad)}",
+            indices=bad.tolist(),
+        )
+    if q0 is None:
+        q = _continuous(model, q)
+    raise_beyond_limits(model, q)
+    if singular_threshold is None:
+        return IKResult(q=q, T_base_tip=T_tip, near_singular=np.zeros(len(q), dtype=bool))
+    L = length_scale if length_scale is not None else _length_scale(model)
+    near = ~model.singularity_margin_ok(q, L, singular_threshold)
+    if np.any(near):
+        idx = np.flatnonzero(near)
+        warnings.warn(
+            f"{idx.size} toolpath points are near a singularity (σ_min < {singular_threshold}) "
+            f"at indices {_short(idx)}; the compliance there is unreliable",
+            SingularityWarning,
+            stacklevel=3,
         )
     return IKResult(q=q, T_base_tip=T_tip, near_singular=near, length_scale=L, model=model)
 
@@ -324,8 +482,24 @@ def raise_beyond_limits(model: RobotModel, q: F64) -> None:
 
 
 def _length_scale(model: RobotModel) -> float:
+    """c2 + c3 (m) of an OPW robot; else the distance from joint 2 to the flange at q = 0."""
     g = model.opw
-    return 1.0 if g is None else g.c2 + g.c3
+    if g is not None:
+        return g.c2 + g.c3
+    T = np.eye(4)
+    for i in range(2):
+        T = T @ model.chain.F[i]
+    T2 = T
+    th = model.chain.theta(np.zeros((1, 6)))[0]
+    T = np.eye(4)
+    for i in range(6):
+        T = T @ model.chain.F[i]
+        c, s = np.cos(th[i]), np.sin(th[i])
+        R = np.eye(4)
+        R[:2, :2] = [[c, -s], [s, c]]
+        T = T @ R
+    T = T @ model.chain.F[6]
+    return max(float(np.linalg.norm(T[:3, 3] - T2[:3, 3])), 1e-3)
 
 
 def _continuous(model: RobotModel, q: F64) -> F64:
