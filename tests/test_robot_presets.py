@@ -248,3 +248,51 @@ def test_unknown_stiffness_points_to_identify():
     m = load_robot("kr240-r2900-2")
     with pytest.raises(InputError, match="roboisf robot identify"):
         m.deflection(np.zeros((1, 6)) + np.radians([0, -90, 90, 0, 30, 0]), np.zeros(6))
+
+
+@pytest.mark.parametrize("name", ["m900ib-700", "r2000ic-210f"])
+def test_fanuc_compiled_kernels_equal_numpy(name):
+    """The compiled VJM, IK and plan kernels carry the J2/J3 coupling: same numbers as numpy."""
+    pytest.importorskip("numba")
+    from roboisf.frames import make_transform
+    from roboisf.parts import Cone
+    from roboisf.robot import ik_toolpath
+    from roboisf.robot.ik_numba import path_vjm
+    from roboisf.toolpath import step_down
+
+    m = (
+        load_robot(name)
+        .with_tool(make_transform(None, [0, 0, 0.3]))
+        .with_stiffness([4e6, 4e6, 3e6, 6e5, 6e5, 4e5])
+    )
+    rng = np.random.default_rng(0)
+    q = rng.uniform(m.q_min, m.q_max, (2000, 6))
+    W = rng.normal(0, 300, (2000, 6))
+    dp = m.deflection(q, W, backend="numpy")
+    assert np.max(np.abs(m.deflection(q, W, backend="numba") - dp)) <= 1e-14 * np.abs(dp).max()
+    kp = m.compliance(q, backend="numpy")
+    assert np.max(np.abs(m.compliance(q, backend="numba") - kp)) <= 1e-14 * np.abs(kp).max()
+    tp = step_down(Cone(), step_down=5e-3)
+    a = ik_toolpath(m, tp.tip, backend="numba", singular_threshold=None)
+    b = ik_toolpath(m, tp.tip, backend="numpy", singular_threshold=None)
+    assert np.max(np.abs(a.q - b.q)) < 1e-12
+    np.testing.assert_allclose(m.fk(a.q), a.T_base_tip, atol=1e-9)
+    P = m.default_placement
+    Ww = np.array([100.0, 50.0, 400.0, 0.0, 0.0, 0.0])
+    g = m.opw
+    assert g is not None
+    r = path_vjm(m, tp.tip, P, np.zeros(1), Ww[None], None, (g.c2 + g.c3, 0.02))
+    assert r.status == 0 and r.d_robot is not None
+    d = m.deflection(b.q, Ww, T_base_work=P, backend="numpy")
+    assert np.max(np.abs(r.q - b.q)) < 1e-12
+    assert np.max(np.abs(r.d_robot - d[:, :3])) < 1e-15
+
+
+def test_couple23_must_be_a_linkage_factor(tmp_path):
+    text = (Path(__file__).parents[1] / "src/roboisf/robot/presets/m900ib-700.toml").read_text(
+        encoding="utf-8"
+    )
+    f = tmp_path / "bad.toml"
+    f.write_text(text.replace("couple23 = 1", "couple23 = 0.5"), encoding="utf-8")
+    with pytest.raises(InputError, match="couple23"):
+        load_robot(f)

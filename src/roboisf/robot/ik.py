@@ -71,9 +71,7 @@ def opw_ik(
         )
     _check_branch(shoulder, elbow, wrist)
     T = np.asarray(T_base_flange, dtype=float).reshape(-1, 4, 4)
-    if model.chain.couple23 == 0.0 and vjm_kernel.use_numba(
-        model.backend if backend is None else backend
-    ):
+    if vjm_kernel.use_numba(model.backend if backend is None else backend):
         from roboisf.robot.ik_numba import flange_ik
 
         return flange_ik(model, T, shoulder, elbow, wrist)
@@ -285,10 +283,8 @@ def ik_toolpath(
         )
     if not np.all(np.isfinite(gam)):
         raise InputError("tool_rotation contains NaN or inf", field="tool_rotation")
-    compiled = (
-        T_bw.shape == (4, 4)
-        and model.chain.couple23 == 0.0  # (the compiled IK has no J2/J3 coupling)
-        and vjm_kernel.use_numba(model.backend if backend is None else backend)
+    compiled = T_bw.shape == (4, 4) and vjm_kernel.use_numba(
+        model.backend if backend is None else backend
     )
     if compiled:
         from roboisf.robot.ik_numba import path_ik

@@ -137,6 +137,7 @@ def _opw(
     flags: F64,
     sign: F64,
     offset: F64,
+    cpl: float,
     q: F64,
     n: int,
 ) -> bool:  # pragma: no cover - compiled
@@ -200,7 +201,9 @@ def _opw(
         return False
     q[n, 0] = _wrap((th1 - offset[0]) * sign[0])
     q[n, 1] = _wrap((th2 - offset[1]) * sign[1])
-    q[n, 2] = _wrap((th3 - offset[2]) * sign[2])
+    # FANUC J2/J3 coupling: θ3 = s3 (q3 + cpl q2) + o3 → q3 = s3 (θ3 − o3) − cpl q2 (cpl is
+    # −1, 0 or 1, so a whole turn of θ2 is a whole turn of q3, which the wrap removes)
+    q[n, 2] = _wrap((th3 - offset[2]) * sign[2] - cpl * ((th2 - offset[1]) * sign[1]))
     q[n, 3] = _wrap((th4 - offset[3]) * sign[3])
     q[n, 4] = _wrap((th5 - offset[4]) * sign[4])
     q[n, 5] = _wrap((th6 - offset[5]) * sign[5])
@@ -214,6 +217,7 @@ def _flange_rows(
     flags: F64,
     sign: F64,
     offset: F64,
+    c23: float,
     q: F64,
     ok: NDArray[np.bool_],
     s: int,
@@ -237,6 +241,7 @@ def _flange_rows(
             flags,
             sign,
             offset,
+            c23,
             q,
             n,
         )
@@ -244,12 +249,19 @@ def _flange_rows(
 
 @_njit(parallel=True)
 def _flange_parallel(
-    T: F64, geo: F64, flags: F64, sign: F64, offset: F64, q: F64, ok: NDArray[np.bool_]
+    T: F64,
+    geo: F64,
+    flags: F64,
+    sign: F64,
+    offset: F64,
+    c23: float,
+    q: F64,
+    ok: NDArray[np.bool_],
 ) -> None:  # pragma: no cover - compiled
     n = T.shape[0]
     nb = (n + BLOCK - 1) // BLOCK
     for b in _PRANGE(nb):
-        _flange_rows(T, geo, flags, sign, offset, q, ok, b * BLOCK, min(n, (b + 1) * BLOCK))
+        _flange_rows(T, geo, flags, sign, offset, c23, q, ok, b * BLOCK, min(n, (b + 1) * BLOCK))
 
 
 @_njit()
@@ -262,6 +274,7 @@ def _tip_rows(
     flags: F64,
     sign: F64,
     offset: F64,
+    c23: float,
     q: F64,
     ok: NDArray[np.bool_],
     T_tip: F64,
@@ -313,6 +326,7 @@ def _tip_rows(
             flags,
             sign,
             offset,
+            c23,
             q,
             n,
         )
@@ -328,6 +342,7 @@ def _tip_parallel(
     flags: F64,
     sign: F64,
     offset: F64,
+    c23: float,
     q: F64,
     ok: NDArray[np.bool_],
     T_tip: F64,
@@ -336,7 +351,7 @@ def _tip_parallel(
     nb = (n + BLOCK - 1) // BLOCK
     for b in _PRANGE(nb):
         s = b * BLOCK
-        _tip_rows(A, B, tip, gam, geo, flags, sign, offset, q, ok, T_tip, s, min(n, s + BLOCK))
+        _tip_rows(A, B, tip, gam, geo, flags, sign, offset, c23, q, ok, T_tip, s, min(n, s + BLOCK))
 
 
 @_njit(inline="always")
@@ -399,7 +414,7 @@ def _continuous(q: F64, q_min: F64, q_max: F64) -> bool:  # pragma: no cover - c
     return all_in
 
 
-def _args(model: Any, shoulder: str, elbow: str, wrist: str) -> tuple[F64, F64, F64, F64]:
+def _args(model: Any, shoulder: str, elbow: str, wrist: str) -> tuple[F64, F64, F64, F64, float]:
     g = model.opw
     kappa2 = g.a2 * g.a2 + g.c3 * g.c3
     geo = np.array(
@@ -411,7 +426,7 @@ def _args(model: Any, shoulder: str, elbow: str, wrist: str) -> tuple[F64, F64, 
     flags = np.array(
         [1.0 if front else 0.0, 1.0 if up == front else -1.0, 1.0 if wrist == "flip" else 0.0]
     )
-    return geo, flags, _c64(model.chain.sign), _c64(model.chain.offset)
+    return geo, flags, _c64(model.chain.sign), _c64(model.chain.offset), model.chain.couple23
 
 
 def _main() -> bool:
@@ -426,11 +441,11 @@ def flange_ik(
     n = T.shape[0]
     q = np.empty((n, 6))
     ok = np.empty(n, dtype=np.bool_)
-    geo, flags, sign, offset = _args(model, shoulder, elbow, wrist)
+    geo, flags, sign, offset, c23 = _args(model, shoulder, elbow, wrist)
     if _main():
-        _flange_parallel(T, geo, flags, sign, offset, q, ok)
+        _flange_parallel(T, geo, flags, sign, offset, c23, q, ok)
     else:
-        _flange_rows(T, geo, flags, sign, offset, q, ok, 0, n)
+        _flange_rows(T, geo, flags, sign, offset, c23, q, ok, 0, n)
     return q, ok
 
 
@@ -460,8 +475,18 @@ def path_ik(
     q = np.empty((n, 6))
     ok = np.empty(n, dtype=np.bool_)
     T_tip = np.empty((n if want_tip_poses else 0, 4, 4))
-    geo, flags, sign, offset = _args(model, shoulder, elbow, wrist)
-    args = (_c64(T_base_work), _c64(T_flange_tip_inv), tip, _c64(gamma), geo, flags, sign, offset)
+    geo, flags, sign, offset, c23 = _args(model, shoulder, elbow, wrist)
+    args = (
+        _c64(T_base_work),
+        _c64(T_flange_tip_inv),
+        tip,
+        _c64(gamma),
+        geo,
+        flags,
+        sign,
+        offset,
+        c23,
+    )
     if _main():
         _tip_parallel(*args, q, ok, T_tip)
     else:
@@ -484,6 +509,7 @@ def _vjm_rows(
     F: F64,
     sign: F64,
     offset: F64,
+    c23: float,
     kinv: F64,
     q: F64,
     W_work: F64,
@@ -517,7 +543,7 @@ def _vjm_rows(
             )
     no_k = np.empty((0, 6, 6))
     sg, cg = sincos(gam[0])  # one γ for the path: once
-    _vjm_kernel_rows(F, sign, offset, kinv, q, W_base, s, e, d, no_k, no_k, mg, margin_ok)
+    _vjm_kernel_rows(F, sign, offset, c23, kinv, q, W_base, s, e, d, no_k, no_k, mg, margin_ok)
     for n in range(s, e):
         x0 = d[n, 0] * A[0, 0] + d[n, 1] * A[1, 0] + d[n, 2] * A[2, 0]
         x1 = d[n, 0] * A[0, 1] + d[n, 1] * A[1, 1] + d[n, 2] * A[2, 1]
@@ -554,6 +580,7 @@ def _vjm_parallel(
     F: F64,
     sign: F64,
     offset: F64,
+    c23: float,
     kinv: F64,
     q: F64,
     W_work: F64,
@@ -577,6 +604,7 @@ def _vjm_parallel(
             F,
             sign,
             offset,
+            c23,
             kinv,
             q,
             W_work,
@@ -659,6 +687,7 @@ def path_vjm(
         _c64(F),
         _c64(model.chain.sign),
         _c64(model.chain.offset),
+        model.chain.couple23,
         _c64(1.0 / model.joint_stiffness),
         q,
         _c64(W_work),

@@ -66,7 +66,8 @@ class Chain:
     F : (7, 4, 4) float — fixed transforms, translations in m
     sign : (6,) float — ±1, ``θ = sign·q + offset``
     offset : (6,) float, rad
-    couple23 : float — J2/J3 coupling: ``θ_3 = sign_3·(q_3 + couple23·q_2) + offset_3``. FANUC
+    couple23 : float (−1, 0 or 1) — J2/J3 coupling:
+        ``θ_3 = sign_3·(q_3 + couple23·q_2) + offset_3``. FANUC
         controllers measure J3 from the horizontal (a parallelogram drives the forearm), so the
         kinematic (relative) J3 angle is the pendant's J3 + J2: ``couple23 = 1``. 0 for ABB and
         KUKA. The Jacobian with respect to the controller angles then has column 2 = its
@@ -91,8 +92,11 @@ class Chain:
             raise InputError(f"sign must be 6 values of ±1, got {sign.tolist()}", field="sign")
         if offset.shape != (6,) or not np.all(np.isfinite(offset)):
             raise InputError("offset must be 6 finite angles (rad)", field="offset")
-        if not np.isfinite(self.couple23):
-            raise InputError("couple23 must be finite", field="couple23")
+        if self.couple23 not in (-1.0, 0.0, 1.0):
+            raise InputError(
+                f"couple23 (J2/J3 coupling) must be -1, 0 or 1, got {self.couple23!r}",
+                field="couple23",
+            )
         for name, v in (("F", F), ("sign", sign), ("offset", offset)):
             v.setflags(write=False)
             object.__setattr__(self, name, v)

@@ -106,9 +106,6 @@ class RobotModel:
         T = _ro(self.T_flange_tip, (4, 4), "T_flange_tip")
         _check_rigid(T, "T_flange_tip")
         object.__setattr__(self, "T_flange_tip", T)
-        if self.chain.couple23 != 0.0 and self.backend == "auto":
-            # the compiled kernels have no J2/J3 coupling: a coupled chain runs on numpy
-            object.__setattr__(self, "backend", "numpy")
         if self.opw is not None:
             ref = chain_from_opw(self.opw)
             if np.max(np.abs(ref.F - self.chain.F)) > 1e-12:
@@ -333,8 +330,6 @@ class RobotModel:
         progress: Progress | None = None,
     ) -> vjm_kernel.VJMResult:
         b = self.backend if backend is None else vjm_kernel.check_backend(backend)
-        if self.chain.couple23 != 0.0:
-            b = "numpy"  # the compiled kernel has no J2/J3 coupling (docs/robot.md)
         F = self.chain.F.copy()
         F[6] = F[6] @ self.T_flange_tip
         Wv = _check_wrench(W, qv.shape[0])
@@ -352,6 +347,7 @@ class RobotModel:
             backend=b,
             chunk=chunk,
             progress=progress,
+            couple23=self.chain.couple23,
         )
 
     def __repr__(self) -> str:

@@ -130,13 +130,9 @@ def robot_from_dict(data: dict[str, Any], *, file: object = None) -> RobotModel:
     )
     ktype = kin.get("type", "opw")
     couple23 = kin.get("couple23", 0.0)
-    if (
-        not isinstance(couple23, (int, float))
-        or isinstance(couple23, bool)
-        or not np.isfinite(couple23)
-    ):
+    if isinstance(couple23, bool) or couple23 not in (-1, 0, 1):
         raise InputError(
-            f"expected a number (FANUC J2/J3 coupling, 1 or 0), got {couple23!r}",
+            f"expected -1, 0 or 1 (FANUC J2/J3 coupling: 1), got {couple23!r}",
             file=f,
             field="kinematics.couple23",
         )

@@ -133,6 +133,7 @@ def vjm_eval(
     chunk: int = CHUNK,
     progress: Progress | None = None,
     label: str = "VJM deflection",
+    couple23: float = 0.0,
 ) -> VJMResult:
     """δ (N, 6), and k_c, J, the singularity-margin test when asked, for validated inputs.
 
@@ -144,6 +145,8 @@ def vjm_eval(
     margin : (length scale (m), threshold) — test ``σ_min(J_s) > threshold`` per pose, ``J_s``
         the Jacobian with its linear rows divided by the length scale
     chunk : poses per chunk of the numpy engine (bounds its temporaries)
+    couple23 : FANUC J2/J3 coupling of the chain (:class:`~roboisf.robot.kinematics.Chain`);
+        the numpy engine's ``jacobian`` includes it already
     """
     if chunk < 1:
         raise InputError(f"chunk must be ≥ 1, got {chunk}", field="chunk")
@@ -166,7 +169,7 @@ def vjm_eval(
         one = W.strides[0] == 0 or n == 0
         Wc = nb._c64(W[:1] if one else W)
         qc = nb._c64(q)
-        args = (nb._c64(F_tip), nb._c64(sign), nb._c64(offset), nb._c64(kinv))
+        args = (nb._c64(F_tip), nb._c64(sign), nb._c64(offset), float(couple23), nb._c64(kinv))
         kern = nb.kernel()
         none = np.empty((0, 6, 6))
         no_ok = np.empty(0, dtype=np.bool_)

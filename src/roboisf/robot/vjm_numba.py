@@ -71,6 +71,7 @@ def _rows(
     F: F64,
     sign: F64,
     offset: F64,
+    c23: float,
     kinv: F64,
     q: F64,
     W: F64,
@@ -132,7 +133,10 @@ def _rows(
             oz[j, 3] = px
             oz[j, 4] = py
             oz[j, 5] = pz
-            sn, c = sincos(sign[j] * q[n, j] + offset[j])
+            th = sign[j] * q[n, j] + offset[j]
+            if j == 2 and c23 != 0.0:  # FANUC J2/J3 coupling: θ3 = s3 (q3 + c23 q2) + o3
+                th += sign[2] * c23 * q[n, 1]
+            sn, c = sincos(th)
             r00, r01 = c * r00 + sn * r01, c * r01 - sn * r00
             r10, r11 = c * r10 + sn * r11, c * r11 - sn * r10
             r20, r21 = c * r20 + sn * r21, c * r21 - sn * r20
@@ -151,6 +155,9 @@ def _rows(
             Jl[3, j] = sj * zx
             Jl[4, j] = sj * zy
             Jl[5, j] = sj * zz
+        if c23 != 0.0:  # ∂/∂q2 also turns joint 3: column 2 += c23 × column 3
+            for i in range(6):
+                Jl[i, 1] += c23 * Jl[i, 2]
         w = 0 if one_w else n
         for j in range(6):
             tau = 0.0
@@ -245,6 +252,7 @@ def _kernel_parallel(
     F: F64,
     sign: F64,
     offset: F64,
+    c23: float,
     kinv: F64,
     q: F64,
     W: F64,
@@ -258,7 +266,7 @@ def _kernel_parallel(
     nb = (n + BLOCK - 1) // BLOCK
     for b in _PRANGE(nb):
         s = b * BLOCK
-        _rows(F, sign, offset, kinv, q, W, s, min(n, s + BLOCK), d, k, J, margin, ok)
+        _rows(F, sign, offset, c23, kinv, q, W, s, min(n, s + BLOCK), d, k, J, margin, ok)
 
 
 @_njit()
@@ -266,6 +274,7 @@ def _kernel_serial(
     F: F64,
     sign: F64,
     offset: F64,
+    c23: float,
     kinv: F64,
     q: F64,
     W: F64,
@@ -275,7 +284,7 @@ def _kernel_serial(
     margin: F64,
     ok: NDArray[np.bool_],
 ) -> None:  # pragma: no cover - compiled
-    _rows(F, sign, offset, kinv, q, W, 0, q.shape[0], d, k, J, margin, ok)
+    _rows(F, sign, offset, c23, kinv, q, W, 0, q.shape[0], d, k, J, margin, ok)
 
 
 def _c64(a: Any) -> F64:
