@@ -150,7 +150,10 @@ def show_cmd(
             f"{np.degrees(m.q_max[i]):7.1f}] deg   K = {K}"
         )
     if m.stiffness is None:
-        state.warn("no joint stiffness for this robot; compliance needs --stiffness")
+        state.warn(
+            "joint stiffness unknown — identify it: `roboisf robot identify calib.csv -o K.toml`, "
+            "then pass --stiffness K.toml (compliance and deflection need it)"
+        )
     if output is not None:
         from roboisf.report.robot_maps import plot_stiffness_map
         from roboisf.robot import stiffness_map
