@@ -192,3 +192,46 @@ def test_deflect_branch_options(cell, tmp_path, capsys):
     assert "confdata" in capsys.readouterr().err
     assert main([*common, "--confdata", "0,0,0,0", "--kuka-st", "2,0", "-o", str(out)]) == 2
     assert not out.exists()
+
+
+def test_toolpath_program_follows_the_chosen_configuration(tmp_path):
+    """`roboisf toolpath … --robot R --arm-config …`: the RAPID confdata / KRL S,T written in the
+    program are those of the chosen branch (first point as requested, the rest from its joints)."""
+    from roboisf.frames.rotations import rpy_to_matrix
+    from roboisf.io.krl import read_krl
+    from roboisf.io.program import abb_confdata, parse_arm_config
+    from roboisf.io.rapid import read_rapid
+    from roboisf.io.toolpath_csv import read_toolpath_csv
+
+    cone = ["--opening-diameter", "60", "--wall-angle", "60", "--depth", "5", "--spacing", "3"]
+    cell = ["--placement", "2200,0,200,0,0,10", "--tool", "306", "--robot", "irb7600-500-2.55"]
+    ref = tmp_path / "ref.csv"
+    assert main(["toolpath", "cone", *cone, "-o", str(ref)]) == 0
+    tp = read_toolpath_csv(ref)
+    m = load_robot("irb7600-500-2.55").with_tool(make_transform(None, [0, 0, 0.306]))
+    T = make_transform(rpy_to_matrix(np.radians([0, 0, 10])), [2.2, 0, 0.2])
+    default = abb_confdata(program_config(m, tp, T))
+    # another feasible configuration: the flipped wrist
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SingularityWarning)
+        q_flip = ik_toolpath(m, tp.tip, T, wrist="flip", singular_threshold=None).q
+    cf = abb_confdata(arm_config(m, q_flip[:1]))[0]
+    assert not np.array_equal(cf, default[0])
+    out = tmp_path / "p.mod"
+    arg = ",".join(str(int(x)) for x in cf)
+    assert main(["toolpath", "cone", *cone, *cell, "--arm-config", arg, "-o", str(out)]) == 0
+    conf = read_rapid(out).meta["confdata"]
+    np.testing.assert_array_equal(conf[0], cf)
+    np.testing.assert_array_equal(conf, abb_confdata(arm_config(m, q_flip)))
+    # KUKA S,T and joints in degrees parse to the same choice
+    st = kuka_status_turn(arm_config(m, q_flip[:1]))[0]
+    src = tmp_path / "p.src"
+    assert (
+        main(["toolpath", "cone", *cone, *cell, "--arm-config", f"{st[0]},{st[1]}", "-o", str(src)])
+        == 0
+    )
+    assert tuple(read_krl(src).meta["status_turn"]) == tuple(int(x) for x in st)
+    kw = parse_arm_config(",".join(f"{x:.6f}" for x in np.degrees(q_flip[0])))
+    np.testing.assert_allclose(kw["match_q"], q_flip[0], atol=1e-8)
+    with pytest.raises(InputError, match="2 \\(KUKA"):
+        parse_arm_config("1,2,3")

@@ -45,7 +45,7 @@ from roboisf.frames.se3 import make_transform
 from roboisf.io.atomic import check_not_input
 from roboisf.io.export import ROBOT_FORMATS, check_program_name, infer_format, write_toolpath
 from roboisf.io.gcode import WORK_OFFSETS
-from roboisf.io.program import RobotTool, program_config
+from roboisf.io.program import RobotTool, parse_arm_config, program_config
 from roboisf.parts import (
     VWACF,
     AxisymmetricPart,
@@ -141,6 +141,15 @@ WorkOffset = Annotated[
         "T1 M06 and G43 H1 (length to the ball tip)."
     ),
 ]
+ArmConfigOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--arm-config",
+        help="With --robot: the arm configuration of the first point, which the whole program "
+        "then keeps (continuous): ABB confdata 'cf1,cf4,cf6,cfx', KUKA 'S,T', or joints "
+        "'q1,...,q6' (deg, the nearest solution). Default: front, elbow up, no flip.",
+    ),
+]
 ToolRotation = Annotated[
     float, typer.Option(help="Rotation of the tool about its own axis \\[deg] (RAPID/KRL).")
 ]
@@ -175,6 +184,7 @@ class PathOptions:
     tool: str | None = None
     robot: str | None = None
     work_offset: str = "G54"
+    arm_config: str | None = None
 
     def check(self) -> None:
         for flag, v in (
@@ -329,7 +339,9 @@ def write(tp: Toolpath, output: Path, fmt: str | None, opts: PathOptions) -> str
     config = None
     if model is not None and T is not None and tool is not None:
         model = model.with_tool(make_transform(p=[0.0, 0.0, tool.length]))
-        config = program_config(model, tp, T, math.radians(opts.tool_rotation))
+        config = program_config(
+            model, tp, T, math.radians(opts.tool_rotation), **parse_arm_config(opts.arm_config)
+        )
     fmt, _ = write_toolpath(
         tp,
         output,
@@ -411,6 +423,7 @@ _SHARED: list[tuple[str, Any, Any]] = [
     ("tool", ToolOpt, None),
     ("robot", Robot, None),
     ("work_offset", WorkOffset, "G54"),
+    ("arm_config", ArmConfigOpt, None),
 ]
 
 

@@ -296,6 +296,36 @@ def program_config(
     return arm_config(model, ik.q)
 
 
+def parse_arm_config(text: str | None, field: str = "--arm-config") -> dict[str, F64]:
+    """The IK configuration of the first point from a command-line string, as keyword arguments
+    of :func:`program_config` / :func:`roboisf.robot.ik.ik_toolpath`.
+
+    2 integers → KUKA ``S,T``; 4 integers → ABB confdata ``cf1,cf4,cf6,cfx``; 6 numbers → joint
+    angles q1..q6 in degrees (the solution nearest them). None or "" → {} (the default branch).
+    """
+    if text is None or not text.strip():
+        return {}
+    try:
+        v = np.array([float(t) for t in text.split(",")])
+    except ValueError:
+        raise InputError(
+            f"expected 2 (KUKA S,T), 4 (ABB cf1,cf4,cf6,cfx) or 6 (joints, deg) comma-separated "
+            f"numbers, got {text!r}",
+            field=field,
+        ) from None
+    if v.size not in (2, 4, 6) or not np.all(np.isfinite(v)):
+        raise InputError(
+            f"expected 2 (KUKA S,T), 4 (ABB cf1,cf4,cf6,cfx) or 6 (joints, deg) numbers, "
+            f"got {text!r}",
+            field=field,
+        )
+    if v.size == 6:
+        return {"match_q": np.radians(v)}
+    if np.any(v != np.round(v)):
+        raise InputError(f"confdata and S,T are integers, got {text!r}", field=field)
+    return {"kuka_st" if v.size == 2 else "confdata": v.astype(np.int64)}
+
+
 def _deg(q: ArrayLike) -> F64:
     """Degrees rounded to 1e-6° so that a joint at a quadrant boundary (q6 = −180°) computed as
     −180.0000000001° or −179.9999999999° lands in the same quadrant."""
