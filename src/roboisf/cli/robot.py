@@ -86,19 +86,22 @@ PLACEMENT_OPT = typer.Option(
 TOOL_OPT = typer.Option(None, "--tool", help="Tool tip in the flange frame: x,y,z (mm).")
 
 
-@robot_app.command("list")
+LIST_HELP = (
+    "List the built-in robot presets: reach, payload, joint stiffness and source.\n\n"
+    "Reach is the wrist-centre reach from the preset's geometry (a1 + c2 + √(a2² + c3²)). "
+    "'unknown — identify': no published joint stiffness; measure it with "
+    "`roboisf robot identify calib.csv -o K.toml` and pass --stiffness K.toml. Copy a preset's "
+    "TOML (docs/robot.md) to describe your own robot."
+)
+
+
+@robot_app.command("list", help=LIST_HELP)
 def list_cmd(
     sources: bool = typer.Option(
         False, "--sources", help="Also print where every preset's numbers come from."
     ),
 ) -> None:
-    """List the built-in robot presets: reach, payload, joint stiffness and source.
-
-    Reach is the wrist-centre reach from the preset's geometry (a1 + c2 + √(a2² + c3²)).
-    "unknown — identify": no published joint stiffness; measure it with
-    `roboisf robot identify calib.csv -o K.toml` and pass `--stiffness K.toml`.
-    Copy a preset's TOML (docs/robot.md) to describe your own robot.
-    """
+    """List the built-in robot presets: reach, payload, joint stiffness and source."""
     from roboisf.robot.presets import list_robots, preset_info
 
     state.out.print(
@@ -219,7 +222,20 @@ def identify_cmd(
     state.info(f"wrote {output}")
 
 
-@robot_app.command("deflect")
+DEFLECT_HELP = (
+    "VJM deflection of the tool tip along a toolpath under the logged forming wrench.\n\n"
+    "The joints come from --joints, or from IK: closed form for OPW robots (presets, and URDFs "
+    "whose structure fits), numerical otherwise. Without --start-joints / --confdata / --kuka-st "
+    "the IK branch is front / elbow up / no flip (numerical IK: the solution nearest the middle "
+    "of the joint ranges). A robot whose joint stiffness is unknown needs --stiffness (from "
+    "`roboisf robot identify`).\n\n"
+    "Example, a URDF robot without a joint log: roboisf robot deflect --robot arm.urdf "
+    "--stiffness K.toml --toolpath P.csv --forces F.csv --placement 1600,0,800,0 "
+    "--tool 0,0,300 -o deflection.csv"
+)
+
+
+@robot_app.command("deflect", help=DEFLECT_HELP)
 def deflect_cmd(
     toolpath: Path = typer.Option(..., "--toolpath", help="Toolpath CSV (roboisf format)."),
     forces: Path = typer.Option(
@@ -254,17 +270,7 @@ def deflect_cmd(
         None, "--kuka-st", help="IK: KUKA Status,Turn of the first point, e.g. 2,10."
     ),
 ) -> None:
-    """VJM deflection of the tool tip along a toolpath under the logged forming wrench.
-
-    The joints come from --joints, or from IK: closed form for OPW robots (presets, and URDFs
-    whose structure fits), numerical otherwise. Without --start-joints/--confdata/--kuka-st the
-    IK branch is front / elbow up / no flip (numerical IK: the solution nearest the middle of the
-    joint ranges). A robot without published stiffness needs --stiffness (from
-    `roboisf robot identify`). Example with a URDF robot, no joint log:
-
-        roboisf robot deflect --robot arm.urdf --stiffness K.toml --toolpath P.csv
-            --forces F.csv --placement 1600,0,800,0 --tool 0,0,300 -o deflection.csv
-    """
+    """VJM deflection of the tool tip along a toolpath under the logged forming wrench."""
     from roboisf.io.atomic import atomic_write, check_not_input
     from roboisf.io.forcelog import attach_to_toolpath, read_force_log
     from roboisf.io.jointlog import read_joint_log
