@@ -210,7 +210,9 @@ def arc_points(
     u, v = s - a0 * n, e - a1 * n
     r0, r1 = float(np.linalg.norm(u)), float(np.linalg.norm(v))
     if r0 <= 1e-9 or r1 <= 1e-9:
-        raise InputError("arc of zero radius (the centre is on the end point)", file=file, line=line)
+        raise InputError(
+            "arc of zero radius (the centre is on the end point)", file=file, line=line
+        )
     if abs(r0 - r1) > max(ARC_RADIUS_TOL, 1e-3 * max(r0, r1)):
         raise InputError(
             f"arc end point is not on the circle: radius {r0 * 1e3:.4f} mm at the start, "

@@ -217,7 +217,7 @@ def tokenize_iso(text: str, *, file: Path, line: int) -> tuple[list[Word], str]:
     code = "".join(out).upper().strip()
     if code.startswith("/"):
         code = code[1:]
-    words = [(m[0], float(m[1]), None) for m in _ISO_WORD.findall(code)]
+    words: list[Word] = [(m[0], float(m[1]), None) for m in _ISO_WORD.findall(code)]
     rest = _ISO_WORD.sub("", code).strip()
     if rest:
         raise InputError(
@@ -314,7 +314,7 @@ class Interpreter:
         return self.moves.result()
 
     # -- one block
-    def block(self, words: list[Word], line: int) -> None:  # noqa: C901 - one G-code block
+    def block(self, words: list[Word], line: int) -> None:
         st = self.st
         gs = [v for a, v, _ in words if a == "G"]
         other: dict[str, tuple[float, str | None]] = {}
@@ -328,8 +328,11 @@ class Interpreter:
             if a == "M":
                 code = f"M{v:g}"
                 if v in (98.0,):
-                    raise self.err("subprogram calls (M98) are not expanded; post the program "
-                                   "without subprograms", line)
+                    raise self.err(
+                        "subprogram calls (M98) are not expanded; post the program "
+                        "without subprograms",
+                        line,
+                    )
                 self.m_codes.append(code)
         # G codes of the block
         dwell = home = machine = False
