@@ -488,7 +488,11 @@ class Interpreter:
         """G28/G30: rapid through the intermediate point (if given) to the reference point, whose
         place in the work frame is unknown: those axes (all without words) become unknown."""
         if axes:
-            mid = self._target(axes, line)
+            mid = self.st.pos.copy()  # the intermediate point (unknown from an unknown start)
+            for a, (v, mode) in axes.items():
+                i = _AXES.index(a)
+                absolute = self.st.absolute if mode is None else mode == "AC"
+                mid[i] = v * self.st.scale + (self.shift[i] if absolute else self.st.pos[i])
             self.moves.add(mid, RAPID, math.nan, line)
         homed = [a for a in _AXES if a in axes] or list(_AXES)
         pos = self.st.pos.copy() if axes else np.full(3, np.nan)

@@ -97,7 +97,8 @@ def read_xyz_moves(
     unit = file_unit or units or "mm"
     if unit not in XYZ_UNITS:
         raise InputError(f"unknown length unit {unit!r}; expected one of {', '.join(XYZ_UNITS)}")
-    sep, dec = _separator(rows[0])
+    sep, _ = _separator(rows[0])
+    dec = "." if sep == "," else ("," if any(_DECIMAL_COMMA.search(r) for r in rows) else ".")
     names: list[str]
     if header is not None:
         allowed = ["x", "y", "z", "i", "j", "k"]
@@ -122,10 +123,10 @@ def read_xyz_moves(
         df = pd.read_csv(
             io.StringIO("\n".join(rows)),
             sep=sep,
-            decimal=dec,
             header=None,
             names=names,
             dtype=str,
+            na_filter=False,
             engine="python",
             skipinitialspace=True,
         )
@@ -137,12 +138,14 @@ def read_xyz_moves(
         ) from None
     data = np.empty((len(df), len(names)))
     for j, name in enumerate(names):
-        col = pd.to_numeric(df[name], errors="coerce").to_numpy(dtype=float)
+        cells = df[name].str.replace(",", ".", regex=False) if dec == "," else df[name]
+        col = pd.to_numeric(cells, errors="coerce").to_numpy(dtype=float)
         bad_rows = ~np.isfinite(col)
         if bad_rows.any():
             r = int(np.argmax(bad_rows))
             raw = df[name].iloc[r]
-            what = "missing" if not isinstance(raw, str) else f"{raw!r} is not a finite number"
+            missing = not isinstance(raw, str) or not raw.strip()
+            what = "missing" if missing else f"{raw!r} is not a finite number"
             raise InputError(
                 f"{what} (separator {sep!r}, decimal {dec!r})",
                 file=path,

@@ -17,8 +17,10 @@ point against the nominal part (docs/toolpaths.md, "Importing a CAM program"):
    (so a long straight CAM move still gives points every ``spacing`` for the force and scan
    look-ups; without it segments over ``LONG_SEGMENT`` are reported); consecutive
    points closer than ``MERGE_TOL`` are merged (the first kept: a repeated point adds no time).
-4. **Contact and normal**: the closest point of the nominal surface to the ball centre
-   (``Part.closest_point``) and its tool-side normal; the wall angle is ``acos(n_z)``. The gap
+4. **Contact and normal**: the closest point P of the nominal surface to the ball centre C
+   (``Part.closest_point``); the normal is the contact normal ``(C − P)/|C − P|`` (the surface's
+   tool-side normal on a smooth wall; at a convex edge such as the rim, where the ball rolls over
+   the edge, the direction from the edge to the centre); the wall angle is ``acos(n_z)``. The gap
    ``|C − P| − R`` (0 for a path that follows the nominal exactly) is reported; a large one
    usually means the wrong ``--point`` or ball diameter.
 5. **Laps**: if at least half of the forming segments keep their z (to ``Z_TOL``), the path is a
@@ -40,6 +42,7 @@ import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,6 +51,9 @@ from roboisf.errors import InputError
 from roboisf.io.cam import DEFAULT_CHORD_TOL, FEED, CamMoves, ReadOptions
 from roboisf.parts.base import Part
 from roboisf.toolpath.toolpath import Toolpath
+
+if TYPE_CHECKING:
+    from roboisf.study.spec import RunSpec, Study
 
 __all__ = [
     "CAM_FORMATS",
@@ -58,6 +64,7 @@ __all__ = [
     "load_toolpath",
     "moves_to_toolpath",
     "read_cam_moves",
+    "study_toolpath",
 ]
 
 F64 = NDArray[np.float64]
@@ -322,6 +329,12 @@ def _contacts(part: Part, center: F64) -> tuple[F64, F64, F64]:
     tie &= n1[:, 2] < normal[:, 2]
     contact[tie], normal[tie] = back[tie], n1[tie]
     dist[tie] = np.sign(dist[tie]) * d1[tie]
+    # the contact normal: from the contact to the centre (at a convex edge — the rim — the ball
+    # rolls over the edge and this is not the surface normal on either side)
+    v = center - contact
+    vn = np.linalg.norm(v, axis=1)
+    ok = vn > 1e-9
+    normal[ok] = v[ok] / vn[ok, None] * np.where(dist[ok] < 0, -1.0, 1.0)[:, None]
     return contact, normal, dist
 
 
@@ -483,18 +496,34 @@ def load_toolpath(
     path: str | Path,
     part: Part,
     tool_radius: float,
-    options: ImportOptions | None = None,
+    *,
+    fmt: str = "auto",
+    point: str = "tip",
 ) -> Toolpath:
     """A study's ``toolpath``: roboisf's toolpath CSV as it is, any CAM program imported.
 
-    The study hook: ``analyze`` and ``compensate`` read every run's toolpath through this, with
-    the ball diameter of ``[tool]`` and the nominal of ``[part]``.
+    The study hook: ``analyze``, ``compensate`` and ``plan --study`` read every run's toolpath
+    through this, with the nominal of ``[part]``, the ball radius of ``[tool]`` and the run's
+    ``toolpath_format`` / ``toolpath_point`` (``fmt`` ``"csv"`` | ``"auto"`` | a CAM format).
     """
     from roboisf.io.toolpath_csv import read_toolpath_csv
 
     path = Path(path)
-    opt = options or ImportOptions()
-    fmt = opt.fmt if opt.fmt != "auto" else detect_toolpath_format(path)
+    if fmt == "auto":
+        fmt = detect_toolpath_format(path)
     if fmt == "csv":
         return read_toolpath_csv(path)
-    return import_toolpath(path, part, tool_radius, ImportOptions(**{**opt.__dict__, "fmt": fmt}))
+    return import_toolpath(path, part, tool_radius, ImportOptions(fmt=fmt, point=point))
+
+
+def study_toolpath(study: Study, run: RunSpec, part: Part) -> Toolpath:
+    """The toolpath of ``run`` of ``study`` (:func:`load_toolpath` with the study's settings)."""
+    if study.tool is None:  # pragma: no cover - load_study requires [tool]
+        raise InputError("the study has no [tool] table", file=study.root / "study.toml")
+    return load_toolpath(
+        run.toolpath,
+        part,
+        study.tool.radius,
+        fmt=getattr(run, "toolpath_format", "auto"),
+        point=getattr(run, "toolpath_point", "tip"),
+    )
