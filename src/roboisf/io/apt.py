@@ -32,6 +32,7 @@ import numpy as np
 
 from roboisf.errors import InputError
 from roboisf.io.cam import FEED, RAPID, CamMoves, MoveList, ReadOptions, arc_points
+from roboisf.io.gcode import MAX_NUMBER
 from roboisf.io.program import read_program_text
 
 __all__ = ["read_apt_moves"]
@@ -99,8 +100,10 @@ def _numbers(args: str, file: Path, line: int, word: str) -> list[float]:
             v = float(item)
         except ValueError:
             raise InputError(f"{word}/: {item!r} is not a number", file=file, line=line) from None
-        if not math.isfinite(v):
-            raise InputError(f"{word}/: {item!r} is not finite", file=file, line=line)
+        if not (math.isfinite(v) and abs(v) <= MAX_NUMBER):
+            raise InputError(
+                f"{word}/: {item!r} out of range (|value| ≤ {MAX_NUMBER:g})", file=file, line=line
+            )
         vals.append(v)
     return vals
 

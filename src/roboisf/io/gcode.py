@@ -58,7 +58,14 @@ from roboisf.io.program import (
 )
 from roboisf.toolpath.toolpath import Toolpath
 
-__all__ = ["Interpreter", "read_gcode", "read_iso_moves", "tokenize_iso", "write_gcode"]
+__all__ = [
+    "Interpreter",
+    "program_number",
+    "read_gcode",
+    "read_iso_moves",
+    "tokenize_iso",
+    "write_gcode",
+]
 
 F64 = NDArray[np.float64]
 
@@ -217,7 +224,9 @@ def tokenize_iso(text: str, *, file: Path, line: int) -> tuple[list[Word], str]:
     code = "".join(out).upper().strip()
     if code.startswith("/"):
         code = code[1:]
-    words: list[Word] = [(m[0], float(m[1]), None) for m in _ISO_WORD.findall(code)]
+    words: list[Word] = [
+        (m[0], program_number(m[1], file, line), None) for m in _ISO_WORD.findall(code)
+    ]
     rest = _ISO_WORD.sub("", code).strip()
     if rest:
         raise InputError(
@@ -227,6 +236,20 @@ def tokenize_iso(text: str, *, file: Path, line: int) -> tuple[list[Word], str]:
             line=line,
         )
     return words, " ".join(c.strip() for c in comments)
+
+
+#: Largest magnitude of a number in a program (10 km in mm): beyond it a typo, not a position.
+MAX_NUMBER = 1e7
+
+
+def program_number(text: str, file: Path, line: int) -> float:
+    """A number of a program word; InputError naming the line if not finite or absurdly large."""
+    v = float(text)
+    if not (math.isfinite(v) and abs(v) <= MAX_NUMBER):
+        raise InputError(
+            f"number {text} out of range (|value| ≤ {MAX_NUMBER:g})", file=file, line=line
+        )
+    return v
 
 
 @dataclass

@@ -25,7 +25,7 @@ from pathlib import Path
 
 from roboisf.errors import InputError
 from roboisf.io.cam import CamMoves, ReadOptions
-from roboisf.io.gcode import ISO, Dialect, Interpreter, Word
+from roboisf.io.gcode import ISO, Dialect, Interpreter, Word, program_number
 from roboisf.io.program import NUMBER_RE, read_program_text
 
 __all__ = ["SINUMERIK", "read_sinumerik_moves", "tokenize_sinumerik"]
@@ -141,9 +141,9 @@ def tokenize_sinumerik(text: str, *, file: Path, line: int, notes: list[str]) ->
                     line=line,
                 )
             if m["mode"]:
-                words.append((addr, float(m["mval"]), m["mode"]))
+                words.append((addr, program_number(m["mval"], file, line), m["mode"]))
             else:
-                words.append((addr, float(m["eqval"]), None))
+                words.append((addr, program_number(m["eqval"], file, line), None))
         elif m["call"]:
             name = m["call"]
             if name == "MSG" or name in _SETTING_CYCLES:
@@ -157,7 +157,7 @@ def tokenize_sinumerik(text: str, *, file: Path, line: int, notes: list[str]) ->
             else:
                 raise InputError(f"unknown call {name}(…)", file=file, line=line)
         elif m["iso"]:
-            words.append((m["iso"], float(m["isoval"]), None))
+            words.append((m["iso"], program_number(m["isoval"], file, line), None))
         else:
             kw = m["kw"]
             if kw in _IGNORED_KEYWORDS:

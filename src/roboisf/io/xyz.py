@@ -23,6 +23,7 @@ import pandas as pd
 
 from roboisf.errors import InputError
 from roboisf.io.cam import FEED, CamMoves
+from roboisf.io.gcode import MAX_NUMBER
 from roboisf.io.text import read_text
 
 __all__ = ["XYZ_UNITS", "read_xyz_moves"]
@@ -140,12 +141,12 @@ def read_xyz_moves(
     for j, name in enumerate(names):
         cells = df[name].str.replace(",", ".", regex=False) if dec == "," else df[name]
         col = pd.to_numeric(cells, errors="coerce").to_numpy(dtype=float)
-        bad_rows = ~np.isfinite(col)
+        bad_rows = ~(np.isfinite(col) & (np.abs(col) <= MAX_NUMBER))
         if bad_rows.any():
             r = int(np.argmax(bad_rows))
             raw = df[name].iloc[r]
             missing = not isinstance(raw, str) or not raw.strip()
-            what = "missing" if missing else f"{raw!r} is not a finite number"
+            what = "missing" if missing else f"{raw!r} is not a finite number ≤ {MAX_NUMBER:g}"
             raise InputError(
                 f"{what} (separator {sep!r}, decimal {dec!r})",
                 file=path,
