@@ -19,11 +19,23 @@ Dialect written::
     M30
     %
 
-The parser reads this dialect and the common variants: modal G0/G1 (with or without leading
-zero), axis words that keep their previous value when omitted, ``( )`` and ``;`` comments, line
-numbers ``N…``, ``G20`` (inch), ``F`` in units per minute, work offsets, tool calls and length
-compensation (recorded in ``meta``). It refuses ``G91`` (incremental) and arcs (``G02/G03``),
-which a roboisf program never contains.
+Reader (:func:`read_iso_moves` → :class:`~roboisf.io.cam.CamMoves`, :func:`read_gcode` →
+feed moves as a ``ProgramPath``): ISO 6983 / Fanuc / Haas programs as CAM systems post them —
+``%`` and ``%2002`` tape marks, ``O`` program numbers, ``N`` sequence numbers, ``( )`` and ``;``
+comments, block delete ``/`` (read, warned), numbers like ``Z0.``, ``X-.5``, ``F1e3``, several
+words per block in any order; G0/G1, G2/G3 with I/J/K (incremental centre) or R (R < 0: the arc
+over 180°) in G17/G18/G19, full circles and helical arcs, linearised to a chord tolerance
+(:func:`roboisf.io.cam.arc_points`); G20/G21, G90/G91, G28/G30 (also ``G28 G91 Z0``), G53,
+G54…G59 (values from :class:`~roboisf.io.cam.ReadOptions` or taken as they are, warned), G93/G94,
+F, T, H/D with G43/G44/G49; M codes and path-mode words are listed once as notes. Everything
+else — G92, G68, G51, G41/G42, canned cycles, macros, subprograms, A/B/C/U/V/W words (unless
+ignored on request, warned) — is an error naming the line. Integers are whole units
+(decimal-point input by calculator, as Haas, LinuxCNC, Sinumerik and most Fanuc set-ups).
+
+A small hand-written word tokenizer rather than pygcode (a test dependency here): pygcode does not
+attach the ``Z0`` of ``G28 G91 Z0`` to the G28 and rejects Sinumerik's ``X=`` forms; one
+interpreter (:class:`Interpreter`) then serves this module and :mod:`roboisf.io.sinumerik`, whose
+words differ but whose motion is ISO's.
 """
 
 from __future__ import annotations

@@ -180,7 +180,7 @@ def detect_toolpath_format(path: str | Path) -> str:
         return "sinumerik"
     if any(_APT_HINT.match(ln) for ln in head):
         return "apt"
-    code = [ln for ln in head if not ln.startswith(("(", "#", "//"))]
+    code = [re.sub(r"\([^)]*\)", "", ln) for ln in head if not ln.startswith(("(", "#", "//"))]
     if any(_SINUMERIK_HINT.search(ln) for ln in code):
         return "sinumerik"
     rows = [ln for ln in code if not ln.startswith(";")]
