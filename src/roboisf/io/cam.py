@@ -126,7 +126,17 @@ class MoveList:
         axis: F64 | None = None,
     ) -> None:
         """Append moves ending at ``points`` (K, 3) m, all of one kind, feed [m/s] and line."""
-        for k, p in enumerate(np.atleast_2d(points)):
+        if points.ndim == 1:  # one move (the common case)
+            self.points.append(np.array(points, dtype=float))
+            self.kinds.append(kind)
+            self.feeds.append(feed if kind == FEED else math.nan)
+            self.lines.append(line)
+            self.dwells.append(self.pending_dwell)
+            if axis is not None:
+                self.axes.append(np.asarray(axis, dtype=float))
+            self.pending_dwell = 0.0
+            return
+        for k, p in enumerate(points):
             self.points.append(np.asarray(p, dtype=float))
             self.kinds.append(kind)
             self.feeds.append(feed if kind == FEED else math.nan)
