@@ -148,6 +148,58 @@ def test_arc_points_chord_error_and_helix():
     assert ei.value.line == 7
 
 
+HAAS = """%
+O00001 (CONE SPIF)
+(T1 D=10. CR=5. - ZMIN=-1. - BALL END MILL)
+G00 G17 G40 G49 G80 G90
+G187 P1 E0.0005
+G103 P1
+G154 P1
+T1 M06
+G43 H01 Z15.
+G00 X20. Y0.
+G01 Z0. F500.
+G01 Z-1.
+G17 G02 X20. Y0. Z-2. I-20. J0. (one helical turn down 1 mm)
+G05.1 Q1
+G01 X10.
+G05.1 Q0
+G00 Z15.
+G28 G91 Z0.
+G90
+M30
+%
+"""
+
+
+def test_haas_and_fanuc_high_speed_words_and_a_helix(tmp_path):
+    m = read_iso_moves(write(tmp_path, "haas.nc", HAAS))
+    helix = m.point[m.line == 13] / MM
+    np.testing.assert_allclose(np.hypot(helix[:, 0], helix[:, 1]), 20, atol=1e-9)
+    phi = np.unwrap(np.arctan2(helix[:, 1], helix[:, 0]))
+    assert phi[-1] == pytest.approx(-2 * math.pi)  # G02: one clockwise turn
+    np.testing.assert_allclose(helix[:, 2], -1 + phi / (2 * math.pi), atol=1e-12)  # linear in z
+    notes = " ".join(m.notes)
+    for word in ("G187", "G103", "G5.1"):
+        assert word in notes
+    assert m.meta["work_offsets"] == ["G154P1"]
+    f = write(tmp_path, "m97.nc", "G90\nM97 P1000\n")
+    with pytest.raises(InputError, match="M97") as ei:
+        read_iso_moves(f)
+    assert ei.value.line == 2
+
+
+def test_inverse_time_feed(tmp_path):
+    # G93: F is 1/minutes of the move: 10 mm in 1/2 min → 20 mm/min; 5 mm in 1/5 min → 25 mm/min
+    f = write(tmp_path, "g93.nc", "G21 G90\nG0 X0 Y0 Z0\nG93 G1 X10 F2\nY5 F5\nG94 G1 X0 F100\n")
+    m = read_iso_moves(f)
+    np.testing.assert_allclose(m.feed[1:] * 60 / MM, [20, 25, 100])
+    f = write(tmp_path, "g93b.nc", "G21 G90\nG0 X0 Y0 Z0\nG93 G1 X10 F2\nY5\n")
+    with pytest.raises(InputError, match="F word on every feed move") as ei:
+        read_iso_moves(f)
+    assert ei.value.line == 4
+
+
 def test_inch_and_incremental(tmp_path):
     f = write(
         tmp_path,
@@ -488,6 +540,7 @@ def test_detect_format(tmp_path):
     assert detect_toolpath_format(tmp_path / "tp.csv") == "csv"
     assert detect_toolpath_format(tmp_path / "tp.nc") == "iso"
     assert detect_toolpath_format(write(tmp_path, "fanuc.txt", FANUC)) == "iso"
+    assert detect_toolpath_format(write(tmp_path, "haas.tap", HAAS)) == "iso"  # 'D=' in a comment
     assert detect_toolpath_format(write(tmp_path, "s.nc", MPF)) == "sinumerik"
     assert detect_toolpath_format(write(tmp_path, "a.txt", APT)) == "apt"
     assert detect_toolpath_format(write(tmp_path, "p.csv", "1;2;3\n")) == "xyz"

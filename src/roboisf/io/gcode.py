@@ -188,6 +188,18 @@ _ISO_REFUSED = {
 }
 
 
+#: Fanuc/Haas high-speed and look-ahead modes (with their P/Q/E/R parameters): noted, no effect
+#: on the programmed path.
+_PATH_CONTROL = {
+    5.1: "Fanuc AI contour control",
+    8.0: "Fanuc look-ahead",
+    5.0: "Fanuc high-speed cycle",
+    103.0: "Haas block look-ahead",
+    187.0: "Haas smoothness",
+    61.1: "Fanuc tool-path-error control",
+}
+
+
 @dataclass(frozen=True)
 class Dialect:
     """What differs between the G-code families that share this interpreter."""
@@ -368,15 +380,15 @@ class Interpreter:
         for a, v, _ in words:
             if a == "M":
                 code = f"M{v:g}"
-                if v in (98.0,):
+                if v in (97.0, 98.0):
                     raise self.err(
-                        "subprogram calls (M98) are not expanded; post the program "
+                        f"subprogram calls ({code}) are not expanded; post the program "
                         "without subprograms",
                         line,
                     )
                 self.m_codes.append(code)
         # G codes of the block
-        dwell = home = machine = False
+        dwell = home = machine = params = False
         arc_motion = None
         for g in gs:
             gi = round(g)
@@ -417,6 +429,15 @@ class Interpreter:
                     )
             elif g in self.d.ignored:
                 self.moves.note_once(f"G{g:g} ({self.d.ignored[g]}) ignored: no effect here")
+            elif g in _PATH_CONTROL and self.d is ISO:
+                params = True  # its P/Q/E/R words set the control, not the path
+                self.moves.note_once(f"G{g:g} ({_PATH_CONTROL[g]}) ignored: no effect here")
+            elif g == 154.0 and self.d is ISO:
+                p = other.get("P")
+                if p is None:
+                    raise self.err("G154 needs P (the extended work offset number)", line)
+                params = True
+                self._select_offset(f"G154P{p[0]:g}", line)
             elif float(gi) == g and gi in _ISO_REFUSED:
                 raise self.err(_ISO_REFUSED[gi], line)
             elif 73 <= g <= 89:
@@ -454,6 +475,8 @@ class Interpreter:
             elif a in "IJKR" and (st.motion in (2.0, 3.0) or dwell) and not home:
                 pass
             elif a in ("P", "X", "U") and dwell:
+                pass
+            elif a in ("P", "Q", "E", "R", "L") and params:
                 pass
             elif a in ("P", "L", "Q"):
                 raise self.err(f"{a} word outside a dwell (G04): not supported", line)
