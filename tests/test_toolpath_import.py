@@ -527,6 +527,19 @@ G1 X-10
     assert any("--spacing" in w for w in tp.meta["warnings"])
 
 
+def test_origin_shift(tmp_path, cone):
+    """A program whose zero is on the machine table, 10.1 mm below the sheet top and offset in
+    x/y: --origin moves it into the work frame."""
+    tp = step_down(cone, 5e-3, 1e-3, spacing=2e-3)
+    body = "".join(f"G1 X{x + 60:.4f} Y{y + 30:.4f} Z{z + 10.1:.4f}\n" for x, y, z in tp.tip / MM)
+    f = write(tmp_path, "table.nc", "G90 G21\nG0 X60 Y30 Z40\nG1 F900\n" + body)
+    back = import_toolpath(f, cone, 5e-3, ImportOptions(origin=(0.06, 0.03, 0.0101)))
+    assert np.abs(back.tip - tp.tip).max() <= 0.1 * UM
+    np.testing.assert_array_equal(back.lap, tp.lap)
+    with pytest.raises(InputError, match="no forming moves"):  # without it: all above the sheet
+        import_toolpath(f, cone, 5e-3)
+
+
 def test_no_forming_moves(tmp_path, cone):
     f = write(tmp_path, "air.nc", "G90\nG0 X0 Y0 Z10\nG1 Z5 F100\n")
     with pytest.raises(InputError, match="no forming moves"):

@@ -123,6 +123,15 @@ def import_command(
             "with A/B/C/U/V/W words is refused, naming the line).",
         ),
     ] = None,
+    origin: Annotated[
+        str | None,
+        typer.Option(
+            metavar="X,Y,Z",
+            help="Where the blank centre on the sheet top is in the program's coordinates "
+            "\\[mm], when the program zero is elsewhere (e.g. on the machine table): subtracted "
+            "from every point. Default: the program zero is the blank centre on the sheet.",
+        ),
+    ] = None,
     units: Annotated[
         str | None,
         typer.Option(help="Length unit of an x,y,z list: mm (default), m or in."),
@@ -165,6 +174,15 @@ def import_command(
         raise InputError(
             f"expected letters of A B C U V W, got {','.join(bad)}", field="--ignore-words"
         )
+    shift = (0.0, 0.0, 0.0)
+    if origin is not None:
+        try:
+            o = [float(v) for v in origin.split(",")]
+        except ValueError:
+            o = []
+        if len(o) != 3 or not all(math.isfinite(v) for v in o):
+            raise InputError(f"expected X,Y,Z in mm, got {origin!r}", field="--origin")
+        shift = (o[0] * 1e-3, o[1] * 1e-3, o[2] * 1e-3)
     opts = ImportOptions(
         point=point.strip().lower(),
         fmt=fmt.strip().lower(),
@@ -175,6 +193,7 @@ def import_command(
         ignore_words=words,
         units=units,
         feed=feed / 60e3,
+        origin=shift,
     )
     nominal = load_part(part)
     tp = import_toolpath(program, nominal, tool_diameter / 2 * 1e-3, opts)

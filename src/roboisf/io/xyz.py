@@ -97,7 +97,9 @@ def read_xyz_moves(
         )
     unit = file_unit or units or "mm"
     if unit not in XYZ_UNITS:
-        raise InputError(f"unknown length unit {unit!r}; expected one of {', '.join(XYZ_UNITS)}")
+        raise InputError(
+            f"unknown length unit {unit!r}; expected one of {', '.join(XYZ_UNITS)}", field="units"
+        )
     sep, _ = _separator(rows[0])
     dec = "." if sep == "," else ("," if any(_DECIMAL_COMMA.search(r) for r in rows) else ".")
     names: list[str]

@@ -9,10 +9,12 @@ point against the nominal part (docs/toolpaths.md, "Importing a CAM program"):
    the tip, the usual CNC set-up, and what roboisf's own programs contain); ``"center"`` — the
    ball centre (CAM "tool centre" output, many robot post-processors). Centre
    ``C = T + R ẑ``.
-2. **Forming points**: feed moves (G01/G02/G03, APT GOTO without RAPID, every row of a list)
-   whose tip is at or below the sheet plane (``tip z ≤ SHEET_TOL``). Rapids (G00, G28/G53, APT
-   RAPID/GOHOME) and feed moves with the tip above the sheet (approach, retract, moves over the
-   clamp) are dropped; a rapid that goes below the sheet plane is reported as a warning.
+2. **Forming points** (after subtracting ``origin``, the work origin in program coordinates, when
+   the program zero is not the blank centre on the sheet top): feed moves (G01/G02/G03, APT GOTO
+   without RAPID, every row of a list) whose tip is at or below the sheet plane
+   (``tip z ≤ SHEET_TOL``). Rapids (G00, G28/G53, APT RAPID/GOHOME) and feed moves with the tip
+   above the sheet (approach, retract, moves over the clamp) are dropped; a rapid that goes below
+   the sheet plane is reported as a warning.
 3. **Resampled** on request: with ``spacing`` a forming segment longer than it is split evenly
    (so a long straight CAM move still gives points every ``spacing`` for the force and scan
    look-ups; without it segments over ``LONG_SEGMENT`` are reported); consecutive
@@ -106,6 +108,8 @@ class ImportOptions:
     ignore_words : frozenset[str] — extra-axis letters to ignore with a warning
     units : str or None — length unit of a point list (``mm`` default, ``m``, ``in``)
     feed : float, m/s — feed of a point list (it has none)
+    origin : (3,) float, m — where roboisf's work origin (the blank centre on the sheet top) is in
+        the program's coordinates; subtracted from every point (default: the program zero is it)
     """
 
     point: str = "tip"
@@ -117,6 +121,7 @@ class ImportOptions:
     ignore_words: frozenset[str] = frozenset()
     units: str | None = None
     feed: float = 750.0 / 60e3
+    origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         if self.point not in ("tip", "center"):
@@ -131,6 +136,8 @@ class ImportOptions:
                 raise InputError(f"must be > 0, got {v:g}", field=name)
         if not (math.isfinite(self.feed) and self.feed > 0):
             raise InputError(f"must be > 0, got {self.feed * 60e3:g} mm/min", field="feed")
+        if len(self.origin) != 3 or not all(math.isfinite(v) for v in self.origin):
+            raise InputError(f"expected 3 finite numbers, got {self.origin!r}", field="origin")
 
     def read_options(self) -> ReadOptions:
         return ReadOptions(
@@ -361,7 +368,7 @@ def moves_to_toolpath(
     R = tool_radius
     warnings = list(moves.warnings)
     notes = list(moves.notes)
-    tip_all = moves.point.copy()
+    tip_all = moves.point - np.asarray(opt.origin, dtype=float)
     if opt.point == "center":
         tip_all[:, 2] -= R
     known = np.all(np.isfinite(tip_all), axis=1)
@@ -443,6 +450,7 @@ def moves_to_toolpath(
     length_by_feed = np.bincount(inv[1:], weights=seg, minlength=len(uniq)) if len(seg) else None
     feed = float(uniq[int(np.argmax(length_by_feed))] if length_by_feed is not None else uniq[0])
     meta: dict[str, object] = {
+        "part": part.kind,
         "kind": f"imported {moves.meta.get('format', moves.meta.get('dialect', 'cam'))}",
         "source": str(moves.path),
         "format": moves.meta.get("format", moves.meta.get("dialect")),
