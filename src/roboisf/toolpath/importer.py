@@ -235,7 +235,8 @@ def read_cam_moves(path: str | Path, options: ImportOptions | None = None) -> Ca
 def _check_axis(moves: CamMoves, keep: NDArray[np.bool_]) -> None:
     if moves.tool_axis is None:
         return
-    tilt = np.degrees(np.arccos(np.clip(moves.tool_axis[keep, 2], -1.0, 1.0)))
+    # ±z: lists differ on whether i,j,k points up the tool or down to the tip
+    tilt = np.degrees(np.arccos(np.clip(np.abs(moves.tool_axis[keep, 2]), 0.0, 1.0)))
     if tilt.size and tilt.max() > 0.01:
         i = int(np.argmax(tilt))
         raise InputError(
