@@ -463,7 +463,7 @@ def moves_to_toolpath(
         "dropped_moves": dropped,
         "merged_points": merged,
         "feeds_mm_min": sorted({round(float(f) * 60e3, 6) for f in uniq}),
-        "lines": lines,
+        "lines": lines.tolist(),  # the program line of every point
     }
     return Toolpath(
         contact=contact,
