@@ -475,6 +475,26 @@ def test_roboisf_path_through_gcode_and_back(tmp_path, cone, gen):
     np.testing.assert_allclose(again.tip, back.tip, atol=1e-12)
 
 
+@pytest.mark.parametrize("spiral_path", [False, True])
+def test_pyramid_path_through_gcode_and_back(tmp_path, spiral_path):
+    """Any part: the ball-centre slicer's pyramid path (ramps between laps, rounded corners)."""
+    from roboisf.parts import Pyramid
+    from roboisf.toolpath import toolpath_for_part
+
+    part = Pyramid(top_length=60e-3, top_width=60e-3, wall_angle=math.radians(50), depth=6e-3)
+    tp = toolpath_for_part(part, 5e-3, 1e-3, spacing=2e-3, spiral=spiral_path)
+    write_gcode(tp, tmp_path / "p.nc")
+    back = import_toolpath(tmp_path / "p.nc", part, 5e-3)
+    assert len(back) == len(tp)
+    np.testing.assert_array_equal(back.lap, tp.lap)
+    assert back.meta["laps_rule"] == ("spiral" if spiral_path else "z-level")
+    assert np.abs(back.tip - tp.tip).max() <= UM
+    # in the rounded corners (vertical-axis radius ≥ 10 − 6/tan 50° = 5 mm, normal-section radius
+    # ρ ≥ 5/sin 50° = 6.5 mm) the contact moves ρ/(ρ − R) ≤ 4.4 times the tip's rounding
+    # (≤ √3 · 0.5 µm): ≤ 3.8 µm (docs/toolpaths.md); on the flat walls as much as the tip
+    assert np.abs(back.contact - tp.contact).max() <= 4.4 * math.sqrt(3) * 0.5 * UM
+
+
 def test_center_programs_and_the_wrong_point(tmp_path, cone):
     tp = step_down(cone, 5e-3, 1e-3, spacing=2e-3)
     centre = tp.center / MM
