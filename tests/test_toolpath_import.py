@@ -234,6 +234,12 @@ def test_work_offsets_values_or_warning(tmp_path):
     assert np.isnan(m.point[1, 2]) and any("G53" in n for n in m.notes)
 
 
+def test_sinumerik_safe_start_offset_is_not_the_reference(tmp_path):
+    f = write(tmp_path, "s.mpf", "G500\nG54 G90\nG0 X0 Y0 Z=5\nG1 Z=0 F=100\nX10\n")
+    m = read_sinumerik_moves(f)
+    assert not m.warnings and m.meta["work_offsets"] == ["G500", "G54"]
+
+
 def test_extra_axis_words_error_or_warning(tmp_path):
     f = write(tmp_path, "a.nc", "G90 G0 X0 Y0 Z5\nG1 Z0 F100\nG1 X1 A5.\nG1 X2 A6\n")
     with pytest.raises(InputError, match="A word") as ei:

@@ -112,8 +112,8 @@ def import_command(
         typer.Option(
             metavar="GNN=X,Y,Z",
             help="A work offset's value in machine coordinates, 'G55=X,Y,Z' \\[mm] (repeat for "
-            "each). Points under another offset are moved into the frame of the first one the "
-            "program selects; without values they are taken as they are (warned).",
+            "each). Points under another offset are moved into the frame of the one active at "
+            "the first move; without values they are taken as they are (warned).",
         ),
     ] = None,
     ignore_words: Annotated[

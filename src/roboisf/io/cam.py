@@ -50,8 +50,8 @@ class ReadOptions:
     chord_tol : float, m — arcs are linearised so that no chord is farther than this from the arc
     work_offsets : dict[str, (3,) float] — values [m] of the work offsets (``G54`` … ``G59``, also
         Sinumerik ``G505`` …) in machine coordinates; a program that switches offsets has its
-        points moved into the frame of the first offset it uses. Without values the coordinates
-        are taken as they are, with a warning.
+        points moved into the frame of the offset active at its first move. Without values the
+        coordinates are taken as they are, with a warning.
     ignore_words : frozenset[str] — address letters a 3-axis path cannot use (``A B C U V W``)
         to ignore with a one-line warning (listing the lines) instead of refusing the file
     """

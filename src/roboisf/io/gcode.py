@@ -297,8 +297,9 @@ class _State:
 class Interpreter:
     """Runs the blocks of a G-code program (ISO or Sinumerik words) into :class:`CamMoves`.
 
-    Positions are kept in the work frame of the first work offset the program selects (or of the
-    one active at the control if it selects none); see :class:`roboisf.io.cam.ReadOptions`.
+    Positions are kept in the work frame of the work offset active at the first move (or of the
+    one active at the control if the program selects none); see
+    :class:`roboisf.io.cam.ReadOptions`.
     """
 
     def __init__(self, path: Path, dialect: Dialect, options: ReadOptions) -> None:
@@ -325,12 +326,11 @@ class Interpreter:
         self.st.offset = name
         if name not in self.offsets_used:
             self.offsets_used.append(name)
-        if self.ref_offset is None:
+        if self.ref_offset is None or not self.moves.points:
+            # the reference: the offset active at the first move (a safe-start G500 or G54 that
+            # the header changes before moving does not count)
             self.ref_offset = name
-            if name in self.opt.work_offsets:
-                self.moves.note_once(
-                    f"coordinates are in the work frame of {name}, the first work offset selected"
-                )
+            self.shift = np.zeros(3)
             return
         if name == self.ref_offset:
             self.shift = np.zeros(3)
