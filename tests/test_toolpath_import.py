@@ -253,7 +253,7 @@ def test_extra_axis_words_error_or_warning(tmp_path):
     ("text", "line", "match"),
     [
         ("G90\nG0 X0 Y0 Z1\nG92 X0\n", 3, "G92"),
-        ("G90\nG5.1 Q1\n", 2, "unknown G code G5.1"),
+        ("G90\nG65 P9010\n", 2, "unknown G code G65"),
         ("G90\nG0 X0 Y0 Z1\nG1 X1 F100 (open\n", 3, "not closed"),
         ("G90\nG0 X0 Y0 Z0\nG1 X1\n", 3, "before any F"),
         ("G90\nG0 X10 Y0 Z0\nG2 X0 Y11 I-10 F100\n", 3, "not on the circle"),
