@@ -189,6 +189,19 @@ def test_haas_and_fanuc_high_speed_words_and_a_helix(tmp_path):
     assert ei.value.line == 2
 
 
+def test_absolute_arc_centres_and_linuxcnc_blending(tmp_path):
+    # G90.1: I/J are the centre itself; G91.1: back to offsets from the start; G64 P0.01 noted
+    text = (
+        "G21 G90 G17 G64 P0.01\nG0 X30 Y10 Z0\nG1 Z-1 F600\n"
+        "G90.1 G3 X10 Y30 I10 J10\nG91.1 G2 X30 Y10 I0 J-20\n"
+    )
+    m = read_iso_moves(write(tmp_path, "abs.nc", text))
+    for line in (4, 5):
+        p = m.point[m.line == line] / MM
+        np.testing.assert_allclose(np.hypot(p[:, 0] - 10, p[:, 1] - 10), 20, atol=1e-9)
+    assert any("G64" in n for n in m.notes)
+
+
 def test_inverse_time_feed(tmp_path):
     # G93: F is 1/minutes of the move: 10 mm in 1/2 min → 20 mm/min; 5 mm in 1/5 min → 25 mm/min
     f = write(tmp_path, "g93.nc", "G21 G90\nG0 X0 Y0 Z0\nG93 G1 X10 F2\nY5 F5\nG94 G1 X0 F100\n")

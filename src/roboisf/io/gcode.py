@@ -290,6 +290,7 @@ class _State:
     motion: float | None = None
     feed: float | None = None  # program units / min (G94) or 1/min (G93)
     inverse_time: bool = False
+    ijk_absolute: bool = False  # G90.1: arc centres I/J/K absolute (default G91.1: incremental)
     offset: str | None = None
     pos: F64 = field(default_factory=lambda: np.full(3, np.nan))
 
@@ -428,7 +429,10 @@ class Interpreter:
                         "tool length compensation changes in the middle of the forming moves", line
                     )
             elif g in self.d.ignored:
+                params |= g == 64.0  # LinuxCNC G64 P… Q… (blending tolerance)
                 self.moves.note_once(f"G{g:g} ({self.d.ignored[g]}) ignored: no effect here")
+            elif g in (90.1, 91.1):
+                st.ijk_absolute = g == 90.1
             elif g in _PATH_CONTROL and self.d is ISO:
                 params = True  # its P/Q/E/R words set the control, not the path
                 self.moves.note_once(f"G{g:g} ({_PATH_CONTROL[g]}) ignored: no effect here")
@@ -629,7 +633,7 @@ class Interpreter:
                         )
                     continue
                 given = True
-                if mode == "AC":
+                if mode == "AC" or (mode is None and self.st.ijk_absolute):
                     center[i] = v * self.st.scale + self.shift[i]
                 else:
                     center[i] = start[i] + v * self.st.scale
