@@ -195,8 +195,9 @@ def test_absolute_arc_centres_and_linuxcnc_blending(tmp_path):
         "G21 G90 G17 G64 P0.01\nG0 X30 Y10 Z0\nG1 Z-1 F600\n"
         "G90.1 G3 X10 Y30 I10 J10\nG91.1 G2 X30 Y10 I0 J-20\n"
     )
-    m = read_iso_moves(write(tmp_path, "abs.nc", text))
-    for line in (4, 5):
+    m = read_iso_moves(write(tmp_path, "abs.nc", text.replace("G91.1", "G04 X1.5\nG91.1")))
+    assert m.dwell[m.line == 6][0] == 1.5  # the dwell in seconds, before the next move
+    for line in (4, 6):
         p = m.point[m.line == line] / MM
         np.testing.assert_allclose(np.hypot(p[:, 0] - 10, p[:, 1] - 10), 20, atol=1e-9)
     assert any("G64" in n for n in m.notes)
@@ -220,6 +221,7 @@ def test_inch_and_incremental(tmp_path):
         "G20 G90\nG0 X1. Y0 Z0.1\nG1 Z0 F20.\nG91 G1 X-0.5 Y0.25 Z-0.02\nX.5\nG90 G1 X0 Y0\n",
     )
     m = read_iso_moves(f)
+    assert not m.dwell.any()
     np.testing.assert_allclose(
         feed_pts(m) / 25.4,
         [[1, 0, 0], [0.5, 0.25, -0.02], [1.0, 0.25, -0.02], [0, 0, -0.02]],

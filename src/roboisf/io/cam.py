@@ -79,7 +79,9 @@ class CamMoves:
     kind : (M,) int — :data:`RAPID` (positioning) or :data:`FEED` (a move at the feed)
     feed : (M,) float, m/s — feed of each feed move (NaN for rapids)
     line : (M,) int — 1-based source line of each move
-    dwell : (M,) float, s — dwell programmed before the move (G04 …)
+    dwell : (M,) float, s — dwell programmed before the move where its unit is unambiguous
+        (G04 X/U, Sinumerik G4 F; Fanuc/LinuxCNC G04 P differ, ms or s: not recorded); not
+        counted in the toolpath times
     tool_axis : (M, 3) float or None — programmed tool axis (APT TLAXIS, x,y,z,i,j,k lists)
     notes : list[str] — what was read but has no effect on the path (M codes, modes), one line each
     warnings : list[str] — what the user must know (ignored words, unknown offsets), one line each

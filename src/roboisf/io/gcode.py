@@ -490,6 +490,11 @@ class Interpreter:
             else:
                 raise self.err(f"unknown address {a!r} for a 3-axis program", line)
         if dwell:
+            # seconds where the unit is unambiguous: ISO X/U, Sinumerik F (P is ms on Fanuc and
+            # s on LinuxCNC: not recorded)
+            sec = other.get("F") if self.d is not ISO else (other.get("X") or other.get("U"))
+            if sec is not None:
+                self.moves.pending_dwell += max(sec[0], 0.0)
             self.moves.note_once("dwells (G04) are not counted in the times")
             return
         axes = {a: other[a] for a in _AXES if a in other}
