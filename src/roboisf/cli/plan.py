@@ -218,8 +218,8 @@ def _problem(
         return prob, m, None, f"part {part.name}, force model"
     assert study is not None
     from roboisf.decompose.pipeline import run_tip_wrench
-    from roboisf.io.toolpath_csv import read_toolpath_csv
     from roboisf.study.spec import load_study
+    from roboisf.toolpath.importer import study_toolpath
 
     s = load_study(study)
     if s.robot is None:
@@ -229,7 +229,7 @@ def _problem(
     m = c.robot if stiffness is None else build_robot(c.robot_name, T_flange_tip=c.T_flange_tip)
     m = _override(m)
     rob = s.robot_run
-    tp = read_toolpath_csv(rob.toolpath)
+    tp = study_toolpath(s, rob, c.part)  # a toolpath CSV or a CAM program
     W = run_tip_wrench(s, rob, tp)
     prob = PlanProblem(m, tp.tip, tp.normal, tp.lap, W, **opts)
     return prob, m, c.T_base_work, f"study {s.name}, robot-run forces, robot only"

@@ -573,6 +573,18 @@ def _profile(
     _run(make, output, fmt, opts, [profile])
 
 
+def _import_command() -> None:
+    """Register ``roboisf toolpath import`` (the work is in roboisf.toolpath.importer)."""
+    from roboisf.cli.toolpath_import import import_command
+
+    doc = import_command.__doc__ or ""
+    help_text = "\n\n".join(" ".join(par.split()) for par in doc.split("\n\n"))
+    toolpath_app.command("import", help=help_text, no_args_is_help=True)(import_command)
+
+
+_import_command()
+
+
 def register(app: typer.Typer) -> None:
     """Add ``roboisf toolpath`` to ``app``."""
     app.add_typer(toolpath_app, name="toolpath")

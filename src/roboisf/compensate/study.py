@@ -37,10 +37,10 @@ from roboisf.compensate.pipeline import (
 from roboisf.decompose.pipeline import analyze
 from roboisf.errors import InputError
 from roboisf.io.program import RobotTool
-from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.progress import Progress, task
 from roboisf.robot.model import RobotModel
 from roboisf.study.spec import Study, load_study
+from roboisf.toolpath.importer import study_toolpath
 
 __all__ = ["StudyCompensation", "compensate_study", "study_deflection_model"]
 
@@ -126,7 +126,7 @@ def compensate_study(
     cell = cell_from_study(study)
     o = options or CompensationOptions()
     run = study.robot_run
-    formed = read_toolpath_csv(run.toolpath)
+    formed = study_toolpath(study, run, cell.part)  # a toolpath CSV or a CAM program
     pp = _per_point(study, None if results is None else Path(results), progress)
     if len(pp) != len(formed):
         raise InputError(

@@ -40,7 +40,6 @@ from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
 from roboisf.io.forcelog import attach_to_toolpath, read_force_log
 from roboisf.io.jointlog import read_joint_log
 from roboisf.io.thickness import read_thickness_csv
-from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.parts import sine_law_thickness
 from roboisf.progress import Progress, task
 from roboisf.robot import compliance_stats, deflection_contributions, ik_toolpath
@@ -49,6 +48,7 @@ from roboisf.study.checks import check_force_log, check_joint_log, check_tool_ra
 from roboisf.study.sensors import sensor_to_tip
 from roboisf.study.spec import RunSpec, Study, load_study
 from roboisf.toolpath import Toolpath
+from roboisf.toolpath.importer import study_toolpath
 
 __all__ = [
     "AnalysisResult",
@@ -156,8 +156,8 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
     cell = cell_from_study(study)
     cnc, rob = study.cnc, study.robot_run
     with task(progress, "toolpath"):
-        tp = read_toolpath_csv(cnc.toolpath)
-        tp_r = tp if rob.toolpath == cnc.toolpath else read_toolpath_csv(rob.toolpath)
+        tp = study_toolpath(study, cnc, cell.part)  # a toolpath CSV or a CAM program
+        tp_r = tp if rob.toolpath == cnc.toolpath else study_toolpath(study, rob, cell.part)
         if len(tp_r) != len(tp) or np.max(np.abs(tp_r.contact - tp.contact)) > 1e-6:
             raise InputError(
                 "the CNC and robot runs must use the same toolpath (the method "

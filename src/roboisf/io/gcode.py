@@ -19,27 +19,67 @@ Dialect written::
     M30
     %
 
-The parser reads this dialect and the common variants: modal G0/G1 (with or without leading
-zero), axis words that keep their previous value when omitted, ``( )`` and ``;`` comments, line
-numbers ``N…``, ``G20`` (inch), ``F`` in units per minute, work offsets, tool calls and length
-compensation (recorded in ``meta``). It refuses ``G91`` (incremental) and arcs (``G02/G03``),
-which a roboisf program never contains.
+Reader (:func:`read_iso_moves` → :class:`~roboisf.io.cam.CamMoves`, :func:`read_gcode` →
+feed moves as a ``ProgramPath``): ISO 6983 / Fanuc / Haas programs as CAM systems post them —
+``%`` and ``%2002`` tape marks, ``O`` program numbers, ``N`` sequence numbers, ``( )`` and ``;``
+comments, block delete ``/`` (read, warned), numbers like ``Z0.``, ``X-.5``, ``F1e3``, several
+words per block in any order; G0/G1, G2/G3 with I/J/K (incremental centre) or R (R < 0: the arc
+over 180°) in G17/G18/G19, full circles and helical arcs, linearised to a chord tolerance
+(:func:`roboisf.io.cam.arc_points`); G20/G21, G90/G91, G28/G30 (also ``G28 G91 Z0``), G53,
+G54…G59 (values from :class:`~roboisf.io.cam.ReadOptions` or taken as they are, warned), G93/G94,
+F, T, H/D with G43/G44/G49; M codes and path-mode words are listed once as notes. Everything
+else — G92, G68, G51, G41/G42, canned cycles, macros, subprograms, A/B/C/U/V/W words (unless
+ignored on request, warned) — is an error naming the line. Integers are whole units
+(decimal-point input by calculator, as Haas, LinuxCNC, Sinumerik and most Fanuc set-ups).
+
+A small hand-written word tokenizer rather than pygcode (a test dependency here): pygcode does not
+attach the ``Z0`` of ``G28 G91 Z0`` to the G28 and rejects Sinumerik's ``X=`` forms; one
+interpreter (:class:`Interpreter`) then serves this module and :mod:`roboisf.io.sinumerik`, whose
+words differ but whose motion is ISO's.
 """
 
 from __future__ import annotations
 
+import math
 import re
+from collections.abc import Iterator
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 from roboisf import __version__
 from roboisf.errors import InputError
 from roboisf.io.atomic import atomic_write
-from roboisf.io.program import ProgramPath, check_safe_height, read_program_text, tip_mm
+from roboisf.io.cam import (
+    FEED,
+    RAPID,
+    CamMoves,
+    MoveList,
+    ReadOptions,
+    arc_center_from_radius,
+    arc_points,
+)
+from roboisf.io.program import (
+    NUMBER_RE,
+    ProgramPath,
+    check_safe_height,
+    read_program_text,
+    tip_mm,
+)
 from roboisf.toolpath.toolpath import Toolpath
 
-__all__ = ["read_gcode", "write_gcode"]
+__all__ = [
+    "Interpreter",
+    "program_number",
+    "read_gcode",
+    "read_iso_moves",
+    "tokenize_iso",
+    "write_gcode",
+]
+
+F64 = NDArray[np.float64]
 
 
 def _f(v: float) -> str:
@@ -109,90 +149,566 @@ def _clean(text: str) -> str:
     return text.replace("(", "[").replace(")", "]").replace(";", ",").replace("\n", " ")
 
 
-_WORD = re.compile(r"([A-Z])\s*([-+]?\d*\.?\d+(?:[eE][-+]?\d+)?)")
+# -- reader ----------------------------------------------------------------------------------------
+
+#: One address word: letter(s), value, and a Sinumerik per-word distance mode ('IC', 'AC' or None).
+Word = tuple[str, float, str | None]
+
+_ISO_WORD = re.compile(r"([A-Z])\s*(" + NUMBER_RE + r")")
+_AXES = "XYZ"
+_EXTRA_AXES = "ABCUVW"
+_PLANES = {17: (2, "XY"), 18: (1, "ZX"), 19: (0, "YZ")}  # normal axis index, name
+#: G codes that change nothing on a 3-axis ball-tool path (noted once): path-control modes,
+#: cancels of functions this reader refuses, canned-cycle return level.
+_ISO_IGNORED = {
+    9: "exact stop",
+    40: "cutter compensation off",
+    49: "tool length compensation off",
+    50: "scaling off",
+    61: "exact-stop mode",
+    64: "continuous-path mode",
+    69: "coordinate rotation off",
+    80: "canned cycle cancel",
+    98: "canned-cycle return level",
+    99: "canned-cycle return level",
+}
+_ISO_REFUSED = {
+    10: "G10 writes offsets into the control; give offset values with --work-offset",
+    15: "polar coordinates are not supported",
+    16: "polar coordinates are not supported",
+    41: "cutter radius compensation (G41/G42) offsets the path in the control; post the program "
+    "without it (tool centre or tip path)",
+    42: "cutter radius compensation (G41/G42) offsets the path in the control; post the program "
+    "without it (tool centre or tip path)",
+    51: "scaling (G51) is not supported",
+    52: "a local coordinate system (G52) is not supported",
+    68: "coordinate rotation (G68) is not supported",
+    92: "G92 shifts the coordinate system; it is not supported (use work offsets G54…G59)",
+    95: "feed per revolution (G95) has no meaning for a forming tool",
+}
 
 
-def read_gcode(path: str | Path) -> ProgramPath:
-    """Parse a G-code file: the feed (G01) moves as tip positions [m] and the feed [m/s].
+#: Fanuc/Haas high-speed and look-ahead modes (with their P/Q/E/R parameters): noted, no effect
+#: on the programmed path.
+_PATH_CONTROL = {
+    5.1: "Fanuc AI contour control",
+    8.0: "Fanuc look-ahead",
+    5.0: "Fanuc high-speed cycle",
+    103.0: "Haas block look-ahead",
+    187.0: "Haas smoothness",
+    61.1: "Fanuc tool-path-error control",
+}
 
-    Rapid (G00) moves are skipped (approach and retract). Raises :class:`InputError` with the line
-    for unsupported words (G91, G02/G03), a feed move before any F, or a program with no feed move.
+
+@dataclass(frozen=True)
+class Dialect:
+    """What differs between the G-code families that share this interpreter."""
+
+    name: str
+    #: G code → unit scale [m per program unit] for the unit-select codes
+    units: dict[float, float]
+    #: G code → note, for modal words that change nothing here
+    ignored: dict[float, str]
+    #: work-offset G codes (``G54`` …) and the one that cancels them (None for ISO)
+    offsets: frozenset[float]
+    offset_cancel: float | None = None
+    #: reference-point return codes (ISO G28/G30)
+    home: frozenset[float] = frozenset({28.0, 30.0})
+
+
+ISO = Dialect(
+    name="iso",
+    units={20.0: 25.4e-3, 21.0: 1e-3},
+    ignored={float(k): v for k, v in _ISO_IGNORED.items()} | {50.1: "mirror off"},
+    offsets=frozenset(float(g) for g in range(54, 60)),
+)
+
+
+def tokenize_iso(text: str, *, file: Path, line: int) -> tuple[list[Word], str]:
+    """Words of one ISO block and its comment text: ``( )`` and ``;`` comments removed, any case,
+    spaces anywhere between words, numbers like ``Z0.``, ``X-.5``, ``F1e3``."""
+    if "(" not in text and ")" not in text and ";" not in text:  # the common case, fast
+        return _iso_words(text.upper().strip(), file, line), ""
+    comments = []
+    out = []
+    depth_start = None
+    for k, ch in enumerate(text):
+        if depth_start is not None:
+            if ch == ")":
+                comments.append(text[depth_start + 1 : k])
+                depth_start = None
+            continue
+        if ch == "(":
+            depth_start = k
+        elif ch == ";":
+            comments.append(text[k + 1 :])
+            break
+        else:
+            out.append(ch)
+    if depth_start is not None:
+        raise InputError("comment '(' is not closed on this line", file=file, line=line)
+    code = "".join(out).upper().strip()
+    return _iso_words(code, file, line), " ".join(c.strip() for c in comments)
+
+
+def _iso_words(code: str, file: Path, line: int) -> list[Word]:
+    if code.startswith("/"):
+        code = code[1:]
+    words: list[Word] = [
+        (m[0], program_number(m[1], file, line), None) for m in _ISO_WORD.findall(code)
+    ]
+    rest = _ISO_WORD.sub("", code).strip()
+    if rest:
+        raise InputError(
+            f"cannot parse {rest!r} (expected address words like X10.5, G01; macros, variables "
+            "and expressions are not supported)",
+            file=file,
+            line=line,
+        )
+    return words
+
+
+#: Largest magnitude of a number in a program (10 km in mm): beyond it a typo, not a position.
+MAX_NUMBER = 1e7
+
+
+def program_number(text: str, file: Path, line: int) -> float:
+    """A number of a program word; InputError naming the line if not finite or absurdly large."""
+    v = float(text)
+    if not (math.isfinite(v) and abs(v) <= MAX_NUMBER):
+        raise InputError(
+            f"number {text} out of range (|value| ≤ {MAX_NUMBER:g})", file=file, line=line
+        )
+    return v
+
+
+@dataclass
+class _State:
+    scale: float = 1e-3  # m per program unit (mm until G20)
+    absolute: bool = True
+    plane: int = 17
+    motion: float | None = None
+    feed: float | None = None  # program units / min (G94) or 1/min (G93)
+    inverse_time: bool = False
+    ijk_absolute: bool = False  # G90.1: arc centres I/J/K absolute (default G91.1: incremental)
+    offset: str | None = None
+    pos: F64 = field(default_factory=lambda: np.full(3, np.nan))
+
+
+class Interpreter:
+    """Runs the blocks of a G-code program (ISO or Sinumerik words) into :class:`CamMoves`.
+
+    Positions are kept in the work frame of the work offset active at the first move (or of the
+    one active at the control if the program selects none); see
+    :class:`roboisf.io.cam.ReadOptions`.
+    """
+
+    def __init__(self, path: Path, dialect: Dialect, options: ReadOptions) -> None:
+        self.path = path
+        self.d = dialect
+        self.opt = options
+        self.st = _State()
+        self.moves = MoveList(path)
+        self.ref_offset: str | None = None
+        self.shift = np.zeros(3)  # active offset − reference offset, m
+        self.m_codes: list[str] = []
+        self.ignored: dict[str, list[int]] = {}
+        self.tools: list[int] = []
+        self.length_comp: list[int] = []
+        self.offsets_used: list[str] = []
+        self.units_used: set[str] = set()
+        self.moves.meta["dialect"] = dialect.name
+
+    # -- helpers
+    def err(self, msg: str, line: int) -> InputError:
+        return InputError(msg, file=self.path, line=line)
+
+    def _select_offset(self, name: str, line: int) -> None:
+        self.st.offset = name
+        if name not in self.offsets_used:
+            self.offsets_used.append(name)
+        if self.ref_offset is None or not self.moves.points:
+            # the reference: the offset active at the first move (a safe-start G500 or G54 that
+            # the header changes before moving does not count)
+            self.ref_offset = name
+            self.shift = np.zeros(3)
+            return
+        if name == self.ref_offset:
+            self.shift = np.zeros(3)
+            return
+        vals = self.opt.work_offsets
+        if name in vals and self.ref_offset in vals:
+            self.shift = np.asarray(vals[name], float) - np.asarray(vals[self.ref_offset], float)
+        else:
+            self.shift = np.zeros(3)
+            self.moves.warn_once(
+                f"line {line}: work offset {name} selected after {self.ref_offset} but their "
+                f"values are not given (--work-offset {name}=X,Y,Z and "
+                f"{self.ref_offset}=X,Y,Z): its coordinates are taken as if in {self.ref_offset}"
+            )
+
+    def finish(self) -> CamMoves:
+        if self.m_codes:
+            self.moves.note_once(
+                "M codes ignored (spindle, coolant, tool change, stops, end): "
+                + " ".join(sorted(set(self.m_codes), key=lambda m: float(m[1:])))
+            )
+        for letter, lines in self.ignored.items():
+            shown = ", ".join(str(x) for x in lines[:5]) + (" …" if len(lines) > 5 else "")
+            self.moves.warnings.append(
+                f"{letter} words ignored on {len(lines)} line(s) ({shown}): the path is read as "
+                "3-axis XYZ"
+            )
+        self.moves.meta.update(
+            work_offsets=self.offsets_used,
+            tools=self.tools,
+            length_compensation=self.length_comp,
+            units=sorted(self.units_used) or ["mm"],
+        )
+        return self.moves.result()
+
+    # -- one block
+    def block(self, words: list[Word], line: int) -> None:
+        st = self.st
+        gs = [v for a, v, _ in words if a == "G"]
+        other: dict[str, tuple[float, str | None]] = {}
+        for a, v, mode in words:
+            if a in ("G", "M"):
+                continue
+            if a in other:
+                raise self.err(f"{a} given twice in one block", line)
+            other[a] = (v, mode)
+        for a, v, _ in words:
+            if a == "M":
+                code = f"M{v:g}"
+                if v in (97.0, 98.0):
+                    raise self.err(
+                        f"subprogram calls ({code}) are not expanded; post the program "
+                        "without subprograms",
+                        line,
+                    )
+                self.m_codes.append(code)
+        # G codes of the block
+        dwell = home = machine = params = False
+        arc_motion = None
+        for g in gs:
+            gi = round(g)
+            if g in (0.0, 1.0, 2.0, 3.0):
+                st.motion = g
+            elif g == 4.0:
+                dwell = True
+            elif g in _PLANES:
+                st.plane = gi
+            elif g in self.d.units:
+                st.scale = self.d.units[g]
+                self.units_used.add("inch" if st.scale > 1e-3 else "mm")
+            elif g == 90.0:
+                st.absolute = True
+            elif g == 91.0:
+                st.absolute = False
+            elif g == 93.0:
+                st.inverse_time = True
+                self.moves.note_once(
+                    "G93 inverse-time feed: each feed move lasts 1/F minutes (times from that)"
+                )
+            elif g == 94.0:
+                st.inverse_time = False
+            elif g in self.d.home:
+                home = True
+            elif g == 53.0:
+                machine = True
+            elif g in self.d.offsets:
+                self._select_offset(f"G{g:g}", line)
+            elif self.d.offset_cancel is not None and g == self.d.offset_cancel:
+                self._select_offset(f"G{g:g}", line)
+            elif g in (43.0, 44.0):
+                h = other.get("H") or other.get("D")
+                self.length_comp.append(round(h[0]) if h else 0)
+                if self.moves.points and any(k == FEED for k in self.moves.kinds):
+                    raise self.err(
+                        "tool length compensation changes in the middle of the forming moves", line
+                    )
+            elif g in self.d.ignored:
+                params |= g == 64.0  # LinuxCNC G64 P… Q… (blending tolerance)
+                self.moves.note_once(f"G{g:g} ({self.d.ignored[g]}) ignored: no effect here")
+            elif g in (90.1, 91.1):
+                st.ijk_absolute = g == 90.1
+            elif g in _PATH_CONTROL and self.d is ISO:
+                params = True  # its P/Q/E/R words set the control, not the path
+                self.moves.note_once(f"G{g:g} ({_PATH_CONTROL[g]}) ignored: no effect here")
+            elif g == 154.0 and self.d is ISO:
+                p = other.get("P")
+                if p is None:
+                    raise self.err("G154 needs P (the extended work offset number)", line)
+                params = True
+                self._select_offset(f"G154P{p[0]:g}", line)
+            elif float(gi) == g and gi in _ISO_REFUSED:
+                raise self.err(_ISO_REFUSED[gi], line)
+            elif 73 <= g <= 89:
+                raise self.err(f"canned cycle G{g:g} is not supported (post it as G01 moves)", line)
+            else:
+                raise self.err(
+                    f"unknown G code G{g:g} ({self.d.name} dialect); expected motion G0–G3, "
+                    "G17–G19, units, G90/G91, G28, G53–G59, G93/G94 or a path-mode word",
+                    line,
+                )
+        # words other than axes
+        for a in list(other):
+            v, _ = other[a]
+            if a in ("N", "O"):
+                if a == "O":
+                    self.moves.meta.setdefault("program", f"O{v:g}")
+            elif a == "F":
+                if not dwell:
+                    if not (math.isfinite(v) and v > 0):
+                        raise self.err(f"feed F must be > 0, got {v:g}", line)
+                    st.feed = v
+            elif a == "T":
+                self.tools.append(round(v))
+            elif a in ("S", "H", "D"):
+                pass
+            elif a in _EXTRA_AXES:
+                if a in self.opt.ignore_words:
+                    self.ignored.setdefault(a, []).append(line)
+                else:
+                    raise self.err(
+                        f"{a} word: a rotary or extra axis a 3-axis ball-tool path cannot use "
+                        f"(pass --ignore-words {a} to ignore it with a warning)",
+                        line,
+                    )
+            elif a in "IJKR" and (st.motion in (2.0, 3.0) or dwell) and not home:
+                pass
+            elif a in ("P", "X", "U") and dwell:
+                pass
+            elif a in ("P", "Q", "E", "R", "L") and params:
+                pass
+            elif a in ("P", "L", "Q"):
+                raise self.err(f"{a} word outside a dwell (G04): not supported", line)
+            elif a in _AXES or a in "IJKR":
+                if a in "IJKR":
+                    raise self.err(f"{a} word outside an arc (G02/G03)", line)
+            else:
+                raise self.err(f"unknown address {a!r} for a 3-axis program", line)
+        if dwell:
+            # seconds where the unit is unambiguous: ISO X/U, Sinumerik F (P is ms on Fanuc and
+            # s on LinuxCNC: not recorded)
+            sec = other.get("F") if self.d is not ISO else (other.get("X") or other.get("U"))
+            if sec is not None:
+                self.moves.pending_dwell += max(sec[0], 0.0)
+            self.moves.note_once("dwells (G04) are not counted in the times")
+            return
+        axes = {a: other[a] for a in _AXES if a in other}
+        if home:
+            self._home(axes, line)
+            return
+        if machine:
+            self._machine(axes, line)
+            return
+        arc_words = any(a in other for a in "IJKR")
+        if not axes and not (st.motion in (2.0, 3.0) and arc_words):
+            return
+        if st.motion is None:
+            raise self.err("axis words before any motion code (G00/G01/G02/G03)", line)
+        target = self._target(axes, line)
+        if st.motion == 0.0:
+            self.moves.add(target, RAPID, math.nan, line)
+            st.pos = target
+            return
+        arc_motion = st.motion if st.motion in (2.0, 3.0) else None
+        if st.feed is None:
+            raise self.err("feed move before any F word", line)
+        unknown = np.isnan(target) | (np.isnan(st.pos) if arc_motion is not None else False)
+        if np.any(unknown):
+            missing = "".join(a for a, x in zip(_AXES, unknown, strict=True) if x)
+            raise self.err(
+                f"feed move with the {missing} position unknown (set X, Y and Z absolutely "
+                "before the first feed move, also after G28/G53)",
+                line,
+            )
+        if arc_motion is None:
+            pts = target[None, :]
+        else:
+            pts = self._arc(target, other, arc_motion == 3.0, line)
+        if st.inverse_time:
+            length = float(
+                np.sum(np.linalg.norm(np.diff(np.vstack([st.pos, pts]), axis=0), axis=1))
+            )
+            if not math.isfinite(length):
+                raise self.err("G93 inverse-time move from an unknown position", line)
+            if "F" not in other:
+                raise self.err("G93 inverse-time feed needs an F word on every feed move", line)
+            feed = length / (60.0 / st.feed) if length > 0 else st.feed * 1e-3 / 60
+        else:
+            feed = st.feed * st.scale / 60.0
+        self.moves.add(pts, FEED, feed, line)
+        st.pos = target
+
+    def _value(self, a: str, v: float, mode: str | None, line: int) -> float:
+        i = _AXES.index(a)
+        x = v * self.st.scale
+        absolute = self.st.absolute if mode is None else mode == "AC"
+        if absolute:
+            return x + self.shift[i]
+        if np.isnan(self.st.pos[i]):
+            raise self.err(f"incremental {a} move from an unknown position", line)
+        return float(self.st.pos[i] + x)
+
+    def _target(self, axes: dict[str, tuple[float, str | None]], line: int) -> F64:
+        target = self.st.pos.copy()
+        for a, (v, mode) in axes.items():
+            target[_AXES.index(a)] = self._value(a, v, mode, line)
+        return target
+
+    def _home(self, axes: dict[str, tuple[float, str | None]], line: int) -> None:
+        """G28/G30: rapid through the intermediate point (if given) to the reference point, whose
+        place in the work frame is unknown: those axes (all without words) become unknown."""
+        if axes:
+            mid = self.st.pos.copy()  # the intermediate point (unknown from an unknown start)
+            for a, (v, mode) in axes.items():
+                i = _AXES.index(a)
+                absolute = self.st.absolute if mode is None else mode == "AC"
+                mid[i] = v * self.st.scale + (self.shift[i] if absolute else self.st.pos[i])
+            self.moves.add(mid, RAPID, math.nan, line)
+        homed = [a for a in _AXES if a in axes] or list(_AXES)
+        pos = self.st.pos.copy() if axes else np.full(3, np.nan)
+        for a in homed:
+            pos[_AXES.index(a)] = np.nan
+        self.moves.add(pos, RAPID, math.nan, line)
+        self.st.pos = pos
+        self.moves.note_once(
+            "reference-point returns (G28/G30) leave the homed axes at an unknown work position; "
+            "those rapids are not forming moves"
+        )
+
+    def _machine(self, axes: dict[str, tuple[float, str | None]], line: int) -> None:
+        """G53: this block in machine coordinates (work = machine − the reference offset)."""
+        if self.st.motion not in (0.0, 1.0):
+            raise self.err("G53 needs G00 or G01", line)
+        ref = self.ref_offset or "G54"
+        off = self.opt.work_offsets.get(ref)
+        pos = self.st.pos.copy()
+        for a, (v, _) in axes.items():
+            i = _AXES.index(a)
+            pos[i] = v * self.st.scale - off[i] if off is not None else np.nan
+        if off is None:
+            self.moves.note_once(
+                f"G53 machine-coordinate moves: {ref}'s value is not given (--work-offset), so "
+                "those axes are at an unknown work position afterwards"
+            )
+        if self.st.motion == 1.0:
+            if np.any(np.isnan(pos)):
+                raise self.err(
+                    f"G53 G01 feed move with {ref}'s value unknown; give --work-offset {ref}=X,Y,Z",
+                    line,
+                )
+            if self.st.feed is None:
+                raise self.err("feed move before any F word", line)
+            self.moves.add(pos, FEED, self.st.feed * self.st.scale / 60.0, line)
+        else:
+            self.moves.add(pos, RAPID, math.nan, line)
+        self.st.pos = pos
+
+    def _arc(
+        self, target: F64, words: dict[str, tuple[float, str | None]], ccw: bool, line: int
+    ) -> F64:
+        normal_i, plane_name = _PLANES[self.st.plane]
+        axis = np.zeros(3)
+        axis[normal_i] = 1.0
+        start = self.st.pos
+        if "R" in words:
+            if any(a in words for a in "IJK"):
+                raise self.err("arc with both R and I/J/K", line)
+            radius = words["R"][0] * self.st.scale
+            center = arc_center_from_radius(
+                start, target, radius, axis, ccw, file=self.path, line=line
+            )
+        else:
+            center = start.copy()
+            given = False
+            for i, a in enumerate("IJK"):
+                if a not in words:
+                    continue
+                v, mode = words[a]
+                if i == normal_i:
+                    if v != 0:
+                        raise self.err(
+                            f"{a} word in a {plane_name}-plane arc (G{self.st.plane}); it names "
+                            "the centre along the arc's axis",
+                            line,
+                        )
+                    continue
+                given = True
+                if mode == "AC" or (mode is None and self.st.ijk_absolute):
+                    center[i] = v * self.st.scale + self.shift[i]
+                else:
+                    center[i] = start[i] + v * self.st.scale
+            if not given:
+                raise self.err(
+                    f"arc without centre: give I/J/K (in the {plane_name} plane) or R", line
+                )
+        return arc_points(
+            start, target, center, axis, ccw, self.opt.chord_tol, file=self.path, line=line
+        )
+
+
+def iso_blocks(path: Path, text: str) -> Iterator[tuple[int, list[Word]]]:
+    """The words of every block of an ISO/Fanuc/Haas program with its line number: ``%`` lines
+    (with a ``%NNNN`` number), Fanuc ``:NNNN`` program numbers and blank lines are skipped."""
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        s = raw.strip()
+        if not s or s.startswith("%") or (s.startswith(":") and s[1:].strip().isdigit()):
+            continue
+        words, _ = tokenize_iso(s, file=path, line=lineno)
+        if words:
+            yield lineno, words
+
+
+def read_iso_moves(path: str | Path, options: ReadOptions | None = None) -> CamMoves:
+    """The moves of an ISO / Fanuc / Haas G-code program (see the module docstring).
+
+    Arcs are linearised to ``options.chord_tol``. Raises :class:`InputError` naming the line for
+    anything not understood.
     """
     path = Path(path)
     if not path.is_file():
         raise InputError("G-code file not found", file=path)
-    scale = 1.0  # mm
-    pos = [np.nan, np.nan, np.nan]
-    mode = None
-    feed = None
-    feeds: set[float] = set()
-    pts: list[list[float]] = []
-    offsets: list[str] = []
-    tools: list[int] = []
-    length_comp: list[int] = []
-    for lineno, raw in enumerate(read_program_text(path).splitlines(), start=1):
-        line = re.sub(r"\(.*?\)", "", raw).split(";", 1)[0].strip().upper()
-        if not line or line == "%":
-            continue
-        words = _WORD.findall(line)
-        rest = _WORD.sub("", line).strip()
-        if rest:
-            raise InputError(f"cannot parse {rest!r}", file=path, line=lineno)
-        moved = False
-        for letter, num in words:
-            v = float(num)
-            if letter == "G":
-                g = round(v)
-                if g in (0, 1):
-                    mode = g
-                elif g == 20:
-                    scale = 25.4
-                elif g == 21:
-                    scale = 1.0
-                elif g == 91:
-                    raise InputError(
-                        "incremental mode G91 is not supported", file=path, line=lineno
-                    )
-                elif g in (2, 3):
-                    raise InputError("arcs (G02/G03) are not supported", file=path, line=lineno)
-                elif 54 <= g <= 59 and v == g:
-                    offsets.append(f"G{g}")
-                elif g == 43:
-                    h = [float(n) for ltr, n in words if ltr == "H"]
-                    length_comp.append(int(h[0]) if h else 0)
-                    if pts:
-                        raise InputError(
-                            "tool length compensation changes in the middle of the forming moves",
-                            file=path,
-                            line=lineno,
-                        )
-            elif letter in "XYZ":
-                pos["XYZ".index(letter)] = v * scale
-                moved = True
-            elif letter == "F":
-                feed = v * scale
-            elif letter == "T":
-                tools.append(int(v))
-        if moved and mode == 1:
-            if feed is None:
-                raise InputError("feed move before any F word", file=path, line=lineno)
-            if np.any(np.isnan(pos)):
-                raise InputError(
-                    "feed move before X, Y and Z are all known", file=path, line=lineno
-                )
-            pts.append(list(pos))
-            feeds.add(feed)
-    if not pts:
-        raise InputError("no feed (G01) moves found", file=path)
-    assert feed is not None
+    text = read_program_text(path)
+    interp = Interpreter(path, ISO, options or ReadOptions())
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        s = raw.strip()
+        if s.startswith("/"):
+            interp.moves.warn_once(
+                f"line {lineno}: block-delete lines ('/') are read as if the switch is off"
+            )
+        if s.startswith("%") and s[1:].strip():
+            interp.moves.meta.setdefault("program", s)
+    for lineno, words in iso_blocks(path, text):
+        interp.block(words, lineno)
+    return interp.finish()
+
+
+def read_gcode(path: str | Path, options: ReadOptions | None = None) -> ProgramPath:
+    """Parse a G-code file: the feed moves as tip positions [m] and the slowest feed [m/s].
+
+    Rapid (G00) moves are skipped (approach and retract); arcs are linearised
+    (:func:`read_iso_moves`). Raises :class:`InputError` with the line for what is not understood,
+    a feed move before any F, or a program with no feed move.
+    """
+    moves = read_iso_moves(path, options)
+    feed_moves = moves.kind == FEED
+    if not feed_moves.any():
+        raise InputError("no feed (G01/G02/G03) moves found", file=Path(path))
+    feeds_mm_min = sorted({round(float(f) * 60e3, 9) for f in moves.feed[feed_moves]})
     return ProgramPath(
-        tip=np.array(pts) * 1e-3,
+        tip=moves.point[feed_moves],
         R_work_tool=None,
-        feed=min(feeds) * 1e-3 / 60.0,
+        feed=float(np.min(moves.feed[feed_moves])),
         meta={
-            "feeds_mm_min": sorted(feeds),
-            "work_offsets": offsets,
-            "tools": tools,
-            "length_compensation": length_comp,
+            "feeds_mm_min": feeds_mm_min,
+            "work_offsets": moves.meta["work_offsets"],
+            "tools": moves.meta["tools"],
+            "length_compensation": moves.meta["length_compensation"],
+            "notes": moves.notes,
+            "warnings": moves.warnings,
         },
     )

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal, cast
 
@@ -150,6 +150,10 @@ class RunSpec:
     scan_unit: str = "mm"
     joints: Path | None = None
     thickness: Path | None = None
+    #: how a CAM-program toolpath is imported (roboisf.toolpath.importer): "auto" | "iso" | …
+    toolpath_format: str = "auto"
+    #: the point a CAM program names: "tip" | "center"
+    toolpath_point: str = "tip"
 
 
 @dataclass(frozen=True)
@@ -416,6 +420,15 @@ def _check_reach(c: _Collector, model: str, T_bw: F64, T_ft: F64 | None, part: P
         )
 
 
+def _toolpath_import_keys(c: _Collector, r: dict[str, Any], key: str) -> tuple[str, str]:
+    """``toolpath_format`` and ``toolpath_point`` of a run (a CAM program as its toolpath)."""
+    from roboisf.toolpath.importer import CAM_FORMATS
+
+    fmt = c.choice(r, key, "toolpath_format", ("auto", "csv", *CAM_FORMATS), default="auto")
+    point = c.choice(r, key, "toolpath_point", ("tip", "center"), default="tip")
+    return fmt or "auto", point or "tip"
+
+
 def load_study(path: str | Path) -> Study:
     """Load and validate ``study.toml`` (or a folder containing it).
 
@@ -491,6 +504,7 @@ def load_study(path: str | Path) -> Study:
             c.add("expected a table", key)
             continue
         allowed = {"machine", "toolpath", "forces", "scan", "scan_unit", "joints", "thickness"}
+        allowed |= {"toolpath_format", "toolpath_point"}  # CAM import (docs/toolpaths.md)
         for k in sorted(set(r) - allowed):
             c.add(f"unknown key; expected one of {', '.join(sorted(allowed))}", f"{key}.{k}")
         machine = c.choice(r, key, "machine", ("cnc", "robot"))
@@ -511,8 +525,10 @@ def load_study(path: str | Path) -> Study:
         thick = c.path(root, r, key, "thickness", required=False)
         if machine == "robot" and joints is None and "joints" not in r and "robot" not in data:
             c.add("a robot run needs 'joints' (a joint log) or a [robot] table to solve IK", key)
+        tp_fmt, tp_point = _toolpath_import_keys(c, r, key)
         if None not in (machine, tp, sc, fs):
             runs[rname] = RunSpec(rname, machine, tp, fs, sc, su, joints, thick)  # type: ignore[arg-type]
+            runs[rname] = replace(runs[rname], toolpath_format=tp_fmt, toolpath_point=tp_point)
     machines = [r.get("machine") for r in rt.values() if isinstance(r, dict)]
     if rt and ("cnc" not in machines or "robot" not in machines):
         c.add("the decomposition needs one run with machine = 'cnc' and one with 'robot'", "runs")

@@ -1,0 +1,538 @@
+"""A CAM program (ISO G-code, Sinumerik, APT/CL, a bare point list) → a roboisf toolpath.
+
+The readers (:mod:`roboisf.io.gcode`, :mod:`roboisf.io.sinumerik`, :mod:`roboisf.io.apt`,
+:mod:`roboisf.io.xyz`) give the program's moves; this module rebuilds what roboisf needs per
+point against the nominal part (docs/toolpaths.md, "Importing a CAM program"):
+
+1. **Which point the program names** (``point``): ``"tip"`` (default) — the lowest point of the
+   ball, what CAM systems post for a ball-end tool whose length is set to the tip (``G43 H`` to
+   the tip, the usual CNC set-up, and what roboisf's own programs contain); ``"center"`` — the
+   ball centre (CAM "tool centre" output, many robot post-processors). Centre
+   ``C = T + R ẑ``.
+2. **Forming points** (after subtracting ``origin``, the work origin in program coordinates, when
+   the program zero is not the blank centre on the sheet top): feed moves (G01/G02/G03, APT GOTO
+   without RAPID, every row of a list) whose tip is at or below the sheet plane
+   (``tip z ≤ SHEET_TOL``). Rapids (G00, G28/G53, APT RAPID/GOHOME) and feed moves with the tip
+   above the sheet (approach, retract, moves over the clamp) are dropped; a rapid that goes below
+   the sheet plane is reported as a warning.
+3. **Resampled** on request: with ``spacing`` a forming segment longer than it is split evenly
+   (so a long straight CAM move still gives points every ``spacing`` for the force and scan
+   look-ups; without it segments over ``LONG_SEGMENT`` are reported); consecutive
+   points closer than ``MERGE_TOL`` are merged (the first kept: a repeated point adds no time).
+4. **Contact and normal**: the closest point P of the nominal surface to the ball centre C
+   (``Part.closest_point``); the normal is the contact normal ``(C − P)/|C − P|`` (the surface's
+   tool-side normal on a smooth wall; at a convex edge such as the rim, where the ball rolls over
+   the edge, the direction from the edge to the centre); the wall angle is ``acos(n_z)``. The gap
+   ``|C − P| − R`` (0 for a path that follows the nominal exactly) is reported; a large one
+   usually means the wrong ``--point`` or ball diameter.
+5. **Laps**: if at least half of the forming segments keep their z (to ``Z_TOL``), the path is a
+   z-level (step-down) path and a lap is a run of points at one z; the points of a ramp between
+   two levels belong to the lap below. Otherwise it is a spiral: a new lap starts each full turn
+   of the tip's polar angle about the work z axis, and a final turn at constant depth (a closing
+   contour) stays in the last lap.
+6. **Times** from the feeds: each feed move takes its length / its feed (G93: 1/F min), rapids
+   take their length / ``rapid_rate`` or no time when no rapid rate is given; dwells are not
+   counted. A point's time is the program time since the first forming point, so time spent in
+   dropped moves between forming points (a retract between laps) is included. ``path_length`` is
+   the tip path through the forming points.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from roboisf.errors import InputError
+from roboisf.io.cam import DEFAULT_CHORD_TOL, FEED, CamMoves, ReadOptions
+from roboisf.parts.base import Part
+from roboisf.toolpath.toolpath import Toolpath
+
+if TYPE_CHECKING:
+    from roboisf.study.spec import RunSpec, Study
+
+__all__ = [
+    "CAM_FORMATS",
+    "FORMAT_SUFFIXES",
+    "ImportOptions",
+    "detect_toolpath_format",
+    "import_toolpath",
+    "load_toolpath",
+    "moves_to_toolpath",
+    "read_cam_moves",
+    "study_toolpath",
+]
+
+F64 = NDArray[np.float64]
+
+#: CAM formats ``import`` reads (``auto`` picks one by suffix and content).
+CAM_FORMATS = ("iso", "sinumerik", "apt", "xyz")
+#: Suffixes of each format (lower case). ``csv`` is roboisf's own toolpath CSV or a point list.
+FORMAT_SUFFIXES = {
+    "iso": (".nc", ".gcode", ".ngc", ".tap", ".cnc", ".iso", ".g", ".eia", ".min", ".ptp"),
+    "sinumerik": (".mpf", ".spf"),
+    "apt": (".apt", ".cls", ".cl", ".aptsource", ".clt"),
+    "xyz": (".xyz", ".txt", ".dat", ".asc", ".csv", ".tsv"),
+}
+#: A forming point has its tip at most this far above the sheet plane [m].
+SHEET_TOL = 1e-6
+#: Consecutive points closer than this are one point [m].
+MERGE_TOL = 1e-6
+#: Two points are on one z level within this [m] (the 1 µm resolution of programs).
+Z_TOL = 1.5e-6
+#: Without ``spacing``, forming segments longer than this [m] are reported.
+LONG_SEGMENT = 5e-3
+#: A gap |C − P| − R above this [m] is reported.
+GAP_WARN = 50e-6
+
+
+@dataclass(frozen=True)
+class ImportOptions:
+    """Options of :func:`import_toolpath` (SI).
+
+    Attributes
+    ----------
+    point : ``"tip"`` or ``"center"`` — which point of the ball the program names
+    fmt : ``"auto"`` or one of :data:`CAM_FORMATS`
+    chord_tol : float, m — arcs linearised to this chord error
+    spacing : float or None, m — longest forming segment (split evenly beyond); None (default):
+        the points as programmed, with a warning when a forming segment exceeds ``LONG_SEGMENT``
+    rapid_rate : float or None, m/s — rapid traverse rate for the times; None: rapids take no time
+    work_offsets : dict[str, (3,) float m] — work-offset values (see ``ReadOptions``)
+    ignore_words : frozenset[str] — extra-axis letters to ignore with a warning
+    units : str or None — length unit of a point list (``mm`` default, ``m``, ``in``)
+    feed : float, m/s — feed of a point list (it has none)
+    origin : (3,) float, m — where roboisf's work origin (the blank centre on the sheet top) is in
+        the program's coordinates; subtracted from every point (default: the program zero is it)
+    """
+
+    point: str = "tip"
+    fmt: str = "auto"
+    chord_tol: float = DEFAULT_CHORD_TOL
+    spacing: float | None = None
+    rapid_rate: float | None = None
+    work_offsets: dict[str, tuple[float, float, float]] = field(default_factory=dict)
+    ignore_words: frozenset[str] = frozenset()
+    units: str | None = None
+    feed: float = 750.0 / 60e3
+    origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        if self.point not in ("tip", "center"):
+            raise InputError(f"expected 'tip' or 'center', got {self.point!r}", field="point")
+        if self.fmt not in ("auto", *CAM_FORMATS):
+            raise InputError(
+                f"expected auto or one of {', '.join(CAM_FORMATS)}, got {self.fmt!r}",
+                field="format",
+            )
+        for name, v in (("spacing", self.spacing), ("rapid_rate", self.rapid_rate)):
+            if v is not None and not (math.isfinite(v) and v > 0):
+                raise InputError(f"must be > 0, got {v:g}", field=name)
+        if not (math.isfinite(self.feed) and self.feed > 0):
+            raise InputError(f"must be > 0, got {self.feed * 60e3:g} mm/min", field="feed")
+        if len(self.origin) != 3 or not all(math.isfinite(v) for v in self.origin):
+            raise InputError(f"expected 3 finite numbers, got {self.origin!r}", field="origin")
+
+    def read_options(self) -> ReadOptions:
+        return ReadOptions(
+            chord_tol=self.chord_tol,
+            work_offsets=dict(self.work_offsets),
+            ignore_words=self.ignore_words,
+        )
+
+
+def _head(path: Path, n: int = 40) -> list[str]:
+    try:
+        with path.open("r", encoding="utf-8-sig", errors="replace") as fh:
+            return [fh.readline() for _ in range(n)]
+    except OSError as e:
+        raise InputError(f"cannot read the file ({e.strerror})", file=path) from None
+
+
+_SINUMERIK_HINT = re.compile(
+    r"(^%_N_|^;\$PATH|\b[XYZIJKF]\s*=|\bCR\s*=|\bG64[1-5]\b|\bCYCLE\d|\bSOFT\b|\bFFWON\b|\bMSG\s*\()",
+    re.I,
+)
+_APT_HINT = re.compile(r"^\s*(GOTO|FEDRAT|TLAXIS|MULTAX|PARTNO|FROM|RAPID|UNITS)\s*(/|$)", re.I)
+_ISO_HINT = re.compile(r"^\s*(%|O\d|N\d|[GM]\d|[XYZF][-+.\d])", re.I)
+_NUMERIC_ROW = re.compile(r"^\s*[-+.\d]")
+
+
+def detect_toolpath_format(path: str | Path) -> str:
+    """The format of a toolpath file: ``"csv"`` (roboisf's own toolpath CSV), ``"iso"``,
+    ``"sinumerik"``, ``"apt"`` or ``"xyz"``.
+
+    By content first (the first 40 lines): the ``# roboisf toolpath`` line or its
+    ``index,lap,…`` header → csv; ``%_N_…``, ``;$PATH``, ``X=`` words, ``G642``-style or
+    ``CYCLE832`` words → sinumerik; ``GOTO/``, ``FEDRAT/`` … → apt; G-code words → iso; rows of
+    numbers → xyz. The suffix decides only between formats the content leaves open (``.mpf`` is
+    always Sinumerik). Raises :class:`InputError` when nothing fits.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("toolpath file not found", file=path)
+    head = [ln.strip() for ln in _head(path) if ln.strip()]
+    suffix = path.suffix.lower()
+    if any(ln.lower().startswith("# roboisf toolpath") for ln in head) or any(
+        ln.replace(" ", "").lower().startswith("index,lap,contact_x") for ln in head
+    ):
+        return "csv"
+    if suffix in FORMAT_SUFFIXES["sinumerik"]:
+        return "sinumerik"
+    if any(_APT_HINT.match(ln) for ln in head):
+        return "apt"
+    code = [re.sub(r"\([^)]*\)", "", ln) for ln in head if not ln.startswith(("(", "#", "//"))]
+    if any(_SINUMERIK_HINT.search(ln) for ln in code):
+        return "sinumerik"
+    rows = [ln for ln in code if not ln.startswith(";")]
+    if rows and all(_NUMERIC_ROW.match(ln) for ln in rows[1:] or rows):
+        if not any(re.search(r"[GMN]\d", ln, re.I) for ln in rows):
+            return "xyz"
+    if any(_ISO_HINT.match(ln) for ln in code):
+        return "iso"
+    for name, suffixes in FORMAT_SUFFIXES.items():
+        if suffix in suffixes and name != "xyz":
+            return name
+    raise InputError(
+        "cannot tell the toolpath format from the content or the suffix; expected a roboisf "
+        "toolpath CSV, ISO G-code, a Sinumerik .mpf, APT/CL data or an x,y,z list (pass --format)",
+        file=path,
+    )
+
+
+def read_cam_moves(path: str | Path, options: ImportOptions | None = None) -> CamMoves:
+    """The moves of a CAM file in ``options.fmt`` (``auto``: :func:`detect_toolpath_format`)."""
+    from roboisf.io.apt import read_apt_moves
+    from roboisf.io.gcode import read_iso_moves
+    from roboisf.io.sinumerik import read_sinumerik_moves
+    from roboisf.io.xyz import read_xyz_moves
+
+    path = Path(path)
+    opt = options or ImportOptions()
+    fmt = opt.fmt if opt.fmt != "auto" else detect_toolpath_format(path)
+    if fmt == "csv":
+        raise InputError(
+            "this is already a roboisf toolpath CSV; use it as it is (nothing to import)",
+            file=path,
+        )
+    readers: dict[str, Callable[[], CamMoves]] = {
+        "iso": lambda: read_iso_moves(path, opt.read_options()),
+        "sinumerik": lambda: read_sinumerik_moves(path, opt.read_options()),
+        "apt": lambda: read_apt_moves(path, opt.read_options()),
+        "xyz": lambda: read_xyz_moves(path, units=opt.units, feed=opt.feed),
+    }
+    moves = readers[fmt]()
+    moves.meta["format"] = fmt
+    return moves
+
+
+def _check_axis(moves: CamMoves, keep: NDArray[np.bool_]) -> None:
+    if moves.tool_axis is None:
+        return
+    # ±z: lists differ on whether i,j,k points up the tool or down to the tip
+    tilt = np.degrees(np.arccos(np.clip(np.abs(moves.tool_axis[keep, 2]), 0.0, 1.0)))
+    if tilt.size and tilt.max() > 0.01:
+        i = int(np.argmax(tilt))
+        raise InputError(
+            f"tool axis tilted {tilt[i]:.3f}° from +z: a 3-axis (vertical tool) path is expected",
+            file=moves.path,
+            line=int(moves.line[keep][i]),
+        )
+
+
+def _move_times(moves: CamMoves, rapid_rate: float | None) -> F64:
+    """Program time [s] at the end of every move."""
+    p = moves.point
+    prev = np.vstack([np.full((1, 3), np.nan), p[:-1]])
+    seg = np.linalg.norm(p - prev, axis=1)
+    seg = np.where(np.isfinite(seg), seg, 0.0)  # from or to an unknown position: no time known
+    dt = np.zeros(len(moves))
+    feed_m = moves.kind == FEED
+    dt[feed_m] = seg[feed_m] / moves.feed[feed_m]
+    if rapid_rate is not None:
+        dt[~feed_m] = seg[~feed_m] / rapid_rate
+    return np.cumsum(dt)
+
+
+def _laps(tip: F64) -> tuple[NDArray[np.int64], str]:
+    """Lap of every forming point and the rule used (module docstring, step 5)."""
+    n = len(tip)
+    if n == 1:
+        return np.zeros(1, dtype=np.int64), "z-level"
+    flat = np.abs(np.diff(tip[:, 2])) <= Z_TOL
+    if flat.mean() >= 0.5:
+        run = np.cumsum(np.concatenate([[True], ~flat])) - 1  # runs of one z
+        real = np.bincount(run) > 1  # a run of one point is a ramp point
+        if not real.any():
+            return np.zeros(n, dtype=np.int64), "z-level"
+        # real runs before each run: a real run's own number, a ramp point's next real run
+        lap_of_run: NDArray[np.int64] = np.cumsum(real) - real
+        lap = np.minimum(lap_of_run[run], int(real.sum()) - 1)
+        return lap.astype(np.int64), "z-level"
+    phi = np.unwrap(np.arctan2(tip[:, 1], tip[:, 0]))
+    turned = np.abs(phi - phi[0]) / (2 * math.pi)
+    lap = np.maximum.accumulate(np.floor(turned + 1e-6).astype(np.int64))
+    moving = np.flatnonzero(~flat)
+    last = int(moving[-1])  # the segment last → last+1 is the last one that changes z
+    lap[last + 1 :] = np.minimum(lap[last + 1 :], lap[last])
+    return lap, "spiral"
+
+
+def _resample(
+    spacing: float, tip: F64, t: F64, lines: NDArray[np.int64], feeds: F64, cont: NDArray[np.bool_]
+) -> tuple[F64, F64, NDArray[np.int64], F64, NDArray[np.bool_]]:
+    """Split every contiguous forming segment longer than ``spacing`` evenly."""
+    seg = np.linalg.norm(np.diff(tip, axis=0), axis=1)
+    p = np.where(cont[1:], np.ceil(seg / spacing - 1e-9), 1).astype(np.int64)
+    p = np.maximum(p, 1)
+    if not (p > 1).any():
+        return tip, t, lines, feeds, cont
+    src = np.repeat(np.arange(1, len(tip)), p)
+    k = np.arange(len(src)) - np.repeat(np.cumsum(p) - p, p) + 1
+    frac = k / np.repeat(p, p)
+    new_tip = tip[src - 1] + frac[:, None] * (tip[src] - tip[src - 1])
+    new_t = t[src - 1] + frac * (t[src] - t[src - 1])
+    return (
+        np.vstack([tip[:1], new_tip]),
+        np.concatenate([t[:1], new_t]),
+        np.concatenate([lines[:1], lines[src]]),
+        np.concatenate([feeds[:1], feeds[src]]),
+        np.concatenate([cont[:1], np.repeat(cont[1:], p)]),
+    )
+
+
+#: Probe height [m] and jump [m] of the corner tie-break in :func:`_contacts`.
+_TIE_PROBE, _TIE_JUMP, _TIE_TOL = 5e-6, 50e-6, 2e-6
+
+
+def _contacts(part: Part, center: F64) -> tuple[F64, F64, F64]:
+    """Contact point, tool-side normal and signed distance of ``center`` (N, 3) m to ``part``.
+
+    Where the ball touches two surfaces at once (a concave corner: wall and flat bottom) the
+    closest point is a tie that the program's 1 µm rounding breaks at random. The tie is found by
+    probing from ``ε = 5 µm`` above the centre (the steeper surface comes closer): when the probe's
+    closest point jumps away (> 50 µm) and that surface is as close to the centre as the first
+    (within 2 µm), the steeper surface's contact, moved back to the centre
+    (``P − ε (ẑ − n_z n)``, exact on a straight wall), is taken — as roboisf's generator does.
+    """
+    q = part.closest_point(center)
+    contact = np.array(q.point, dtype=float)
+    normal = np.array(q.normal, dtype=float)
+    dist = np.array(q.distance, dtype=float)
+    probe = center.copy()
+    probe[:, 2] += _TIE_PROBE
+    q1 = part.closest_point(probe)
+    p1, n1 = np.asarray(q1.point, dtype=float), np.asarray(q1.normal, dtype=float)
+    back = p1 - _TIE_PROBE * (np.array([0.0, 0.0, 1.0]) - n1[:, 2:3] * n1)
+    d1 = np.linalg.norm(center - back, axis=1)
+    tie = (np.linalg.norm(p1 - contact, axis=1) > _TIE_JUMP) & (
+        np.abs(d1 - np.abs(dist)) < _TIE_TOL
+    )
+    tie &= n1[:, 2] < normal[:, 2]
+    contact[tie], normal[tie] = back[tie], n1[tie]
+    dist[tie] = np.sign(dist[tie]) * d1[tie]
+    # the contact normal: from the contact to the centre (at a convex edge — the rim — the ball
+    # rolls over the edge and this is not the surface normal on either side)
+    v = center - contact
+    vn = np.linalg.norm(v, axis=1)
+    ok = vn > 1e-9
+    normal[ok] = v[ok] / vn[ok, None] * np.where(dist[ok] < 0, -1.0, 1.0)[:, None]
+    return contact, normal, dist
+
+
+def moves_to_toolpath(
+    moves: CamMoves, part: Part, tool_radius: float, options: ImportOptions | None = None
+) -> Toolpath:
+    """The forming toolpath of ``moves`` against ``part`` (module docstring, steps 1–6).
+
+    Parameters
+    ----------
+    moves : the program's moves (work frame, m)
+    part : the nominal part (its ``closest_point`` gives contact and normal)
+    tool_radius : float, m — ball radius
+    options : which point the program names, spacing, rapid rate …
+
+    Returns
+    -------
+    Toolpath, its ``meta`` holding ``source``, ``format``, ``laps_rule``, ``notes``, ``warnings``,
+    ``gap_max`` [m], ``dropped_moves`` and ``feeds_mm_min``.
+    """
+    opt = options or ImportOptions()
+    if not (math.isfinite(tool_radius) and tool_radius > 0):
+        raise InputError(f"must be > 0 mm, got {tool_radius * 2e3:g}", field="tool_diameter")
+    R = tool_radius
+    warnings = list(moves.warnings)
+    notes = list(moves.notes)
+    tip_all = moves.point - np.asarray(opt.origin, dtype=float)
+    if opt.point == "center":
+        tip_all[:, 2] -= R
+    known = np.all(np.isfinite(tip_all), axis=1)
+    feed_m = moves.kind == FEED
+    above = np.zeros(len(moves), dtype=bool)
+    above[known] = tip_all[known, 2] > SHEET_TOL
+    forming = feed_m & known & ~above
+    rapid_below = ~feed_m & known & (tip_all[:, 2] < -SHEET_TOL)
+    if rapid_below.any():
+        lines = moves.line[rapid_below]
+        warnings.append(
+            f"{int(rapid_below.sum())} rapid move(s) end below the sheet plane (first on line "
+            f"{int(lines[0])}); rapids are never forming moves"
+        )
+    if not forming.any():
+        raise InputError(
+            f"no forming moves: no feed move has its {opt.point} with the tip at or below the "
+            "sheet plane z = 0 (is the program zero on the sheet? is --point right?)",
+            file=moves.path,
+        )
+    _check_axis(moves, forming)
+    dropped = int(len(moves) - forming.sum())
+    if (feed_m & above).any():
+        notes.append(
+            f"{int((feed_m & above).sum())} feed move(s) above the sheet plane (approach, "
+            "retract) dropped"
+        )
+    times = _move_times(moves, opt.rapid_rate)
+    idx = np.flatnonzero(forming)
+    tip = tip_all[idx]
+    t = times[idx]
+    lines = moves.line[idx]
+    feeds = moves.feed[idx]
+    contiguous = np.concatenate([[False], np.diff(idx) == 1])
+    # resample long forming segments (only between consecutive forming moves)
+    if opt.spacing is not None and len(tip) > 1:
+        tip, t, lines, feeds, contiguous = _resample(opt.spacing, tip, t, lines, feeds, contiguous)
+    elif len(tip) > 1:
+        seg = np.linalg.norm(np.diff(tip, axis=0), axis=1)
+        long = contiguous[1:] & (seg > LONG_SEGMENT)
+        if long.any():
+            warnings.append(
+                f"{int(long.sum())} forming move(s) longer than {LONG_SEGMENT * 1e3:g} mm (longest "
+                f"{seg[long].max() * 1e3:.1f} mm, line {int(lines[1:][long][0])}): forces and "
+                "scans are looked up per point; pass --spacing 1 to resample"
+            )
+    # merge repeated points
+    keep = np.ones(len(tip), dtype=bool)
+    if len(tip) > 1:
+        d = np.linalg.norm(np.diff(tip, axis=0), axis=1)
+        keep[1:] = d > MERGE_TOL  # a run of repeats collapses onto its first point
+    merged = int((~keep).sum())
+    if merged:
+        notes.append(f"{merged} repeated point(s) merged")
+    tip, t, lines, feeds = tip[keep], t[keep], lines[keep], feeds[keep]
+    center = tip.copy()
+    center[:, 2] += R
+    contact, normal, dist = _contacts(part, center)
+    gap = dist - R
+    gmax = float(np.max(np.abs(gap)))
+    if gmax > GAP_WARN:
+        i = int(np.argmax(np.abs(gap)))
+        med = float(np.median(gap))
+        hint = ""
+        if abs(med) > 0.3 * R:
+            other = "center" if opt.point == "tip" else "tip"
+            hint = f"; the median gap is {med * 1e3:.3f} mm — does the program name the {other}?"
+        warnings.append(
+            f"the ball is {gap[i] * 1e3:+.3f} mm off the nominal at point {i} (line "
+            f"{int(lines[i])}; + clear of it, − into it){hint}"
+        )
+    lap, rule = _laps(tip)
+    seg = np.linalg.norm(np.diff(tip, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    time = t - t[0]
+    time = np.maximum.accumulate(time)
+    # the forming feed: the feed that covers the most path
+    uniq, inv = np.unique(np.round(feeds, 12), return_inverse=True)
+    length_by_feed = np.bincount(inv[1:], weights=seg, minlength=len(uniq)) if len(seg) else None
+    feed = float(uniq[int(np.argmax(length_by_feed))] if length_by_feed is not None else uniq[0])
+    meta: dict[str, object] = {
+        "part": part.kind,
+        "kind": f"imported {moves.meta.get('format', moves.meta.get('dialect', 'cam'))}",
+        "source": str(moves.path),
+        "format": moves.meta.get("format", moves.meta.get("dialect")),
+        "point": opt.point,
+        "laps_rule": rule,
+        "notes": notes,
+        "warnings": warnings,
+        "gap_max": gmax,
+        "dropped_moves": dropped,
+        "merged_points": merged,
+        "feeds_mm_min": sorted({round(float(f) * 60e3, 6) for f in uniq}),
+        "lines": lines.tolist(),  # the program line of every point
+    }
+    return Toolpath(
+        contact=contact,
+        normal=normal,
+        center=center,
+        tip=tip,
+        wall_angle=np.arccos(np.clip(normal[:, 2], -1.0, 1.0)),
+        lap=lap,
+        path_length=s,
+        time=time,
+        tool_radius=float(R),
+        feed=feed,
+        meta=meta,
+    )
+
+
+def import_toolpath(
+    path: str | Path, part: Part, tool_radius: float, options: ImportOptions | None = None
+) -> Toolpath:
+    """Read a CAM program (any of :data:`CAM_FORMATS`) and rebuild its toolpath against ``part``.
+
+    Parameters
+    ----------
+    path : the program file
+    part : the nominal part
+    tool_radius : float, m — ball radius
+    options : :class:`ImportOptions`
+
+    Raises
+    ------
+    InputError
+        naming the file and line of anything not understood.
+    """
+    opt = options or ImportOptions()
+    return moves_to_toolpath(read_cam_moves(path, opt), part, tool_radius, opt)
+
+
+def load_toolpath(
+    path: str | Path,
+    part: Part,
+    tool_radius: float,
+    *,
+    fmt: str = "auto",
+    point: str = "tip",
+) -> Toolpath:
+    """A study's ``toolpath``: roboisf's toolpath CSV as it is, any CAM program imported.
+
+    The study hook: ``analyze``, ``compensate`` and ``plan --study`` read every run's toolpath
+    through this, with the nominal of ``[part]``, the ball radius of ``[tool]`` and the run's
+    ``toolpath_format`` / ``toolpath_point`` (``fmt`` ``"csv"`` | ``"auto"`` | a CAM format).
+    """
+    from roboisf.io.toolpath_csv import read_toolpath_csv
+
+    path = Path(path)
+    if fmt == "auto":
+        fmt = detect_toolpath_format(path)
+    if fmt == "csv":
+        return read_toolpath_csv(path)
+    return import_toolpath(path, part, tool_radius, ImportOptions(fmt=fmt, point=point))
+
+
+def study_toolpath(study: Study, run: RunSpec, part: Part) -> Toolpath:
+    """The toolpath of ``run`` of ``study`` (:func:`load_toolpath` with the study's settings)."""
+    if study.tool is None:  # pragma: no cover - load_study requires [tool]
+        raise InputError("the study has no [tool] table", file=study.root / "study.toml")
+    return load_toolpath(
+        run.toolpath,
+        part,
+        study.tool.radius,
+        fmt=getattr(run, "toolpath_format", "auto"),
+        point=getattr(run, "toolpath_point", "tip"),
+    )
