@@ -19,7 +19,7 @@ import io
 import math
 import re
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -31,7 +31,15 @@ from numpy.typing import NDArray
 from roboisf.errors import InputError
 from roboisf.io.text import read_text
 
-__all__ = ["Table", "format_rows", "read_table"]
+__all__ = [
+    "LogTable",
+    "Table",
+    "find_log_header",
+    "format_rows",
+    "read_log_table",
+    "read_table",
+    "split_name_unit",
+]
 
 F64 = NDArray[np.float64]
 
@@ -308,3 +316,328 @@ def finite_float(text: str, *, file: str | Path | None = None, field: str | None
     if not math.isfinite(v):
         raise InputError(f"expected a finite number, got {text!r}", file=file, field=field)
     return v
+
+
+# -- logs as instruments write them ------------------------------------------------------------
+#
+# A logger's text export: a free-text block (instrument, date, sample rate, units), a header row
+# of channel names (any case, units in brackets allowed: "Fx [N]", "Fz (N)"), optionally a row
+# of units under it ("s  N  N  N"), then the numbers; any separator (comma, semicolon, tab,
+# whitespace), decimal point or decimal comma, quoted cells, a UTF-8 byte-order mark.
+
+_SEPARATORS: tuple[tuple[str, str], ...] = (
+    ("\t", "tab"),
+    (";", "semicolon"),
+    (",", "comma"),
+    (r"\s+", "whitespace"),
+)
+_UNIT_IN_NAME = re.compile(r"^(.*?)\s*(?:\[([^\]]*)\]|\(([^)]*)\)|/\s*([A-Za-z°µ·.*]+))\s*$")
+_DECIMAL_COMMA = re.compile(r"^[+-]?\d+,\d+(?:[eE][+-]?\d+)?$")
+
+
+def split_name_unit(cell: str) -> tuple[str, str | None]:
+    """``"Fx [N]"`` → ``("fx", "N")``; ``"Time (s)"`` → ``("time", "s")``; ``"q1"`` → ``("q1",
+    None)``. The name is lower-cased with runs of blanks and ``_`` folded to one space."""
+    s = cell.strip().strip('"').strip()
+    unit = None
+    m = _UNIT_IN_NAME.match(s)
+    if m and m.group(1):
+        s = m.group(1)
+        unit = next(g for g in m.groups()[1:] if g is not None).strip() or None
+    name = re.sub(r"[\s_]+", " ", s.strip().lower())
+    return name, unit
+
+
+def _split(line: str, sep: str) -> list[str]:
+    cells = re.split(sep, line.strip()) if sep == r"\s+" else line.split(sep)
+    return [c.strip().strip('"').strip() for c in cells]
+
+
+def _is_number(cell: str, decimal: str) -> bool:
+    c = cell.replace(decimal, ".") if decimal == "," else cell
+    try:
+        float(c)
+    except ValueError:
+        return False
+    return True
+
+
+@dataclass(frozen=True)
+class LogTable:
+    """A logger's text export, parsed (see :func:`read_log_table`).
+
+    Attributes
+    ----------
+    path : Path
+    meta : dict[str, str] — ``# key: value`` lines (keys lower-cased)
+    preamble : dict[str, str] — ``key: value`` / ``key<TAB>value`` lines of the free-text block
+        before the header (keys lower-cased, stripped)
+    columns : tuple[str, ...] — the header cells as written
+    names : tuple[str, ...] — the header names, normalised (:func:`split_name_unit`)
+    units : dict[str, str] — canonical column → unit declared in the header name or units row
+    data : dict[str, (N,) float] — canonical column → values in file units
+    lines : (N,) int — 1-based file line of each row
+    header_line : int — 1-based line of the header
+    separator : str — "comma" | "semicolon" | "tab" | "whitespace"
+    decimal : str — "." or ","
+    """
+
+    path: Path
+    meta: dict[str, str]
+    preamble: dict[str, str]
+    columns: tuple[str, ...]
+    names: tuple[str, ...]
+    units: dict[str, str]
+    data: dict[str, F64]
+    lines: NDArray[np.int64]
+    header_line: int
+    separator: str
+    decimal: str
+    col_index: dict[str, int] = field(default_factory=dict)
+
+    def error(self, message: str, row: int | None = None, field: str | None = None) -> InputError:
+        """An :class:`InputError` naming this file and the line of data row ``row`` (0-based)."""
+        line = int(self.lines[row]) if row is not None else None
+        return InputError(message, file=self.path, line=line, field=field)
+
+
+#: A column matcher: canonical name → a predicate on the normalised header name.
+ColumnMatch = dict[str, "re.Pattern[str]"]
+
+
+def _decode_log(path: Path, what: str) -> str:
+    try:
+        data = path.read_bytes()
+    except OSError as e:
+        raise InputError(f"cannot read {what}: {e.strerror}", file=path) from None
+    if b"\x00" in data[:4096] and not data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise InputError(
+            f"{what} is a binary file; expected a text export (CSV/TXT) or a .parquet log",
+            file=path,
+        )
+    try:
+        from roboisf.io.text import decode_utf8
+
+        return decode_utf8(data, file=path, what=what)
+    except InputError:
+        if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+            raise
+        # Windows loggers (DynoWare, KUKA WorkVisual) write cp1252: "°", "µ"; every byte decodes
+        return data.decode("cp1252", errors="replace")
+
+
+def find_log_header(
+    lines: Sequence[str], match: ColumnMatch, required: Sequence[str], *, max_lines: int = 400
+) -> tuple[int, str, dict[str, int]] | None:
+    """The first line (0-based index) whose cells, split by one of the separators, name every
+    ``required`` canonical column; with that separator's name and the column index of each
+    matched canonical column. None if no such line within ``max_lines``."""
+    for i, line in enumerate(lines[:max_lines]):
+        s = line.strip()
+        if not s or s.startswith("#"):
+            continue
+        for sep, sep_name in _SEPARATORS:
+            cells = _split(s, sep)
+            if len(cells) < 2:
+                continue
+            names = [split_name_unit(c)[0] for c in cells]
+            found: dict[str, int] = {}
+            for canon, pat in match.items():
+                for j, nm in enumerate(names):
+                    if j not in found.values() and pat.fullmatch(nm):
+                        found[canon] = j
+                        break
+            if all(r in found for r in required):
+                return i, sep_name, found
+    return None
+
+
+def read_log_table(
+    path: str | Path,
+    match: ColumnMatch,
+    required: Sequence[str],
+    *,
+    what: str = "log",
+    expected: str = "",
+) -> LogTable:
+    """Read a logger's text export: find the header naming every ``required`` column (matched
+    by the regular expressions of ``match`` on the normalised names), sniff the separator and
+    the decimal mark, and parse the matched columns with pandas' C parser (other columns, such
+    as a status word or a date string, are ignored).
+
+    Parameters
+    ----------
+    path : the file
+    match : canonical column → compiled pattern that the normalised header name must fullmatch
+    required : canonical columns that must be found
+    what : what the file is, for messages ("force log")
+    expected : a description of the expected header, for the message when none is found
+
+    Raises
+    ------
+    InputError
+        no header line naming the required columns (the message lists what was expected and
+        the first header-like line seen), a row with too few cells, a cell that is not a number,
+        NaN or inf — naming file, line and column.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{what} not found", file=path)
+    text = _decode_log(path, what)
+    raw = text.splitlines()
+    found = find_log_header(raw, match, required)
+    if found is None:
+        first = next((x.strip() for x in raw if x.strip() and not x.lstrip().startswith("#")), "")
+        raise InputError(
+            f"no header line naming the columns {expected or ', '.join(required)} (case and "
+            "units in brackets do not matter; separator comma, semicolon, tab or blanks); "
+            f"first line seen: {first[:80]!r}",
+            file=path,
+        )
+    hi, sep_name, idx = found
+    sep = dict((n, s) for s, n in _SEPARATORS)[sep_name]
+    header_cells = _split(raw[hi].strip(), sep)
+    names_units = [split_name_unit(c) for c in header_cells]
+    meta: dict[str, str] = {}
+    preamble: dict[str, str] = {}
+    for j in range(hi):
+        s = raw[j].strip()
+        if not s:
+            continue
+        if s.startswith("#"):
+            body = s.lstrip("#").strip()
+            if ":" in body:
+                k, _, v = body.partition(":")
+                meta[k.strip().lower()] = v.strip()
+            continue
+        s = s.strip('"')
+        for delim in (":", "\t", "=", ";", ","):
+            if delim in s:
+                k, _, v = s.partition(delim)
+                if k.strip():
+                    preamble.setdefault(k.strip().lower(), v.strip().strip('"').strip())
+                break
+    units = {c: u for c, j in idx.items() if (u := names_units[j][1]) is not None}
+    # data rows: blank lines skipped; an optional units row right under the header
+    body_idx = [j for j in range(hi + 1, len(raw)) if raw[j].strip()]
+    if not body_idx:
+        raise InputError(f"{what} has a header but no data rows", file=path, line=hi + 1)
+    first_cells = _split(raw[body_idx[0]], sep)
+    cols = sorted(idx.values())
+    probe = [first_cells[j] for j in cols if j < len(first_cells)]
+    if probe and not any(_is_number(c, ".") or _is_number(c, ",") for c in probe):
+        for canon, j in idx.items():
+            if j < len(first_cells) and first_cells[j]:
+                u = first_cells[j].strip("[]() ")
+                if canon in units and units[canon] != u:
+                    raise InputError(
+                        f"column {header_cells[j]!r} declares unit {units[canon]!r} in its name "
+                        f"but {u!r} in the units row",
+                        file=path,
+                        line=body_idx[0] + 1,
+                        field=canon,
+                    )
+                units[canon] = u
+        body_idx = body_idx[1:]
+        if not body_idx:
+            raise InputError(f"{what} has a header but no data rows", file=path, line=hi + 1)
+    sample = [_split(raw[j], sep) for j in body_idx[:50]]
+    decimal = "."
+    if sep != ",":
+        cells = [r[j] for r in sample for j in cols if j < len(r)]
+        if any(_DECIMAL_COMMA.match(c) for c in cells):
+            decimal = ","
+    lines = np.asarray(body_idx, dtype=np.int64) + 1
+    body = "\n".join(raw[j] for j in body_idx)
+    ncol = len(header_cells)
+    data = _parse_log_body(path, body, sep, decimal, cols, ncol)
+    if data is None or not np.all(np.isfinite(data)):
+        # name the short row or the cell that is not a number (a literal nan/inf is kept and
+        # reported below)
+        data = _locate_bad_cell(path, raw, body_idx, sep, decimal, idx, header_cells)
+    out = {canon: data[:, cols.index(j)] for canon, j in idx.items()}
+    finite = np.column_stack(list(out.values()))
+    ok = np.isfinite(finite)
+    if not ok.all():
+        r, c = np.argwhere(~ok)[0]
+        canon = list(out)[c]
+        raise InputError(
+            f"{finite[r, c]} is not a finite number", file=path, line=int(lines[r]), field=canon
+        )
+    return LogTable(
+        path,
+        meta,
+        preamble,
+        tuple(header_cells),
+        tuple(n for n, _ in names_units),
+        units,
+        out,
+        lines,
+        hi + 1,
+        sep_name,
+        decimal,
+        dict(idx),
+    )
+
+
+def _parse_log_body(
+    path: Path, body: str, sep: str, decimal: str, cols: list[int], ncol: int
+) -> F64 | None:
+    """The matched columns through pandas' C parser (python engine for a regex separator), or
+    None when anything is off: the careful pass then names the line."""
+    try:
+        df = pd.read_csv(
+            io.StringIO(body),
+            sep=sep,
+            decimal=decimal,
+            header=None,
+            names=list(range(ncol)),
+            usecols=cols,
+            dtype=np.float64,
+            engine="python" if sep == r"\s+" else "c",
+            quotechar='"',
+            skipinitialspace=True,
+            na_filter=False,
+            index_col=False,
+        )
+    except (ValueError, pd.errors.ParserError, pd.errors.EmptyDataError):
+        return None
+    arr = df.to_numpy()
+    if arr.ndim != 2 or arr.shape[1] != len(cols):
+        return None
+    return arr
+
+
+def _locate_bad_cell(
+    path: Path,
+    raw: list[str],
+    body_idx: list[int],
+    sep: str,
+    decimal: str,
+    idx: dict[str, int],
+    header_cells: list[str],
+) -> F64:
+    cols = sorted(idx.values())
+    canon_of = {j: c for c, j in idx.items()}
+    out = np.empty((len(body_idx), len(cols)))
+    for r, j in enumerate(body_idx):
+        cells = _split(raw[j], sep)
+        if len(cells) <= cols[-1]:
+            raise InputError(
+                f"expected at least {cols[-1] + 1} cells ({', '.join(header_cells)}), got "
+                f"{len(cells)}",
+                file=path,
+                line=j + 1,
+            )
+        for k, c in enumerate(cols):
+            cell = cells[c].replace(",", ".") if decimal == "," else cells[c]
+            try:
+                out[r, k] = float(cell)
+            except ValueError:
+                raise InputError(
+                    f"not a number: {cells[c]!r} (decimal mark {decimal!r})",
+                    file=path,
+                    line=j + 1,
+                    field=canon_of[c],
+                ) from None
+    return out
