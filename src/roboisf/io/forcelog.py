@@ -185,8 +185,23 @@ def _read_roboisf_csv(
         raise InputError("position needs all three columns x,y,z", file=path, line=t.header_line)
     needed = ["time", "force", "moment"] + (["length"] if has_pos else [])
     units: dict[str, str] = {}
+    qcols = {"time": ("time",), "force": _FORCES, "moment": _MOMENTS}
     for q in needed:
-        a, b = declared.get(q), given[q]
+        b = given[q]
+        per_col = [t.units[c] for c in qcols[q] if c in t.units]
+        if len(per_col) == len(qcols[q]):  # every column says its unit in the header
+            for c in qcols[q]:
+                fc = log_unit_to_si(t.units[c], q, file=p, field=c)
+                if b is not None and fc != log_unit_to_si(b, q):
+                    raise InputError(
+                        f"{q} unit declared as {t.units[c]!r} in the file but {b!r} was given "
+                        "(study units for this log); remove one",
+                        file=p,
+                        line=t.header_line,
+                        field=c,
+                    )
+            continue
+        a = declared.get(q)
         if a is not None and b is not None and a != b:
             raise InputError(
                 f"{q} unit declared as {a!r} in the file but {b!r} was given; remove one",
@@ -264,7 +279,7 @@ _PROFILES: dict[str, tuple[dict[str, re.Pattern[str]], tuple[str, ...]]] = {
     "ati": ({**_RDT, **_F, **_T}, ("rdt", *_FORCES, *_MOMENTS)),
     "generic": ({**_TIME, **_F, **_MT}, ("time", *_FORCES, *_MOMENTS)),
     "kistler": ({**_TIME, **_F, **_M}, ("time", *_FORCES)),
-    "dyno3": ({**_TIME, **_F}, ("time", *_FORCES)),
+    "dyno3": ({**_TIME, **_F, **_MT}, ("time", *_FORCES)),
 }
 
 
@@ -323,7 +338,7 @@ def _open(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[str, LogTa
             'time,Fx,Fy,Fz,Mx,My,Mz (or set format = "auto")',
             file=p,
         )
-    order = ("ati", "generic", "kistler", "dyno3") if fmt == "auto" else (fmt,)
+    order = ("ati", "generic", "dyno3") if fmt == "auto" else (fmt,)
     last: InputError | None = None
     for name in order:
         match, req = _PROFILES[name]
@@ -480,8 +495,23 @@ def read_force_log(
     units: dict[str, float] = {}
     has_m = all(m in t.data for m in _MOMENTS)
     needed = ["force"] + (["moment"] if has_m else []) + ([] if profile == "ati" else ["time"])
+    qcols = {"time": ("time",), "force": _FORCES, "moment": _MOMENTS}
     for q in needed:
-        a, b = declared.get(q), given[q]
+        b = given[q]
+        per_col = [t.units[c] for c in qcols[q] if c in t.units]
+        if len(per_col) == len(qcols[q]):  # every column says its unit in the header
+            for c in qcols[q]:
+                fc = log_unit_to_si(t.units[c], q, file=p, field=c)
+                if b is not None and fc != log_unit_to_si(b, q):
+                    raise InputError(
+                        f"{q} unit declared as {t.units[c]!r} in the file but {b!r} was given "
+                        "(study units for this log); remove one",
+                        file=p,
+                        line=t.header_line,
+                        field=c,
+                    )
+            continue
+        a = declared.get(q)
         if a is not None and b is not None and log_unit_to_si(a, q) != log_unit_to_si(b, q):
             raise InputError(
                 f"{q} unit declared as {a!r} in the file but {b!r} was given (study [units] or "
