@@ -25,7 +25,8 @@ LBF = 4.4482216152605
 # Time is a wall-clock date string (second resolution: the time axis is RDT sequence / rate).
 ATI = """Start Time: 3/14/24 10:21 AM
 RDT Sample Rate: 500
-"PLEASE NOTE: The sample rate is read from the Net F/T when the program starts.  If you have changed the sample rate since the program started, this will be incorrect."
+"PLEASE NOTE: The sample rate is read from the Net F/T when the program starts.  If you \
+have changed the sample rate since the program started, this will be incorrect."
 Force Units: N
 Counts per Unit Force: 1000000.0
 Torque Units: Nm
@@ -105,7 +106,7 @@ def test_three_component_dynamometer_has_unknown_moments(tmp_path):
 
 def test_partial_moments_are_refused(tmp_path):
     f = _w(tmp_path, "p.csv", "time [s],Fx [N],Fy [N],Fz [N],Mz [Nm]\n0,1,2,3,4\n1,1,2,3,4\n")
-    with pytest.raises(InputError, match="missing column.*Mx"):
+    with pytest.raises(InputError, match=r"missing column.*Mx"):
         read_force_log(f)
 
 
@@ -129,7 +130,7 @@ def test_columns_table_for_any_names(tmp_path):
     )
     f = _w(tmp_path, "k.csv", text)
     cols = {"time": "t [s]", "Fx": "Kraft X", "Fy": "Kraft Y", "Fz": "Kraft Z"}
-    profile, found, units = detect_force_format(f, columns=cols)
+    profile, found, _ = detect_force_format(f, columns=cols)
     assert profile == "columns" and found["Fx"] == "Kraft X [N]"
     log = read_force_log(f, columns=cols)
     np.testing.assert_allclose(log.force[1], [1.5, 2.5, 3.5])
@@ -217,7 +218,9 @@ Q_DEG = np.array([[10.0, -20.0, 30.5, 0.0, 45.0, -180.0], [10.5, -19.5, 31.0, 0.
 
 def test_abb_j1_j6_degrees(tmp_path):
     text = "Time [s],J1 [deg],J2 [deg],J3 [deg],J4 [deg],J5 [deg],J6 [deg]\n"
-    text += "".join(f"{t}," + ",".join(str(v) for v in q) + "\n" for t, q in zip([0, 0.004], Q_DEG))
+    text += "".join(
+        f"{t}," + ",".join(str(v) for v in q) + "\n" for t, q in zip([0, 0.004], Q_DEG, strict=True)
+    )
     f = _w(tmp_path, "abb.csv", text)
     assert detect_joint_format(f)[0] == "abb"
     log = read_joint_log(f)
@@ -231,7 +234,7 @@ def test_kuka_trace_text_export_semicolon_decimal_comma_ms(tmp_path):
     names = ";".join(f"AxisActPos A{i} [°]" for i in range(1, 7))
     rows = [
         f"{t};" + ";".join(f"{v:.2f}".replace(".", ",") for v in q)
-        for t, q in zip(["0", "12"], Q_DEG)
+        for t, q in zip(["0", "12"], Q_DEG, strict=True)
     ]
     f = _w(tmp_path, "kuka.txt", head + f"Time [ms];{names}\n" + "\n".join(rows) + "\n", "cp1252")
     profile, cols, units = detect_joint_format(f)
@@ -243,7 +246,8 @@ def test_kuka_trace_text_export_semicolon_decimal_comma_ms(tmp_path):
 
 
 def test_joint_radians_declared_by_study(tmp_path):
-    text = "t\tA1\tA2\tA3\tA4\tA5\tA6\n0\t0.1\t0.2\t0.3\t0.4\t0.5\t0.6\n1\t0.1\t0.2\t0.3\t0.4\t0.5\t0.6\n"
+    row = "\t0.1\t0.2\t0.3\t0.4\t0.5\t0.6\n"
+    text = "t\tA1\tA2\tA3\tA4\tA5\tA6\n0" + row + "1" + row
     f = _w(tmp_path, "k.txt", text)
     with pytest.raises(InputError, match="unit not declared"):
         read_joint_log(f)

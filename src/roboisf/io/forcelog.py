@@ -185,23 +185,8 @@ def _read_roboisf_csv(
         raise InputError("position needs all three columns x,y,z", file=path, line=t.header_line)
     needed = ["time", "force", "moment"] + (["length"] if has_pos else [])
     units: dict[str, str] = {}
-    qcols = {"time": ("time",), "force": _FORCES, "moment": _MOMENTS}
     for q in needed:
-        b = given[q]
-        per_col = [t.units[c] for c in qcols[q] if c in t.units]
-        if len(per_col) == len(qcols[q]):  # every column says its unit in the header
-            for c in qcols[q]:
-                fc = log_unit_to_si(t.units[c], q, file=p, field=c)
-                if b is not None and fc != log_unit_to_si(b, q):
-                    raise InputError(
-                        f"{q} unit declared as {t.units[c]!r} in the file but {b!r} was given "
-                        "(study units for this log); remove one",
-                        file=p,
-                        line=t.header_line,
-                        field=c,
-                    )
-            continue
-        a = declared.get(q)
+        a, b = declared.get(q), given[q]
         if a is not None and b is not None and a != b:
             raise InputError(
                 f"{q} unit declared as {a!r} in the file but {b!r} was given; remove one",
