@@ -188,23 +188,23 @@ def read_joint_log(
         declared = _file_units(tab)
         given = {"time": time_unit, "angle": angle_unit}
         f = {}
-        for q in ("time", "angle"):
-            a, b = declared.get(q), given[q]
-            if a is not None and b is not None and log_unit_to_si(a, q) != log_unit_to_si(b, q):
+        for qty in ("time", "angle"):
+            a, b = declared.get(qty), given[qty]
+            if a is not None and b is not None and log_unit_to_si(a, qty) != log_unit_to_si(b, qty):
                 raise InputError(
-                    f"{q} unit declared as {a!r} in the file but {b!r} was given; remove one",
+                    f"{qty} unit declared as {a!r} in the file but {b!r} was given; remove one",
                     file=p,
                     field="units",
                 )
             u = a if a is not None else b
             if u is None:
                 raise InputError(
-                    f"{q} unit not declared: put it in the header ('A1 [deg]', 'time [s]'), a "
+                    f"{qty} unit not declared: put it in the header ('A1 [deg]', 'time [s]'), a "
                     "'# units: time=s angle=deg' line, or the study's units for this log",
                     file=p,
                     field="units",
                 )
-            f[q] = log_unit_to_si(u, q, file=p, field="units")
+            f[qty] = log_unit_to_si(u, qty, file=p, field="units")
         time = tab.data["time"] * f["time"]
         if time.size > 1:
             bad = np.flatnonzero(np.diff(time) <= 0)
