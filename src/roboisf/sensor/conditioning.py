@@ -161,14 +161,19 @@ class Conditioning:
     tool: ToolLoad | None = None
 
 
-def unloaded_samples(time: F64, W: F64, *, min_samples: int = 10) -> slice | None:
+def unloaded_samples(time: F64, W: F64, *, min_samples: int = 25) -> slice | None:
     """The unloaded approach at the start of a log: samples before the force onset.
 
-    The onset is the first sample whose force departs from the running level of the first
-    samples by more than ``max(10 σ, 5 % of the log's force range)`` (σ the noise of the first
-    ``min_samples`` samples). Accepted only if at least ``min_samples`` samples precede it and
-    the level found is below 25 % of the largest force change in the log — a log that starts
-    mid-forming has no unloaded part and gets None.
+    σ is the noise of the first ``min_samples`` samples; the onset is the first sample whose
+    force departs from their level by more than ``max(5 σ, 1 % of the log's force range)``.
+    The samples before it are accepted as unloaded only if
+
+    * there are at least ``min_samples`` of them,
+    * they are flat: the mean of their last fifth differs from the mean of their first fifth by
+      less than 2 σ (a log whose forming force ramps up from zero at once has no unloaded part),
+    * their level is below 25 % of the force range.
+
+    Otherwise None: the log has no unloaded part to tare on or to check.
     """
     F = np.asarray(W, dtype=float)[:, :3]
     n = F.shape[0]
@@ -179,17 +184,21 @@ def unloaded_samples(time: F64, W: F64, *, min_samples: int = 10) -> slice | Non
     noise = float(np.sqrt(np.mean(np.var(head, axis=0)))) + 1e-12
     dev = np.linalg.norm(F - level, axis=1)
     span = float(dev.max())
-    thr = max(10.0 * noise, 0.05 * span)
+    thr = max(5.0 * noise, 0.01 * span)
     above = np.flatnonzero(dev > thr)
     if above.size == 0:
         return None  # never loaded: no forming in this log
-    onset = int(above[0])
-    if onset < min_samples:
-        return None
-    if np.linalg.norm(level) > 0.25 * span and span > 0:
-        return None
     # stop a little before the onset: the rise starts below the threshold
-    stop = max(min_samples, onset - max(1, onset // 10))
+    onset = int(above[0])
+    stop = onset - max(1, onset // 10)
+    if stop < min_samples:
+        return None
+    if np.linalg.norm(level) > 0.25 * span:
+        return None
+    k = max(1, stop // 5)
+    drift = float(np.linalg.norm(F[stop - k : stop].mean(axis=0) - F[:k].mean(axis=0)))
+    if drift > 2.0 * noise:
+        return None
     return slice(0, stop)
 
 
