@@ -268,3 +268,15 @@ def test_parquet_joint_log_round_trip(tmp_path):
     assert np.array_equal(back.q, np.radians(Q_DEG).astype(np.float32).astype(float))
     assert np.array_equal(back.time, t)
     assert detect_joint_format(tmp_path / "j.parquet")[2] == {"time": "s", "angle": "rad"}
+
+
+def test_roboisf_joint_log_units_from_study_or_conflict(tmp_path):
+    body = "time,q1,q2,q3,q4,q5,q6\n0,0.1,0.2,0.3,0.4,0.5,0.6\n1,0.1,0.2,0.3,0.4,0.5,0.6\n"
+    f = _w(tmp_path, "j.csv", body)
+    with pytest.raises(InputError, match="missing '# units"):
+        read_joint_log(f)
+    assert math.isclose(read_joint_log(f, angle_unit="rad").q[0, 0], 0.1)
+    g = _w(tmp_path, "g.csv", "# units: time=s angle=deg\n" + body)
+    with pytest.raises(InputError, match="declared as 'deg' in the file but 'rad'"):
+        read_joint_log(g, angle_unit="rad")
+    np.testing.assert_allclose(read_joint_log(g, angle_unit="°").q[0, 0], math.radians(0.1))

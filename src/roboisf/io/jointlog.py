@@ -214,21 +214,34 @@ def read_joint_log(
         return JointLog(time=time, q=q, path=p)
     t = read_table(p, JOINT_COLUMNS, what="joint log")
     units = {"time": "s", "angle": "deg"}
-    if "units" not in t.meta:
+    if "units" not in t.meta and angle_unit is None:
         raise InputError(
             "missing '# units: time=s angle=deg' line (angles must declare deg or rad)",
             file=p,
             field="units",
         )
-    for tok in t.meta["units"].split():
+    file_units: dict[str, str] = {}
+    for tok in t.meta.get("units", "").split():
         k, _, v = tok.partition("=")
         if k not in units or not v:
             raise InputError(
                 f"bad units entry {tok!r}; expected time=… angle=…", file=p, field="units"
             )
-        units[k] = v
-    ft = to_si(units["time"], "time", file=p, field="units.time")
-    fa = to_si(units["angle"], "angle", file=p, field="units.angle")
+        file_units[k] = v
+    for k, g_unit in (("time", time_unit), ("angle", angle_unit)):
+        if g_unit is None:
+            continue
+        if k in file_units and to_si(file_units[k], k) != log_unit_to_si(g_unit, k):
+            raise InputError(
+                f"{k} unit declared as {file_units[k]!r} in the file but {g_unit!r} was given "
+                "(study units for this log); remove one",
+                file=p,
+                field="units",
+            )
+        file_units.setdefault(k, g_unit)
+    units.update(file_units)
+    ft = log_unit_to_si(units["time"], "time", file=p, field="units.time")
+    fa = log_unit_to_si(units["angle"], "angle", file=p, field="units.angle")
     time = t.column("time") * ft
     if time.size > 1:
         bad = np.flatnonzero(np.diff(time) <= 0)

@@ -30,7 +30,6 @@ LOG_ALIASES = {
         "°": "deg",
         "degree": "deg",
         "degrees": "deg",
-        "grad": "deg",
         "radian": "rad",
         "radians": "rad",
     },
