@@ -349,6 +349,8 @@ def _open(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[str, LogTa
             raise InputError(
                 "format 'dyno3' is a 3-component log but the file has moment columns", file=p
             )
+        if fmt == "auto" and name == "generic" and t.separator == "tab" and t.preamble:
+            name = "kistler"  # a DynoWare-style export: free-text block, tab-separated
         return name, t
     assert last is not None
     if fmt == "auto":
@@ -556,17 +558,28 @@ def write_force_log(
     force_unit: str = "N",
     moment_unit: str = "N*m",
     length_unit: str = "mm",
+    profile: str = "roboisf",
 ) -> None:
-    """Write ``log`` as a force log (atomically): Parquet for a ``.parquet`` name (SI, exact;
+    """Write ``log`` as a force log (atomically): Parquet for a ``.parquet`` name (SI;
     :mod:`roboisf.io.logparquet`), else a CSV in the given units.
 
     The CSV is written at 1e-9 of the time unit and 10 significant digits for wrenches, so
     reading back reproduces the log to ≈ 1e-9 relative.
+
+    ``profile`` writes the text as an instrument would (for synthetic cells and tests; units
+    fixed by the profile, N and N·m): ``"ati"`` — ATI's Net F/T demo CSV (uniform sampling
+    required; the reader's time axis then starts at 0 at the first sample), ``"kistler"`` — a
+    DynoWare-style tab-separated export with a units row and decimal commas, ``"dyno3"`` — a
+    3-component dynamometer (``time [s];Fx [N];Fy [N];Fz [N]``, moments dropped),
+    ``"generic"`` — ``time [s],Fx [N],…,Mz [N*m]``.
     """
     if Path(path).suffix.lower() == ".parquet":
         from roboisf.io.logparquet import write_force_parquet
 
         write_force_parquet(log, path)
+        return
+    if profile != "roboisf":
+        _write_profile(log, Path(path), profile)
         return
     s = {
         "time": to_si(time_unit, "time"),
@@ -587,6 +600,54 @@ def write_force_log(
         fh.write(f"# units: {units}\n# frame: {log.frame}\n")
         fh.write(",".join(cols) + "\n")
         fh.write(format_rows(np.column_stack(data), fmts))
+
+
+def _write_profile(log: ForceLog, path: Path, profile: str) -> None:
+    t, W = log.time, log.wrench
+    if profile == "ati":
+        dt = np.diff(t)
+        rate = 1.0 / float(np.median(dt)) if t.size > 1 else 1000.0
+        if t.size > 1 and np.max(np.abs(dt * rate - 1.0)) > 1e-6:
+            raise InputError(
+                "an ATI log is uniformly sampled (its time is RDT sequence / rate); this log's "
+                "sample spacing varies",
+                field="profile",
+            )
+        seq = np.rint(t * rate)
+        data = np.column_stack([seq, seq * 7, W])
+        rows = format_rows(data, ["%d", "%d"] + ["%.10g"] * 6).splitlines()
+        stamp = '","Mar 14, 2024 10:21:07 AM"'
+        head = (
+            "Start Time: 3/14/24 10:21 AM\n"
+            f"RDT Sample Rate: {rate:.12g}\n"
+            '"PLEASE NOTE: The sample rate is read from the Net F/T when the program starts."\n'
+            "Force Units: N\nCounts per Unit Force: 1000000.0\n"
+            "Torque Units: Nm\nCounts per Unit Torque: 1000000.0\n"
+            "Status (hex), RDT Sequence, F/T Sequence, Fx, Fy, Fz, Tx, Ty, Tz, Time\n"
+        )
+        body = "\n".join('"0x0","' + r.replace(",", '","') + stamp for r in rows)
+    elif profile == "kistler":
+        rows_txt = format_rows(np.column_stack([t, W]), ["%.9f"] + ["%.10g"] * 6)
+        head = (
+            "DynoWare\troboisf synthetic export\nAbtastrate\t"
+            f"{(1.0 / float(np.median(np.diff(t)))) if t.size > 1 else 0:.6g}\n\n"
+            "Zeit\tFx\tFy\tFz\tMx\tMy\tMz\ns\tN\tN\tN\tNm\tNm\tNm\n"
+        )
+        body = rows_txt.replace(".", "#").replace(",", "\t").replace("#", ",").rstrip("\n")
+    elif profile == "dyno3":
+        head = "Time [s];Fx [N];Fy [N];Fz [N]\n"
+        rows_txt = format_rows(np.column_stack([t, W[:, :3]]), ["%.9f"] + ["%.10g"] * 3)
+        body = rows_txt.replace(",", ";").rstrip("\n")
+    elif profile == "generic":
+        head = "time [s],Fx [N],Fy [N],Fz [N],Mx [N*m],My [N*m],Mz [N*m]\n"
+        body = format_rows(np.column_stack([t, W]), ["%.9f"] + ["%.10g"] * 6).rstrip("\n")
+    else:
+        raise InputError(
+            f"profile must be roboisf, ati, kistler, dyno3 or generic, got {profile!r}",
+            field="profile",
+        )
+    with atomic_write(path) as fh:
+        fh.write(head + body + "\n")
 
 
 # -- attaching a log to toolpath points ---------------------------------------------------------

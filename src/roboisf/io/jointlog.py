@@ -253,9 +253,13 @@ def read_joint_log(
     return JointLog(time=time, q=q, path=p)
 
 
-def write_joint_log(path: str | Path, time: ArrayLike, q: ArrayLike) -> None:
+def write_joint_log(
+    path: str | Path, time: ArrayLike, q: ArrayLike, *, profile: str = "roboisf"
+) -> None:
     """Write ``time`` (N,) s and ``q`` (N, 6) rad as a joint log, atomically: Parquet (SI) for a
-    ``.parquet`` name, else the roboisf CSV in degrees."""
+    ``.parquet`` name, else the roboisf CSV in degrees — or, with ``profile``, as a controller
+    would: ``"abb"`` (``Time [s],J1 [deg],…``) or ``"kuka"`` (a trace text export: description
+    lines, ``Time [ms];AxisActPos A1 [°];…``, decimal commas)."""
     tt = np.asarray(time, dtype=float).reshape(-1)
     qq = np.asarray(q, dtype=float)
     if qq.shape != (tt.size, 6):
@@ -265,6 +269,23 @@ def write_joint_log(path: str | Path, time: ArrayLike, q: ArrayLike) -> None:
 
         write_joint_parquet(path, tt, qq)
         return
+    if profile == "abb":
+        head = "Time [s]," + ",".join(f"J{i} [deg]" for i in range(1, 7)) + "\n"
+        rows = format_rows(np.column_stack([tt, np.degrees(qq)]), ["%.6f"] + ["%.9f"] * 6)
+        with atomic_write(path) as f:
+            f.write(head + rows)
+        return
+    if profile == "kuka":
+        head = (
+            "Trace: roboisf synthetic\nController: KRC4\n"
+            "Time [ms];" + ";".join(f"AxisActPos A{i} [°]" for i in range(1, 7)) + "\n"
+        )
+        rows = format_rows(np.column_stack([tt * 1e3, np.degrees(qq)]), ["%.3f"] + ["%.9f"] * 6)
+        with atomic_write(path) as f:
+            f.write(head + rows.replace(".", "#").replace(",", ";").replace("#", ","))
+        return
+    if profile != "roboisf":
+        raise InputError(f"profile must be roboisf, abb or kuka, got {profile!r}", field="profile")
     data = np.column_stack([tt, np.degrees(qq)])
     body = "# units: time=s angle=deg\n" + ",".join(JOINT_COLUMNS) + "\n"
     body += format_rows(data, ["%.6f"] + ["%.9f"] * 6)
