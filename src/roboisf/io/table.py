@@ -1,11 +1,17 @@
-"""Numeric CSV tables with leading ``# key: value`` metadata lines (the roboisf exchange format).
+"""Numeric CSV tables with leading ``# key: value`` metadata lines (the roboisf exchange format),
+and logs as instruments write them (:func:`read_log_table`).
 
-Layout of every such file::
+Layout of every roboisf table::
 
     # key: value          ← optional metadata, only before the header
     # another: value
-    col_a,col_b,col_c     ← header (column names, case-sensitive, any order)
+    col_a,col_b,col_c     ← header (column names in any case, any order)
     1.0,2.0,3.0           ← numeric rows; blank lines are skipped
+
+Read with pandas' C parser. Also accepted, as spreadsheets and instruments write them: a
+semicolon or tab separator (taken from the header line), a decimal comma (with a separator
+other than the comma), a UTF-8 byte-order mark, and lines of free text before the header (the
+header is the first line naming a known column).
 
 :func:`read_table` parses it once, vectorised, and reports the first bad row with its **file line
 number** (1-based, counting every physical line of the file): rows with a wrong number of
@@ -105,7 +111,8 @@ def read_table(
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{what} not found", file=path)
-    raw = _head(path, what)  # metadata and header only; the body is parsed in C below
+    known = [*required, *optional]
+    raw = _head(path, what, known)  # metadata, free text and header; the body is parsed in C
     meta: dict[str, str] = {}
     i = 0
     while i < len(raw):
@@ -114,6 +121,9 @@ def read_table(
             i += 1
             continue
         if not s.startswith("#"):
+            if i < len(raw) - 1:  # free text before the header (an instrument's preamble)
+                i += 1
+                continue
             break
         comment = s.lstrip("#").strip()
         if ":" in comment:
@@ -133,7 +143,11 @@ def read_table(
             f"{what} is empty; expected a header {','.join(required)} and data rows", file=path
         )
     header_line = i + 1
-    columns = tuple(c.strip() for c in raw[i].split(","))
+    sep = _table_sep(raw[i])
+    # names in any case, quotes stripped; written as the reader's callers know them
+    by_lower = {k.lower(): k for k in known}
+    cells = [c.strip().strip('"').strip() for c in raw[i].split(sep)]
+    columns = tuple(by_lower.get(c.lower(), c) for c in cells)
     dup = {c for c in columns if columns.count(c) > 1}
     if dup:
         raise InputError(
@@ -149,8 +163,7 @@ def read_table(
             field=missing[0],
         )
     if not allow_extra:
-        known = set(required) | set(optional)
-        extra = [c for c in columns if c not in known]
+        extra = [c for c in columns if c not in set(known)]
         if extra:
             raise InputError(
                 f"unknown column(s) {', '.join(extra)}; expected {','.join(required)}"
@@ -159,7 +172,8 @@ def read_table(
                 line=header_line,
                 field=extra[0],
             )
-    fast = _fast_body(path, header_line, len(columns))
+    decimal = _table_decimal(path, header_line, sep)
+    fast = _fast_body(path, header_line, len(columns), sep, decimal)
     if fast is not None:
         n = fast.shape[0]
         lines_fast = np.arange(header_line + 1, header_line + 1 + n, dtype=np.int64)
@@ -172,7 +186,7 @@ def read_table(
     lines = np.asarray(body_idx, dtype=np.int64) + 1
     body = [raw[j] for j in body_idx]
     k = len(columns)
-    counts = np.fromiter((ln.count(",") + 1 for ln in body), dtype=np.int64, count=len(body))
+    counts = np.fromiter((ln.count(sep) + 1 for ln in body), dtype=np.int64, count=len(body))
     if np.any(counts != k):
         r = int(np.argmax(counts != k))
         if body[r].lstrip().startswith("#"):
@@ -190,6 +204,8 @@ def read_table(
         data = pd.read_csv(
             io.StringIO("\n".join(body)),
             header=None,
+            sep=sep,
+            decimal=decimal,
             dtype=np.float64,
             engine="c",
             skip_blank_lines=False,
@@ -197,10 +213,10 @@ def read_table(
         ).to_numpy()
     except ValueError:
         data = np.empty((len(body), k))
-        for r, row in enumerate(ln.split(",") for ln in body):
+        for r, row in enumerate(ln.split(sep) for ln in body):
             for c, cell in enumerate(row):
                 try:
-                    data[r, c] = float(cell)
+                    data[r, c] = float(cell.replace(",", ".") if decimal == "," else cell)
                 except ValueError:
                     raise InputError(
                         f"not a number: {cell.strip()!r}",
@@ -218,6 +234,26 @@ def read_table(
             field=columns[c],
         )
     return Table(path, meta, columns, data, lines, header_line)
+
+
+def _table_sep(header: str) -> str:
+    """The separator of a table's header: comma, else semicolon, else tab."""
+    for sep in (",", ";", "\t"):
+        if sep in header:
+            return sep
+    return ","
+
+
+def _table_decimal(path: Path, header_line: int, sep: str) -> str:
+    """ "," when the separator is not a comma and the first data row has a decimal comma."""
+    if sep == ",":
+        return "."
+    with open(path, encoding="utf-8-sig", errors="replace") as fh:
+        for n, line in enumerate(fh, start=1):
+            if n > header_line and line.strip():
+                cells = [c.strip() for c in line.split(sep)]
+                return "," if any(_DECIMAL_COMMA.match(c) for c in cells) else "."
+    return "."
 
 
 _FMT = re.compile(r"%\.(\d+)([fge])|%d")
@@ -247,23 +283,37 @@ def _round_column(col: F64, fmt: str) -> F64 | NDArray[np.int64]:
     return out
 
 
-def _head(path: Path, what: str) -> list[str]:
-    """The file's lines up to and including the first non-blank, non-comment line."""
+def _head(path: Path, what: str, known: Sequence[str] = ()) -> list[str]:
+    """The file's lines up to and including the header: the first non-blank, non-comment line
+    that names a known column (case-insensitive), within the first 200 lines — lines of free
+    text before it are an instrument's preamble; without such a line, the first non-comment
+    line (the caller then names what is missing)."""
     out: list[str] = []
+    first: int | None = None
+    names = {k.lower() for k in known}
     try:
         with open(path, encoding="utf-8-sig") as fh:
-            for line in fh:
+            for n, line in enumerate(fh):
                 out.append(line.rstrip("\r\n"))
                 s = line.strip()
-                if s and not s.startswith("#"):
+                if not s or s.startswith("#"):
+                    continue
+                if first is None:
+                    first = n
+                cells = {c.strip().strip('"').strip().lower() for c in re.split(r"[,;\t]", s)}
+                if not names or cells & names:
+                    return out
+                if n >= 200:
                     break
     except UnicodeDecodeError:
         read_text(path, what=what)  # raises, naming the line and byte offset
         raise  # pragma: no cover - read_text raised above
-    return out
+    return out[: first + 1] if first is not None else out
 
 
-def _fast_body(path: Path, header_line: int, k: int) -> F64 | None:
+def _fast_body(
+    path: Path, header_line: int, k: int, sep: str = ",", decimal: str = "."
+) -> F64 | None:
     """All rows after the header through pandas' C parser, or None when anything is off
     (a blank or comment line, a wrong cell count, a non-number, NaN/inf): the careful reader
     then finds the line to name. Trailing blank lines are fine."""
@@ -272,6 +322,8 @@ def _fast_body(path: Path, header_line: int, k: int) -> F64 | None:
             path,
             skiprows=header_line,
             header=None,
+            sep=sep,
+            decimal=decimal,
             dtype=np.float64,
             engine="c",
             skip_blank_lines=False,
