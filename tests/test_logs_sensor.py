@@ -159,3 +159,46 @@ def test_identification_states_what_is_not_observable():
     assert load.observable != "all"
     assert load.mass == pytest.approx(MASS, rel=1e-9)
     assert np.allclose(G_WORLD, [0, 0, -9.80665])
+
+
+def test_study_conditioning_takes_the_sensor_orientation_from_the_joints():
+    """condition_study_log: a flange sensor's tool weight follows R_base_tip(q) at the toolpath
+    point each sample is matched to (time + time_offset); the approach takes the first point."""
+    from types import SimpleNamespace
+
+    from roboisf.frames import make_transform, vertical_tool
+    from roboisf.io.forcelog import ForceLog
+    from roboisf.study.sensors import condition_study_log
+
+    rate, offset = 100.0, 2.0
+    t_tp = np.linspace(0.0, 10.0, 201)
+    # a tool tilting up to 25° and back along the path (FK of the logged joints)
+    tilt = 0.45 * np.sin(np.pi * t_tp / 10.0)
+    R_base_tip = vertical_tool(0.0) @ rpy_to_matrix(np.column_stack([tilt, 0 * tilt, 0 * tilt]))
+    T_tip_sensor = make_transform(rpy_to_matrix([np.pi, 0.0, 0.3]), [0.0, 0.0, -0.19])
+    forces = SimpleNamespace(
+        mount="flange",
+        pose=T_tip_sensor,
+        time_offset=offset,
+        tool_mass=MASS,
+        tool_cog=tuple(COG),
+        tare="auto",
+        file=Path("rob.csv"),
+    )
+    study = SimpleNamespace(robot=SimpleNamespace(T_base_work=np.eye(4)))
+    run = SimpleNamespace(forces=forces)
+    tp = SimpleNamespace(time=t_tp)
+    t_log = np.arange(0.0, offset + 10.0, 1.0 / rate)
+    k = np.clip(np.searchsorted(t_tp + offset, t_log, side="right") - 1, 0, len(t_tp) - 1)
+    R_sensor = R_base_tip[k] @ T_tip_sensor[:3, :3]
+    process = _process(t_log)  # unloaded for the first 1.5 s
+    W = process + BIAS + gravity_wrench(R_sensor, MASS, COG)
+    log = ForceLog(t_log, W, "sensor")
+    out, notes = condition_study_log(
+        study, run, log, vertical_tool(0.0), tp=tp, R_base_tip=R_base_tip
+    )
+    assert not notes
+    np.testing.assert_allclose(out.wrench, process, atol=1e-9)
+    # the toolpath's vertical tool instead of the joints: the tilt's weight change stays
+    off, _ = condition_study_log(study, run, log, vertical_tool(0.0))
+    assert np.abs(off.wrench[:, :3] - process[:, :3]).max() > 5.0

@@ -77,18 +77,26 @@ class AnalysisResult:
 
 
 def run_tip_wrench(
-    study: Study, run: RunSpec, tp: Toolpath, *, warnings: list[str] | None = None
+    study: Study,
+    run: RunSpec,
+    tp: Toolpath,
+    *,
+    warnings: list[str] | None = None,
+    R_base_tip: F64 | None = None,
 ) -> F64:
     """A run's force log at each toolpath point, moved to the tool tip: (N, 6) [N, N·m], work
     axes, the sheet's load on the tool (units from the log or the study's ``[units]``).
 
     The log is checked against the toolpath first (:func:`roboisf.study.checks.check_force_log`:
     forming-force magnitudes, logged positions on the path); its warnings are appended to
-    ``warnings``."""
+    ``warnings``. ``R_base_tip`` (N_tp, 3, 3): the tool's orientation at each toolpath point
+    (forward kinematics of the joints), for the gravity compensation of a flange sensor."""
     f = run.forces
     rot = study.robot.tool_rotation if study.robot is not None else 0.0
     log = read_study_force_log(study, run)
-    log, cond_notes = condition_study_log(study, run, log, vertical_tool(rot))
+    log, cond_notes = condition_study_log(
+        study, run, log, vertical_tool(rot), tp=tp, R_base_tip=R_base_tip
+    )
     notes = check_force_log(log, tp, time_offset=f.time_offset)
     if warnings is not None:
         warnings.extend(cond_notes + notes)
@@ -181,7 +189,12 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
     input_warnings: list[str] = []
     with task(progress, "forces to the tool tip"):
         W_cnc = run_tip_wrench(study, cnc, tp, warnings=input_warnings)
-        W_rob = run_tip_wrench(study, rob, tp, warnings=input_warnings)
+        R_fk = (
+            cell.robot.fk(q, check_limits=False)[:, :3, :3]
+            if rob.forces.tool_mass is not None
+            else None
+        )  # the sensor's orientation for its tool-weight model
+        W_rob = run_tip_wrench(study, rob, tp, warnings=input_warnings, R_base_tip=R_fk)
 
     with task(progress, "tool and holder compliance"):
         k_tool, k_holder, k_t, k_th = tip_compliances(cell, progress=progress)

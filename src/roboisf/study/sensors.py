@@ -27,6 +27,7 @@ from roboisf.study.spec import ForceSensorSpec, RunSpec, Study
 
 if TYPE_CHECKING:
     from roboisf.io.forcelog import ForceLog
+    from roboisf.toolpath import Toolpath
 
 __all__ = ["condition_study_log", "read_study_force_log", "sensor_to_tip", "tip_to_sensor"]
 
@@ -109,19 +110,33 @@ def read_study_force_log(study: Study, run: RunSpec) -> ForceLog:
 
 
 def condition_study_log(
-    study: Study, run: RunSpec, log: ForceLog, R_work_tip: ArrayLike
+    study: Study,
+    run: RunSpec,
+    log: ForceLog,
+    R_work_tip: ArrayLike,
+    *,
+    tp: Toolpath | None = None,
+    R_base_tip: ArrayLike | None = None,
 ) -> tuple[ForceLog, list[str]]:
     """Tare and gravity compensation of a run's log (``roboisf.sensor``), with its warnings.
 
     The sensor's orientation in the world (gravity along −z of the robot base, or of the work
-    frame without a ``[robot]``): ``R_base_work · R_work_tip · R_tip_sensor`` for a flange
-    sensor (the tool orientation of the toolpath), ``R_base_work · R_work_sensor`` for a fixture.
+    frame without a ``[robot]``): for a flange sensor ``R_base_tip(t) · R_tip_sensor`` with
+    ``R_base_tip`` the forward kinematics of the joints at the toolpath points (given with
+    ``tp``; each log sample takes the toolpath point it is matched to by time, samples before
+    the toolpath the first), else ``R_base_work · R_work_tip · R_tip_sensor`` (the toolpath's
+    tool orientation); ``R_base_work · R_work_sensor`` for a fixture sensor.
     """
     from roboisf.sensor import Conditioning, ToolLoad, condition_wrench
 
     f = run.forces
     R_bw = study.robot.T_base_work[:3, :3] if study.robot is not None else np.eye(3)
-    if f.mount == "flange":
+    R: F64
+    if f.mount == "flange" and R_base_tip is not None and tp is not None:
+        Rp = np.asarray(R_base_tip, dtype=float) @ f.pose[:3, :3]
+        k = np.searchsorted(tp.time + f.time_offset, log.time, side="right") - 1
+        R = Rp[np.clip(k, 0, len(Rp) - 1)]
+    elif f.mount == "flange":
         R = R_bw @ np.asarray(R_work_tip, dtype=float) @ f.pose[:3, :3]
     else:
         R = R_bw @ f.pose[:3, :3]
