@@ -19,7 +19,7 @@ def study(tmp_path_factory):
     cell = paper_cone_cell(
         scan_points=150_000, force_rate=50.0, joint_rate=20.0, step_down=2e-3, spacing=4e-3
     )
-    return build_study(cell, root / "study")
+    return build_study(cell, root / "study", log_format="csv")
 
 
 def copy(study, tmp_path):

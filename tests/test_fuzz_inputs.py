@@ -252,7 +252,30 @@ def _run(
             read(f)
 
 
+def _profile_log(name: str, profile: str) -> bytes:
+    """A force log written the way an instrument writes it (roboisf.io.forcelog profiles)."""
+    t = np.arange(40) / 500.0
+    w = np.column_stack([np.sin(t * 50) * 100, t * 0, -300 + t, t, t, t])
+    with tempfile.TemporaryDirectory() as d:
+        f = Path(d) / name
+        write_force_log(ForceLog(t, w, "sensor"), f, profile=profile)
+        return f.read_bytes()
+
+
+def _kuka() -> bytes:
+    with tempfile.TemporaryDirectory() as d:
+        f = Path(d) / "k.txt"
+        t = np.arange(20) * 0.004
+        write_joint_log(f, t, np.outer(t, np.ones(6)), profile="kuka")
+        return f.read_bytes()
+
+
 CASES: list[tuple[str, str, Callable[[], bytes], Callable[[Path], object]]] = [
+    ("forces-ati", "a.csv", lambda: _profile_log("a.csv", "ati"), read_force_log),
+    ("forces-kistler", "k.txt", lambda: _profile_log("k.txt", "kistler"), read_force_log),
+    ("forces-parquet", "f.parquet", lambda: _profile_log("f.parquet", "roboisf"), read_force_log),
+    ("joints-kuka", "k.txt", _kuka, read_joint_log),
+    ("pts", "s.pts", lambda: b"3\n1 2 3 10 1 2 3\n2 3 4 10 1 2 3\n3 4 5 10 1 2 3\n", read_scan),
     ("ply-binary", "s.ply", lambda: _ply(True), read_scan),
     ("ply-ascii", "s.ply", lambda: _ply(False), read_scan),
     ("pcd-binary", "s.pcd", lambda: _pcd(True), read_scan),

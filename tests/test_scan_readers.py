@@ -170,7 +170,7 @@ def test_empty_truncated_nan_and_unknown_files(tmp_path, cloud):
     write_ply(np.where(np.arange(500)[:, None] == 3, np.nan, pts), nply)
     with pytest.raises(InputError, match="NaN"):
         read_scan(nply)
-    u = tmp_path / "s.las"
+    u = tmp_path / "s.rcp"  # a vendor's project file, not a point format
     u.write_text("x")
     with pytest.raises(InputError, match="unknown scan format"):
         read_scan(u)

@@ -37,7 +37,7 @@ from roboisf.errors import InputError
 from roboisf.fem import ComplianceResult
 from roboisf.frames import vertical_tool
 from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
-from roboisf.io.forcelog import attach_to_toolpath, read_force_log
+from roboisf.io.forcelog import attach_to_toolpath
 from roboisf.io.jointlog import read_joint_log
 from roboisf.io.thickness import read_thickness_csv
 from roboisf.parts import sine_law_thickness
@@ -45,7 +45,7 @@ from roboisf.progress import Progress, task
 from roboisf.robot import compliance_stats, deflection_contributions, ik_toolpath
 from roboisf.scan import CompareOptions, ScanComparison, compare_scan, read_scan
 from roboisf.study.checks import check_force_log, check_joint_log, check_tool_radius
-from roboisf.study.sensors import sensor_to_tip
+from roboisf.study.sensors import condition_study_log, read_study_force_log, sensor_to_tip
 from roboisf.study.spec import RunSpec, Study, load_study
 from roboisf.toolpath import Toolpath
 from roboisf.toolpath.importer import study_toolpath
@@ -76,47 +76,55 @@ class AnalysisResult:
     scans: dict[str, ScanComparison]
 
 
-def _declared(path: Path, key: str) -> bool:
-    # a file that is not text is left to the log reader, which names it
-    with open(path, encoding="utf-8", errors="replace") as fh:
-        for line in fh:
-            s = line.strip()
-            if not s.startswith("#"):
-                return False
-            if s[1:].strip().lower().startswith(key + ":"):
-                return True
-    return False
-
-
 def run_tip_wrench(
-    study: Study, run: RunSpec, tp: Toolpath, *, warnings: list[str] | None = None
+    study: Study,
+    run: RunSpec,
+    tp: Toolpath,
+    *,
+    warnings: list[str] | None = None,
+    R_base_tip: F64 | None = None,
 ) -> F64:
     """A run's force log at each toolpath point, moved to the tool tip: (N, 6) [N, N·m], work
     axes, the sheet's load on the tool (units from the log or the study's ``[units]``).
 
     The log is checked against the toolpath first (:func:`roboisf.study.checks.check_force_log`:
     forming-force magnitudes, logged positions on the path); its warnings are appended to
-    ``warnings``."""
+    ``warnings``. ``R_base_tip`` (N_tp, 3, 3): the tool's orientation at each toolpath point
+    (forward kinematics of the joints), for the gravity compensation of a flange sensor."""
     f = run.forces
-    kw: dict[str, str] = {}
-    if not _declared(f.file, "units"):
-        u = study.units
-        kw = {"time_unit": u.time, "force_unit": u.force, "moment_unit": u.moment}
-    frame = None if _declared(f.file, "frame") else "sensor"
-    log = read_force_log(f.file, frame=frame, **kw)
+    rot = study.robot.tool_rotation if study.robot is not None else 0.0
+    log = read_study_force_log(study, run)
+    log, cond_notes = condition_study_log(
+        study, run, log, vertical_tool(rot), tp=tp, R_base_tip=R_base_tip
+    )
     notes = check_force_log(log, tp, time_offset=f.time_offset)
     if warnings is not None:
-        warnings.extend(notes)
+        warnings.extend(cond_notes + notes)
     W_s = attach_to_toolpath(log, tp, by="time", time_offset=f.time_offset)
-    rot = study.robot.tool_rotation if study.robot is not None else 0.0
-    return sensor_to_tip(W_s, f, tp.tip, vertical_tool(rot))
+    W_tip = sensor_to_tip(W_s, f, tp.tip, vertical_tool(rot))
+    if not log.moments_known:
+        # a 3-component dynamometer: the load is taken as a point force at the tool tip
+        W_tip[:, 3:] = 0.0
+        if warnings is not None:
+            warnings.append(
+                f"{f.file.name}: no moment channels (3-component log); the load is taken as a "
+                "point force at the tool tip (tip moments zero)"
+            )
+    return W_tip
 
 
 def _joint_angles(cell: Cell, run: RunSpec, tp: Toolpath) -> tuple[F64, str]:
     if run.joints is None:
         q = ik_toolpath(cell.robot, tp.tip, cell.T_base_work, tool_rotation=cell.tool_rotation).q
         return q, "inverse kinematics of the toolpath"
-    log = read_joint_log(run.joints)
+    ju = run.joints_units or {}
+    log = read_joint_log(
+        run.joints,
+        fmt="auto" if run.joints_format == "columns" else run.joints_format,
+        columns=run.joints_columns,
+        time_unit=ju.get("time"),
+        angle_unit=ju.get("angle"),
+    )
     t0, t1 = float(tp.time[0]), float(tp.time[-1])
     if log.time[0] > t0 + 1e-6 or log.time[-1] < t1 - 1e-6:
         raise InputError(
@@ -181,7 +189,12 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
     input_warnings: list[str] = []
     with task(progress, "forces to the tool tip"):
         W_cnc = run_tip_wrench(study, cnc, tp, warnings=input_warnings)
-        W_rob = run_tip_wrench(study, rob, tp, warnings=input_warnings)
+        R_fk = (
+            cell.robot.fk(q, check_limits=False)[:, :3, :3]
+            if rob.forces.tool_mass is not None
+            else None
+        )  # the sensor's orientation for its tool-weight model
+        W_rob = run_tip_wrench(study, rob, tp, warnings=input_warnings, R_base_tip=R_fk)
 
     with task(progress, "tool and holder compliance"):
         k_tool, k_holder, k_t, k_th = tip_compliances(cell, progress=progress)

@@ -17,6 +17,7 @@ Nmm``; length ``m mm um cm in`` (see :mod:`roboisf.io.units`).
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -26,14 +27,23 @@ from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
 from roboisf.io.atomic import atomic_write
-from roboisf.io.table import format_rows, read_table
-from roboisf.io.units import to_si
+from roboisf.io.table import (
+    LogTable,
+    finite_float,
+    format_rows,
+    read_log_table,
+    read_table,
+    split_name_unit,
+)
+from roboisf.io.units import log_unit_to_si, to_si
 from roboisf.toolpath.toolpath import Toolpath
 
 __all__ = [
     "FORCE_COLUMNS",
+    "FORCE_FORMATS",
     "ForceLog",
     "attach_to_toolpath",
+    "detect_force_format",
     "read_force_log",
     "window_average",
     "write_force_log",
@@ -56,6 +66,10 @@ class ForceLog:
     frame : str — name of the frame the wrench is expressed in (e.g. "sensor", "dynamometer")
     path : Path | None — the file it was read from
     position : (N, 3) float, m, optional — tool-tip position per sample (work frame)
+    moments_known : bool — False for a log without (all three) moment channels (a 3-component
+        dynamometer): its Mx, My, Mz are zeros standing for "not measured", and the analysis
+        takes the load as a point force at the tool tip (``docs/study.md``, logs)
+    profile : str — the format it was read as ("roboisf", "ati", "kistler", "dyno3", ...)
     """
 
     time: F64
@@ -63,6 +77,8 @@ class ForceLog:
     frame: str
     path: Path | None = None
     position: F64 | None = None
+    moments_known: bool = True
+    profile: str = "roboisf"
 
     def __post_init__(self) -> None:
         t = np.asarray(self.time, dtype=float)
@@ -138,7 +154,7 @@ def _meta_line(path: Path, key: str) -> int | None:
     return None
 
 
-def read_force_log(
+def _read_roboisf_csv(
     path: str | Path,
     *,
     frame: str | None = None,
@@ -147,7 +163,7 @@ def read_force_log(
     moment_unit: str | None = None,
     length_unit: str | None = None,
 ) -> ForceLog:
-    """Read a force log CSV (see the module docstring) into SI.
+    """Read a roboisf force log CSV (see the module docstring) into SI.
 
     Units and frame come from the ``# units:`` / ``# frame:`` lines or from the arguments. A
     quantity declared in neither place, or declared differently in both, is an error: a force log
@@ -229,6 +245,311 @@ def read_force_log(
     return ForceLog(time, wrench, fr, path, position)
 
 
+# -- logs as instruments write them: profiles ---------------------------------------------------
+
+#: ``format`` values of a force log (study ``[runs.X.forces] format``).
+FORCE_FORMATS = ("auto", "roboisf", "ati", "kistler", "dyno3", "generic", "columns")
+
+_F = {f"F{a}": re.compile(rf"f ?{a}|force ?{a}") for a in "xyz"}
+_M = {f"M{a}": re.compile(rf"m ?{a}|moment ?{a}") for a in "xyz"}
+_T = {f"M{a}": re.compile(rf"t ?{a}|torque ?{a}") for a in "xyz"}
+_MT = {f"M{a}": re.compile(rf"[mt] ?{a}|moment ?{a}|torque ?{a}") for a in "xyz"}
+_TIME = {"time": re.compile(r"time|t|zeit|timestamp|seconds|sec|time stamp|elapsed time")}
+_RDT = {"rdt": re.compile(r"rdt ?sequence|rdtsequence")}
+_FORCES = tuple(_F)
+_MOMENTS = tuple(_M)
+
+_PROFILES: dict[str, tuple[dict[str, re.Pattern[str]], tuple[str, ...]]] = {
+    # name: (matchers, required)
+    "ati": ({**_RDT, **_F, **_T}, ("rdt", *_FORCES, *_MOMENTS)),
+    "generic": ({**_TIME, **_F, **_MT}, ("time", *_FORCES, *_MOMENTS)),
+    "kistler": ({**_TIME, **_F, **_M}, ("time", *_FORCES)),
+    "dyno3": ({**_TIME, **_F, **_MT}, ("time", *_FORCES)),
+}
+
+
+def _roboisf_header(path: Path) -> bool:
+    """The roboisf layout: ``# key: value`` lines, then exactly ``time,Fx,...`` (case-sensitive)."""
+    try:
+        with open(path, encoding="utf-8-sig") as fh:
+            for line in fh:
+                s = line.strip()
+                if s and not s.startswith("#"):
+                    cells = [c.strip() for c in s.split(",")]
+                    return cells[:7] == list(FORCE_COLUMNS)
+    except (OSError, UnicodeDecodeError):
+        return False
+    return False
+
+
+def _columns_matcher(columns: dict[str, str]) -> dict[str, re.Pattern[str]]:
+    known = ("time", *_FORCES, *_MOMENTS, "x", "y", "z")
+    out = {}
+    for k, v in columns.items():
+        if k not in known:
+            raise InputError(
+                f"unknown column key {k!r}; expected {', '.join(known)}", field=f"columns.{k}"
+            )
+        out[k] = re.compile(re.escape(split_name_unit(v)[0]))
+    return out
+
+
+def _open(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[str, LogTable | None]:
+    """(profile, parsed table); the roboisf CSV is left to its own reader (None)."""
+    if fmt not in FORCE_FORMATS:
+        raise InputError(f"format must be one of {', '.join(FORCE_FORMATS)}, got {fmt!r}", file=p)
+    if fmt == "columns" or columns:
+        if not columns:
+            raise InputError(
+                "format 'columns' needs a columns = {time = ..., Fx = ...} table", file=p
+            )
+        match = _columns_matcher(columns)
+        req = tuple(k for k in match if k in ("time", *_FORCES))
+        missing = [k for k in ("time", *_FORCES) if k not in match]
+        if missing:
+            raise InputError(
+                f"columns must name at least time, Fx, Fy, Fz (missing {', '.join(missing)})",
+                file=p,
+                field="columns",
+            )
+        return "columns", read_log_table(
+            p, match, req, what="force log", expected=", ".join(columns.values())
+        )
+    if fmt in ("auto", "roboisf") and _roboisf_header(p):
+        return "roboisf", None
+    if fmt == "roboisf":
+        raise InputError(
+            "not a roboisf force log: expected '# units:' / '# frame:' lines and the header "
+            'time,Fx,Fy,Fz,Mx,My,Mz (or set format = "auto")',
+            file=p,
+        )
+    order = ("ati", "generic", "dyno3") if fmt == "auto" else (fmt,)
+    last: InputError | None = None
+    for name in order:
+        match, req = _PROFILES[name]
+        try:
+            t = read_log_table(p, match, req, what="force log")
+        except InputError as e:
+            if "no header line" not in e.message:
+                raise
+            last = e
+            continue
+        got = [m for m in _MOMENTS if m in t.data]
+        if got and len(got) < 3:
+            miss = [m for m in _MOMENTS if m not in t.data]
+            raise InputError(
+                f"missing column(s) {', '.join(miss)}: the header has {', '.join(got)} but a "
+                "wrench needs all three moments (or none: a 3-component dynamometer); found "
+                f"{', '.join(t.columns)}",
+                file=p,
+                line=t.header_line,
+                field=miss[0],
+            )
+        if name == "dyno3" and got:
+            raise InputError(
+                "format 'dyno3' is a 3-component log but the file has moment columns", file=p
+            )
+        if fmt == "auto" and name == "generic" and t.separator == "tab" and t.preamble:
+            name = "kistler"  # a DynoWare-style export: free-text block, tab-separated
+        return name, t
+    assert last is not None
+    if fmt == "auto":
+        raise InputError(
+            "no force-log format recognised: expected a header naming time, Fx, Fy, Fz (and "
+            "Mx, My, Mz or Tx, Ty, Tz), an ATI Net F/T CSV, a Kistler DynoWare text export or "
+            'a roboisf log; for other names give columns = {time = "...", Fx = "...", ...} '
+            "in the study",
+            file=p,
+        )
+    raise last
+
+
+def detect_force_format(
+    path: str | Path, *, fmt: str = "auto", columns: dict[str, str] | None = None
+) -> tuple[str, dict[str, str], dict[str, str]]:
+    """Which profile reads a force log, and what it found.
+
+    Returns
+    -------
+    profile : str — "roboisf", "parquet", "ati", "kistler", "dyno3", "generic" or "columns"
+    columns : dict — canonical column ("time", "Fx" … "Mz", ATI's "rdt") → header cell as written
+    units : dict — quantity ("time", "force", "moment", "length") → unit as declared in the file
+        (``# units:`` line, header names, a units row, ATI's "Force Units:" lines); a quantity
+        missing here is not declared by the file
+
+    Raises
+    ------
+    InputError
+        no profile recognises the file (naming the file and what each expects).
+    """
+    p = Path(path)
+    if p.suffix.lower() == ".parquet":
+        from roboisf.io.logparquet import parquet_log_info
+
+        cols, units = parquet_log_info(p, kind="force_log")
+        return "parquet", cols, units
+    profile, t = _open(p, fmt, columns)
+    if t is None:
+        line = _meta_line(p, "units")
+        meta = _head_meta(p)
+        return (
+            "roboisf",
+            {k: k for k in FORCE_COLUMNS},
+            _parse_units(meta.get("units", ""), file=p, line=line),
+        )
+    return profile, _found(t), _file_units(t)
+
+
+def _head_meta(path: Path) -> dict[str, str]:
+    out: dict[str, str] = {}
+    with open(path, encoding="utf-8-sig") as fh:
+        for ln in fh:
+            s = ln.strip()
+            if s and not s.startswith("#"):
+                break
+            body = s.lstrip("#").strip()
+            if ":" in body:
+                k, _, v = body.partition(":")
+                out[k.strip().lower()] = v.strip()
+    return out
+
+
+def _found(t: LogTable) -> dict[str, str]:
+    return {c: t.columns[j] for c, j in t.col_index.items()}
+
+
+def _file_units(t: LogTable) -> dict[str, str]:
+    """Quantity → unit declared by the file (header names/units row, '# units:', ATI lines)."""
+    out: dict[str, str] = {}
+    if "units" in t.meta:
+        out.update(_parse_units(t.meta["units"], file=t.path, line=None))
+    for q, cols in (("time", ("time",)), ("force", _FORCES), ("moment", _MOMENTS)):
+        us = {t.units[c] for c in cols if c in t.units}
+        if len(us) == 1:
+            out.setdefault(q, us.pop())
+    for q, key in (("force", "force units"), ("moment", "torque units")):
+        if key in t.preamble:
+            out.setdefault(q, t.preamble[key])
+    return out
+
+
+def read_force_log(
+    path: str | Path,
+    *,
+    frame: str | None = None,
+    time_unit: str | None = None,
+    force_unit: str | None = None,
+    moment_unit: str | None = None,
+    length_unit: str | None = None,
+    fmt: str = "auto",
+    columns: dict[str, str] | None = None,
+) -> ForceLog:
+    """Read a force log into SI, as it comes from the instrument.
+
+    ``fmt`` (study key ``format``): ``"auto"`` tries, in order, a ``.parquet`` log
+    (:mod:`roboisf.io.logparquet`), the roboisf CSV (module docstring), an ATI Net F/T CSV, a
+    6-component table (time, Fx…Fz, Mx…Mz or Tx…Tz), a Kistler DynoWare text export and a
+    3-component dynamometer (time, Fx, Fy, Fz: moments unknown, ``moments_known=False``).
+    ``columns`` maps canonical names to the file's header cells for anything else.
+
+    Units come from the file (``# units:`` line, ``Fx [N]`` / ``Fx (N)`` header names, a units
+    row under the header, ATI's ``Force Units:`` / ``Torque Units:`` lines) or the arguments; a
+    quantity declared in neither, or differently in both, is an error — never a guess.
+
+    Raises
+    ------
+    InputError
+        naming file and line: no recognised header, undeclared/conflicting/unknown units or
+        frame, a cell that is not a number, NaN, time not strictly increasing.
+    """
+    p = Path(path)
+    given = {"time": time_unit, "force": force_unit, "moment": moment_unit, "length": length_unit}
+    if p.suffix.lower() == ".parquet":
+        from roboisf.io.logparquet import read_force_parquet
+
+        return read_force_parquet(p, frame=frame, given=given)
+    profile, t = _open(p, fmt, columns)
+    if t is None:
+        return _read_roboisf_csv(
+            p,
+            frame=frame,
+            time_unit=time_unit,
+            force_unit=force_unit,
+            moment_unit=moment_unit,
+            length_unit=length_unit,
+        )
+    declared = _file_units(t)
+    units: dict[str, float] = {}
+    has_m = all(m in t.data for m in _MOMENTS)
+    needed = ["force"] + (["moment"] if has_m else []) + ([] if profile == "ati" else ["time"])
+    qcols = {"time": ("time",), "force": _FORCES, "moment": _MOMENTS}
+    for q in needed:
+        b = given[q]
+        per_col = [t.units[c] for c in qcols[q] if c in t.units]
+        if len(per_col) == len(qcols[q]):  # every column says its unit in the header
+            for c in qcols[q]:
+                fc = log_unit_to_si(t.units[c], q, file=p, field=c)
+                if b is not None and fc != log_unit_to_si(b, q):
+                    raise InputError(
+                        f"{q} unit declared as {t.units[c]!r} in the file but {b!r} was given "
+                        "(study units for this log); remove one",
+                        file=p,
+                        line=t.header_line,
+                        field=c,
+                    )
+            continue
+        a = declared.get(q)
+        if a is not None and b is not None and log_unit_to_si(a, q) != log_unit_to_si(b, q):
+            raise InputError(
+                f"{q} unit declared as {a!r} in the file but {b!r} was given (study [units] or "
+                "the log's units); remove one",
+                file=p,
+                field="units",
+            )
+        u = a if a is not None else b
+        if u is None:
+            raise InputError(
+                f"{q} unit not declared: put it in the header ('Fx [N]'), a '# units: time=s "
+                f"force=N moment=N*m' line, or the study's units for this log",
+                file=p,
+                field="units",
+            )
+        units[q] = log_unit_to_si(u, q, file=p, field="units")
+
+    # per-column units in the header override the file-wide one (each converts on its own)
+    def col(c: str, q: str) -> F64:
+        f = log_unit_to_si(t.units[c], q, file=p, field=c) if c in t.units else units[q]
+        return t.data[c] * f
+
+    if profile == "ati":
+        rate_txt = t.preamble.get("rdt sample rate")
+        if rate_txt is None:
+            raise InputError(
+                "ATI log without the 'RDT Sample Rate:' line: the time axis is the RDT "
+                "sequence divided by that rate",
+                file=p,
+                field="rdt sample rate",
+            )
+        rate = finite_float(rate_txt, file=p, field="rdt sample rate")
+        if rate <= 0:
+            raise InputError(f"RDT Sample Rate must be > 0 Hz, got {rate_txt}", file=p)
+        seq = t.data["rdt"]
+        time = (seq - seq[0]) / rate
+    else:
+        time = col("time", "time")
+    if time.size > 1 and np.any(np.diff(time) <= 0):
+        r = int(np.argmax(np.diff(time) <= 0)) + 1
+        raise t.error(
+            f"time must strictly increase; sample {r} ({time[r]:g} s) follows {time[r - 1]:g} s",
+            r,
+            "rdt" if profile == "ati" else "time",
+        )
+    F = np.column_stack([col(c, "force") for c in _FORCES])
+    M = np.column_stack([col(c, "moment") for c in _MOMENTS]) if has_m else np.zeros_like(F)
+    fr = frame or t.meta.get("frame") or "sensor"
+    return ForceLog(time, np.hstack([F, M]), fr, p, None, moments_known=has_m, profile=profile)
+
+
 def write_force_log(
     log: ForceLog,
     path: str | Path,
@@ -237,12 +558,29 @@ def write_force_log(
     force_unit: str = "N",
     moment_unit: str = "N*m",
     length_unit: str = "mm",
+    profile: str = "roboisf",
 ) -> None:
-    """Write ``log`` as a force-log CSV in the given units (atomically).
+    """Write ``log`` as a force log (atomically): Parquet for a ``.parquet`` name (SI;
+    :mod:`roboisf.io.logparquet`), else a CSV in the given units.
 
-    Written at 1e-9 of the time unit and 10 significant digits for wrenches, so reading back
-    reproduces the log to ≈ 1e-9 relative.
+    The CSV is written at 1e-9 of the time unit and 10 significant digits for wrenches, so
+    reading back reproduces the log to ≈ 1e-9 relative.
+
+    ``profile`` writes the text as an instrument would (for synthetic cells and tests; units
+    fixed by the profile, N and N·m): ``"ati"`` — ATI's Net F/T demo CSV (uniform sampling
+    required; the reader's time axis then starts at 0 at the first sample), ``"kistler"`` — a
+    DynoWare-style tab-separated export with a units row and decimal commas, ``"dyno3"`` — a
+    3-component dynamometer (``time [s];Fx [N];Fy [N];Fz [N]``, moments dropped),
+    ``"generic"`` — ``time [s],Fx [N],…,Mz [N*m]``.
     """
+    if Path(path).suffix.lower() == ".parquet":
+        from roboisf.io.logparquet import write_force_parquet
+
+        write_force_parquet(log, path)
+        return
+    if profile != "roboisf":
+        _write_profile(log, Path(path), profile)
+        return
     s = {
         "time": to_si(time_unit, "time"),
         "force": to_si(force_unit, "force"),
@@ -262,6 +600,54 @@ def write_force_log(
         fh.write(f"# units: {units}\n# frame: {log.frame}\n")
         fh.write(",".join(cols) + "\n")
         fh.write(format_rows(np.column_stack(data), fmts))
+
+
+def _write_profile(log: ForceLog, path: Path, profile: str) -> None:
+    t, W = log.time, log.wrench
+    if profile == "ati":
+        dt = np.diff(t)
+        rate = 1.0 / float(np.median(dt)) if t.size > 1 else 1000.0
+        if t.size > 1 and np.max(np.abs(dt * rate - 1.0)) > 1e-6:
+            raise InputError(
+                "an ATI log is uniformly sampled (its time is RDT sequence / rate); this log's "
+                "sample spacing varies",
+                field="profile",
+            )
+        seq = np.rint(t * rate)
+        data = np.column_stack([seq, seq * 7, W])
+        rows = format_rows(data, ["%d", "%d"] + ["%.10g"] * 6).splitlines()
+        stamp = '","Mar 14, 2024 10:21:07 AM"'
+        head = (
+            "Start Time: 3/14/24 10:21 AM\n"
+            f"RDT Sample Rate: {rate:.12g}\n"
+            '"PLEASE NOTE: The sample rate is read from the Net F/T when the program starts."\n'
+            "Force Units: N\nCounts per Unit Force: 1000000.0\n"
+            "Torque Units: Nm\nCounts per Unit Torque: 1000000.0\n"
+            "Status (hex), RDT Sequence, F/T Sequence, Fx, Fy, Fz, Tx, Ty, Tz, Time\n"
+        )
+        body = "\n".join('"0x0","' + r.replace(",", '","') + stamp for r in rows)
+    elif profile == "kistler":
+        rows_txt = format_rows(np.column_stack([t, W]), ["%.9f"] + ["%.10g"] * 6)
+        head = (
+            "DynoWare\troboisf synthetic export\nAbtastrate\t"
+            f"{(1.0 / float(np.median(np.diff(t)))) if t.size > 1 else 0:.6g}\n\n"
+            "Zeit\tFx\tFy\tFz\tMx\tMy\tMz\ns\tN\tN\tN\tNm\tNm\tNm\n"
+        )
+        body = rows_txt.replace(".", "#").replace(",", "\t").replace("#", ",").rstrip("\n")
+    elif profile == "dyno3":
+        head = "Time [s];Fx [N];Fy [N];Fz [N]\n"
+        rows_txt = format_rows(np.column_stack([t, W[:, :3]]), ["%.9f"] + ["%.10g"] * 3)
+        body = rows_txt.replace(",", ";").rstrip("\n")
+    elif profile == "generic":
+        head = "time [s],Fx [N],Fy [N],Fz [N],Mx [N*m],My [N*m],Mz [N*m]\n"
+        body = format_rows(np.column_stack([t, W]), ["%.9f"] + ["%.10g"] * 6).rstrip("\n")
+    else:
+        raise InputError(
+            f"profile must be roboisf, ati, kistler, dyno3 or generic, got {profile!r}",
+            field="profile",
+        )
+    with atomic_write(path) as fh:
+        fh.write(head + body + "\n")
 
 
 # -- attaching a log to toolpath points ---------------------------------------------------------

@@ -8,10 +8,18 @@ Format (the roboisf numeric-CSV layout of :mod:`roboisf.io.table`)::
 
 Angles in the **controller's convention** (as logged; see ``docs/robot.md``), degrees by default
 (``angle=rad`` accepted); time in s (``ms``/``min`` accepted). Inside roboisf: rad and s.
+
+Logs as controllers write them are read too (:func:`detect_joint_format`): any separator, decimal
+comma, a free-text header block, names in any case — ABB ``J1..J6``, KUKA ``A1..A6`` (also as in
+a KUKA trace's text export, ``AxisActPos A1 [°]``), ``q1..q6``, ``joint 1``/``axis 1`` — a time
+column ``time``/``t``/``timestamp``/``Zeit``, units in the header names (``[deg]``, ``(rad)``,
+``[°]``, ``[ms]``), a ``# units:`` line or given by the study. Unknown units are an error.
+A ``.parquet`` name is a Parquet joint log (:mod:`roboisf.io.logparquet`).
 """
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,10 +28,35 @@ from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
 from roboisf.io.atomic import atomic_write
-from roboisf.io.table import format_rows, read_table
-from roboisf.io.units import to_si
+from roboisf.io.table import LogTable, format_rows, read_log_table, read_table, split_name_unit
+from roboisf.io.units import log_unit_to_si, to_si
 
-__all__ = ["JOINT_COLUMNS", "JointLog", "read_joint_log", "write_joint_log"]
+__all__ = [
+    "JOINT_COLUMNS",
+    "JOINT_FORMATS",
+    "JointLog",
+    "detect_joint_format",
+    "read_joint_log",
+    "write_joint_log",
+]
+
+#: ``format`` values of a joint log (study ``[runs.X.joints] format``).
+JOINT_FORMATS = ("auto", "roboisf", "abb", "kuka", "generic", "columns")
+_TIME = re.compile(r"time|t|zeit|timestamp|time stamp|sec|seconds|elapsed time")
+_PREFIX = {
+    "abb": r"j|joint ?",
+    "kuka": r"a|axis ?|(?:.* )?a",  # A1, axis 1, "AxisActPos A1" (KUKA trace text export)
+    "generic": r"q|j|a|joint ?|axis ?|(?:.* )?a",
+}
+
+
+def _joint_match(profile: str) -> dict[str, re.Pattern[str]]:
+    pre = _PREFIX[profile]
+    return {
+        "time": _TIME,
+        **{f"q{i}": re.compile(rf"(?:{pre}) ?{i}") for i in range(1, 7)},
+    }
+
 
 F64 = NDArray[np.float64]
 JOINT_COLUMNS = ("time", "q1", "q2", "q3", "q4", "q5", "q6")
@@ -38,26 +71,177 @@ class JointLog:
     path: Path | None = None
 
 
-def read_joint_log(path: str | Path) -> JointLog:
-    """Read a joint log CSV into SI (errors name the file line)."""
+def _is_roboisf(path: Path) -> bool:
+    try:
+        with open(path, encoding="utf-8-sig") as fh:
+            for line in fh:
+                s = line.strip()
+                if s and not s.startswith("#"):
+                    return [c.strip() for c in s.split(",")] == list(JOINT_COLUMNS)
+    except (OSError, UnicodeDecodeError):
+        return False
+    return False
+
+
+def _file_units(t: LogTable) -> dict[str, str]:
+    out: dict[str, str] = {}
+    for tok in t.meta.get("units", "").split():
+        k, _, v = tok.partition("=")
+        if k in ("time", "angle") and v:
+            out[k] = v
+    if "time" in t.units:
+        out.setdefault("time", t.units["time"])
+    us = {t.units[f"q{i}"] for i in range(1, 7) if f"q{i}" in t.units}
+    if len(us) == 1:
+        out.setdefault("angle", us.pop())
+    elif len(us) > 1:
+        raise InputError(
+            f"joint columns declare different angle units {sorted(us)}", file=t.path, field="units"
+        )
+    return out
+
+
+def detect_joint_format(
+    path: str | Path, *, fmt: str = "auto", columns: dict[str, str] | None = None
+) -> tuple[str, dict[str, str], dict[str, str]]:
+    """Which profile reads a joint log: (profile, canonical column → header cell, quantity →
+    unit declared by the file). Profiles: "parquet", "roboisf", "abb" (J1..J6), "kuka" (A1..A6,
+    KUKA trace text export), "generic" (q1..q6, joint/axis N), "columns" (``columns`` given).
+
+    Raises
+    ------
+    InputError
+        no profile recognises the file.
+    """
     p = Path(path)
+    if fmt not in JOINT_FORMATS:
+        raise InputError(f"format must be one of {', '.join(JOINT_FORMATS)}, got {fmt!r}", file=p)
+    if p.suffix.lower() == ".parquet":
+        from roboisf.io.logparquet import parquet_log_info
+
+        cols, units = parquet_log_info(p, kind="joint_log")
+        return "parquet", cols, units
+    t = _read_text_log(p, fmt, columns)
+    profile = t[0]
+    tab = t[1]
+    return profile, {c: tab.columns[j] for c, j in tab.col_index.items()}, _file_units(tab)
+
+
+def _read_text_log(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[str, LogTable]:
+    req = JOINT_COLUMNS
+    if fmt == "columns" or columns:
+        if not columns or set(columns) != set(JOINT_COLUMNS):
+            raise InputError(
+                f"columns must map each of {', '.join(JOINT_COLUMNS)} to a header cell",
+                file=p,
+                field="columns",
+            )
+        match = {k: re.compile(re.escape(split_name_unit(v)[0])) for k, v in columns.items()}
+        return "columns", read_log_table(p, match, req, what="joint log")
+    if fmt in ("auto", "roboisf") and _is_roboisf(p):
+        match = {k: re.compile(k) for k in JOINT_COLUMNS}
+        return "roboisf", read_log_table(p, match, req, what="joint log")
+    if fmt == "roboisf":
+        raise InputError(
+            "not a roboisf joint log: expected '# units: time=s angle=deg' and the header "
+            'time,q1,...,q6 (or set format = "auto")',
+            file=p,
+        )
+    order = ("abb", "kuka", "generic") if fmt in ("auto", "roboisf") else (fmt,)
+    for name in order:
+        try:
+            return name, read_log_table(p, _joint_match(name), req, what="joint log")
+        except InputError as e:
+            if "no header line" not in e.message:
+                raise
+    raise InputError(
+        "no joint-log format recognised: expected a header naming a time column (time, t, "
+        "timestamp, Zeit) and six joints (q1..q6, ABB J1..J6, KUKA A1..A6); for other names "
+        'give columns = {time = "…", q1 = "…", …} in the study',
+        file=p,
+    )
+
+
+def read_joint_log(
+    path: str | Path,
+    *,
+    fmt: str = "auto",
+    columns: dict[str, str] | None = None,
+    time_unit: str | None = None,
+    angle_unit: str | None = None,
+) -> JointLog:
+    """Read a joint log into SI (errors name the file line); see the module docstring.
+
+    Units: the file's (``# units:`` line, header names such as ``A1 [°]``) or the arguments;
+    neither, or both disagreeing, is an error.
+    """
+    p = Path(path)
+    if p.suffix.lower() == ".parquet":
+        from roboisf.io.logparquet import read_joint_parquet
+
+        t_si, q_si = read_joint_parquet(p, {"time": time_unit, "angle": angle_unit})
+        if t_si.size > 1 and np.any(np.diff(t_si) <= 0):
+            raise InputError("time must increase strictly", file=p, field="time")
+        return JointLog(time=t_si, q=q_si, path=p)
+    if not (fmt in ("auto", "roboisf") and not columns and _is_roboisf(p)):
+        _, tab = _read_text_log(p, fmt, columns)
+        declared = _file_units(tab)
+        given = {"time": time_unit, "angle": angle_unit}
+        f = {}
+        for qty in ("time", "angle"):
+            a, b = declared.get(qty), given[qty]
+            if a is not None and b is not None and log_unit_to_si(a, qty) != log_unit_to_si(b, qty):
+                raise InputError(
+                    f"{qty} unit declared as {a!r} in the file but {b!r} was given; remove one",
+                    file=p,
+                    field="units",
+                )
+            u = a if a is not None else b
+            if u is None:
+                raise InputError(
+                    f"{qty} unit not declared: put it in the header ('A1 [deg]', 'time [s]'), a "
+                    "'# units: time=s angle=deg' line, or the study's units for this log",
+                    file=p,
+                    field="units",
+                )
+            f[qty] = log_unit_to_si(u, qty, file=p, field="units")
+        time = tab.data["time"] * f["time"]
+        if time.size > 1:
+            bad = np.flatnonzero(np.diff(time) <= 0)
+            if bad.size:
+                raise tab.error("time must increase strictly", int(bad[0]) + 1, "time")
+        q = np.column_stack([tab.data[f"q{i}"] for i in range(1, 7)]) * f["angle"]
+        return JointLog(time=time, q=q, path=p)
     t = read_table(p, JOINT_COLUMNS, what="joint log")
     units = {"time": "s", "angle": "deg"}
-    if "units" not in t.meta:
+    if "units" not in t.meta and angle_unit is None:
         raise InputError(
             "missing '# units: time=s angle=deg' line (angles must declare deg or rad)",
             file=p,
             field="units",
         )
-    for tok in t.meta["units"].split():
+    file_units: dict[str, str] = {}
+    for tok in t.meta.get("units", "").split():
         k, _, v = tok.partition("=")
         if k not in units or not v:
             raise InputError(
                 f"bad units entry {tok!r}; expected time=… angle=…", file=p, field="units"
             )
-        units[k] = v
-    ft = to_si(units["time"], "time", file=p, field="units.time")
-    fa = to_si(units["angle"], "angle", file=p, field="units.angle")
+        file_units[k] = v
+    for k, g_unit in (("time", time_unit), ("angle", angle_unit)):
+        if g_unit is None:
+            continue
+        if k in file_units and to_si(file_units[k], k) != log_unit_to_si(g_unit, k):
+            raise InputError(
+                f"{k} unit declared as {file_units[k]!r} in the file but {g_unit!r} was given "
+                "(study units for this log); remove one",
+                file=p,
+                field="units",
+            )
+        file_units.setdefault(k, g_unit)
+    units.update(file_units)
+    ft = log_unit_to_si(units["time"], "time", file=p, field="units.time")
+    fa = log_unit_to_si(units["angle"], "angle", file=p, field="units.angle")
     time = t.column("time") * ft
     if time.size > 1:
         bad = np.flatnonzero(np.diff(time) <= 0)
@@ -69,12 +253,39 @@ def read_joint_log(path: str | Path) -> JointLog:
     return JointLog(time=time, q=q, path=p)
 
 
-def write_joint_log(path: str | Path, time: ArrayLike, q: ArrayLike) -> None:
-    """Write ``time`` (N,) s and ``q`` (N, 6) rad as a joint log (deg), atomically."""
+def write_joint_log(
+    path: str | Path, time: ArrayLike, q: ArrayLike, *, profile: str = "roboisf"
+) -> None:
+    """Write ``time`` (N,) s and ``q`` (N, 6) rad as a joint log, atomically: Parquet (SI) for a
+    ``.parquet`` name, else the roboisf CSV in degrees — or, with ``profile``, as a controller
+    would: ``"abb"`` (``Time [s],J1 [deg],…``) or ``"kuka"`` (a trace text export: description
+    lines, ``Time [ms];AxisActPos A1 [°];…``, decimal commas)."""
     tt = np.asarray(time, dtype=float).reshape(-1)
     qq = np.asarray(q, dtype=float)
     if qq.shape != (tt.size, 6):
         raise InputError(f"expected q of shape ({tt.size}, 6), got {qq.shape}", field="q")
+    if Path(path).suffix.lower() == ".parquet":
+        from roboisf.io.logparquet import write_joint_parquet
+
+        write_joint_parquet(path, tt, qq)
+        return
+    if profile == "abb":
+        head = "Time [s]," + ",".join(f"J{i} [deg]" for i in range(1, 7)) + "\n"
+        rows = format_rows(np.column_stack([tt, np.degrees(qq)]), ["%.6f"] + ["%.9f"] * 6)
+        with atomic_write(path) as f:
+            f.write(head + rows)
+        return
+    if profile == "kuka":
+        head = (
+            "Trace: roboisf synthetic\nController: KRC4\n"
+            "Time [ms];" + ";".join(f"AxisActPos A{i} [°]" for i in range(1, 7)) + "\n"
+        )
+        rows = format_rows(np.column_stack([tt * 1e3, np.degrees(qq)]), ["%.3f"] + ["%.9f"] * 6)
+        with atomic_write(path) as f:
+            f.write(head + rows.replace(".", "#").replace(",", ";").replace("#", ","))
+        return
+    if profile != "roboisf":
+        raise InputError(f"profile must be roboisf, abb or kuka, got {profile!r}", field="profile")
     data = np.column_stack([tt, np.degrees(qq)])
     body = "# units: time=s angle=deg\n" + ",".join(JOINT_COLUMNS) + "\n"
     body += format_rows(data, ["%.6f"] + ["%.9f"] * 6)

@@ -1,11 +1,17 @@
-"""Numeric CSV tables with leading ``# key: value`` metadata lines (the roboisf exchange format).
+"""Numeric CSV tables with leading ``# key: value`` metadata lines (the roboisf exchange format),
+and logs as instruments write them (:func:`read_log_table`).
 
-Layout of every such file::
+Layout of every roboisf table::
 
     # key: value          ← optional metadata, only before the header
     # another: value
-    col_a,col_b,col_c     ← header (column names, case-sensitive, any order)
+    col_a,col_b,col_c     ← header (column names in any case, any order)
     1.0,2.0,3.0           ← numeric rows; blank lines are skipped
+
+Read with pandas' C parser. Also accepted, as spreadsheets and instruments write them: a
+semicolon or tab separator (taken from the header line), a decimal comma (with a separator
+other than the comma), a UTF-8 byte-order mark, and lines of free text before the header (the
+header is the first line naming a known column).
 
 :func:`read_table` parses it once, vectorised, and reports the first bad row with its **file line
 number** (1-based, counting every physical line of the file): rows with a wrong number of
@@ -19,7 +25,7 @@ import io
 import math
 import re
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -31,7 +37,15 @@ from numpy.typing import NDArray
 from roboisf.errors import InputError
 from roboisf.io.text import read_text
 
-__all__ = ["Table", "format_rows", "read_table"]
+__all__ = [
+    "LogTable",
+    "Table",
+    "find_log_header",
+    "format_rows",
+    "read_log_table",
+    "read_table",
+    "split_name_unit",
+]
 
 F64 = NDArray[np.float64]
 
@@ -97,7 +111,8 @@ def read_table(
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{what} not found", file=path)
-    raw = _head(path, what)  # metadata and header only; the body is parsed in C below
+    known = [*required, *optional]
+    raw = _head(path, what, known)  # metadata, free text and header; the body is parsed in C
     meta: dict[str, str] = {}
     i = 0
     while i < len(raw):
@@ -106,6 +121,9 @@ def read_table(
             i += 1
             continue
         if not s.startswith("#"):
+            if i < len(raw) - 1:  # free text before the header (an instrument's preamble)
+                i += 1
+                continue
             break
         comment = s.lstrip("#").strip()
         if ":" in comment:
@@ -125,7 +143,11 @@ def read_table(
             f"{what} is empty; expected a header {','.join(required)} and data rows", file=path
         )
     header_line = i + 1
-    columns = tuple(c.strip() for c in raw[i].split(","))
+    sep = _table_sep(raw[i])
+    # names in any case, quotes stripped; written as the reader's callers know them
+    by_lower = {k.lower(): k for k in known}
+    cells = [c.strip().strip('"').strip() for c in raw[i].split(sep)]
+    columns = tuple(by_lower.get(c.lower(), c) for c in cells)
     dup = {c for c in columns if columns.count(c) > 1}
     if dup:
         raise InputError(
@@ -141,8 +163,7 @@ def read_table(
             field=missing[0],
         )
     if not allow_extra:
-        known = set(required) | set(optional)
-        extra = [c for c in columns if c not in known]
+        extra = [c for c in columns if c not in set(known)]
         if extra:
             raise InputError(
                 f"unknown column(s) {', '.join(extra)}; expected {','.join(required)}"
@@ -151,7 +172,8 @@ def read_table(
                 line=header_line,
                 field=extra[0],
             )
-    fast = _fast_body(path, header_line, len(columns))
+    decimal = _table_decimal(path, header_line, sep)
+    fast = _fast_body(path, header_line, len(columns), sep, decimal)
     if fast is not None:
         n = fast.shape[0]
         lines_fast = np.arange(header_line + 1, header_line + 1 + n, dtype=np.int64)
@@ -164,7 +186,7 @@ def read_table(
     lines = np.asarray(body_idx, dtype=np.int64) + 1
     body = [raw[j] for j in body_idx]
     k = len(columns)
-    counts = np.fromiter((ln.count(",") + 1 for ln in body), dtype=np.int64, count=len(body))
+    counts = np.fromiter((ln.count(sep) + 1 for ln in body), dtype=np.int64, count=len(body))
     if np.any(counts != k):
         r = int(np.argmax(counts != k))
         if body[r].lstrip().startswith("#"):
@@ -182,6 +204,8 @@ def read_table(
         data = pd.read_csv(
             io.StringIO("\n".join(body)),
             header=None,
+            sep=sep,
+            decimal=decimal,
             dtype=np.float64,
             engine="c",
             skip_blank_lines=False,
@@ -189,10 +213,10 @@ def read_table(
         ).to_numpy()
     except ValueError:
         data = np.empty((len(body), k))
-        for r, row in enumerate(ln.split(",") for ln in body):
+        for r, row in enumerate(ln.split(sep) for ln in body):
             for c, cell in enumerate(row):
                 try:
-                    data[r, c] = float(cell)
+                    data[r, c] = float(cell.replace(",", ".") if decimal == "," else cell)
                 except ValueError:
                     raise InputError(
                         f"not a number: {cell.strip()!r}",
@@ -210,6 +234,26 @@ def read_table(
             field=columns[c],
         )
     return Table(path, meta, columns, data, lines, header_line)
+
+
+def _table_sep(header: str) -> str:
+    """The separator of a table's header: comma, else semicolon, else tab."""
+    for sep in (",", ";", "\t"):
+        if sep in header:
+            return sep
+    return ","
+
+
+def _table_decimal(path: Path, header_line: int, sep: str) -> str:
+    """ "," when the separator is not a comma and the first data row has a decimal comma."""
+    if sep == ",":
+        return "."
+    with open(path, encoding="utf-8-sig", errors="replace") as fh:
+        for n, line in enumerate(fh, start=1):
+            if n > header_line and line.strip():
+                cells = [c.strip() for c in line.split(sep)]
+                return "," if any(_DECIMAL_COMMA.match(c) for c in cells) else "."
+    return "."
 
 
 _FMT = re.compile(r"%\.(\d+)([fge])|%d")
@@ -239,23 +283,37 @@ def _round_column(col: F64, fmt: str) -> F64 | NDArray[np.int64]:
     return out
 
 
-def _head(path: Path, what: str) -> list[str]:
-    """The file's lines up to and including the first non-blank, non-comment line."""
+def _head(path: Path, what: str, known: Sequence[str] = ()) -> list[str]:
+    """The file's lines up to and including the header: the first non-blank, non-comment line
+    that names a known column (case-insensitive), within the first 200 lines — lines of free
+    text before it are an instrument's preamble; without such a line, the first non-comment
+    line (the caller then names what is missing)."""
     out: list[str] = []
+    first: int | None = None
+    names = {k.lower() for k in known}
     try:
         with open(path, encoding="utf-8-sig") as fh:
-            for line in fh:
+            for n, line in enumerate(fh):
                 out.append(line.rstrip("\r\n"))
                 s = line.strip()
-                if s and not s.startswith("#"):
+                if not s or s.startswith("#"):
+                    continue
+                if first is None:
+                    first = n
+                cells = {c.strip().strip('"').strip().lower() for c in re.split(r"[,;\t]", s)}
+                if not names or cells & names:
+                    return out
+                if n >= 200:
                     break
     except UnicodeDecodeError:
         read_text(path, what=what)  # raises, naming the line and byte offset
         raise  # pragma: no cover - read_text raised above
-    return out
+    return out[: first + 1] if first is not None else out
 
 
-def _fast_body(path: Path, header_line: int, k: int) -> F64 | None:
+def _fast_body(
+    path: Path, header_line: int, k: int, sep: str = ",", decimal: str = "."
+) -> F64 | None:
     """All rows after the header through pandas' C parser, or None when anything is off
     (a blank or comment line, a wrong cell count, a non-number, NaN/inf): the careful reader
     then finds the line to name. Trailing blank lines are fine."""
@@ -264,6 +322,8 @@ def _fast_body(path: Path, header_line: int, k: int) -> F64 | None:
             path,
             skiprows=header_line,
             header=None,
+            sep=sep,
+            decimal=decimal,
             dtype=np.float64,
             engine="c",
             skip_blank_lines=False,
@@ -308,3 +368,328 @@ def finite_float(text: str, *, file: str | Path | None = None, field: str | None
     if not math.isfinite(v):
         raise InputError(f"expected a finite number, got {text!r}", file=file, field=field)
     return v
+
+
+# -- logs as instruments write them ------------------------------------------------------------
+#
+# A logger's text export: a free-text block (instrument, date, sample rate, units), a header row
+# of channel names (any case, units in brackets allowed: "Fx [N]", "Fz (N)"), optionally a row
+# of units under it ("s  N  N  N"), then the numbers; any separator (comma, semicolon, tab,
+# whitespace), decimal point or decimal comma, quoted cells, a UTF-8 byte-order mark.
+
+_SEPARATORS: tuple[tuple[str, str], ...] = (
+    ("\t", "tab"),
+    (";", "semicolon"),
+    (",", "comma"),
+    (r"\s+", "whitespace"),
+)
+_UNIT_IN_NAME = re.compile(r"^(.*?)\s*(?:\[([^\]]*)\]|\(([^)]*)\)|/\s*([A-Za-z°µ·.*]+))\s*$")
+_DECIMAL_COMMA = re.compile(r"^[+-]?\d+,\d+(?:[eE][+-]?\d+)?$")
+
+
+def split_name_unit(cell: str) -> tuple[str, str | None]:
+    """``"Fx [N]"`` → ``("fx", "N")``; ``"Time (s)"`` → ``("time", "s")``; ``"q1"`` → ``("q1",
+    None)``. The name is lower-cased with runs of blanks and ``_`` folded to one space."""
+    s = cell.strip().strip('"').strip()
+    unit = None
+    m = _UNIT_IN_NAME.match(s)
+    if m and m.group(1):
+        s = m.group(1)
+        unit = next(g for g in m.groups()[1:] if g is not None).strip() or None
+    name = re.sub(r"[\s_]+", " ", s.strip().lower())
+    return name, unit
+
+
+def _split(line: str, sep: str) -> list[str]:
+    cells = re.split(sep, line.strip()) if sep == r"\s+" else line.split(sep)
+    return [c.strip().strip('"').strip() for c in cells]
+
+
+def _is_number(cell: str, decimal: str) -> bool:
+    c = cell.replace(decimal, ".") if decimal == "," else cell
+    try:
+        float(c)
+    except ValueError:
+        return False
+    return True
+
+
+@dataclass(frozen=True)
+class LogTable:
+    """A logger's text export, parsed (see :func:`read_log_table`).
+
+    Attributes
+    ----------
+    path : Path
+    meta : dict[str, str] — ``# key: value`` lines (keys lower-cased)
+    preamble : dict[str, str] — ``key: value`` / ``key<TAB>value`` lines of the free-text block
+        before the header (keys lower-cased, stripped)
+    columns : tuple[str, ...] — the header cells as written
+    names : tuple[str, ...] — the header names, normalised (:func:`split_name_unit`)
+    units : dict[str, str] — canonical column → unit declared in the header name or units row
+    data : dict[str, (N,) float] — canonical column → values in file units
+    lines : (N,) int — 1-based file line of each row
+    header_line : int — 1-based line of the header
+    separator : str — "comma" | "semicolon" | "tab" | "whitespace"
+    decimal : str — "." or ","
+    """
+
+    path: Path
+    meta: dict[str, str]
+    preamble: dict[str, str]
+    columns: tuple[str, ...]
+    names: tuple[str, ...]
+    units: dict[str, str]
+    data: dict[str, F64]
+    lines: NDArray[np.int64]
+    header_line: int
+    separator: str
+    decimal: str
+    col_index: dict[str, int] = field(default_factory=dict)
+
+    def error(self, message: str, row: int | None = None, field: str | None = None) -> InputError:
+        """An :class:`InputError` naming this file and the line of data row ``row`` (0-based)."""
+        line = int(self.lines[row]) if row is not None else None
+        return InputError(message, file=self.path, line=line, field=field)
+
+
+#: A column matcher: canonical name → a predicate on the normalised header name.
+ColumnMatch = dict[str, "re.Pattern[str]"]
+
+
+def _decode_log(path: Path, what: str) -> str:
+    try:
+        data = path.read_bytes()
+    except OSError as e:
+        raise InputError(f"cannot read {what}: {e.strerror}", file=path) from None
+    if b"\x00" in data[:4096] and not data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise InputError(
+            f"{what} is a binary file; expected a text export (CSV/TXT) or a .parquet log",
+            file=path,
+        )
+    try:
+        from roboisf.io.text import decode_utf8
+
+        return decode_utf8(data, file=path, what=what)
+    except InputError:
+        if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+            raise
+        # Windows loggers (DynoWare, KUKA WorkVisual) write cp1252: "°", "µ"; every byte decodes
+        return data.decode("cp1252", errors="replace")
+
+
+def find_log_header(
+    lines: Sequence[str], match: ColumnMatch, required: Sequence[str], *, max_lines: int = 400
+) -> tuple[int, str, dict[str, int]] | None:
+    """The first line (0-based index) whose cells, split by one of the separators, name every
+    ``required`` canonical column; with that separator's name and the column index of each
+    matched canonical column. None if no such line within ``max_lines``."""
+    for i, line in enumerate(lines[:max_lines]):
+        s = line.strip()
+        if not s or s.startswith("#"):
+            continue
+        for sep, sep_name in _SEPARATORS:
+            cells = _split(s, sep)
+            if len(cells) < 2:
+                continue
+            names = [split_name_unit(c)[0] for c in cells]
+            found: dict[str, int] = {}
+            for canon, pat in match.items():
+                for j, nm in enumerate(names):
+                    if j not in found.values() and pat.fullmatch(nm):
+                        found[canon] = j
+                        break
+            if all(r in found for r in required):
+                return i, sep_name, found
+    return None
+
+
+def read_log_table(
+    path: str | Path,
+    match: ColumnMatch,
+    required: Sequence[str],
+    *,
+    what: str = "log",
+    expected: str = "",
+) -> LogTable:
+    """Read a logger's text export: find the header naming every ``required`` column (matched
+    by the regular expressions of ``match`` on the normalised names), sniff the separator and
+    the decimal mark, and parse the matched columns with pandas' C parser (other columns, such
+    as a status word or a date string, are ignored).
+
+    Parameters
+    ----------
+    path : the file
+    match : canonical column → compiled pattern that the normalised header name must fullmatch
+    required : canonical columns that must be found
+    what : what the file is, for messages ("force log")
+    expected : a description of the expected header, for the message when none is found
+
+    Raises
+    ------
+    InputError
+        no header line naming the required columns (the message lists what was expected and
+        the first header-like line seen), a row with too few cells, a cell that is not a number,
+        NaN or inf — naming file, line and column.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{what} not found", file=path)
+    text = _decode_log(path, what)
+    raw = text.splitlines()
+    found = find_log_header(raw, match, required)
+    if found is None:
+        first = next((x.strip() for x in raw if x.strip() and not x.lstrip().startswith("#")), "")
+        raise InputError(
+            f"no header line naming the columns {expected or ', '.join(required)} (case and "
+            "units in brackets do not matter; separator comma, semicolon, tab or blanks); "
+            f"first line seen: {first[:80]!r}",
+            file=path,
+        )
+    hi, sep_name, idx = found
+    sep = dict((n, s) for s, n in _SEPARATORS)[sep_name]
+    header_cells = _split(raw[hi].strip(), sep)
+    names_units = [split_name_unit(c) for c in header_cells]
+    meta: dict[str, str] = {}
+    preamble: dict[str, str] = {}
+    for j in range(hi):
+        s = raw[j].strip()
+        if not s:
+            continue
+        if s.startswith("#"):
+            body = s.lstrip("#").strip()
+            if ":" in body:
+                k, _, v = body.partition(":")
+                meta[k.strip().lower()] = v.strip()
+            continue
+        s = s.strip('"')
+        for delim in (":", "\t", "=", ";", ","):
+            if delim in s:
+                k, _, v = s.partition(delim)
+                if k.strip():
+                    preamble.setdefault(k.strip().lower(), v.strip().strip('"').strip())
+                break
+    units = {c: u for c, j in idx.items() if (u := names_units[j][1]) is not None}
+    # data rows: blank lines skipped; an optional units row right under the header
+    body_idx = [j for j in range(hi + 1, len(raw)) if raw[j].strip()]
+    if not body_idx:
+        raise InputError(f"{what} has a header but no data rows", file=path, line=hi + 1)
+    first_cells = _split(raw[body_idx[0]], sep)
+    cols = sorted(idx.values())
+    probe = [first_cells[j] for j in cols if j < len(first_cells)]
+    if probe and not any(_is_number(c, ".") or _is_number(c, ",") for c in probe):
+        for canon, j in idx.items():
+            if j < len(first_cells) and first_cells[j]:
+                u = first_cells[j].strip("[]() ")
+                if canon in units and units[canon] != u:
+                    raise InputError(
+                        f"column {header_cells[j]!r} declares unit {units[canon]!r} in its name "
+                        f"but {u!r} in the units row",
+                        file=path,
+                        line=body_idx[0] + 1,
+                        field=canon,
+                    )
+                units[canon] = u
+        body_idx = body_idx[1:]
+        if not body_idx:
+            raise InputError(f"{what} has a header but no data rows", file=path, line=hi + 1)
+    sample = [_split(raw[j], sep) for j in body_idx[:50]]
+    decimal = "."
+    if sep != ",":
+        cells = [r[j] for r in sample for j in cols if j < len(r)]
+        if any(_DECIMAL_COMMA.match(c) for c in cells):
+            decimal = ","
+    lines = np.asarray(body_idx, dtype=np.int64) + 1
+    body = "\n".join(raw[j] for j in body_idx)
+    ncol = len(header_cells)
+    data = _parse_log_body(path, body, sep, decimal, cols, ncol)
+    if data is None or not np.all(np.isfinite(data)):
+        # name the short row or the cell that is not a number (a literal nan/inf is kept and
+        # reported below)
+        data = _locate_bad_cell(path, raw, body_idx, sep, decimal, idx, header_cells)
+    out = {canon: data[:, cols.index(j)] for canon, j in idx.items()}
+    finite = np.column_stack(list(out.values()))
+    ok = np.isfinite(finite)
+    if not ok.all():
+        r, c = np.argwhere(~ok)[0]
+        canon = list(out)[c]
+        raise InputError(
+            f"{finite[r, c]} is not a finite number", file=path, line=int(lines[r]), field=canon
+        )
+    return LogTable(
+        path,
+        meta,
+        preamble,
+        tuple(header_cells),
+        tuple(n for n, _ in names_units),
+        units,
+        out,
+        lines,
+        hi + 1,
+        sep_name,
+        decimal,
+        dict(idx),
+    )
+
+
+def _parse_log_body(
+    path: Path, body: str, sep: str, decimal: str, cols: list[int], ncol: int
+) -> F64 | None:
+    """The matched columns through pandas' C parser (python engine for a regex separator), or
+    None when anything is off: the careful pass then names the line."""
+    try:
+        df = pd.read_csv(
+            io.StringIO(body),
+            sep=sep,
+            decimal=decimal,
+            header=None,
+            names=list(range(ncol)),
+            usecols=cols,
+            dtype=np.float64,
+            engine="python" if sep == r"\s+" else "c",
+            quotechar='"',
+            skipinitialspace=True,
+            na_filter=False,
+            index_col=False,
+        )
+    except (ValueError, pd.errors.ParserError, pd.errors.EmptyDataError):
+        return None
+    arr = df.to_numpy()
+    if arr.ndim != 2 or arr.shape[1] != len(cols):
+        return None
+    return arr
+
+
+def _locate_bad_cell(
+    path: Path,
+    raw: list[str],
+    body_idx: list[int],
+    sep: str,
+    decimal: str,
+    idx: dict[str, int],
+    header_cells: list[str],
+) -> F64:
+    cols = sorted(idx.values())
+    canon_of = {j: c for c, j in idx.items()}
+    out = np.empty((len(body_idx), len(cols)))
+    for r, j in enumerate(body_idx):
+        cells = _split(raw[j], sep)
+        if len(cells) <= cols[-1]:
+            raise InputError(
+                f"expected at least {cols[-1] + 1} cells ({', '.join(header_cells)}), got "
+                f"{len(cells)}",
+                file=path,
+                line=j + 1,
+            )
+        for k, c in enumerate(cols):
+            cell = cells[c].replace(",", ".") if decimal == "," else cells[c]
+            try:
+                out[r, k] = float(cell)
+            except ValueError:
+                raise InputError(
+                    f"not a number: {cells[c]!r} (decimal mark {decimal!r})",
+                    file=path,
+                    line=j + 1,
+                    field=canon_of[c],
+                ) from None
+    return out

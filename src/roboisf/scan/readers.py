@@ -11,6 +11,14 @@ Library choices (one per format, for memory and robustness):
 * **XYZ/CSV/TXT** — ``pandas.read_csv`` (C engine): the fastest robust text parser at hand; the
   delimiter (comma, semicolon, tab or spaces) and an optional header (``x,y,z[,nx,ny,nz]``) are
   detected.
+  A Leica ``.pts`` count line (one integer before the points) is checked against the number of
+  points read, and its intensity/RGB columns are ignored; a decimal comma (``1,5;2,5;3,5`` or
+  ``1,5 2,5 3,5``) is detected from the first data row.
+* **E57** — ``pye57`` (optional extra ``roboisf[scan-formats]``): every scan in the file, with
+  its pose applied (points in the file's common frame). E57 coordinates are metres by the
+  standard (ASTM E2807), so the declared ``unit`` does not apply and the cloud is in m.
+* **LAS/LAZ** — ``laspy`` (same extra; LAZ also needs its ``lazrs`` backend): the scaled
+  coordinates, in the declared ``unit`` (LAS carries no length unit of its own).
 * **STL/OBJ** (and PLY meshes as nominals) — ``trimesh``: ascii and binary STL, OBJ with any
   polygons (triangulated), merged vertices. Scans exported as meshes give their vertices, or
   ``sample`` points drawn uniformly over the faces.
@@ -52,6 +60,9 @@ SCAN_FORMATS = {
     ".txt": "xyz",
     ".asc": "xyz",
     ".pts": "xyz",
+    ".e57": "e57",
+    ".las": "las",
+    ".laz": "las",
     ".stl": "mesh",
     ".obj": "mesh",
 }
@@ -132,6 +143,11 @@ def read_scan(
         pts, normals = _read_pcd(path)
     elif fmt == "xyz":
         pts, normals = _read_xyz(path)
+    elif fmt == "e57":
+        pts, normals = _read_e57(path), None
+        scale, unit = 1.0, "m"  # metres by the E57 standard
+    elif fmt == "las":
+        pts, normals = _read_las(path), None
     else:
         V, F = read_mesh(path, unit="m")
         if sample:
@@ -477,14 +493,25 @@ def _read_xyz(path: Path) -> tuple[F64, F64 | None]:
             skip += 1
     if first is None:
         raise InputError("point list has no data (only blank or comment lines)", file=path)
-    if "," in first:
-        sep = ","
-    elif ";" in first:
-        sep = ";"
-    else:
-        sep = r"\s+"
-    tokens = [t for t in re.split(sep if sep != r"\s+" else r"\s+", first) if t != ""]
-    has_header = not all(_NUM.match(t.strip()) for t in tokens)
+    count = None
+    if re.fullmatch(r"\d+", first):
+        # Leica PTS: the number of points on a line of its own, then x y z [i [r g b]]
+        count = int(first)
+        skip += 1
+        first = None
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            for i, line in enumerate(fh):
+                if i >= skip and line.strip():
+                    first = line.strip()
+                    break
+                if i >= skip:
+                    skip += 1
+        if first is None:
+            raise InputError(f"PTS count line says {count} points but none follow", file=path)
+    pts_like = count is not None or path.suffix.lower() == ".pts"
+    sep, decimal = _sniff_xyz(first)
+    tokens = [t for t in re.split(sep, first.strip()) if t != ""]
+    has_header = not all(_NUM.match(t.strip().replace(",", ".")) for t in tokens)
     names = [t.strip().lower() for t in tokens] if has_header else None
     if has_header:
         assert names is not None
@@ -503,11 +530,18 @@ def _read_xyz(path: Path) -> tuple[F64, F64 | None]:
             raise InputError(
                 f"expected at least 3 columns x y z, got {len(tokens)}", file=path, line=skip + 1
             )
-        usecols = list(range(6 if len(tokens) >= 6 else 3))
+        usecols = list(range(6 if len(tokens) >= 6 and not pts_like else 3))
+    if has_header and decimal == ".":
+        # the header does not tell the decimal mark: the first data row does
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            rows = [ln for i, ln in enumerate(fh) if i > skip and ln.strip()][:1]
+        if rows and sep != ",":
+            decimal = _sniff_xyz(rows[0].strip())[1]
     try:
         df = pd.read_csv(
             path,
             sep=sep,
+            decimal=decimal,
             header=None,
             skiprows=skip + (1 if has_header else 0),
             usecols=usecols,
@@ -526,9 +560,90 @@ def _read_xyz(path: Path) -> tuple[F64, F64 | None]:
     arr = df[usecols].to_numpy()  # x, y, z[, nx, ny, nz] in that order
     if arr.shape[0] == 0:
         raise InputError("point list has a header but no data rows", file=path)
+    if count is not None and arr.shape[0] != count:
+        raise InputError(
+            f"PTS count line says {count} points but {arr.shape[0]} were read (a file of "
+            "several scans, each with its count line, is not supported: export one cloud)",
+            file=path,
+            line=1,
+        )
     pts = np.ascontiguousarray(arr[:, :3])
     normals = np.ascontiguousarray(arr[:, 3:6]) if arr.shape[1] >= 6 else None
     return pts, normals
+
+
+_DEC_COMMA = re.compile(r"^[+-]?\d+,\d*([eE][+-]?\d+)?$")
+
+
+def _sniff_xyz(line: str) -> tuple[str, str]:
+    """(separator regex/char, decimal mark) of a point-list row: ``;`` / tab / blanks with a
+    decimal comma or point, or ``,`` with a decimal point."""
+    for sep in (";", "\t", r"\s+", ","):
+        toks = [t for t in re.split(sep, line.strip()) if t != ""]
+        if len(toks) < 3:
+            continue
+        if all(_NUM.match(t.strip()) for t in toks):
+            return sep, "."
+        if sep != "," and all(_DEC_COMMA.match(t.strip()) or _NUM.match(t.strip()) for t in toks):
+            return sep, ","
+    if "," in line:
+        return ",", "."
+    if ";" in line:
+        return ";", "."
+    return r"\s+", "."
+
+
+def _optional(module: str, what: str, path: Path) -> object:
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise InputError(
+            f"reading {what} needs the Python package {module!r}: "
+            "pip install 'roboisf[scan-formats]'",
+            file=path,
+        ) from None
+
+
+def _read_e57(path: Path) -> F64:
+    pye57: object = _optional("pye57", "E57 scans", path)
+    try:
+        e57 = pye57.E57(str(path))  # type: ignore[attr-defined]
+        parts = []
+        for i in range(e57.scan_count):
+            d = e57.read_scan(i, ignore_missing_fields=True, transform=True)
+            if "cartesianX" not in d:
+                raise InputError(
+                    f"scan {i} has no cartesian coordinates (spherical-only E57 is not "
+                    "supported; export cartesian)",
+                    file=path,
+                )
+            parts.append(np.column_stack([d["cartesianX"], d["cartesianY"], d["cartesianZ"]]))
+    except InputError:
+        raise
+    except Exception as e:  # pye57 raises bare RuntimeError/ValueError on a bad file
+        raise InputError(f"not a readable E57 file: {e}", file=path) from None
+    if not parts:
+        raise InputError("E57 file holds no scan", file=path)
+    return np.ascontiguousarray(np.vstack(parts), dtype=np.float64)
+
+
+def _read_las(path: Path) -> F64:
+    laspy: object = _optional("laspy", "LAS/LAZ scans", path)
+    try:
+        las = laspy.read(str(path))  # type: ignore[attr-defined]
+    except Exception as e:  # laspy.LaspyException, or a missing LAZ backend
+        msg = str(e)
+        hint = " (LAZ needs a backend: pip install lazrs)" if "laz" in msg.lower() else ""
+        raise InputError(f"not a readable LAS/LAZ file: {msg}{hint}", file=path) from None
+    return np.column_stack(
+        [
+            np.asarray(las.x, dtype=float),
+            np.asarray(las.y, dtype=float),
+            np.asarray(las.z, dtype=float),
+        ]
+    )
 
 
 # -- meshes ---------------------------------------------------------------------------------------

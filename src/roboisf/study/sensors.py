@@ -15,14 +15,21 @@ on the tool (``docs/conventions.md``).
 
 from __future__ import annotations
 
+from dataclasses import replace
+from typing import TYPE_CHECKING
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roboisf.frames import invert, shift_wrench, transform_wrench
 from roboisf.frames.se3 import make_transform
-from roboisf.study.spec import ForceSensorSpec
+from roboisf.study.spec import ForceSensorSpec, RunSpec, Study
 
-__all__ = ["sensor_to_tip", "tip_to_sensor"]
+if TYPE_CHECKING:
+    from roboisf.io.forcelog import ForceLog
+    from roboisf.toolpath import Toolpath
+
+__all__ = ["condition_study_log", "read_study_force_log", "sensor_to_tip", "tip_to_sensor"]
 
 F64 = NDArray[np.float64]
 
@@ -56,3 +63,92 @@ def tip_to_sensor(
     R = np.asarray(R_work_tip, dtype=float)
     W_t = transform_wrench(W, make_transform(np.swapaxes(R, -1, -2)))
     return sign * transform_wrench(W_t, invert(sensor.pose))
+
+
+def _declared(path: object, key: str) -> bool:
+    try:
+        with open(str(path), encoding="utf-8", errors="replace") as fh:
+            for line in fh:
+                s = line.strip()
+                if not s.startswith("#"):
+                    return False
+                if s[1:].strip().lower().startswith(key + ":"):
+                    return True
+    except OSError:
+        return False
+    return False
+
+
+def read_study_force_log(study: Study, run: RunSpec) -> ForceLog:
+    """A run's force log as its ``[runs.X.forces]`` table says (format, columns, units).
+
+    Units: the table's ``units``; for a roboisf CSV without a ``# units:`` line, the study's
+    ``[units]`` (as before). Other formats take units from the file or the table only — the
+    study-wide defaults are never applied to an instrument's export (no guess).
+    """
+    from roboisf.io.forcelog import _roboisf_header, read_force_log
+
+    f = run.forces
+    u = dict(f.units or {})
+    is_roboisf = f.file.suffix.lower() != ".parquet" and (
+        f.format == "roboisf" or (f.format == "auto" and _roboisf_header(f.file))
+    )
+    if is_roboisf and not u and not _declared(f.file, "units"):
+        su = study.units
+        u = {"time": su.time, "force": su.force, "moment": su.moment}
+    frame = "sensor" if not (is_roboisf and _declared(f.file, "frame")) else None
+    return read_force_log(
+        f.file,
+        frame=frame,
+        time_unit=u.get("time"),
+        force_unit=u.get("force"),
+        moment_unit=u.get("moment"),
+        length_unit=u.get("length"),
+        fmt="auto" if f.format == "columns" else f.format,
+        columns=f.columns,
+    )
+
+
+def condition_study_log(
+    study: Study,
+    run: RunSpec,
+    log: ForceLog,
+    R_work_tip: ArrayLike,
+    *,
+    tp: Toolpath | None = None,
+    R_base_tip: ArrayLike | None = None,
+) -> tuple[ForceLog, list[str]]:
+    """Tare and gravity compensation of a run's log (``roboisf.sensor``), with its warnings.
+
+    The sensor's orientation in the world (gravity along −z of the robot base, or of the work
+    frame without a ``[robot]``): for a flange sensor ``R_base_tip(t) · R_tip_sensor`` with
+    ``R_base_tip`` the forward kinematics of the joints at the toolpath points (given with
+    ``tp``; each log sample takes the toolpath point it is matched to by time, samples before
+    the toolpath the first), else ``R_base_work · R_work_tip · R_tip_sensor`` (the toolpath's
+    tool orientation); ``R_base_work · R_work_sensor`` for a fixture sensor.
+    """
+    from roboisf.sensor import Conditioning, ToolLoad, condition_wrench
+
+    f = run.forces
+    R_bw = study.robot.T_base_work[:3, :3] if study.robot is not None else np.eye(3)
+    R: F64
+    if f.mount == "flange" and R_base_tip is not None and tp is not None:
+        Rp = np.asarray(R_base_tip, dtype=float) @ f.pose[:3, :3]
+        k = np.searchsorted(tp.time + f.time_offset, log.time, side="right") - 1
+        R = Rp[np.clip(k, 0, len(Rp) - 1)]
+    elif f.mount == "flange":
+        R = R_bw @ np.asarray(R_work_tip, dtype=float) @ f.pose[:3, :3]
+    else:
+        R = R_bw @ f.pose[:3, :3]
+    tool = None
+    if f.tool_mass is not None and f.tool_cog is not None:
+        tool = ToolLoad(f.tool_mass, np.asarray(f.tool_cog), np.zeros(6))
+    cond = (
+        Conditioning(f.tare, tool)
+        if isinstance(f.tare, tuple)
+        else Conditioning("auto" if f.tare == "auto" else "none", tool)
+    )
+    W, notes, _ = condition_wrench(log.time, log.wrench, cond, R_world_sensor=R, file=f.file)
+    if not log.moments_known:
+        W[:, 3:] = 0.0
+    return replace(log, wrench=W), notes

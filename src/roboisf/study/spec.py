@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal, cast
 
@@ -136,6 +136,16 @@ class ForceSensorSpec:
     pose: F64
     load_on: Literal["tool", "workpiece"]
     time_offset: float = 0.0
+    #: the log's format (``roboisf.io.forcelog.FORCE_FORMATS``), header names for "columns",
+    #: and its units (quantity → unit) when the file does not declare them
+    format: str = "auto"
+    columns: dict[str, str] | None = None
+    units: dict[str, str] | None = None
+    #: conditioning (``roboisf.sensor``): "none" | "auto" | (t0, t1) s on the log's clock;
+    #: mass below a flange sensor (kg) and its centre of gravity in the sensor frame (m)
+    tare: str | tuple[float, float] = "none"
+    tool_mass: float | None = None
+    tool_cog: tuple[float, float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -154,6 +164,10 @@ class RunSpec:
     toolpath_format: str = "auto"
     #: the point a CAM program names: "tip" | "center"
     toolpath_point: str = "tip"
+    #: a joint log given as a table: its format, header names and units
+    joints_format: str = "auto"
+    joints_columns: dict[str, str] | None = None
+    joints_units: dict[str, str] | None = None
 
 
 @dataclass(frozen=True)
@@ -336,8 +350,9 @@ def _forces(c: _Collector, root: Path, t: Any, key: str, machine: str) -> ForceS
     if not isinstance(t, dict):
         c.add("expected a table {file, mount, pose, load_on}", key)
         return None
-    for k in sorted(set(t) - {"file", "mount", "pose", "load_on", "time_offset"}):
-        c.add("unknown key; expected file, mount, pose, load_on, time_offset", f"{key}.{k}")
+    allowed = {"file", "mount", "pose", "load_on", "time_offset", *_LOG_KEYS, *_COND_KEYS}
+    for k in sorted(set(t) - allowed):
+        c.add(f"unknown key; expected {', '.join(sorted(allowed))}", f"{key}.{k}")
     f = c.path(root, t, key, "file")
     mount = c.choice(
         t, key, "mount", ("fixture", "flange"), default="fixture" if machine == "cnc" else "flange"
@@ -362,9 +377,122 @@ def _forces(c: _Collector, root: Path, t: Any, key: str, machine: str) -> ForceS
         except InputError as e:
             c.catch(e, f"{key}.pose")
     off = c.number(t, key, "time_offset", default=0.0)
+    from roboisf.io.forcelog import FORCE_FORMATS
+
+    fmt, cols, units = _log_keys(c, t, key, FORCE_FORMATS, ("time", "force", "moment", "length"))
+    tare, mass, cog = _conditioning(c, t, key, mount)
     if f is None or pose is None or mount is None or load_on is None or off is None:
         return None
-    return ForceSensorSpec(f, mount, pose, load_on, off)  # type: ignore[arg-type]
+    return ForceSensorSpec(
+        f,
+        mount,  # type: ignore[arg-type]
+        pose,
+        load_on,  # type: ignore[arg-type]
+        off,
+        fmt,
+        cols,
+        units,
+        tare,
+        mass,
+        cog,
+    )
+
+
+_LOG_KEYS = ("format", "columns", "units")
+_COND_KEYS = ("tare", "tool_mass", "tool_cog")
+
+
+def _log_keys(
+    c: _Collector,
+    t: dict[str, Any],
+    key: str,
+    formats: tuple[str, ...],
+    quantities: tuple[str, ...],
+) -> tuple[str, dict[str, str] | None, dict[str, str] | None]:
+    """``format``, ``columns`` and ``units`` of a log table (``docs/study.md``, logs)."""
+    fmt = c.choice(t, key, "format", formats, default="auto") or "auto"
+    cols = None
+    if "columns" in t:
+        v = t["columns"]
+        if not isinstance(v, dict) or not all(isinstance(x, str) and x for x in v.values()):
+            c.add(
+                'expected a table of header names, e.g. {time = "t [s]", Fx = "Kraft X"}',
+                f"{key}.columns",
+            )
+        else:
+            cols = {str(k): str(x) for k, x in v.items()}
+            if fmt not in ("auto", "columns"):
+                c.add(
+                    f"columns = {{...}} reads the file by its names; format {fmt!r} "
+                    'conflicts (use format = "columns" or leave it out)',
+                    f"{key}.format",
+                )
+            fmt = "columns"
+    elif fmt == "columns":
+        c.add('format "columns" needs a columns = {...} table', f"{key}.columns")
+    units = None
+    if "units" in t:
+        v = t["units"]
+        if not isinstance(v, dict):
+            c.add(
+                f"expected a table {{{', '.join(q + ' = ...' for q in quantities)}}}",
+                f"{key}.units",
+            )
+        else:
+            units = {}
+            from roboisf.io.units import log_unit_to_si
+
+            for q, u in v.items():
+                if q not in quantities:
+                    c.add(f"unknown quantity; expected {', '.join(quantities)}", f"{key}.units.{q}")
+                    continue
+                try:
+                    log_unit_to_si(str(u), q)
+                except InputError as e:
+                    c.add(e.message, f"{key}.units.{q}")
+                    continue
+                units[q] = str(u)
+    return fmt, cols, units
+
+
+def _conditioning(
+    c: _Collector, t: dict[str, Any], key: str, mount: str | None
+) -> tuple[str | tuple[float, float], float | None, tuple[float, float, float] | None]:
+    tare: str | tuple[float, float] = "none"
+    if "tare" in t:
+        v = t["tare"]
+        if v in ("none", "auto"):
+            tare = v
+        elif (
+            isinstance(v, list)
+            and len(v) == 2
+            and all(isinstance(x, int | float) and not isinstance(x, bool) for x in v)
+            and v[1] > v[0]
+        ):
+            tare = (float(v[0]), float(v[1]))
+        else:
+            c.add(f'expected "none", "auto" or [t0, t1] (s, t1 > t0), got {v!r}', f"{key}.tare")
+    mass = c.number(t, key, "tool_mass", positive=True, required=False)
+    cog = None
+    if "tool_cog" in t:
+        v = t["tool_cog"]
+        if not (
+            isinstance(v, list)
+            and len(v) == 3
+            and all(isinstance(x, int | float) and not isinstance(x, bool) for x in v)
+        ):
+            c.add(f"expected [x, y, z] in mm (sensor frame), got {v!r}", f"{key}.tool_cog")
+        else:
+            cog = (float(v[0]) * 1e-3, float(v[1]) * 1e-3, float(v[2]) * 1e-3)
+    if (mass is None) != (cog is None):
+        c.add("give both tool_mass (kg) and tool_cog (mm) for gravity compensation", key)
+    if mass is not None and mount == "fixture":
+        c.add(
+            "tool_mass is for a flange sensor (the tool hangs below it); a fixture sensor is "
+            "tared instead",
+            f"{key}.tool_mass",
+        )
+    return tare, mass, cog
 
 
 def _robot_model(c: _Collector, root: Path, model: str) -> str | None:
@@ -521,14 +649,38 @@ def load_study(path: str | Path) -> Study:
             c.add("missing table", f"{key}.forces")
         else:
             fs = _forces(c, root, r["forces"], f"{key}.forces", machine or "cnc")
-        joints = c.path(root, r, key, "joints", required=False)
+        j_fmt, j_cols, j_units = "auto", None, None
+        if isinstance(r.get("joints"), dict):
+            jt = r["joints"]
+            jkey = f"{key}.joints"
+            for k in sorted(set(jt) - {"file", *_LOG_KEYS}):
+                c.add("unknown key; expected file, format, columns, units", f"{jkey}.{k}")
+            from roboisf.io.jointlog import JOINT_FORMATS
+
+            joints = c.path(root, jt, jkey, "file")
+            j_fmt, j_cols, j_units = _log_keys(c, jt, jkey, JOINT_FORMATS, ("time", "angle"))
+        else:
+            joints = c.path(root, r, key, "joints", required=False)
         thick = c.path(root, r, key, "thickness", required=False)
         if machine == "robot" and joints is None and "joints" not in r and "robot" not in data:
             c.add("a robot run needs 'joints' (a joint log) or a [robot] table to solve IK", key)
         tp_fmt, tp_point = _toolpath_import_keys(c, r, key)
         if None not in (machine, tp, sc, fs):
-            runs[rname] = RunSpec(rname, machine, tp, fs, sc, su, joints, thick)  # type: ignore[arg-type]
-            runs[rname] = replace(runs[rname], toolpath_format=tp_fmt, toolpath_point=tp_point)
+            runs[rname] = RunSpec(
+                rname,
+                machine,  # type: ignore[arg-type]
+                tp,  # type: ignore[arg-type]
+                fs,  # type: ignore[arg-type]
+                sc,  # type: ignore[arg-type]
+                su,
+                joints,
+                thick,
+                toolpath_format=tp_fmt,
+                toolpath_point=tp_point,
+                joints_format=j_fmt,
+                joints_columns=j_cols,
+                joints_units=j_units,
+            )
     machines = [r.get("machine") for r in rt.values() if isinstance(r, dict)]
     if rt and ("cnc" not in machines or "robot" not in machines):
         c.add("the decomposition needs one run with machine = 'cnc' and one with 'robot'", "runs")

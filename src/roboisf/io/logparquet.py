@@ -1,0 +1,245 @@
+"""Force and joint logs as Parquet: SI columns, units and frame in the file's key-value metadata.
+
+Schema (one row per sample, no index)::
+
+    force log:  time [s] float64, Fx Fy Fz [N], Mx My Mz [N·m], optional x y z [m] (tool tip,
+                work frame) float32
+    joint log:  time [s] float64, q1 … q6 [rad] (controller convention) float32
+
+Measured channels are float32 (24-bit mantissa: 6e-8 relative — 3e-5 N at 500 N, 2e-7 rad —
+far finer than any F/T sensor or joint encoder), time float64 (µs over days); written with
+byte-stream-split encoding and zstd. Readers accept float32 or float64 columns.
+
+Key-value metadata ``roboisf`` (JSON)::
+
+    {"kind": "force_log", "version": 1, "frame": "sensor", "moments_known": true,
+     "units": {"time": "s", "force": "N", "moment": "N*m", "length": "m"}}
+    {"kind": "joint_log", "version": 1, "units": {"time": "s", "angle": "rad"}}
+
+A 1 kHz force log is ~4.7× smaller than the CSV (2 M samples: 39 MB against 182 MB) and is read
+back bit for bit as written (no decimal round trip). A Parquet
+file without the ``roboisf`` metadata is read only when every unit is given by the caller (the
+study's ``units`` for the log); the column names must then be the canonical ones above.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from roboisf.errors import InputError
+from roboisf.io.atomic import atomic_path
+from roboisf.io.units import log_unit_to_si
+
+__all__ = [
+    "parquet_log_info",
+    "read_force_parquet",
+    "read_joint_parquet",
+    "write_force_parquet",
+    "write_joint_parquet",
+]
+
+F64 = NDArray[np.float64]
+_KEY = b"roboisf"
+_FORCE = ("time", "Fx", "Fy", "Fz", "Mx", "My", "Mz")
+_POS = ("x", "y", "z")
+_JOINT = ("time", "q1", "q2", "q3", "q4", "q5", "q6")
+_QUANTITY = {
+    "time": "time",
+    **{c: "force" for c in ("Fx", "Fy", "Fz")},
+    **{c: "moment" for c in ("Mx", "My", "Mz")},
+    **{c: "length" for c in _POS},
+    **{f"q{i}": "angle" for i in range(1, 7)},
+}
+
+
+def _write(path: str | Path, cols: dict[str, F64], meta: dict[str, Any]) -> None:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    table = pa.table(
+        {
+            k: pa.array(np.asarray(v, dtype=np.float64 if k == "time" else np.float32))
+            for k, v in cols.items()
+        }
+    )
+    table = table.replace_schema_metadata({_KEY: json.dumps(meta).encode()})
+    with atomic_path(path) as tmp:
+        pq.write_table(
+            table, tmp, compression="zstd", use_dictionary=False, use_byte_stream_split=True
+        )
+
+
+def _read(path: Path, kind: str) -> tuple[dict[str, F64], dict[str, Any] | None]:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    try:
+        table = pq.read_table(path)
+    except (OSError, pa.ArrowException) as e:
+        raise InputError(f"not a readable Parquet file: {e}", file=path) from None
+    raw = (table.schema.metadata or {}).get(_KEY)
+    meta = None
+    if raw is not None:
+        try:
+            meta = json.loads(raw)
+        except ValueError:
+            raise InputError("corrupt 'roboisf' metadata (not JSON)", file=path) from None
+        if meta.get("kind") != kind:
+            raise InputError(
+                f"a Parquet {meta.get('kind')!r} file where a {kind} was expected", file=path
+            )
+    cols: dict[str, F64] = {}
+    for name in table.column_names:
+        try:
+            cols[name] = table.column(name).to_numpy(zero_copy_only=False).astype(np.float64)
+        except (TypeError, ValueError, pa.ArrowException):
+            raise InputError("column is not numeric", file=path, field=name) from None
+    for name, v in cols.items():
+        bad = ~np.isfinite(v)
+        if bad.any():
+            raise InputError(
+                f"row {int(np.argmax(bad))} is not a finite number", file=path, field=name
+            )
+    return cols, meta
+
+
+def parquet_log_info(path: str | Path, *, kind: str) -> tuple[dict[str, str], dict[str, str]]:
+    """(columns, units) of a Parquet log, as :func:`roboisf.io.forcelog.detect_force_format`."""
+    import pyarrow.parquet as pq
+
+    p = Path(path)
+    try:
+        schema = pq.read_schema(p)
+    except Exception as e:  # any pyarrow failure is a bad file
+        raise InputError(f"not a readable Parquet file: {e}", file=p) from None
+    raw = (schema.metadata or {}).get(_KEY)
+    units: dict[str, str] = {}
+    if raw is not None:
+        try:
+            units = dict(json.loads(raw).get("units", {}))
+        except ValueError:
+            raise InputError("corrupt 'roboisf' metadata (not JSON)", file=p) from None
+    return {n: n for n in schema.names}, units
+
+
+def _scale(
+    path: Path, cols: dict[str, F64], meta: dict[str, Any] | None, given: dict[str, str | None]
+) -> dict[str, F64]:
+    declared = dict(meta.get("units", {})) if meta else {}
+    out = {}
+    for name, v in cols.items():
+        q = _QUANTITY.get(name)
+        if q is None:
+            continue
+        a, b = declared.get(q), given.get(q)
+        if a is not None and b is not None and log_unit_to_si(a, q) != log_unit_to_si(b, q):
+            raise InputError(
+                f"{q} unit is {a!r} in the file's metadata but {b!r} was given", file=path
+            )
+        u = a if a is not None else b
+        if u is None:
+            raise InputError(
+                f"{q} unit not declared: a Parquet log without roboisf metadata needs the "
+                "study's units for this log",
+                file=path,
+                field=name,
+            )
+        out[name] = v * log_unit_to_si(u, q, file=path, field=name)
+    return out
+
+
+def _require(path: Path, cols: dict[str, F64], names: tuple[str, ...], what: str) -> None:
+    missing = [n for n in names if n not in cols]
+    if missing:
+        raise InputError(
+            f"missing column(s) {', '.join(missing)}; a Parquet {what} has {', '.join(names)} "
+            f"(got {', '.join(cols)})",
+            file=path,
+            field=missing[0],
+        )
+
+
+def write_force_parquet(log: Any, path: str | Path) -> None:
+    """Write a :class:`~roboisf.io.forcelog.ForceLog` as Parquet (SI; wrench and position as
+    float32, time float64), atomically."""
+    cols = {"time": log.time}
+    for j, c in enumerate(_FORCE[1:]):
+        cols[c] = log.wrench[:, j]
+    units = {"time": "s", "force": "N", "moment": "N*m"}
+    if log.position is not None:
+        for j, c in enumerate(_POS):
+            cols[c] = log.position[:, j]
+        units["length"] = "m"
+    meta = {
+        "kind": "force_log",
+        "version": 1,
+        "units": units,
+        "frame": log.frame,
+        "moments_known": bool(log.moments_known),
+    }
+    _write(path, cols, meta)
+
+
+def read_force_parquet(
+    path: str | Path, *, frame: str | None = None, given: dict[str, str | None] | None = None
+) -> Any:
+    """A Parquet force log → :class:`~roboisf.io.forcelog.ForceLog` (SI)."""
+    from roboisf.io.forcelog import ForceLog
+
+    p = Path(path)
+    cols, meta = _read(p, "force_log")
+    _require(p, cols, _FORCE[:4], "force log")
+    known = bool(meta.get("moments_known", True)) if meta else True
+    has_m = all(c in cols for c in _FORCE[4:])
+    si = _scale(p, cols, meta, given or {})
+    n = si["time"].size
+    M = np.column_stack([si[c] for c in _FORCE[4:]]) if has_m else np.zeros((n, 3))
+    W = np.column_stack([si[c] for c in _FORCE[1:4]] + [M])
+    pos = np.column_stack([si[c] for c in _POS]) if all(c in si for c in _POS) else None
+    file_frame = meta.get("frame") if meta else None
+    if file_frame and frame and file_frame != frame:
+        raise InputError(
+            f"frame is {file_frame!r} in the file but {frame!r} was given", file=p, field="frame"
+        )
+    t = si["time"]
+    if t.size > 1 and np.any(np.diff(t) <= 0):
+        raise InputError(
+            f"time must strictly increase (row {int(np.argmax(np.diff(t) <= 0)) + 1})",
+            file=p,
+            field="time",
+        )
+    return ForceLog(
+        t,
+        W,
+        file_frame or frame or "sensor",
+        p,
+        pos,
+        moments_known=known and has_m,
+        profile="parquet",
+    )
+
+
+def write_joint_parquet(path: str | Path, time: ArrayLike, q: ArrayLike) -> None:
+    """Write ``time`` (N,) s and ``q`` (N, 6) rad (stored float32) as a Parquet joint log,
+    atomically."""
+    tt = np.asarray(time, dtype=float).reshape(-1)
+    qq = np.asarray(q, dtype=float)
+    cols = {"time": tt, **{f"q{i + 1}": qq[:, i] for i in range(6)}}
+    meta = {"kind": "joint_log", "version": 1, "units": {"time": "s", "angle": "rad"}}
+    _write(path, cols, meta)
+
+
+def read_joint_parquet(
+    path: str | Path, given: dict[str, str | None] | None = None
+) -> tuple[F64, F64]:
+    """A Parquet joint log → (time (N,) s, q (N, 6) rad)."""
+    p = Path(path)
+    cols, meta = _read(p, "joint_log")
+    _require(p, cols, _JOINT, "joint log")
+    si = _scale(p, cols, meta, given or {})
+    return si["time"], np.column_stack([si[f"q{i}"] for i in range(1, 7)])

@@ -1,0 +1,280 @@
+"""Tare, gravity compensation and bias detection of a force log (see :mod:`roboisf.sensor`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from roboisf.errors import InputError
+
+__all__ = [
+    "G_WORLD",
+    "Conditioning",
+    "ToolLoad",
+    "condition_wrench",
+    "gravity_wrench",
+    "identify_tool_load",
+    "unloaded_samples",
+]
+
+F64 = NDArray[np.float64]
+
+#: Standard gravity along −z of the world (robot base) frame, m/s².
+G_WORLD = np.array([0.0, 0.0, -9.80665])
+
+#: An unloaded-part mean |F| below this is noise, not a bias worth a warning (N).
+BIAS_FORCE_MIN = 2.0
+#: … and |M| below this (N·m).
+BIAS_MOMENT_MIN = 0.2
+
+
+def _skew(v: F64) -> F64:
+    x, y, z = v[..., 0], v[..., 1], v[..., 2]
+    o = np.zeros_like(x)
+    return np.stack(
+        [np.stack([o, -z, y], -1), np.stack([z, o, -x], -1), np.stack([-y, x, o], -1)], -2
+    )
+
+
+def gravity_wrench(R_world_sensor: ArrayLike, mass: float, cog: ArrayLike) -> F64:
+    """The wrench the tool's weight puts on the sensor, sensor axes, about the sensor origin.
+
+    ``W_g = [m gₛ; r_c × m gₛ]`` with ``gₛ = R_world_sensorᵀ g_world``.
+
+    Parameters
+    ----------
+    R_world_sensor : (3, 3) or (N, 3, 3) — sensor orientation in the world (gravity) frame
+    mass : kg — mass below the sensor (tool, holder, adapter)
+    cog : (3,) m — its centre of gravity in the sensor frame
+
+    Returns
+    -------
+    (6,) or (N, 6) [N, N·m]
+    """
+    R = np.asarray(R_world_sensor, dtype=float)
+    g_s = np.einsum("...ji,j->...i", R, G_WORLD)  # Rᵀ g
+    F = mass * g_s
+    M = np.cross(np.asarray(cog, dtype=float), F)
+    return np.concatenate([F, M], axis=-1)
+
+
+@dataclass(frozen=True)
+class ToolLoad:
+    """Tool mass and centre of gravity below a flange sensor, with the sensor offset.
+
+    Attributes
+    ----------
+    mass : kg
+    cog : (3,) m, sensor frame
+    offset : (6,) [N, N·m] — the zero offset b identified with them (zeros when given)
+    observable : str — what the poses determined ("all", or which parts were not observable)
+    residual : float, N — RMS force residual of the fit (0 when given)
+    """
+
+    mass: float
+    cog: F64
+    offset: F64
+    observable: str = "all"
+    residual: float = 0.0
+
+
+def identify_tool_load(R_world_sensor: ArrayLike, W_meas: ArrayLike) -> ToolLoad:
+    """Mass, centre of gravity and zero offset from unloaded readings in several orientations.
+
+    Linear least squares on ``θ = [b_F, b_M, m, p = m r_c]``::
+
+        F = b_F + m gₛ                      (3 rows per pose)
+        M = b_M + p × gₛ = b_M − [gₛ]× p    (3 rows per pose)
+
+    Observability: ``m`` and ``b_F`` need gₛ to change between poses (two orientations); ``p``
+    (with ``b_M``) needs the changes of gₛ to span two dimensions — with two orientations the
+    component of ``p`` along their gₛ difference is not observable (set to its minimum-norm
+    value, reported in ``observable``). In practice: three or more orientations, tilted ≥ 30°
+    apart about different axes; turning about the vertical alone changes nothing.
+
+    Parameters
+    ----------
+    R_world_sensor : (K, 3, 3) — orientations of the unloaded poses
+    W_meas : (K, 6) [N, N·m] — mean reading at each pose
+
+    Raises
+    ------
+    InputError
+        fewer than two distinct orientations (the mass cannot be told from the offset).
+    """
+    R = np.asarray(R_world_sensor, dtype=float).reshape(-1, 3, 3)
+    W = np.asarray(W_meas, dtype=float).reshape(-1, 6)
+    if R.shape[0] != W.shape[0]:
+        raise InputError(f"{R.shape[0]} orientations but {W.shape[0]} readings", field="poses")
+    g_s = np.einsum("kji,j->ki", R, G_WORLD)
+    k = R.shape[0]
+    A = np.zeros((6 * k, 10))
+    eye = np.eye(3)
+    for i in range(k):
+        A[6 * i : 6 * i + 3, 0:3] = eye
+        A[6 * i : 6 * i + 3, 6] = g_s[i]
+        A[6 * i + 3 : 6 * i + 6, 3:6] = eye
+        A[6 * i + 3 : 6 * i + 6, 7:10] = -_skew(g_s[i])
+    spread = np.linalg.svd(g_s - g_s.mean(axis=0), compute_uv=False)
+    if spread[0] < 1e-3 * 9.80665:
+        raise InputError(
+            "the tool's mass cannot be told from the sensor offset with one orientation: give "
+            "unloaded readings in ≥ 2 (better ≥ 3) orientations, or the mass and CoG",
+            field="poses",
+        )
+    # columns of p along directions that gₛ never leaves are not observable: minimum-norm
+    theta, *_ = np.linalg.lstsq(A, W.reshape(-1), rcond=1e-9)
+    sv = np.linalg.svd(A, compute_uv=False)
+    rank = int(np.sum(sv > 1e-9 * sv[0]))
+    observable = (
+        "all"
+        if rank == 10
+        else (
+            "centre of gravity along the one direction the poses changed gravity in (set to its "
+            "minimum-norm value); add a pose tilted about another axis"
+        )
+    )
+    m = float(theta[6])
+    p = theta[7:10]
+    res = A @ theta - W.reshape(-1)
+    rms = float(np.sqrt(np.mean(res.reshape(k, 6)[:, :3] ** 2)))
+    cog = p / m if abs(m) > 1e-12 else np.zeros(3)
+    return ToolLoad(m, cog, theta[:6].copy(), observable, rms)
+
+
+@dataclass(frozen=True)
+class Conditioning:
+    """How a force log is conditioned (study ``[runs.X.forces]``: ``tare``, ``tool_mass``,
+    ``tool_cog``).
+
+    tare : "none" | "auto" | (t0, t1) s — subtract the mean reading (less the gravity wrench,
+        when a tool load is given) over the unloaded approach found automatically, or over the
+        stated window of the log's clock
+    tool : ToolLoad | None — tool mass and CoG below a flange sensor (gravity compensation)
+    """
+
+    tare: Literal["none", "auto"] | tuple[float, float] = "none"
+    tool: ToolLoad | None = None
+
+
+def unloaded_samples(time: F64, W: F64, *, min_samples: int = 25) -> slice | None:
+    """The unloaded approach at the start of a log: samples before the force onset.
+
+    σ is the noise of the first ``min_samples`` samples; the onset is the first sample whose
+    force departs from their level by more than ``max(5 σ, 1 % of the log's force range)``.
+    The samples before it are accepted as unloaded only if
+
+    * there are at least ``min_samples`` of them,
+    * they are flat: the mean of their last fifth differs from the mean of their first fifth by
+      less than 2 σ (a log whose forming force ramps up from zero at once has no unloaded part),
+    * their level is below 25 % of the force range.
+
+    Otherwise None: the log has no unloaded part to tare on or to check.
+    """
+    F = np.asarray(W, dtype=float)[:, :3]
+    n = F.shape[0]
+    if n < 2 * min_samples:
+        return None
+    head = F[:min_samples]
+    level = np.median(head, axis=0)
+    noise = float(np.sqrt(np.mean(np.var(head, axis=0)))) + 1e-12
+    dev = np.linalg.norm(F - level, axis=1)
+    span = float(dev.max())
+    thr = max(5.0 * noise, 0.01 * span)
+    above = np.flatnonzero(dev > thr)
+    if above.size == 0:
+        return None  # never loaded: no forming in this log
+    # stop a little before the onset: the rise starts below the threshold
+    onset = int(above[0])
+    stop = onset - max(1, onset // 10)
+    if stop < min_samples:
+        return None
+    if np.linalg.norm(level) > 0.25 * span:
+        return None
+    k = max(1, stop // 5)
+    drift = float(np.linalg.norm(F[stop - k : stop].mean(axis=0) - F[:k].mean(axis=0)))
+    if drift > 2.0 * noise:
+        return None
+    return slice(0, stop)
+
+
+def _window(time: F64, t0: float, t1: float, file: Path | None) -> slice:
+    i0, i1 = int(np.searchsorted(time, t0, "left")), int(np.searchsorted(time, t1, "right"))
+    if not (t1 > t0) or i1 - i0 < 1:
+        raise InputError(
+            f"tare window [{t0:g}, {t1:g}] s holds no sample of the log (it runs "
+            f"{time[0]:.3f} … {time[-1]:.3f} s)",
+            file=file,
+            field="tare",
+        )
+    return slice(i0, i1)
+
+
+def condition_wrench(
+    time: ArrayLike,
+    W_meas: ArrayLike,
+    cond: Conditioning,
+    *,
+    R_world_sensor: ArrayLike | None = None,
+    file: Path | None = None,
+) -> tuple[F64, list[str], dict[str, object]]:
+    """Remove the tool's weight and the zero offset from a sensor reading.
+
+    ``W = W_meas − W_g(R(t)) − b`` with ``b = mean over the tare window of (W_meas − W_g(R))``
+    (``b = 0`` without a tare). Without a tare, the unloaded approach (if one is found) is
+    checked: a mean there above 2 N / 0.2 N·m is reported as an untared bias.
+
+    Parameters
+    ----------
+    time : (N,) s; W_meas : (N, 6) [N, N·m] sensor axes
+    cond : what to do
+    R_world_sensor : (3, 3) or (N, 3, 3) — sensor orientation, needed with ``cond.tool``
+    file : the log, for messages
+
+    Returns
+    -------
+    W : (N, 6) conditioned reading
+    warnings : list of str — an untared bias seen in the unloaded part, a tare asked for that
+        found no unloaded approach
+    info : dict — ``offset`` (6,) removed, ``window`` (t0, t1) s or None, ``bias`` (6,) seen
+    """
+    t = np.asarray(time, dtype=float)
+    W = np.array(W_meas, dtype=float)
+    name = file.name if file is not None else "force log"
+    notes: list[str] = []
+    if cond.tool is not None:
+        if R_world_sensor is None:
+            raise InputError("gravity compensation needs the sensor orientation", file=file)
+        W -= gravity_wrench(R_world_sensor, cond.tool.mass, cond.tool.cog)
+    info: dict[str, object] = {"offset": np.zeros(6), "window": None, "bias": None}
+    win: slice | None
+    if isinstance(cond.tare, tuple):
+        win = _window(t, float(cond.tare[0]), float(cond.tare[1]), file)
+    else:
+        win = unloaded_samples(t, W)
+    if win is not None:
+        b = W[win].mean(axis=0)
+        info["window"] = (float(t[win][0]), float(t[win][-1]))
+        if cond.tare == "none":
+            info["bias"] = b
+            fb, mb = float(np.linalg.norm(b[:3])), float(np.linalg.norm(b[3:]))
+            if fb > BIAS_FORCE_MIN or mb > BIAS_MOMENT_MIN:
+                notes.append(
+                    f"{name}: the unloaded start of the log ({t[win][0]:.2f}–{t[win][-1]:.2f} s) "
+                    f"reads |F| = {fb:.3g} N, |M| = {mb:.3g} N·m, not tared — a sensor offset"
+                    + (" or the tool's weight" if cond.tool is None else "")
+                    + ' is in every force; set tare = "auto" (or a window) for this log'
+                )
+        else:
+            W -= b
+            info["offset"] = b
+    elif cond.tare == "auto":
+        notes.append(
+            f'{name}: tare = "auto" found no unloaded approach at the start of the log (it '
+            "starts loaded); not tared — give tare = [t0, t1] s"
+        )
+    return W, notes, info
