@@ -155,15 +155,14 @@ class EgmAdapter:
     def __init__(self, path_correction: bool = False) -> None:
         self.path_correction = path_correction
         self._msg = pb.EgmRobot()
-        self._seq = 0
 
     def decode(self, data: bytes) -> RobotState:
         return decode_robot(data, self._msg)
 
     def encode(self, state: RobotState, correction: F64) -> bytes:
-        self._seq += 1
+        # the sensor's own sequence number; echoing the robot's lets a log pair them
         return encode_correction(
-            self._seq,
+            state.seq,
             0,
             correction,
             state.planned,

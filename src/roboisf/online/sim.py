@@ -37,11 +37,12 @@ from numpy.typing import NDArray
 
 from roboisf.cell import tip_compliances
 from roboisf.compensate.compliance import DeflectionModel, precompensate
+from roboisf.errors import InputError
 from roboisf.frames import matrix_to_quat, vertical_tool
 from roboisf.online import egm, netft, rsi
+from roboisf.online import kernel as kn
 from roboisf.online.base import ProtocolError, RobotState
 from roboisf.online.core import Limits, OnlineCompensator, SensorSetup
-
 from roboisf.study.sensors import tip_to_sensor
 from roboisf.study.spec import ForceSensorSpec
 from roboisf.toolpath import Toolpath
@@ -90,7 +91,7 @@ def virtual_setup(vc: VirtualCell, *, cutoff: float = 20.0) -> VirtualSetup:
     W = truth.wrench_robot
     q = truth.q
     J = cell.robot.jacobian(q, T_base_work=cell.T_base_work)
-    dq_dp = np.linalg.solve(J, np.eye(6)[None, :, :3].repeat(len(q), 0))
+    dq_dp = np.asarray(np.linalg.solve(J, np.eye(6)[None, :, :3].repeat(len(q), 0)), dtype=float)
     R_wt = vertical_tool(vc.tool_rotation)
     planned = np.empty((len(tp), 7))
     planned[:, :3] = tp.tip
@@ -126,18 +127,20 @@ def _noise(rng: np.random.Generator, sigma: float) -> F64:
 class OnlineForming:
     """What the loop did at each toolpath point (N points, work frame, SI).
 
-    applied : (N, 3) m — the correction the controller applied at the point
-    sent : (N, 3) m — the correction the loop sent in that cycle (applied at the next point)
-    wrench : (N, 6) — the filtered tip wrench the loop used, work axes [N; N·m]
-    q : (N, 6) rad — the joint angles the controller reported
-    status : (N,) int — the loop's status bits (:mod:`roboisf.online.kernel`)
+    applied : (N, 3) m — the correction the controller applied when the tool reached the point:
+        the one the loop computed in the cycle before, at ``target`` with ``wrench``
+    target : (N, 3) m — the nominal tip of that cycle (NaN at the first point)
+    wrench : (N, 6) — the filtered tip wrench that cycle used, work axes [N; N·m]
+    status : (N,) int — that cycle's status bits (:mod:`roboisf.online.kernel`)
+    steady : (N,) bool — that cycle and the one before it ran with no limit, dead band or
+        watchdog acting (status 0)
     """
 
     applied: F64
-    sent: F64
+    target: F64
     wrench: F64
-    q: F64
     status: NDArray[np.int64]
+    steady: NDArray[np.bool_]
 
 
 def form_online(
@@ -146,48 +149,71 @@ def form_online(
     *,
     limits: Limits | None = None,
     samples_per_cycle: int = 4,
+    cycles_per_point: int = 1,
     seed: int = 0,
 ) -> OnlineForming:
-    """Run the loop in-process over the whole toolpath (codecs included, no sockets)."""
+    """Run the loop in-process over the whole toolpath (codecs included, no sockets).
+
+    The tool moves from one toolpath point to the next in ``cycles_per_point`` control cycles
+    (joints, planned pose and the sensor's reading interpolated linearly in between); at the
+    toolpath's own feed that is ``spacing / (feed · cycle)`` (≈ 20 for 1 mm at 12.5 mm/s). The
+    default, 1, walks the path 20× faster than real: the filter's and the one-cycle delay's lag
+    then span 20× more path (a harder test of the lag, an easier one of the run time).
+    """
     lim = limits or Limits()
+    if cycles_per_point < 1 or samples_per_cycle < 1:
+        raise InputError("cycles_per_point and samples_per_cycle must be ≥ 1", field="cycles")
     oc = OnlineCompensator.from_cell(setup.vc.cell, setup.sensor, lim)
     adapter: Any = egm.EgmAdapter() if controller == "egm" else rsi.RsiAdapter(lim.cycle)
     rng = np.random.default_rng(seed)
     n = len(setup.toolpath)
     applied = np.zeros((n, 3))
-    sent = np.zeros((n, 3))
+    target = np.full((n, 3), np.nan)
     wrench = np.zeros((n, 6))
-    qs = np.zeros((n, 6))
     status = np.zeros(n, dtype=np.int64)
+    steady = np.zeros(n, dtype=bool)
     rx = np.zeros(3)
+    last_w = np.zeros(6)
+    last_p = np.full(3, np.nan)
+    last_st = prev_st = kn.STATUS_NO_SAMPLE
     R_bw = setup.vc.cell.T_base_work[:3, :3]
     dt = lim.cycle / samples_per_cycle
+    cyc = 0
     for k in range(n):
+        k1 = min(k + 1, n - 1)
         applied[k] = rx
-        q = setup.q[k] + setup.dq_dp[k] @ rx
-        oc.set_joints(q)
-        for j in range(samples_per_cycle):
-            rec = netft.encode_record(k, j, 0, setup.reading[k] + _noise(rng, setup.noise))
-            (r,) = netft.decode_records(rec)
-            oc.sample((k * samples_per_cycle + j) * dt, r.wrench)
-        t = (k + 1) * lim.cycle - 0.25 * dt
-        if controller == "egm":
-            msg = egm.encode_robot(k, int(t * 1e3), q, setup.planned[k])
-        else:
-            msg = rsi.encode_robot(k, q)
-        state = adapter.decode(msg)
-        c = oc.cycle(t, state.q)
-        reply = adapter.encode(state, c)
-        if controller == "egm":
-            rx = egm.decode_sensor(reply)[1][:3] - setup.planned[k, :3]
-        else:
-            rx = rsi.decode_reply(reply)[1]
-        sent[k] = c
-        wrench[k, :3] = R_bw.T @ oc.tip_wrench[:3]
-        wrench[k, 3:] = R_bw.T @ oc.tip_wrench[3:]
-        qs[k] = state.q
-        status[k] = oc.status
-    return OnlineForming(applied, sent, wrench, qs, status)
+        target[k] = last_p
+        wrench[k] = last_w
+        status[k] = last_st
+        steady[k] = last_st == 0 and prev_st == 0
+        for j in range(cycles_per_point):
+            f = j / cycles_per_point
+            q = (1 - f) * setup.q[k] + f * setup.q[k1] + setup.dq_dp[k] @ rx
+            planned = (1 - f) * setup.planned[k] + f * setup.planned[k1]
+            reading = (1 - f) * setup.reading[k] + f * setup.reading[k1]
+            oc.set_joints(q)
+            for i in range(samples_per_cycle):
+                rec = netft.encode_record(cyc, i, 0, reading + _noise(rng, setup.noise))
+                (r,) = netft.decode_records(rec)
+                oc.sample((cyc * samples_per_cycle + i) * dt, r.wrench)
+            t = (cyc + 1) * lim.cycle - 0.25 * dt
+            if controller == "egm":
+                msg = egm.encode_robot(cyc, int(t * 1e3), q, planned)
+            else:
+                msg = rsi.encode_robot(cyc, q)
+            state = adapter.decode(msg)
+            c = oc.cycle(t, state.q)
+            reply = adapter.encode(state, c)
+            if controller == "egm":
+                rx = egm.decode_sensor(reply)[1][:3] - planned[:3]
+            else:
+                rx = rsi.decode_reply(reply)[1]
+            cyc += 1
+            last_p = planned[:3]
+            last_w[:3] = R_bw.T @ oc.tip_wrench[:3]
+            last_w[3:] = R_bw.T @ oc.tip_wrench[3:]
+            prev_st, last_st = last_st, oc.status
+    return OnlineForming(applied, target, wrench, status, steady)
 
 
 @dataclass(frozen=True)
@@ -198,9 +224,10 @@ class Evaluation:
         and the applied correction) without and with the loop
     removed : 1 − rms_after / rms_before
     offline_diff : (N,) ‖online applied − offline pre-deflection‖ on the loop's own wrenches
-    offline_true_diff : (N,) the same against offline pre-deflection on the true wrenches
-    steady : (N,) bool — points where the loop's limits and watchdog did not act, in this cycle
-        and the one before
+        (the one computed at the cycle's own target; NaN at the first point)
+    offline_true_diff : (N,) the same against offline pre-deflection of the point with the
+        virtual cell's true wrench there (adds the filter's and the one-cycle delay's lag)
+    steady : (N,) bool — :attr:`OnlineForming.steady`
     """
 
     rms_before: float
@@ -232,15 +259,13 @@ def evaluate(setup: VirtualSetup, run: OnlineForming) -> Evaluation:
     model = DeflectionModel(
         vc.cell.robot, vc.cell.T_base_work, k_t + k_th, tool_rotation=vc.tool_rotation
     )
-    # the correction sent in cycle k rests on the wrench of cycle k; it is applied at k + 1
-    off = precompensate(tp.tip, run.wrench, model, tol=1e-9, max_iter=100)
+    ok = np.all(np.isfinite(run.target), axis=1)
+    off = precompensate(run.target[ok], run.wrench[ok], model, tol=1e-9, max_iter=100)
     diff = np.full(len(tp), np.nan)
-    diff[1:] = np.linalg.norm(run.applied[1:] - (off.commanded - tp.tip)[:-1], axis=1)
+    diff[ok] = np.linalg.norm(run.applied[ok] - (off.commanded - off.target), axis=1)
     off_true = precompensate(tp.tip, setup.wrench, model, tol=1e-9, max_iter=100)
     true_diff = np.linalg.norm(run.applied - (off_true.commanded - tp.tip), axis=1)
-    quiet = run.status == 0
-    steady = np.zeros(len(tp), dtype=bool)
-    steady[1:] = quiet[1:] & quiet[:-1]
+    steady = run.steady & ok
     return Evaluation(rb, ra, 1.0 - ra / rb, diff, true_diff, steady, truth)
 
 
@@ -383,7 +408,7 @@ def controller_process(
                         rseq, corr = rsi.decode_reply(data)
                 except ProtocolError:
                     continue
-                if protocol == "egm" or rseq == seq:
+                if rseq == seq:  # a late reply of an earlier cycle is dropped
                     rtt[c] = arrived - sent_at
                     rx = corr
                     got = True
@@ -400,3 +425,96 @@ def controller_process(
 def controller_state_from(protocol: str, data: bytes) -> RobotState:
     """Decode a controller message (helper for tests)."""
     return egm.decode_robot(data) if protocol == "egm" else rsi.decode_robot(data)
+
+
+class Simulation:
+    """The simulated sensor and controller as two processes (``spawn``; daemons).
+
+    ``with Simulation(setup, "egm", loop_port, n_cycles=…) as sim:`` starts the sensor on
+    127.0.0.1:``sim.sensor_port`` (0 → a free port) and, after ``start_delay`` s, the
+    controller towards the loop; :meth:`result` waits for the controller's report (``rtt``,
+    ``missed``, ``applied``, ``k``). Leaving the block stops both.
+    """
+
+    def __init__(
+        self,
+        setup: VirtualSetup,
+        protocol: str,
+        loop_port: int,
+        *,
+        n_cycles: int = 1000,
+        cycle: float = 0.004,
+        sensor_rate: float = 1000.0,
+        point_step: int = 1,
+        sensor_silent_after: float = math.inf,
+        start_delay: float = 0.3,
+    ) -> None:
+        import multiprocessing as mp
+
+        if protocol not in ("egm", "rsi"):
+            raise InputError(f"must be 'egm' or 'rsi', got {protocol!r}", field="controller")
+        ctx = mp.get_context("spawn")
+        self._ctx = ctx
+        self.index = ctx.Value("l", 0)
+        self.stop = ctx.Event()
+        self._queue: Any = ctx.Queue()
+        probe = _bind(0)
+        self.sensor_port = int(probe.getsockname()[1])
+        probe.close()
+        ready = ctx.Event()
+        self._sensor = ctx.Process(
+            target=sensor_process,
+            args=(self.sensor_port, setup.reading, self.index, self.stop, ready),
+            kwargs={
+                "rate": sensor_rate,
+                "noise": setup.noise,
+                "silent_after": sensor_silent_after,
+            },
+            daemon=True,
+        )
+        self._controller = ctx.Process(
+            target=controller_process,
+            args=(
+                loop_port,
+                protocol,
+                (setup.q, setup.dq_dp, setup.planned),
+                self.index,
+                self.stop,
+                self._queue,
+            ),
+            kwargs={
+                "cycle": cycle,
+                "n_cycles": n_cycles,
+                "start_delay": start_delay,
+                "point_step": point_step,
+            },
+            daemon=True,
+        )
+        self._ready = ready
+        self._result: dict[str, Any] | None = None
+
+    def __enter__(self) -> Simulation:
+        self._sensor.start()
+        if not self._ready.wait(30):
+            self.close()
+            raise RuntimeError("the simulated sensor did not start")
+        self._controller.start()
+        return self
+
+    def result(self, timeout: float | None = None) -> dict[str, Any]:
+        """The controller's report (waits for it)."""
+        if self._result is None:
+            self._result = self._queue.get(timeout=timeout)
+        return self._result
+
+    def close(self) -> None:
+        self.stop.set()
+        for p in (self._controller, self._sensor):
+            if p.pid is not None:
+                p.join(5)
+                if p.is_alive():
+                    p.terminate()
+                    p.join(5)
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
