@@ -33,8 +33,3 @@ class RobotState:
     seq: int = 0
     q: F64 = field(default_factory=lambda: np.zeros(6))
     planned: F64 = field(default_factory=lambda: np.full(7, np.nan))
-
-
-def check_finite(values: F64, what: str) -> None:
-    if not np.all(np.isfinite(values)):
-        raise ProtocolError(f"non-finite {what}", field=what)

@@ -1,9 +1,8 @@
 """KUKA RobotSensorInterface (RSI): XML over UDP, one exchange per interpolation cycle.
 
-Every 4 ms (``IPO_FAST`` mode) or 12 ms (``IPO`` mode) the controller sends (KUKA
-.RobotSensorInterface manual, the ``ETHERNET`` object; the element names are those of the RSI
-configuration's
-``<SEND>`` block)::
+Every 4 ms (``IPO_FAST`` mode) or 12 ms (``IPO`` mode) the controller sends (KUKA,
+*RobotSensorInterface* manual, the ``ETHERNET`` object; the element names are those of the RSI
+configuration's ``<SEND>`` block)::
 
     <Rob Type="KUKA">
       <RIst X="…" Y="…" Z="…" A="…" B="…" C="…"/>     actual Cartesian pose (mm, deg)
