@@ -67,7 +67,7 @@ def test_correction_is_minus_the_offline_deflection(cell, poses, load_on):
     _, _, k_t, k_th = tip_compliances(cell)
     rng = np.random.default_rng(2)
     for i, q in enumerate(poses):
-        W = np.concatenate([[*rng.normal(0, 150, 3), 0, 0, 400], rng.normal(0, 2, 3)])
+        W = np.concatenate([rng.normal(0, 150, 3) + np.array([0, 0, 400.0]), rng.normal(0, 2, 3)])
         oc.reset()
         oc.set_joints(q)
         assert oc.sample(float(i), _sensor_reading(cell, q, W, sensor))
