@@ -183,3 +183,32 @@ def test_cycle_log_grows_and_keeps_units():
     log = CycleLog(capacity=2)
     assert [n for n, _ in log.COLUMNS][:2] == ["t_s", "seq"]
     assert len(log.COLUMNS) == log.data.shape[1]
+
+
+def test_an_unreachable_sensor_does_not_stop_the_loop(setup):
+    """Nothing listens on the sensor's port: the loop keeps answering, with zero correction."""
+    oc = OnlineCompensator.from_cell(setup.vc.cell, setup.sensor, Limits())
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    probe.bind(("127.0.0.1", 0))
+    dead = probe.getsockname()
+    probe.close()
+    loop = Loop(oc, egm.EgmAdapter(), ("127.0.0.1", 0), dead)
+    robot = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    robot.bind(("127.0.0.1", 0))
+    th, _ = _serve(loop, duration=20)
+    try:
+        time.sleep(0.2)
+        for seq in (1, 2, 3):
+            robot.sendto(egm.encode_robot(seq, 0, setup.q[0], setup.planned[0]), loop.listen)
+            reply = _recv(robot)
+            assert reply is not None
+            rseq, pose = egm.decode_sensor(reply)
+            assert rseq == seq
+            np.testing.assert_allclose(pose[:3], setup.planned[0, :3])  # no correction
+    finally:
+        loop.stop()
+        th.join()
+        robot.close()
+    assert loop.counters.cycles == 3
+    assert loop.counters.sensor_unreachable >= 1
+    assert loop.oc.status & kn.STATUS_NO_SAMPLE

@@ -254,7 +254,9 @@ def online(
     c = loop.counters
     state.info(
         f"{c.cycles} cycles, {c.samples} force samples; dropped: {c.bad_controller} bad "
-        f"controller and {c.bad_sensor} bad sensor packets, {c.late_sensor} late samples; "
+        f"controller and {c.bad_sensor} bad sensor packets, {c.late_sensor} late samples"
+        + (f", sensor unreachable {c.sensor_unreachable}×" if c.sensor_unreachable else "")
+        + "; "
         f"log → {output}"
     )
     if sim_result is not None:

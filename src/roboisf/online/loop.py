@@ -74,6 +74,8 @@ class Counters:
     bad_sensor: int = 0
     late_sensor: int = 0
     sensor_status: int = 0  # records with a non-zero RDT status (saturation, fault)
+    sensor_unreachable: int = 0  # the sensor's host answered "port unreachable"
+    send_errors: int = 0  # replies the operating system refused to send
     max_compute: float = 0.0  # s, per cycle
 
 
@@ -185,6 +187,7 @@ class Loop:
         else:
             self.replay = sensor
         self._last_rdt = -1
+        self._last_sample_at = -math.inf
         self._stop = False
         oc.warm_up()  # compile before the first packet can arrive
 
@@ -212,8 +215,7 @@ class Loop:
         """Serve until ``duration`` s, ``cycles`` cycles, :meth:`stop` or Ctrl-C (which ends
         the loop cleanly: KeyboardInterrupt is caught here). ``status(loop)`` is called every
         ``status_every`` s."""
-        if self.ft is not None:
-            self.ft.send(netft.encode_request(netft.CMD_START_REALTIME, 0))
+        self._start_sensor()
         socks = [self.ctl] + ([self.ft] if self.ft is not None else [])
         t0 = time.perf_counter()
         next_status = t0 + status_every
@@ -226,9 +228,15 @@ class Loop:
                 if status is not None and now >= next_status:
                     status(self)
                     next_status = now + status_every
+                if self.ft is not None and now - self._last_sample_at > 1.0:
+                    self._start_sensor()  # no data for a second: ask again (sensor restarted)
                 ready, _, _ = select.select(socks, [], [], 0.05)
                 for s in ready:
-                    data, addr = s.recvfrom(65536)
+                    try:
+                        data, addr = s.recvfrom(65536)
+                    except OSError:  # ICMP port unreachable from the sensor's host
+                        self.counters.sensor_unreachable += 1
+                        continue
                     t = time.perf_counter() - t0
                     if s.fileno() == ctl_fd:
                         self._on_controller(data, addr, t)
@@ -240,7 +248,17 @@ class Loop:
             self.close()
         return self.counters
 
+    def _start_sensor(self) -> None:
+        self._last_sample_at = time.perf_counter()
+        if self.ft is None:
+            return
+        try:
+            self.ft.send(netft.encode_request(netft.CMD_START_REALTIME, 0))
+        except OSError:
+            self.counters.sensor_unreachable += 1
+
     def _on_sensor(self, data: bytes, t: float) -> None:
+        self._last_sample_at = time.perf_counter()
         try:
             recs = netft.decode_records(data, *self.counts)
         except ProtocolError:
@@ -279,7 +297,11 @@ class Loop:
         except ProtocolError:
             self.counters.bad_controller += 1
             return
-        self.ctl.sendto(reply, addr)
+        try:
+            self.ctl.sendto(reply, addr)
+        except OSError:
+            self.counters.send_errors += 1
+            return
         compute = time.perf_counter() - c0
         self.oc.set_joints(state.q)
         self.counters.cycles += 1
