@@ -89,3 +89,37 @@ def test_simulated_run_from_the_command_line(tmp_path):
     assert len(df) > 50
     corr = df[["corr_x_mm", "corr_y_mm", "corr_z_mm"]].to_numpy()
     assert np.linalg.norm(corr, axis=1).max() <= 0.3 * (1 + 1e-12)
+
+
+def test_ctrl_c_ends_the_loop_and_writes_the_log(tmp_path):
+    """SIGINT while serving: exit 0, the log (here of zero cycles) is written, one line says so."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    out = tmp_path / "int.parquet"
+    src = str(Path(__file__).parents[1] / "src")
+    code = (
+        "from roboisf.cli.main import main; raise SystemExit(main(['online', '-c', 'rsi', "
+        f"'--virtual', 'cone', '--listen', '127.0.0.1:0', '-o', {str(out)!r}]))"
+    )
+    env = {**os.environ, "PYTHONPATH": src + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    p = subprocess.Popen(
+        [sys.executable, "-c", code],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env=env,
+        text=True,
+    )
+    assert p.stdout is not None
+    line = p.stdout.readline()  # "online: rsi on 127.0.0.1:PORT …" once it serves
+    assert line.startswith("online: rsi"), line
+    time.sleep(0.5)
+    p.send_signal(signal.SIGINT)
+    rest, err = p.communicate(timeout=60)
+    assert p.returncode == 0, err
+    assert "stopped (Ctrl-C)" in rest and "Traceback" not in err
+    assert len(pd.read_parquet(out)) == 0

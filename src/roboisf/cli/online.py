@@ -213,7 +213,7 @@ def online(
         rep = load_replay(arg, cutoff=cutoff)
         src = ReplaySensor(rep.force_time, rep.force)
     loop = Loop(oc, adapter, (host, port), src, counts=(cpf, cpt))
-    state.info(
+    banner = (
         f"online: {adapter.name} on {loop.listen[0]}:{loop.listen[1]}, sensor {sensor}; "
         f"limits {max_correction:g} mm, {max_rate:g} mm/s, dead band {deadband * 1e3:g} µm"
     )
@@ -236,12 +236,12 @@ def online(
 
             done = threading.Thread(target=_finish, daemon=True)
             done.start()
-            _run(loop, duration, cycles, status_text)
+            _run(loop, duration, cycles, status_text, banner)
             sim.stop.set()  # the loop has ended: the controller reports what it saw
             done.join(30)
             sim_result = sim.result(timeout=0.1) if not done.is_alive() else None
     else:
-        _run(loop, duration, cycles, status_text)
+        _run(loop, duration, cycles, status_text, banner)
     loop.log.write(
         output,
         {
@@ -277,7 +277,7 @@ def _k_tip(cell: Any) -> Any:
     return k_t + k_th
 
 
-def _run(loop: Any, duration: float, cycles: int | None, status_text: Any) -> None:
+def _run(loop: Any, duration: float, cycles: int | None, status_text: Any, banner: str) -> None:
     """Serve with a live status line (a rich Live on a terminal, a line a second with -v)."""
     from roboisf.io.outdir import Interrupted
 
@@ -292,6 +292,7 @@ def _run(loop: Any, duration: float, cycles: int | None, status_text: Any) -> No
         )
 
     try:
+        state.info(banner)  # inside the try: a Ctrl-C from now on still writes the log
         if state.verbosity >= 1 and state.err.is_terminal:
             from rich.live import Live
             from rich.text import Text
