@@ -196,7 +196,6 @@ def online(
         _replay(study, limits, cutoff, output)
         return
 
-    oc = OnlineCompensator(cell.robot, cell.T_base_work, _k_tip(cell), sensor_setup, limits)
     adapter: Any = (
         EgmAdapter(path_correction) if controller == "egm" else RsiAdapter(limits.cycle, relative)
     )
@@ -212,6 +211,9 @@ def online(
 
         rep = load_replay(arg, cutoff=cutoff)
         src = ReplaySensor(rep.force_time, rep.force)
+        if pose is None:  # the study's sensor (pose, sign); the log is tared and compensated
+            sensor_setup = rep.sensor
+    oc = OnlineCompensator(cell.robot, cell.T_base_work, _k_tip(cell), sensor_setup, limits)
     loop = Loop(oc, adapter, (host, port), src, counts=(cpf, cpt))
     banner = (
         f"online: {adapter.name} on {loop.listen[0]}:{loop.listen[1]}, sensor {sensor}; "
