@@ -203,3 +203,34 @@ def test_bad_settings_are_input_errors(cell):
         SensorSetup(cutoff=0)
     with pytest.raises(InputError, match="load_on"):
         SensorSetup(load_on="sheet")
+
+
+@pytest.mark.skipif(not kn.COMPILED, reason="numba not installed: only the Python form exists")
+def test_python_fallback_gives_the_compiled_numbers(cell, poses):
+    """Without numba the kernels run as plain Python: same code, same numbers."""
+    oc = OnlineCompensator.from_cell(cell, SensorSetup(SENSOR_POSE, tool_mass=2.0))
+    W = np.array([30.0, -20.0, 350.0, 0.3, -0.1, 0.05])
+    oc.set_joints(poses[1])
+    oc.sample(0.0, W)
+    oc.sample(1e-3, 0.5 * W)
+    args = (
+        oc._F,
+        oc._sign,
+        oc._offset,
+        oc._kinv,
+        oc._X_ts,
+        oc._k_tip_base,
+        oc._R_bw,
+        oc._lim,
+        4e-3,
+        poses[1].copy(),
+    )
+    outs = []
+    for fn in (kn.cycle_kernel, kn.cycle_kernel.py_func):
+        st, y = oc.st.copy(), oc.filtered.copy()
+        corr, Wt, d, scr = np.zeros(3), np.zeros(6), np.zeros(6), np.zeros((20, 6))
+        status = fn(*args, st, y, corr, Wt, d, scr)
+        outs.append((status, corr, Wt, d))
+    assert outs[0][0] == outs[1][0]
+    for a, b in zip(outs[0][1:], outs[1][1:], strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-18)
