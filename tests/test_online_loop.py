@@ -222,8 +222,8 @@ def test_replay_sensor_releases_each_sample_once_on_the_clock():
     rs = ReplaySensor(t, W, speed=2.0)
     tt, ww = rs.samples_until(100.0)  # starts the clock at the first sample
     assert len(tt) == 1 and tt[0] == 100.0
-    tt, ww = rs.samples_until(100.0025)  # 2.5 ms of loop time = 5 ms of log at speed 2
+    tt, ww = rs.samples_until(100.00275)  # 2.75 ms of loop time = 5.5 ms of log at speed 2
     np.testing.assert_array_equal(ww, W[1:6])
     np.testing.assert_allclose(tt, 100.0 + (t[1:6] - t[0]) / 2)
-    assert len(rs.samples_until(100.0025)[0]) == 0  # nothing twice
+    assert len(rs.samples_until(100.00275)[0]) == 0  # nothing twice
     assert len(rs.samples_until(101.0)[0]) == 4
