@@ -41,7 +41,7 @@ from roboisf.errors import InputError
 from roboisf.frames import matrix_to_quat, vertical_tool
 from roboisf.online import egm, netft, rsi
 from roboisf.online import kernel as kn
-from roboisf.online.base import ProtocolError, RobotState
+from roboisf.online.base import ProtocolError
 from roboisf.online.core import Limits, OnlineCompensator, SensorSetup
 from roboisf.study.sensors import tip_to_sensor
 from roboisf.study.spec import ForceSensorSpec
@@ -420,11 +420,6 @@ def controller_process(
     finally:
         s.close()
         result.put({"rtt": rtt, "missed": missed, "applied": applied, "k": ks})
-
-
-def controller_state_from(protocol: str, data: bytes) -> RobotState:
-    """Decode a controller message (helper for tests)."""
-    return egm.decode_robot(data) if protocol == "egm" else rsi.decode_robot(data)
 
 
 class Simulation:
