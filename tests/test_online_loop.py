@@ -227,3 +227,25 @@ def test_replay_sensor_releases_each_sample_once_on_the_clock():
     np.testing.assert_allclose(tt, 100.0 + (t[1:6] - t[0]) / 2)
     assert len(rs.samples_until(100.00275)[0]) == 0  # nothing twice
     assert len(rs.samples_until(101.0)[0]) == 4
+
+
+@pytest.mark.slow
+def test_at_the_real_feed_the_loop_follows_the_true_forces():
+    """At the toolpath's own feed (40 cycles of 4 ms per 2 mm point at 12.5 mm/s) the lag of the
+    filter and of the one-cycle delay spans little path: the correction is within a few µm of
+    offline pre-deflection on the virtual cell's *true* wrench (the fast test above walks one
+    point per cycle, 20–40× faster, where that lag reaches tens of µm)."""
+    vc = virtual_cell(
+        "cone-6",
+        Cone(depth=6e-3),
+        T_base_work=PAPER_CELL_PLACEMENT,
+        step_down=1e-3,
+        spacing=2e-3,
+    )
+    s = virtual_setup(vc)
+    cpp = round(2e-3 / (s.toolpath.feed * 4e-3))
+    assert cpp == 40
+    ev = evaluate(s, form_online(s, "rsi", cycles_per_point=cpp))
+    assert ev.removed >= 0.95
+    assert np.median(ev.offline_true_diff) < 2e-6
+    assert np.percentile(ev.offline_true_diff, 99) < 10e-6
