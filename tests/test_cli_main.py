@@ -17,6 +17,7 @@ COMMANDS = [
     ["tool-stiffness"],
     ["holder-stiffness"],
     ["plan"],
+    ["online"],
 ]
 
 

@@ -298,6 +298,7 @@ _FILES = {
         "{o}.csv",
     ],
     "scan compare": ["scan", "compare", "{d}/s.ply", "--part", "{d}/p.toml", "-o", "{o}.csv"],
+    "online": ["online", "-c", "egm", "--virtual", "cone", "-o", "{o}.parquet"],
 }
 
 

@@ -58,6 +58,7 @@ def _register() -> None:
     from roboisf.cli import compensate as _compensate
     from roboisf.cli import demo as _demo
     from roboisf.cli import fem as _fem
+    from roboisf.cli import online as _online
     from roboisf.cli import part as _part
     from roboisf.cli import plan as _plan
     from roboisf.cli import robot as _robot
@@ -67,6 +68,7 @@ def _register() -> None:
     # --help lists commands in this order: the workflow first, then the building blocks
     for group in (_demo, _analyze, _compensate, _plan, _part, _toolpath, _robot, _fem, _scan):
         group.register(app)
+    _online.register(app)
 
 
 _register()

@@ -1,0 +1,352 @@
+"""``roboisf online``: the forming force, streamed, turned into the robot's path correction."""
+
+from __future__ import annotations
+
+import math
+import threading
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import typer
+
+from roboisf.cli.console import state
+from roboisf.cli.outputs import FILE_HELP, Overwrite, output_file, study_inputs
+from roboisf.errors import InputError
+
+__all__ = ["register"]
+
+VIRTUAL = ("cone", "vwacf", "pyramid")
+
+
+def _floats(text: str | None, n: int, field: str) -> list[float] | None:
+    if text is None:
+        return None
+    try:
+        v = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise InputError(
+            f"expected {n} comma-separated numbers, got {text!r}", field=field
+        ) from None
+    if len(v) != n or not all(math.isfinite(x) for x in v):
+        raise InputError(f"expected {n} finite comma-separated numbers, got {text!r}", field=field)
+    return v
+
+
+def online(
+    controller: str = typer.Option(
+        ...,
+        "--controller",
+        "-c",
+        help="egm (ABB Externally Guided Motion, position guidance; --path-correction for "
+        "EGMPathCorr) | rsi (KUKA RSI, RKorr) | replay (the joint log of --sensor replay:STUDY, "
+        "no network: what the loop would have sent on a part already formed).",
+    ),
+    sensor: str = typer.Option(
+        "netft:127.0.0.1",
+        "--sensor",
+        "-s",
+        help="netft:HOST[:PORT] (ATI Net F/T, RDT over UDP, port 49152) | replay:STUDY (the "
+        "study's robot force log, released in real time).",
+    ),
+    output: Path = typer.Option(
+        ..., "--output", "-o", help=f"Per-cycle log, Parquet (units in column names). {FILE_HELP}"
+    ),
+    overwrite: Overwrite = False,
+    study: Path | None = typer.Option(
+        None,
+        "--study",
+        help="The cell (robot, joint stiffness, placement, tool, holder, flange sensor pose) "
+        "from a study folder. replay:STUDY implies it.",
+    ),
+    virtual: str | None = typer.Option(
+        None, "--virtual", help=f"The cell of a virtual cell instead: {' | '.join(VIRTUAL)}."
+    ),
+    simulate: bool = typer.Option(
+        False,
+        "--simulate",
+        help="Start a simulated controller (--controller's protocol) and Net F/T on localhost "
+        "for the --virtual cell: try the loop without a robot.",
+    ),
+    listen: str = typer.Option(
+        "0.0.0.0:6510",
+        "--listen",
+        help="HOST:PORT where the controller's messages arrive (EGM UCdevice / RSI config).",
+    ),
+    duration: float = typer.Option(
+        math.inf, "--duration", help="Stop after this many seconds (default: Ctrl-C)."
+    ),
+    cycles: int | None = typer.Option(None, "--cycles", help="Stop after this many cycles."),
+    cycle: float = typer.Option(4.0, "--cycle", help="Controller cycle, ms (RSI: 4 or 12)."),
+    cutoff: float = typer.Option(20.0, "--cutoff", help="Low-pass corner on the wrench, Hz."),
+    deadband: float = typer.Option(0.005, "--deadband", help="Corrections below are 0, mm."),
+    max_correction: float = typer.Option(2.0, "--max-correction", help="Size limit, mm."),
+    max_rate: float = typer.Option(20.0, "--max-rate", help="Rate limit, mm/s."),
+    watchdog: float = typer.Option(
+        50.0, "--watchdog", help="No sample for this long: hold; twice as long: ramp to 0, ms."
+    ),
+    ramp_rate: float = typer.Option(5.0, "--ramp-rate", help="Watchdog ramp to zero, mm/s."),
+    sensor_pose: str | None = typer.Option(
+        None,
+        "--sensor-pose",
+        help="The F/T sensor in the flange frame: x,y,z,rx,ry,rz (mm, deg, fixed XYZ). "
+        "Default: the study's robot force sensor; the flange itself otherwise.",
+    ),
+    load_on: str = typer.Option("tool", "--load-on", help="tool | workpiece (sensor's sign)."),
+    tare: str | None = typer.Option(
+        None, "--tare", help="Unloaded reading Fx,Fy,Fz,Mx,My,Mz (N, N·m), subtracted."
+    ),
+    tool_mass: float = typer.Option(0.0, "--tool-mass", help="Mass below the sensor, kg."),
+    tool_cog: str = typer.Option("0,0,0", "--tool-cog", help="Its CoG in the sensor frame, mm."),
+    counts: str = typer.Option(
+        "1000000,1000000",
+        "--counts",
+        help="Net F/T counts per N and per N·m (cfgcpf, cfgcpt of the calibration).",
+    ),
+    path_correction: bool = typer.Option(False, "--path-correction", help="EGM path correction."),
+    relative: bool = typer.Option(False, "--relative", help="RSI: send per-cycle increments."),
+) -> None:
+    """Correct the robot while it forms: force stream → tip wrench → VJM + tool + holder
+    compliance at the current joints → pre-deflection sent every controller cycle.
+
+    Limits (never exceeded): --max-correction, --max-rate per cycle, --deadband; the watchdog
+    holds and then ramps the correction to zero when the sensor goes quiet. Every cycle is
+    logged to -o (Parquet). Ctrl-C ends the loop and writes the log. Lengths mm, angles deg.
+    See docs/online.md.
+    """
+    from roboisf.cell import cell_from_study
+    from roboisf.frames import make_transform, rpy_to_matrix
+    from roboisf.online import Limits, OnlineCompensator, SensorSetup, status_text
+    from roboisf.online.egm import EgmAdapter
+    from roboisf.online.loop import Loop, parse_address
+    from roboisf.online.rsi import RsiAdapter
+    from roboisf.study import load_study
+
+    if controller not in ("egm", "rsi", "replay"):
+        raise InputError(f"must be egm, rsi or replay, got {controller!r}", field="--controller")
+    kind, _, arg = sensor.partition(":")
+    if kind not in ("netft", "replay") or not arg:
+        raise InputError(
+            f"expected netft:HOST[:PORT] or replay:STUDY, got {sensor!r}", field="--sensor"
+        )
+    if simulate and (virtual is None or kind != "netft" or controller == "replay"):
+        raise InputError(
+            "--simulate needs --virtual NAME, --controller egm|rsi and a netft sensor",
+            field="--simulate",
+        )
+    if kind == "replay":
+        study = Path(arg)
+    if (study is None) == (virtual is None):
+        raise InputError("give the cell: --study STUDY or --virtual NAME", field="--study")
+    if virtual is not None and virtual not in VIRTUAL:
+        raise InputError(f"must be one of {', '.join(VIRTUAL)}, got {virtual!r}", field="--virtual")
+    if controller == "replay" and kind != "replay":
+        raise InputError("--controller replay needs --sensor replay:STUDY", field="--controller")
+    if output.suffix.lower() != ".parquet":
+        raise InputError(f"the log is Parquet: expected a .parquet file, got {output}", field="-o")
+    output_file(output, "online", overwrite, study_inputs(study))
+
+    limits = Limits(
+        deadband * 1e-3,
+        max_correction * 1e-3,
+        max_rate * 1e-3,
+        cycle * 1e-3,
+        watchdog * 1e-3,
+        ramp_rate * 1e-3,
+    )
+    cpf, cpt = _floats(counts, 2, "--counts") or [1e6, 1e6]
+    setup: Any = None
+    spec_pose = None
+    if virtual is not None:
+        from roboisf.online.sim import virtual_setup
+        from roboisf.virtual.cell import paper_cone_cell, paper_vwacf_cell, pyramid_cell
+
+        makers = {"cone": paper_cone_cell, "vwacf": paper_vwacf_cell, "pyramid": pyramid_cell}
+        vc = makers[virtual](scan_points=1000)
+        setup = virtual_setup(vc, cutoff=cutoff)
+        cell = vc.cell
+        spec_pose = setup.sensor.T_flange_sensor
+    else:
+        assert study is not None
+        st = load_study(study)
+        cell = cell_from_study(st)
+        f = st.robot_run.forces
+        if f.mount == "flange":
+            spec_pose = cell.T_flange_tip @ f.pose
+    pose = _floats(sensor_pose, 6, "--sensor-pose")
+    if pose is not None:
+        T_fs = make_transform(rpy_to_matrix(np.radians(pose[3:])), np.array(pose[:3]) * 1e-3)
+    else:
+        T_fs = spec_pose if spec_pose is not None else np.eye(4)
+    if simulate:
+        sensor_setup = setup.sensor  # the simulated sensor's tool, weight and tare
+    else:
+        cog = _floats(tool_cog, 3, "--tool-cog")
+        assert cog is not None
+        sensor_setup = SensorSetup(
+            T_fs,
+            load_on=load_on,
+            tare=np.array(_floats(tare, 6, "--tare") or [0.0] * 6),
+            tool_mass=tool_mass,
+            tool_cog=np.array(cog) * 1e-3,
+            cutoff=cutoff,
+        )
+
+    if controller == "replay":
+        _replay(study, limits, cutoff, output)
+        return
+
+    adapter: Any = (
+        EgmAdapter(path_correction) if controller == "egm" else RsiAdapter(limits.cycle, relative)
+    )
+    host, port = parse_address(listen, 6510, "--listen")
+    if simulate:
+        host, port = "127.0.0.1", 0
+    src: Any
+    if kind == "netft":
+        shost, sport = parse_address(arg, 49152, "--sensor")
+        src = (shost, 0 if simulate else sport)
+    else:
+        from roboisf.online.replay import ReplaySensor, load_replay
+
+        rep = load_replay(arg, cutoff=cutoff)
+        src = ReplaySensor(rep.force_time, rep.force)
+        if pose is None:  # the study's sensor (pose, sign); the log is tared and compensated
+            sensor_setup = rep.sensor
+    oc = OnlineCompensator(cell.robot, cell.T_base_work, _k_tip(cell), sensor_setup, limits)
+    loop = Loop(oc, adapter, (host, port), src, counts=(cpf, cpt))
+    banner = (
+        f"online: {adapter.name} on {loop.listen[0]}:{loop.listen[1]}, sensor {sensor}; "
+        f"limits {max_correction:g} mm, {max_rate:g} mm/s, dead band {deadband * 1e3:g} µm"
+    )
+    sim_result: dict[str, Any] | None = None
+    if simulate:
+        from roboisf.online.sim import Simulation
+
+        n = int(min(duration, 3600.0) / limits.cycle) if math.isfinite(duration) else 15_000
+        n = min(n, cycles) if cycles is not None else n
+        step = max(1, math.ceil(len(setup.q) / max(n, 1)))
+        with Simulation(
+            setup, controller, loop.listen[1], n_cycles=n, cycle=limits.cycle, point_step=step
+        ) as sim:
+            assert loop.ft is not None
+            loop.ft.connect(("127.0.0.1", sim.sensor_port))
+
+            def _finish() -> None:
+                sim.result()
+                loop.stop()
+
+            done = threading.Thread(target=_finish, daemon=True)
+            done.start()
+            _run(loop, duration, cycles, status_text, banner)
+            sim.stop.set()  # the loop has ended: the controller reports what it saw
+            done.join(30)
+            sim_result = sim.result(timeout=0.1) if not done.is_alive() else None
+    else:
+        _run(loop, duration, cycles, status_text, banner)
+    loop.log.write(
+        output,
+        {
+            "controller": controller,
+            "sensor": sensor,
+            "corrections": "work axes",
+            "wrench_and_deflection": "base axes, at the tool tip",
+        },
+    )
+    c = loop.counters
+    state.info(
+        f"{c.cycles} cycles, {c.samples} force samples; dropped: {c.bad_controller} bad "
+        f"controller and {c.bad_sensor} bad sensor packets, {c.late_sensor} late samples"
+        + (f", sensor unreachable {c.sensor_unreachable}×" if c.sensor_unreachable else "")
+        + "; "
+        f"log → {output}"
+    )
+    if sim_result is not None:
+        rtt = sim_result["rtt"]
+        got = np.isfinite(rtt)
+        if got.any():
+            state.info(
+                f"simulated controller: {int(sim_result['missed'])} missed cycles of {len(rtt)}; "
+                f"round trip p50 {np.percentile(rtt[got], 50) * 1e3:.3f} ms, "
+                f"p99 {np.percentile(rtt[got], 99) * 1e3:.3f} ms"
+            )
+
+
+def _k_tip(cell: Any) -> Any:
+    from roboisf.cell import tip_compliances
+
+    _, _, k_t, k_th = tip_compliances(cell)
+    return k_t + k_th
+
+
+def _run(loop: Any, duration: float, cycles: int | None, status_text: Any, banner: str) -> None:
+    """Serve with a live status line (a rich Live on a terminal, a line a second with -v)."""
+    from roboisf.io.outdir import Interrupted
+
+    def line(lp: Any) -> str:
+        c = lp.counters
+        k = lp.oc.correction * 1e3
+        return (
+            f"cycles {c.cycles}  samples {c.samples}  correction [{k[0]:+.3f} {k[1]:+.3f} "
+            f"{k[2]:+.3f}] mm  |F| {np.linalg.norm(lp.oc.tip_wrench[:3]):.0f} N  "
+            f"{status_text(lp.oc.status)}  bad {c.bad_controller}/{c.bad_sensor}  "
+            f"late {c.late_sensor}"
+        )
+
+    try:
+        state.info(banner)  # inside the try: a Ctrl-C from now on still writes the log
+        if state.verbosity >= 1 and state.err.is_terminal:
+            from rich.live import Live
+            from rich.text import Text
+
+            with Live(Text(""), console=state.err, refresh_per_second=4, transient=True) as live:
+                loop.run(
+                    duration=duration,
+                    cycles=cycles,
+                    status=lambda lp: live.update(Text(line(lp))),
+                )
+        else:
+            loop.run(
+                duration=duration,
+                cycles=cycles,
+                status=(lambda lp: state.debug(line(lp))),
+                status_every=1.0,
+            )
+    except Interrupted:
+        loop.close()
+        state.info("stopped (Ctrl-C); writing the log")
+
+
+def _replay(study: Path | None, limits: Any, cutoff: float, output: Path) -> None:
+    import pandas as pd
+
+    from roboisf.io.atomic import atomic_path
+    from roboisf.online.replay import load_replay, replay_study
+
+    assert study is not None
+    rep = load_replay(study, cutoff=cutoff)
+    _, out = replay_study(rep, limits)
+    df = pd.DataFrame(
+        {
+            "t_s": out[:, 0],
+            "corr_x_mm": out[:, 1] * 1e3,
+            "corr_y_mm": out[:, 2] * 1e3,
+            "corr_z_mm": out[:, 3] * 1e3,
+            "fx_N": out[:, 4],
+            "fy_N": out[:, 5],
+            "fz_N": out[:, 6],
+            "status": out[:, 7].astype(np.int64),
+            "deflection_mm": out[:, 8] * 1e3,
+            "compute_us": out[:, 9] * 1e6,
+        }
+    )
+    with atomic_path(output) as tmp:
+        df.to_parquet(tmp, index=False)
+    state.info(
+        f"replayed {len(df)} joint samples of {study}: correction up to "
+        f"{np.linalg.norm(out[:, 1:4], axis=1).max() * 1e3:.3f} mm; log → {output}"
+    )
+
+
+def register(app: typer.Typer) -> None:
+    app.command("online")(online)

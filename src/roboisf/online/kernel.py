@@ -1,0 +1,365 @@
+"""The per-sample arithmetic of the online loop, compiled with numba when it is installed.
+
+Two entry points, both writing only into arrays the caller allocated once
+(:class:`roboisf.online.core.OnlineCompensator`), so a sample or a control cycle allocates
+nothing:
+
+:func:`sample_kernel` — one force-sensor sample ``W_s`` (sensor axes, about the sensor origin,
+    the load on the tool, N and N·m) at time ``t`` with the robot at joint angles ``q``:
+    ``W_c = W_s − tare − G(R_sensor_base)``, the tool's weight ``G`` (mass ``m`` at ``c`` in
+    the sensor frame: ``f = m R_sensor_base g``, ``m = c × f``), then a first-order low-pass
+    ``y ← y + α (W_c − y)``, ``α = 1 − exp(−2π f_c Δt)`` with the samples' own ``Δt`` (exact
+    for any rate; the first sample initialises ``y``).
+:func:`cycle_kernel` — one controller cycle at time ``t`` and joint angles ``q``: the filtered
+    wrench moved to the tool tip in base axes (``W = blkdiag(R, R) X_ts y``, ``X_ts`` the
+    wrench transform sensor → tip, ``R = R_base_tip(q)``), the deflection
+    ``δ = J K_θ⁻¹ Jᵀ W + k_tip W`` (robot VJM at ``q`` plus tool and holder, base axes), the
+    correction ``c = −R_base_workᵀ δ[:3]`` (work axes, m), then the dead band, the size limit,
+    the rate limit and the watchdog (see :class:`roboisf.online.core.Limits`).
+
+The forward kinematics and Jacobian are the chain walk of :mod:`roboisf.robot.vjm_numba` for one
+pose (same ``F``, ``sign``, ``offset``; tested against :meth:`RobotModel.deflection`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from roboisf.robot.vjm_kernel import HAVE_NUMBA
+
+__all__ = [
+    "COMPILED",
+    "STATUS_BAD_INPUT",
+    "STATUS_DEADBAND",
+    "STATUS_HOLD",
+    "STATUS_LIMITED",
+    "STATUS_NAMES",
+    "STATUS_NO_SAMPLE",
+    "STATUS_OK",
+    "STATUS_RAMP",
+    "S_CYCLES",
+    "S_HAVE",
+    "S_LAST_CYCLE",
+    "S_LAST_SAMPLE",
+    "S_STATUS",
+    "cycle_kernel",
+    "fk_deflection",
+    "sample_kernel",
+]
+
+F64 = NDArray[np.float64]
+
+# indices into the state vector ``st``
+S_HAVE = 0  # 1 once a sample has been filtered
+S_LAST_SAMPLE = 1  # time of the last sample [s]
+S_LAST_CYCLE = 2  # time of the last cycle [s]
+S_STATUS = 3  # status bits of the last cycle
+S_CYCLES = 4  # cycles run
+
+# status bits of a cycle (several may be set)
+STATUS_OK = 0
+STATUS_DEADBAND = 1  # the correction was inside the dead band: zero sent
+STATUS_LIMITED = 2  # the size or rate limit cut the correction
+STATUS_HOLD = 4  # watchdog: no fresh sample, correction held
+STATUS_RAMP = 8  # watchdog: no fresh sample for long, correction ramped towards zero
+STATUS_NO_SAMPLE = 16  # no sample yet
+STATUS_BAD_INPUT = 32  # non-finite joint angles or wrench: correction held
+STATUS_NAMES = {
+    STATUS_DEADBAND: "deadband",
+    STATUS_LIMITED: "limited",
+    STATUS_HOLD: "hold",
+    STATUS_RAMP: "ramp",
+    STATUS_NO_SAMPLE: "no-sample",
+    STATUS_BAD_INPUT: "bad-input",
+}
+
+
+def _identity(f: Callable[..., Any]) -> Callable[..., Any]:
+    return f
+
+
+if HAVE_NUMBA:
+    import numba
+
+    _jit: Callable[[Callable[..., Any]], Callable[..., Any]] = numba.njit(
+        cache=True, nogil=True, fastmath=False
+    )
+else:  # pragma: no cover - numba is a test dependency
+    _jit = _identity
+
+#: the kernels are compiled (numba installed); else they run as (slow) Python
+COMPILED = HAVE_NUMBA
+
+
+@_jit
+def fk_deflection(
+    F: F64, sign: F64, offset: F64, kinv: F64, q: F64, W: F64, d: F64, R: F64, scr: F64
+) -> None:  # pragma: no cover - compiled; tested against RobotModel.deflection
+    """One pose: tip rotation ``R`` (3, 3) and robot deflection ``d`` (6,) = J K⁻¹ Jᵀ W.
+
+    ``F`` (7, 4, 4) with the tool folded into ``F[6]``; ``q`` (6,) rad; ``W`` (6,) [N; N·m],
+    base axes; ``scr`` (20, 6) scratch (rows 0–12 used). Base axes, at the tip.
+    """
+    oz = scr[0:6]
+    Jl = scr[6:12]
+    a = scr[12]
+    r00, r01, r02 = F[0, 0, 0], F[0, 0, 1], F[0, 0, 2]
+    r10, r11, r12 = F[0, 1, 0], F[0, 1, 1], F[0, 1, 2]
+    r20, r21, r22 = F[0, 2, 0], F[0, 2, 1], F[0, 2, 2]
+    px, py, pz = F[0, 0, 3], F[0, 1, 3], F[0, 2, 3]
+    for j in range(6):
+        if j > 0:
+            t0, t1, t2 = F[j, 0, 3], F[j, 1, 3], F[j, 2, 3]
+            px += r00 * t0 + r01 * t1 + r02 * t2
+            py += r10 * t0 + r11 * t1 + r12 * t2
+            pz += r20 * t0 + r21 * t1 + r22 * t2
+            f00, f01, f02 = F[j, 0, 0], F[j, 0, 1], F[j, 0, 2]
+            f10, f11, f12 = F[j, 1, 0], F[j, 1, 1], F[j, 1, 2]
+            f20, f21, f22 = F[j, 2, 0], F[j, 2, 1], F[j, 2, 2]
+            r00, r01, r02 = (
+                r00 * f00 + r01 * f10 + r02 * f20,
+                r00 * f01 + r01 * f11 + r02 * f21,
+                r00 * f02 + r01 * f12 + r02 * f22,
+            )
+            r10, r11, r12 = (
+                r10 * f00 + r11 * f10 + r12 * f20,
+                r10 * f01 + r11 * f11 + r12 * f21,
+                r10 * f02 + r11 * f12 + r12 * f22,
+            )
+            r20, r21, r22 = (
+                r20 * f00 + r21 * f10 + r22 * f20,
+                r20 * f01 + r21 * f11 + r22 * f21,
+                r20 * f02 + r21 * f12 + r22 * f22,
+            )
+        oz[j, 0] = r02
+        oz[j, 1] = r12
+        oz[j, 2] = r22
+        oz[j, 3] = px
+        oz[j, 4] = py
+        oz[j, 5] = pz
+        th = sign[j] * q[j] + offset[j]
+        sn = math.sin(th)
+        c = math.cos(th)
+        r00, r01 = c * r00 + sn * r01, c * r01 - sn * r00
+        r10, r11 = c * r10 + sn * r11, c * r11 - sn * r10
+        r20, r21 = c * r20 + sn * r21, c * r21 - sn * r20
+    t0, t1, t2 = F[6, 0, 3], F[6, 1, 3], F[6, 2, 3]
+    px += r00 * t0 + r01 * t1 + r02 * t2
+    py += r10 * t0 + r11 * t1 + r12 * t2
+    pz += r20 * t0 + r21 * t1 + r22 * t2
+    for k in range(3):  # R_base_tip = R_base_6 · R_6_tip
+        R[0, k] = r00 * F[6, 0, k] + r01 * F[6, 1, k] + r02 * F[6, 2, k]
+        R[1, k] = r10 * F[6, 0, k] + r11 * F[6, 1, k] + r12 * F[6, 2, k]
+        R[2, k] = r20 * F[6, 0, k] + r21 * F[6, 1, k] + r22 * F[6, 2, k]
+    for j in range(6):
+        zx, zy, zz = oz[j, 0], oz[j, 1], oz[j, 2]
+        rx, ry, rz = px - oz[j, 3], py - oz[j, 4], pz - oz[j, 5]
+        sj = sign[j]
+        Jl[0, j] = sj * (zy * rz - zz * ry)
+        Jl[1, j] = sj * (zz * rx - zx * rz)
+        Jl[2, j] = sj * (zx * ry - zy * rx)
+        Jl[3, j] = sj * zx
+        Jl[4, j] = sj * zy
+        Jl[5, j] = sj * zz
+    for j in range(6):
+        tau = 0.0
+        for i in range(6):
+            tau += Jl[i, j] * W[i]
+        a[j] = tau * kinv[j]
+    for i in range(6):
+        acc = 0.0
+        for j in range(6):
+            acc += Jl[i, j] * a[j]
+        d[i] = acc
+
+
+@_jit
+def sample_kernel(
+    F: F64,
+    sign: F64,
+    offset: F64,
+    kinv: F64,
+    R_tip_sensor: F64,
+    grav: F64,
+    tare: F64,
+    cutoff: float,
+    t: float,
+    W_s: F64,
+    q: F64,
+    st: F64,
+    y: F64,
+    scr: F64,
+) -> bool:  # pragma: no cover - compiled; tested through OnlineCompensator
+    """Filter one sensor sample into ``y`` (6,) (sensor axes, tare and tool weight removed).
+
+    ``grav`` (7,): tool mass [kg], CoG in the sensor frame (3,) [m], gravity in base axes (3,)
+    [m/s²]. ``q`` (6,) rad: the latest joint angles (orientation of the sensor). Returns False
+    (sample dropped, state unchanged) for a non-finite sample or time, or a time not after
+    the last sample's.
+    """
+    for i in range(6):
+        if not math.isfinite(W_s[i]):
+            return False
+    if not math.isfinite(t) or (st[S_HAVE] > 0 and t <= st[S_LAST_SAMPLE]):
+        return False
+    W_c = scr[13]
+    m = grav[0]
+    if m != 0.0:
+        R = scr[14:17, 0:3]
+        fk_deflection(F, sign, offset, kinv, q, scr[19], scr[19], R, scr)
+        # sensor axes: R_sensor_base = (R_base_tip R_tip_sensor)ᵀ
+        for i in range(3):
+            acc = 0.0
+            for k in range(3):
+                rbs = 0.0  # R_base_sensor[k, i]
+                for l in range(3):
+                    rbs += R[k, l] * R_tip_sensor[l, i]
+                acc += rbs * grav[4 + k]
+            W_c[i] = m * acc  # weight in sensor axes
+        cx, cy, cz = grav[1], grav[2], grav[3]
+        fx, fy, fz = W_c[0], W_c[1], W_c[2]
+        W_c[3] = cy * fz - cz * fy
+        W_c[4] = cz * fx - cx * fz
+        W_c[5] = cx * fy - cy * fx
+    else:
+        for i in range(6):
+            W_c[i] = 0.0
+    for i in range(6):
+        W_c[i] = W_s[i] - tare[i] - W_c[i]
+    if st[S_HAVE] == 0:
+        for i in range(6):
+            y[i] = W_c[i]
+        st[S_HAVE] = 1.0
+    else:
+        alpha = 1.0 - math.exp(-2.0 * math.pi * cutoff * (t - st[S_LAST_SAMPLE]))
+        for i in range(6):
+            y[i] += alpha * (W_c[i] - y[i])
+    st[S_LAST_SAMPLE] = t
+    return True
+
+
+@_jit
+def cycle_kernel(
+    F: F64,
+    sign: F64,
+    offset: F64,
+    kinv: F64,
+    X_ts: F64,
+    k_tip: F64,
+    R_base_work: F64,
+    lim: F64,
+    t: float,
+    q: F64,
+    st: F64,
+    y: F64,
+    corr: F64,
+    W_tip: F64,
+    delta: F64,
+    scr: F64,
+) -> int:  # pragma: no cover - compiled; tested through OnlineCompensator
+    """One control cycle: the correction ``corr`` (3,) m, work axes, updated in place.
+
+    ``lim`` (6,): dead band [m], size limit [m], rate limit [m/s], cycle time [s], watchdog
+    hold [s], watchdog ramp-down rate [m/s]. Writes the tip wrench ``W_tip`` (6,) and the
+    deflection ``delta`` (6,) (base axes) used; returns the status bits.
+    """
+    deadband, size, rate, cycle, hold, ramp = lim[0], lim[1], lim[2], lim[3], lim[4], lim[5]
+    status = 0
+    tgt = scr[18, 0:3]
+    finite_q = True
+    for i in range(6):
+        if not math.isfinite(q[i]):
+            finite_q = False
+    age = t - st[S_LAST_SAMPLE]
+    step_max = rate * cycle
+    if not finite_q or not math.isfinite(t):
+        status |= STATUS_BAD_INPUT
+        for i in range(3):
+            tgt[i] = corr[i]
+    elif st[S_HAVE] == 0 or age > hold:
+        # watchdog: hold the last correction for ``hold`` s, then ramp it to zero
+        status |= STATUS_NO_SAMPLE if st[S_HAVE] == 0 else STATUS_HOLD
+        if st[S_HAVE] == 0 or age > 2.0 * hold:
+            status |= STATUS_RAMP
+            step_max = min(step_max, ramp * cycle)
+            for i in range(3):
+                tgt[i] = 0.0
+        else:
+            for i in range(3):
+                tgt[i] = corr[i]
+    else:
+        R = scr[14:17, 0:3]
+        Wb = scr[17]
+        # tip axes: X_ts y; base axes: blkdiag(R, R)
+        fk_deflection(F, sign, offset, kinv, q, scr[19], scr[19], R, scr)  # R only
+        for i in range(6):
+            acc = 0.0
+            for k in range(6):
+                acc += X_ts[i, k] * y[k]
+            scr[13, i] = acc
+        for i in range(3):
+            f = 0.0
+            mm = 0.0
+            for k in range(3):
+                f += R[i, k] * scr[13, k]
+                mm += R[i, k] * scr[13, 3 + k]
+            Wb[i] = f
+            Wb[3 + i] = mm
+        for i in range(6):
+            W_tip[i] = Wb[i]
+        fk_deflection(F, sign, offset, kinv, q, W_tip, delta, R, scr)
+        for i in range(6):
+            acc = 0.0
+            for k in range(6):
+                acc += k_tip[i, k] * W_tip[k]
+            delta[i] += acc
+        nrm = 0.0
+        for i in range(3):  # −R_base_workᵀ δ
+            acc = 0.0
+            for k in range(3):
+                acc += R_base_work[k, i] * delta[k]
+            tgt[i] = -acc
+            nrm += acc * acc
+        nrm = math.sqrt(nrm)
+        if not math.isfinite(nrm):
+            status |= STATUS_BAD_INPUT
+            for i in range(3):
+                tgt[i] = corr[i]
+        elif nrm < deadband:
+            status |= STATUS_DEADBAND
+            for i in range(3):
+                tgt[i] = 0.0
+        elif nrm > size:
+            status |= STATUS_LIMITED
+            for i in range(3):
+                tgt[i] *= size / nrm
+    # rate limit: the step from the last correction, then the size limit once more (rounding)
+    s2 = 0.0
+    for i in range(3):
+        s2 += (tgt[i] - corr[i]) ** 2
+    s = math.sqrt(s2)
+    if s > step_max:
+        f = step_max / s
+        if status & (STATUS_HOLD | STATUS_RAMP | STATUS_NO_SAMPLE | STATUS_BAD_INPUT) == 0:
+            status |= STATUS_LIMITED
+        for i in range(3):
+            corr[i] += f * (tgt[i] - corr[i])
+    else:
+        for i in range(3):
+            corr[i] = tgt[i]
+    n2 = 0.0
+    for i in range(3):
+        n2 += corr[i] ** 2
+    if n2 > size * size:
+        f = size / math.sqrt(n2) * (1.0 - 1e-12)
+        for i in range(3):
+            corr[i] *= f
+    st[S_LAST_CYCLE] = t
+    st[S_STATUS] = status
+    st[S_CYCLES] += 1
+    return status

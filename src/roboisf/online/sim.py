@@ -1,0 +1,515 @@
+"""A simulated robot controller and force sensor, and the part the online loop forms virtually.
+
+:func:`virtual_setup` prepares, for a :class:`~roboisf.virtual.cell.VirtualCell`, what the two
+simulated devices need per toolpath point: the robot run's forming wrench (the virtual cell's
+force model, :func:`roboisf.virtual.cell.simulate`), the joint angles of the nominal path and
+its Jacobian (a commanded correction ``c`` moves the joints by ``J⁻¹ [c; 0]``), the planned
+pose (EGM), and what the flange F/T sensor reads there (the wrench in the sensor's frame —
+:func:`roboisf.study.sensors.tip_to_sensor`, the study's own code — plus the tool's weight and a
+tare offset).
+
+Two ways to run the loop against them:
+
+* :func:`form_online` — in one process, no sockets, deterministic: per toolpath point, the
+  sensor's samples go through the RDT codec, the controller's message and the reply through the
+  EGM or RSI codec, and the correction the controller decodes is applied at the next point.
+  The path is walked at one point per control cycle (1 mm / 4 ms: a fast feed, so the low-pass
+  filter's lag is seen over more path than at a real feed).
+* :func:`sensor_process` / :func:`controller_process` — separate processes speaking the real
+  protocols over localhost UDP (for the CLI's ``--simulate``, the benchmark and the tests),
+  sharing only the index of the current toolpath point (the physics: the force depends on where
+  the tool is).
+
+:func:`evaluate` forms the part with the commanded path (``simulate(cell, commanded=…)``) and
+compares its compliance error with the uncorrected part's and with offline pre-deflection.
+"""
+
+from __future__ import annotations
+
+import math
+import socket
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from roboisf.cell import tip_compliances
+from roboisf.compensate.compliance import DeflectionModel, precompensate
+from roboisf.errors import InputError
+from roboisf.frames import matrix_to_quat, vertical_tool
+from roboisf.online import egm, netft, rsi
+from roboisf.online import kernel as kn
+from roboisf.online.base import ProtocolError
+from roboisf.online.core import Limits, OnlineCompensator, SensorSetup
+from roboisf.study.sensors import tip_to_sensor
+from roboisf.study.spec import ForceSensorSpec
+from roboisf.toolpath import Toolpath
+from roboisf.virtual.cell import CellTruth, VirtualCell, simulate
+
+__all__ = [
+    "OnlineForming",
+    "VirtualSetup",
+    "controller_process",
+    "evaluate",
+    "form_online",
+    "sensor_process",
+    "virtual_setup",
+]
+
+F64 = NDArray[np.float64]
+
+#: the simulated sensor's tool below it: mass [kg], CoG in the sensor frame [m], tare [N; N·m]
+SIM_TOOL_MASS = 3.0
+SIM_TOOL_COG = (0.0, 0.002, 0.09)
+SIM_TARE = (4.0, -2.5, 12.0, 0.15, -0.08, 0.02)
+
+
+@dataclass(frozen=True, eq=False)
+class VirtualSetup:
+    """Per toolpath point (N points; work frame, SI): what the simulated devices need."""
+
+    vc: VirtualCell
+    toolpath: Toolpath
+    truth: CellTruth  #: the uncorrected part
+    wrench: F64  #: (N, 6) the robot run's tip wrench, work axes [N; N·m]
+    q: F64  #: (N, 6) rad, nominal path
+    dq_dp: F64  #: (N, 6, 3) rad/m, joint change per tip translation (work axes)
+    planned: F64  #: (N, 7) planned tip pose: position m, quaternion (w, x, y, z)
+    reading: F64  #: (N, 6) the sensor's noiseless reading [N; N·m]
+    sensor: SensorSetup
+    noise: float  #: N, the sensor's white noise (moments: × 5 mm)
+
+
+def virtual_setup(vc: VirtualCell, *, cutoff: float = 20.0) -> VirtualSetup:
+    """The simulated cell of ``vc`` (its flange sensor :attr:`VirtualCell.T_tip_sensor`, a
+    3 kg tool below it and a tare offset)."""
+    truth = simulate(vc)
+    tp = truth.toolpath
+    cell = vc.cell
+    W = truth.wrench_robot
+    q = truth.q
+    J = cell.robot.jacobian(q, T_base_work=cell.T_base_work)
+    dq_dp = np.asarray(np.linalg.solve(J, np.eye(6)[None, :, :3].repeat(len(q), 0)), dtype=float)
+    R_wt = vertical_tool(vc.tool_rotation)
+    planned = np.empty((len(tp), 7))
+    planned[:, :3] = tp.tip
+    planned[:, 3:] = matrix_to_quat(R_wt)
+    T_tip_sensor = vc.T_tip_sensor
+    spec = ForceSensorSpec(vc.name, "flange", T_tip_sensor, "tool")  # type: ignore[arg-type]
+    reading = tip_to_sensor(W, spec, tp.tip, R_wt)
+    sensor = SensorSetup(
+        cell.T_flange_tip @ T_tip_sensor,
+        load_on="tool",
+        tare=np.array(SIM_TARE),
+        tool_mass=SIM_TOOL_MASS,
+        tool_cog=np.array(SIM_TOOL_COG),
+        cutoff=cutoff,
+    )
+    # the weight, an external load m g at the CoG, in the sensor's axes at each pose
+    T_bt = cell.robot.fk(q)
+    R_bs = T_bt[:, :3, :3] @ T_tip_sensor[:3, :3]
+    f_g = SIM_TOOL_MASS * np.einsum("nji,j->ni", R_bs, np.array([0.0, 0.0, -9.80665]))
+    reading[:, :3] += f_g
+    reading[:, 3:] += np.cross(np.array(SIM_TOOL_COG), f_g)
+    reading += np.array(SIM_TARE)
+    return VirtualSetup(vc, tp, truth, W, q, dq_dp, planned, reading, sensor, float(vc.force.noise))
+
+
+def _noise(rng: np.random.Generator, sigma: float) -> F64:
+    n = rng.normal(scale=sigma, size=6)
+    n[3:] *= 5e-3
+    return n
+
+
+@dataclass(frozen=True, eq=False)
+class OnlineForming:
+    """What the loop did at each toolpath point (N points, work frame, SI).
+
+    applied : (N, 3) m — the correction the controller applied when the tool reached the point:
+        the one the loop computed in the cycle before, at ``target`` with ``wrench``
+    target : (N, 3) m — the nominal tip of that cycle (NaN at the first point)
+    wrench : (N, 6) — the filtered tip wrench that cycle used, work axes [N; N·m]
+    status : (N,) int — that cycle's status bits (:mod:`roboisf.online.kernel`)
+    steady : (N,) bool — that cycle and the one before it ran with no limit, dead band or
+        watchdog acting (status 0)
+    """
+
+    applied: F64
+    target: F64
+    wrench: F64
+    status: NDArray[np.int64]
+    steady: NDArray[np.bool_]
+
+
+def form_online(
+    setup: VirtualSetup,
+    controller: str = "egm",
+    *,
+    limits: Limits | None = None,
+    samples_per_cycle: int = 4,
+    cycles_per_point: int = 1,
+    seed: int = 0,
+) -> OnlineForming:
+    """Run the loop in-process over the whole toolpath (codecs included, no sockets).
+
+    The tool moves from one toolpath point to the next in ``cycles_per_point`` control cycles
+    (joints, planned pose and the sensor's reading interpolated linearly in between); at the
+    toolpath's own feed that is ``spacing / (feed · cycle)`` (≈ 20 for 1 mm at 12.5 mm/s). The
+    default, 1, walks the path 20× faster than real: the filter's and the one-cycle delay's lag
+    then span 20× more path (a harder test of the lag, an easier one of the run time).
+    """
+    lim = limits or Limits()
+    if cycles_per_point < 1 or samples_per_cycle < 1:
+        raise InputError("cycles_per_point and samples_per_cycle must be ≥ 1", field="cycles")
+    oc = OnlineCompensator.from_cell(setup.vc.cell, setup.sensor, lim)
+    adapter: Any = egm.EgmAdapter() if controller == "egm" else rsi.RsiAdapter(lim.cycle)
+    rng = np.random.default_rng(seed)
+    n = len(setup.toolpath)
+    applied = np.zeros((n, 3))
+    target = np.full((n, 3), np.nan)
+    wrench = np.zeros((n, 6))
+    status = np.zeros(n, dtype=np.int64)
+    steady = np.zeros(n, dtype=bool)
+    rx = np.zeros(3)
+    last_w = np.zeros(6)
+    last_p = np.full(3, np.nan)
+    last_st = prev_st = kn.STATUS_NO_SAMPLE
+    R_bw = setup.vc.cell.T_base_work[:3, :3]
+    dt = lim.cycle / samples_per_cycle
+    cyc = 0
+    for k in range(n):
+        k1 = min(k + 1, n - 1)
+        applied[k] = rx
+        target[k] = last_p
+        wrench[k] = last_w
+        status[k] = last_st
+        steady[k] = last_st == 0 and prev_st == 0
+        for j in range(cycles_per_point):
+            f = j / cycles_per_point
+            q = (1 - f) * setup.q[k] + f * setup.q[k1] + setup.dq_dp[k] @ rx
+            planned = (1 - f) * setup.planned[k] + f * setup.planned[k1]
+            reading = (1 - f) * setup.reading[k] + f * setup.reading[k1]
+            oc.set_joints(q)
+            for i in range(samples_per_cycle):
+                rec = netft.encode_record(cyc, i, 0, reading + _noise(rng, setup.noise))
+                (r,) = netft.decode_records(rec)
+                oc.sample((cyc * samples_per_cycle + i) * dt, r.wrench)
+            t = (cyc + 1) * lim.cycle - 0.25 * dt
+            if controller == "egm":
+                msg = egm.encode_robot(cyc, int(t * 1e3), q, planned)
+            else:
+                msg = rsi.encode_robot(cyc, q)
+            state = adapter.decode(msg)
+            c = oc.cycle(t, state.q)
+            reply = adapter.encode(state, c)
+            if controller == "egm":
+                rx = egm.decode_sensor(reply)[1][:3] - planned[:3]
+            else:
+                rx = rsi.decode_reply(reply)[1]
+            cyc += 1
+            last_p = planned[:3]
+            last_w[:3] = R_bw.T @ oc.tip_wrench[:3]
+            last_w[3:] = R_bw.T @ oc.tip_wrench[3:]
+            prev_st, last_st = last_st, oc.status
+    return OnlineForming(applied, target, wrench, status, steady)
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """The virtually formed part (lengths m).
+
+    rms_before, rms_after : RMS of the compliance error along the normal (tool + holder + robot,
+        and the applied correction) without and with the loop
+    removed : 1 − rms_after / rms_before
+    offline_diff : (N,) ‖online applied − offline pre-deflection‖ on the loop's own wrenches
+        (the one computed at the cycle's own target; NaN at the first point)
+    offline_true_diff : (N,) the same against offline pre-deflection of the point with the
+        virtual cell's true wrench there (adds the filter's and the one-cycle delay's lag)
+    steady : (N,) bool — :attr:`OnlineForming.steady`
+    """
+
+    rms_before: float
+    rms_after: float
+    removed: float
+    offline_diff: F64
+    offline_true_diff: F64
+    steady: NDArray[np.bool_]
+    truth: CellTruth
+
+
+def evaluate(setup: VirtualSetup, run: OnlineForming) -> Evaluation:
+    """Form the part with the loop's commanded path and compare (see :class:`Evaluation`)."""
+    vc = setup.vc
+    tp = setup.toolpath
+    truth = simulate(vc, commanded=tp.with_tip(tp.tip + run.applied))
+    n = tp.normal
+    before = np.einsum(
+        "ij,ij->i", setup.truth.tool_robot + setup.truth.holder_robot + setup.truth.robot, n
+    )
+    after = np.einsum(
+        "ij,ij->i",
+        truth.tool_robot + truth.holder_robot + truth.robot + run.applied,
+        n,
+    )
+    rb = float(np.sqrt(np.mean(before**2)))
+    ra = float(np.sqrt(np.mean(after**2)))
+    _, _, k_t, k_th = tip_compliances(vc.cell)
+    model = DeflectionModel(
+        vc.cell.robot, vc.cell.T_base_work, k_t + k_th, tool_rotation=vc.tool_rotation
+    )
+    ok = np.all(np.isfinite(run.target), axis=1)
+    off = precompensate(run.target[ok], run.wrench[ok], model, tol=1e-9, max_iter=100)
+    diff = np.full(len(tp), np.nan)
+    diff[ok] = np.linalg.norm(run.applied[ok] - (off.commanded - off.target), axis=1)
+    off_true = precompensate(tp.tip, setup.wrench, model, tol=1e-9, max_iter=100)
+    true_diff = np.linalg.norm(run.applied - (off_true.commanded - tp.tip), axis=1)
+    steady = run.steady & ok
+    return Evaluation(rb, ra, 1.0 - ra / rb, diff, true_diff, steady, truth)
+
+
+# ---------------------------------------------------------------------------------- processes
+def _bind(port: int) -> socket.socket:
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", port))
+    return s
+
+
+def sensor_process(
+    port: int,
+    reading: F64,
+    index: Any,
+    stop: Any,
+    ready: Any,
+    *,
+    rate: float = 1000.0,
+    noise: float = 2.0,
+    seed: int = 1,
+    silent_after: float = math.inf,
+) -> None:
+    """A Net F/T speaking RDT on 127.0.0.1:``port``: on a start request, streams a record of
+    ``reading[index.value]`` (+ white noise) every ``1/rate`` s to the requester until a stop
+    request, the sample count, ``stop`` is set, or ``silent_after`` s (a sensor that dies)."""
+    rng = np.random.default_rng(seed)
+    s = _bind(port)
+    ready.set()
+    s.settimeout(0.05)
+    peer = None
+    left = 0
+    seq = 0
+    t0 = time.perf_counter()
+    nxt = t0
+    try:
+        while not stop.is_set():
+            if peer is None:
+                try:
+                    data, addr = s.recvfrom(64)
+                except TimeoutError:
+                    continue
+                try:
+                    cmd, count = netft.decode_request(data)
+                except ProtocolError:
+                    continue
+                if cmd in (netft.CMD_START_REALTIME, netft.CMD_START_BUFFERED):
+                    peer, left, t0 = addr, count, time.perf_counter()
+                    nxt = t0
+                continue
+            now = time.perf_counter()
+            if now - t0 > silent_after:
+                time.sleep(0.01)
+                continue
+            if now < nxt:
+                s.settimeout(max(0.0, nxt - now))
+                try:
+                    data, _ = s.recvfrom(64)
+                    if netft.decode_request(data)[0] == netft.CMD_STOP:
+                        peer = None
+                except (TimeoutError, ProtocolError):
+                    pass
+                continue
+            nxt += 1.0 / rate
+            w = reading[min(int(index.value), len(reading) - 1)] + _noise(rng, noise)
+            s.sendto(netft.encode_record(seq, seq, 0, w), peer)
+            seq += 1
+            if left:
+                left -= 1
+                if left == 0:
+                    peer = None
+    finally:
+        s.close()
+
+
+def controller_process(
+    loop_port: int,
+    protocol: str,
+    setup_arrays: tuple[F64, F64, F64],
+    index: Any,
+    stop: Any,
+    result: Any,
+    *,
+    cycle: float = 0.004,
+    n_cycles: int = 1000,
+    start_delay: float = 0.3,
+    point_step: int = 1,
+) -> None:
+    """A robot controller speaking EGM or RSI to the loop at 127.0.0.1:``loop_port``.
+
+    Every ``cycle`` s it sends its state (joints of toolpath point ``k·point_step`` moved by
+    the last correction it received; ``index`` tells the sensor the point) and waits for the
+    reply until the cycle ends; a reply that does not arrive in its cycle is a missed cycle
+    (late replies are dropped by their sequence number). Puts ``dict(rtt (n,) s, missed,
+    applied (n, 3) m, k (n,))`` on ``result``.
+    """
+    q_nom, dq_dp, planned = setup_arrays
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", 0))
+    dest = ("127.0.0.1", loop_port)
+    rx = np.zeros(3)
+    rtt = np.full(n_cycles, np.nan)
+    applied = np.zeros((n_cycles, 3))
+    ks = np.zeros(n_cycles, dtype=np.int64)
+    missed = 0
+    time.sleep(start_delay)
+    t0 = time.perf_counter()
+    try:
+        for c in range(n_cycles):
+            if stop.is_set():
+                break
+            k = min(c * point_step, len(q_nom) - 1)
+            index.value = k
+            ks[c] = k
+            applied[c] = rx
+            q = q_nom[k] + dq_dp[k] @ rx
+            seq = c + 1
+            if protocol == "egm":
+                msg = egm.encode_robot(seq, int((c * cycle) * 1e3), q, planned[k])
+            else:
+                msg = rsi.encode_robot(seq, q)
+            deadline = t0 + (c + 1) * cycle
+            sent_at = time.perf_counter()
+            s.sendto(msg, dest)
+            got = False
+            while True:
+                left = deadline - time.perf_counter()
+                if left <= 0:
+                    break
+                s.settimeout(left)
+                try:
+                    data = s.recv(65536)
+                except TimeoutError:
+                    break
+                arrived = time.perf_counter()
+                try:
+                    if protocol == "egm":
+                        rseq, pose = egm.decode_sensor(data)
+                        corr = pose[:3] - planned[k, :3]
+                    else:
+                        rseq, corr = rsi.decode_reply(data)
+                except ProtocolError:
+                    continue
+                if rseq == seq:  # a late reply of an earlier cycle is dropped
+                    rtt[c] = arrived - sent_at
+                    rx = corr
+                    got = True
+                    break
+            if not got:
+                missed += 1
+            while time.perf_counter() < deadline:
+                time.sleep(min(5e-4, max(0.0, deadline - time.perf_counter())))
+    finally:
+        s.close()
+        result.put({"rtt": rtt, "missed": missed, "applied": applied, "k": ks})
+
+
+class Simulation:
+    """The simulated sensor and controller as two processes (``spawn``; daemons).
+
+    ``with Simulation(setup, "egm", loop_port, n_cycles=…) as sim:`` starts the sensor on
+    127.0.0.1:``sim.sensor_port`` (0 → a free port) and, after ``start_delay`` s, the
+    controller towards the loop; :meth:`result` waits for the controller's report (``rtt``,
+    ``missed``, ``applied``, ``k``). Leaving the block stops both.
+    """
+
+    def __init__(
+        self,
+        setup: VirtualSetup,
+        protocol: str,
+        loop_port: int,
+        *,
+        n_cycles: int = 1000,
+        cycle: float = 0.004,
+        sensor_rate: float = 1000.0,
+        point_step: int = 1,
+        sensor_silent_after: float = math.inf,
+        start_delay: float = 0.3,
+    ) -> None:
+        import multiprocessing as mp
+
+        if protocol not in ("egm", "rsi"):
+            raise InputError(f"must be 'egm' or 'rsi', got {protocol!r}", field="controller")
+        ctx = mp.get_context("spawn")
+        self._ctx = ctx
+        self.index = ctx.Value("l", 0)
+        self.stop = ctx.Event()
+        self._queue: Any = ctx.Queue()
+        probe = _bind(0)
+        self.sensor_port = int(probe.getsockname()[1])
+        probe.close()
+        ready = ctx.Event()
+        self._sensor = ctx.Process(
+            target=sensor_process,
+            args=(self.sensor_port, setup.reading, self.index, self.stop, ready),
+            kwargs={
+                "rate": sensor_rate,
+                "noise": setup.noise,
+                "silent_after": sensor_silent_after,
+            },
+            daemon=True,
+        )
+        self._controller = ctx.Process(
+            target=controller_process,
+            args=(
+                loop_port,
+                protocol,
+                (setup.q, setup.dq_dp, setup.planned),
+                self.index,
+                self.stop,
+                self._queue,
+            ),
+            kwargs={
+                "cycle": cycle,
+                "n_cycles": n_cycles,
+                "start_delay": start_delay,
+                "point_step": point_step,
+            },
+            daemon=True,
+        )
+        self._ready = ready
+        self._result: dict[str, Any] | None = None
+
+    def __enter__(self) -> Simulation:
+        self._sensor.start()
+        if not self._ready.wait(30):
+            self.close()
+            raise RuntimeError("the simulated sensor did not start")
+        self._controller.start()
+        return self
+
+    def result(self, timeout: float | None = None) -> dict[str, Any]:
+        """The controller's report (waits for it)."""
+        if self._result is None:
+            self._result = self._queue.get(timeout=timeout)
+        return self._result
+
+    def close(self) -> None:
+        self.stop.set()
+        for p in (self._controller, self._sensor):
+            if p.pid is not None:
+                p.join(5)
+                if p.is_alive():
+                    p.terminate()
+                    p.join(5)
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
