@@ -14,10 +14,12 @@ the scan noise is homogeneous). Along one part's path the configurations barely 
 six columns are nearly collinear: the **observability** is stated from the singular values of the
 column-equilibrated ``A`` (condition number) and from the bootstrap spread of each ``c_i``
 (moving blocks of laps, as :func:`roboisf.decompose.check.vjm_check`). A joint is *identified*
-when its compliance is positive with a relative standard error below :data:`MAX_REL_SE`. When a
-joint that carries at least :data:`MIN_SHARE` of the predicted deflection is not identified, the
-fit falls back to **one scale on the nominal compliance**: ``y ≈ s · (A c_nom)``, ``K = K_nom / s``
-— what one forming run can always tell.
+when its compliance is positive with a relative standard error below :data:`MAX_REL_SE`. When
+every joint that carries at least :data:`MIN_SHARE` of the predicted deflection is identified, the
+identified joints are refitted with the others held at their nominal compliance (**joints**
+mode); otherwise, or when that model predicts held-out laps (5 contiguous groups of laps, each
+left out in turn) no better than one scale, the fit is **one scale on the nominal compliance**:
+``y ≈ s · (A c_nom)``, ``K = K_nom / s`` — what one forming run can always tell.
 
 The result is written as the stiffness TOML ``roboisf robot identify`` writes
 (``[stiffness] K = [...]`` N·m/rad, ``ci_low``, ``ci_high``, ``source``), which
@@ -94,6 +96,7 @@ class FormingIdentification:
     share: F64
     singular_values: F64
     condition_number: float
+    cv_rms: dict[str, float]
     predicted: F64
     residual_rms: float
     n_points: int
@@ -107,6 +110,8 @@ class FormingIdentification:
             f"condition number {self.condition_number:.3g} of the equilibrated design; "
             f"joints carrying ≥ {MIN_SHARE:.0%} of the predicted deflection: {needed}"
         )
+        cv = ", ".join(f"{k} {v * 1e3:.4f} mm" for k, v in self.cv_rms.items())
+        base += f"; held-out-lap RMS error: {cv}"
         if self.mode == "joints":
             return f"each needed joint identified ({ok}); {base}"
         return (
@@ -129,6 +134,7 @@ class FormingIdentification:
             "share_of_prediction": self.share.tolist(),
             "singular_values": self.singular_values.tolist(),
             "condition_number": self.condition_number,
+            "cross_validated_rms_mm": {k: v * 1e3 for k, v in self.cv_rms.items()},
             "residual_rms_mm": self.residual_rms * 1e3,
             "observability": self.observability(),
             "n_points": self.n_points,
@@ -139,6 +145,21 @@ class FormingIdentification:
 def _scale_fit(b: F64, y: F64) -> float:
     bb = float(b @ b)
     return float(b @ y) / bb if bb > 0 else math.nan
+
+
+def _cv_rms(fitter: Any, A: F64, y: F64, lap: NDArray[Any], folds: int = 5) -> float:
+    """RMS prediction error on held-out laps: ``folds`` contiguous groups of laps, each left out
+    in turn (neighbouring laps resemble each other, so the groups are contiguous)."""
+    laps, inv = np.unique(lap, return_inverse=True)
+    group = (inv * folds) // max(len(laps), 1)
+    err = np.empty_like(y)
+    for g in range(folds):
+        test = group == g
+        if not test.any() or test.all():
+            continue
+        c = fitter(np.flatnonzero(~test))
+        err[test] = y[test] - A[test] @ c
+    return float(np.sqrt(np.mean(err**2)))
 
 
 def identify_from_forming(
@@ -198,15 +219,40 @@ def identify_from_forming(
     identified = live & (c_all > 0) & (rel < MAX_REL_SE)
     needed = share >= MIN_SHARE
     b_nom = Au @ c_nom
-    if np.all(identified | ~needed):
+    # the joints model: the identified joints refitted with the others held at their nominal
+    # compliance (a joint left out of the refit must not keep a share the fit gave it)
+    idx_id = np.flatnonzero(identified)
+    y_fixed = y - Au[:, ~identified] @ c_nom[~identified]
+    As_id = Au[:, idx_id] / norms[idx_id]
+
+    def fit_joints(i: NDArray[Any]) -> F64:
+        c = c_nom.copy()
+        if idx_id.size:
+            x, *_ = np.linalg.lstsq(As_id[i], y_fixed[i], rcond=None)
+            c[idx_id] = x / norms[idx_id]
+        return c
+
+    def fit_scale(i: NDArray[Any]) -> F64:
+        return _scale_fit(b_nom[i], y[i]) * c_nom
+
+    joints_ok = bool(idx_id.size) and bool(np.all(identified | ~needed))
+    cv = {"scale": _cv_rms(fit_scale, Au, y, lp)}
+    if joints_ok:
+        cv["joints"] = _cv_rms(fit_joints, Au, y, lp)
+    # the joints model only when it predicts laps it was not fitted on better than one scale
+    if joints_ok and cv["joints"] < cv["scale"]:
         mode = "joints"
-        c = np.where(identified, c_all, c_nom)
-        lo_c = np.where(identified, np.percentile(boot, 2.5, axis=0), c_nom)
-        hi_c = np.where(identified, np.percentile(boot, 97.5, axis=0), c_nom)
+        c = fit_joints(np.arange(y.size))
+        boot_c = np.array([fit_joints(i) for i in blocks])
+        lo_c = np.percentile(boot_c, 2.5, axis=0)
+        hi_c = np.percentile(boot_c, 97.5, axis=0)
         scale = _scale_fit(b_nom, Au @ c)
-        sb = np.array([_scale_fit(b_nom, Au @ np.where(identified, cb, c_nom)) for cb in boot])
+        sb = np.array([_scale_fit(b_nom, Au @ cb) for cb in boot_c])
+        if np.any(c[idx_id] <= 0):
+            mode = "scale"
     else:
         mode = "scale"
+    if mode == "scale":
         scale = _scale_fit(b_nom, y)
         sb = np.array([_scale_fit(b_nom[i], y[i]) for i in blocks])
         if not scale > 0:
@@ -238,6 +284,7 @@ def identify_from_forming(
         share=share,
         singular_values=sv,
         condition_number=cond,
+        cv_rms=cv,
         predicted=predicted,
         residual_rms=resid,
         n_points=int(y.size),
