@@ -10,6 +10,7 @@ the model gives ``consistent``, and the report says it holds by construction.
 
 from __future__ import annotations
 
+import html
 import json
 import tomllib
 
@@ -23,6 +24,8 @@ from roboisf.compensate.study import compensate_study
 from roboisf.decompose.pipeline import IDENTIFIED_STIFFNESS, analyze, write_results
 from roboisf.io.forcelog import ForceLog, write_force_log
 from roboisf.io.table import read_table
+from roboisf.report import read_headline
+from roboisf.report.model_check import check_card
 from roboisf.robot import load_robot, load_stiffness
 from roboisf.virtual.cell import paper_cone_cell, simulate
 
@@ -73,6 +76,12 @@ def test_soft_robot_is_flagged(soft):
     # signed mean and RMS beside mean |·|
     t = s["terms_normal"]["robot_compliance"]
     assert t["mean_mm"] > 0 and t["rms_mm"] >= t["mean_abs_mm"] >= abs(t["mean_mm"])
+    # the report's headline says it, with the identified stiffness beside the nominal
+    text = html.unescape((results / "report.html").read_text(encoding="utf-8"))
+    assert "Robot: measured / VJM (model does not hold)" in text
+    assert "Joint stiffness identified from this forming run" in text
+    assert "signed mean beside RMS" in text
+    assert read_headline(results / "report.html")["vjm_verdict"] == "mismatch"
 
 
 def test_identified_compliance_predicts_truth(soft):
@@ -183,3 +192,5 @@ def test_consistent_cell(tmp_path):
     assert r.summary["truth"]["model_equals_truth"] is True
     assert vc["by_construction"] is True
     assert not any("does not hold" in w for w in r.summary["warnings"])
+    card = check_card(r.summary)
+    assert card is not None and card[2] == "holds by construction"
