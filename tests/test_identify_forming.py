@@ -194,3 +194,20 @@ def test_consistent_cell(tmp_path):
     assert not any("does not hold" in w for w in r.summary["warnings"])
     card = check_card(r.summary)
     assert card is not None and card[2] == "holds by construction"
+
+
+def test_compensate_bad_stiffness_file(soft, tmp_path, capsys):
+    _cell, study, results, _r = soft
+    bad = tmp_path / "k.toml"
+    bad.write_text("[stiffness]\nK = [1.0, 2.0]\n", encoding="utf-8")
+    rc = main(
+        ["compensate", str(study), "--results", str(results), "--stiffness", str(bad),
+         "-o", str(tmp_path / "out"), "--no-png"]
+    )  # fmt: skip
+    err = capsys.readouterr().err
+    assert rc == 2 and "k.toml" in err and "K" in err
+    assert not (tmp_path / "out").exists()
+    rc = main(
+        ["compensate", "--virtual", "cone", "--stiffness", str(bad), "-o", str(tmp_path / "v")]
+    )
+    assert rc == 2 and "--stiffness" in capsys.readouterr().err

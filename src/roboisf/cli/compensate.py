@@ -167,14 +167,14 @@ def register(app: typer.Typer) -> None:
             raise InputError(
                 "give either a STUDY folder or --virtual cone|vwacf|pyramid", field="STUDY"
             )
-        output_dir(
-            output, "compensate", overwrite, [*study_inputs(study), results, previous, stiffness]
-        )
         if stiffness is not None and virtual is not None:
             raise InputError(
                 "--stiffness applies to a STUDY (the virtual cell knows its robot)",
                 field="--stiffness",
             )
+        output_dir(
+            output, "compensate", overwrite, [*study_inputs(study), results, previous, stiffness]
+        )
         if virtual is not None:
             cell_kw = {"step_down": step_down * 1e-3, "spacing": spacing * 1e-3}
             _virtual(virtual, iterations, cell_kw, opts, output, tool_mass, png, progress)

@@ -26,8 +26,7 @@ unmodelled compliance).
 Also here: :func:`term_statistics` (signed mean, RMS and mean |·| of each normal term — a
 zero-mean error, scan noise or a sideways misregistration, has a mean |·| but no signed mean),
 :func:`lateral_offset` (the first harmonic a sideways scan shift leaves in the normal deviation,
-which the 3-DOF fixture registration cannot see) and :func:`unloaded_bias` (a force sensor that
-reads a load when nothing touches the tool).
+which the 3-DOF fixture registration cannot see).
 """
 
 from __future__ import annotations
@@ -50,7 +49,6 @@ __all__ = [
     "lateral_offset",
     "point_scatter",
     "term_statistics",
-    "unloaded_bias",
     "vjm_check",
 ]
 
@@ -315,21 +313,10 @@ def lateral_offset(
     AtA = A.T @ A
     if np.linalg.cond(AtA) > 1e8 or np.min(np.linalg.eigvalsh(AtA)) < 1e-3 * y.size:
         return None
-    s = np.linalg.solve(AtA, A.T @ yd)
+    s = np.asarray(np.linalg.solve(AtA, A.T @ yd), dtype=np.float64)
     r = yd - A @ s
     dof = max(1, y.size - 2 - cnt.size)
     s2 = float(r @ r) / dof
     se = float(np.sqrt(s2 * np.max(np.diag(np.linalg.inv(AtA)))))
     tot = float(yd @ yd)
     return LateralOffset(s, se, 1.0 - float(r @ r) / tot if tot > 0 else 0.0)
-
-
-def unloaded_bias(
-    time: F64, force: F64, t_start: float, t_end: float, *, min_samples: int = 10
-) -> F64 | None:
-    """Mean force (3,) [N] the sensor reads outside ``[t_start, t_end]`` (the tool in the air),
-    or None when the log has fewer than ``min_samples`` samples there."""
-    off = (time < t_start) | (time > t_end)
-    if off.sum() < min_samples:
-        return None
-    return np.asarray(np.mean(force[off], axis=0), dtype=float)
