@@ -32,7 +32,6 @@ which the 3-DOF fixture registration cannot see).
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -46,6 +45,7 @@ __all__ = [
     "LateralOffset",
     "VjmCheck",
     "lap_blocks",
+    "lap_index",
     "lateral_offset",
     "point_scatter",
     "term_statistics",
@@ -65,25 +65,28 @@ N_BOOT = 1000
 N_DEPTH_BINS = 6
 
 
-def lap_blocks(lap: NDArray[Any], rng: np.random.Generator, n_boot: int) -> Iterator[NDArray[Any]]:
-    """Moving-block bootstrap index sets over the laps of ``lap`` (M,) (the used points).
+def lap_blocks(n_laps: int, rng: np.random.Generator, n_boot: int) -> NDArray[np.intp]:
+    """Moving-block bootstrap draws over ``n_laps`` laps in path order: (n_boot, m) lap indices.
 
-    Yields ``n_boot`` index arrays into the M points: blocks of ``⌈L^{1/3}⌉`` consecutive laps
-    drawn with replacement until about ``L`` laps are drawn."""
+    Each row is ``⌈L/ℓ⌉`` blocks of ``ℓ = ⌈L^{1/3}⌉`` consecutive laps drawn with replacement
+    (about ``L`` laps). Statistics that are sums over points are summed per lap first and then
+    over a row's laps — the same as resampling the points, at the cost of the laps."""
+    ell = max(1, math.ceil(n_laps ** (1 / 3)))
+    n_blocks = math.ceil(n_laps / ell)
+    starts = rng.integers(0, n_laps - ell + 1, size=(n_boot, n_blocks))
+    return (starts[:, :, None] + np.arange(ell)[None, None, :]).reshape(n_boot, -1)
+
+
+def lap_index(lap: NDArray[Any]) -> tuple[NDArray[np.intp], int]:
+    """(M,) index of each point's lap among the sorted distinct laps, and their number."""
     laps, inv = np.unique(lap, return_inverse=True)
-    L = len(laps)
-    ell = max(1, math.ceil(L ** (1 / 3)))
-    members = [np.flatnonzero(inv == k) for k in range(L)]
-    n_blocks = math.ceil(L / ell)
-    starts_max = L - ell + 1
-    for _ in range(n_boot):
-        starts = rng.integers(0, starts_max, size=n_blocks)
-        yield np.concatenate([members[s + j] for s in starts for j in range(ell)])
+    return inv.astype(np.intp), int(laps.size)
 
 
 def _slope(x: F64, y: F64) -> float:
-    sxx = float(x @ x)
-    return float(x @ y) / sxx if sxx > 0 else math.nan
+    # elementwise sums (not BLAS): steady on a machine whose cores are shared
+    sxx = float(np.sum(x * x))
+    return float(np.sum(x * y)) / sxx if sxx > 0 else math.nan
 
 
 def point_scatter(y: F64, lap: NDArray[Any]) -> float:
@@ -206,7 +209,12 @@ def vjm_check(
     r = _slope(x, y)
     resid = float(np.sqrt(np.mean((y - r * x) ** 2)))
     rng = np.random.default_rng(seed)
-    boot = np.array([_slope(x[i], y[i]) for i in lap_blocks(lp, rng, n_boot)])
+    inv, L = lap_index(lp)
+    sxy = np.bincount(inv, weights=x * y, minlength=L)
+    sxx = np.bincount(inv, weights=x * x, minlength=L)
+    draws = lap_blocks(L, rng, n_boot)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        boot = sxy[draws].sum(axis=1) / sxx[draws].sum(axis=1)
     boot = boot[np.isfinite(boot)]
     lo, hi = (float(v) for v in np.percentile(boot, [2.5, 97.5]))
     per_depth = []

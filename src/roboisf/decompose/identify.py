@@ -37,7 +37,7 @@ import numpy as np
 import tomli_w
 from numpy.typing import NDArray
 
-from roboisf.decompose.check import N_BOOT, lap_blocks
+from roboisf.decompose.check import N_BOOT, lap_blocks, lap_index
 from roboisf.errors import InputError
 from roboisf.io.atomic import atomic_write
 from roboisf.robot.model import RobotModel
@@ -142,23 +142,31 @@ class FormingIdentification:
         }
 
 
+def _mv(M: F64, v: F64) -> F64:
+    """``M @ v`` without BLAS (steady timing on a machine whose cores are shared)."""
+    return np.asarray(np.einsum("ij,j->i", M, v), dtype=float)
+
+
 def _scale_fit(b: F64, y: F64) -> float:
-    bb = float(b @ b)
-    return float(b @ y) / bb if bb > 0 else math.nan
+    bb = float(np.sum(b * b))
+    return float(np.sum(b * y)) / bb if bb > 0 else math.nan
 
 
-def _cv_rms(fitter: Any, A: F64, y: F64, lap: NDArray[Any], folds: int = 5) -> float:
+def _cv_rms(
+    fitter: Any, A: F64, y: F64, inv: NDArray[np.intp], n_laps: int, folds: int = 5
+) -> float:
     """RMS prediction error on held-out laps: ``folds`` contiguous groups of laps, each left out
-    in turn (neighbouring laps resemble each other, so the groups are contiguous)."""
-    laps, inv = np.unique(lap, return_inverse=True)
-    group = (inv * folds) // max(len(laps), 1)
-    err = np.empty_like(y)
+    in turn (neighbouring laps resemble each other, so the groups are contiguous). ``fitter``
+    takes lap weights (n_laps,)."""
+    lap_group = (np.arange(n_laps) * folds) // max(n_laps, 1)
+    group = lap_group[inv]
+    err = np.zeros_like(y)
     for g in range(folds):
         test = group == g
         if not test.any() or test.all():
             continue
-        c = fitter(np.flatnonzero(~test))
-        err[test] = y[test] - A[test] @ c
+        c = fitter((lap_group != g).astype(float))
+        err[test] = y[test] - np.einsum("ij,j->i", A[test], c)
     return float(np.sqrt(np.mean(err**2)))
 
 
@@ -203,58 +211,81 @@ def identify_from_forming(
     sv[: s_live.size] = s_live
     cond = float(s_live[0] / s_live[-1]) if s_live[-1] > 0 else math.inf
 
-    def fit(idx: NDArray[Any]) -> F64:
+    # normal equations per lap: a fit on any multiset of laps sums them (the bootstrap, the
+    # held-out-lap check) — the same least squares as on the points, at the cost of the laps
+    inv, L = lap_index(lp)
+    k = As.shape[1]
+    G = np.zeros((L, k, k))
+    np.add.at(G, inv, As[:, :, None] * As[:, None, :])
+    h = np.zeros((L, k))
+    np.add.at(h, inv, As * y[:, None])
+
+    def solve(Gs: F64, hs: F64, cols: NDArray[np.intp]) -> F64:
+        x, *_ = np.linalg.lstsq(Gs[np.ix_(cols, cols)], hs[cols], rcond=None)
+        return np.asarray(x, dtype=float)
+
+    live_idx = np.flatnonzero(live)
+    all_cols = np.arange(k)
+
+    def fit(w: F64) -> F64:
+        """6-joint fit on laps weighted by ``w`` (L,) (counts of a bootstrap draw)."""
         c = np.zeros(6)
-        x, *_ = np.linalg.lstsq(As[idx], y[idx], rcond=None)
-        c[live] = x / norms[live]
+        c[live] = solve(np.einsum("l,lij->ij", w, G), w @ h, all_cols) / norms[live]
         return c
 
-    c_all = fit(np.arange(y.size))
     rng = np.random.default_rng(seed)
-    blocks = list(lap_blocks(lp, rng, n_boot))
-    boot = np.array([fit(i) for i in blocks])
+    draws = lap_blocks(L, rng, n_boot)
+    weights = np.stack([np.bincount(d, minlength=L) for d in draws]).astype(float)
+    c_all = fit(np.ones(L))
+    boot = np.array([fit(w) for w in weights])
     se = boot.std(axis=0)
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = np.where(live & (c_all > 0), se / np.abs(c_all), math.inf)
     identified = live & (c_all > 0) & (rel < MAX_REL_SE)
     needed = share >= MIN_SHARE
-    b_nom = Au @ c_nom
+    b_nom = _mv(Au, c_nom)
     # the joints model: the identified joints refitted with the others held at their nominal
     # compliance (a joint left out of the refit must not keep a share the fit gave it)
     idx_id = np.flatnonzero(identified)
-    y_fixed = y - Au[:, ~identified] @ c_nom[~identified]
-    As_id = Au[:, idx_id] / norms[idx_id]
+    cols_id = np.searchsorted(live_idx, idx_id)  # their columns in As
+    y_fixed = y - _mv(Au[:, ~identified], c_nom[~identified])
+    h_fix = np.zeros((L, k))
+    np.add.at(h_fix, inv, As * y_fixed[:, None])
+    bb = np.bincount(inv, weights=b_nom * b_nom, minlength=L)
+    by = np.bincount(inv, weights=b_nom * y, minlength=L)
 
-    def fit_joints(i: NDArray[Any]) -> F64:
+    def fit_joints(w: F64) -> F64:
         c = c_nom.copy()
         if idx_id.size:
-            x, *_ = np.linalg.lstsq(As_id[i], y_fixed[i], rcond=None)
+            x = solve(np.einsum("l,lij->ij", w, G), w @ h_fix, cols_id)
             c[idx_id] = x / norms[idx_id]
         return c
 
-    def fit_scale(i: NDArray[Any]) -> F64:
-        return _scale_fit(b_nom[i], y[i]) * c_nom
+    def fit_scale(w: F64) -> F64:
+        return float(w @ by) / float(w @ bb) * c_nom
 
     joints_ok = bool(idx_id.size) and bool(np.all(identified | ~needed))
-    cv = {"scale": _cv_rms(fit_scale, Au, y, lp)}
+    cv = {"scale": _cv_rms(fit_scale, Au, y, inv, L)}
     if joints_ok:
-        cv["joints"] = _cv_rms(fit_joints, Au, y, lp)
+        cv["joints"] = _cv_rms(fit_joints, Au, y, inv, L)
     # the joints model only when it predicts laps it was not fitted on better than one scale
     if joints_ok and cv["joints"] < cv["scale"]:
         mode = "joints"
-        c = fit_joints(np.arange(y.size))
-        boot_c = np.array([fit_joints(i) for i in blocks])
+        c = fit_joints(np.ones(L))
+        boot_c = np.array([fit_joints(w) for w in weights])
         lo_c = np.percentile(boot_c, 2.5, axis=0)
         hi_c = np.percentile(boot_c, 97.5, axis=0)
-        scale = _scale_fit(b_nom, Au @ c)
-        sb = np.array([_scale_fit(b_nom, Au @ cb) for cb in boot_c])
+        # the scale of a prediction A c on the nominal one is linear in c
+        v = np.einsum("i,ij->j", b_nom, Au) / float(np.sum(b_nom * b_nom))
+        scale = float(np.sum(v * c))
+        sb = np.einsum("bj,j->b", boot_c, v)
         if np.any(c[idx_id] <= 0):
             mode = "scale"
     else:
         mode = "scale"
     if mode == "scale":
         scale = _scale_fit(b_nom, y)
-        sb = np.array([_scale_fit(b_nom[i], y[i]) for i in blocks])
+        sb = (weights @ by) / (weights @ bb)
         if not scale > 0:
             raise InputError(
                 f"the measured robot term does not follow the VJM's pattern (scale {scale:.3g} "
@@ -270,8 +301,8 @@ def identify_from_forming(
         K_ci = np.stack(
             [1.0 / hi_c, np.where(lo_c > 0, 1.0 / np.where(lo_c > 0, lo_c, 1), np.inf)], 1
         )
-    predicted = A @ c
-    resid = float(np.sqrt(np.mean((y - Au @ c) ** 2)))
+    predicted = _mv(A, c)
+    resid = float(np.sqrt(np.mean((y - _mv(Au, c)) ** 2)))
     return FormingIdentification(
         K=K,
         K_ci=K_ci,
