@@ -178,6 +178,7 @@ def test_shifted_scan_is_warned(tmp_path):
     r = analyze(st)
     warn = [w for w in r.summary["warnings"] if "sideways shift" in w]
     assert len(warn) == 1 and warn[0].startswith("robot scan"), r.summary["warnings"]
+    assert "lateral registration is ambiguous" in warn[0] and "fits rx, ry, z" in warn[0]
     lo = r.summary["lateral_offset"]["robot"]
     assert abs(lo["size_mm"] - 0.3) < 0.05 and abs(lo["direction_deg"] - 90) < 10
     assert r.summary["lateral_offset"]["cnc"]["size_mm"] < 0.05

@@ -306,17 +306,30 @@ def _lateral_warnings(
             "se_mm": lo.se * 1e3,
             "explained_variance": lo.explained,
         }
-        dof = {str(v.get("dof")) for v in reg.values() if isinstance(v, dict)}
-        if lo.size > LATERAL_WARN and lo.size > 4 * lo.se:
+        if not (lo.size > LATERAL_WARN and lo.size > 4 * lo.se):
+            continue
+        # the registrations are in run order (CNC, robot)
+        regs = [v for v in reg.values() if isinstance(v, dict)]
+        this = (regs[0] if run == "cnc" else regs[-1]) if regs else {}
+        fitted = set(this.get("fitted") or [])
+        booked = "springback" if run == "cnc" else "the robot term"
+        pattern = (
+            f"{run} scan: its normal deviation carries the pattern of a sideways shift of "
+            f"{lo.size * 1e3:.3f} mm towards {lo.direction_deg:.0f}° (work x,y: "
+            f"{lo.shift[0] * 1e3:+.3f}, {lo.shift[1] * 1e3:+.3f} mm; "
+            f"{lo.explained:.0%} of the lap-wise variance), booked in {booked}"
+        )
+        if {"x", "y"} <= fitted:
             out.append(
-                f"{run} scan: its normal deviation carries the pattern of a sideways shift of "
-                f"{lo.size * 1e3:.3f} mm towards {lo.direction_deg:.0f}° (work x,y: "
-                f"{lo.shift[0] * 1e3:+.3f}, {lo.shift[1] * 1e3:+.3f} mm; "
-                f"{lo.explained:.0%} of the lap-wise variance) — the scan's lateral registration "
-                f"is ambiguous (registration dof {', '.join(sorted(dof)) or '?'}: the fixture "
-                "registration does not fit x, y) and this error is booked in "
-                + ("springback" if run == "cnc" else "the robot term")
-                + "; re-register the scan laterally (reference marks) before trusting the terms"
+                f"{pattern}; the registration fitted x and y, so this is not a shift it missed "
+                "but an error that varies once around the part"
+            )
+        else:
+            out.append(
+                f"{pattern} — the scan's lateral registration is ambiguous (the "
+                f"{this.get('method', '?')} registration fits {', '.join(sorted(fitted)) or '-'}"
+                ", not x and y); re-register the scan laterally (reference marks) before "
+                "trusting the terms"
             )
     summary["lateral_offset"] = fits
     return out
