@@ -246,3 +246,21 @@ def test_sensor_bias_is_flagged_and_identification_holds(soft, tmp_path):
         stiffness=r.summary["identified_stiffness"],
     )
     assert _compliance_error_removed(cell, comp.compensation.toolpath) >= 0.85
+
+
+def test_stiff_robot_is_not_observable(tmp_path):
+    """A robot 100× stiffer than the preset deflects ~µm, below the scan's point scatter: the
+    check says ``not_observable``, nothing is identified, and the report says so."""
+    from roboisf.virtual.cell import build_study
+
+    build_study(paper_cone_cell(joint_stiffness=100 * K_NOM, **FAST), tmp_path / "study")
+    r = analyze(tmp_path / "study")
+    write_results(r, tmp_path / "res", png=False)
+    s = json.loads((tmp_path / "res" / "summary.json").read_text())
+    assert s["vjm_check"]["verdict"] == "not_observable"
+    assert s["vjm_check"]["rms_predicted_mm"] < 2 * s["vjm_check"]["noise_mm"]
+    assert s["identified_stiffness"] is None and s["identification"]["mode"] is None
+    assert not (tmp_path / "res" / IDENTIFIED_STIFFNESS).exists()
+    assert any("not identified" in w for w in s["warnings"])
+    card = check_card(s)
+    assert card is not None and card[2] == "not observable"

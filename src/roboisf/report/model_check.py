@@ -23,10 +23,10 @@ def check_card(summary: Mapping[str, Any]) -> tuple[str, str, str, str] | None:
     When the study is a virtual cell whose truth is the model, the card says the agreement holds
     by construction instead of quoting it as a finding."""
     vc = summary.get("vjm_check")
-    if not isinstance(vc, Mapping) or vc.get("ratio") is None:
-        if isinstance(vc, Mapping):
-            return ("", "Robot model check", "not observable", esc(vc.get("reason", "")))
+    if not isinstance(vc, Mapping):
         return None
+    if vc.get("verdict") == "not_observable" or vc.get("ratio") is None:
+        return ("", "Robot model check", "not observable", esc(vc.get("reason", "")))
     ratio, lo, hi = vc["ratio"], vc.get("ci_low"), vc.get("ci_high")
     interval = f"95 % [{fmt(lo, 2)}, {fmt(hi, 2)}]"
     if vc.get("by_construction"):
