@@ -24,7 +24,7 @@ from roboisf.compensate.study import compensate_study
 from roboisf.decompose.pipeline import IDENTIFIED_STIFFNESS, analyze, write_results
 from roboisf.io.forcelog import ForceLog, write_force_log
 from roboisf.io.table import read_table
-from roboisf.report import read_headline
+from roboisf.report import read_headline, write_index
 from roboisf.report.model_check import check_card
 from roboisf.robot import load_robot, load_stiffness
 from roboisf.virtual.cell import paper_cone_cell, simulate
@@ -82,6 +82,8 @@ def test_soft_robot_is_flagged(soft):
     assert "Joint stiffness identified from this forming run" in text
     assert "signed mean beside RMS" in text
     assert read_headline(results / "report.html")["vjm_verdict"] == "mismatch"
+    index = write_index([results], results.parent / "index.html").read_text(encoding="utf-8")
+    assert "<th>measured / VJM</th>" in index and ">mismatch<" in index
 
 
 def test_identified_compliance_predicts_truth(soft):

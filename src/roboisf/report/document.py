@@ -539,11 +539,14 @@ def write_index(entries: Sequence[str | Path], out_path: str | Path) -> Path:
             f"<td>{pg.fmt(h['R_m_total_mm'], 3)}</td>"
             f"<td>{pg.fmt(h['robot_share_percent'], 1)}</td>"
             f"<td>{pg.fmt(h['springback_share_percent'], 1)}</td>"
+            f"<td>{pg.fmt(h.get('vjm_ratio'), 2)}</td>"
+            f'<td class="t">{pg.esc(h.get("vjm_verdict") or "—")}</td>'
             f'<td class="t">{pg.share_bar(h.get("shares_percent") or {})}</td><td>{warn}</td></tr>'
         )
     table = (
         '<table><thead><tr><th>study</th><th class="t">part</th><th class="t">robot</th>'
         "<th>R<sub>m</sub> (mm)</th><th>robot share (%)</th><th>springback share (%)</th>"
+        '<th>measured / VJM</th><th class="t">robot model</th>'
         '<th class="t">shares</th><th>warnings</th>'
         f"</tr></thead><tbody>{''.join(rows)}</tbody></table>"
     )
