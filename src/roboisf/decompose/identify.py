@@ -325,7 +325,10 @@ def identify_from_forming(
 
 def write_stiffness_toml(r: FormingIdentification, path: str | Path, source: str) -> Path:
     """Write ``r`` as a stiffness TOML (the ``roboisf robot identify`` format, N·m/rad), with
-    the observability as extra keys. An unbounded upper CI is written as 1e300."""
+    the observability as extra keys. An unbounded upper CI is written as 1e300. ``weak`` marks
+    the joints not identified separately: held at the nominal in ``joints`` mode (their interval
+    is then the nominal value itself, not an estimate) or moved with the others by the one scale
+    in ``scale`` mode (their interval is the scale's)."""
     p = Path(path)
     doc = {
         "stiffness": {

@@ -271,10 +271,14 @@ def _model_checks(
             summary["identification"] = ident.to_dict()
     summary["identified_stiffness"] = None  # set by write_results when the file is written
     if vc.verdict == "mismatch":
+        use = (
+            " — use the identified stiffness (identified_stiffness.toml) for compensate and plan"
+            if ident is not None
+            else ""
+        )
         summary["warnings"].append(
             f"the robot model does not hold: {vc.reason}; the robot term is the measured one, "
-            "the VJM's prediction is off — use the identified stiffness (identified_stiffness."
-            "toml) for compensate and plan"
+            f"the VJM's prediction is off{use}"
         )
     summary["warnings"].extend(_lateral_warnings(tp, d, vc, summary))
     summary["warnings"].extend(_force_bias_warnings(tp, W_cnc, W_rob, valid))
