@@ -187,3 +187,20 @@ def test_shifted_scan_is_warned(tmp_path):
     # a zero-mean error: the robot term's mean |·| grows, its signed mean does not
     t = r.summary["terms_normal"]["robot_compliance"]
     assert t["mean_abs_mm"] > t["mean_mm"] > 0
+
+
+def test_identified_stiffness_path_is_where_the_file_ends_up(tmp_path):
+    """analyze's results may be built inside another command's staging folder (demo): the path
+    summary.json gives must be the final one, not the staging folder's."""
+    from roboisf.io.atomic import staged_directory
+    from roboisf.io.outdir import final_location
+
+    with staged_directory(tmp_path / "demo", "demo") as outer:
+        (outer / "cone").mkdir()
+        assert final_location(outer / "cone" / "results") == tmp_path / "demo" / "cone" / "results"
+        with staged_directory(outer / "cone" / "results", "analyze") as inner:
+            f = final_location(inner / "identified_stiffness.toml")
+            (inner / "identified_stiffness.toml").write_text("x", encoding="utf-8")
+    assert f == tmp_path / "demo" / "cone" / "results" / "identified_stiffness.toml"
+    assert f.is_file()
+    assert final_location(tmp_path / "plain" / "a.toml") == tmp_path / "plain" / "a.toml"

@@ -51,6 +51,7 @@ from roboisf.frames import vertical_tool
 from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
 from roboisf.io.forcelog import attach_to_toolpath, read_force_log
 from roboisf.io.jointlog import read_joint_log
+from roboisf.io.outdir import final_location
 from roboisf.io.thickness import read_thickness_csv
 from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.parts import sine_law_thickness
@@ -658,7 +659,9 @@ def write_results(
         )
     ident = result.identification
     if ident is not None:
-        result.summary["identified_stiffness"] = str((out_dir / IDENTIFIED_STIFFNESS).resolve())
+        # where the file ends up (the results folder may itself sit in a staging folder: demo)
+        final = final_location(out_dir) / IDENTIFIED_STIFFNESS
+        result.summary["identified_stiffness"] = str(final)
     with staged_directory(out_dir, "analyze") as stage:
         if ident is not None:
             write_stiffness_toml(
