@@ -113,6 +113,15 @@ def register(app: typer.Typer) -> None:
             ),
         ] = 5.0,
         tool_mass: Annotated[float, typer.Option(help="Tool + holder mass \\[kg].")] = 2.0,
+        stiffness: Annotated[
+            Path | None,
+            typer.Option(
+                "--stiffness",
+                help="Joint stiffness TOML ([stiffness] K = [6] N*m/rad) replacing the study's: "
+                "`roboisf robot identify`, or identified_stiffness.toml of `roboisf analyze` "
+                "(identified from the forming run).",
+            ),
+        ] = None,
         png: Annotated[bool, typer.Option("--png/--no-png", help="Also write the PNG.")] = True,
     ) -> None:
         """Compensate the toolpath: robot/tool/holder pre-deflection and springback adjustment.
@@ -158,7 +167,14 @@ def register(app: typer.Typer) -> None:
             raise InputError(
                 "give either a STUDY folder or --virtual cone|vwacf|pyramid", field="STUDY"
             )
-        output_dir(output, "compensate", overwrite, [*study_inputs(study), results, previous])
+        if stiffness is not None and virtual is not None:
+            raise InputError(
+                "--stiffness applies to a STUDY (the virtual cell knows its robot)",
+                field="--stiffness",
+            )
+        output_dir(
+            output, "compensate", overwrite, [*study_inputs(study), results, previous, stiffness]
+        )
         if virtual is not None:
             cell_kw = {"step_down": step_down * 1e-3, "spacing": spacing * 1e-3}
             _virtual(virtual, iterations, cell_kw, opts, output, tool_mass, png, progress)
@@ -172,6 +188,7 @@ def register(app: typer.Typer) -> None:
             previous=previous,
             options=opts,
             tool_mass=tool_mass,
+            stiffness=stiffness,
             progress=progress,
         )
         write_compensation(

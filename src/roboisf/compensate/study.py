@@ -108,6 +108,7 @@ def compensate_study(
     previous: str | Path | None = None,
     options: CompensationOptions | None = None,
     tool_mass: float = 2.0,
+    stiffness: str | Path | None = None,
     progress: Progress | None = None,
 ) -> StudyCompensation:
     """Compensate the robot part of ``study`` (a folder, ``study.toml`` or :class:`Study`).
@@ -116,6 +117,9 @@ def compensate_study(
     ``previous`` — the ``roboisf compensate`` output folder of the command that formed the
     study's robot part (its ``springback_offset_dn`` is ``c_k``; the study's robot toolpath is
     that command): the next step of the iteration. Without it ``c_k = 0``.
+    ``stiffness`` — a joint-stiffness TOML (``[stiffness] K``, N·m/rad: ``roboisf robot
+    identify`` or the ``identified_stiffness.toml`` of ``roboisf analyze``) that replaces the
+    study's robot stiffness in the pre-deflection.
     """
     if not isinstance(study, Study):
         study = load_study(study)
@@ -124,6 +128,11 @@ def compensate_study(
             "compensation needs a [robot] table (model, placement)", file=study.root / "study.toml"
         )
     cell = cell_from_study(study)
+    if stiffness is not None:
+        from roboisf.robot import load_stiffness
+
+        K = load_stiffness(stiffness)
+        cell = replace(cell, robot=cell.robot.with_stiffness(K, source=str(stiffness)))
     o = options or CompensationOptions()
     run = study.robot_run
     formed = study_toolpath(study, run, cell.part)  # a toolpath CSV or a CAM program
@@ -167,11 +176,12 @@ def compensate_study(
     dn_after = np.where(judged, dn + np.einsum("ij,ij->i", land_new - land_old, n), np.nan)
     T_ft = model.robot.T_flange_tip
     tool = RobotTool(length=float(T_ft[2, 3]), mass=tool_mass)
-    inputs = (study.root, *(Path(p) for p in (results, previous) if p is not None))
+    inputs = (study.root, *(Path(p) for p in (results, previous, stiffness) if p is not None))
     meta = {
         "study": study.name,
         "robot": cell.robot_name,
         "rim_band_mm": study.analysis.rim_band * 1e3,
+        "stiffness": str(stiffness) if stiffness is not None else "study.toml",
     }
     comp = replace(comp, meta=meta)
     return StudyCompensation(

@@ -26,6 +26,12 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from roboisf.cell import Cell, cell_from_study, tip_compliances
+from roboisf.decompose.check import (
+    VjmCheck,
+    lateral_offset,
+    term_statistics,
+    vjm_check,
+)
 from roboisf.decompose.core import (
     FACTORS,
     Decomposition,
@@ -33,12 +39,19 @@ from roboisf.decompose.core import (
     decompose,
     resultant_mean_deviation,
 )
+from roboisf.decompose.identify import (
+    FormingIdentification,
+    forming_design,
+    identify_from_forming,
+    write_stiffness_toml,
+)
 from roboisf.errors import InputError
 from roboisf.fem import ComplianceResult
 from roboisf.frames import vertical_tool
 from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
 from roboisf.io.forcelog import attach_to_toolpath
 from roboisf.io.jointlog import read_joint_log
+from roboisf.io.outdir import final_location
 from roboisf.io.thickness import read_thickness_csv
 from roboisf.parts import sine_law_thickness
 from roboisf.progress import Progress, task
@@ -74,6 +87,8 @@ class AnalysisResult:
     contributions_normal: pd.DataFrame
     summary: dict[str, Any]
     scans: dict[str, ScanComparison]
+    #: the robot's compliance identified from this run (None when it cannot be)
+    identification: FormingIdentification | None = None
 
 
 def run_tip_wrench(
@@ -224,11 +239,172 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
     contributions_normal = pd.DataFrame(_mm_rows(contribution_rows(d, projected=True)))
     summary = _summary(study, cell, tp, d, k_c, W_rob, valid, k_tool, k_holder, q_source, scans)
     summary["warnings"].extend(input_warnings)
+    with task(progress, "model check and identification"):
+        ident = _model_checks(cell, tp, q, W_cnc, W_rob, d, summary)
+    if ident is not None:
+        per_point["identified_dn"] = ident.predicted * 1e3
     if truth is not None:
         _attach_truth(truth_file, per_point, summary, d, truth)
+        _truth_vs_model(study.root / "truth", per_point, summary, d)
     return AnalysisResult(
-        study, cell, d, per_point, contributions, contributions_normal, summary, scans
+        study, cell, d, per_point, contributions, contributions_normal, summary, scans, ident
     )
+
+
+#: A sideways scan shift below this [m] is not worth a warning.
+LATERAL_WARN = 0.05e-3
+#: A robot-vs-CNC difference of the lap-mean lateral force above this [N] is flagged.
+FORCE_BIAS_WARN = 5.0
+
+
+def _model_checks(
+    cell: Cell, tp: Toolpath, q: F64, W_cnc: F64, W_rob: F64, d: Decomposition, summary: Any
+) -> FormingIdentification | None:
+    """``vjm_check``, the identification, the term statistics and the warnings of the robot term
+    (docs/analyze.md, "Does the model hold?"), into ``summary``."""
+    meas, pred, valid = d.normal["robot_compliance"], d.normal["vjm"], d.valid
+    vc = vjm_check(meas, pred, valid, tp.lap, tp.depth)
+    summary["vjm_check"] = vc.to_dict()
+    summary["terms_normal"] = term_statistics(
+        {k: d.normal[k] for k in (*FACTORS, "vjm", "delta", "cnc", "robot")}, valid
+    )
+    ident: FormingIdentification | None = None
+    if vc.verdict == "not_observable":
+        summary["identification"] = {"mode": None, "observability": vc.reason}
+        summary["warnings"].append(
+            "the robot's compliance is not identified from this run: " + vc.reason
+        )
+    else:
+        A = forming_design(cell.robot, q, W_rob, cell.T_base_work, tp.normal)
+        try:
+            ident = identify_from_forming(A, meas, valid, tp.lap, cell.robot.joint_stiffness)
+        except InputError as e:
+            summary["identification"] = {"mode": None, "observability": e.message}
+            summary["warnings"].append(f"robot compliance not identified: {e.message}")
+        else:
+            summary["identification"] = ident.to_dict()
+    summary["identified_stiffness"] = None  # set by write_results when the file is written
+    if vc.verdict == "mismatch":
+        use = (
+            " — use the identified stiffness (identified_stiffness.toml) for compensate and plan"
+            if ident is not None
+            else ""
+        )
+        summary["warnings"].append(
+            f"the robot model does not hold: {vc.reason}; the robot term is the measured one, "
+            f"the VJM's prediction is off{use}"
+        )
+    summary["warnings"].extend(_lateral_warnings(tp, d, vc, summary))
+    summary["warnings"].extend(_force_bias_warnings(tp, W_cnc, W_rob, valid))
+    return ident
+
+
+def _lateral_warnings(
+    tp: Toolpath, d: Decomposition, vc: VjmCheck, summary: dict[str, Any]
+) -> list[str]:
+    """A sideways scan shift the fixture registration cannot see (z and tilts only)."""
+    reg = summary.get("registration") or {}
+    out = []
+    fits = {}
+    r = vc.ratio if np.isfinite(vc.ratio) else 1.0
+    # the CNC part: springback alone should carry no n·s pattern; the robot part: what the
+    # scaled VJM leaves of the robot term
+    fields = {
+        "cnc": d.normal["springback"],
+        "robot": d.normal["robot_compliance"] - r * d.normal["vjm"],
+    }
+    for run, field_ in fields.items():
+        lo = lateral_offset(field_, tp.normal, tp.lap, d.valid)
+        if lo is None:
+            continue
+        fits[run] = {
+            "shift_mm": [float(v) * 1e3 for v in lo.shift],
+            "size_mm": lo.size * 1e3,
+            "direction_deg": lo.direction_deg,
+            "se_mm": lo.se * 1e3,
+            "explained_variance": lo.explained,
+        }
+        if not (lo.size > LATERAL_WARN and lo.size > 4 * lo.se):
+            continue
+        # the registrations are in run order (CNC, robot)
+        regs = [v for v in reg.values() if isinstance(v, dict)]
+        this = (regs[0] if run == "cnc" else regs[-1]) if regs else {}
+        fitted = set(this.get("fitted") or [])
+        booked = "springback" if run == "cnc" else "the robot term"
+        pattern = (
+            f"{run} scan: its normal deviation carries the pattern of a sideways shift of "
+            f"{lo.size * 1e3:.3f} mm towards {lo.direction_deg:.0f}° (work x,y: "
+            f"{lo.shift[0] * 1e3:+.3f}, {lo.shift[1] * 1e3:+.3f} mm; "
+            f"{lo.explained:.0%} of the lap-wise variance), booked in {booked}"
+        )
+        if {"x", "y"} <= fitted:
+            out.append(
+                f"{pattern}; the registration fitted x and y, so this is not a shift it missed "
+                "but an error that varies once around the part"
+            )
+        else:
+            out.append(
+                f"{pattern} — the scan's lateral registration is ambiguous (the "
+                f"{this.get('method', '?')} registration fits {', '.join(sorted(fitted)) or '-'}"
+                ", not x and y); re-register the scan laterally (reference marks) before "
+                "trusting the terms"
+            )
+    summary["lateral_offset"] = fits
+    return out
+
+
+def _force_bias_warnings(tp: Toolpath, W_cnc: F64, W_rob: F64, valid: Any) -> list[str]:
+    """Flag a force-sensor offset: on the same path, the lap means of the two runs' tip forces
+    should agree (the lateral ones ~0 on a round part); a constant difference is a bias (untared
+    sensor, tool weight). Only flagged: the logs are corrected at reading, if at all."""
+    if not np.any(valid):
+        return []
+    laps, inv = np.unique(tp.lap[valid], return_inverse=True)
+    if laps.size < 3:
+        return []
+    cnt = np.bincount(inv).astype(float)
+    diff = W_rob[valid, :3] - W_cnc[valid, :3]
+    lap_mean = np.stack([np.bincount(inv, weights=diff[:, j]) / cnt for j in range(3)], 1)
+    med = np.median(lap_mean, axis=0)
+    fz = float(np.median(np.abs(W_cnc[valid, 2])))
+    limit = np.array([FORCE_BIAS_WARN, FORCE_BIAS_WARN, max(2 * FORCE_BIAS_WARN, 0.05 * fz)])
+    if np.all(np.abs(med) <= limit):
+        return []
+    return [
+        "robot force log: the robot run's tip force differs from the CNC run's by a constant "
+        f"({med[0]:+.1f}, {med[1]:+.1f}, {med[2]:+.1f}) N (median of the lap means, work axes) "
+        "— a sensor bias (no tare) or the tool's weight; the tool, holder and VJM terms use the "
+        "biased force"
+    ]
+
+
+def _truth_vs_model(
+    truth_dir: Path, per_point: pd.DataFrame, summary: dict[str, Any], d: Decomposition
+) -> None:
+    """Does the virtual cell's truth equal the study's model? Then the VJM check holds by
+    construction and the report says so instead of quoting a zero difference. A flag in
+    ``truth/truth.json`` (``model_equals_truth``, or a ``truth`` table of effects) wins; else the
+    truth's robot term is compared with the VJM at the measured forces (equal within 3 %)."""
+    meta: dict[str, Any] = {}
+    try:
+        meta = json.loads((truth_dir / "truth.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        meta = {}
+    flag = meta.get("model_equals_truth") if isinstance(meta, dict) else None
+    how = "truth/truth.json"
+    if not isinstance(flag, bool):
+        if "truth_robot_compliance_dn" not in per_point:
+            return
+        u = d.valid
+        t = per_point["truth_robot_compliance_dn"].to_numpy()[u]
+        v = per_point["vjm_dn"].to_numpy()[u]
+        rms_t = float(np.sqrt(np.mean(t**2))) if t.size else 0.0
+        flag = bool(rms_t > 0 and np.sqrt(np.mean((t - v) ** 2)) <= 0.03 * rms_t)
+        how = "the truth's robot term against the VJM at the measured forces"
+    summary.setdefault("truth", {})["model_equals_truth"] = flag
+    summary["truth"]["model_equals_truth_from"] = how
+    if flag and "vjm_check" in summary:
+        summary["vjm_check"]["by_construction"] = True
 
 
 def _mm_rows(rows: list[dict[str, float | str]]) -> list[dict[str, float | str]]:
@@ -469,6 +645,10 @@ def _attach_truth(
     }
 
 
+#: The stiffness file ``analyze`` writes into its results (``[stiffness] K``, N·m/rad).
+IDENTIFIED_STIFFNESS = "identified_stiffness.toml"
+
+
 def write_results(
     result: AnalysisResult,
     out_dir: str | Path,
@@ -477,8 +657,9 @@ def write_results(
     progress: Progress | None = None,
 ) -> Path:
     """Write ``report.html``, ``contributions.csv``, ``contributions_normal.csv``,
-    ``per_point.parquet``, ``summary.json`` and ``figures/*.png`` into ``out_dir`` (replaced only
-    when everything is written)."""
+    ``per_point.parquet``, ``summary.json``, ``identified_stiffness.toml`` (when the robot's
+    compliance was identified; its absolute path in ``summary["identified_stiffness"]``) and
+    ``figures/*.png`` into ``out_dir`` (replaced only when everything is written)."""
     from roboisf.report import write_report
 
     out_dir = Path(out_dir)
@@ -489,7 +670,19 @@ def write_results(
             "overwrite an input)",
             file=out_dir,
         )
+    ident = result.identification
+    if ident is not None:
+        # where the file ends up (the results folder may itself sit in a staging folder: demo)
+        final = final_location(out_dir) / IDENTIFIED_STIFFNESS
+        result.summary["identified_stiffness"] = str(final)
     with staged_directory(out_dir, "analyze") as stage:
+        if ident is not None:
+            write_stiffness_toml(
+                ident,
+                stage / IDENTIFIED_STIFFNESS,
+                f"roboisf analyze {result.study.name} ({result.cell.robot_name}): "
+                f"identified from the forming run, mode {ident.mode}",
+            )
         with task(progress, "tables"):
             with atomic_path(stage / "per_point.parquet") as tmp:
                 result.per_point.to_parquet(tmp, index=False)

@@ -50,6 +50,7 @@ __all__ = [
     "claim_output_dir",
     "claim_output_file",
     "deferred_signals",
+    "final_location",
     "mark_written",
     "output_session",
     "read_marker",
@@ -786,3 +787,23 @@ def _commit(stage: Path, out: Path, shown: str | Path, command: str) -> None:
     for rel_dir in old_dirs:
         with contextlib.suppress(OSError):
             (out / rel_dir).rmdir()  # only if empty: a user's file inside keeps it
+
+
+def final_location(path: str | Path) -> Path:
+    """Where ``path`` (absolute) will be once every staging folder above it is moved into place.
+
+    A result that names one of its own files (``analyze``'s ``identified_stiffness``) is written
+    inside a staging folder — its own, or that of an enclosing command such as ``demo`` — and
+    must name the file where it ends up. Each ancestor carrying a :data:`STAGING_MARKER` is
+    replaced by the output it stages (its ``output`` entry, a sibling name)."""
+    p = Path(path).resolve()
+    real = out = Path(p.parts[0])
+    for part in p.parts[1:]:
+        real = real / part
+        try:
+            info = json.loads((real / STAGING_MARKER).read_text(encoding="utf-8"))
+            name = info["output"] if isinstance(info, dict) else None
+        except (OSError, ValueError, KeyError):
+            name = None
+        out = out / (name if isinstance(name, str) and name and "/" not in name else part)
+    return out

@@ -22,6 +22,7 @@ from roboisf.report import aggregate as agg
 from roboisf.report import interactive as ia
 from roboisf.report import page as pg
 from roboisf.report import static as st
+from roboisf.report.model_check import check_card, check_tables
 from roboisf.report.schema import FACTORS, check_contributions, check_per_point, check_summary
 from roboisf.report.style import FACTOR_LABELS
 
@@ -216,6 +217,17 @@ def _headline_dict(
         "largest_factor": ranked[0],
         "shares_percent": {f: float(contrib.loc[f, "share_percent"]) for f in FACTORS},
         "n_warnings": len(summary["warnings"]),
+        **_check_headline(summary),
+    }
+
+
+def _check_headline(summary: Mapping[str, Any]) -> dict[str, Any]:
+    vc = summary.get("vjm_check")
+    if not isinstance(vc, Mapping):
+        return {}
+    return {
+        "vjm_ratio": vc.get("ratio"),
+        "vjm_verdict": "holds by construction" if vc.get("by_construction") else vc.get("verdict"),
     }
 
 
@@ -243,7 +255,10 @@ def _cards(h: agg.Headline, summary: Mapping[str, Any]) -> str:
             "CNC part taken as rigid",
         ),
     ]
-    if resultant is not None:
+    check = check_card(summary)
+    if check is not None:
+        cards.append(check)
+    elif resultant is not None:
         cards.append(
             (
                 "",
@@ -432,7 +447,10 @@ def write_report(
                 "K<sub>θ</sub><sup>−1</sup> "
                 "J<sub>θ</sub><sup>T</sup> along the path; Δ = δc<sub>exp</sub> − "
                 "δc<sub>VJM</sub>.",
-                html_parts["vjm_path"] + html_parts[contour_id] + "".join(robot_tables),
+                check_tables(summ)
+                + html_parts["vjm_path"]
+                + html_parts[contour_id]
+                + "".join(robot_tables),
             )
         )
         body.append(
@@ -521,11 +539,14 @@ def write_index(entries: Sequence[str | Path], out_path: str | Path) -> Path:
             f"<td>{pg.fmt(h['R_m_total_mm'], 3)}</td>"
             f"<td>{pg.fmt(h['robot_share_percent'], 1)}</td>"
             f"<td>{pg.fmt(h['springback_share_percent'], 1)}</td>"
+            f"<td>{pg.fmt(h.get('vjm_ratio'), 2)}</td>"
+            f'<td class="t">{pg.esc(h.get("vjm_verdict") or "—")}</td>'
             f'<td class="t">{pg.share_bar(h.get("shares_percent") or {})}</td><td>{warn}</td></tr>'
         )
     table = (
         '<table><thead><tr><th>study</th><th class="t">part</th><th class="t">robot</th>'
         "<th>R<sub>m</sub> (mm)</th><th>robot share (%)</th><th>springback share (%)</th>"
+        '<th>measured / VJM</th><th class="t">robot model</th>'
         '<th class="t">shares</th><th>warnings</th>'
         f"</tr></thead><tbody>{''.join(rows)}</tbody></table>"
     )

@@ -59,6 +59,7 @@ nav.toc a:hover { color:var(--text); }
 .card .value small { font-size:15px; font-weight:500; color:var(--muted); margin-left:2px; }
 .card .note { color:var(--muted); font-size:12.5px; margin-top:2px; }
 .card.accent { border-top:4px solid var(--accent); }
+.card.warn { border-top:4px solid #D55E00; }
 p.verdict { font-size:16px; margin:4px 0 20px; }
 section { background:white; border:1px solid var(--line); border-radius:10px; padding:20px 24px;
           margin:0 0 20px; }
