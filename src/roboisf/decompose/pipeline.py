@@ -37,8 +37,8 @@ from roboisf.errors import InputError
 from roboisf.fem import ComplianceResult
 from roboisf.frames import vertical_tool
 from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
-from roboisf.io.forcelog import attach_to_toolpath, read_force_log
-from roboisf.io.jointlog import read_joint_log
+from roboisf.io.forcelog import ForceLog, attach_to_toolpath, read_force_log
+from roboisf.io.jointlog import JointLog, read_joint_log
 from roboisf.io.thickness import read_thickness_csv
 from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.parts import sine_law_thickness
@@ -48,11 +48,14 @@ from roboisf.scan import CompareOptions, ScanComparison, compare_scan, read_scan
 from roboisf.study.checks import check_force_log, check_joint_log, check_tool_radius
 from roboisf.study.sensors import sensor_to_tip
 from roboisf.study.spec import RunSpec, Study, load_study
+from roboisf.sync import Alignment
+from roboisf.sync.run import align_run
 from roboisf.toolpath import Toolpath
 
 __all__ = [
     "AnalysisResult",
     "analyze",
+    "read_run_force_log",
     "run_tip_wrench",
     "write_results",
 ]
@@ -88,35 +91,63 @@ def _declared(path: Path, key: str) -> bool:
     return False
 
 
-def run_tip_wrench(
-    study: Study, run: RunSpec, tp: Toolpath, *, warnings: list[str] | None = None
-) -> F64:
-    """A run's force log at each toolpath point, moved to the tool tip: (N, 6) [N, N·m], work
-    axes, the sheet's load on the tool (units from the log or the study's ``[units]``).
-
-    The log is checked against the toolpath first (:func:`roboisf.study.checks.check_force_log`:
-    forming-force magnitudes, logged positions on the path); its warnings are appended to
-    ``warnings``."""
+def read_run_force_log(study: Study, run: RunSpec) -> ForceLog:
+    """A run's force log, in the units it declares or the study's ``[units]``."""
     f = run.forces
     kw: dict[str, str] = {}
     if not _declared(f.file, "units"):
         u = study.units
         kw = {"time_unit": u.time, "force_unit": u.force, "moment_unit": u.moment}
     frame = None if _declared(f.file, "frame") else "sensor"
-    log = read_force_log(f.file, frame=frame, **kw)
-    notes = check_force_log(log, tp, time_offset=f.time_offset)
+    return read_force_log(f.file, frame=frame, **kw)
+
+
+def run_tip_wrench(
+    study: Study,
+    run: RunSpec,
+    tp: Toolpath,
+    *,
+    warnings: list[str] | None = None,
+    alignment: Alignment | None = None,
+    log: ForceLog | None = None,
+) -> F64:
+    """A run's force log at each toolpath point, moved to the tool tip: (N, 6) [N, N·m], work
+    axes, the sheet's load on the tool (units from the log or the study's ``[units]``).
+
+    The log is checked against the toolpath first (:func:`roboisf.study.checks.check_force_log`:
+    forming-force magnitudes, logged positions on the path); its warnings are appended to
+    ``warnings``. ``alignment`` (on the force log's clock, :mod:`roboisf.sync`) gives each
+    point's log-time window; without it, nominal time + ``time_offset``."""
+    f = run.forces
+    log = read_run_force_log(study, run) if log is None else log
+    off = f.time_offset if alignment is None else alignment.offset - float(tp.time[0])
+    notes = check_force_log(log, tp, time_offset=off)
     if warnings is not None:
         warnings.extend(notes)
-    W_s = attach_to_toolpath(log, tp, by="time", time_offset=f.time_offset)
+    if alignment is None:
+        W_s = attach_to_toolpath(log, tp, by="time", time_offset=f.time_offset)
+    else:
+        W_s = alignment.average(log.time, log.wrench, file=f.file)
     rot = study.robot.tool_rotation if study.robot is not None else 0.0
     return sensor_to_tip(W_s, f, tp.tip, vertical_tool(rot))
 
 
-def _joint_angles(cell: Cell, run: RunSpec, tp: Toolpath) -> tuple[F64, str]:
+def _joint_angles(
+    cell: Cell,
+    run: RunSpec,
+    tp: Toolpath,
+    joints: Alignment | None = None,
+    log: JointLog | None = None,
+) -> tuple[F64, str]:
     if run.joints is None:
         q = ik_toolpath(cell.robot, tp.tip, cell.T_base_work, tool_rotation=cell.tool_rotation).q
         return q, "inverse kinematics of the toolpath"
-    log = read_joint_log(run.joints)
+    log = read_joint_log(run.joints) if log is None else log
+    if joints is not None:  # aligned by position: the joints where the tool passed each point
+        q = np.column_stack(
+            [np.interp(joints.point_time, log.time, log.q[:, j]) for j in range(6)]
+        )
+        return q, f"joint log {run.joints.name} (aligned by position)"
     t0, t1 = float(tp.time[0]), float(tp.time[-1])
     if log.time[0] > t0 + 1e-6 or log.time[-1] < t1 - 1e-6:
         raise InputError(
@@ -176,12 +207,32 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
             )
     truth_file = study.root / "truth" / "per_point.parquet"
     truth = _read_truth(truth_file) if truth_file.is_file() else None  # before the long work
+    with task(progress, "alignment of the logs"):
+        logs = {
+            r.name: (
+                read_run_force_log(study, r),
+                None if r.joints is None else read_joint_log(r.joints),
+            )
+            for r in (cnc, rob)
+        }
+        aligned = {r.name: align_run(cell, r, tp, *logs[r.name]) for r in (cnc, rob)}
     with task(progress, "robot joint angles"):
-        q, q_source = _joint_angles(cell, rob, tp)
+        q, q_source = _joint_angles(
+            cell, rob, tp, aligned[rob.name].joints, logs[rob.name][1]
+        )
     input_warnings: list[str] = []
     with task(progress, "forces to the tool tip"):
-        W_cnc = run_tip_wrench(study, cnc, tp, warnings=input_warnings)
-        W_rob = run_tip_wrench(study, rob, tp, warnings=input_warnings)
+        W_cnc, W_rob = (
+            run_tip_wrench(
+                study,
+                r,
+                tp,
+                warnings=input_warnings,
+                alignment=None if r.sync == "time" else aligned[r.name].forces,
+                log=logs[r.name][0],
+            )
+            for r in (cnc, rob)
+        )
 
     with task(progress, "tool and holder compliance"):
         k_tool, k_holder, k_t, k_th = tip_compliances(cell, progress=progress)
@@ -211,6 +262,9 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
     contributions_normal = pd.DataFrame(_mm_rows(contribution_rows(d, projected=True)))
     summary = _summary(study, cell, tp, d, k_c, W_rob, valid, k_tool, k_holder, q_source, scans)
     summary["warnings"].extend(input_warnings)
+    summary["alignment"] = {name: a.to_dict() for name, a in aligned.items()}
+    for a in aligned.values():
+        summary["warnings"].extend(f"{a.run} alignment: {n}" for n in a.primary.notes)
     if truth is not None:
         _attach_truth(truth_file, per_point, summary, d, truth)
     return AnalysisResult(

@@ -136,6 +136,9 @@ class ForceSensorSpec:
     pose: F64
     load_on: Literal["tool", "workpiece"]
     time_offset: float = 0.0
+    #: ``"joint"``: the log's clock is the joint log's (one controller logs both); ``"own"``: a
+    #: separate logger, aligned by its force signature against the joint-log timing
+    clock: Literal["joint", "own"] = "joint"
 
 
 @dataclass(frozen=True)
@@ -150,6 +153,9 @@ class RunSpec:
     scan_unit: str = "mm"
     joints: Path | None = None
     thickness: Path | None = None
+    #: how the logs are matched to the toolpath (roboisf.sync): ``"time"``, ``"position"``
+    #: (the default with a joint log) or ``"force"``
+    sync: Literal["time", "position", "force"] = "time"
 
 
 @dataclass(frozen=True)
@@ -332,8 +338,8 @@ def _forces(c: _Collector, root: Path, t: Any, key: str, machine: str) -> ForceS
     if not isinstance(t, dict):
         c.add("expected a table {file, mount, pose, load_on}", key)
         return None
-    for k in sorted(set(t) - {"file", "mount", "pose", "load_on", "time_offset"}):
-        c.add("unknown key; expected file, mount, pose, load_on, time_offset", f"{key}.{k}")
+    for k in sorted(set(t) - {"file", "mount", "pose", "load_on", "time_offset", "clock"}):
+        c.add("unknown key; expected file, mount, pose, load_on, time_offset, clock", f"{key}.{k}")
     f = c.path(root, t, key, "file")
     mount = c.choice(
         t, key, "mount", ("fixture", "flange"), default="fixture" if machine == "cnc" else "flange"
@@ -358,9 +364,33 @@ def _forces(c: _Collector, root: Path, t: Any, key: str, machine: str) -> ForceS
         except InputError as e:
             c.catch(e, f"{key}.pose")
     off = c.number(t, key, "time_offset", default=0.0)
+    clock = c.choice(t, key, "clock", ("joint", "own"), default="joint")
     if f is None or pose is None or mount is None or load_on is None or off is None:
         return None
-    return ForceSensorSpec(f, mount, pose, load_on, off)  # type: ignore[arg-type]
+    return ForceSensorSpec(f, mount, pose, load_on, off, clock)  # type: ignore[arg-type]
+
+
+def _sync(c: _Collector, r: dict[str, Any], key: str, fs: ForceSensorSpec | None) -> str | None:
+    """``[runs.X] sync``: ``"position"`` by default when the run has a joint log (a real run
+    drifts against nominal time; the joint log says where the tool was), else ``"time"`` (force
+    alignment depends on the part turning the force, so it is asked for, not assumed)."""
+    default = "position" if "joints" in r else "time"
+    sync = c.choice(r, key, "sync", ("time", "position", "force"), default=default)
+    if sync == "position" and "joints" not in r:
+        c.add(
+            'sync = "position" needs a joint log (joints = "…"); without one use "force" '
+            '(the force signature) or "time" (nominal time + time_offset)',
+            f"{key}.sync",
+        )
+        return None
+    if fs is not None and fs.clock == "own" and sync != "position":
+        c.add(
+            'clock = "own" applies to sync = "position" (a force log aligned against the '
+            f'timing of the joint log); with sync = "{sync}" remove it',
+            f"{key}.forces.clock",
+        )
+        return None
+    return sync
 
 
 def _robot_model(c: _Collector, root: Path, model: str) -> str | None:
@@ -490,7 +520,16 @@ def load_study(path: str | Path) -> Study:
         if not isinstance(r, dict):
             c.add("expected a table", key)
             continue
-        allowed = {"machine", "toolpath", "forces", "scan", "scan_unit", "joints", "thickness"}
+        allowed = {
+            "machine",
+            "toolpath",
+            "forces",
+            "scan",
+            "scan_unit",
+            "joints",
+            "thickness",
+            "sync",
+        }
         for k in sorted(set(r) - allowed):
             c.add(f"unknown key; expected one of {', '.join(sorted(allowed))}", f"{key}.{k}")
         machine = c.choice(r, key, "machine", ("cnc", "robot"))
@@ -511,8 +550,9 @@ def load_study(path: str | Path) -> Study:
         thick = c.path(root, r, key, "thickness", required=False)
         if machine == "robot" and joints is None and "joints" not in r and "robot" not in data:
             c.add("a robot run needs 'joints' (a joint log) or a [robot] table to solve IK", key)
-        if None not in (machine, tp, sc, fs):
-            runs[rname] = RunSpec(rname, machine, tp, fs, sc, su, joints, thick)  # type: ignore[arg-type]
+        sync = _sync(c, r, key, fs)
+        if None not in (machine, tp, sc, fs, sync):
+            runs[rname] = RunSpec(rname, machine, tp, fs, sc, su, joints, thick, sync)  # type: ignore[arg-type]
     machines = [r.get("machine") for r in rt.values() if isinstance(r, dict)]
     if rt and ("cnc" not in machines or "robot" not in machines):
         c.add("the decomposition needs one run with machine = 'cnc' and one with 'robot'", "runs")

@@ -42,6 +42,8 @@ OFF_PATH = 5e-3
 #: Largest accepted residual [m] at any toolpath point: the logged tip (commanded joints through
 #: FK) follows the toolpath to interpolation error; 2 mm means another path or a wrong placement.
 POSITION_RESIDUAL_MAX = 2e-3
+#: A tip within this of the first/last point [m] stands there (IK/FK round-off, no motion).
+_END_TOL = 1e-5
 #: Most samples per block (memory of the distance matrix; a long pause is cut into blocks).
 _MAX_BLOCK_SAMPLES = 4096
 
@@ -193,9 +195,10 @@ def align_by_position(
     ss = np.clip(ss, S[0], S[-1])
     # a tool standing at the first point before the program starts (out of contact) has not
     # passed it yet: the passage is the departure, the last sample at the start
-    at_start = np.flatnonzero(ss <= S[0] + 1e-6)
+    at_start = np.flatnonzero(ss <= S[0] + _END_TOL)
     if at_start.size > 1 and at_start[-1] == at_start.size - 1:
         ts, ss = ts[at_start[-1] :], ss[at_start[-1] :]
+    ss[ss >= S[-1] - _END_TOL] = S[-1]  # standing at the end (IK/FK round-off)
     ss[-1] = max(ss[-1], S[-1])
     ss[0] = min(ss[0], S[0])
     t_pt, lo, hi = point_windows(ts, ss, S)

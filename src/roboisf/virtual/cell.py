@@ -75,6 +75,7 @@ from roboisf.scan import default_rim_band, synthetic_scan, write_ply
 from roboisf.study.sensors import tip_to_sensor
 from roboisf.study.spec import ForceSensorSpec
 from roboisf.toolpath import Toolpath
+from roboisf.virtual.equipment import Equipment, apply_equipment
 from roboisf.virtual.formed import NormalField, PointField
 from roboisf.virtual.springback import SpringbackModel
 
@@ -419,9 +420,16 @@ def _scan(
 
 
 def build_study(
-    cell: VirtualCell, out_dir: str | Path, *, progress: Progress | None = None
+    cell: VirtualCell,
+    out_dir: str | Path,
+    *,
+    progress: Progress | None = None,
+    equipment: Equipment | None = None,
 ) -> Path:
-    """Write the study folder for ``cell`` into ``out_dir`` (replaced atomically). Returns it."""
+    """Write the study folder for ``cell`` into ``out_dir`` (replaced atomically). Returns it.
+
+    ``equipment`` (:mod:`roboisf.virtual.equipment`) rewrites the logs as real loggers keep
+    time (clock drift, offset, pauses) and sets the runs' ``sync``."""
     out_dir = Path(out_dir)
     rng = np.random.default_rng(cell.seed)
     truth = simulate(cell, progress=progress)
@@ -456,6 +464,9 @@ def build_study(
             _scan(cell, truth, truth.dn_cnc, d / "cnc_scan.ply", rng, cell.seed + 1)
             _scan(cell, truth, truth.dn_robot, d / "robot_scan.ply", rng, cell.seed + 2)
         _write_study_toml(cell, truth, cnc_sensor, rob_sensor, d / "study.toml")
+        if equipment is not None:
+            with task(progress, "equipment logs"):
+                apply_equipment(equipment, cell, truth, d, cnc_sensor, rob_sensor)
         _write_truth(cell, truth, d / "truth")
     return out_dir
 
