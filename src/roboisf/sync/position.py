@@ -121,6 +121,25 @@ def _track(P: F64, tip: F64, S: F64, tol: float) -> F64:
     return s
 
 
+def _sharpen_ends(ts: F64, ss: F64, S: F64) -> tuple[F64, F64]:
+    """Departure from the first point and arrival at the last one at the speed of the samples
+    next to them (a linear map between a moving and a standing sample would put the arrival
+    up to one sample late)."""
+    ts, ss = ts.copy(), ss.copy()
+    k = int(np.searchsorted(ss, S[-1], side="left"))  # first sample at the end
+    if 2 <= k < len(ss) and ss[k - 1] > ss[k - 2]:
+        v = (ss[k - 1] - ss[k - 2]) / (ts[k - 1] - ts[k - 2])
+        t_end = min(ts[k - 1] + (S[-1] - ss[k - 1]) / v, ts[k])
+        ts = np.concatenate([ts[:k], [t_end], ts[k:]])
+        ss = np.concatenate([ss[:k], [S[-1]], ss[k:]])
+    k = int(np.searchsorted(ss, S[0], side="right"))  # first sample past the start
+    if k == 1 and len(ss) > 2 and ss[2] > ss[1] > ss[0]:
+        v = (ss[2] - ss[1]) / (ts[2] - ts[1])
+        t_dep = max(ts[1] - (ss[1] - S[0]) / v, ts[0])
+        ts = np.concatenate([[t_dep], ts[1:]])
+    return ts, ss
+
+
 def align_by_position(
     log_time: ArrayLike,
     tip_log: ArrayLike,
@@ -201,6 +220,7 @@ def align_by_position(
     ss[ss >= S[-1] - _END_TOL] = S[-1]  # standing at the end (IK/FK round-off)
     ss[-1] = max(ss[-1], S[-1])
     ss[0] = min(ss[0], S[0])
+    ts, ss = _sharpen_ends(ts, ss, S)
     t_pt, lo, hi = point_windows(ts, ss, S)
     P_pt = np.column_stack([np.interp(t_pt, tau, P[:, j]) for j in range(3)])
     res = np.linalg.norm(P_pt - tip, axis=1)

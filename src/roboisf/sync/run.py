@@ -54,17 +54,19 @@ def align_by_time(tp: Toolpath, offset: float, *, source: str = "") -> Alignment
 
 def fit_clock(own: Alignment, ref: Alignment) -> tuple[float, float, float]:
     """Affine ``τ_own = a + b · τ_ref`` over the points both maps read; returns
-    ``(b, a, rms misfit in toolpath points)``. Outliers beyond 3 MAD are dropped once."""
+    ``(b, a, rms misfit in toolpath points)``. Points off by more than two toolpath points or
+    3 MAD (a pause the force signature places inside the stop) are dropped once, and the misfit
+    is that of the points kept."""
     ok = np.isfinite(own.residual) if own.method == "force" else np.ones(len(own), dtype=bool)
     x, y = ref.point_time[ok], own.point_time[ok]
+    step = max(float(np.median(np.diff(own.point_time))), 1e-12)
     b, a = np.polyfit(x, y, 1)
     r = y - (a + b * x)
-    mad = float(np.median(np.abs(r - np.median(r)))) + 1e-12
-    keep = np.abs(r - np.median(r)) <= 3 * 1.4826 * mad + 1e-6
+    mad = float(np.median(np.abs(r - np.median(r))))
+    keep = np.abs(r - np.median(r)) <= max(3 * 1.4826 * mad, 2 * step)
     if keep.sum() >= 2:
         b, a = np.polyfit(x[keep], y[keep], 1)
-    step = float(np.median(np.diff(own.point_time)))
-    r = (own.point_time[ok] - (a + b * ref.point_time[ok])) / max(step, 1e-12)
+    r = (y[keep] - (a + b * x[keep])) / step
     return float(b), float(a), float(np.sqrt(np.mean(r**2)))
 
 
