@@ -136,10 +136,10 @@ def test_position_sync_refuses_another_path(cone):
     cell, truth = cone
     tau, P = _tip_log(cell, truth, DRIFT)
     with pytest.raises(InputError, match="never comes within"):
-        align_by_position(tau, P + [0.0, 0.0, 0.05], truth.toolpath, file=Path("j.csv"))
+        align_by_position(tau, P + np.array([0.0, 0.0, 0.05]), truth.toolpath, file=Path("j.csv"))
     # a 3 mm lateral shift keeps the tool near the path but above the residual bound
     with pytest.raises(InputError, match="alignment failed"):
-        align_by_position(tau, P + [3e-3, 0.0, 0.0], truth.toolpath, file=Path("j.csv"))
+        align_by_position(tau, P + np.array([3e-3, 0.0, 0.0]), truth.toolpath, file=Path("j.csv"))
 
 
 @pytest.mark.parametrize("mount", ["fixture", "flange"])
@@ -195,3 +195,32 @@ def test_own_force_clock_fitted_to_the_joint_log(cone):
     # the criterion; measured 0.66 points: the offset inherits the force signature's
     # slowly varying azimuth bias (the joint log alone is exact to 0.01 point)
     assert np.abs(_index_error(eq, tp, mapped.point_time, force=True)).max() < 1.0
+
+
+# -- the study keys ------------------------------------------------------------------------------
+def test_sync_defaults_and_keys(tmp_path):
+    from roboisf.study.spec import StudyError, load_study
+    from test_study import GOOD, write_min_study
+
+    st = load_study(write_min_study(tmp_path, GOOD))
+    # a joint log says where the tool was: position by default; without one, nominal time
+    assert st.robot_run.sync == "position" and st.cnc.sync == "time"
+    assert st.robot_run.forces.clock == "joint"
+    text = GOOD.replace('machine = "cnc"\n', 'machine = "cnc"\nsync = "force"\n').replace(
+        'load_on = "tool" }', 'load_on = "tool", clock = "own" }'
+    )
+    st = load_study(write_min_study(tmp_path, text))
+    assert st.cnc.sync == "force" and st.robot_run.forces.clock == "own"
+    bad = GOOD.replace('machine = "cnc"\n', 'machine = "cnc"\nsync = "position"\n').replace(
+        'joints = "joints.csv"\n', 'joints = "joints.csv"\nsync = "clock"\n'
+    )
+    with pytest.raises(StudyError) as e:
+        load_study(write_min_study(tmp_path, bad))
+    msg = str(e.value)
+    assert "[runs.cnc.sync]" in msg and "needs a joint log" in msg
+    assert "[runs.robot.sync]" in msg and "expected one of time, position, force" in msg
+    bad = GOOD.replace('load_on = "tool" }', 'load_on = "tool", clock = "own" }').replace(
+        'joints = "joints.csv"\n', 'joints = "joints.csv"\nsync = "time"\n'
+    )
+    with pytest.raises(StudyError, match=r"\[runs\.robot\.forces\.clock\].*applies to sync"):
+        load_study(write_min_study(tmp_path, bad))

@@ -144,9 +144,7 @@ def _joint_angles(
         return q, "inverse kinematics of the toolpath"
     log = read_joint_log(run.joints) if log is None else log
     if joints is not None:  # aligned by position: the joints where the tool passed each point
-        q = np.column_stack(
-            [np.interp(joints.point_time, log.time, log.q[:, j]) for j in range(6)]
-        )
+        q = np.column_stack([np.interp(joints.point_time, log.time, log.q[:, j]) for j in range(6)])
         return q, f"joint log {run.joints.name} (aligned by position)"
     t0, t1 = float(tp.time[0]), float(tp.time[-1])
     if log.time[0] > t0 + 1e-6 or log.time[-1] < t1 - 1e-6:
@@ -217,9 +215,7 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
         }
         aligned = {r.name: align_run(cell, r, tp, *logs[r.name]) for r in (cnc, rob)}
     with task(progress, "robot joint angles"):
-        q, q_source = _joint_angles(
-            cell, rob, tp, aligned[rob.name].joints, logs[rob.name][1]
-        )
+        q, q_source = _joint_angles(cell, rob, tp, aligned[rob.name].joints, logs[rob.name][1])
     input_warnings: list[str] = []
     with task(progress, "forces to the tool tip"):
         W_cnc, W_rob = (

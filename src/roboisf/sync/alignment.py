@@ -170,13 +170,14 @@ def clock_fit(t_nominal: F64, point_time: F64) -> tuple[float, float, list[tuple
     ok = dt > 0
     scale = float(np.median(dtau[ok] / dt[ok])) if np.any(ok) else 1.0
     extra = dtau - scale * dt
-    pauses = [
-        (float(t_nominal[i]), float(extra[i])) for i in np.flatnonzero(extra > PAUSE_MIN)
-    ]
+    pauses = [(float(t_nominal[i]), float(extra[i])) for i in np.flatnonzero(extra > PAUSE_MIN)]
     # a pause spread over two segments (the tool stood half-way) is one pause
     merged: list[tuple[float, float]] = []
     for t, d in pauses:
-        if merged and np.searchsorted(t_nominal, t) - np.searchsorted(t_nominal, merged[-1][0]) <= 1:
+        if (
+            merged
+            and np.searchsorted(t_nominal, t) - np.searchsorted(t_nominal, merged[-1][0]) <= 1
+        ):
             merged[-1] = (merged[-1][0], merged[-1][1] + d)
         else:
             merged.append((t, d))

@@ -105,7 +105,7 @@ def align_by_force(
     if n < 3 or float(np.median(np.linalg.norm(hn, axis=1))) < 0.05:
         raise InputError(
             "alignment by force needs walls (the horizontal force direction turns with the "
-            "tool); this toolpath is nearly flat — use sync = \"time\" or a joint log",
+            'tool); this toolpath is nearly flat — use sync = "time" or a joint log',
             file=file,
             field="sync",
         )
@@ -114,7 +114,7 @@ def align_by_force(
     if abs(turns) < 0.5:
         raise InputError(
             f"alignment by force needs a toolpath that turns around the part (this one turns "
-            f"{turns:.2f} times): use sync = \"time\" or \"position\"",
+            f'{turns:.2f} times): use sync = "time" or "position"',
             file=file,
             field="sync",
         )
@@ -123,7 +123,7 @@ def align_by_force(
     if float(np.max(np.maximum.accumulate(Phi) - Phi)) > BACKWARD_MAX:
         raise InputError(
             "alignment by force needs a toolpath that turns one way around the part (this one "
-            "turns back): use sync = \"time\" or \"position\"",
+            'turns back): use sync = "time" or "position"',
             file=file,
             field="sync",
         )
@@ -131,7 +131,7 @@ def align_by_force(
 
     dt_log = float(np.median(np.diff(tau)))
     dt_pt = float(np.median(np.diff(toolpath.time)))
-    w = max(1, int(round(0.5 * dt_pt / dt_log)))
+    w = max(1, round(0.5 * dt_pt / dt_log))
     Fs = _smooth(F, w)
     mag = np.linalg.norm(Fs, axis=1)
     ref = float(np.percentile(mag, 90))
@@ -210,9 +210,11 @@ def align_by_force(
         )
     # residual: the raw azimuth about the map, in toolpath points (per-point turn as the unit)
     step = np.gradient(Phi)
-    unit = np.maximum(step, float(np.median(step[step > TURN_MIN])) if np.any(step > TURN_MIN) else 1.0)
-    k = np.clip(np.searchsorted(Phi, mono), 0, n - 1)
-    r2 = ((psi - mono) / unit[k]) ** 2
+    unit = np.maximum(
+        step, float(np.median(step[step > TURN_MIN])) if np.any(step > TURN_MIN) else 1.0
+    )
+    at = np.clip(np.searchsorted(Phi, mono), 0, n - 1)
+    r2 = ((psi - mono) / unit[at]) ** 2
     res = np.sqrt(
         window_average(tc, r2[:, None], np.clip(lo, tc[0], tc[-1]), np.clip(hi, tc[0], tc[-1]))[
             :, 0
@@ -224,7 +226,7 @@ def align_by_force(
         raise InputError(
             f"force alignment failed: the force direction scatters {rms:.2g} toolpath points "
             f"(RMS) about the map (limit {residual_max:g}): too noisy, or not this toolpath; "
-            "use a joint log (sync = \"position\")",
+            'use a joint log (sync = "position")',
             file=file,
         )
     scale, offset, pauses = clock_fit(toolpath.time, t_pt)

@@ -101,7 +101,9 @@ def _track(P: F64, tip: F64, S: F64, tol: float) -> F64:
             i0 = int(np.min(idx[r][ok[r]]))
             j0 = max(i0 - 2, 0)
             j1 = min(i0 + 2, len(S0))
-            sb, db = _project(blk[r : r + 1], A[j0:j1], D[j0:j1], L2[j0:j1], S0[j0:j1], seglen[j0:j1])
+            sb, db = _project(
+                blk[r : r + 1], A[j0:j1], D[j0:j1], L2[j0:j1], S0[j0:j1], seglen[j0:j1]
+            )
             if db[0] > tol:
                 k = k2
                 continue
@@ -175,9 +177,7 @@ def align_by_position(
     tau = np.asarray(log_time, dtype=float)
     P = np.asarray(tip_log, dtype=float)
     if P.shape != (tau.size, 3) or tau.size < 2:
-        raise InputError(
-            f"expected (M, 3) positions for M ≥ 2 log times, got {P.shape}", file=file
-        )
+        raise InputError(f"expected (M, 3) positions for M ≥ 2 log times, got {P.shape}", file=file)
     S = np.asarray(toolpath.path_length, dtype=float)
     tip = toolpath.tip
     if len(toolpath) < 2:
@@ -185,11 +185,19 @@ def align_by_position(
     s = _track(P, tip, S, tol)
     on = np.isfinite(s)
     if not np.any(on):
-        d = float(np.min(np.linalg.norm(P[:: max(1, P.shape[0] // 2000), None] - tip[None, ::max(1, len(tip) // 2000)], axis=2)))
+        d = float(
+            np.min(
+                np.linalg.norm(
+                    P[:: max(1, P.shape[0] // 2000), None] - tip[None, :: max(1, len(tip) // 2000)],
+                    axis=2,
+                )
+            )
+        )
         raise InputError(
-            f"the logged tool tip (FK of the joint log) never comes within {tol * 1e3:g} mm of "
-            f"the toolpath (nearest {d * 1e3:.3g} mm): a log of another path, or a wrong "
-            "[robot] placement, flange_to_tip or angle unit",
+            "the logged tool tip (the robot's forward kinematics at the logged joint angles) "
+            f"never comes within {tol * 1e3:g} mm of the toolpath (nearest {d * 1e3:.3g} mm): "
+            "a joint log of another path, or a wrong [robot] placement, flange_to_tip or angle "
+            "unit",
             file=file,
         )
     ts, ss = tau[on], s[on]

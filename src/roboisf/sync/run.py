@@ -144,7 +144,9 @@ def align_run(
         return RunAlignment(run.name, "force", a)
     if joint_log is None:
         raise InputError(
-            'sync = "position" needs a joint log (runs.X.joints)', file=run.forces.file, field="sync"
+            'sync = "position" needs a joint log (runs.X.joints)',
+            file=run.forces.file,
+            field="sync",
         )
     T = cell.robot.fk(joint_log.q, check_limits=False, T_base_work=cell.T_base_work)
     j = align_by_position(joint_log.time, T[:, :3, 3], tp, file=joint_log.path)
@@ -168,7 +170,7 @@ def align_run(
         return RunAlignment(run.name, "position", f, j)
     F = _force_work(force_log, run, cell.tool_rotation)
     own = align_by_force(force_log.time, F, tp, file=run.forces.file)
-    b, a, rms = fit_clock(own, j)
+    scale_f, offset_f, rms = fit_clock(own, j)
     if rms > CLOCK_FIT_MAX:
         raise InputError(
             f"the force log's own clock does not follow the joint log's: the best affine "
@@ -177,11 +179,20 @@ def align_run(
             file=run.forces.file,
             field="clock",
         )
-    f = j.mapped(b, a, method="position", source=str(run.forces.file))
+    f = j.mapped(scale_f, offset_f, method="position", source=str(run.forces.file))
     scale, offset, pauses = clock_fit(tp.time, f.point_time)
     f = Alignment(
-        f.method, f.point_time, f.lo, f.hi, f.residual, f.residual_unit, scale, offset, pauses,
-        f.source, f.notes,
+        f.method,
+        f.point_time,
+        f.lo,
+        f.hi,
+        f.residual,
+        f.residual_unit,
+        scale,
+        offset,
+        pauses,
+        f.source,
+        f.notes,
     )
-    clock = {"scale": b, "offset": a, "fit_rms_points": rms}
+    clock = {"scale": scale_f, "offset": offset_f, "fit_rms_points": rms}
     return RunAlignment(run.name, "position", f, j, clock)
