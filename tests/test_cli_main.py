@@ -17,6 +17,8 @@ COMMANDS = [
     ["tool-stiffness"],
     ["holder-stiffness"],
     ["plan"],
+    ["study"],
+    ["study", "init"],
 ]
 
 
