@@ -49,6 +49,15 @@ def test_cli_passes_the_equipment_options(tmp_path, monkeypatch):
     assert main([*args, "--force-clock-scale", "0.999"]) == 0
     assert seen["equipment"] == EQUIPMENT
     assert main([*args, "--pause", "300"]) == 2  # one line, names --pause
+    prof = ["--cnc-force-profile", "kistler", "--robot-force-profile", "ati"]
+    assert main([*args, *prof, "--joint-profile", "kuka", "--overwrite"]) == 0
+    eq = seen["equipment"]
+    assert (eq.cnc_force_profile, eq.robot_force_profile, eq.joint_profile) == (
+        "kistler",
+        "ati",
+        "kuka",
+    )
+    assert main([*args, "--joint-profile", "fanuc", "--overwrite"]) == 2
 
 
 @pytest.fixture(scope="module")

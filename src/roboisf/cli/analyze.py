@@ -141,6 +141,29 @@ def register(app: typer.Typer) -> None:
                 rich_help_panel="Equipment logs",
             ),
         ] = 1.0,
+        cnc_force_profile: Annotated[
+            str,
+            typer.Option(
+                help="File layout of the CNC force log: roboisf, ati (Net F/T CSV) or kistler "
+                "(DynoWare text, 3 components, decimal comma).",
+                rich_help_panel="Equipment logs",
+            ),
+        ] = "roboisf",
+        robot_force_profile: Annotated[
+            str,
+            typer.Option(
+                help="File layout of the robot's force log: roboisf, ati or kistler.",
+                rich_help_panel="Equipment logs",
+            ),
+        ] = "roboisf",
+        joint_profile: Annotated[
+            str,
+            typer.Option(
+                help="File layout of the joint log: roboisf, abb (Time,J1..J6) or kuka "
+                "(trace CSV, A1..A6, semicolons, decimal comma).",
+                rich_help_panel="Equipment logs",
+            ),
+        ] = "roboisf",
     ) -> None:
         """Write a synthetic study (CNC and robot runs with known ground truth in truth/).
 
@@ -227,6 +250,9 @@ def register(app: typer.Typer) -> None:
             force_clock="own" if own else "joint",
             force_offset=force_clock_offset or 0.0,
             force_clock_scale=force_clock_scale,
+            cnc_force_profile=cnc_force_profile,
+            robot_force_profile=robot_force_profile,
+            joint_profile=joint_profile,
         )
         build_study(cell, output, progress=state.progress(), equipment=equipment)
         state.info(

@@ -37,8 +37,7 @@ from numpy.typing import ArrayLike, NDArray
 from roboisf.errors import InputError
 from roboisf.frames import vertical_tool
 from roboisf.io.atomic import atomic_write
-from roboisf.io.forcelog import ForceLog, write_force_log
-from roboisf.io.jointlog import write_joint_log
+from roboisf.io.forcelog import ForceLog
 from roboisf.study.sensors import tip_to_sensor
 from roboisf.study.spec import ForceSensorSpec
 from roboisf.toolpath import Toolpath
@@ -62,6 +61,9 @@ class Equipment:
     force_offset : own clock: force-log time at the controller log's start (real time 0)
     force_clock_scale : own clock: force-log seconds per real second
     lead_out : s logged after the program ends
+    cnc_force_profile, robot_force_profile : file layout of the force logs (``roboisf``, ``ati``,
+        ``kistler``; :mod:`roboisf.virtual.logformats`)
+    joint_profile : file layout of the joint log (``roboisf``, ``abb``, ``kuka``)
     """
 
     clock_scale: float = 1.0
@@ -71,6 +73,9 @@ class Equipment:
     force_offset: float = 0.0
     force_clock_scale: float = 1.0
     lead_out: float = 2.0
+    cnc_force_profile: str = "roboisf"
+    robot_force_profile: str = "roboisf"
+    joint_profile: str = "roboisf"
 
     def __post_init__(self) -> None:
         for name in ("clock_scale", "force_clock_scale"):
@@ -87,6 +92,18 @@ class Equipment:
             raise InputError(
                 f"expected 'joint' or 'own', got {self.force_clock!r}", field="force_clock"
             )
+        from roboisf.virtual.logformats import FORCE_PROFILES, JOINT_PROFILES
+
+        for name, options in (
+            ("cnc_force_profile", FORCE_PROFILES),
+            ("robot_force_profile", FORCE_PROFILES),
+            ("joint_profile", JOINT_PROFILES),
+        ):
+            if getattr(self, name) not in options:
+                raise InputError(
+                    f"expected one of {', '.join(options)}, got {getattr(self, name)!r}",
+                    field=name,
+                )
         last = -math.inf
         for t, d in self.pauses:
             if not (math.isfinite(t) and t >= 0 and math.isfinite(d) and d > 0):
@@ -99,14 +116,20 @@ class Equipment:
             last = t
 
     @property
-    def is_clean(self) -> bool:
-        """True when the logs would be the nominal ones (nothing to align)."""
+    def clock_is_nominal(self) -> bool:
+        """True when the logs run on the toolpath's nominal clock (nothing to align)."""
         return (
             self.clock_scale == 1.0
             and self.offset == 0.0
             and not self.pauses
             and self.force_clock == "joint"
         )
+
+    @property
+    def is_clean(self) -> bool:
+        """True when the logs would be the virtual cell's own (nominal clock, roboisf CSV)."""
+        profiles = (self.cnc_force_profile, self.robot_force_profile, self.joint_profile)
+        return self.clock_is_nominal and all(p == "roboisf" for p in profiles)
 
     @property
     def start(self) -> float:
@@ -222,20 +245,30 @@ def apply_equipment(
     cnc: ForceSensorSpec,
     rob: ForceSensorSpec,
 ) -> None:
-    """Rewrite a virtual study's logs in ``folder`` on the equipment's clock and set the study's
-    alignment keys: the robot run by ``sync = "position"`` (its joint log), its force log on
-    the controller's clock or its own (``forces.clock``); the CNC run, which has no joint log,
-    by ``sync = "force"``. Both runs share the clock model (same drift, offset, pauses)."""
+    """Rewrite a virtual study's logs in ``folder`` on the equipment's clock, in its file
+    layouts (:mod:`roboisf.virtual.logformats`), and set the study's alignment keys: the robot
+    run by ``sync = "position"`` (its joint log), its force log on the controller's clock or its
+    own (``forces.clock``); the CNC run, which has no joint log, by ``sync = "force"`` unless the
+    clock is nominal. Both runs share the clock model (same drift, offset, pauses). The file
+    names stay those of the clean study; a layout other than roboisf's is read by the readers'
+    automatic format detection (no ``format`` key is written)."""
     if eq.is_clean:
         return
+    from roboisf.virtual.logformats import write_force_profile, write_joint_profile
+
     rng = np.random.default_rng(cell.seed + 7919)
     tp = truth.toolpath
     rot = cell.tool_rotation
-    for W, sensor, name in ((truth.wrench_cnc, cnc, "cnc"), (truth.wrench_robot, rob, "robot")):
+    for W, sensor, name, profile in (
+        (truth.wrench_cnc, cnc, "cnc", eq.cnc_force_profile),
+        (truth.wrench_robot, rob, "robot", eq.robot_force_profile),
+    ):
         log = equipment_force_log(eq, tp, W, sensor, cell.force_rate, cell.force.noise, rot, rng)
-        write_force_log(log, folder / f"{name}_forces.csv")
+        write_force_profile(log, folder / f"{name}_forces.csv", profile)
     tau, q = equipment_joint_log(eq, tp, truth.q, cell.joint_rate)
-    write_joint_log(folder / "robot_joints.csv", tau, q)
+    write_joint_profile(folder / "robot_joints.csv", tau, q, eq.joint_profile)
+    if eq.clock_is_nominal:
+        return
     study = folder / "study.toml"
     data = tomllib.loads(study.read_text(encoding="utf-8"))
     data["runs"]["robot"]["sync"] = "position"
