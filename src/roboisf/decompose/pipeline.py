@@ -117,9 +117,13 @@ def run_tip_wrench(
     The log is checked against the toolpath first (:func:`roboisf.study.checks.check_force_log`:
     forming-force magnitudes, logged positions on the path); its warnings are appended to
     ``warnings``. ``alignment`` (on the force log's clock, :mod:`roboisf.sync`) gives each
-    point's log-time window; without it, nominal time + ``time_offset``."""
+    point's log-time window; without it the run is aligned here as its ``sync`` says (nominal
+    time + ``time_offset`` for ``"time"``)."""
     f = run.forces
     log = read_run_force_log(study, run) if log is None else log
+    if alignment is None and run.sync != "time":
+        joints = None if run.joints is None else read_joint_log(run.joints)
+        alignment = align_run(cell_from_study(study), run, tp, log, joints).forces
     off = f.time_offset if alignment is None else alignment.offset - float(tp.time[0])
     notes = check_force_log(log, tp, time_offset=off)
     if warnings is not None:
