@@ -150,7 +150,7 @@ def test_force_sync_puts_every_point_within_one_point(cone, mount):
     log, F = _force_log(cell, truth, DRIFT, mount=mount)
     a = align_by_force(log.time, F, tp)
     err = _index_error(DRIFT, tp, a.point_time, force=True)
-    assert np.abs(err).max() < 1.0
+    assert np.abs(err).max() < 0.5  # measured 0.23 (fixture) and 0.25 (flange); issue: < 1
     assert a.clock_scale == pytest.approx(1.02, abs=2e-3)
     assert len(a.pauses) == 1 and a.pauses[0][1] == pytest.approx(30.6, abs=0.5)
     assert a.residual_rms < 0.2  # scatter, in toolpath points
@@ -192,9 +192,8 @@ def test_own_force_clock_fitted_to_the_joint_log(cone):
     assert b == pytest.approx(0.999 / 1.02, rel=2e-4)
     assert rms < 0.5
     mapped = j.mapped(b, a, method="position", source="")
-    # the issue's criterion; measured 0.66 points: the offset inherits the force signature's
-    # slowly varying azimuth bias (the joint log alone is exact to 0.01 point)
-    assert np.abs(_index_error(eq, tp, mapped.point_time, force=True)).max() < 1.0
+    # measured 0.05 points (the joint log alone: 0.0001)
+    assert np.abs(_index_error(eq, tp, mapped.point_time, force=True)).max() < 0.2
 
 
 # -- the study keys ------------------------------------------------------------------------------

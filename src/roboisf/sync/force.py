@@ -153,17 +153,26 @@ def align_by_force(
             file=file,
             field="time",
         )
+    # the release from the raw magnitude (smoothing spreads the lift-off over its window)
+    raw = np.linalg.norm(F, axis=1) > 0.25 * ref
+    r1 = int(len(raw) - 1 - np.argmax(raw[::-1]))
+    t_rel = float(tau[r1]) + 0.5 * dt_log
     sel = np.arange(i0, i1 + 1)
-    sel = sel[contact[sel]]
+    sel = sel[contact[sel] & (tau[i0 : i1 + 1] <= t_rel)]
     tc = tau[sel]
     phi = sign * np.unwrap(np.arctan2(Fs[sel, 1], Fs[sel, 0]))
-    # the bias, from the last toolpath point's worth of contact before the release: the tool
-    # presses hardest at the end, while the first laps may carry too little force to read
-    last = tc >= tc[-1] - max(dt_pt, 3 * dt_log)
+    # the bias, from the last toolpath point's worth of contact before the release, on the raw
+    # forces (a smoothed direction lags where the tool turns fastest): the tool presses hardest
+    # at the end, while the first laps may carry too little force to read
+    win = tau[: r1 + 1] >= t_rel - max(dt_pt, 3 * dt_log)
+    t_win = tau[: r1 + 1][win]
+    az = sign * np.arctan2(F[: r1 + 1][win, 1], F[: r1 + 1][win, 0])
     t_end = float(toolpath.time[-1])
-    expect = np.interp(tc[last] - tc[-1] + t_end, toolpath.time, Phi)
-    b = float(np.angle(np.mean(np.exp(1j * (phi[last] - expect)))))
-    b += 2 * math.pi * round((float(np.mean(phi[last] - expect)) - b) / (2 * math.pi))
+    expect = np.interp(t_win - t_rel + t_end, toolpath.time, Phi)
+    b = float(np.angle(np.mean(np.exp(1j * (az - expect)))))
+    last = tc >= t_rel - max(dt_pt, 3 * dt_log)
+    ref_b = float(np.mean(phi[last] - np.interp(tc[last] - t_rel + t_end, toolpath.time, Phi)))
+    b += 2 * math.pi * round((ref_b - b) / (2 * math.pi))
     psi = phi - b
     back = float(np.max(np.maximum.accumulate(psi) - psi))
     if back > BACKWARD_MAX:
@@ -182,7 +191,10 @@ def align_by_force(
             file=file,
         )
     mono = np.clip(mono, Phi[0], Phi[-1])
-    mono[-1] = Phi[-1]
+    # the last point is passed at the release
+    tc = np.append(tc, max(t_rel, float(tc[-1]) + 1e-9))
+    mono = np.append(mono, Phi[-1])
+    psi = np.append(psi, Phi[-1])
     # points and the half-way marks between them, in one pass
     t2 = np.empty(2 * n - 1)
     t2[0::2] = toolpath.time
@@ -195,9 +207,16 @@ def align_by_force(
     tau2[seen] = _passages(tc, mono, t2[seen], P2[seen])
     ts = t2[seen]
     fit = min(int(np.sum(seen)), 200)
-    scale = float(np.polyfit(ts[:fit], tau2[seen][:fit], 1)[0]) if fit >= 2 else 1.0
+    # before the first readable point: the clock line through the first readable ones (the
+    # very first, at the force onset, is the least certain)
     first = int(np.argmax(seen))
-    tau2[~seen] = tau2[first] - scale * (t2[first] - t2[~seen])
+    if fit >= 2:
+        scale, icpt = (float(v) for v in np.polyfit(ts[:fit], tau2[seen][:fit], 1))
+        if first + 1 < len(tau2):  # the onset anchor itself sits on the first contact sample
+            tau2[first] = min(icpt + scale * t2[first], tau2[first + 1])
+        tau2[~seen] = np.minimum(icpt + scale * t2[~seen], tau2[first])
+    else:
+        tau2[~seen] = tau2[first] - (t2[first] - t2[~seen])
     t_pt, mid = tau2[0::2], tau2[1::2]
     lo = np.concatenate([t_pt[:1], mid])
     hi = np.concatenate([mid, t_pt[-1:]])
