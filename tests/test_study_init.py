@@ -88,6 +88,15 @@ def test_never_overwrites_a_study_toml(virtual, tmp_path):
     assert "drafted by `roboisf study init`" in (d / "study.toml").read_text()
 
 
+def test_bad_folder_and_bad_pose_exit_2(tmp_path, capsys):
+    assert main(["-q", "study", "init", str(tmp_path / "nowhere")]) == 2
+    assert not (tmp_path / "nowhere").exists()
+    assert main(["-q", "study", "init", str(tmp_path), "--placement", "1,2,3"]) == 2
+    err = capsys.readouterr().err
+    assert "[--placement]" in err and "6 comma-separated numbers" in err
+    assert not (tmp_path / "study.toml").exists()
+
+
 def _pose(values):
     return ",".join(f"{v:g}" for v in values)
 

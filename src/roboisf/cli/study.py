@@ -110,6 +110,8 @@ def _init(
     from roboisf.io.atomic import atomic_write
     from roboisf.study.init import detect_files, draft_study, render_toml
 
+    if not folder.is_dir():
+        raise InputError("not a folder (the folder with your files)", file=folder)
     out = output if output is not None else folder / "study.toml"
     output_file(out, "study init", overwrite)
     files = detect_files(folder)
