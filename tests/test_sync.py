@@ -223,3 +223,16 @@ def test_sync_defaults_and_keys(tmp_path):
     )
     with pytest.raises(StudyError, match=r"\[runs\.robot\.forces\.clock\].*applies to sync"):
         load_study(write_min_study(tmp_path, bad))
+
+
+def test_force_sync_refuses_a_path_that_turns_back():
+    """The built-in pyramid ends with a bottom pass that meets the walls in another order."""
+    from roboisf.sync.force import expected_azimuth
+    from roboisf.virtual.cell import cell_toolpath, pyramid_cell
+
+    tp = cell_toolpath(pyramid_cell(step_down=2e-3, spacing=3e-3))
+    with pytest.raises(InputError, match=r"turns back at point \d+, lap 19"):
+        expected_azimuth(tp, file=Path("f.csv"))
+    t = np.arange(100) * 0.01
+    with pytest.raises(InputError, match="turns back"):
+        align_by_force(t, np.ones((100, 3)), tp)

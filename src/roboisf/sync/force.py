@@ -37,7 +37,13 @@ from roboisf.io.forcelog import window_average
 from roboisf.sync.alignment import Alignment, clock_fit, first_passage
 from roboisf.toolpath import Toolpath
 
-__all__ = ["BACKWARD_MAX", "FORCE_RESIDUAL_MAX", "TURN_MIN", "align_by_force"]
+__all__ = [
+    "BACKWARD_MAX",
+    "FORCE_RESIDUAL_MAX",
+    "TURN_MIN",
+    "align_by_force",
+    "expected_azimuth",
+]
 
 F64 = NDArray[np.float64]
 
@@ -72,6 +78,64 @@ def _passages(tau: F64, psi: F64, t_nom: F64, phi: F64) -> F64:
     return np.maximum.accumulate(out)
 
 
+def expected_azimuth(toolpath: Toolpath, *, file: Path | None = None) -> tuple[F64, float]:
+    """The toolpath's expected force azimuth per point, unwrapped, non-decreasing [rad], and the
+    sense it turns (+1 counter-clockwise seen from above, −1 clockwise).
+
+    Raises
+    ------
+    InputError
+        when force alignment cannot work on this toolpath: nearly flat, turning less than half a
+        turn, turning back (a bottom pass), ending on a flat bottom.
+    """
+    n = len(toolpath)
+    hn = toolpath.normal[:, :2]
+    if n < 3 or float(np.median(np.linalg.norm(hn, axis=1))) < 0.05:
+        raise InputError(
+            "alignment by force needs walls (the horizontal force direction turns with the "
+            'tool); this toolpath is nearly flat — use sync = "time" or a joint log',
+            file=file,
+            field="sync",
+        )
+    flat = np.linalg.norm(hn, axis=1) < 0.05  # a flat bottom: no horizontal direction
+    if flat[-1]:
+        raise InputError(
+            "the toolpath ends on a flat bottom, where the forming force has no horizontal "
+            "direction to time the end of the run by: alignment by force cannot anchor it; use "
+            'sync = "position" (a joint log) or "time"',
+            file=file,
+            field="sync",
+        )
+    walls = np.flatnonzero(~flat)
+    Phi = np.empty(n)
+    Phi[walls] = np.unwrap(np.arctan2(hn[walls, 1], hn[walls, 0]))
+    # flat points take the direction of the wall point before them (they do not turn)
+    fill = np.maximum.accumulate(np.where(~flat, np.arange(n), walls[0]))
+    Phi = Phi[fill]
+    turns = (Phi[-1] - Phi[0]) / (2 * math.pi)
+    if abs(turns) < 0.5:
+        raise InputError(
+            f"alignment by force needs a toolpath that turns around the part (this one turns "
+            f'{turns:.2f} times): use sync = "time" or "position"',
+            file=file,
+            field="sync",
+        )
+    sign = 1.0 if turns > 0 else -1.0
+    Phi = sign * Phi
+    back_tp = np.maximum.accumulate(Phi) - Phi
+    if float(np.max(back_tp)) > BACKWARD_MAX:
+        i = int(np.argmax(back_tp > BACKWARD_MAX))
+        raise InputError(
+            "alignment by force needs a toolpath that turns one way around the part (this one "
+            f"turns back at point {i}, lap {int(toolpath.lap[i])}, e.g. a bottom pass): use "
+            'sync = "position" (a joint log) or "time"',
+            file=file,
+            field="sync",
+        )
+    Phi = np.maximum.accumulate(Phi)
+    return Phi, sign
+
+
 def align_by_force(
     log_time: ArrayLike,
     force_work: ArrayLike,
@@ -101,33 +165,7 @@ def align_by_force(
     if F.shape != (tau.size, 3) or tau.size < 10:
         raise InputError(f"expected (M, 3) forces for M ≥ 10 log times, got {F.shape}", file=file)
     n = len(toolpath)
-    hn = toolpath.normal[:, :2]
-    if n < 3 or float(np.median(np.linalg.norm(hn, axis=1))) < 0.05:
-        raise InputError(
-            "alignment by force needs walls (the horizontal force direction turns with the "
-            'tool); this toolpath is nearly flat — use sync = "time" or a joint log',
-            file=file,
-            field="sync",
-        )
-    Phi = np.unwrap(np.arctan2(hn[:, 1], hn[:, 0]))
-    turns = (Phi[-1] - Phi[0]) / (2 * math.pi)
-    if abs(turns) < 0.5:
-        raise InputError(
-            f"alignment by force needs a toolpath that turns around the part (this one turns "
-            f'{turns:.2f} times): use sync = "time" or "position"',
-            file=file,
-            field="sync",
-        )
-    sign = 1.0 if turns > 0 else -1.0
-    Phi = sign * Phi
-    if float(np.max(np.maximum.accumulate(Phi) - Phi)) > BACKWARD_MAX:
-        raise InputError(
-            "alignment by force needs a toolpath that turns one way around the part (this one "
-            'turns back): use sync = "time" or "position"',
-            file=file,
-            field="sync",
-        )
-    Phi = np.maximum.accumulate(Phi)
+    Phi, sign = expected_azimuth(toolpath, file=file)
 
     dt_log = float(np.median(np.diff(tau)))
     dt_pt = float(np.median(np.diff(toolpath.time)))

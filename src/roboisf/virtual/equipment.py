@@ -249,21 +249,29 @@ def apply_equipment(
     layouts (:mod:`roboisf.virtual.logformats`), and set the study's alignment keys: the robot
     run by ``sync = "position"`` (its joint log), its force log on the controller's clock or its
     own (``forces.clock``); the CNC run, which has no joint log, by ``sync = "force"`` unless the
-    clock is nominal. Both runs share the clock model (same drift, offset, pauses). The file
+    clock is nominal — or its path cannot be timed by the force direction
+    (:func:`roboisf.sync.force.expected_azimuth`: a pyramid's bottom pass), when its log keeps
+    the nominal clock (``sync = "time"``). Both runs share the clock model (same drift, offset, pauses). The file
     names stay those of the clean study; a layout other than roboisf's is read by the readers'
     automatic format detection (no ``format`` key is written)."""
     if eq.is_clean:
         return
+    from roboisf.sync.force import expected_azimuth
     from roboisf.virtual.logformats import write_force_profile, write_joint_profile
 
     rng = np.random.default_rng(cell.seed + 7919)
     tp = truth.toolpath
     rot = cell.tool_rotation
-    for W, sensor, name, profile in (
-        (truth.wrench_cnc, cnc, "cnc", eq.cnc_force_profile),
-        (truth.wrench_robot, rob, "robot", eq.robot_force_profile),
+    try:  # the CNC run can be aligned only by its force signature
+        expected_azimuth(tp)
+        cnc_eq = eq
+    except InputError:  # a path force alignment cannot time (pyramid bottom pass): nominal clock
+        cnc_eq = Equipment(lead_out=eq.lead_out)
+    for W, sensor, name, profile, e in (
+        (truth.wrench_cnc, cnc, "cnc", eq.cnc_force_profile, cnc_eq),
+        (truth.wrench_robot, rob, "robot", eq.robot_force_profile, eq),
     ):
-        log = equipment_force_log(eq, tp, W, sensor, cell.force_rate, cell.force.noise, rot, rng)
+        log = equipment_force_log(e, tp, W, sensor, cell.force_rate, cell.force.noise, rot, rng)
         write_force_profile(log, folder / f"{name}_forces.csv", profile)
     tau, q = equipment_joint_log(eq, tp, truth.q, cell.joint_rate)
     write_joint_profile(folder / "robot_joints.csv", tau, q, eq.joint_profile)
@@ -273,6 +281,6 @@ def apply_equipment(
     data = tomllib.loads(study.read_text(encoding="utf-8"))
     data["runs"]["robot"]["sync"] = "position"
     data["runs"]["robot"]["forces"]["clock"] = eq.force_clock
-    data["runs"]["cnc"]["sync"] = "force"
+    data["runs"]["cnc"]["sync"] = "time" if cnc_eq.clock_is_nominal else "force"
     with atomic_write(study, "wb") as fh:
         fh.write(tomli_w.dumps(data).encode())
