@@ -251,8 +251,8 @@ def apply_equipment(
     own (``forces.clock``); the CNC run, which has no joint log, by ``sync = "force"`` unless the
     clock is nominal — or its path cannot be timed by the force direction
     (:func:`roboisf.sync.force.expected_azimuth`: a pyramid's bottom pass), when its log keeps
-    the nominal clock (``sync = "time"``). Both runs share the clock model (same drift, offset, pauses). The file
-    names stay those of the clean study; a layout other than roboisf's is read by the readers'
+    the nominal clock (``sync = "time"``). Both runs share the clock model (same drift, offset,
+    pauses). The file names stay those of the clean study; a layout other than roboisf's is read by the readers'
     automatic format detection (no ``format`` key is written)."""
     if eq.is_clean:
         return
