@@ -252,8 +252,8 @@ def apply_equipment(
     clock is nominal — or its path cannot be timed by the force direction
     (:func:`roboisf.sync.force.expected_azimuth`: a pyramid's bottom pass), when its log keeps
     the nominal clock (``sync = "time"``). Both runs share the clock model (same drift, offset,
-    pauses). The file names stay those of the clean study; a layout other than roboisf's is read by the readers'
-    automatic format detection (no ``format`` key is written)."""
+    pauses). The file names stay those of the clean study; a layout other than roboisf's is
+    read by the readers' automatic format detection (no ``format`` key is written)."""
     if eq.is_clean:
         return
     from roboisf.sync.force import expected_azimuth
