@@ -18,6 +18,8 @@ COMMANDS = [
     ["holder-stiffness"],
     ["plan"],
     ["online"],
+    ["study"],
+    ["study", "init"],
 ]
 
 

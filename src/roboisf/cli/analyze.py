@@ -109,6 +109,68 @@ def register(app: typer.Typer) -> None:
             float | None,
             typer.Option(help="pyramid: corner radius of the opening [mm] (default 10)."),
         ] = None,
+        clock_scale: Annotated[
+            float,
+            typer.Option(
+                help="Log clock rate: log seconds per real second (1.02 = the controller's "
+                "clock runs 2 % fast). With any clock option the runs get sync = "
+                '"position" (robot, joint log) and "force" (CNC).',
+                rich_help_panel="Equipment logs",
+            ),
+        ] = 1.0,
+        clock_offset: Annotated[
+            float,
+            typer.Option(
+                help="Log time (s) at which the program starts (the logger runs before).",
+                rich_help_panel="Equipment logs",
+            ),
+        ] = 0.0,
+        pause: Annotated[
+            list[str] | None,
+            typer.Option(
+                help="A stop: TIME,DURATION in s (nominal toolpath time, real seconds; the "
+                "tool stands pressing). Repeat for more.",
+                rich_help_panel="Equipment logs",
+            ),
+        ] = None,
+        force_clock_offset: Annotated[
+            float | None,
+            typer.Option(
+                help="The force logger has its own clock (a separate DAQ): its time (s) when "
+                'the controller log starts; the study then says forces.clock = "own".',
+                rich_help_panel="Equipment logs",
+            ),
+        ] = None,
+        force_clock_scale: Annotated[
+            float,
+            typer.Option(
+                help="Own force clock: its seconds per real second.",
+                rich_help_panel="Equipment logs",
+            ),
+        ] = 1.0,
+        cnc_force_profile: Annotated[
+            str,
+            typer.Option(
+                help="File layout of the CNC force log: roboisf, ati (Net F/T CSV) or kistler "
+                "(DynoWare text, 3 components, decimal comma).",
+                rich_help_panel="Equipment logs",
+            ),
+        ] = "roboisf",
+        robot_force_profile: Annotated[
+            str,
+            typer.Option(
+                help="File layout of the robot's force log: roboisf, ati or kistler.",
+                rich_help_panel="Equipment logs",
+            ),
+        ] = "roboisf",
+        joint_profile: Annotated[
+            str,
+            typer.Option(
+                help="File layout of the joint log: roboisf, abb (Time,J1..J6) or kuka "
+                "(trace CSV, A1..A6, semicolons, decimal comma).",
+                rich_help_panel="Equipment logs",
+            ),
+        ] = "roboisf",
     ) -> None:
         """Write a synthetic study (CNC and robot runs with known ground truth in truth/).
 
@@ -118,6 +180,9 @@ def register(app: typer.Typer) -> None:
         compliance, springback, 25 µm laser scans. Analyse it with `roboisf analyze`.
 
         Example: roboisf virtual-cell pyramid --wall-angle 50 --depth 30 -o S && roboisf analyze S
+
+        Logs as real equipment keeps time (analyze must align them, docs/study.md):
+        roboisf virtual-cell cone --clock-scale 1.02 --clock-offset 7 --pause 300,30 -o S
         """
         from roboisf.cell import PAPER_CELL_PLACEMENT
         from roboisf.parts import Pyramid, load_part
@@ -182,7 +247,23 @@ def register(app: typer.Typer) -> None:
             compliance_method="fe" if fe else "beam",
             seed=seed,
         )
-        build_study(cell, output, progress=state.progress(), log_format=log_format)
+        from roboisf.virtual.equipment import Equipment, parse_pauses
+
+        own = force_clock_offset is not None or force_clock_scale != 1.0
+        equipment = Equipment(
+            clock_scale=clock_scale,
+            offset=clock_offset,
+            pauses=parse_pauses(pause),
+            force_clock="own" if own else "joint",
+            force_offset=force_clock_offset or 0.0,
+            force_clock_scale=force_clock_scale,
+            cnc_force_profile=cnc_force_profile,
+            robot_force_profile=robot_force_profile,
+            joint_profile=joint_profile,
+        )
+        build_study(
+            cell, output, progress=state.progress(), equipment=equipment, log_format=log_format
+        )
         state.info(
             f"wrote the study {cell.name!r} to {output}/ (analyse: roboisf analyze {output})"
         )

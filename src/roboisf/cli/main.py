@@ -63,10 +63,22 @@ def _register() -> None:
     from roboisf.cli import plan as _plan
     from roboisf.cli import robot as _robot
     from roboisf.cli import scan as _scan
+    from roboisf.cli import study as _study
     from roboisf.cli import toolpath as _toolpath
 
     # --help lists commands in this order: the workflow first, then the building blocks
-    for group in (_demo, _analyze, _compensate, _plan, _part, _toolpath, _robot, _fem, _scan):
+    for group in (
+        _demo,
+        _analyze,
+        _study,
+        _compensate,
+        _plan,
+        _part,
+        _toolpath,
+        _robot,
+        _fem,
+        _scan,
+    ):
         group.register(app)
     _online.register(app)
 

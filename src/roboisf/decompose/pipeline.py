@@ -49,8 +49,8 @@ from roboisf.errors import InputError
 from roboisf.fem import ComplianceResult
 from roboisf.frames import vertical_tool
 from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
-from roboisf.io.forcelog import attach_to_toolpath
-from roboisf.io.jointlog import read_joint_log
+from roboisf.io.forcelog import ForceLog, attach_to_toolpath
+from roboisf.io.jointlog import JointLog, read_joint_log
 from roboisf.io.outdir import final_location
 from roboisf.io.thickness import read_thickness_csv
 from roboisf.parts import sine_law_thickness
@@ -60,12 +60,15 @@ from roboisf.scan import CompareOptions, ScanComparison, compare_scan, read_scan
 from roboisf.study.checks import check_force_log, check_joint_log, check_tool_radius
 from roboisf.study.sensors import condition_study_log, read_study_force_log, sensor_to_tip
 from roboisf.study.spec import RunSpec, Study, load_study
+from roboisf.sync import Alignment
+from roboisf.sync.run import align_run
 from roboisf.toolpath import Toolpath
 from roboisf.toolpath.importer import study_toolpath
 
 __all__ = [
     "AnalysisResult",
     "analyze",
+    "read_run_force_log",
     "run_tip_wrench",
     "write_results",
 ]
@@ -91,31 +94,70 @@ class AnalysisResult:
     identification: FormingIdentification | None = None
 
 
+def read_run_force_log(study: Study, run: RunSpec) -> ForceLog:
+    """A run's force log as the study declares it (format, columns, units; ``docs/study.md``)."""
+    return read_study_force_log(study, run)
+
+
+def read_run_joint_log(run: RunSpec) -> JointLog:
+    """A run's joint log as the study declares it (format, columns, units)."""
+    assert run.joints is not None
+    ju = run.joints_units or {}
+    return read_joint_log(
+        run.joints,
+        fmt="auto" if run.joints_format == "columns" else run.joints_format,
+        columns=run.joints_columns,
+        time_unit=ju.get("time"),
+        angle_unit=ju.get("angle"),
+    )
+
+
 def run_tip_wrench(
     study: Study,
     run: RunSpec,
     tp: Toolpath,
     *,
     warnings: list[str] | None = None,
+    alignment: Alignment | None = None,
+    log: ForceLog | None = None,
     R_base_tip: F64 | None = None,
 ) -> F64:
     """A run's force log at each toolpath point, moved to the tool tip: (N, 6) [N, N·m], work
     axes, the sheet's load on the tool (units from the log or the study's ``[units]``).
 
-    The log is checked against the toolpath first (:func:`roboisf.study.checks.check_force_log`:
-    forming-force magnitudes, logged positions on the path); its warnings are appended to
-    ``warnings``. ``R_base_tip`` (N_tp, 3, 3): the tool's orientation at each toolpath point
-    (forward kinematics of the joints), for the gravity compensation of a flange sensor."""
+    The log is aligned to the toolpath (``alignment`` on the force log's clock,
+    :mod:`roboisf.sync`; without it the run is aligned here as its ``sync`` says — nominal time
+    + ``time_offset`` for ``"time"``), then conditioned (tare, the tool's weight below a flange
+    sensor: :func:`roboisf.study.sensors.condition_study_log`; each sample takes the sensor
+    orientation of the toolpath point the alignment puts it at, ``R_base_tip`` (N_tp, 3, 3) the
+    forward kinematics of the joints), then checked against the toolpath
+    (:func:`roboisf.study.checks.check_force_log`: forming-force magnitudes, logged positions on
+    the path); warnings are appended to ``warnings``. The alignment runs on the raw log: the
+    position sync does not use the forces, and the force sync uses the turning direction of the
+    horizontal force, which a constant bias small against the forming force barely moves."""
     f = run.forces
     rot = study.robot.tool_rotation if study.robot is not None else 0.0
-    log = read_study_force_log(study, run)
+    log = read_run_force_log(study, run) if log is None else log
+    if alignment is None and run.sync != "time":
+        joints = None if run.joints is None else read_run_joint_log(run)
+        alignment = align_run(cell_from_study(study), run, tp, log, joints).forces
     log, cond_notes = condition_study_log(
-        study, run, log, vertical_tool(rot), tp=tp, R_base_tip=R_base_tip
+        study,
+        run,
+        log,
+        vertical_tool(rot),
+        tp=tp,
+        R_base_tip=R_base_tip,
+        point_time=None if alignment is None else alignment.point_time,
     )
-    notes = check_force_log(log, tp, time_offset=f.time_offset)
+    off = f.time_offset if alignment is None else alignment.offset - float(tp.time[0])
+    notes = check_force_log(log, tp, time_offset=off)
     if warnings is not None:
         warnings.extend(cond_notes + notes)
-    W_s = attach_to_toolpath(log, tp, by="time", time_offset=f.time_offset)
+    if alignment is None:
+        W_s = attach_to_toolpath(log, tp, by="time", time_offset=f.time_offset)
+    else:
+        W_s = alignment.average(log.time, log.wrench, file=f.file)
     W_tip = sensor_to_tip(W_s, f, tp.tip, vertical_tool(rot))
     if not log.moments_known:
         # a 3-component dynamometer: the load is taken as a point force at the tool tip
@@ -128,18 +170,20 @@ def run_tip_wrench(
     return W_tip
 
 
-def _joint_angles(cell: Cell, run: RunSpec, tp: Toolpath) -> tuple[F64, str]:
+def _joint_angles(
+    cell: Cell,
+    run: RunSpec,
+    tp: Toolpath,
+    joints: Alignment | None = None,
+    log: JointLog | None = None,
+) -> tuple[F64, str]:
     if run.joints is None:
         q = ik_toolpath(cell.robot, tp.tip, cell.T_base_work, tool_rotation=cell.tool_rotation).q
         return q, "inverse kinematics of the toolpath"
-    ju = run.joints_units or {}
-    log = read_joint_log(
-        run.joints,
-        fmt="auto" if run.joints_format == "columns" else run.joints_format,
-        columns=run.joints_columns,
-        time_unit=ju.get("time"),
-        angle_unit=ju.get("angle"),
-    )
+    log = read_run_joint_log(run) if log is None else log
+    if joints is not None:  # aligned by position: the joints where the tool passed each point
+        q = np.column_stack([np.interp(joints.point_time, log.time, log.q[:, j]) for j in range(6)])
+        return q, f"joint log {run.joints.name} (aligned by position)"
     t0, t1 = float(tp.time[0]), float(tp.time[-1])
     if log.time[0] > t0 + 1e-6 or log.time[-1] < t1 - 1e-6:
         raise InputError(
@@ -199,17 +243,36 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
             )
     truth_file = study.root / "truth" / "per_point.parquet"
     truth = _read_truth(truth_file) if truth_file.is_file() else None  # before the long work
+    with task(progress, "alignment of the logs"):
+        logs = {
+            r.name: (
+                read_run_force_log(study, r),
+                None if r.joints is None else read_run_joint_log(r),
+            )
+            for r in (cnc, rob)
+        }
+        aligned = {r.name: align_run(cell, r, tp, *logs[r.name]) for r in (cnc, rob)}
     with task(progress, "robot joint angles"):
-        q, q_source = _joint_angles(cell, rob, tp)
+        q, q_source = _joint_angles(cell, rob, tp, aligned[rob.name].joints, logs[rob.name][1])
     input_warnings: list[str] = []
     with task(progress, "forces to the tool tip"):
-        W_cnc = run_tip_wrench(study, cnc, tp, warnings=input_warnings)
         R_fk = (
             cell.robot.fk(q, check_limits=False)[:, :3, :3]
             if rob.forces.tool_mass is not None
             else None
         )  # the sensor's orientation for its tool-weight model
-        W_rob = run_tip_wrench(study, rob, tp, warnings=input_warnings, R_base_tip=R_fk)
+        W_cnc, W_rob = (
+            run_tip_wrench(
+                study,
+                r,
+                tp,
+                warnings=input_warnings,
+                alignment=None if r.sync == "time" else aligned[r.name].forces,
+                log=logs[r.name][0],
+                R_base_tip=R_fk if r is rob else None,
+            )
+            for r in (cnc, rob)
+        )
 
     with task(progress, "tool and holder compliance"):
         k_tool, k_holder, k_t, k_th = tip_compliances(cell, progress=progress)
@@ -239,6 +302,9 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
     contributions_normal = pd.DataFrame(_mm_rows(contribution_rows(d, projected=True)))
     summary = _summary(study, cell, tp, d, k_c, W_rob, valid, k_tool, k_holder, q_source, scans)
     summary["warnings"].extend(input_warnings)
+    summary["alignment"] = {name: a.to_dict() for name, a in aligned.items()}
+    for a in aligned.values():
+        summary["warnings"].extend(f"{a.run} alignment: {n}" for n in a.primary.notes)
     with task(progress, "model check and identification"):
         ident = _model_checks(cell, tp, q, W_cnc, W_rob, d, summary)
     if ident is not None:

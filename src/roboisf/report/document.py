@@ -22,6 +22,7 @@ from roboisf.report import aggregate as agg
 from roboisf.report import interactive as ia
 from roboisf.report import page as pg
 from roboisf.report import static as st
+from roboisf.report.alignment import alignment_html
 from roboisf.report.model_check import check_card, check_tables
 from roboisf.report.schema import FACTORS, check_contributions, check_per_point, check_summary
 from roboisf.report.style import FACTOR_LABELS
@@ -401,7 +402,7 @@ def write_report(
                 "forces",
                 "Forming forces",
                 "Wrenches brought from the sensors to the tool tip, CNC vs robot.",
-                html_parts["forces"],
+                alignment_html(summ.get("alignment")) + html_parts["forces"],
             )
         )
         body.append(

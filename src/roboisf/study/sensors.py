@@ -117,6 +117,7 @@ def condition_study_log(
     *,
     tp: Toolpath | None = None,
     R_base_tip: ArrayLike | None = None,
+    point_time: ArrayLike | None = None,
 ) -> tuple[ForceLog, list[str]]:
     """Tare and gravity compensation of a run's log (``roboisf.sensor``), with its warnings.
 
@@ -124,8 +125,10 @@ def condition_study_log(
     frame without a ``[robot]``): for a flange sensor ``R_base_tip(t) · R_tip_sensor`` with
     ``R_base_tip`` the forward kinematics of the joints at the toolpath points (given with
     ``tp``; each log sample takes the toolpath point it is matched to by time, samples before
-    the toolpath the first), else ``R_base_work · R_work_tip · R_tip_sensor`` (the toolpath's
-    tool orientation); ``R_base_work · R_work_sensor`` for a fixture sensor.
+    the toolpath the first; ``point_time`` (N_tp,) s, the log time at which the tool passed each
+    point when the log was aligned by :mod:`roboisf.sync`, replaces the nominal time), else
+    ``R_base_work · R_work_tip · R_tip_sensor`` (the toolpath's tool orientation);
+    ``R_base_work · R_work_sensor`` for a fixture sensor.
     """
     from roboisf.sensor import Conditioning, ToolLoad, condition_wrench
 
@@ -134,7 +137,8 @@ def condition_study_log(
     R: F64
     if f.mount == "flange" and R_base_tip is not None and tp is not None:
         Rp = np.asarray(R_base_tip, dtype=float) @ f.pose[:3, :3]
-        k = np.searchsorted(tp.time + f.time_offset, log.time, side="right") - 1
+        t_pt = tp.time + f.time_offset if point_time is None else np.asarray(point_time, float)
+        k = np.searchsorted(t_pt, log.time, side="right") - 1
         R = Rp[np.clip(k, 0, len(Rp) - 1)]
     elif f.mount == "flange":
         R = R_bw @ np.asarray(R_work_tip, dtype=float) @ f.pose[:3, :3]

@@ -146,6 +146,9 @@ class ForceSensorSpec:
     tare: str | tuple[float, float] = "none"
     tool_mass: float | None = None
     tool_cog: tuple[float, float, float] | None = None
+    #: ``"joint"``: the log's clock is the joint log's (one controller logs both); ``"own"``: a
+    #: separate logger, aligned by its force signature against the joint-log timing
+    clock: Literal["joint", "own"] = "joint"
 
 
 @dataclass(frozen=True)
@@ -168,6 +171,9 @@ class RunSpec:
     joints_format: str = "auto"
     joints_columns: dict[str, str] | None = None
     joints_units: dict[str, str] | None = None
+    #: how the logs are matched to the toolpath (roboisf.sync): ``"time"``, ``"position"``
+    #: (the default with a joint log) or ``"force"``
+    sync: Literal["time", "position", "force"] = "time"
 
 
 @dataclass(frozen=True)
@@ -350,7 +356,7 @@ def _forces(c: _Collector, root: Path, t: Any, key: str, machine: str) -> ForceS
     if not isinstance(t, dict):
         c.add("expected a table {file, mount, pose, load_on}", key)
         return None
-    allowed = {"file", "mount", "pose", "load_on", "time_offset", *_LOG_KEYS, *_COND_KEYS}
+    allowed = {"file", "mount", "pose", "load_on", "time_offset", "clock", *_LOG_KEYS, *_COND_KEYS}
     for k in sorted(set(t) - allowed):
         c.add(f"unknown key; expected {', '.join(sorted(allowed))}", f"{key}.{k}")
     f = c.path(root, t, key, "file")
@@ -381,7 +387,15 @@ def _forces(c: _Collector, root: Path, t: Any, key: str, machine: str) -> ForceS
 
     fmt, cols, units = _log_keys(c, t, key, FORCE_FORMATS, ("time", "force", "moment", "length"))
     tare, mass, cog = _conditioning(c, t, key, mount)
-    if f is None or pose is None or mount is None or load_on is None or off is None:
+    clock = c.choice(t, key, "clock", ("joint", "own"), default="joint")
+    if (
+        f is None
+        or pose is None
+        or mount is None
+        or load_on is None
+        or off is None
+        or clock is None
+    ):
         return None
     return ForceSensorSpec(
         f,
@@ -395,6 +409,7 @@ def _forces(c: _Collector, root: Path, t: Any, key: str, machine: str) -> ForceS
         tare,
         mass,
         cog,
+        clock,  # type: ignore[arg-type]
     )
 
 
@@ -493,6 +508,29 @@ def _conditioning(
             f"{key}.tool_mass",
         )
     return tare, mass, cog
+
+
+def _sync(c: _Collector, r: dict[str, Any], key: str, fs: ForceSensorSpec | None) -> str | None:
+    """``[runs.X] sync``: ``"position"`` by default when the run has a joint log (a real run
+    drifts against nominal time; the joint log says where the tool was), else ``"time"`` (force
+    alignment depends on the part turning the force, so it is asked for, not assumed)."""
+    default = "position" if "joints" in r else "time"
+    sync = c.choice(r, key, "sync", ("time", "position", "force"), default=default)
+    if sync == "position" and "joints" not in r:
+        c.add(
+            'sync = "position" needs a joint log (joints = "…"); without one use "force" '
+            '(the force signature) or "time" (nominal time + time_offset)',
+            f"{key}.sync",
+        )
+        return None
+    if fs is not None and fs.clock == "own" and sync != "position":
+        c.add(
+            'clock = "own" applies to sync = "position" (a force log aligned against the '
+            f'timing of the joint log); with sync = "{sync}" remove it',
+            f"{key}.forces.clock",
+        )
+        return None
+    return sync
 
 
 def _robot_model(c: _Collector, root: Path, model: str) -> str | None:
@@ -633,6 +671,7 @@ def load_study(path: str | Path) -> Study:
             continue
         allowed = {"machine", "toolpath", "forces", "scan", "scan_unit", "joints", "thickness"}
         allowed |= {"toolpath_format", "toolpath_point"}  # CAM import (docs/toolpaths.md)
+        allowed |= {"sync"}  # log alignment (docs/study.md, Alignment)
         for k in sorted(set(r) - allowed):
             c.add(f"unknown key; expected one of {', '.join(sorted(allowed))}", f"{key}.{k}")
         machine = c.choice(r, key, "machine", ("cnc", "robot"))
@@ -665,7 +704,8 @@ def load_study(path: str | Path) -> Study:
         if machine == "robot" and joints is None and "joints" not in r and "robot" not in data:
             c.add("a robot run needs 'joints' (a joint log) or a [robot] table to solve IK", key)
         tp_fmt, tp_point = _toolpath_import_keys(c, r, key)
-        if None not in (machine, tp, sc, fs):
+        sync = _sync(c, r, key, fs)
+        if None not in (machine, tp, sc, fs, sync):
             runs[rname] = RunSpec(
                 rname,
                 machine,  # type: ignore[arg-type]
@@ -680,6 +720,7 @@ def load_study(path: str | Path) -> Study:
                 joints_format=j_fmt,
                 joints_columns=j_cols,
                 joints_units=j_units,
+                sync=sync,  # type: ignore[arg-type]
             )
     machines = [r.get("machine") for r in rt.values() if isinstance(r, dict)]
     if rt and ("cnc" not in machines or "robot" not in machines):

@@ -75,6 +75,7 @@ from roboisf.scan import default_rim_band, synthetic_scan, write_ply
 from roboisf.study.sensors import tip_to_sensor
 from roboisf.study.spec import ForceSensorSpec
 from roboisf.toolpath import Toolpath
+from roboisf.virtual.equipment import Equipment, apply_equipment
 from roboisf.virtual.formed import NormalField, PointField
 from roboisf.virtual.springback import SpringbackModel
 
@@ -428,17 +429,24 @@ def build_study(
     *,
     progress: Progress | None = None,
     log_format: str = "parquet",
+    equipment: Equipment | None = None,
 ) -> Path:
     """Write the study folder for ``cell`` into ``out_dir`` (replaced atomically). Returns it.
 
     ``log_format``: the force and joint logs as Parquet (default: SI, exact, ~4× smaller than
-    the CSV; ``roboisf.io.logparquet``) or as the roboisf CSV (``"csv"``)."""
+    the CSV; ``roboisf.io.logparquet``) or as the roboisf CSV (``"csv"``).
+    ``equipment`` (:mod:`roboisf.virtual.equipment`) rewrites the logs as real loggers keep
+    time (clock drift, offset, pauses) and in their file layouts, and sets the runs' ``sync``;
+    equipment logs are text files as the instruments write them, so they are CSV whatever
+    ``log_format`` says."""
     out_dir = Path(out_dir)
     if log_format not in LOG_FORMATS:
         raise InputError(
             f"log format must be one of {', '.join(LOG_FORMATS)}, got {log_format!r}",
             field="log_format",
         )
+    if equipment is not None and not equipment.is_clean:
+        log_format = "csv"  # the equipment's layouts are instruments' text exports
     ext = LOG_FORMATS[log_format]
     rng = np.random.default_rng(cell.seed)
     truth = simulate(cell, progress=progress)
@@ -475,6 +483,9 @@ def build_study(
         _write_study_toml(
             cell, truth, cnc_sensor, rob_sensor, d / "study.toml", joints=f"robot_joints{ext}"
         )
+        if equipment is not None:
+            with task(progress, "equipment logs"):
+                apply_equipment(equipment, cell, truth, d, cnc_sensor, rob_sensor)
         _write_truth(cell, truth, d / "truth")
     return out_dir
 

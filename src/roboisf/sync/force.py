@@ -1,0 +1,314 @@
+"""Alignment by the force signature, for a run without a joint log.
+
+A ball tool pressing a wall is pushed back along the wall's normal (plus a friction/feed share
+along the path): in the work frame the *horizontal* direction of the forming force turns with
+the tool around the part, one turn per lap. Its unwrapped azimuth ``φ(τ)`` is therefore a
+progress variable of the log, like arc length, and the toolpath's own normals give the
+expected one, ``Φ_i`` (unwrapped azimuth of the horizontal normal). The map is
+
+1. contact: |F| (smoothed over half a toolpath point) above a quarter of its 90th percentile;
+   onset = the toolpath's first point, release = its last;
+2. ``ψ(τ) = φ(τ) − b``, the constant ``b`` (which side the load is on, the friction share) from
+   the first point's worth of contact after the onset;
+3. ``ψ`` made monotone (mean of its running maximum and its reversed running minimum);
+4. each toolpath point's passage = the first time ``ψ`` reaches ``Φ_i``, at points where the
+   azimuth turns (both neighbours differ by more than :data:`TURN_MIN`); points on a flat wall
+   or a straight step-down (no turn) are interpolated in nominal time between such anchors.
+
+Pauses show as a standing azimuth and are recovered wherever the path turns; a pause on a flat
+wall of a pyramid is not observable (it is spread over the wall). The residual per point is the
+scatter of the raw azimuth about the monotone map over the point's window, in equivalent
+toolpath points (``"points"``). The map fails, with :class:`~roboisf.errors.InputError`, for a
+path that does not turn around the part at least half a turn, a log in contact from its first
+sample (no onset), a force direction running backwards, or a log that turns a different number
+of laps than the toolpath.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from roboisf.errors import InputError
+from roboisf.io.forcelog import window_average
+from roboisf.sync.alignment import Alignment, clock_fit, first_passage
+from roboisf.toolpath import Toolpath
+
+__all__ = [
+    "BACKWARD_MAX",
+    "FORCE_RESIDUAL_MAX",
+    "TURN_MIN",
+    "align_by_force",
+    "expected_azimuth",
+]
+
+F64 = NDArray[np.float64]
+
+#: Azimuth change [rad] between neighbouring toolpath points below which a point does not
+#: anchor the map (flat wall, vertical step-down).
+TURN_MIN = 1e-3
+#: Largest backward swing of the force azimuth [rad] accepted as noise.
+BACKWARD_MAX = 0.3
+#: Largest accepted RMS residual [equivalent toolpath points] of a force alignment.
+FORCE_RESIDUAL_MAX = 3.0
+
+
+def _smooth(x: F64, w: int) -> F64:
+    if w <= 1:
+        return x
+    from scipy.ndimage import uniform_filter1d
+
+    return np.asarray(uniform_filter1d(x, size=w, axis=0, mode="nearest"), dtype=float)
+
+
+def _passages(tau: F64, psi: F64, t_nom: F64, phi: F64) -> F64:
+    """Passage time of each entry of ``phi`` (non-decreasing), anchors where it turns."""
+    n = len(phi)
+    d = np.diff(phi)
+    turn = np.zeros(n, dtype=bool)
+    turn[1:-1] = (d[:-1] > TURN_MIN) & (d[1:] > TURN_MIN)
+    turn[0] = turn[-1] = True
+    out = np.empty(n)
+    out[turn] = first_passage(tau, psi, np.clip(phi[turn], psi[0], psi[-1]))
+    out[0], out[-1] = tau[0], tau[-1]
+    out[~turn] = np.interp(t_nom[~turn], t_nom[turn], out[turn])
+    return np.maximum.accumulate(out)
+
+
+def expected_azimuth(toolpath: Toolpath, *, file: Path | None = None) -> tuple[F64, float]:
+    """The toolpath's expected force azimuth per point, unwrapped, non-decreasing [rad], and the
+    sense it turns (+1 counter-clockwise seen from above, −1 clockwise).
+
+    Raises
+    ------
+    InputError
+        when force alignment cannot work on this toolpath: nearly flat, turning less than half a
+        turn, turning back (a bottom pass), ending on a flat bottom.
+    """
+    n = len(toolpath)
+    hn = toolpath.normal[:, :2]
+    if n < 3 or float(np.median(np.linalg.norm(hn, axis=1))) < 0.05:
+        raise InputError(
+            "alignment by force needs walls (the horizontal force direction turns with the "
+            'tool); this toolpath is nearly flat — use sync = "time" or a joint log',
+            file=file,
+            field="sync",
+        )
+    flat = np.linalg.norm(hn, axis=1) < 0.05  # a flat bottom: no horizontal direction
+    if flat[-1]:
+        raise InputError(
+            "the toolpath ends on a flat bottom, where the forming force has no horizontal "
+            "direction to time the end of the run by: alignment by force cannot anchor it; use "
+            'sync = "position" (a joint log) or "time"',
+            file=file,
+            field="sync",
+        )
+    walls = np.flatnonzero(~flat)
+    Phi = np.empty(n)
+    Phi[walls] = np.unwrap(np.arctan2(hn[walls, 1], hn[walls, 0]))
+    # flat points take the direction of the wall point before them (they do not turn)
+    fill = np.maximum.accumulate(np.where(~flat, np.arange(n), walls[0]))
+    Phi = Phi[fill]
+    turns = (Phi[-1] - Phi[0]) / (2 * math.pi)
+    if abs(turns) < 0.5:
+        raise InputError(
+            f"alignment by force needs a toolpath that turns around the part (this one turns "
+            f'{turns:.2f} times): use sync = "time" or "position"',
+            file=file,
+            field="sync",
+        )
+    sign = 1.0 if turns > 0 else -1.0
+    Phi = sign * Phi
+    back_tp = np.maximum.accumulate(Phi) - Phi
+    if float(np.max(back_tp)) > BACKWARD_MAX:
+        i = int(np.argmax(back_tp > BACKWARD_MAX))
+        raise InputError(
+            "alignment by force needs a toolpath that turns one way around the part (this one "
+            f"turns back at point {i}, lap {int(toolpath.lap[i])}, e.g. a bottom pass): use "
+            'sync = "position" (a joint log) or "time"',
+            file=file,
+            field="sync",
+        )
+    Phi = np.maximum.accumulate(Phi)
+    return Phi, sign
+
+
+def align_by_force(
+    log_time: ArrayLike,
+    force_work: ArrayLike,
+    toolpath: Toolpath,
+    *,
+    file: Path | None = None,
+    residual_max: float = FORCE_RESIDUAL_MAX,
+) -> Alignment:
+    """Map a force log onto the toolpath by the turning of the forming force, monotonically.
+
+    Parameters
+    ----------
+    log_time : (M,) float, s — the log's clock, strictly increasing
+    force_work : (M, 3) float, N — the force in **work axes** (the sensor's pose applied; its
+        sign does not matter)
+    toolpath : the toolpath the run followed (its normals give the expected direction)
+    file : the log (for messages)
+    residual_max : equivalent toolpath points — refuse above this RMS residual
+
+    Returns
+    -------
+    Alignment
+        ``method = "force"``, residual in equivalent toolpath points.
+    """
+    tau = np.asarray(log_time, dtype=float)
+    F = np.asarray(force_work, dtype=float)
+    if F.shape != (tau.size, 3) or tau.size < 10:
+        raise InputError(f"expected (M, 3) forces for M ≥ 10 log times, got {F.shape}", file=file)
+    n = len(toolpath)
+    Phi, sign = expected_azimuth(toolpath, file=file)
+
+    dt_log = float(np.median(np.diff(tau)))
+    dt_pt = float(np.median(np.diff(toolpath.time)))
+    w = max(1, round(0.5 * dt_pt / dt_log))
+    Fs = _smooth(F, w)
+    mag = np.linalg.norm(Fs, axis=1)
+    ref = float(np.percentile(mag, 90))
+    contact = mag > 0.25 * ref
+    if not np.any(contact) or ref <= 0:
+        raise InputError("the force log holds no forming force", file=file, field="Fz")
+    i0, i1 = int(np.argmax(contact)), int(len(contact) - 1 - np.argmax(contact[::-1]))
+    if i0 == 0:
+        raise InputError(
+            "the force log is in contact from its first sample: alignment by force needs the "
+            "onset of contact (start the log before the tool touches the sheet)",
+            file=file,
+            field="time",
+        )
+    if i1 == len(contact) - 1:
+        raise InputError(
+            "the force log is in contact at its last sample: alignment by force needs the "
+            "release at the end of the toolpath (stop the log after the tool lifts off)",
+            file=file,
+            field="time",
+        )
+    # the release from the raw magnitude (smoothing spreads the lift-off over its window)
+    raw = np.linalg.norm(F, axis=1) > 0.25 * ref
+    r1 = int(len(raw) - 1 - np.argmax(raw[::-1]))
+    t_rel = float(tau[r1]) + 0.5 * dt_log
+    sel = np.arange(i0, i1 + 1)
+    sel = sel[contact[sel] & (tau[i0 : i1 + 1] <= t_rel)]
+    tc = tau[sel]
+    phi = sign * np.unwrap(np.arctan2(Fs[sel, 1], Fs[sel, 0]))
+    # the bias, from the last toolpath point's worth of contact before the release, on the raw
+    # forces (a smoothed direction lags where the tool turns fastest): the tool presses hardest
+    # at the end, while the first laps may carry too little force to read
+    win = tau[: r1 + 1] >= t_rel - max(dt_pt, 3 * dt_log)
+    t_win = tau[: r1 + 1][win]
+    az = sign * np.arctan2(F[: r1 + 1][win, 1], F[: r1 + 1][win, 0])
+    t_end = float(toolpath.time[-1])
+    expect = np.interp(t_win - t_rel + t_end, toolpath.time, Phi)
+    b = float(np.angle(np.mean(np.exp(1j * (az - expect)))))
+    last = tc >= t_rel - max(dt_pt, 3 * dt_log)
+    ref_b = float(np.mean(phi[last] - np.interp(tc[last] - t_rel + t_end, toolpath.time, Phi)))
+    b += 2 * math.pi * round((ref_b - b) / (2 * math.pi))
+    psi = phi - b
+    back = float(np.max(np.maximum.accumulate(psi) - psi))
+    if back > BACKWARD_MAX:
+        k = int(np.argmax(np.maximum.accumulate(psi) - psi))
+        raise InputError(
+            f"the force direction runs backwards by {math.degrees(back):.0f}° at log time "
+            f"{tc[k]:.2f} s: not a log of this toolpath (or of a path run in reverse)",
+            file=file,
+        )
+    mono = 0.5 * (np.maximum.accumulate(psi) + np.minimum.accumulate(psi[::-1])[::-1])
+    if mono[0] < Phi[0] - 0.5 * math.pi:
+        raise InputError(
+            f"the force log's direction turns {(mono[-1] - mono[0]) / (2 * math.pi):.2f} times "
+            f"but the toolpath only {(Phi[-1] - Phi[0]) / (2 * math.pi):.2f}: a log of another "
+            "path",
+            file=file,
+        )
+    mono = np.clip(mono, Phi[0], Phi[-1])
+    # the last point is passed at the release
+    tc = np.append(tc, max(t_rel, float(tc[-1]) + 1e-9))
+    mono = np.append(mono, Phi[-1])
+    psi = np.append(psi, Phi[-1])
+    # points and the half-way marks between them, in one pass
+    t2 = np.empty(2 * n - 1)
+    t2[0::2] = toolpath.time
+    t2[1::2] = 0.5 * (toolpath.time[1:] + toolpath.time[:-1])
+    P2 = np.empty(2 * n - 1)
+    P2[0::2] = Phi
+    P2[1::2] = 0.5 * (Phi[1:] + Phi[:-1])
+    seen = P2 >= mono[0]  # before the force onset the direction is not readable
+    tau2 = np.empty(2 * n - 1)
+    tau2[seen] = _passages(tc, mono, t2[seen], P2[seen])
+    ts = t2[seen]
+    fit = min(int(np.sum(seen)), 200)
+    # before the first readable point: the clock line through the first readable ones (the
+    # very first, at the force onset, is the least certain)
+    first = int(np.argmax(seen))
+    if fit >= 2:
+        scale, icpt = (float(v) for v in np.polyfit(ts[:fit], tau2[seen][:fit], 1))
+        if first + 1 < len(tau2):  # the onset anchor itself sits on the first contact sample
+            tau2[first] = min(icpt + scale * t2[first], tau2[first + 1])
+        tau2[~seen] = np.minimum(icpt + scale * t2[~seen], tau2[first])
+    else:
+        tau2[~seen] = tau2[first] - (t2[first] - t2[~seen])
+    t_pt, mid = tau2[0::2], tau2[1::2]
+    lo = np.concatenate([t_pt[:1], mid])
+    hi = np.concatenate([mid, t_pt[-1:]])
+    n_unseen = int(np.sum(~seen[0::2]))
+    if n_unseen > n // 2:
+        raise InputError(
+            f"the force direction is readable only over the last {n - n_unseen} of {n} toolpath "
+            "points: a log that stops half-way, or of another path",
+            file=file,
+        )
+    # residual: the raw azimuth about the map, in toolpath points (per-point turn as the unit)
+    step = np.gradient(Phi)
+    unit = np.maximum(
+        step, float(np.median(step[step > TURN_MIN])) if np.any(step > TURN_MIN) else 1.0
+    )
+    at = np.clip(np.searchsorted(Phi, mono), 0, n - 1)
+    r2 = ((psi - mono) / unit[at]) ** 2
+    res = np.sqrt(
+        window_average(tc, r2[:, None], np.clip(lo, tc[0], tc[-1]), np.clip(hi, tc[0], tc[-1]))[
+            :, 0
+        ]
+    )
+    res[~seen[0::2]] = np.nan
+    rms = float(np.sqrt(np.nanmean(res**2)))
+    if rms > residual_max:
+        raise InputError(
+            f"force alignment failed: the force direction scatters {rms:.2g} toolpath points "
+            f"(RMS) about the map (limit {residual_max:g}): too noisy, or not this toolpath; "
+            'use a joint log (sync = "position")',
+            file=file,
+        )
+    scale, offset, pauses = clock_fit(toolpath.time, t_pt)
+    notes = []
+    if n_unseen:
+        notes.append(
+            f"the first {n_unseen} toolpath points carry too little force to read its direction: "
+            "timed from the first readable one at the fitted clock rate"
+        )
+    flat = int(np.sum(np.abs(np.diff(Phi)) <= TURN_MIN))
+    if flat:
+        notes.append(
+            f"{flat} toolpath segment(s) do not turn (flat wall, step-down): their timing is "
+            "interpolated, and a pause there is not observable"
+        )
+    return Alignment(
+        "force",
+        t_pt,
+        lo,
+        hi,
+        res,
+        "points",
+        scale,
+        offset,
+        pauses,
+        str(file) if file is not None else "",
+        notes,
+    )

@@ -1,0 +1,128 @@
+"""Done-when of issue #13 for alignment: a virtual cell whose loggers keep time as real equipment
+does (2 % fast clock, 7 s offset, a 30 s pause, a force DAQ with its own clock) is analysed to the
+same decomposition as the clean study — every share within 1 percentage point — because
+``analyze`` aligns the logs (robot run by position, CNC run by the force signature).
+
+The end-to-end pair is slow (two small studies); the alignment itself is covered fast by
+test_sync.py, and the CLI options here fast (the writer is replaced).
+"""
+
+import json
+
+import numpy as np
+import pytest
+
+from roboisf.cli.main import main
+from roboisf.decompose import FACTORS
+from roboisf.decompose.pipeline import analyze, write_results
+from roboisf.virtual.cell import build_study, paper_cone_cell
+from roboisf.virtual.equipment import Equipment
+
+SMALL = {
+    "scan_points": 150_000,
+    "force_rate": 50.0,
+    "joint_rate": 20.0,
+    "step_down": 2e-3,
+    "spacing": 4e-3,
+}
+EQUIPMENT = Equipment(
+    clock_scale=1.02,
+    offset=7.0,
+    pauses=((300.0, 30.0),),
+    force_clock="own",
+    force_offset=-3.0,
+    force_clock_scale=0.999,
+)
+
+
+def test_cli_passes_the_equipment_options(tmp_path, monkeypatch):
+    import roboisf.virtual.cell as vc
+
+    seen = {}
+
+    def fake(cell, out, *, progress=None, equipment=None):
+        seen["equipment"] = equipment
+
+    monkeypatch.setattr(vc, "build_study", fake)
+    args = ["-q", "virtual-cell", "cone", "-o", str(tmp_path / "s"), "--clock-scale", "1.02"]
+    args += ["--clock-offset", "7", "--pause", "300,30", "--force-clock-offset", "-3"]
+    assert main([*args, "--force-clock-scale", "0.999"]) == 0
+    assert seen["equipment"] == EQUIPMENT
+    assert main([*args, "--pause", "300"]) == 2  # one line, names --pause
+    prof = ["--cnc-force-profile", "kistler", "--robot-force-profile", "ati"]
+    assert main([*args, *prof, "--joint-profile", "kuka", "--overwrite"]) == 0
+    eq = seen["equipment"]
+    assert (eq.cnc_force_profile, eq.robot_force_profile, eq.joint_profile) == (
+        "kistler",
+        "ati",
+        "kuka",
+    )
+    assert main([*args, "--joint-profile", "fanuc", "--overwrite"]) == 2
+
+
+@pytest.fixture(scope="module")
+def pair(tmp_path_factory):
+    root = tmp_path_factory.mktemp("sync")
+    clean = analyze(build_study(paper_cone_cell(**SMALL), root / "clean"))
+    study = build_study(paper_cone_cell(**SMALL), root / "drift", equipment=EQUIPMENT)
+    drift = analyze(study)
+    out = write_results(drift, root / "results", png=False)
+    return clean, drift, study, out
+
+
+@pytest.mark.slow
+def test_drifting_logs_give_the_clean_decomposition(pair):
+    clean, drift, study, _ = pair
+    text = (study / "study.toml").read_text()
+    assert 'sync = "position"' in text and 'sync = "force"' in text and 'clock = "own"' in text
+    for table in ("contributions", "contributions_normal"):
+        a = getattr(clean, table).set_index("factor").share_percent
+        b = getattr(drift, table).set_index("factor").share_percent
+        for f in FACTORS:
+            assert b[f] == pytest.approx(a[f], abs=1.0), (table, f)
+    # and per point: the forces land on the same points (the last point loses contact half-way
+    # through its window in the equipment log: the tool lifts off there)
+    for run in ("cnc", "robot"):
+        d = np.abs(clean.per_point[f"{run}_Fz"] - drift.per_point[f"{run}_Fz"]).to_numpy()[:-1]
+        assert np.percentile(d, 99) < 5.0 and np.median(d) < 1.5  # N; sensor noise 2 N
+
+
+@pytest.mark.slow
+def test_nominal_time_would_put_the_forces_on_the_wrong_points(pair, tmp_path):
+    """The test can fail: the same logs matched by nominal time are far off."""
+    clean, _, study, _ = pair
+    import shutil
+
+    s = tmp_path / "s"
+    shutil.copytree(study, s)
+    text = (s / "study.toml").read_text()
+    text = text.replace('sync = "force"', 'sync = "time"').replace('sync = "position"', "")
+    text = text.replace('clock = "own"', 'clock = "joint"')
+    (s / "study.toml").write_text(text.replace("[runs.robot]", '[runs.robot]\nsync = "time"'))
+    from roboisf.decompose.pipeline import run_tip_wrench
+    from roboisf.io.toolpath_csv import read_toolpath_csv
+    from roboisf.study.spec import load_study
+
+    st = load_study(s)
+    W = run_tip_wrench(st, st.cnc, read_toolpath_csv(st.cnc.toolpath))
+    d = np.abs(W[:, 0] - clean.per_point.cnc_Fx.to_numpy())
+    assert np.median(d) > 20.0
+
+
+@pytest.mark.slow
+def test_summary_reports_the_alignment(pair):
+    *_, out = pair
+    s = json.loads((out / "summary.json").read_text())
+    al = s["alignment"]
+    assert set(al) == {"cnc", "robot"}
+    rob, cnc = al["robot"], al["cnc"]
+    assert rob["method"] == "position" and rob["residual_unit"] == "mm"
+    assert rob["residual_max"] < 0.5 and rob["clock_scale"] == pytest.approx(1.02, abs=1e-3)
+    assert rob["offset"] == pytest.approx(7.0, abs=0.1)
+    assert len(rob["pauses"]) == 1 and rob["pauses"][0][1] == pytest.approx(30.6, abs=0.2)
+    assert rob["force_clock"]["scale"] == pytest.approx(0.999 / 1.02, rel=1e-3)
+    assert cnc["method"] == "force" and cnc["residual_unit"] == "points"
+    # the CNC dynamometer runs on its own clock: 0.999 s per real s, 7/1.02 s real start, -3 s
+    assert cnc["clock_scale"] == pytest.approx(0.999, abs=3e-3)
+    html = (out / "report.html").read_text()
+    assert "Alignment of the logs" in html and "by position (FK of the joint log)" in html
