@@ -40,7 +40,7 @@ def test_cli_passes_the_equipment_options(tmp_path, monkeypatch):
 
     seen = {}
 
-    def fake(cell, out, *, progress=None, equipment=None):
+    def fake(cell, out, *, progress=None, equipment=None, log_format="parquet"):
         seen["equipment"] = equipment
 
     monkeypatch.setattr(vc, "build_study", fake)
