@@ -222,3 +222,15 @@ def test_scan_misregistration_moves_the_scan_rigidly(nominal, tmp_path):
     A = M @ T @ np.linalg.inv(M)
     np.testing.assert_allclose(b, a @ A[:3, :3].T + A[:3, 3], atol=2e-9)
     assert np.max(np.linalg.norm(b - a, axis=1)) > 0.3e-3
+
+
+def test_link_compliance_adds_the_beams_to_the_joints(nominal):
+    from roboisf.virtual.links import link_deflection
+
+    cell, t0 = nominal
+    t1 = simulate(_truth_cell(link_compliance=True))
+    links = link_deflection(cell.cell.robot, t0.q, t0.wrench_robot, cell.cell.T_base_work)
+    np.testing.assert_allclose(t1.robot, t0.robot + links[:, :3], rtol=1e-12, atol=1e-15)
+    assert np.mean(np.linalg.norm(links[:, :3], axis=1)) > 0.05 * np.mean(
+        np.linalg.norm(t0.robot, axis=1)
+    )
