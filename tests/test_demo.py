@@ -43,7 +43,7 @@ def test_demo_builds_both_studies_atomically(tmp_path):
     assert cone.n_laps == 206
     rapid = read_rapid(out / "cone-71" / "programs" / "toolpath.mod")
     assert np.abs(rapid.tip - cone.tip).max() <= 0.5e-6 + 1e-12
-    # the programs carry the cell's frames: blank at (2200, 0, 200) mm, the cell's 306 mm tool
+    # the programs carry the cell's frames: blank at (2200, -500, 200) mm, the cell's 306 mm tool
     from roboisf.virtual.cell import PAPER_CELL_PLACEMENT, paper_cone_cell
 
     c = paper_cone_cell()

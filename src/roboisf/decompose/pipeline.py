@@ -136,7 +136,11 @@ def _compare(
     # per-point deviations over the whole wall (the paper's polar plot sits at z = −11 mm, inside
     # the rim band); the rim band leaves the statistics through the ``used`` mask
     opts = CompareOptions(
-        register=a.registration, rim_band=0.0, radius=a.point_radius, contour_z=a.contour_z
+        register=a.registration,
+        rim_band=0.0,
+        radius=a.point_radius,
+        contour_z=a.contour_z,
+        max_distance=a.max_distance,
     )
     cloud = read_scan(run.scan, unit=run.scan_unit)
     return compare_scan(

@@ -83,12 +83,14 @@ from roboisf.virtual.truth import TruthSpec
 __all__ = [
     "DEFAULT_HOLDER",
     "PAPER_CELL_PLACEMENT",
+    "PAPER_TABLE5",
     "SENSOR_STACK",
     "CellTruth",
     "VirtualCell",
     "build_study",
     "cell_toolpath",
     "paper_cone_cell",
+    "paper_scenario_cell",
     "paper_vwacf_cell",
     "pyramid_cell",
     "simulate",
@@ -240,6 +242,27 @@ def paper_vwacf_cell(**overrides: Any) -> VirtualCell:
     return virtual_cell("vwacf", VWACF(), **{**settings, **overrides})
 
 
+#: The paper's Table 5 (Bharti et al. 2024): robot-compliance share [%] and springback R_m [mm]
+#: that the ``paper`` scenario reproduces (docs/virtual-cell.md, "The paper scenario").
+PAPER_TABLE5: dict[str, dict[str, float]] = {
+    "cone": {"robot_share_percent": 40.28, "springback_R_m_mm": 1.132},
+    "vwacf": {"robot_share_percent": 59.98, "springback_R_m_mm": 0.530},
+}
+
+
+def paper_scenario_cell(part: str, **overrides: Any) -> VirtualCell:
+    """The paper's cone or VWACF (``part`` = ``"cone"`` / ``"vwacf"``) with the ``paper``
+    scenario's truth (:mod:`roboisf.virtual.truth`, package data ``scenarios/paper_*.toml``):
+    the cell whose analysis reproduces the paper's Table 5. ``truth=`` in ``overrides`` wins."""
+    from roboisf.virtual.truth import load_truth
+
+    makers = {"cone": paper_cone_cell, "vwacf": paper_vwacf_cell}
+    if part not in makers:
+        raise InputError(f"expected 'cone' or 'vwacf', got {part!r}", field="part")
+    settings = {"truth": load_truth(scenario="paper", part=part), **overrides}
+    return makers[part](**settings)
+
+
 #: The built-in pyramid of ``roboisf virtual-cell pyramid``: the common ISF benchmark's size, a
 #: square 100 × 100 mm opening, 60° walls, 40 mm deep, 10 mm corner radius (shrinking with the
 #: wall), 10 mm flange, 1.22 mm AA1050 (the paper's sheet). A choice, not data from the paper.
@@ -327,6 +350,8 @@ def simulate(
     tp = cell_toolpath(cell)
     frac = float(tp.meta.get("fracture_depth", math.inf))  # type: ignore[arg-type]
     sb = replace(cell.springback, fracture_depth=frac) if math.isfinite(frac) else cell.springback
+    if cell.truth.springback_amplitude is not None:
+        sb = replace(sb, amplitude=cell.truth.springback_amplitude)
     # the wrench of the nominal path: the moment arm is contact − tip of the ball as it touches
     W = tip_wrench(tp, cell.force, thickness=part.sheet_thickness, step_down=cell.step_down)
     W_rob = W * (1.0 - cell.robot_force_deficit * np.exp(-tp.depth / 15e-3))[:, None]
@@ -360,7 +385,7 @@ def simulate(
     s = sb.normal(tp.depth, tp.wall_angle)
     # springback that depends on the machine's own deflection: the sheet recovers a fraction c
     # of the machine's normal deflection (docs/virtual-cell.md, "Truth beyond the model")
-    c = truth.springback_coupling
+    c = truth.coupling_at(tp.depth)
     s_cnc = s - c * np.einsum("ij,ij->i", cnc, n)
     s_rob = s - c * np.einsum("ij,ij->i", robot, n)
     dn_cnc = np.einsum("ij,ij->i", tool_cnc + cnc, n) + s_cnc
@@ -413,7 +438,8 @@ def true_robot_kinematic_error(
 ) -> F64:
     """Where the true robot's tip is minus where the model puts it (N, 3) m, work axes, at the
     commanded angles ``q`` (N, 6) rad: the geometric error (joint zero offsets, OPW parameter
-    errors) and a thermal drift growing linearly with ``time`` (N,) s over the run."""
+    errors, a mis-taught work object) and a thermal drift growing linearly with ``time`` (N,) s
+    over the run."""
     out = np.zeros((q.shape[0], 3))
     if truth.kinematic_error:
         true_model = model
@@ -434,6 +460,12 @@ def true_robot_kinematic_error(
         T_true = true_model.fk(q_true, check_limits=False, T_base_work=T_base_work)
         T_nom = model.fk(q, check_limits=False, T_base_work=T_base_work)
         out += T_true[:, :3, 3] - T_nom[:, :3, 3]
+        if np.any(truth.work_object_error):
+            # the robot forms in the taught frame T_err of the blank's true frame: the tip the
+            # program puts at p lands at R p + t (rotations about the work origin)
+            e = truth.work_object_error
+            tip = T_nom[:, :3, 3]
+            out += tip @ rpy_to_matrix(e[3:]).T + e[:3] - tip
     if np.any(truth.thermal_drift) and len(time):
         span = max(float(time[-1] - time[0]), 1e-12)
         out += ((time - time[0]) / span)[:, None] * truth.thermal_drift[None, :]
@@ -663,6 +695,7 @@ def _write_study_toml(
             "rim_band": default_rim_band(c.part.depth) * 1e3,  # 20 mm unless the part is shallow
             "contour_z": -11.0,
             "registration": "fixture",  # z and tilts from the clamped flange, any part
+            **_max_distance(truth),
         },
         "runs": {
             "cnc": {
@@ -710,6 +743,17 @@ def _truth_extras(truth: CellTruth) -> list[tuple[str, F64]]:
     return out
 
 
+def _max_distance(truth: CellTruth) -> dict[str, float]:
+    """``[analysis] max_distance`` when the formed part deviates more than the analysis's 3 mm
+    default keeps (a paper-scale robot error on top of the springback): the largest normal
+    deviation + 2 mm for noise and misplacement, in mm. A user whose part deviates that much sets
+    it the same way (docs/study.md); below it the study keeps the default."""
+    worst = float(max(np.max(np.abs(truth.dn_robot)), np.max(np.abs(truth.dn_cnc))))
+    if worst <= 2.5e-3:
+        return {}
+    return {"max_distance": math.ceil((worst + 2e-3) * 1e3)}
+
+
 def _write_truth(cell: VirtualCell, truth: CellTruth, folder: Path) -> None:
     tp = truth.toolpath
     n = tp.normal
@@ -736,7 +780,14 @@ def _write_truth(cell: VirtualCell, truth: CellTruth, folder: Path) -> None:
         "fracture_depth_mm": truth.fracture_depth * 1e3
         if math.isfinite(truth.fracture_depth)
         else None,
-        "springback_model": {"amplitude_mm": cell.springback.amplitude * 1e3},
+        "springback_model": {
+            "amplitude_mm": (
+                cell.springback.amplitude
+                if cell.truth.springback_amplitude is None
+                else cell.truth.springback_amplitude
+            )
+            * 1e3
+        },
         "robot": cell.cell.robot_name,
         # how the cell differs from the model in study.toml (file units; all off: is_model)
         "truth": cell.truth.to_table(),

@@ -17,6 +17,8 @@ Every key is optional; every effect is off when its key is absent. Units as in `
     [robot.kinematic_error]              # the true robot's geometry differs from the model's
     joint_offset = [0, 0.01, -0.01, 0, 0, 0]   # deg, zero offsets of the six joints
     c2 = 0.2                             # mm, OPW parameter errors (a1 a2 b c1 c2 c3 c4)
+    work_object = [0, 0, 0, 0, 0.3, 0]   # mm, deg: the taught work object's error (x y z rx ry
+                                         # rz; rotations about the work origin, applied x, y, z)
 
     [force_sensor]                       # the robot's flange F/T sensor
     bias = [30, 0, 0, 0, 0, 0]           # N, N·m in the sensor's axes
@@ -32,7 +34,9 @@ Every key is optional; every effect is off when its key is absent. Units as in `
     rotation = [0, 0, 0.2]               # deg, about the work x, y, z axes (applied x, y, z)
 
     [springback]
-    deflection_coupling = 0.3            # robot run: s_robot = s − c · (n · δ_machine)
+    deflection_coupling = 0.3            # s_run = s − c(depth) · (n · δ_machine), each run
+    coupling_depth = 30.0                # mm, c(depth) = c · exp(−depth / this) (absent: c)
+    amplitude = 1.33                     # mm, the springback model's amplitude (both runs)
 
     [cnc]
     compliance = 2e-5                    # mm/N, the CNC's translational compliance (1 or 3)
@@ -80,10 +84,10 @@ _KEYS: dict[str, tuple[str, ...]] = {
     "force_sensor": ("bias", "gain", "crosstalk"),
     "tool": ("mass", "cog"),
     "scan": ("shift", "rotation"),
-    "springback": ("deflection_coupling",),
+    "springback": ("deflection_coupling", "coupling_depth", "amplitude"),
     "cnc": ("compliance",),
 }
-_KIN_KEYS = ("joint_offset", *OPW_KEYS)
+_KIN_KEYS = ("joint_offset", "work_object", *OPW_KEYS)
 
 
 @dataclass(frozen=True, eq=False)
@@ -98,6 +102,8 @@ class TruthSpec:
         growing linearly with the elapsed time
     joint_offset : (6,) float, rad — zero-offset errors of the joints (true − model)
     opw_error : dict str → float, m — errors of the OPW parameters (true − model)
+    work_object_error : (6,) float, m and rad — the taught work object's error: the robot forms
+        in ``T_err = [R(rx, ry, rz) | (x, y, z)]`` of the blank's true frame
     sensor_bias : (6,) float, N and N·m — flange-sensor bias in the sensor's axes
     sensor_gain : (6,) float — per-channel gain
     sensor_crosstalk : (6, 6) float — off-diagonal coupling (zero diagonal)
@@ -105,7 +111,9 @@ class TruthSpec:
     tool_cog : (3,) float, m — its centre of gravity in the flange frame
     scan_shift : (3,) float, m — the robot scan's misregistration, work axes
     scan_rotation : (3,) float, rad — its rotation about work x, y, z (applied in that order)
-    springback_coupling : float — robot run: ``s − c · (n · δ_machine)``
+    springback_coupling : float — each run: ``s − c(depth) · (n · δ_machine)``
+    springback_coupling_depth : float, m — ``c(depth) = c · exp(−depth / this)`` (inf: constant)
+    springback_amplitude : float or None, m — replaces the cell's springback amplitude
     cnc_compliance : (3,) float, m/N — the CNC's translational compliance (zeros: rigid)
     source : str — the file(s) or scenario it came from
     """
@@ -115,6 +123,7 @@ class TruthSpec:
     thermal_drift: F64 = field(default_factory=lambda: np.zeros(3))
     joint_offset: F64 = field(default_factory=lambda: np.zeros(6))
     opw_error: dict[str, float] = field(default_factory=dict)
+    work_object_error: F64 = field(default_factory=lambda: np.zeros(6))
     sensor_bias: F64 = field(default_factory=lambda: np.zeros(6))
     sensor_gain: F64 = field(default_factory=lambda: np.ones(6))
     sensor_crosstalk: F64 = field(default_factory=lambda: np.zeros((6, 6)))
@@ -123,6 +132,8 @@ class TruthSpec:
     scan_shift: F64 = field(default_factory=lambda: np.zeros(3))
     scan_rotation: F64 = field(default_factory=lambda: np.zeros(3))
     springback_coupling: float = 0.0
+    springback_coupling_depth: float = math.inf
+    springback_amplitude: float | None = None
     cnc_compliance: F64 = field(default_factory=lambda: np.zeros(3))
     source: str = ""
 
@@ -131,6 +142,7 @@ class TruthSpec:
             "joint_stiffness_scale": (6,),
             "thermal_drift": (3,),
             "joint_offset": (6,),
+            "work_object_error": (6,),
             "sensor_bias": (6,),
             "sensor_gain": (6,),
             "sensor_crosstalk": (6, 6),
@@ -161,6 +173,11 @@ class TruthSpec:
             raise InputError("must be ≥ 0 kg", field="truth.tool_mass")
         if not (math.isfinite(self.springback_coupling) and 0 <= self.springback_coupling < 1):
             raise InputError("must be in [0, 1)", field="truth.springback_coupling")
+        if not self.springback_coupling_depth > 0:
+            raise InputError("must be > 0 mm", field="truth.springback_coupling_depth")
+        a = self.springback_amplitude
+        if a is not None and not (math.isfinite(a) and a >= 0):
+            raise InputError("must be ≥ 0", field="truth.springback_amplitude")
         if np.any(self.cnc_compliance < 0):
             raise InputError("must be ≥ 0", field="truth.cnc_compliance")
         for k, v in self.opw_error.items():
@@ -170,7 +187,11 @@ class TruthSpec:
     @property
     def kinematic_error(self) -> bool:
         """True when the true robot's geometry differs from the model's."""
-        return bool(np.any(self.joint_offset != 0) or any(self.opw_error.values()))
+        return bool(
+            np.any(self.joint_offset != 0)
+            or any(self.opw_error.values())
+            or np.any(self.work_object_error != 0)
+        )
 
     @property
     def sensor_ideal(self) -> bool:
@@ -197,6 +218,15 @@ class TruthSpec:
             and not np.any(self.cnc_compliance)
         )
 
+    def coupling_at(self, depth: F64) -> F64:
+        """The springback coupling ``c(depth)`` (N,) at contact depths (N,) m."""
+        d = np.asarray(depth, dtype=float)
+        if math.isinf(self.springback_coupling_depth):
+            return np.full(d.shape, self.springback_coupling)
+        return np.asarray(
+            self.springback_coupling * np.exp(-d / self.springback_coupling_depth), dtype=float
+        )
+
     def sensor_matrix(self) -> F64:
         """``diag(gain) · (I + crosstalk)`` (6, 6): true wrench → sensor reading (before bias)."""
         return np.asarray(np.diag(self.sensor_gain) @ (np.eye(6) + self.sensor_crosstalk))
@@ -211,6 +241,10 @@ class TruthSpec:
                 "thermal_drift": (self.thermal_drift * mm).tolist(),
                 "kinematic_error": {
                     "joint_offset": np.degrees(self.joint_offset).tolist(),
+                    "work_object": [
+                        *(self.work_object_error[:3] * mm).tolist(),
+                        *np.degrees(self.work_object_error[3:]).tolist(),
+                    ],
                     **{k: v * mm for k, v in self.opw_error.items()},
                 },
             },
@@ -224,7 +258,19 @@ class TruthSpec:
                 "shift": (self.scan_shift * mm).tolist(),
                 "rotation": np.degrees(self.scan_rotation).tolist(),
             },
-            "springback": {"deflection_coupling": self.springback_coupling},
+            "springback": {
+                "deflection_coupling": self.springback_coupling,
+                **(
+                    {"coupling_depth": self.springback_coupling_depth * mm}
+                    if math.isfinite(self.springback_coupling_depth)
+                    else {}
+                ),
+                **(
+                    {"amplitude": self.springback_amplitude * mm}
+                    if self.springback_amplitude is not None
+                    else {}
+                ),
+            },
             "cnc": {"compliance": (self.cnc_compliance * mm).tolist()},
             "source": self.source,
             "is_model": self.is_model,
@@ -308,6 +354,9 @@ def _from_table(data: Mapping[str, Any], source: str) -> TruthSpec:
         kw["joint_offset"] = np.radians(
             _vector(kin["joint_offset"], 6, "robot.kinematic_error.joint_offset", scalar_ok=True)
         )
+    if "work_object" in kin:
+        wo = _vector(kin["work_object"], 6, "robot.kinematic_error.work_object")
+        kw["work_object_error"] = np.concatenate([wo[:3] * 1e-3, np.radians(wo[3:])])
     kw["opw_error"] = {
         k: _number(kin[k], f"robot.kinematic_error.{k}") * 1e-3 for k in OPW_KEYS if k in kin
     }
@@ -352,6 +401,12 @@ def _from_table(data: Mapping[str, Any], source: str) -> TruthSpec:
         kw["springback_coupling"] = _number(
             sb["deflection_coupling"], "springback.deflection_coupling"
         )
+    if "coupling_depth" in sb:
+        kw["springback_coupling_depth"] = (
+            _number(sb["coupling_depth"], "springback.coupling_depth") * 1e-3
+        )
+    if "amplitude" in sb:
+        kw["springback_amplitude"] = _number(sb["amplitude"], "springback.amplitude") * 1e-3
     cnc = _table(data, "cnc", "cnc")
     _check_keys(cnc, _KEYS["cnc"], "cnc")
     if "compliance" in cnc:
