@@ -175,8 +175,8 @@ class TruthSpec:
             raise InputError("must be in [0, 1)", field="truth.springback_coupling")
         if not self.springback_coupling_depth > 0:
             raise InputError("must be > 0 mm", field="truth.springback_coupling_depth")
-        a = self.springback_amplitude
-        if a is not None and not (math.isfinite(a) and a >= 0):
+        amp = self.springback_amplitude
+        if amp is not None and not (math.isfinite(amp) and amp >= 0):
             raise InputError("must be ≥ 0", field="truth.springback_amplitude")
         if np.any(self.cnc_compliance < 0):
             raise InputError("must be ≥ 0", field="truth.cnc_compliance")
