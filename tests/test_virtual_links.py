@@ -83,3 +83,23 @@ def test_robot_links_linear_in_the_wrench_and_inverse_in_E():
     joints = model.deflection(q, W, T_base_work=T)
     ratio = np.linalg.norm(d[:, :3], axis=1) / np.linalg.norm(joints[:, :3], axis=1)
     assert np.all((0.02 < ratio) & (ratio < 0.5))
+
+
+def test_ball_centre_is_the_reference_a_rigid_ball_rotation_moves_no_contact_normally():
+    from roboisf.cell import at_ball_centre
+
+    rng = np.random.default_rng(4)
+    R = 5e-3
+    d = rng.normal(size=(50, 6)) * np.array([1e-4, 1e-4, 1e-4, 1e-3, 1e-3, 1e-3])
+    c = at_ball_centre(d, R)
+    # the centre moves δ_tip + θ × (0, 0, R) (rigid ball)
+    np.testing.assert_allclose(c, d[:, :3] + np.cross(d[:, 3:], [0, 0, R]), rtol=1e-14)
+    # any contact point P = C − R n on the ball: its normal motion n · (δ_C + θ × (P − C)) is
+    # n · δ_C exactly, whatever the rotation; the tip's n · δ_tip is not
+    n = rng.normal(size=(50, 3))
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    moved = c + np.cross(d[:, 3:], -R * n)
+    np.testing.assert_allclose(
+        np.einsum("ij,ij->i", moved, n), np.einsum("ij,ij->i", c, n), atol=1e-18
+    )
+    assert np.max(np.abs(np.einsum("ij,ij->i", d[:, :3] - c, n))) > 1e-7

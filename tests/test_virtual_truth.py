@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from roboisf.cell import at_ball_centre
 from roboisf.errors import InputError
 from roboisf.study.spec import ForceSensorSpec
 from roboisf.virtual.cell import (
@@ -15,6 +16,7 @@ from roboisf.virtual.cell import (
     _force_log,
     _scan,
     paper_cone_cell,
+    paper_vwacf_cell,
     scan_misregistration,
     simulate,
 )
@@ -230,7 +232,95 @@ def test_link_compliance_adds_the_beams_to_the_joints(nominal):
     cell, t0 = nominal
     t1 = simulate(_truth_cell(link_compliance=True))
     links = link_deflection(cell.cell.robot, t0.q, t0.wrench_robot, cell.cell.T_base_work)
-    np.testing.assert_allclose(t1.robot, t0.robot + links[:, :3], rtol=1e-12, atol=1e-15)
+    links = at_ball_centre(links, cell.cell.tool.radius)
+    np.testing.assert_allclose(t1.robot, t0.robot + links, rtol=1e-12, atol=1e-15)
     assert np.mean(np.linalg.norm(links[:, :3], axis=1)) > 0.05 * np.mean(
         np.linalg.norm(t0.robot, axis=1)
     )
+
+
+# --------------------------------------------------------------------------- the paper scenario
+
+
+def test_scenario_loads_and_file_keys_override(tmp_path):
+    from roboisf.virtual.truth import scenario_table
+
+    cone = load_truth(scenario="paper", part="cone")
+    vw = load_truth(scenario="paper", part="vwacf")
+    # one robot for both parts
+    np.testing.assert_array_equal(cone.joint_stiffness_scale, vw.joint_stiffness_scale)
+    assert cone.link_compliance and vw.link_compliance
+    assert cone.source == "scenario paper (cone)"
+    table = scenario_table("paper", "cone")
+    assert truth_from_table(table).springback_coupling == cone.springback_coupling
+    over = _write(
+        tmp_path,
+        "[robot]\njoint_stiffness_scale = 0.5\n[force_sensor]\nbias = [30, 0, 0, 0, 0, 0]\n",
+    )
+    mixed = load_truth(over, scenario="paper", part="cone")
+    np.testing.assert_array_equal(mixed.joint_stiffness_scale, np.full(6, 0.5))
+    assert mixed.link_compliance  # the scenario's other [robot] keys stay
+    assert mixed.springback_coupling == cone.springback_coupling
+    assert mixed.sensor_bias[0] == 30
+    with pytest.raises(InputError, match="no scenario 'paper' for the part 'pyramid'"):
+        load_truth(scenario="paper", part="pyramid")
+
+
+def test_cli_truth_errors_exit_2(tmp_path, capsys):
+    from roboisf.cli.main import main
+
+    bad = _write(tmp_path, "[robot]\nstiffness = 0.5\n")
+    out = tmp_path / "S"
+    assert main(["virtual-cell", "cone", "-o", str(out), "--truth", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "robot.stiffness" in err and "unknown key" in err and str(bad) in err
+    assert main(["virtual-cell", "pyramid", "-o", str(out), "--scenario", "paper"]) == 2
+    assert "--scenario" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def _ideal_book(cell):
+    """Per-axis Table 5 of the noise-free truth over the analysed wall (what analyze measures
+    up to scan noise and registration), and the truth's robot term per depth."""
+    from roboisf.decompose.core import contribution_rows, decompose
+    from roboisf.scan import default_rim_band
+
+    t = simulate(cell)
+    tp = t.toolpath
+    used = tp.depth > default_rim_band(cell.part.depth)
+    vjm = cell.cell.robot.deflection(t.q, t.wrench_robot, T_base_work=t.T_base_work)[:, :3]
+    d = decompose(
+        tp.normal, t.dn_cnc, t.dn_robot, t.tool_cnc, t.tool_robot, t.holder_robot, vjm, used
+    )
+    rows = {r["factor"]: r for r in contribution_rows(d, projected=False)}
+    return t, d, rows
+
+
+@pytest.mark.parametrize(
+    ("part", "share", "springback"), [("cone", 40.28, 1.132), ("vwacf", 59.98, 0.530)]
+)
+def test_paper_scenario_reproduces_table_5(part, share, springback):
+    from roboisf.virtual.cell import PAPER_TABLE5, paper_scenario_cell
+
+    assert PAPER_TABLE5[part] == {"robot_share_percent": share, "springback_R_m_mm": springback}
+    cell = paper_scenario_cell(part)
+    assert not cell.truth.is_model
+    t, d, rows = _ideal_book(cell)
+    assert rows["robot_compliance"]["share_percent"] == pytest.approx(share, abs=3.0)
+    assert rows["springback"]["R_m"] * 1e3 == pytest.approx(springback, rel=0.10)
+    # the nominal cell (truth = model) is far from the paper: the scenario is what moves it
+    _, _, nominal = _ideal_book(paper_cone_cell() if part == "cone" else paper_vwacf_cell())
+    assert nominal["robot_compliance"]["share_percent"] < share - 10
+    if part == "cone":
+        # the paper: the cone's robot error grows from ~0.3 mm (z = −10 mm) to ~1.3 mm (−100 mm)
+        tp = t.toolpath
+        rc = d.vectors["robot_compliance"]
+
+        def band(lo, hi):
+            s = (tp.depth >= lo) & (tp.depth < hi)
+            return float(np.linalg.norm(np.mean(np.abs(rc[s]), axis=0)))
+
+        top, bottom = band(8e-3, 12e-3), band(85e-3, 95e-3)
+        assert 0.2e-3 < top < 0.5e-3
+        assert 0.9e-3 < bottom < 1.5e-3
+        assert bottom > 2.5 * top

@@ -54,6 +54,7 @@ __all__ = [
     "Cell",
     "CellHolder",
     "CellTool",
+    "at_ball_centre",
     "build_robot",
     "flange_to_tip",
     "make_cell",
@@ -271,6 +272,20 @@ def tip_compliances(
         np.array([0.0, 0.0, -cell.holder.offset]) - k_holder.reference_point,
     )
     return k_tool, k_holder, k_t, k_th
+
+
+def at_ball_centre(d_tip: ArrayLike, ball_radius: float) -> F64:
+    """Displacement (N, 3) m of the ball centre for tip deflection twists ``d_tip`` (N, 6)
+    [m; rad] in work axes, the tool vertical (centre = tip + R ẑ_work).
+
+    The ball is rigid, so its centre moves ``δ_tip + θ × R ẑ``. It is the deflection that
+    forms the part: a rotation of the ball about its centre leaves its surface where it was, so
+    the normal displacement of any contact point is ``n · δ_centre`` exactly (the paper's
+    reference point). The tip's deflection differs by ``θ × R ẑ`` — ~10 % of the tool's term
+    (the tool bends most at its end), ~0.6 % of the robot's.
+    """
+    d = np.asarray(d_tip, dtype=float)
+    return np.asarray(d[:, :3] + np.cross(d[:, 3:], [0.0, 0.0, ball_radius]), dtype=float)
 
 
 def build_robot(

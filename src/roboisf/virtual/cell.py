@@ -48,6 +48,7 @@ from roboisf.cell import (
     SENSOR_STACK,
     Cell,
     ForceModel,
+    at_ball_centre,
     make_cell,
     tip_compliances,
     tip_wrench,
@@ -368,15 +369,17 @@ def simulate(
 
     with task(progress, "tool and holder compliance"):
         k_tool, k_holder, k_t, k_th = tip_compliances(cell.cell, progress=progress)
-    tool_cnc = (W @ k_t.T)[:, :3]
-    tool_rob = (W_rob @ k_t.T)[:, :3]
-    holder_rob = (W_rob @ k_th.T)[:, :3]
+    # every deflection at the ball centre, the point whose normal motion forms the part
+    R_ball = cell.cell.tool.radius
+    tool_cnc = at_ball_centre(W @ k_t.T, R_ball)
+    tool_rob = at_ball_centre(W_rob @ k_t.T, R_ball)
+    holder_rob = at_ball_centre(W_rob @ k_th.T, R_ball)
 
     truth = cell.truth
     with task(progress, "robot IK and VJM"):
         model, T_bw = cell.cell.robot, cell.cell.T_base_work
         ik = ik_toolpath(model, tp.tip, T_bw, tool_rotation=cell.tool_rotation)
-        robot = true_robot_deflection(model, truth, ik.q, W_rob, T_bw)
+        robot = true_robot_deflection(model, truth, ik.q, W_rob, T_bw, R_ball)
         kin = true_robot_kinematic_error(model, truth, ik.q, T_bw, tp.time)
 
     # the CNC: rigid unless the truth gives it a translational compliance
@@ -414,23 +417,29 @@ def simulate(
 
 
 def true_robot_deflection(
-    model: RobotModel, truth: TruthSpec, q: F64, W: F64, T_base_work: F64
+    model: RobotModel,
+    truth: TruthSpec,
+    q: F64,
+    W: F64,
+    T_base_work: F64,
+    ball_radius: float = 0.0,
 ) -> F64:
-    """The true robot's elastic tip deflection (N, 3) m, work axes, for tip wrenches ``W`` (N, 6)
-    [N, N·m] in work axes at configurations ``q`` (N, 6) rad: the VJM with the truth's joint
-    stiffness (``joint_stiffness_scale`` × the model's), plus the links' bending when
+    """The true robot's elastic deflection (N, 3) m of the ball centre (``ball_radius`` above
+    the tip; 0: the tip), work axes, for tip wrenches ``W`` (N, 6) [N, N·m] in work axes at
+    configurations ``q`` (N, 6) rad: the VJM with the truth's joint stiffness
+    (``joint_stiffness_scale`` × the model's), plus the links' bending when
     ``truth.link_compliance``."""
     true_model = model
     if np.any(truth.joint_stiffness_scale != 1):
         true_model = model.with_stiffness(
             model.joint_stiffness * truth.joint_stiffness_scale, source="truth"
         )
-    d = true_model.deflection(q, W, T_base_work=T_base_work)[:, :3]
+    d = true_model.deflection(q, W, T_base_work=T_base_work)
     if truth.link_compliance:
         from roboisf.virtual.links import link_deflection
 
-        d = d + link_deflection(model, q, W, T_base_work)[:, :3]
-    return np.asarray(d, dtype=float)
+        d = d + link_deflection(model, q, W, T_base_work)
+    return at_ball_centre(d, ball_radius)
 
 
 def true_robot_kinematic_error(
