@@ -1,6 +1,7 @@
 """``roboisf demo``: both paper studies end to end, built atomically."""
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from roboisf.cli.main import main
@@ -10,6 +11,7 @@ from roboisf.io.program import MAX_MODULE_MOVES
 from roboisf.io.rapid import read_rapid
 from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.report import read_headline
+from roboisf.virtual.cell import PAPER_TABLE5
 
 pytestmark = pytest.mark.slow
 
@@ -39,6 +41,13 @@ def test_demo_builds_both_studies_atomically(tmp_path):
             assert (sub / f).is_file(), f"{name}/{f}"
         head = read_headline(sub / "results" / "report.html")
         assert 0 < head["robot_share_percent"] < 100
+        # the paper scenario: Table 5's robot share within 3 points, springback R_m within 10 %
+        paper = PAPER_TABLE5["cone" if name == "cone-71" else "vwacf"]
+        rows = pd.read_csv(sub / "results" / "contributions.csv", comment="#").set_index("factor")
+        assert rows.loc["robot_compliance", "share_percent"] == pytest.approx(
+            paper["robot_share_percent"], abs=3.0
+        )
+        assert rows.loc["springback", "R_m"] == pytest.approx(paper["springback_R_m_mm"], rel=0.1)
     cone = read_toolpath_csv(out / "cone-71" / "study" / "toolpath.csv")
     assert cone.n_laps == 206
     rapid = read_rapid(out / "cone-71" / "programs" / "toolpath.mod")
