@@ -302,7 +302,8 @@ def _ideal_book(cell):
 def test_paper_scenario_reproduces_table_5(part, share, springback):
     from roboisf.virtual.cell import PAPER_TABLE5, paper_scenario_cell
 
-    assert PAPER_TABLE5[part] == {"robot_share_percent": share, "springback_R_m_mm": springback}
+    assert PAPER_TABLE5[part]["robot_share_percent"] == share
+    assert PAPER_TABLE5[part]["springback_R_m_mm"] == springback
     cell = paper_scenario_cell(part)
     assert not cell.truth.is_model
     t, d, rows = _ideal_book(cell)
