@@ -5,7 +5,8 @@ reads (``docs/study.md``) — force logs in the sensors' frames, a joint log as 
 would write it, binary PLY scans — plus ``truth/`` with every contribution per toolpath point.
 It is the demo, the end-to-end test bed, and a way to plan a part before forming it.
 
-What is simulated, per toolpath point (all at the tool tip, work axes, SI):
+What is simulated, per toolpath point (wrenches at the tool tip, deflections of the ball centre
+— :func:`roboisf.cell.at_ball_centre` —, work axes, SI):
 
 1. the forming wrench W on the tool (:mod:`roboisf.cell.forces`); the robot run's force is
    a little lower at the start (the paper: "slightly less ... during the initial stage"),
@@ -15,7 +16,7 @@ What is simulated, per toolpath point (all at the tool tip, work axes, SI):
 3. the robot's deflection by the VJM at the IK configuration of the commanded tip
    (``roboisf.robot``); the CNC is rigid;
 4. springback, a normal field (:mod:`roboisf.virtual.springback`);
-5. the formed wall: the nominal moved along its normal by ``dn = n · (δ_tip) + s``; the scans
+5. the formed wall: the nominal moved along its normal by ``dn = n · δ + s``; the scans
    sample it (:func:`roboisf.scan.synthetic_scan`) with 25 µm noise, outliers, holes and a small
    misplacement (a z-shift and tilts: the part rests on the fixture plane).
 
@@ -27,6 +28,14 @@ declares the fixture registration (:func:`roboisf.scan.register`, any part).
 
 The controller logs the *commanded* joint angles (motor encoders do not see the elastic joint
 deflection), so the joint log is IK of the toolpath.
+
+By default the cell *is* the model the study describes (everything above with the nominal robot),
+so an analysis agrees with ``truth/`` by construction. :attr:`VirtualCell.truth`
+(:class:`~roboisf.virtual.truth.TruthSpec`, ``--truth`` / ``--scenario``) makes it differ: a
+softer robot, bending links (:mod:`roboisf.virtual.links`), a kinematic error or drift, a biased
+and cross-talking flange sensor carrying the tool's weight, a misregistered robot scan,
+springback coupled to the machine's deflection, a compliant CNC — while ``study.toml`` still
+carries the nominal model.
 """
 
 from __future__ import annotations
