@@ -460,6 +460,12 @@ def true_robot_deflection(
     if truth.link_compliance:
         from roboisf.virtual.links import link_deflection
 
+        if not model.name.startswith("irb7600"):
+            raise InputError(
+                f"link sections are estimated for the IRB 7600 only, not {model.name!r}; "
+                "leave link_compliance off for this robot",
+                field="robot.link_compliance",
+            )
         d = d + link_deflection(model, q, W, T_base_work)
     return at_ball_centre(d, ball_radius)
 
