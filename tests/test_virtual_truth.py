@@ -325,3 +325,23 @@ def test_paper_scenario_reproduces_table_5(part, share, springback):
         assert 0.2e-3 < top < 0.5e-3
         assert 0.9e-3 < bottom < 1.5e-3
         assert bottom > 2.5 * top
+
+
+def test_study_max_distance_key_and_the_cell_sets_it_when_the_part_deviates_more(tmp_path):
+    from dataclasses import replace as dc_replace
+
+    from roboisf.study.spec import StudyError, load_study
+    from roboisf.virtual.cell import _max_distance
+    from test_study import GOOD, write_min_study
+
+    assert load_study(write_min_study(tmp_path, GOOD)).analysis.max_distance == 3e-3
+    text = GOOD.replace("[runs.cnc]", "[analysis]\nmax_distance = 6\n[runs.cnc]")
+    assert load_study(write_min_study(tmp_path, text)).analysis.max_distance == pytest.approx(6e-3)
+    with pytest.raises(StudyError, match="analysis.max_distance"):
+        load_study(write_min_study(tmp_path, text.replace("max_distance = 6", "max_distance = -1")))
+    t0 = simulate(paper_cone_cell(**FAST))
+    assert _max_distance(t0) == {}  # the nominal cone stays well inside 3 mm
+    big = dc_replace(t0, dn_robot=t0.dn_robot + 2e-3)
+    worst = float(np.max(np.abs(big.dn_robot)))
+    got = _max_distance(big)["max_distance"]
+    assert got >= (worst + 2e-3) * 1e3 and got < (worst + 2e-3) * 1e3 + 1
