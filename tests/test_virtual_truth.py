@@ -337,7 +337,7 @@ def test_study_max_distance_key_and_the_cell_sets_it_when_the_part_deviates_more
     assert load_study(write_min_study(tmp_path, GOOD)).analysis.max_distance == 3e-3
     text = GOOD.replace("[runs.cnc]", "[analysis]\nmax_distance = 6\n[runs.cnc]")
     assert load_study(write_min_study(tmp_path, text)).analysis.max_distance == pytest.approx(6e-3)
-    with pytest.raises(StudyError, match="analysis.max_distance"):
+    with pytest.raises(StudyError, match=r"analysis\.max_distance"):
         load_study(write_min_study(tmp_path, text.replace("max_distance = 6", "max_distance = -1")))
     t0 = simulate(paper_cone_cell(**FAST))
     assert _max_distance(t0) == {}  # the nominal cone stays well inside 3 mm
