@@ -111,12 +111,19 @@ def test_results_folder_without_per_point(tmp_path, capsys):
 
 @pytest.fixture(scope="module")
 def analyzed(tmp_path_factory):
-    """A coarse virtual cone study and its analyze results (300 k scan points)."""
+    """A coarse virtual cone study and its analyze results (300 k scan points), the blank on the
+    robot base's x-axis, where the cone's path crosses q6 = ±180° (the confdata test needs it)."""
+    from roboisf.frames import make_transform
     from roboisf.virtual.cell import build_study, paper_cone_cell
 
     root = tmp_path_factory.mktemp("e2e")
     cell = paper_cone_cell(
-        step_down=2e-3, spacing=3e-3, scan_points=300_000, force_rate=200.0, joint_rate=50.0
+        step_down=2e-3,
+        spacing=3e-3,
+        scan_points=300_000,
+        force_rate=200.0,
+        joint_rate=50.0,
+        T_base_work=make_transform(p=[2.2, 0.0, 0.2]),
     )
     st = build_study(cell, root / "st")
     assert main(["-q", "analyze", str(st), "-o", str(root / "res"), "--no-png"]) == 0

@@ -27,12 +27,15 @@ def _dn(v, n):
 
 
 def test_constant_compliance_known_answer(cone):
-    """Tool/holder only (configuration-independent): the exact answer is p = target − k W."""
+    """Tool/holder only (configuration-independent): the exact answer is p = target − δ_c, the
+    ball centre's deflection ``[k W]_δ + [k W]_θ × R ẑ``."""
     cell, truth = cone
     m = replace(cell_deflection_model(cell.cell), include_robot=False)
     W = truth.wrench_robot
     res = precompensate(truth.toolpath, W, m, relax=0.5, tol=1e-10)
-    expected = truth.toolpath.tip - (W @ m.k_tip.T)[:, :3]
+    kW = W @ m.k_tip.T
+    assert m.ball_radius == cell.cell.tool.radius
+    expected = truth.toolpath.tip - (kW[:, :3] + np.cross(kW[:, 3:], [0, 0, m.ball_radius]))
     assert np.max(np.abs(res.commanded - expected)) < 2e-10
     # under-relaxed linear fixed point: the residual shrinks by exactly (1 − ω) per update
     h = res.history
@@ -45,9 +48,10 @@ def test_joint_configurations_resolved_for_the_command(cone):
     res = precompensate(truth.toolpath, truth.wrench_robot, m)
     q = ik_toolpath(m.robot, res.commanded, m.T_base_work).q
     np.testing.assert_allclose(res.q, q, atol=1e-12)
-    # the loaded tip lands on the target: p + δ(p) = target
-    d = m.robot.deflection(q, truth.wrench_robot, T_base_work=m.T_base_work)[:, :3]
-    d += (truth.wrench_robot @ m.k_tip.T)[:, :3]
+    # the loaded ball centre lands on its target: p + δ_c(p) = target
+    d6 = m.robot.deflection(q, truth.wrench_robot, T_base_work=m.T_base_work)
+    d6 += truth.wrench_robot @ m.k_tip.T
+    d = d6[:, :3] + np.cross(d6[:, 3:], [0, 0, cell.cell.tool.radius])
     assert np.max(np.linalg.norm(res.commanded + d - truth.toolpath.tip, axis=1)) <= 1e-7
     assert res.converged.all() and res.iterations < 15
 

@@ -1,6 +1,7 @@
 """``roboisf demo``: both paper studies end to end, built atomically."""
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from roboisf.cli.main import main
@@ -10,6 +11,7 @@ from roboisf.io.program import MAX_MODULE_MOVES
 from roboisf.io.rapid import read_rapid
 from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.report import read_headline
+from roboisf.virtual.cell import PAPER_TABLE5
 
 pytestmark = pytest.mark.slow
 
@@ -39,11 +41,18 @@ def test_demo_builds_both_studies_atomically(tmp_path):
             assert (sub / f).is_file(), f"{name}/{f}"
         head = read_headline(sub / "results" / "report.html")
         assert 0 < head["robot_share_percent"] < 100
+        # the paper scenario: Table 5's robot share within 3 points, springback R_m within 10 %
+        paper = PAPER_TABLE5["cone" if name == "cone-71" else "vwacf"]
+        rows = pd.read_csv(sub / "results" / "contributions.csv", comment="#").set_index("factor")
+        assert rows.loc["robot_compliance", "share_percent"] == pytest.approx(
+            paper["robot_share_percent"], abs=3.0
+        )
+        assert rows.loc["springback", "R_m"] == pytest.approx(paper["springback_R_m_mm"], rel=0.1)
     cone = read_toolpath_csv(out / "cone-71" / "study" / "toolpath.csv")
     assert cone.n_laps == 206
     rapid = read_rapid(out / "cone-71" / "programs" / "toolpath.mod")
     assert np.abs(rapid.tip - cone.tip).max() <= 0.5e-6 + 1e-12
-    # the programs carry the cell's frames: blank at (2200, 0, 200) mm, the cell's 306 mm tool
+    # the programs carry the cell's frames: blank at (2200, -500, 200) mm, the cell's 306 mm tool
     from roboisf.virtual.cell import PAPER_CELL_PLACEMENT, paper_cone_cell
 
     c = paper_cone_cell()
@@ -54,10 +63,15 @@ def test_demo_builds_both_studies_atomically(tmp_path):
         np.testing.assert_allclose(back.T_base_work, T, atol=1e-8)
         assert back.tool.length == pytest.approx(model.T_flange_tip[2, 3])
     assert rapid.tool.length == pytest.approx(0.306)
-    # RAPID: a program set under the module limit, confdata of the IK branch (q6 around −180°)
+    # RAPID: a program set under the module limit, confdata of the IK branch
     parts = rapid.meta["modules"][1:]
     assert len(parts) >= -(-len(cone) // MAX_MODULE_MOVES) > 1
     for name in parts:
         assert 0 < (progs / name).read_text().count("MoveL [[") <= MAX_MODULE_MOVES
-    assert set(rapid.meta["confdata"][:, 2].tolist()) <= {-3, -2}
+    # (the blank off the base's x-axis: q6 stays in one quadrant, 90°–180°)
+    from roboisf.io.program import abb_confdata, program_config
+
+    ik = abb_confdata(program_config(model, cone, T, c.tool_rotation))
+    np.testing.assert_array_equal(rapid.meta["confdata"], ik)
+    assert set(rapid.meta["confdata"][:, 2].tolist()) == {1}
     assert [p.name for p in tmp_path.iterdir()] == ["demo"]  # no staging leftovers

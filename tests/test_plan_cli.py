@@ -38,7 +38,7 @@ def test_plan_part_writes_ranked_outputs(cone_toml, tmp_path, capsys):
     doc = json.loads((out / "plan.json").read_text())
     s = doc["summary"]
     # the paper-like placement is the default baseline for the IRB 7600; the best beats it
-    assert s["baseline placement x,y,z [mm], yaw [deg]"] == [2200.0, 0.0, 200.0, 0.0]
+    assert s["baseline placement x,y,z [mm], yaw [deg]"] == [2200.0, -500.0, 200.0, 0.0]
     assert s["best mean robot |δ| [mm]"] < s["baseline mean robot |δ| [mm]"]
     assert s["mean robot |δ| reduction vs baseline [%]"] > 20
     html = (out / "plan.html").read_text()

@@ -62,10 +62,12 @@ def placement():
 
 @pytest.fixture(scope="module")
 def cell():
-    """The demo cone cell: its robot with its tool, its placement, a small path and the IK."""
+    """The demo cone cell with the blank on the robot base's x-axis (where the path crosses
+    q6 = −180°, the boundary the confdata tests need): its robot with its tool, its placement, a
+    small path and the IK."""
     from roboisf.virtual.cell import paper_cone_cell
 
-    c = paper_cone_cell()
+    c = paper_cone_cell(T_base_work=make_transform(p=[2.2, 0.0, 0.2]))
     model, T = c.cell.robot, c.cell.T_base_work
     path = step_down(Cone(depth=8e-3), 5e-3, 0.5e-3, spacing=1.5e-3)
     return model, T, path, program_config(model, path, T, c.tool_rotation)

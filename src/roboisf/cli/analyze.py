@@ -109,6 +109,24 @@ def register(app: typer.Typer) -> None:
             float | None,
             typer.Option(help="pyramid: corner radius of the opening [mm] (default 10)."),
         ] = None,
+        truth_file: Annotated[
+            Path | None,
+            typer.Option(
+                "--truth",
+                help="Truth TOML: how the simulated cell differs from the model the study "
+                "carries (joint stiffness scale, link compliance, kinematic error, sensor bias/"
+                "gain/crosstalk, tool weight, scan misregistration, springback coupling, CNC "
+                "compliance; mm, deg, N, N·m, kg). Keys override --scenario's. See "
+                "docs/virtual-cell.md.",
+            ),
+        ] = None,
+        scenario: Annotated[
+            str | None,
+            typer.Option(
+                help="A truth shipped with roboisf: 'paper' (cone, vwacf) is set so the analysis "
+                "reproduces the paper's Table 5 (robot share 40.28 % / 59.98 %)."
+            ),
+        ] = None,
         clock_scale: Annotated[
             float,
             typer.Option(
@@ -218,6 +236,7 @@ def register(app: typer.Typer) -> None:
                 f"unknown part {part!r}; expected one of {', '.join(makers)} (or --part FILE)",
                 field="PART",
             )
+        truth_kw = _truth_settings(truth_file, scenario, part if part_file is None else None)
         make: Callable[..., VirtualCell]
         if part_file is not None:
             p = load_part(part_file)
@@ -246,6 +265,7 @@ def register(app: typer.Typer) -> None:
             tool_rotation=math.radians(tool_rotation),
             compliance_method="fe" if fe else "beam",
             seed=seed,
+            **truth_kw,
         )
         from roboisf.virtual.equipment import Equipment, parse_pauses
 
@@ -267,6 +287,22 @@ def register(app: typer.Typer) -> None:
         state.info(
             f"wrote the study {cell.name!r} to {output}/ (analyse: roboisf analyze {output})"
         )
+
+
+def _truth_settings(
+    truth_file: Path | None, scenario: str | None, part: str | None
+) -> dict[str, object]:
+    """``{"truth": TruthSpec}`` for the cell (empty when neither --truth nor --scenario)."""
+    if truth_file is None and scenario is None:
+        return {}
+    from roboisf.virtual.truth import load_truth
+
+    if scenario is not None and part is None:
+        raise InputError(
+            "a scenario exists for the built-in parts (cone, vwacf) only; use --truth FILE",
+            field="--scenario",
+        )
+    return {"truth": load_truth(truth_file, scenario=scenario, part=part)}
 
 
 def _print_table(df: object, summary: dict) -> None:

@@ -21,4 +21,5 @@ def cell_deflection_model(
         k_t + k_th,
         tool_rotation=cell.tool_rotation,
         include_robot=include_robot,
+        ball_radius=cell.tool.radius,
     )

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from roboisf.cell.model import at_ball_centre
 from roboisf.errors import ConvergenceError, InputError
 from roboisf.progress import Progress, task
 from roboisf.robot import RobotModel, ik_toolpath
@@ -47,6 +48,8 @@ class DeflectionModel:
     k_tip : (6, 6) float — tool + holder compliance at the tip, work axes [m/N, 1/N, rad/(N·m)]
     tool_rotation : float or (N,) float, rad — tool rotation about its own axis (IK)
     include_robot : bool — False to compensate the tool and holder only
+    ball_radius : float, m — the deflection is that of the ball centre, this far above the tip
+        (the point whose motion forms the part; 0: the tip itself)
     """
 
     robot: RobotModel
@@ -54,6 +57,7 @@ class DeflectionModel:
     k_tip: F64 = field(default_factory=lambda: np.zeros((6, 6)))
     tool_rotation: float | F64 = 0.0
     include_robot: bool = True
+    ball_radius: float = 0.0
 
     def __post_init__(self) -> None:
         T = np.asarray(self.T_base_work, dtype=float)
@@ -68,18 +72,19 @@ class DeflectionModel:
             _ = self.robot.joint_stiffness  # raises an InputError naming the fix when unknown
 
     def deflection(self, tip: ArrayLike, wrench: ArrayLike) -> tuple[F64, F64]:
-        """Tip deflection ``δ`` (N, 3) m under ``wrench`` (N, 6) [N; N·m] with the tip commanded
-        at ``tip`` (N, 3) m; also the joint angles (N, 6) rad of the IK there.
+        """Deflection ``δ`` (N, 3) m of the ball centre (:attr:`ball_radius`) under ``wrench``
+        (N, 6) [N; N·m] with the tip commanded at ``tip`` (N, 3) m; also the joint angles
+        (N, 6) rad of the IK there.
 
         Raises :class:`~roboisf.errors.UnreachableError` (with indices) for tips out of reach.
         """
         p = np.asarray(tip, dtype=float)
         W = np.asarray(wrench, dtype=float)
         ik = ik_toolpath(self.robot, p, self.T_base_work, tool_rotation=self.tool_rotation)
-        d = (W @ self.k_tip.T)[:, :3]
+        d = W @ self.k_tip.T
         if self.include_robot:
-            d = d + self.robot.deflection(ik.q, W, T_base_work=self.T_base_work)[:, :3]
-        return d, ik.q
+            d = d + self.robot.deflection(ik.q, W, T_base_work=self.T_base_work)
+        return at_ball_centre(d, self.ball_radius), ik.q
 
 
 @dataclass(frozen=True, eq=False)

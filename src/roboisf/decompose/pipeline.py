@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from roboisf.cell import Cell, cell_from_study, tip_compliances
+from roboisf.cell import Cell, at_ball_centre, cell_from_study, tip_compliances
 from roboisf.decompose.check import (
     VjmCheck,
     lateral_offset,
@@ -203,7 +203,11 @@ def _compare(
     # per-point deviations over the whole wall (the paper's polar plot sits at z = −11 mm, inside
     # the rim band); the rim band leaves the statistics through the ``used`` mask
     opts = CompareOptions(
-        register=a.registration, rim_band=0.0, radius=a.point_radius, contour_z=a.contour_z
+        register=a.registration,
+        rim_band=0.0,
+        radius=a.point_radius,
+        contour_z=a.contour_z,
+        max_distance=a.max_distance,
     )
     cloud = read_scan(run.scan, unit=run.scan_unit)
     return compare_scan(
@@ -276,9 +280,11 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
 
     with task(progress, "tool and holder compliance"):
         k_tool, k_holder, k_t, k_th = tip_compliances(cell, progress=progress)
-    tool_cnc = (W_cnc @ k_t.T)[:, :3]
-    tool_rob = (W_rob @ k_t.T)[:, :3]
-    holder_rob = (W_rob @ k_th.T)[:, :3]
+    # deflections of the ball centre (the paper's reference: its normal motion forms the part)
+    R_ball = cell.tool.radius
+    tool_cnc = at_ball_centre(W_cnc @ k_t.T, R_ball)
+    tool_rob = at_ball_centre(W_rob @ k_t.T, R_ball)
+    holder_rob = at_ball_centre(W_rob @ k_th.T, R_ball)
 
     scans = {}
     for run in (cnc, rob):
@@ -289,7 +295,7 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
 
     with task(progress, "robot VJM"):
         k_c = cell.robot.compliance(q, T_base_work=cell.T_base_work)
-        vjm = np.einsum("nij,nj->ni", k_c, W_rob)[:, :3]
+        vjm = at_ball_centre(np.einsum("nij,nj->ni", k_c, W_rob), R_ball)
 
     valid = dev_c.valid & dev_r.valid & (tp.depth > study.analysis.rim_band)
     d = decompose(tp.normal, dev_c.dn, dev_r.dn, tool_cnc, tool_rob, holder_rob, vjm, valid)

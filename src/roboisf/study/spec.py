@@ -185,6 +185,8 @@ class AnalysisSpec:
     contour_z: float = -11e-3
     registration: Literal["fixture", "flange", "axisymmetric", "icp", "none"] = "fixture"
     point_radius: float = 1.0e-3
+    #: scan points farther than this from the nominal (m) are not the part (fixture, clamps)
+    max_distance: float = 3e-3
 
 
 @dataclass(frozen=True)
@@ -771,7 +773,10 @@ def load_study(path: str | Path) -> Study:
             )
 
     at = c.table(
-        data, "analysis", {"rim_band", "contour_z", "registration", "point_radius"}, required=False
+        data,
+        "analysis",
+        {"rim_band", "contour_z", "registration", "point_radius", "max_distance"},
+        required=False,
     )
     rim = c.number(at, "analysis", "rim_band", required=False)
     cz = c.number(at, "analysis", "contour_z", default=-11.0)
@@ -783,6 +788,7 @@ def load_study(path: str | Path) -> Study:
         default="fixture",
     )
     prad = c.number(at, "analysis", "point_radius", default=1.0, positive=True)
+    maxd = c.number(at, "analysis", "max_distance", default=3.0, positive=True)
     if rim is not None and rim < 0:
         c.add("must be ≥ 0 mm", "analysis.rim_band")
     if rim is None:  # scaled with the part's depth: min(20 mm, 0.6·depth)
@@ -794,6 +800,7 @@ def load_study(path: str | Path) -> Study:
         (cz or -11.0) * 1e-3,
         cast(Literal["fixture", "flange", "axisymmetric", "icp", "none"], reg or "fixture"),
         (prad or 1.0) * 1e-3,
+        (maxd or 3.0) * 1e-3,
     )
 
     if c.problems:

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 import tomllib
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
@@ -217,16 +218,23 @@ def equipment_force_log(
     noise: float,
     tool_rotation: float,
     rng: np.random.Generator,
+    reading: Callable[[F64, F64], F64] | None = None,
 ) -> ForceLog:
     """The sensor's log [N, N·m] on the equipment's clock: the tip wrench (N, 6) of the
-    toolpath's points, zero out of contact, in the sensor frame, with white noise ``noise`` [N]."""
+    toolpath's points, zero out of contact, in the sensor frame, with white noise ``noise`` [N].
+    ``reading(W_sensor (M, 6), tip (M, 3) m) -> (M, 6)``: what the transducer makes of the load
+    (a truth's bias, gain, crosstalk and tool weight, :func:`roboisf.virtual.cell.sensor_reading`);
+    applied after the noise, which passes through the same calibration."""
     duration = float(tp.time[-1])
     tau, r = _samples(eq, duration, rate, force=True)
     t = eq.nominal_time(r, duration)
     W = _interp(t, tp, W_tip) * eq.contact(r, duration)[:, None]
-    W_s = tip_to_sensor(W, sensor, _interp(t, tp, tp.tip), vertical_tool(tool_rotation))
+    tip = _interp(t, tp, tp.tip)
+    W_s = tip_to_sensor(W, sensor, tip, vertical_tool(tool_rotation))
     W_s[:, :3] += rng.normal(scale=noise, size=(tau.size, 3))
     W_s[:, 3:] += rng.normal(scale=noise * 5e-3, size=(tau.size, 3))
+    if reading is not None:
+        W_s = reading(W_s, tip)
     return ForceLog(tau, W_s, "sensor")
 
 
@@ -267,11 +275,23 @@ def apply_equipment(
         cnc_eq = eq
     except InputError:  # a path force alignment cannot time (pyramid bottom pass): nominal clock
         cnc_eq = Equipment(lead_out=eq.lead_out)
-    for W, sensor, name, profile, e in (
-        (truth.wrench_cnc, cnc, "cnc", eq.cnc_force_profile, cnc_eq),
-        (truth.wrench_robot, rob, "robot", eq.robot_force_profile, eq),
+    from roboisf.virtual.cell import sensor_reading, tool_weight_at_sensor
+
+    robot_reading = None
+    t_spec = cell.truth
+    if t_spec is not None and not t_spec.sensor_ideal:  # the truth's flange sensor (robot run)
+        R = vertical_tool(rot)
+
+        def robot_reading(W_s: F64, tip: F64) -> F64:
+            return sensor_reading(t_spec, W_s, tool_weight_at_sensor(cell, t_spec, rob, tip, R))
+
+    for W, sensor, name, profile, e, reading in (
+        (truth.wrench_cnc, cnc, "cnc", eq.cnc_force_profile, cnc_eq, None),
+        (truth.wrench_robot, rob, "robot", eq.robot_force_profile, eq, robot_reading),
     ):
-        log = equipment_force_log(e, tp, W, sensor, cell.force_rate, cell.force.noise, rot, rng)
+        log = equipment_force_log(
+            e, tp, W, sensor, cell.force_rate, cell.force.noise, rot, rng, reading
+        )
         write_force_profile(log, folder / f"{name}_forces.csv", profile)
     tau, q = equipment_joint_log(eq, tp, truth.q, cell.joint_rate)
     write_joint_profile(folder / "robot_joints.csv", tau, q, eq.joint_profile)
