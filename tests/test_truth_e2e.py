@@ -96,3 +96,72 @@ def test_compensate_identified_removes_compliance_error(case):
     removed = 1 - _rms(after) / _rms(before)
     print(f"{case[0]}: compliance error removed {removed:.3f}")
     assert removed >= 0.85
+
+
+def test_truth_cells_keep_their_wall(case):
+    """The cells' studies set max_distance where their parts deviate more than 3 mm: no wall
+    point is dropped silently, so no beyond-the-cut warning."""
+    _c, _cell, _root, r = case
+    assert not any("from the nominal and are left out" in w for w in r.summary["warnings"])
+
+
+@pytest.fixture(scope="module", params=["cone", "vwacf"])
+def paper(request, tmp_path_factory):
+    from roboisf.virtual.cell import paper_scenario_cell
+
+    root = tmp_path_factory.mktemp("paper")
+    build_study(paper_scenario_cell(request.param, **FAST), root / "study")
+    r = analyze(root / "study")
+    write_results(r, root / "results", png=False)
+    return request.param, root, r
+
+
+def test_paper_scenario_is_a_mismatch(paper):
+    """The paper scenario's robot is 0.22× the preset's joints with bending links: the check must
+    say ``mismatch`` (not ``not_observable`` for a wide interval far from 1, nor ``holds by
+    construction``), in summary.json, the report's headline and its card."""
+    from roboisf.report import read_headline
+    from roboisf.report.model_check import check_card
+
+    _part, root, _r = paper
+    s = json.loads((root / "results" / "summary.json").read_text(encoding="utf-8"))
+    vc = s["vjm_check"]
+    assert s["truth"]["model_equals_truth"] is False
+    assert not vc.get("by_construction")
+    assert vc["verdict"] == "mismatch", vc["reason"]
+    assert vc["ci_low"] > 2.0  # 1/0.22 of the joints, less the springback's partial compensation
+    card = check_card(s)
+    assert card is not None and card[2] != "holds by construction"
+    assert read_headline(root / "results" / "report.html")["vjm_verdict"] == "mismatch"
+    assert not any("from the nominal and are left out" in w for w in s["warnings"])
+
+
+def test_points_beyond_max_distance_are_named(paper, tmp_path):
+    """Without the study's max_distance the paper cone's robot part deviates beyond the default
+    3 mm cut: analyze says how many wall points it dropped and names the setting."""
+    import re
+    import shutil
+    import tomllib
+
+    part, root, _r = paper
+    if part != "cone":
+        pytest.skip("the VWACF's robot part stays within ~3 mm")
+    st = tmp_path / "study"
+    shutil.copytree(root / "study", st)
+    d = tomllib.loads((st / "study.toml").read_text(encoding="utf-8"))
+    assert d["analysis"]["max_distance"] > 3  # the virtual cell set it for this part
+    del d["analysis"]["max_distance"]
+    (st / "study.toml").write_text(tomli_w.dumps(d), encoding="utf-8")
+    r = analyze(st)
+    (w,) = [w for w in r.summary["warnings"] if "from the nominal and are left out" in w]
+    assert w.startswith("robot scan:") and "3 mm" in w and "max_distance" in w
+    n, total = (int(v) for v in re.findall(r"(\d+) of (\d+) wall points", w)[0])
+    counts = r.scans["robot"].counts
+    assert (n, total) == (counts["wall_beyond_max_distance"], counts["wall_total"])
+    assert n > 0.02 * total
+    # the truth's robot-part deviation (the sum of its terms, mm) does exceed the cut
+    pp = r.per_point
+    total = sum(
+        pp[f"truth_{k}_dn"] for k in ("tool", "tool_holder", "springback", "robot_compliance")
+    )
+    assert np.nanmax(np.abs(total)) > 3.0

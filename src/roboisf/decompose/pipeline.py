@@ -92,6 +92,9 @@ class AnalysisResult:
     scans: dict[str, ScanComparison]
     #: the robot's compliance identified from this run (None when it cannot be)
     identification: FormingIdentification | None = None
+    #: (N, 6) rad — the robot run's joint angles at each toolpath point, as the VJM used them
+    #: (joint log aligned by position, or inverse kinematics)
+    q_robot: F64 | None = None
 
 
 def read_run_force_log(study: Study, run: RunSpec) -> ForceLog:
@@ -317,9 +320,10 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
         per_point["identified_dn"] = ident.predicted * 1e3
     if truth is not None:
         _attach_truth(truth_file, per_point, summary, d, truth)
-        _truth_vs_model(study.root / "truth", per_point, summary, d)
+        k_model = None if cell.robot.stiffness is None else cell.robot.joint_stiffness
+        _truth_vs_model(study.root / "truth", per_point, summary, d, k_model)
     return AnalysisResult(
-        study, cell, d, per_point, contributions, contributions_normal, summary, scans, ident
+        study, cell, d, per_point, contributions, contributions_normal, summary, scans, ident, q
     )
 
 
@@ -451,12 +455,18 @@ def _force_bias_warnings(tp: Toolpath, W_cnc: F64, W_rob: F64, valid: Any) -> li
 
 
 def _truth_vs_model(
-    truth_dir: Path, per_point: pd.DataFrame, summary: dict[str, Any], d: Decomposition
+    truth_dir: Path,
+    per_point: pd.DataFrame,
+    summary: dict[str, Any],
+    d: Decomposition,
+    model_stiffness: F64 | None = None,
 ) -> None:
     """Does the virtual cell's truth equal the study's model? Then the VJM check holds by
     construction and the report says so instead of quoting a zero difference. A flag in
-    ``truth/truth.json`` (``model_equals_truth``, or a ``truth`` table of effects) wins; else the
-    truth's robot term is compared with the VJM at the measured forces (equal within 3 %)."""
+    ``truth/truth.json`` (``model_equals_truth``, or a ``truth`` table of effects) wins — unless
+    the study's joint stiffness ``model_stiffness`` (N·m/rad) is no longer the file's
+    ``true_joint_stiffness`` (a study edited after the cell wrote it); else the truth's robot term
+    is compared with the VJM at the measured forces (equal within 3 %)."""
     meta: dict[str, Any] = {}
     try:
         meta = json.loads((truth_dir / "truth.json").read_text(encoding="utf-8"))
@@ -464,6 +474,13 @@ def _truth_vs_model(
         meta = {}
     flag = meta.get("model_equals_truth") if isinstance(meta, dict) else None
     how = "truth/truth.json"
+    k_true = meta.get("true_joint_stiffness") if isinstance(meta, dict) else None
+    if flag is True and model_stiffness is not None and isinstance(k_true, list):
+        kt = np.asarray(k_true, dtype=float).ravel()
+        km = np.asarray(model_stiffness, dtype=float).ravel()
+        if kt.shape != km.shape or not np.allclose(km, kt, rtol=1e-6, atol=0.0):
+            flag = False
+            how = "truth/truth.json's true_joint_stiffness against the study's joint stiffness"
     if not isinstance(flag, bool):
         if "truth_robot_compliance_dn" not in per_point:
             return
@@ -561,6 +578,7 @@ def _summary(
                 f"{name} scan: {holes} toolpath points below the rim band fall in holes of the "
                 "scan and are left out"
             )
+    warnings.extend(_beyond_cut_warnings(scans, study.analysis.max_distance))
     return {
         "study": study.name,
         "description": study.description,
@@ -789,3 +807,26 @@ def _jsonable(x: Any) -> Any:
     if isinstance(x, float) and not math.isfinite(x):
         return None
     return x
+
+
+#: fraction of a scan's wall points beyond ``[analysis] max_distance`` above which the analysis
+#: warns (the virtual cell's scans carry ~1 % stray points; a real scan's fixture and clamps
+#: mostly lie off the wall's footprint)
+BEYOND_CUT_WARN = 0.02
+
+
+def _beyond_cut_warnings(scans: dict[str, ScanComparison], max_distance: float) -> list[str]:
+    """One warning per scan whose wall loses more than :data:`BEYOND_CUT_WARN` of its points to
+    the ``max_distance`` [m] cut (a part that deviates more than the cut: its largest errors
+    would leave the statistics unseen)."""
+    out = []
+    for name, sc in scans.items():
+        n = int(sc.counts.get("wall_beyond_max_distance", 0))
+        total = int(sc.counts.get("wall_total", 0))
+        if total and n > BEYOND_CUT_WARN * total:
+            out.append(
+                f"{name} scan: {n} of {total} wall points ({n / total:.1%}) lie more than "
+                f"{max_distance * 1e3:g} mm from the nominal and are left out; if the part "
+                "deviates that much, raise [analysis] max_distance in study.toml (mm)"
+            )
+    return out

@@ -210,6 +210,10 @@ def compare_scan(
             full[sel[~inl]] = False
     mask = full & (dev.foot[:, 2] < -rim_band)
     n_wall = int(mask.sum())
+    # wall points (below the rim band) that the max_distance cut drops: a part that deviates
+    # more than the cut loses its largest errors silently (the analysis warns on the count)
+    on_wall = np.isin(dev.region, (1,)) & (dev.foot[:, 2] < -rim_band)
+    n_beyond = int(np.sum(on_wall & (np.abs(dev.dn) > o.max_distance)))
     if n_wall == 0:
         raise InputError(
             f"no scan point on the wall below the {rim_band * 1e3:g} mm rim band", file=src
@@ -252,5 +256,7 @@ def compare_scan(
         "contour": ring.n_points,
         "outliers_removed": n_out,
         "used": wall.n_points,
+        "wall_beyond_max_distance": n_beyond,
+        "wall_total": int(on_wall.sum()),
     }
     return ScanComparison(wall, tdev, reg, counts, depth_tab, angle_tab, o)
