@@ -165,3 +165,35 @@ def test_points_beyond_max_distance_are_named(paper, tmp_path):
         pp[f"truth_{k}_dn"] for k in ("tool", "tool_holder", "springback", "robot_compliance")
     )
     assert np.nanmax(np.abs(total)) > 3.0
+
+
+def test_bias_seen_in_the_unloaded_start_and_tared(case, tmp_path):
+    """The virtual logs start with an unloaded stretch (the first lap runs in the sheet plane, no
+    load): an untared bias is named there, and ``tare = "auto"`` removes it — the robot forces
+    analyze uses then match the truth cell's tip wrench with no offset."""
+    import shutil
+    import tomllib
+
+    (_scale, _links, bias), cell, root, r = case
+    W_true = simulate(cell).wrench_robot[:, :3]
+    F = r.per_point[["robot_Fx", "robot_Fy", "robot_Fz"]].to_numpy()
+    off = np.median(F - W_true, axis=0)
+    untared = [w for w in r.summary["warnings"] if "not tared" in w]
+    if not bias:
+        assert not untared and np.linalg.norm(off) < 1.0
+        return
+    assert len(untared) == 1 and "robot_forces" in untared[0]
+    assert np.linalg.norm(off) == pytest.approx(np.linalg.norm(BIAS[:3]), rel=0.05)
+    st = tmp_path / "study"
+    shutil.copytree(root / "study", st)
+    d = tomllib.loads((st / "study.toml").read_text(encoding="utf-8"))
+    d["runs"]["robot"]["forces"]["tare"] = "auto"
+    (st / "study.toml").write_text(tomli_w.dumps(d), encoding="utf-8")
+    r2 = analyze(st)
+    assert not any("not tared" in w or "sensor bias" in w for w in r2.summary["warnings"])
+    F2 = r2.per_point[["robot_Fx", "robot_Fy", "robot_Fz"]].to_numpy()
+    assert np.linalg.norm(np.median(F2 - W_true, axis=0)) < 1.0  # N, of ~30 N bias
+    pp = r2.per_point
+    u = pp["used"].to_numpy()
+    truth = pp["truth_robot_compliance_dn"].to_numpy()[u]
+    assert _rms(pp["identified_dn"].to_numpy()[u] - truth) <= 0.15 * _rms(truth)
