@@ -41,6 +41,8 @@ def test_demo_builds_both_studies_atomically(tmp_path):
             assert (sub / f).is_file(), f"{name}/{f}"
         head = read_headline(sub / "results" / "report.html")
         assert 0 < head["robot_share_percent"] < 100
+        # the paper scenario's robot is not the model: the check says so, not "by construction"
+        assert head["vjm_verdict"] == "mismatch"
         # the paper scenario: Table 5's robot share within 3 points, springback R_m within 10 %
         paper = PAPER_TABLE5["cone" if name == "cone-71" else "vwacf"]
         rows = pd.read_csv(sub / "results" / "contributions.csv", comment="#").set_index("factor")

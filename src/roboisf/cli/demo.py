@@ -82,6 +82,13 @@ def build_demo(
             f"{paper['robot_share_percent']:.2f} %), springback R_m "
             f"{row.loc['springback', 'R_m']:.3f} mm (paper {paper['springback_R_m_mm']:.3f} mm)"
         )
+        vc = result.summary.get("vjm_check") or {}
+        if vc.get("ratio") is not None:
+            verdict = "holds by construction" if vc.get("by_construction") else vc.get("verdict")
+            state.info(
+                f"{cell.name}: model check {verdict} — measured/VJM robot deflection "
+                f"{vc['ratio']:.2f} (95 % [{vc['ci_low']:.2f}, {vc['ci_high']:.2f}])"
+            )
         delta = result.summary.get("vjm_vs_experiment_per_axis")
         if isinstance(delta, dict) and all(k in delta for k in "xyz"):
             state.info(
