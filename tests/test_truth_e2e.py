@@ -197,3 +197,20 @@ def test_bias_seen_in_the_unloaded_start_and_tared(case, tmp_path):
     u = pp["used"].to_numpy()
     truth = pp["truth_robot_compliance_dn"].to_numpy()[u]
     assert _rms(pp["identified_dn"].to_numpy()[u] - truth) <= 0.15 * _rms(truth)
+
+
+def test_sideways_scan_shift_is_warned(tmp_path):
+    """A truth file that shifts the robot scan 0.3 mm sideways (``[scan] shift``, which the 3-DOF
+    fixture registration cannot see): analyze names the shift's size and direction."""
+    (tmp_path / "t.toml").write_text(
+        tomli_w.dumps({"scan": {"shift": [0.0, 0.3, 0.0]}}), encoding="utf-8"
+    )
+    cell = paper_cone_cell(truth=load_truth(tmp_path / "t.toml"), **FAST)
+    build_study(cell, tmp_path / "study")
+    r = analyze(tmp_path / "study")
+    (w,) = [w for w in r.summary["warnings"] if w.startswith("robot scan: its normal deviation")]
+    assert "lateral registration is ambiguous" in w
+    fit = r.summary["lateral_offset"]["robot"]
+    assert fit["size_mm"] == pytest.approx(0.3, abs=0.05)
+    assert abs(fit["shift_mm"][1]) > 4 * abs(fit["shift_mm"][0])  # along y, as shifted
+    assert not any(w.startswith("cnc scan: its normal deviation") for w in r.summary["warnings"])
