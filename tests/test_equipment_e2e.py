@@ -1,0 +1,132 @@
+"""Done-when of issue #13, end to end: ``roboisf virtual-cell`` writes its logs the way real
+equipment does — a Kistler 3-component export for the CNC dynamometer, an ATI Net F/T CSV for
+the robot's flange sensor (with the truth's bias and the tool's weight in it), a KUKA trace
+export for the joints, a 2 % fast controller clock with a 7 s offset and a 30 s pause — and
+``analyze`` recovers the decomposition of the clean study (ideal sensor, nominal clock, roboisf
+logs): every share within 1 percentage point, once the user states what they know (the tool's
+mass and centre of gravity, weighed; ``tare = "auto"``). Left untared, the bias is flagged.
+
+Slow (two small studies, three analyses); each piece is covered fast elsewhere: the formats by
+test_logs_formats.py / test_study_init.py, alignment by test_sync.py, conditioning by
+test_sensor*.py.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+import tomli_w
+
+from roboisf.decompose import FACTORS
+from roboisf.decompose.pipeline import analyze
+from roboisf.io.forcelog import detect_force_format, read_force_log
+from roboisf.io.jointlog import detect_joint_format
+from roboisf.virtual.cell import build_study, paper_cone_cell
+from roboisf.virtual.equipment import Equipment
+from roboisf.virtual.truth import TruthSpec
+
+SMALL = {
+    "scan_points": 150_000,
+    "force_rate": 50.0,
+    "joint_rate": 20.0,
+    "step_down": 2e-3,
+    "spacing": 4e-3,
+}
+BIAS = np.array([30.0, -12.0, 8.0, 0.6, -0.4, 0.15])  # N, N·m, sensor axes
+MASS, COG_FLANGE = 4.0, np.array([0.0, 0.0, 0.150])  # kg; m, flange frame
+EQUIPMENT = Equipment(
+    clock_scale=1.02,
+    offset=7.0,
+    pauses=((300.0, 30.0),),
+    cnc_force_profile="kistler",
+    robot_force_profile="ati",
+    joint_profile="kuka",
+)
+
+
+@pytest.fixture(scope="module")
+def studies(tmp_path_factory):
+    root = tmp_path_factory.mktemp("equipment")
+    clean = build_study(paper_cone_cell(**SMALL), root / "clean")
+    truth = TruthSpec(sensor_bias=BIAS, tool_mass=MASS, tool_cog=COG_FLANGE)
+    cell = paper_cone_cell(**SMALL, truth=truth)
+    real = build_study(cell, root / "real", equipment=EQUIPMENT)
+    return analyze(clean), real, cell
+
+
+def _shares(result, table):
+    return getattr(result, table).set_index("factor").share_percent
+
+
+@pytest.mark.slow
+def test_files_are_written_as_the_equipment_writes_them(studies):
+    _, real, _ = studies
+    assert detect_force_format(real / "cnc_forces.csv")[0] == "kistler"
+    assert detect_force_format(real / "robot_forces.csv")[0] == "ati"
+    assert detect_joint_format(real / "robot_joints.csv")[0] == "kuka"
+    assert not read_force_log(real / "cnc_forces.csv").moments_known  # 3-component
+    # the controller starts logging 7 s before the program: an unloaded stretch to tare on
+    log = read_force_log(real / "robot_forces.csv")
+    first = log.time < 5.0
+    assert first.sum() > 50
+    spread = log.force[first].std(axis=0)
+    assert np.all(spread < 5.0)  # noise only: no load in it
+    assert np.linalg.norm(log.force[first].mean(axis=0)) > 30.0  # bias + weight
+
+
+@pytest.mark.slow
+def test_untared_bias_is_flagged(studies):
+    _, real, _ = studies
+    got = analyze(real)
+    flagged = [w for w in got.summary["warnings"] if "not tared" in w]
+    assert len(flagged) == 1 and "robot_forces.csv" in flagged[0]
+
+
+@pytest.mark.slow
+def test_stated_tool_and_auto_tare_recover_the_clean_decomposition(studies, tmp_path):
+    clean, real, cell = studies
+    s = tmp_path / "s"
+    shutil.copytree(real, s)
+    data = tomllib.loads((s / "study.toml").read_text())
+    f = data["runs"]["robot"]["forces"]
+    # what the user knows: the tool weighed, its CoG in the sensor frame (as the sensor maker's
+    # software asks for it), and that the approach is unloaded
+    T_flange_sensor = cell.T_flange_tip @ cell.T_tip_sensor
+    cog_s = np.linalg.solve(T_flange_sensor, np.append(COG_FLANGE, 1.0))[:3]
+    f.update(tare="auto", tool_mass=MASS, tool_cog=[float(v) * 1e3 for v in cog_s])
+    (s / "study.toml").write_text(tomli_w.dumps(data))
+    got = analyze(s)
+    assert not [w for w in got.summary["warnings"] if "not tared" in w]
+    for table in ("contributions", "contributions_normal"):
+        a, b = _shares(clean, table), _shares(got, table)
+        for fac in FACTORS:
+            assert b[fac] == pytest.approx(a[fac], abs=1.0), (table, fac, a[fac], b[fac])
+
+
+def test_logged_positions_are_checked_at_the_aligned_times():
+    """check_force_log's x,y,z check uses the alignment's log time of each point when there is
+    one: a log on a 2 % fast clock with a 7 s offset and a long stop is on the path there, and
+    off it by nominal time (the test can fail both ways)."""
+    import math
+
+    from roboisf.errors import InputError
+    from roboisf.io.forcelog import ForceLog
+    from roboisf.parts import Cone
+    from roboisf.study.checks import check_force_log
+    from roboisf.toolpath import step_down
+
+    part = Cone(opening_diameter=0.06, wall_angle=math.radians(45), depth=0.01)
+    tp = step_down(part, 5e-3, 2e-3, spacing=5e-3)
+    half = 0.5 * float(tp.time[-1])
+    point_time = 7.0 + 1.02 * (tp.time + np.where(tp.time > half, 30.0, 0.0))
+    tau = np.linspace(0.0, float(point_time[-1]) + 1.0, 4000)
+    pos = np.column_stack([np.interp(tau, point_time, tp.tip[:, j]) for j in range(3)])
+    W = np.tile([50.0, 0.0, 400.0, 2.0, 0.0, 0.0], (tau.size, 1))
+    log = ForceLog(tau, W, "sensor", Path("f.csv"), pos)
+    assert check_force_log(log, tp, time_offset=7.0, point_time=point_time) == []
+    with pytest.raises(InputError, match=r"f\.csv.*another path"):
+        check_force_log(log, tp, time_offset=7.0)
