@@ -130,3 +130,53 @@ def test_logged_positions_are_checked_at_the_aligned_times():
     assert check_force_log(log, tp, time_offset=7.0, point_time=point_time) == []
     with pytest.raises(InputError, match=r"f\.csv.*another path"):
         check_force_log(log, tp, time_offset=7.0)
+
+
+def test_scan_compare_and_robot_deflect_take_a_cam_program(tmp_path, capsys):
+    """``scan compare --toolpath`` imports a CAM program against --part with --tool-diameter
+    (the deviations it gives are those of the same path as a roboisf CSV); without the diameter,
+    and in ``robot deflect`` (no part), a one-line error points to ``roboisf toolpath import``."""
+    import json
+
+    from roboisf.cli.main import main
+    from roboisf.io.toolpath_csv import write_toolpath_csv
+    from roboisf.parts import Cone
+    from roboisf.scan import synthetic_scan, write_ply
+    from roboisf.toolpath import step_down
+
+    cone, dn = Cone(), -0.4e-3
+    s = synthetic_scan(cone, 150_000, offset=dn, noise=25e-6, seed=7)
+    write_ply(s.points, tmp_path / "scan.ply")
+    (tmp_path / "cone.toml").write_text(
+        '[part]\nkind = "cone"\nopening_diameter = 87.0\nwall_angle = 71.0\ndepth = 102.97\n'
+    )
+    tp = step_down(cone, 5e-3, 2e-3, spacing=4e-3)
+    write_toolpath_csv(tp, tmp_path / "path.csv")
+    rows = [f"G1 X{x:.4f} Y{y:.4f} Z{z:.4f}" for x, y, z in tp.tip * 1e3]
+    text = "%\nO1000 (cone)\nG21 G90 G17\nG0 X0. Y0. Z20.\nF1000\n" + "\n".join(rows)
+    (tmp_path / "cone.nc").write_text(text + "\nG0 Z20.\nM30\n%\n")
+    base = ["-q", "scan", "compare", str(tmp_path / "scan.ply"), "-p", str(tmp_path / "cone.toml")]
+    base += ["-r", "none"]
+    got = {}
+    for name, extra in (
+        ("csv", ["--toolpath", str(tmp_path / "path.csv")]),
+        ("nc", ["--toolpath", str(tmp_path / "cone.nc"), "--tool-diameter", "10"]),
+    ):
+        out = tmp_path / f"dev_{name}.csv"
+        assert main([*base, *extra, "-o", str(out)]) == 0
+        got[name] = json.loads((tmp_path / f"dev_{name}.summary.json").read_text())
+    assert got["nc"]["toolpath"]["n_valid"] > 0.9 * got["csv"]["toolpath"]["n_valid"]
+    for g in got.values():
+        assert g["toolpath"]["mean_dn_mm"] == pytest.approx(dn * 1e3, abs=0.01)
+    capsys.readouterr()
+    out = tmp_path / "dev_bad.csv"
+    assert main([*base, "--toolpath", str(tmp_path / "cone.nc"), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "cone.nc" in err and "roboisf toolpath import" in err and "--tool-diameter" in err
+    assert not out.exists()
+    head = "# units: time=s force=N moment=N*m\n# frame: tip\ntime,Fx,Fy,Fz,Mx,My,Mz\n"
+    (tmp_path / "f.csv").write_text(head + "0,0,0,-400,0,0,0\n1,0,0,-400,0,0,0\n")
+    args = ["-q", "robot", "deflect", "--toolpath", str(tmp_path / "cone.nc")]
+    args += ["--forces", str(tmp_path / "f.csv"), "-o", str(tmp_path / "d.csv")]
+    assert main(args) == 2
+    assert "roboisf toolpath import" in capsys.readouterr().err
