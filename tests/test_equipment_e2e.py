@@ -180,3 +180,82 @@ def test_scan_compare_and_robot_deflect_take_a_cam_program(tmp_path, capsys):
     args += ["--forces", str(tmp_path / "f.csv"), "-o", str(tmp_path / "d.csv")]
     assert main(args) == 2
     assert "roboisf toolpath import" in capsys.readouterr().err
+
+
+def _doc_blocks() -> list[tuple[str, str]]:
+    import re
+
+    doc = (Path(__file__).parents[1] / "docs" / "study.md").read_text(encoding="utf-8")
+    sec = doc.split("### Worked example: a CAM program, an ATI log and a KUKA trace export")[1]
+    sec = sec.split("\n## ")[0]
+    return re.findall(r"```(\w+)\n(.*?)```", sec, re.S)
+
+
+def _run_bash(block: str) -> None:
+    import shlex
+
+    from roboisf.cli.main import main
+
+    for line in block.replace("\\\n", " ").splitlines():
+        args = shlex.split(line, comments=True)
+        if not args:
+            continue
+        if args[0] == "roboisf":
+            assert main(["-q", *args[1:]]) == 0, line
+        elif args[0] == "mkdir":
+            Path(args[1]).mkdir()
+        elif args[0] == "cp":
+            *src, dst = args[1:]
+            for f in src:
+                shutil.copy(f, dst)
+        else:  # pragma: no cover - the doc uses only these
+            raise AssertionError(f"unknown command in the doc: {line}")
+
+
+def _merge(a: dict, b: dict) -> None:
+    for k, v in b.items():
+        if isinstance(v, dict) and isinstance(a.get(k), dict):
+            _merge(a[k], v)
+        else:
+            a[k] = v
+
+
+def _subset(part: dict, whole: dict, where: str = "") -> None:
+    for k, v in part.items():
+        assert k in whole, f"{where}{k} not in the draft"
+        if isinstance(v, dict):
+            _subset(v, whole[k], f"{where}{k}.")
+        else:
+            assert whole[k] == v, f"{where}{k}: doc {v!r}, draft {whole[k]!r}"
+
+
+@pytest.mark.slow
+def test_docs_worked_example(tmp_path, monkeypatch):
+    """Runs docs/study.md's worked example block by block: the draft holds what the doc shows,
+    and the analysis of the confirmed study gives the clean study's shares (1 point)."""
+    import pandas as pd
+
+    from roboisf.cli.main import main
+
+    blocks = _doc_blocks()
+    assert [k for k, _ in blocks] == ["toml", "bash", "python", "bash", "toml", "toml", "bash"]
+    monkeypatch.chdir(tmp_path)
+    Path("sensor.toml").write_text(blocks[0][1])
+    _run_bash(blocks[1][1])
+    exec(compile(blocks[2][1], "docs/study.md", "exec"), {})
+    _run_bash(blocks[3][1])
+    text = Path("my-cell/study.toml").read_text()
+    draft = tomllib.loads(text)
+    shown = blocks[4][1]
+    assert shown.splitlines()[0] in text  # the TODO line
+    _subset({k: v for k, v in tomllib.loads(shown).items() if k != "tool"}, draft)
+    _merge(draft, tomllib.loads(blocks[5][1]))
+    Path("my-cell/study.toml").write_text(tomli_w.dumps(draft))
+    _run_bash(blocks[6][1])
+    assert main(["-q", "virtual-cell", "cone", "-o", "clean", "--scan-points", "150000"]) == 0
+    assert main(["-q", "analyze", "clean", "-o", "clean-results"]) == 0
+    for name in ("contributions.csv", "contributions_normal.csv"):
+        a = pd.read_csv(Path("clean-results") / name, comment="#").set_index("factor")
+        b = pd.read_csv(Path("results") / name, comment="#").set_index("factor")
+        for fac in FACTORS:
+            assert b.share_percent[fac] == pytest.approx(a.share_percent[fac], abs=1.0), (name, fac)
