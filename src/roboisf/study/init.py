@@ -9,6 +9,13 @@ holder — and fills what no file says (robot model and placement, flange → ti
 the part when no part TOML is in the folder) from the caller's options, or with a ``"TODO: …"``
 string that ``load_study`` refuses with the key's name and what it expects.
 
+Formats (issue #13): a force log's profile and a joint log's (``detect_force_format``,
+``detect_joint_format``) are written as the log's ``format``, and each unit the file does not
+declare as a ``"TODO: …"`` in its ``units`` table (never guessed; joint angles beyond 2π + 0.5
+can only be degrees and are written so); a CAM program (tried last: a bare ``x,y,z`` list reads
+most numeric tables) is a run's ``toolpath`` with ``toolpath_format`` and ``toolpath_point =
+"tip"``, and leaves ``[tool] ball_diameter`` a TODO.
+
 Alignment: the run with a joint log gets ``sync = "position"`` (a real run drifts against
 nominal time; the joint log says where the tool was); a run without one ``sync = "time"``
 (``"force"`` aligns by the force signature; asked for, not assumed, because it needs a part the
