@@ -259,3 +259,29 @@ def test_docs_worked_example(tmp_path, monkeypatch):
         b = pd.read_csv(Path("results") / name, comment="#").set_index("factor")
         for fac in FACTORS:
             assert b.share_percent[fac] == pytest.approx(a.share_percent[fac], abs=1.0), (name, fac)
+
+
+def test_abb_joint_layout_gets_its_units_in_the_study(tmp_path):
+    """The ABB export declares no units; the virtual cell's study says them (as its user
+    would), so the study reads; the file alone is refused (units never guessed)."""
+    from roboisf.decompose.pipeline import read_run_joint_log
+    from roboisf.errors import InputError
+    from roboisf.io.jointlog import read_joint_log
+    from roboisf.study import load_study
+
+    kw = {"scan_points": 20_000, "force_rate": 50.0, "joint_rate": 20.0}
+    kw |= {"step_down": 3e-3, "spacing": 6e-3}
+    s = build_study(
+        paper_cone_cell(**kw), tmp_path / "abb", equipment=Equipment(joint_profile="abb")
+    )
+    data = tomllib.loads((s / "study.toml").read_text())
+    assert data["runs"]["robot"]["joints"] == {
+        "file": "robot_joints.csv",
+        "units": {"time": "s", "angle": "deg"},
+    }
+    with pytest.raises(InputError, match="unit not declared"):
+        read_joint_log(s / "robot_joints.csv")
+    st = load_study(s)
+    q = read_run_joint_log(st.robot_run).q
+    assert np.abs(q).max() < 2 * np.pi  # radians inside: the degrees were converted
+    assert np.ptp(q[:, 0]) > 0.01  # and the robot moved
