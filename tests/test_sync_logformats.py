@@ -92,7 +92,7 @@ def test_virtual_cell_writes_the_profiles(tmp_path):
 
     kw = {"scan_points": 20_000, "force_rate": 50.0, "joint_rate": 20.0}
     kw |= {"step_down": 3e-3, "spacing": 6e-3}
-    clean = build_study(paper_cone_cell(**kw), tmp_path / "clean")
+    clean = build_study(paper_cone_cell(**kw), tmp_path / "clean", log_format="csv")
     eq = Equipment(cnc_force_profile="kistler", robot_force_profile="ati", joint_profile="kuka")
     prof = build_study(paper_cone_cell(**kw), tmp_path / "prof", equipment=eq)
     ref = read_force_log(clean / "robot_forces.csv")

@@ -229,6 +229,12 @@ DEFLECT_HELP = (
     "the IK branch is front / elbow up / no flip (numerical IK: the solution nearest the middle "
     "of the joint ranges). A robot whose joint stiffness is unknown needs --stiffness (from "
     "`roboisf robot identify`).\n\n"
+    "Timing: forces and joints are matched to the toolpath points by the toolpath's nominal "
+    "time (path length / feed) only — right for logs on that clock (the virtual cell's clean "
+    "logs). A real run's logs drift (feed override, pauses): align them in a study with "
+    '`sync = "position"` / `"force"` and run `roboisf analyze` (docs/study.md, alignment). '
+    "--toolpath is a roboisf toolpath CSV; convert a CAM program with `roboisf toolpath "
+    "import` first.\n\n"
     "Example, a URDF robot without a joint log: roboisf robot deflect --robot arm.urdf "
     "--stiffness K.toml --toolpath P.csv --forces F.csv --placement 1600,0,800,0 "
     "--tool 0,0,300 -o deflection.csv"
@@ -239,7 +245,10 @@ DEFLECT_HELP = (
 def deflect_cmd(
     toolpath: Path = typer.Option(..., "--toolpath", help="Toolpath CSV (roboisf format)."),
     forces: Path = typer.Option(
-        ..., "--forces", help="Force log CSV, wrench at the tool tip in frame work, base or tip."
+        ...,
+        "--forces",
+        help="Force log, wrench at the tool tip in frame work, base or tip; matched to the "
+        "points by nominal time (see Timing above).",
     ),
     output: Path = typer.Option(
         ..., "--output", "-o", help=f"Deflection CSV to write. {FILE_HELP}"
@@ -250,7 +259,10 @@ def deflect_cmd(
     tool: str | None = TOOL_OPT,
     placement: str | None = PLACEMENT_OPT,
     joints: Path | None = typer.Option(
-        None, "--joints", help="Joint log CSV (controller degrees) instead of IK."
+        None,
+        "--joints",
+        help="Joint log (roboisf CSV, ABB J1..J6, KUKA A1..A6 …, units declared in the file) "
+        "instead of IK; matched by nominal time (see Timing above).",
     ),
     tool_rotation: float = typer.Option(
         0.0, "--tool-rotation", help="Tool rotation about its own axis (deg)."
@@ -275,8 +287,8 @@ def deflect_cmd(
     from roboisf.io.forcelog import attach_to_toolpath, read_force_log
     from roboisf.io.jointlog import read_joint_log
     from roboisf.io.table import format_rows
-    from roboisf.io.toolpath_csv import read_toolpath_csv
     from roboisf.robot import ik_toolpath, rotate_6
+    from roboisf.toolpath.importer import read_toolpath_file
 
     inputs: list[str | Path] = [toolpath, forces]
     if joints is not None:
@@ -287,7 +299,7 @@ def deflect_cmd(
     K = m.joint_stiffness  # fail early, before IK
     del K
     T_base_work = _placement(placement, m)
-    tp = read_toolpath_csv(toolpath)
+    tp = read_toolpath_file(toolpath)  # a CAM program: a clear error (no part here)
     log = read_force_log(forces)
     W = attach_to_toolpath(log, tp, by="time")
     if joints is not None:

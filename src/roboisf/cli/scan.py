@@ -32,7 +32,17 @@ def compare(
     ),
     overwrite: Overwrite = False,
     toolpath: Path | None = typer.Option(
-        None, "--toolpath", "-t", help="Toolpath CSV: deviations per contact point."
+        None,
+        "--toolpath",
+        "-t",
+        help="Toolpath: deviations per contact point. A roboisf toolpath CSV, or a CAM program "
+        "(G-code, Sinumerik .mpf, APT/CL, x,y,z list; it names the ball tip) imported against "
+        "--part with --tool-diameter.",
+    ),
+    tool_diameter: float | None = typer.Option(
+        None,
+        "--tool-diameter",
+        help="Ball diameter [mm], to import a CAM program given as --toolpath.",
     ),
     register: str = typer.Option(
         "fixture",
@@ -113,9 +123,14 @@ def compare(
     nominal = load_part(part)
     tp = None
     if toolpath is not None:
-        from roboisf.io.toolpath_csv import read_toolpath_csv
+        from roboisf.toolpath.importer import read_toolpath_file
 
-        tp = read_toolpath_csv(toolpath)
+        if tool_diameter is not None and not (math.isfinite(tool_diameter) and tool_diameter > 0):
+            raise InputError(
+                f"expected a ball diameter > 0 mm, got {tool_diameter}", field="--tool-diameter"
+            )
+        ball_r = None if tool_diameter is None else tool_diameter * 0.5e-3
+        tp = read_toolpath_file(toolpath, nominal, ball_r)
     opts = CompareOptions(
         register=register,
         rim_band=None if rim_band is None else rim_band * 1e-3,

@@ -94,9 +94,13 @@ def _init(
 ) -> None:
     """Look at every file in FOLDER, say what it is, and write a study.toml to confirm.
 
-    Each file is tried with roboisf's readers (toolpath CSV, force and joint logs, scans,
-    thickness, part TOML, compliance JSON); the table shows what was detected (format, units,
-    size) and the role given to it: the CNC and robot runs by "cnc" and "robot"/"rob" in the
+    Each file is tried with roboisf's readers (toolpath CSV, force logs — roboisf, ATI Net
+    F/T, Kistler DynoWare, 3-component —, joint logs — roboisf, ABB J1..J6, KUKA A1..A6 —,
+    scans — PLY, XYZ, PTS, E57, LAS —, thickness, part TOML, compliance JSON, and last CAM
+    programs — G-code, .mpf, APT, x,y,z — as a toolpath); the table shows what was detected
+    (profile, units, size) and the role given to it. A log's units the file does not declare,
+    and the ball diameter a CAM program does not say, are written as "TODO" values for you to
+    fill in — never guessed. Roles: the CNC and robot runs by "cnc" and "robot"/"rob" in the
     names, the joint log to the robot run (sync = "position"). What no file says — robot,
     placement, sensor poses, the part — comes from the options or is written as a "TODO: …" value
     that `roboisf analyze` refuses by name. An existing study.toml is never replaced without

@@ -349,7 +349,7 @@ def _open(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[str, LogTa
             raise InputError(
                 "format 'dyno3' is a 3-component log but the file has moment columns", file=p
             )
-        if fmt == "auto" and name == "generic" and t.separator == "tab" and t.preamble:
+        if fmt == "auto" and name in ("generic", "dyno3") and t.separator == "tab" and t.preamble:
             name = "kistler"  # a DynoWare-style export: free-text block, tab-separated
         return name, t
     assert last is not None

@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
 from roboisf.io.forcelog import ForceLog
@@ -67,8 +67,13 @@ def check_tool_radius(ball_diameter: float, tp: Toolpath, *, study_file: Path) -
         )
 
 
-def check_force_log(log: ForceLog, tp: Toolpath, *, time_offset: float = 0.0) -> list[str]:
+def check_force_log(
+    log: ForceLog, tp: Toolpath, *, time_offset: float = 0.0, point_time: ArrayLike | None = None
+) -> list[str]:
     """Forces of forming magnitude, and a log recorded along ``tp``.
+
+    The log time of each toolpath point is ``point_time`` (N,) s when the log was aligned
+    (:mod:`roboisf.sync`: a drifting clock, pauses), else the nominal ``tp.time + time_offset``.
 
     Raises
     ------
@@ -107,8 +112,8 @@ def check_force_log(log: ForceLog, tp: Toolpath, *, time_offset: float = 0.0) ->
             file=log.path,
             field="units",
         )
+    t = tp.time + time_offset if point_time is None else np.asarray(point_time, dtype=float)
     if log.position is not None:
-        t = tp.time + time_offset
         inside = (t >= log.time[0]) & (t <= log.time[-1])
         if inside.any():
             p = np.column_stack(
@@ -120,13 +125,13 @@ def check_force_log(log: ForceLog, tp: Toolpath, *, time_offset: float = 0.0) ->
                 raise InputError(
                     f"the logged tool positions (x,y,z) are {med * 1e3:.3g} mm (median) from "
                     f"the toolpath's tip at the same times (limit {PATH_TOL * 1e3:g} mm): a log "
-                    "of another path, or a wrong time_offset",
+                    "of another path, or a wrong time_offset / sync",
                     file=log.path,
                     field="x",
                 )
     warnings = []
     span = float(tp.time[-1] - tp.time[0])
-    after = float(log.time[-1] - (tp.time[-1] + time_offset))
+    after = float(log.time[-1] - t[-1])
     if after > max(60.0, 0.5 * span):
         warnings.append(
             f"force log {log.path}: runs {after:.0f} s past the end of the toolpath "

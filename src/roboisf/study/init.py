@@ -9,6 +9,13 @@ holder — and fills what no file says (robot model and placement, flange → ti
 the part when no part TOML is in the folder) from the caller's options, or with a ``"TODO: …"``
 string that ``load_study`` refuses with the key's name and what it expects.
 
+Formats (issue #13): a force log's profile and a joint log's (``detect_force_format``,
+``detect_joint_format``) are written as the log's ``format``, and each unit the file does not
+declare as a ``"TODO: …"`` in its ``units`` table (never guessed; joint angles beyond 2π + 0.5
+can only be degrees and are written so); a CAM program (tried last: a bare ``x,y,z`` list reads
+most numeric tables) is a run's ``toolpath`` with ``toolpath_format`` and ``toolpath_point =
+"tip"``, and leaves ``[tool] ball_diameter`` a TODO.
+
 Alignment: the run with a joint log gets ``sync = "position"`` (a real run drifts against
 nominal time; the joint log says where the tool was); a run without one ``sync = "time"``
 (``"force"`` aligns by the force signature; asked for, not assumed, because it needs a part the
@@ -22,6 +29,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from roboisf.errors import InputError
 
@@ -43,6 +52,13 @@ class DetectedFile:
     format: str
     details: dict[str, str] = field(default_factory=dict)
     problem: str = ""
+    #: study keys written beside the file (a log's ``format``/``units``, a CAM program's
+    #: ``toolpath_format``/``toolpath_point``); a ``"TODO: …"`` value is for the user to fill
+    keys: dict[str, Any] = field(default_factory=dict)
+
+
+#: What a reader returns: ``(format, details)`` or ``(format, details, study keys)``.
+_Result = tuple[str, dict[str, str]] | tuple[str, dict[str, str], dict[str, Any]]
 
 
 def _toolpath(p: Path) -> tuple[str, dict[str, str]]:
@@ -58,44 +74,142 @@ def _toolpath(p: Path) -> tuple[str, dict[str, str]]:
     }
 
 
-def _force_log(p: Path) -> tuple[str, dict[str, str]]:
-    from roboisf.io.forcelog import read_force_log
+def _units_keys(
+    needed: list[str], declared: dict[str, str], todo: dict[str, str]
+) -> tuple[dict[str, str], str]:
+    """``units`` to write for the quantities the file does not declare (a TODO each) and the
+    line shown to the user."""
+    missing = [q for q in needed if q not in declared]
+    shown = ", ".join(f"{q} {declared[q]}" for q in needed if q in declared)
+    if missing:
+        shown += ("; " if shown else "") + "NOT declared: " + ", ".join(missing) + " (TODO)"
+    return {q: _todo(todo[q]) for q in missing}, shown or "none needed"
 
-    note = "declared in the file"
+
+_FORCE_TODO = {
+    "time": "time unit of this log (s, ms)",
+    "force": "force unit of this log (N, kN)",
+    "moment": "moment unit of this log (N*m, N*mm)",
+}
+
+
+def _force_log(p: Path) -> _Result:
+    from roboisf.io.forcelog import detect_force_format, read_force_log
+
+    profile, cols, declared = detect_force_format(p)
+    has_m = all(m in cols for m in ("Mx", "My", "Mz"))
+    needed = ["force"] + (["moment"] if has_m else []) + ([] if profile == "ati" else ["time"])
+    if profile in ("roboisf", "parquet"):
+        # roboisf's own logs take the study's [units] when they do not declare theirs
+        units: dict[str, str] = {}
+        shown = ", ".join(f"{q} {declared[q]}" for q in needed if q in declared)
+        if any(q not in declared for q in needed):
+            shown = "NOT declared: the study's [units] apply (s, N, N*m unless set)"
+    else:
+        units, shown = _units_keys(needed, declared, _FORCE_TODO)
+    given = {"time": "s", "force": "N", "moment": "N*m"}  # placeholders to count samples only
+    frame = None if profile == "roboisf" else "sensor"
     try:
-        log = read_force_log(p, frame=None)
+        log = read_force_log(p, frame=frame, fmt=profile if profile != "parquet" else "auto")
     except InputError as e:
-        msg = str(e)
-        if "frame not declared" in msg or "unit not declared" in msg:
-            try:
-                log = read_force_log(p, frame="sensor")
-            except InputError as e2:
-                if "unit not declared" not in str(e2):
-                    raise
-                log = read_force_log(
-                    p, frame="sensor", time_unit="s", force_unit="N", moment_unit="N*m"
-                )
-                note = "NOT declared: [units] of the study applies (s, N, N*m unless set)"
-        else:
+        if "not declared" not in e.message:
             raise
-    return "force log (time, Fx..Mz)", {
+        # read it once with placeholder units to report its size; the study says the real ones
+        log = read_force_log(
+            p,
+            frame="sensor",
+            fmt=profile if profile != "parquet" else "auto",
+            time_unit=None if "time" in declared or profile == "ati" else given["time"],
+            force_unit=None if "force" in declared else given["force"],
+            moment_unit=None if "moment" in declared or not has_m else given["moment"],
+        )
+    details = {
+        "profile": profile,
         "samples": str(len(log)),
         "span": f"{log.time[0]:.3f} … {log.time[-1]:.3f} s",
-        "peak |F|": f"{float((log.force**2).sum(axis=1).max() ** 0.5):.4g} N",
-        "units": note,
+        "units": shown,
+        "moments": "yes" if log.moments_known else "no (3-component: point force at the tip)",
         "x,y,z": "yes" if log.position is not None else "no",
     }
+    if units:
+        details["peak |F|"] = "? (units TODO)"
+    else:
+        details["peak |F|"] = f"{float((log.force**2).sum(axis=1).max() ** 0.5):.4g} N"
+    keys: dict[str, Any] = {}
+    if profile not in ("roboisf", "parquet"):
+        keys["format"] = profile
+    if units:
+        keys["units"] = units
+    return f"force log ({profile})", details, keys
 
 
-def _joint_log(p: Path) -> tuple[str, dict[str, str]]:
-    from roboisf.io.jointlog import read_joint_log
+_JOINT_TODO = {
+    "time": "time unit of this log (s, ms)",
+    "angle": "angle unit of this log (deg, rad)",
+}
 
-    log = read_joint_log(p)
-    return "joint log (time, q1..q6)", {
+
+def _joint_log(p: Path) -> _Result:
+    from roboisf.io.jointlog import detect_joint_format, read_joint_log
+
+    profile, cols, declared = detect_joint_format(p)
+    if profile == "roboisf" and "angle" not in declared:
+        raise InputError("missing '# units: time=s angle=deg' line", file=p, field="units")
+    units, shown = _units_keys(["time", "angle"], declared, _JOINT_TODO)
+    log = read_joint_log(
+        p,
+        fmt=profile if profile != "parquet" else "auto",
+        time_unit=None if "time" in declared else "s",
+        angle_unit=None if "angle" in declared else "rad",
+    )
+    if "angle" in units:
+        # undeclared angles: values beyond 2π rad (with margin) can only be degrees
+        big = float(np.abs(log.q).max())
+        if big > 2 * np.pi + 0.5:
+            units["angle"] = "deg"
+            todo = [q for q in _todos(units)]
+            shown = ", ".join(f"{q} {declared[q]}" for q in ("time", "angle") if q in declared)
+            shown += f"{'; ' if shown else ''}angle deg (not declared; up to {big:.4g}: not rad)"
+            if todo:
+                shown += "; NOT declared: " + ", ".join(todo) + " (TODO)"
+    details = {
+        "profile": profile,
         "samples": str(len(log.time)),
-        "span": f"{log.time[0]:.3f} … {log.time[-1]:.3f} s",
-        "units": "declared in the file",
+        "span": f"{log.time[0]:.3f} … {log.time[-1]:.3f} s"
+        + (" (if s)" if "time" in units else ""),
+        "columns": " ".join(cols.get(f"q{i}", "?") for i in range(1, 7)),
+        "units": shown,
     }
+    keys: dict[str, Any] = {}
+    if profile not in ("roboisf", "parquet"):
+        keys["format"] = profile
+    if units:
+        keys["units"] = units
+    return f"joint log ({profile})", details, keys
+
+
+def _units_text(u: object) -> str:
+    return "/".join(str(x) for x in u) if isinstance(u, list | tuple) else str(u)
+
+
+def _cam_toolpath(p: Path) -> _Result:
+    """A CAM program (G-code, Sinumerik, APT/CL, x,y,z list) as a run's toolpath."""
+    from roboisf.toolpath.importer import ImportOptions, detect_toolpath_format, read_cam_moves
+
+    fmt = detect_toolpath_format(p)
+    if fmt == "csv":
+        raise InputError("a roboisf toolpath CSV (read as such)", file=p)
+    moves = read_cam_moves(p, ImportOptions(fmt=fmt))
+    n = len(moves.point)
+    details = {
+        "program": fmt,
+        "moves": str(n),
+        "point": "tip (the CAM convention for a ball tool; center if it names the ball centre)",
+        "units": _units_text(moves.meta.get("units", "mm")) + " (from the program)",
+    }
+    if moves.warnings:
+        details["warnings"] = f"{len(moves.warnings)} (roboisf toolpath import shows them)"
+    return f"CAM program ({fmt})", details, {"toolpath_format": fmt, "toolpath_point": "tip"}
 
 
 def _thickness(p: Path) -> tuple[str, dict[str, str]]:
@@ -123,15 +237,18 @@ def _scan(p: Path) -> tuple[str, dict[str, str]]:
     from roboisf.scan import read_scan
 
     cloud = read_scan(p, unit="mm")
+    unit = getattr(cloud, "unit", "mm")
     return f"scan ({p.suffix.lower().lstrip('.')})", {
         "points": str(len(cloud.points)),
-        "units": "mm assumed (scan_unit in study.toml)",
+        "units": "mm assumed (scan_unit in study.toml)"
+        if unit == "mm"
+        else f"{unit} (declared by the format)",
     }
 
 
 #: ``(kind, reader)`` in the order they are tried; a reader returns ``(format, details)`` or
 #: raises :class:`InputError`. Add a reader here and ``study init`` detects its files.
-READERS: list[tuple[str, Callable[[Path], tuple[str, dict[str, str]]]]] = [
+READERS: list[tuple[str, Callable[[Path], _Result]]] = [
     ("part", _part),
     ("compliance", _compliance),
     ("toolpath", _toolpath),
@@ -139,6 +256,7 @@ READERS: list[tuple[str, Callable[[Path], tuple[str, dict[str, str]]]]] = [
     ("joint_log", _joint_log),
     ("thickness", _thickness),
     ("scan", _scan),
+    ("toolpath", _cam_toolpath),  # last: a bare x,y,z list reads most numeric tables
 ]
 
 _SUFFIXES = {
@@ -166,14 +284,16 @@ def detect_files(folder: str | Path) -> list[DetectedFile]:
             if only is None and p.suffix.lower() in {".toml", ".json"}:
                 continue
             try:
-                fmt, details = reader(p)
+                res = reader(p)
             except InputError as e:
                 problems.append(f"{kind}: {e.message}")
                 continue
             except Exception as e:  # a reader's bug must not stop the survey
                 problems.append(f"{kind}: {type(e).__name__}")
                 continue
-            out.append(DetectedFile(p, kind, fmt, details))
+            fmt, details = res[0], res[1]
+            keys: dict[str, Any] = res[2] if len(res) == 3 else {}
+            out.append(DetectedFile(p, kind, fmt, details, keys=keys))
             break
         else:
             out.append(DetectedFile(p, "unknown", "", {}, "; ".join(problems[:3])))
@@ -191,6 +311,10 @@ def _role(name: str) -> str | None:
 
 def _todo(what: str) -> str:
     return f"TODO: {what}"
+
+
+def _todos(table: dict[str, Any] | None) -> list[str]:
+    return [k for k, v in (table or {}).items() if str(v).startswith("TODO")]
 
 
 @dataclass
@@ -265,12 +389,14 @@ def draft_study(
     holder_c = [f for f in comps if "holder" in f.path.name.lower()]
     tool_c = [f for f in comps if f not in holder_c]
     tool: dict[str, Any] = {}
-    if tps:
+    csv_tps = [f for f in tps if "toolpath_format" not in f.keys]
+    if csv_tps:
         from roboisf.io.toolpath_csv import read_toolpath_csv
 
-        tool["ball_diameter"] = round(2 * read_toolpath_csv(tps[0].path).tool_radius * 1e3, 6)
-        notes.append(f"ball diameter {tool['ball_diameter']:g} mm from {tps[0].path.name}")
+        tool["ball_diameter"] = round(2 * read_toolpath_csv(csv_tps[0].path).tool_radius * 1e3, 6)
+        notes.append(f"ball diameter {tool['ball_diameter']:g} mm from {csv_tps[0].path.name}")
     else:
+        # a CAM program does not say its ball (APT CUTTER/ may, but it is the user's to confirm)
         tool["ball_diameter"] = _todo("ball diameter in mm")
         todo.append("tool.ball_diameter")
     if len(tool_c) == 1:
@@ -314,11 +440,18 @@ def draft_study(
             r[key] = rel(got.path) if got else _todo(f"the {run} run's {kind} file")
             if got is None:
                 todo.append(f"runs.{run}.{key}")
+            elif kind == "toolpath" and got.keys:
+                r.update(got.keys)
+                notes.append(
+                    f'runs.{run}.toolpath_point = "tip": {got.path.name} names the ball tip '
+                    '(CAM convention); "center" if it names the ball centre'
+                )
         r["scan_unit"] = "mm"
         if run == "robot":
             j = pick("joint_log", run)
             if j is not None:
-                r["joints"] = rel(j.path)
+                r["joints"] = {"file": rel(j.path), **j.keys} if j.keys else rel(j.path)
+                todo += [f"runs.{run}.joints.units.{q}" for q in _todos(j.keys.get("units"))]
             th = pick("thickness", run)
             if th is not None:
                 r["thickness"] = rel(th.path)
@@ -331,6 +464,9 @@ def draft_study(
             "pose": _pose(pose, f"{what} [x, y, z, roll, pitch, yaw] in mm and deg"),
             "load_on": load_on,
         }
+        if fl is not None and fl.keys:
+            r["forces"].update(fl.keys)
+            todo += [f"runs.{run}.forces.units.{q}" for q in _todos(fl.keys.get("units"))]
         if fl is None:
             todo.append(f"runs.{run}.forces.file")
         if pose is None:

@@ -66,6 +66,7 @@ __all__ = [
     "load_toolpath",
     "moves_to_toolpath",
     "read_cam_moves",
+    "read_toolpath_file",
     "study_toolpath",
 ]
 
@@ -523,6 +524,41 @@ def load_toolpath(
     if fmt == "csv":
         return read_toolpath_csv(path)
     return import_toolpath(path, part, tool_radius, ImportOptions(fmt=fmt, point=point))
+
+
+def read_toolpath_file(
+    path: str | Path,
+    part: Part | None = None,
+    tool_radius: float | None = None,
+    *,
+    option: str = "--toolpath",
+) -> Toolpath:
+    """A command's toolpath argument: roboisf's toolpath CSV, or a CAM program imported against
+    ``part`` with the ball radius ``tool_radius`` [m] (tip point, as :func:`load_toolpath`).
+
+    Raises
+    ------
+    InputError
+        a CAM program without a part or a ball diameter (pointing to ``roboisf toolpath
+        import``), or any error of the readers.
+    """
+    from roboisf.io.toolpath_csv import read_toolpath_csv
+
+    path = Path(path)
+    fmt = detect_toolpath_format(path)
+    if fmt == "csv":
+        return read_toolpath_csv(path)
+    if part is None or tool_radius is None:
+        need = "a part and a ball diameter" if part is None else "the ball diameter"
+        raise InputError(
+            f"a {fmt} CAM program, not a roboisf toolpath CSV: importing it needs {need}; "
+            "convert it first with `roboisf toolpath import FILE --part PART.toml "
+            "--tool-diameter MM -o toolpath.csv`"
+            + (" or give --tool-diameter" if part is not None else ""),
+            file=path,
+            field=option,
+        )
+    return load_toolpath(path, part, tool_radius, fmt=fmt)
 
 
 def study_toolpath(study: Study, run: RunSpec, part: Part) -> Toolpath:

@@ -261,7 +261,8 @@ def apply_equipment(
     (:func:`roboisf.sync.force.expected_azimuth`: a pyramid's bottom pass), when its log keeps
     the nominal clock (``sync = "time"``). Both runs share the clock model (same drift, offset,
     pauses). The file names stay those of the clean study; a layout other than roboisf's is
-    read by the readers' automatic format detection (no ``format`` key is written)."""
+    read by the readers' automatic format detection (no ``format`` key is written); the ABB
+    joint layout, whose header declares no units, gets ``joints = {file, units}``."""
     if eq.is_clean:
         return
     from roboisf.sync.force import expected_azimuth
@@ -295,10 +296,18 @@ def apply_equipment(
         write_force_profile(log, folder / f"{name}_forces.csv", profile)
     tau, q = equipment_joint_log(eq, tp, truth.q, cell.joint_rate)
     write_joint_profile(folder / "robot_joints.csv", tau, q, eq.joint_profile)
-    if eq.clock_is_nominal:
-        return
     study = folder / "study.toml"
     data = tomllib.loads(study.read_text(encoding="utf-8"))
+    if eq.joint_profile == "abb":
+        # an ABB export's header declares no units: the study says them, as its user would
+        data["runs"]["robot"]["joints"] = {
+            "file": "robot_joints.csv",
+            "units": {"time": "s", "angle": "deg"},
+        }
+    if eq.clock_is_nominal:
+        with atomic_write(study, "wb") as fh:
+            fh.write(tomli_w.dumps(data).encode())
+        return
     data["runs"]["robot"]["sync"] = "position"
     data["runs"]["robot"]["forces"]["clock"] = eq.force_clock
     data["runs"]["cnc"]["sync"] = "time" if cnc_eq.clock_is_nominal else "force"
