@@ -215,6 +215,41 @@ def test_toolpath_deviation_does_not_depend_on_scan_order():
     np.testing.assert_allclose(a.dn, b.dn, rtol=0, atol=1e-15)
 
 
+def test_outliers_chunked_and_presorted_equal_one_plain_tree_query():
+    """Over several query chunks (> 65 536 points), with or without the caller's spatial sort,
+    the mask is the one of a single whole-cloud cKDTree query (an independent code path)."""
+    from scipy.spatial import cKDTree
+
+    from roboisf.parts.mesh import spatial_order
+
+    s = synthetic_scan(CONE, 150_000, offset=OFFSET, noise=25e-6, seed=8)
+    X = np.vstack([s.points, np.random.default_rng(2).uniform(-0.05, 0.05, (300, 3))])
+    d, _ = cKDTree(X).query(X, k=9)
+    m = d[:, 1:].mean(axis=1)
+    expect = m <= m.mean() + 3.0 * m.std()
+    assert 0 < (~expect).sum() < 2000
+    np.testing.assert_array_equal(statistical_outliers(X), expect)
+    o = spatial_order(X)
+    np.testing.assert_array_equal(statistical_outliers(X[o], ordered=True), expect[o])
+
+
+def test_presorted_toolpath_deviations_equal_the_sorting_path():
+    from roboisf.parts.mesh import spatial_order
+
+    s = synthetic_scan(CONE, 100_000, offset=OFFSET, noise=25e-6, seed=4)
+    tp = step_down(CONE, tool_radius=5e-3, step_down=2e-3)
+    keep = tp.contact[:, 2] < -RIM
+    P, N = tp.contact[keep], tp.normal[keep]
+    a = toolpath_deviations(point_deviations(s.points, CONE), P, N)
+    X = s.points[spatial_order(s.points)]
+    b = toolpath_deviations(point_deviations(X, CONE, ordered=True), P, N, ordered=True)
+    assert a.valid.sum() > 0.9 * len(P)
+    np.testing.assert_array_equal(a.valid, b.valid)
+    np.testing.assert_array_equal(a.n_points, b.n_points)
+    np.testing.assert_allclose(a.dn, b.dn, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(a.spread, b.spread, rtol=0, atol=1e-15)
+
+
 def test_compare_refuses_a_scan_that_does_not_overlap():
     s = synthetic_scan(CONE, 20_000, seed=1)
     cloud = ScanCloud(s.points + np.array([0.0, 0.0, 0.03]), None, "off.ply")
