@@ -179,10 +179,22 @@ def test_statistical_outlier_removal():
     assert keep[: len(pts)].mean() > 0.99 and not keep[-2:].any()
 
 
-def test_statistical_outliers_match_the_brute_force_definition_in_any_order():
-    """The Morton-ordered query gives exactly the PCL/Open3D definition: mean distance to the k
-    nearest neighbours (brute force over all pairs here), threshold mean + r·std — whatever
-    order the points come in."""
+@pytest.fixture(params=["numba", "cKDTree"])
+def knn_engine(request, monkeypatch):
+    """Run a test on the compiled grid k-NN and on the k-d tree fallback."""
+    from roboisf.scan import knn_kernel
+
+    if request.param == "numba" and not knn_kernel.HAVE_NUMBA:
+        pytest.skip("numba not installed")
+    if request.param == "cKDTree":
+        monkeypatch.setattr(knn_kernel, "HAVE_NUMBA", False)
+    return request.param
+
+
+def test_statistical_outliers_match_the_brute_force_definition_in_any_order(knn_engine):
+    """Both engines give exactly the PCL/Open3D definition: mean distance to the k nearest
+    neighbours (brute force over all pairs here), threshold mean + r·std — whatever order the
+    points come in."""
     rng = np.random.default_rng(5)
     pts = rng.normal(0.0, 1e-3, (700, 3))
     pts[:7] *= 8.0  # a few far points
@@ -213,6 +225,74 @@ def test_toolpath_deviation_does_not_depend_on_scan_order():
     assert a.valid.all()
     np.testing.assert_array_equal(a.n_points, b.n_points)
     np.testing.assert_allclose(a.dn, b.dn, rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize(
+    "cloud",
+    ["plane", "line", "duplicates", "k+1 points", "far cluster", "stray points"],
+)
+def test_grid_knn_equals_a_tree_query_on_awkward_clouds(cloud):
+    """The compiled grid search against scipy's k-d tree on clouds that stress its cell size
+    and ring search: flat (zero z span), a line, exact duplicates, the smallest cloud, and a
+    dense patch with a few points far away (many empty rings)."""
+    from scipy.spatial import cKDTree
+
+    from roboisf.scan import knn_kernel
+
+    if not knn_kernel.HAVE_NUMBA:
+        pytest.skip("numba not installed")
+    rng = np.random.default_rng(11)
+    if cloud == "plane":
+        X = np.column_stack([rng.random((5000, 2)), np.zeros(5000)])
+    elif cloud == "line":
+        X = np.column_stack([rng.random(3000), np.zeros(3000), np.zeros(3000)])
+    elif cloud == "duplicates":
+        X = np.repeat(rng.random((800, 3)), 3, axis=0)
+    elif cloud == "k+1 points":
+        X = rng.random((9, 3))
+    elif cloud == "far cluster":
+        X = np.vstack([rng.random((4000, 3)) * 1e-3, rng.random((5, 3)) * 10.0])
+    else:  # a dense sheet and strays thousands of cells away (left to the k-d tree)
+        X = np.column_stack([rng.random((5000, 2)), np.zeros(5000)])
+        X = np.vstack([X, [[0.5, 0.5, 100.0], [0.2, 0.1, -80.0], [0.5, 0.5, 100.001]]])
+    d, _ = cKDTree(X).query(X, k=9)
+    expect = d[:, 1:].mean(axis=1)
+    np.testing.assert_allclose(knn_kernel.mean_knn_distance(X, 8), expect, rtol=1e-14, atol=0)
+
+
+def test_outliers_chunked_and_presorted_equal_one_plain_tree_query(knn_engine):
+    """Over several query chunks (> 65 536 points), with or without the caller's spatial sort,
+    the mask is the one of a single whole-cloud cKDTree query (an independent code path)."""
+    from scipy.spatial import cKDTree
+
+    from roboisf.parts.mesh import spatial_order
+
+    s = synthetic_scan(CONE, 150_000, offset=OFFSET, noise=25e-6, seed=8)
+    X = np.vstack([s.points, np.random.default_rng(2).uniform(-0.05, 0.05, (300, 3))])
+    d, _ = cKDTree(X).query(X, k=9)
+    m = d[:, 1:].mean(axis=1)
+    expect = m <= m.mean() + 3.0 * m.std()
+    assert 0 < (~expect).sum() < 2000
+    np.testing.assert_array_equal(statistical_outliers(X), expect)
+    o = spatial_order(X)
+    np.testing.assert_array_equal(statistical_outliers(X[o], ordered=True), expect[o])
+
+
+def test_presorted_toolpath_deviations_equal_the_sorting_path():
+    from roboisf.parts.mesh import spatial_order
+
+    s = synthetic_scan(CONE, 100_000, offset=OFFSET, noise=25e-6, seed=4)
+    tp = step_down(CONE, tool_radius=5e-3, step_down=2e-3)
+    keep = tp.contact[:, 2] < -RIM
+    P, N = tp.contact[keep], tp.normal[keep]
+    a = toolpath_deviations(point_deviations(s.points, CONE), P, N)
+    X = s.points[spatial_order(s.points)]
+    b = toolpath_deviations(point_deviations(X, CONE, ordered=True), P, N, ordered=True)
+    assert a.valid.sum() > 0.9 * len(P)
+    np.testing.assert_array_equal(a.valid, b.valid)
+    np.testing.assert_array_equal(a.n_points, b.n_points)
+    np.testing.assert_allclose(a.dn, b.dn, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(a.spread, b.spread, rtol=0, atol=1e-15)
 
 
 def test_compare_refuses_a_scan_that_does_not_overlap():

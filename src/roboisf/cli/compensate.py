@@ -14,7 +14,6 @@ import math
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
 
 from roboisf.cli.console import state
@@ -133,6 +132,8 @@ def register(app: typer.Typer) -> None:
         per_point.csv (mm, flags), compensation.json and compensation.html/.png (mean |dn| per
         lap before/after, commanded offset per lap, the largest lap-to-lap step).
         """
+        import numpy as np
+
         from roboisf.compensate import CompensationOptions, write_compensation
 
         for flag, v in (

@@ -24,9 +24,6 @@ from roboisf.cli.console import state
 from roboisf.cli.outputs import DIR_HELP, Overwrite, output_dir
 from roboisf.cli.toolpath import warn_truncated
 from roboisf.io.atomic import staged_directory
-from roboisf.io.export import FORMAT_SUFFIXES, write_toolpath
-from roboisf.io.program import RobotTool, program_config
-from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.progress import Progress, task
 
 __all__ = ["build_demo", "register"]
@@ -41,6 +38,9 @@ def build_demo(
 ) -> list[Path]:
     """Write the demo into ``folder`` (which exists and is empty); return the report paths."""
     from roboisf.decompose.pipeline import analyze, write_results
+    from roboisf.io.export import FORMAT_SUFFIXES, write_toolpath
+    from roboisf.io.program import RobotTool, program_config
+    from roboisf.io.toolpath_csv import read_toolpath_csv
     from roboisf.report import write_index
     from roboisf.virtual.cell import PAPER_TABLE5, build_study, paper_scenario_cell
 

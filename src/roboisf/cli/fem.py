@@ -6,18 +6,19 @@ Lengths in mm, moduli in GPa on the command line; the JSON file is SI.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
 import typer
 
 from roboisf.cli.console import state
 from roboisf.cli.outputs import FILE_HELP, Overwrite, output_file
 from roboisf.errors import InputError
-from roboisf.fem.geometry import HolderSection
-from roboisf.fem.material import Material
-from roboisf.fem.result import ComplianceResult
 from roboisf.io.atomic import check_not_input
+
+if TYPE_CHECKING:  # the FE code (numpy, scipy) is imported by the command that runs
+    from roboisf.fem.geometry import HolderSection
+    from roboisf.fem.material import Material
+    from roboisf.fem.result import ComplianceResult
 
 __all__ = ["register"]
 
@@ -33,6 +34,8 @@ _SOLVER = typer.Option("auto", help="auto, pardiso or superlu.")
 
 
 def _material(E_gpa: float, nu: float, name: str = "steel") -> Material:
+    from roboisf.fem.material import Material
+
     return Material(E=E_gpa * 1e9, nu=nu, name=name)
 
 
@@ -60,6 +63,8 @@ def _compute(
 
 
 def _summary(result: ComplianceResult, what: str) -> None:
+    import numpy as np
+
     k = result.compliance
     state.info(
         f"{what} compliance about {np.round(result.reference_point * 1e3, 4).tolist()} mm "
@@ -90,6 +95,8 @@ def _write(result: ComplianceResult, output: Path, inputs: list[Path]) -> None:
 
 
 def _parse_section(text: str) -> HolderSection:
+    from roboisf.fem.geometry import HolderSection
+
     parts = text.split(":")
     try:
         vals = [float(p) * MM for p in parts]
@@ -144,6 +151,8 @@ def register(app: typer.Typer) -> None:
         overwrite: Overwrite = False,
     ) -> None:
         """6×6 compliance of a ball-end tool (or a STEP body) about its tip, by six FE loads."""
+        import numpy as np
+
         from roboisf.fem import BallEndTool, StepGeometry
 
         output_file(output, "tool-stiffness", overwrite, [step])

@@ -16,26 +16,19 @@ import math
 import os
 from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
+from roboisf import parts  # lazy: the geometry loads when a command builds a part
 from roboisf.cli.console import state
 from roboisf.cli.outputs import FILE_HELP, Overwrite, output_file
 from roboisf.errors import InputError
 from roboisf.io.atomic import check_not_input
-from roboisf.parts import (
-    VWACF,
-    AxisymmetricPart,
-    Cone,
-    MeshPart,
-    Part,
-    ProfilePart,
-    Pyramid,
-    read_profile_csv,
-    save_part,
-)
-from roboisf.parts.axisymmetric import PAPER_SHEET_THICKNESS, VWACF_DEFAULT_ARC_RADIUS
+from roboisf.parts.defaults import PAPER_SHEET_THICKNESS, VWACF_DEFAULT_ARC_RADIUS
+
+if TYPE_CHECKING:  # the geometry (numpy, scipy) is imported by the command that runs
+    from roboisf.parts import AxisymmetricPart, Part
 
 __all__ = ["register"]
 
@@ -96,7 +89,7 @@ def _save(make: Callable[[], Part], output: Path, inputs: list[Path], overwrite:
     check_not_input(output, inputs)
     output_file(output, "part", overwrite, inputs)
     part = make()
-    save_part(part, output)
+    parts.save_part(part, output)
     state.info(f"wrote {output}: {part.kind}, depth {part.depth * 1e3:.3f} mm")
     return part
 
@@ -113,7 +106,7 @@ def _cone(
 ) -> None:
     """Truncated cone (defaults: the paper's Ø87 mm, 71°, 102.97 mm)."""
     _save(
-        lambda: Cone(
+        lambda: parts.Cone(
             opening_diameter * 1e-3,
             math.radians(wall_angle),
             depth * 1e-3,
@@ -138,7 +131,7 @@ def _vwacf(
 ) -> None:
     """Variable-wall-angle frustum (defaults: Ø88.15 mm, 39 mm arc, 0° → 90°)."""
     _save(
-        lambda: VWACF(
+        lambda: parts.VWACF(
             opening_diameter * 1e-3,
             arc_radius * 1e-3,
             math.radians(final_wall_angle),
@@ -162,6 +155,8 @@ def _profile(
     """Part from a generatrix CSV; the TOML stores the CSV's path relative to itself."""
 
     def make() -> AxisymmetricPart:
+        from roboisf.parts import ProfilePart, read_profile_csv
+
         r, z = read_profile_csv(profile)
         rel = os.path.relpath(profile.resolve(), output.resolve().parent)
         return ProfilePart(
@@ -190,7 +185,7 @@ def _pyramid(
 ) -> None:
     """Truncated pyramid, square or rectangular, flat bottom (docs/parts.md)."""
     _save(
-        lambda: Pyramid(
+        lambda: parts.Pyramid(
             top_length * 1e-3,
             top_width * 1e-3,
             math.radians(wall_angle),
@@ -220,6 +215,8 @@ def _mesh(
     stores the file's path relative to itself. The surface must be the tool-side surface."""
 
     def make() -> Part:
+        from roboisf.parts import MeshPart
+
         rel = Path(os.path.relpath(mesh.resolve(), output.resolve().parent)).as_posix()
         return MeshPart.from_file(
             mesh,

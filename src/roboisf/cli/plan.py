@@ -5,14 +5,16 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
 import typer
 
 from roboisf.cli.console import state
 from roboisf.cli.outputs import DIR_HELP, Overwrite, output_dir, study_inputs
 from roboisf.errors import InputError
+
+if TYPE_CHECKING:  # numpy is imported by the command that runs (fast --help)
+    import numpy as np
 
 __all__ = ["parse_range", "register"]
 
@@ -23,6 +25,8 @@ def register(app: typer.Typer) -> None:
 
 def parse_range(text: str, field: str) -> np.ndarray:
     """``"start:stop:count"`` (inclusive, evenly spaced) or ``"a,b,c"`` → values (CLI units)."""
+    import numpy as np
+
     t = text.strip()
     if not t:
         raise InputError("empty range: give start:stop:count or a comma list", field=field)
@@ -102,6 +106,8 @@ def plan_cmd(
     top: int = typer.Option(10, "--top", help="Candidates shown in the summary."),
 ) -> None:
     """Rank work-object placements (x, y, z, yaw) and tool rotations by predicted deflection."""
+    import numpy as np
+
     from roboisf.frames import make_transform, rot_z
     from roboisf.io.atomic import staged_directory
     from roboisf.plan import placement_grid, plan_placements
@@ -304,6 +310,7 @@ def _summary(res: Any, robot: str, source: str, scheduler: str) -> dict[str, Any
 
 
 def _write_tables(res: Any, d: Path, summary: dict[str, Any]) -> None:
+    import numpy as np
     import pandas as pd
 
     from roboisf.io.atomic import atomic_path, atomic_write
@@ -325,6 +332,8 @@ def _write_tables(res: Any, d: Path, summary: dict[str, Any]) -> None:
 
 
 def _json_default(o: Any) -> Any:
+    import numpy as np
+
     if isinstance(o, np.generic):
         return o.item()
     raise TypeError(type(o).__name__)

@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numpy as np
 import typer
 from rich.markup import escape
 
@@ -13,7 +12,9 @@ from roboisf.cli.console import state
 from roboisf.cli.outputs import FILE_HELP, Overwrite, output_file
 from roboisf.errors import InputError
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # numpy and the robot are imported by the command that runs (fast --help)
+    import numpy as np
+
     from roboisf.robot import RobotModel
 
 __all__ = ["register"]
@@ -28,6 +29,8 @@ def register(app: typer.Typer) -> None:
 
 
 def _floats(text: str, n: int, field: str) -> np.ndarray:
+    import numpy as np
+
     try:
         v = np.array([float(t) for t in text.split(",")])
     except ValueError:
@@ -59,6 +62,8 @@ def _model(robot: str, stiffness: Path | None, tool: str | None) -> RobotModel:
 
 
 def _placement(text: str | None, model: RobotModel) -> np.ndarray:
+    import numpy as np
+
     from roboisf.frames import make_transform, rot_z
 
     if text is None:
@@ -140,6 +145,8 @@ def show_cmd(
     half_width: float = typer.Option(500.0, "--half-width", help="Map half width (mm)."),
 ) -> None:
     """Show a robot's limits and joint stiffness; optionally write a stiffness map PNG."""
+    import numpy as np
+
     if output is not None:
         output_file(output, "robot show", overwrite, [stiffness, *_files(robot, tool)])
     m = _model(robot, stiffness, tool)
@@ -183,6 +190,7 @@ def identify_cmd(
     """Identify joint stiffness K_1..K_6 from elasto-static experiments."""
     import warnings
 
+    import numpy as np
     import tomli_w
 
     from roboisf.io.atomic import atomic_write, check_not_input
@@ -283,6 +291,8 @@ def deflect_cmd(
     ),
 ) -> None:
     """VJM deflection of the tool tip along a toolpath under the logged forming wrench."""
+    import numpy as np
+
     from roboisf.io.atomic import atomic_write, check_not_input
     from roboisf.io.forcelog import attach_to_toolpath, read_force_log
     from roboisf.io.jointlog import read_joint_log

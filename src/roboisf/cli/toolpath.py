@@ -25,9 +25,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any
 
-import numpy as np
 import typer
 
+from roboisf import parts  # lazy: the geometry loads when a command builds a part
 from roboisf.cli.console import state
 from roboisf.cli.outputs import FILE_HELP, Overwrite, output_file
 from roboisf.cli.part import (
@@ -40,29 +40,18 @@ from roboisf.cli.part import (
     WallAngle,
 )
 from roboisf.errors import InputError
-from roboisf.frames.rotations import abc_to_matrix, rpy_to_matrix
-from roboisf.frames.se3 import make_transform
 from roboisf.io.atomic import check_not_input
-from roboisf.io.export import ROBOT_FORMATS, check_program_name, infer_format, write_toolpath
-from roboisf.io.gcode import WORK_OFFSETS
-from roboisf.io.program import RobotTool, parse_arm_config, program_config
-from roboisf.parts import (
-    VWACF,
-    AxisymmetricPart,
-    Cone,
-    Part,
-    ProfilePart,
-    load_part,
-    read_profile_csv,
-)
-from roboisf.parts.axisymmetric import VWACF_DEFAULT_ARC_RADIUS
-from roboisf.parts.io import part_files
-from roboisf.toolpath import toolpath_for_part
-from roboisf.toolpath.generate import MAX_POINTS
-from roboisf.toolpath.toolpath import Toolpath
+from roboisf.parts.defaults import VWACF_DEFAULT_ARC_RADIUS
+from roboisf.toolpath.limits import MAX_POINTS
 
+# numpy, the geometry and the writers are imported by the command that runs (fast --help)
 if typing.TYPE_CHECKING:
+    import numpy as np
+
+    from roboisf.io.program import RobotTool
+    from roboisf.parts import AxisymmetricPart, Part
     from roboisf.robot.model import RobotModel
+    from roboisf.toolpath.toolpath import Toolpath
 
 __all__ = ["PathOptions", "generate", "register", "warn_truncated"]
 
@@ -213,6 +202,10 @@ class PathOptions:
 
     def placement(self) -> np.ndarray | None:
         """``T_base_work`` (4, 4) m from ``--placement`` or ``--work-frame`` (None: not given)."""
+        import numpy as np
+
+        from roboisf.frames.rotations import abc_to_matrix, rpy_to_matrix
+
         if self.placement_ is not None and self.work_frame is not None:
             raise InputError("give --placement or --work-frame, not both", field="--placement")
         if self.work_frame is not None:
@@ -237,6 +230,10 @@ class PathOptions:
 
     def robot_tool(self) -> RobotTool | None:
         """The tool from ``--tool`` / ``--tool-length`` (None: not given)."""
+        import numpy as np
+
+        from roboisf.io.program import RobotTool
+
         if self.tool is not None and self.tool_length is not None:
             raise InputError("give --tool or --tool-length, not both", field="--tool")
         length = self.tool_length
@@ -304,6 +301,8 @@ def generate(part: Part, opts: PathOptions) -> Toolpath:
     (:mod:`roboisf.toolpath.generate`); every other part — and any part with
     ``--scallop-height`` — the ball-centre slicer (:mod:`roboisf.toolpath.slice`).
     """
+    from roboisf.toolpath import toolpath_for_part
+
     opts.check()
     return toolpath_for_part(
         part,
@@ -334,6 +333,10 @@ def write(tp: Toolpath, output: Path, fmt: str | None, opts: PathOptions) -> str
     A robot program needs ``--placement`` and ``--tool``; with a robot (``--robot`` or the
     study's) IK along the path gives the configuration data.
     """
+    from roboisf.frames.se3 import make_transform
+    from roboisf.io.export import infer_format, write_toolpath
+    from roboisf.io.program import parse_arm_config, program_config
+
     fmt = infer_format(output, fmt)
     T, tool, model = program_frames(fmt, opts, output)
     config = None
@@ -361,6 +364,9 @@ def program_frames(
 ) -> tuple[np.ndarray | None, RobotTool | None, RobotModel | None]:
     """Placement, tool and robot of a program; a robot program must have the first two and a
     file name that is a valid program name."""
+    from roboisf.io.export import ROBOT_FORMATS, check_program_name
+    from roboisf.io.gcode import WORK_OFFSETS
+
     check_program_name(output, fmt)
     if opts.work_offset not in WORK_OFFSETS:
         raise InputError(
@@ -390,6 +396,8 @@ def program_frames(
 def _run(
     part_factory, output: Path, fmt: str | None, opts: PathOptions, inputs: list[Path]
 ) -> None:
+    from roboisf.io.export import infer_format
+
     check_not_input(output, inputs)
     fmt = infer_format(output, fmt)  # fail before the (possibly long) generation
     opts.check()
@@ -510,7 +518,9 @@ def _toolpath_from_part_file(
         )
     if output is None:
         raise InputError("missing -o/--output", field="--output")
-    _run(lambda: load_part(part), output, fmt, opts, part_files(part))
+    from roboisf.parts.io import part_files
+
+    _run(lambda: parts.load_part(part), output, fmt, opts, part_files(part))
 
 
 @toolpath_app.command("cone")
@@ -526,7 +536,7 @@ def _cone(
 ) -> None:
     """Truncated cone of constant wall angle (defaults: the paper's Ø87 mm, 71°, 102.97 mm)."""
     _run(
-        lambda: Cone(opening_diameter * 1e-3, math.radians(wall_angle), depth * 1e-3),
+        lambda: parts.Cone(opening_diameter * 1e-3, math.radians(wall_angle), depth * 1e-3),
         output,
         fmt,
         opts,
@@ -547,7 +557,9 @@ def _vwacf(
 ) -> None:
     """Variable-wall-angle frustum: arc generatrix tangent to the sheet at the rim (0° → final)."""
     _run(
-        lambda: VWACF(opening_diameter * 1e-3, arc_radius * 1e-3, math.radians(final_wall_angle)),
+        lambda: parts.VWACF(
+            opening_diameter * 1e-3, arc_radius * 1e-3, math.radians(final_wall_angle)
+        ),
         output,
         fmt,
         opts,
@@ -567,6 +579,8 @@ def _profile(
     """Any axisymmetric part from a generatrix polyline (CSV r,z in mm)."""
 
     def make() -> AxisymmetricPart:
+        from roboisf.parts import ProfilePart, read_profile_csv
+
         r, z = read_profile_csv(profile)
         return ProfilePart(r=tuple(r), z=tuple(z), source=str(profile))
 

@@ -21,17 +21,15 @@ from __future__ import annotations
 import re
 from collections.abc import Callable
 from pathlib import Path
-
-from numpy.typing import ArrayLike
+from typing import TYPE_CHECKING
 
 from roboisf.errors import InputError
-from roboisf.io.fanuc import write_fanuc
-from roboisf.io.gcode import write_gcode
-from roboisf.io.krl import write_krl
-from roboisf.io.program import ArmConfig, RobotTool
-from roboisf.io.rapid import write_rapid
-from roboisf.io.toolpath_csv import write_toolpath_csv
-from roboisf.toolpath.toolpath import Toolpath
+
+if TYPE_CHECKING:  # the writers (numpy, pandas) load on the first write: checks stay fast
+    from numpy.typing import ArrayLike
+
+    from roboisf.io.program import ArmConfig, RobotTool
+    from roboisf.toolpath.toolpath import Toolpath
 
 __all__ = [
     "FORMAT_SUFFIXES",
@@ -127,6 +125,12 @@ def write_toolpath(
     ``gcode_notes`` to G-code; ``safe_height`` [m] to every program format. Returns the format
     and the files written.
     """
+    from roboisf.io.fanuc import write_fanuc
+    from roboisf.io.gcode import write_gcode
+    from roboisf.io.krl import write_krl
+    from roboisf.io.rapid import write_rapid
+    from roboisf.io.toolpath_csv import write_toolpath_csv
+
     fmt = infer_format(path, fmt)
     if fmt == "csv":
         write_toolpath_csv(tp, path)

@@ -1,20 +1,48 @@
 """Nominal part geometry: cone, VWACF, profile, pyramid and mesh parts; exact surface queries;
-part TOML files."""
+part TOML files.
 
-from roboisf.parts.axisymmetric import (
-    PAPER_SHEET_THICKNESS,
-    VWACF,
-    AxisymmetricPart,
-    Cone,
-    ProfilePart,
-    SurfaceQuery,
-    sine_law_thickness,
-)
-from roboisf.parts.base import Part, Symmetry
-from roboisf.parts.generatrix import Arc, Generatrix, Segment
-from roboisf.parts.io import load_part, part_from_dict, read_profile_csv, save_part
-from roboisf.parts.mesh import MeshPart, tessellate
-from roboisf.parts.pyramid import Pyramid
+The names below load their module on first use (PEP 562), so that ``roboisf --help`` and the
+paper's default dimensions (:mod:`roboisf.parts.defaults`) do not import numpy and scipy.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from roboisf.parts.axisymmetric import (
+        VWACF,
+        AxisymmetricPart,
+        Cone,
+        ProfilePart,
+        SurfaceQuery,
+        sine_law_thickness,
+    )
+    from roboisf.parts.base import Part, Symmetry
+    from roboisf.parts.defaults import PAPER_SHEET_THICKNESS
+    from roboisf.parts.generatrix import Arc, Generatrix, Segment
+    from roboisf.parts.io import load_part, part_from_dict, read_profile_csv, save_part
+    from roboisf.parts.mesh import MeshPart, tessellate
+    from roboisf.parts.pyramid import Pyramid
+
+_WHERE = {
+    "axisymmetric": (
+        "VWACF",
+        "AxisymmetricPart",
+        "Cone",
+        "ProfilePart",
+        "SurfaceQuery",
+        "sine_law_thickness",
+    ),
+    "base": ("Part", "Symmetry"),
+    "defaults": ("PAPER_SHEET_THICKNESS",),
+    "generatrix": ("Arc", "Generatrix", "Segment"),
+    "io": ("load_part", "part_from_dict", "read_profile_csv", "save_part"),
+    "mesh": ("MeshPart", "tessellate"),
+    "pyramid": ("Pyramid",),
+}
+_MODULE_OF = {name: module for module, names in _WHERE.items() for name in names}
 
 __all__ = [
     "PAPER_SHEET_THICKNESS",
@@ -37,3 +65,17 @@ __all__ = [
     "sine_law_thickness",
     "tessellate",
 ]
+assert sorted(__all__) == sorted(_MODULE_OF)
+
+
+def __getattr__(name: str) -> Any:
+    module = _MODULE_OF.get(name)
+    if module is None:
+        raise AttributeError(f"module 'roboisf.parts' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"roboisf.parts.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *__all__])

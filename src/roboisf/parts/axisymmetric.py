@@ -20,6 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
 from roboisf.parts.base import Symmetry
+from roboisf.parts.defaults import PAPER_SHEET_THICKNESS, VWACF_DEFAULT_ARC_RADIUS
 from roboisf.parts.generatrix import Arc, Generatrix, Segment
 
 __all__ = [
@@ -34,8 +35,6 @@ __all__ = [
 
 F64 = NDArray[np.float64]
 
-#: AA1050 sheet of the paper (Bharti et al. 2024), m.
-PAPER_SHEET_THICKNESS = 1.22e-3
 
 REGION_CODES = {"flange": 0, "wall": 1, "bottom": 2}
 
@@ -237,14 +236,6 @@ class Cone(AxisymmetricPart):
             "sheet_thickness": self.sheet_thickness * 1e3,
             "flange_width": self.flange_width * 1e3,
         }
-
-
-#: Default VWACF arc radius [m]. The paper's Fig. 2b (not in our text copy) gives the true value.
-#: 39 mm is the largest arc a Ø10 mm ball can follow all the way to 90° on a Ø88.15 mm opening
-#: (ball centre radius R0 − ρ − R_ball ≥ 0); the part is then 39 mm deep with a Ø10.15 mm bottom,
-#: and a sheet that fractures at 83° does so 34 mm deep — the paper's VWACF springback "increases
-#: at z = 30–35 mm and diminishes near the fracture area".
-VWACF_DEFAULT_ARC_RADIUS = 39e-3
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ import pandas as pd
 from roboisf.errors import InputError
 from roboisf.frames.se3 import transform_points
 from roboisf.parts.base import Part
+from roboisf.parts.mesh import spatial_order
 from roboisf.progress import Progress, task
 from roboisf.scan.deviation import (
     PointDeviations,
@@ -96,7 +97,8 @@ class CompareOptions:
 class ScanComparison:
     """Result of :func:`compare_scan`.
 
-    points : PointDeviations — the selected wall points (registered, work frame)
+    points : PointDeviations — the selected wall points (registered, work frame), in spatial
+    (Morton) order, not the file's
     toolpath : ToolpathDeviations or None
     registration : Registration
     counts : dict — points read / near the nominal / on the selected wall / outliers dropped
@@ -189,7 +191,12 @@ def compare_scan(
     with task(progress, f"register ({o.register})", total=None):
         reg = register(cloud.points, part, o.register, source=src, **o.register_kwargs)
     pts = cloud.points if o.register == "none" else transform_points(reg.T_work_scan, cloud.points)
-    dev = point_deviations(pts, part, progress=progress)
+    # the whole comparison runs in spatial (Morton) order, sorted once here: every later query
+    # (nominal closest point, outlier k-NN, toolpath neighbourhoods) then walks neighbouring
+    # tree nodes and stays in cache; the per-point results come out in that order
+    with task(progress, "spatial order", total=None):
+        pts = pts[spatial_order(pts)]
+    dev = point_deviations(pts, part, ordered=True, progress=progress)
     near = np.abs(dev.dn) <= o.max_distance
     frac = float(near.mean())
     if frac < o.min_overlap:
@@ -205,7 +212,7 @@ def compare_scan(
     if o.outlier_k > 0:
         with task(progress, "outlier removal", total=None):
             sel = np.flatnonzero(full)
-            inl = statistical_outliers(pts[sel], o.outlier_k, o.outlier_std)
+            inl = statistical_outliers(pts[sel], o.outlier_k, o.outlier_std, ordered=True)
             n_out = int((~inl).sum())
             full[sel[~inl]] = False
     mask = full & (dev.foot[:, 2] < -rim_band)
@@ -233,6 +240,7 @@ def compare_scan(
                 estimator=o.estimator,
                 exclude=toolpath.contact[:, 2] >= -rim_band,
                 source=toolpath_source,
+                ordered=True,
             )
     if tdev is not None:
         v = tdev.valid

@@ -39,6 +39,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
 from roboisf.parts.axisymmetric import AxisymmetricPart
+from roboisf.toolpath.limits import MAX_POINTS
 from roboisf.toolpath.toolpath import Toolpath
 
 __all__ = [
@@ -57,9 +58,6 @@ F64 = NDArray[np.float64]
 #: Paper feed rate, 750 mm/min in m/s.
 DEFAULT_FEED = 750e-3 / 60.0
 
-#: Largest toolpath generated unless ``max_points`` says otherwise: 5 M points (the paper's cone
-#: at 0.5 mm step-down and 1 mm spacing has 56 k; at 0.05 mm step-down 0.35 M).
-MAX_POINTS = 5_000_000
 #: Memory per toolpath point, generating and writing it (measured peak of the generator
 #: ≈ 0.3 kB/point with tracemalloc, the CSV/program writers add their text), rounded up.
 BYTES_PER_POINT = 1000

@@ -1,0 +1,227 @@
+"""Compiled (numba) exact mean distance to the k nearest neighbours, for the scan's statistical
+outlier filter (:func:`roboisf.scan.statistical_outliers`).
+
+Optional: used when numba is installed (``pip install roboisf[fast]``); otherwise the filter
+queries scipy's ``cKDTree``, which gives the same neighbours.
+
+Algorithm (exact, the same idea as :mod:`roboisf.parts.mesh_kernel`):
+
+1. a uniform grid of cubic cells of side ``h`` over the points' bounding box, points sorted by
+   cell (compressed rows ``start``); ``h`` is chosen for a few times ``k`` points per occupied
+   cell (a scan is a surface: points per cell grow as h²), with at most :data:`MAX_CELLS` cells;
+2. per point ``p``, cells in Chebyshev rings ``R = 0, 1, …`` around its cell; a cell farther
+   than the current (k+1)-th nearest squared distance is skipped; the k+1 smallest squared
+   distances (the point itself included, as ``cKDTree.query(X, k + 1)``) are kept sorted;
+3. after ring ``R`` every point not yet seen lies outside the cube of rings ``0..R``, at least
+   the distance from ``p`` to that cube's faces inside the grid away: the search stops when the
+   (k+1)-th distance is not larger;
+4. a point not resolved within :data:`MAX_RINGS` rings (far from the rest: a stray point, a
+   sparse line) is finished by scipy's k-d tree over all points (built only then).
+
+Squared distances are summed x, y, z as scipy does, so the neighbour distances are the same
+numbers; their mean may differ from numpy's pairwise sum in the last bit. The kernel is serial
+and releases the GIL: :func:`mean_knn_distance` runs it on chunks in several threads.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["HAVE_NUMBA", "mean_knn_distance"]
+
+try:  # pragma: no cover - exercised by whichever path the environment has
+    import numba
+
+    HAVE_NUMBA = True
+except ImportError:  # pragma: no cover
+    numba = None  # type: ignore[assignment]
+    HAVE_NUMBA = False
+
+#: Rings searched before a point is left to a k-d tree (the ring search grows as R³ far from
+#: the cloud: a stray point 0.5 m from a scan with 0.4 mm cells would need 10⁹ cells).
+MAX_RINGS = 6
+
+#: Largest number of grid cells (int32 row starts, transient: ≤ 64 MB, and the
+#: int64 cell counts they are summed from: ≤ 128 MB).
+MAX_CELLS = 16_000_000
+
+F64 = NDArray[np.float64]
+
+
+def _njit(**kw: Any) -> Any:
+    if HAVE_NUMBA:
+        return numba.njit(cache=True, nogil=True, **kw)
+    return lambda f: f  # pragma: no cover
+
+
+@_njit()
+def _knn_mean(
+    X: F64,
+    start: NDArray[np.int32],
+    lo: F64,
+    h: float,
+    nx: int,
+    ny: int,
+    nz: int,
+    k1: int,
+    max_rings: int,
+    a: int,
+    b: int,
+    out: F64,
+) -> None:  # pragma: no cover - compiled
+    best = np.empty(k1)
+    for i in range(a, b):
+        px, py, pz = X[i, 0], X[i, 1], X[i, 2]
+        ci = min(max(int((px - lo[0]) / h), 0), nx - 1)
+        cj = min(max(int((py - lo[1]) / h), 0), ny - 1)
+        ck = min(max(int((pz - lo[2]) / h), 0), nz - 1)
+        for t in range(k1):
+            best[t] = np.inf
+        r = 0
+        while True:
+            if r > max_rings:  # far from the others: left to the caller's k-d tree
+                out[i] = np.nan
+                break
+            for di in range(max(-r, -ci), min(r, nx - 1 - ci) + 1):
+                ii = ci + di
+                for dj in range(max(-r, -cj), min(r, ny - 1 - cj) + 1):
+                    jj = cj + dj
+                    inner = abs(di) < r and abs(dj) < r
+                    step = 2 * r if (inner and r > 0) else 1
+                    for dk in range(-r, r + 1, step):
+                        kk = ck + dk
+                        if kk < 0 or kk >= nz:
+                            continue
+                        # distance from p to the cell's box; skip a cell farther than the best
+                        ex = max(lo[0] + ii * h - px, 0.0, px - (lo[0] + (ii + 1) * h))
+                        ey = max(lo[1] + jj * h - py, 0.0, py - (lo[1] + (jj + 1) * h))
+                        ez = max(lo[2] + kk * h - pz, 0.0, pz - (lo[2] + (kk + 1) * h))
+                        if ex * ex + ey * ey + ez * ez > best[k1 - 1]:
+                            continue
+                        c = (ii * ny + jj) * nz + kk
+                        for j in range(start[c], start[c + 1]):
+                            dx = X[j, 0] - px
+                            dy = X[j, 1] - py
+                            dz = X[j, 2] - pz
+                            d2 = dx * dx + dy * dy + dz * dz
+                            if d2 < best[k1 - 1]:
+                                t = k1 - 1
+                                while t > 0 and best[t - 1] > d2:
+                                    best[t] = best[t - 1]
+                                    t -= 1
+                                best[t] = d2
+            # every point not seen is outside the cube of rings 0..r (faces inside the grid)
+            bound = np.inf
+            if ci - r > 0:
+                bound = min(bound, px - (lo[0] + (ci - r) * h))
+            if ci + r < nx - 1:
+                bound = min(bound, lo[0] + (ci + r + 1) * h - px)
+            if cj - r > 0:
+                bound = min(bound, py - (lo[1] + (cj - r) * h))
+            if cj + r < ny - 1:
+                bound = min(bound, lo[1] + (cj + r + 1) * h - py)
+            if ck - r > 0:
+                bound = min(bound, pz - (lo[2] + (ck - r) * h))
+            if ck + r < nz - 1:
+                bound = min(bound, lo[2] + (ck + r + 1) * h - pz)
+            if bound == np.inf or best[k1 - 1] <= max(bound, 0.0) ** 2:
+                s = 0.0
+                for t in range(1, k1):
+                    s += math.sqrt(best[t])
+                out[i] = s / (k1 - 1)
+                break
+            r += 1
+
+
+@_njit()
+def _counting_sort(
+    key: NDArray[np.int64], start: NDArray[Any]
+) -> NDArray[np.int64]:  # pragma: no cover - compiled
+    """Stable permutation sorting ``key`` by cell, given the cells' row starts."""
+    nxt = start[:-1].copy()
+    order = np.empty(key.size, dtype=np.int64)
+    for i in range(key.size):
+        c = key[i]
+        order[nxt[c]] = i
+        nxt[c] += 1
+    return order
+
+
+def _shape(span: F64, h: float, max_cells: int) -> tuple[int, int, int]:
+    """Cells per axis for side ``h``, coarsened until there are at most ``max_cells`` (a
+    degenerate cloud — a line, a plane — has zero-span axes of one cell)."""
+    while True:
+        shape = tuple(int(v // h) + 1 for v in span)
+        if shape[0] * shape[1] * shape[2] <= max_cells:
+            return (shape[0], shape[1], shape[2])
+        h *= 1.25
+
+
+def _grid(
+    X: F64, k: int, max_cells: int
+) -> tuple[F64, float, tuple[int, int, int], NDArray[np.int64], NDArray[Any]]:
+    """Origin, cell side, shape, the cell key of every point and the cells' row starts."""
+    lo = X.min(axis=0)
+    span = np.maximum(X.max(axis=0) - lo, 1e-12)
+    n = X.shape[0]
+    h_min = float(np.cbrt(np.prod(span) / max_cells))  # finest grid allowed
+    # a scan is a surface: guess its area from the box (the largest face), then correct h with
+    # the measured occupancy (points per occupied cell grow as h²)
+    target = 2.0 * (k + 1)
+    s = np.sort(span)
+    h = max(h_min, math.sqrt(target * s[1] * s[2] / n))
+    for it in range(3):
+        shape = _shape(span, h, max_cells)
+        h = max(h, float(np.max(span / np.array(shape))))
+        idx = np.minimum(((X - lo) / h).astype(np.int64), np.array(shape) - 1)
+        key = (idx[:, 0] * shape[1] + idx[:, 1]) * shape[2] + idx[:, 2]
+        counts = np.bincount(key, minlength=shape[0] * shape[1] * shape[2])
+        per_cell = n / max(int(np.count_nonzero(counts)), 1)
+        h_new = max(h_min, h * math.sqrt(target / per_cell))
+        if it == 2 or 0.5 * target <= per_cell <= 2 * target or abs(h_new - h) <= 1e-3 * h:
+            break
+        h = h_new
+    start = np.zeros(counts.size + 1, dtype=np.int32 if n < 2**31 else np.int64)
+    np.cumsum(counts, out=start[1:])
+    return lo, h, (shape[0], shape[1], shape[2]), key, start
+
+
+def mean_knn_distance(points: F64, k: int, *, workers: int | None = None) -> F64:
+    """(N,) m — mean distance of each point (N, 3) [m] to its ``k`` nearest other points (a
+    duplicate counts, at 0), in the caller's order. Needs numba (:data:`HAVE_NUMBA`) and
+    N > k."""
+    X = np.ascontiguousarray(points, dtype=float)
+    n = X.shape[0]
+    lo, h, (nx, ny, nz), key, start = _grid(X, k, MAX_CELLS)
+    order = _counting_sort(key, start)
+    del key
+    Xs = np.ascontiguousarray(X[order])
+    ms = np.empty(n)
+    chunk = 65_536
+    starts = range(0, n, chunk)
+    nw = max(1, min(workers or os.cpu_count() or 1, len(starts)))
+
+    def run(a: int) -> None:
+        _knn_mean(Xs, start, lo, h, nx, ny, nz, k + 1, MAX_RINGS, a, min(a + chunk, n), ms)
+
+    if nw == 1:
+        for a in starts:
+            run(a)
+    else:
+        with ThreadPoolExecutor(max_workers=nw) as pool:
+            list(pool.map(run, starts))
+    far = np.flatnonzero(np.isnan(ms))
+    if far.size:  # points far from every other (stray scanner points): a k-d tree finishes them
+        from scipy.spatial import cKDTree
+
+        d, _ = cKDTree(Xs).query(Xs[far], k=k + 1, workers=-1)
+        ms[far] = d[:, 1:].mean(axis=1)
+    m = np.empty(n)
+    m[order] = ms
+    return m
