@@ -7,7 +7,6 @@ import threading
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import typer
 
 from roboisf.cli.console import state
@@ -114,6 +113,8 @@ def online(
     logged to -o (Parquet). Ctrl-C ends the loop and writes the log. Lengths mm, angles deg.
     See docs/online.md.
     """
+    import numpy as np
+
     from roboisf.cell import cell_from_study
     from roboisf.frames import make_transform, rpy_to_matrix
     from roboisf.online import Limits, OnlineCompensator, SensorSetup, status_text
@@ -281,6 +282,8 @@ def _k_tip(cell: Any) -> Any:
 
 def _run(loop: Any, duration: float, cycles: int | None, status_text: Any, banner: str) -> None:
     """Serve with a live status line (a rich Live on a terminal, a line a second with -v)."""
+    import numpy as np
+
     from roboisf.io.outdir import Interrupted
 
     def line(lp: Any) -> str:
@@ -318,6 +321,7 @@ def _run(loop: Any, duration: float, cycles: int | None, status_text: Any, banne
 
 
 def _replay(study: Path | None, limits: Any, cutoff: float, output: Path) -> None:
+    import numpy as np
     import pandas as pd
 
     from roboisf.io.atomic import atomic_path
