@@ -46,14 +46,16 @@ from roboisf.online.core import Limits, OnlineCompensator, SensorSetup
 from roboisf.study.sensors import tip_to_sensor
 from roboisf.study.spec import ForceSensorSpec
 from roboisf.toolpath import Toolpath
-from roboisf.virtual.cell import CellTruth, VirtualCell, simulate
+from roboisf.virtual.cell import CellTruth, VirtualCell, build_study, simulate
 
 __all__ = [
     "OnlineForming",
     "VirtualSetup",
+    "applied_per_point",
     "controller_process",
     "evaluate",
     "form_online",
+    "form_study",
     "sensor_process",
     "virtual_setup",
 ]
@@ -267,6 +269,50 @@ def evaluate(setup: VirtualSetup, run: OnlineForming) -> Evaluation:
     true_diff = np.linalg.norm(run.applied - (off_true.commanded - tp.tip), axis=1)
     steady = run.steady & ok
     return Evaluation(rb, ra, 1.0 - ra / rb, diff, true_diff, steady, truth)
+
+
+def applied_per_point(setup: VirtualSetup, k: NDArray[np.int64], applied: F64) -> F64:
+    """The correction (N, 3) m the controller applied at each toolpath point, from its per-cycle
+    report (``k`` (n,) the point of each cycle, ``applied`` (n, 3) m the correction it applied
+    there; :func:`controller_process`). Points the controller skipped (``point_step`` > 1) take
+    the linear interpolation of the cycles around them; points it never reached (a run stopped
+    early) get 0: the robot formed them uncorrected.
+    """
+    k = np.asarray(k, dtype=np.int64)
+    applied = np.asarray(applied, dtype=float)
+    n = len(setup.toolpath)
+    if k.ndim != 1 or applied.shape != (len(k), 3) or np.any(np.diff(k) < 0):
+        raise InputError(
+            "expected the controller's report: k (n,) non-decreasing, applied (n, 3)",
+            field="applied",
+        )
+    out = np.zeros((n, 3))
+    if len(k) == 0:
+        return out
+    first = np.concatenate([[True], np.diff(k) > 0])  # a point held at the path's end: its first
+    ks, a = k[first], applied[first]
+    reached = np.arange(n) <= ks[-1]
+    for j in range(3):
+        out[reached, j] = np.interp(np.arange(n)[reached], ks, a[:, j])
+    return out
+
+
+def form_study(setup: VirtualSetup, applied: F64, out_dir: Any, *, progress: Any = None) -> Any:
+    """The study of the part the loop formed: the virtual cell's study
+    (:func:`roboisf.virtual.cell.build_study`) with the robot run commanded along the nominal
+    tip plus ``applied`` (N, 3) m, work axes (:attr:`OnlineForming.applied` or
+    :func:`applied_per_point`). ``roboisf analyze`` then measures what the loop removed: the
+    robot-compliance term of the scan is ``n · (applied + δ)``. Returns the study folder."""
+    applied = np.asarray(applied, dtype=float)
+    tp = setup.toolpath
+    if applied.shape != tp.tip.shape or not np.all(np.isfinite(applied)):
+        raise InputError(
+            f"expected ({len(tp)}, 3) finite corrections, got shape {applied.shape}",
+            field="applied",
+        )
+    return build_study(
+        setup.vc, out_dir, progress=progress, commanded=tp.with_tip(tp.tip + applied)
+    )
 
 
 # ---------------------------------------------------------------------------------- processes

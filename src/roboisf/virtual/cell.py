@@ -630,8 +630,15 @@ def build_study(
     progress: Progress | None = None,
     log_format: str = "parquet",
     equipment: Equipment | None = None,
+    commanded: Toolpath | None = None,
 ) -> Path:
     """Write the study folder for ``cell`` into ``out_dir`` (replaced atomically). Returns it.
+
+    ``commanded`` — the robot run formed with this commanded version of the cell's toolpath
+    (:func:`simulate`; e.g. an online loop's corrected path): its joint log holds the commanded
+    joints and its scan the part so formed; ``toolpath.csv`` keeps the nominal path (the program
+    both runs follow; the correction is the controller's) and the truth gains the
+    ``command_offset`` columns.
 
     ``log_format``: the force and joint logs as Parquet (default: SI, exact, ~4× smaller than
     the CSV; ``roboisf.io.logparquet``) or as the roboisf CSV (``"csv"``).
@@ -649,8 +656,8 @@ def build_study(
         log_format = "csv"  # the equipment's layouts are instruments' text exports
     ext = LOG_FORMATS[log_format]
     rng = np.random.default_rng(cell.seed)
-    truth = simulate(cell, progress=progress)
-    tp = truth.toolpath
+    truth = simulate(cell, progress=progress, commanded=commanded)
+    tp = truth.toolpath if commanded is None else cell_toolpath(cell)
     cnc_sensor = ForceSensorSpec(
         Path(f"cnc_forces{ext}"), "fixture", cell.fixture_sensor_pose, "workpiece"
     )
@@ -813,6 +820,8 @@ def _truth_extras(truth: CellTruth) -> list[tuple[str, F64]]:
         out.append(("springback_robot", truth.springback_robot[:, None] * n))
     if truth.cnc_machine is not None and np.any(truth.cnc_machine):
         out.append(("cnc_machine", truth.cnc_machine))
+    if truth.command_offset is not None and np.any(truth.command_offset):
+        out.append(("command_offset", truth.command_offset))
     return out
 
 

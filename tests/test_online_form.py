@@ -1,0 +1,77 @@
+"""The part the online loop forms, analysed like any study: `analyze` of the virtually formed
+part shows the robot-compliance term removed (issue #17, "shown by analyze")."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from roboisf.decompose.pipeline import analyze
+from roboisf.errors import InputError
+from roboisf.online import Limits
+from roboisf.online.sim import applied_per_point, form_online, form_study, virtual_setup
+from roboisf.parts import Cone
+from roboisf.virtual.cell import PAPER_CELL_PLACEMENT, build_study, virtual_cell
+
+
+@pytest.fixture(scope="module")
+def setup():
+    vc = virtual_cell(
+        "cone-20",
+        Cone(depth=20e-3),
+        T_base_work=PAPER_CELL_PLACEMENT,
+        step_down=1e-3,
+        spacing=2e-3,
+        scan_points=20_000,
+        force_rate=100.0,
+        joint_rate=50.0,
+    )
+    return virtual_setup(vc)
+
+
+def _rms(d, x):
+    return float(np.sqrt(np.mean(x[d.valid] ** 2)))
+
+
+def test_analyze_of_the_online_part_shows_the_compliance_error_removed(setup, tmp_path):
+    run = form_online(setup, "egm", limits=Limits())
+    plain = build_study(setup.vc, tmp_path / "uncorrected")
+    online = form_study(setup, run.applied, tmp_path / "online")
+    d0 = analyze(plain).decomposition
+    d1 = analyze(online).decomposition
+    assert d1.valid.sum() > 100
+
+    def error(d):  # the robot run's compliance error as analyze books it (normal, m)
+        return d.normal["tool"] + d.normal["tool_holder"] + d.normal["robot_compliance"]
+
+    before, after = _rms(d0, error(d0)), _rms(d1, error(d1))
+    assert before > 300e-6  # a real error to remove (≈ 0.43 mm on this cone's wall)
+    assert after <= 0.2 * before, (before, after)  # issue #17: ≥ 80 % (measured: ≈ 94 %)
+    # the loop pre-deflects tool and holder too; analyze's model has no command, so that part
+    # of the correction shows in its robot term: robot_compliance ≈ −(tool + holder)
+    th = d1.normal["tool"] + d1.normal["tool_holder"]
+    assert _rms(d1, th) > 50e-6
+    assert _rms(d1, d1.normal["robot_compliance"] + th) <= 0.2 * before
+    # the robot still deflects as much (same force, same VJM at the commanded joints) ...
+    assert _rms(d1, d1.normal["vjm"]) == pytest.approx(_rms(d0, d0.normal["vjm"]), rel=0.05)
+    # ... and the truth says the command cancels it: n · (δ_robot + command) is small
+    t = pd.read_parquet(online / "truth" / "per_point.parquet")
+    rc = t["robot_compliance_dn"].to_numpy()
+    cancelled = rc + t["command_offset_dn"].to_numpy() + t["tool_dn"] + t["tool_holder_dn"]
+    assert np.sqrt(np.mean(rc**2)) > 0.2  # mm
+    assert np.sqrt(np.mean(cancelled**2)) < 0.1 * np.sqrt(np.mean(rc**2))
+
+
+def test_applied_per_point_from_the_controllers_report(setup):
+    n = len(setup.toolpath)
+    k = np.array([0, 2, 4, 4, 4]) if n > 5 else np.array([0])
+    a = np.array([[0, 0, 0], [2e-4, 0, 0], [4e-4, 0, 0], [9e-4, 0, 0], [9e-4, 0, 0]])
+    out = applied_per_point(setup, k, a)
+    assert out.shape == (n, 3)
+    np.testing.assert_allclose(out[:5, 0], [0, 1e-4, 2e-4, 3e-4, 4e-4])  # first of a held point
+    assert not out[5:].any()  # never reached: formed uncorrected
+    with pytest.raises(InputError):
+        applied_per_point(setup, k[::-1], a)
+    with pytest.raises(InputError):
+        form_study(setup, np.full((n, 3), np.nan), "unused")
