@@ -67,6 +67,23 @@ def online(
         help="Start a simulated controller (--controller's protocol) and Net F/T on localhost "
         "for the --virtual cell: try the loop without a robot.",
     ),
+    form: Path | None = typer.Option(
+        None,
+        "--form",
+        help="With --simulate: write the study of the part the loop formed (the virtual cell's "
+        "robot run commanded along the corrections the simulated controller applied) into this "
+        "folder; `roboisf analyze` it to see what the loop removed. The loop's compliance model "
+        "is the cell's model: with --scenario the truth differs from it.",
+    ),
+    scenario: str | None = typer.Option(
+        None,
+        "--scenario",
+        help="With --virtual cone|vwacf: the cell's truth (e.g. `paper`, the paper's robot that "
+        "differs from the VJM model the loop uses; docs/virtual-cell.md).",
+    ),
+    scan_points: int = typer.Option(
+        300_000, "--scan-points", help="Points per simulated scan of --form's study."
+    ),
     listen: str = typer.Option(
         "0.0.0.0:6510",
         "--listen",
@@ -135,6 +152,12 @@ def online(
             "--simulate needs --virtual NAME, --controller egm|rsi and a netft sensor",
             field="--simulate",
         )
+    if form is not None and not simulate:
+        raise InputError(
+            "--form needs --simulate (the part a simulated run formed)", field="--form"
+        )
+    if scenario is not None and virtual not in ("cone", "vwacf"):
+        raise InputError("--scenario needs --virtual cone|vwacf", field="--scenario")
     if kind == "replay":
         study = Path(arg)
     if (study is None) == (virtual is None):
@@ -146,6 +169,10 @@ def online(
     if output.suffix.lower() != ".parquet":
         raise InputError(f"the log is Parquet: expected a .parquet file, got {output}", field="-o")
     output_file(output, "online", overwrite, study_inputs(study))
+    if form is not None:
+        from roboisf.cli.outputs import output_dir
+
+        output_dir(form, "virtual-cell", overwrite)
 
     limits = Limits(
         deadband * 1e-3,
@@ -163,7 +190,12 @@ def online(
         from roboisf.virtual.cell import paper_cone_cell, paper_vwacf_cell, pyramid_cell
 
         makers = {"cone": paper_cone_cell, "vwacf": paper_vwacf_cell, "pyramid": pyramid_cell}
-        vc = makers[virtual](scan_points=1000)
+        cell_kw: dict[str, Any] = {"scan_points": scan_points if form is not None else 1000}
+        if scenario is not None:
+            from roboisf.virtual.truth import load_truth
+
+            cell_kw["truth"] = load_truth(scenario=scenario, part=virtual)
+        vc = makers[virtual](**cell_kw)
         setup = virtual_setup(vc, cutoff=cutoff)
         cell = vc.cell
         spec_pose = setup.sensor.T_flange_sensor
@@ -271,6 +303,30 @@ def online(
                 f"round trip p50 {np.percentile(rtt[got], 50) * 1e3:.3f} ms, "
                 f"p99 {np.percentile(rtt[got], 99) * 1e3:.3f} ms"
             )
+    if form is not None:
+        _form(setup, sim_result, form)
+
+
+def _form(setup: Any, sim_result: dict[str, Any] | None, folder: Path) -> None:
+    """The study of the part the simulated run formed (``--form``)."""
+    from roboisf.online.sim import applied_per_point, form_study
+
+    if sim_result is None:
+        raise InputError(
+            "the simulated controller did not report its corrections: no part to form",
+            field="--form",
+        )
+    ran = int(sim_result["ran"])
+    k, applied = sim_result["k"][:ran], sim_result["applied"][:ran]
+    per_point = applied_per_point(setup, k, applied)
+    n = len(setup.toolpath)
+    reached = int(k[-1]) + 1 if ran else 0
+    form_study(setup, per_point, folder)
+    state.info(
+        f"formed part → {folder} (study; `roboisf analyze {folder}`): corrections on "
+        f"{reached} of {n} toolpath points"
+        + ("" if reached >= n else " — the rest formed uncorrected (a longer --duration)")
+    )
 
 
 def _k_tip(cell: Any) -> Any:

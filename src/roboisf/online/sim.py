@@ -405,7 +405,8 @@ def controller_process(
     the last correction it received; ``index`` tells the sensor the point) and waits for the
     reply until the cycle ends; a reply that does not arrive in its cycle is a missed cycle
     (late replies are dropped by their sequence number). Puts ``dict(rtt (n,) s, missed,
-    applied (n, 3) m, k (n,))`` on ``result``.
+    applied (n, 3) m, k (n,), ran)`` on ``result`` (``ran``: the cycles it ran, a prefix of
+    the n).
     """
     q_nom, dq_dp, planned = setup_arrays
     s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -416,12 +417,14 @@ def controller_process(
     applied = np.zeros((n_cycles, 3))
     ks = np.zeros(n_cycles, dtype=np.int64)
     missed = 0
+    ran = 0
     time.sleep(start_delay)
     t0 = time.perf_counter()
     try:
         for c in range(n_cycles):
             if stop.is_set():
                 break
+            ran = c + 1
             k = min(c * point_step, len(q_nom) - 1)
             index.value = k
             ks[c] = k
@@ -465,7 +468,7 @@ def controller_process(
                 time.sleep(min(5e-4, max(0.0, deadline - time.perf_counter())))
     finally:
         s.close()
-        result.put({"rtt": rtt, "missed": missed, "applied": applied, "k": ks})
+        result.put({"rtt": rtt, "missed": missed, "applied": applied, "k": ks, "ran": ran})
 
 
 class Simulation:
