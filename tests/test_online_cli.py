@@ -23,6 +23,8 @@ from roboisf.virtual.cell import PAPER_CELL_PLACEMENT, build_study, virtual_cell
             "--simulate",
         ),
         (["--controller", "replay", "--virtual", "cone"], "--controller"),
+        (["--controller", "egm", "--virtual", "cone", "--form", "st"], "--form"),
+        (["-c", "egm", "--virtual", "pyramid", "--scenario", "paper"], "--scenario"),
     ],
 )
 def test_bad_input_exits_2_with_one_line(tmp_path, capsys, args, needle):
