@@ -141,6 +141,23 @@ def main(argv: list[str] | None = None) -> int:
                 f"[target p99 ≤ 2 ms, no missed cycle: {'met' if ok else 'NOT met'}]"
             )
             print(f"  loop compute per cycle (decode + core + encode + send), ms: {_pct(comp)}")
+        from roboisf.online.sim import missed_causes
+
+        ran = int(res["ran"])
+        late = res["send_late"][:ran]
+        mc = missed_causes(res)
+        print(
+            f"  the simulated controller's own scheduling (send after its cycle start), ms: "
+            f"{_pct(late)}"
+        )
+        print(
+            f"  missed cycles by cause: {mc['controller']} the controller's own (sent with "
+            f"< 2 ms of its cycle left), {mc['loop_late']} the loop's late replies, "
+            f"{mc['loop_lost']} never answered"
+        )
+        rl = res["rtt_late"][:ran]
+        if np.isfinite(rl).any():
+            print(f"  the late replies' round trip, ms: {_pct(rl[np.isfinite(rl)])}")
 
     if not a.skip_part:
         t0 = time.perf_counter()

@@ -16,7 +16,13 @@ from roboisf.online import Limits, OnlineCompensator, egm, netft, rsi
 from roboisf.online import kernel as kn
 from roboisf.online.loop import CycleLog, Loop
 from roboisf.online.replay import load_replay, replay_study
-from roboisf.online.sim import Simulation, evaluate, form_online, virtual_setup
+from roboisf.online.sim import (
+    Simulation,
+    evaluate,
+    form_online,
+    missed_causes,
+    virtual_setup,
+)
 from roboisf.parts import Cone
 from roboisf.virtual.cell import PAPER_CELL_PLACEMENT, build_study, virtual_cell
 
@@ -73,6 +79,9 @@ def test_udp_end_to_end_with_the_simulated_processes(setup, tmp_path):
         th.join()
     c = loop.counters
     assert c.cycles > 100 and c.samples > 100  # timing on a loaded machine is not asserted
+    mc = missed_causes(res)
+    assert mc["missed"] == res["missed"] == mc["controller"] + mc["loop_late"] + mc["loop_lost"]
+    assert np.all(res["send_late"][: res["ran"]] >= 0)
     assert c.bad_controller == c.bad_sensor == 0
     got = np.isfinite(res["rtt"])
     assert np.linalg.norm(res["applied"][got], axis=1).max() <= lim.max_correction + 1e-9
@@ -249,3 +258,22 @@ def test_at_the_real_feed_the_loop_follows_the_true_forces():
     assert ev.removed >= 0.95
     assert np.median(ev.offline_true_diff) < 2e-6
     assert np.percentile(ev.offline_true_diff, 99) < 10e-6
+
+
+def test_missed_cycles_are_split_into_the_controllers_and_the_loops():
+    nan = np.nan
+    res = {
+        "ran": 5,
+        "missed": 3,
+        # cycle 0 on time; 1 missed though sent on time, reply later; 2 sent 3 ms late (1 ms
+        # left: the controller's own); 3 missed, never answered; 4 on time; 5 never ran
+        "rtt": np.array([0.4e-3, nan, nan, nan, 0.5e-3, nan]),
+        "send_late": np.array([0.1e-3, 0.2e-3, 3e-3, 0.1e-3, 0.1e-3, nan]),
+        "rtt_late": np.array([nan, 5e-3, nan, nan, nan, nan]),
+    }
+    assert missed_causes(res, cycle=4e-3, budget=2e-3) == {
+        "missed": 3,
+        "controller": 1,
+        "loop_late": 1,
+        "loop_lost": 1,
+    }

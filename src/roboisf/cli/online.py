@@ -298,9 +298,13 @@ def online(
         rtt = sim_result["rtt"]
         got = np.isfinite(rtt)
         if got.any():
+            from roboisf.online.sim import missed_causes
+
+            mc = missed_causes(sim_result, cycle=limits.cycle)
             state.info(
-                f"simulated controller: {int(sim_result['missed'])} missed cycles of {len(rtt)}; "
-                f"round trip p50 {np.percentile(rtt[got], 50) * 1e3:.3f} ms, "
+                f"simulated controller: {mc['missed']} missed cycles of {sim_result['ran']} "
+                f"({mc['controller']} its own scheduling, {mc['loop_late'] + mc['loop_lost']} "
+                f"the loop's); round trip p50 {np.percentile(rtt[got], 50) * 1e3:.3f} ms, "
                 f"p99 {np.percentile(rtt[got], 99) * 1e3:.3f} ms"
             )
     if form is not None:

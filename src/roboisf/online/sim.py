@@ -56,6 +56,7 @@ __all__ = [
     "evaluate",
     "form_online",
     "form_study",
+    "missed_causes",
     "sensor_process",
     "virtual_setup",
 ]
@@ -406,7 +407,10 @@ def controller_process(
     reply until the cycle ends; a reply that does not arrive in its cycle is a missed cycle
     (late replies are dropped by their sequence number). Puts ``dict(rtt (n,) s, missed,
     applied (n, 3) m, k (n,), ran)`` on ``result`` (``ran``: the cycles it ran, a prefix of
-    the n).
+    the n), and what separates its own scheduling from the loop's latency (:func:`missed_causes`):
+    ``send_late (n,) s`` — how late it sent each cycle's message after the cycle's start (this
+    process's own jitter); ``rtt_late (n,) s`` — for a missed cycle, when its reply came after
+    all (read in a later cycle; NaN: never).
     """
     q_nom, dq_dp, planned = setup_arrays
     s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -418,6 +422,9 @@ def controller_process(
     ks = np.zeros(n_cycles, dtype=np.int64)
     missed = 0
     ran = 0
+    send_late = np.full(n_cycles, np.nan)
+    rtt_late = np.full(n_cycles, np.nan)
+    sent = np.full(n_cycles, np.nan)
     time.sleep(start_delay)
     t0 = time.perf_counter()
     try:
@@ -437,6 +444,8 @@ def controller_process(
                 msg = rsi.encode_robot(seq, q)
             deadline = t0 + (c + 1) * cycle
             sent_at = time.perf_counter()
+            sent[c] = sent_at
+            send_late[c] = sent_at - (t0 + c * cycle)
             s.sendto(msg, dest)
             got = False
             while True:
@@ -462,13 +471,51 @@ def controller_process(
                     rx = corr
                     got = True
                     break
+                if 1 <= rseq < seq and np.isnan(rtt[rseq - 1]) and np.isnan(rtt_late[rseq - 1]):
+                    rtt_late[rseq - 1] = arrived - sent[rseq - 1]  # (dropped, but timed)
             if not got:
                 missed += 1
             while time.perf_counter() < deadline:
                 time.sleep(min(5e-4, max(0.0, deadline - time.perf_counter())))
     finally:
         s.close()
-        result.put({"rtt": rtt, "missed": missed, "applied": applied, "k": ks, "ran": ran})
+        result.put(
+            {
+                "rtt": rtt,
+                "missed": missed,
+                "applied": applied,
+                "k": ks,
+                "ran": ran,
+                "send_late": send_late,
+                "rtt_late": rtt_late,
+            }
+        )
+
+
+def missed_causes(
+    result: dict[str, Any], *, cycle: float = 0.004, budget: float = 2e-3
+) -> dict[str, int]:
+    """Split the simulated controller's missed cycles by cause (its report, ``Simulation.result``).
+
+    A missed cycle is the **controller's own** when it sent its message so late that less than
+    ``budget`` s (the round-trip target) was left of the cycle: no loop meeting the target could
+    have answered in time. The others are the **loop's**: the controller left it at least
+    ``budget`` and the reply came later (``late``, timed in ``rtt_late``) or never (``lost``).
+    Returns ``dict(missed, controller, loop_late, loop_lost)`` (the last three sum to missed).
+    """
+    ran = int(result["ran"])
+    rtt = np.asarray(result["rtt"])[:ran]
+    late = np.asarray(result["send_late"])[:ran]
+    rtt_late = np.asarray(result["rtt_late"])[:ran]
+    miss = np.isnan(rtt)
+    own = miss & (cycle - late < budget)
+    loop = miss & ~own
+    return {
+        "missed": int(miss.sum()),
+        "controller": int(own.sum()),
+        "loop_late": int((loop & np.isfinite(rtt_late)).sum()),
+        "loop_lost": int((loop & np.isnan(rtt_late)).sum()),
+    }
 
 
 class Simulation:
