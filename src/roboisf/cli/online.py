@@ -271,7 +271,11 @@ def online(
 
             done = threading.Thread(target=_finish, daemon=True)
             done.start()
-            _run(loop, duration, cycles, status_text, banner)
+            # --form: the part needs the whole path, so the controller's last cycle ends the run
+            # (--duration sets its cycle count), not the loop's clock, which started before the
+            # controller's process did (up to seconds on a busy machine)
+            wait = duration + 60.0 if form is not None else duration
+            _run(loop, wait, cycles, status_text, banner)
             sim.stop.set()  # the loop has ended: the controller reports what it saw
             done.join(30)
             sim_result = sim.result(timeout=0.1) if not done.is_alive() else None
