@@ -217,6 +217,7 @@ def test_python_fallback_gives_the_compiled_numbers(cell, poses):
         oc._F,
         oc._sign,
         oc._offset,
+        oc._c23,
         oc._kinv,
         oc._X_ts,
         oc._k_tip_base,
@@ -234,3 +235,80 @@ def test_python_fallback_gives_the_compiled_numbers(cell, poses):
     assert outs[0][0] == outs[1][0]
     for a, b in zip(outs[0][1:], outs[1][1:], strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-18)
+
+
+def _fk_deflection_vs_model(name, fk_deflection, n=8):
+    """The online per-pose kernel against RobotModel (numpy engine: an independent Jacobian
+    with its own J2/J3 coupling) at random configurations; returns the worst relative errors."""
+    from roboisf.robot import load_robot
+
+    robot = load_robot(name).with_stiffness(np.linspace(4e6, 4e5, 6))
+    F = robot.chain.F.copy()
+    F[6] = F[6] @ robot.T_flange_tip
+    sign = np.ascontiguousarray(robot.chain.sign, dtype=float)
+    offset = np.ascontiguousarray(robot.chain.offset, dtype=float)
+    kinv = 1.0 / robot.joint_stiffness
+    rng = np.random.default_rng(11)
+    q = rng.uniform(-1.5, 1.5, (n, 6))
+    W = np.column_stack([rng.normal(0, 400, (n, 3)), rng.normal(0, 30, (n, 3))])
+    d_ref = robot.deflection(q, W, check_limits=False, backend="numpy")
+    R_ref = robot.fk(q, check_limits=False)[:, :3, :3]
+    err_d = err_R = 0.0
+    for i in range(n):
+        d, R, scr = np.zeros(6), np.zeros((3, 3)), np.zeros((20, 6))
+        fk_deflection(F, sign, offset, float(robot.chain.couple23), kinv, q[i], W[i], d, R, scr)
+        err_d = max(err_d, float(np.max(np.abs(d - d_ref[i])) / np.max(np.abs(d_ref[i]))))
+        err_R = max(err_R, float(np.max(np.abs(R - R_ref[i]))))
+    return robot.chain.couple23, err_d, err_R
+
+
+@pytest.mark.parametrize("name", ["r2000ic-210f", "m900ib-700", "irb6700-200-2.60"])
+def test_fk_deflection_equals_the_model_on_fanuc_and_abb(name, monkeypatch):
+    """FANUC presets carry the J2/J3 coupling (c23 = 1): the online kernel must walk the same
+    chain as the batch kernel, compiled and as plain Python."""
+    from roboisf.robot import vjm_chain
+
+    c23, err_d, err_R = _fk_deflection_vs_model(name, kn.fk_deflection)
+    assert (c23 != 0.0) == name.startswith(("r2000", "m900"))
+    assert err_d < 1e-12 and err_R < 1e-13
+    if kn.COMPILED:  # the same code as plain Python, all the way down
+        monkeypatch.setattr(vjm_chain, "sincos", vjm_chain.sincos.py_func)
+        monkeypatch.setattr(kn, "chain_jacobian", vjm_chain.chain_jacobian.py_func)
+        _, err_d, err_R = _fk_deflection_vs_model(name, kn.fk_deflection.py_func)
+        assert err_d < 1e-12 and err_R < 1e-13
+
+
+def test_online_kernel_runs_without_numba():
+    """numba blocked in a fresh interpreter: the kernels are plain Python and give the model's
+    deflection on a FANUC preset."""
+    import os
+    import pathlib
+    import subprocess
+    import sys
+
+    import roboisf
+
+    root = pathlib.Path(__file__).resolve().parents[1]  # `tests` importable from here
+    src = str(pathlib.Path(roboisf.__file__).resolve().parents[1])  # this roboisf, not another
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([src, str(root)])}
+    code = (
+        "import sys; sys.modules['numba'] = None\n"
+        "from roboisf.online import kernel as kn\n"
+        "assert not kn.COMPILED\n"
+        "import tests.test_online_core as t\n"
+        "c23, e, r = t._fk_deflection_vs_model('r2000ic-210f', kn.fk_deflection, n=4)\n"
+        "assert 'numba' not in sys.modules or sys.modules['numba'] is None\n"
+        "print(c23, e, r)\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+        cwd=root,
+        env=env,
+    )
+    assert out.returncode == 0, out.stderr[-2000:]
+    c23, e, r = (float(v) for v in out.stdout.split())
+    assert c23 == 1.0 and e < 1e-12 and r < 1e-13

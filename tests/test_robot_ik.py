@@ -99,6 +99,28 @@ def test_singularity_warning():
     assert any(issubclass(x.category, SingularityWarning) for x in w)
 
 
+@pytest.mark.parametrize("opw", [True, False])
+def test_singularity_warning_points_at_the_callers_line(opw):
+    """Closed-form and numerical IK share one singularity check; its warning names the line
+    that called ik_toolpath (not roboisf's own code) on both paths."""
+    from pathlib import Path
+
+    from roboisf.robot import load_urdf
+
+    urdf = Path(__file__).parent / "data" / "urdf" / "irb4600_60_205.urdf"
+    m = load_urdf(urdf, opw=opw).with_tool(TOOL)
+    assert (m.opw is not None) == opw
+    q = np.radians([[0, 20, -10, 0, 0.3, 0]])
+    T = m.fk(q)[0] @ np.diag([1.0, -1.0, -1.0, 1.0])
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        r = ik_toolpath(m, np.zeros((1, 3)), T, match_q=None if opw else q[0])
+    assert r.near_singular[0]
+    sw = [x for x in w if issubclass(x.category, SingularityWarning)]
+    assert len(sw) == 1
+    assert sw[0].filename == __file__
+
+
 @pytest.mark.parametrize("backend", ["numba", "numpy"])
 def test_margin_test_by_elimination_agrees_with_eigvalsh(backend):
     """robot.singularity.margin_ok (the check of ik_toolpath and plan) says σ_min > thr exactly

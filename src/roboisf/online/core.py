@@ -180,6 +180,7 @@ class OnlineCompensator:
         self._F = np.ascontiguousarray(F)
         self._sign = np.ascontiguousarray(robot.chain.sign, dtype=float)
         self._offset = np.ascontiguousarray(robot.chain.offset, dtype=float)
+        self._c23 = float(robot.chain.couple23)  # FANUC J2/J3 coupling (0 for the others)
         self._kinv = np.ascontiguousarray(1.0 / robot.joint_stiffness)
         T_tip_sensor = invert(robot.T_flange_tip) @ self.sensor.T_flange_sensor
         sgn = -1.0 if self.sensor.load_on == "workpiece" else 1.0
@@ -233,6 +234,7 @@ class OnlineCompensator:
                 self._F,
                 self._sign,
                 self._offset,
+                self._c23,
                 self._kinv,
                 self._R_tip_sensor,
                 self._grav,
@@ -256,6 +258,7 @@ class OnlineCompensator:
                 self._F,
                 self._sign,
                 self._offset,
+                self._c23,
                 self._kinv,
                 self._X_ts,
                 self._k_tip_base,

@@ -17,8 +17,10 @@ nothing:
     correction ``c = −R_base_workᵀ δ[:3]`` (work axes, m), then the dead band, the size limit,
     the rate limit and the watchdog (see :class:`roboisf.online.core.Limits`).
 
-The forward kinematics and Jacobian are the chain walk of :mod:`roboisf.robot.vjm_numba` for one
-pose (same ``F``, ``sign``, ``offset``; tested against :meth:`RobotModel.deflection`).
+The forward kinematics and Jacobian are :func:`roboisf.robot.vjm_chain.chain_jacobian`, the
+per-pose chain walk the batch kernel :mod:`roboisf.robot.vjm_numba` uses too (same ``F``,
+``sign``, ``offset`` and FANUC J2/J3 coupling ``c23``; tested against
+:meth:`RobotModel.deflection` on an ABB and a FANUC preset).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from roboisf.robot.vjm_chain import chain_jacobian
 from roboisf.robot.vjm_kernel import HAVE_NUMBA
 
 __all__ = [
@@ -98,74 +101,32 @@ COMPILED = HAVE_NUMBA
 
 @_jit
 def fk_deflection(
-    F: F64, sign: F64, offset: F64, kinv: F64, q: F64, W: F64, d: F64, R: F64, scr: F64
+    F: F64,
+    sign: F64,
+    offset: F64,
+    c23: float,
+    kinv: F64,
+    q: F64,
+    W: F64,
+    d: F64,
+    R: F64,
+    scr: F64,
 ) -> None:  # pragma: no cover - compiled; tested against RobotModel.deflection
     """One pose: tip rotation ``R`` (3, 3) and robot deflection ``d`` (6,) = J K⁻¹ Jᵀ W.
 
-    ``F`` (7, 4, 4) with the tool folded into ``F[6]``; ``q`` (6,) rad; ``W`` (6,) [N; N·m],
-    base axes; ``scr`` (20, 6) scratch (rows 0–12 used). Base axes, at the tip.
+    ``F`` (7, 4, 4) with the tool folded into ``F[6]``; ``c23`` the FANUC J2/J3 coupling
+    (:class:`~roboisf.robot.kinematics.Chain`); ``q`` (6,) rad; ``W`` (6,) [N; N·m], base axes;
+    ``scr`` (20, 6) scratch (rows 0–12 used). Base axes, at the tip. The chain walk is
+    :func:`roboisf.robot.vjm_chain.chain_jacobian`, the batch kernel's.
     """
     oz = scr[0:6]
     Jl = scr[6:12]
     a = scr[12]
-    r00, r01, r02 = F[0, 0, 0], F[0, 0, 1], F[0, 0, 2]
-    r10, r11, r12 = F[0, 1, 0], F[0, 1, 1], F[0, 1, 2]
-    r20, r21, r22 = F[0, 2, 0], F[0, 2, 1], F[0, 2, 2]
-    px, py, pz = F[0, 0, 3], F[0, 1, 3], F[0, 2, 3]
-    for j in range(6):
-        if j > 0:
-            t0, t1, t2 = F[j, 0, 3], F[j, 1, 3], F[j, 2, 3]
-            px += r00 * t0 + r01 * t1 + r02 * t2
-            py += r10 * t0 + r11 * t1 + r12 * t2
-            pz += r20 * t0 + r21 * t1 + r22 * t2
-            f00, f01, f02 = F[j, 0, 0], F[j, 0, 1], F[j, 0, 2]
-            f10, f11, f12 = F[j, 1, 0], F[j, 1, 1], F[j, 1, 2]
-            f20, f21, f22 = F[j, 2, 0], F[j, 2, 1], F[j, 2, 2]
-            r00, r01, r02 = (
-                r00 * f00 + r01 * f10 + r02 * f20,
-                r00 * f01 + r01 * f11 + r02 * f21,
-                r00 * f02 + r01 * f12 + r02 * f22,
-            )
-            r10, r11, r12 = (
-                r10 * f00 + r11 * f10 + r12 * f20,
-                r10 * f01 + r11 * f11 + r12 * f21,
-                r10 * f02 + r11 * f12 + r12 * f22,
-            )
-            r20, r21, r22 = (
-                r20 * f00 + r21 * f10 + r22 * f20,
-                r20 * f01 + r21 * f11 + r22 * f21,
-                r20 * f02 + r21 * f12 + r22 * f22,
-            )
-        oz[j, 0] = r02
-        oz[j, 1] = r12
-        oz[j, 2] = r22
-        oz[j, 3] = px
-        oz[j, 4] = py
-        oz[j, 5] = pz
-        th = sign[j] * q[j] + offset[j]
-        sn = math.sin(th)
-        c = math.cos(th)
-        r00, r01 = c * r00 + sn * r01, c * r01 - sn * r00
-        r10, r11 = c * r10 + sn * r11, c * r11 - sn * r10
-        r20, r21 = c * r20 + sn * r21, c * r21 - sn * r20
-    t0, t1, t2 = F[6, 0, 3], F[6, 1, 3], F[6, 2, 3]
-    px += r00 * t0 + r01 * t1 + r02 * t2
-    py += r10 * t0 + r11 * t1 + r12 * t2
-    pz += r20 * t0 + r21 * t1 + r22 * t2
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = chain_jacobian(F, sign, offset, c23, q, oz, Jl)
     for k in range(3):  # R_base_tip = R_base_6 · R_6_tip
         R[0, k] = r00 * F[6, 0, k] + r01 * F[6, 1, k] + r02 * F[6, 2, k]
         R[1, k] = r10 * F[6, 0, k] + r11 * F[6, 1, k] + r12 * F[6, 2, k]
         R[2, k] = r20 * F[6, 0, k] + r21 * F[6, 1, k] + r22 * F[6, 2, k]
-    for j in range(6):
-        zx, zy, zz = oz[j, 0], oz[j, 1], oz[j, 2]
-        rx, ry, rz = px - oz[j, 3], py - oz[j, 4], pz - oz[j, 5]
-        sj = sign[j]
-        Jl[0, j] = sj * (zy * rz - zz * ry)
-        Jl[1, j] = sj * (zz * rx - zx * rz)
-        Jl[2, j] = sj * (zx * ry - zy * rx)
-        Jl[3, j] = sj * zx
-        Jl[4, j] = sj * zy
-        Jl[5, j] = sj * zz
     for j in range(6):
         tau = 0.0
         for i in range(6):
@@ -183,6 +144,7 @@ def sample_kernel(
     F: F64,
     sign: F64,
     offset: F64,
+    c23: float,
     kinv: F64,
     R_tip_sensor: F64,
     grav: F64,
@@ -211,7 +173,7 @@ def sample_kernel(
     m = grav[0]
     if m != 0.0:
         R = scr[14:17, 0:3]
-        fk_deflection(F, sign, offset, kinv, q, scr[19], scr[19], R, scr)
+        fk_deflection(F, sign, offset, c23, kinv, q, scr[19], scr[19], R, scr)
         # sensor axes: R_sensor_base = (R_base_tip R_tip_sensor)ᵀ
         for i in range(3):
             acc = 0.0
@@ -248,6 +210,7 @@ def cycle_kernel(
     F: F64,
     sign: F64,
     offset: F64,
+    c23: float,
     kinv: F64,
     X_ts: F64,
     k_tip: F64,
@@ -296,7 +259,7 @@ def cycle_kernel(
         R = scr[14:17, 0:3]
         Wb = scr[17]
         # tip axes: X_ts y; base axes: blkdiag(R, R)
-        fk_deflection(F, sign, offset, kinv, q, scr[19], scr[19], R, scr)  # R only
+        fk_deflection(F, sign, offset, c23, kinv, q, scr[19], scr[19], R, scr)  # R only
         for i in range(6):
             acc = 0.0
             for k in range(6):
@@ -312,7 +275,7 @@ def cycle_kernel(
             Wb[3 + i] = mm
         for i in range(6):
             W_tip[i] = Wb[i]
-        fk_deflection(F, sign, offset, kinv, q, W_tip, delta, R, scr)
+        fk_deflection(F, sign, offset, c23, kinv, q, W_tip, delta, R, scr)
         for i in range(6):
             acc = 0.0
             for k in range(6):

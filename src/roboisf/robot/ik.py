@@ -315,19 +315,8 @@ def ik_toolpath(
         within = False
     if not within:  # (the compiled pass checked the limits already)
         raise_beyond_limits(model, q)
-    if singular_threshold is None:
-        return IKResult(q=q, T_base_tip=T_tip, near_singular=np.zeros(len(q), dtype=bool))
-    L = length_scale if length_scale is not None else _length_scale(model)
-    near = ~model.singularity_margin_ok(q, L, singular_threshold)
-    if np.any(near):
-        idx = np.flatnonzero(near)
-        warnings.warn(
-            f"{idx.size} toolpath points are near a singularity (σ_min < {singular_threshold}) "
-            f"at indices {_short(idx)}; the compliance there is unreliable",
-            SingularityWarning,
-            stacklevel=2,
-        )
-    return IKResult(q=q, T_base_tip=T_tip, near_singular=near, length_scale=L, model=model)
+    # stacklevel 2 from here: the warning points at the caller of ik_toolpath
+    return _checked_result(model, q, T_tip, singular_threshold, length_scale, stacklevel=2)
 
 
 BRANCHES: tuple[tuple[str, str, str], ...] = tuple(
@@ -437,6 +426,26 @@ def _numerical_path(
     if q0 is None:
         q = _continuous(model, q)
     raise_beyond_limits(model, q)
+    # stacklevel 3 from here (ik_toolpath → _numerical_path): the caller of ik_toolpath
+    return _checked_result(model, q, T_tip, singular_threshold, length_scale, stacklevel=3)
+
+
+def _checked_result(
+    model: RobotModel,
+    q: F64,
+    T_tip: F64,
+    singular_threshold: float | None,
+    length_scale: float | None,
+    *,
+    stacklevel: int,
+) -> IKResult:
+    """The :class:`IKResult` of joints ``q`` (N, 6) rad and tip poses ``T_tip`` (N, 4, 4), with
+    the singularity-margin check when ``singular_threshold`` is given (length scale in m; the
+    robot's own when None): a :class:`SingularityWarning` naming the points near a singularity.
+
+    ``stacklevel`` is the one the calling function would pass to :func:`warnings.warn` itself
+    (this function adds its own frame), so the warning keeps pointing at the user's call.
+    """
     if singular_threshold is None:
         return IKResult(q=q, T_base_tip=T_tip, near_singular=np.zeros(len(q), dtype=bool))
     L = length_scale if length_scale is not None else _length_scale(model)
@@ -447,7 +456,7 @@ def _numerical_path(
             f"{idx.size} toolpath points are near a singularity (σ_min < {singular_threshold}) "
             f"at indices {_short(idx)}; the compliance there is unreliable",
             SingularityWarning,
-            stacklevel=3,
+            stacklevel=stacklevel + 1,
         )
     return IKResult(q=q, T_base_tip=T_tip, near_singular=near, length_scale=L, model=model)
 
