@@ -96,6 +96,8 @@ class _PathEval:
     d_robot: F64
     steps: F64  # (N,) largest joint change from the previous point
     abs_total: F64  # (N,) |d_total|
+    abs_robot: F64  # (N,) |d_robot|
+    abs_normal: F64  # (N,) |d_total·n|
 
     @cached_property
     def J_scaled(self) -> F64:
@@ -145,6 +147,8 @@ def _solve(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) -> _PathEva
         d_robot,
         _joint_steps(ik.q),
         np.sqrt(np.einsum("ij,ij->i", d_total, d_total)),
+        np.linalg.norm(d_robot, axis=1),
+        np.abs(np.einsum("ij,ij->i", d_total, problem.normal)),
     )
 
 
@@ -163,6 +167,7 @@ def _solve_compiled(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) ->
         problem.wrench,
         problem.tool_compliance,
         (_length_scale(problem), problem.sigma_threshold),
+        normal=problem.normal,
     )
     if r.status == 1:
         raise_out_of_reach(model, r.reachable, ("front", "up", "noflip"))
@@ -170,7 +175,18 @@ def _solve_compiled(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) ->
         raise_beyond_limits(model, r.q)
     assert r.margin_ok is not None and r.d_total is not None and r.d_robot is not None
     assert r.steps is not None and r.abs_total is not None
-    return _PathEval(r.q, r.margin_ok, problem, r.d_total, r.d_robot, r.steps, r.abs_total)
+    assert r.abs_robot is not None and r.abs_normal is not None
+    return _PathEval(
+        r.q,
+        r.margin_ok,
+        problem,
+        r.d_total,
+        r.d_robot,
+        r.steps,
+        r.abs_total,
+        r.abs_robot,
+        r.abs_normal,
+    )
 
 
 def _joint_steps(q: F64) -> F64:
@@ -182,7 +198,7 @@ def _joint_steps(q: F64) -> F64:
 
 def _point_cost(problem: PlanProblem, ev: _PathEval) -> F64:
     if problem.objective == "normal":
-        return np.abs(np.einsum("ij,ij->i", ev.d_total, problem.normal))
+        return ev.abs_normal
     return ev.abs_total
 
 
@@ -256,9 +272,7 @@ def _realise(problem: PlanProblem, gamma_lap: F64) -> F64:
 
 
 def _score(problem: PlanProblem, ev: _PathEval, gamma_lap: F64) -> PlacementScore:
-    a = ev.abs_total
-    ar = np.linalg.norm(ev.d_robot, axis=1)
-    dn = np.abs(np.einsum("ij,ij->i", ev.d_total, problem.normal))
+    a, ar, dn = ev.abs_total, ev.abs_robot, ev.abs_normal  # per point, from the solve
     return PlacementScore(
         "ok",
         "",
