@@ -19,6 +19,7 @@ path fails a check, the best feasible constant γ is used instead.
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -152,6 +153,26 @@ def _solve(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) -> _PathEva
     )
 
 
+#: per problem, writeable C-contiguous copies of its per-point arrays for the compiled kernels:
+#: the problem's own are read-only, and the kernels' inputs are writeable float64 (one compiled
+#: signature), so without these every placement copied tip, wrench and normals (~6 % of its CPU)
+_KERNEL_INPUTS: weakref.WeakKeyDictionary[PlanProblem, tuple[F64, F64, F64]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def _kernel_inputs(problem: PlanProblem) -> tuple[F64, F64, F64]:
+    """(tip, wrench, normal) of ``problem`` as the kernels take them (only read by them)."""
+    got = _KERNEL_INPUTS.get(problem)
+    if got is None:
+        tip, wrench, normal = (
+            np.array(a, dtype=np.float64, order="C")
+            for a in (problem.tip, problem.wrench, problem.normal)
+        )
+        got = _KERNEL_INPUTS[problem] = (tip, wrench, normal)
+    return got
+
+
 def _solve_compiled(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) -> _PathEval:
     """:func:`_solve` as one compiled pass per path (:func:`roboisf.robot.ik_numba.path_vjm`):
     the same numbers (≤ 1e-12 rad, ~1e-15 relative in δ), the same errors."""
@@ -159,15 +180,16 @@ def _solve_compiled(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) ->
 
     model = problem.model
     g = np.asarray(gamma, dtype=float).reshape(-1)
+    tip, wrench, normal = _kernel_inputs(problem)
     r = path_vjm(
         model,
-        problem.tip,
+        tip,
         T_base_work,
         g,
-        problem.wrench,
+        wrench,
         problem.tool_compliance,
         (_length_scale(problem), problem.sigma_threshold),
-        normal=problem.normal,
+        normal=normal,
     )
     if r.status == 1:
         raise_out_of_reach(model, r.reachable, ("front", "up", "noflip"))
