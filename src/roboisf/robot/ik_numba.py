@@ -366,12 +366,21 @@ def _round_half_even(x: float) -> float:  # pragma: no cover - compiled
 def _continuous(q: F64, q_min: F64, q_max: F64) -> bool:  # pragma: no cover - compiled
     """In place: ``np.unwrap`` along axis 0, the whole-turn shift of
     :func:`roboisf.robot.ik._continuous`; returns True when every angle is within the limits
-    (± 1e-9 rad)."""
+    (± 1e-9 rad).
+
+    Two passes per joint: the unwrap also sums the column and tracks its extremes (the limit
+    tests on the shifted column follow from those exactly, rounding being monotonic), then one
+    pass applies the shift — the same additions, in the same order, as unwrap, sum, shift and
+    test done one after another."""
     n = q.shape[0]
+    all_in = True
     for j in range(6):
         # np.unwrap: period 2π, discont π, the ambiguous boundary to +π when the step is > 0
         acc = 0.0
         prev = q[0, j]
+        tot = prev
+        lo_q = prev
+        hi_q = prev
         for i in range(1, n):
             cur = q[i, j]
             dd = cur - prev
@@ -381,36 +390,36 @@ def _continuous(q: F64, q_min: F64, q_max: F64) -> bool:  # pragma: no cover - c
                 if ddmod == -_PI and dd > 0:
                     ddmod = _PI
                 acc += ddmod - dd
-            q[i, j] = cur + acc
-    all_in = True
-    for j in range(6):
-        tot = 0.0
-        for i in range(n):
-            tot += q[i, j]
+            v = cur + acc
+            q[i, j] = v
+            tot += v
+            if v < lo_q:
+                lo_q = v
+            if v > hi_q:
+                hi_q = v
         mean = tot / n
         mid = 0.5 * (q_min[j] + q_max[j])
         k = _round_half_even((mid - mean) / _TWO_PI)
         lo = q_min[j] - 1e-9
         hi = q_max[j] + 1e-9
-        for i in range(n):
-            q[i, j] = q[i, j] + k * _TWO_PI
+        sh = k * _TWO_PI
+        lo_s = lo_q + sh  # extremes of the shifted column (fl(x + c) is monotonic in x)
+        hi_s = hi_q + sh
+        dk = 0.0
         for t in range(3):
-            dk = 0.0 if t == 0 else (1.0 if t == 1 else -1.0)
-            inside = True
-            for i in range(n):
-                v = q[i, j] + dk * _TWO_PI
-                if not (v >= lo and v <= hi):
-                    inside = False
-                    break
-            if inside:
-                if dk != 0.0:
-                    for i in range(n):
-                        q[i, j] = q[i, j] + dk * _TWO_PI
+            dt = 0.0 if t == 0 else (1.0 if t == 1 else -1.0)
+            a = lo_s + dt * _TWO_PI
+            b = hi_s + dt * _TWO_PI
+            if a >= lo and a <= hi and b >= lo and b <= hi:
+                dk = dt
                 break
+        ds = dk * _TWO_PI
         for i in range(n):
-            if q[i, j] < lo or q[i, j] > hi:
-                all_in = False
-                break
+            q[i, j] = q[i, j] + sh
+            if dk != 0.0:
+                q[i, j] = q[i, j] + ds
+        if lo_s + ds < lo or hi_s + ds > hi:
+            all_in = False
     return all_in
 
 
