@@ -43,6 +43,8 @@ def _floats(text: str, n: int, field: str) -> np.ndarray:
 
 
 def _ints(text: str, n: int, field: str) -> np.ndarray:
+    import numpy as np
+
     v = _floats(text, n, field)
     if np.any(v != np.round(v)):
         raise InputError(f"expected {n} comma-separated integers, got {text!r}", field=field)
