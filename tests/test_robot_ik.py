@@ -434,8 +434,14 @@ def test_plan_path_kernel_matches_the_numpy_solve(plan_problem, tool):
         assert np.abs(a.q - b.q).max() <= 1e-12
         assert np.abs(a.steps - b.steps).max() <= 1e-12
         np.testing.assert_array_equal(a.margin_ok, b.margin_ok)
-        for k in ("d_total", "d_robot", "abs_total"):
+        for k in ("d_total", "d_robot", "abs_total", "abs_robot", "abs_normal"):
             assert np.abs(getattr(a, k) - getattr(b, k)).max() <= 1e-15
+        # the kernel's per-point |δ_robot| and |δ·n| are the numpy reductions of its own δ (what
+        # the placement scores were computed from before they moved into the kernel): |δ_robot|
+        # bit for bit, |δ·n| within 1 ulp (einsum's summation order may follow the CPU's SIMD)
+        np.testing.assert_array_equal(a.abs_robot, np.linalg.norm(a.d_robot, axis=1))
+        dn = np.abs(np.einsum("ij,ij->i", a.d_total, prob.normal))
+        assert np.all(np.abs(a.abs_normal - dn) <= np.spacing(dn))
         if not tool:
             np.testing.assert_array_equal(a.d_total, a.d_robot)
         with ThreadPoolExecutor(1) as ex:

@@ -19,6 +19,7 @@ path fails a check, the best feasible constant γ is used instead.
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -96,6 +97,8 @@ class _PathEval:
     d_robot: F64
     steps: F64  # (N,) largest joint change from the previous point
     abs_total: F64  # (N,) |d_total|
+    abs_robot: F64  # (N,) |d_robot|
+    abs_normal: F64  # (N,) |d_total·n|
 
     @cached_property
     def J_scaled(self) -> F64:
@@ -145,7 +148,29 @@ def _solve(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) -> _PathEva
         d_robot,
         _joint_steps(ik.q),
         np.sqrt(np.einsum("ij,ij->i", d_total, d_total)),
+        np.linalg.norm(d_robot, axis=1),
+        np.abs(np.einsum("ij,ij->i", d_total, problem.normal)),
     )
+
+
+#: per problem, writeable C-contiguous copies of its per-point arrays for the compiled kernels:
+#: the problem's own are read-only, and the kernels' inputs are writeable float64 (one compiled
+#: signature), so without these every placement copied tip, wrench and normals (~6 % of its CPU)
+_KERNEL_INPUTS: weakref.WeakKeyDictionary[PlanProblem, tuple[F64, F64, F64]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def _kernel_inputs(problem: PlanProblem) -> tuple[F64, F64, F64]:
+    """(tip, wrench, normal) of ``problem`` as the kernels take them (only read by them)."""
+    got = _KERNEL_INPUTS.get(problem)
+    if got is None:
+        tip, wrench, normal = (
+            np.array(a, dtype=np.float64, order="C")
+            for a in (problem.tip, problem.wrench, problem.normal)
+        )
+        got = _KERNEL_INPUTS[problem] = (tip, wrench, normal)
+    return got
 
 
 def _solve_compiled(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) -> _PathEval:
@@ -155,14 +180,16 @@ def _solve_compiled(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) ->
 
     model = problem.model
     g = np.asarray(gamma, dtype=float).reshape(-1)
+    tip, wrench, normal = _kernel_inputs(problem)
     r = path_vjm(
         model,
-        problem.tip,
+        tip,
         T_base_work,
         g,
-        problem.wrench,
+        wrench,
         problem.tool_compliance,
         (_length_scale(problem), problem.sigma_threshold),
+        normal=normal,
     )
     if r.status == 1:
         raise_out_of_reach(model, r.reachable, ("front", "up", "noflip"))
@@ -170,7 +197,18 @@ def _solve_compiled(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) ->
         raise_beyond_limits(model, r.q)
     assert r.margin_ok is not None and r.d_total is not None and r.d_robot is not None
     assert r.steps is not None and r.abs_total is not None
-    return _PathEval(r.q, r.margin_ok, problem, r.d_total, r.d_robot, r.steps, r.abs_total)
+    assert r.abs_robot is not None and r.abs_normal is not None
+    return _PathEval(
+        r.q,
+        r.margin_ok,
+        problem,
+        r.d_total,
+        r.d_robot,
+        r.steps,
+        r.abs_total,
+        r.abs_robot,
+        r.abs_normal,
+    )
 
 
 def _joint_steps(q: F64) -> F64:
@@ -182,7 +220,7 @@ def _joint_steps(q: F64) -> F64:
 
 def _point_cost(problem: PlanProblem, ev: _PathEval) -> F64:
     if problem.objective == "normal":
-        return np.abs(np.einsum("ij,ij->i", ev.d_total, problem.normal))
+        return ev.abs_normal
     return ev.abs_total
 
 
@@ -256,9 +294,7 @@ def _realise(problem: PlanProblem, gamma_lap: F64) -> F64:
 
 
 def _score(problem: PlanProblem, ev: _PathEval, gamma_lap: F64) -> PlacementScore:
-    a = ev.abs_total
-    ar = np.linalg.norm(ev.d_robot, axis=1)
-    dn = np.abs(np.einsum("ij,ij->i", ev.d_total, problem.normal))
+    a, ar, dn = ev.abs_total, ev.abs_robot, ev.abs_normal  # per point, from the solve
     return PlacementScore(
         "ok",
         "",

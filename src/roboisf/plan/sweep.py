@@ -216,6 +216,30 @@ def plan_placements(
     return PlanResult(P, scores, order, g, base, base_T, problem.objective, notes, best0)
 
 
+def _refuse_fast(address: str) -> None:
+    """Raise ``ConnectionRefusedError`` at once when nothing listens at a ``tcp://host:port``
+    (or ``host:port``) scheduler address; Dask's client would retry a refused connection until
+    its 10 s timeout. Other failures (no route, a slow host, other protocols) are left to Dask."""
+    import socket
+    from urllib.parse import urlsplit
+
+    if "://" in address and not address.startswith("tcp://"):
+        return
+    try:
+        u = urlsplit(address if "://" in address else f"tcp://{address}")
+        host, port = u.hostname, u.port
+    except ValueError:
+        return
+    if not host or port is None:
+        return
+    try:
+        socket.create_connection((host, port), timeout=2.0).close()
+    except ConnectionRefusedError:
+        raise
+    except OSError:
+        return  # not a definite refusal: Dask decides, with its own timeout
+
+
 def _dask_map(
     problem: PlanProblem,
     Ts: F64,
@@ -245,6 +269,7 @@ def _dask_map(
             own.append(client)
         elif isinstance(scheduler, str):
             try:
+                _refuse_fast(scheduler)
                 client = Client(scheduler, timeout=10)
             except OSError as e:
                 raise InputError(

@@ -366,12 +366,21 @@ def _round_half_even(x: float) -> float:  # pragma: no cover - compiled
 def _continuous(q: F64, q_min: F64, q_max: F64) -> bool:  # pragma: no cover - compiled
     """In place: ``np.unwrap`` along axis 0, the whole-turn shift of
     :func:`roboisf.robot.ik._continuous`; returns True when every angle is within the limits
-    (± 1e-9 rad)."""
+    (± 1e-9 rad).
+
+    Two passes per joint: the unwrap also sums the column and tracks its extremes (the limit
+    tests on the shifted column follow from those exactly, rounding being monotonic), then one
+    pass applies the shift — the same additions, in the same order, as unwrap, sum, shift and
+    test done one after another."""
     n = q.shape[0]
+    all_in = True
     for j in range(6):
         # np.unwrap: period 2π, discont π, the ambiguous boundary to +π when the step is > 0
         acc = 0.0
         prev = q[0, j]
+        tot = prev
+        lo_q = prev
+        hi_q = prev
         for i in range(1, n):
             cur = q[i, j]
             dd = cur - prev
@@ -381,36 +390,36 @@ def _continuous(q: F64, q_min: F64, q_max: F64) -> bool:  # pragma: no cover - c
                 if ddmod == -_PI and dd > 0:
                     ddmod = _PI
                 acc += ddmod - dd
-            q[i, j] = cur + acc
-    all_in = True
-    for j in range(6):
-        tot = 0.0
-        for i in range(n):
-            tot += q[i, j]
+            v = cur + acc
+            q[i, j] = v
+            tot += v
+            if v < lo_q:
+                lo_q = v
+            if v > hi_q:
+                hi_q = v
         mean = tot / n
         mid = 0.5 * (q_min[j] + q_max[j])
         k = _round_half_even((mid - mean) / _TWO_PI)
         lo = q_min[j] - 1e-9
         hi = q_max[j] + 1e-9
-        for i in range(n):
-            q[i, j] = q[i, j] + k * _TWO_PI
+        sh = k * _TWO_PI
+        lo_s = lo_q + sh  # extremes of the shifted column (fl(x + c) is monotonic in x)
+        hi_s = hi_q + sh
+        dk = 0.0
         for t in range(3):
-            dk = 0.0 if t == 0 else (1.0 if t == 1 else -1.0)
-            inside = True
-            for i in range(n):
-                v = q[i, j] + dk * _TWO_PI
-                if not (v >= lo and v <= hi):
-                    inside = False
-                    break
-            if inside:
-                if dk != 0.0:
-                    for i in range(n):
-                        q[i, j] = q[i, j] + dk * _TWO_PI
+            dt = 0.0 if t == 0 else (1.0 if t == 1 else -1.0)
+            a = lo_s + dt * _TWO_PI
+            b = hi_s + dt * _TWO_PI
+            if a >= lo and a <= hi and b >= lo and b <= hi:
+                dk = dt
                 break
+        ds = dk * _TWO_PI
         for i in range(n):
-            if q[i, j] < lo or q[i, j] > hi:
-                all_in = False
-                break
+            q[i, j] = q[i, j] + sh
+            if dk != 0.0:
+                q[i, j] = q[i, j] + ds
+        if lo_s + ds < lo or hi_s + ds > hi:
+            all_in = False
     return all_in
 
 
@@ -524,16 +533,22 @@ def _vjm_rows(
     d_total: F64,
     abs_total: F64,
     steps: F64,
+    nrm: F64,
+    abs_robot: F64,
+    abs_normal: F64,
     s: int,
     e: int,
 ) -> None:  # pragma: no cover - compiled
     """Poses ``s:e`` of a solved path: the wrench into base axes, the VJM kernel of
     :mod:`roboisf.robot.vjm_numba` (δ and the margin test), δ back into work axes, the tool's
     own deflection (``C_tool`` (3, 6) in tool axes, ``R_work_tool = Rz(−γ)``; none when it has
-    no rows), |δ| and the largest joint step from the previous pose."""
+    no rows), |δ|, the robot's |δ| and |δ·n| (``nrm`` (N, 3) work; skipped when it has no rows)
+    and the largest joint step from the previous pose — the per-point figures a placement's score
+    reduces, so that no numpy pass over the path follows the kernel."""
     one_w = W_work.shape[0] == 1
     one_g = gam.shape[0] == 1
     want_tool = C_tool.shape[0] > 0
+    want_normal = nrm.shape[0] > 0
     for n in range(s, e):
         w = 0 if one_w else n
         for i in range(3):
@@ -549,6 +564,7 @@ def _vjm_rows(
         x1 = d[n, 0] * A[0, 1] + d[n, 1] * A[1, 1] + d[n, 2] * A[2, 1]
         x2 = d[n, 0] * A[0, 2] + d[n, 1] * A[1, 2] + d[n, 2] * A[2, 2]
         d_robot[n, 0], d_robot[n, 1], d_robot[n, 2] = x0, x1, x2
+        abs_robot[n] = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
         if want_tool:
             if not one_g:
                 sg, cg = sincos(gam[n])
@@ -568,6 +584,9 @@ def _vjm_rows(
             x2 += t2
         d_total[n, 0], d_total[n, 1], d_total[n, 2] = x0, x1, x2
         abs_total[n] = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+        if want_normal:
+            # summed in the order numpy's einsum("ij,ij->i") uses (the numpy solve's figure)
+            abs_normal[n] = abs((x0 * nrm[n, 0] + x2 * nrm[n, 2]) + x1 * nrm[n, 1])
         st = 0.0
         if n > 0:
             for j in range(6):
@@ -595,6 +614,9 @@ def _vjm_parallel(
     d_total: F64,
     abs_total: F64,
     steps: F64,
+    nrm: F64,
+    abs_robot: F64,
+    abs_normal: F64,
 ) -> None:  # pragma: no cover - compiled
     n = q.shape[0]
     nb = (n + BLOCK - 1) // BLOCK
@@ -619,6 +641,9 @@ def _vjm_parallel(
             d_total,
             abs_total,
             steps,
+            nrm,
+            abs_robot,
+            abs_normal,
             s,
             min(n, s + BLOCK),
         )
@@ -631,6 +656,7 @@ class PathVJM(NamedTuple):
     status : 0 solved within the limits, 1 some point out of reach, 2 beyond the joint limits
     (the arrays below are filled only for status 0)
     margin_ok : (N,) bool; d_robot, d_total : (N, 3) m; abs_total, steps : (N,) (m, rad)
+    abs_robot : (N,) m — |d_robot|; abs_normal : (N,) m — |d_total·n| (None without normals)
     """
 
     q: F64
@@ -641,6 +667,8 @@ class PathVJM(NamedTuple):
     d_total: F64 | None = None
     abs_total: F64 | None = None
     steps: F64 | None = None
+    abs_robot: F64 | None = None
+    abs_normal: F64 | None = None
 
 
 def path_vjm(
@@ -654,13 +682,15 @@ def path_vjm(
     shoulder: str = "front",
     elbow: str = "up",
     wrist: str = "noflip",
+    normal: F64 | None = None,
 ) -> PathVJM:
     """IK, continuity, joint limits, VJM δ, the singularity-margin test and the tool's deflection
     along one placement's path, compiled end to end (``roboisf.plan``'s inner loop).
 
     tip (N, 3) m work; T_base_work (4, 4); γ (N,) or (1,) rad; W_work (N, 6) or (1, 6) [N; N·m]
     in work axes; C_tool (6, 6) tool compliance in tool axes (its force-to-displacement rows
-    are used) or None; margin = (length scale m, threshold).
+    are used) or None; margin = (length scale m, threshold); normal (N, 3) unit work-axes
+    normals for ``abs_normal`` or None.
     """
     from roboisf.frames import invert
 
@@ -704,12 +734,16 @@ def path_vjm(
         np.empty((n, 3)),
         np.empty(n),
         np.empty(n),
+        np.empty((0, 3)) if normal is None else _c64(normal),
+        np.empty(n),  # |δ_robot|
+        np.empty(n if normal is not None else 0),  # |δ·n|
     )
     if _main():
         _vjm_parallel(*args, *out)
     else:
         _vjm_rows(*args, *out, 0, n)
-    return PathVJM(q, ok, 0, out[2], out[3], out[4], out[5], out[6])
+    abs_normal = None if normal is None else out[9]
+    return PathVJM(q, ok, 0, out[2], out[3], out[4], out[5], out[6], out[8], abs_normal)
 
 
 @_njit()
