@@ -81,7 +81,7 @@ def test_output_files(analysed):
 
 
 def test_paper_like_magnitudes(analysed):
-    """The cells are tuned to the paper's orders of magnitude (DESIGN.md §3)."""
+    """The cells are tuned to the paper's orders of magnitude (Bharti et al. 2024)."""
     result, _ = analysed
     rows = result.contributions.set_index("factor")
     if result.study.name == "cone-71":

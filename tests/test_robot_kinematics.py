@@ -29,7 +29,7 @@ def test_presets_listed_and_load():
 
 
 def test_irb7600_opw_equals_design_dh():
-    """DESIGN.md §3 gives the IRB 7600 twice (DH and OPW); both must be the same robot."""
+    """The IRB 7600 preset is written twice (DH and OPW); both must be the same robot."""
     m = load_robot("irb7600-500-2.55")
     dh = chain_from_dh(
         [0.780, 0, 0, 1.056, 0, 0.250],

@@ -1,4 +1,4 @@
-"""Virtual-cell force and springback models against the paper's numbers (DESIGN.md §3)."""
+"""Virtual-cell force and springback models against the paper's numbers (Bharti et al. 2024)."""
 
 import math
 
@@ -27,7 +27,7 @@ def test_aerens_formula_by_hand():
     hand = 0.0716 * 90 * 1.22**1.57 * 10**0.41 * 0.5**0.09 * 71 * math.cos(math.radians(71))
     got = aerens_axial_force(90e6, 1.22e-3, 10e-3, 0.5e-3, math.radians(71))
     assert got == pytest.approx(hand, rel=1e-12)
-    assert 400 < got < 590  # DESIGN.md §3 range for this sheet and tool
+    assert 400 < got < 590  # the paper's force range for this sheet and tool
 
 
 def test_cone_force_rises_then_saturates(cone_path):

@@ -1,4 +1,4 @@
-"""The paper's error decomposition (DESIGN.md §2 step 8), on per-toolpath-point arrays.
+"""The paper's error decomposition (Bharti et al. 2024, Tables 4–5), on per-toolpath-point arrays.
 
     δ_R = δc + δs + δt + δth                      (superposition, eq. 1)
     δs  = δ_CNC − δt,CNC                          (CNC taken as rigid)

@@ -4,7 +4,7 @@ The shaft is a stack of slices along z, each in series with the next. A slice at
 length dz, bent, sheared, stretched and twisted by the wrench it carries, has the local compliance
 ``c(z) dz = diag(1/(κGA), 1/(κGA), 1/(EA), 1/(EI), 1/(EI), 1/(GJ)) dz`` about its own position;
 moved to the reference point O (the origin, below the shaft) with
-``J(v) = [[I, −[v]×], [0, I]]``, ``v = O − (0, 0, z)``, and summed (serial assembly, DESIGN eq. 2)::
+``J(v) = [[I, −[v]×], [0, I]]``, ``v = O − (0, 0, z)``, and summed (the paper's serial assembly)::
 
     k_O = ∫ J(v(z)) c(z) J(v(z))ᵀ dz
 

@@ -252,7 +252,7 @@ def holder_compliance(
 def tool_holder_compliance(
     tool: ComplianceResult, holder: ComplianceResult, tool_length: float
 ) -> ComplianceResult:
-    """Tool + holder in series about the tool tip (DESIGN eq. 2).
+    """Tool + holder in series about the tool tip (the paper's serial assembly).
 
     ``tool`` is given in the tool frame (origin at the tip), ``holder`` in the holder frame (origin
     at the nose centre, ``tool_length`` [m] above the tip, same axes); each about its reference

@@ -13,7 +13,7 @@ Why: a rotation θ at *i* moves the tip by ``θ × v_i = −[v_i]× θ``; and th
 is ``Jᵢᵀ W`` (same force, moment ``m + v_i × f``). ``J_i`` is the twist adjoint of a pure
 translation by ``−v_i``, so the general (rotated) case is :func:`transform_compliance`.
 
-Serial chain (robot, tool holder, tool), all at the tip: ``k_ef = Σ J_i k_i J_iᵀ`` (DESIGN eq. 2);
+Serial chain (robot, tool holder, tool), all at the tip: ``k_ef = Σ J_i k_i J_iᵀ`` (eq. 2);
 the robot part back out: ``k_r = k_ef − J_th k_th J_thᵀ − J_t k_t J_tᵀ`` (eq. 3).
 """
 

@@ -1,4 +1,4 @@
-"""Joint-stiffness identification by elasto-static calibration (DESIGN.md §2 step 7).
+"""Joint-stiffness identification by elasto-static calibration (after Dumas et al. 2011).
 
 In experiment e the known tip wrench ``W_e`` (base frame) deflects the tip by
 ``δ_e = Σ_i J_i (J_iᵀ W_e) c_i`` with ``c_i = 1/K_i`` — linear in the compliances. Stacking the

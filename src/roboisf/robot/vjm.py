@@ -1,4 +1,4 @@
-"""Virtual Joint Model elastostatics along a path (DESIGN.md §2 step 6).
+"""Virtual Joint Model elastostatics along a path (the VJM of Bharti et al. 2024).
 
 ``k_c = J K_θ⁻¹ Jᵀ`` (eq. 4) and ``δ = k_c W`` (eq. 5) at the tool tip; frames: base or work
 (same point — the tip — only the axes change). Tool and holder compliances join through the serial
