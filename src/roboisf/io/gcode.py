@@ -466,7 +466,7 @@ class Interpreter:
             elif a == "T":
                 self.tools.append(round(v))
             elif a in ("S", "H", "D"):
-                pass
+                pass  # spindle speed, length/radius offset numbers: no effect on the tip path
             elif a in _EXTRA_AXES:
                 if a in self.opt.ignore_words:
                     self.ignored.setdefault(a, []).append(line)
@@ -477,11 +477,11 @@ class Interpreter:
                         line,
                     )
             elif a in "IJKR" and (st.motion in (2.0, 3.0) or dwell) and not home:
-                pass
+                pass  # arc centre / radius: read by the arc below
             elif a in ("P", "X", "U") and dwell:
-                pass
+                pass  # dwell time: not timed (the unit differs by control; docs/toolpaths.md)
             elif a in ("P", "Q", "E", "R", "L") and params:
-                pass
+                pass  # parameters of a noted high-speed/smoothing mode word
             elif a in ("P", "L", "Q"):
                 raise self.err(f"{a} word outside a dwell (G04): not supported", line)
             elif a in _AXES or a in "IJKR":
