@@ -416,9 +416,16 @@ def evaluate_batch(
     problem: PlanProblem, T_base_work: ArrayLike, tool_rotations: ArrayLike
 ) -> list[PlacementScore]:
     """:func:`evaluate_placement` for placements (B, 4, 4) — one Dask task's worth of work."""
-    Ts = np.asarray(T_base_work, dtype=float).reshape(-1, 4, 4)
     with single_blas_thread():  # the placements are the parallel work: idle BLAS threads spin
-        return [evaluate_placement(problem, T, tool_rotations) for T in Ts]
+        return _evaluate_many(problem, T_base_work, tool_rotations)
+
+
+def _evaluate_many(
+    problem: PlanProblem, T_base_work: ArrayLike, tool_rotations: ArrayLike
+) -> list[PlacementScore]:
+    """:func:`evaluate_batch` without pinning BLAS (the caller has)."""
+    Ts = np.asarray(T_base_work, dtype=float).reshape(-1, 4, 4)
+    return [evaluate_placement(problem, T, tool_rotations) for T in Ts]
 
 
 def path_sigma_min(problem: PlanProblem, T_base_work: ArrayLike, gamma_lap: ArrayLike) -> float:
