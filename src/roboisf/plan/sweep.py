@@ -237,11 +237,11 @@ def plan_placements(
     m = Ts.shape[0]
     if isinstance(scheduler, str) and scheduler == "auto":
         scheduler = default_scheduler(problem)
+    scores: list[PlacementScore] = []
     with task(progress, f"placements ({m} × {g.size} tool rotations)", m) as advance:
         if isinstance(scheduler, str) and scheduler == "threads":
             scores = _thread_map(problem, Ts, g, n_workers, batch_size, advance)
         elif scheduler is None or scheduler == "serial":
-            scores: list[PlacementScore] = []
             for sl in _batches(m, batch_size or 8):
                 scores.extend(evaluate_batch(problem, Ts[sl], g))
                 advance(sl.stop - sl.start)
