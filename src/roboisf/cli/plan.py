@@ -247,7 +247,7 @@ def _problem(
     rob = s.robot_run
     tp = study_toolpath(s, rob, c.part)  # a toolpath CSV or a CAM program
     W = run_tip_wrench(s, rob, tp)
-    prob = PlanProblem(m, tp.tip, tp.normal, tp.lap, W, **opts)
+    prob = PlanProblem(m, tp.tip, tp.normal, tp.lap, W, ball_radius=c.tool.radius, **opts)
     return prob, m, c.T_base_work, f"study {s.name}, robot-run forces, robot only"
 
 

@@ -26,6 +26,7 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from roboisf.cell.model import at_ball_centre
 from roboisf.errors import UnreachableError
 from roboisf.frames import rot_z
 from roboisf.plan.problem import PlanProblem
@@ -128,7 +129,11 @@ def _solve(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) -> _PathEva
     r = model.vjm(ik.q, W_b, margin=(_length_scale(problem), problem.sigma_threshold))
     ok = r.margin_ok
     assert ok is not None
-    d_robot = r.d[:, :3] @ R  # rows Rᵀ δ: base → work axes
+    rb = problem.ball_radius
+    # rows Rᵀ δ: base → work axes; then the ball centre (δ + θ × R ẑ) when rb > 0
+    d_robot = r.d[:, :3] @ R
+    if rb > 0.0:
+        d_robot = at_ball_centre(np.concatenate([d_robot, r.d[:, 3:] @ R], axis=1), rb)
     d_total = d_robot
     if problem.tool_compliance is not None:
         # tool axes → work: z stays, x_tool = (cos γ, −sin γ, 0), i.e. R_work_tool = Rz(−γ)
@@ -138,8 +143,11 @@ def _solve(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) -> _PathEva
         W_t = np.concatenate(
             [np.einsum(back, R_wt, W[:, :3]), np.einsum(back, R_wt, W[:, 3:])], axis=1
         )
-        d_tool = W_t @ problem.tool_compliance[:3].T  # (N, 3) tool axes
-        d_total = d_robot + np.einsum(fwd, R_wt, d_tool)
+        t = W_t @ problem.tool_compliance.T  # (N, 6) tool axes [m; rad]
+        d_tool = np.einsum(fwd, R_wt, t[:, :3])
+        if rb > 0.0:
+            d_tool = at_ball_centre(np.concatenate([d_tool, np.einsum(fwd, R_wt, t[:, 3:])], 1), rb)
+        d_total = d_robot + d_tool
     return _PathEval(
         ik.q,
         ok,
@@ -190,6 +198,7 @@ def _solve_compiled(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) ->
         problem.tool_compliance,
         (_length_scale(problem), problem.sigma_threshold),
         normal=normal,
+        ball_radius=problem.ball_radius,
     )
     if r.status == 1:
         raise_out_of_reach(model, r.reachable, ("front", "up", "noflip"))
