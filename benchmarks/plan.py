@@ -90,6 +90,9 @@ def main() -> None:
     )
 
     sub = P[: a.serial_subset]
+    # compile (or load from numba's cache) the main-thread and the worker-thread kernels first
+    plan_placements(prob, P[:2], scheduler="serial", detail=1)
+    plan_placements(prob, P[:2], scheduler="threads", n_workers=2, detail=0)
     t, c = time.perf_counter(), time.process_time()
     ser = plan_placements(prob, sub, scheduler="serial")
     t_ser, c_ser = time.perf_counter() - t, time.process_time() - c
