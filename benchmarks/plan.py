@@ -181,11 +181,16 @@ def main() -> None:
     )
     print(f"target ≤ 60 s on 2 cores: {'met' if t_par <= 60 else 'MISSED'}")
     t20 = t_par * 20e6 / n_pose
+    # the CPU time of the whole sweep (threads: every thread's; else the serial evaluation's)
+    threads = (a.scheduler == "auto" and default_scheduler(prob) == "threads") or (
+        a.scheduler == "threads"
+    )
+    cpu20 = c_par * 20e6 / n_pose if threads else cpu0 * 20e6 / prob.n_points
+    src = "this sweep's CPU time (every thread)" if threads else "the serial evaluation's CPU time"
     print(
         f"issue #16 target, 20 M pose evaluations ≤ 10 s on 2 cores: {t20:.1f} s at this run's "
-        f"{a.scheduler} rate, {cpu0 * 20e6 / prob.n_points / 2:.1f} s from the evaluation's "
-        f"serial CPU time split over 2 cores ({'met' if t20 <= 10 else 'not met in this run'}; "
-        "contended if the load average above exceeds ~0.5)"
+        f"{a.scheduler} rate ({'met' if t20 <= 10 else 'not met in this run'}); {cpu20 / 2:.1f} s "
+        f"from {src} split over 2 cores (contended if the load average above exceeds ~0.5)"
     )
 
 
