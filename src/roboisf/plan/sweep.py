@@ -156,11 +156,13 @@ def _thread_map(
     advance: Any,
 ) -> list[PlacementScore]:
     """:func:`evaluate_batch` over batches of placements on ``n_workers`` threads (default: the
-    CPUs of this machine), the results in placement order."""
+    CPUs this process may use), the results in placement order."""
     import os
     from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
-    nw = n_workers or os.cpu_count() or 1
+    # the CPUs this process may run on (a container's or taskset's share), not the machine's
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    nw = n_workers or cpus or 1
     m = Ts.shape[0]
     # small batches: threads cost nothing to feed, and the last batches finish together
     size = batch_size or max(1, min(8, math.ceil(m / (4 * nw))))
@@ -203,8 +205,8 @@ def plan_placements(
     """Score candidate placements (M, 4) ``[x, y, z, yaw]`` (m, rad) over tool rotations (G,) rad.
 
     ``scheduler``: ``"auto"`` (default: ``"threads"`` with the compiled engine, else
-    ``"local"``), ``"threads"`` (``n_workers`` threads of this process, default one per CPU; the
-    compiled kernels run without the GIL), ``"serial"`` (this process), ``"local"`` (a Dask
+    ``"local"``), ``"threads"`` (``n_workers`` threads of this process, default one per usable
+    CPU; the compiled kernels run without the GIL), ``"serial"`` (this process), ``"local"`` (a Dask
     ``LocalCluster`` of ``n_workers`` single-threaded worker processes, default 2, started and
     closed here), an address ``"tcp://host:8786"`` of a running Dask scheduler, or a
     ``dask.distributed.Client``. Every scheduler gives the serial run's scores bit for bit.
