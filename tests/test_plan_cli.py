@@ -52,6 +52,20 @@ def test_plan_part_writes_ranked_outputs(cone_toml, tmp_path, capsys):
     assert "% lower" in text
 
 
+def test_plan_default_scheduler_is_named(cone_toml, tmp_path):
+    # (equality of the schedulers' scores: tests/test_plan_dask.py)
+    from roboisf.robot import vjm_kernel
+
+    out = tmp_path / "plan"
+    grid = ["--x-range", "1400,2200", "--y-range", "0", "--z-range", "200", "--workers", "2"]
+    assert main(["plan", "--part", str(cone_toml), *grid, "-o", str(out)]) == 0
+    doc = json.loads((out / "plan.json").read_text())
+    # what ran is named, not "auto": threads with the compiled engine, Dask processes without
+    want = "threads" if vjm_kernel.use_numba("auto") else "local"
+    assert doc["summary"]["scheduler"] == want
+    assert doc["summary"]["feasible"] == 2
+
+
 def test_plan_study(tmp_path):
     study = tmp_path / "study"
     build_study(

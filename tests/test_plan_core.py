@@ -4,10 +4,12 @@ acceptance on the paper's cone, bad input."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
+from roboisf.cell import at_ball_centre
 from roboisf.errors import InputError, UnreachableError
 from roboisf.frames import make_transform, rpy_to_matrix
 from roboisf.plan import (
@@ -43,11 +45,14 @@ def _angled_model():
 
 
 def test_score_equals_direct_vjm(cone_robot_only):
-    """Robot-only score = IK + RobotModel.deflection in work axes (a different code path)."""
+    """Robot-only score = IK + RobotModel.deflection in work axes, moved to the ball centre by the
+    analysis's own function (a different code path)."""
     prob = cone_robot_only
+    assert prob.ball_radius == CELL.cell.tool.radius > 0
     s = evaluate_placement(prob, PAPER_CELL_PLACEMENT)
     q = ik_toolpath(prob.model, prob.tip, PAPER_CELL_PLACEMENT).q
-    d = prob.model.deflection(q, prob.wrench, T_base_work=PAPER_CELL_PLACEMENT)[:, :3]
+    d6 = prob.model.deflection(q, prob.wrench, T_base_work=PAPER_CELL_PLACEMENT)
+    d = at_ball_centre(d6, prob.ball_radius)
     a = np.linalg.norm(d, axis=1)
     assert s.ok and s.status == "ok" and s.reason == ""
     assert s.mean_robot == pytest.approx(a.mean(), rel=1e-12)
@@ -55,6 +60,12 @@ def test_score_equals_direct_vjm(cone_robot_only):
     assert s.mean_abs == pytest.approx(a.mean(), rel=1e-12)
     dn = np.abs(np.einsum("ij,ij->i", d, prob.normal))
     assert s.mean_abs_normal == pytest.approx(dn.mean(), rel=1e-12)
+    # the tip's deflection differs, by ~0.6 % for the robot (cell.at_ball_centre's docstring)
+    a_tip = np.linalg.norm(d6[:, :3], axis=1).mean()
+    assert 1e-4 < abs(s.mean_robot / a_tip - 1.0) < 0.03
+    # ball_radius = 0 scores the tip
+    tip = evaluate_placement(replace(prob, ball_radius=0.0), PAPER_CELL_PLACEMENT)
+    assert tip.mean_robot == pytest.approx(a_tip, rel=1e-12)
     # the paper-like cell's order of magnitude (virtual/cell.py: R_m ≈ 0.5 mm there)
     assert 0.2e-3 < s.mean_robot < 1.0e-3
 
@@ -63,10 +74,37 @@ def test_tool_compliance_added_as_in_the_virtual_cell(cone, cone_robot_only):
     prob, _ = cone
     s = evaluate_placement(prob, PAPER_CELL_PLACEMENT)
     ev = _solve(cone_robot_only, PAPER_CELL_PLACEMENT, 0.0)
-    d = ev.d_robot + (prob.wrench @ prob.tool_compliance.T)[:, :3]  # γ = 0: tool axes = work
+    # γ = 0: tool axes = work; the ball centre as the virtual cell's tool_rob
+    tool = at_ball_centre(prob.wrench @ prob.tool_compliance.T, prob.ball_radius)
+    d = ev.d_robot + tool
     assert s.mean_abs == pytest.approx(np.linalg.norm(d, axis=1).mean(), rel=1e-12)
     assert s.mean_robot == pytest.approx(np.linalg.norm(ev.d_robot, axis=1).mean(), rel=1e-12)
     assert s.mean_abs > s.mean_robot
+
+
+@pytest.mark.parametrize("radius", [0.0, 7.5e-3])
+def test_ball_centre_compiled_equals_numpy_engine(radius):
+    """The compiled path kernel and the numpy path, an angled tool with a full (rotational) tool
+    compliance and a per-point γ, so every term of the ball-centre shift is non-zero."""
+    from roboisf.robot import vjm_kernel
+
+    if not vjm_kernel.use_numba("auto"):
+        pytest.skip("numba not installed")
+    base = problem_from_cell(CELL.cell, **CELL.path_settings, model=_angled_model())[0]
+    rng = np.random.default_rng(3)
+    C = rng.normal(size=(6, 6)) * 1e-7
+    prob = replace(base, tool_compliance=C @ C.T, ball_radius=radius)
+    prob_np = replace(prob, model=prob.model.with_backend("numpy"))
+    T = placement_transforms([[1.6, 0.1, 0.6, 0.2]])[0]
+    g = np.linspace(0.0, 0.6, prob.n_points)
+    a, b = _solve(prob, T, g), _solve(prob_np, T, g)
+    for f in ("d_robot", "d_total"):
+        x, y = getattr(a, f), getattr(b, f)
+        assert np.max(np.abs(x - y)) <= 1e-12 * np.max(np.abs(y)), f
+    if radius:
+        # the shift is really there: against the tip
+        tip = _solve(replace(prob, ball_radius=0.0), T, g)
+        assert np.max(np.abs(tip.d_total - a.d_total)) > 1e-3 * np.max(np.abs(a.d_total))
 
 
 def test_tool_compliance_turns_with_gamma(cone_robot_only):
@@ -273,3 +311,26 @@ def test_margin_test_agrees_with_the_singular_values(cone_robot_only):
     ref = ik_toolpath(cone_robot_only.model, cone_robot_only.tip, PAPER_CELL_PLACEMENT).sigma_min
     got = path_sigma_min(cone_robot_only, PAPER_CELL_PLACEMENT, np.zeros(L))
     assert got == pytest.approx(ref.min(), rel=1e-9)
+
+
+def test_path_sigma_min_equals_every_points_eigenvalues():
+    """The pruned search (every 64th point, then the elimination test) gives the minimum of all
+    points' σ_min, bit for bit: on the paper cell, elsewhere and near a wrist singularity (the
+    angled tool at γ = 180°, a sharp minimum the subsample misses)."""
+    from roboisf.plan.evaluate import _path_sigma_min_all, path_sigma_min
+
+    cone, _ = problem_from_cell(CELL.cell, **CELL.path_settings)
+    angled = problem_from_cell(CELL.cell, **CELL.path_settings, model=_angled_model())[0]
+    cases = [
+        (cone, PAPER_CELL_PLACEMENT, 0.0),
+        (cone, placement_transforms([[1.2, 0.0, 0.4, 0.0]])[0], 0.0),
+        (angled, placement_transforms([[1.6, 0.0, 0.6, 0.0]])[0], math.pi),
+        (angled, placement_transforms([[1.6, 0.0, 0.6, 0.0]])[0], 2.0),
+    ]
+    vals = []
+    for prob, T, g in cases:
+        gl = np.full(prob.n_laps, g)
+        a, b = path_sigma_min(prob, T, gl), _path_sigma_min_all(prob, T, gl)
+        assert a == b
+        vals.append(a)
+    assert min(vals) < 0.1  # a case near the singularity was really tested

@@ -81,3 +81,44 @@ def test_unreachable_scheduler_is_a_clear_error(problem):
 
     with pytest.raises(InputError, match="cannot reach the Dask scheduler"):
         plan_placements(problem, [[1.6, 0.0, 0.6, 0.0]], scheduler="tcp://127.0.0.1:1")
+
+
+def test_threads_equal_serial(problem):
+    # threads run the GIL-free serial kernels, the main thread the prange ones: same bits, in
+    # placement order, including an unreachable candidate and several tool rotations
+    P = np.vstack(
+        [placement_grid([1.4, 1.8], [0.0, 0.3], [0.4], [0.0, 0.5]), [[6.0, 0.0, 0.4, 0.0]]]
+    )
+    g = np.radians([0.0, 90.0, 180.0])
+    serial = plan_placements(problem, P, g, baseline=PAPER_CELL_PLACEMENT, scheduler="serial")
+    for size in (1, 3, None):
+        par = plan_placements(
+            problem,
+            P,
+            g,
+            baseline=PAPER_CELL_PLACEMENT,
+            scheduler="threads",
+            n_workers=2,
+            batch_size=size,
+        )
+        _same(serial, par)
+    assert par.scores[-1].status == "unreachable"
+
+
+def test_auto_scheduler_is_threads_on_the_compiled_engine(problem):
+    from dataclasses import replace
+
+    from roboisf.plan.sweep import default_scheduler
+    from roboisf.robot import vjm_kernel
+
+    want = "threads" if vjm_kernel.use_numba("auto") else "local"
+    assert default_scheduler(problem) == want
+    # the numpy engine holds the GIL: Dask processes
+    assert default_scheduler(replace(problem, model=problem.model.with_backend("numpy"))) == (
+        "local"
+    )
+    P = placement_grid([1.4, 1.8], [0.0], [0.4], [0.0])
+    _same(
+        plan_placements(problem, P, scheduler="serial"),
+        plan_placements(problem, P, scheduler="auto", n_workers=2),
+    )

@@ -481,3 +481,27 @@ def test_compiled_atan2_within_one_ulp_of_libm():
     b = np.arctan2(y, x)
     assert np.all(np.abs(a - b) <= np.spacing(np.abs(b)))  # ≤ 1 ulp
     np.testing.assert_array_equal(np.signbit(a), np.signbit(b))
+
+
+def test_compiled_wrap_is_numpys_modulo_bit_for_bit():
+    """The IK kernel's branch-free-of-fmod wrap against ``np.mod(x + π, 2π) − π``: its fast
+    ranges, their edges (±π, 3π, ±2π ± 1 ulp), far angles, zeros, infinities and NaN."""
+    _needs_numba()
+    from roboisf.robot.ik_numba import _wrap_many
+
+    rng = np.random.default_rng(5)
+    pi, tp = np.pi, 2 * np.pi
+    edges = np.array([-pi, pi, 3 * pi, -3 * pi, tp, -tp, 0.0, -0.0, tp - pi, 1e-300, -1e-300])
+    edges = np.concatenate([edges, np.nextafter(edges, np.inf), np.nextafter(edges, -np.inf)])
+    x = np.concatenate(
+        [
+            rng.uniform(-4 * pi, 4 * pi, 500_000),  # every fast range and beyond
+            rng.normal(size=1000) * 1e6,
+            edges,
+            [np.inf, -np.inf, np.nan, -1e-18, 1e-18],
+        ]
+    )
+    a = _wrap_many(x)
+    b = np.mod(x + pi, tp) - pi
+    np.testing.assert_array_equal(a, b)  # NaN where NaN, same bits elsewhere
+    np.testing.assert_array_equal(np.signbit(a), np.signbit(b))

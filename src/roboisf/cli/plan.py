@@ -99,10 +99,16 @@ def plan_cmd(
         False, "--no-tool-compliance", help="Robot only (no tool/holder beam compliance)."
     ),
     scheduler: str | None = typer.Option(
-        None, "--scheduler", help="Dask scheduler address (default: a local cluster)."
+        None,
+        "--scheduler",
+        help="Where the placements run: 'threads' (threads of this process, the default with "
+        "numba installed), 'local' (a Dask cluster of worker processes, the default without "
+        "numba) or a Dask scheduler address tcp://host:8786.",
     ),
-    serial: bool = typer.Option(False, "--serial", help="No Dask: evaluate in this process."),
-    workers: int = typer.Option(2, "--workers", help="Local cluster worker processes."),
+    serial: bool = typer.Option(False, "--serial", help="One placement at a time, this process."),
+    workers: int = typer.Option(
+        2, "--workers", help="Threads ('threads') or worker processes ('local')."
+    ),
     top: int = typer.Option(10, "--top", help="Candidates shown in the summary."),
 ) -> None:
     """Rank work-object placements (x, y, z, yaw) and tool rotations by predicted deflection."""
@@ -158,7 +164,11 @@ def plan_cmd(
         f"{len(P)} placements × {gammas.size} tool rotations, {prob.n_points} toolpath points "
         f"({source})"
     )
-    sched: Any = "serial" if serial else (scheduler or "local")
+    sched: Any = "serial" if serial else (scheduler or "auto")
+    if sched == "auto":  # named in plan.json as what ran
+        from roboisf.plan.sweep import default_scheduler
+
+        sched = default_scheduler(prob)
     res = plan_placements(
         prob,
         P,
@@ -237,7 +247,7 @@ def _problem(
     rob = s.robot_run
     tp = study_toolpath(s, rob, c.part)  # a toolpath CSV or a CAM program
     W = run_tip_wrench(s, rob, tp)
-    prob = PlanProblem(m, tp.tip, tp.normal, tp.lap, W, **opts)
+    prob = PlanProblem(m, tp.tip, tp.normal, tp.lap, W, ball_radius=c.tool.radius, **opts)
     return prob, m, c.T_base_work, f"study {s.name}, robot-run forces, robot only"
 
 

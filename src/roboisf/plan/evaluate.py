@@ -26,6 +26,7 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from roboisf.cell.model import at_ball_centre
 from roboisf.errors import UnreachableError
 from roboisf.frames import rot_z
 from roboisf.plan.problem import PlanProblem
@@ -128,7 +129,11 @@ def _solve(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) -> _PathEva
     r = model.vjm(ik.q, W_b, margin=(_length_scale(problem), problem.sigma_threshold))
     ok = r.margin_ok
     assert ok is not None
-    d_robot = r.d[:, :3] @ R  # rows Rᵀ δ: base → work axes
+    rb = problem.ball_radius
+    # rows Rᵀ δ: base → work axes; then the ball centre (δ + θ × R ẑ) when rb > 0
+    d_robot = r.d[:, :3] @ R
+    if rb > 0.0:
+        d_robot = at_ball_centre(np.concatenate([d_robot, r.d[:, 3:] @ R], axis=1), rb)
     d_total = d_robot
     if problem.tool_compliance is not None:
         # tool axes → work: z stays, x_tool = (cos γ, −sin γ, 0), i.e. R_work_tool = Rz(−γ)
@@ -138,8 +143,11 @@ def _solve(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) -> _PathEva
         W_t = np.concatenate(
             [np.einsum(back, R_wt, W[:, :3]), np.einsum(back, R_wt, W[:, 3:])], axis=1
         )
-        d_tool = W_t @ problem.tool_compliance[:3].T  # (N, 3) tool axes
-        d_total = d_robot + np.einsum(fwd, R_wt, d_tool)
+        t = W_t @ problem.tool_compliance.T  # (N, 6) tool axes [m; rad]
+        d_tool = np.einsum(fwd, R_wt, t[:, :3])
+        if rb > 0.0:
+            d_tool = at_ball_centre(np.concatenate([d_tool, np.einsum(fwd, R_wt, t[:, 3:])], 1), rb)
+        d_total = d_robot + d_tool
     return _PathEval(
         ik.q,
         ok,
@@ -190,6 +198,7 @@ def _solve_compiled(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) ->
         problem.tool_compliance,
         (_length_scale(problem), problem.sigma_threshold),
         normal=normal,
+        ball_radius=problem.ball_radius,
     )
     if r.status == 1:
         raise_out_of_reach(model, r.reachable, ("front", "up", "noflip"))
@@ -416,14 +425,47 @@ def evaluate_batch(
     problem: PlanProblem, T_base_work: ArrayLike, tool_rotations: ArrayLike
 ) -> list[PlacementScore]:
     """:func:`evaluate_placement` for placements (B, 4, 4) — one Dask task's worth of work."""
-    Ts = np.asarray(T_base_work, dtype=float).reshape(-1, 4, 4)
     with single_blas_thread():  # the placements are the parallel work: idle BLAS threads spin
-        return [evaluate_placement(problem, T, tool_rotations) for T in Ts]
+        return _evaluate_many(problem, T_base_work, tool_rotations)
+
+
+def _evaluate_many(
+    problem: PlanProblem, T_base_work: ArrayLike, tool_rotations: ArrayLike
+) -> list[PlacementScore]:
+    """:func:`evaluate_batch` without pinning BLAS (the caller has)."""
+    Ts = np.asarray(T_base_work, dtype=float).reshape(-1, 4, 4)
+    return [evaluate_placement(problem, T, tool_rotations) for T in Ts]
 
 
 def path_sigma_min(problem: PlanProblem, T_base_work: ArrayLike, gamma_lap: ArrayLike) -> float:
     """Smallest singular value of the scaled Jacobian along the realised path of a placement with
-    the per-lap tool rotations ``gamma_lap`` (n_laps,) rad (the value, for reports)."""
+    the per-lap tool rotations ``gamma_lap`` (n_laps,) rad (the value, for reports).
+
+    The value of ``sigma_min`` over every point, found without the eigenvalues of every point:
+    ``σ_min`` of every 64th point gives an upper bound ``s``; the exact elimination test
+    (``RobotModel.singularity_margin_ok``) at ``s + 1e-6`` keeps only the points that could lie
+    below it, whose ``σ_min`` is then computed. The margin of 1e-6 exceeds ``eigvalsh``'s
+    absolute error (~1e-8 · σ_max), so the minimum is the one of all points (tested equal).
+    """
+    T = np.asarray(T_base_work, dtype=float)
+    g = np.asarray(gamma_lap, dtype=float)
+    gp = float(g[0]) if np.all(g == g[0]) else _realise(problem, g)
+    ik = ik_toolpath(problem.model, problem.tip, T, tool_rotation=gp, singular_threshold=None)
+    ls = _length_scale(problem)
+
+    def smin(idx: NDArray[np.intp]) -> F64:
+        J = problem.model.jacobian(ik.q[idx], check_limits=False)
+        return sigma_min(scaled_jacobian(J, ls))
+
+    s = float(smin(np.arange(0, ik.q.shape[0], 64)).min())
+    low = np.flatnonzero(~problem.model.singularity_margin_ok(ik.q, ls, s + 1e-6))
+    return min(s, float(smin(low).min())) if low.size else s
+
+
+def _path_sigma_min_all(
+    problem: PlanProblem, T_base_work: ArrayLike, gamma_lap: ArrayLike
+) -> float:
+    """:func:`path_sigma_min` from the eigenvalues of every point (the reference of the tests)."""
     T = np.asarray(T_base_work, dtype=float)
     g = np.asarray(gamma_lap, dtype=float)
     gp = float(g[0]) if np.all(g == g[0]) else _realise(problem, g)

@@ -58,6 +58,9 @@ class PlanProblem:
     smoothness : float ≥ 0 — penalty on changing γ: a change of π costs this fraction of an
         average lap's summed |δ|
     objective : "mean" (mean |δ|), "max" (max |δ|) or "normal" (mean |δ·n|) — what is ranked
+    ball_radius : float ≥ 0, m — every δ is that of the ball centre, this far above the tip along
+        the work z (the tool vertical): ``δ_tip + θ × R ẑ``, as the analysis
+        (:func:`roboisf.cell.at_ball_centre`); 0 scores the tip itself
     """
 
     model: RobotModel
@@ -72,6 +75,7 @@ class PlanProblem:
     ramp_points: int = 50
     smoothness: float = 0.05
     objective: Objective = "mean"
+    ball_radius: float = 0.0
     lap_start: NDArray[np.intp] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -107,7 +111,7 @@ class PlanProblem:
                 field="robot",
             )
         self.model.joint_stiffness  # noqa: B018 - raises a clear InputError when unknown
-        for name in ("sigma_threshold", "smoothness"):
+        for name in ("sigma_threshold", "smoothness", "ball_radius"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise InputError(f"must be ≥ 0, got {v}", field=name)

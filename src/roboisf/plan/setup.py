@@ -30,8 +30,10 @@ def problem_from_part(
     """Step-down toolpath of ``part`` and the force model's wrench on it → (problem, toolpath).
 
     Lengths in m. ``tool_compliance`` (6, 6) SI at the tip. ``options`` go to
-    :class:`PlanProblem` (limits, smoothing, objective).
+    :class:`PlanProblem` (limits, smoothing, objective); the deflections are scored at the ball
+    centre (``ball_radius`` = ``tool_radius`` unless given), as the analysis.
     """
+    options.setdefault("ball_radius", tool_radius)
     tp = nominal_toolpath(part, tool_radius, step, spacing=spacing, max_wall_step=max_wall_step)
     W = tip_wrench(tp, force or ForceModel(), thickness=part.sheet_thickness, step_down=step)
     prob = PlanProblem(

@@ -1,6 +1,13 @@
-"""Evaluate many placements, serially or on a Dask cluster, and rank them.
+"""Evaluate many placements, serially, on threads of this process or on a Dask cluster, and rank
+them.
 
-Parallel layout: the :class:`PlanProblem` (toolpath, wrench, robot — the big, shared part) is
+Threads (``scheduler="threads"``, the default with the compiled engine): the path kernels of
+:mod:`roboisf.robot.ik_numba` run without the GIL when called from a thread other than the main
+one, and a placement's Python bookkeeping is ~1 % of its time, so ``n_workers`` threads keep as
+many cores busy with no process start, no pickling and no copy of the problem; each thread runs
+the serial code on the same inputs (bit-for-bit the serial scores, tested).
+
+Dask layout: the :class:`PlanProblem` (toolpath, wrench, robot — the big, shared part) is
 scattered to every worker once; each task carries a batch of placements (a (B, 4, 4) array) and
 the tool-rotation candidates, and returns their scores. Tasks run the same numpy code as the
 serial path on the same inputs, so the scores are bit-for-bit those of the serial run (tested).
@@ -18,14 +25,17 @@ from numpy.typing import ArrayLike, NDArray
 from roboisf.errors import InputError, UnreachableError
 from roboisf.plan.evaluate import (
     PlacementScore,
+    _evaluate_many,
+    _kernel_inputs,
     evaluate_batch,
     evaluate_placement,
     path_sigma_min,
 )
 from roboisf.plan.problem import PlanProblem, placement_transforms
 from roboisf.progress import Progress, task
+from roboisf.robot.vjm_kernel import single_blas_thread
 
-__all__ = ["WORKER_ENV", "PlanResult", "plan_placements"]
+__all__ = ["WORKER_ENV", "PlanResult", "default_scheduler", "plan_placements"]
 
 F64 = NDArray[np.float64]
 
@@ -128,6 +138,54 @@ class PlanResult:
         return rows
 
 
+def default_scheduler(problem: PlanProblem) -> str:
+    """ "threads" when the placements run on the compiled engine (GIL-free), else "local" (Dask
+    processes: the numpy engine holds the GIL for much of a placement)."""
+    from roboisf.robot import vjm_kernel
+
+    compiled = vjm_kernel.use_numba(problem.model.backend) and problem.model.stiffness is not None
+    return "threads" if compiled else "local"
+
+
+def _thread_map(
+    problem: PlanProblem,
+    Ts: F64,
+    g: F64,
+    n_workers: int | None,
+    batch_size: int | None,
+    advance: Any,
+) -> list[PlacementScore]:
+    """:func:`evaluate_batch` over batches of placements on ``n_workers`` threads (default: the
+    CPUs this process may use), the results in placement order."""
+    import os
+    from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
+
+    # the CPUs this process may run on (a container's or taskset's share), not the machine's
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    nw = n_workers or cpus or 1
+    m = Ts.shape[0]
+    # small batches: threads cost nothing to feed, and the last batches finish together
+    size = batch_size or max(1, min(8, math.ceil(m / (4 * nw))))
+    _kernel_inputs(problem)  # the shared kernel inputs made once, before the threads start
+    results: list[PlacementScore | None] = [None] * m
+    # BLAS pinned once for the whole pool (threadpoolctl's limits are process-wide)
+    with single_blas_thread(), ThreadPoolExecutor(nw, thread_name_prefix="roboisf-plan") as ex:
+        pending = {ex.submit(_evaluate_many, problem, Ts[sl], g): sl for sl in _batches(m, size)}
+        try:
+            while pending:
+                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for fut in done:
+                    sl = pending.pop(fut)
+                    results[sl] = fut.result()
+                    advance(sl.stop - sl.start)
+        finally:
+            for fut in pending:  # an error or Ctrl-C: do not start the rest
+                fut.cancel()
+    out = [r for r in results if r is not None]
+    assert len(out) == m
+    return out
+
+
 def _batches(n: int, size: int) -> list[slice]:
     return [slice(s, min(n, s + size)) for s in range(0, n, size)]
 
@@ -138,7 +196,7 @@ def plan_placements(
     tool_rotations: ArrayLike = (0.0,),
     *,
     baseline: ArrayLike | None = None,
-    scheduler: str | Any | None = "local",
+    scheduler: str | Any | None = "auto",
     n_workers: int | None = None,
     batch_size: int | None = None,
     detail: int = 20,
@@ -146,9 +204,12 @@ def plan_placements(
 ) -> PlanResult:
     """Score candidate placements (M, 4) ``[x, y, z, yaw]`` (m, rad) over tool rotations (G,) rad.
 
-    ``scheduler``: ``"serial"`` (this process), ``"local"`` (a Dask ``LocalCluster`` of
-    ``n_workers`` single-threaded worker processes, started and closed here), an address
-    ``"tcp://host:8786"`` of a running Dask scheduler, or a ``dask.distributed.Client``.
+    ``scheduler``: ``"auto"`` (default: ``"threads"`` with the compiled engine, else
+    ``"local"``), ``"threads"`` (``n_workers`` threads of this process, default one per usable
+    CPU; the compiled kernels run without the GIL), ``"serial"`` (this process), ``"local"`` (a Dask
+    ``LocalCluster`` of ``n_workers`` single-threaded worker processes, default 2, started and
+    closed here), an address ``"tcp://host:8786"`` of a running Dask scheduler, or a
+    ``dask.distributed.Client``. Every scheduler gives the serial run's scores bit for bit.
     ``baseline``: a reference ``T_base_work`` (4, 4) scored at γ = 0 (e.g. the current cell).
     ``detail``: for the best ``detail`` candidates and the baseline, the value of σ_min along the
     path is computed (all feasible candidates passed the exact margin test).
@@ -176,9 +237,13 @@ def plan_placements(
     if batch_size is not None and batch_size < 1:
         raise InputError(f"must be ≥ 1, got {batch_size}", field="batch size")
     m = Ts.shape[0]
+    if isinstance(scheduler, str) and scheduler == "auto":
+        scheduler = default_scheduler(problem)
+    scores: list[PlacementScore] = []
     with task(progress, f"placements ({m} × {g.size} tool rotations)", m) as advance:
-        if scheduler is None or scheduler == "serial":
-            scores: list[PlacementScore] = []
+        if isinstance(scheduler, str) and scheduler == "threads":
+            scores = _thread_map(problem, Ts, g, n_workers, batch_size, advance)
+        elif scheduler is None or scheduler == "serial":
             for sl in _batches(m, batch_size or 8):
                 scores.extend(evaluate_batch(problem, Ts[sl], g))
                 advance(sl.stop - sl.start)

@@ -115,8 +115,20 @@ def atan2(y: float, x: float) -> float:  # pragma: no cover - compiled
 
 @_njit(inline="always")
 def _wrap(x: float) -> float:  # pragma: no cover - compiled
-    """``np.mod(x + π, 2π) − π`` (numpy's float modulo: the sign of the divisor)."""
-    return (x + _PI) % _TWO_PI - _PI  # Python's float modulo = numpy's
+    """``np.mod(x + π, 2π) − π`` (numpy's float modulo: the sign of the divisor).
+
+    The same bits without ``fmod`` and its division (6 per pose were ~1/4 of the IK kernel) for
+    ``x + π`` in (−2π, 4π), i.e. every angle the OPW solution forms: there ``fmod`` is the
+    argument itself or, on [2π, 4π), ``y − 2π``, which is exact (Sterbenz) as is ``fmod``; on
+    (−2π, 0) Python's modulo adds 2π to ``fmod``'s result, the same rounded addition."""
+    y = x + _PI
+    if 0.0 < y < _TWO_PI:
+        return y - _PI
+    if _TWO_PI <= y < 2.0 * _TWO_PI:
+        return (y - _TWO_PI) - _PI
+    if -_TWO_PI < y < 0.0:
+        return (y + _TWO_PI) - _PI
+    return y % _TWO_PI - _PI  # Python's float modulo = numpy's
 
 
 @_njit(inline="always")
@@ -526,6 +538,7 @@ def _vjm_rows(
     C_tool: F64,
     gam: F64,
     mg: F64,
+    rb: float,
     W_base: F64,
     d: F64,
     margin_ok: NDArray[np.bool_],
@@ -541,10 +554,11 @@ def _vjm_rows(
 ) -> None:  # pragma: no cover - compiled
     """Poses ``s:e`` of a solved path: the wrench into base axes, the VJM kernel of
     :mod:`roboisf.robot.vjm_numba` (δ and the margin test), δ back into work axes, the tool's
-    own deflection (``C_tool`` (3, 6) in tool axes, ``R_work_tool = Rz(−γ)``; none when it has
-    no rows), |δ|, the robot's |δ| and |δ·n| (``nrm`` (N, 3) work; skipped when it has no rows)
-    and the largest joint step from the previous pose — the per-point figures a placement's score
-    reduces, so that no numpy pass over the path follows the kernel."""
+    own deflection (``C_tool`` (6, 6) in tool axes, ``R_work_tool = Rz(−γ)``; none when it has
+    no rows), both moved to the ball centre ``rb`` above the tip (``δ + θ × rb ẑ``, work axes;
+    not when ``rb`` is 0), |δ|, the robot's |δ| and |δ·n| (``nrm`` (N, 3) work; skipped when it
+    has no rows) and the largest joint step from the previous pose — the per-point figures a
+    placement's score reduces, so that no numpy pass over the path follows the kernel."""
     one_w = W_work.shape[0] == 1
     one_g = gam.shape[0] == 1
     want_tool = C_tool.shape[0] > 0
@@ -563,6 +577,11 @@ def _vjm_rows(
         x0 = d[n, 0] * A[0, 0] + d[n, 1] * A[1, 0] + d[n, 2] * A[2, 0]
         x1 = d[n, 0] * A[0, 1] + d[n, 1] * A[1, 1] + d[n, 2] * A[2, 1]
         x2 = d[n, 0] * A[0, 2] + d[n, 1] * A[1, 2] + d[n, 2] * A[2, 2]
+        if rb != 0.0:  # the ball centre: + θ × (0, 0, rb), θ in work axes
+            h0 = d[n, 3] * A[0, 0] + d[n, 4] * A[1, 0] + d[n, 5] * A[2, 0]
+            h1 = d[n, 3] * A[0, 1] + d[n, 4] * A[1, 1] + d[n, 5] * A[2, 1]
+            x0 = x0 + h1 * rb
+            x1 = x1 - h0 * rb
         d_robot[n, 0], d_robot[n, 1], d_robot[n, 2] = x0, x1, x2
         abs_robot[n] = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
         if want_tool:
@@ -579,8 +598,15 @@ def _vjm_rows(
             t0 = _row6(C_tool, 0, wt0, wt1, f2, wt3, wt4, m2)
             t1 = _row6(C_tool, 1, wt0, wt1, f2, wt3, wt4, m2)
             t2 = _row6(C_tool, 2, wt0, wt1, f2, wt3, wt4, m2)
-            x0 += cg * t0 + sg * t1
-            x1 += -sg * t0 + cg * t1
+            y0 = cg * t0 + sg * t1
+            y1 = -sg * t0 + cg * t1
+            if rb != 0.0:  # the tool's rotation, tool → work axes, moves the ball centre
+                t3 = _row6(C_tool, 3, wt0, wt1, f2, wt3, wt4, m2)
+                t4 = _row6(C_tool, 4, wt0, wt1, f2, wt3, wt4, m2)
+                y0 = y0 + (-sg * t3 + cg * t4) * rb
+                y1 = y1 - (cg * t3 + sg * t4) * rb
+            x0 += y0
+            x1 += y1
             x2 += t2
         d_total[n, 0], d_total[n, 1], d_total[n, 2] = x0, x1, x2
         abs_total[n] = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
@@ -607,6 +633,7 @@ def _vjm_parallel(
     C_tool: F64,
     gam: F64,
     mg: F64,
+    rb: float,
     W_base: F64,
     d: F64,
     margin_ok: NDArray[np.bool_],
@@ -634,6 +661,7 @@ def _vjm_parallel(
             C_tool,
             gam,
             mg,
+            rb,
             W_base,
             d,
             margin_ok,
@@ -683,6 +711,7 @@ def path_vjm(
     elbow: str = "up",
     wrist: str = "noflip",
     normal: F64 | None = None,
+    ball_radius: float = 0.0,
 ) -> PathVJM:
     """IK, continuity, joint limits, VJM δ, the singularity-margin test and the tool's deflection
     along one placement's path, compiled end to end (``roboisf.plan``'s inner loop).
@@ -690,7 +719,8 @@ def path_vjm(
     tip (N, 3) m work; T_base_work (4, 4); γ (N,) or (1,) rad; W_work (N, 6) or (1, 6) [N; N·m]
     in work axes; C_tool (6, 6) tool compliance in tool axes (its force-to-displacement rows
     are used) or None; margin = (length scale m, threshold); normal (N, 3) unit work-axes
-    normals for ``abs_normal`` or None.
+    normals for ``abs_normal`` or None; ball_radius m: δ of the ball centre this far above the
+    tip along the work z (0: the tip).
     """
     from roboisf.frames import invert
 
@@ -722,9 +752,10 @@ def path_vjm(
         q,
         _c64(W_work),
         _c64(T_bw[:3, :3]),
-        np.empty((0, 6)) if C_tool is None else _c64(np.asarray(C_tool)[:3]),
+        np.empty((0, 6)) if C_tool is None else _c64(C_tool),
         _c64(gamma),
         np.array([1.0 / margin[0], float(margin[1]) ** 2]),
+        float(ball_radius),
     )
     out = (
         np.empty((n, 6)),  # W_base (scratch)
@@ -744,6 +775,14 @@ def path_vjm(
         _vjm_rows(*args, *out, 0, n)
     abs_normal = None if normal is None else out[9]
     return PathVJM(q, ok, 0, out[2], out[3], out[4], out[5], out[6], out[8], abs_normal)
+
+
+@_njit()
+def _wrap_many(x: F64) -> F64:  # pragma: no cover - compiled (for the tests)
+    out = np.empty(x.shape[0])
+    for i in range(x.shape[0]):
+        out[i] = _wrap(x[i])
+    return out
 
 
 @_njit()
