@@ -80,6 +80,15 @@ class FullHelpGroup(TyperGroup):
             return None
         return one_line_help(command)
 
+    def get_help_option(self, ctx: Any) -> Any:
+        # a group's --help when not given is None; typer ≥ 0.2x coerces every non-bool value
+        # through a pydantic TypeAdapter, so `roboisf analyze --help` imported pydantic (0.1 s)
+        # for the root's absent --help. False is the same "not given" to click's help callback.
+        option = super().get_help_option(ctx)
+        if option is not None and option.default is None:
+            option.default = False
+        return option
+
     def format_commands(self, ctx: Any, formatter: Any) -> None:
         rows = []
         for name in self.list_commands(ctx):
