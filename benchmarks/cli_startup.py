@@ -8,7 +8,8 @@ machine's load hits them all alike. Printed per case: min and median of wall tim
 time (user + sys of the child) over the runs, and the median's ratio to the peers measured in the
 same rounds: the bare interpreter (``python -c pass``, the floor no CLI can beat) and ``import
 typer`` (the CLI library alone). ``--baseline`` adds the same cases run from another roboisf
-source tree (e.g. a checkout of the previous commit) for a before/after in one run.
+source tree (e.g. a checkout of the previous commit) for a before/after in one run. A first,
+uncounted round writes the bytecode, as an installation has it.
 """
 
 from __future__ import annotations
@@ -68,10 +69,14 @@ def main() -> None:
     codes: dict[str, set[int]] = {k: set() for k in jobs}
     load0 = os.getloadavg()
     with tempfile.TemporaryDirectory() as cwd:
-        for _ in range(a.runs):
+        for i in range(a.runs + 1):
             for k, (cmd, src) in jobs.items():
+                # as installed: bytecode written once (the uncounted first round), then read
                 env = {**os.environ, "PYTHONPATH": src}
+                env.pop("PYTHONDONTWRITEBYTECODE", None)
                 w, c, rc = _once(cmd, env, cwd)
+                if i == 0:
+                    continue
                 wall[k].append(w)
                 cpu[k].append(c)
                 codes[k].add(rc)

@@ -253,7 +253,7 @@ def test_sub_groups_list_the_whole_one_line_help(capsys):
 
 
 def test_help_and_bad_input_do_not_load_rich(tmp_path):
-    # typer's rich help renderer (rich.markdown, rich.traceback) alone is over the 0.3 s budget;
+    # typer's rich help renderer (rich.markdown, rich.traceback) is 0.19 s of the 0.3 s budget;
     # help is click's plain formatter, errors go through click's echo, and rich loads with the
     # first message of a command that runs (progress, info)
     runs = [a for a, _ in RUNS if a != ["--version"]]

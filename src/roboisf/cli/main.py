@@ -102,8 +102,8 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
-    # click's plain help: typer's rich help renderer imports rich's markdown and traceback
-    # modules, which alone take longer than the 0.3 s start-up budget (docs/conventions.md)
+    # click's plain help: typer's rich help renderer imports rich with its markdown and
+    # traceback modules, 0.19 s of the 0.3 s start-up budget (docs/conventions.md)
     rich_markup_mode=None,
     context_settings={"max_content_width": 120},
     cls=_Root,
