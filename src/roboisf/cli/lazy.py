@@ -81,7 +81,7 @@ class FullHelpGroup(TyperGroup):
         return one_line_help(command)
 
     def get_help_option(self, ctx: Any) -> Any:
-        # a group's --help when not given is None; typer ≥ 0.2x coerces every non-bool value
+        # a group's --help when not given is None; typer (0.29) coerces every non-bool value
         # through a pydantic TypeAdapter, so `roboisf analyze --help` imported pydantic (0.1 s)
         # for the root's absent --help. False is the same "not given" to click's help callback.
         option = super().get_help_option(ctx)
