@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 
 import roboisf
+from roboisf.cli.lazy import load_command
 
 HEAVY = ("numpy", "pandas", "scipy", "numba", "plotly", "matplotlib", "pyarrow", "trimesh")
 
@@ -36,6 +37,24 @@ RUNS: list[tuple[list[str], int]] = [
     (["demo", "--help"], 0),
     (["tool-stiffness", "--help"], 0),
     (["scan", "compare", "--help"], 0),
+    (["virtual-cell", "--help"], 0),
+    (["holder-stiffness", "--help"], 0),
+    (["online", "--help"], 0),
+    (["study", "--help"], 0),
+    (["study", "init", "--help"], 0),
+    (["toolpath", "import", "--help"], 0),
+    (["robot", "list", "--help"], 0),
+    (["robot", "show", "--help"], 0),
+    (["robot", "identify", "--help"], 0),
+    (["part", "vwacf", "--help"], 0),
+    (["part", "profile", "--help"], 0),
+    (["part", "pyramid", "--help"], 0),
+    (["part", "mesh", "--help"], 0),
+    (["toolpath", "vwacf", "--help"], 0),
+    (["toolpath", "profile", "--help"], 0),
+    (["--bogus"], 2),  # usage errors: unknown option, unknown command, missing argument
+    (["no-such-command"], 2),
+    (["analyze"], 2),
     (["part", "cone", "-o", "cone.txt"], 2),  # a part file must end in .toml
     (["toolpath", "cone", "-o", "path.xyz"], 2),  # unknown format suffix
     (["toolpath", "cone", "-o", "path.csv", "--step-down", "-1"], 2),
@@ -113,3 +132,144 @@ def test_light_default_modules_match_the_geometry():
     assert axisymmetric.PAPER_SHEET_THICKNESS is defaults.PAPER_SHEET_THICKNESS == 1.22e-3
     assert axisymmetric.VWACF_DEFAULT_ARC_RADIUS is defaults.VWACF_DEFAULT_ARC_RADIUS
     assert generate.MAX_POINTS is limits.MAX_POINTS
+
+
+# ---------------------------------------------------------------------------------------------
+# the lazy command registry (roboisf.cli.lazy): --help lists commands from a table in
+# roboisf.cli.main; the table must say what the modules really register
+
+
+def _real_commands() -> tuple[list[str], dict[str, object]]:
+    """Every command the ``roboisf.cli`` modules register, eagerly, in module order."""
+    import pkgutil
+
+    import typer
+    import typer.main
+
+    import roboisf.cli
+    from roboisf.cli.main import COMMANDS
+
+    order = list(dict.fromkeys(e.module for e in COMMANDS))
+    registering = {
+        m.name
+        for m in pkgutil.iter_modules(roboisf.cli.__path__)
+        if hasattr(importlib.import_module(f"roboisf.cli.{m.name}"), "register")
+    }
+    assert registering == set(order), "a cli module with register() is missing from COMMANDS"
+    names: list[str] = []
+    commands: dict[str, object] = {}
+    for module in order:
+        app = typer.Typer(rich_markup_mode=None, add_completion=False)
+        importlib.import_module(f"roboisf.cli.{module}").register(app)
+        group = typer.main.get_group(app)
+        names += group.list_commands(None)  # type: ignore[arg-type]
+        commands.update(group.commands)
+    return names, commands
+
+
+def test_the_lazy_table_lists_the_real_commands_with_their_help():
+    from roboisf.cli.lazy import one_line_help
+    from roboisf.cli.main import COMMANDS
+
+    names, commands = _real_commands()
+    assert [e.name for e in COMMANDS] == names  # same commands, in module order
+    for e in COMMANDS:
+        real = commands[e.name]
+        assert e.help == one_line_help(real), e.name
+        assert not real.hidden  # type: ignore[attr-defined]
+        assert type(load_command(e)) is type(real)
+
+
+def test_root_help_lists_the_table_and_imports_no_command_module():
+    # what the user reads: every command with its whole one-line help, no module imported
+    code = (
+        "import contextlib, io, json, sys\n"
+        "from roboisf.cli.main import main\n"
+        "buf = io.StringIO()\n"
+        "with contextlib.redirect_stdout(buf):\n"
+        "    code = main(['--help'])\n"
+        "mods = sorted(m for m in sys.modules if m.startswith('roboisf.cli.'))\n"
+        "print(json.dumps([code, buf.getvalue(), mods]))\n"
+    )
+    code_, text, mods = _child(code)  # type: ignore[misc]
+    assert code_ == 0
+    assert mods == ["roboisf.cli.console", "roboisf.cli.lazy", "roboisf.cli.main"]
+    listing = " ".join(text.split("Commands:")[1].split())
+    from roboisf.cli.main import COMMANDS
+
+    expected = " ".join(f"{e.name} {e.help}" for e in COMMANDS)
+    assert listing == expected
+
+
+def test_running_a_command_imports_only_its_own_module():
+    code = (
+        "import contextlib, io, json, sys\n"
+        "from roboisf.cli.main import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()):\n"
+        "    code = main(['holder-stiffness', '--help'])\n"
+        "mods = sorted(m for m in sys.modules if m.startswith('roboisf.cli.'))\n"
+        "print(json.dumps([code, mods]))\n"
+    )
+    got = _child(code)
+    assert got == [
+        0,
+        [
+            "roboisf.cli.console",
+            "roboisf.cli.fem",
+            "roboisf.cli.lazy",
+            "roboisf.cli.main",
+            "roboisf.cli.outputs",
+        ],
+    ]
+
+
+def test_a_mistyped_command_is_suggested_from_the_lazy_table(capsys):
+    from roboisf.cli.main import main
+
+    assert main(["holder-stifness"]) == 2
+    assert "Did you mean 'holder-stiffness'" in capsys.readouterr().err
+
+
+def test_a_stale_table_entry_is_refused():
+    from roboisf.cli.lazy import LazyCommand
+
+    with pytest.raises(LookupError, match="adds no command 'nope'"):
+        load_command(LazyCommand("nope", "fem", "x"))
+
+
+def test_sub_groups_list_the_whole_one_line_help(capsys):
+    from roboisf.cli.lazy import one_line_help
+    from roboisf.cli.main import COMMANDS, main
+
+    _, commands = _real_commands()
+    for e in COMMANDS:
+        group = commands[e.name]
+        subs = getattr(group, "commands", None)
+        if not subs:
+            continue
+        assert main([e.name, "--help"]) == 0
+        listing = " ".join(capsys.readouterr().out.split("Commands:")[1].split())
+        assert listing == " ".join(f"{n} {one_line_help(c)}" for n, c in subs.items())
+
+
+def test_help_and_bad_input_do_not_load_rich(tmp_path):
+    # typer's rich help renderer (rich.markdown, rich.traceback) is 0.19 s of the 0.3 s budget;
+    # help is click's plain formatter, errors go through click's echo, and rich loads with the
+    # first message of a command that runs (progress, info)
+    runs = [a for a, _ in RUNS if a != ["--version"]]
+    out = _child(_CHILD, json.dumps(runs), json.dumps(["rich"]), cwd=tmp_path)
+    assert [o["heavy"] for o in out] == [[] for _ in runs]  # type: ignore[union-attr]
+    # the guard can fail: a command that runs does print through rich
+    out = _child(_CHILD, json.dumps([["part", "cone", "-o", "c.toml"]]), '["rich"]', cwd=tmp_path)
+    assert out == [{"code": 0, "heavy": ["rich"]}]
+
+
+def test_a_command_help_does_not_coerce_the_absent_group_help_through_pydantic(tmp_path):
+    # typer coerces a non-bool value through pydantic (0.1 s of import); the groups' absent
+    # --help is False, not None, so `roboisf analyze --help` does not pay for it
+    runs = [["analyze", "--help"], ["holder-stiffness", "--help"], ["part", "cone", "--help"]]
+    out = _child(_CHILD, json.dumps(runs), '["pydantic"]', cwd=tmp_path)
+    assert [o["heavy"] for o in out] == [[], [], []]  # type: ignore[union-attr]
+    # the guard can fail: a missing argument is coerced (None) before click reports it
+    out = _child(_CHILD, json.dumps([["analyze"]]), '["pydantic"]', cwd=tmp_path)
+    assert out == [{"code": 2, "heavy": ["pydantic"]}]

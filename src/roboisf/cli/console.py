@@ -1,16 +1,20 @@
-"""Terminal output for the CLI: verbosity, one-line errors, rich progress bars."""
+"""Terminal output for the CLI: verbosity, one-line errors, rich progress bars.
+
+rich is imported on the first message, not with the CLI: ``--help`` and usage errors never print
+through it (docs/conventions.md, Command start-up).
+"""
 
 from __future__ import annotations
 
 import contextlib
 import sys
 from collections.abc import Iterator
-
-from rich.console import Console
-from rich.markup import escape
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+from typing import TYPE_CHECKING
 
 from roboisf.progress import Advance, noop_advance
+
+if TYPE_CHECKING:
+    from rich.console import Console
 
 __all__ = ["RichProgress", "state"]
 
@@ -20,9 +24,22 @@ class _State:
 
     def __init__(self) -> None:
         self.verbosity = 1
-        # messages carry user values (paths, names): never read them as emoji codes or markup
-        self.out = Console(highlight=False, emoji=False)
-        self.err = Console(stderr=True, highlight=False, emoji=False)
+        self._out: Console | None = None
+        self._err: Console | None = None
+
+    @property
+    def out(self) -> Console:
+        """The stdout console (created on first use)."""
+        if self._out is None:
+            self._out = _console(stderr=False)
+        return self._out
+
+    @property
+    def err(self) -> Console:
+        """The stderr console (created on first use)."""
+        if self._err is None:
+            self._err = _console(stderr=True)
+        return self._err
 
     def info(self, msg: str) -> None:
         if self.verbosity >= 1:
@@ -30,14 +47,25 @@ class _State:
 
     def debug(self, msg: str) -> None:
         if self.verbosity >= 2:
+            from rich.markup import escape
+
             self.err.print(f"[dim]{escape(msg)}[/dim]")
 
     def warn(self, msg: str) -> None:
         if self.verbosity >= 1:
+            from rich.markup import escape
+
             self.err.print(f"[yellow]warning:[/yellow] {escape(msg)}", soft_wrap=True)
 
     def progress(self) -> RichProgress | None:
         return RichProgress(self.err) if self.verbosity >= 1 else None
+
+
+def _console(stderr: bool) -> Console:
+    from rich.console import Console
+
+    # messages carry user values (paths, names): never read them as emoji codes or markup
+    return Console(stderr=stderr, highlight=False, emoji=False)
 
 
 state = _State()
@@ -56,6 +84,15 @@ class RichProgress:
             self.console.print(f"{description} …", markup=False)
             yield noop_advance
             return
+        from rich.markup import escape
+        from rich.progress import (
+            BarColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+            TimeRemainingColumn,
+        )
+
         cols = [
             TextColumn("{task.description}"),
             BarColumn(),

@@ -10,16 +10,86 @@ progress and info, ``-v`` adds detail. Call :func:`main` with an argv list from 
 from __future__ import annotations
 
 import contextlib
+import os
 import sys
 from collections.abc import Sequence
 
 import typer
-from rich.markup import escape
 
 from roboisf import __version__
 from roboisf.cli.console import state
+from roboisf.cli.lazy import LazyCommand, LazyGroup
 from roboisf.errors import ConvergenceError, InputError
 from roboisf.io.outdir import Interrupted, deferred_signals, output_session, signal_handlers
+
+# every command, in the order --help lists them (the workflow first, then the building blocks),
+# with the module whose register(app) adds it and its one-line help: --help lists them without
+# importing their modules, running one imports only its own (tests/test_cli_startup.py checks
+# this table against the commands the modules really register)
+COMMANDS: tuple[LazyCommand, ...] = (
+    LazyCommand(
+        "demo",
+        "demo",
+        "The paper's cone and VWACF, end to end: virtual cell → analyze → report → robot programs.",
+    ),
+    LazyCommand(
+        "analyze",
+        "analyze",
+        "Split a robot-formed part's error: springback, tool, tool holder, robot compliance.",
+    ),
+    LazyCommand(
+        "virtual-cell",
+        "analyze",
+        "Write a synthetic study (CNC and robot runs with known ground truth in truth/).",
+    ),
+    LazyCommand("study", "study", "Study folders: draft a study.toml from the files you have."),
+    LazyCommand(
+        "compensate",
+        "compensate",
+        "Compensate the toolpath: robot/tool/holder pre-deflection and springback adjustment.",
+    ),
+    LazyCommand(
+        "plan",
+        "plan",
+        "Rank work-object placements (x, y, z, yaw) and tool rotations by predicted deflection.",
+    ),
+    LazyCommand("part", "part", "Write a part file (TOML, mm and degrees)."),
+    LazyCommand(
+        "toolpath",
+        "toolpath",
+        "Generate a forming toolpath (step-down or spiral); write CSV, G-code, RAPID or KRL.",
+    ),
+    LazyCommand(
+        "robot", "robot", "Robot models, joint stiffness and VJM deflection along a toolpath."
+    ),
+    LazyCommand(
+        "tool-stiffness",
+        "fem",
+        "6×6 compliance of a ball-end tool (or a STEP body) about its tip, by six FE loads.",
+    ),
+    LazyCommand(
+        "holder-stiffness",
+        "fem",
+        "6×6 compliance of a stepped/tapered tool holder about its nose centre (or, with "
+        "--with-tool, of tool + holder in series about the tool tip).",
+    ),
+    LazyCommand(
+        "scan",
+        "scan",
+        "Laser scans vs the nominal part: registration and signed deviation vectors.",
+    ),
+    LazyCommand(
+        "online",
+        "online",
+        "Correct the robot while it forms: force stream → tip wrench → VJM + tool + holder "
+        "compliance at the current joints → pre-deflection sent every controller cycle.",
+    ),
+)
+
+
+class _Root(LazyGroup):
+    lazy = COMMANDS
+
 
 app = typer.Typer(
     name="roboisf",
@@ -32,7 +102,11 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
-    rich_markup_mode="rich",
+    # click's plain help: typer's rich help renderer imports rich with its markdown and
+    # traceback modules, 0.19 s of the 0.3 s start-up budget (docs/conventions.md)
+    rich_markup_mode=None,
+    context_settings={"max_content_width": 120},
+    cls=_Root,
 )
 
 
@@ -51,39 +125,6 @@ def _root(
     ),
 ) -> None:
     state.verbosity = 0 if quiet else (2 if verbose else 1)
-
-
-def _register() -> None:
-    from roboisf.cli import analyze as _analyze
-    from roboisf.cli import compensate as _compensate
-    from roboisf.cli import demo as _demo
-    from roboisf.cli import fem as _fem
-    from roboisf.cli import online as _online
-    from roboisf.cli import part as _part
-    from roboisf.cli import plan as _plan
-    from roboisf.cli import robot as _robot
-    from roboisf.cli import scan as _scan
-    from roboisf.cli import study as _study
-    from roboisf.cli import toolpath as _toolpath
-
-    # --help lists commands in this order: the workflow first, then the building blocks
-    for group in (
-        _demo,
-        _analyze,
-        _study,
-        _compensate,
-        _plan,
-        _part,
-        _toolpath,
-        _robot,
-        _fem,
-        _scan,
-    ):
-        group.register(app)
-    _online.register(app)
-
-
-_register()
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -114,10 +155,10 @@ def _run(args: list[str]) -> int:
     try:
         rv = app(args=args, prog_name="roboisf", standalone_mode=False)
     except InputError as e:
-        state.err.print(f"[red]error:[/red] {escape(str(e))}", soft_wrap=True)
+        _error(e)
         return 2
     except ConvergenceError as e:
-        state.err.print(f"[red]error:[/red] {escape(str(e))}", soft_wrap=True)
+        _error(e)
         return 3
     except typer.Exit as e:
         return int(e.exit_code or 0)
@@ -133,6 +174,15 @@ def _run(args: list[str]) -> int:
     if isinstance(rv, int) and not isinstance(rv, bool):
         return rv
     return 0
+
+
+def _error(e: Exception) -> None:
+    # one line on stderr, "error:" in red on a terminal (not under NO_COLOR), the message as is;
+    # through click's echo, which typer has loaded already: rich (0.05–0.1 s of import) is not
+    # needed to refuse an input
+    color = False if os.environ.get("NO_COLOR") else None
+    typer.secho("error:", fg="red", err=True, nl=False, color=color)
+    typer.echo(f" {e}", err=True, color=color)
 
 
 def entry() -> None:  # pragma: no cover - console script

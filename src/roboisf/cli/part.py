@@ -22,6 +22,7 @@ import typer
 
 from roboisf import parts  # lazy: the geometry loads when a command builds a part
 from roboisf.cli.console import state
+from roboisf.cli.lazy import FullHelpGroup
 from roboisf.cli.outputs import FILE_HELP, Overwrite, output_file
 from roboisf.errors import InputError
 from roboisf.io.atomic import check_not_input
@@ -80,7 +81,9 @@ Tolerance = Annotated[
     ),
 ]
 
-part_app = typer.Typer(help="Write a part file (TOML, mm and degrees).", no_args_is_help=True)
+part_app = typer.Typer(
+    help="Write a part file (TOML, mm and degrees).", no_args_is_help=True, cls=FullHelpGroup
+)
 
 
 def _save(make: Callable[[], Part], output: Path, inputs: list[Path], overwrite: bool) -> Part:

@@ -6,9 +6,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import typer
-from rich.markup import escape
 
 from roboisf.cli.console import state
+from roboisf.cli.lazy import FullHelpGroup
 from roboisf.cli.outputs import FILE_HELP, Overwrite, output_file
 from roboisf.errors import InputError
 
@@ -20,7 +20,9 @@ if TYPE_CHECKING:  # numpy and the robot are imported by the command that runs (
 __all__ = ["register"]
 
 robot_app = typer.Typer(
-    help="Robot models, joint stiffness and VJM deflection along a toolpath.", no_args_is_help=True
+    help="Robot models, joint stiffness and VJM deflection along a toolpath.",
+    no_args_is_help=True,
+    cls=FullHelpGroup,
 )
 
 
@@ -148,6 +150,7 @@ def show_cmd(
 ) -> None:
     """Show a robot's limits and joint stiffness; optionally write a stiffness map PNG."""
     import numpy as np
+    from rich.markup import escape
 
     if output is not None:
         output_file(output, "robot show", overwrite, [stiffness, *_files(robot, tool)])

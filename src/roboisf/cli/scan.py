@@ -8,6 +8,7 @@ from pathlib import Path
 import typer
 
 from roboisf.cli.console import state
+from roboisf.cli.lazy import FullHelpGroup
 from roboisf.cli.outputs import FILE_HELP, Overwrite, output_file
 from roboisf.errors import InputError
 
@@ -16,6 +17,7 @@ __all__ = ["register"]
 scan_app = typer.Typer(
     help="Laser scans vs the nominal part: registration and signed deviation vectors.",
     no_args_is_help=True,
+    cls=FullHelpGroup,
 )
 
 

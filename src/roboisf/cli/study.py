@@ -9,13 +9,16 @@ from typing import Annotated, Any
 import typer
 
 from roboisf.cli.console import state
+from roboisf.cli.lazy import FullHelpGroup
 from roboisf.cli.outputs import Overwrite, output_file
 from roboisf.errors import InputError
 
 __all__ = ["register"]
 
 study_app = typer.Typer(
-    help="Study folders: draft a study.toml from the files you have.", no_args_is_help=True
+    help="Study folders: draft a study.toml from the files you have.",
+    no_args_is_help=True,
+    cls=FullHelpGroup,
 )
 
 POSE_HELP = "x,y,z,roll,pitch,yaw in mm and deg"

@@ -29,6 +29,7 @@ import typer
 
 from roboisf import parts  # lazy: the geometry loads when a command builds a part
 from roboisf.cli.console import state
+from roboisf.cli.lazy import FullHelpGroup
 from roboisf.cli.outputs import FILE_HELP, Overwrite, output_file
 from roboisf.cli.part import (
     ArcRadius,
@@ -488,6 +489,7 @@ toolpath_app = typer.Typer(
     "roboisf toolpath --part part.toml -o path.csv",
     no_args_is_help=True,
     invoke_without_command=True,
+    cls=FullHelpGroup,
 )
 
 

@@ -7,8 +7,9 @@ output folder (``roboisf.io.outdir``) does not import pandas and scipy.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from roboisf._lazy import attach
 
 if TYPE_CHECKING:
     from roboisf.io.atomic import atomic_path, atomic_write, check_not_input, staged_directory
@@ -44,8 +45,6 @@ _WHERE = {
     "toolpath_csv": ("TOOLPATH_COLUMNS", "read_toolpath_csv", "write_toolpath_csv"),
     "units": ("to_si",),
 }
-_MODULE_OF = {name: module for module, names in _WHERE.items() for name in names}
-
 __all__ = [
     "TOOLPATH_COLUMNS",
     "ForceLog",
@@ -72,17 +71,4 @@ __all__ = [
     "write_rapid",
     "write_toolpath_csv",
 ]
-assert sorted(__all__) == sorted(_MODULE_OF)
-
-
-def __getattr__(name: str) -> Any:
-    module = _MODULE_OF.get(name)
-    if module is None:
-        raise AttributeError(f"module 'roboisf.io' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"roboisf.io.{module}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted([*globals(), *__all__])
+__getattr__, __dir__, _MODULE_OF = attach(__name__, globals(), _WHERE)

@@ -7,8 +7,9 @@ paper's default dimensions (:mod:`roboisf.parts.defaults`) do not import numpy a
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from roboisf._lazy import attach
 
 if TYPE_CHECKING:
     from roboisf.parts.axisymmetric import (
@@ -42,8 +43,6 @@ _WHERE = {
     "mesh": ("MeshPart", "tessellate"),
     "pyramid": ("Pyramid",),
 }
-_MODULE_OF = {name: module for module, names in _WHERE.items() for name in names}
-
 __all__ = [
     "PAPER_SHEET_THICKNESS",
     "VWACF",
@@ -65,17 +64,4 @@ __all__ = [
     "sine_law_thickness",
     "tessellate",
 ]
-assert sorted(__all__) == sorted(_MODULE_OF)
-
-
-def __getattr__(name: str) -> Any:
-    module = _MODULE_OF.get(name)
-    if module is None:
-        raise AttributeError(f"module 'roboisf.parts' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"roboisf.parts.{module}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted([*globals(), *__all__])
+__getattr__, __dir__, _MODULE_OF = attach(__name__, globals(), _WHERE)

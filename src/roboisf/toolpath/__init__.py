@@ -7,8 +7,9 @@ limits (:mod:`roboisf.toolpath.limits`) do not import numpy.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from roboisf._lazy import attach
 
 if TYPE_CHECKING:
     from roboisf.toolpath.dispatch import toolpath_for_part
@@ -33,8 +34,6 @@ _WHERE = {
     "slice": ("level_contour", "scallop_step", "sliced_spiral", "sliced_step_down"),
     "toolpath": ("Toolpath", "tool_points"),
 }
-_MODULE_OF = {name: module for module, names in _WHERE.items() for name in names}
-
 __all__ = [
     "DEFAULT_FEED",
     "Toolpath",
@@ -49,17 +48,4 @@ __all__ = [
     "tool_points",
     "toolpath_for_part",
 ]
-assert sorted(__all__) == sorted(_MODULE_OF)
-
-
-def __getattr__(name: str) -> Any:
-    module = _MODULE_OF.get(name)
-    if module is None:
-        raise AttributeError(f"module 'roboisf.toolpath' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"roboisf.toolpath.{module}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted([*globals(), *__all__])
+__getattr__, __dir__, _MODULE_OF = attach(__name__, globals(), _WHERE)
