@@ -104,6 +104,7 @@ __all__ = [
     "paper_scenario_cell",
     "paper_vwacf_cell",
     "pyramid_cell",
+    "quantize_wrench",
     "simulate",
     "virtual_cell",
 ]
@@ -152,6 +153,12 @@ class VirtualCell:
     robot_force_deficit: float = 0.06
     springback: SpringbackModel = field(default_factory=SpringbackModel)
     force_rate: float = 1000.0  # Hz
+    #: (force [N], moment [N·m]) — the force sensors' resolution: logged wrenches are rounded
+    #: to multiples of it, as an F/T sensor's converter counts do (1/16 N and 1/1024 N·m, the
+    #: step of a 16-bit converter over about ±2 kN and ±32 N·m; 1/32 of the simulated noise's
+    #: σ, so the analysis does not see it). Powers of two are exact in the float32 Parquet
+    #: columns and let them compress (~2× smaller logs); 0 keeps the continuous value.
+    force_resolution: tuple[float, float] = (2.0**-4, 2.0**-10)
     joint_rate: float = 250.0  # Hz
     scan_points: int = 2_000_000
     scan_noise: float = 25e-6
@@ -182,6 +189,13 @@ class VirtualCell:
         for name in ("force_rate", "joint_rate"):
             if not getattr(self, name) > 0:
                 raise InputError("must be > 0 Hz", field=name)
+        if len(self.force_resolution) != 2 or not all(
+            math.isfinite(r) and r >= 0 for r in self.force_resolution
+        ):
+            raise InputError(
+                f"expected (force N, moment N·m) ≥ 0, got {self.force_resolution!r}",
+                field="force_resolution",
+            )
         if self.scan_points < 1000:
             raise InputError("need at least 1000 scan points", field="scan_points")
         if not 0 <= self.robot_force_deficit < 1:
@@ -546,7 +560,17 @@ def _force_log(
     if truth is not None and not truth.sensor_ideal:
         # the transducer's noise passes through the same calibration as the load
         W_s = sensor_reading(truth, W_s, tool_weight_at_sensor(cell, truth, sensor, tip, R))
-    return ForceLog(t, W_s, "sensor")
+    return ForceLog(t, quantize_wrench(W_s, cell.force_resolution), "sensor")
+
+
+def quantize_wrench(W: F64, resolution: tuple[float, float]) -> F64:
+    """``W`` (M, 6) [N, N·m] rounded to multiples of ``resolution`` = (force step [N], moment
+    step [N·m]) — a sensor's counts; a step of 0 leaves those columns continuous. Rounds in place
+    and returns ``W``."""
+    for cols, step in ((slice(0, 3), resolution[0]), (slice(3, 6), resolution[1])):
+        if step > 0:
+            W[:, cols] = np.round(W[:, cols] / step) * step
+    return W
 
 
 def tool_weight_at_sensor(
