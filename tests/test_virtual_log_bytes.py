@@ -76,3 +76,30 @@ def test_analysis_does_not_see_the_force_resolution(studies):
     sb = b.contributions_normal.set_index("factor")["share_percent"]
     # 1/16 N against 2 N of noise: shares agree to far below the demo's 0.1-point budget
     np.testing.assert_allclose(sa, sb, atol=0.01)
+
+
+def test_demo_programs_default_to_the_cells_machines(tmp_path):
+    """RAPID for the ABB robot, G-code for the CNC; every dialect on request; each read back
+    to the toolpath's tips (the readers are independent of the writers' layouts)."""
+    from roboisf.cli.demo import DEMO_FORMATS, write_demo_programs
+    from roboisf.io.gcode import read_gcode
+    from roboisf.io.rapid import read_rapid
+    from roboisf.virtual.cell import cell_toolpath
+
+    cell = _cell()
+    tp = cell_toolpath(cell)
+    paths = write_demo_programs(cell, tp, tmp_path / "p")
+    assert DEMO_FORMATS == ("rapid", "gcode")
+    assert [p.name for p in paths] == ["toolpath.mod", "toolpath.nc"]
+    assert sorted(p.suffix for p in (tmp_path / "p").iterdir()) == [".mod", ".nc"]
+    rapid = read_rapid(paths[0])
+    assert np.abs(rapid.tip - tp.tip).max() <= 0.5e-6 + 1e-12
+    np.testing.assert_allclose(rapid.T_base_work, cell.cell.T_base_work, atol=1e-8)
+    nc = read_gcode(paths[1])
+    assert nc.tip.shape == tp.tip.shape and np.abs(nc.tip - tp.tip).max() <= 0.5e-6 + 1e-12
+    every = write_demo_programs(
+        cell, tp, tmp_path / "all", ("rapid", "gcode", "krl", "fanuc", "csv")
+    )
+    assert {p.suffix for p in every} == {".mod", ".nc", ".src", ".ls", ".csv"}
+    with pytest.raises(InputError, match="unknown format 'abb'"):
+        write_demo_programs(cell, tp, tmp_path / "bad", ("abb",))
