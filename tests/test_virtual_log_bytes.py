@@ -3,6 +3,8 @@ read back bit for bit, and an analysis that does not see it."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -103,3 +105,23 @@ def test_demo_programs_default_to_the_cells_machines(tmp_path):
     assert {p.suffix for p in every} == {".mod", ".nc", ".src", ".ls", ".csv"}
     with pytest.raises(InputError, match="unknown format 'abb'"):
         write_demo_programs(cell, tp, tmp_path / "bad", ("abb",))
+
+
+@pytest.mark.parametrize("mount", ["fixture", "flange"])
+def test_sensor_wrench_is_tip_to_sensor(mount):
+    """The whole-log frame change agrees with the per-sample reference to rounding."""
+    from roboisf.frames import make_transform, rpy_to_matrix, vertical_tool
+    from roboisf.study.sensors import tip_to_sensor
+    from roboisf.study.spec import ForceSensorSpec
+    from roboisf.virtual.cell import sensor_wrench
+
+    rng = np.random.default_rng(3)
+    W = rng.normal(size=(500, 6)) * [300, 300, 500, 10, 10, 2]
+    tip = rng.normal(size=(500, 3)) * 0.05
+    R = vertical_tool(0.7)
+    pose = make_transform(rpy_to_matrix([0.1, -0.2, 1.3]), [0.01, -0.02, -0.06])
+    load_on = "workpiece" if mount == "fixture" else "tool"
+    sensor = ForceSensorSpec(Path("f.parquet"), mount, pose, load_on)
+    ref = tip_to_sensor(W, sensor, tip, R)
+    np.testing.assert_allclose(sensor_wrench(W.copy(), sensor, tip, R), ref, rtol=0, atol=1e-10)
+    assert np.abs(ref - W).max() > 1  # a real change of frame

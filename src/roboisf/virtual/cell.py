@@ -64,7 +64,14 @@ from roboisf.cell import (
 )
 from roboisf.errors import InputError
 from roboisf.fem import ComplianceResult, save_compliance_json
-from roboisf.frames import make_transform, matrix_to_rpy, rpy_to_matrix, vertical_tool
+from roboisf.frames import (
+    invert,
+    make_transform,
+    matrix_to_rpy,
+    rpy_to_matrix,
+    transform_wrench,
+    vertical_tool,
+)
 from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
 from roboisf.io.forcelog import ForceLog, write_force_log
 from roboisf.io.jointlog import write_joint_log
@@ -83,7 +90,6 @@ from roboisf.progress import Progress, task
 from roboisf.robot import RobotModel, ik_toolpath, load_robot
 from roboisf.robot.kinematics import chain_from_opw
 from roboisf.scan import default_rim_band, synthetic_scan, write_ply
-from roboisf.study.sensors import tip_to_sensor
 from roboisf.study.spec import ForceSensorSpec
 from roboisf.toolpath import Toolpath
 from roboisf.virtual.equipment import Equipment, apply_equipment
@@ -105,6 +111,7 @@ __all__ = [
     "paper_vwacf_cell",
     "pyramid_cell",
     "quantize_wrench",
+    "sensor_wrench",
     "simulate",
     "virtual_cell",
 ]
@@ -550,10 +557,10 @@ def _force_log(
     truth: TruthSpec | None = None,
 ) -> ForceLog:
     t = _log_times(tp, cell.force_rate)
-    W = np.column_stack([np.interp(t, tp.time, W_tip[:, j]) for j in range(6)])
-    tip = np.column_stack([np.interp(t, tp.time, tp.tip[:, j]) for j in range(3)])
+    W = _interp_columns(t, tp.time, W_tip)
+    tip = _interp_columns(t, tp.time, tp.tip)
     R = vertical_tool(cell.tool_rotation)
-    W_s = tip_to_sensor(W, sensor, tip, R)
+    W_s = sensor_wrench(W, sensor, tip, R)
     noise = cell.force.noise
     W_s[:, :3] += rng.normal(scale=noise, size=(t.size, 3))
     W_s[:, 3:] += rng.normal(scale=noise * 5e-3, size=(t.size, 3))  # ~5 mm lever of noise
@@ -561,6 +568,35 @@ def _force_log(
         # the transducer's noise passes through the same calibration as the load
         W_s = sensor_reading(truth, W_s, tool_weight_at_sensor(cell, truth, sensor, tip, R))
     return ForceLog(t, quantize_wrench(W_s, cell.force_resolution), "sensor")
+
+
+def _interp_columns(t: F64, time: F64, values: F64) -> F64:
+    """Each column of ``values`` (N, k) at the times ``t`` (M,) → (M, k), linear in ``time``."""
+    out = np.empty((t.size, values.shape[1]))
+    for j in range(values.shape[1]):
+        out[:, j] = np.interp(t, time, values[:, j])
+    return out
+
+
+def sensor_wrench(W_tip: F64, sensor: ForceSensorSpec, tip_work: F64, R_work_tip: F64) -> F64:
+    """What ``sensor`` reads (M, 6) [N, N·m] for tip wrenches ``W_tip`` (M, 6) in work axes at
+    tips ``tip_work`` (M, 3) m with one tool orientation ``R_work_tip`` (3, 3):
+    :func:`roboisf.study.sensors.tip_to_sensor` for a whole log — the frame change is one
+    constant (6, 6) product, the fixture sensor's moment about the work origin is added in
+    place. Overwrites ``W_tip``; the same numbers as ``tip_to_sensor`` to rounding."""
+    sign = -1.0 if sensor.load_on == "workpiece" else 1.0
+    A = transform_wrench(np.eye(6), invert(sensor.pose))  # row i: the image of e_i
+    W = W_tip
+    if sensor.mount == "fixture":
+        # moments about the work origin: m += tip × f
+        r, f = tip_work, W[:, :3]
+        W[:, 3] += r[:, 1] * f[:, 2] - r[:, 2] * f[:, 1]
+        W[:, 4] += r[:, 2] * f[:, 0] - r[:, 0] * f[:, 2]
+        W[:, 5] += r[:, 0] * f[:, 1] - r[:, 1] * f[:, 0]
+    else:
+        R = np.asarray(R_work_tip, dtype=float)
+        A = transform_wrench(np.eye(6), make_transform(R.T)) @ A
+    return np.asarray(W @ (sign * A), dtype=float)
 
 
 def quantize_wrench(W: F64, resolution: tuple[float, float]) -> F64:
@@ -587,7 +623,7 @@ def tool_weight_at_sensor(
     r = R_work_tip @ cog_tip  # tip → cog, work axes
     f = np.array([0.0, 0.0, -truth.tool_mass * STANDARD_GRAVITY])
     W = np.tile(np.concatenate([f, np.cross(r, f)]), (len(tip), 1))
-    return tip_to_sensor(W, sensor, tip, R_work_tip)
+    return sensor_wrench(W, sensor, np.asarray(tip, dtype=float), R_work_tip)
 
 
 def sensor_reading(truth: TruthSpec, W_sensor: F64, weight: F64 | None = None) -> F64:
