@@ -125,3 +125,22 @@ def test_sensor_wrench_is_tip_to_sensor(mount):
     ref = tip_to_sensor(W, sensor, tip, R)
     np.testing.assert_allclose(sensor_wrench(W.copy(), sensor, tip, R), ref, rtol=0, atol=1e-10)
     assert np.abs(ref - W).max() > 1  # a real change of frame
+
+
+def test_demo_error_stops_the_second_process(tmp_path):
+    """An error in the main process's study (the cone's folder is taken) ends the demo at once
+    with that error, and the VWACF's process — which would build for a minute — with it."""
+    import multiprocessing
+    import time
+
+    from roboisf.cli.demo import build_demo
+
+    (tmp_path / "cone-71").mkdir()
+    t0 = time.perf_counter()
+    with pytest.raises(FileExistsError):
+        build_demo(tmp_path, scan_points=150_000, force_rate=50.0, jobs=2)
+    assert multiprocessing.active_children() == []
+    assert not (tmp_path / "vwacf" / "results").exists()  # stopped, not waited for
+    assert time.perf_counter() - t0 < 60
+    with pytest.raises(InputError, match="jobs"):
+        build_demo(tmp_path, jobs=0)

@@ -75,7 +75,8 @@ def build_demo(
 
         # spawn, not fork: this process may hold the progress display's and BLAS's threads
         ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=1, mp_context=ctx) as pool:
+        pool = ProcessPoolExecutor(max_workers=1, mp_context=ctx)
+        try:
             later = {part: pool.submit(_build_part, part, folder, **args) for part in _PARTS[1:]}
             outcomes[_PARTS[0]] = _build_part(_PARTS[0], folder, progress=progress, **args)
             _say(*outcomes[_PARTS[0]][1:])
@@ -83,6 +84,14 @@ def build_demo(
                 with task(progress, f"{part}: built in a second process"):
                     outcomes[part] = future.result()
                 _say(*outcomes[part][1:])
+        except BaseException:
+            # an error or Ctrl-C here: stop the other study now rather than wait for it (the
+            # staging folder it writes into is removed by the caller)
+            for proc in list((getattr(pool, "_processes", None) or {}).values()):
+                proc.terminate()
+            raise
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
     else:
         for part in _PARTS:
             outcomes[part] = _build_part(part, folder, progress=progress, **args)
