@@ -148,8 +148,8 @@ class VirtualCell:
     Build one with :func:`virtual_cell`; the two paper studies are :func:`paper_cone_cell` and
     :func:`paper_vwacf_cell`. ``step_down``, ``spacing`` and ``max_wall_step`` [m] make the nominal
     toolpath; the rest models the process (robot force deficit, springback) and the measurement
-    (log rates [Hz], scan density, noise [m], holes, misplacement [m, rad], sensor poses, gauged
-    thickness, seed).
+    (log rates [Hz], force-sensor resolution [N, N·m], scan density, noise [m], holes, misplacement
+    [m, rad], sensor poses, gauged thickness, seed).
     """
 
     name: str
