@@ -22,7 +22,7 @@ def test_demo_builds_both_studies_atomically(tmp_path):
     (out / "stale.txt").write_text("old")
     argv = ["-q", "demo", "-o", str(out), "--scan-points", "150000", "--force-rate", "50"]
     assert main(argv) == 2  # not a demo result: refused before computing (docs/conventions.md)
-    assert main([*argv, "--overwrite"]) == 0
+    assert main([*argv, "--overwrite", "--all-dialects"]) == 0
     assert (out / "stale.txt").read_text() == "old"  # never touch a file roboisf did not write
     assert (out / "index.html").is_file()
     for name in ("cone-71", "vwacf"):

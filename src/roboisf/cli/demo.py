@@ -6,27 +6,39 @@ softer than the nominal model, bending links, springback partly compensating the
 deflection; ``docs/virtual-cell.md``), so the analysis reproduces the paper's Table 5 shares and
 prints them beside the paper's: the virtual cell writes a complete study folder (force
 logs in the sensors' frames, joint log, laser scans, ground truth), ``analyze`` decomposes it and
-writes the report, and the toolpath is exported as programs (CSV, G-code, RAPID, KRL, FANUC LS)
-with the cell's own frames: the work object where the cell puts the blank, the cell's tool
+writes the report, and the toolpath is exported as programs (RAPID for the cells' ABB robot,
+G-code for their CNC; ``--all-dialects`` adds KRL, FANUC LS and the program CSV) with the cell's
+own frames: the work object where the cell puts the blank, the cell's tool
 (sensor + holder + tool, flange to ball tip) and the configuration data of the cell's IK branch.
 An index page links both reports. The folder is built in a staging folder and moved into place
-when complete.
+when complete. The two studies are independent: by default (``--jobs 2``) the VWACF is built in
+a second process while this one builds the cone.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
 from roboisf.cli.console import state
 from roboisf.cli.outputs import DIR_HELP, Overwrite, output_dir
-from roboisf.cli.toolpath import warn_truncated
+from roboisf.errors import InputError
 from roboisf.io.atomic import staged_directory
 from roboisf.progress import Progress, task
 
-__all__ = ["build_demo", "register"]
+if TYPE_CHECKING:
+    from roboisf.toolpath import Toolpath
+    from roboisf.virtual.cell import VirtualCell
+
+__all__ = ["DEMO_FORMATS", "build_demo", "register", "write_demo_programs"]
+
+#: The programs the demo writes by default: one per machine of its cells — RAPID for the ABB
+#: IRB 7600, G-code for the CNC. ``all_dialects`` (``--all-dialects``) adds KRL, FANUC LS and
+#: the program CSV (the study's ``toolpath.csv`` is already the path as CSV).
+DEMO_FORMATS = ("rapid", "gcode")
+_PARTS = ("cone", "vwacf")
 
 
 def build_demo(
@@ -35,78 +47,180 @@ def build_demo(
     *,
     scan_points: int = 1_000_000,
     force_rate: float = 1000.0,
+    all_dialects: bool = False,
+    jobs: int = 2,
 ) -> list[Path]:
-    """Write the demo into ``folder`` (which exists and is empty); return the report paths."""
-    from roboisf.decompose.pipeline import analyze, write_results
-    from roboisf.io.export import FORMAT_SUFFIXES, write_toolpath
-    from roboisf.io.program import RobotTool, program_config
-    from roboisf.io.toolpath_csv import read_toolpath_csv
-    from roboisf.report import write_index
-    from roboisf.virtual.cell import PAPER_TABLE5, build_study, paper_scenario_cell
+    """Write the demo into ``folder`` (which exists and is empty); return the report paths.
 
-    reports: list[Path] = []
-    for part in ("cone", "vwacf"):
-        cell = paper_scenario_cell(part, scan_points=scan_points, force_rate=force_rate)
-        sub = folder / cell.name
-        sub.mkdir()
-        with task(progress, f"{cell.name}: virtual cell"):
-            study = build_study(cell, sub / "study", progress=progress)
-        with task(progress, f"{cell.name}: analyze"):
-            result = analyze(study, progress=progress)
-            write_results(result, sub / "results", progress=progress)
-        reports.append(sub / "results" / "report.html")
-        tp = read_toolpath_csv(study / "toolpath.csv")
-        warn_truncated(tp, 10.0)
-        # the programs carry the cell's frames: its placement, its tool, its IK branch
-        model, T_base_work = cell.cell.robot, cell.cell.T_base_work
-        tool = RobotTool(length=float(model.T_flange_tip[2, 3]), mass=2.0)
-        config = program_config(model, tp, T_base_work, cell.tool_rotation)
-        with task(progress, f"{cell.name}: robot programs", total=len(FORMAT_SUFFIXES)) as advance:
-            (sub / "programs").mkdir()
-            for fmt, suffixes in FORMAT_SUFFIXES.items():
-                write_toolpath(
-                    tp,
-                    sub / "programs" / f"toolpath{suffixes[0]}",
-                    fmt,
-                    T_base_work=T_base_work,
-                    tool=tool,
-                    tool_rotation=cell.tool_rotation,
-                    config=config,
-                )
-                advance(1)
-        row = result.contributions.set_index("factor")
-        paper = PAPER_TABLE5[part]
+    ``jobs`` = 2 builds the VWACF in a second process while this one builds the cone (the two
+    studies are independent; the same files and numbers as one after the other, about twice the
+    peak memory); 1 builds them in turn. ``all_dialects``: every program format
+    (:data:`roboisf.io.export.FORMAT_SUFFIXES`), else :data:`DEMO_FORMATS`.
+    """
+    from roboisf.io.export import FORMAT_SUFFIXES
+    from roboisf.report import write_index
+
+    if jobs < 1:
+        raise InputError(f"must be ≥ 1, got {jobs}", field="jobs")
+    formats = tuple(FORMAT_SUFFIXES) if all_dialects else DEMO_FORMATS
+    args: dict[str, Any] = {
+        "scan_points": scan_points,
+        "force_rate": force_rate,
+        "formats": formats,
+    }
+    outcomes: dict[str, tuple[Path, list[str], list[str]]] = {}
+    if jobs > 1:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        # spawn, not fork: this process may hold the progress display's and BLAS's threads
+        ctx = multiprocessing.get_context("spawn")
+        pool = ProcessPoolExecutor(max_workers=1, mp_context=ctx)
+        try:
+            later = {part: pool.submit(_build_part, part, folder, **args) for part in _PARTS[1:]}
+            outcomes[_PARTS[0]] = _build_part(_PARTS[0], folder, progress=progress, **args)
+            _say(*outcomes[_PARTS[0]][1:])
+            for part, future in later.items():
+                with task(progress, f"{part}: built in a second process"):
+                    outcomes[part] = future.result()
+                _say(*outcomes[part][1:])
+        except BaseException:
+            # an error or Ctrl-C here: stop the other study now rather than wait for it (the
+            # staging folder it writes into is removed by the caller)
+            for proc in list((getattr(pool, "_processes", None) or {}).values()):
+                proc.terminate()
+            raise
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+    else:
+        for part in _PARTS:
+            outcomes[part] = _build_part(part, folder, progress=progress, **args)
+            _say(*outcomes[part][1:])
+    if not all_dialects:
         state.info(
-            f"{cell.name}: {len(tp)} points, R_m {row.loc['total', 'R_m']:.3f} mm; robot "
-            f"compliance {row.loc['robot_compliance', 'share_percent']:.1f} % (paper "
-            f"{paper['robot_share_percent']:.2f} %), springback R_m "
-            f"{row.loc['springback', 'R_m']:.3f} mm (paper {paper['springback_R_m_mm']:.3f} mm)"
+            "programs: RAPID (the cells' ABB robot) and G-code (their CNC); --all-dialects "
+            "adds KRL, FANUC LS and the program CSV"
         )
-        vc = result.summary.get("vjm_check") or {}
-        if vc.get("ratio") is not None:
-            verdict = "holds by construction" if vc.get("by_construction") else vc.get("verdict")
-            state.info(
-                f"{cell.name}: model check {verdict} — measured/VJM robot deflection "
-                f"{vc['ratio']:.2f} (95 % [{vc['ci_low']:.2f}, {vc['ci_high']:.2f}])"
-            )
-        delta = result.summary.get("vjm_vs_experiment_per_axis")
-        if isinstance(delta, dict) and all(k in delta for k in "xyz"):
-            state.info(
-                f"{cell.name}: Δ = mean|δ_exp| − mean|δ_VJM| x/y/z "
-                + "/".join(f"{delta[k]:.2f}" for k in "xyz")
-                + " mm (paper "
-                + "/".join(f"{paper[f'delta_{k}_mm']:g}" for k in "xyz")
-                + " mm; z: a scan sees only the wall-normal part, and the paper's VJM z was ~2x "
-                "ours — docs/virtual-cell.md)"
-            )
     state.info(
         "by construction: the cells' truth (scenario 'paper': joints 0.22x the preset's "
         "stiffness, bending links, springback partly compensating the robot) was set so these "
         "shares land on the paper's; they reproduce it, they do not confirm it "
         "(docs/virtual-cell.md)"
     )
+    reports = [outcomes[part][0] for part in _PARTS]
     write_index(reports, folder / "index.html")
     return reports
+
+
+def _say(infos: list[str], warnings: list[str]) -> None:
+    for line in warnings:
+        state.warn(line)
+    for line in infos:
+        state.info(line)
+
+
+def _build_part(
+    part: str,
+    folder: Path,
+    *,
+    scan_points: int,
+    force_rate: float,
+    formats: tuple[str, ...],
+    progress: Progress | None = None,
+) -> tuple[Path, list[str], list[str]]:
+    """One paper study into ``folder / <cell name>``: virtual cell → analyze → report →
+    programs. Returns (report path, the lines to print, warnings); prints nothing itself, so it
+    runs as well in a worker process."""
+    from roboisf.decompose.pipeline import analyze, write_results
+    from roboisf.io.toolpath_csv import read_toolpath_csv
+    from roboisf.virtual.cell import PAPER_TABLE5, build_study, paper_scenario_cell
+
+    cell = paper_scenario_cell(part, scan_points=scan_points, force_rate=force_rate)
+    sub = folder / cell.name
+    sub.mkdir()
+    with task(progress, f"{cell.name}: virtual cell"):
+        study = build_study(cell, sub / "study", progress=progress)
+    with task(progress, f"{cell.name}: analyze"):
+        result = analyze(study, progress=progress)
+        write_results(result, sub / "results", progress=progress)
+    tp = read_toolpath_csv(study / "toolpath.csv")
+    warnings = []
+    if tp.meta.get("truncated"):  # as roboisf.cli.toolpath.warn_truncated says it
+        z = float(tp.meta["reachable_tip_z"])  # type: ignore[arg-type]
+        warnings.append(
+            f"{cell.name}: a Ø{cell.cell.tool.ball_diameter * 1e3:g} mm ball does not fit in the "
+            f"part below tip z = {z * 1e3:.3f} mm (it would touch the wall across the axis); "
+            "the toolpath stops there"
+        )
+    write_demo_programs(cell, tp, sub / "programs", formats, progress)
+    row = result.contributions.set_index("factor")
+    paper = PAPER_TABLE5[part]
+    infos = [
+        f"{cell.name}: {len(tp)} points, R_m {row.loc['total', 'R_m']:.3f} mm; robot "
+        f"compliance {row.loc['robot_compliance', 'share_percent']:.1f} % (paper "
+        f"{paper['robot_share_percent']:.2f} %), springback R_m "
+        f"{row.loc['springback', 'R_m']:.3f} mm (paper {paper['springback_R_m_mm']:.3f} mm)"
+    ]
+    vc = result.summary.get("vjm_check") or {}
+    if vc.get("ratio") is not None:
+        verdict = "holds by construction" if vc.get("by_construction") else vc.get("verdict")
+        infos.append(
+            f"{cell.name}: model check {verdict} — measured/VJM robot deflection "
+            f"{vc['ratio']:.2f} (95 % [{vc['ci_low']:.2f}, {vc['ci_high']:.2f}])"
+        )
+    delta = result.summary.get("vjm_vs_experiment_per_axis")
+    if isinstance(delta, dict) and all(k in delta for k in "xyz"):
+        infos.append(
+            f"{cell.name}: Δ = mean|δ_exp| − mean|δ_VJM| x/y/z "
+            + "/".join(f"{delta[k]:.2f}" for k in "xyz")
+            + " mm (paper "
+            + "/".join(f"{paper[f'delta_{k}_mm']:g}" for k in "xyz")
+            + " mm; z: a scan sees only the wall-normal part, and the paper's VJM z was ~2x "
+            "ours — docs/virtual-cell.md)"
+        )
+    return sub / "results" / "report.html", infos, warnings
+
+
+def write_demo_programs(
+    cell: VirtualCell,
+    tp: Toolpath,
+    folder: Path,
+    formats: tuple[str, ...] = DEMO_FORMATS,
+    progress: Progress | None = None,
+) -> list[Path]:
+    """Export ``tp`` into the new folder ``folder`` as ``toolpath.<suffix>`` in each of
+    ``formats`` with the cell's frames: the work object where the cell puts the blank, the
+    cell's tool (flange to ball tip, 2 kg) and the configuration data of the cell's IK branch.
+    Returns the written paths (a RAPID program too long for one module is a set of files next to
+    its main module)."""
+    from roboisf.io.export import FORMAT_SUFFIXES, write_toolpath
+    from roboisf.io.program import RobotTool, program_config
+
+    bad = [f for f in formats if f not in FORMAT_SUFFIXES]
+    if bad:
+        raise InputError(
+            f"unknown format {bad[0]!r}; expected one of {', '.join(FORMAT_SUFFIXES)}",
+            field="formats",
+        )
+    model, T_base_work = cell.cell.robot, cell.cell.T_base_work
+    tool = RobotTool(length=float(model.T_flange_tip[2, 3]), mass=2.0)
+    config = program_config(model, tp, T_base_work, cell.tool_rotation)
+    folder.mkdir()
+    paths = []
+    with task(progress, f"{cell.name}: robot programs", total=len(formats)) as advance:
+        for fmt in formats:
+            paths.append(folder / f"toolpath{FORMAT_SUFFIXES[fmt][0]}")
+            write_toolpath(
+                tp,
+                paths[-1],
+                fmt,
+                T_base_work=T_base_work,
+                tool=tool,
+                tool_rotation=cell.tool_rotation,
+                config=config,
+            )
+            advance(1)
+    return paths
 
 
 def register(app: typer.Typer) -> None:
@@ -120,6 +234,23 @@ def register(app: typer.Typer) -> None:
         overwrite: Overwrite = False,
         scan_points: Annotated[int, typer.Option(help="Points per simulated scan.")] = 1_000_000,
         force_rate: Annotated[float, typer.Option(help="Force-log sample rate [Hz].")] = 1000.0,
+        all_dialects: Annotated[
+            bool,
+            typer.Option(
+                "--all-dialects",
+                help="Export the toolpath in every program format (RAPID, G-code, KRL, FANUC "
+                "LS, CSV); default: RAPID for the cells' ABB robot and G-code for their CNC.",
+            ),
+        ] = False,
+        jobs: Annotated[
+            int,
+            typer.Option(
+                min=1,
+                max=2,
+                help="Studies built at once: 2 builds the VWACF in a second process beside the "
+                "cone (same results; about twice the peak memory), 1 one after the other.",
+            ),
+        ] = 2,
     ) -> None:
         """The paper's cone and VWACF, end to end: virtual cell → analyze → report → robot programs.
 
@@ -130,5 +261,12 @@ def register(app: typer.Typer) -> None:
         """
         output_dir(output, "demo", overwrite)
         with staged_directory(output, "demo") as stage:
-            build_demo(stage, state.progress(), scan_points=scan_points, force_rate=force_rate)
+            build_demo(
+                stage,
+                state.progress(),
+                scan_points=scan_points,
+                force_rate=force_rate,
+                all_dialects=all_dialects,
+                jobs=jobs,
+            )
         state.info(f"open {output / 'index.html'}")

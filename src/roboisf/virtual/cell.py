@@ -64,7 +64,14 @@ from roboisf.cell import (
 )
 from roboisf.errors import InputError
 from roboisf.fem import ComplianceResult, save_compliance_json
-from roboisf.frames import make_transform, matrix_to_rpy, rpy_to_matrix, vertical_tool
+from roboisf.frames import (
+    invert,
+    make_transform,
+    matrix_to_rpy,
+    rpy_to_matrix,
+    transform_wrench,
+    vertical_tool,
+)
 from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
 from roboisf.io.forcelog import ForceLog, write_force_log
 from roboisf.io.jointlog import write_joint_log
@@ -83,7 +90,6 @@ from roboisf.progress import Progress, task
 from roboisf.robot import RobotModel, ik_toolpath, load_robot
 from roboisf.robot.kinematics import chain_from_opw
 from roboisf.scan import default_rim_band, synthetic_scan, write_ply
-from roboisf.study.sensors import tip_to_sensor
 from roboisf.study.spec import ForceSensorSpec
 from roboisf.toolpath import Toolpath
 from roboisf.virtual.equipment import Equipment, apply_equipment
@@ -104,6 +110,8 @@ __all__ = [
     "paper_scenario_cell",
     "paper_vwacf_cell",
     "pyramid_cell",
+    "quantize_wrench",
+    "sensor_wrench",
     "simulate",
     "virtual_cell",
 ]
@@ -140,8 +148,8 @@ class VirtualCell:
     Build one with :func:`virtual_cell`; the two paper studies are :func:`paper_cone_cell` and
     :func:`paper_vwacf_cell`. ``step_down``, ``spacing`` and ``max_wall_step`` [m] make the nominal
     toolpath; the rest models the process (robot force deficit, springback) and the measurement
-    (log rates [Hz], scan density, noise [m], holes, misplacement [m, rad], sensor poses, gauged
-    thickness, seed).
+    (log rates [Hz], force-sensor resolution [N, N·m], scan density, noise [m], holes, misplacement
+    [m, rad], sensor poses, gauged thickness, seed).
     """
 
     name: str
@@ -152,6 +160,12 @@ class VirtualCell:
     robot_force_deficit: float = 0.06
     springback: SpringbackModel = field(default_factory=SpringbackModel)
     force_rate: float = 1000.0  # Hz
+    #: (force [N], moment [N·m]) — the force sensors' resolution: logged wrenches are rounded
+    #: to multiples of it, as an F/T sensor's converter counts do (1/16 N and 1/1024 N·m, the
+    #: step of a 16-bit converter over about ±2 kN and ±32 N·m; 1/32 of the simulated noise's
+    #: σ, so the analysis does not see it). Powers of two are exact in the float32 Parquet
+    #: columns and let them compress (~2× smaller logs); 0 keeps the continuous value.
+    force_resolution: tuple[float, float] = (2.0**-4, 2.0**-10)
     joint_rate: float = 250.0  # Hz
     scan_points: int = 2_000_000
     scan_noise: float = 25e-6
@@ -182,6 +196,13 @@ class VirtualCell:
         for name in ("force_rate", "joint_rate"):
             if not getattr(self, name) > 0:
                 raise InputError("must be > 0 Hz", field=name)
+        if len(self.force_resolution) != 2 or not all(
+            math.isfinite(r) and r >= 0 for r in self.force_resolution
+        ):
+            raise InputError(
+                f"expected (force N, moment N·m) ≥ 0, got {self.force_resolution!r}",
+                field="force_resolution",
+            )
         if self.scan_points < 1000:
             raise InputError("need at least 1000 scan points", field="scan_points")
         if not 0 <= self.robot_force_deficit < 1:
@@ -536,17 +557,67 @@ def _force_log(
     truth: TruthSpec | None = None,
 ) -> ForceLog:
     t = _log_times(tp, cell.force_rate)
-    W = np.column_stack([np.interp(t, tp.time, W_tip[:, j]) for j in range(6)])
-    tip = np.column_stack([np.interp(t, tp.time, tp.tip[:, j]) for j in range(3)])
+    W = _interp_columns(t, tp.time, W_tip)
+    tip = _interp_columns(t, tp.time, tp.tip)
     R = vertical_tool(cell.tool_rotation)
-    W_s = tip_to_sensor(W, sensor, tip, R)
+    W_s = sensor_wrench(W, sensor, tip, R)
     noise = cell.force.noise
     W_s[:, :3] += rng.normal(scale=noise, size=(t.size, 3))
     W_s[:, 3:] += rng.normal(scale=noise * 5e-3, size=(t.size, 3))  # ~5 mm lever of noise
     if truth is not None and not truth.sensor_ideal:
         # the transducer's noise passes through the same calibration as the load
-        W_s = sensor_reading(truth, W_s, tool_weight_at_sensor(cell, truth, sensor, tip, R))
-    return ForceLog(t, W_s, "sensor")
+        weight = tool_weight_at_sensor(cell, truth, sensor, tip, R) if truth.tool_mass else None
+        W_s = sensor_reading(truth, W_s, weight)
+    return ForceLog(t, quantize_wrench(W_s, cell.force_resolution), "sensor")
+
+
+def _interp_columns(t: F64, time: F64, values: F64) -> F64:
+    """Each column of ``values`` (N, k) at the times ``t`` (M,) → (M, k), linear in ``time``;
+    column-major (each channel contiguous, as the log's columns are written)."""
+    out = np.empty((values.shape[1], t.size))
+    for j in range(values.shape[1]):
+        out[j] = np.interp(t, time, values[:, j])
+    return out.T
+
+
+def _times_matrix(W: F64, A: F64) -> F64:
+    """``W @ A`` for a long (M, 6) ``W`` and a (6, 6) ``A``, computed as ``(Aᵀ Wᵀ)ᵀ``: BLAS is
+    several times faster on the wide (6, M) product than on the tall one."""
+    return np.asarray((A.T @ W.T).T, dtype=float)
+
+
+def sensor_wrench(W_tip: F64, sensor: ForceSensorSpec, tip_work: F64, R_work_tip: F64) -> F64:
+    """What ``sensor`` reads (M, 6) [N, N·m] for tip wrenches ``W_tip`` (M, 6) in work axes at
+    tips ``tip_work`` (M, 3) m with one tool orientation ``R_work_tip`` (3, 3):
+    :func:`roboisf.study.sensors.tip_to_sensor` for a whole log — the frame change is one
+    constant (6, 6) product, the fixture sensor's moment about the work origin is added in
+    place. Overwrites ``W_tip``; the same numbers as ``tip_to_sensor`` to rounding."""
+    sign = -1.0 if sensor.load_on == "workpiece" else 1.0
+    A = transform_wrench(np.eye(6), invert(sensor.pose))  # row i: the image of e_i
+    W = W_tip
+    if sensor.mount == "fixture":
+        # moments about the work origin: m += tip × f
+        r, f = tip_work, W[:, :3]
+        W[:, 3] += r[:, 1] * f[:, 2] - r[:, 2] * f[:, 1]
+        W[:, 4] += r[:, 2] * f[:, 0] - r[:, 0] * f[:, 2]
+        W[:, 5] += r[:, 0] * f[:, 1] - r[:, 1] * f[:, 0]
+    else:
+        R = np.asarray(R_work_tip, dtype=float)
+        A = transform_wrench(np.eye(6), make_transform(R.T)) @ A
+    return _times_matrix(W, sign * A)
+
+
+def quantize_wrench(W: F64, resolution: tuple[float, float]) -> F64:
+    """``W`` (M, 6) [N, N·m] rounded to multiples of ``resolution`` = (force step [N], moment
+    step [N·m]) — a sensor's counts; a step of 0 leaves those columns continuous. Rounds in place
+    and returns ``W``."""
+    for cols, step in ((slice(0, 3), resolution[0]), (slice(3, 6), resolution[1])):
+        if step > 0:
+            block = W[:, cols]
+            np.divide(block, step, out=block)
+            np.rint(block, out=block)  # half to even, as np.round
+            np.multiply(block, step, out=block)
+    return W
 
 
 def tool_weight_at_sensor(
@@ -563,14 +634,14 @@ def tool_weight_at_sensor(
     r = R_work_tip @ cog_tip  # tip → cog, work axes
     f = np.array([0.0, 0.0, -truth.tool_mass * STANDARD_GRAVITY])
     W = np.tile(np.concatenate([f, np.cross(r, f)]), (len(tip), 1))
-    return tip_to_sensor(W, sensor, tip, R_work_tip)
+    return sensor_wrench(W, sensor, np.asarray(tip, dtype=float), R_work_tip)
 
 
 def sensor_reading(truth: TruthSpec, W_sensor: F64, weight: F64 | None = None) -> F64:
     """What the flange sensor logs (M, 6) for the true load ``W_sensor`` (M, 6) [N, N·m] in its
     axes: ``diag(gain) · (I + crosstalk) · (W + weight) + bias``."""
     W = W_sensor if weight is None else W_sensor + weight
-    return np.asarray(W @ truth.sensor_matrix().T + truth.sensor_bias[None, :], dtype=float)
+    return _times_matrix(W, truth.sensor_matrix().T) + truth.sensor_bias[None, :]
 
 
 def _scan(

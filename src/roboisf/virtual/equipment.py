@@ -219,12 +219,15 @@ def equipment_force_log(
     tool_rotation: float,
     rng: np.random.Generator,
     reading: Callable[[F64, F64], F64] | None = None,
+    resolution: tuple[float, float] = (0.0, 0.0),
 ) -> ForceLog:
     """The sensor's log [N, N·m] on the equipment's clock: the tip wrench (N, 6) of the
     toolpath's points, zero out of contact, in the sensor frame, with white noise ``noise`` [N].
     ``reading(W_sensor (M, 6), tip (M, 3) m) -> (M, 6)``: what the transducer makes of the load
     (a truth's bias, gain, crosstalk and tool weight, :func:`roboisf.virtual.cell.sensor_reading`);
-    applied after the noise, which passes through the same calibration."""
+    applied after the noise, which passes through the same calibration; the result is rounded
+    to the sensor's ``resolution`` (force N, moment N·m;
+    :func:`~roboisf.virtual.cell.quantize_wrench`)."""
     duration = float(tp.time[-1])
     tau, r = _samples(eq, duration, rate, force=True)
     t = eq.nominal_time(r, duration)
@@ -235,7 +238,9 @@ def equipment_force_log(
     W_s[:, 3:] += rng.normal(scale=noise * 5e-3, size=(tau.size, 3))
     if reading is not None:
         W_s = reading(W_s, tip)
-    return ForceLog(tau, W_s, "sensor")
+    from roboisf.virtual.cell import quantize_wrench
+
+    return ForceLog(tau, quantize_wrench(W_s, resolution), "sensor")
 
 
 def equipment_joint_log(eq: Equipment, tp: Toolpath, q: F64, rate: float) -> tuple[F64, F64]:
@@ -291,7 +296,16 @@ def apply_equipment(
         (truth.wrench_robot, rob, "robot", eq.robot_force_profile, eq, robot_reading),
     ):
         log = equipment_force_log(
-            e, tp, W, sensor, cell.force_rate, cell.force.noise, rot, rng, reading
+            e,
+            tp,
+            W,
+            sensor,
+            cell.force_rate,
+            cell.force.noise,
+            rot,
+            rng,
+            reading,
+            cell.force_resolution,
         )
         write_force_profile(log, folder / f"{name}_forces.csv", profile)
     tau, q = equipment_joint_log(eq, tp, truth.q, cell.joint_rate)

@@ -1,0 +1,146 @@
+"""What the virtual cell writes, smaller with nothing lost: force-sensor resolution (counts),
+read back bit for bit, and an analysis that does not see it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from roboisf.decompose.pipeline import analyze
+from roboisf.errors import InputError
+from roboisf.io.forcelog import read_force_log
+from roboisf.virtual.cell import build_study, paper_cone_cell, quantize_wrench
+
+F_STEP, M_STEP = 2.0**-4, 2.0**-10
+
+
+def _cell(**kw):
+    return paper_cone_cell(
+        scan_points=150_000,
+        force_rate=50.0,
+        joint_rate=20.0,
+        step_down=2e-3,
+        spacing=4e-3,
+        **kw,
+    )
+
+
+@pytest.fixture(scope="module")
+def studies(tmp_path_factory):
+    root = tmp_path_factory.mktemp("bytes")
+    counts = build_study(_cell(), root / "counts")
+    cont = build_study(_cell(force_resolution=(0.0, 0.0)), root / "continuous")
+    return counts, cont
+
+
+def test_quantize_wrench_rounds_to_the_nearest_count():
+    W = np.array(
+        [[0.03, -0.04, 1.0 / 32 + 1e-9, 0.0004, -0.0006, 0.00049], [500.1, 0, 0, 3.3, 0, 0]]
+    )
+    Q = quantize_wrench(W.copy(), (F_STEP, M_STEP))
+    # by hand: 0.03 N → 0.0625 · round(0.48) = 0; −0.04 → −0.0625; 1/32⁺ → 0.0625
+    np.testing.assert_array_equal(Q[0, :3], [0.0, -F_STEP, F_STEP])
+    np.testing.assert_array_equal(Q[0, 3:], [0.0, -M_STEP, M_STEP])
+    assert Q[1, 0] == 500.125 and Q[1, 3] == round(3.3 * 1024) / 1024
+    assert np.all(np.abs(Q - W)[:, :3] <= F_STEP / 2) and np.all(np.abs(Q - W)[:, 3:] <= M_STEP / 2)
+    np.testing.assert_array_equal(quantize_wrench(W.copy(), (0.0, 0.0)), W)  # 0: continuous
+
+
+@pytest.mark.parametrize("bad", [(-1.0, 0.0), (0.0, float("nan")), (1.0,)])
+def test_bad_force_resolution_is_refused(bad):
+    with pytest.raises(InputError, match="force_resolution"):
+        _cell(force_resolution=bad)
+
+
+def test_force_logs_are_sensor_counts_read_back_exactly(studies):
+    counts, cont = studies
+    for name in ("cnc_forces.parquet", "robot_forces.parquet"):
+        q = read_force_log(counts / name)
+        c = read_force_log(cont / name)
+        np.testing.assert_array_equal(q.time, c.time)
+        # every value read back is an exact count of the resolution (float32 holds them exactly)
+        np.testing.assert_array_equal(q.wrench[:, :3] / F_STEP, np.round(q.wrench[:, :3] / F_STEP))
+        np.testing.assert_array_equal(q.wrench[:, 3:] / M_STEP, np.round(q.wrench[:, 3:] / M_STEP))
+        # and the nearest count of the continuous reading (same seed: same noise), which the
+        # float32 column keeps to 6e-8 relative
+        tol = np.abs(c.wrench) * 2.0**-23
+        assert np.all(np.abs(q.wrench[:, :3] - c.wrench[:, :3]) <= F_STEP / 2 + tol[:, :3])
+        assert np.all(np.abs(q.wrench[:, 3:] - c.wrench[:, 3:]) <= M_STEP / 2 + tol[:, 3:])
+        assert np.any(q.wrench != c.wrench)  # the resolution did act
+
+
+def test_analysis_does_not_see_the_force_resolution(studies):
+    counts, cont = studies
+    a, b = analyze(counts), analyze(cont)
+    sa = a.contributions_normal.set_index("factor")["share_percent"]
+    sb = b.contributions_normal.set_index("factor")["share_percent"]
+    # 1/16 N against 2 N of noise: shares agree to far below the demo's 0.1-point budget
+    np.testing.assert_allclose(sa, sb, atol=0.01)
+
+
+def test_demo_programs_default_to_the_cells_machines(tmp_path):
+    """RAPID for the ABB robot, G-code for the CNC; every dialect on request; each read back
+    to the toolpath's tips (the readers are independent of the writers' layouts)."""
+    from roboisf.cli.demo import DEMO_FORMATS, write_demo_programs
+    from roboisf.io.gcode import read_gcode
+    from roboisf.io.rapid import read_rapid
+    from roboisf.virtual.cell import cell_toolpath
+
+    cell = _cell()
+    tp = cell_toolpath(cell)
+    paths = write_demo_programs(cell, tp, tmp_path / "p")
+    assert DEMO_FORMATS == ("rapid", "gcode")
+    assert [p.name for p in paths] == ["toolpath.mod", "toolpath.nc"]
+    assert sorted(p.suffix for p in (tmp_path / "p").iterdir()) == [".mod", ".nc"]
+    rapid = read_rapid(paths[0])
+    assert np.abs(rapid.tip - tp.tip).max() <= 0.5e-6 + 1e-12
+    np.testing.assert_allclose(rapid.T_base_work, cell.cell.T_base_work, atol=1e-8)
+    nc = read_gcode(paths[1])
+    assert nc.tip.shape == tp.tip.shape and np.abs(nc.tip - tp.tip).max() <= 0.5e-6 + 1e-12
+    every = write_demo_programs(
+        cell, tp, tmp_path / "all", ("rapid", "gcode", "krl", "fanuc", "csv")
+    )
+    assert {p.suffix for p in every} == {".mod", ".nc", ".src", ".ls", ".csv"}
+    with pytest.raises(InputError, match="unknown format 'abb'"):
+        write_demo_programs(cell, tp, tmp_path / "bad", ("abb",))
+
+
+@pytest.mark.parametrize("mount", ["fixture", "flange"])
+def test_sensor_wrench_is_tip_to_sensor(mount):
+    """The whole-log frame change agrees with the per-sample reference to rounding."""
+    from roboisf.frames import make_transform, rpy_to_matrix, vertical_tool
+    from roboisf.study.sensors import tip_to_sensor
+    from roboisf.study.spec import ForceSensorSpec
+    from roboisf.virtual.cell import sensor_wrench
+
+    rng = np.random.default_rng(3)
+    W = rng.normal(size=(500, 6)) * [300, 300, 500, 10, 10, 2]
+    tip = rng.normal(size=(500, 3)) * 0.05
+    R = vertical_tool(0.7)
+    pose = make_transform(rpy_to_matrix([0.1, -0.2, 1.3]), [0.01, -0.02, -0.06])
+    load_on = "workpiece" if mount == "fixture" else "tool"
+    sensor = ForceSensorSpec(Path("f.parquet"), mount, pose, load_on)
+    ref = tip_to_sensor(W, sensor, tip, R)
+    np.testing.assert_allclose(sensor_wrench(W.copy(), sensor, tip, R), ref, rtol=0, atol=1e-10)
+    assert np.abs(ref - W).max() > 1  # a real change of frame
+
+
+def test_demo_error_stops_the_second_process(tmp_path):
+    """An error in the main process's study (the cone's folder is taken) ends the demo at once
+    with that error, and the VWACF's process — which would build for a minute — with it."""
+    import multiprocessing
+    import time
+
+    from roboisf.cli.demo import build_demo
+
+    (tmp_path / "cone-71").mkdir()
+    t0 = time.perf_counter()
+    with pytest.raises(FileExistsError):
+        build_demo(tmp_path, scan_points=150_000, force_rate=50.0, jobs=2)
+    assert multiprocessing.active_children() == []
+    assert not (tmp_path / "vwacf" / "results").exists()  # stopped, not waited for
+    assert time.perf_counter() - t0 < 60
+    with pytest.raises(InputError, match="jobs"):
+        build_demo(tmp_path, jobs=0)
