@@ -8,6 +8,7 @@ test_sync.py, and the CLI options here fast (the writer is replaced).
 """
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -111,10 +112,12 @@ def test_nominal_time_would_put_the_forces_on_the_wrong_points(pair, tmp_path):
 
 @pytest.mark.slow
 def test_summary_reports_the_alignment(pair):
-    *_, out = pair
+    *_, study, out = pair
     s = json.loads((out / "summary.json").read_text())
     al = s["alignment"]
     assert set(al) == {"cnc", "robot"}
+    for a in al.values():  # named inside the study folder, so the record survives a move
+        assert not Path(a["source"]).is_absolute() and (study / a["source"]).is_file()
     rob, cnc = al["robot"], al["cnc"]
     assert rob["method"] == "position" and rob["residual_unit"] == "mm"
     assert rob["residual_max"] < 0.5 and rob["clock_scale"] == pytest.approx(1.02, abs=1e-3)
@@ -126,3 +129,13 @@ def test_summary_reports_the_alignment(pair):
     assert cnc["clock_scale"] == pytest.approx(0.999, abs=3e-3)
     html = (out / "report.html").read_text()
     assert "Alignment of the logs" in html and "by position (FK of the joint log)" in html
+
+
+def test_summary_names_files_relative_to_the_study(tmp_path):
+    from roboisf.decompose.pipeline import _in_study
+
+    (tmp_path / "logs").mkdir()
+    assert _in_study(tmp_path / "logs" / "f.parquet", tmp_path) == "logs/f.parquet"
+    outside = tmp_path.parent / "elsewhere.csv"
+    assert _in_study(outside, tmp_path) == str(outside.resolve())
+    assert _in_study("", tmp_path) == ""

@@ -315,6 +315,8 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
     summary = _summary(study, cell, tp, d, k_c, W_rob, valid, k_tool, k_holder, q_source, scans)
     summary["warnings"].extend(input_warnings)
     summary["alignment"] = {name: a.to_dict() for name, a in aligned.items()}
+    for entry in summary["alignment"].values():
+        entry["source"] = _in_study(entry["source"], study.root)
     for a in aligned.values():
         summary["warnings"].extend(f"{a.run} alignment: {n}" for n in a.primary.notes)
     with task(progress, "model check and identification"):
@@ -654,6 +656,19 @@ TRUTH_COLUMNS = (
 )
 
 
+def _in_study(path: str | Path, root: Path) -> str:
+    """A file's name as ``summary.json`` records it: relative to the study folder (POSIX) when it
+    lies inside it — so the record stays true when the folder is moved or was built in a staging
+    folder, as ``roboisf demo`` does — else the absolute path; an empty name stays empty."""
+    if not str(path):
+        return ""
+    p = Path(path).resolve()
+    try:
+        return p.relative_to(root.resolve()).as_posix()
+    except ValueError:
+        return str(p)
+
+
 def _read_truth(path: Path) -> pd.DataFrame:
     """A virtual cell's ground truth, validated: readable Parquet, the columns ``analyze`` uses
     (:data:`TRUTH_COLUMNS`), finite numbers. Read before the analysis so that a corrupt file
@@ -734,7 +749,7 @@ def _attach_truth(
         "shares_per_axis": shares["per_axis"],
         "shares_normal": shares["normal"],
         "R_m_physical_mm": physical,
-        "source": str(path),
+        "source": _in_study(path, path.parent.parent),
     }
 
 
