@@ -38,7 +38,7 @@ class StepTimes:
     """
 
     def __init__(self) -> None:
-        self.rows: list[tuple[int, str, float, float]] = []
+        self.rows: list[tuple[int, str, float, float, float]] = []
         self._depth = 0
         self._lock = threading.Lock()
 
@@ -47,7 +47,7 @@ class StepTimes:
         with self._lock:
             row = len(self.rows)
             depth = self._depth if threading.current_thread() is threading.main_thread() else 2
-            self.rows.append((depth, description, 0.0, 0.0))
+            self.rows.append((depth, description, 0.0, 0.0, 0.0))
             if threading.current_thread() is threading.main_thread():
                 self._depth += 1
         t, c = time.perf_counter(), time.process_time()
@@ -62,14 +62,15 @@ class StepTimes:
                     description,
                     time.perf_counter() - t,
                     time.process_time() - c,
+                    resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024**2,
                 )
 
     def print(self, total: float) -> None:
-        print(f"    {'step':<40} {'wall':>9}  {'share':>5} {'CPU (process)':>14}")
-        for depth, name, dt, cpu in self.rows:
+        print(f"    {'step':<40} {'wall':>9}  {'share':>5} {'CPU':>11} {'peak RSS at end':>16}")
+        for depth, name, dt, cpu, rss in self.rows:
             print(
                 f"    {'  ' * depth}{name:<{40 - 2 * depth}} {dt:7.2f} s  {dt / total:5.1%}"
-                f" {cpu:9.2f} s"
+                f" {cpu:9.2f} s {rss:12.2f} GB"
             )
 
 
