@@ -5,6 +5,7 @@ axes' labels, for every figure of the report, round part and not."""
 
 from __future__ import annotations
 
+import contextlib
 from itertools import combinations
 
 import numpy as np
@@ -112,3 +113,33 @@ def test_save_png_draws_each_figure_once(figures, tmp_path, monkeypatch):
         w, h = int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
         fig = spec.png()
         assert (w, h) == tuple(np.round(fig.get_size_inches() * st.DPI).astype(int)), fid
+
+
+def test_reductions_shared_between_renderers_change_nothing(tmp_path, monkeypatch):
+    # issue #16: inside write_report each reduction (lap profiles, maps, contours) is computed
+    # once and drawn by both renderers; the report must be the very same bytes as when every
+    # figure computes its own, and the reductions must actually be shared
+    from roboisf.report import aggregate as agg
+    from roboisf.report import write_report
+
+    study = make_study(n_laps=20, points_per_lap=40)
+    # shared: within reused(), a second identical call returns the same object
+    with agg.reused():
+        pp = study[0]
+        assert agg.lap_profile(pp, ["cnc_dn"]) is agg.lap_profile(pp, ["cnc_dn"])
+        assert agg.lap_map(pp, "robot_dn") is agg.lap_map(pp, "robot_dn")
+        assert agg.lap_profile(pp, ["cnc_dn"]) is not agg.lap_profile(pp, ["robot_dn"])
+    assert agg.lap_profile(pp, ["cnc_dn"]) is not agg.lap_profile(pp, ["cnc_dn"])  # outside
+    shared = write_report(*study, tmp_path / "shared", png=True)
+    monkeypatch.setattr(agg, "reused", _no_reuse)
+    own = write_report(*study, tmp_path / "own", png=True)
+    assert shared.read_bytes() == own.read_bytes()
+    for fid in doc.FIGURES:
+        a = (shared.parent / "figures" / f"{fid}.png").read_bytes()
+        b = (own.parent / "figures" / f"{fid}.png").read_bytes()
+        assert a == b, fid
+
+
+@contextlib.contextmanager
+def _no_reuse():
+    yield
