@@ -87,7 +87,8 @@ def _figure(
 ) -> Figure:
     """A figure of ``width`` × ``height`` inches with fixed margins (inches; ``wspace`` and
     ``hspace`` are fractions of the mean axes width and height, as in ``subplots_adjust``)."""
-    fig = Figure(figsize=(width, height), layout="none")
+    fig = Figure(figsize=(width, height))
+    fig.set_layout_engine("none")  # whatever the rcParams say: no layout engine, one draw
     fig.subplots_adjust(
         left=left / width,
         right=1.0 - right / width,
