@@ -1,6 +1,6 @@
 """Paper-scale analysis: both studies with 1 kHz force logs over the full forming time and 2 M-point
 scans. Targets: issue #6 (2 cores) analyze ≤ 60 s for both, ≤ 6 GB peak, `roboisf demo` ≤ 90 s;
-issue #16: analyze of the paper cone ≤ 10 s and ≤ 1 GB.
+issue #16: analyze of the paper cone ≤ 10 s and ≤ 1 GB (per step: wall, CPU, peak RSS).
 
 Run by hand:  python benchmarks/analyze.py [--scan-points 2000000] [--keep DIR]
               python benchmarks/analyze.py --study DIR   # analyze an existing study only
@@ -33,8 +33,9 @@ class StepTimes:
     """A :class:`roboisf.progress.Progress` that records the wall and CPU time of every task.
 
     CPU time is the process's (user + system, all threads): on a shared machine the wall time
-    is contended, the CPU time much less so. Tasks of concurrent steps (the two scans run side
-    by side) overlap: their wall times add up to more than the parent's.
+    is contended, the CPU time much less so. The peak RSS is the process's high-water mark at the
+    end of the step. Safe to call from worker threads (their tasks are listed at depth 2; the
+    CPU time of overlapping tasks then counts every thread).
     """
 
     def __init__(self) -> None:
