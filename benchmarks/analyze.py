@@ -1,6 +1,6 @@
 """Paper-scale analysis: both studies with 1 kHz force logs over the full forming time and 2 M-point
 scans. Targets: issue #6 (2 cores) analyze ≤ 60 s for both, ≤ 6 GB peak, `roboisf demo` ≤ 90 s;
-issue #16: analyze of the paper cone ≤ 10 s and ≤ 1 GB.
+issue #16: analyze of the paper cone ≤ 10 s and ≤ 1 GB (per step: wall, CPU, peak RSS).
 
 Run by hand:  python benchmarks/analyze.py [--scan-points 2000000] [--keep DIR]
               python benchmarks/analyze.py --study DIR   # analyze an existing study only
@@ -18,37 +18,61 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import resource
 import shutil
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
 
 
 class StepTimes:
-    """A :class:`roboisf.progress.Progress` that records the wall time of every task."""
+    """A :class:`roboisf.progress.Progress` that records the wall and CPU time of every task.
+
+    CPU time is the process's (user + system, all threads): on a shared machine the wall time
+    is contended, the CPU time much less so. The peak RSS is the process's high-water mark at the
+    end of the step. Safe to call from worker threads (their tasks are listed at depth 2; the
+    CPU time of overlapping tasks then counts every thread).
+    """
 
     def __init__(self) -> None:
-        self.rows: list[tuple[int, str, float]] = []
+        self.rows: list[tuple[int, str, float, float, float]] = []
         self._depth = 0
+        self._lock = threading.Lock()
 
     @contextlib.contextmanager
     def task(self, description: str, total: float | None = None) -> Iterator[object]:
-        row = len(self.rows)
-        self.rows.append((self._depth, description, 0.0))
-        self._depth += 1
-        t = time.perf_counter()
+        with self._lock:
+            row = len(self.rows)
+            depth = self._depth if threading.current_thread() is threading.main_thread() else 2
+            self.rows.append((depth, description, 0.0, 0.0, 0.0))
+            if threading.current_thread() is threading.main_thread():
+                self._depth += 1
+        t, c = time.perf_counter(), time.process_time()
         try:
             yield lambda amount=1.0: None
         finally:
-            self._depth -= 1
-            self.rows[row] = (self._depth, description, time.perf_counter() - t)
+            with self._lock:
+                if threading.current_thread() is threading.main_thread():
+                    self._depth -= 1
+                self.rows[row] = (
+                    depth,
+                    description,
+                    time.perf_counter() - t,
+                    time.process_time() - c,
+                    resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024**2,
+                )
 
     def print(self, total: float) -> None:
-        for depth, name, dt in self.rows:
-            print(f"    {'  ' * depth}{name:<{40 - 2 * depth}} {dt:7.2f} s  {dt / total:5.1%}")
+        print(f"    {'step':<40} {'wall':>9}  {'share':>5} {'CPU':>11} {'peak RSS at end':>16}")
+        for depth, name, dt, cpu, rss in self.rows:
+            print(
+                f"    {'  ' * depth}{name:<{40 - 2 * depth}} {dt:7.2f} s  {dt / total:5.1%}"
+                f" {cpu:9.2f} s {rss:12.2f} GB"
+            )
 
 
 def outliers_vs_open3d(scan: Path, unit: str | None) -> None:
@@ -116,12 +140,17 @@ def main(argv: list[str] | None = None) -> int:
     t_an = 0.0
     for s in studies:
         steps = StepTimes()
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         r = analyze(s, progress=steps)
         write_results(r, root / f"{s.name}-results", progress=steps)
-        dt = time.perf_counter() - t
+        dt, cpu = time.perf_counter() - t, time.process_time() - c
         t_an += dt
-        print(f"  analyze {s.name}: {dt:.1f} s (target for the cone ≤ 10 s), by step:")
+        peak_an = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024**2
+        print(
+            f"  analyze + write {s.name}: {dt:.1f} s wall, {cpu:.1f} s CPU, peak RSS so far "
+            f"{peak_an:.2f} GB (targets for the cone: ≤ 10 s, ≤ 1 GB); load average "
+            f"{os.getloadavg()[0]:.1f} (contended if > 2 on 2 cores), by step:"
+        )
         steps.print(dt)
         spec = load_study(s)
         logs = [f.file for f in (spec.cnc.forces, spec.robot_run.forces) if f.file.suffix == ".csv"]

@@ -1,12 +1,17 @@
 """Time and size of the study report at paper scale (run by hand: python benchmarks/report.py).
 
 Paper scale: the 71° cone, 0.5 mm step-down over 103 mm = ~206 laps; 150 points per lap.
-Peer: the naive plotly way — each figure written with ``fig.write_html`` and its own copy of
-plotly.js (what an ad-hoc script does) — against the report's single file with plotly.js once.
+Peers, in the same run: the naive plotly way — each figure written with ``fig.write_html`` and
+its own copy of plotly.js (what an ad-hoc script does) — against the report's single file with
+plotly.js once; and the PNGs as they were drawn before issue #16 (the same figures under
+matplotlib's constrained layout, which draws each figure twice, and PIL's default zlib level)
+against the fixed layout drawn once. CPU time (``time.process_time``) is printed beside the wall
+time: on a shared machine the wall time is contended.
 """
 
 from __future__ import annotations
 
+import io
 import sys
 import tempfile
 import time
@@ -17,6 +22,7 @@ sys.path[:0] = [str(ROOT / "src"), str(ROOT / "tests")]
 
 from report_fixtures import make_study  # noqa: E402
 from roboisf.report import document as doc  # noqa: E402
+from roboisf.report import static as st  # noqa: E402
 from roboisf.report import write_report  # noqa: E402
 from roboisf.report.schema import (  # noqa: E402
     check_contributions,
@@ -42,7 +48,7 @@ def main() -> None:
             c = check_contributions(study[1], name="c")
             cn = check_contributions(study[2], name="cn")
             s = check_summary(study[3])
-            figs = doc._figures(pp, c, cn, s["contour_z"])
+            figs = doc._figures(pp, c, cn, s["contour_z"], True)
             t0 = time.perf_counter()
             peer_size = 0
             for fid, spec in figs.items():
@@ -55,6 +61,30 @@ def main() -> None:
             f"{t_full:5.2f} s | peer (write_html per figure) {t_peer:5.2f} s, "
             f"{peer_size / 1e6:5.1f} MB in 8 files — size ratio {peer_size / size:4.1f}x, "
             f"time ratio {t_peer / t_html:4.2f}x"
+        )
+        cpu = {"fixed layout, drawn once": 0.0, "constrained layout (before #16)": 0.0}
+        for _ in range(2):  # interleaved, twice
+            for mode in cpu:
+                for spec in figs.values():
+                    fig = spec.png()
+                    c0 = time.process_time()
+                    if mode.startswith("fixed"):
+                        buf = io.BytesIO()
+                        fig.savefig(
+                            buf,
+                            format="png",
+                            dpi=st.DPI,
+                            facecolor="white",
+                            pil_kwargs={"compress_level": st.PNG_COMPRESS_LEVEL},
+                        )
+                    else:
+                        fig.set_layout_engine("constrained")
+                        fig.savefig(io.BytesIO(), format="png", dpi=st.DPI, facecolor="white")
+                    cpu[mode] += time.process_time() - c0
+        a, b = cpu.values()
+        print(
+            f"{'':>7}  9 PNGs, CPU (2 rounds): fixed layout {a:5.2f} s, constrained layout "
+            f"{b:5.2f} s — ratio {a / b:4.2f}x"
         )
 
 

@@ -200,3 +200,38 @@ def test_attach_by_position(small_path):
         attach_to_toolpath(ForceLog(log.time, log.wrench, "sensor"), tp, by="position")
     with pytest.raises(InputError, match="no logged position within"):
         attach_to_toolpath(log, tp, by="position", positions=log.position + 0.01, max_distance=1e-3)
+
+
+def test_cumulative_integral_in_place_same_bits_as_the_textbook_formula():
+    # issue #16: the running trapezoid sum is built in one buffer; it must give the same bits
+    # as the formula it replaced (0.5 scales exactly, so no rounding differs)
+    from roboisf.io.forcelog import _cumulative_integral
+
+    rng = np.random.default_rng(7)
+    t = np.cumsum(rng.uniform(0.5e-3, 1.5e-3, 50_001))
+    y = rng.normal(scale=300.0, size=(t.size, 6))
+    ref = np.concatenate(
+        [np.zeros((1, 6)), np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(t)[:, None], axis=0)]
+    )
+    got = _cumulative_integral(t, y)
+    assert got.shape == (t.size, 6) and got.flags.c_contiguous
+    assert np.array_equal(got, ref)
+    # and it is the integral: ∫ of a linear y = a + b t is exact for the trapezoid rule
+    lin = (2.0 + 3.0 * t)[:, None]
+    exact = 2.0 * (t - t[0]) + 1.5 * (t**2 - t[0] ** 2)
+    assert np.allclose(_cumulative_integral(t, lin)[:, 0], exact, rtol=1e-12, atol=1e-12)
+
+
+def test_parquet_force_log_read_unchanged_by_in_place_scaling(tmp_path):
+    # the reader scales columns in place and fills one (N, 6) wrench: same values as the log
+    # written, in SI, with and without moment channels
+    from roboisf.io.logparquet import read_force_parquet, write_force_parquet
+
+    rng = np.random.default_rng(3)
+    t = np.arange(1000) * 1e-3
+    W = rng.normal(scale=100.0, size=(t.size, 6)).astype(np.float32).astype(float)
+    log = ForceLog(t, W, "sensor")
+    write_force_parquet(log, tmp_path / "f.parquet")
+    back = read_force_parquet(tmp_path / "f.parquet")
+    assert np.array_equal(back.time, t) and np.array_equal(back.wrench, W)
+    assert back.wrench.flags.c_contiguous and back.moments_known

@@ -284,6 +284,9 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
             for r in (cnc, rob)
         )
 
+    # the raw logs (2.3 M samples each at 1 kHz on the paper cone, ~0.3 GB in all) are not
+    # needed past this point: freed before the scans, whose own peak then sets the analysis's
+    del logs, R_fk
     with task(progress, "tool and holder compliance"):
         k_tool, k_holder, k_t, k_th = tip_compliances(cell, progress=progress)
     # deflections of the ball centre (the paper's reference: its normal motion forms the part)

@@ -149,7 +149,8 @@ def _scale(
                 file=path,
                 field=name,
             )
-        out[name] = v * log_unit_to_si(u, q, file=path, field=name)
+        v *= log_unit_to_si(u, q, file=path, field=name)  # in place: ``cols`` owns ``v``
+        out[name] = v
     return out
 
 
@@ -197,9 +198,11 @@ def read_force_parquet(
     known = bool(meta.get("moments_known", True)) if meta else True
     has_m = all(c in cols for c in _FORCE[4:])
     si = _scale(p, cols, meta, given or {})
+    del cols  # scaled in place: ``si`` holds the same arrays
     n = si["time"].size
-    M = np.column_stack([si[c] for c in _FORCE[4:]]) if has_m else np.zeros((n, 3))
-    W = np.column_stack([si[c] for c in _FORCE[1:4]] + [M])
+    W = np.zeros((n, 6))
+    for j, c in enumerate(_FORCE[1:] if has_m else _FORCE[1:4]):
+        W[:, j] = si.pop(c)  # one (N, 6) array, each column freed once copied
     pos = np.column_stack([si[c] for c in _POS]) if all(c in si for c in _POS) else None
     file_frame = meta.get("frame") if meta else None
     if file_frame and frame and file_frame != frame:

@@ -6,8 +6,12 @@ PNG) draw the very same numbers.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import contextlib
+import functools
+from collections.abc import Callable, Iterator, Sequence
+from contextvars import ContextVar
 from dataclasses import dataclass
+from typing import Any, TypeVar
 
 import numpy as np
 import pandas as pd
@@ -31,6 +35,7 @@ __all__ = [
     "lap_map",
     "lap_profile",
     "masked",
+    "reused",
     "top_view",
     "unrolled_map",
 ]
@@ -48,6 +53,43 @@ MAX_TOP_POINTS = 12_000
 
 #: Percentiles of the spread band drawn around a lap mean.
 BAND = (5.0, 95.0)
+
+
+_F = TypeVar("_F", bound=Callable[..., Any])
+_REUSE: ContextVar[dict[tuple[Any, ...], tuple[object, Any]] | None] = ContextVar(
+    "roboisf_report_reuse", default=None
+)
+
+
+@contextlib.contextmanager
+def reused() -> Iterator[None]:
+    """Within the block, each reduction of the same table with the same arguments is computed
+    once and its result shared (the HTML and the PNG renderers draw the same lap profiles,
+    maps and contours). The results are shared objects: callers must not modify them."""
+    token = _REUSE.set({})
+    try:
+        yield
+    finally:
+        _REUSE.reset(token)
+
+
+def _reusable(fn: _F) -> _F:
+    @functools.wraps(fn)
+    def wrapper(per_point: pd.DataFrame, *args: Any, **kwargs: Any) -> Any:
+        memo = _REUSE.get()
+        if memo is None:
+            return fn(per_point, *args, **kwargs)
+        key = (
+            fn.__name__,
+            id(per_point),
+            *(tuple(a) if isinstance(a, list) else a for a in args),
+            *sorted(kwargs.items()),
+        )
+        if key not in memo:  # the table is kept alive with its result: its id stays unique
+            memo[key] = (per_point, fn(per_point, *args, **kwargs))
+        return memo[key][1]
+
+    return wrapper  # type: ignore[return-value]
 
 
 def masked(per_point: pd.DataFrame, column: str) -> np.ndarray:
@@ -70,6 +112,7 @@ def masked(per_point: pd.DataFrame, column: str) -> np.ndarray:
     return values
 
 
+@_reusable
 def lap_profile(per_point: pd.DataFrame, columns: Sequence[str]) -> pd.DataFrame:
     """Per-lap mean and 5–95 % band of ``columns`` against the lap's mean depth.
 
@@ -188,6 +231,7 @@ class Contour:
     delta: np.ndarray
 
 
+@_reusable
 def contour(per_point: pd.DataFrame, contour_z: float) -> Contour:
     """Resultant robot deflections around the lap chosen by :func:`contour_lap`."""
     lap, z, note = contour_lap(per_point, contour_z)
@@ -214,6 +258,7 @@ def contour(per_point: pd.DataFrame, contour_z: float) -> Contour:
     )
 
 
+@_reusable
 def force_profile(per_point: pd.DataFrame) -> pd.DataFrame:
     """:func:`lap_profile` of ``<run>_Fz`` and the in-plane resultant ``<run>_Fxy`` (N)."""
     frame = pd.DataFrame(
@@ -323,6 +368,7 @@ class LapMap:
     values: np.ndarray
 
 
+@_reusable
 def lap_map(per_point: pd.DataFrame, column: str, n_bins: int | None = None) -> LapMap:
     """``column`` unrolled by lap × position along the lap — the deviation map of any part.
 
@@ -383,6 +429,7 @@ class TopView:
     values: np.ndarray
 
 
+@_reusable
 def top_view(per_point: pd.DataFrame, column: str, max_points: int = MAX_TOP_POINTS) -> TopView:
     """The top view (x, y) of ``column`` — the points themselves, no binning.
 
@@ -425,6 +472,7 @@ class ContourPath:
     delta: np.ndarray
 
 
+@_reusable
 def contour_along(per_point: pd.DataFrame, contour_z: float) -> ContourPath:
     """Resultant robot deflections along the lap chosen by :func:`contour_lap`, by arc length —
     the contour plot of a part that is not round."""

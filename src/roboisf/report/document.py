@@ -349,6 +349,23 @@ def write_report(
     kind = part.get("kind") if isinstance(part, Mapping) else part
     round_part = agg.is_round(pp, summ["part_symmetry"], None if kind is None else str(kind))
     ids = figure_ids(round_part)
+    with agg.reused():  # both renderers draw the same reductions: computed once
+        return _write_report(pp, contrib, contrib_n, summ, out, png, progress, round_part, ids)
+
+
+def _write_report(
+    pp: pd.DataFrame,
+    contrib: pd.DataFrame,
+    contrib_n: pd.DataFrame,
+    summ: Mapping[str, Any],
+    out: Path,
+    png: bool,
+    progress: Progress | None,
+    round_part: bool,
+    ids: tuple[str, ...],
+) -> Path:
+    part = summ.get("part")
+    kind = part.get("kind") if isinstance(part, Mapping) else part
     contour_id = ids[ids.index("vjm_path") + 1]
     figs = _figures(pp, contrib, contrib_n, summ["contour_z"], round_part)
 
