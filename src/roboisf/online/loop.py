@@ -256,12 +256,17 @@ class Loop:
         cycles: int | None = None,
         status: Callable[[Loop], None] | None = None,
         status_every: float = 0.25,
+        warn: Callable[[str], None] | None = None,
     ) -> Counters:
         """Serve until ``duration`` s, ``cycles`` cycles, :meth:`stop` or Ctrl-C (which ends
         the loop cleanly: KeyboardInterrupt is caught here). ``status(loop)`` is called every
-        ``status_every`` s."""
+        ``status_every`` s; ``warn(line)`` once per real-time setting refused (also kept in
+        ``warnings``)."""
         rt = apply(self.realtime)  # before the sensor streams: a collection takes its time
         self.warnings = rt.warnings
+        if warn is not None:
+            for w in rt.warnings:
+                warn(w)
         gcq = GcQuiet() if self.quiet_gc else None
         self._gc = gcq
         if gcq is not None:
