@@ -215,6 +215,25 @@ def main(argv: list[str] | None = None) -> int:
         rl = res["rtt_late"][:ran]
         if np.isfinite(rl).any():
             print(f"  the late replies' round trip, ms: {_pct(rl[np.isfinite(rl)])}")
+        # the loop's missed cycles, taken apart on the shared monotonic clock: when the loop
+        # read the message (its wake-up after the send) and how long it took to answer
+        rtt_a = np.asarray(res["rtt"])[:ran]
+        own = np.isnan(rtt_a) & (4e-3 - late < 2e-3)
+        mine = np.flatnonzero(np.isnan(rtt_a) & ~own)
+        if len(mine):
+            d = loop.log.data
+            row = {int(s): i for i, s in enumerate(d[:, 1])}
+            for j in mine[:10]:
+                i = row.get(int(j) + 1)
+                if i is None:
+                    print(f"  the loop's missed cycle {j}: never answered (no log row)")
+                    continue
+                woke = loop.t0 + d[i, 0] - res["sent"][j]
+                print(
+                    f"  the loop's missed cycle {j}: sent {late[j] * 1e3:.2f} ms into its cycle; "
+                    f"read by the loop {woke * 1e3:.2f} ms after the send, answered in "
+                    f"{d[i, 21] * 1e-3:.2f} ms; reply arrived {rl[j] * 1e3:.2f} ms after the send"
+                )
         print(
             f"  garbage collections in the loop: {c.gc_collections} (longest "
             f"{c.gc_max_pause * 1e3:.2f} ms)"

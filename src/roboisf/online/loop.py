@@ -230,6 +230,7 @@ class Loop:
         self._last_rdt = -1
         self._last_sample_at = -math.inf
         self._stop = False
+        self.t0 = math.nan
         self._status: Callable[[Loop], None] | None = None
         self._status_every = 0.25
         self._next_status = 0.0
@@ -274,6 +275,7 @@ class Loop:
         self._start_sensor()
         socks = [self.ctl] + ([self.ft] if self.ft is not None else [])
         t0 = time.perf_counter()
+        self.t0 = t0  # the log's t_s is from here (perf_counter: CLOCK_MONOTONIC, system-wide)
         self._status = status
         self._status_every = status_every
         self._next_status = t0 + status_every

@@ -458,7 +458,8 @@ def controller_process(
     jitter); ``read_late (n,) s`` — how long an in-time reply waited in the socket before this
     process read it (its own wake-up delay); ``rtt_late (n,) s`` — for a missed cycle, when its
     reply came after all (NaN: never); ``stamped`` (kernel stamps in use); ``warnings`` (the
-    real-time settings refused, :func:`roboisf.online.rt.apply`).
+    real-time settings refused, :func:`roboisf.online.rt.apply`); ``sent (n,)`` — when each
+    message was sent (``time.perf_counter``, CLOCK_MONOTONIC: comparable with the loop's).
     """
     q_nom, dq_dp, planned = setup_arrays
     s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -550,6 +551,7 @@ def controller_process(
                 "send_late": send_late,
                 "read_late": read_late,
                 "rtt_late": rtt_late,
+                "sent": sent,
                 "stamped": stamped,
                 "warnings": warnings,
             }
