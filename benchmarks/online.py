@@ -96,8 +96,17 @@ def udp(setup, controller: str, minutes: float, a):
         quiet_gc=not a.no_quiet_gc,
     )
     step = max(1, len(setup.q) // n)
+    # the controller's first message 1 s after it is up: the loop's own start (one garbage
+    # collection, a fraction of a second on a busy machine) is over by then, as on a real cell,
+    # where the loop listens before the robot starts EGM/RSI
     with Simulation(
-        setup, controller, loop.listen[1], n_cycles=n, point_step=step, realtime=sim_rt
+        setup,
+        controller,
+        loop.listen[1],
+        n_cycles=n,
+        point_step=step,
+        realtime=sim_rt,
+        start_delay=1.0,
     ) as sim:
         loop.ft.connect(("127.0.0.1", sim.sensor_port))
 
