@@ -212,6 +212,12 @@ def main(argv: list[str] | None = None) -> int:
                 f"[target p99 ≤ 2 ms: {'met' if ok else 'NOT met'}]"
             )
             print(f"  loop compute per cycle (decode + core + encode + send), ms: {_pct(comp)}")
+            lat = loop.log.data[:, 22] * 1e-6
+            if np.isfinite(lat).all():
+                print(
+                    f"  loop latency, kernel arrival of the message → reply sent (its wake-up + "
+                    f"compute), ms: {_pct(lat)}"
+                )
             rd = res["read_late"][:ran]
             rd = rd[np.isfinite(rd)]
             if len(rd):

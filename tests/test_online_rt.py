@@ -134,6 +134,11 @@ def test_the_loop_reports_a_refused_setting_through_warn_and_keeps_serving(setup
         robot.close()
     assert seen == loop.warnings and len(seen) == 1 and "CAP_SYS_NICE" in seen[0]
     assert loop.counters.cycles == 3
+    # the latency column: from the kernel's arrival of each message to its reply, so at least
+    # the compute, and less than the robot's wait for the reply
+    d = loop.log.data
+    assert np.all(d[:, 22] >= d[:, 21]) and np.all(d[:, 22] < 5e6)
+    assert loop.counters.max_latency * 1e6 == pytest.approx(d[:, 22].max())
 
 
 def test_gc_quiet_defers_collections_to_the_slack_and_restores_the_collector():

@@ -11,11 +11,13 @@ One thread, one ``select`` over two sockets:
 A malformed packet is dropped and counted (the loop never answers it); a sensor record older
 than the last one (its ``rdt_sequence``) is dropped as late; a sensor that stops trips the
 core's watchdog. Every cycle is logged (time, sequence, joints, tip wrench, correction, status,
-compute time) in preallocated arrays and written to Parquet (atomically) at the end.
+compute time, and the latency from the kernel's arrival of the message to the reply sent) in
+preallocated chunks and written to Parquet (atomically) at the end.
 """
 
 from __future__ import annotations
 
+import gc
 import math
 import select
 import socket
@@ -32,7 +34,7 @@ from roboisf.errors import InputError
 from roboisf.online import netft
 from roboisf.online.base import ProtocolError, RobotState
 from roboisf.online.core import OnlineCompensator
-from roboisf.online.rt import GcQuiet, Realtime, apply
+from roboisf.online.rt import STAMP_SPACE, GcQuiet, Realtime, apply, enable_stamps, kernel_stamp
 
 __all__ = ["Counters", "CycleLog", "Loop", "parse_address"]
 
@@ -78,6 +80,7 @@ class Counters:
     sensor_unreachable: int = 0  # the sensor's host answered "port unreachable"
     send_errors: int = 0  # replies the operating system refused to send
     max_compute: float = 0.0  # s, per cycle
+    max_latency: float = 0.0  # s, kernel arrival of a message → its reply sent
     gc_collections: int = 0  # garbage collections while the loop ran (quiet_gc: in the slack)
     gc_max_pause: float = 0.0  # s, the longest of them
 
@@ -101,6 +104,7 @@ class CycleLog:
         *((f"corr_{c}_mm", "mm") for c in "xyz"),
         ("status", "1"),
         ("compute_us", "µs"),
+        ("latency_us", "µs"),
     )
 
     def __init__(self, capacity: int = 1 << 12) -> None:
@@ -129,7 +133,14 @@ class CycleLog:
         if self._spare is None and self._i >= self.capacity // 2:
             self._spare = self._new()
 
-    def add(self, t: float, state: RobotState, oc: OnlineCompensator, compute: float) -> None:
+    def add(
+        self,
+        t: float,
+        state: RobotState,
+        oc: OnlineCompensator,
+        compute: float,
+        latency: float = math.nan,
+    ) -> None:
         if self._i == self.capacity:
             self._chunks.append(self._spare if self._spare is not None else self._new())
             self._spare = None
@@ -146,6 +157,7 @@ class CycleLog:
         row[17:20] *= 1e3
         row[20] = oc.status
         row[21] = compute * 1e6
+        row[22] = latency * 1e6
         self._i += 1
 
     def write(self, path: str | Path, meta: dict[str, str]) -> None:
@@ -183,7 +195,9 @@ class Loop:
     realtime : :class:`~roboisf.online.rt.Realtime` — scheduler, CPU and memory lock asked for
         the thread that calls :meth:`run` (refused settings: one line each in ``warnings``)
     quiet_gc : bool — keep the garbage collector out of the cycle
-        (:class:`~roboisf.online.rt.GcQuiet`; default True)
+        (:class:`~roboisf.online.rt.GcQuiet`; default True). The full collection it needs is
+        done here, with ``gc.freeze()``, so that :meth:`run` starts at once (the objects alive
+        now stay frozen until :meth:`run` ends)
 
     Housekeeping — the status callback, the collector, the log's next chunk — runs right after
     a reply is sent, in the slack before the controller's next message, never between a
@@ -236,12 +250,17 @@ class Loop:
         self._next_status = 0.0
         self._gc: GcQuiet | None = None
         oc.warm_up()  # compile before the first packet can arrive
+        if quiet_gc:  # the one long collection now, before a controller is pointed at us:
+            gc.collect()  # run()'s own (GcQuiet) then only walks what was made since
+            gc.freeze()
 
     def stop(self) -> None:
         """End :meth:`run` after the current packet (e.g. from a signal handler)."""
         self._stop = True
 
     def close(self) -> None:
+        if self.quiet_gc:
+            gc.unfreeze()  # what __init__ froze, when run() did not (it unfreezes on its way out)
         if self.ft is not None:
             try:
                 self.ft.send(netft.encode_request(netft.CMD_STOP))
@@ -280,6 +299,8 @@ class Loop:
         self._status_every = status_every
         self._next_status = t0 + status_every
         ctl_fd = self.ctl.fileno()
+        stamped = enable_stamps(self.ctl)  # the latency column: from the kernel's arrival
+        rt_offset = time.time() - time.perf_counter()  # CLOCK_REALTIME − perf_counter, s
         try:
             while not self._stop:
                 now = time.perf_counter()
@@ -291,17 +312,24 @@ class Loop:
                     self._start_sensor()  # no data for a second: ask again (sensor restarted)
                 ready, _, _ = select.select(socks, [], [], 0.05)
                 for s in ready:
+                    if s.fileno() == ctl_fd:
+                        try:
+                            data, anc, _, addr = s.recvmsg(65536, STAMP_SPACE)
+                        except OSError:
+                            continue
+                        now = time.perf_counter()
+                        ns = kernel_stamp(anc) if stamped else None
+                        # arrival on the perf_counter clock (the read, without a kernel stamp)
+                        arrived = now if ns is None else ns * 1e-9 - rt_offset
+                        if self._on_controller(data, addr, now - t0, arrived):
+                            self._housekeeping(time.perf_counter())
+                        continue
                     try:
                         data, addr = s.recvfrom(65536)
                     except OSError:  # ICMP port unreachable from the sensor's host
                         self.counters.sensor_unreachable += 1
                         continue
-                    t = time.perf_counter() - t0
-                    if s.fileno() == ctl_fd:
-                        if self._on_controller(data, addr, t):
-                            self._housekeeping(time.perf_counter())
-                    else:
-                        self._on_sensor(data, t)
+                    self._on_sensor(data, time.perf_counter() - t0)
         except KeyboardInterrupt:
             pass
         finally:
@@ -352,8 +380,11 @@ class Loop:
             if self.oc.sample(t, r.wrench):
                 self.counters.samples += 1
 
-    def _on_controller(self, data: bytes, addr: Any, t: float) -> bool:
-        """Answer one controller message; True when a reply was sent."""
+    def _on_controller(
+        self, data: bytes, addr: Any, t: float, arrived: float | None = None
+    ) -> bool:
+        """Answer one controller message (``arrived``: when the kernel received it,
+        perf_counter s); True when a reply was sent."""
         c0 = time.perf_counter()
         try:
             state = self.adapter.decode(data)
@@ -377,9 +408,12 @@ class Loop:
         except OSError:
             self.counters.send_errors += 1
             return False
-        compute = time.perf_counter() - c0
+        done = time.perf_counter()
+        compute = done - c0
+        latency = done - (c0 if arrived is None else arrived)
         self.oc.set_joints(state.q)
         self.counters.cycles += 1
         self.counters.max_compute = max(self.counters.max_compute, compute)
-        self.log.add(t, state, self.oc, compute)
+        self.counters.max_latency = max(self.counters.max_latency, latency)
+        self.log.add(t, state, self.oc, compute, latency)
         return True

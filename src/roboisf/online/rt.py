@@ -29,13 +29,15 @@ import ctypes.util
 import errno
 import gc
 import os
+import socket
+import struct
 import time
 from dataclasses import dataclass
 from typing import Any
 
 from roboisf.errors import InputError
 
-__all__ = ["Applied", "GcQuiet", "Realtime", "apply"]
+__all__ = ["Applied", "GcQuiet", "Realtime", "apply", "enable_stamps", "kernel_stamp"]
 
 MCL_CURRENT = 1
 MCL_FUTURE = 2
@@ -205,3 +207,28 @@ class GcQuiet:
         gc.unfreeze()
         if self._was_enabled:
             gc.enable()
+
+
+#: Linux's SO_TIMESTAMPNS (= SCM_TIMESTAMPNS; 35 on x86 and arm, not exported by Python 3.11)
+SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)
+#: ancillary buffer size for one ``struct timespec``
+STAMP_SPACE = socket.CMSG_SPACE(16)
+
+
+def enable_stamps(s: socket.socket) -> bool:
+    """Ask the kernel to stamp each datagram's arrival on ``s`` (``SO_TIMESTAMPNS``; read with
+    ``recvmsg(n, STAMP_SPACE)`` and :func:`kernel_stamp`); False if refused."""
+    try:
+        s.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
+    except OSError:
+        return False
+    return True
+
+
+def kernel_stamp(ancdata: list[tuple[int, int, bytes]]) -> int | None:
+    """The arrival stamp (``CLOCK_REALTIME``, ns) in ``recvmsg``'s ancillary data, or None."""
+    for level, kind, d in ancdata:
+        if level == socket.SOL_SOCKET and kind == SO_TIMESTAMPNS and len(d) >= 16:
+            sec, ns = struct.unpack("qq", d[:16])
+            return int(sec * 1_000_000_000 + ns)
+    return None

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import math
 import socket
-import struct
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -44,7 +43,7 @@ from roboisf.online import egm, netft, rsi
 from roboisf.online import kernel as kn
 from roboisf.online.base import ProtocolError
 from roboisf.online.core import Limits, OnlineCompensator, SensorSetup
-from roboisf.online.rt import GcQuiet, Realtime, apply
+from roboisf.online.rt import STAMP_SPACE, GcQuiet, Realtime, apply, enable_stamps, kernel_stamp
 from roboisf.study.sensors import tip_to_sensor
 from roboisf.study.spec import ForceSensorSpec
 from roboisf.toolpath import Toolpath
@@ -396,17 +395,8 @@ def sensor_process(
         s.close()
 
 
-#: Linux's SO_TIMESTAMPNS (= SCM_TIMESTAMPNS; 35 on x86 and arm, not exported by Python 3.11)
-SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)
-
-
 def _stamping(s: socket.socket) -> bool:
-    """Ask the kernel to stamp each datagram's arrival (``SO_TIMESTAMPNS``); False if refused."""
-    try:
-        s.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
-    except OSError:
-        return False
-    return True
+    return enable_stamps(s)
 
 
 def _recv_stamped(s: socket.socket, timeout: float) -> tuple[bytes, int | None, float] | None:
@@ -415,15 +405,10 @@ def _recv_stamped(s: socket.socket, timeout: float) -> tuple[bytes, int | None, 
     None."""
     s.settimeout(timeout if timeout > 0 else 0.0)
     try:
-        data, anc, _, _ = s.recvmsg(65536, socket.CMSG_SPACE(16))
+        data, anc, _, _ = s.recvmsg(65536, STAMP_SPACE)
     except (TimeoutError, BlockingIOError):
         return None
-    read = time.perf_counter()
-    for level, kind, d in anc:
-        if level == socket.SOL_SOCKET and kind == SO_TIMESTAMPNS and len(d) >= 16:
-            sec, ns = struct.unpack("qq", d[:16])
-            return data, sec * 1_000_000_000 + ns, read
-    return data, None, read
+    return data, kernel_stamp(anc), time.perf_counter()
 
 
 def controller_process(
