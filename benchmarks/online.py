@@ -243,11 +243,13 @@ def main(argv: list[str] | None = None) -> int:
                 if i is None:
                     print(f"  the loop's missed cycle {j}: never answered (no log row)")
                     continue
-                woke = loop.t0 + d[i, 0] - res["sent"][j]
+                lat, comp_j = d[i, 22] * 1e-6, d[i, 21] * 1e-6
+                arrived = loop.t0 + d[i, 0] - (lat - comp_j)  # in the loop's socket (kernel)
                 print(
-                    f"  the loop's missed cycle {j}: sent {late[j] * 1e3:.2f} ms into its cycle; "
-                    f"read by the loop {woke * 1e3:.2f} ms after the send, answered in "
-                    f"{d[i, 21] * 1e-3:.2f} ms; reply arrived {rl[j] * 1e3:.2f} ms after the send"
+                    f"  the loop's missed cycle {j}: sent {late[j] * 1e3:.2f} ms into its cycle, "
+                    f"in the loop's socket {(arrived - res['sent'][j]) * 1e3:.2f} ms later; the "
+                    f"loop's latency {lat * 1e3:.2f} ms (compute {comp_j * 1e3:.2f} ms); reply "
+                    f"arrived {rl[j] * 1e3:.2f} ms after the send"
                 )
         print(
             f"  garbage collections in the loop: {c.gc_collections} (longest "

@@ -484,11 +484,11 @@ def controller_process(
             else:
                 msg = rsi.encode_robot(seq, q)
             deadline = t0 + (c + 1) * cycle
-            sent_at = time.perf_counter()
-            sent_ns[c] = time.time_ns()
+            s.sendto(msg, dest)  # on loopback, in the loop's socket when this returns:
+            sent_at = time.perf_counter()  # stamped after it, so a stall inside the send
+            sent_ns[c] = time.time_ns()  # counts as this process's lateness, not the loop's
             sent[c] = sent_at
             send_late[c] = sent_at - (t0 + c * cycle)
-            s.sendto(msg, dest)
             got = False
             while not got:
                 r = _recv_stamped(s, deadline - time.perf_counter())
