@@ -439,7 +439,7 @@ def controller_process(
     Puts on ``result`` a dict: ``rtt (n,) s`` (send → kernel arrival, NaN when missed),
     ``missed``, ``applied (n, 3) m``, ``k (n,)``, ``ran`` (the cycles it ran, a prefix of the
     n), and what separates its own scheduling from the loop's latency (:func:`missed_causes`):
-    ``send_late (n,) s`` — how late it sent each message after the cycle's start (its own
+    ``send_late (n,) s`` — how late, after the cycle's start, its send returned (its own
     jitter); ``read_late (n,) s`` — how long an in-time reply waited in the socket before this
     process read it (its own wake-up delay); ``rtt_late (n,) s`` — for a missed cycle, when its
     reply came after all (NaN: never); ``stamped`` (kernel stamps in use); ``warnings`` (the
@@ -484,11 +484,12 @@ def controller_process(
             else:
                 msg = rsi.encode_robot(seq, q)
             deadline = t0 + (c + 1) * cycle
-            s.sendto(msg, dest)  # on loopback, in the loop's socket when this returns:
-            sent_at = time.perf_counter()  # stamped after it, so a stall inside the send
-            sent_ns[c] = time.time_ns()  # counts as this process's lateness, not the loop's
+            sent_at = time.perf_counter()  # the round trip from before the send (an upper
+            sent_ns[c] = time.time_ns()  # bound) …
             sent[c] = sent_at
-            send_late[c] = sent_at - (t0 + c * cycle)
+            s.sendto(msg, dest)  # (on loopback, in the loop's socket when this returns)
+            # … the lateness from after it: a stall inside the send is this process's own
+            send_late[c] = time.perf_counter() - (t0 + c * cycle)
             got = False
             while not got:
                 r = _recv_stamped(s, deadline - time.perf_counter())
