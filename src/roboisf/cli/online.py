@@ -297,10 +297,11 @@ def online(
 
             done = threading.Thread(target=_finish, daemon=True)
             done.start()
-            # --form: the part needs the whole path, so the controller's last cycle ends the run
-            # (--duration sets its cycle count), not the loop's clock, which started before the
-            # controller's process did (up to seconds on a busy machine)
-            wait = duration + 60.0 if form is not None else duration
+            # the controller's last cycle ends the run (--duration sets its cycle count), not
+            # the loop's clock, which started before the controller's first message: cut by
+            # the loop's clock, its last cycles went unanswered and counted as missed (and
+            # --form's part needs the whole path)
+            wait = duration + 60.0
             _run(loop, wait, cycles, status_text, banner)
             sim.stop.set()  # the loop has ended: the controller reports what it saw
             done.join(30)
