@@ -25,6 +25,8 @@ from roboisf.virtual.cell import PAPER_CELL_PLACEMENT, build_study, virtual_cell
         (["--controller", "replay", "--virtual", "cone"], "--controller"),
         (["--controller", "egm", "--virtual", "cone", "--form", "st"], "--form"),
         (["-c", "egm", "--virtual", "pyramid", "--scenario", "paper"], "--scenario"),
+        (["-c", "egm", "--virtual", "cone", "--realtime", "0"], "--realtime"),
+        (["-c", "egm", "--virtual", "cone", "--cpu", "4096"], "--cpu"),
     ],
 )
 def test_bad_input_exits_2_with_one_line(tmp_path, capsys, args, needle):

@@ -11,17 +11,19 @@ One thread, one ``select`` over two sockets:
 A malformed packet is dropped and counted (the loop never answers it); a sensor record older
 than the last one (its ``rdt_sequence``) is dropped as late; a sensor that stops trips the
 core's watchdog. Every cycle is logged (time, sequence, joints, tip wrench, correction, status,
-compute time) in preallocated arrays and written to Parquet (atomically) at the end.
+compute time, and the latency from the kernel's arrival of the message to the reply sent) in
+preallocated chunks and written to Parquet (atomically) at the end.
 """
 
 from __future__ import annotations
 
+import gc
 import math
 import select
 import socket
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -32,6 +34,7 @@ from roboisf.errors import InputError
 from roboisf.online import netft
 from roboisf.online.base import ProtocolError, RobotState
 from roboisf.online.core import OnlineCompensator
+from roboisf.online.rt import STAMP_SPACE, GcQuiet, Realtime, apply, enable_stamps, kernel_stamp
 
 __all__ = ["Counters", "CycleLog", "Loop", "parse_address"]
 
@@ -77,15 +80,18 @@ class Counters:
     sensor_unreachable: int = 0  # the sensor's host answered "port unreachable"
     send_errors: int = 0  # replies the operating system refused to send
     max_compute: float = 0.0  # s, per cycle
+    max_latency: float = 0.0  # s, kernel arrival of a message → its reply sent
+    gc_collections: int = 0  # garbage collections while the loop ran (quiet_gc: in the slack)
+    gc_max_pause: float = 0.0  # s, the longest of them
 
 
-@dataclass
 class CycleLog:
-    """Preallocated per-cycle log (grows by doubling only when full)."""
+    """Per-cycle log in preallocated chunks of ``capacity`` rows.
 
-    capacity: int = 1 << 16
-    n: int = 0
-    data: F64 = field(init=False)
+    A full chunk is never copied: the next one is the spare that :meth:`prepare` allocated in
+    the slack after a reply (or, without that, allocated at once), so a long run never pays
+    for growing one big array inside a cycle.
+    """
 
     #: columns of the Parquet log and their units
     COLUMNS = (
@@ -98,15 +104,48 @@ class CycleLog:
         *((f"corr_{c}_mm", "mm") for c in "xyz"),
         ("status", "1"),
         ("compute_us", "µs"),
+        ("latency_us", "µs"),
     )
 
-    def __post_init__(self) -> None:
-        self.data = np.zeros((self.capacity, len(self.COLUMNS)))
+    def __init__(self, capacity: int = 1 << 12) -> None:
+        self.capacity = max(1, int(capacity))
+        self._chunks: list[F64] = [self._new()]
+        self._spare: F64 | None = None
+        self._i = 0  # rows used in the last chunk
 
-    def add(self, t: float, state: RobotState, oc: OnlineCompensator, compute: float) -> None:
-        if self.n == len(self.data):
-            self.data = np.concatenate([self.data, np.zeros_like(self.data)])
-        row = self.data[self.n]
+    def _new(self) -> F64:
+        return np.zeros((self.capacity, len(self.COLUMNS)))
+
+    @property
+    def n(self) -> int:
+        """Rows logged."""
+        return (len(self._chunks) - 1) * self.capacity + self._i
+
+    @property
+    def data(self) -> F64:
+        """(n, len(COLUMNS)) the rows logged (a copy when the log spans several chunks)."""
+        if len(self._chunks) == 1:
+            return self._chunks[0][: self._i]
+        return np.concatenate([*self._chunks[:-1], self._chunks[-1][: self._i]])
+
+    def prepare(self) -> None:
+        """Allocate the next chunk ahead of need (call when there is time to spare)."""
+        if self._spare is None and self._i >= self.capacity // 2:
+            self._spare = self._new()
+
+    def add(
+        self,
+        t: float,
+        state: RobotState,
+        oc: OnlineCompensator,
+        compute: float,
+        latency: float = math.nan,
+    ) -> None:
+        if self._i == self.capacity:
+            self._chunks.append(self._spare if self._spare is not None else self._new())
+            self._spare = None
+            self._i = 0
+        row = self._chunks[-1][self._i]
         row[0] = t
         row[1] = state.seq
         row[2:8] = state.q
@@ -118,7 +157,8 @@ class CycleLog:
         row[17:20] *= 1e3
         row[20] = oc.status
         row[21] = compute * 1e6
-        self.n += 1
+        row[22] = latency * 1e6
+        self._i += 1
 
     def write(self, path: str | Path, meta: dict[str, str]) -> None:
         """The log as Parquet (atomic): one row per cycle, units in the column names and in
@@ -128,7 +168,7 @@ class CycleLog:
 
         from roboisf.io.atomic import atomic_path
 
-        d = self.data[: self.n]
+        d = self.data
         cols = {name: d[:, i] for i, (name, _) in enumerate(self.COLUMNS)}
         cols["seq"] = d[:, 1].astype(np.int64)
         cols["status"] = d[:, 20].astype(np.int64)
@@ -152,6 +192,16 @@ class Loop:
     listen : (host, port) — where the controller's messages arrive
     sensor : (host, port) of a Net F/T, or a replay source with ``samples_until(t)``
     counts : (counts per N, counts per N·m) of the Net F/T
+    realtime : :class:`~roboisf.online.rt.Realtime` — scheduler, CPU and memory lock asked for
+        the thread that calls :meth:`run` (refused settings: one line each in ``warnings``)
+    quiet_gc : bool — keep the garbage collector out of the cycle
+        (:class:`~roboisf.online.rt.GcQuiet`; default True). The full collection it needs is
+        done here, with ``gc.freeze()``, so that :meth:`run` starts at once (the objects alive
+        now stay frozen until :meth:`run` ends)
+
+    Housekeeping — the status callback, the collector, the log's next chunk — runs right after
+    a reply is sent, in the slack before the controller's next message, never between a
+    message's arrival and its reply.
     """
 
     def __init__(
@@ -163,8 +213,13 @@ class Loop:
         *,
         counts: tuple[float, float] = (netft.DEFAULT_COUNTS, netft.DEFAULT_COUNTS),
         log: CycleLog | None = None,
+        realtime: Realtime | None = None,
+        quiet_gc: bool = True,
     ) -> None:
         self.oc = oc
+        self.realtime = realtime or Realtime()
+        self.quiet_gc = quiet_gc
+        self.warnings: list[str] = []
         self.adapter = adapter
         self.counts = counts
         self.log = log if log is not None else CycleLog()
@@ -189,13 +244,23 @@ class Loop:
         self._last_rdt = -1
         self._last_sample_at = -math.inf
         self._stop = False
+        self.t0 = math.nan
+        self._status: Callable[[Loop], None] | None = None
+        self._status_every = 0.25
+        self._next_status = 0.0
+        self._gc: GcQuiet | None = None
         oc.warm_up()  # compile before the first packet can arrive
+        if quiet_gc:  # the one long collection now, before a controller is pointed at us:
+            gc.collect()  # run()'s own (GcQuiet) then only walks what was made since
+            gc.freeze()
 
     def stop(self) -> None:
         """End :meth:`run` after the current packet (e.g. from a signal handler)."""
         self._stop = True
 
     def close(self) -> None:
+        if self.quiet_gc:
+            gc.unfreeze()  # what __init__ froze, when run() did not (it unfreezes on its way out)
         if self.ft is not None:
             try:
                 self.ft.send(netft.encode_request(netft.CMD_STOP))
@@ -211,42 +276,79 @@ class Loop:
         cycles: int | None = None,
         status: Callable[[Loop], None] | None = None,
         status_every: float = 0.25,
+        warn: Callable[[str], None] | None = None,
     ) -> Counters:
         """Serve until ``duration`` s, ``cycles`` cycles, :meth:`stop` or Ctrl-C (which ends
         the loop cleanly: KeyboardInterrupt is caught here). ``status(loop)`` is called every
-        ``status_every`` s."""
+        ``status_every`` s; ``warn(line)`` once per real-time setting refused (also kept in
+        ``warnings``)."""
+        rt = apply(self.realtime)  # before the sensor streams: a collection takes its time
+        self.warnings = rt.warnings
+        if warn is not None:
+            for w in rt.warnings:
+                warn(w)
+        gcq = GcQuiet() if self.quiet_gc else None
+        self._gc = gcq
+        if gcq is not None:
+            gcq.__enter__()
         self._start_sensor()
         socks = [self.ctl] + ([self.ft] if self.ft is not None else [])
         t0 = time.perf_counter()
-        next_status = t0 + status_every
+        self.t0 = t0  # the log's t_s is from here (perf_counter: CLOCK_MONOTONIC, system-wide)
+        self._status = status
+        self._status_every = status_every
+        self._next_status = t0 + status_every
         ctl_fd = self.ctl.fileno()
+        stamped = enable_stamps(self.ctl)  # the latency column: from the kernel's arrival
+        rt_offset = time.time() - time.perf_counter()  # CLOCK_REALTIME − perf_counter, s
         try:
             while not self._stop:
                 now = time.perf_counter()
                 if now - t0 >= duration or (cycles is not None and self.counters.cycles >= cycles):
                     break
-                if status is not None and now >= next_status:
-                    status(self)
-                    next_status = now + status_every
+                if status is not None and now >= self._next_status + status_every:
+                    self._housekeeping(now)  # no controller: the status still shows it
                 if self.ft is not None and now - self._last_sample_at > 1.0:
                     self._start_sensor()  # no data for a second: ask again (sensor restarted)
                 ready, _, _ = select.select(socks, [], [], 0.05)
                 for s in ready:
+                    if s.fileno() == ctl_fd:
+                        try:
+                            data, anc, _, addr = s.recvmsg(65536, STAMP_SPACE)
+                        except OSError:
+                            continue
+                        now = time.perf_counter()
+                        ns = kernel_stamp(anc) if stamped else None
+                        # arrival on the perf_counter clock (the read, without a kernel stamp)
+                        arrived = now if ns is None else ns * 1e-9 - rt_offset
+                        if self._on_controller(data, addr, now - t0, arrived):
+                            self._housekeeping(time.perf_counter())
+                        continue
                     try:
                         data, addr = s.recvfrom(65536)
                     except OSError:  # ICMP port unreachable from the sensor's host
                         self.counters.sensor_unreachable += 1
                         continue
-                    t = time.perf_counter() - t0
-                    if s.fileno() == ctl_fd:
-                        self._on_controller(data, addr, t)
-                    else:
-                        self._on_sensor(data, t)
+                    self._on_sensor(data, time.perf_counter() - t0)
         except KeyboardInterrupt:
             pass
         finally:
+            if gcq is not None:
+                gcq.__exit__(None, None, None)
+                self.counters.gc_collections = gcq.collections
+                self.counters.gc_max_pause = gcq.max_pause
+            rt.restore()
             self.close()
         return self.counters
+
+    def _housekeeping(self, now: float) -> None:
+        """After a reply: the status, the collector, the log's next chunk."""
+        if self._status is not None and now >= self._next_status:
+            self._status(self)
+            self._next_status = now + self._status_every
+        if self._gc is not None:
+            self._gc.slack()
+        self.log.prepare()
 
     def _start_sensor(self) -> None:
         self._last_sample_at = time.perf_counter()
@@ -278,13 +380,17 @@ class Loop:
             if self.oc.sample(t, r.wrench):
                 self.counters.samples += 1
 
-    def _on_controller(self, data: bytes, addr: Any, t: float) -> None:
+    def _on_controller(
+        self, data: bytes, addr: Any, t: float, arrived: float | None = None
+    ) -> bool:
+        """Answer one controller message (``arrived``: when the kernel received it,
+        perf_counter s); True when a reply was sent."""
         c0 = time.perf_counter()
         try:
             state = self.adapter.decode(data)
         except ProtocolError:
             self.counters.bad_controller += 1
-            return
+            return False
         if self.replay is not None:
             tt, W = self.replay.samples_until(t)
             self.oc.set_joints(state.q)
@@ -296,14 +402,18 @@ class Loop:
             reply = self.adapter.encode(state, corr)
         except ProtocolError:
             self.counters.bad_controller += 1
-            return
+            return False
         try:
             self.ctl.sendto(reply, addr)
         except OSError:
             self.counters.send_errors += 1
-            return
-        compute = time.perf_counter() - c0
+            return False
+        done = time.perf_counter()
+        compute = done - c0
+        latency = done - (c0 if arrived is None else arrived)
         self.oc.set_joints(state.q)
         self.counters.cycles += 1
         self.counters.max_compute = max(self.counters.max_compute, compute)
-        self.log.add(t, state, self.oc, compute)
+        self.counters.max_latency = max(self.counters.max_latency, latency)
+        self.log.add(t, state, self.oc, compute, latency)
+        return True

@@ -43,6 +43,7 @@ from roboisf.online import egm, netft, rsi
 from roboisf.online import kernel as kn
 from roboisf.online.base import ProtocolError
 from roboisf.online.core import Limits, OnlineCompensator, SensorSetup
+from roboisf.online.rt import STAMP_SPACE, GcQuiet, Realtime, apply, enable_stamps, kernel_stamp
 from roboisf.study.sensors import tip_to_sensor
 from roboisf.study.spec import ForceSensorSpec
 from roboisf.toolpath import Toolpath
@@ -334,12 +335,17 @@ def sensor_process(
     noise: float = 2.0,
     seed: int = 1,
     silent_after: float = math.inf,
+    realtime: Realtime | None = None,
 ) -> None:
     """A Net F/T speaking RDT on 127.0.0.1:``port``: on a start request, streams a record of
     ``reading[index.value]`` (+ white noise) every ``1/rate`` s to the requester until a stop
-    request, the sample count, ``stop`` is set, or ``silent_after`` s (a sensor that dies)."""
+    request, the sample count, ``stop`` is set, or ``silent_after`` s (a sensor that dies).
+    ``realtime``: this process's scheduler, CPU and memory lock (:mod:`roboisf.online.rt`)."""
     rng = np.random.default_rng(seed)
     s = _bind(port)
+    if realtime is not None:
+        apply(realtime, "the simulated sensor")
+    gcq = GcQuiet().__enter__()
     ready.set()
     s.settimeout(0.05)
     peer = None
@@ -378,13 +384,31 @@ def sensor_process(
             nxt += 1.0 / rate
             w = reading[min(int(index.value), len(reading) - 1)] + _noise(rng, noise)
             s.sendto(netft.encode_record(seq, seq, 0, w), peer)
+            gcq.slack()
             seq += 1
             if left:
                 left -= 1
                 if left == 0:
                     peer = None
     finally:
+        gcq.__exit__()
         s.close()
+
+
+def _stamping(s: socket.socket) -> bool:
+    return enable_stamps(s)
+
+
+def _recv_stamped(s: socket.socket, timeout: float) -> tuple[bytes, int | None, float] | None:
+    """One datagram within ``timeout`` s (0: only one already queued): ``(data, arrival
+    (CLOCK_REALTIME ns, the kernel's stamp; None without one), read (perf_counter s))``, or
+    None."""
+    s.settimeout(timeout if timeout > 0 else 0.0)
+    try:
+        data, anc, _, _ = s.recvmsg(65536, STAMP_SPACE)
+    except (TimeoutError, BlockingIOError):
+        return None
+    return data, kernel_stamp(anc), time.perf_counter()
 
 
 def controller_process(
@@ -399,22 +423,34 @@ def controller_process(
     n_cycles: int = 1000,
     start_delay: float = 0.3,
     point_step: int = 1,
+    realtime: Realtime | None = None,
+    ready: Any = None,
 ) -> None:
     """A robot controller speaking EGM or RSI to the loop at 127.0.0.1:``loop_port``.
 
     Every ``cycle`` s it sends its state (joints of toolpath point ``k·point_step`` moved by
     the last correction it received; ``index`` tells the sensor the point) and waits for the
-    reply until the cycle ends; a reply that does not arrive in its cycle is a missed cycle
-    (late replies are dropped by their sequence number). Puts ``dict(rtt (n,) s, missed,
-    applied (n, 3) m, k (n,), ran)`` on ``result`` (``ran``: the cycles it ran, a prefix of
-    the n), and what separates its own scheduling from the loop's latency (:func:`missed_causes`):
-    ``send_late (n,) s`` — how late it sent each cycle's message after the cycle's start (this
-    process's own jitter); ``rtt_late (n,) s`` — for a missed cycle, when its reply came after
-    all (read in a later cycle; NaN: never).
+    reply. **Missed cycle**, as EGM and RSI define it: the reply carrying the cycle's sequence
+    number (EGM ``seqno``, RSI ``IPOC``) has not arrived when the next cycle's message is due,
+    ``t0 + (c + 1)·cycle``. Arrival is the kernel's receive stamp (``SO_TIMESTAMPNS``), not the
+    moment this process got round to reading it: a reply that arrived in time counts even when
+    the scheduler woke this process late (as a real-time controller would have read it).
+
+    Puts on ``result`` a dict: ``rtt (n,) s`` (send → kernel arrival, NaN when missed),
+    ``missed``, ``applied (n, 3) m``, ``k (n,)``, ``ran`` (the cycles it ran, a prefix of the
+    n), and what separates its own scheduling from the loop's latency (:func:`missed_causes`):
+    ``send_late (n,) s`` — how late, after the cycle's start, its send returned (its own
+    jitter); ``read_late (n,) s`` — how long an in-time reply waited in the socket before this
+    process read it (its own wake-up delay); ``rtt_late (n,) s`` — for a missed cycle, when its
+    reply came after all (NaN: never); ``stamped`` (kernel stamps in use); ``warnings`` (the
+    real-time settings refused, :func:`roboisf.online.rt.apply`); ``sent (n,)`` — when each
+    message was sent (``time.perf_counter``, CLOCK_MONOTONIC: comparable with the loop's).
     """
     q_nom, dq_dp, planned = setup_arrays
     s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     s.bind(("127.0.0.1", 0))
+    stamped = _stamping(s)
+    warnings = apply(realtime, "the simulated controller").warnings if realtime else []
     dest = ("127.0.0.1", loop_port)
     rx = np.zeros(3)
     rtt = np.full(n_cycles, np.nan)
@@ -423,8 +459,13 @@ def controller_process(
     missed = 0
     ran = 0
     send_late = np.full(n_cycles, np.nan)
+    read_late = np.full(n_cycles, np.nan)
     rtt_late = np.full(n_cycles, np.nan)
     sent = np.full(n_cycles, np.nan)
+    sent_ns = np.zeros(n_cycles, dtype=np.int64)
+    gcq = GcQuiet().__enter__()
+    if ready is not None:
+        ready.set()  # set up: the first message goes ``start_delay`` s from now
     time.sleep(start_delay)
     t0 = time.perf_counter()
     try:
@@ -443,21 +484,18 @@ def controller_process(
             else:
                 msg = rsi.encode_robot(seq, q)
             deadline = t0 + (c + 1) * cycle
-            sent_at = time.perf_counter()
+            sent_at = time.perf_counter()  # the round trip from before the send (an upper
+            sent_ns[c] = time.time_ns()  # bound) …
             sent[c] = sent_at
-            send_late[c] = sent_at - (t0 + c * cycle)
-            s.sendto(msg, dest)
+            s.sendto(msg, dest)  # (on loopback, in the loop's socket when this returns)
+            # … the lateness from after it: a stall inside the send is this process's own
+            send_late[c] = time.perf_counter() - (t0 + c * cycle)
             got = False
-            while True:
-                left = deadline - time.perf_counter()
-                if left <= 0:
+            while not got:
+                r = _recv_stamped(s, deadline - time.perf_counter())
+                if r is None:
                     break
-                s.settimeout(left)
-                try:
-                    data = s.recv(65536)
-                except TimeoutError:
-                    break
-                arrived = time.perf_counter()
+                data, arrival_ns, read_at = r
                 try:
                     if protocol == "egm":
                         rseq, pose = egm.decode_sensor(data)
@@ -466,18 +504,28 @@ def controller_process(
                         rseq, corr = rsi.decode_reply(data)
                 except ProtocolError:
                     continue
-                if rseq == seq:  # a late reply of an earlier cycle is dropped
+                if not 1 <= rseq <= seq:
+                    continue
+                j = rseq - 1
+                # the arrival on this process's perf_counter clock: kernel stamp, else the read
+                if arrival_ns is not None:
+                    arrived = sent[j] + (arrival_ns - sent_ns[j]) * 1e-9
+                else:
+                    arrived = read_at
+                if rseq == seq and arrived < deadline:
                     rtt[c] = arrived - sent_at
+                    read_late[c] = read_at - arrived
                     rx = corr
                     got = True
-                    break
-                if 1 <= rseq < seq and np.isnan(rtt[rseq - 1]) and np.isnan(rtt_late[rseq - 1]):
-                    rtt_late[rseq - 1] = arrived - sent[rseq - 1]  # (dropped, but timed)
+                elif np.isnan(rtt[j]) and np.isnan(rtt_late[j]):
+                    rtt_late[j] = arrived - sent[j]  # after its next cycle was due: dropped
             if not got:
                 missed += 1
+            gcq.slack()
             while time.perf_counter() < deadline:
                 time.sleep(min(5e-4, max(0.0, deadline - time.perf_counter())))
     finally:
+        gcq.__exit__()
         s.close()
         result.put(
             {
@@ -487,7 +535,11 @@ def controller_process(
                 "k": ks,
                 "ran": ran,
                 "send_late": send_late,
+                "read_late": read_late,
                 "rtt_late": rtt_late,
+                "sent": sent,
+                "stamped": stamped,
+                "warnings": warnings,
             }
         )
 
@@ -497,10 +549,11 @@ def missed_causes(
 ) -> dict[str, int]:
     """Split the simulated controller's missed cycles by cause (its report, ``Simulation.result``).
 
-    A missed cycle is the **controller's own** when it sent its message so late that less than
-    ``budget`` s (the round-trip target) was left of the cycle: no loop meeting the target could
-    have answered in time. The others are the **loop's**: the controller left it at least
-    ``budget`` and the reply came later (``late``, timed in ``rtt_late``) or never (``lost``).
+    A missed cycle (:func:`controller_process`: no reply by the time the next cycle's message is
+    due) is the **controller's own** when it sent its message so late that less than ``budget``
+    s (the round-trip target) was left of the cycle: no loop meeting the target could have
+    answered in time. The others are the **loop's**: the controller left it at least ``budget``
+    and the reply came later (``late``, timed in ``rtt_late``) or never (``lost``).
     Returns ``dict(missed, controller, loop_late, loop_lost)`` (the last three sum to missed).
     """
     ran = int(result["ran"])
@@ -523,7 +576,8 @@ class Simulation:
 
     ``with Simulation(setup, "egm", loop_port, n_cycles=…) as sim:`` starts the sensor on
     127.0.0.1:``sim.sensor_port`` (0 → a free port) and, after ``start_delay`` s, the
-    controller towards the loop; :meth:`result` waits for the controller's report (``rtt``,
+    controller towards the loop (both with ``realtime``'s scheduler, CPU and memory lock, when
+    given); :meth:`result` waits for the controller's report (``rtt``,
     ``missed``, ``applied``, ``k``). Leaving the block stops both.
     """
 
@@ -539,6 +593,7 @@ class Simulation:
         point_step: int = 1,
         sensor_silent_after: float = math.inf,
         start_delay: float = 0.3,
+        realtime: Realtime | None = None,
     ) -> None:
         import multiprocessing as mp
 
@@ -553,6 +608,7 @@ class Simulation:
         self.sensor_port = int(probe.getsockname()[1])
         probe.close()
         ready = ctx.Event()
+        self._controller_ready = ctx.Event()
         self._sensor = ctx.Process(
             target=sensor_process,
             args=(self.sensor_port, setup.reading, self.index, self.stop, ready),
@@ -560,6 +616,7 @@ class Simulation:
                 "rate": sensor_rate,
                 "noise": setup.noise,
                 "silent_after": sensor_silent_after,
+                "realtime": realtime,
             },
             daemon=True,
         )
@@ -578,6 +635,8 @@ class Simulation:
                 "n_cycles": n_cycles,
                 "start_delay": start_delay,
                 "point_step": point_step,
+                "realtime": realtime,
+                "ready": self._controller_ready,
             },
             daemon=True,
         )
@@ -590,6 +649,9 @@ class Simulation:
             self.close()
             raise RuntimeError("the simulated sensor did not start")
         self._controller.start()
+        if not self._controller_ready.wait(60):  # imported and set up (seconds on a busy machine)
+            self.close()
+            raise RuntimeError("the simulated controller did not start")
         return self
 
     def result(self, timeout: float | None = None) -> dict[str, Any]:
