@@ -318,3 +318,24 @@ def test_mesh_nominal_gives_the_same_toolpath_deviations(acceptance):
     # scan) scatter by ~5 µm on top of that
     diff = rm.toolpath.dn[both] - res.toolpath.dn[both]
     assert np.abs(np.median(diff)) < 6e-6 and np.sqrt(np.mean(diff**2)) < 10e-6
+
+
+@pytest.mark.parametrize("cloud", ["scan", "plane", "small"])
+def test_compiled_grid_equals_the_numpy_cell_count(cloud):
+    """The grid of the outlier k-NN (one compiled pass for cell keys and counts) has the cell
+    keys and row starts the numpy formulas give (cell = min(int((x − lo)/h), n − 1))."""
+    from roboisf.scan import knn_kernel
+
+    if not knn_kernel.HAVE_NUMBA:
+        pytest.skip("numba not installed")
+    X = synthetic_scan(CONE, 60_000, offset=OFFSET, noise=25e-6, seed=3).points
+    if cloud == "plane":
+        X = np.c_[X[:, :2], np.zeros(len(X))]
+    elif cloud == "small":
+        X = X[:40]
+    lo, h, shape, key, start = knn_kernel._grid(X, 8, knn_kernel.MAX_CELLS)
+    np.testing.assert_array_equal(lo, X.min(axis=0))
+    idx = np.minimum(((X - lo) / h).astype(np.int64), np.array(shape) - 1)
+    np.testing.assert_array_equal(key, (idx[:, 0] * shape[1] + idx[:, 1]) * shape[2] + idx[:, 2])
+    counts = np.bincount(key, minlength=shape[0] * shape[1] * shape[2])
+    np.testing.assert_array_equal(start, np.concatenate([[0], np.cumsum(counts)]))

@@ -33,6 +33,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from roboisf.parts.mesh_kernel import bounds
+
 __all__ = ["HAVE_NUMBA", "mean_knn_distance"]
 
 try:  # pragma: no cover - exercised by whichever path the environment has
@@ -163,12 +165,39 @@ def _shape(span: F64, h: float, max_cells: int) -> tuple[int, int, int]:
         h *= 1.25
 
 
+@_njit()
+def _cell_keys(
+    X: F64,
+    lo: F64,
+    h: float,
+    nx: int,
+    ny: int,
+    nz: int,
+    key: NDArray[np.int64],
+    counts: NDArray[Any],
+) -> int:  # pragma: no cover - compiled
+    """Cell of every point (``key``) and points per cell (``counts``, zeroed by the caller), in
+    one pass; returns the number of occupied cells. Cell index per axis:
+    ``min(int((x − lo) / h), n − 1)`` (x ≥ lo)."""
+    occupied = 0
+    for i in range(X.shape[0]):
+        ci = min(np.int64((X[i, 0] - lo[0]) / h), nx - 1)
+        cj = min(np.int64((X[i, 1] - lo[1]) / h), ny - 1)
+        ck = min(np.int64((X[i, 2] - lo[2]) / h), nz - 1)
+        c = (ci * ny + cj) * nz + ck
+        key[i] = c
+        if counts[c] == 0:
+            occupied += 1
+        counts[c] += 1
+    return occupied
+
+
 def _grid(
     X: F64, k: int, max_cells: int
 ) -> tuple[F64, float, tuple[int, int, int], NDArray[np.int64], NDArray[Any]]:
     """Origin, cell side, shape, the cell key of every point and the cells' row starts."""
-    lo = X.min(axis=0)
-    span = np.maximum(X.max(axis=0) - lo, 1e-12)
+    lo, hi = bounds(X)
+    span = np.maximum(hi - lo, 1e-12)
     n = X.shape[0]
     h_min = float(np.cbrt(np.prod(span) / max_cells))  # finest grid allowed
     # a scan is a surface: guess its area from the box (the largest face), then correct h with
@@ -176,18 +205,19 @@ def _grid(
     target = 2.0 * (k + 1)
     s = np.sort(span)
     h = max(h_min, math.sqrt(target * s[1] * s[2] / n))
+    key = np.empty(n, dtype=np.int64)
+    cdt = np.int32 if n < 2**31 else np.int64
     for it in range(3):
         shape = _shape(span, h, max_cells)
         h = max(h, float(np.max(span / np.array(shape))))
-        idx = np.minimum(((X - lo) / h).astype(np.int64), np.array(shape) - 1)
-        key = (idx[:, 0] * shape[1] + idx[:, 1]) * shape[2] + idx[:, 2]
-        counts = np.bincount(key, minlength=shape[0] * shape[1] * shape[2])
-        per_cell = n / max(int(np.count_nonzero(counts)), 1)
+        counts = np.zeros(shape[0] * shape[1] * shape[2], dtype=cdt)
+        occupied = _cell_keys(X, lo, h, shape[0], shape[1], shape[2], key, counts)
+        per_cell = n / max(occupied, 1)
         h_new = max(h_min, h * math.sqrt(target / per_cell))
         if it == 2 or 0.5 * target <= per_cell <= 2 * target or abs(h_new - h) <= 1e-3 * h:
             break
         h = h_new
-    start = np.zeros(counts.size + 1, dtype=np.int32 if n < 2**31 else np.int64)
+    start = np.zeros(counts.size + 1, dtype=cdt)
     np.cumsum(counts, out=start[1:])
     return lo, h, (shape[0], shape[1], shape[2]), key, start
 
