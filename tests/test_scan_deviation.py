@@ -339,3 +339,15 @@ def test_compiled_grid_equals_the_numpy_cell_count(cloud):
     np.testing.assert_array_equal(key, (idx[:, 0] * shape[1] + idx[:, 1]) * shape[2] + idx[:, 2])
     counts = np.bincount(key, minlength=shape[0] * shape[1] * shape[2])
     np.testing.assert_array_equal(start, np.concatenate([[0], np.cumsum(counts)]))
+
+
+def test_outliers_of_rows_equal_the_filter_of_the_copied_rows(knn_engine):
+    """``rows=`` filters ``points[rows]`` without copying them: the same mask as the filter of
+    the copy, in the order of ``rows`` (a shuffled subset, past one 65 536-point chunk)."""
+    s = synthetic_scan(CONE, 90_000, offset=OFFSET, noise=25e-6, outlier_fraction=0.01, seed=6)
+    X = s.points
+    rows = np.random.default_rng(4).permutation(X.shape[0])[:70_000]
+    expect = statistical_outliers(X[rows])
+    assert 0 < (~expect).sum() < 2000
+    np.testing.assert_array_equal(statistical_outliers(X, rows=rows), expect)
+    np.testing.assert_array_equal(statistical_outliers(X, rows=rows[:5]), np.ones(5, bool))

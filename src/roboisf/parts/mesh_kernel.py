@@ -458,8 +458,8 @@ def morton_order(
         for i in range(n):
             count[np.int64((code[i] >> s) & mask) + 1] += 1
         if count.max() < n:  # else every code has this digit: the pass would not move anything
-            for d in range(1, nb + 1):
-                count[d] += count[d - 1]
+            for e in range(1, nb + 1):
+                count[e] += count[e - 1]
             for i in range(n):
                 d = np.int64((code[i] >> s) & mask)
                 j = count[d]

@@ -212,9 +212,11 @@ def compare_scan(
     if o.outlier_k > 0:
         with task(progress, "outlier removal", total=None):
             sel = np.flatnonzero(full)
-            inl = statistical_outliers(pts[sel], o.outlier_k, o.outlier_std, ordered=True)
+            # rows=sel: the filter gathers the selected points itself (no pts[sel] copy)
+            inl = statistical_outliers(pts, o.outlier_k, o.outlier_std, ordered=True, rows=sel)
+            del sel
             n_out = int((~inl).sum())
-            full[sel[~inl]] = False
+            full[np.flatnonzero(full)[~inl]] = False
     mask = full & (dev.foot[:, 2] < -rim_band)
     n_wall = int(mask.sum())
     # wall points (below the rim band) that the max_distance cut drops: a part that deviates
@@ -225,8 +227,11 @@ def compare_scan(
         raise InputError(
             f"no scan point on the wall below the {rim_band * 1e3:g} mm rim band", file=src
         )
-    wall = dev.subset(mask)
     ring = dev.subset(full & (np.abs(dev.foot[:, 2] - o.contour_z) <= o.band))
+    wall = dev.subset(mask)
+    # the whole scan's deviations are not needed any more: free them before the toolpath step
+    # (at 10 M points they are 0.9 GB; the wall subset holds what is used)
+    del dev, pts
     tdev = None
     if toolpath is not None:
         with task(progress, "toolpath deviations", total=None):

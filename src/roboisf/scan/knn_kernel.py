@@ -33,8 +33,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from roboisf.parts.mesh_kernel import bounds
-
 __all__ = ["HAVE_NUMBA", "mean_knn_distance"]
 
 try:  # pragma: no cover - exercised by whichever path the environment has
@@ -54,6 +52,8 @@ MAX_RINGS = 6
 MAX_CELLS = 16_000_000
 
 F64 = NDArray[np.float64]
+
+_NO_ROWS = np.zeros(0, dtype=np.int64)
 
 
 def _njit(**kw: Any) -> Any:
@@ -166,8 +166,27 @@ def _shape(span: F64, h: float, max_cells: int) -> tuple[int, int, int]:
 
 
 @_njit()
+def _bounds(P: F64, rows: NDArray[np.int64]) -> tuple[Any, Any]:  # pragma: no cover - compiled
+    """Per-axis min and max of ``P[rows]`` (all of ``P`` when ``rows`` is empty), one pass."""
+    n = rows.size if rows.size else P.shape[0]
+    r0 = rows[0] if rows.size else 0
+    lo = P[r0].copy()
+    hi = P[r0].copy()
+    for i in range(1, n):
+        r = rows[i] if rows.size else i
+        for a in range(3):
+            v = P[r, a]
+            if v < lo[a]:
+                lo[a] = v
+            elif v > hi[a]:
+                hi[a] = v
+    return lo, hi
+
+
+@_njit()
 def _cell_keys(
-    X: F64,
+    P: F64,
+    rows: NDArray[np.int64],
     lo: F64,
     h: float,
     nx: int,
@@ -176,14 +195,15 @@ def _cell_keys(
     key: NDArray[np.int64],
     counts: NDArray[Any],
 ) -> int:  # pragma: no cover - compiled
-    """Cell of every point (``key``) and points per cell (``counts``, zeroed by the caller), in
-    one pass; returns the number of occupied cells. Cell index per axis:
-    ``min(int((x − lo) / h), n − 1)`` (x ≥ lo)."""
+    """Cell of every point ``P[rows]`` (all of ``P`` when ``rows`` is empty) in ``key``, and
+    points per cell (``counts``, zeroed by the caller), in one pass; returns the number of
+    occupied cells. Cell index per axis: ``min(int((x − lo) / h), n − 1)`` (x ≥ lo)."""
     occupied = 0
-    for i in range(X.shape[0]):
-        ci = min(np.int64((X[i, 0] - lo[0]) / h), nx - 1)
-        cj = min(np.int64((X[i, 1] - lo[1]) / h), ny - 1)
-        ck = min(np.int64((X[i, 2] - lo[2]) / h), nz - 1)
+    for i in range(key.size):
+        r = rows[i] if rows.size else i
+        ci = min(int((P[r, 0] - lo[0]) / h), nx - 1)
+        cj = min(int((P[r, 1] - lo[1]) / h), ny - 1)
+        ck = min(int((P[r, 2] - lo[2]) / h), nz - 1)
         c = (ci * ny + cj) * nz + ck
         key[i] = c
         if counts[c] == 0:
@@ -192,13 +212,30 @@ def _cell_keys(
     return occupied
 
 
+@_njit()
+def _gather(
+    P: F64, rows: NDArray[np.int64], order: NDArray[np.int64]
+) -> F64:  # pragma: no cover - compiled
+    """``P[rows[order]]`` (``P[order]`` when ``rows`` is empty) as a new C-contiguous array,
+    without the ``rows[order]`` index temporary."""
+    out = np.empty((order.size, 3))
+    for i in range(order.size):
+        r = rows[order[i]] if rows.size else order[i]
+        out[i, 0] = P[r, 0]
+        out[i, 1] = P[r, 1]
+        out[i, 2] = P[r, 2]
+    return out
+
+
 def _grid(
-    X: F64, k: int, max_cells: int
+    X: F64, k: int, max_cells: int, rows: NDArray[np.int64] | None = None
 ) -> tuple[F64, float, tuple[int, int, int], NDArray[np.int64], NDArray[Any]]:
-    """Origin, cell side, shape, the cell key of every point and the cells' row starts."""
-    lo, hi = bounds(X)
+    """Origin, cell side, shape, the cell key of every point (of ``X[rows]`` if given) and
+    the cells' row starts."""
+    R = _NO_ROWS if rows is None else rows
+    n = X.shape[0] if rows is None else rows.size
+    lo, hi = _bounds(X, R)
     span = np.maximum(hi - lo, 1e-12)
-    n = X.shape[0]
     h_min = float(np.cbrt(np.prod(span) / max_cells))  # finest grid allowed
     # a scan is a surface: guess its area from the box (the largest face), then correct h with
     # the measured occupancy (points per occupied cell grow as h²)
@@ -211,7 +248,7 @@ def _grid(
         shape = _shape(span, h, max_cells)
         h = max(h, float(np.max(span / np.array(shape))))
         counts = np.zeros(shape[0] * shape[1] * shape[2], dtype=cdt)
-        occupied = _cell_keys(X, lo, h, shape[0], shape[1], shape[2], key, counts)
+        occupied = _cell_keys(X, R, lo, h, shape[0], shape[1], shape[2], key, counts)
         per_cell = n / max(occupied, 1)
         h_new = max(h_min, h * math.sqrt(target / per_cell))
         if it == 2 or 0.5 * target <= per_cell <= 2 * target or abs(h_new - h) <= 1e-3 * h:
@@ -222,16 +259,18 @@ def _grid(
     return lo, h, (shape[0], shape[1], shape[2]), key, start
 
 
-def mean_knn_distance(points: F64, k: int, *, workers: int | None = None) -> F64:
-    """(N,) m — mean distance of each point (N, 3) [m] to its ``k`` nearest other points (a
-    duplicate counts, at 0), in the caller's order. Needs numba (:data:`HAVE_NUMBA`) and
-    N > k."""
-    X = np.ascontiguousarray(points, dtype=float)
-    n = X.shape[0]
-    lo, h, (nx, ny, nz), key, start = _grid(X, k, MAX_CELLS)
-    order = _counting_sort(key, start)
-    del key
-    Xs = np.ascontiguousarray(X[order])
+def _sorted_mean(
+    Xs: F64,
+    start: NDArray[Any],
+    lo: F64,
+    h: float,
+    shape: tuple[int, int, int],
+    k: int,
+    workers: int | None,
+) -> F64:
+    """Mean k-NN distance of the points ``Xs`` sorted by cell (grid ``start``), their order."""
+    n = Xs.shape[0]
+    nx, ny, nz = shape
     ms = np.empty(n)
     chunk = 65_536
     starts = range(0, n, chunk)
@@ -252,6 +291,32 @@ def mean_knn_distance(points: F64, k: int, *, workers: int | None = None) -> F64
 
         d, _ = cKDTree(Xs).query(Xs[far], k=k + 1, workers=-1)
         ms[far] = d[:, 1:].mean(axis=1)
+    return ms
+
+
+def mean_knn_distance(
+    points: F64, k: int, *, workers: int | None = None, rows: NDArray[np.int64] | None = None
+) -> F64:
+    """(N,) m — mean distance of each point (N, 3) [m] to its ``k`` nearest other points (a
+    duplicate counts, at 0), in the caller's order. ``rows``: of the points ``points[rows]``
+    only (in the order of ``rows``; no copy of them is made). Needs numba
+    (:data:`HAVE_NUMBA`) and more than ``k`` points.
+
+    Memory: the points once more, sorted by cell (the only copy), plus ~4 int64/float64 per
+    point and the grid's row starts (≤ 64 MB).
+    """
+    if rows is None:
+        X = np.ascontiguousarray(points, dtype=float)
+        R = _NO_ROWS
+    else:
+        X = np.asarray(points, dtype=float)
+        R = np.ascontiguousarray(rows, dtype=np.int64)
+    n = X.shape[0] if rows is None else R.size
+    lo, h, (nx, ny, nz), key, start = _grid(X, k, MAX_CELLS, None if rows is None else R)
+    order = _counting_sort(key, start)
+    del key
+    # the points sorted by cell, the only copy; freed when _sorted_mean returns
+    ms = _sorted_mean(_gather(X, R, order), start, lo, h, (nx, ny, nz), k, workers)
     m = np.empty(n)
     m[order] = ms
     return m
