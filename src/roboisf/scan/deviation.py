@@ -326,7 +326,10 @@ def toolpath_deviations(
     else:
         order = spatial_order(dev.foot)
         feet, dn_sorted = dev.foot[order], dev.dn[order]
-    d, idx = cKDTree(feet).query(P, k=k, distance_upper_bound=radius, workers=-1)
+    # an unbalanced, non-compacted tree builds 2.5x faster (0.5 -> 0.2 s on 1.2 M feet) and its
+    # k nearest are the same (an exact query; only equal distances could order differently)
+    tree = cKDTree(feet, balanced_tree=False, compact_nodes=False)
+    d, idx = tree.query(P, k=k, distance_upper_bound=radius, workers=-1)
     d = d.reshape(M, k)
     idx = idx.reshape(M, k)
     ok = np.isfinite(d)
