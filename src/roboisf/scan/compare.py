@@ -195,7 +195,7 @@ def compare_scan(
     # (nominal closest point, outlier k-NN, toolpath neighbourhoods) then walks neighbouring
     # tree nodes and stays in cache; the per-point results come out in that order
     with task(progress, "spatial order", total=None):
-        pts = pts[spatial_order(pts)]
+        pts = np.take(pts, spatial_order(pts), axis=0)  # the same rows; 3x pts[order]
     dev = point_deviations(pts, part, ordered=True, progress=progress)
     near = np.abs(dev.dn) <= o.max_distance
     frac = float(near.mean())
