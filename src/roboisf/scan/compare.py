@@ -228,10 +228,17 @@ def compare_scan(
             f"no scan point on the wall below the {rim_band * 1e3:g} mm rim band", file=src
         )
     ring = dev.subset(full & (np.abs(dev.foot[:, 2] - o.contour_z) <= o.band))
-    wall = dev.subset(mask)
-    # the whole scan's deviations are not needed any more: free them before the toolpath step
-    # (at 10 M points they are 0.9 GB; the wall subset holds what is used)
+    # the wall subset (what is used from here on), each whole-scan array freed as soon as its
+    # subset exists: the peak is the whole scan's deviations plus one subset array, not plus
+    # the whole subset (at 10 M points: 0.14 GB instead of 0.5 GB)
+    cols: list[Any] = [dev.points, dev.foot, dev.normal, dev.dn, dev.region]
     del dev, pts
+    for i, col in enumerate(cols):
+        cols[i] = None
+        cols[i] = col[mask]
+        del col
+    wall = PointDeviations(*cols)
+    del cols
     tdev = None
     if toolpath is not None:
         with task(progress, "toolpath deviations", total=None):

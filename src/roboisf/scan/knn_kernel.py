@@ -143,11 +143,12 @@ def _knn_mean(
 
 @_njit()
 def _counting_sort(
-    key: NDArray[np.int64], start: NDArray[Any]
-) -> NDArray[np.int64]:  # pragma: no cover - compiled
-    """Stable permutation sorting ``key`` by cell, given the cells' row starts."""
+    key: NDArray[Any], start: NDArray[Any]
+) -> NDArray[Any]:  # pragma: no cover - compiled
+    """Stable permutation sorting ``key`` by cell, given the cells' row starts (of the keys'
+    integer type: int32 below 2³¹ points)."""
     nxt = start[:-1].copy()
-    order = np.empty(key.size, dtype=np.int64)
+    order = np.empty_like(key)
     for i in range(key.size):
         c = key[i]
         order[nxt[c]] = i
@@ -192,7 +193,7 @@ def _cell_keys(
     nx: int,
     ny: int,
     nz: int,
-    key: NDArray[np.int64],
+    key: NDArray[Any],
     counts: NDArray[Any],
 ) -> int:  # pragma: no cover - compiled
     """Cell of every point ``P[rows]`` (all of ``P`` when ``rows`` is empty) in ``key``, and
@@ -214,7 +215,7 @@ def _cell_keys(
 
 @_njit()
 def _gather(
-    P: F64, rows: NDArray[np.int64], order: NDArray[np.int64]
+    P: F64, rows: NDArray[np.int64], order: NDArray[Any]
 ) -> F64:  # pragma: no cover - compiled
     """``P[rows[order]]`` (``P[order]`` when ``rows`` is empty) as a new C-contiguous array,
     without the ``rows[order]`` index temporary."""
@@ -229,9 +230,9 @@ def _gather(
 
 def _grid(
     X: F64, k: int, max_cells: int, rows: NDArray[np.int64] | None = None
-) -> tuple[F64, float, tuple[int, int, int], NDArray[np.int64], NDArray[Any]]:
+) -> tuple[F64, float, tuple[int, int, int], NDArray[Any], NDArray[Any]]:
     """Origin, cell side, shape, the cell key of every point (of ``X[rows]`` if given) and
-    the cells' row starts."""
+    the cells' row starts (int32 below 2³¹ points, else int64)."""
     R = _NO_ROWS if rows is None else rows
     n = X.shape[0] if rows is None else rows.size
     lo, hi = _bounds(X, R)
@@ -242,8 +243,8 @@ def _grid(
     target = 2.0 * (k + 1)
     s = np.sort(span)
     h = max(h_min, math.sqrt(target * s[1] * s[2] / n))
-    key = np.empty(n, dtype=np.int64)
-    cdt = np.int32 if n < 2**31 else np.int64
+    cdt = np.int32 if n < 2**31 else np.int64  # cells ≤ MAX_CELLS < 2³¹: keys fit too
+    key = np.empty(n, dtype=cdt)
     for it in range(3):
         shape = _shape(span, h, max_cells)
         h = max(h, float(np.max(span / np.array(shape))))
