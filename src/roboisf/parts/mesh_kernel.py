@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["HAVE_NUMBA", "build_grid", "closest_grid"]
+__all__ = ["HAVE_NUMBA", "bounds", "build_grid", "closest_grid", "morton_order"]
 
 try:  # pragma: no cover - exercised by whichever path the environment has
     import numba
