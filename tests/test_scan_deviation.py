@@ -351,3 +351,39 @@ def test_outliers_of_rows_equal_the_filter_of_the_copied_rows(knn_engine):
     assert 0 < (~expect).sum() < 2000
     np.testing.assert_array_equal(statistical_outliers(X, rows=rows), expect)
     np.testing.assert_array_equal(statistical_outliers(X, rows=rows[:5]), np.ones(5, bool))
+
+
+def test_compare_scan_equals_the_steps_composed_in_file_order():
+    """The spatially ordered, copy-free ``compare_scan`` (one Morton sort, outlier filter on
+    ``rows``, whole-scan arrays freed early) gives what the public steps give composed plainly
+    in the file's order: the same wall points with the same deviations (in another row order),
+    the same outlier count and the same per-toolpath-point results. 120 k shuffled points with
+    outliers: past one 65 536-point chunk."""
+    from roboisf.scan import select_wall
+
+    s = synthetic_scan(CONE, 120_000, offset=OFFSET, noise=25e-6, outlier_fraction=0.01, seed=9)
+    X = s.points[np.random.default_rng(3).permutation(len(s.points))]
+    tp = step_down(CONE, 5e-3, 1e-3, spacing=2e-3)
+    res = compare_scan(ScanCloud(X, None, "synthetic.ply"), CONE, toolpath=tp)
+
+    dev = point_deviations(X, CONE)
+    full = select_wall(dev, rim_band=0.0, max_distance=3e-3)
+    sel = np.flatnonzero(full)
+    inl = statistical_outliers(X[sel])
+    full[sel[~inl]] = False
+    wall = dev.subset(full & (dev.foot[:, 2] < -RIM))
+    ref = toolpath_deviations(wall, tp.contact, tp.normal, exclude=tp.contact[:, 2] >= -RIM)
+
+    assert 0 < (~inl).sum() == res.counts["outliers_removed"]
+    assert res.points.n_points == wall.n_points
+    a, b = np.lexsort(res.points.points.T), np.lexsort(wall.points.T)
+    np.testing.assert_array_equal(res.points.points[a], wall.points[b])
+    np.testing.assert_array_equal(res.points.dn[a], wall.dn[b])
+    np.testing.assert_array_equal(res.points.foot[a], wall.foot[b])
+    np.testing.assert_array_equal(res.points.region[a], wall.region[b])
+    t = res.toolpath
+    assert ref.valid.sum() > 0.5 * len(ref.valid)
+    np.testing.assert_array_equal(t.valid, ref.valid)
+    np.testing.assert_array_equal(t.n_points, ref.n_points)
+    np.testing.assert_allclose(t.dn, ref.dn, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(t.spread, ref.spread, rtol=0, atol=1e-15)
