@@ -92,19 +92,26 @@ def _knn_mean(
                 break
             for di in range(max(-r, -ci), min(r, nx - 1 - ci) + 1):
                 ii = ci + di
+                # distance from p to the cell's box, by axis; a column of cells whose x, y
+                # part alone is farther than the best is skipped whole
+                ex = max(lo[0] + ii * h - px, 0.0, px - (lo[0] + (ii + 1) * h))
+                if ex * ex > best[k1 - 1]:
+                    continue
                 for dj in range(max(-r, -cj), min(r, ny - 1 - cj) + 1):
                     jj = cj + dj
+                    ey = max(lo[1] + jj * h - py, 0.0, py - (lo[1] + (jj + 1) * h))
+                    exy = ex * ex + ey * ey
+                    if exy > best[k1 - 1]:
+                        continue
                     inner = abs(di) < r and abs(dj) < r
                     step = 2 * r if (inner and r > 0) else 1
                     for dk in range(-r, r + 1, step):
                         kk = ck + dk
                         if kk < 0 or kk >= nz:
                             continue
-                        # distance from p to the cell's box; skip a cell farther than the best
-                        ex = max(lo[0] + ii * h - px, 0.0, px - (lo[0] + (ii + 1) * h))
-                        ey = max(lo[1] + jj * h - py, 0.0, py - (lo[1] + (jj + 1) * h))
+                        # skip a cell farther than the best
                         ez = max(lo[2] + kk * h - pz, 0.0, pz - (lo[2] + (kk + 1) * h))
-                        if ex * ex + ey * ey + ez * ez > best[k1 - 1]:
+                        if exy + ez * ez > best[k1 - 1]:
                             continue
                         c = (ii * ny + jj) * nz + kk
                         for j in range(start[c], start[c + 1]):
