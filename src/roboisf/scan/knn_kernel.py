@@ -90,22 +90,33 @@ def _knn_mean(
             if r > max_rings:  # far from the others: left to the caller's k-d tree
                 out[i] = np.nan
                 break
-            for di in range(max(-r, -ci), min(r, nx - 1 - ci) + 1):
+            # centre out (0, −1, 1, −2, 2, …): the nearest cells first tighten the best early
+            for qi in range(2 * r + 1):
+                di = (qi + 1) // 2 * (1 if qi % 2 == 0 else -1)
                 ii = ci + di
+                if ii < 0 or ii >= nx:
+                    continue
                 # distance from p to the cell's box, by axis; a column of cells whose x, y
                 # part alone is farther than the best is skipped whole
                 ex = max(lo[0] + ii * h - px, 0.0, px - (lo[0] + (ii + 1) * h))
                 if ex * ex > best[k1 - 1]:
                     continue
-                for dj in range(max(-r, -cj), min(r, ny - 1 - cj) + 1):
+                for qj in range(2 * r + 1):
+                    dj = (qj + 1) // 2 * (1 if qj % 2 == 0 else -1)
                     jj = cj + dj
+                    if jj < 0 or jj >= ny:
+                        continue
                     ey = max(lo[1] + jj * h - py, 0.0, py - (lo[1] + (jj + 1) * h))
                     exy = ex * ex + ey * ey
                     if exy > best[k1 - 1]:
                         continue
-                    inner = abs(di) < r and abs(dj) < r
-                    step = 2 * r if (inner and r > 0) else 1
-                    for dk in range(-r, r + 1, step):
+                    # a column inside the ring: only its two end cells are new
+                    inner = r > 0 and abs(di) < r and abs(dj) < r
+                    for qk in range(2 if inner else 2 * r + 1):
+                        if inner:
+                            dk = r if qk else -r
+                        else:
+                            dk = (qk + 1) // 2 * (1 if qk % 2 == 0 else -1)
                         kk = ck + dk
                         if kk < 0 or kk >= nz:
                             continue
