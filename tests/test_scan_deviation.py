@@ -318,3 +318,72 @@ def test_mesh_nominal_gives_the_same_toolpath_deviations(acceptance):
     # scan) scatter by ~5 µm on top of that
     diff = rm.toolpath.dn[both] - res.toolpath.dn[both]
     assert np.abs(np.median(diff)) < 6e-6 and np.sqrt(np.mean(diff**2)) < 10e-6
+
+
+@pytest.mark.parametrize("cloud", ["scan", "plane", "small"])
+def test_compiled_grid_equals_the_numpy_cell_count(cloud):
+    """The grid of the outlier k-NN (one compiled pass for cell keys and counts) has the cell
+    keys and row starts the numpy formulas give (cell = min(int((x − lo)/h), n − 1))."""
+    from roboisf.scan import knn_kernel
+
+    if not knn_kernel.HAVE_NUMBA:
+        pytest.skip("numba not installed")
+    X = synthetic_scan(CONE, 60_000, offset=OFFSET, noise=25e-6, seed=3).points
+    if cloud == "plane":
+        X = np.c_[X[:, :2], np.zeros(len(X))]
+    elif cloud == "small":
+        X = X[:40]
+    lo, h, shape, key, start = knn_kernel._grid(X, 8, knn_kernel.MAX_CELLS)
+    np.testing.assert_array_equal(lo, X.min(axis=0))
+    idx = np.minimum(((X - lo) / h).astype(np.int64), np.array(shape) - 1)
+    np.testing.assert_array_equal(key, (idx[:, 0] * shape[1] + idx[:, 1]) * shape[2] + idx[:, 2])
+    counts = np.bincount(key, minlength=shape[0] * shape[1] * shape[2])
+    np.testing.assert_array_equal(start, np.concatenate([[0], np.cumsum(counts)]))
+
+
+def test_outliers_of_rows_equal_the_filter_of_the_copied_rows(knn_engine):
+    """``rows=`` filters ``points[rows]`` without copying them: the same mask as the filter of
+    the copy, in the order of ``rows`` (a shuffled subset, past one 65 536-point chunk)."""
+    s = synthetic_scan(CONE, 90_000, offset=OFFSET, noise=25e-6, outlier_fraction=0.01, seed=6)
+    X = s.points
+    rows = np.random.default_rng(4).permutation(X.shape[0])[:70_000]
+    expect = statistical_outliers(X[rows])
+    assert 0 < (~expect).sum() < 2000
+    np.testing.assert_array_equal(statistical_outliers(X, rows=rows), expect)
+    np.testing.assert_array_equal(statistical_outliers(X, rows=rows[:5]), np.ones(5, bool))
+
+
+def test_compare_scan_equals_the_steps_composed_in_file_order():
+    """The spatially ordered, copy-free ``compare_scan`` (one Morton sort, outlier filter on
+    ``rows``, whole-scan arrays freed early) gives what the public steps give composed plainly
+    in the file's order: the same wall points with the same deviations (in another row order),
+    the same outlier count and the same per-toolpath-point results. 120 k shuffled points with
+    outliers: past one 65 536-point chunk."""
+    from roboisf.scan import select_wall
+
+    s = synthetic_scan(CONE, 120_000, offset=OFFSET, noise=25e-6, outlier_fraction=0.01, seed=9)
+    X = s.points[np.random.default_rng(3).permutation(len(s.points))]
+    tp = step_down(CONE, 5e-3, 1e-3, spacing=2e-3)
+    res = compare_scan(ScanCloud(X, None, "synthetic.ply"), CONE, toolpath=tp)
+
+    dev = point_deviations(X, CONE)
+    full = select_wall(dev, rim_band=0.0, max_distance=3e-3)
+    sel = np.flatnonzero(full)
+    inl = statistical_outliers(X[sel])
+    full[sel[~inl]] = False
+    wall = dev.subset(full & (dev.foot[:, 2] < -RIM))
+    ref = toolpath_deviations(wall, tp.contact, tp.normal, exclude=tp.contact[:, 2] >= -RIM)
+
+    assert 0 < (~inl).sum() == res.counts["outliers_removed"]
+    assert res.points.n_points == wall.n_points
+    a, b = np.lexsort(res.points.points.T), np.lexsort(wall.points.T)
+    np.testing.assert_array_equal(res.points.points[a], wall.points[b])
+    np.testing.assert_array_equal(res.points.dn[a], wall.dn[b])
+    np.testing.assert_array_equal(res.points.foot[a], wall.foot[b])
+    np.testing.assert_array_equal(res.points.region[a], wall.region[b])
+    t = res.toolpath
+    assert ref.valid.sum() > 0.5 * len(ref.valid)
+    np.testing.assert_array_equal(t.valid, ref.valid)
+    np.testing.assert_array_equal(t.n_points, ref.n_points)
+    np.testing.assert_allclose(t.dn, ref.dn, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(t.spread, ref.spread, rtol=0, atol=1e-15)

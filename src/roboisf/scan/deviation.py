@@ -138,7 +138,12 @@ def point_deviations(
 
 
 def statistical_outliers(
-    points: ArrayLike, k: int = 8, std_ratio: float = 3.0, *, ordered: bool = False
+    points: ArrayLike,
+    k: int = 8,
+    std_ratio: float = 3.0,
+    *,
+    ordered: bool = False,
+    rows: ArrayLike | None = None,
 ) -> NDArray[np.bool_]:
     """Statistical outlier removal: ``True`` for *inliers*.
 
@@ -148,14 +153,21 @@ def statistical_outliers(
     else from scipy's k-d tree; both are exact.
     ``ordered=True``: the points (N, 3) [m] are already in spatial order
     (:func:`~roboisf.parts.mesh.spatial_order`), the sort is skipped; the mask is the same.
+    ``rows`` (M,) int: filter the points ``points[rows]`` only, mask (M,) in the order of
+    ``rows`` — the same mask as ``statistical_outliers(points[rows])``, without that copy
+    (with numba; the k-d tree path makes it).
     """
     X = np.asarray(points, dtype=float)
-    if X.shape[0] <= k:
-        return np.ones(X.shape[0], dtype=bool)
+    R = None if rows is None else np.asarray(rows, dtype=np.int64)
+    n = X.shape[0] if R is None else R.size
+    if n <= k:
+        return np.ones(n, dtype=bool)
     if knn_kernel.HAVE_NUMBA:
         # compiled uniform-grid k-NN (exact; 1.5-2x the k-d tree below on a 2 M-point scan)
-        m = knn_kernel.mean_knn_distance(X, k)
+        m = knn_kernel.mean_knn_distance(X, k, rows=R)
         return m <= m.mean() + std_ratio * m.std()
+    if R is not None:
+        X = X[R]
     # Queried in Morton order: neighbouring queries walk neighbouring tree nodes, so the query
     # hits the cache (2-3x faster on a scan in random order). The distances are the same numbers;
     # the statistics are taken back in the caller's order, so the mask is identical bit for bit.
@@ -314,7 +326,10 @@ def toolpath_deviations(
     else:
         order = spatial_order(dev.foot)
         feet, dn_sorted = dev.foot[order], dev.dn[order]
-    d, idx = cKDTree(feet).query(P, k=k, distance_upper_bound=radius, workers=-1)
+    # an unbalanced, non-compacted tree builds 2.5x faster (0.5 -> 0.2 s on 1.2 M feet) and its
+    # k nearest are the same (an exact query; only equal distances could order differently)
+    tree = cKDTree(feet, balanced_tree=False, compact_nodes=False)
+    d, idx = tree.query(P, k=k, distance_upper_bound=radius, workers=-1)
     d = d.reshape(M, k)
     idx = idx.reshape(M, k)
     ok = np.isfinite(d)

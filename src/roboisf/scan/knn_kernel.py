@@ -53,6 +53,8 @@ MAX_CELLS = 16_000_000
 
 F64 = NDArray[np.float64]
 
+_NO_ROWS = np.zeros(0, dtype=np.int64)
+
 
 def _njit(**kw: Any) -> Any:
     if HAVE_NUMBA:
@@ -88,21 +90,39 @@ def _knn_mean(
             if r > max_rings:  # far from the others: left to the caller's k-d tree
                 out[i] = np.nan
                 break
-            for di in range(max(-r, -ci), min(r, nx - 1 - ci) + 1):
+            # centre out (0, −1, 1, −2, 2, …): the nearest cells first tighten the best early
+            for qi in range(2 * r + 1):
+                di = (qi + 1) // 2 * (1 if qi % 2 == 0 else -1)
                 ii = ci + di
-                for dj in range(max(-r, -cj), min(r, ny - 1 - cj) + 1):
+                if ii < 0 or ii >= nx:
+                    continue
+                # distance from p to the cell's box, by axis; a column of cells whose x, y
+                # part alone is farther than the best is skipped whole
+                ex = max(lo[0] + ii * h - px, 0.0, px - (lo[0] + (ii + 1) * h))
+                if ex * ex > best[k1 - 1]:
+                    continue
+                for qj in range(2 * r + 1):
+                    dj = (qj + 1) // 2 * (1 if qj % 2 == 0 else -1)
                     jj = cj + dj
-                    inner = abs(di) < r and abs(dj) < r
-                    step = 2 * r if (inner and r > 0) else 1
-                    for dk in range(-r, r + 1, step):
+                    if jj < 0 or jj >= ny:
+                        continue
+                    ey = max(lo[1] + jj * h - py, 0.0, py - (lo[1] + (jj + 1) * h))
+                    exy = ex * ex + ey * ey
+                    if exy > best[k1 - 1]:
+                        continue
+                    # a column inside the ring: only its two end cells are new
+                    inner = r > 0 and abs(di) < r and abs(dj) < r
+                    for qk in range(2 if inner else 2 * r + 1):
+                        if inner:
+                            dk = r if qk else -r
+                        else:
+                            dk = (qk + 1) // 2 * (1 if qk % 2 == 0 else -1)
                         kk = ck + dk
                         if kk < 0 or kk >= nz:
                             continue
-                        # distance from p to the cell's box; skip a cell farther than the best
-                        ex = max(lo[0] + ii * h - px, 0.0, px - (lo[0] + (ii + 1) * h))
-                        ey = max(lo[1] + jj * h - py, 0.0, py - (lo[1] + (jj + 1) * h))
+                        # skip a cell farther than the best
                         ez = max(lo[2] + kk * h - pz, 0.0, pz - (lo[2] + (kk + 1) * h))
-                        if ex * ex + ey * ey + ez * ez > best[k1 - 1]:
+                        if exy + ez * ez > best[k1 - 1]:
                             continue
                         c = (ii * ny + jj) * nz + kk
                         for j in range(start[c], start[c + 1]):
@@ -141,11 +161,12 @@ def _knn_mean(
 
 @_njit()
 def _counting_sort(
-    key: NDArray[np.int64], start: NDArray[Any]
-) -> NDArray[np.int64]:  # pragma: no cover - compiled
-    """Stable permutation sorting ``key`` by cell, given the cells' row starts."""
+    key: NDArray[Any], start: NDArray[Any]
+) -> NDArray[Any]:  # pragma: no cover - compiled
+    """Stable permutation sorting ``key`` by cell, given the cells' row starts (of the keys'
+    integer type: int32 below 2³¹ points)."""
     nxt = start[:-1].copy()
-    order = np.empty(key.size, dtype=np.int64)
+    order = np.empty_like(key)
     for i in range(key.size):
         c = key[i]
         order[nxt[c]] = i
@@ -163,45 +184,112 @@ def _shape(span: F64, h: float, max_cells: int) -> tuple[int, int, int]:
         h *= 1.25
 
 
+@_njit()
+def _bounds(P: F64, rows: NDArray[np.int64]) -> tuple[Any, Any]:  # pragma: no cover - compiled
+    """Per-axis min and max of ``P[rows]`` (all of ``P`` when ``rows`` is empty), one pass."""
+    n = rows.size if rows.size else P.shape[0]
+    r0 = rows[0] if rows.size else 0
+    lo = P[r0].copy()
+    hi = P[r0].copy()
+    for i in range(1, n):
+        r = rows[i] if rows.size else i
+        for a in range(3):
+            v = P[r, a]
+            if v < lo[a]:
+                lo[a] = v
+            elif v > hi[a]:
+                hi[a] = v
+    return lo, hi
+
+
+@_njit()
+def _cell_keys(
+    P: F64,
+    rows: NDArray[np.int64],
+    lo: F64,
+    h: float,
+    nx: int,
+    ny: int,
+    nz: int,
+    key: NDArray[Any],
+    counts: NDArray[Any],
+) -> int:  # pragma: no cover - compiled
+    """Cell of every point ``P[rows]`` (all of ``P`` when ``rows`` is empty) in ``key``, and
+    points per cell (``counts``, zeroed by the caller), in one pass; returns the number of
+    occupied cells. Cell index per axis: ``min(int((x − lo) / h), n − 1)`` (x ≥ lo)."""
+    occupied = 0
+    for i in range(key.size):
+        r = rows[i] if rows.size else i
+        ci = min(int((P[r, 0] - lo[0]) / h), nx - 1)
+        cj = min(int((P[r, 1] - lo[1]) / h), ny - 1)
+        ck = min(int((P[r, 2] - lo[2]) / h), nz - 1)
+        c = (ci * ny + cj) * nz + ck
+        key[i] = c
+        if counts[c] == 0:
+            occupied += 1
+        counts[c] += 1
+    return occupied
+
+
+@_njit()
+def _gather(
+    P: F64, rows: NDArray[np.int64], order: NDArray[Any]
+) -> F64:  # pragma: no cover - compiled
+    """``P[rows[order]]`` (``P[order]`` when ``rows`` is empty) as a new C-contiguous array,
+    without the ``rows[order]`` index temporary."""
+    out = np.empty((order.size, 3))
+    for i in range(order.size):
+        r = rows[order[i]] if rows.size else order[i]
+        out[i, 0] = P[r, 0]
+        out[i, 1] = P[r, 1]
+        out[i, 2] = P[r, 2]
+    return out
+
+
 def _grid(
-    X: F64, k: int, max_cells: int
-) -> tuple[F64, float, tuple[int, int, int], NDArray[np.int64], NDArray[Any]]:
-    """Origin, cell side, shape, the cell key of every point and the cells' row starts."""
-    lo = X.min(axis=0)
-    span = np.maximum(X.max(axis=0) - lo, 1e-12)
-    n = X.shape[0]
+    X: F64, k: int, max_cells: int, rows: NDArray[np.int64] | None = None
+) -> tuple[F64, float, tuple[int, int, int], NDArray[Any], NDArray[Any]]:
+    """Origin, cell side, shape, the cell key of every point (of ``X[rows]`` if given) and
+    the cells' row starts (int32 below 2³¹ points, else int64)."""
+    R = _NO_ROWS if rows is None else rows
+    n = X.shape[0] if rows is None else rows.size
+    lo, hi = _bounds(X, R)
+    span = np.maximum(hi - lo, 1e-12)
     h_min = float(np.cbrt(np.prod(span) / max_cells))  # finest grid allowed
     # a scan is a surface: guess its area from the box (the largest face), then correct h with
     # the measured occupancy (points per occupied cell grow as h²)
     target = 2.0 * (k + 1)
     s = np.sort(span)
     h = max(h_min, math.sqrt(target * s[1] * s[2] / n))
+    cdt = np.int32 if n < 2**31 else np.int64  # cells ≤ MAX_CELLS < 2³¹: keys fit too
+    key = np.empty(n, dtype=cdt)
     for it in range(3):
         shape = _shape(span, h, max_cells)
         h = max(h, float(np.max(span / np.array(shape))))
-        idx = np.minimum(((X - lo) / h).astype(np.int64), np.array(shape) - 1)
-        key = (idx[:, 0] * shape[1] + idx[:, 1]) * shape[2] + idx[:, 2]
-        counts = np.bincount(key, minlength=shape[0] * shape[1] * shape[2])
-        per_cell = n / max(int(np.count_nonzero(counts)), 1)
+        counts = np.zeros(shape[0] * shape[1] * shape[2], dtype=cdt)
+        occupied = _cell_keys(X, R, lo, h, shape[0], shape[1], shape[2], key, counts)
+        per_cell = n / max(occupied, 1)
         h_new = max(h_min, h * math.sqrt(target / per_cell))
         if it == 2 or 0.5 * target <= per_cell <= 2 * target or abs(h_new - h) <= 1e-3 * h:
             break
         h = h_new
-    start = np.zeros(counts.size + 1, dtype=np.int32 if n < 2**31 else np.int64)
+    start = np.zeros(counts.size + 1, dtype=cdt)
     np.cumsum(counts, out=start[1:])
     return lo, h, (shape[0], shape[1], shape[2]), key, start
 
 
-def mean_knn_distance(points: F64, k: int, *, workers: int | None = None) -> F64:
-    """(N,) m — mean distance of each point (N, 3) [m] to its ``k`` nearest other points (a
-    duplicate counts, at 0), in the caller's order. Needs numba (:data:`HAVE_NUMBA`) and
-    N > k."""
-    X = np.ascontiguousarray(points, dtype=float)
-    n = X.shape[0]
-    lo, h, (nx, ny, nz), key, start = _grid(X, k, MAX_CELLS)
-    order = _counting_sort(key, start)
-    del key
-    Xs = np.ascontiguousarray(X[order])
+def _sorted_mean(
+    Xs: F64,
+    start: NDArray[Any],
+    lo: F64,
+    h: float,
+    shape: tuple[int, int, int],
+    k: int,
+    workers: int | None,
+) -> F64:
+    """Mean k-NN distance of the points ``Xs`` sorted by cell (grid ``start``), their order."""
+    n = Xs.shape[0]
+    nx, ny, nz = shape
     ms = np.empty(n)
     chunk = 65_536
     starts = range(0, n, chunk)
@@ -222,6 +310,32 @@ def mean_knn_distance(points: F64, k: int, *, workers: int | None = None) -> F64
 
         d, _ = cKDTree(Xs).query(Xs[far], k=k + 1, workers=-1)
         ms[far] = d[:, 1:].mean(axis=1)
+    return ms
+
+
+def mean_knn_distance(
+    points: F64, k: int, *, workers: int | None = None, rows: NDArray[np.int64] | None = None
+) -> F64:
+    """(N,) m — mean distance of each point (N, 3) [m] to its ``k`` nearest other points (a
+    duplicate counts, at 0), in the caller's order. ``rows``: of the points ``points[rows]``
+    only (in the order of ``rows``; no copy of them is made). Needs numba
+    (:data:`HAVE_NUMBA`) and more than ``k`` points.
+
+    Memory: the points once more, sorted by cell (the only copy), plus ~4 int64/float64 per
+    point and the grid's row starts (≤ 64 MB).
+    """
+    if rows is None:
+        X = np.ascontiguousarray(points, dtype=float)
+        R = _NO_ROWS
+    else:
+        X = np.asarray(points, dtype=float)
+        R = np.ascontiguousarray(rows, dtype=np.int64)
+    n = X.shape[0] if rows is None else R.size
+    lo, h, (nx, ny, nz), key, start = _grid(X, k, MAX_CELLS, None if rows is None else R)
+    order = _counting_sort(key, start)
+    del key
+    # the points sorted by cell, the only copy; freed when _sorted_mean returns
+    ms = _sorted_mean(_gather(X, R, order), start, lo, h, (nx, ny, nz), k, workers)
     m = np.empty(n)
     m[order] = ms
     return m
