@@ -119,3 +119,20 @@ def small_cone_analysis(small_cone_study: Path) -> Any:
     from roboisf.decompose.pipeline import analyze
 
     return analyze(small_cone_study)
+
+
+# -- distribution over pytest-xdist workers ----------------------------------------------------
+# pyproject's addopts run `--dist loadfile --no-loadscope-reorder`: with -n, each test module goes
+# to one worker whole, so its module-scoped fixtures (often a whole virtual study) are built once,
+# not once on each worker that gets some of its tests (`--dist load` splits modules). Modules are
+# handed out in collection order, and modules with tests marked `slow` are collected first: the
+# long ones start at once and the many short ones fill the other worker at the end, instead of
+# one long module starting last and running alone. (`--dist loadgroup` with `xdist_group` marks
+# would group finer, but pytest-xdist 3.8 sets `item._nodeid`, which pytest 9.2 no longer reads:
+# the marks have no effect there.)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    slow = {item.path for item in items if item.get_closest_marker("slow") is not None}
+    items.sort(key=lambda item: item.path not in slow)  # stable: each module stays in order
