@@ -34,6 +34,17 @@ SMALL_CONE: dict[str, float] = {
 }
 
 
+#: The fast paper cone: 2 mm step-down, 3 mm spacing, 60 k scan points, forces at 100 Hz,
+#: joints at 50 Hz.
+FAST_CONE: dict[str, float] = {
+    "step_down": 2e-3,
+    "spacing": 3e-3,
+    "scan_points": 60_000,
+    "force_rate": 100.0,
+    "joint_rate": 50.0,
+}
+
+
 @contextlib.contextmanager
 def _file_lock(path: Path) -> Iterator[None]:
     """Hold an exclusive lock on ``path`` (POSIX ``flock``; no lock where there is none, then
@@ -109,6 +120,25 @@ def small_cone_study_csv(tmp_path_factory: pytest.TempPathFactory) -> Iterator[P
         tmp_path_factory,
         "small-cone-csv",
         lambda folder: build_study(paper_cone_cell(**SMALL_CONE), folder, log_format="csv"),
+    )
+
+
+@pytest.fixture(scope="session")
+def fast_cone_settings() -> dict[str, float]:
+    """:data:`FAST_CONE` (a copy): ``paper_cone_cell(**fast_cone_settings)`` is the cell of
+    :func:`fast_cone_study`."""
+    return dict(FAST_CONE)
+
+
+@pytest.fixture(scope="session")
+def fast_cone_study(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
+    """The :data:`FAST_CONE` virtual study, Parquet logs. Read-only."""
+    from roboisf.virtual.cell import build_study, paper_cone_cell
+
+    yield from _shared_study(
+        tmp_path_factory,
+        "fast-cone",
+        lambda folder: build_study(paper_cone_cell(**FAST_CONE), folder),
     )
 
 
