@@ -10,16 +10,12 @@ from roboisf.decompose.pipeline import analyze
 from roboisf.errors import InputError, RoboisfError
 from roboisf.parts import Cone
 from roboisf.scan import synthetic_scan, write_ply
-from roboisf.virtual.cell import build_study, paper_cone_cell
 
 
 @pytest.fixture(scope="module")
-def study(tmp_path_factory):
-    root = tmp_path_factory.mktemp("bad")
-    cell = paper_cone_cell(
-        scan_points=150_000, force_rate=50.0, joint_rate=20.0, step_down=2e-3, spacing=4e-3
-    )
-    return build_study(cell, root / "study", log_format="csv")
+def study(small_cone_study_csv):
+    """The small paper cone with CSV logs (tests/conftest.py, shared: copy before editing)."""
+    return small_cone_study_csv
 
 
 def copy(study, tmp_path):

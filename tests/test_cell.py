@@ -227,3 +227,31 @@ def test_virtual_cell_cli_takes_a_part_file(tmp_path, mesh_part_file, capsys):
     # exactly one of PART and --part
     assert main(["-q", "virtual-cell", "cone", "--part", str(cone), "-o", str(bad)]) == 2
     assert main(["-q", "virtual-cell", "-o", str(bad)]) == 2
+
+
+def test_virtual_cell_cli_coarse_path_and_joint_rate(tmp_path, capsys):
+    """--step-down/--spacing [mm] and --joint-rate [Hz] reach the virtual cell: the study's
+    toolpath is the paper cone's on that coarse path, its joint log at that rate (the small demo
+    cell of docs/study.md's worked example); a step that is not > 0 is refused, exit 2."""
+    from roboisf.decompose.pipeline import read_run_joint_log
+    from roboisf.io.toolpath_csv import read_toolpath_csv
+    from roboisf.virtual.cell import cell_toolpath
+
+    out = tmp_path / "study"
+    args = ["--scan-points", "2000", "--force-rate", "5", "--joint-rate", "4"]
+    args += ["--step-down", "5", "--spacing", "8", "-o", str(out)]
+    assert main(["-q", "virtual-cell", "cone", *args]) == 0
+    st = load_study(out)
+    got = read_toolpath_csv(st.robot_run.toolpath)
+    want = cell_toolpath(paper_cone_cell(step_down=5e-3, spacing=8e-3))
+    assert len(got) == len(want) < len(cell_toolpath(paper_cone_cell(step_down=5e-3)))
+    np.testing.assert_allclose(got.tip, want.tip, atol=1e-9)
+    t = read_run_joint_log(st.robot_run).time
+    assert float(np.median(np.diff(t))) == pytest.approx(0.25, rel=1e-6)
+    capsys.readouterr()
+    for opt in ("--step-down", "--spacing"):
+        bad = tmp_path / f"bad{opt}"
+        assert main(["-q", "virtual-cell", "cone", opt, "0", "-o", str(bad)]) == 2
+        err = capsys.readouterr().err
+        assert opt in err and "> 0 mm" in err and len(err.strip().splitlines()) == 1
+        assert not bad.exists()

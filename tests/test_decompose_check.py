@@ -158,19 +158,15 @@ def test_force_bias_flag(path):
     assert "+30" in msg
 
 
-def test_shifted_scan_is_warned(tmp_path):
+def test_shifted_scan_is_warned(tmp_path, fast_cone_study):
     """A robot scan 0.3 mm off sideways: the fixture registration cannot see it; analyze says so
     with its size and direction. The truth.json flag is read."""
+    import shutil
+
     from roboisf.scan import read_scan, write_ply
-    from roboisf.virtual.cell import build_study, paper_cone_cell
 
     st = tmp_path / "st"
-    build_study(
-        paper_cone_cell(
-            step_down=2e-3, spacing=3e-3, scan_points=60_000, force_rate=100.0, joint_rate=50.0
-        ),
-        st,
-    )
+    shutil.copytree(fast_cone_study, st)  # the fast paper cone (tests/conftest.py), edited below
     cloud = read_scan(st / "robot_scan.ply", unit="mm")
     write_ply(cloud.points + np.array([0.0, 0.3e-3, 0.0]), st / "robot_scan.ply", unit="mm")
     meta = json.loads((st / "truth" / "truth.json").read_text())

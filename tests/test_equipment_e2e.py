@@ -6,7 +6,8 @@ export for the joints, a 2 % fast controller clock with a 7 s offset and a 30 s 
 logs): every share within 1 percentage point, once the user states what they know (the tool's
 mass and centre of gravity, weighed; ``tare = "auto"``). Left untared, the bias is flagged.
 
-Slow (two small studies, three analyses); each piece is covered fast elsewhere: the formats by
+Slow (one small study built here, the clean one shared from tests/conftest.py, three
+analyses); each piece is covered fast elsewhere: the formats by
 test_logs_formats.py / test_study_init.py, alignment by test_sync.py, conditioning by
 test_sensor*.py.
 """
@@ -29,13 +30,6 @@ from roboisf.virtual.cell import build_study, paper_cone_cell
 from roboisf.virtual.equipment import Equipment
 from roboisf.virtual.truth import TruthSpec
 
-SMALL = {
-    "scan_points": 150_000,
-    "force_rate": 50.0,
-    "joint_rate": 20.0,
-    "step_down": 2e-3,
-    "spacing": 4e-3,
-}
 BIAS = np.array([30.0, -12.0, 8.0, 0.6, -0.4, 0.15])  # N, N·m, sensor axes
 MASS, COG_FLANGE = 4.0, np.array([0.0, 0.0, 0.150])  # kg; m, flange frame
 EQUIPMENT = Equipment(
@@ -49,13 +43,14 @@ EQUIPMENT = Equipment(
 
 
 @pytest.fixture(scope="module")
-def studies(tmp_path_factory):
+def studies(tmp_path_factory, small_cone_settings, small_cone_analysis):
+    """The clean study's analysis (the small paper cone, ideal equipment: tests/conftest.py,
+    shared) and the same cell with the sensor's bias, the tool's weight and real equipment."""
     root = tmp_path_factory.mktemp("equipment")
-    clean = build_study(paper_cone_cell(**SMALL), root / "clean")
     truth = TruthSpec(sensor_bias=BIAS, tool_mass=MASS, tool_cog=COG_FLANGE)
-    cell = paper_cone_cell(**SMALL, truth=truth)
+    cell = paper_cone_cell(**small_cone_settings, truth=truth)
     real = build_study(cell, root / "real", equipment=EQUIPMENT)
-    return analyze(clean), real, cell
+    return small_cone_analysis, real, cell
 
 
 def _shares(result, table):
@@ -212,6 +207,22 @@ def _run_bash(block: str) -> None:
             raise AssertionError(f"unknown command in the doc: {line}")
 
 
+def _size_options(block: str) -> dict[str, float]:
+    """The doc's ``virtual-cell`` options that set the cell's size (toolpath, scans, log
+    rates), in the virtual cell's units (m, Hz, points)."""
+    import shlex
+
+    line = next(ln for ln in block.replace("\\\n", " ").splitlines() if "virtual-cell" in ln)
+    args = shlex.split(line)
+    scale = {"--step-down": 1e-3, "--spacing": 1e-3, "--scan-points": 1}
+    scale |= {"--force-rate": 1, "--joint-rate": 1}
+    return {
+        a[2:].replace("-", "_"): float(args[i + 1]) * scale[a]
+        for i, a in enumerate(args)
+        if a in scale
+    }
+
+
 def _merge(a: dict, b: dict) -> None:
     for k, v in b.items():
         if isinstance(v, dict) and isinstance(a.get(k), dict):
@@ -230,15 +241,16 @@ def _subset(part: dict, whole: dict, where: str = "") -> None:
 
 
 @pytest.mark.slow
-def test_docs_worked_example(tmp_path, monkeypatch):
+def test_docs_worked_example(tmp_path, monkeypatch, small_cone_settings, small_cone_analysis):
     """Runs docs/study.md's worked example block by block: the draft holds what the doc shows,
-    and the analysis of the confirmed study gives the clean study's shares (1 point)."""
+    and the analysis of the confirmed study gives the clean study's shares (1 point). The clean
+    study is the shared small paper cone (tests/conftest.py): the doc's cell has its size."""
     import pandas as pd
-
-    from roboisf.cli.main import main
 
     blocks = _doc_blocks()
     assert [k for k, _ in blocks] == ["toml", "bash", "python", "bash", "toml", "toml", "bash"]
+    size = _size_options(blocks[1][1])
+    assert size == pytest.approx(small_cone_settings), "the doc's cell is not the shared one"
     monkeypatch.chdir(tmp_path)
     Path("sensor.toml").write_text(blocks[0][1])
     _run_bash(blocks[1][1])
@@ -252,13 +264,11 @@ def test_docs_worked_example(tmp_path, monkeypatch):
     _merge(draft, tomllib.loads(blocks[5][1]))
     Path("my-cell/study.toml").write_text(tomli_w.dumps(draft))
     _run_bash(blocks[6][1])
-    assert main(["-q", "virtual-cell", "cone", "-o", "clean", "--scan-points", "150000"]) == 0
-    assert main(["-q", "analyze", "clean", "-o", "clean-results"]) == 0
-    for name in ("contributions.csv", "contributions_normal.csv"):
-        a = pd.read_csv(Path("clean-results") / name, comment="#").set_index("factor")
-        b = pd.read_csv(Path("results") / name, comment="#").set_index("factor")
+    for table in ("contributions", "contributions_normal"):
+        a = _shares(small_cone_analysis, table)
+        b = pd.read_csv(Path("results") / f"{table}.csv", comment="#").set_index("factor")
         for fac in FACTORS:
-            assert b.share_percent[fac] == pytest.approx(a.share_percent[fac], abs=1.0), (name, fac)
+            assert b.share_percent[fac] == pytest.approx(a[fac], abs=1.0), (table, fac)
 
 
 def test_abb_joint_layout_gets_its_units_in_the_study(tmp_path):

@@ -177,13 +177,10 @@ def test_cli_accepts_identified_stiffness(soft, tmp_path, capsys):
     assert _rms(pp["vjm_dn"].to_numpy() - ident_dn) > 0.15 * _rms(ident_dn)
 
 
-def test_consistent_cell(tmp_path):
+def test_consistent_cell(fast_cone_settings, fast_cone_study):
     """Truth = model: the check says ``consistent`` and that it holds by construction."""
-    cell = paper_cone_cell(**FAST)
-    from roboisf.virtual.cell import build_study
-
-    build_study(cell, tmp_path / "study")
-    r = analyze(tmp_path / "study")
+    assert fast_cone_settings == FAST  # the shared study (tests/conftest.py) is this cell
+    r = analyze(fast_cone_study)
     vc = r.summary["vjm_check"]
     assert vc["verdict"] == "consistent", vc
     assert vc["ci_low"] <= 1.0 + 0.1 and vc["ci_high"] >= 1.0 - 0.1

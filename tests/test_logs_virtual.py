@@ -14,37 +14,29 @@ from roboisf.frames import vertical_tool
 from roboisf.io.forcelog import read_force_log
 from roboisf.sensor import gravity_wrench
 from roboisf.study import load_study
-from roboisf.virtual.cell import build_study, paper_cone_cell
 
 BIAS = np.array([30.0, -12.0, 8.0, 0.6, -0.4, 0.15])  # N, N·m
 MASS, COG_MM = 4.2, np.array([12.0, -8.0, 95.0])  # kg, mm (sensor frame)
 APPROACH = 2.0  # s of unloaded approach before the toolpath starts
 
 
-def _cell():
-    return paper_cone_cell(
-        scan_points=150_000, force_rate=50.0, joint_rate=20.0, step_down=2e-3, spacing=4e-3
-    )
-
-
 @pytest.fixture(scope="module")
-def studies(tmp_path_factory):
-    root = tmp_path_factory.mktemp("logs")
-    pq = build_study(_cell(), root / "pq")
-    csv = build_study(_cell(), root / "csv", log_format="csv")
-    return pq, csv
+def studies(small_cone_study, small_cone_study_csv):
+    """The small paper cone with Parquet and CSV logs (tests/conftest.py, shared, read-only)."""
+    return small_cone_study, small_cone_study_csv
 
 
 def _shares(result):
     return result.contributions_normal.set_index("factor")["share_percent"]
 
 
-def test_parquet_is_the_default_and_analyses_like_csv(studies):
+def test_parquet_is_the_default_and_analyses_like_csv(studies, small_cone_analysis):
     pq, csv = studies
     assert (pq / "robot_forces.parquet").is_file() and (pq / "robot_joints.parquet").is_file()
     assert not list(pq.glob("*_forces.csv"))
     assert (csv / "robot_forces.csv").is_file()
-    a, b = analyze(pq), analyze(csv)
+    a, b = small_cone_analysis, analyze(csv)
+    assert a.study.root.resolve() == pq.resolve()  # the shared analysis is of the Parquet study
     # float32 channels against 10-digit CSV: the same decomposition to far below a µm
     np.testing.assert_allclose(_shares(a), _shares(b), atol=1e-3)
     cols = [c for c in a.per_point.columns if c.startswith("robot_") and c.endswith("_dn")]
@@ -94,11 +86,13 @@ def _use_ati(study, name, extra):
     toml.write_text(text[: block.start(1)] + body + text[block.end(1) :])
 
 
-def test_ati_log_with_bias_and_tool_weight_recovers_the_clean_decomposition(studies, tmp_path):
+def test_ati_log_with_bias_and_tool_weight_recovers_the_clean_decomposition(
+    studies, small_cone_analysis, tmp_path
+):
     import shutil
 
     pq, _ = studies
-    clean = analyze(pq)
+    clean = small_cone_analysis
     s = tmp_path / "s"
     shutil.copytree(pq, s)
     _ati_log(s, s / "robot_ati.csv", bias=BIAS, mass=MASS)

@@ -62,9 +62,12 @@ def test_cli_passes_the_equipment_options(tmp_path, monkeypatch):
 
 
 @pytest.fixture(scope="module")
-def pair(tmp_path_factory):
+def pair(tmp_path_factory, small_cone_settings, small_cone_analysis):
+    """The clean study's analysis (shared, tests/conftest.py: the same cell, ideal equipment) and
+    the drifting-clock study's."""
+    assert small_cone_settings == SMALL
     root = tmp_path_factory.mktemp("sync")
-    clean = analyze(build_study(paper_cone_cell(**SMALL), root / "clean"))
+    clean = small_cone_analysis
     study = build_study(paper_cone_cell(**SMALL), root / "drift", equipment=EQUIPMENT)
     drift = analyze(study)
     out = write_results(drift, root / "results", png=False)

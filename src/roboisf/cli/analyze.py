@@ -68,6 +68,19 @@ def register(app: typer.Typer) -> None:
         overwrite: Overwrite = False,
         scan_points: Annotated[int, typer.Option(help="Points per scan.")] = 2_000_000,
         force_rate: Annotated[float, typer.Option(help="Force log sample rate [Hz].")] = 1000.0,
+        joint_rate: Annotated[
+            float | None, typer.Option(help="Joint log sample rate [Hz] (default 250).")
+        ] = None,
+        step_down: Annotated[
+            float | None,
+            typer.Option(
+                help="Toolpath step-down [mm] (default 0.5). A coarse path (2) with "
+                "--spacing 4 and few scan points makes a small demo cell in seconds."
+            ),
+        ] = None,
+        spacing: Annotated[
+            float | None, typer.Option(help="Toolpath point spacing [mm] (default 1).")
+        ] = None,
         robot: Annotated[
             str, typer.Option(help="Robot preset (roboisf robot list).")
         ] = "irb7600-500-2.55",
@@ -258,8 +271,16 @@ def register(app: typer.Typer) -> None:
         else:
             assert part is not None
             make = makers[part]
+        coarse = {"step_down": step_down, "spacing": spacing}
+        for key, mm in coarse.items():
+            if mm is not None and not (math.isfinite(mm) and mm > 0):
+                raise InputError(f"must be > 0 mm, got {mm}", field="--" + key.replace("_", "-"))
+        path_kw: dict[str, float] = {k: v * 1e-3 for k, v in coarse.items() if v is not None}
+        if joint_rate is not None:
+            path_kw["joint_rate"] = joint_rate
         cell = make(
             scan_points=scan_points,
+            **path_kw,
             force_rate=force_rate,
             robot=robot,
             tool_rotation=math.radians(tool_rotation),
