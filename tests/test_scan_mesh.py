@@ -219,7 +219,7 @@ def test_mesh_query_rejects_bad_backend_and_nan_points():
 
 def _numpy_morton_codes(X, bits=16):
     """The numpy Morton codes of ``spatial_order`` (its fallback), written out here."""
-    from roboisf.parts.mesh import _part1by2
+    from roboisf.parts.mesh_kernel import part1by2 as _part1by2
 
     lo = X.min(axis=0)
     span = float(np.max(X.max(axis=0) - lo)) or 1.0

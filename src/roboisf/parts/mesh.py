@@ -65,16 +65,6 @@ CHUNK = 200_000
 NUMBA_CHUNK = 131_072
 
 
-def _part1by2(v: NDArray[np.uint64]) -> NDArray[np.uint64]:
-    """Spread the low 21 bits of ``v`` to every third bit (Morton code helper)."""
-    v = v & np.uint64(0x1FFFFF)
-    v = (v | (v << np.uint64(32))) & np.uint64(0x1F00000000FFFF)
-    v = (v | (v << np.uint64(16))) & np.uint64(0x1F0000FF0000FF)
-    v = (v | (v << np.uint64(8))) & np.uint64(0x100F00F00F00F00F)
-    v = (v | (v << np.uint64(4))) & np.uint64(0x10C30C30C30C30C3)
-    return (v | (v << np.uint64(2))) & np.uint64(0x1249249249249249)
-
-
 def spatial_order(points: ArrayLike, bits: int = 16) -> NDArray[np.int64]:
     """Permutation that sorts ``points`` (N, 3) along a Morton (Z-order) curve.
 
@@ -90,14 +80,14 @@ def spatial_order(points: ArrayLike, bits: int = 16) -> NDArray[np.int64]:
         # compiled passes for the bounds and the codes, and a stable radix sort (the same
         # codes; ties keep their input order): ~5x the numpy codes + argsort on 2 M points
         X = np.ascontiguousarray(X)
-        lo, hi = mesh_kernel.bounds(X)
+        lo, hi = mesh_kernel.bounds(X, np.empty(0, np.int64))
         span = float(np.max(hi - lo)) or 1.0
         return mesh_kernel.morton_order(X, lo, (2**bits - 1) / span, bits)
     lo = X.min(axis=0)
     span = float(np.max(X.max(axis=0) - lo)) or 1.0
     q = ((X - lo) * ((2**bits - 1) / span)).astype(np.uint64)
-    code = _part1by2(q[:, 0]) | (_part1by2(q[:, 1]) << np.uint64(1))
-    code |= _part1by2(q[:, 2]) << np.uint64(2)
+    code = mesh_kernel.part1by2(q[:, 0]) | (mesh_kernel.part1by2(q[:, 1]) << np.uint64(1))
+    code |= mesh_kernel.part1by2(q[:, 2]) << np.uint64(2)
     return np.argsort(code)  # introsort: 1.6x faster than stable; ties share a 16-bit cell
 
 

@@ -399,14 +399,17 @@ def closest_grid(
 
 
 @_njit()
-def bounds(X: NDArray[np.float64]) -> tuple[Any, Any]:  # pragma: no cover - compiled
-    """Per-axis minimum and maximum of the points (N ≥ 1, 3) in one pass (``X.min(axis=0)``
-    reduces along a strided axis: ~10x slower)."""
-    lo = X[0].copy()
-    hi = X[0].copy()
-    for i in range(1, X.shape[0]):
+def bounds(X: NDArray[np.float64], rows: NDArray[np.int64]) -> tuple[Any, Any]:  # pragma: no cover
+    """Per-axis minimum and maximum of ``X[rows]`` (all of ``X`` (N ≥ 1, 3) when ``rows`` is
+    empty) in one pass (``X.min(axis=0)`` reduces along a strided axis: ~10x slower)."""
+    n = rows.size if rows.size else X.shape[0]
+    r0 = rows[0] if rows.size else 0
+    lo = X[r0].copy()
+    hi = X[r0].copy()
+    for i in range(1, n):
+        r = rows[i] if rows.size else i
         for a in range(3):
-            v = X[i, a]
+            v = X[r, a]
             if v < lo[a]:
                 lo[a] = v
             elif v > hi[a]:
@@ -414,15 +417,19 @@ def bounds(X: NDArray[np.float64]) -> tuple[Any, Any]:  # pragma: no cover - com
     return lo, hi
 
 
-@_njit()
-def _spread3(v: Any) -> Any:  # pragma: no cover - compiled
-    """Spread the low 21 bits of ``v`` (uint64) to every third bit (as ``mesh._part1by2``)."""
+def part1by2(v: Any) -> Any:
+    """Spread the low 21 bits of ``v`` (uint64, an array or, compiled, a scalar) to every third
+    bit: one axis of a Morton code."""
     v = v & np.uint64(0x1FFFFF)
     v = (v | (v << np.uint64(32))) & np.uint64(0x1F00000000FFFF)
     v = (v | (v << np.uint64(16))) & np.uint64(0x1F0000FF0000FF)
     v = (v | (v << np.uint64(8))) & np.uint64(0x100F00F00F00F00F)
     v = (v | (v << np.uint64(4))) & np.uint64(0x10C30C30C30C30C3)
     return (v | (v << np.uint64(2))) & np.uint64(0x1249249249249249)
+
+
+#: :func:`part1by2` compiled for the scalar loop of :func:`morton_order`.
+_spread3 = _njit()(part1by2)
 
 
 @_njit()

@@ -33,6 +33,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from roboisf.parts.mesh_kernel import bounds as _bounds
+
 __all__ = ["HAVE_NUMBA", "mean_knn_distance"]
 
 try:  # pragma: no cover - exercised by whichever path the environment has
@@ -182,24 +184,6 @@ def _shape(span: F64, h: float, max_cells: int) -> tuple[int, int, int]:
         if shape[0] * shape[1] * shape[2] <= max_cells:
             return (shape[0], shape[1], shape[2])
         h *= 1.25
-
-
-@_njit()
-def _bounds(P: F64, rows: NDArray[np.int64]) -> tuple[Any, Any]:  # pragma: no cover - compiled
-    """Per-axis min and max of ``P[rows]`` (all of ``P`` when ``rows`` is empty), one pass."""
-    n = rows.size if rows.size else P.shape[0]
-    r0 = rows[0] if rows.size else 0
-    lo = P[r0].copy()
-    hi = P[r0].copy()
-    for i in range(1, n):
-        r = rows[i] if rows.size else i
-        for a in range(3):
-            v = P[r, a]
-            if v < lo[a]:
-                lo[a] = v
-            elif v > hi[a]:
-                hi[a] = v
-    return lo, hi
 
 
 @_njit()
