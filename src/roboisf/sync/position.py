@@ -52,9 +52,7 @@ _MAX_BLOCK_SAMPLES = 4096
 def _project(P: F64, A: F64, D: F64, L2: F64, S0: F64, seglen: F64) -> tuple[F64, F64]:
     """Nearest point of segments (A + u D) to each of P: (progress s, distance) per sample."""
     if _kernel.HAVE_NUMBA and len(A) > 0:
-        return _kernel.project_segments(  # type: ignore[no-any-return]
-            np.ascontiguousarray(P, dtype=float), A, D, L2, S0, seglen
-        )
+        return _kernel.project_segments(np.ascontiguousarray(P, dtype=float), A, D, L2, S0, seglen)
     return _project_numpy(P, A, D, L2, S0, seglen)
 
 

@@ -51,7 +51,6 @@ def _project_py(P: Any, A: Any, D: Any, L2: Any, S0: Any, seglen: Any) -> tuple[
     return s, d
 
 
-if HAVE_NUMBA:
-    project_segments = numba.njit(nogil=True, cache=True)(_project_py)
-else:  # pragma: no cover
-    project_segments = None
+project_segments: Any = (
+    numba.njit(nogil=True, cache=True)(_project_py) if HAVE_NUMBA else _project_py
+)
