@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
+from roboisf.sync import position_kernel as _kernel
 from roboisf.sync.alignment import Alignment, clock_fit, point_windows
 from roboisf.toolpath import Toolpath
 
@@ -50,6 +51,13 @@ _MAX_BLOCK_SAMPLES = 4096
 
 def _project(P: F64, A: F64, D: F64, L2: F64, S0: F64, seglen: F64) -> tuple[F64, F64]:
     """Nearest point of segments (A + u D) to each of P: (progress s, distance) per sample."""
+    if _kernel.HAVE_NUMBA and len(A) > 0:
+        return _kernel.project_segments(np.ascontiguousarray(P, dtype=float), A, D, L2, S0, seglen)
+    return _project_numpy(P, A, D, L2, S0, seglen)
+
+
+def _project_numpy(P: F64, A: F64, D: F64, L2: F64, S0: F64, seglen: F64) -> tuple[F64, F64]:
+    """The numpy path of :func:`_project` (reference of the compiled kernel)."""
     rel = P[:, None, :] - A[None, :, :]
     u = np.einsum("bwk,wk->bw", rel, D) / np.where(L2 > 0, L2, 1.0)
     u = np.clip(u, 0.0, 1.0)

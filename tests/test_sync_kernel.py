@@ -1,0 +1,48 @@
+"""The compiled position-alignment projection equals the numpy path (issue #16)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from roboisf.sync import position, position_kernel
+
+pytestmark = pytest.mark.skipif(not position_kernel.HAVE_NUMBA, reason="numba not installed")
+
+
+def _segments(tip: np.ndarray) -> tuple[np.ndarray, ...]:
+    D = np.diff(tip, axis=0)
+    seglen = np.linalg.norm(D, axis=1)
+    S = np.concatenate([[0.0], np.cumsum(seglen)])
+    return tip[:-1], D, seglen**2, S[:-1], seglen
+
+
+def test_project_kernel_equals_numpy() -> None:
+    rng = np.random.default_rng(3)
+    tip = np.cumsum(rng.normal(scale=1e-3, size=(200, 3)), axis=0)
+    tip[50] = tip[49]  # a zero-length segment
+    A, D, L2, S0, seglen = _segments(tip)
+    P = tip[rng.integers(0, 200, 500)] + rng.normal(scale=5e-4, size=(500, 3))
+    s_k, d_k = position_kernel.project_segments(P, A, D, L2, S0, seglen)
+    s_n, d_n = position._project_numpy(P, A, D, L2, S0, seglen)
+    np.testing.assert_allclose(s_k, s_n, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(d_k, d_n, rtol=0, atol=1e-12)
+
+
+def test_track_compiled_equals_numpy(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A helix path; the log pauses, leaves the path (retract), comes back and restarts."""
+    th = np.linspace(0, 6 * np.pi, 3000)
+    tip = np.c_[0.05 * np.cos(th), 0.05 * np.sin(th), -0.001 * th]
+    S = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(tip, axis=0), axis=1))])
+    rng = np.random.default_rng(7)
+    walk = np.r_[np.linspace(0, 1200, 900), np.full(200, 1200.0), np.linspace(1200, 2999, 1500)]
+    P = np.array([tip[int(i)] for i in walk]) + rng.normal(scale=2e-5, size=(len(walk), 3))
+    P[:50] += [0, 0, 0.05]  # approach, off the path
+    P[1000:1100] += [0, 0, 0.02]  # retract during the pause
+    s_k = position._track(P, tip, S, position.OFF_PATH)
+    monkeypatch.setattr(position_kernel, "HAVE_NUMBA", False)
+    s_n = position._track(P, tip, S, position.OFF_PATH)
+    assert np.isnan(s_n).any() and np.isfinite(s_n).sum() > 2000
+    np.testing.assert_array_equal(np.isnan(s_k), np.isnan(s_n))
+    ok = np.isfinite(s_n)
+    np.testing.assert_allclose(s_k[ok], s_n[ok], rtol=0, atol=1e-12)
