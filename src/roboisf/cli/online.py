@@ -145,7 +145,8 @@ def online(
     Limits (never exceeded): --max-correction, --max-rate per cycle, --deadband; the watchdog
     holds and then ramps the correction to zero when the sensor goes quiet. Every cycle is
     logged to -o (Parquet). Ctrl-C ends the loop and writes the log. Lengths mm, angles deg.
-    For no missed cycle on a busy PC: --realtime 50 --cpu N --mlock. See docs/online.md.
+    On a PC with a core to spare for the loop: --realtime 50 --cpu N --mlock (on a 2-core VM
+    running --simulate's three processes they made it worse). See docs/online.md.
     """
     import numpy as np
 
