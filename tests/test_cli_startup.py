@@ -273,3 +273,23 @@ def test_a_command_help_does_not_coerce_the_absent_group_help_through_pydantic(t
     # the guard can fail: a missing argument is coerced (None) before click reports it
     out = _child(_CHILD, json.dumps([["analyze"]]), '["pydantic"]', cwd=tmp_path)
     assert out == [{"code": 2, "heavy": ["pydantic"]}]
+
+
+def test_no_help_text_carries_rich_markup():
+    """Help is click's plain text: a rich escape (``\\[mm]``) or tag would be printed literally."""
+    import re
+
+    import click
+
+    _, commands = _real_commands()
+    bad = re.compile(r"\\\[|\[/?(bold|dim|green|red|yellow|cyan|b|i)\]")
+
+    def texts(cmd: click.Command, path: str) -> list[tuple[str, str]]:
+        out = [(path, cmd.help or "")]
+        out += [(f"{path} {p.name}", getattr(p, "help", None) or "") for p in cmd.params]
+        for name, sub in getattr(cmd, "commands", {}).items():
+            out += texts(sub, f"{path} {name}")
+        return out
+
+    found = [(w, t) for name, c in commands.items() for w, t in texts(c, name) if bad.search(t)]
+    assert len(commands) > 10 and not found, found[:5]

@@ -57,10 +57,10 @@ def register(app: typer.Typer) -> None:
             int, typer.Option(help="Virtual cell: form–measure–adjust iterations.")
         ] = 3,
         step_down: Annotated[
-            float, typer.Option(help="Virtual cell: step-down between laps \\[mm].")
+            float, typer.Option(help="Virtual cell: step-down between laps [mm].")
         ] = 0.5,
         spacing: Annotated[
-            float, typer.Option(help="Virtual cell: point spacing along a lap \\[mm].")
+            float, typer.Option(help="Virtual cell: point spacing along a lap [mm].")
         ] = 1.0,
         compliance: Annotated[
             bool,
@@ -77,10 +77,10 @@ def register(app: typer.Typer) -> None:
         ] = True,
         gain: Annotated[float, typer.Option(help="Adjustment gain λ, in (0, 2).")] = 0.8,
         smooth_along: Annotated[
-            float, typer.Option(help="Gaussian σ of the deviation along a lap \\[mm].")
+            float, typer.Option(help="Gaussian σ of the deviation along a lap [mm].")
         ] = 3.0,
         smooth_across: Annotated[
-            float, typer.Option(help="Gaussian σ of the deviation across laps \\[mm].")
+            float, typer.Option(help="Gaussian σ of the deviation across laps [mm].")
         ] = 1.0,
         hold_gaps: Annotated[
             bool,
@@ -92,7 +92,7 @@ def register(app: typer.Typer) -> None:
         ] = False,
         relax: Annotated[float, typer.Option(help="Fixed-point under-relaxation ω.")] = 0.8,
         max_iter: Annotated[int, typer.Option(help="Fixed-point iterations at most.")] = 50,
-        tol: Annotated[float, typer.Option(help="Fixed-point tolerance \\[mm].")] = 1e-4,
+        tol: Annotated[float, typer.Option(help="Fixed-point tolerance [mm].")] = 1e-4,
         partial: Annotated[
             bool,
             typer.Option(
@@ -102,16 +102,16 @@ def register(app: typer.Typer) -> None:
             ),
         ] = False,
         max_overbend: Annotated[
-            float, typer.Option(help="Largest intended over-bend into the part \\[mm].")
+            float, typer.Option(help="Largest intended over-bend into the part [mm].")
         ] = 2.0,
         rim_blend: Annotated[
             float,
             typer.Option(
                 help="Last part of the rim band over which the springback offset of the first "
-                "lap below it ramps in \\[mm] (0: a hard edge, a step in the command).",
+                "lap below it ramps in [mm] (0: a hard edge, a step in the command).",
             ),
         ] = 5.0,
-        tool_mass: Annotated[float, typer.Option(help="Tool + holder mass \\[kg].")] = 2.0,
+        tool_mass: Annotated[float, typer.Option(help="Tool + holder mass [kg].")] = 2.0,
         stiffness: Annotated[
             Path | None,
             typer.Option(

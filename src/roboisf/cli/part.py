@@ -37,32 +37,32 @@ Output = Annotated[
     Path, typer.Option("--output", "-o", help=f"Part file to write (.toml). {FILE_HELP}")
 ]
 # part dimensions, shared with ``roboisf toolpath`` (mm, deg)
-ConeDiameter = Annotated[float, typer.Option(help="Wall diameter at the sheet \\[mm].")]
-WallAngle = Annotated[float, typer.Option(help="Wall angle, 0 < α < 90 \\[deg].")]
-Depth = Annotated[float, typer.Option(help="Part depth \\[mm].")]
+ConeDiameter = Annotated[float, typer.Option(help="Wall diameter at the sheet [mm].")]
+WallAngle = Annotated[float, typer.Option(help="Wall angle, 0 < α < 90 [deg].")]
+Depth = Annotated[float, typer.Option(help="Part depth [mm].")]
 VwacfDiameter = ConeDiameter
-ArcRadius = Annotated[float, typer.Option(help="Radius of the circular-arc generatrix \\[mm].")]
-FinalWallAngle = Annotated[float, typer.Option(help="Wall angle at the bottom \\[deg].")]
+ArcRadius = Annotated[float, typer.Option(help="Radius of the circular-arc generatrix [mm].")]
+FinalWallAngle = Annotated[float, typer.Option(help="Wall angle at the bottom [deg].")]
 ProfileCsv = Annotated[Path, typer.Argument(help="Generatrix CSV with header r,z (mm), rim first.")]
-Sheet = Annotated[float, typer.Option(help="Initial sheet thickness \\[mm].")]
-Flange = Annotated[float, typer.Option(help="Flange width outside the opening \\[mm].")]
+Sheet = Annotated[float, typer.Option(help="Initial sheet thickness [mm].")]
+Flange = Annotated[float, typer.Option(help="Flange width outside the opening [mm].")]
 
-TopLength = Annotated[float, typer.Option(help="Opening along x at the sheet plane \\[mm].")]
-TopWidth = Annotated[float, typer.Option(help="Opening along y at the sheet plane \\[mm].")]
+TopLength = Annotated[float, typer.Option(help="Opening along x at the sheet plane [mm].")]
+TopWidth = Annotated[float, typer.Option(help="Opening along y at the sheet plane [mm].")]
 PyrWallAngle = Annotated[
-    float, typer.Option(help="Wall angle of the x-walls (and y-walls), 0 < α < 90 \\[deg].")
+    float, typer.Option(help="Wall angle of the x-walls (and y-walls), 0 < α < 90 [deg].")
 ]
 PyrWallAngleY = Annotated[
     float | None,
     typer.Option(
-        help="Wall angle of the y-walls \\[deg] (default: --wall-angle; needs "
+        help="Wall angle of the y-walls [deg] (default: --wall-angle; needs "
         "--corner-radius 0 if different)."
     ),
 ]
 CornerRadius = Annotated[
     float,
     typer.Option(
-        help="Rounding of the opening's corners about vertical axes \\[mm]; it shrinks with the "
+        help="Rounding of the opening's corners about vertical axes [mm]; it shrinks with the "
         "wall (corners are cones of the wall angle, sharp below depth r·tan α)."
     ),
 ]
@@ -77,7 +77,7 @@ MeshOrient = Annotated[
 Tolerance = Annotated[
     float,
     typer.Option(
-        help="STEP/IGES only: max. distance of the tessellation from the CAD surface \\[mm]."
+        help="STEP/IGES only: max. distance of the tessellation from the CAD surface [mm]."
     ),
 ]
 

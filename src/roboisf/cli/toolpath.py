@@ -69,25 +69,25 @@ Format = Annotated[
     str | None,
     typer.Option("--format", "-f", help="csv | gcode | rapid | krl | fanuc (default: from -o)."),
 ]
-StepDown = Annotated[float, typer.Option(help="Depth step between laps \\[mm].")]
-ToolDiameter = Annotated[float, typer.Option(help="Ball diameter \\[mm].")]
+StepDown = Annotated[float, typer.Option(help="Depth step between laps [mm].")]
+ToolDiameter = Annotated[float, typer.Option(help="Ball diameter [mm].")]
 Spiral = Annotated[bool, typer.Option("--spiral", help="Spiral path (z ramps within each lap).")]
-Spacing = Annotated[float, typer.Option(help="Max. distance between points along a lap \\[mm].")]
-Feed = Annotated[float, typer.Option(help="Feed rate \\[mm/min].")]
+Spacing = Annotated[float, typer.Option(help="Max. distance between points along a lap [mm].")]
+Feed = Annotated[float, typer.Option(help="Feed rate [mm/min].")]
 MaxWallStep = Annotated[
     float | None,
-    typer.Option(help="Max. distance between laps along the wall \\[mm] (shallow walls)."),
+    typer.Option(help="Max. distance between laps along the wall [mm] (shallow walls)."),
 ]
 ScallopHeight = Annotated[
     float | None,
     typer.Option(
-        help="Space the laps for this cusp height between them \\[mm]: Δz = 2 sin α "
+        help="Space the laps for this cusp height between them [mm]: Δz = 2 sin α "
         "sqrt(h(2R − h)) per lap from its shallowest wall, ≤ --step-down (any part)."
     ),
 ]
 ToolLength = Annotated[
     float | None,
-    typer.Option(help="Flange to ball tip \\[mm] (robot programs; same as --tool LENGTH)."),
+    typer.Option(help="Flange to ball tip [mm] (robot programs; same as --tool LENGTH)."),
 ]
 MaxPoints = Annotated[
     int,
@@ -101,8 +101,8 @@ ToolOpt = Annotated[
     str | None,
     typer.Option(
         "--tool",
-        help="The tool of a robot program: flange to ball tip \\[mm], or a study folder / "
-        "study.toml whose \\[robot] flange_to_tip is used. Required for .mod/.src/.ls.",
+        help="The tool of a robot program: flange to ball tip [mm], or a study folder / "
+        "study.toml whose [robot] flange_to_tip is used. Required for .mod/.src/.ls.",
     ),
 ]
 Placement = Annotated[
@@ -110,8 +110,8 @@ Placement = Annotated[
     typer.Option(
         "--placement",
         help="Work object (blank centre, sheet plane) in the robot base: 'X,Y,Z' or "
-        "'X,Y,Z,RX,RY,RZ' \\[mm, deg; R = Rz(RZ)Ry(RY)Rx(RX), as study.toml], 'base' for the "
-        "robot base itself, or a study folder / study.toml (its \\[robot] placement). Required "
+        "'X,Y,Z,RX,RY,RZ' [mm, deg; R = Rz(RZ)Ry(RY)Rx(RX), as study.toml], 'base' for the "
+        "robot base itself, or a study folder / study.toml (its [robot] placement). Required "
         "for .mod/.src/.ls.",
     ),
 ]
@@ -123,7 +123,7 @@ Robot = Annotated[
         "(confdata, S/T, CONFIG). Default: the study's with --placement STUDY, else none.",
     ),
 ]
-ToolMass = Annotated[float, typer.Option(help="Tool + holder mass \\[kg] (robot programs).")]
+ToolMass = Annotated[float, typer.Option(help="Tool + holder mass [kg] (robot programs).")]
 WorkOffset = Annotated[
     str,
     typer.Option(
@@ -141,16 +141,16 @@ ArmConfigOpt = Annotated[
     ),
 ]
 ToolRotation = Annotated[
-    float, typer.Option(help="Rotation of the tool about its own axis \\[deg] (RAPID/KRL).")
+    float, typer.Option(help="Rotation of the tool about its own axis [deg] (RAPID/KRL).")
 ]
 WorkFrame = Annotated[
     str | None,
     typer.Option(
-        help="Work frame in the robot base as 'X,Y,Z,A,B,C' \\[mm, deg; R = Rz(A)Ry(B)Rx(C), "
+        help="Work frame in the robot base as 'X,Y,Z,A,B,C' [mm, deg; R = Rz(A)Ry(B)Rx(C), "
         "KUKA's order] — the same as --placement with the angles given the KUKA way."
     ),
 ]
-SafeHeight = Annotated[float, typer.Option(help="Approach/retract height \\[mm].")]
+SafeHeight = Annotated[float, typer.Option(help="Approach/retract height [mm].")]
 
 
 @dataclass(frozen=True)

@@ -60,7 +60,7 @@ def import_command(
     tool_diameter: Annotated[
         float,
         typer.Option(
-            help="Ball diameter \\[mm] (the study's \\[tool] ball_diameter).", show_default=False
+            help="Ball diameter [mm] (the study's [tool] ball_diameter).", show_default=False
         ),
     ],
     output: Annotated[
@@ -90,20 +90,20 @@ def import_command(
     chord_tolerance: Annotated[
         float,
         typer.Option(
-            help="Arcs (G02/G03, CIRCLE/) become chords at most this far from the arc \\[mm]."
+            help="Arcs (G02/G03, CIRCLE/) become chords at most this far from the arc [mm]."
         ),
     ] = 0.001,
     spacing: Annotated[
         float | None,
         typer.Option(
-            help="Split forming moves longer than this \\[mm] evenly (long CAM lines → points "
+            help="Split forming moves longer than this [mm] evenly (long CAM lines → points "
             "every SPACING for the force and scan look-ups). Default: the points as programmed.",
         ),
     ] = None,
     rapid_rate: Annotated[
         float | None,
         typer.Option(
-            help="Rapid traverse rate \\[mm/min] for the times. Default: rapids (G00 …) take no "
+            help="Rapid traverse rate [mm/min] for the times. Default: rapids (G00 …) take no "
             "time; forming moves take length / feed.",
         ),
     ] = None,
@@ -111,7 +111,7 @@ def import_command(
         list[str] | None,
         typer.Option(
             metavar="GNN=X,Y,Z",
-            help="A work offset's value in machine coordinates, 'G55=X,Y,Z' \\[mm] (repeat for "
+            help="A work offset's value in machine coordinates, 'G55=X,Y,Z' [mm] (repeat for "
             "each). Points under another offset are moved into the frame of the one active at "
             "the first move; without values they are taken as they are (warned).",
         ),
@@ -128,7 +128,7 @@ def import_command(
         typer.Option(
             metavar="X,Y,Z",
             help="Where the blank centre on the sheet top is in the program's coordinates "
-            "\\[mm], when the program zero is elsewhere (e.g. on the machine table): subtracted "
+            "[mm], when the program zero is elsewhere (e.g. on the machine table): subtracted "
             "from every point. Default: the program zero is the blank centre on the sheet.",
         ),
     ] = None,
@@ -138,7 +138,7 @@ def import_command(
     ] = None,
     feed: Annotated[
         float,
-        typer.Option(help="Feed of an x,y,z list \\[mm/min] (a list has none)."),
+        typer.Option(help="Feed of an x,y,z list [mm/min] (a list has none)."),
     ] = 750.0,
     overwrite: Overwrite = False,
 ) -> None:
