@@ -272,7 +272,9 @@ def test_analyze_output_never_among_its_inputs(study, tmp_path, monkeypatch, cap
 
 # every command that writes: a refusal before computing, nothing touched
 _BUSY = {
-    "analyze": ["analyze", "{d}/nowhere", "-o", "{o}"],
+    # a study.toml that parses (the command's first check) but is never loaded: the refusal of
+    # the output folder comes first
+    "analyze": ["analyze", "{s}", "-o", "{o}"],
     "virtual-cell": [*VC, "-o", "{o}"],
     "demo": ["demo", "-o", "{o}"],
     "compensate": ["compensate", "--virtual", "cone", "-o", "{o}"],
@@ -303,12 +305,16 @@ _FILES = {
 
 
 @pytest.mark.parametrize("cmd", list(_BUSY), ids=list(_BUSY))
-def test_every_folder_command_refuses_a_foreign_folder(cmd, tmp_path, monkeypatch, capsys):
+def test_every_folder_command_refuses_a_foreign_folder(
+    cmd, tmp_path, tmp_path_factory, monkeypatch, capsys
+):
     out = tmp_path / "out"
     out.mkdir()
     (out / "thesis.docx").write_bytes(b"precious")
+    study = tmp_path_factory.mktemp("study")
+    (study / "study.toml").write_text("[study]\n")
     monkeypatch.chdir(tmp_path)
-    argv = [a.format(d=tmp_path, o=out) for a in _BUSY[cmd]]
+    argv = [a.format(d=tmp_path, o=out, s=study) for a in _BUSY[cmd]]
     assert main(argv) == 2
     assert "not empty" in _err_line(capsys)
     assert _tree(tmp_path) == {"out/thesis.docx": hashlib.sha256(b"precious").hexdigest()}
@@ -542,10 +548,13 @@ def test_lock_without_flock_takes_over_a_dead_pid_and_refuses_a_live_one(tmp_pat
 
 
 def test_a_failed_run_leaves_no_empty_parent_folders(tmp_path, capsys):
-    argv = ["analyze", str(tmp_path / "nowhere"), "-o", str(tmp_path / "a" / "b" / "out")]
-    assert main(argv) == 2  # no study.toml: fails after the output was claimed
-    assert "study.toml" in _err_line(capsys)
-    assert list(tmp_path.iterdir()) == []
+    study = tmp_path / "st"
+    study.mkdir()
+    (study / "study.toml").write_text("[nonsense]\n")  # parses as TOML; load_study refuses it
+    argv = ["analyze", str(study), "-o", str(tmp_path / "a" / "b" / "out")]
+    assert main(argv) == 2  # fails after the output was claimed
+    assert "[nonsense]: unknown table" in capsys.readouterr().err
+    assert [p.name for p in tmp_path.iterdir()] == ["st"]
     out = tmp_path / "c" / "d.toml"
     assert main(["-q", "part", "cone", "-o", str(out)]) == 0
     assert out.is_file()  # a written output keeps the folders made for it

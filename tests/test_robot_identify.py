@@ -114,3 +114,17 @@ def test_too_few_experiments():
     m = load_robot("irb7600-500-2.55").with_tool(TOOL)
     with pytest.raises(InputError, match="add experiments"):
         identify_stiffness(m, _experiments(m, 2, 0), sigma_translation=SIG)
+
+
+@pytest.mark.parametrize("dof", [1, 2, 3, 7, 30, 1000])
+@pytest.mark.parametrize("confidence", [0.68, 0.9, 0.95, 0.99])
+def test_t_quantile_is_scipy_stats_students_t(dof, confidence):
+    # the CI's quantile comes from scipy.special (scipy.stats is 0.6 s to import): the oracle is
+    # scipy.stats' Student's t, and the 95 % two-sided value at dof 1 is 12.706 (any t table)
+    from scipy import stats
+    from scipy.special import stdtrit
+
+    p = 0.5 + confidence / 2
+    assert stdtrit(dof, p) == pytest.approx(stats.t.ppf(p, dof), rel=1e-13)
+    if dof == 1 and confidence == 0.95:
+        assert stdtrit(dof, p) == pytest.approx(12.706, abs=5e-4)

@@ -8,10 +8,11 @@ implementation (``roboisf.cli.console``); library users get silence by default.
 from __future__ import annotations
 
 import contextlib
+import threading
 from collections.abc import Callable, Iterator
 from typing import Protocol
 
-__all__ = ["NULL_PROGRESS", "Progress", "noop_advance", "task"]
+__all__ = ["NULL_PROGRESS", "Cancelled", "Progress", "cancellable", "noop_advance", "task"]
 
 Advance = Callable[[float], None]
 
@@ -42,3 +43,29 @@ def task(
 ) -> contextlib.AbstractContextManager[Advance]:
     """``progress.task(...)`` or a no-op when ``progress`` is None."""
     return (progress or NULL_PROGRESS).task(description, total)
+
+
+class Cancelled(Exception):
+    """Raised at a task boundary of work whose result is no longer wanted (:func:`cancellable`)."""
+
+
+class _Cancellable:
+    def __init__(self, progress: Progress | None, cancel: threading.Event) -> None:
+        self._progress = progress or NULL_PROGRESS
+        self._cancel = cancel
+
+    @contextlib.contextmanager
+    def task(self, description: str, total: float | None = None) -> Iterator[Advance]:
+        if self._cancel.is_set():
+            raise Cancelled(description)
+        with self._progress.task(description, total) as advance:
+            yield advance
+        if self._cancel.is_set():
+            raise Cancelled(description)
+
+
+def cancellable(progress: Progress | None, cancel: threading.Event) -> Progress:
+    """``progress`` for work in a worker thread that stops at its next task boundary once
+    ``cancel`` is set (:class:`Cancelled` is raised there): the way the analysis stops the
+    scan comparison it started beside the log reading when the logs turn out bad."""
+    return _Cancellable(progress, cancel)

@@ -43,9 +43,9 @@ def register(app: typer.Typer) -> None:
         Writes report.html, contributions.csv (mm, %), contributions_normal.csv, per_point.parquet,
         summary.json and figures/*.png.
         """
+        output_dir(output, "analyze", overwrite, study_inputs(study))
         from roboisf.decompose.pipeline import analyze, write_results
 
-        output_dir(output, "analyze", overwrite, study_inputs(study))
         progress = state.progress()
         result = analyze(study, progress=progress)
         write_results(result, output, png=png, progress=progress)

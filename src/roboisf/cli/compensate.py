@@ -132,6 +132,7 @@ def register(app: typer.Typer) -> None:
         per_point.csv (mm, flags), compensation.json and compensation.html/.png (mean |dn| per
         lap before/after, commanded offset per lap, the largest lap-to-lap step).
         """
+        study_inputs(study)  # a mistyped STUDY reported before the numeric stack is imported
         import numpy as np
 
         from roboisf.compensate import CompensationOptions, write_compensation

@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import contextlib
 import sys
+import threading
 from collections.abc import Iterator
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from roboisf.progress import Advance, noop_advance
 
@@ -72,10 +73,17 @@ state = _State()
 
 
 class RichProgress:
-    """:class:`roboisf.progress.Progress` on a rich progress bar (stderr, transient)."""
+    """:class:`roboisf.progress.Progress` on a rich progress bar (stderr, transient).
+
+    One live display for all open tasks: nested tasks and tasks opened from worker threads (the
+    analysis compares the scans while it reads the logs) are lines of the same display, added
+    and removed under a lock; the display stops when the last task ends."""
 
     def __init__(self, console: Console) -> None:
         self.console = console
+        self._lock = threading.Lock()
+        self._bar: Any = None
+        self._open = 0
 
     @contextlib.contextmanager
     def task(self, description: str, total: float | None = None) -> Iterator[Advance]:
@@ -85,6 +93,29 @@ class RichProgress:
             yield noop_advance
             return
         from rich.markup import escape
+
+        with self._lock:
+            if self._bar is None:
+                self._bar = self._new_bar()
+                self._bar.start()
+            bar = self._bar
+            self._open += 1
+            tid = bar.add_task(escape(description), total=total)
+
+        def advance(amount: float = 1.0) -> None:
+            bar.advance(tid, amount)
+
+        try:
+            yield advance
+        finally:
+            with self._lock:
+                bar.remove_task(tid)
+                self._open -= 1
+                if self._open == 0:
+                    bar.stop()
+                    self._bar = None
+
+    def _new_bar(self) -> Any:
         from rich.progress import (
             BarColumn,
             Progress,
@@ -99,10 +130,4 @@ class RichProgress:
             TimeElapsedColumn(),
             TimeRemainingColumn(),
         ]
-        with Progress(*cols, console=self.console, transient=True) as bar:
-            tid = bar.add_task(escape(description), total=total)
-
-            def advance(amount: float = 1.0) -> None:
-                bar.advance(tid, amount)
-
-            yield advance
+        return Progress(*cols, console=self.console, transient=True)

@@ -38,9 +38,15 @@ Overwrite = Annotated[
 
 
 def study_inputs(study: Path | None) -> list[Path]:
-    """A study argument (folder or its study.toml) as inputs: the study folder either way."""
+    """A study argument (folder or its study.toml) as inputs: the study folder either way.
+
+    Checks first that it has a ``study.toml`` that parses as TOML (InputError → exit 2): before
+    the command imports its numeric libraries, so that a mistyped path is reported at once."""
     if study is None:
         return []
+    from roboisf.study.locate import read_study_toml
+
+    read_study_toml(study)
     return [study, study.parent] if study.suffix.lower() == ".toml" else [study]
 
 

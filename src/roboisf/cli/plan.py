@@ -112,15 +112,6 @@ def plan_cmd(
     top: int = typer.Option(10, "--top", help="Candidates shown in the summary."),
 ) -> None:
     """Rank work-object placements (x, y, z, yaw) and tool rotations by predicted deflection."""
-    import numpy as np
-
-    from roboisf.frames import make_transform, rot_z
-    from roboisf.io.atomic import staged_directory
-    from roboisf.plan import placement_grid, plan_placements
-    from roboisf.report.plan_maps import plot_placement_map, write_plan_html
-    from roboisf.report.robot_maps import plot_stiffness_map
-    from roboisf.robot import stiffness_map
-
     if (part is None) == (study is None):
         raise InputError("give exactly one of --part or --study", field="--part/--study")
     for flag, v in (("--workers", workers), ("--top", top)):
@@ -134,6 +125,16 @@ def plan_cmd(
         raise InputError(f"must be ≥ 0, got {sigma_min}", field="--sigma-min")
     inputs = [p for p in (part, study, stiffness) if p is not None]
     output_dir(output, "plan", overwrite, [*inputs, *study_inputs(study)])
+    # the numeric stack only now: a bad option or a mistyped STUDY is reported at once
+    import numpy as np
+
+    from roboisf.frames import make_transform, rot_z
+    from roboisf.io.atomic import staged_directory
+    from roboisf.plan import placement_grid, plan_placements
+    from roboisf.report.plan_maps import plot_placement_map, write_plan_html
+    from roboisf.report.robot_maps import plot_stiffness_map
+    from roboisf.robot import stiffness_map
+
     gammas = np.radians(parse_range(tool_rotations, "--tool-rotations"))
     opts: dict[str, Any] = {
         "objective": objective,

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import math
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -54,14 +55,14 @@ from roboisf.io.jointlog import JointLog, read_joint_log
 from roboisf.io.outdir import final_location
 from roboisf.io.thickness import read_thickness_csv
 from roboisf.parts import sine_law_thickness
-from roboisf.progress import Progress, task
+from roboisf.progress import Cancelled, Progress, cancellable, task
 from roboisf.robot import compliance_stats, deflection_contributions, ik_toolpath
 from roboisf.scan import CompareOptions, ScanComparison, compare_scan, read_scan
 from roboisf.study.checks import check_force_log, check_joint_log, check_tool_radius
 from roboisf.study.sensors import condition_study_log, read_study_force_log, sensor_to_tip
 from roboisf.study.spec import RunSpec, Study, load_study
 from roboisf.sync import Alignment
-from roboisf.sync.run import align_run
+from roboisf.sync.run import RunAlignment, align_run
 from roboisf.toolpath import Toolpath
 from roboisf.toolpath.importer import study_toolpath
 
@@ -226,33 +227,11 @@ def _compare(
     )
 
 
-def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> AnalysisResult:
-    """Run the decomposition on a study (a :class:`Study` or a folder/``study.toml``)."""
-    if not isinstance(study, Study):
-        study = load_study(study)
-    cell = cell_from_study(study)
+def _logs_part(
+    study: Study, cell: Cell, tp: Toolpath, progress: Progress | None
+) -> tuple[dict[str, RunAlignment], F64, str, list[str], F64, F64]:
+    """The logs' part of the analysis: read, align, joint angles, tip wrenches of both runs."""
     cnc, rob = study.cnc, study.robot_run
-    with task(progress, "toolpath"):
-        tp = study_toolpath(study, cnc, cell.part)  # a toolpath CSV or a CAM program
-        tp_r = tp if rob.toolpath == cnc.toolpath else study_toolpath(study, rob, cell.part)
-        if len(tp_r) != len(tp) or np.max(np.abs(tp_r.contact - tp.contact)) > 1e-6:
-            raise InputError(
-                "the CNC and robot runs must use the same toolpath (the method "
-                "compares the two parts point by point)",
-                file=rob.toolpath,
-            )
-        for path in (tp, tp_r):
-            check_tool_radius(study.tool.ball_diameter, path, study_file=study.root / "study.toml")
-        off = np.abs(cell.part.closest_point(tp.contact).distance)
-        if off.max() > 0.1e-3:
-            i = int(np.argmax(off))
-            raise InputError(
-                f"toolpath point {i} is {off[i] * 1e3:.2f} mm off the part: the contact points are "
-                "not on the nominal surface of [part] (a toolpath of another part?)",
-                file=cnc.toolpath,
-            )
-    truth_file = study.root / "truth" / "per_point.parquet"
-    truth = _read_truth(truth_file) if truth_file.is_file() else None  # before the long work
     with task(progress, "alignment of the logs"):
         logs = {
             r.name: (
@@ -283,10 +262,96 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
             )
             for r in (cnc, rob)
         )
+    # the raw logs (2.3 M samples each at 1 kHz on the paper cone, ~0.3 GB in all) are freed on
+    # return, while the scans may still run
+    return aligned, q, q_source, input_warnings, W_cnc, W_rob
 
-    # the raw logs (2.3 M samples each at 1 kHz on the paper cone, ~0.3 GB in all) are not
-    # needed past this point: freed before the scans, whose own peak then sets the analysis's
-    del logs, R_fk
+
+class _ScansBeside:
+    """The scan comparisons of ``runs`` in a worker thread, beside the log reading.
+
+    The scans need only the part and the toolpath; the logs' reading, alignment and conditioning
+    run in the calling thread meanwhile (mostly pandas/numpy holding the GIL, while the scan
+    kernels release it), so the two cores are both busy (issue #16). :meth:`result` waits for
+    them and re-raises their error; :meth:`cancel` stops them at their next step (the logs were
+    refused, or Ctrl-C) and waits, so no thread outlives the analysis."""
+
+    def __init__(
+        self,
+        study: Study,
+        cell: Cell,
+        runs: tuple[RunSpec, ...],
+        tp: Toolpath,
+        progress: Progress | None,
+    ) -> None:
+        self._cancel = threading.Event()
+        self._scans: dict[str, ScanComparison] = {}
+        self._error: BaseException | None = None
+        prog = cancellable(progress, self._cancel)
+
+        def work() -> None:
+            try:
+                for run in runs:
+                    with task(prog, f"scan {run.name}"):
+                        self._scans[run.name] = _compare(study, cell, run, tp, prog)
+            except Cancelled:
+                pass
+            except BaseException as e:  # re-raised in the caller's thread by result()
+                self._error = e
+
+        self._thread = threading.Thread(target=work, name="roboisf-scans")
+        self._thread.start()
+
+    def result(self) -> dict[str, ScanComparison]:
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+        return self._scans
+
+    def cancel(self) -> None:
+        self._cancel.set()
+        self._thread.join()
+
+
+def analyze(
+    study: Study | str | Path, *, progress: Progress | None = None, overlap: bool = True
+) -> AnalysisResult:
+    """Run the decomposition on a study (a :class:`Study` or a folder/``study.toml``).
+
+    ``overlap``: compare the scans in a worker thread while the logs are read and aligned (the
+    same results; False runs every step in turn, in the calling thread)."""
+    if not isinstance(study, Study):
+        study = load_study(study)
+    cell = cell_from_study(study)
+    cnc, rob = study.cnc, study.robot_run
+    with task(progress, "toolpath"):
+        tp = study_toolpath(study, cnc, cell.part)  # a toolpath CSV or a CAM program
+        tp_r = tp if rob.toolpath == cnc.toolpath else study_toolpath(study, rob, cell.part)
+        if len(tp_r) != len(tp) or np.max(np.abs(tp_r.contact - tp.contact)) > 1e-6:
+            raise InputError(
+                "the CNC and robot runs must use the same toolpath (the method "
+                "compares the two parts point by point)",
+                file=rob.toolpath,
+            )
+        for path in (tp, tp_r):
+            check_tool_radius(study.tool.ball_diameter, path, study_file=study.root / "study.toml")
+        off = np.abs(cell.part.closest_point(tp.contact).distance)
+        if off.max() > 0.1e-3:
+            i = int(np.argmax(off))
+            raise InputError(
+                f"toolpath point {i} is {off[i] * 1e3:.2f} mm off the part: the contact points are "
+                "not on the nominal surface of [part] (a toolpath of another part?)",
+                file=cnc.toolpath,
+            )
+    truth_file = study.root / "truth" / "per_point.parquet"
+    truth = _read_truth(truth_file) if truth_file.is_file() else None  # before the long work
+    beside = _ScansBeside(study, cell, (cnc, rob), tp, progress) if overlap else None
+    try:
+        aligned, q, q_source, input_warnings, W_cnc, W_rob = _logs_part(study, cell, tp, progress)
+    except BaseException:
+        if beside is not None:
+            beside.cancel()
+        raise
     with task(progress, "tool and holder compliance"):
         k_tool, k_holder, k_t, k_th = tip_compliances(cell, progress=progress)
     # deflections of the ball centre (the paper's reference: its normal motion forms the part)
@@ -295,10 +360,13 @@ def analyze(study: Study | str | Path, *, progress: Progress | None = None) -> A
     tool_rob = at_ball_centre(W_rob @ k_t.T, R_ball)
     holder_rob = at_ball_centre(W_rob @ k_th.T, R_ball)
 
-    scans = {}
-    for run in (cnc, rob):
-        with task(progress, f"scan {run.name}"):
-            scans[run.name] = _compare(study, cell, run, tp, progress)
+    if beside is not None:
+        scans = beside.result()
+    else:
+        scans = {}
+        for run in (cnc, rob):
+            with task(progress, f"scan {run.name}"):
+                scans[run.name] = _compare(study, cell, run, tp, progress)
     dev_c, dev_r = scans[cnc.name].toolpath, scans[rob.name].toolpath
     assert dev_c is not None and dev_r is not None
 

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats
+from scipy.special import stdtrit
 
 from roboisf.errors import InputError
 from roboisf.io.table import read_table
@@ -174,7 +174,8 @@ def identify_stiffness(
     c[free] = cf
     se = np.zeros(6)
     se[free] = se_f
-    t = float(stats.t.ppf(0.5 + confidence / 2, dof))
+    # Student's t quantile (scipy.special's inverse CDF: scipy.stats costs 0.6 s to import)
+    t = float(stdtrit(dof, 0.5 + confidence / 2))
     lo_c = c - t * se
     hi_c = c + t * se
     if np.any(free & (hi_c <= 0)):

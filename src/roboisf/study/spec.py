@@ -13,7 +13,6 @@ Poses are written ``[x, y, z, roll, pitch, yaw]`` in mm and degrees, rotation
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal, cast
@@ -23,10 +22,10 @@ from numpy.typing import NDArray
 
 from roboisf.errors import InputError
 from roboisf.frames import make_transform, rpy_to_matrix
-from roboisf.io.text import read_text
 from roboisf.io.units import ANGLE_UNITS, FORCE_UNITS, LENGTH_UNITS, MOMENT_UNITS, TIME_UNITS
 from roboisf.parts import Part, part_from_dict
 from roboisf.scan.deviation import default_rim_band
+from roboisf.study.locate import read_study_toml
 
 __all__ = [
     "AnalysisSpec",
@@ -43,7 +42,6 @@ __all__ = [
 ]
 
 F64 = NDArray[np.float64]
-STUDY_FILE = "study.toml"
 
 
 class StudyError(InputError):
@@ -605,15 +603,8 @@ def load_study(path: str | Path) -> Study:
     StudyError
         listing every problem (file, key, what was expected).
     """
-    path = Path(path)
-    file = path / STUDY_FILE if path.is_dir() else path
-    if not file.is_file():
-        raise InputError(f"no {STUDY_FILE} found", file=file)
+    file, data = read_study_toml(path)
     root = file.parent.resolve()
-    try:
-        data = tomllib.loads(read_text(file, what=STUDY_FILE))
-    except tomllib.TOMLDecodeError as e:
-        raise InputError(f"not valid TOML: {e}", file=file) from None
     c = _Collector(file)
     for k in sorted(set(data) - _TOP):
         c.add(f"unknown table; expected {', '.join(sorted(_TOP))}", k)

@@ -1,0 +1,70 @@
+"""The analysis compares the scans in a worker thread beside the log reading (issue #16): the
+same results as one step after the other, errors from either side reach the caller, and no
+thread outlives the analysis."""
+
+from __future__ import annotations
+
+import shutil
+import threading
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from roboisf.decompose import pipeline
+from roboisf.decompose.pipeline import analyze
+from roboisf.errors import InputError
+
+
+def _scan_threads() -> list[threading.Thread]:
+    return [t for t in threading.enumerate() if t.name == "roboisf-scans"]
+
+
+def test_overlapped_and_sequential_analyses_are_equal(small_cone_study, small_cone_analysis):
+    seq = analyze(small_cone_study, overlap=False)
+    ovl = small_cone_analysis  # analyze()'s default: overlapped
+    pd.testing.assert_frame_equal(seq.per_point, ovl.per_point, check_exact=True)
+    pd.testing.assert_frame_equal(seq.contributions, ovl.contributions, check_exact=True)
+    for name, sc in seq.scans.items():
+        other = ovl.scans[name]
+        assert sc.toolpath is not None and other.toolpath is not None
+        np.testing.assert_array_equal(sc.toolpath.dn, other.toolpath.dn)
+    assert _scan_threads() == []
+
+
+def _copy(study: Path, tmp_path: Path) -> Path:
+    dst = tmp_path / "study"
+    shutil.copytree(study, dst)
+    return dst
+
+
+def test_a_refused_log_stops_the_scans_and_is_reported(small_cone_study, tmp_path, monkeypatch):
+    study = _copy(small_cone_study, tmp_path)
+    started = threading.Event()
+    compared: list[str] = []
+    real = pipeline._compare
+
+    def slow_compare(study, cell, run, tp, progress):  # the scans outlast the logs
+        started.set()
+        compared.append(run.name)
+        return real(study, cell, run, tp, progress)
+
+    def bad_logs(*a, **k):
+        assert started.wait(10)
+        raise InputError("bad force log", file=study / "cnc_forces.parquet")
+
+    monkeypatch.setattr(pipeline, "_compare", slow_compare)
+    monkeypatch.setattr(pipeline, "_logs_part", bad_logs)
+    with pytest.raises(InputError, match="bad force log"):
+        analyze(study)
+    assert _scan_threads() == []  # cancelled and joined before the error left analyze()
+    assert compared == ["cnc"]  # stopped at its next step: the second scan never started
+
+
+def test_an_error_in_the_scan_thread_reaches_the_caller(small_cone_study, tmp_path):
+    study = _copy(small_cone_study, tmp_path)
+    (study / "robot_scan.ply").write_bytes(b"ply\nformat ascii 1.0\nelement vertex 2\nend_header\n")
+    with pytest.raises(InputError, match=r"robot_scan\.ply"):
+        analyze(study)
+    assert _scan_threads() == []

@@ -1,0 +1,55 @@
+"""The CLI's rich progress: one live display for nested tasks and tasks of worker threads."""
+
+from __future__ import annotations
+
+import io
+import threading
+
+from rich.console import Console
+
+from roboisf.cli.console import RichProgress
+
+
+def _terminal() -> tuple[Console, io.StringIO]:
+    buf = io.StringIO()
+    return Console(file=buf, force_terminal=True, width=100), buf
+
+
+def test_tasks_from_two_threads_share_one_display_and_it_stops_after_the_last():
+    console, buf = _terminal()
+    p = RichProgress(console)
+    started, release = threading.Event(), threading.Event()
+    seen: list[int] = []
+
+    def worker() -> None:
+        with p.task("scan robot") as advance:
+            with p.task("outlier removal", total=2):
+                advance(1.0)
+                started.set()
+                release.wait(5)
+
+    t = threading.Thread(target=worker)
+    t.start()
+    assert started.wait(5)
+    with p.task("alignment of the logs"):
+        bar = p._bar
+        assert bar is not None
+        seen.append(len(bar.tasks))  # three tasks open at once, one display
+        release.set()
+        t.join(5)
+        assert p._bar is bar  # still open: this task has not ended
+    assert seen == [3]
+    assert p._bar is None and p._open == 0
+    assert not bar.live.is_started
+    assert "outlier removal" in buf.getvalue() or "alignment" in buf.getvalue()
+
+
+def test_an_error_inside_a_task_closes_the_display():
+    console, _ = _terminal()
+    p = RichProgress(console)
+    try:
+        with p.task("alignment"):
+            raise ValueError("bad log")
+    except ValueError:
+        pass
+    assert p._bar is None and p._open == 0
