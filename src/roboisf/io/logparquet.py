@@ -74,7 +74,8 @@ def _write(path: str | Path, cols: dict[str, F64], meta: dict[str, Any]) -> None
         )
 
 
-def _read(path: Path, kind: str) -> tuple[dict[str, F64], dict[str, Any] | None]:
+def _read(path: Path, kind: str) -> tuple[Any, dict[str, Any] | None]:
+    """The file as an Arrow table (columns in their stored precision) and its metadata."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -93,19 +94,47 @@ def _read(path: Path, kind: str) -> tuple[dict[str, F64], dict[str, Any] | None]
             raise InputError(
                 f"a Parquet {meta.get('kind')!r} file where a {kind} was expected", file=path
             )
-    cols: dict[str, F64] = {}
-    for name in table.column_names:
-        try:
-            cols[name] = table.column(name).to_numpy(zero_copy_only=False).astype(np.float64)
-        except (TypeError, ValueError, pa.ArrowException):
-            raise InputError("column is not numeric", file=path, field=name) from None
-    for name, v in cols.items():
+    return table, meta
+
+
+def _column(table: Any, name: str, path: Path) -> NDArray[np.floating[Any]]:
+    """One column as numpy, finite; float32 stays float32 (it is widened where it is stored,
+    :func:`_into`), any other numeric type becomes float64."""
+    import pyarrow as pa
+
+    try:
+        v = table.column(name).to_numpy(zero_copy_only=False)
+        if v.dtype.kind != "f":
+            v = v.astype(np.float64)
+    except (TypeError, ValueError, pa.ArrowException):
+        raise InputError("column is not numeric", file=path, field=name) from None
+    if not np.isfinite(v).all():
         bad = ~np.isfinite(v)
-        if bad.any():
-            raise InputError(
-                f"row {int(np.argmax(bad))} is not a finite number", file=path, field=name
-            )
-    return cols, meta
+        raise InputError(f"row {int(np.argmax(bad))} is not a finite number", file=path, field=name)
+    return np.asarray(v)
+
+
+def _into(out: F64, v: NDArray[np.floating[Any]], factor: float) -> None:
+    """``out[:] = float64(v) · factor`` (the multiply skipped for an SI column: same bits)."""
+    out[...] = v
+    if factor != 1.0:
+        out *= factor
+
+
+def _columns(
+    path: Path,
+    table: Any,
+    meta: dict[str, Any] | None,
+    given: dict[str, str | None],
+    dest: dict[str, F64],
+) -> None:
+    """Every column checked (numeric, finite) in file order; the ones named in ``dest`` written
+    there in SI (float64), one column at a time: no float64 copy of the whole table."""
+    factors = _factors(path, table.column_names, meta, given)
+    for name in table.column_names:
+        v = _column(table, name, path)
+        if name in dest:
+            _into(dest[name], v, factors[name])
 
 
 def parquet_log_info(path: str | Path, *, kind: str) -> tuple[dict[str, str], dict[str, str]]:
@@ -127,12 +156,14 @@ def parquet_log_info(path: str | Path, *, kind: str) -> tuple[dict[str, str], di
     return {n: n for n in schema.names}, units
 
 
-def _scale(
-    path: Path, cols: dict[str, F64], meta: dict[str, Any] | None, given: dict[str, str | None]
-) -> dict[str, F64]:
+def _factors(
+    path: Path, names: list[str], meta: dict[str, Any] | None, given: dict[str, str | None]
+) -> dict[str, float]:
+    """SI factor of every column with a known quantity (units: the file's metadata, else the
+    caller's; both given must agree)."""
     declared = dict(meta.get("units", {})) if meta else {}
     out = {}
-    for name, v in cols.items():
+    for name in names:
         q = _QUANTITY.get(name)
         if q is None:
             continue
@@ -149,12 +180,11 @@ def _scale(
                 file=path,
                 field=name,
             )
-        v *= log_unit_to_si(u, q, file=path, field=name)  # in place: ``cols`` owns ``v``
-        out[name] = v
+        out[name] = log_unit_to_si(u, q, file=path, field=name)
     return out
 
 
-def _require(path: Path, cols: dict[str, F64], names: tuple[str, ...], what: str) -> None:
+def _require(path: Path, cols: list[str], names: tuple[str, ...], what: str) -> None:
     missing = [n for n in names if n not in cols]
     if missing:
         raise InputError(
@@ -193,23 +223,25 @@ def read_force_parquet(
     from roboisf.io.forcelog import ForceLog
 
     p = Path(path)
-    cols, meta = _read(p, "force_log")
-    _require(p, cols, _FORCE[:4], "force log")
+    table, meta = _read(p, "force_log")
+    names = table.column_names
+    _require(p, names, _FORCE[:4], "force log")
     known = bool(meta.get("moments_known", True)) if meta else True
-    has_m = all(c in cols for c in _FORCE[4:])
-    si = _scale(p, cols, meta, given or {})
-    del cols  # scaled in place: ``si`` holds the same arrays
-    n = si["time"].size
-    W = np.zeros((n, 6))
-    for j, c in enumerate(_FORCE[1:] if has_m else _FORCE[1:4]):
-        W[:, j] = si.pop(c)  # one (N, 6) array, each column freed once copied
-    pos = np.column_stack([si[c] for c in _POS]) if all(c in si for c in _POS) else None
+    has_m = all(c in names for c in _FORCE[4:])
+    n = table.num_rows
+    t = np.empty(n)
+    W = np.empty((n, 6)) if has_m else np.zeros((n, 6))  # one (N, 6) array, filled in place
+    dest = {"time": t, **{c: W[:, j] for j, c in enumerate(_FORCE[1:] if has_m else _FORCE[1:4])}}
+    pos = np.empty((n, 3)) if all(c in names for c in _POS) else None
+    if pos is not None:
+        dest.update({c: pos[:, j] for j, c in enumerate(_POS)})
+    _columns(p, table, meta, given or {}, dest)
+    del table, dest
     file_frame = meta.get("frame") if meta else None
     if file_frame and frame and file_frame != frame:
         raise InputError(
             f"frame is {file_frame!r} in the file but {frame!r} was given", file=p, field="frame"
         )
-    t = si["time"]
     if t.size > 1 and np.any(np.diff(t) <= 0):
         raise InputError(
             f"time must strictly increase (row {int(np.argmax(np.diff(t) <= 0)) + 1})",
@@ -242,7 +274,10 @@ def read_joint_parquet(
 ) -> tuple[F64, F64]:
     """A Parquet joint log → (time (N,) s, q (N, 6) rad)."""
     p = Path(path)
-    cols, meta = _read(p, "joint_log")
-    _require(p, cols, _JOINT, "joint log")
-    si = _scale(p, cols, meta, given or {})
-    return si["time"], np.column_stack([si[f"q{i}"] for i in range(1, 7)])
+    table, meta = _read(p, "joint_log")
+    _require(p, table.column_names, _JOINT, "joint log")
+    t, q = np.empty(table.num_rows), np.empty((table.num_rows, 6))
+    _columns(
+        p, table, meta, given or {}, {"time": t, **{f"q{i}": q[:, i - 1] for i in range(1, 7)}}
+    )
+    return t, q
