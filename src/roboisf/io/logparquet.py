@@ -97,6 +97,15 @@ def _read(path: Path, kind: str) -> tuple[Any, dict[str, Any] | None]:
     return table, meta
 
 
+def _release_arrow() -> None:
+    """Hand the decoded table's memory back to the system: Arrow's allocator (mimalloc or
+    jemalloc) keeps freed pages for its own reuse — ~110 MB after a 2.3 M-sample log, which
+    nothing else in the analysis allocates from, sitting under the scans' peak."""
+    import pyarrow as pa
+
+    pa.default_memory_pool().release_unused()
+
+
 def _column(table: Any, name: str, path: Path) -> NDArray[np.floating[Any]]:
     """One column as numpy, finite; float32 stays float32 (it is widened where it is stored,
     :func:`_into`), any other numeric type becomes float64."""
@@ -237,6 +246,7 @@ def read_force_parquet(
         dest.update({c: pos[:, j] for j, c in enumerate(_POS)})
     _columns(p, table, meta, given or {}, dest)
     del table, dest
+    _release_arrow()
     file_frame = meta.get("frame") if meta else None
     if file_frame and frame and file_frame != frame:
         raise InputError(
@@ -280,4 +290,6 @@ def read_joint_parquet(
     _columns(
         p, table, meta, given or {}, {"time": t, **{f"q{i}": q[:, i - 1] for i in range(1, 7)}}
     )
+    del table
+    _release_arrow()
     return t, q
