@@ -81,3 +81,12 @@ def test_text_column_refused(tmp_path) -> None:
     _foreign(tmp_path / "f.parquet", cols)
     with pytest.raises(InputError, match="not numeric"):
         read_force_parquet(tmp_path / "f.parquet", given={"time": "s", "force": "N"})
+
+
+def test_bad_value_in_a_later_batch_named_by_its_file_row(tmp_path) -> None:
+    n = 70_000  # more rows than one decoded batch
+    cols = {"time": np.arange(n) * 1e-3, **{c: np.ones(n, np.float32) for c in ("Fx", "Fy", "Fz")}}
+    cols["Fz"][65_541] = np.inf
+    _foreign(tmp_path / "f.parquet", cols)
+    with pytest.raises(InputError, match="row 65541 is not a finite number"):
+        read_force_parquet(tmp_path / "f.parquet", given={"time": "s", "force": "N"})
