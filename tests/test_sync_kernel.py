@@ -46,3 +46,42 @@ def test_track_compiled_equals_numpy(monkeypatch: pytest.MonkeyPatch) -> None:
     np.testing.assert_array_equal(np.isnan(s_k), np.isnan(s_n))
     ok = np.isfinite(s_n)
     np.testing.assert_allclose(s_k[ok], s_n[ok], rtol=0, atol=1e-12)
+
+
+def _helix_log(seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A helix toolpath and a log that approaches, pauses (longer than one block of samples),
+    retracts, comes back, and restarts from a later line after leaving the path."""
+    th = np.linspace(0, 6 * np.pi, 3000)
+    tip = np.c_[0.05 * np.cos(th), 0.05 * np.sin(th), -0.001 * th]
+    S = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(tip, axis=0), axis=1))])
+    rng = np.random.default_rng(seed)
+    walk = np.r_[
+        np.linspace(0, 1200, 900),
+        np.full(5000, 1200.0),  # a pause longer than _MAX_BLOCK_SAMPLES
+        np.linspace(1200, 1800, 600),
+        np.linspace(1800, 1800, 300),  # leaves the path here (below) …
+        np.linspace(2100, 2999, 900),  # … and restarts 300 points further on
+    ]
+    P = np.array([tip[int(i)] for i in walk]) + rng.normal(scale=2e-5, size=(len(walk), 3))
+    P[:50] += [0, 0, 0.05]  # approach, off the path
+    P[3000:3100] += [0, 0, 0.02]  # retract during the pause
+    P[6500:6800] += [0, 0, 0.03]  # off the path before the restart
+    return tip, S, P
+
+
+@pytest.mark.parametrize("seed", [7, 11])
+def test_track_loop_compiled_same_bits(monkeypatch: pytest.MonkeyPatch, seed: int) -> None:
+    """The compiled tracking loop gives the same progress, bit for bit, as the Python loop over
+    the compiled projection (the path before the loop was compiled), re-acquisitions included."""
+    tip, S, P = _helix_log(seed)
+    s_k = position._track(P, tip, S, position.OFF_PATH)
+    monkeypatch.setattr(position, "_COMPILED_LOOP", False)
+    s_p = position._track(P, tip, S, position.OFF_PATH)
+    assert np.isnan(s_p[:50]).all() and np.isnan(s_p[6500:6800]).all()
+    assert np.nanmax(s_p[6800:]) > S[2900] and np.isfinite(s_p).sum() > 7000
+    np.testing.assert_array_equal(s_k, s_p)  # NaN where off the path, the same bits elsewhere
+    monkeypatch.setattr(position_kernel, "HAVE_NUMBA", False)
+    s_n = position._track(P, tip, S, position.OFF_PATH)
+    np.testing.assert_array_equal(np.isnan(s_k), np.isnan(s_n))
+    ok = np.isfinite(s_n)
+    np.testing.assert_allclose(s_k[ok], s_n[ok], rtol=0, atol=1e-12)

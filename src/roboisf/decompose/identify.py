@@ -220,12 +220,14 @@ def identify_from_forming(
     h = np.zeros((L, k))
     np.add.at(h, inv, As * y[:, None])
 
-    def solve(Gs: F64, hs: F64, cols: NDArray[np.intp]) -> F64:
-        x, *_ = np.linalg.lstsq(Gs[np.ix_(cols, cols)], hs[cols], rcond=None)
-        return np.asarray(x, dtype=float)
-
     live_idx = np.flatnonzero(live)
     all_cols = np.arange(k)
+
+    def solve(Gs: F64, hs: F64, cols: NDArray[np.intp]) -> F64:
+        if cols is not all_cols:  # (np.ix_ costs as much as the 6×6 solve: 1,000 fits a draw)
+            Gs, hs = Gs[np.ix_(cols, cols)], hs[cols]
+        x, *_ = np.linalg.lstsq(Gs, hs, rcond=None)
+        return np.asarray(x, dtype=float)
 
     def fit(w: F64) -> F64:
         """6-joint fit on laps weighted by ``w`` (L,) (counts of a bootstrap draw)."""

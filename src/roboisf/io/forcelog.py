@@ -20,7 +20,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -670,13 +670,40 @@ def _cumulative_integral(t: F64, y: F64) -> F64:
     return cum
 
 
-def _integral_at(t: F64, y: F64, cum: F64, x: F64) -> F64:
-    """∫ from t[0] to x of the piecewise-linear interpolant, for x ∈ [t[0], t[-1]]; (M, K)."""
-    k = np.clip(np.searchsorted(t, x, side="right") - 1, 0, len(t) - 2)
+def _segment(t: F64, x: F64) -> NDArray[np.int64]:
+    """Index k of the sample interval [t[k], t[k+1]] holding each x (clipped to the log)."""
+    return np.clip(np.searchsorted(t, x, side="right") - 1, 0, len(t) - 2)
+
+
+def _integral_from(t: F64, y: F64, cum_k: F64, k: NDArray[np.int64], x: F64) -> F64:
+    """∫ from t[0] to x given the running integral ``cum_k`` at the samples k below x."""
     h = (t[k + 1] - t[k])[:, None]
     u = (x - t[k])[:, None]
     slope = (y[k + 1] - y[k]) / h
-    return cum[k] + u * y[k] + 0.5 * u * u * slope
+    return cum_k + u * y[k] + 0.5 * u * u * slope
+
+
+def _integral_at(t: F64, y: F64, cum: F64, x: F64) -> F64:
+    """∫ from t[0] to x of the piecewise-linear interpolant, for x ∈ [t[0], t[-1]]; (M, K)."""
+    k = _segment(t, x)
+    return _integral_from(t, y, cum[k], k, x)
+
+
+def _log_kernel() -> Any:
+    """:mod:`roboisf.io.forcelog_kernel` when numba is installed (imported on first use), else
+    None (the numpy forms run)."""
+    global _KERNEL
+    if _KERNEL is None:
+        try:
+            from roboisf.io import forcelog_kernel
+
+            _KERNEL = forcelog_kernel
+        except ImportError:  # pragma: no cover - numba is a test dependency
+            _KERNEL = False
+    return _KERNEL or None
+
+
+_KERNEL: Any = None
 
 
 def window_average(t: F64, y: F64, lo: F64, hi: F64) -> F64:
@@ -684,18 +711,30 @@ def window_average(t: F64, y: F64, lo: F64, hi: F64) -> F64:
 
     Exact for the interpolant (cumulative trapezoid sums, no loop over windows); a zero-width
     window returns the interpolated value. ``t`` (N,) increasing, ``y`` (N, K), windows within
-    [t[0], t[-1]]. Returns (M, K).
+    [t[0], t[-1]]. Returns (M, K). With numba the running sum is read at the windows' ends in
+    one pass over the log (:func:`roboisf.io.forcelog_kernel.running_integral_at`: the same bits
+    without the (N, K) array).
     """
     y = np.asarray(y, dtype=float).reshape(len(t), -1)
     if len(t) == 1:
         return np.repeat(y, len(lo), axis=0)
-    cum = _cumulative_integral(t, y)
     width = (hi - lo)[:, None]
     zero = width[:, 0] <= 0
     mean = np.empty((len(lo), y.shape[1]))
     nz = ~zero
     if np.any(nz):
-        mean[nz] = (_integral_at(t, y, cum, hi[nz]) - _integral_at(t, y, cum, lo[nz])) / width[nz]
+        kern = _log_kernel()
+        if kern is not None:
+            x = np.concatenate([hi[nz], lo[nz]])
+            k = _segment(t, x)
+            ks, inv = np.unique(k, return_inverse=True)
+            both = _integral_from(t, y, kern.running_integral_at(t, y, ks)[inv], k, x)
+            m = int(np.count_nonzero(nz))
+            i_hi, i_lo = both[:m], both[m:]
+        else:
+            cum = _cumulative_integral(t, y)
+            i_hi, i_lo = _integral_at(t, y, cum, hi[nz]), _integral_at(t, y, cum, lo[nz])
+        mean[nz] = (i_hi - i_lo) / width[nz]
     if np.any(zero):
         mean[zero] = np.column_stack([np.interp(lo[zero], t, y[:, j]) for j in range(y.shape[1])])
     return mean

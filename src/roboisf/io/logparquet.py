@@ -74,15 +74,27 @@ def _write(path: str | Path, cols: dict[str, F64], meta: dict[str, Any]) -> None
         )
 
 
-def _read(path: Path, kind: str) -> tuple[dict[str, F64], dict[str, Any] | None]:
+class _File:
+    """An open Parquet log: its column names, row count and the ``pyarrow.parquet.ParquetFile``
+    (decoded batch by batch by :func:`_columns`, never as one table)."""
+
+    def __init__(self, pf: Any) -> None:
+        self.pf = pf
+        self.column_names: list[str] = list(pf.schema_arrow.names)
+        self.num_rows = int(pf.metadata.num_rows)
+
+
+def _read(path: Path, kind: str) -> tuple[_File, dict[str, Any] | None]:
+    """The open file (its data not decoded yet) and its ``roboisf`` metadata."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
     try:
-        table = pq.read_table(path)
+        pf = pq.ParquetFile(path)
+        schema = pf.schema_arrow
     except (OSError, pa.ArrowException) as e:
         raise InputError(f"not a readable Parquet file: {e}", file=path) from None
-    raw = (table.schema.metadata or {}).get(_KEY)
+    raw = (schema.metadata or {}).get(_KEY)
     meta = None
     if raw is not None:
         try:
@@ -93,19 +105,78 @@ def _read(path: Path, kind: str) -> tuple[dict[str, F64], dict[str, Any] | None]
             raise InputError(
                 f"a Parquet {meta.get('kind')!r} file where a {kind} was expected", file=path
             )
-    cols: dict[str, F64] = {}
-    for name in table.column_names:
-        try:
-            cols[name] = table.column(name).to_numpy(zero_copy_only=False).astype(np.float64)
-        except (TypeError, ValueError, pa.ArrowException):
-            raise InputError("column is not numeric", file=path, field=name) from None
-    for name, v in cols.items():
+    return _File(pf), meta
+
+
+def _release_arrow() -> None:
+    """Hand the decoded batches' memory back to the system: Arrow's allocator (mimalloc or
+    jemalloc) keeps freed pages for its own reuse, which nothing else in the analysis allocates
+    from (~110 MB after a 2.3 M-sample log read as one table), sitting under the scans' peak."""
+    import pyarrow as pa
+
+    pa.default_memory_pool().release_unused()
+
+
+def _column(arr: Any, name: str, path: Path, row0: int) -> NDArray[np.floating[Any]]:
+    """One column of a batch as numpy (a view of Arrow's buffer for a float column without
+    nulls), finite; float32 stays float32 (widened where it is stored, :func:`_columns`), any
+    other numeric type becomes float64. ``row0``: the batch's first row in the file."""
+    import pyarrow as pa
+
+    try:
+        v = arr.to_numpy(zero_copy_only=False)
+        if v.dtype.kind != "f":
+            v = v.astype(np.float64)
+    except (TypeError, ValueError, pa.ArrowException):
+        raise InputError("column is not numeric", file=path, field=name) from None
+    if not np.isfinite(v).all():
         bad = ~np.isfinite(v)
-        if bad.any():
-            raise InputError(
-                f"row {int(np.argmax(bad))} is not a finite number", file=path, field=name
-            )
-    return cols, meta
+        raise InputError(
+            f"row {row0 + int(np.argmax(bad))} is not a finite number", file=path, field=name
+        )
+    return np.asarray(v)
+
+
+#: Rows per decoded batch: a batch of every column stays in cache while it is interleaved into
+#: the (N, 6) arrays (half the CPU time of one whole strided column after another), and the
+#: file is never decoded whole (no table of the log's size, no copy of its columns).
+_BLOCK = 65536
+
+
+def _columns(
+    path: Path,
+    f: _File,
+    meta: dict[str, Any] | None,
+    given: dict[str, str | None],
+    dest: dict[str, F64],
+) -> None:
+    """Every column checked (numeric, finite), batch by batch in file order; the ones named in
+    ``dest`` written there in SI (float64: ``float64(v) · factor``, the multiply skipped for an
+    SI column — the same bits)."""
+    import pyarrow as pa
+
+    names = f.column_names
+    factors = _factors(path, names, meta, given)
+    row = 0
+    try:
+        for batch in f.pf.iter_batches(batch_size=_BLOCK):
+            m = batch.num_rows
+            if row + m > f.num_rows:
+                raise InputError("more rows than the file's metadata says (corrupt)", file=path)
+            for i, name in enumerate(names):
+                v = _column(batch.column(i), name, path, row)
+                if name in dest:
+                    out = dest[name][row : row + m]
+                    out[...] = v
+                    if factors[name] != 1.0:
+                        out *= factors[name]
+            row += m
+    except (OSError, pa.ArrowException) as e:
+        raise InputError(f"not a readable Parquet file: {e}", file=path) from None
+    if row != f.num_rows:
+        raise InputError(
+            f"{row} rows decoded but the file's metadata says {f.num_rows} (corrupt)", file=path
+        )
 
 
 def parquet_log_info(path: str | Path, *, kind: str) -> tuple[dict[str, str], dict[str, str]]:
@@ -127,12 +198,14 @@ def parquet_log_info(path: str | Path, *, kind: str) -> tuple[dict[str, str], di
     return {n: n for n in schema.names}, units
 
 
-def _scale(
-    path: Path, cols: dict[str, F64], meta: dict[str, Any] | None, given: dict[str, str | None]
-) -> dict[str, F64]:
+def _factors(
+    path: Path, names: list[str], meta: dict[str, Any] | None, given: dict[str, str | None]
+) -> dict[str, float]:
+    """SI factor of every column with a known quantity (units: the file's metadata, else the
+    caller's; both given must agree)."""
     declared = dict(meta.get("units", {})) if meta else {}
     out = {}
-    for name, v in cols.items():
+    for name in names:
         q = _QUANTITY.get(name)
         if q is None:
             continue
@@ -149,12 +222,11 @@ def _scale(
                 file=path,
                 field=name,
             )
-        v *= log_unit_to_si(u, q, file=path, field=name)  # in place: ``cols`` owns ``v``
-        out[name] = v
+        out[name] = log_unit_to_si(u, q, file=path, field=name)
     return out
 
 
-def _require(path: Path, cols: dict[str, F64], names: tuple[str, ...], what: str) -> None:
+def _require(path: Path, cols: list[str], names: tuple[str, ...], what: str) -> None:
     missing = [n for n in names if n not in cols]
     if missing:
         raise InputError(
@@ -193,23 +265,26 @@ def read_force_parquet(
     from roboisf.io.forcelog import ForceLog
 
     p = Path(path)
-    cols, meta = _read(p, "force_log")
-    _require(p, cols, _FORCE[:4], "force log")
+    src, meta = _read(p, "force_log")
+    names = src.column_names
+    _require(p, names, _FORCE[:4], "force log")
     known = bool(meta.get("moments_known", True)) if meta else True
-    has_m = all(c in cols for c in _FORCE[4:])
-    si = _scale(p, cols, meta, given or {})
-    del cols  # scaled in place: ``si`` holds the same arrays
-    n = si["time"].size
-    W = np.zeros((n, 6))
-    for j, c in enumerate(_FORCE[1:] if has_m else _FORCE[1:4]):
-        W[:, j] = si.pop(c)  # one (N, 6) array, each column freed once copied
-    pos = np.column_stack([si[c] for c in _POS]) if all(c in si for c in _POS) else None
+    has_m = all(c in names for c in _FORCE[4:])
+    n = src.num_rows
+    t = np.empty(n)
+    W = np.empty((n, 6)) if has_m else np.zeros((n, 6))  # one (N, 6) array, filled in place
+    dest = {"time": t, **{c: W[:, j] for j, c in enumerate(_FORCE[1:] if has_m else _FORCE[1:4])}}
+    pos = np.empty((n, 3)) if all(c in names for c in _POS) else None
+    if pos is not None:
+        dest.update({c: pos[:, j] for j, c in enumerate(_POS)})
+    _columns(p, src, meta, given or {}, dest)
+    del src, dest
+    _release_arrow()
     file_frame = meta.get("frame") if meta else None
     if file_frame and frame and file_frame != frame:
         raise InputError(
             f"frame is {file_frame!r} in the file but {frame!r} was given", file=p, field="frame"
         )
-    t = si["time"]
     if t.size > 1 and np.any(np.diff(t) <= 0):
         raise InputError(
             f"time must strictly increase (row {int(np.argmax(np.diff(t) <= 0)) + 1})",
@@ -242,7 +317,10 @@ def read_joint_parquet(
 ) -> tuple[F64, F64]:
     """A Parquet joint log → (time (N,) s, q (N, 6) rad)."""
     p = Path(path)
-    cols, meta = _read(p, "joint_log")
-    _require(p, cols, _JOINT, "joint log")
-    si = _scale(p, cols, meta, given or {})
-    return si["time"], np.column_stack([si[f"q{i}"] for i in range(1, 7)])
+    src, meta = _read(p, "joint_log")
+    _require(p, src.column_names, _JOINT, "joint log")
+    t, q = np.empty(src.num_rows), np.empty((src.num_rows, 6))
+    _columns(p, src, meta, given or {}, {"time": t, **{f"q{i}": q[:, i - 1] for i in range(1, 7)}})
+    del src
+    _release_arrow()
+    return t, q

@@ -161,6 +161,17 @@ class Conditioning:
     tool: ToolLoad | None = None
 
 
+def _distances(W: F64, level: F64) -> F64:
+    """``|F − level|`` per sample (N,) for the force columns of ``W`` (N, ≥3): one compiled pass
+    with numba (the same bits as ``np.linalg.norm(F − level, axis=1)``, tested), else numpy."""
+    from roboisf.io.forcelog import _log_kernel
+
+    kern = _log_kernel()
+    if kern is None:
+        return np.asarray(np.linalg.norm(W[:, :3] - level, axis=1))
+    return np.asarray(kern.row_norms(W, 0, level))
+
+
 def unloaded_samples(time: F64, W: F64, *, min_samples: int = 25) -> slice | None:
     """The unloaded approach at the start of a log: samples before the force onset.
 
@@ -175,21 +186,22 @@ def unloaded_samples(time: F64, W: F64, *, min_samples: int = 25) -> slice | Non
 
     Otherwise None: the log has no unloaded part to tare on or to check.
     """
-    F = np.asarray(W, dtype=float)[:, :3]
+    Wf = np.asarray(W, dtype=float)
+    F = Wf[:, :3]
     n = F.shape[0]
     if n < 2 * min_samples:
         return None
     head = F[:min_samples]
     level = np.median(head, axis=0)
     noise = float(np.sqrt(np.mean(np.var(head, axis=0)))) + 1e-12
-    dev = np.linalg.norm(F - level, axis=1)
+    dev = _distances(Wf, level)
     span = float(dev.max())
     thr = max(5.0 * noise, 0.01 * span)
-    above = np.flatnonzero(dev > thr)
-    if above.size == 0:
+    above = dev > thr
+    if not above.any():
         return None  # never loaded: no forming in this log
     # stop a little before the onset: the rise starts below the threshold
-    onset = int(above[0])
+    onset = int(np.argmax(above))
     stop = onset - max(1, onset // 10)
     if stop < min_samples:
         return None
@@ -220,6 +232,7 @@ def condition_wrench(
     cond: Conditioning,
     *,
     R_world_sensor: ArrayLike | None = None,
+    R_index: ArrayLike | None = None,
     file: Path | None = None,
 ) -> tuple[F64, list[str], dict[str, object]]:
     """Remove the tool's weight and the zero offset from a sensor reading.
@@ -232,24 +245,28 @@ def condition_wrench(
     ----------
     time : (N,) s; W_meas : (N, 6) [N, N·m] sensor axes
     cond : what to do
-    R_world_sensor : (3, 3) or (N, 3, 3) — sensor orientation, needed with ``cond.tool``
+    R_world_sensor : (3, 3), (N, 3, 3), or (P, 3, 3) with ``R_index`` — sensor orientation,
+        needed with ``cond.tool``
+    R_index : (N,) int, optional — sample i's orientation is ``R_world_sensor[R_index[i]]`` (a
+        few orientations shared by many samples: the gravity wrench is computed once for each)
     file : the log, for messages
 
     Returns
     -------
-    W : (N, 6) conditioned reading
+    W : (N, 6) conditioned reading (``W_meas`` itself, not a copy, when nothing is removed)
     warnings : list of str — an untared bias seen in the unloaded part, a tare asked for that
         found no unloaded approach
     info : dict — ``offset`` (6,) removed, ``window`` (t0, t1) s or None, ``bias`` (6,) seen
     """
     t = np.asarray(time, dtype=float)
-    W = np.array(W_meas, dtype=float)
+    W = np.asarray(W_meas, dtype=float)  # copied below only if something is removed
     name = file.name if file is not None else "force log"
     notes: list[str] = []
     if cond.tool is not None:
         if R_world_sensor is None:
             raise InputError("gravity compensation needs the sensor orientation", file=file)
-        W -= gravity_wrench(R_world_sensor, cond.tool.mass, cond.tool.cog)
+        W_g = gravity_wrench(R_world_sensor, cond.tool.mass, cond.tool.cog)
+        W = W - (W_g if R_index is None else W_g[np.asarray(R_index, dtype=np.intp)])
     info: dict[str, object] = {"offset": np.zeros(6), "window": None, "bias": None}
     win: slice | None
     if isinstance(cond.tare, tuple):
@@ -270,7 +287,7 @@ def condition_wrench(
                     + ' is in every force; set tare = "auto" (or a window) for this log'
                 )
         else:
-            W -= b
+            W = W - b
             info["offset"] = b
     elif cond.tare == "auto":
         notes.append(

@@ -67,6 +67,17 @@ def check_tool_radius(ball_diameter: float, tp: Toolpath, *, study_file: Path) -
         )
 
 
+def _magnitudes(log: ForceLog) -> tuple[F64, F64]:
+    """|F| and |M| per sample (N,) each: compiled with numba (the same bits as
+    ``np.linalg.norm(log.force, axis=1)``, without its (N, 3) temporaries), else numpy."""
+    from roboisf.io.forcelog import _log_kernel
+
+    kern = _log_kernel()
+    if kern is None:
+        return np.linalg.norm(log.force, axis=1), np.linalg.norm(log.moment, axis=1)
+    return kern.row_norms(log.wrench, 0), kern.row_norms(log.wrench, 3)
+
+
 def check_force_log(
     log: ForceLog, tp: Toolpath, *, time_offset: float = 0.0, point_time: ArrayLike | None = None
 ) -> list[str]:
@@ -86,8 +97,7 @@ def check_force_log(
     -------
     warnings : list of str — the log runs on long after the toolpath ends.
     """
-    f = np.linalg.norm(log.force, axis=1)
-    m = np.linalg.norm(log.moment, axis=1)
+    f, m = _magnitudes(log)
     hint = "check the force/moment units ('# units:' line of the log, or [units] in study.toml)"
     f99 = float(np.percentile(f, 99))
     if f99 > FORCE_MAX:

@@ -135,11 +135,12 @@ def condition_study_log(
     f = run.forces
     R_bw = study.robot.T_base_work[:3, :3] if study.robot is not None else np.eye(3)
     R: F64
+    R_index = None
     if f.mount == "flange" and R_base_tip is not None and tp is not None:
-        Rp = np.asarray(R_base_tip, dtype=float) @ f.pose[:3, :3]
+        R = np.asarray(R_base_tip, dtype=float) @ f.pose[:3, :3]
         t_pt = tp.time + f.time_offset if point_time is None else np.asarray(point_time, float)
         k = np.searchsorted(t_pt, log.time, side="right") - 1
-        R = Rp[np.clip(k, 0, len(Rp) - 1)]
+        R_index = np.clip(k, 0, len(R) - 1)  # each sample: its toolpath point's orientation
     elif f.mount == "flange":
         R = R_bw @ np.asarray(R_work_tip, dtype=float) @ f.pose[:3, :3]
     else:
@@ -152,7 +153,12 @@ def condition_study_log(
         if isinstance(f.tare, tuple)
         else Conditioning("auto" if f.tare == "auto" else "none", tool)
     )
-    W, notes, _ = condition_wrench(log.time, log.wrench, cond, R_world_sensor=R, file=f.file)
-    if not log.moments_known:
+    W, notes, _ = condition_wrench(
+        log.time, log.wrench, cond, R_world_sensor=R, R_index=R_index, file=f.file
+    )
+    if not log.moments_known and np.any(W[:, 3:] != 0.0):
+        W = W.copy() if W is log.wrench else W
         W[:, 3:] = 0.0
+    if W is log.wrench:
+        return log, notes  # nothing removed: the log as read (no copy, no second validation)
     return replace(log, wrench=W), notes

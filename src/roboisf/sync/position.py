@@ -47,6 +47,10 @@ POSITION_RESIDUAL_MAX = 2e-3
 _END_TOL = 1e-5
 #: Most samples per block (memory of the distance matrix; a long pause is cut into blocks).
 _MAX_BLOCK_SAMPLES = 4096
+#: Run the tracking loop compiled (:func:`roboisf.sync.position_kernel.track_blocks`) when numba
+#: is installed; False runs the Python loop below over the compiled projection (the reference the
+#: tests compare the compiled loop with, bit for bit).
+_COMPILED_LOOP = True
 
 
 def _project(P: F64, A: F64, D: F64, L2: F64, S0: F64, seglen: F64) -> tuple[F64, F64]:
@@ -83,12 +87,23 @@ def _track(P: F64, tip: F64, S: F64, tol: float) -> F64:
     s_prev = -np.inf  # not yet on the path
     last_on = 0
     k = 0
+    compiled = _COMPILED_LOOP and _kernel.HAVE_NUMBA and len(A) > 0
+    if compiled:
+        P = np.ascontiguousarray(P, dtype=float)
     while k < M:
+        if compiled:
+            # the tracking loop below, compiled; it stops where the tool has to be re-acquired
+            k, s_prev, last_on = _kernel.track_blocks(
+                P, travel, A, D, L2, S0, seglen, tol, BLOCK, MARGIN, _MAX_BLOCK_SAMPLES, s, k,
+                s_prev, last_on,
+            )  # fmt: skip
+            if k >= M:
+                break
         k2 = int(np.searchsorted(travel, travel[k] + BLOCK, side="right"))
         k2 = max(k + 1, min(k2, k + _MAX_BLOCK_SAMPLES, M))
         blk = P[k:k2]
         hit = None
-        if np.isfinite(s_prev):
+        if np.isfinite(s_prev) and not compiled:
             ahead = travel[k2 - 1] - travel[last_on] + MARGIN
             j0 = max(int(np.searchsorted(S0, s_prev - MARGIN, side="right")) - 1, 0)
             j1 = min(int(np.searchsorted(S0, s_prev + ahead, side="right")), len(S0))

@@ -148,8 +148,8 @@ def align_run(
             file=run.forces.file,
             field="sync",
         )
-    T = cell.robot.fk(joint_log.q, check_limits=False, T_base_work=cell.T_base_work)
-    j = align_by_position(joint_log.time, T[:, :3, 3], tp, file=joint_log.path)
+    tip = cell.robot.tip_positions(joint_log.q, check_limits=False, T_base_work=cell.T_base_work)
+    j = align_by_position(joint_log.time, tip, tp, file=joint_log.path)
     if run.forces.clock == "joint":
         # the force log's clock is the joint log's, shifted by time_offset (0 for one controller;
         # the meaning time_offset had before alignment: joints at t, forces at t + time_offset)

@@ -1,0 +1,72 @@
+"""The compiled passes over a force log give the numpy forms' bits (issue #16)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from roboisf.io import forcelog
+from roboisf.sensor import conditioning
+
+kernel = pytest.importorskip("roboisf.io.forcelog_kernel")
+
+
+def _log(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    t = np.cumsum(rng.uniform(0.5e-3, 1.5e-3, n)) + 12.0
+    W = rng.normal(scale=[300, 300, 900, 20, 20, 5], size=(n, 6))
+    W[: n // 5] = rng.normal(scale=0.5, size=(n // 5, 6)) + np.array([1.0, -2, 3, 0.1, 0, -0.2])
+    return t, W
+
+
+def test_row_norms_same_bits() -> None:
+    _, W = _log(50_000, 1)
+    c = np.array([0.3, -1.7, 2.9])
+    np.testing.assert_array_equal(kernel.row_norms(W, 0), np.linalg.norm(W[:, :3], axis=1))
+    np.testing.assert_array_equal(kernel.row_norms(W, 3), np.linalg.norm(W[:, 3:], axis=1))
+    np.testing.assert_array_equal(kernel.row_norms(W, 0, c), np.linalg.norm(W[:, :3] - c, axis=1))
+
+
+def test_running_integral_at_same_bits() -> None:
+    t, W = _log(20_000, 2)
+    full = forcelog._cumulative_integral(t, W)
+    ks = np.unique(np.r_[0, 0, 1, np.random.default_rng(3).integers(0, len(t) - 1, 500), 19_998])
+    np.testing.assert_array_equal(kernel.running_integral_at(t, W, ks), full[ks])
+
+
+@pytest.mark.parametrize("overlap", [False, True])
+def test_window_average_same_bits(monkeypatch: pytest.MonkeyPatch, overlap: bool) -> None:
+    """Windows half-way between points (the alignment's) and overlapping, unsorted windows with
+    zero-width ones: the compiled path equals the full running-sum path bit for bit."""
+    t, W = _log(30_000, 4)
+    rng = np.random.default_rng(5)
+    if overlap:
+        c = rng.uniform(t[0], t[-1], 2000)
+        lo = np.clip(c - rng.uniform(0, 0.05, c.size), t[0], t[-1])
+        hi = np.clip(c + rng.uniform(0, 0.05, c.size), t[0], t[-1])
+        hi[::7] = lo[::7]  # zero width: interpolated value
+    else:
+        pt = np.sort(rng.uniform(t[0], t[-1], 3000))
+        mid = 0.5 * (pt[1:] + pt[:-1])
+        lo, hi = np.r_[pt[:1], mid], np.r_[mid, pt[-1:]]
+    fast = forcelog.window_average(t, W, lo, hi)
+    monkeypatch.setattr(forcelog, "_KERNEL", False)  # the numpy form
+    np.testing.assert_array_equal(fast, forcelog.window_average(t, W, lo, hi))
+
+
+def test_unloaded_samples_and_condition_unchanged(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The onset search (compiled distances) finds the same unloaded stretch, and a log with
+    nothing to remove is returned as is (no copy)."""
+    t, W = _log(40_000, 6)
+    win = conditioning.unloaded_samples(t, W)
+    assert win is not None and 5_000 < win.stop <= 8_000
+    cond = conditioning.Conditioning("none", None)
+    out, notes, info = conditioning.condition_wrench(t, W, cond)
+    assert out is W and notes and info["bias"] is not None  # bias seen, warned, not removed
+    tared, _, _ = conditioning.condition_wrench(t, W, conditioning.Conditioning("auto", None))
+    assert tared is not W and np.all(W[0] != tared[0])
+    monkeypatch.setattr(forcelog, "_KERNEL", False)
+    assert conditioning.unloaded_samples(t, W) == win
+    np.testing.assert_array_equal(
+        conditioning.condition_wrench(t, W, conditioning.Conditioning("auto", None))[0], tared
+    )
