@@ -238,7 +238,7 @@ def select_wall(
     """
     if rim_band < 0:
         raise InputError("must be ≥ 0 mm", field="rim_band")
-    m = np.isin(dev.region, regions)
+    m = dev.region == regions[0] if len(regions) == 1 else np.isin(dev.region, regions)
     m &= dev.foot[:, 2] < z_top - rim_band
     m &= np.abs(dev.dn) <= max_distance
     return m
