@@ -51,6 +51,35 @@ CELL = 0.5
 
 
 @_njit()
+def _select(d: F64, v: F64, m: int, k: int) -> None:  # pragma: no cover - compiled
+    """Reorder ``d[:m]`` (and ``v`` alongside) so that its ``k`` smallest come first
+    (Hoare quickselect, median-of-three pivot; in place, no allocation)."""
+    lo, hi = 0, m - 1
+    while hi > lo:
+        mid = (lo + hi) // 2
+        a, b, c = d[lo], d[mid], d[hi]
+        piv = max(min(a, b), min(max(a, b), c))
+        i, j = lo, hi
+        while i <= j:
+            while d[i] < piv:
+                i += 1
+            while d[j] > piv:
+                j -= 1
+            if i <= j:
+                d[i], d[j] = d[j], d[i]
+                v[i], v[j] = v[j], v[i]
+                i += 1
+                j -= 1
+        # d[lo..j] ≤ piv ≤ d[i..hi]; the k-th smallest (index k − 1) lies in one part
+        if k - 1 <= j:
+            hi = j
+        elif k - 1 >= i:
+            lo = i
+        else:
+            return
+
+
+@_njit()
 def _contacts(
     F: F64,
     dn: F64,
@@ -119,25 +148,13 @@ def _contacts(
                     cd[m] = d2
                     cv[m] = dn[r]
                     m += d2 < r2
-        # the k nearest of them (the k-d tree's set): those below the k-th smallest squared
-        # distance, then ones equal to it; their dn sorted by value
+        # the k nearest of them (the k-d tree's set, up to the order of exact ties): moved to
+        # the front by a quickselect on the squared distance, their dn alongside
         c = min(m, k)
         if m > k:
-            thr = np.partition(cd[:m], k - 1)[k - 1]
-            q = 0
-            for t in range(m):
-                if cd[t] < thr:
-                    sv[q] = cv[t]
-                    q += 1
-            for t in range(m):
-                if q == k:
-                    break
-                if cd[t] == thr:
-                    sv[q] = cv[t]
-                    q += 1
-        else:
-            for t in range(m):
-                sv[t] = cv[t]
+            _select(cd, cv, m, k)
+        for t in range(c):
+            sv[t] = cv[t]
         v = np.sort(sv[:c])
         for t in range(k):
             vv[t] = v[t] if t < c else 0.0
