@@ -124,3 +124,24 @@ def test_outlier_knn_by_query_cell_equals_the_ring_search():
     assert 2 <= np.isnan(ring).sum() <= 20  # the strays and the line's ends
     # on the line (0.5 mm spacing, ~0.4 mm cells) the neighbours lie beyond the block
     assert (ring[np.isfinite(ring)] > 2 * h).sum() > 20
+
+
+@pytest.mark.parametrize("kind", ["cone", "vwacf", "pyramid"])
+def test_registration_closest_points_in_threads_equal_one_call(kind, monkeypatch):
+    """The registration's chunked, threaded closest-point query gives one call's rows, bit for
+    bit, on the analytic parts (their queries are elementwise)."""
+    from dataclasses import fields
+
+    from roboisf.parts import VWACF, Pyramid
+    from roboisf.scan import registration
+    from roboisf.scan.registration import _CHUNK, _closest
+
+    monkeypatch.setattr(registration.os, "cpu_count", lambda: 4)  # threads on any machine
+    part = {"cone": CONE, "vwacf": VWACF(), "pyramid": Pyramid()}[kind]
+    lo, hi = (np.asarray(b) for b in part.bounds)
+    n = 2 * _CHUNK + 1001
+    P = np.random.default_rng(4).uniform(lo - 2e-3, hi + 2e-3, (n, 3))
+    a, b = _closest(part, P), part.closest_point(P)
+    assert type(a) is type(b)
+    for f in fields(b):
+        np.testing.assert_array_equal(getattr(a, f.name), getattr(b, f.name))
