@@ -27,7 +27,7 @@ from roboisf.errors import InputError
 from roboisf.parts.base import Part
 from roboisf.parts.mesh import MeshPart, spatial_order
 from roboisf.progress import Progress, task
-from roboisf.scan import knn_kernel
+from roboisf.scan import knn_kernel, toolpath_kernel
 
 __all__ = [
     "RIM_BAND",
@@ -238,7 +238,7 @@ def select_wall(
     """
     if rim_band < 0:
         raise InputError("must be ≥ 0 mm", field="rim_band")
-    m = np.isin(dev.region, regions)
+    m = dev.region == regions[0] if len(regions) == 1 else np.isin(dev.region, regions)
     m &= dev.foot[:, 2] < z_top - rim_band
     m &= np.abs(dev.dn) <= max_distance
     return m
@@ -320,6 +320,14 @@ def toolpath_deviations(
             "no scan points left on the wall to compare with the toolpath", file=source
         )
     k = min(max_points, dev.n_points)
+    if toolpath_kernel.HAVE_NUMBA:
+        # compiled: the feet bucketed in a grid of radius-sized cells, the neighbourhoods and
+        # their statistics in one pass (the same numbers as the k-d tree path below, tested)
+        cnt, med, est_t, mad = toolpath_kernel.contact_statistics(
+            dev.foot, dev.dn, P, radius=radius, k=k, trim=trim
+        )
+        est = med if estimator == "median" else est_t
+        return _toolpath_result(P, N, cnt, est, mad, min_points, exclude, radius, source)
     # the tree over the feet in Morton order (cache-friendly); only dn is gathered from it
     if ordered:
         feet, dn_sorted = dev.foot, dev.dn
@@ -334,16 +342,7 @@ def toolpath_deviations(
     idx = idx.reshape(M, k)
     ok = np.isfinite(d)
     cnt = ok.sum(axis=1)
-    valid = cnt >= min_points
-    if exclude is not None:
-        valid &= ~np.asarray(exclude, dtype=bool)
-    if not valid.any():
-        raise InputError(
-            f"no toolpath point has {min_points} scan points within {radius * 1e3:g} mm "
-            "(contacts in the rim band do not count): the toolpath lies outside the scanned "
-            "and selected wall — wrong part, unit or frame?",
-            file=source,
-        )
+    _check_covered(cnt, min_points, exclude, radius, source)
     v = _sorted_padded(dn_sorted, idx, ok)
     rows = np.arange(M)
     c = np.maximum(cnt, 1)
@@ -362,6 +361,42 @@ def toolpath_deviations(
     absdev.sort(axis=1)
     absdev = np.where(np.isfinite(absdev), absdev, 0.0)
     mad = 0.5 * (absdev[rows, lo_mid] + absdev[rows, hi_mid])
+    return _toolpath_result(P, N, cnt, est, mad, min_points, exclude, radius, source)
+
+
+def _check_covered(
+    cnt: NDArray[np.int64],
+    min_points: int,
+    exclude: ArrayLike | None,
+    radius: float,
+    source: str | None,
+) -> NDArray[np.bool_]:
+    """Valid contacts (enough points, not excluded); InputError if there is none."""
+    valid = cnt >= min_points
+    if exclude is not None:
+        valid &= ~np.asarray(exclude, dtype=bool)
+    if not valid.any():
+        raise InputError(
+            f"no toolpath point has {min_points} scan points within {radius * 1e3:g} mm "
+            "(contacts in the rim band do not count): the toolpath lies outside the scanned "
+            "and selected wall — wrong part, unit or frame?",
+            file=source,
+        )
+    return valid
+
+
+def _toolpath_result(
+    P: F64,
+    N: F64,
+    cnt: NDArray[np.int64],
+    est: F64,
+    mad: F64,
+    min_points: int,
+    exclude: ArrayLike | None,
+    radius: float,
+    source: str | None,
+) -> ToolpathDeviations:
+    valid = _check_covered(cnt, min_points, exclude, radius, source)
     dn = np.where(valid, est, 0.0)
     spread = np.where(valid, 1.4826 * mad, 0.0)
     return ToolpathDeviations(P, N, dn, cnt.astype(np.int64), spread, valid)

@@ -664,14 +664,28 @@ def sample_faces(V: F64, F: NDArray[np.int64], n: int, seed: int = 0) -> tuple[F
 
 
 # -- plausibility ----------------------------------------------------------------------------------
+def _extent(points: F64) -> tuple[F64, F64]:
+    """Per-axis minimum and maximum of the points (N ≥ 1, 3): one compiled pass when numba is
+    installed (``min(axis=0)`` reduces along a strided axis: ~10x slower on a 2 M-point scan),
+    the same numbers."""
+    X = np.asarray(points, dtype=float)
+    from roboisf.scan.knn_kernel import HAVE_NUMBA
+
+    if HAVE_NUMBA and X.ndim == 2 and X.shape[0] > 0 and X.shape[1] == 3:
+        from roboisf.parts.mesh_kernel import bounds
+
+        lo, hi = bounds(X, np.zeros(0, dtype=np.int64))
+        return np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    return X.min(axis=0), X.max(axis=0)
+
+
 def check_units(points: F64, part_size: float, *, unit: str, source: str | Path | None) -> None:
     """Refuse a scan whose extent is implausible for a part of ``part_size`` [m].
 
     The scan's largest bounding-box extent must lie within 1/20 .. 20 × the part's size; else
     the declared ``unit`` is almost surely wrong, and the error names the unit that would fit.
     """
-    lo = points.min(axis=0)
-    hi = points.max(axis=0)
+    lo, hi = _extent(points)
     extent = float(np.max(hi - lo))
     if part_size <= 0:
         return

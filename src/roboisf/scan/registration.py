@@ -44,7 +44,9 @@ uniform wall offset fitted alongside as a nuisance parameter so that it cannot m
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -54,6 +56,7 @@ from roboisf.frames.rotations import matrix_to_quat, matrix_to_rotvec, rot_z, ro
 from roboisf.frames.se3 import make_transform, transform_points
 from roboisf.parts.axisymmetric import SurfaceQuery
 from roboisf.parts.base import Part, Symmetry
+from roboisf.parts.mesh import MeshPart
 from roboisf.scan.symmetry import SymmetryEstimate, part_symmetry
 
 __all__ = ["DOF", "DOF_NAMES", "METHODS", "Registration", "register", "twist_about_z"]
@@ -237,6 +240,25 @@ def _untwist(T: F64) -> F64:
     return make_transform(rot_z(-twist_about_z(T))) @ T
 
 
+#: Points per thread of :func:`_closest` (below two of these the query runs in one call).
+_CHUNK = 32_768
+
+
+def _closest(part: Part, P: F64) -> SurfaceQuery:
+    """``part.closest_point(P)`` (P (N, 3) [m]), in chunks on every core for a part whose query
+    is numpy (the analytic parts: elementwise, so the rows are the same numbers; numpy releases
+    the GIL). A mesh part's compiled query runs on every core itself: called whole."""
+    n = P.shape[0]
+    nw = min(os.cpu_count() or 1, n // _CHUNK)
+    if nw < 2 or isinstance(part, MeshPart):
+        return part.closest_point(P)
+    edges = np.linspace(0, n, nw + 1).astype(int)
+    with ThreadPoolExecutor(max_workers=nw) as pool:
+        parts = list(pool.map(lambda i: part.closest_point(P[edges[i] : edges[i + 1]]), range(nw)))
+    cls = type(parts[0])
+    return cls(*(np.concatenate([getattr(q, f.name) for q in parts]) for f in fields(cls)))
+
+
 def _flange_points(part: Part, q: SurfaceQuery, w: F64) -> NDArray[np.bool_]:
     """Points whose foot is on the flange (region 0) and clear of the opening: probes
     ``FLANGE_CLEARANCE`` away in 8 horizontal directions must land on the flange at distance 0,
@@ -251,7 +273,7 @@ def _flange_points(part: Part, q: SurfaceQuery, w: F64) -> NDArray[np.bool_]:
     ok = np.ones(cand.size, dtype=bool)
     for a in np.arange(8) * (math.pi / 4):
         d = np.array([math.cos(a), math.sin(a), 0.0]) * FLANGE_CLEARANCE
-        qq = part.closest_point(F + d)
+        qq = _closest(part, F + d)
         on = np.abs(qq.distance) <= 1e-6
         outward = np.hypot(qq.point[:, 0], qq.point[:, 1]) > rho + 1e-9
         ok &= (qq.region == 0) & (on | outward)
@@ -415,7 +437,7 @@ def register(
             )
         it += 1
         P = transform_points(T, X)
-        q = part.closest_point(P)
+        q = _closest(part, P)
         r = q.distance
         # the robust scale is re-estimated for the first iterations, then frozen: the Huber
         # cost is then a fixed function, which the Newton steps below minimise (a moving scale
@@ -523,7 +545,7 @@ def register(
                 "off, or the scan does not show enough of the part"
             )
     P = transform_points(T, X)
-    r = part.closest_point(P).distance
+    r = _closest(part, P).distance
     inside = np.abs(r) <= max_distance
     overlap = float(np.mean(inside))
     if method != "none" and overlap < min_overlap:

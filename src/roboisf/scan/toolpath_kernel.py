@@ -1,0 +1,260 @@
+"""Compiled (numba) neighbourhood statistics of the toolpath contacts, for
+:func:`roboisf.scan.toolpath_deviations`.
+
+Optional: used when numba is installed (``pip install roboisf[fast]``); otherwise
+:func:`~roboisf.scan.toolpath_deviations` queries scipy's ``cKDTree`` (the reference path, whose
+results these equal — tested).
+
+Per contact ``P`` the scan points used are the ``k`` nearest feet (closest nominal points) at a
+distance ``< radius`` — exactly what ``cKDTree.query(P, k, distance_upper_bound=radius)`` returns:
+the squared distance is summed x, y, z and compared with ``radius²`` strictly, as scipy does.
+The feet are bucketed once in a uniform grid of cubic cells of side ``radius`` (coarser only
+if the grid would exceed :data:`~roboisf.scan.knn_kernel.MAX_CELLS` cells), so every foot
+within ``radius`` of ``P`` lies in the ≤ 3 × 3 × 3 cells around it; no tree is built. The
+median, the trimmed mean and the MAD of the selected ``dn`` are then computed in the same pass
+with the same floating-point operations as the numpy reference (sorted values, a sequential
+prefix sum for the trimmed mean), so the numbers are the same bits.
+
+Only an exact tie in distance at the ``k``-th neighbour could select a different point than
+the k-d tree (both are then "the k nearest").
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from roboisf.parts.mesh_kernel import bounds as _bounds
+from roboisf.scan.knn_kernel import (
+    HAVE_NUMBA,
+    MAX_CELLS,
+    _cell_keys,
+    _counting_sort,
+    _njit,
+    _shape,
+)
+
+__all__ = ["HAVE_NUMBA", "contact_statistics"]
+
+F64 = NDArray[np.float64]
+
+_NO_ROWS = np.zeros(0, dtype=np.int64)
+
+#: Cell side / radius: half the radius, so the cells searched (≤ 5 × 5 × 5 around a contact)
+#: hold ~3x the points in the ball instead of ~5x with cells of the radius.
+CELL = 0.5
+
+
+@_njit()
+def _select(d: F64, v: F64, m: int, k: int) -> None:  # pragma: no cover - compiled
+    """Reorder ``d[:m]`` (and ``v`` alongside) so that its ``k`` smallest come first
+    (Hoare quickselect, median-of-three pivot; in place, no allocation)."""
+    lo, hi = 0, m - 1
+    while hi > lo:
+        mid = (lo + hi) // 2
+        a, b, c = d[lo], d[mid], d[hi]
+        piv = max(min(a, b), min(max(a, b), c))
+        i, j = lo, hi
+        while i <= j:
+            while d[i] < piv:
+                i += 1
+            while d[j] > piv:
+                j -= 1
+            if i <= j:
+                d[i], d[j] = d[j], d[i]
+                v[i], v[j] = v[j], v[i]
+                i += 1
+                j -= 1
+        # d[lo..j] ≤ piv ≤ d[i..hi]; the k-th smallest (index k − 1) lies in one part
+        if k - 1 <= j:
+            hi = j
+        elif k - 1 >= i:
+            lo = i
+        else:
+            return
+
+
+@_njit()
+def _contacts(
+    F: F64,
+    dn: F64,
+    order: NDArray[Any],
+    start: NDArray[Any],
+    lo: F64,
+    h: float,
+    nx: int,
+    ny: int,
+    nz: int,
+    P: F64,
+    radius: float,
+    r2: float,
+    k: int,
+    trim: float,
+    a: int,
+    b: int,
+    cnt: NDArray[np.int64],
+    med: F64,
+    trimmed: F64,
+    mad: F64,
+) -> None:  # pragma: no cover - compiled
+    cap = 256
+    cd = np.empty(cap)
+    cv = np.empty(cap)
+    vv = np.zeros(k)
+    for i in range(a, b):
+        px, py, pz = P[i, 0], P[i, 1], P[i, 2]
+        if not (math.isfinite(px) and math.isfinite(py) and math.isfinite(pz)):
+            cnt[i], med[i], trimmed[i], mad[i] = 0, 0.0, 0.0, 0.0
+            continue
+        # the cell range of the ball, widened by a hair: the rounding of p ± r drops no cell
+        rs = radius + 1e-9 * (radius + abs(px) + abs(py) + abs(pz))
+        i0 = max(math.floor((px - rs - lo[0]) / h), 0)
+        i1 = min(math.floor((px + rs - lo[0]) / h), nx - 1)
+        j0 = max(math.floor((py - rs - lo[1]) / h), 0)
+        j1 = min(math.floor((py + rs - lo[1]) / h), ny - 1)
+        k0 = max(math.floor((pz - rs - lo[2]) / h), 0)
+        k1 = min(math.floor((pz + rs - lo[2]) / h), nz - 1)
+        # room for every candidate (no reallocation, hence no copy, inside the loop)
+        need = 0
+        if k0 <= k1:
+            for ii in range(i0, i1 + 1):
+                for jj in range(j0, j1 + 1):
+                    base = (ii * ny + jj) * nz
+                    need += start[base + k1 + 1] - start[base + k0]
+        if need > cap:
+            cap = need
+            cd = np.empty(cap)
+            cv = np.empty(cap)
+        m = 0
+        for ii in range(i0, i1 + 1):
+            # a column of cells whose x, y box is farther than the radius holds no neighbour
+            ex = max(lo[0] + ii * h - px, 0.0, px - (lo[0] + (ii + 1) * h))
+            for jj in range(j0, j1 + 1):
+                ey = max(lo[1] + jj * h - py, 0.0, py - (lo[1] + (jj + 1) * h))
+                if k0 > k1 or ex * ex + ey * ey > r2:
+                    continue
+                base = (ii * ny + jj) * nz
+                t0, t1 = start[base + k0], start[base + k1 + 1]
+                # branch-free: every candidate is written, kept (m advances) if within radius
+                for t in range(t0, t1):
+                    r = order[t]
+                    dx = F[r, 0] - px
+                    dy = F[r, 1] - py
+                    dz = F[r, 2] - pz
+                    d2 = dx * dx + dy * dy + dz * dz
+                    cd[m] = d2
+                    cv[m] = dn[r]
+                    m += d2 < r2
+        # the k nearest of them (the k-d tree's set, up to the order of exact ties): moved to
+        # the front by a quickselect on the squared distance, their dn alongside
+        c = min(m, k)
+        if m > k:
+            _select(cd, cv, m, k)
+        # their dn sorted by value (insertion sort: c ≤ k, a few dozen; np.sort's compiled
+        # quicksort would add ~10 s to the first compilation), zero-padded to k as the reference
+        for t in range(c):
+            x = cv[t]
+            u = t
+            while u > 0 and vv[u - 1] > x:
+                vv[u] = vv[u - 1]
+                u -= 1
+            vv[u] = x
+        for t in range(c, k):
+            vv[t] = 0.0
+        cc = max(c, 1)
+        lo_mid = (cc - 1) // 2
+        hi_mid = cc // 2
+        md = 0.5 * (vv[lo_mid] + vv[hi_mid])
+        # trimmed mean: the reference's prefix sums cs[j] = vv[0] + … + vv[j − 1], in order
+        cut = math.floor(cc * trim)
+        lo_t, hi_t = cut, cc - cut
+        s = 0.0
+        cs_lo = 0.0
+        cs_hi = 0.0
+        for t in range(max(lo_t, hi_t)):
+            s = vv[t] if t == 0 else s + vv[t]
+            if t + 1 == lo_t:
+                cs_lo = s
+            if t + 1 == hi_t:
+                cs_hi = s
+        trimmed[i] = (cs_hi - cs_lo) / max(hi_t - lo_t, 1)
+        # MAD: |v − md| of the sorted v falls to the median and rises after it — two sorted
+        # runs, merged from the middle outwards up to the rank hi_mid
+        if c > 0:
+            left = hi_mid
+            while left > 0 and vv[left - 1] >= md:
+                left -= 1
+            right = left  # vv[right:] ≥ md, vv[:right] < md
+            lft = right - 1
+            a_lo = 0.0
+            a_hi = 0.0
+            for t in range(hi_mid + 1):
+                if lft < 0 or (right < c and vv[right] - md <= md - vv[lft]):
+                    e = abs(vv[right] - md)
+                    right += 1
+                else:
+                    e = abs(vv[lft] - md)
+                    lft -= 1
+                if t == lo_mid:
+                    a_lo = e
+                if t == hi_mid:
+                    a_hi = e
+            mad[i] = 0.5 * (a_lo + a_hi)
+        else:
+            mad[i] = 0.0
+        med[i] = md
+        cnt[i] = c
+
+
+def contact_statistics(
+    feet: F64, dn: F64, contact: F64, *, radius: float, k: int, trim: float
+) -> tuple[NDArray[np.int64], F64, F64, F64]:
+    """Per contact (M, 3) [m]: the number of feet (N, 3) [m] used (the ``k`` nearest at a
+    distance ``< radius`` [m]), and the median, the ``trim``-trimmed mean and the MAD [m] of
+    their ``dn`` (N,) [m] — (M,) each, 0 where no foot is near. Needs numba
+    (:data:`HAVE_NUMBA`) and N ≥ 1.
+
+    Memory: ~3 int32 per foot (cell keys, the permutation) and the grid's row starts; the
+    feet are not copied.
+    """
+    F = np.ascontiguousarray(feet, dtype=float)
+    d = np.ascontiguousarray(dn, dtype=float)
+    P = np.ascontiguousarray(contact, dtype=float)
+    n, M = F.shape[0], P.shape[0]
+    lo, hi = _bounds(F, _NO_ROWS)
+    span = np.maximum(hi - lo, 1e-12)
+    nx, ny, nz = _shape(span, CELL * radius, MAX_CELLS)
+    h = max(CELL * radius, float(np.max(span / np.array((nx, ny, nz)))))
+    cdt = np.int32 if n < 2**31 else np.int64
+    key = np.empty(n, dtype=cdt)
+    counts = np.zeros(nx * ny * nz, dtype=cdt)
+    _cell_keys(F, _NO_ROWS, lo, h, nx, ny, nz, key, counts)
+    start = np.zeros(counts.size + 1, dtype=cdt)
+    np.cumsum(counts, out=start[1:])
+    del counts
+    order = _counting_sort(key, start)
+    del key
+    cnt = np.empty(M, dtype=np.int64)
+    med, trimmed, mad = np.empty(M), np.empty(M), np.empty(M)
+    r2 = radius * radius
+
+    def run(a: int) -> None:
+        b = min(a + chunk, M)
+        _contacts(F, d, order, start, lo, h, nx, ny, nz, P, radius, r2, k, trim, a, b,
+                  cnt, med, trimmed, mad)  # fmt: skip
+
+    chunk = 4096
+    starts = range(0, M, chunk)
+    nw = max(1, min(os.cpu_count() or 1, len(starts)))
+    if nw == 1:
+        for a in starts:
+            run(a)
+    else:
+        with ThreadPoolExecutor(max_workers=nw) as pool:
+            list(pool.map(run, starts))
+    return cnt, med, trimmed, mad
