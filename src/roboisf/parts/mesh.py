@@ -273,6 +273,10 @@ class MeshPart:
             "rho_max": float(rho.max()),
             "normal": unit_n,
         }
+        # the compiled query's per-triangle bound data in one row (one cache line)
+        idx["bnd"] = np.ascontiguousarray(
+            np.column_stack([centroid, rho, unit_n, rho * rho]), dtype=np.float64
+        )
         if self.backend != "numpy" and mesh_kernel.HAVE_NUMBA:
             idx["grid"] = mesh_kernel.build_grid(a, b, c, spatial_order(centroid))
         object.__setattr__(self, "_index", idx)
@@ -407,12 +411,15 @@ class MeshPart:
             )
         origin, h, dims, start, items, bvh = ix["grid"]
         tri = (ix["a"], ix["ab"], ix["ac"], ix["abab"], ix["abac"], ix["acac"])
+        # absolute rounding margin [m²] of the kernel's pruning tests (distances are computed
+        # to ~1e-16 of the squared cell/triangle size): every triangle at the minimum is seen
+        tol2 = 1e-12 * (h * h + 4.0 * ix["rho_max"] ** 2)
 
         def run(lo: int) -> None:
             hi = min(lo + NUMBA_CHUNK, n)
             mesh_kernel.closest_grid(
-                X[lo:hi], origin, h, dims, start, items, *tri, ix["centroid"], ix["rho"],
-                *bvh, face[lo:hi], d2[lo:hi], P[lo:hi],
+                X[lo:hi], origin, h, dims, start, items, *tri, ix["bnd"], *bvh,
+                tol2, True, face[lo:hi], d2[lo:hi], P[lo:hi],
             )  # fmt: skip
 
         starts = range(0, n, NUMBA_CHUNK)
