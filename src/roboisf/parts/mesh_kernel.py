@@ -263,7 +263,7 @@ def _scan(
     """Update the best ``(d², face, v, w)`` with triangles ``ids[s:e]`` (a −1 ends the list).
 
     A triangle is skipped when a lower bound of its distance exceeds the best by more than the
-    rounding margin (so that every triangle at the final minimum is evaluated: ties go to the
+    rounding margin (first its bounding sphere, then the tighter plane bound below) (so that every triangle at the final minimum is evaluated: ties go to the
     lowest index, whatever the order of the search): with ``h`` the distance from ``p`` to the
     triangle's plane and ``q`` the in-plane distance to its centroid, every point of the
     triangle is at least ``sqrt(h² + max(0, q − ρ)²)`` away (it lies in its plane within ρ of
@@ -271,6 +271,8 @@ def _scan(
     The others are evaluated exactly; exact ties go to the lower index.
     """
     a, ab, ac, abab, abac, acac = tri
+    # bounding-sphere test first (no square root per triangle): |p − c| − ρ > sb skips
+    sb = math.sqrt(best2 * (1.0 + 1e-12) + tol2) * (1.0 + 1e-9)
     for q in range(s, e):
         t = ids[q]
         if t < 0:
@@ -279,6 +281,8 @@ def _scan(
         dy = py - bnd[t, 1]
         dz = pz - bnd[t, 2]
         r2 = dx * dx + dy * dy + dz * dz
+        if r2 > (sb + bnd[t, 3]) ** 2:
+            continue
         hn = dx * bnd[t, 4] + dy * bnd[t, 5] + dz * bnd[t, 6]
         h2 = hn * hn
         lim = best2 + 1e-12 * (best2 + r2 + bnd[t, 7]) + tol2
@@ -290,6 +294,7 @@ def _scan(
         d2, v, w = _tri_d2(px, py, pz, t, a, ab, ac, abab, abac, acac)
         if d2 < best2 or (d2 == best2 and t < bf):
             best2, bf, bv, bw = d2, t, v, w
+            sb = math.sqrt(best2 * (1.0 + 1e-12) + tol2) * (1.0 + 1e-9)
     return best2, bf, bv, bw
 
 
