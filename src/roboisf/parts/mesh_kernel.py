@@ -266,8 +266,9 @@ def _scan(
     rounding margin (so that every triangle at the final minimum is evaluated: ties go to the
     lowest index, whatever the order of the search): first its bounding sphere, then, with
     ``h`` the distance from ``p`` to the triangle's plane and ``q`` the in-plane distance to
-    its centroid, every point of the triangle is at least ``sqrt(h² + max(0, q − ρ)²)`` away (it lies in its plane within ρ of
-    the centroid; for a zero-area triangle the normal is 0 and this is the bounding sphere).
+    its centroid, every point of the triangle is at least ``sqrt(h² + max(0, q − ρ)²)`` away
+    (it lies in its plane within ρ of the centroid; for a zero-area triangle the normal is 0
+    and this is the bounding sphere).
     The others are evaluated exactly; exact ties go to the lower index.
     """
     a, ab, ac, abab, abac, acac = tri
