@@ -7,8 +7,9 @@ scan code does not care which kind of nominal it compares against.
 Two exact closest-point engines (``MeshPart(..., backend=...)``):
 
 - ``"numba"`` (used by default when numba is installed, ``pip install roboisf[fast]``): a
-  compiled uniform-grid search, see :mod:`roboisf.parts.mesh_kernel`; ~1.6× faster than Open3D's
-  ``RaycastingScene`` on 3 M points (docs/scan.md);
+  compiled uniform-grid search seeded by the previous point, see :mod:`roboisf.parts.mesh_kernel`;
+  2–2.7× less CPU than Open3D's ``RaycastingScene`` on 3 M points, 1.4–3× faster in wall time
+  on a contended machine (docs/scan.md);
 - ``"numpy"`` (the fallback, always available), described below; ~1.9× slower than Open3D.
 
 They compute the point–triangle distance with the same arithmetic (:func:`point_triangle_distance2`
@@ -193,7 +194,7 @@ class MeshPart:
     source : the file it came from (for the TOML round trip), or None
     backend : closest-point engine: ``"auto"`` (default: ``"numba"`` when numba is
         installed, else ``"numpy"``), ``"numba"`` (compiled uniform-grid search,
-        :mod:`roboisf.parts.mesh_kernel`, ~1.6× faster than Open3D on the benchmark; install
+        :mod:`roboisf.parts.mesh_kernel`, 1.4–3× faster than Open3D on the benchmark; install
         ``roboisf[fast]``) or ``"numpy"`` (k-d tree over the centroids, see the module doc).
         Both are exact and compute the point–triangle distance with the same arithmetic; at
         exact ties (a point equally far from two triangles) they may name different faces.
