@@ -5,26 +5,35 @@ falls back to its pure numpy k-d-tree query, which gives the same answers, ~3× 
 
 Algorithm (exact):
 
-1. a uniform grid of cubic cells of side ``h`` over the mesh's bounding box; every triangle
-   is listed in each cell its axis-aligned bounding box overlaps (compressed rows: ``start``,
-   ``items``). The closest point of a triangle to any query lies in the triangle, hence in its
-   box, hence in a cell that lists the triangle;
-2. per query point ``p``, the cells are visited in Chebyshev rings ``R = 0, 1, …`` around the
-   cell of ``p`` (clamped into the grid). A cell farther from ``p`` than the best distance so
-   far is skipped; a triangle whose bounding sphere (centroid, ρ) is farther is skipped; the
-   others are evaluated exactly (Ericson §5.1.5, the same formula as
-   :func:`~roboisf.parts.mesh.point_triangle_distance2`);
-3. after ring ``R`` every triangle not yet seen has its closest point in a cell outside the
-   cube of rings ``0..R``: at least the distance from ``p`` to (grid box − cube) away (exact
-   distance to the ≤ 6 slabs). The search stops when the best distance is not larger;
-4. a point still unresolved after :data:`MAX_RINGS` rings is far from the surface (the ring
+1. a uniform grid of cubic cells of side ``h`` (:data:`CELL_EDGES` mean triangle edges) over
+   the mesh's bounding box; every triangle is listed in each cell its axis-aligned bounding
+   box overlaps (compressed rows: ``start``, ``items``). The closest point of a triangle to any
+   query lies in the triangle, hence in its box, hence in a cell that lists the triangle;
+2. a triangle of a visited cell is skipped when a lower bound of its distance exceeds the best
+   so far: with ``h`` the distance to the triangle's plane and ``q`` the in-plane distance to
+   its centroid, every point of the triangle is at least ``sqrt(h² + max(0, q − ρ)²)`` away
+   (ρ: its bounding radius around the centroid). The others are evaluated exactly (Ericson
+   §5.1.5, the same formula as :func:`~roboisf.parts.mesh.point_triangle_distance2`);
+3. seeding: the points come in spatial order (:func:`~roboisf.parts.mesh.spatial_order`), so
+   the previous point's closest triangle is a close upper bound ``r`` for this point's
+   distance. Every nearer triangle has its closest point in the ball of radius ``r``, hence in
+   a cell meeting the ball's box: those cells are all that is searched (when ``r ≤ 2h``);
+4. otherwise (the first point, or a seed farther than ``2h``), the cells are visited in
+   Chebyshev rings ``R = 0, 1, …`` around the cell of ``p`` (clamped into the grid), a cell
+   farther from ``p`` than the best distance so far skipped. After ring ``R`` every triangle
+   not yet seen has its closest point in a cell outside the cube of rings ``0..R``: at least
+   the distance from ``p`` to (grid box − cube) away (exact distance to the ≤ 6 slabs). The
+   search stops when the best distance is smaller;
+5. a point still unresolved after :data:`MAX_RINGS` rings is far from the surface (the ring
    search would grow as R³): it finishes with a depth-first walk of a bounding-volume
    hierarchy (Morton-ordered leaves of 8 triangles, nearer child first, a node skipped when
    its box is farther than the best so far), starting from the best found in the grid.
 
-Each point's search depends on that point only (no seeding from its neighbours), so the
-answer does not depend on the order or chunking of the queries (at exact ties between
-triangles, the lower index among those evaluated wins).
+The answer is canonical: the triangle with the smallest computed distance, the lowest index
+among equal ones (every pruning test keeps a relative 1e-12 rounding margin, so no triangle at
+the minimum is skipped). It therefore does not depend on the seed, the cell size, the order or
+the chunking of the queries: a brute force over all triangles with ``argmin`` gives the same
+face, bit for bit (tests/test_mesh_closest.py).
 
 The kernel is serial and releases the GIL (``nogil``): :meth:`MeshPart.closest_faces` and
 :func:`roboisf.scan.point_deviations` run it on several threads. (A ``parallel=True`` kernel
@@ -51,6 +60,9 @@ except ImportError:  # pragma: no cover
 
 #: Digit width of the Morton codes' radix sort (4 passes for 48-bit codes).
 RADIX_BITS = 12
+
+#: Grid cell side in mean triangle edges.
+CELL_EDGES = 3.0
 
 #: Largest number of grid cells (bounds the grid's memory to ~130 MB of int64 row starts).
 MAX_CELLS = 16_000_000
@@ -114,7 +126,7 @@ def build_grid(
     g_lo, g_hi = lo.min(axis=0), hi.max(axis=0)
     span = np.maximum(g_hi - g_lo, 1e-12)
     edge = float(np.mean(np.linalg.norm(b - a, axis=1) + np.linalg.norm(c - b, axis=1))) / 2
-    h = max(3.0 * edge, float(span.max()) * 1e-6)
+    h = max(CELL_EDGES * edge, float(span.max()) * 1e-6)
     while np.prod(np.floor(span / h) + 1) > MAX_CELLS:
         h *= 1.25
     dims = (np.floor(span / h) + 1).astype(np.int64)
@@ -241,33 +253,50 @@ def _scan(
     py: float,
     pz: float,
     tri: Any,
-    centroid: NDArray[np.float64],
-    rho: NDArray[np.float64],
+    bnd: NDArray[np.float64],
+    tol2: float,
     best2: float,
-    best: float,
     bf: int,
     bv: float,
     bw: float,
-) -> tuple[float, float, int, float, float]:
-    """Update the best ``(d², d, face, v, w)`` with triangles ``ids[s:e]`` (a −1 ends the list):
-    a triangle whose bounding sphere is farther than the best is skipped, the others are
-    evaluated exactly; exact ties go to the lower index."""
+) -> tuple[float, int, float, float]:
+    """Update the best ``(d², face, v, w)`` with triangles ``ids[s:e]`` (a −1 ends the list).
+
+    A triangle is skipped when a lower bound of its distance exceeds the best by more than the
+    rounding margin (so that every triangle at the final minimum is evaluated: ties go to the
+    lowest index, whatever the order of the search): first its bounding sphere, then, with
+    ``h`` the distance from ``p`` to the triangle's plane and ``q`` the in-plane distance to
+    its centroid, every point of the triangle is at least ``sqrt(h² + max(0, q − ρ)²)`` away
+    (it lies in its plane within ρ of the centroid; for a zero-area triangle the normal is 0
+    and this is the bounding sphere).
+    The others are evaluated exactly; exact ties go to the lower index.
+    """
     a, ab, ac, abab, abac, acac = tri
+    # bounding-sphere test first (no square root per triangle): |p − c| − ρ > sb skips
+    sb = math.sqrt(best2 * (1.0 + 1e-12) + tol2) * (1.0 + 1e-9)
     for q in range(s, e):
         t = ids[q]
         if t < 0:
             break
-        dx = px - centroid[t, 0]
-        dy = py - centroid[t, 1]
-        dz = pz - centroid[t, 2]
-        gap = math.sqrt(dx * dx + dy * dy + dz * dz) - rho[t]
-        if gap > 0 and gap >= best:
+        dx = px - bnd[t, 0]
+        dy = py - bnd[t, 1]
+        dz = pz - bnd[t, 2]
+        r2 = dx * dx + dy * dy + dz * dz
+        if r2 > (sb + bnd[t, 3]) ** 2:
+            continue
+        hn = dx * bnd[t, 4] + dy * bnd[t, 5] + dz * bnd[t, 6]
+        h2 = hn * hn
+        lim = best2 + 1e-12 * (best2 + r2 + bnd[t, 7]) + tol2
+        if h2 > lim:
+            continue
+        g = math.sqrt(max(r2 - h2, 0.0)) - bnd[t, 3]
+        if g > 0.0 and h2 + g * g > lim:
             continue
         d2, v, w = _tri_d2(px, py, pz, t, a, ab, ac, abab, abac, acac)
         if d2 < best2 or (d2 == best2 and t < bf):
             best2, bf, bv, bw = d2, t, v, w
-            best = math.sqrt(d2)
-    return best2, best, bf, bv, bw
+            sb = math.sqrt(best2 * (1.0 + 1e-12) + tol2) * (1.0 + 1e-9)
+    return best2, bf, bv, bw
 
 
 @_njit()
@@ -284,18 +313,25 @@ def closest_grid(
     abab: NDArray[np.float64],
     abac: NDArray[np.float64],
     acac: NDArray[np.float64],
-    centroid: NDArray[np.float64],
-    rho: NDArray[np.float64],
+    bnd: NDArray[np.float64],
     nlo: NDArray[np.float64],
     nhi: NDArray[np.float64],
     leaf_tri: NDArray[np.int32],
     n_leaves: int,
+    tol2: float,
+    seed: bool,
     face: NDArray[np.int64],
     dist2: NDArray[np.float64],
     closest: NDArray[np.float64],
 ) -> None:
     """Exact closest triangle of each row of ``X`` (N, 3) [m]: fills ``face`` (N,), ``dist2``
-    (N,) [m²] and ``closest`` (N, 3) [m] in place (see the module doc for the algorithm)."""
+    (N,) [m²] and ``closest`` (N, 3) [m] in place (see the module doc for the algorithm).
+
+    ``bnd`` (F, 8): per triangle centroid (3) [m], bounding radius ρ [m], unit normal (3),
+    ρ² [m²]; ``tol2`` [m²] the absolute rounding margin of the pruning tests. ``seed``: start
+    each point from the previous point's closest triangle (the same answers; faster on points
+    in spatial order).
+    """
     nx, ny, nz = dims[0], dims[1], dims[2]
     tri = (a, ab, ac, abab, abac, acac)
     g_hi = np.empty(3)
@@ -307,91 +343,124 @@ def closest_grid(
     blo = np.empty(3)
     bhi = np.empty(3)
     p = np.empty(3)
+    lo_i = np.empty(3, dtype=np.int64)
+    hi_i = np.empty(3, dtype=np.int64)
     for n in range(X.shape[0]):
         px, py, pz = X[n, 0], X[n, 1], X[n, 2]
         p[0], p[1], p[2] = px, py, pz
-        for ax in range(3):
-            ci = math.floor((p[ax] - origin[ax]) / h) if math.isfinite(p[ax]) else 0
-            cell[ax] = min(max(ci, 0), dims[ax] - 1)
-        cx, cy, cz = cell[0], cell[1], cell[2]
         best2 = np.inf
-        best = np.inf
         bf, bv, bw = -1, 0.0, 0.0
-        R = 0
-        while True:
-            i0, i1 = max(cx - R, 0), min(cx + R, nx - 1)
-            j0, j1 = max(cy - R, 0), min(cy + R, ny - 1)
-            k0, k1 = max(cz - R, 0), min(cz + R, nz - 1)
-            for i in range(i0, i1 + 1):
-                for j in range(j0, j1 + 1):
-                    if abs(i - cx) == R or abs(j - cy) == R:  # a side of the shell
-                        ka, kb, ks = k0, k1 + 1, 1
-                    else:  # inside the shell's x-y extent: only its two z faces
-                        ka, kb, ks = cz - R, cz + R + 1, 2 * R
-                    for k in range(ka, kb, ks):
-                        if k < 0 or k >= nz:
-                            continue
-                        c = (i * ny + j) * nz + k
-                        s, e = start[c], start[c + 1]
-                        if s == e:
-                            continue
-                        blo[0], blo[1], blo[2] = (
-                            origin[0] + i * h,
-                            origin[1] + j * h,
-                            origin[2] + k * h,
-                        )
-                        bhi[0], bhi[1], bhi[2] = blo[0] + h, blo[1] + h, blo[2] + h
-                        if _box_d2(p, blo, bhi) >= best2:
-                            continue
-                        best2, best, bf, bv, bw = _scan(
-                            items, s, e, px, py, pz, tri, centroid, rho, best2, best, bf, bv, bw
-                        )
-            # lower bound for every triangle outside the cube of rings 0..R: distance to the
-            # part of the grid box outside the cube (≤ 6 slabs; empty ones skipped)
-            lb2 = np.inf
-            lo_c = (cx - R, cy - R, cz - R)
-            hi_c = (cx + R, cy + R, cz + R)
+        done = False
+        if seed and n > 0:
+            # the previous point's triangle bounds this point's distance; every triangle
+            # nearer than that has its closest point in a cell meeting the ball's box
+            bf = face[n - 1]
+            best2, bv, bw = _tri_d2(px, py, pz, bf, a, ab, ac, abab, abac, acac)
+            r = math.sqrt(best2 + tol2) * (1.0 + 1e-9)
+            if r <= 2.0 * h:
+                for ax in range(3):
+                    i0 = math.floor((p[ax] - r - origin[ax]) / h)
+                    i1 = math.floor((p[ax] + r - origin[ax]) / h)
+                    lo_i[ax] = min(max(i0, 0), dims[ax] - 1)
+                    hi_i[ax] = min(max(i1, 0), dims[ax] - 1)
+                for i in range(lo_i[0], hi_i[0] + 1):
+                    for j in range(lo_i[1], hi_i[1] + 1):
+                        for k in range(lo_i[2], hi_i[2] + 1):
+                            c = (i * ny + j) * nz + k
+                            s, e = start[c], start[c + 1]
+                            if s == e:
+                                continue
+                            blo[0] = origin[0] + i * h
+                            blo[1] = origin[1] + j * h
+                            blo[2] = origin[2] + k * h
+                            bhi[0], bhi[1], bhi[2] = blo[0] + h, blo[1] + h, blo[2] + h
+                            if _box_d2(p, blo, bhi) > best2 * (1.0 + 1e-12) + tol2:
+                                continue
+                            best2, bf, bv, bw = _scan(
+                                items, s, e, px, py, pz, tri, bnd, tol2, best2, bf, bv, bw
+                            )
+                done = True
+        if not done:
             for ax in range(3):
-                for side in range(2):
-                    if side == 0 and lo_c[ax] <= 0:
-                        continue
-                    if side == 1 and hi_c[ax] >= dims[ax] - 1:
-                        continue
-                    for bx in range(3):
-                        blo[bx], bhi[bx] = origin[bx], g_hi[bx]
-                    if side == 0:
-                        bhi[ax] = origin[ax] + lo_c[ax] * h
-                    else:
-                        blo[ax] = origin[ax] + (hi_c[ax] + 1) * h
-                    lb2 = min(lb2, _box_d2(p, blo, bhi))
-            if lb2 == np.inf or best2 <= lb2 * (1.0 - 1e-12):
-                break
-            R += 1
-            if R > MAX_RINGS:  # far from the surface: finish with the BVH (exact as well)
-                stack[0], sd[0], top = 0, _node_d2(px, py, pz, nlo, nhi, 0), 1
-                while top > 0:
-                    top -= 1
-                    node = stack[top]
-                    if sd[top] >= best2:
-                        continue
-                    if node >= n_leaves - 1:  # a leaf
-                        s = (node - (n_leaves - 1)) * LEAF
-                        best2, best, bf, bv, bw = _scan(
-                            leaf_tri, s, s + LEAF, px, py, pz, tri, centroid, rho,
-                            best2, best, bf, bv, bw,
-                        )  # fmt: skip
-                        continue
-                    left = 2 * node + 1
-                    dl = _node_d2(px, py, pz, nlo, nhi, left)
-                    dr = _node_d2(px, py, pz, nlo, nhi, left + 1)
-                    near, far, dn, df = left, left + 1, dl, dr
-                    if dr < dl:
-                        near, far, dn, df = left + 1, left, dr, dl
-                    if df < best2:  # pushed first: popped after the nearer child
-                        stack[top], sd[top], top = far, df, top + 1
-                    if dn < best2:
-                        stack[top], sd[top], top = near, dn, top + 1
-                break
+                ci = math.floor((p[ax] - origin[ax]) / h) if math.isfinite(p[ax]) else 0
+                cell[ax] = min(max(ci, 0), dims[ax] - 1)
+            cx, cy, cz = cell[0], cell[1], cell[2]
+            R = 0
+            while True:
+                i0, i1 = max(cx - R, 0), min(cx + R, nx - 1)
+                j0, j1 = max(cy - R, 0), min(cy + R, ny - 1)
+                k0, k1 = max(cz - R, 0), min(cz + R, nz - 1)
+                for i in range(i0, i1 + 1):
+                    for j in range(j0, j1 + 1):
+                        if abs(i - cx) == R or abs(j - cy) == R:  # a side of the shell
+                            ka, kb, ks = k0, k1 + 1, 1
+                        else:  # inside the shell's x-y extent: only its two z faces
+                            ka, kb, ks = cz - R, cz + R + 1, 2 * R
+                        for k in range(ka, kb, ks):
+                            if k < 0 or k >= nz:
+                                continue
+                            c = (i * ny + j) * nz + k
+                            s, e = start[c], start[c + 1]
+                            if s == e:
+                                continue
+                            blo[0], blo[1], blo[2] = (
+                                origin[0] + i * h,
+                                origin[1] + j * h,
+                                origin[2] + k * h,
+                            )
+                            bhi[0], bhi[1], bhi[2] = blo[0] + h, blo[1] + h, blo[2] + h
+                            if _box_d2(p, blo, bhi) > best2 * (1.0 + 1e-12) + tol2:
+                                continue
+                            best2, bf, bv, bw = _scan(
+                                items, s, e, px, py, pz, tri, bnd, tol2, best2, bf, bv, bw
+                            )
+                # lower bound for every triangle outside the cube of rings 0..R: distance to
+                # the part of the grid box outside the cube (≤ 6 slabs; empty ones skipped)
+                lb2 = np.inf
+                lo_c = (cx - R, cy - R, cz - R)
+                hi_c = (cx + R, cy + R, cz + R)
+                for ax in range(3):
+                    for side in range(2):
+                        if side == 0 and lo_c[ax] <= 0:
+                            continue
+                        if side == 1 and hi_c[ax] >= dims[ax] - 1:
+                            continue
+                        for bx in range(3):
+                            blo[bx], bhi[bx] = origin[bx], g_hi[bx]
+                        if side == 0:
+                            bhi[ax] = origin[ax] + lo_c[ax] * h
+                        else:
+                            blo[ax] = origin[ax] + (hi_c[ax] + 1) * h
+                        lb2 = min(lb2, _box_d2(p, blo, bhi))
+                if lb2 == np.inf or best2 * (1.0 + 1e-12) + tol2 < lb2:
+                    break
+                R += 1
+                if R > MAX_RINGS:  # far from the surface: finish with the BVH (exact as well)
+                    stack[0], sd[0], top = 0, _node_d2(px, py, pz, nlo, nhi, 0), 1
+                    while top > 0:
+                        top -= 1
+                        node = stack[top]
+                        lim = best2 * (1.0 + 1e-12) + tol2
+                        if sd[top] > lim:
+                            continue
+                        if node >= n_leaves - 1:  # a leaf
+                            s = (node - (n_leaves - 1)) * LEAF
+                            best2, bf, bv, bw = _scan(
+                                leaf_tri, s, s + LEAF, px, py, pz, tri, bnd, tol2,
+                                best2, bf, bv, bw,
+                            )  # fmt: skip
+                            continue
+                        left = 2 * node + 1
+                        dl = _node_d2(px, py, pz, nlo, nhi, left)
+                        dr = _node_d2(px, py, pz, nlo, nhi, left + 1)
+                        near, far, dn, df = left, left + 1, dl, dr
+                        if dr < dl:
+                            near, far, dn, df = left + 1, left, dr, dl
+                        if df <= lim:  # pushed first: popped after the nearer child
+                            stack[top], sd[top], top = far, df, top + 1
+                        if dn <= lim:
+                            stack[top], sd[top], top = near, dn, top + 1
+                    break
         face[n] = bf
         dist2[n] = best2
         for ax in range(3):
