@@ -12,9 +12,8 @@ import pytest
 
 from report_fixtures import make_study
 from roboisf.errors import InputError
-from roboisf.report import FIGURES, write_report
+from roboisf.report import FIGURES, render, write_report
 from roboisf.report import document as doc
-from roboisf.report import render
 from roboisf.report import static as st
 
 
@@ -34,9 +33,7 @@ def _same_report(a: Path, b: Path) -> None:
         assert (a / "figures" / f"{fid}.png").read_bytes() == (
             b / "figures" / f"{fid}.png"
         ).read_bytes(), fid
-    assert sorted(p.name for p in (b / "figures").iterdir()) == sorted(
-        f"{f}.png" for f in FIGURES
-    )
+    assert sorted(p.name for p in (b / "figures").iterdir()) == sorted(f"{f}.png" for f in FIGURES)
 
 
 @pytest.mark.parametrize("processes", [1, 3])

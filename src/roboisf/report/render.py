@@ -21,6 +21,7 @@ exit that removes its temporary file) and waits for them.
 
 from __future__ import annotations
 
+import gc
 import multiprocessing as mp
 import os
 import pickle
@@ -194,15 +195,21 @@ class PngRenderer:
         self._jobs = ctx.Value("i", 0)  # index of the next figure to draw in self.ids
         self._results = ctx.Queue()
         source: _Source = self.figures if ctx.get_start_method() == "fork" else self.rebuild
-        for _ in range(self.processes):
-            p = ctx.Process(
-                target=_worker,
-                args=(self._jobs, self.ids, self._results, str(self.folder), source),
-                name="roboisf-report-png",
-                daemon=True,
-            )
-            p.start()
-            self._workers.append(p)
+        # the parent's objects to the permanent generation: the workers' garbage collector then
+        # never walks them, so their pages stay shared with the parent instead of being copied
+        gc.freeze()
+        try:
+            for _ in range(self.processes):
+                p = ctx.Process(
+                    target=_worker,
+                    args=(self._jobs, self.ids, self._results, str(self.folder), source),
+                    name="roboisf-report-png",
+                    daemon=True,
+                )
+                p.start()
+                self._workers.append(p)
+        finally:
+            gc.unfreeze()
         return self
 
     def finish(self) -> None:
@@ -214,9 +221,9 @@ class PngRenderer:
                 self.on_done()
             return
         done: set[str] = set()
-        while (fid := _take(self._jobs, self.ids)) is not None:  # the caller's share
-            _draw(self.figures[fid], fid, self.folder)
-            done.add(fid)
+        while (mine := _take(self._jobs, self.ids)) is not None:  # the caller's share
+            _draw(self.figures[mine], mine, self.folder)
+            done.add(mine)
             self.on_done()
         while len(done) < len(self.ids):
             try:
