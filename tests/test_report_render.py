@@ -133,3 +133,8 @@ def test_processes_from_the_environment(monkeypatch):
     monkeypatch.delenv(render.PROCESSES_ENV)
     n = render.default_processes()
     assert 0 <= n <= 3 and n == max(0, min(len(os.sched_getaffinity(0)) - 1, 3))
+    # no fork (macOS, Windows): no workers unless asked for
+    monkeypatch.setattr(render, "_context", lambda: mp.get_context("spawn"))
+    assert render.default_processes() == 0
+    monkeypatch.setenv(render.PROCESSES_ENV, "1")
+    assert render.default_processes() == 1

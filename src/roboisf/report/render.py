@@ -58,7 +58,9 @@ _COST_ORDER = (
 
 def default_processes() -> int:
     """Worker processes for the PNGs: ``$ROBOISF_REPORT_PROCESSES`` if set, else one fewer
-    than the CPUs this process may run on (at most 3; 0 on a single CPU)."""
+    than the CPUs this process may run on (at most 3; 0 on a single CPU, and 0 where workers
+    cannot be forked: a spawned worker re-imports the report's modules, ~1–2 s, and needs the
+    caller's script guarded by ``if __name__ == "__main__"``)."""
     env = os.environ.get(PROCESSES_ENV, "").strip()
     if env:
         try:
@@ -75,6 +77,8 @@ def default_processes() -> int:
 
             raise InputError(f"expected 0 or more processes, got {n}", field=PROCESSES_ENV)
         return n
+    if _context().get_start_method() != "fork":
+        return 0
     try:
         cpus = len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
