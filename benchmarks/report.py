@@ -94,9 +94,10 @@ def main() -> None:
                 peer_size += out.stat().st_size
             t_peer = time.perf_counter() - t0
         print(
-            f"{n:>7} points: HTML only {t_html:5.2f} s ({size / 1e6:4.1f} MB) | HTML + 8 PNG "
-            f"{t_full:5.2f} s | peer (write_html per figure) {t_peer:5.2f} s, "
-            f"{peer_size / 1e6:5.1f} MB in 8 files — size ratio {peer_size / size:4.1f}x, "
+            f"{n:>7} points: HTML only {t_html:5.2f} s ({size / 1e6:4.1f} MB) | HTML + "
+            f"{len(figs)} PNG {t_full:5.2f} s | peer (write_html per figure) {t_peer:5.2f} s, "
+            f"{peer_size / 1e6:5.1f} MB in {len(figs)} files — size ratio "
+            f"{peer_size / size:4.1f}x, "
             f"time ratio {t_peer / t_html:4.2f}x"
         )
         with tempfile.TemporaryDirectory() as tmp:
