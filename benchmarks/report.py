@@ -5,13 +5,19 @@ Peers, in the same run: the naive plotly way — each figure written with ``fig.
 its own copy of plotly.js (what an ad-hoc script does) — against the report's single file with
 plotly.js once; and the PNGs as they were drawn before issue #16 (the same figures under
 matplotlib's constrained layout, which draws each figure twice, and PIL's default zlib level)
-against the fixed layout drawn once. CPU time (``time.process_time``) is printed beside the wall
-time: on a shared machine the wall time is contended.
+against the fixed layout drawn once; and the whole report with the PNGs drawn in worker processes
+while the HTML is written (the default) against all in one process (``processes=0``), the files
+compared byte for byte. CPU time (``time.process_time``, plus the workers' from
+``getrusage(RUSAGE_CHILDREN)``) is printed beside the wall time: on a shared machine the wall time
+is contended.
 """
 
 from __future__ import annotations
 
+import filecmp
 import io
+import os
+import resource
 import sys
 import tempfile
 import time
@@ -24,11 +30,42 @@ from report_fixtures import make_study  # noqa: E402
 from roboisf.report import document as doc  # noqa: E402
 from roboisf.report import static as st  # noqa: E402
 from roboisf.report import write_report  # noqa: E402
+from roboisf.report.render import default_processes  # noqa: E402
 from roboisf.report.schema import (  # noqa: E402
     check_contributions,
     check_per_point,
     check_summary,
 )
+
+
+def _children_cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def parallel(study: tuple, tmp: Path) -> None:
+    """The report with the PNGs in worker processes against all in one process (interleaved)."""
+    n_workers = default_processes()
+    runs: dict[int, list[tuple[float, float, float]]] = {0: [], n_workers: []}
+    for _ in range(2):
+        for procs in runs:
+            w0, c0, k0 = time.perf_counter(), time.process_time(), _children_cpu()
+            write_report(*study, tmp / f"procs{procs}", png=True, processes=procs)
+            runs[procs].append(
+                (time.perf_counter() - w0, time.process_time() - c0, _children_cpu() - k0)
+            )
+    a, b = tmp / "procs0", tmp / f"procs{n_workers}"
+    same = filecmp.cmp(a / "report.html", b / "report.html", shallow=False) and all(
+        filecmp.cmp(f, b / "figures" / f.name, shallow=False) for f in (a / "figures").iterdir()
+    )
+    for procs, rs in runs.items():
+        walls = ", ".join(f"{w:5.2f}" for w, _, _ in rs)
+        cpus = ", ".join(f"{c:4.2f}+{k:4.2f}" for _, c, k in rs)
+        print(
+            f"{'':>7}  report with {procs} PNG worker(s): wall {walls} s, CPU (this process + "
+            f"workers) {cpus} s"
+        )
+    print(f"{'':>7}  same bytes (HTML and every PNG): {same}; {os.cpu_count()} CPUs")
 
 
 def main() -> None:
@@ -57,11 +94,14 @@ def main() -> None:
                 peer_size += out.stat().st_size
             t_peer = time.perf_counter() - t0
         print(
-            f"{n:>7} points: HTML only {t_html:5.2f} s ({size / 1e6:4.1f} MB) | HTML + 8 PNG "
-            f"{t_full:5.2f} s | peer (write_html per figure) {t_peer:5.2f} s, "
-            f"{peer_size / 1e6:5.1f} MB in 8 files — size ratio {peer_size / size:4.1f}x, "
+            f"{n:>7} points: HTML only {t_html:5.2f} s ({size / 1e6:4.1f} MB) | HTML + "
+            f"{len(figs)} PNG {t_full:5.2f} s | peer (write_html per figure) {t_peer:5.2f} s, "
+            f"{peer_size / 1e6:5.1f} MB in {len(figs)} files — size ratio "
+            f"{peer_size / size:4.1f}x, "
             f"time ratio {t_peer / t_html:4.2f}x"
         )
+        with tempfile.TemporaryDirectory() as tmp:
+            parallel(study, Path(tmp))
         cpu = {"fixed layout, drawn once": 0.0, "constrained layout (before #16)": 0.0}
         for _ in range(2):  # interleaved, twice
             for mode in cpu:

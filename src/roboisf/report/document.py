@@ -24,6 +24,7 @@ from roboisf.report import page as pg
 from roboisf.report import static as st
 from roboisf.report.alignment import alignment_html
 from roboisf.report.model_check import check_card, check_tables
+from roboisf.report.render import PngRenderer, default_processes
 from roboisf.report.schema import FACTORS, check_contributions, check_per_point, check_summary
 from roboisf.report.style import FACTOR_LABELS
 
@@ -308,6 +309,7 @@ def write_report(
     *,
     png: bool = True,
     progress: Progress | None = None,
+    processes: int | None = None,
 ) -> Path:
     """Write ``out_dir/report.html`` (self-contained, offline) and ``out_dir/figures/<id>.png``.
 
@@ -329,6 +331,10 @@ def write_report(
         Also write the static matplotlib figures (:data:`FIGURES`, one PNG each).
     progress
         Optional :class:`roboisf.progress.Progress`.
+    processes
+        Worker processes drawing the PNGs while this process writes the HTML (0: all in this
+        process). Default: ``$ROBOISF_REPORT_PROCESSES``, else one fewer than the usable CPUs
+        (at most 3). The files are the same bytes either way.
 
     Returns
     -------
@@ -350,7 +356,9 @@ def write_report(
     round_part = agg.is_round(pp, summ["part_symmetry"], None if kind is None else str(kind))
     ids = figure_ids(round_part)
     with agg.reused():  # both renderers draw the same reductions: computed once
-        return _write_report(pp, contrib, contrib_n, summ, out, png, progress, round_part, ids)
+        return _write_report(
+            pp, contrib, contrib_n, summ, out, png, progress, round_part, ids, processes
+        )
 
 
 def _write_report(
@@ -363,6 +371,7 @@ def _write_report(
     progress: Progress | None,
     round_part: bool,
     ids: tuple[str, ...],
+    processes: int | None = None,
 ) -> Path:
     part = summ.get("part")
     kind = part.get("kind") if isinstance(part, Mapping) else part
@@ -371,14 +380,21 @@ def _write_report(
 
     html_parts: dict[str, str] = {}
     with task(progress, "report", total=len(ids) * (2 if png else 1) + 1) as advance:
-        for k, fid in enumerate(ids):
-            html_parts[fid] = _figure_html(figs[fid], figs[fid].plotly(), first=k == 0)
-            advance(1)
         if png:
             out.joinpath("figures").mkdir(parents=True, exist_ok=True)
-            for fid in ids:
-                st.save_png(figs[fid].png(), out / "figures" / f"{fid}.png")
+        renderer = PngRenderer(
+            out / "figures",
+            ids if png else (),
+            figs,
+            (pp, contrib, contrib_n, summ["contour_z"], round_part),
+            default_processes() if processes is None else processes,
+            on_done=lambda: advance(1),
+        )
+        with renderer:  # PNG workers draw while this process writes the plotly HTML
+            for k, fid in enumerate(ids):
+                html_parts[fid] = _figure_html(figs[fid], figs[fid].plotly(), first=k == 0)
                 advance(1)
+            renderer.finish()  # draws what the workers have not taken, waits for them
 
         h = agg.headline(contrib, contrib_n)
         head = _headline_dict(h, summ, contrib)
