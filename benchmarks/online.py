@@ -17,9 +17,9 @@ the printout splits them into the loop's and the simulated controller's own (it 
 The real-time settings go to the loop only (``--realtime``, ``--mlock``, ``--cpu``); the
 simulated devices run at normal priority, on the CPUs other than the loop's when ``--cpu`` is
 given (``--sim-cpu`` to choose; ``--sim-realtime`` gives them SCHED_FIFO too, the layout of the
-session-4 runs). By default the simulated sensor and controller share one process and thread
-(``--sim-processes 2``: each its own, as before), and the controller meets its cycle times
-absolutely (clock_nanosleep to ``--spin`` ms before, then a busy-wait).
+session-4 runs). The simulated sensor and controller run in two processes (``--sim-processes 1``:
+one process and thread), and the controller meets its cycle times absolutely (clock_nanosleep
+to ``--spin`` ms before, then a busy-wait).
 
 Timings on a shared machine are noisy: the UDP round trip measures the operating system's
 scheduling as much as roboisf (a quiet machine with a core to spare for the loop is the fair
@@ -162,8 +162,8 @@ def main(argv: list[str] | None = None) -> int:
         "--sim-processes",
         type=int,
         choices=(1, 2),
-        default=1,
-        help="simulated sensor and controller in one process (default) or two",
+        default=2,
+        help="simulated sensor and controller in two processes (default) or one",
     )
     ap.add_argument(
         "--sim-realtime",

@@ -252,10 +252,14 @@ class Loop:
                 f"cannot listen on {listen[0]}:{listen[1]} ({e})", field="listen"
             ) from None
         self.listen = self.ctl.getsockname()
+        # arrival stamps from the start: a record stamped and one not could be out of order
+        self._ctl_stamped = enable_stamps(self.ctl)
+        self._ft_stamped = False
         self.ft: socket.socket | None = None
         self.replay: SampleSource | None = None
         if isinstance(sensor, tuple):
             self.ft = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            self._ft_stamped = enable_stamps(self.ft)
             self.ft.connect(sensor)
         else:
             self.replay = sensor
@@ -267,7 +271,6 @@ class Loop:
         self._status_every = 0.25
         self._next_status = 0.0
         self._gc: GcQuiet | None = None
-        self._ft_stamped = False
         self._rt_offset = time.time() - time.perf_counter()
         oc.warm_up()  # compile before the first packet can arrive
         if quiet_gc:  # the one long collection now, before a controller is pointed at us:
@@ -318,8 +321,7 @@ class Loop:
         self._status_every = status_every
         self._next_status = t0 + status_every
         ctl = self.ctl
-        stamped = enable_stamps(ctl)  # the latency column: from the kernel's arrival
-        self._ft_stamped = self.ft is not None and enable_stamps(self.ft)
+        stamped = self._ctl_stamped  # the latency column: from the kernel's arrival
         self._rt_offset = time.time() - time.perf_counter()  # CLOCK_REALTIME − perf_counter, s
         ctl.settimeout(None)  # blocking in Python: one recvmsg system call per message …
         ctl.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(IDLE))  # … or a timeout
