@@ -467,3 +467,40 @@ def test_the_simulated_devices_in_one_process_or_two(setup, processes):
     assert np.all(wake >= 0) and np.all(late >= wake)
     mc = missed_causes(res)
     assert mc["missed"] == res["missed"] == mc["controller"] + mc["loop_late"] + mc["loop_lost"]
+
+
+def test_the_status_redraw_comes_after_the_reply_never_between(setup):
+    """The status callback (a terminal redraw) never runs while a message the loop has read
+    waits for its reply: at every redraw each message sent is answered or still unread in the
+    loop's socket."""
+    import select
+
+    oc = OnlineCompensator.from_cell(setup.vc.cell, setup.sensor, Limits())
+    loop = Loop(oc, egm.EgmAdapter(), ("127.0.0.1", 0), ("127.0.0.1", 9))
+    sent = [0]  # messages in the loop's socket (loopback: queued when sendto returns)
+    bad: list[tuple[int, int]] = []
+    draws = [0]
+
+    def status(lp: Loop) -> None:
+        draws[0] += 1
+        n, c = sent[0], lp.counters.cycles
+        unread = bool(select.select([lp.ctl], [], [], 0)[0])
+        if c < n and not unread:
+            bad.append((c, n))  # read, not answered, and redrawing
+
+    robot = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    robot.settimeout(10)
+    th = threading.Thread(
+        target=lambda: loop.run(duration=30, cycles=6, status=status, status_every=0.0)
+    )
+    th.start()
+    try:
+        for i in range(6):
+            robot.sendto(egm.encode_robot(i + 1, i * 4, setup.q[0], setup.planned[0]), loop.listen)
+            sent[0] += 1
+            assert egm.decode_sensor(robot.recv(4096))[0] == i + 1
+            time.sleep(0.02)
+    finally:
+        th.join(15)
+        robot.close()
+    assert draws[0] >= 6 and not bad, bad
