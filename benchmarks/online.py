@@ -8,15 +8,22 @@ correction within 5 µm of offline pre-deflection on the same forces.
 Run by hand:  python benchmarks/online.py [--minutes 10] [--controller egm|rsi] [--part cone]
               [--cycles-per-point 1] [--skip-udp] [--skip-part]
               [--realtime PRIO] [--cpu N] [--sim-cpu N] [--mlock] [--no-quiet-gc]
+              [--sim-processes 1|2] [--sim-realtime PRIO] [--spin MS]
 
 A missed cycle is counted as EGM and RSI count it: the reply carrying the cycle's sequence
 number has not arrived (the kernel's receive stamp) when the controller's next message is due;
 the printout splits them into the loop's and the simulated controller's own (it sent too late).
 
+The real-time settings go to the loop only (``--realtime``, ``--mlock``, ``--cpu``); the
+simulated devices run at normal priority, on the CPUs other than the loop's when ``--cpu`` is
+given (``--sim-cpu`` to choose; ``--sim-realtime`` gives them SCHED_FIFO too, the layout of the
+session-4 runs). The simulated sensor and controller run in two processes (``--sim-processes 1``:
+one process and thread), and the controller meets its cycle times absolutely (clock_nanosleep
+to ``--spin`` ms before, then a busy-wait).
+
 Timings on a shared machine are noisy: the UDP round trip measures the operating system's
-scheduling as much as roboisf (the loop, the simulated controller and the simulated sensor are
-three processes; a quiet machine with ≥ 3 cores is the fair setting). The printout says how
-busy the machine was (load average) next to the numbers.
+scheduling as much as roboisf (a quiet machine with a core to spare for the loop is the fair
+setting). The printout says how busy the machine was (load average) next to the numbers.
 """
 
 from __future__ import annotations
@@ -76,15 +83,18 @@ def compute(setup, controller: str, n: int) -> np.ndarray:
 def udp(setup, controller: str, minutes: float, a):
     from roboisf.online import Limits, OnlineCompensator, egm, rsi
     from roboisf.online.loop import CycleLog, Loop
-    from roboisf.online.rt import Realtime
+    from roboisf.online.rt import Realtime, other_cpus
     from roboisf.online.sim import Simulation
 
     n = int(minutes * 60 / 4e-3)
     oc = OnlineCompensator.from_cell(setup.vc.cell, setup.sensor, Limits())
     adapter = egm.EgmAdapter() if controller == "egm" else rsi.RsiAdapter()
     rt = Realtime(a.realtime, a.cpu, a.mlock)
+    sim_cpus = (a.sim_cpu,) if a.sim_cpu is not None else other_cpus(a.cpu)
     sim_rt = (
-        Realtime(a.realtime, a.sim_cpu, a.mlock) if a.realtime or a.sim_cpu is not None else None
+        Realtime(a.sim_realtime, None, False, sim_cpus)
+        if a.sim_realtime is not None or sim_cpus is not None
+        else None
     )
     loop = Loop(
         oc,
@@ -107,6 +117,8 @@ def udp(setup, controller: str, minutes: float, a):
         point_step=step,
         realtime=sim_rt,
         start_delay=1.0,
+        processes=a.sim_processes,
+        spin=a.spin * 1e-3,
     ) as sim:
         loop.ft.connect(("127.0.0.1", sim.sensor_port))
 
@@ -139,13 +151,40 @@ def main(argv: list[str] | None = None) -> int:
         help="SCHED_FIFO priority for the loop and the simulated processes (needs CAP_SYS_NICE)",
     )
     ap.add_argument("--cpu", type=int, default=None, help="pin the loop to this CPU")
-    ap.add_argument("--sim-cpu", type=int, default=None, help="pin the simulated processes")
-    ap.add_argument("--mlock", action="store_true", help="mlockall in the loop and simulators")
+    ap.add_argument(
+        "--sim-cpu",
+        type=int,
+        default=None,
+        help="pin the simulated devices to this CPU (default: the CPUs other than --cpu's)",
+    )
+    ap.add_argument("--mlock", action="store_true", help="mlockall in the loop")
+    ap.add_argument(
+        "--sim-processes",
+        type=int,
+        choices=(1, 2),
+        default=2,
+        help="simulated sensor and controller in two processes (default) or one",
+    )
+    ap.add_argument(
+        "--sim-realtime",
+        type=int,
+        default=None,
+        metavar="PRIO",
+        help="SCHED_FIFO for the simulated devices too (the session-4 layout)",
+    )
+    ap.add_argument(
+        "--spin",
+        type=float,
+        default=0.3,
+        metavar="MS",
+        help="the simulated controller busy-waits this long before each send (ms)",
+    )
     ap.add_argument(
         "--no-quiet-gc", action="store_true", help="leave the garbage collector automatic"
     )
     a = ap.parse_args(argv)
 
+    from roboisf.online.rt import other_cpus
     from roboisf.online.sim import evaluate, form_online, virtual_setup
     from roboisf.virtual.cell import paper_cone_cell, paper_vwacf_cell, pyramid_cell
 
@@ -181,9 +220,12 @@ def main(argv: list[str] | None = None) -> int:
         for w in loop.warnings + list(res.get("warnings", [])):
             print(f"warning: {w}")
         print(
-            f"UDP at 250 Hz for {a.minutes:g} min ({len(rtt)} cycles; realtime "
-            f"{a.realtime or 'off'}, loop CPU {a.cpu}, simulators' CPU {a.sim_cpu}, mlock "
-            f"{'on' if a.mlock else 'off'}, quiet GC {'off' if a.no_quiet_gc else 'on'}; load "
+            f"UDP at 250 Hz for {a.minutes:g} min ({len(rtt)} cycles; loop: realtime "
+            f"{a.realtime or 'off'}, CPU {a.cpu}, mlock {'on' if a.mlock else 'off'}, quiet GC "
+            f"{'off' if a.no_quiet_gc else 'on'}; simulated devices: {a.sim_processes} "
+            f"process(es), realtime {a.sim_realtime or 'off'}, CPUs "
+            f"{(a.sim_cpu,) if a.sim_cpu is not None else other_cpus(a.cpu) or 'any'}, spin "
+            f"{a.spin:g} ms; load "
             f"average {os.getloadavg()[0]:.1f} at the end, contended): {c.samples} samples, "
             f"bad {c.bad_controller}/{c.bad_sensor}, late {c.late_sensor}; loop process CPU "
             f"{cpu:.1f} s in {wall:.1f} s wall, simulators' CPU {ch.ru_utime + ch.ru_stime:.1f} s"
@@ -227,6 +269,9 @@ def main(argv: list[str] | None = None) -> int:
             f"  the simulated controller's own scheduling (send after its cycle start), ms: "
             f"{_pct(late)}"
         )
+        if "wake_late" in res:
+            wl = res["wake_late"][:ran]
+            print(f"    of which its wake-up for the cycle (after the spin), ms: {_pct(wl)}")
         rl = res["rtt_late"][:ran]
         if np.isfinite(rl).any():
             print(f"  the late replies' round trip, ms: {_pct(rl[np.isfinite(rl)])}")

@@ -254,3 +254,253 @@ def test_kernel_stamp_is_the_arrival_not_the_read():
     finally:
         rx.close()
         tx.close()
+
+
+# ------------------------------------------------------------ absolute deadlines (the simulator)
+class _FakeClock:
+    """A clock that advances 1 µs per read; ``sleep(t)`` wakes ``overshoot()`` after ``t``."""
+
+    def __init__(self, t: float, overshoot) -> None:
+        self.now = t
+        self.overshoot = overshoot
+        self.slept_to: list[float] = []
+
+    def clock(self) -> float:
+        self.now += 1e-6
+        return self.now
+
+    def sleep(self, t: float) -> None:
+        self.slept_to.append(t)
+        self.now = max(self.now, t) + self.overshoot()
+
+
+def test_pacer_meets_absolute_deadlines_without_drift_over_many_cycles():
+    """Each wake-up overshoots by up to 0.5 ms (a kernel's wake-up latency) and one cycle is
+    preempted for 10 ms: every wait still returns at its own t0 + k·period (within the part of
+    the overshoot the 0.3 ms spin does not absorb), the sleep targets are t0 + k·period − spin,
+    and the cycles after the stall are back on their times — no error accumulates."""
+    rng = np.random.default_rng(3)
+    fake = _FakeClock(100.0, lambda: rng.uniform(0.0, 0.5e-3))
+    p = rt.Pacer(100.0, 4e-3, spin=0.3e-3, clock=fake.clock, sleep=fake.sleep)
+    n = 50_000
+    late = np.empty(n)
+    for k in range(n):
+        if k == 500:
+            fake.now += 10e-3  # preempted before it could go to sleep
+        late[k] = p.wait(p.at(k))
+        fake.now += rng.uniform(0.0, 1e-3)  # the cycle's work
+    assert p.at(n) == 100.0 + n * 4e-3
+    assert np.all(late >= 0)
+    ok = np.ones(n, bool)
+    ok[500:503] = False  # the stall: 10 ms ≈ 2.5 cycles late, then on time again
+    assert late[500] > 5e-3 and late[501] > 1e-3 and late[503] < 0.21e-3
+    assert late[ok].max() < 0.21e-3  # overshoot 0.5 − spin 0.3 ms (+ µs of clock reads)
+    assert np.mean(late[-1000:]) < np.mean(late[:1000]) + 20e-6  # no drift
+    targets = np.array(fake.slept_to)
+    k_of = np.rint((targets + 0.3e-3 - 100.0) / 4e-3)
+    np.testing.assert_allclose(targets, 100.0 + k_of * 4e-3 - 0.3e-3, rtol=0, atol=1e-9)
+    assert len(targets) >= n - 3  # slept for every cycle but the ones already late
+
+
+def test_pacer_spins_the_tail_and_a_past_deadline_does_not_sleep():
+    fake = _FakeClock(0.0, lambda: 0.0)
+    p = rt.Pacer(0.0, 1e-3, spin=0.3e-3, clock=fake.clock, sleep=fake.sleep)
+    assert p.wait(5e-3) < 2e-6 and fake.slept_to == [pytest.approx(4.7e-3)]
+    assert fake.now >= 5e-3  # the last 0.3 ms busy-waited on the clock
+    fake.now = 9e-3
+    assert p.wait(6e-3) == pytest.approx(3e-3, abs=2e-6)  # late: no sleep, lateness reported
+    assert len(fake.slept_to) == 1
+    with pytest.raises(InputError):
+        rt.Pacer(0.0, 0.0)
+
+
+def test_sleep_until_wakes_at_the_absolute_time_on_the_perf_counter_clock():
+    t = time.perf_counter() + 0.02
+    rt.sleep_until(t)
+    assert time.perf_counter() >= t
+    t1 = time.perf_counter()
+    rt.sleep_until(t1 - 1.0)  # passed: at once
+    assert time.perf_counter() - t1 < 0.5
+    p = rt.Pacer(time.perf_counter(), 2e-3)
+    for k in range(1, 6):
+        late = p.wait(p.at(k))
+        assert late >= 0 and time.perf_counter() >= p.at(k)
+
+
+def test_the_simulators_go_on_the_cpus_the_loop_does_not_use():
+    allowed = os.sched_getaffinity(0)
+    assert rt.other_cpus(None) is None
+    for c in allowed:
+        rest = rt.other_cpus(c)
+        assert rest is None if len(allowed) == 1 else set(rest) == allowed - {c}
+    with pytest.raises(InputError, match="cpus"):
+        Realtime(cpus=())
+    with pytest.raises(InputError, match="cpus"):
+        Realtime(cpu=min(allowed), cpus=(min(allowed),))
+    with pytest.raises(InputError, match="cpus"):
+        Realtime(cpus=(4096,))
+
+    def go():
+        done = apply(Realtime(cpus=tuple(sorted(allowed))[:1]))
+        during = os.sched_getaffinity(0)
+        done.restore()
+        return done.warnings, during, os.sched_getaffinity(0)
+
+    warnings, during, after = _in_thread(go)
+    assert not warnings and during == {min(allowed)} and after == allowed
+
+
+def test_the_loop_times_each_sensor_sample_by_its_arrival_not_its_read(setup, monkeypatch):
+    """The loop reads the sensor only when the controller's message comes; each record still
+    enters the filter at the time it arrived (kernel stamp), not the time it was read."""
+    from roboisf.online import loop as loop_mod
+
+    monkeypatch.setattr(loop_mod, "IDLE", 5.0)  # no idle drain: read only with the message
+    oc = OnlineCompensator.from_cell(setup.vc.cell, setup.sensor, Limits(watchdog=2.0))
+    ft = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    ft.bind(("127.0.0.1", 0))
+    loop = Loop(oc, egm.EgmAdapter(), ("127.0.0.1", 0), ft.getsockname())
+    assert loop.ft is not None
+    seen: list[float] = []
+    on_sensor = loop._on_sensor
+    monkeypatch.setattr(loop, "_on_sensor", lambda d, t: (seen.append(t), on_sensor(d, t)))
+    robot = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    robot.settimeout(10)
+    th = threading.Thread(target=lambda: loop.run(duration=30, cycles=1))
+    th.start()
+    try:
+        assert netft.decode_request(ft.recv(64))[0] == netft.CMD_START_REALTIME
+        dest = loop.ft.getsockname()
+        sent = []
+        for i in range(4):
+            t_a = time.perf_counter()
+            ft.sendto(netft.encode_record(i + 1, i, 0, setup.reading[0]), dest)
+            sent.append((t_a, time.perf_counter()))
+            time.sleep(0.01)
+        time.sleep(0.05)
+        read_after = time.perf_counter()
+        robot.sendto(egm.encode_robot(1, 0, setup.q[0], setup.planned[0]), loop.listen)
+        assert egm.decode_sensor(robot.recv(4096))[0] == 1
+    finally:
+        th.join(15)
+        robot.close()
+        ft.close()
+    assert len(seen) == 4 and loop.counters.samples == 4
+    for t, (a, b) in zip(seen, sent, strict=True):
+        arrived = loop.t0 + t
+        assert a - 1e-3 <= arrived <= b + 1e-3  # its arrival …
+        assert arrived < read_after - 0.04  # … though read ≥ 50 ms later
+
+
+def test_the_simulated_controller_counts_by_arrival_and_drops_late_replies():
+    """Its cycle c is settled at t0 + (c+1)·cycle: a reply that arrived before then counts
+    (even read afterwards), one that arrived after is a missed cycle, timed in rtt_late."""
+    from multiprocessing import Value
+
+    from roboisf.online.sim import _ControllerSim
+
+    loop_side = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    loop_side.bind(("127.0.0.1", 0))
+    loop_side.settimeout(5)
+    q = np.zeros((3, 6))
+    dq = np.zeros((3, 6, 3))
+    planned = np.zeros((3, 7))
+    planned[:, 3] = 1.0
+    index = Value("l", 0)
+    ctl = _ControllerSim(
+        loop_side.getsockname()[1],
+        "egm",
+        (q, dq, planned),
+        index,
+        cycle=0.2,
+        n_cycles=3,
+        point_step=1,
+    )
+    adapter = egm.EgmAdapter()
+    try:
+        ctl.t0 = time.perf_counter()
+        ctl.step(0.0)  # cycle 0 out
+        data, addr = loop_side.recvfrom(4096)
+        st = adapter.decode(data)
+        loop_side.sendto(adapter.encode(st, np.array([1e-4, 0, 0])), addr)  # in time …
+        time.sleep(max(0.0, ctl.t0 + 0.2 - time.perf_counter()) + 0.01)
+        ctl.step(0.0)  # … read only now, after its cycle: counts. Cycle 1 out
+        assert ctl.missed == 0 and np.isfinite(ctl.rtt[0]) and ctl.read_late[0] > 0
+        np.testing.assert_allclose(ctl.rx, [1e-4, 0, 0])
+        data, addr = loop_side.recvfrom(4096)
+        st = adapter.decode(data)
+        assert st.seq == 2
+        time.sleep(max(0.0, ctl.t0 + 0.4 - time.perf_counter()) + 0.01)
+        loop_side.sendto(adapter.encode(st, np.zeros(3)), addr)  # after cycle 1 ended
+        ctl.step(0.0)  # settles cycle 1: missed, the late reply timed
+        assert ctl.missed == 1 and np.isnan(ctl.rtt[1])
+        assert ctl.sent[1] + ctl.rtt_late[1] >= ctl.t0 + 0.4  # timed: after its cycle ended
+        np.testing.assert_allclose(ctl.rx, [1e-4, 0, 0])  # the late reply was not applied
+        assert ctl.send_late[1] >= 0 and ctl.ran == 2
+    finally:
+        ctl.sock.close()
+        loop_side.close()
+
+
+@pytest.mark.parametrize("processes", [1, 2])
+def test_the_simulated_devices_in_one_process_or_two(setup, processes):
+    """Both layouts serve the loop: samples stream, every cycle is settled and its lateness
+    recorded (≥ 0: never sent before its time); timing itself is not asserted (shared CPUs)."""
+    from roboisf.online.sim import Simulation, missed_causes
+
+    oc = OnlineCompensator.from_cell(setup.vc.cell, setup.sensor, Limits())
+    loop = Loop(oc, egm.EgmAdapter(), ("127.0.0.1", 0), ("127.0.0.1", 9))
+    step = max(1, len(setup.q) // 150)
+    with Simulation(
+        setup, "egm", loop.listen[1], n_cycles=150, point_step=step, processes=processes
+    ) as sim:
+        assert loop.ft is not None
+        loop.ft.connect(("127.0.0.1", sim.sensor_port))
+        th = threading.Thread(target=lambda: loop.run(duration=60))
+        th.start()
+        res = sim.result(timeout=60)
+        loop.stop()
+        th.join()
+    assert res["processes"] == processes and res["ran"] == 150
+    assert loop.counters.samples > 100 and loop.counters.cycles > 100
+    late, wake = res["send_late"][:150], res["wake_late"][:150]
+    assert np.all(wake >= 0) and np.all(late >= wake)
+    mc = missed_causes(res)
+    assert mc["missed"] == res["missed"] == mc["controller"] + mc["loop_late"] + mc["loop_lost"]
+
+
+def test_the_status_redraw_comes_after_the_reply_never_between(setup):
+    """The status callback (a terminal redraw) never runs while a message the loop has read
+    waits for its reply: at every redraw each message sent is answered or still unread in the
+    loop's socket."""
+    import select
+
+    oc = OnlineCompensator.from_cell(setup.vc.cell, setup.sensor, Limits())
+    loop = Loop(oc, egm.EgmAdapter(), ("127.0.0.1", 0), ("127.0.0.1", 9))
+    sent = [0]  # messages in the loop's socket (loopback: queued when sendto returns)
+    bad: list[tuple[int, int]] = []
+    draws = [0]
+
+    def status(lp: Loop) -> None:
+        draws[0] += 1
+        n, c = sent[0], lp.counters.cycles
+        unread = bool(select.select([lp.ctl], [], [], 0)[0])
+        if c < n and not unread:
+            bad.append((c, n))  # read, not answered, and redrawing
+
+    robot = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    robot.settimeout(10)
+    th = threading.Thread(
+        target=lambda: loop.run(duration=30, cycles=6, status=status, status_every=0.0)
+    )
+    th.start()
+    try:
+        for i in range(6):
+            robot.sendto(egm.encode_robot(i + 1, i * 4, setup.q[0], setup.planned[0]), loop.listen)
+            sent[0] += 1
+            assert egm.decode_sensor(robot.recv(4096))[0] == i + 1
+            time.sleep(0.02)
+    finally:
+        th.join(15)
+        robot.close()
+    assert draws[0] >= 6 and not bad, bad

@@ -125,12 +125,15 @@ def online(
         None,
         "--realtime",
         metavar="PRIO",
-        help="Run the loop (and --simulate's processes) with SCHED_FIFO priority PRIO (1–99): "
-        "it answers ahead of every normal process. Needs CAP_SYS_NICE or `ulimit -r` ≥ PRIO; "
-        "refused → one warning, the loop runs at normal priority.",
+        help="Run the loop with SCHED_FIFO priority PRIO (1–99): it answers ahead of every "
+        "normal process (--simulate's devices stay at normal priority). Needs CAP_SYS_NICE or "
+        "`ulimit -r` ≥ PRIO; refused → one warning, the loop runs at normal priority.",
     ),
     cpu: int | None = typer.Option(
-        None, "--cpu", help="Pin the loop to this CPU (best one kept free of other work)."
+        None,
+        "--cpu",
+        help="Pin the loop to this CPU (best one kept free of other work); --simulate's "
+        "devices then run on the other CPUs.",
     ),
     mlock: bool = typer.Option(
         False,
@@ -145,8 +148,8 @@ def online(
     Limits (never exceeded): --max-correction, --max-rate per cycle, --deadband; the watchdog
     holds and then ramps the correction to zero when the sensor goes quiet. Every cycle is
     logged to -o (Parquet). Ctrl-C ends the loop and writes the log. Lengths mm, angles deg.
-    On a PC with a core to spare for the loop: --realtime 50 --cpu N --mlock (on a 2-core VM
-    running --simulate's three processes they made it worse). See docs/online.md.
+    On a PC with a core to spare for the loop: --realtime 50 --cpu N --mlock (a 2-core VM
+    cannot show what they give). See docs/online.md.
     """
     import numpy as np
 
@@ -279,7 +282,10 @@ def online(
         n = int(min(duration, 3600.0) / limits.cycle) if math.isfinite(duration) else 15_000
         n = min(n, cycles) if cycles is not None else n
         step = max(1, math.ceil(len(setup.q) / max(n, 1)))
-        sim_rt = Realtime(realtime, None, mlock) if realtime is not None or mlock else None
+        from roboisf.online.rt import other_cpus
+
+        others = other_cpus(cpu)  # the loop alone real-time; the devices beside it, not on it
+        sim_rt = Realtime(None, None, False, others) if others is not None else None
         with Simulation(
             setup,
             controller,

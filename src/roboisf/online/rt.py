@@ -37,7 +37,18 @@ from typing import Any
 
 from roboisf.errors import InputError
 
-__all__ = ["Applied", "GcQuiet", "Realtime", "apply", "enable_stamps", "kernel_stamp"]
+__all__ = [
+    "Applied",
+    "GcQuiet",
+    "Pacer",
+    "Realtime",
+    "apply",
+    "enable_stamps",
+    "kernel_stamp",
+    "other_cpus",
+    "set_timer_slack",
+    "sleep_until",
+]
 
 MCL_CURRENT = 1
 MCL_FUTURE = 2
@@ -52,11 +63,14 @@ class Realtime:
     priority : int or None — ``SCHED_FIFO`` priority 1–99; None leaves the scheduler alone
     cpu : int or None — the one CPU to run on; None leaves the affinity alone
     mlock : bool — lock all current and future pages in RAM
+    cpus : tuple of int or None — several CPUs to run on instead of one (e.g. the simulated
+        devices on every CPU but the loop's, :func:`other_cpus`); not with ``cpu``
     """
 
     priority: int | None = None
     cpu: int | None = None
     mlock: bool = False
+    cpus: tuple[int, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.priority is not None:
@@ -73,10 +87,36 @@ class Realtime:
                 raise InputError(
                     f"CPU {self.cpu} is not one this process may use ({allowed})", field="--cpu"
                 )
+        if self.cpus is not None:
+            allowed_set = os.sched_getaffinity(0)
+            if self.cpu is not None or not self.cpus or not set(self.cpus) <= allowed_set:
+                raise InputError(
+                    f"cpus must be a non-empty set of the CPUs this process may use "
+                    f"({sorted(allowed_set)}), without cpu; got {self.cpus}",
+                    field="cpus",
+                )
 
     @property
     def any(self) -> bool:
-        return self.priority is not None or self.cpu is not None or self.mlock
+        return (
+            self.priority is not None or self.cpu is not None or self.cpus is not None or self.mlock
+        )
+
+    @property
+    def affinity(self) -> set[int] | None:
+        """The CPUs to pin to (None: leave the affinity alone)."""
+        if self.cpu is not None:
+            return {self.cpu}
+        return set(self.cpus) if self.cpus is not None else None
+
+
+def other_cpus(cpu: int | None) -> tuple[int, ...] | None:
+    """The CPUs this process may use except ``cpu`` (None when ``cpu`` is None or it is the
+    only one): where the simulated devices go when the loop is pinned to ``cpu``."""
+    if cpu is None:
+        return None
+    rest = tuple(sorted(os.sched_getaffinity(0) - {cpu}))
+    return rest or None
 
 
 def _libc() -> Any:
@@ -128,13 +168,14 @@ def apply(rt: Realtime, who: str = "the loop") -> Applied:
     """
     done = Applied()
     w = done.warnings
-    if rt.cpu is not None:
+    cpus = rt.affinity
+    if cpus is not None:
         before = os.sched_getaffinity(0)
         try:
-            os.sched_setaffinity(0, {rt.cpu})
+            os.sched_setaffinity(0, cpus)
             done._cpus = before
         except OSError as e:
-            w.append(f"{who}: could not pin to CPU {rt.cpu} ({e.strerror}); not pinned")
+            w.append(f"{who}: could not pin to CPU {sorted(cpus)} ({e.strerror}); not pinned")
     if rt.priority is not None:
         before_p = (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority)
         try:
@@ -232,3 +273,114 @@ def kernel_stamp(ancdata: list[tuple[int, int, bytes]]) -> int | None:
             sec, ns = struct.unpack("qq", d[:16])
             return int(sec * 1_000_000_000 + ns)
     return None
+
+
+# ------------------------------------------------------------------------------- absolute time
+CLOCK_MONOTONIC = 1  # Linux's clock id; time.perf_counter() reads this clock
+TIMER_ABSTIME = 1
+PR_SET_TIMERSLACK = 29
+
+
+class _Timespec(ctypes.Structure):
+    _fields_ = [("tv_sec", ctypes.c_long), ("tv_nsec", ctypes.c_long)]
+
+
+_nanosleep: Any = None  # libc's clock_nanosleep, looked up once (False: not available)
+
+
+def _clock_nanosleep() -> Any:
+    global _nanosleep
+    if _nanosleep is None:
+        try:
+            f = _libc().clock_nanosleep
+            f.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p]
+            f.restype = ctypes.c_int
+            ok = time.get_clock_info("perf_counter").implementation == (
+                "clock_gettime(CLOCK_MONOTONIC)"
+            )
+            _nanosleep = f if ok else False
+        except (AttributeError, OSError):
+            _nanosleep = False
+    return _nanosleep
+
+
+def sleep_until(t: float) -> None:
+    """Sleep until ``t`` (s, on the :func:`time.perf_counter` clock, ``CLOCK_MONOTONIC``).
+
+    ``clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME)``: the wake-up is an absolute time, so a
+    process preempted between computing the deadline and going to sleep does not sleep that
+    long again (as a relative ``time.sleep(t − now)`` would). Returns at once when ``t`` has
+    passed. Where the call is not available, a relative sleep.
+    """
+    f = _clock_nanosleep()
+    if not f:
+        d = t - time.perf_counter()
+        if d > 0:
+            time.sleep(d)
+        return
+    ts = _Timespec(int(t), round((t - int(t)) * 1e9))
+    if ts.tv_nsec >= 1_000_000_000:
+        ts.tv_sec += 1
+        ts.tv_nsec -= 1_000_000_000
+    while f(CLOCK_MONOTONIC, TIMER_ABSTIME, ctypes.byref(ts), None) == errno.EINTR:
+        pass  # a signal: the deadline is absolute, sleep on to it
+
+
+def set_timer_slack(ns: int) -> bool:
+    """This thread's timer slack (``prctl(PR_SET_TIMERSLACK)``, ns; Linux's default is
+    50,000): how much later than asked the kernel may end a sleep to batch wake-ups. False if
+    refused. (``SCHED_FIFO`` threads have none.)"""
+    try:
+        return int(_libc().prctl(PR_SET_TIMERSLACK, ctypes.c_ulong(max(1, int(ns))), 0, 0, 0)) == 0
+    except (AttributeError, OSError):
+        return False
+
+
+class Pacer:
+    """Events at absolute times, met to the microsecond without drift (a simulated controller's
+    cycle: a hard-real-time controller sends on its clock, whatever happened the cycle before).
+
+    :meth:`at` ``(k) = t0 + k·period`` — computed from the start, never by adding periods to
+    the previous wake-up, so no error accumulates and a late cycle does not shift the ones
+    after it. :meth:`wait` sleeps with :func:`sleep_until` to ``spin`` s before the time (the
+    kernel's wake-up latency, µs to a few hundred µs, falls in that margin), then busy-waits
+    the rest on the clock, and returns how late it returned (s, ≥ 0; the process's own
+    lateness — a wake-up or a return from a preemption after the time).
+
+    ``clock`` and ``sleep`` (the absolute sleep) are the real ones by default; tests pass fakes.
+    """
+
+    def __init__(
+        self,
+        t0: float,
+        period: float,
+        *,
+        spin: float = 3e-4,
+        clock: Any = time.perf_counter,
+        sleep: Any = sleep_until,
+    ) -> None:
+        if not period > 0 or not spin >= 0:
+            raise InputError(
+                f"period must be > 0 and spin ≥ 0, got {period}, {spin}", field="period"
+            )
+        self.t0 = float(t0)
+        self.period = float(period)
+        self.spin = float(spin)
+        self.clock = clock
+        self.sleep = sleep
+
+    def at(self, k: int) -> float:
+        """The time of event ``k`` (s): ``t0 + k·period``."""
+        return self.t0 + k * self.period
+
+    def wait(self, t: float, spin: float | None = None) -> float:
+        """Return at ``t`` (s, the clock's time): absolute sleep to ``t − spin``, busy-wait the
+        tail. Returns the lateness ``clock() − t`` (≥ 0)."""
+        s = self.spin if spin is None else spin
+        clock = self.clock
+        now = clock()
+        if now < t - s:
+            self.sleep(t - s)
+        while (now := clock()) < t:
+            pass
+        return float(now - t)

@@ -18,7 +18,9 @@ Two ways to run the loop against them:
 * :func:`sensor_process` / :func:`controller_process` — separate processes speaking the real
   protocols over localhost UDP (for the CLI's ``--simulate``, the benchmark and the tests),
   sharing only the index of the current toolpath point (the physics: the force depends on where
-  the tool is).
+  the tool is); or both in one process (:func:`devices_process`). The controller keeps its
+  cycle on absolute times (:class:`~roboisf.online.rt.Pacer`) and reports its own lateness
+  beside the loop's (:func:`missed_causes`).
 
 :func:`evaluate` forms the part with the commanded path (``simulate(cell, commanded=…)``) and
 compares its compliance error with the uncorrected part's and with offline pre-deflection.
@@ -27,6 +29,7 @@ compares its compliance error with the uncorrected part's and with offline pre-d
 from __future__ import annotations
 
 import math
+import select
 import socket
 import time
 from dataclasses import dataclass
@@ -43,7 +46,16 @@ from roboisf.online import egm, netft, rsi
 from roboisf.online import kernel as kn
 from roboisf.online.base import ProtocolError
 from roboisf.online.core import Limits, OnlineCompensator, SensorSetup
-from roboisf.online.rt import STAMP_SPACE, GcQuiet, Realtime, apply, enable_stamps, kernel_stamp
+from roboisf.online.rt import (
+    STAMP_SPACE,
+    GcQuiet,
+    Pacer,
+    Realtime,
+    apply,
+    enable_stamps,
+    kernel_stamp,
+    set_timer_slack,
+)
 from roboisf.study.sensors import tip_to_sensor
 from roboisf.study.spec import ForceSensorSpec
 from roboisf.toolpath import Toolpath
@@ -54,6 +66,7 @@ __all__ = [
     "VirtualSetup",
     "applied_per_point",
     "controller_process",
+    "devices_process",
     "evaluate",
     "form_online",
     "form_study",
@@ -318,10 +331,312 @@ def form_study(setup: VirtualSetup, applied: F64, out_dir: Any, *, progress: Any
 
 
 # ---------------------------------------------------------------------------------- processes
+#: the simulated controller sleeps (absolute time) to this long before a send, then busy-waits
+#: the rest (s): the kernel's wake-up latency falls in the margin, not into the cycle
+SPIN = 3e-4
+
+
 def _bind(port: int) -> socket.socket:
     s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     s.bind(("127.0.0.1", port))
     return s
+
+
+class _SensorSim:
+    """The simulated Net F/T: its socket (non-blocking) and its stream's state. Records are due
+    at absolute times ``start + n / rate`` from the start request (a stall is caught up, as the
+    sensor's own clock keeps running); after ``silent_after`` s it falls silent for good (a
+    sensor that dies: start requests are then ignored too)."""
+
+    def __init__(
+        self,
+        port: int,
+        reading: F64,
+        index: Any,
+        *,
+        rate: float,
+        noise: float,
+        seed: int,
+        silent_after: float,
+    ) -> None:
+        self.sock = _bind(port)
+        self.sock.setblocking(False)
+        self.reading = reading
+        self.index = index
+        self.period = 1.0 / rate
+        self.noise = noise
+        self.rng = np.random.default_rng(seed)
+        self.silent_after = silent_after
+        self.peer: Any = None
+        self.left = 0
+        self.seq = 0
+        self.n = 0  # records since the start request
+        self.t_start = 0.0
+        self.dead = False
+
+    def next_time(self) -> float:
+        """When the next record is due (perf_counter s; inf: not streaming)."""
+        if self.peer is None or self.dead:
+            return math.inf
+        return self.t_start + self.n * self.period
+
+    def requests(self, now: float) -> None:
+        """Handle the start / stop requests queued in the socket."""
+        while True:
+            try:
+                data, addr = self.sock.recvfrom(64)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError:
+                continue
+            try:
+                cmd, count = netft.decode_request(data)
+            except ProtocolError:
+                continue
+            if self.dead:
+                continue
+            if cmd in (netft.CMD_START_REALTIME, netft.CMD_START_BUFFERED) and self.peer is None:
+                self.peer, self.left, self.t_start, self.n = addr, count, now, 0
+            elif cmd == netft.CMD_STOP:
+                self.peer = None
+
+    def send_due(self, now: float) -> None:
+        """Send every record due by ``now``."""
+        while self.peer is not None and not self.dead and self.next_time() <= now:
+            if self.n * self.period > self.silent_after:
+                self.dead = True
+                return
+            k = min(int(self.index.value), len(self.reading) - 1)
+            w = self.reading[k] + _noise(self.rng, self.noise)
+            try:
+                self.sock.sendto(netft.encode_record(self.seq, self.seq, 0, w), self.peer)
+            except OSError:
+                pass  # the loop's port closed (ICMP): it asks again if it comes back
+            self.seq += 1
+            self.n += 1
+            if self.left:
+                self.left -= 1
+                if self.left == 0:
+                    self.peer = None
+
+
+class _ControllerSim:
+    """The simulated controller (see :func:`controller_process`): cycle ``c``'s message is due
+    at ``t0 + c·cycle``; at that time the previous cycle is settled first (replies in the
+    socket read, judged by their kernel arrival stamps), then the message is sent."""
+
+    def __init__(
+        self,
+        loop_port: int,
+        protocol: str,
+        setup_arrays: tuple[F64, F64, F64],
+        index: Any,
+        *,
+        cycle: float,
+        n_cycles: int,
+        point_step: int,
+    ) -> None:
+        self.q_nom, self.dq_dp, self.planned = setup_arrays
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.setblocking(False)
+        self.stamped = enable_stamps(self.sock)
+        self.dest = ("127.0.0.1", loop_port)
+        self.protocol = protocol
+        self.index = index
+        self.cycle = cycle
+        self.n = n_cycles
+        self.point_step = point_step
+        self.rx = np.zeros(3)
+        self.rtt = np.full(n_cycles, np.nan)
+        self.applied = np.zeros((n_cycles, 3))
+        self.ks = np.zeros(n_cycles, dtype=np.int64)
+        self.missed = 0
+        self.ran = 0  # cycles settled
+        self.send_late = np.full(n_cycles, np.nan)
+        self.wake_late = np.full(n_cycles, np.nan)
+        self.read_late = np.full(n_cycles, np.nan)
+        self.rtt_late = np.full(n_cycles, np.nan)
+        self.sent = np.full(n_cycles, np.nan)
+        self.sent_ns = np.zeros(n_cycles, dtype=np.int64)
+        self.c = 0  # the next cycle to send
+        self.t0 = math.inf
+        self.awaiting = False  # the last message sent has no in-time reply yet
+        self.done = False
+
+    def next_time(self) -> float:
+        """When the next event (settle the last cycle, send the next) is due (inf: done)."""
+        return math.inf if self.done else self.t0 + self.c * self.cycle
+
+    def drain(self) -> None:
+        """Read every reply queued in the socket."""
+        while True:
+            try:
+                data, anc, _, _ = self.sock.recvmsg(65536, STAMP_SPACE)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError:
+                continue
+            self._reply(data, kernel_stamp(anc), time.perf_counter())
+
+    def _reply(self, data: bytes, arrival_ns: int | None, read_at: float) -> None:
+        try:
+            if self.protocol == "egm":
+                rseq, pose = egm.decode_sensor(data)
+            else:
+                rseq, corr = rsi.decode_reply(data)
+        except ProtocolError:
+            return
+        if not 1 <= rseq <= self.c:
+            return
+        j = rseq - 1
+        if self.protocol == "egm":
+            corr = pose[:3] - self.planned[int(self.ks[j]), :3]
+        # the arrival on this process's perf_counter clock: kernel stamp, else the read
+        if arrival_ns is not None:
+            arrived = float(self.sent[j] + (arrival_ns - self.sent_ns[j]) * 1e-9)
+        else:
+            arrived = read_at
+        deadline = self.t0 + (j + 1) * self.cycle
+        if j == self.c - 1 and self.awaiting and arrived < deadline:
+            self.rtt[j] = arrived - self.sent[j]
+            self.read_late[j] = read_at - arrived
+            self.rx = corr
+            self.awaiting = False
+        elif np.isnan(self.rtt[j]) and np.isnan(self.rtt_late[j]):
+            self.rtt_late[j] = arrived - self.sent[j]  # after its next cycle was due: dropped
+
+    def step(self, wake_late: float) -> None:
+        """The event due now: settle the cycle before, then send the next (or finish)."""
+        c = self.c
+        if c > 0:
+            self.drain()
+            if self.awaiting:
+                self.missed += 1
+                self.awaiting = False
+            self.ran = c
+        if c >= self.n:
+            self.done = True
+            return
+        k = min(c * self.point_step, len(self.q_nom) - 1)
+        self.index.value = k
+        self.ks[c] = k
+        self.applied[c] = self.rx
+        q = self.q_nom[k] + self.dq_dp[k] @ self.rx
+        seq = c + 1
+        if self.protocol == "egm":
+            msg = egm.encode_robot(seq, int((c * self.cycle) * 1e3), q, self.planned[k])
+        else:
+            msg = rsi.encode_robot(seq, q)
+        self.wake_late[c] = wake_late
+        self.sent[c] = time.perf_counter()  # the round trip from before the send (an upper
+        self.sent_ns[c] = time.time_ns()  # bound) …
+        try:
+            self.sock.sendto(msg, self.dest)  # (on loopback, in the loop's socket on return)
+        except OSError:
+            pass  # nothing listens (ICMP): the cycle is missed
+        # … the lateness from after it: a stall inside the send is this process's own
+        self.send_late[c] = time.perf_counter() - (self.t0 + c * self.cycle)
+        self.awaiting = True
+        self.c = c + 1
+
+    def report(self, warnings: list[str], processes: int, spin: float) -> dict[str, Any]:
+        return {
+            "rtt": self.rtt,
+            "missed": self.missed,
+            "applied": self.applied,
+            "k": self.ks,
+            "ran": self.ran,
+            "send_late": self.send_late,
+            "wake_late": self.wake_late,
+            "read_late": self.read_late,
+            "rtt_late": self.rtt_late,
+            "sent": self.sent,
+            "stamped": self.stamped,
+            "warnings": warnings,
+            "processes": processes,
+            "spin": spin,
+        }
+
+
+def devices_process(
+    sensor: dict[str, Any] | None,
+    controller: dict[str, Any] | None,
+    index: Any,
+    stop: Any,
+    result: Any,
+    ready: Any,
+    *,
+    start_delay: float = 0.3,
+    realtime: Realtime | None = None,
+    spin: float = SPIN,
+    processes: int = 1,
+) -> None:
+    """The simulated sensor and/or controller in one thread of one process (``sensor`` and
+    ``controller``: the keyword arguments of the devices, None for one not simulated here).
+
+    One schedule of absolute times: the controller's cycles (``t0 + c·cycle``, ``t0`` =
+    ``start_delay`` s after ``ready`` is set; met with :class:`~roboisf.online.rt.Pacer`:
+    ``clock_nanosleep(TIMER_ABSTIME)`` to ``spin`` s before, then a busy-wait) and the sensor's
+    records (``start + n / rate``, an absolute sleep, no busy-wait: the loop times samples by
+    their arrival). While a reply or a start request is awaited the thread sleeps in
+    ``select`` on those sockets, up to the same margin before the next event, and reads what
+    comes at once (the reply's own arrival is the kernel's stamp either way). When both
+    devices are due at once the controller goes first. One process instead of two is one
+    fewer runnable process beside the loop (:class:`Simulation` ``processes=1``).
+
+    The controller's report goes on ``result`` (:func:`controller_process`) when it has run its
+    cycles or ``stop`` is set; the sensor streams on until ``stop``.
+    """
+    warnings = apply(realtime, "the simulated devices").warnings if realtime is not None else []
+    set_timer_slack(1000)  # 1 µs instead of 50: the absolute sleeps end when asked
+    sen = _SensorSim(index=index, **sensor) if sensor is not None else None
+    ctl = _ControllerSim(index=index, **controller) if controller is not None else None
+    gcq = GcQuiet().__enter__()
+    clock = time.perf_counter
+    pacer = Pacer(clock() + start_delay, ctl.cycle if ctl is not None else 1.0, spin=spin)
+    if ctl is not None:
+        ctl.t0 = pacer.t0
+    ready.set()
+    reported = ctl is None
+    try:
+        while not stop.is_set() and (sen is not None or not reported):
+            now = clock()
+            if sen is not None:
+                sen.requests(now)
+            t_c = ctl.next_time() if ctl is not None else math.inf
+            t_s = sen.next_time() if sen is not None else math.inf
+            t = min(t_c, t_s, now + 0.05)
+            margin = spin if t == t_c else 0.0
+            watch: list[socket.socket] = []
+            if sen is not None and sen.peer is None and not sen.dead:
+                watch.append(sen.sock)  # a start request
+            if ctl is not None and ctl.awaiting:
+                watch.append(ctl.sock)  # the reply
+            if watch:
+                timeout = t - margin - clock()
+                if timeout > 0:
+                    ready_socks, _, _ = select.select(watch, [], [], timeout)
+                    if ready_socks:
+                        if ctl is not None and ctl.sock in ready_socks:
+                            ctl.drain()
+                        continue
+            late = pacer.wait(t, margin)
+            if ctl is not None and t == t_c:
+                ctl.step(late)
+                if ctl.done and not reported:
+                    result.put(ctl.report(warnings, processes, spin))
+                    reported = True
+                gcq.slack()
+            if sen is not None:
+                sen.send_due(clock())
+    finally:
+        gcq.__exit__()
+        if ctl is not None and not reported:
+            result.put(ctl.report(warnings, processes, spin))
+        for dev in (sen, ctl):
+            if dev is not None:
+                dev.sock.close()
 
 
 def sensor_process(
@@ -337,78 +652,20 @@ def sensor_process(
     silent_after: float = math.inf,
     realtime: Realtime | None = None,
 ) -> None:
-    """A Net F/T speaking RDT on 127.0.0.1:``port``: on a start request, streams a record of
-    ``reading[index.value]`` (+ white noise) every ``1/rate`` s to the requester until a stop
-    request, the sample count, ``stop`` is set, or ``silent_after`` s (a sensor that dies).
-    ``realtime``: this process's scheduler, CPU and memory lock (:mod:`roboisf.online.rt`)."""
-    rng = np.random.default_rng(seed)
-    s = _bind(port)
-    if realtime is not None:
-        apply(realtime, "the simulated sensor")
-    gcq = GcQuiet().__enter__()
-    ready.set()
-    s.settimeout(0.05)
-    peer = None
-    left = 0
-    seq = 0
-    t0 = time.perf_counter()
-    nxt = t0
-    try:
-        while not stop.is_set():
-            if peer is None:
-                try:
-                    data, addr = s.recvfrom(64)
-                except TimeoutError:
-                    continue
-                try:
-                    cmd, count = netft.decode_request(data)
-                except ProtocolError:
-                    continue
-                if cmd in (netft.CMD_START_REALTIME, netft.CMD_START_BUFFERED):
-                    peer, left, t0 = addr, count, time.perf_counter()
-                    nxt = t0
-                continue
-            now = time.perf_counter()
-            if now - t0 > silent_after:
-                time.sleep(0.01)
-                continue
-            if now < nxt:
-                s.settimeout(max(0.0, nxt - now))
-                try:
-                    data, _ = s.recvfrom(64)
-                    if netft.decode_request(data)[0] == netft.CMD_STOP:
-                        peer = None
-                except (TimeoutError, ProtocolError):
-                    pass
-                continue
-            nxt += 1.0 / rate
-            w = reading[min(int(index.value), len(reading) - 1)] + _noise(rng, noise)
-            s.sendto(netft.encode_record(seq, seq, 0, w), peer)
-            gcq.slack()
-            seq += 1
-            if left:
-                left -= 1
-                if left == 0:
-                    peer = None
-    finally:
-        gcq.__exit__()
-        s.close()
-
-
-def _stamping(s: socket.socket) -> bool:
-    return enable_stamps(s)
-
-
-def _recv_stamped(s: socket.socket, timeout: float) -> tuple[bytes, int | None, float] | None:
-    """One datagram within ``timeout`` s (0: only one already queued): ``(data, arrival
-    (CLOCK_REALTIME ns, the kernel's stamp; None without one), read (perf_counter s))``, or
-    None."""
-    s.settimeout(timeout if timeout > 0 else 0.0)
-    try:
-        data, anc, _, _ = s.recvmsg(65536, STAMP_SPACE)
-    except (TimeoutError, BlockingIOError):
-        return None
-    return data, kernel_stamp(anc), time.perf_counter()
+    """A Net F/T speaking RDT on 127.0.0.1:``port``, alone in its process: on a start request,
+    streams a record of ``reading[index.value]`` (+ white noise) every ``1/rate`` s to the
+    requester until a stop request, the sample count, ``stop`` is set, or ``silent_after`` s (a
+    sensor that dies). ``realtime``: this process's scheduler, CPU and memory lock
+    (:mod:`roboisf.online.rt`). :func:`devices_process` runs it beside the controller."""
+    kw = {
+        "port": port,
+        "reading": reading,
+        "rate": rate,
+        "noise": noise,
+        "seed": seed,
+        "silent_after": silent_after,
+    }
+    devices_process(kw, None, index, stop, None, ready, realtime=realtime, processes=2)
 
 
 def controller_process(
@@ -425,123 +682,76 @@ def controller_process(
     point_step: int = 1,
     realtime: Realtime | None = None,
     ready: Any = None,
+    spin: float = SPIN,
 ) -> None:
-    """A robot controller speaking EGM or RSI to the loop at 127.0.0.1:``loop_port``.
+    """A robot controller speaking EGM or RSI to the loop at 127.0.0.1:``loop_port``, alone in
+    its process (:func:`devices_process` runs it beside the sensor).
 
-    Every ``cycle`` s it sends its state (joints of toolpath point ``k·point_step`` moved by
-    the last correction it received; ``index`` tells the sensor the point) and waits for the
-    reply. **Missed cycle**, as EGM and RSI define it: the reply carrying the cycle's sequence
-    number (EGM ``seqno``, RSI ``IPOC``) has not arrived when the next cycle's message is due,
-    ``t0 + (c + 1)·cycle``. Arrival is the kernel's receive stamp (``SO_TIMESTAMPNS``), not the
-    moment this process got round to reading it: a reply that arrived in time counts even when
-    the scheduler woke this process late (as a real-time controller would have read it).
+    Every ``cycle`` s, at the absolute time ``t0 + c·cycle`` (:class:`~roboisf.online.rt.Pacer`:
+    no drift, a late cycle does not shift the next), it sends its state (joints of toolpath
+    point ``k·point_step`` moved by the last correction it received; ``index`` tells the sensor
+    the point) and waits for the reply. **Missed cycle**, as EGM and RSI define it: the reply
+    carrying the cycle's sequence number (EGM ``seqno``, RSI ``IPOC``) has not arrived when the
+    next cycle's message is due, ``t0 + (c + 1)·cycle``. Arrival is the kernel's receive stamp
+    (``SO_TIMESTAMPNS``), not the moment this process got round to reading it: a reply that
+    arrived in time counts even when the scheduler woke this process late (as a real-time
+    controller would have read it).
 
     Puts on ``result`` a dict: ``rtt (n,) s`` (send → kernel arrival, NaN when missed),
-    ``missed``, ``applied (n, 3) m``, ``k (n,)``, ``ran`` (the cycles it ran, a prefix of the
-    n), and what separates its own scheduling from the loop's latency (:func:`missed_causes`):
-    ``send_late (n,) s`` — how late, after the cycle's start, its send returned (its own
-    jitter); ``read_late (n,) s`` — how long an in-time reply waited in the socket before this
-    process read it (its own wake-up delay); ``rtt_late (n,) s`` — for a missed cycle, when its
-    reply came after all (NaN: never); ``stamped`` (kernel stamps in use); ``warnings`` (the
+    ``missed``, ``applied (n, 3) m``, ``k (n,)``, ``ran`` (the cycles it ran and settled, a
+    prefix of the n), and what separates its own scheduling from the loop's latency
+    (:func:`missed_causes`): ``send_late (n,) s`` — how late, after the cycle's start, its send
+    returned (its own jitter); ``wake_late (n,) s`` — of that, how late it woke for the cycle;
+    ``read_late (n,) s`` — how long an in-time reply waited in the socket before this process
+    read it (its own wake-up delay); ``rtt_late (n,) s`` — for a missed cycle, when its reply
+    came after all (NaN: never); ``stamped`` (kernel stamps in use); ``warnings`` (the
     real-time settings refused, :func:`roboisf.online.rt.apply`); ``sent (n,)`` — when each
-    message was sent (``time.perf_counter``, CLOCK_MONOTONIC: comparable with the loop's).
+    message was sent (``time.perf_counter``, CLOCK_MONOTONIC: comparable with the loop's);
+    ``processes`` (1: beside the sensor, 2: alone) and ``spin`` (s).
     """
-    q_nom, dq_dp, planned = setup_arrays
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    stamped = _stamping(s)
-    warnings = apply(realtime, "the simulated controller").warnings if realtime else []
-    dest = ("127.0.0.1", loop_port)
-    rx = np.zeros(3)
-    rtt = np.full(n_cycles, np.nan)
-    applied = np.zeros((n_cycles, 3))
-    ks = np.zeros(n_cycles, dtype=np.int64)
-    missed = 0
-    ran = 0
-    send_late = np.full(n_cycles, np.nan)
-    read_late = np.full(n_cycles, np.nan)
-    rtt_late = np.full(n_cycles, np.nan)
-    sent = np.full(n_cycles, np.nan)
-    sent_ns = np.zeros(n_cycles, dtype=np.int64)
-    gcq = GcQuiet().__enter__()
-    if ready is not None:
-        ready.set()  # set up: the first message goes ``start_delay`` s from now
-    time.sleep(start_delay)
-    t0 = time.perf_counter()
+    kw = {
+        "loop_port": loop_port,
+        "protocol": protocol,
+        "setup_arrays": setup_arrays,
+        "cycle": cycle,
+        "n_cycles": n_cycles,
+        "point_step": point_step,
+    }
+    if ready is None:
+        ready = _NoEvent()
+    devices_process(
+        None,
+        kw,
+        index,
+        stop,
+        result,
+        ready,
+        start_delay=start_delay,
+        realtime=realtime,
+        spin=spin,
+        processes=2,
+    )
+
+
+class _NoEvent:
+    def set(self) -> None:
+        pass
+
+
+def _stamping(s: socket.socket) -> bool:
+    return enable_stamps(s)
+
+
+def _recv_stamped(s: socket.socket, timeout: float) -> tuple[bytes, int | None, float] | None:
+    """One datagram within ``timeout`` s (0: only one already queued): ``(data, arrival
+    (CLOCK_REALTIME ns, the kernel's stamp; None without one), read (perf_counter s))``, or
+    None."""
+    s.settimeout(timeout if timeout > 0 else 0.0)
     try:
-        for c in range(n_cycles):
-            if stop.is_set():
-                break
-            ran = c + 1
-            k = min(c * point_step, len(q_nom) - 1)
-            index.value = k
-            ks[c] = k
-            applied[c] = rx
-            q = q_nom[k] + dq_dp[k] @ rx
-            seq = c + 1
-            if protocol == "egm":
-                msg = egm.encode_robot(seq, int((c * cycle) * 1e3), q, planned[k])
-            else:
-                msg = rsi.encode_robot(seq, q)
-            deadline = t0 + (c + 1) * cycle
-            sent_at = time.perf_counter()  # the round trip from before the send (an upper
-            sent_ns[c] = time.time_ns()  # bound) …
-            sent[c] = sent_at
-            s.sendto(msg, dest)  # (on loopback, in the loop's socket when this returns)
-            # … the lateness from after it: a stall inside the send is this process's own
-            send_late[c] = time.perf_counter() - (t0 + c * cycle)
-            got = False
-            while not got:
-                r = _recv_stamped(s, deadline - time.perf_counter())
-                if r is None:
-                    break
-                data, arrival_ns, read_at = r
-                try:
-                    if protocol == "egm":
-                        rseq, pose = egm.decode_sensor(data)
-                        corr = pose[:3] - planned[k, :3]
-                    else:
-                        rseq, corr = rsi.decode_reply(data)
-                except ProtocolError:
-                    continue
-                if not 1 <= rseq <= seq:
-                    continue
-                j = rseq - 1
-                # the arrival on this process's perf_counter clock: kernel stamp, else the read
-                if arrival_ns is not None:
-                    arrived = sent[j] + (arrival_ns - sent_ns[j]) * 1e-9
-                else:
-                    arrived = read_at
-                if rseq == seq and arrived < deadline:
-                    rtt[c] = arrived - sent_at
-                    read_late[c] = read_at - arrived
-                    rx = corr
-                    got = True
-                elif np.isnan(rtt[j]) and np.isnan(rtt_late[j]):
-                    rtt_late[j] = arrived - sent[j]  # after its next cycle was due: dropped
-            if not got:
-                missed += 1
-            gcq.slack()
-            while time.perf_counter() < deadline:
-                time.sleep(min(5e-4, max(0.0, deadline - time.perf_counter())))
-    finally:
-        gcq.__exit__()
-        s.close()
-        result.put(
-            {
-                "rtt": rtt,
-                "missed": missed,
-                "applied": applied,
-                "k": ks,
-                "ran": ran,
-                "send_late": send_late,
-                "read_late": read_late,
-                "rtt_late": rtt_late,
-                "sent": sent,
-                "stamped": stamped,
-                "warnings": warnings,
-            }
-        )
+        data, anc, _, _ = s.recvmsg(65536, STAMP_SPACE)
+    except (TimeoutError, BlockingIOError):
+        return None
+    return data, kernel_stamp(anc), time.perf_counter()
 
 
 def missed_causes(
@@ -572,13 +782,20 @@ def missed_causes(
 
 
 class Simulation:
-    """The simulated sensor and controller as two processes (``spawn``; daemons).
+    """The simulated sensor and controller (``spawn``ed daemons): each in its own process
+    (``processes=2``, the default) or both in one process and thread (``processes=1``,
+    :func:`devices_process`). One process is one fewer runnable process beside the loop, but
+    its one thread wakes five times a cycle (four records, one message): on the contended
+    2-core machine the controller then woke for its cycle p50 1.6–2.1 ms late against
+    0.0–0.07 ms alone (docs/online.md), so two stay the default.
 
     ``with Simulation(setup, "egm", loop_port, n_cycles=…) as sim:`` starts the sensor on
-    127.0.0.1:``sim.sensor_port`` (0 → a free port) and, after ``start_delay`` s, the
-    controller towards the loop (both with ``realtime``'s scheduler, CPU and memory lock, when
-    given); :meth:`result` waits for the controller's report (``rtt``,
-    ``missed``, ``applied``, ``k``). Leaving the block stops both.
+    127.0.0.1:``sim.sensor_port`` and, ``start_delay`` s after the devices are set up, the
+    controller towards the loop (with ``realtime``'s scheduler, CPU and memory lock, when
+    given — for the simulators, not the loop: on a machine without a spare core, give the loop
+    the real-time priority and the simulators the other CPUs, :func:`roboisf.online.rt.other_cpus`);
+    :meth:`result` waits for the controller's report (``rtt``, ``missed``, ``applied``, ``k``,
+    :func:`controller_process`). Leaving the block stops them.
     """
 
     def __init__(
@@ -594,11 +811,15 @@ class Simulation:
         sensor_silent_after: float = math.inf,
         start_delay: float = 0.3,
         realtime: Realtime | None = None,
+        processes: int = 2,
+        spin: float = SPIN,
     ) -> None:
         import multiprocessing as mp
 
         if protocol not in ("egm", "rsi"):
             raise InputError(f"must be 'egm' or 'rsi', got {protocol!r}", field="controller")
+        if processes not in (1, 2):
+            raise InputError(f"must be 1 or 2, got {processes!r}", field="processes")
         ctx = mp.get_context("spawn")
         self._ctx = ctx
         self.index = ctx.Value("l", 0)
@@ -607,51 +828,47 @@ class Simulation:
         probe = _bind(0)
         self.sensor_port = int(probe.getsockname()[1])
         probe.close()
-        ready = ctx.Event()
-        self._controller_ready = ctx.Event()
-        self._sensor = ctx.Process(
-            target=sensor_process,
-            args=(self.sensor_port, setup.reading, self.index, self.stop, ready),
-            kwargs={
-                "rate": sensor_rate,
-                "noise": setup.noise,
-                "silent_after": sensor_silent_after,
-                "realtime": realtime,
-            },
-            daemon=True,
-        )
-        self._controller = ctx.Process(
-            target=controller_process,
-            args=(
-                loop_port,
-                protocol,
-                (setup.q, setup.dq_dp, setup.planned),
-                self.index,
-                self.stop,
-                self._queue,
-            ),
-            kwargs={
-                "cycle": cycle,
-                "n_cycles": n_cycles,
-                "start_delay": start_delay,
-                "point_step": point_step,
-                "realtime": realtime,
-                "ready": self._controller_ready,
-            },
-            daemon=True,
-        )
-        self._ready = ready
+        self._ready = [ctx.Event() for _ in range(processes)]
+        sensor: dict[str, Any] = {
+            "port": self.sensor_port,
+            "reading": setup.reading,
+            "rate": sensor_rate,
+            "noise": setup.noise,
+            "seed": 1,
+            "silent_after": sensor_silent_after,
+        }
+        controller: dict[str, Any] = {
+            "loop_port": loop_port,
+            "protocol": protocol,
+            "setup_arrays": (setup.q, setup.dq_dp, setup.planned),
+            "cycle": cycle,
+            "n_cycles": n_cycles,
+            "point_step": point_step,
+        }
+        common: dict[str, Any] = {"realtime": realtime, "spin": spin, "processes": processes}
+        idx, stop, q = self.index, self.stop, self._queue
+        jobs: list[tuple[Any, Any, Any, dict[str, Any]]]
+        if processes == 1:
+            jobs = [(sensor, controller, q, {"start_delay": start_delay, **common})]
+        else:  # the sensor first: it is streaming when the controller starts
+            jobs = [
+                (sensor, None, None, common),
+                (None, controller, q, {"start_delay": start_delay, **common}),
+            ]
+        self._procs = [
+            ctx.Process(
+                target=devices_process, args=(sen, ctl, idx, stop, res, ev), kwargs=kw, daemon=True
+            )
+            for (sen, ctl, res, kw), ev in zip(jobs, self._ready, strict=True)
+        ]
         self._result: dict[str, Any] | None = None
 
     def __enter__(self) -> Simulation:
-        self._sensor.start()
-        if not self._ready.wait(30):
-            self.close()
-            raise RuntimeError("the simulated sensor did not start")
-        self._controller.start()
-        if not self._controller_ready.wait(60):  # imported and set up (seconds on a busy machine)
-            self.close()
-            raise RuntimeError("the simulated controller did not start")
+        for p, ev in zip(self._procs, self._ready, strict=True):
+            p.start()
+            if not ev.wait(60):  # imported and set up (seconds on a busy machine)
+                self.close()
+                raise RuntimeError("the simulated devices did not start")
         return self
 
     def result(self, timeout: float | None = None) -> dict[str, Any]:
@@ -662,7 +879,7 @@ class Simulation:
 
     def close(self) -> None:
         self.stop.set()
-        for p in (self._controller, self._sensor):
+        for p in reversed(self._procs):
             if p.pid is not None:
                 p.join(5)
                 if p.is_alive():
