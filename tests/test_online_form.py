@@ -33,15 +33,24 @@ def setup():
     return virtual_setup(vc)
 
 
+@pytest.fixture(scope="module")
+def uncorrected(setup, tmp_path_factory):
+    """``analyze``'s decomposition of the part formed without the loop (the reference of the
+    in-process and the command-line tests alike), built once."""
+    plain = build_study(setup.vc, tmp_path_factory.mktemp("plain") / "uncorrected")
+    return analyze(plain).decomposition
+
+
 def _rms(d, x):
     return float(np.sqrt(np.mean(x[d.valid] ** 2)))
 
 
-def test_analyze_of_the_online_part_shows_the_compliance_error_removed(setup, tmp_path):
+def test_analyze_of_the_online_part_shows_the_compliance_error_removed(
+    setup, uncorrected, tmp_path
+):
     run = form_online(setup, "egm", limits=Limits())
-    plain = build_study(setup.vc, tmp_path / "uncorrected")
     online = form_study(setup, run.applied, tmp_path / "online")
-    d0 = analyze(plain).decomposition
+    d0 = uncorrected
     d1 = analyze(online).decomposition
     assert d1.valid.sum() > 100
 
@@ -107,7 +116,7 @@ def test_applied_per_point_from_the_controllers_report(setup):
 
 
 @pytest.mark.slow
-def test_online_simulate_form_from_the_command_line(tmp_path, monkeypatch, setup):
+def test_online_simulate_form_from_the_command_line(tmp_path, monkeypatch, setup, uncorrected):
     """`roboisf online --simulate --form STUDY` over localhost UDP, then `analyze` of the study
     (a small cone in place of the paper's, so it is quick)."""
     import roboisf.virtual.cell as vcell
@@ -119,8 +128,7 @@ def test_online_simulate_form_from_the_command_line(tmp_path, monkeypatch, setup
     args = ["-q", "online", "-c", "egm", "--virtual", "cone", "--simulate", "--duration", "12"]
     args += ["--form", str(formed), "--scan-points", "20000", "-o", str(log)]
     assert main(args) == 0
-    d0 = analyze(build_study(small, tmp_path / "uncorrected")).decomposition
-    d1 = analyze(formed).decomposition
+    d0, d1 = uncorrected, analyze(formed).decomposition
     err = [
         d.normal["tool"] + d.normal["tool_holder"] + d.normal["robot_compliance"] for d in (d0, d1)
     ]

@@ -179,12 +179,20 @@ def test_cycle_log_in_chunks_keeps_every_row_in_order_and_never_copies_a_chunk(s
     assert np.allclose(d[:, 2:8], np.degrees(setup.q[0]))
 
 
-def test_the_loops_handlers_allocate_nothing_per_cycle(setup):
-    """20,000 cycles through the loop's own handlers (RDT decode ×4, EGM decode, core, encode,
-    send, log): no memory kept, and no object left for the cyclic collector — so even with the
-    collector automatic, none of its pauses would fall into a cycle."""
+#: cycles measured by the allocation test. The smallest thing a handler can keep per cycle is
+#: one 8-byte pointer (an append to a list of existing objects); over 2,000 cycles that is
+#: ≥ 16 kB, four times the 4 kB noise allowance, and a kept tracked object counts 2,000 in the
+#: collector's generation-0 count (limit 100). The two leaking handlers below prove both checks
+#: fail at this length (20,000 cycles measured the same: 10× the cost, no finer resolution needed).
+ALLOC_CYCLES = 2_000
+
+
+def _handlers_growth(setup, n: int, leak=None) -> tuple[int, int, int]:
+    """Run ``n`` cycles (after 1,000 warm ones) through the loop's own handlers (RDT decode ×4,
+    EGM decode, core, encode, send, log), the cyclic collector off while measured so its count is
+    exact; ``leak(i)``, when given, runs after each measured cycle. Returns (bytes kept,
+    net new tracked objects, cycles counted by the loop)."""
     oc = OnlineCompensator.from_cell(setup.vc.cell, setup.sensor, Limits())
-    n = 20_000
     loop = Loop(oc, egm.EgmAdapter(), ("127.0.0.1", 0), ("127.0.0.1", 9), log=CycleLog(n + 2000))
     sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sink.bind(("127.0.0.1", 0))
@@ -196,7 +204,7 @@ def test_the_loops_handlers_allocate_nothing_per_cycle(setup):
     ]
     recs = [netft.encode_record(i + 1, i, 0, setup.reading[i % m]) for i in range(4 * (n + 1000))]
 
-    def run(count: int, off: int) -> None:
+    def run(count: int, off: int, extra=None) -> None:
         for i in range(count):
             k = off + i
             for j in range(4):
@@ -207,18 +215,24 @@ def test_the_loops_handlers_allocate_nothing_per_cycle(setup):
                     sink.recv(4096)
             except BlockingIOError:
                 pass
+            if extra is not None:
+                extra(i)
 
+    enabled = gc.isenabled()
     try:
         run(1000, 0)  # warm: caches, the first chunk's pages
         gc.collect()
-        c0 = gc.get_count()[0]
+        gc.disable()
         tracemalloc.start()
         s0 = tracemalloc.take_snapshot()
-        run(n, 1000)
+        c0 = gc.get_count()[0]  # after the snapshot: its own objects are not the loop's
+        run(n, 1000, leak)
+        c1 = gc.get_count()[0]
         s1 = tracemalloc.take_snapshot()
         tracemalloc.stop()
-        c1 = gc.get_count()[0]
     finally:
+        if enabled:
+            gc.enable()
         sink.close()
         loop.close()
     grown = sum(
@@ -226,9 +240,30 @@ def test_the_loops_handlers_allocate_nothing_per_cycle(setup):
         for x in s1.compare_to(s0, "filename")
         if "tracemalloc" not in x.traceback[0].filename
     )
-    assert loop.counters.cycles == n + 1000
-    assert grown < 4096, grown  # bytes over 20,000 cycles: nothing per cycle
-    assert c1 - c0 < 100, (c0, c1)  # net new tracked objects: none per cycle
+    return grown, c1 - c0, loop.counters.cycles
+
+
+def test_the_loops_handlers_allocate_nothing_per_cycle(setup):
+    """No memory kept over :data:`ALLOC_CYCLES` cycles, and no object left for the cyclic
+    collector — so even with the collector automatic, none of its pauses would fall into a
+    cycle."""
+    grown, objects, cycles = _handlers_growth(setup, ALLOC_CYCLES)
+    assert cycles == ALLOC_CYCLES + 1000
+    assert grown < 4096, grown  # bytes over the run: nothing per cycle
+    assert objects < 100, objects  # net new tracked objects: none per cycle
+
+
+def test_the_allocation_test_sees_the_smallest_per_cycle_leak(setup):
+    """The negative controls of the test above, at the same length: a handler that keeps one
+    pointer per cycle (8 bytes, no new object) fails the bytes check; one that keeps a small
+    tracked object per cycle fails the collector-count check."""
+    kept: list = []
+    grown, objects, _ = _handlers_growth(setup, ALLOC_CYCLES, lambda i: kept.append(None))
+    assert grown >= 4096, grown
+    kept.clear()
+    grown, objects, _ = _handlers_growth(setup, ALLOC_CYCLES, lambda i: kept.append([]))
+    assert objects >= 100, objects
+    assert grown >= 4096, grown
 
 
 def test_kernel_stamp_is_the_arrival_not_the_read():
