@@ -68,3 +68,25 @@ def test_an_error_in_the_scan_thread_reaches_the_caller(small_cone_study, tmp_pa
     with pytest.raises(InputError, match=r"robot_scan\.ply"):
         analyze(study)
     assert _scan_threads() == []
+
+
+def test_the_analysis_keeps_each_scans_statistics_not_its_points(
+    small_cone_study, small_cone_analysis
+):
+    # the per-point arrays are dropped (memory: the first scan's sat under the second's peak);
+    # the summary is what it was with them, and keep_points=True keeps them
+    kept = analyze(small_cone_study, keep_points=True)
+    for name, sc in small_cone_analysis.scans.items():
+        assert sc.points is None
+        full = kept.scans[name]
+        assert full.points is not None and full.points.dn.size > 1000
+        assert sc.summary() == full.summary()
+        assert full.without_points().summary() == full.summary()
+
+
+def test_freed_heap_pages_are_given_back_on_glibc():
+    import platform
+
+    pipeline._trim()  # never raises, whatever the C library
+    if platform.libc_ver()[0] == "glibc":
+        assert callable(pipeline._malloc_trim())

@@ -171,7 +171,8 @@ def compare(
                 "(rim band or holes in the scan): valid = false"
             )
         write_table(toolpath_table(t), output, TOOLPATH_COLUMNS, "toolpath_deviations")
-    else:
+    assert res.points is not None  # compare_scan's own result keeps them
+    if res.toolpath is None:
         write_table(point_table(res.points), output, POINT_COLUMNS, "point_deviations")
     if points_output is not None:
         write_table(point_table(res.points), points_output, POINT_COLUMNS, "point_deviations")
