@@ -166,36 +166,3 @@ def small_cone_analysis(small_cone_study: Path) -> Any:
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     slow = {item.path for item in items if item.get_closest_marker("slow") is not None}
     items.sort(key=lambda item: item.path not in slow)  # stable: each module stays in order
-
-
-# -- numba's cache, compiled once before the xdist workers start -----------------------------------
-# On a fresh clone the compiled kernels' cache is empty: both workers compiled the same kernels
-# at once and wrote the same cache files. Two fresh-clone runs (2026-11-23) lost a worker near the
-# end of the suite ("node down: Not properly terminated", no OOM or segfault logged) while every
-# run with a warm cache passed. Until that is understood, the controller compiles the analysis's
-# kernels once, in one process, before the workers start (a tiny virtual cell, analysed).
-_WARM = """
-import tempfile
-from pathlib import Path
-from roboisf.virtual.cell import build_study, paper_cone_cell
-from roboisf.decompose.pipeline import analyze
-with tempfile.TemporaryDirectory() as d:
-    cell = paper_cone_cell(
-        scan_points=20_000, force_rate=50.0, joint_rate=20.0, step_down=2e-3, spacing=4e-3
-    )
-    analyze(build_study(cell, Path(d) / "s"))
-"""
-
-
-@pytest.hookimpl(tryfirst=True)
-def pytest_sessionstart(session: pytest.Session) -> None:
-    import subprocess
-    import sys
-
-    if hasattr(session.config, "workerinput") or not session.config.getoption(
-        "numprocesses", default=None
-    ):
-        return
-    src = str(Path(__file__).resolve().parents[1] / "src")
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([src, os.environ.get("PYTHONPATH", "")])}
-    subprocess.run([sys.executable, "-c", _WARM], env=env, check=False, timeout=900)
