@@ -5,6 +5,7 @@ from __future__ import annotations
 import io
 import threading
 
+import pytest
 from rich.console import Console
 
 from roboisf.cli.console import RichProgress
@@ -47,9 +48,6 @@ def test_tasks_from_two_threads_share_one_display_and_it_stops_after_the_last():
 def test_an_error_inside_a_task_closes_the_display():
     console, _ = _terminal()
     p = RichProgress(console)
-    try:
-        with p.task("alignment"):
-            raise ValueError("bad log")
-    except ValueError:
-        pass
+    with pytest.raises(ValueError, match="bad log"), p.task("alignment"):
+        raise ValueError("bad log")
     assert p._bar is None and p._open == 0
