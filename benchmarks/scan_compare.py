@@ -43,10 +43,11 @@ class _Steps:
 
 
 def _inputs(args: argparse.Namespace) -> tuple[Any, Any, Any, Any]:
-    from roboisf.scan import CompareOptions, ScanCloud, read_scan
+    from roboisf.scan import ScanCloud, read_scan
 
     if args.study:
         from roboisf.cell import cell_from_study
+        from roboisf.decompose.pipeline import scan_options
         from roboisf.study.spec import load_study
         from roboisf.toolpath.importer import study_toolpath
 
@@ -54,14 +55,7 @@ def _inputs(args: argparse.Namespace) -> tuple[Any, Any, Any, Any]:
         cell = cell_from_study(study)
         run = study.robot_run if args.run == "robot" else study.cnc
         tp = study_toolpath(study, run, cell.part)
-        a = study.analysis
-        opts = CompareOptions(
-            register=a.registration,
-            rim_band=0.0,
-            radius=a.point_radius,
-            contour_z=a.contour_z,
-            max_distance=a.max_distance,
-        )
+        opts = scan_options(study)  # as analyze compares the study's scans
         return (lambda: read_scan(run.scan, unit=run.scan_unit)), cell.part, tp, opts
     from roboisf.parts import Cone
     from roboisf.scan import radial_offset, synthetic_scan

@@ -204,26 +204,30 @@ def _joint_angles(
     return q, f"joint log {run.joints.name}"
 
 
-def _compare(
-    study: Study, cell: Cell, run: RunSpec, tp: Toolpath, progress: Progress | None
-) -> ScanComparison:
+def scan_options(study: Study) -> CompareOptions:
+    """The scan comparison's options as the analysis uses them for ``study``: per-point
+    deviations over the whole wall (the paper's polar plot sits at z = −11 mm, inside the rim
+    band); the rim band leaves the statistics through the ``used`` mask."""
     a = study.analysis
-    # per-point deviations over the whole wall (the paper's polar plot sits at z = −11 mm, inside
-    # the rim band); the rim band leaves the statistics through the ``used`` mask
-    opts = CompareOptions(
+    return CompareOptions(
         register=a.registration,
         rim_band=0.0,
         radius=a.point_radius,
         contour_z=a.contour_z,
         max_distance=a.max_distance,
     )
+
+
+def _compare(
+    study: Study, cell: Cell, run: RunSpec, tp: Toolpath, progress: Progress | None
+) -> ScanComparison:
     cloud = read_scan(run.scan, unit=run.scan_unit)
     return compare_scan(
         cloud,
         cell.part,
         toolpath=tp,
         toolpath_source=str(run.toolpath),
-        options=opts,
+        options=scan_options(study),
         progress=progress,
     )
 
