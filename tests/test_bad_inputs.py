@@ -434,3 +434,28 @@ def test_pcd_with_a_signalling_nan_is_refused(tmp_path):
     f.write_bytes(head.encode() + bytes(raw))
     with pytest.raises(InputError, match=r"s\.pcd.*NaN or inf"):
         read_scan(f)
+
+
+def test_stl_with_a_nan_vertex_is_refused_before_trimesh_merges_it(tmp_path):
+    # found by the fuzz test: trimesh's vertex merge cast NaN to int64 ("invalid value
+    # encountered in cast") before our check saw the coordinates
+    import struct
+    import warnings
+
+    f = tmp_path / "m.stl"
+    tri = np.array([[[0, 0, 0], [10, 0, 0], [0, 10, 0]], [[10, 0, 0], [10, 10, 0], [0, np.nan, 0]]])
+    out = b"\0" * 80 + struct.pack("<I", len(tri))
+    for t in tri:
+        out += struct.pack("<3f", 0, 0, 1) + t.astype("<f4").tobytes() + b"\0\0"
+    f.write_bytes(out)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(InputError, match=r"m\.stl.*NaN or inf"):
+            read_scan(f)
+    # the same file without the NaN is read (the check is not what refuses every STL)
+    tri[1, 2, 1] = 10
+    out = b"\0" * 80 + struct.pack("<I", len(tri))
+    for t in tri:
+        out += struct.pack("<3f", 0, 0, 1) + t.astype("<f4").tobytes() + b"\0\0"
+    f.write_bytes(out)
+    assert read_scan(f).points.shape == (4, 3)

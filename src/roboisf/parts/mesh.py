@@ -156,15 +156,22 @@ def read_mesh(path: str | Path, *, unit: str = "mm") -> tuple[F64, NDArray[np.in
     import trimesh
 
     try:
-        mesh = trimesh.load(str(path), force="mesh", process=True)
+        # unprocessed first: merging vertices casts NaN coordinates to integers (a warning and
+        # garbage keys inside trimesh); they are checked here, then the mesh is processed
+        mesh = trimesh.load(str(path), force="mesh", process=False)
+        raw = np.asarray(getattr(mesh, "vertices", np.empty((0, 3))), dtype=np.float64)
+        if raw.size and not np.all(np.isfinite(raw)):
+            raise InputError("mesh has NaN or inf vertex coordinates", file=path)
+        if raw.size:
+            mesh.process()
+    except InputError:
+        raise
     except Exception as e:
         raise InputError(f"not a readable mesh ({type(e).__name__}: {e})", file=path) from None
     V: F64 = np.array(getattr(mesh, "vertices", np.empty((0, 3))), dtype=np.float64)
     F: NDArray[np.int64] = np.array(getattr(mesh, "faces", np.empty((0, 3))), dtype=np.int64)
     if V.shape[0] == 0 or F.ndim != 2 or F.shape[0] == 0:
         raise InputError("mesh has no triangles (empty or truncated file?)", file=path)
-    if not np.all(np.isfinite(V)):
-        raise InputError("mesh has NaN or inf vertex coordinates", file=path)
     return V * scale, F
 
 
