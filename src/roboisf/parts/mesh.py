@@ -162,7 +162,7 @@ def read_mesh(path: str | Path, *, unit: str = "mm") -> tuple[F64, NDArray[np.in
         raw = np.asarray(getattr(mesh, "vertices", np.empty((0, 3))), dtype=np.float64)
         if raw.size and not np.all(np.isfinite(raw)):
             raise InputError("mesh has NaN or inf vertex coordinates", file=path)
-        if raw.size:
+        if raw.size and isinstance(mesh, trimesh.Trimesh):
             mesh.process()
     except InputError:
         raise
