@@ -235,41 +235,44 @@ def _compare(
 def _logs_part(
     study: Study, cell: Cell, tp: Toolpath, progress: Progress | None
 ) -> tuple[dict[str, RunAlignment], F64, str, list[str], F64, F64]:
-    """The logs' part of the analysis: read, align, joint angles, tip wrenches of both runs."""
+    """The logs' part of the analysis: read, align, joint angles, tip wrenches of both runs.
+
+    One run at a time: a run's raw logs (2.3 M samples at 1 kHz on the paper cone, ~0.15 GB as
+    float64) are freed before the next run's are read, so that only one sits beside the scan
+    comparison running in the other thread (holding both made the command's peak RSS depend on
+    how the two threads met: 0.83–1.03 GiB on the paper cone)."""
     cnc, rob = study.cnc, study.robot_run
-    with task(progress, "alignment of the logs"):
-        logs = {
-            r.name: (
-                read_run_force_log(study, r),
-                None if r.joints is None else read_run_joint_log(r),
-            )
-            for r in (cnc, rob)
-        }
-        aligned = {r.name: align_run(cell, r, tp, *logs[r.name]) for r in (cnc, rob)}
-    with task(progress, "robot joint angles"):
-        q, q_source = _joint_angles(cell, rob, tp, aligned[rob.name].joints, logs[rob.name][1])
+    aligned: dict[str, RunAlignment] = {}
+    wrench: dict[str, F64] = {}
     input_warnings: list[str] = []
-    with task(progress, "forces to the tool tip"):
-        R_fk = (
-            cell.robot.fk(q, check_limits=False)[:, :3, :3]
-            if rob.forces.tool_mass is not None
-            else None
-        )  # the sensor's orientation for its tool-weight model
-        W_cnc, W_rob = (
-            run_tip_wrench(
+    q: F64 | None = None
+    q_source = ""
+    for r in (cnc, rob):
+        with task(progress, f"{r.name} logs: alignment"):
+            log = read_run_force_log(study, r)
+            joints = None if r.joints is None else read_run_joint_log(r)
+            aligned[r.name] = align_run(cell, r, tp, log, joints)
+        R_fk = None
+        if r is rob:
+            with task(progress, "robot joint angles"):
+                q, q_source = _joint_angles(cell, rob, tp, aligned[rob.name].joints, joints)
+            if rob.forces.tool_mass is not None:
+                # the sensor's orientation for its tool-weight model
+                R_fk = cell.robot.fk(q, check_limits=False)[:, :3, :3]
+        with task(progress, f"{r.name} logs: forces to the tool tip"):
+            wrench[r.name] = run_tip_wrench(
                 study,
                 r,
                 tp,
                 warnings=input_warnings,
                 alignment=None if r.sync == "time" else aligned[r.name].forces,
-                log=logs[r.name][0],
-                R_base_tip=R_fk if r is rob else None,
+                log=log,
+                R_base_tip=R_fk,
             )
-            for r in (cnc, rob)
-        )
-    # the raw logs (2.3 M samples each at 1 kHz on the paper cone, ~0.3 GB in all) are freed on
-    # return, while the scans may still run
-    return aligned, q, q_source, input_warnings, W_cnc, W_rob
+        del log, joints
+        _trim()
+    assert q is not None
+    return aligned, q, q_source, input_warnings, wrench[cnc.name], wrench[rob.name]
 
 
 @functools.cache
