@@ -64,6 +64,77 @@ def _njit(**kw: Any) -> Any:
     return lambda f: f  # pragma: no cover
 
 
+def _inline() -> Any:
+    if HAVE_NUMBA:
+        return numba.njit(cache=True, nogil=True, inline="always")
+    return lambda f: f  # pragma: no cover
+
+
+@_inline()
+def _offer(
+    X: F64, j0: int, j1: int, px: float, py: float, pz: float, best: F64, k1: int
+) -> None:  # pragma: no cover - compiled
+    """Rows ``j0 … j1 − 1`` of ``X`` offered to ``best``, the ``k1`` smallest squared
+    distances to ``p`` so far (ascending; x, y, z summed as scipy does)."""
+    for j in range(j0, j1):
+        dx = X[j, 0] - px
+        dy = X[j, 1] - py
+        dz = X[j, 2] - pz
+        d2 = dx * dx + dy * dy + dz * dz
+        if d2 < best[k1 - 1]:
+            t = k1 - 1
+            while t > 0 and best[t - 1] > d2:
+                best[t] = best[t - 1]
+                t -= 1
+            best[t] = d2
+
+
+@_inline()
+def _unseen(
+    px: float,
+    py: float,
+    pz: float,
+    ci: int,
+    cj: int,
+    ck: int,
+    r: int,
+    lo: F64,
+    h: float,
+    nx: int,
+    ny: int,
+    nz: int,
+) -> float:  # pragma: no cover - compiled
+    """How far every point outside the cube of rings ``0 … r`` around cell ``(ci, cj, ck)`` is
+    from ``p`` at least: the distance to the cube's faces inside the grid (inf: no such face)."""
+    bound = np.inf
+    if ci - r > 0:
+        bound = min(bound, px - (lo[0] + (ci - r) * h))
+    if ci + r < nx - 1:
+        bound = min(bound, lo[0] + (ci + r + 1) * h - px)
+    if cj - r > 0:
+        bound = min(bound, py - (lo[1] + (cj - r) * h))
+    if cj + r < ny - 1:
+        bound = min(bound, lo[1] + (cj + r + 1) * h - py)
+    if ck - r > 0:
+        bound = min(bound, pz - (lo[2] + (ck - r) * h))
+    if ck + r < nz - 1:
+        bound = min(bound, lo[2] + (ck + r + 1) * h - pz)
+    return bound
+
+
+@_inline()
+def _resolved(best: F64, k1: int, bound: float, out: F64, i: int) -> bool:  # pragma: no cover
+    """When the ``k1``-th distance is within ``bound``: ``out[i]`` = the mean of the roots of
+    ``best[1:]`` (the point itself is ``best[0]``) and True."""
+    if bound == np.inf or best[k1 - 1] <= max(bound, 0.0) ** 2:
+        s = 0.0
+        for t in range(1, k1):
+            s += math.sqrt(best[t])
+        out[i] = s / (k1 - 1)
+        return True
+    return False
+
+
 @_njit()
 def _knn_mean(
     X: F64,
@@ -127,36 +198,9 @@ def _knn_mean(
                         if exy + ez * ez > best[k1 - 1]:
                             continue
                         c = (ii * ny + jj) * nz + kk
-                        for j in range(start[c], start[c + 1]):
-                            dx = X[j, 0] - px
-                            dy = X[j, 1] - py
-                            dz = X[j, 2] - pz
-                            d2 = dx * dx + dy * dy + dz * dz
-                            if d2 < best[k1 - 1]:
-                                t = k1 - 1
-                                while t > 0 and best[t - 1] > d2:
-                                    best[t] = best[t - 1]
-                                    t -= 1
-                                best[t] = d2
+                        _offer(X, start[c], start[c + 1], px, py, pz, best, k1)
             # every point not seen is outside the cube of rings 0..r (faces inside the grid)
-            bound = np.inf
-            if ci - r > 0:
-                bound = min(bound, px - (lo[0] + (ci - r) * h))
-            if ci + r < nx - 1:
-                bound = min(bound, lo[0] + (ci + r + 1) * h - px)
-            if cj - r > 0:
-                bound = min(bound, py - (lo[1] + (cj - r) * h))
-            if cj + r < ny - 1:
-                bound = min(bound, lo[1] + (cj + r + 1) * h - py)
-            if ck - r > 0:
-                bound = min(bound, pz - (lo[2] + (ck - r) * h))
-            if ck + r < nz - 1:
-                bound = min(bound, lo[2] + (ck + r + 1) * h - pz)
-            if bound == np.inf or best[k1 - 1] <= max(bound, 0.0) ** 2:
-                s = 0.0
-                for t in range(1, k1):
-                    s += math.sqrt(best[t])
-                out[i] = s / (k1 - 1)
+            if _resolved(best, k1, _unseen(px, py, pz, ci, cj, ck, r, lo, h, nx, ny, nz), out, i):
                 break
             r += 1
 
@@ -232,37 +276,12 @@ def _knn_mean_cells(
                     ez = max(box[q, 4] - pz, 0.0, pz - box[q, 5])
                     if ex * ex + ey * ey + ez * ez > best[k1 - 1]:
                         continue
-                for j in range(c0[q], c1[q]):
-                    dx = X[j, 0] - px
-                    dy = X[j, 1] - py
-                    dz = X[j, 2] - pz
-                    d2 = dx * dx + dy * dy + dz * dz
-                    if d2 < best[k1 - 1]:
-                        t = k1 - 1
-                        while t > 0 and best[t - 1] > d2:
-                            best[t] = best[t - 1]
-                            t -= 1
-                        best[t] = d2
+                _offer(X, c0[q], c1[q], px, py, pz, best, k1)
             # every point not seen is outside the block (its faces inside the grid)
-            bound = np.inf
-            if ci - 1 > 0:
-                bound = min(bound, px - (lo[0] + (ci - 1) * h))
-            if ci + 1 < nx - 1:
-                bound = min(bound, lo[0] + (ci + 2) * h - px)
-            if cj - 1 > 0:
-                bound = min(bound, py - (lo[1] + (cj - 1) * h))
-            if cj + 1 < ny - 1:
-                bound = min(bound, lo[1] + (cj + 2) * h - py)
-            if ck - 1 > 0:
-                bound = min(bound, pz - (lo[2] + (ck - 1) * h))
-            if ck + 1 < nz - 1:
-                bound = min(bound, lo[2] + (ck + 2) * h - pz)
-            if bound == np.inf or best[k1 - 1] <= max(bound, 0.0) ** 2:
-                s = 0.0
-                for t in range(1, k1):
-                    s += math.sqrt(best[t])
-                out[i] = s / (k1 - 1)
-            else:  # rings beyond the block (or the caller's k-d tree)
+            if not _resolved(
+                best, k1, _unseen(px, py, pz, ci, cj, ck, 1, lo, h, nx, ny, nz), out, i
+            ):
+                # rings beyond the block (or the caller's k-d tree)
                 _knn_mean(X, start, lo, h, nx, ny, nz, k1, max_rings, i, i + 1, out)
 
 
