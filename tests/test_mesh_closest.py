@@ -12,29 +12,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from mesh_oracle import brute_closest
 from roboisf.parts import Cone, MeshPart, mesh_kernel, tessellate
-from roboisf.parts.mesh import point_triangle_distance2, spatial_order
+from roboisf.parts.mesh import spatial_order
 
 pytestmark = pytest.mark.skipif(not mesh_kernel.HAVE_NUMBA, reason="numba not installed")
-
-
-def _brute(mesh: MeshPart, X: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Face (lowest index at the minimum), d² and closest point over all triangles, and the
-    (N, F) d² of every pair."""
-    ix = mesh._index
-    d2, v, w = point_triangle_distance2(
-        X[:, None, :],
-        ix["a"][None],
-        ix["ab"][None],
-        ix["ac"][None],
-        ix["abab"][None],
-        ix["abac"][None],
-        ix["acac"][None],
-    )
-    f = np.argmin(d2, axis=1)
-    r = np.arange(X.shape[0])
-    P = ix["a"][f] + v[r, f][:, None] * ix["ab"][f] + w[r, f][:, None] * ix["ac"][f]
-    return f, d2[r, f], P, d2
 
 
 def _kernel(mesh: MeshPart, X: np.ndarray, seed: bool) -> tuple[np.ndarray, ...]:
@@ -98,7 +80,7 @@ def test_closest_faces_is_the_brute_force_minimum_with_the_lowest_index_at_ties(
     rng = np.random.default_rng(11)
     X = _points(mesh, rng)
     X = X[spatial_order(X)]  # the order point_deviations queries in (seeding is effective)
-    fb, db, Pb, d2_all = _brute(mesh, X)
+    fb, db, Pb, d2_all = brute_closest(mesh, X)
     assert np.mean(np.sum(d2_all == db[:, None], axis=1) > 1) > 0.1  # many exact ties
     f, d2, P = mesh.closest_faces(X)
     np.testing.assert_array_equal(f, fb)

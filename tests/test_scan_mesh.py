@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from mesh_oracle import brute_closest
 from roboisf.errors import InputError
 from roboisf.parts import Cone, MeshPart, load_part, mesh_kernel, tessellate
 from roboisf.parts.mesh import point_triangle_distance2
@@ -17,17 +18,7 @@ BACKENDS = [pytest.param("numba", marks=needs_numba), "numpy"]
 
 
 def _brute(mesh: MeshPart, X: np.ndarray) -> np.ndarray:
-    ix = mesh._index
-    d2, _, _ = point_triangle_distance2(
-        X[:, None, :],
-        ix["a"][None],
-        ix["ab"][None],
-        ix["ac"][None],
-        ix["abab"][None],
-        ix["abac"][None],
-        ix["acac"][None],
-    )
-    return d2.min(axis=1)
+    return brute_closest(mesh, X)[1]
 
 
 def test_point_triangle_distance_matches_dense_sampling():
