@@ -459,3 +459,24 @@ def test_stl_with_a_nan_vertex_is_refused_before_trimesh_merges_it(tmp_path):
         out += struct.pack("<3f", 0, 0, 1) + t.astype("<f4").tobytes() + b"\0\0"
     f.write_bytes(out)
     assert read_scan(f).points.shape == (4, 3)
+
+
+def test_stl_with_absurd_coordinates_is_refused_without_a_warning(tmp_path):
+    # found by the fuzz test: a finite float32 near 1e38 overflowed trimesh's int64 merge keys
+    import struct
+    import warnings
+
+    def stl(tri):
+        out = b"\0" * 80 + struct.pack("<I", len(tri))
+        for t in tri:
+            out += struct.pack("<3f", 0, 0, 1) + np.asarray(t, "<f4").tobytes() + b"\0\0"
+        return out
+
+    f = tmp_path / "big.stl"
+    f.write_bytes(stl([[[0, 0, 0], [10, 0, 0], [0, 3e37, 0]]]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(InputError, match=r"big\.stl.*vertex coordinates up to 3e\+37"):
+            read_scan(f)
+    f.write_bytes(stl([[[0, 0, 0], [10, 0, 0], [0, 9e9, 0]]]))  # large, still a number trimesh keys
+    assert read_scan(f).points.shape == (3, 3)

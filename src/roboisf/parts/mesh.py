@@ -142,6 +142,11 @@ def point_triangle_distance2(
     return np.maximum(d2_, 0.0), v, w
 
 
+#: Largest vertex coordinate a mesh file may hold, in its own units (trimesh merges vertices
+#: on int64 keys of the coordinates × 1e8).
+_MAX_COORD = 9e10
+
+
 def read_mesh(path: str | Path, *, unit: str = "mm") -> tuple[F64, NDArray[np.int64]]:
     """Read a triangle mesh (STL ascii/binary, OBJ, PLY with faces) with trimesh.
 
@@ -162,6 +167,13 @@ def read_mesh(path: str | Path, *, unit: str = "mm") -> tuple[F64, NDArray[np.in
         raw = np.asarray(getattr(mesh, "vertices", np.empty((0, 3))), dtype=np.float64)
         if raw.size and not np.all(np.isfinite(raw)):
             raise InputError("mesh has NaN or inf vertex coordinates", file=path)
+        if raw.size and np.abs(raw).max() > _MAX_COORD:
+            # trimesh merges vertices on round(v · 1e8) as int64, which overflows beyond this
+            raise InputError(
+                f"vertex coordinates up to {np.abs(raw).max():.3g} (file units): beyond "
+                f"±{_MAX_COORD:.0e}, not a part or scan (a corrupt file?)",
+                file=path,
+            )
         if raw.size and isinstance(mesh, trimesh.Trimesh):
             mesh.process()
     except InputError:
