@@ -49,3 +49,30 @@ def test_missing_column_named_on_the_first_line(tmp_path):
     f.write_text("depth;thick\n1;2\n")
     with pytest.raises(InputError, match=r"t\.csv:1 \[thickness\]: missing column"):
         read_table(f, ("depth", "thickness"))
+
+
+@pytest.mark.parametrize("sep", [",", ";", "\t"])
+@pytest.mark.parametrize(
+    ("body", "lines"),
+    [
+        ("1,1.5\n2,2.5\n3,3.5\n", [3, 4, 5]),
+        ("1,1.5\n\n2,2.5\n\n\n3,3.5\n", [3, 5, 8]),  # empty lines inside: the fast parser
+        ("1,1.5\n   \n2,2.5\n3,3.5\n", [3, 5, 6]),  # skips them, so the careful reader counts
+        ("1,1.5\n2,2.5\n3,3.5\n\n\n", [3, 4, 5]),
+        ("1,1.5\r\n2,2.5\r\n3,3.5", [3, 4, 5]),  # CRLF, no newline at the end
+        ('"1","1.5"\n2,2.5\n3,3.5\n', [3, 4, 5]),
+    ],
+    ids=["plain", "empty-inside", "blank-inside", "blank-after", "crlf", "quoted"],
+)
+def test_rows_keep_their_file_lines_whichever_parser_reads_them(tmp_path, sep, body, lines):
+    f = tmp_path / "t.csv"
+    f.write_bytes(("# units: length=mm\ndepth,thickness\n" + body).replace(",", sep).encode())
+    t = read_table(f, ("depth", "thickness"))
+    np.testing.assert_array_equal(t.column("depth"), [1, 2, 3])
+    np.testing.assert_array_equal(t.column("thickness"), [1.5, 2.5, 3.5])
+    assert list(t.lines) == lines
+    # a bad value after a blank line is named on its physical line
+    bad = body.replace("3.5", "nan")
+    f.write_bytes(("# units: length=mm\ndepth,thickness\n" + bad).replace(",", sep).encode())
+    with pytest.raises(InputError, match=rf"t\.csv:{lines[2]} \[thickness\]: nan is not a finite"):
+        read_table(f, ("depth", "thickness"))

@@ -233,10 +233,10 @@ def _read_roboisf_csv(
             r,
             "time",
         )
-    wrench = np.column_stack(
-        [t.column(c) * scale["force"] for c in ("Fx", "Fy", "Fz")]
-        + [t.column(c) * scale["moment"] for c in ("Mx", "My", "Mz")]
-    )
+    # scaled straight into one (N, 6) array (six scaled columns stacked held the wrench twice)
+    wrench = np.empty((t.data.shape[0], 6))
+    for k, c in enumerate(("Fx", "Fy", "Fz", "Mx", "My", "Mz")):
+        np.multiply(t.column(c), scale["force" if k < 3 else "moment"], out=wrench[:, k])
     position = (
         np.column_stack([t.column(c) for c in POSITION_COLUMNS]) * scale["length"]
         if has_pos
