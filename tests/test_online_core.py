@@ -273,6 +273,8 @@ def test_fk_deflection_equals_the_model_on_fanuc_and_abb(name, monkeypatch):
     assert err_d < 1e-12 and err_R < 1e-13
     if kn.COMPILED:  # the same code as plain Python, all the way down
         monkeypatch.setattr(vjm_chain, "sincos", vjm_chain.sincos.py_func)
+        monkeypatch.setattr(vjm_chain, "chain_walk", vjm_chain.chain_walk.py_func)
+        monkeypatch.setattr(vjm_chain, "tip_jacobian", vjm_chain.tip_jacobian.py_func)
         monkeypatch.setattr(kn, "chain_jacobian", vjm_chain.chain_jacobian.py_func)
         _, err_d, err_R = _fk_deflection_vs_model(name, kn.fk_deflection.py_func)
         assert err_d < 1e-12 and err_R < 1e-13

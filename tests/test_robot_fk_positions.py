@@ -54,3 +54,47 @@ def test_tip_positions_fanuc_coupling_and_checks() -> None:
     q[3, 2] = np.nan
     with pytest.raises(InputError, match="NaN"):
         m.tip_positions(q)
+
+
+@pytest.mark.parametrize("name", ["irb6700-200-2.60", "r2000ic-210f"])
+def test_compiled_kernels_are_the_plain_python_walk_bit_for_bit(name: str, monkeypatch) -> None:
+    """tip_positions (fk_numba), the batch VJM kernel (δ and J) and the online kernel all run
+    vjm_chain.chain_walk: each equals that walk run as plain Python (sincos too), bit for bit,
+    on an ABB and a FANUC (J2/J3 coupling) preset."""
+    from roboisf.online import kernel as kn
+    from roboisf.robot import vjm_chain
+
+    tool = make_transform(np.eye(3), [0.01, -0.02, 0.3])
+    m = replace(load_robot(name), T_flange_tip=tool).with_stiffness(np.linspace(4e6, 4e5, 6))
+    q = _q(m, 300, 7)  # several poses per parallel block of the VJM kernel (BLOCK poses)
+    rng = np.random.default_rng(8)
+    W = np.column_stack([rng.normal(0, 400, (len(q), 3)), rng.normal(0, 30, (len(q), 3))])
+    F = m.chain.F.copy()
+    F[6] = F[6] @ m.T_flange_tip
+    sign = np.ascontiguousarray(m.chain.sign, dtype=float)
+    offset = np.ascontiguousarray(m.chain.offset, dtype=float)
+    c23, kinv = float(m.chain.couple23), 1.0 / m.joint_stiffness
+    assert (c23 != 0.0) == name.startswith("r2000")
+    # compiled first (a kernel compiled after the patch below would see a Python sincos)
+    p = m.tip_positions(q, check_limits=False, backend="numba")
+    r = m.vjm(q, W, want_jacobian=True, backend="numba")
+    d_on = np.zeros((len(q), 6))
+    for n in range(len(q)):
+        kn.fk_deflection(F, sign, offset, c23, kinv, q[n], W[n], d_on[n], np.zeros((3, 3)),
+                         np.zeros((20, 6)))  # fmt: skip
+    monkeypatch.setattr(vjm_chain, "sincos", vjm_chain.sincos.py_func)
+    walk, jac = vjm_chain.chain_walk.py_func, vjm_chain.tip_jacobian.py_func
+    oz, Jl = np.empty((6, 6)), np.empty((6, 6))
+    p_py, d_py, J_py = np.empty((len(q), 3)), np.empty((len(q), 6)), np.empty((len(q), 6, 6))
+    for n in range(len(q)):
+        p_py[n] = walk(F, sign, offset, c23, q[n], None)[9:]
+        px, py, pz = walk(F, sign, offset, c23, q[n], oz)[9:]
+        assert (px, py, pz) == tuple(p_py[n])  # recording the joint axes changes nothing
+        jac(sign, c23, oz, px, py, pz, Jl)
+        J_py[n] = Jl
+        a = [sum((Jl[i, j] * W[n, i] for i in range(6)), 0.0) * kinv[j] for j in range(6)]
+        d_py[n] = [sum((Jl[i, j] * a[j] for j in range(6)), 0.0) for i in range(6)]
+    np.testing.assert_array_equal(p, p_py)
+    np.testing.assert_array_equal(r.J, J_py)
+    np.testing.assert_array_equal(r.d, d_py)
+    np.testing.assert_array_equal(d_on, d_py)

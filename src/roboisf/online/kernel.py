@@ -17,9 +17,9 @@ nothing:
     correction ``c = −R_base_workᵀ δ[:3]`` (work axes, m), then the dead band, the size limit,
     the rate limit and the watchdog (see :class:`roboisf.online.core.Limits`).
 
-The forward kinematics and Jacobian are :func:`roboisf.robot.vjm_chain.chain_jacobian`, the
-per-pose chain walk the batch kernel :mod:`roboisf.robot.vjm_numba` uses too (same ``F``,
-``sign``, ``offset`` and FANUC J2/J3 coupling ``c23``; tested against
+The forward kinematics and Jacobian are :func:`roboisf.robot.vjm_chain.chain_jacobian`: the
+per-pose chain walk and tip Jacobian the batch kernel :mod:`roboisf.robot.vjm_numba` uses too
+(same ``F``, ``sign``, ``offset`` and FANUC J2/J3 coupling ``c23``; tested against
 :meth:`RobotModel.deflection` on an ABB and a FANUC preset).
 """
 

@@ -1,15 +1,21 @@
-"""The chain walk for one pose, shared by the batch VJM kernel and the online loop.
+"""The chain walk for one pose, shared by the batch kernels and the online loop.
 
-:func:`chain_jacobian` is the one implementation of the per-pose forward kinematics and tip
-Jacobian of :mod:`roboisf.robot.kinematics` in scalar registers (seven fixed transforms
-``F_0 .. F_6``, the tool folded into ``F_6``; ``θ = sign·q + offset`` with the FANUC J2/J3
-coupling ``θ_3 = sign_3 (q_3 + c23 q_2) + offset_3``). It is called by
-:func:`roboisf.robot.vjm_numba._rows` (every pose of a batch) and
-:func:`roboisf.online.kernel.fk_deflection` (one pose per sample / cycle).
+:func:`chain_walk` is the one implementation of the per-pose forward kinematics of
+:mod:`roboisf.robot.kinematics` in scalar registers (seven fixed transforms ``F_0 .. F_6``, the
+tool folded into ``F_6``; ``θ = sign·q + offset`` with the FANUC J2/J3 coupling
+``θ_3 = sign_3 (q_3 + c23 q_2) + offset_3``); :func:`tip_jacobian` turns what it recorded into
+the tip Jacobian, and :func:`chain_jacobian` is the two in one call. Callers:
+:func:`roboisf.robot.vjm_numba._rows` (walk + Jacobian, every pose of a batch),
+:func:`roboisf.robot.fk_numba._rows` (walk only: tip positions of a joint log) and
+:func:`roboisf.online.kernel.fk_deflection` (:func:`chain_jacobian`, one pose per sample /
+cycle).
 
 This module imports numba only when it is installed: without it the functions are plain Python
 (the online loop's fallback); with it they are compiled and inlined into their callers
-(``inline="always"``), so the batch kernel's code and numbers are those of the hand-inlined walk.
+(``inline="always"``), so the batch kernels' code and numbers are those of the hand-inlined walk.
+The batch kernels call :func:`chain_walk` (and :func:`tip_jacobian`) themselves, one level of
+inlining: through :func:`chain_jacobian`, two levels, numba takes more array references per
+pose (atomic reference counts), and the batch VJM kernel measured ~6 % slower.
 """
 
 from __future__ import annotations
@@ -23,7 +29,7 @@ from numpy.typing import NDArray
 
 from roboisf.robot.vjm_kernel import HAVE_NUMBA
 
-__all__ = ["chain_jacobian", "sincos"]
+__all__ = ["chain_jacobian", "chain_walk", "sincos", "tip_jacobian"]
 
 F64 = NDArray[np.float64]
 
@@ -80,10 +86,12 @@ def sincos(x: float) -> tuple[float, float]:  # pragma: no cover - compiled
 
 
 @_inline
-def chain_jacobian(
-    F: F64, sign: F64, offset: F64, c23: float, q: F64, oz: F64, Jl: F64
-) -> tuple[float, float, float, float, float, float, float, float, float]:  # pragma: no cover
-    """Tip Jacobian ``Jl`` (6, 6) (base axes, at the tip) of one pose; returns ``R_base_6``.
+def chain_walk(
+    F: F64, sign: F64, offset: F64, c23: float, q: F64, oz: F64 | None
+) -> tuple[
+    float, float, float, float, float, float, float, float, float, float, float, float
+]:  # pragma: no cover - compiled (tested through chain_jacobian and fk_numba)
+    """Forward kinematics of one pose: ``R_base_6`` (row-major) and the tip position.
 
     Parameters
     ----------
@@ -91,13 +99,14 @@ def chain_jacobian(
     sign, offset : (6,) — ``θ = sign·q + offset`` (offset in rad)
     c23 : float — FANUC J2/J3 coupling (−1, 0 or 1; :class:`~roboisf.robot.kinematics.Chain`)
     q : (6,) rad — the joint angles of the pose
-    oz : (6, 6) — scratch: per joint its z axis (3) and origin (3, m), base axes
-    Jl : (6, 6) — output, column j = ``sign_j [z_j × (p − o_j); z_j]`` (rows 0–2 in m/rad),
-        column 2 += ``c23`` × column 3 under the coupling
+    oz : (6, 6) or None — output for :func:`tip_jacobian`: per joint its z axis (3) and origin
+        (3, m), base axes; None (positions only): not written (numba compiles the walk without
+        the stores)
 
     Returns
     -------
-    The nine entries of ``R_base_6`` (the frame after joint 6, before ``F[6]``), row-major.
+    The nine entries of ``R_base_6`` (the frame after joint 6, before ``F[6]``), row-major,
+    then the tip position ``p`` (3, m; after ``F[6]``), base frame.
     """
     r00, r01, r02 = F[0, 0, 0], F[0, 0, 1], F[0, 0, 2]
     r10, r11, r12 = F[0, 1, 0], F[0, 1, 1], F[0, 1, 2]
@@ -127,12 +136,13 @@ def chain_jacobian(
                 r20 * f01 + r21 * f11 + r22 * f21,
                 r20 * f02 + r21 * f12 + r22 * f22,
             )
-        oz[j, 0] = r02
-        oz[j, 1] = r12
-        oz[j, 2] = r22
-        oz[j, 3] = px
-        oz[j, 4] = py
-        oz[j, 5] = pz
+        if oz is not None:
+            oz[j, 0] = r02
+            oz[j, 1] = r12
+            oz[j, 2] = r22
+            oz[j, 3] = px
+            oz[j, 4] = py
+            oz[j, 5] = pz
         th = sign[j] * q[j] + offset[j]
         if j == 2 and c23 != 0.0:  # FANUC J2/J3 coupling: θ3 = s3 (q3 + c23 q2) + o3
             th += sign[2] * c23 * q[1]
@@ -144,7 +154,19 @@ def chain_jacobian(
     px += r00 * t0 + r01 * t1 + r02 * t2
     py += r10 * t0 + r11 * t1 + r12 * t2
     pz += r20 * t0 + r21 * t1 + r22 * t2
-    # column j = sign_j [z_j × (p − o_j); z_j]
+    return r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz
+
+
+@_inline
+def tip_jacobian(
+    sign: F64, c23: float, oz: F64, px: float, py: float, pz: float, Jl: F64
+) -> None:  # pragma: no cover - compiled (tested through its callers)
+    """Tip Jacobian ``Jl`` (6, 6) (base axes, at the tip) from :func:`chain_walk`'s ``oz`` and
+    tip position ``(px, py, pz)`` (m).
+
+    Column j = ``sign_j [z_j × (p − o_j); z_j]`` (rows 0–2 in m/rad); under the coupling ``c23``
+    column 2 += ``c23`` × column 3.
+    """
     for j in range(6):
         zx, zy, zz = oz[j, 0], oz[j, 1], oz[j, 2]
         rx, ry, rz = px - oz[j, 3], py - oz[j, 4], pz - oz[j, 5]
@@ -158,4 +180,19 @@ def chain_jacobian(
     if c23 != 0.0:  # ∂/∂q2 also turns joint 3: column 2 += c23 × column 3
         for i in range(6):
             Jl[i, 1] += c23 * Jl[i, 2]
+
+
+@_inline
+def chain_jacobian(
+    F: F64, sign: F64, offset: F64, c23: float, q: F64, oz: F64, Jl: F64
+) -> tuple[float, float, float, float, float, float, float, float, float]:  # pragma: no cover
+    """Tip Jacobian ``Jl`` (6, 6) (base axes, at the tip) of one pose; returns ``R_base_6``.
+
+    :func:`chain_walk` then :func:`tip_jacobian`; ``oz`` (6, 6) is their scratch. Returns the
+    nine entries of ``R_base_6`` (the frame after joint 6, before ``F[6]``), row-major.
+    """
+    r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz = chain_walk(
+        F, sign, offset, c23, q, oz
+    )
+    tip_jacobian(sign, c23, oz, px, py, pz, Jl)
     return r00, r01, r02, r10, r11, r12, r20, r21, r22

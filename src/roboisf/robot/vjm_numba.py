@@ -13,7 +13,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from roboisf.robot.vjm_chain import chain_jacobian, sincos
+from roboisf.robot.vjm_chain import chain_walk, sincos, tip_jacobian
 
 __all__ = ["BLOCK", "kernel", "margin_numba", "margin_pivots_ok", "sincos"]
 
@@ -63,7 +63,10 @@ def _rows(
     Jl = np.empty((6, 6))
     a = np.empty(6)
     for n in range(s, e):
-        chain_jacobian(F, sign, offset, c23, q[n], oz, Jl)
+        # the walk and the Jacobian called here, not through chain_jacobian: one level of
+        # inlining (see roboisf.robot.vjm_chain)
+        px, py, pz = chain_walk(F, sign, offset, c23, q[n], oz)[9:]
+        tip_jacobian(sign, c23, oz, px, py, pz, Jl)
         w = 0 if one_w else n
         for j in range(6):
             tau = 0.0
