@@ -9,6 +9,8 @@ from __future__ import annotations
 import contextlib
 import itertools
 import math
+import signal
+import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
@@ -25,6 +27,31 @@ __all__ = ["TetMesh", "gmsh_session", "mesh_geometry"]
 _counter = itertools.count()
 
 
+def _sigpipe() -> Any:
+    """SIGPIPE's handler as Python knows it (None where there is no SIGPIPE)."""
+    return signal.getsignal(signal.SIGPIPE) if hasattr(signal, "SIGPIPE") else None
+
+
+def _restore_sigpipe(handler: Any) -> None:
+    """Put SIGPIPE's handler back after ``gmsh.initialize``, which resets it to the default
+    action (terminate the process). Python ignores SIGPIPE, so that writing to a pipe whose
+    reader is gone raises BrokenPipeError; after gmsh the whole process died silently instead
+    (exit 141) — e.g. when the demo stopped its second process while a queue thread still wrote
+    to it (tests/test_fem_mesh_signals.py). From a thread other than the main one Python may
+    not set handlers: C's ``signal`` sets SIG_IGN / SIG_DFL there."""
+    if handler is None:
+        return
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGPIPE, handler)
+    elif handler in (signal.SIG_IGN, signal.SIG_DFL):
+        import ctypes
+
+        libc = ctypes.CDLL(None)
+        libc.signal.argtypes = [ctypes.c_int, ctypes.c_void_p]
+        libc.signal.restype = ctypes.c_void_p
+        libc.signal(int(signal.SIGPIPE), int(handler))
+
+
 @contextlib.contextmanager
 def gmsh_session() -> Iterator[tuple[Any, str]]:
     """A fresh gmsh model, headless and single-threaded; removed (and gmsh finalised) on exit."""
@@ -32,7 +59,9 @@ def gmsh_session() -> Iterator[tuple[Any, str]]:
 
     owner = not gmsh.isInitialized()
     if owner:
+        pipe = _sigpipe()
         gmsh.initialize(["-noenv"], readConfigFiles=False, run=False, interruptible=False)
+        _restore_sigpipe(pipe)
     name = f"roboisf_{next(_counter)}"
     try:
         gmsh.option.setNumber("General.Terminal", 0)
