@@ -27,6 +27,7 @@ import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -351,22 +352,30 @@ def _fast_body(
     n = _body_lines(path, header_line)
     if n is None or n <= 0:
         return None
+    return _blocks(
+        path,
+        n,
+        k,
+        skiprows=header_line,
+        header=None,
+        sep=sep,
+        decimal=decimal,
+        dtype=np.float64,
+        engine="c",
+        skip_blank_lines=False,
+        na_filter=False,
+        encoding="utf-8-sig",
+    )
+
+
+def _blocks(path: Path, n: int, k: int, **read_csv: Any) -> F64 | None:
+    """``n`` rows of ``k`` numbers through ``pandas.read_csv(path, **read_csv)`` in blocks of
+    2¹⁷ rows into one (n, k) array; None unless there are exactly ``n`` rows of ``k`` finite
+    numbers (or when pandas refuses the text)."""
     data = np.empty((n, k))
     o = 0
     try:
-        with pd.read_csv(
-            path,
-            skiprows=header_line,
-            header=None,
-            sep=sep,
-            decimal=decimal,
-            dtype=np.float64,
-            engine="c",
-            skip_blank_lines=False,
-            na_filter=False,
-            encoding="utf-8-sig",
-            chunksize=1 << 17,
-        ) as reader:
+        with pd.read_csv(path, chunksize=1 << 17, **read_csv) as reader:
             for block in reader:
                 m = len(block)
                 if o + m > n or block.shape[1] != k:
@@ -747,37 +756,26 @@ def _log_body_blocks(
     n = _body_lines(path, first)
     if n is None or n <= 0:
         return None
-    cols = layout.cols
-    data = np.empty((n, len(cols)))
-    o = 0
-    try:
-        with pd.read_csv(
-            path,
-            skiprows=first,
-            sep=layout.sep,
-            decimal=layout.decimal,
-            header=None,
-            names=list(range(layout.ncol)),
-            usecols=cols,
-            dtype=np.float64,
-            engine="c",
-            quotechar='"',
-            skipinitialspace=True,
-            skip_blank_lines=False,
-            na_filter=False,
-            index_col=False,
-            encoding=encoding,
-            chunksize=1 << 17,
-        ) as reader:
-            for block in reader:
-                m = len(block)
-                if o + m > n or block.shape[1] != len(cols):
-                    return None
-                data[o : o + m] = block.to_numpy()
-                o += m
-    except (ValueError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError):
-        return None
-    if o != n or not np.all(np.isfinite(data)):
+    data = _blocks(
+        path,
+        n,
+        len(layout.cols),
+        skiprows=first,
+        sep=layout.sep,
+        decimal=layout.decimal,
+        header=None,
+        names=list(range(layout.ncol)),
+        usecols=layout.cols,
+        dtype=np.float64,
+        engine="c",
+        quotechar='"',
+        skipinitialspace=True,
+        skip_blank_lines=False,
+        na_filter=False,
+        index_col=False,
+        encoding=encoding,
+    )
+    if data is None:
         return None
     return data, np.arange(first + 1, first + 1 + n, dtype=np.int64)
 
