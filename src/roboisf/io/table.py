@@ -85,6 +85,13 @@ class Table:
         return InputError(message, file=self.path, line=line, field=field)
 
 
+#: pandas' options for rows of numbers only: every cell float64 through the C parser, a blank
+#: line or an empty cell a NaN row (which the callers refuse) rather than skipped
+_NUMERIC_ROWS: dict[str, Any] = dict(
+    header=None, dtype=np.float64, engine="c", skip_blank_lines=False, na_filter=False
+)
+
+
 def read_table(
     path: str | Path,
     required: Sequence[str],
@@ -203,14 +210,7 @@ def read_table(
         # C parser, exact (round-trip) float conversion; the slow path below only runs to name
         # the offending cell when a cell is not a number
         data = pd.read_csv(
-            io.StringIO("\n".join(body)),
-            header=None,
-            sep=sep,
-            decimal=decimal,
-            dtype=np.float64,
-            engine="c",
-            skip_blank_lines=False,
-            na_filter=False,
+            io.StringIO("\n".join(body)), sep=sep, decimal=decimal, **_NUMERIC_ROWS
         ).to_numpy()
     except ValueError:
         data = np.empty((len(body), k))
@@ -357,14 +357,10 @@ def _fast_body(
         n,
         k,
         skiprows=header_line,
-        header=None,
         sep=sep,
         decimal=decimal,
-        dtype=np.float64,
-        engine="c",
-        skip_blank_lines=False,
-        na_filter=False,
         encoding="utf-8-sig",
+        **_NUMERIC_ROWS,
     )
 
 
