@@ -146,3 +146,29 @@ def test_the_table_is_the_same_field_by_field(tmp_path, monkeypatch, case):
     assert fast.data.keys() == whole.data.keys()
     for k in fast.data:
         np.testing.assert_array_equal(fast.data[k], whole.data[k])
+
+
+def test_a_header_past_the_head_is_still_found(tmp_path, monkeypatch):
+    """A long free-text preamble pushes the header past the block reader's head: the file is
+    read whole, not refused."""
+    f = tmp_path / "log.csv"
+    header, sep, dec, _ = CASES["generic-comma"]
+    pre = "".join(f"Note {k}: " + "x" * 120 + "\n" for k in range(60))  # ~8 kB
+    f.write_text(pre + header + "\n" + "\n".join(_rows(sep, dec)) + "\n", encoding="utf-8")
+    fast, whole = _both(monkeypatch, read_force_log, f)
+    assert not isinstance(fast, InputError), fast
+    np.testing.assert_array_equal(fast.wrench, whole.wrench)
+
+
+def test_other_line_breaks_go_to_the_whole_file_reader(tmp_path, monkeypatch):
+    """Lines the head would count differently from the whole-file reader (a lone CR, as old
+    Mac exports end them, in the preamble) must not shift the rows the blocks skip to."""
+    f = tmp_path / "log.csv"
+    header, sep, dec, _ = CASES["generic-comma"]
+    text = "Logger\rSample rate: 1000 Hz\n" + header + "\n" + "\n".join(_rows(sep, dec)) + "\n"
+    f.write_text(text, encoding="utf-8", newline="")
+    fast, whole = _both(monkeypatch, read_force_log, f)
+    assert not isinstance(whole, InputError), whole
+    assert not isinstance(fast, InputError), fast
+    np.testing.assert_array_equal(fast.time, whole.time)
+    np.testing.assert_array_equal(fast.wrench, whole.wrench)

@@ -321,7 +321,7 @@ def _body_lines(path: Path, header_line: int) -> int | None:
     with open(path, "rb") as fh:
         while chunk := fh.read(1 << 20):
             n += chunk.count(b"\n")
-            tail = (tail + chunk)[-4096:]
+            tail = (tail + chunk[-4096:])[-4096:]
     last = tail.split(b"\n")
     lines = n + (0 if tail.endswith(b"\n") or not tail else 1)
     if tail.endswith(b"\n"):
@@ -524,8 +524,16 @@ def _decode_log(path: Path, what: str) -> str:
         return data.decode("cp1252", errors="replace")
 
 
+#: Lines of a log searched for its header.
+_HEADER_LINES = 400
+
+
 def find_log_header(
-    lines: Sequence[str], match: ColumnMatch, required: Sequence[str], *, max_lines: int = 400
+    lines: Sequence[str],
+    match: ColumnMatch,
+    required: Sequence[str],
+    *,
+    max_lines: int = _HEADER_LINES,
 ) -> tuple[int, str, dict[str, int]] | None:
     """The first line (0-based index) whose cells, split by one of the separators, name every
     ``required`` canonical column; with that separator's name and the column index of each
@@ -629,7 +637,10 @@ def _log_head(path: Path) -> tuple[list[str], str] | None:
         encoding = "utf-8-sig"
     except UnicodeDecodeError:
         text, encoding = data.decode("cp1252", errors="replace"), "cp1252"
-    return text.split("\n")[:-1], encoding
+    lines = text.splitlines()  # as the whole-file reader splits them
+    if len(lines) != text.count("\n"):
+        return None  # other line breaks (a lone CR): the rows' line numbers are the reader's
+    return lines, encoding
 
 
 @dataclass(frozen=True)
@@ -669,8 +680,10 @@ def _log_layout(
 ) -> _LogLayout | None:
     """The layout of a log from its lines ``raw`` (all of them when ``complete``, else its
     head: None when the head does not settle it)."""
-    found = find_log_header(raw, match, required)
+    found = find_log_header(raw, match, required, max_lines=_HEADER_LINES)
     if found is None:
+        if not complete and len(raw) < _HEADER_LINES:
+            return None  # the header may lie past the head
         first = next((x.strip() for x in raw if x.strip() and not x.lstrip().startswith("#")), "")
         raise InputError(
             f"no header line naming the columns {expected or ', '.join(required)} (case and "
@@ -759,17 +772,13 @@ def _log_body_blocks(
         skiprows=first,
         sep=layout.sep,
         decimal=layout.decimal,
-        header=None,
         names=list(range(layout.ncol)),
         usecols=layout.cols,
-        dtype=np.float64,
-        engine="c",
         quotechar='"',
         skipinitialspace=True,
-        skip_blank_lines=False,
-        na_filter=False,
         index_col=False,
         encoding=encoding,
+        **_NUMERIC_ROWS,
     )
     if data is None:
         return None
