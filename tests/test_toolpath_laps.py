@@ -32,7 +32,7 @@ def _program(tmp_path: Path, tip_mm: np.ndarray, decimals: int = 3) -> Path:
 
 def _helix(turns: float, pitch_mm: float, per_turn: int, r0=40.0, slope=1.0) -> np.ndarray:
     """A helix down a cone wall (radius shrinks with depth), ``per_turn`` blocks per turn."""
-    n = int(round(turns * per_turn)) + 1
+    n = round(turns * per_turn) + 1
     th = np.linspace(0.0, 2 * math.pi * turns, n)
     z = -pitch_mm * th / (2 * math.pi)
     r = r0 + slope * z

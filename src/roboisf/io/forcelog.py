@@ -35,6 +35,7 @@ from roboisf.io.table import (
     read_table,
     split_name_unit,
 )
+from roboisf.io.timestamps import repair_time
 from roboisf.io.units import log_unit_to_si, to_si
 from roboisf.toolpath.toolpath import Toolpath
 
@@ -70,6 +71,8 @@ class ForceLog:
         dynamometer): its Mx, My, Mz are zeros standing for "not measured", and the analysis
         takes the load as a point force at the tool tip (``docs/study.md``, logs)
     profile : str — the format it was read as ("roboisf", "ati", "kistler", "dyno3", ...)
+    notes : tuple of str — what reading changed (``timestamps = "repair"``: rows reordered,
+        dropped, averaged; :mod:`roboisf.io.timestamps`)
     """
 
     time: F64
@@ -79,6 +82,7 @@ class ForceLog:
     position: F64 | None = None
     moments_known: bool = True
     profile: str = "roboisf"
+    notes: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         t = np.asarray(self.time, dtype=float)
@@ -162,6 +166,7 @@ def _read_roboisf_csv(
     force_unit: str | None = None,
     moment_unit: str | None = None,
     length_unit: str | None = None,
+    timestamps: str = "refuse",
 ) -> ForceLog:
     """Read a roboisf force log CSV (see the module docstring) into SI.
 
@@ -225,14 +230,6 @@ def _read_roboisf_csv(
             field="frame",
         )
     time = t.column("time") * scale["time"]
-    if time.size > 1 and np.any(np.diff(time) <= 0):
-        r = int(np.argmax(np.diff(time) <= 0)) + 1
-        raise t.error(
-            f"time must strictly increase; {t.column('time')[r]:g} follows "
-            f"{t.column('time')[r - 1]:g}",
-            r,
-            "time",
-        )
     # scaled straight into one (N, 6) array (six scaled columns stacked held the wrench twice)
     wrench = np.empty((t.data.shape[0], 6))
     for k, c in enumerate(("Fx", "Fy", "Fz", "Mx", "My", "Mz")):
@@ -242,7 +239,16 @@ def _read_roboisf_csv(
         if has_pos
         else None
     )
-    return ForceLog(time, wrench, fr, path, position)
+    notes: tuple[str, ...] = ()
+    if time.size > 1 and not bool(np.all(np.diff(time) > 0)):
+        vals = wrench if position is None else np.hstack([wrench, position])
+        time, vals, rep = repair_time(
+            time, vals, timestamps, error=lambda m, r: t.error(m, r, "time")
+        )
+        wrench = vals[:, :6]
+        position = vals[:, 6:] if position is not None else None
+        notes = (rep.describe(),)
+    return ForceLog(time, wrench, fr, path, position, notes=notes)
 
 
 # -- logs as instruments write them: profiles ---------------------------------------------------
@@ -443,6 +449,7 @@ def read_force_log(
     length_unit: str | None = None,
     fmt: str = "auto",
     columns: dict[str, str] | None = None,
+    timestamps: str = "refuse",
 ) -> ForceLog:
     """Read a force log into SI, as it comes from the instrument.
 
@@ -477,6 +484,7 @@ def read_force_log(
             force_unit=force_unit,
             moment_unit=moment_unit,
             length_unit=length_unit,
+            timestamps=timestamps,
         )
     declared = _file_units(t)
     units: dict[str, float] = {}
@@ -537,17 +545,16 @@ def read_force_log(
         time = (seq - seq[0]) / rate
     else:
         time = col("time", "time")
-    if time.size > 1 and np.any(np.diff(time) <= 0):
-        r = int(np.argmax(np.diff(time) <= 0)) + 1
-        raise t.error(
-            f"time must strictly increase; sample {r} ({time[r]:g} s) follows {time[r - 1]:g} s",
-            r,
-            "rdt" if profile == "ati" else "time",
-        )
     F = np.column_stack([col(c, "force") for c in _FORCES])
     M = np.column_stack([col(c, "moment") for c in _MOMENTS]) if has_m else np.zeros_like(F)
+    W = np.hstack([F, M])
+    notes: tuple[str, ...] = ()
+    if time.size > 1 and not bool(np.all(np.diff(time) > 0)):
+        tcol = "rdt" if profile == "ati" else "time"
+        time, W, rep = repair_time(time, W, timestamps, error=lambda m, r: t.error(m, r, tcol))
+        notes = (rep.describe(),)
     fr = frame or t.meta.get("frame") or "sensor"
-    return ForceLog(time, np.hstack([F, M]), fr, p, None, moments_known=has_m, profile=profile)
+    return ForceLog(time, W, fr, p, None, moments_known=has_m, profile=profile, notes=notes)
 
 
 def write_force_log(

@@ -20,6 +20,7 @@ A ``.parquet`` name is a Parquet joint log (:mod:`roboisf.io.logparquet`).
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,6 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 from roboisf.errors import InputError
 from roboisf.io.atomic import atomic_write
 from roboisf.io.table import LogTable, format_rows, read_log_table, read_table, split_name_unit
+from roboisf.io.timestamps import repair_time
 from roboisf.io.units import log_unit_to_si, to_si
 
 __all__ = [
@@ -64,11 +66,13 @@ JOINT_COLUMNS = ("time", "q1", "q2", "q3", "q4", "q5", "q6")
 
 @dataclass(frozen=True, eq=False)
 class JointLog:
-    """time : (N,) s, strictly increasing; q : (N, 6) rad (controller convention); path."""
+    """time : (N,) s, strictly increasing; q : (N, 6) rad (controller convention); path;
+    notes: what reading changed (``timestamps = "repair"``, :mod:`roboisf.io.timestamps`)."""
 
     time: F64
     q: F64
     path: Path | None = None
+    notes: tuple[str, ...] = ()
 
 
 def _is_roboisf(path: Path) -> bool:
@@ -169,11 +173,13 @@ def read_joint_log(
     columns: dict[str, str] | None = None,
     time_unit: str | None = None,
     angle_unit: str | None = None,
+    timestamps: str = "refuse",
 ) -> JointLog:
     """Read a joint log into SI (errors name the file line); see the module docstring.
 
     Units: the file's (``# units:`` line, header names such as ``A1 [°]``) or the arguments;
-    neither, or both disagreeing, is an error.
+    neither, or both disagreeing, is an error. ``timestamps``: ``"refuse"`` a time that does not
+    strictly increase, or ``"repair"`` it (:mod:`roboisf.io.timestamps`; counted in ``notes``).
     """
     p = Path(path)
     if p.suffix.lower() == ".parquet":
@@ -206,12 +212,8 @@ def read_joint_log(
                 )
             f[qty] = log_unit_to_si(u, qty, file=p, field="units")
         time = tab.data["time"] * f["time"]
-        if time.size > 1:
-            bad = np.flatnonzero(np.diff(time) <= 0)
-            if bad.size:
-                raise tab.error("time must increase strictly", int(bad[0]) + 1, "time")
         q = np.column_stack([tab.data[f"q{i}"] for i in range(1, 7)]) * f["angle"]
-        return JointLog(time=time, q=q, path=p)
+        return _checked(time, q, p, timestamps, lambda m, r: tab.error(m, r, "time"))
     t = read_table(p, JOINT_COLUMNS, what="joint log")
     units = {"time": "s", "angle": "deg"}
     if "units" not in t.meta and angle_unit is None:
@@ -243,14 +245,18 @@ def read_joint_log(
     ft = log_unit_to_si(units["time"], "time", file=p, field="units.time")
     fa = log_unit_to_si(units["angle"], "angle", file=p, field="units.angle")
     time = t.column("time") * ft
-    if time.size > 1:
-        bad = np.flatnonzero(np.diff(time) <= 0)
-        if bad.size:
-            raise InputError(
-                "time must increase strictly", file=p, line=int(t.lines[bad[0] + 1]), field="time"
-            )
     q = np.stack([t.column(f"q{i}") for i in range(1, 7)], axis=1) * fa
-    return JointLog(time=time, q=q, path=p)
+    return _checked(time, q, p, timestamps, lambda m, r: t.error(m, r, "time"))
+
+
+def _checked(
+    time: F64, q: F64, p: Path, policy: str, error: Callable[[str, int], Exception]
+) -> JointLog:
+    """The joint log, its times under the timestamp ``policy``."""
+    if time.size < 2 or bool(np.all(np.diff(time) > 0)):
+        return JointLog(time=time, q=q, path=p)
+    time, q, rep = repair_time(time, q, policy, error=error)
+    return JointLog(time=time, q=q, path=p, notes=(rep.describe(),))
 
 
 def write_joint_log(

@@ -135,7 +135,7 @@ def _level_laps(n: int, levels: list[tuple[int, int, float]]) -> I64:
     last."""
     lap = np.empty(n, dtype=np.int64)
     prev = 0
-    for k, (a, e, _) in enumerate(levels):
+    for k, (_a, e, _) in enumerate(levels):
         lap[prev:e] = k  # the ramp before level k, and level k
         prev = e
     lap[prev:] = len(levels) - 1
