@@ -254,7 +254,7 @@ def _read_roboisf_csv(
 # -- logs as instruments write them: profiles ---------------------------------------------------
 
 #: ``format`` values of a force log (study ``[runs.X.forces] format``).
-FORCE_FORMATS = ("auto", "roboisf", "ati", "kistler", "dyno3", "generic", "columns")
+FORCE_FORMATS = ("auto", "roboisf", "ati", "kistler", "ur", "dyno3", "generic", "columns")
 
 _F = {f"F{a}": re.compile(rf"f ?{a}|force ?{a}") for a in "xyz"}
 _M = {f"M{a}": re.compile(rf"m ?{a}|moment ?{a}") for a in "xyz"}
@@ -264,6 +264,14 @@ _TIME = {"time": re.compile(r"time|t|zeit|timestamp|seconds|sec|time stamp|elaps
 _RDT = {"rdt": re.compile(r"rdt ?sequence|rdtsequence")}
 _FORCES = tuple(_F)
 _MOMENTS = tuple(_M)
+#: Universal Robots' RTDE recording: ``timestamp`` [s], ``actual_TCP_force_0..5`` — the wrench
+#: at the TCP in the robot's base axes [N, N·m] (UR's definition; units fixed by RTDE)
+_UR = {
+    "time": re.compile(r"timestamp"),
+    **{c: re.compile(rf"actual tcp force {k}") for k, c in enumerate((*_FORCES, *_MOMENTS))},
+}
+#: the units a profile's format fixes (the file states none)
+_PROFILE_UNITS = {"ur": {"time": "s", "force": "N", "moment": "N*m"}}
 
 _PROFILES: dict[str, tuple[dict[str, re.Pattern[str]], tuple[str, ...]]] = {
     # name: (matchers, required)
@@ -271,6 +279,7 @@ _PROFILES: dict[str, tuple[dict[str, re.Pattern[str]], tuple[str, ...]]] = {
     "generic": ({**_TIME, **_F, **_MT}, ("time", *_FORCES, *_MOMENTS)),
     "kistler": ({**_TIME, **_F, **_M}, ("time", *_FORCES)),
     "dyno3": ({**_TIME, **_F, **_MT}, ("time", *_FORCES)),
+    "ur": (_UR, ("time", *_FORCES, *_MOMENTS)),
 }
 
 
@@ -329,7 +338,7 @@ def _open(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[str, LogTa
             'time,Fx,Fy,Fz,Mx,My,Mz (or set format = "auto")',
             file=p,
         )
-    order = ("ati", "generic", "dyno3") if fmt == "auto" else (fmt,)
+    order = ("ati", "ur", "generic", "dyno3") if fmt == "auto" else (fmt,)
     last: InputError | None = None
     for name in order:
         match, req = _PROFILES[name]
@@ -362,7 +371,8 @@ def _open(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[str, LogTa
     if fmt == "auto":
         raise InputError(
             "no force-log format recognised: expected a header naming time, Fx, Fy, Fz (and "
-            "Mx, My, Mz or Tx, Ty, Tz), an ATI Net F/T CSV, a Kistler DynoWare text export or "
+            "Mx, My, Mz or Tx, Ty, Tz), an ATI Net F/T CSV, a Kistler DynoWare text export, a "
+            "UR RTDE recording (timestamp, actual_TCP_force_0..5) or "
             'a roboisf log; for other names give columns = {time = "...", Fx = "...", ...} '
             "in the study",
             file=p,
@@ -403,7 +413,7 @@ def detect_force_format(
             {k: k for k in FORCE_COLUMNS},
             _parse_units(meta.get("units", ""), file=p, line=line),
         )
-    return profile, _found(t), _file_units(t)
+    return profile, _found(t), {**_PROFILE_UNITS.get(profile, {}), **_file_units(t)}
 
 
 def _head_meta(path: Path) -> dict[str, str]:
@@ -455,7 +465,8 @@ def read_force_log(
 
     ``fmt`` (study key ``format``): ``"auto"`` tries, in order, a ``.parquet`` log
     (:mod:`roboisf.io.logparquet`), the roboisf CSV (module docstring), an ATI Net F/T CSV, a
-    6-component table (time, Fx…Fz, Mx…Mz or Tx…Tz), a Kistler DynoWare text export and a
+    Universal Robots RTDE recording (``timestamp``, ``actual_TCP_force_0..5``), a 6-component
+    table (time, Fx…Fz, Mx…Mz or Tx…Tz), a Kistler DynoWare text export and a
     3-component dynamometer (time, Fx, Fy, Fz: moments unknown, ``moments_known=False``).
     ``columns`` maps canonical names to the file's header cells for anything else.
 
@@ -486,7 +497,7 @@ def read_force_log(
             length_unit=length_unit,
             timestamps=timestamps,
         )
-    declared = _file_units(t)
+    declared = {**_PROFILE_UNITS.get(profile, {}), **_file_units(t)}
     units: dict[str, float] = {}
     has_m = all(m in t.data for m in _MOMENTS)
     needed = ["force"] + (["moment"] if has_m else []) + ([] if profile == "ati" else ["time"])
@@ -553,7 +564,12 @@ def read_force_log(
         tcol = "rdt" if profile == "ati" else "time"
         time, W, rep = repair_time(time, W, timestamps, error=lambda m, r: t.error(m, r, tcol))
         notes = (rep.describe(),)
-    fr = frame or t.meta.get("frame") or "sensor"
+    fr = frame or t.meta.get("frame") or ("base" if profile == "ur" else "sensor")
+    if profile == "ur":
+        notes += (
+            "UR RTDE actual_TCP_force: the wrench at the TCP in the robot's base axes (UR's "
+            "definition), not a sensor frame; give the sensor pose that matches it",
+        )
     return ForceLog(time, W, fr, p, None, moments_known=has_m, profile=profile, notes=notes)
 
 

@@ -11,7 +11,9 @@ Angles in the **controller's convention** (as logged; see ``docs/robot.md``), de
 
 Logs as controllers write them are read too (:func:`detect_joint_format`): any separator, decimal
 comma, a free-text header block, names in any case — ABB ``J1..J6``, KUKA ``A1..A6`` (also as in
-a KUKA trace's text export, ``AxisActPos A1 [°]``), ``q1..q6``, ``joint 1``/``axis 1`` — a time
+a KUKA trace's text export, ``AxisActPos A1 [°]``; FANUC ``J1..J6`` as ABB), Universal Robots'
+RTDE recordings (``timestamp actual_q_0 … actual_q_5``, blank-separated, s and rad by the RTDE
+specification), ``q1..q6``, ``joint 1``/``axis 1`` — a time
 column ``time``/``t``/``timestamp``/``Zeit``, units in the header names (``[deg]``, ``(rad)``,
 ``[°]``, ``[ms]``), a ``# units:`` line or given by the study. Unknown units are an error.
 A ``.parquet`` name is a Parquet joint log (:mod:`roboisf.io.logparquet`).
@@ -43,7 +45,7 @@ __all__ = [
 ]
 
 #: ``format`` values of a joint log (study ``[runs.X.joints] format``).
-JOINT_FORMATS = ("auto", "roboisf", "abb", "kuka", "generic", "columns")
+JOINT_FORMATS = ("auto", "roboisf", "abb", "kuka", "ur", "generic", "columns")
 _TIME = re.compile(r"time|t|zeit|timestamp|time stamp|sec|seconds|elapsed time")
 _PREFIX = {
     "abb": r"j|joint ?",
@@ -52,7 +54,20 @@ _PREFIX = {
 }
 
 
+#: Universal Robots' RTDE recorder (``record.py`` of UR's RTDE client, ``ur_rtde``'s
+#: ``RTDEReceiveInterface.startFileRecording``): ``timestamp`` [s] and ``actual_q_0..5`` [rad],
+#: units fixed by the RTDE specification
+_UR = {
+    "time": re.compile(r"timestamp"),
+    **{f"q{i}": re.compile(rf"actual q {i - 1}") for i in range(1, 7)},
+}
+#: the units a profile's format fixes (the file states none)
+_PROFILE_UNITS = {"ur": {"time": "s", "angle": "rad"}}
+
+
 def _joint_match(profile: str) -> dict[str, re.Pattern[str]]:
+    if profile == "ur":
+        return _UR
     pre = _PREFIX[profile]
     return {
         "time": _TIME,
@@ -110,7 +125,9 @@ def detect_joint_format(
 ) -> tuple[str, dict[str, str], dict[str, str]]:
     """Which profile reads a joint log: (profile, canonical column → header cell, quantity →
     unit declared by the file). Profiles: "parquet", "roboisf", "abb" (J1..J6), "kuka" (A1..A6,
-    KUKA trace text export), "generic" (q1..q6, joint/axis N), "columns" (``columns`` given).
+    KUKA trace text export), "ur" (Universal Robots RTDE recording: ``timestamp``,
+    ``actual_q_0..5``, s and rad), "generic" (q1..q6, joint/axis N), "columns" (``columns``
+    given).
 
     Raises
     ------
@@ -128,7 +145,8 @@ def detect_joint_format(
     t = _read_text_log(p, fmt, columns)
     profile = t[0]
     tab = t[1]
-    return profile, {c: tab.columns[j] for c, j in tab.col_index.items()}, _file_units(tab)
+    units = {**_PROFILE_UNITS.get(profile, {}), **_file_units(tab)}
+    return profile, {c: tab.columns[j] for c, j in tab.col_index.items()}, units
 
 
 def _read_text_log(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[str, LogTable]:
@@ -151,7 +169,7 @@ def _read_text_log(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[s
             'time,q1,...,q6 (or set format = "auto")',
             file=p,
         )
-    order = ("abb", "kuka", "generic") if fmt in ("auto", "roboisf") else (fmt,)
+    order = ("abb", "kuka", "ur", "generic") if fmt in ("auto", "roboisf") else (fmt,)
     for name in order:
         try:
             return name, read_log_table(p, _joint_match(name), req, what="joint log")
@@ -160,7 +178,8 @@ def _read_text_log(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[s
                 raise
     raise InputError(
         "no joint-log format recognised: expected a header naming a time column (time, t, "
-        "timestamp, Zeit) and six joints (q1..q6, ABB J1..J6, KUKA A1..A6); for other names "
+        "timestamp, Zeit) and six joints (q1..q6, ABB/FANUC J1..J6, KUKA A1..A6, UR RTDE "
+        "actual_q_0..5); for other names "
         'give columns = {time = "…", q1 = "…", …} in the study',
         file=p,
     )
@@ -190,8 +209,8 @@ def read_joint_log(
             raise InputError("time must increase strictly", file=p, field="time")
         return JointLog(time=t_si, q=q_si, path=p)
     if not (fmt in ("auto", "roboisf") and not columns and _is_roboisf(p)):
-        _, tab = _read_text_log(p, fmt, columns)
-        declared = _file_units(tab)
+        profile, tab = _read_text_log(p, fmt, columns)
+        declared = {**_PROFILE_UNITS.get(profile, {}), **_file_units(tab)}
         given = {"time": time_unit, "angle": angle_unit}
         f = {}
         for qty in ("time", "angle"):

@@ -1,0 +1,61 @@
+"""Universal Robots RTDE recordings (issue #28): ``timestamp actual_q_0..5 actual_TCP_force_0..5``
+as UR's ``record.py`` writes them (blank-separated, every recipe field, SI by the RTDE spec) read
+as joint and force logs by ``auto``, with the RTDE units and the frame caveat said."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from roboisf.errors import InputError
+from roboisf.io.forcelog import detect_force_format, read_force_log
+from roboisf.io.jointlog import detect_joint_format, read_joint_log
+
+
+def _rtde(tmp_path, n=40, extra_units=False):
+    """A recording with the fields of UR's example recipe around the ones roboisf reads."""
+    cols = ["timestamp"]
+    cols += [f"target_q_{i}" for i in range(6)] + [f"actual_q_{i}" for i in range(6)]
+    cols += [f"actual_TCP_pose_{i}" for i in range(6)] + [f"actual_TCP_force_{i}" for i in range(6)]
+    cols += ["robot_mode", "actual_digital_output_bits"]
+    t = 1234.5 + 0.008 * np.arange(n)  # the controller's clock at 125 Hz
+    q = np.column_stack([0.1 * k + 0.01 * np.sin(t + k) for k in range(6)])
+    w = np.empty((n, 6))
+    w[:, :3] = np.column_stack([np.full(n, 3.0), np.full(n, -4.0), 250.0 + np.arange(n)])
+    w[:, 3:] = [0.5, -0.2, 0.05]
+    rows = np.column_stack([t, q + 0.001, q, np.zeros((n, 6)), w, np.full(n, 7), np.zeros(n)])
+    p = tmp_path / "robot_data.csv"
+    body = "\n".join(" ".join(repr(float(v)) for v in r) for r in rows)
+    p.write_text(" ".join(cols) + "\n" + body + "\n")
+    return p, t, q, w
+
+
+def test_rtde_joints_and_forces_auto(tmp_path):
+    p, t, q, w = _rtde(tmp_path)
+    prof, cols, units = detect_joint_format(p)
+    assert prof == "ur" and cols["q1"] == "actual_q_0" and cols["q6"] == "actual_q_5"
+    assert units == {"time": "s", "angle": "rad"}
+    jl = read_joint_log(p)
+    np.testing.assert_allclose(jl.time, t)
+    np.testing.assert_allclose(jl.q, q)  # actual_q, not target_q; radians as logged
+    prof, cols, units = detect_force_format(p)
+    assert prof == "ur" and cols["Mz"] == "actual_TCP_force_5"
+    fl = read_force_log(p)
+    np.testing.assert_allclose(fl.wrench, w)
+    assert fl.frame == "base" and fl.moments_known
+    assert any("base axes" in n for n in fl.notes)
+
+
+def test_rtde_units_given_otherwise_are_refused(tmp_path):
+    p, *_ = _rtde(tmp_path)
+    with pytest.raises(InputError, match="angle unit declared as 'rad' in the file but 'deg'"):
+        read_joint_log(p, angle_unit="deg")
+
+
+def test_rtde_without_forces_names_the_profiles(tmp_path):
+    p = tmp_path / "q_only.csv"
+    p.write_text("timestamp actual_q_0 actual_q_1\n0 0 0\n")
+    with pytest.raises(InputError, match="UR RTDE"):
+        read_joint_log(p)
+    with pytest.raises(InputError, match="UR RTDE"):
+        read_force_log(p)
