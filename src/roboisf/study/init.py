@@ -373,6 +373,13 @@ def draft_study(
     data: dict[str, Any] = {"study": {"name": root.name, "description": "drafted by study init"}}
     # part
     part_file = Path(part) if part is not None else None
+    if part_file is not None and not part_file.is_file():
+        raise InputError(
+            f"no part file here (looked for {part_file.resolve()}; a path relative to the "
+            "working folder, as typed)",
+            file=part_file,
+            field="--part",
+        )
     if part_file is None and len(by.get("part", [])) == 1:
         part_file = by["part"][0].path
     if part_file is not None:
@@ -415,9 +422,26 @@ def draft_study(
     else:
         data["tool_holder"] = {"rigid": True}
         notes.append("no holder compliance JSON: the holder is taken as rigid")
-    # robot
+    # robot: a preset by name, or a robot file — found where the user typed it (the working
+    # folder) and written relative to the study, as every study path is
+    model: str = _todo("a preset (roboisf robot list) or file")
+    if robot is not None:
+        from roboisf.robot import list_robots
+
+        model = robot
+        if robot not in list_robots():
+            rp = Path(robot)
+            if not rp.is_file():
+                raise InputError(
+                    f"{robot!r} is neither a preset ({', '.join(list_robots())}) nor a robot "
+                    f"file (looked for {rp.resolve()}, relative to the working folder)",
+                    field="--robot",
+                )
+            model = rel(rp)
+            if model != robot:
+                notes.append(f"robot.model = {model!r}: {robot} relative to the study folder")
     rb: dict[str, Any] = {
-        "model": robot if robot is not None else _todo("a preset (roboisf robot list) or file"),
+        "model": model,
         "placement": _pose(placement, "[x, y, z, roll, pitch, yaw] of the work frame, mm/deg"),
     }
     if flange_to_tip is not None:
