@@ -53,11 +53,13 @@ def _ints(text: str, n: int, field: str) -> np.ndarray:
     return v.astype(np.int64)
 
 
-def _model(robot: str, stiffness: Path | None, tool: str | None) -> RobotModel:
+def _model(
+    robot: str, stiffness: Path | None, tool: str | None, tip_link: str | None = None
+) -> RobotModel:
     from roboisf.frames import make_transform
     from roboisf.robot import load_robot, load_stiffness
 
-    m = load_robot(robot)
+    m = load_robot(robot, tip_link=tip_link)
     if stiffness is not None:
         m = m.with_stiffness(load_stiffness(stiffness), source=str(stiffness))
     if tool is not None:
@@ -93,6 +95,12 @@ PLACEMENT_OPT = typer.Option(
     help="x,y,z,yaw of the work frame in the base (mm, deg); default: preset's.",
 )
 TOOL_OPT = typer.Option(None, "--tool", help="Tool tip in the flange frame: x,y,z (mm).")
+TIP_LINK_OPT = typer.Option(
+    None,
+    "--tip-link",
+    help="URDF robots: the link that is the arm's flange (default tool0 or flange, else the link "
+    "behind the most revolute joints); a gripper's or a 7th joint's link is not.",
+)
 
 
 LIST_HELP = (
@@ -141,6 +149,7 @@ def show_cmd(
     robot: str = ROBOT_OPT,
     stiffness: Path | None = STIFF_OPT,
     tool: str | None = TOOL_OPT,
+    tip_link: str | None = TIP_LINK_OPT,
     placement: str | None = PLACEMENT_OPT,
     output: Path | None = typer.Option(
         None, "--output", "-o", help=f"Stiffness map PNG over the work area. {FILE_HELP}"
@@ -154,10 +163,12 @@ def show_cmd(
 
     if output is not None:
         output_file(output, "robot show", overwrite, [stiffness, *_files(robot, tool)])
-    m = _model(robot, stiffness, tool)
+    m = _model(robot, stiffness, tool, tip_link)
     state.out.print(f"[bold]{escape(m.name)}[/bold]")
     if m.source:
         state.out.print(m.source, markup=False)
+    if m.ik_note:
+        state.warn(m.ik_note)
     for i in range(6):
         K = "—" if m.stiffness is None else f"{m.stiffness[i]:.4g} N·m/rad"
         state.out.print(
@@ -187,6 +198,7 @@ def identify_cmd(
     overwrite: Overwrite = False,
     robot: str = ROBOT_OPT,
     tool: str | None = TOOL_OPT,
+    tip_link: str | None = TIP_LINK_OPT,
     sigma: float = typer.Option(0.01, "--sigma", help="Measurement std of displacements (mm)."),
     sigma_rot: float = typer.Option(
         1e-5, "--sigma-rot", help="Measurement std of rotations (rad)."
@@ -203,7 +215,7 @@ def identify_cmd(
 
     check_not_input(output, [calib])
     output_file(output, "robot identify", overwrite, [calib, *_files(robot, tool)])
-    m = _model(robot, None, tool)
+    m = _model(robot, None, tool, tip_link)
     data = read_calibration_csv(calib, m)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", PoorExcitationWarning)
@@ -270,6 +282,7 @@ def deflect_cmd(
     robot: str = ROBOT_OPT,
     stiffness: Path | None = STIFF_OPT,
     tool: str | None = TOOL_OPT,
+    tip_link: str | None = TIP_LINK_OPT,
     placement: str | None = PLACEMENT_OPT,
     joints: Path | None = typer.Option(
         None,
@@ -310,7 +323,7 @@ def deflect_cmd(
         inputs.append(joints)
     check_not_input(output, inputs)
     output_file(output, "robot deflect", overwrite, [*inputs, stiffness, *_files(robot, tool)])
-    m = _model(robot, stiffness, tool)
+    m = _model(robot, stiffness, tool, tip_link)
     K = m.joint_stiffness  # fail early, before IK
     del K
     T_base_work = _placement(placement, m)
