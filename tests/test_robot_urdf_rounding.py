@@ -154,7 +154,7 @@ def test_seven_joint_arm_is_refused_for_its_seven_joints(tmp_path):
         load_urdf(p)
     assert "found 7" in e.value.message and "7-joint arm" in e.value.message
     assert "prismatic" not in e.value.message  # not the gripper's finger
-    with pytest.raises(InputError, match="prismatic.*--tip-link"):
+    with pytest.raises(InputError, match=r"prismatic.*--tip-link"):
         load_urdf(p, "finger_l")
 
 

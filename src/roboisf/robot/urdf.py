@@ -67,9 +67,8 @@ def _snap_axis(v: F64, where: str, notes: list[str]) -> F64:
     u = v / n
     small = (np.abs(u) > 0) & (np.abs(u) <= SNAP_TOL)
     if small.any():
-        notes.append(
-            f"{where} axis {' '.join(f'{c:g}' for c in v)} → components {np.flatnonzero(small).tolist()} = 0"
-        )
+        ax = " ".join(f"{c:g}" for c in v)
+        notes.append(f"{where} axis {ax} → components {np.flatnonzero(small).tolist()} = 0")
         u = np.where(small, 0.0, u)
         return u / np.linalg.norm(u)
     return v
@@ -392,9 +391,11 @@ def load_urdf(path: str | Path, tip_frame: str | None = None, *, opw: bool = Tru
                 for c in _flanges_on_axis6(a.chain)
                 if not np.allclose(c[1], np.eye(4), atol=1e-12)
             ]
-            for ch0, T in cands:
+            for k, (ch0, T) in enumerate(cands):
                 f, w = explain_opw(ch0, a.q_min, a.q_max)
                 if f is None:
+                    if k == 0 and a is not arm:
+                        why = w  # the snapped chain's reason: its structure, not the rounding
                     continue
                 fit, chain, g, T_fl = f, f[0], f[1], T
                 if a is not arm:
