@@ -179,3 +179,20 @@ def test_short_paths_keep_the_exact_rule():
     rule = detect_laps(tip)
     assert rule.rule == "z-level"
     np.testing.assert_array_equal(rule.lap, [0, 0, 1, 1])
+
+
+def test_program_without_f_takes_the_given_feed(tmp_path, cone):
+    """issue #28: a G-code program posted without F words is refused naming the line and saying
+    how to give the feed; with the feed given it imports, its times from that feed, and says so."""
+    from roboisf.errors import InputError
+    from roboisf.toolpath.importer import ImportOptions
+
+    p = tmp_path / "nof.nc"
+    p.write_text("G90 G21\nG0 X40 Y0 Z5\nG1 Z-0.5\nG1 X40 Y10\nG1 X30 Y10 F600\nG1 X30 Y0\n")
+    with pytest.raises(InputError, match=r"before any F word.*--feed") as e:
+        import_toolpath(p, cone, 5e-3)
+    assert e.value.line == 3
+    tp = import_toolpath(p, cone, 5e-3, ImportOptions(feed=1200 / 60e3))
+    # the plunge ends the first forming point; then 10 mm at 1200 mm/min, 2 × 10 mm at 600
+    np.testing.assert_allclose(np.diff(tp.time), [0.5, 1.0, 1.0])
+    assert any("before any F word" in w and "1200 mm/min" in w for w in tp.meta["warnings"])

@@ -295,6 +295,12 @@ class _State:
     pos: F64 = field(default_factory=lambda: np.full(3, np.nan))
 
 
+_NO_F = (
+    "feed move before any F word (a program posted without feeds: give its feed with "
+    "--feed MM/MIN, or put an F word on the first feed move)"
+)
+
+
 class Interpreter:
     """Runs the blocks of a G-code program (ISO or Sinumerik words) into :class:`CamMoves`.
 
@@ -313,6 +319,7 @@ class Interpreter:
         self.shift = np.zeros(3)  # active offset − reference offset, m
         self.m_codes: list[str] = []
         self.ignored: dict[str, list[int]] = {}
+        self.defaulted_feed: list[int] = []  # lines of feed moves that took options.feed
         self.tools: list[int] = []
         self.length_comp: list[int] = []
         self.offsets_used: list[str] = []
@@ -352,6 +359,12 @@ class Interpreter:
             self.moves.note_once(
                 "M codes ignored (spindle, coolant, tool change, stops, end): "
                 + " ".join(sorted(set(self.m_codes), key=lambda m: float(m[1:])))
+            )
+        if self.defaulted_feed and self.opt.feed is not None:
+            n = len(self.defaulted_feed)
+            self.moves.warnings.append(
+                f"{n} feed move(s) before any F word (first on line {self.defaulted_feed[0]}) "
+                f"take the feed given, {self.opt.feed * 60e3:g} mm/min"
             )
         for letter, lines in self.ignored.items():
             shown = ", ".join(str(x) for x in lines[:5]) + (" …" if len(lines) > 5 else "")
@@ -515,8 +528,8 @@ class Interpreter:
             st.pos = target
             return
         arc_motion = st.motion if st.motion in (2.0, 3.0) else None
-        if st.feed is None:
-            raise self.err("feed move before any F word", line)
+        if st.feed is None and (self.opt.feed is None or st.inverse_time):
+            raise self.err(_NO_F, line)
         unknown = np.isnan(target) | (np.isnan(st.pos) if arc_motion is not None else False)
         if np.any(unknown):
             missing = "".join(a for a, x in zip(_AXES, unknown, strict=True) if x)
@@ -538,6 +551,10 @@ class Interpreter:
             if "F" not in other:
                 raise self.err("G93 inverse-time feed needs an F word on every feed move", line)
             feed = length / (60.0 / st.feed) if length > 0 else st.feed * 1e-3 / 60
+        elif st.feed is None:
+            assert self.opt.feed is not None
+            feed = self.opt.feed  # the program has no F yet: the feed given (--feed)
+            self.defaulted_feed.append(line)
         else:
             feed = st.feed * st.scale / 60.0
         self.moves.add(pts, FEED, feed, line)
@@ -601,9 +618,11 @@ class Interpreter:
                     f"G53 G01 feed move with {ref}'s value unknown; give --work-offset {ref}=X,Y,Z",
                     line,
                 )
-            if self.st.feed is None:
-                raise self.err("feed move before any F word", line)
-            self.moves.add(pos, FEED, self.st.feed * self.st.scale / 60.0, line)
+            if self.st.feed is None and self.opt.feed is None:
+                raise self.err(_NO_F, line)
+            f = self.opt.feed if self.st.feed is None else self.st.feed * self.st.scale / 60.0
+            assert f is not None
+            self.moves.add(pos, FEED, f, line)
         else:
             self.moves.add(pos, RAPID, math.nan, line)
         self.st.pos = pos

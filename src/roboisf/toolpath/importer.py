@@ -85,6 +85,8 @@ FORMAT_SUFFIXES = {
 SHEET_TOL = 1e-6
 #: Consecutive points closer than this are one point [m].
 MERGE_TOL = 1e-6
+#: Feed [m/s] of a point list when none is given (750 mm/min).
+POINT_LIST_FEED = 750.0 / 60e3
 #: Without ``spacing``, forming segments longer than this [m] are reported.
 LONG_SEGMENT = 5e-3
 #: A gap |C − P| − R above this [m] is reported.
@@ -106,7 +108,8 @@ class ImportOptions:
     work_offsets : dict[str, (3,) float m] — work-offset values (see ``ReadOptions``)
     ignore_words : frozenset[str] — extra-axis letters to ignore with a warning
     units : str or None — length unit of a point list (``mm`` default, ``m``, ``in``)
-    feed : float, m/s — feed of a point list (it has none)
+    feed : float or None, m/s — feed of a point list (it has none; default 750 mm/min), and of
+        a program's feed moves before its first F word (a program without F; default: refused)
     origin : (3,) float, m — where roboisf's work origin (the blank centre on the sheet top) is in
         the program's coordinates; subtracted from every point (default: the program zero is it)
     """
@@ -119,7 +122,7 @@ class ImportOptions:
     work_offsets: dict[str, tuple[float, float, float]] = field(default_factory=dict)
     ignore_words: frozenset[str] = frozenset()
     units: str | None = None
-    feed: float = 750.0 / 60e3
+    feed: float | None = None
     origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
@@ -133,7 +136,7 @@ class ImportOptions:
         for name, v in (("spacing", self.spacing), ("rapid_rate", self.rapid_rate)):
             if v is not None and not (math.isfinite(v) and v > 0):
                 raise InputError(f"must be > 0, got {v:g}", field=name)
-        if not (math.isfinite(self.feed) and self.feed > 0):
+        if self.feed is not None and not (math.isfinite(self.feed) and self.feed > 0):
             raise InputError(f"must be > 0, got {self.feed * 60e3:g} mm/min", field="feed")
         if len(self.origin) != 3 or not all(math.isfinite(v) for v in self.origin):
             raise InputError(f"expected 3 finite numbers, got {self.origin!r}", field="origin")
@@ -143,6 +146,7 @@ class ImportOptions:
             chord_tol=self.chord_tol,
             work_offsets=dict(self.work_offsets),
             ignore_words=self.ignore_words,
+            feed=self.feed,
         )
 
 
@@ -224,7 +228,9 @@ def read_cam_moves(path: str | Path, options: ImportOptions | None = None) -> Ca
         "iso": lambda: read_iso_moves(path, opt.read_options()),
         "sinumerik": lambda: read_sinumerik_moves(path, opt.read_options()),
         "apt": lambda: read_apt_moves(path, opt.read_options()),
-        "xyz": lambda: read_xyz_moves(path, units=opt.units, feed=opt.feed),
+        "xyz": lambda: read_xyz_moves(
+            path, units=opt.units, feed=POINT_LIST_FEED if opt.feed is None else opt.feed
+        ),
     }
     moves = readers[fmt]()
     moves.meta["format"] = fmt
