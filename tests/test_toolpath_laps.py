@@ -196,3 +196,27 @@ def test_program_without_f_takes_the_given_feed(tmp_path, cone):
     # the plunge ends the first forming point; then 10 mm at 1200 mm/min, 2 × 10 mm at 600
     np.testing.assert_allclose(np.diff(tp.time), [0.5, 1.0, 1.0])
     assert any("before any F word" in w and "1200 mm/min" in w for w in tp.meta["warnings"])
+
+
+@pytest.mark.parametrize(
+    ("block", "token", "macro"),
+    [
+        ("IF [#1 GT 2] GOTO 10", "'IF' at column 1", True),
+        ("G01 X[#101+5] Y0 F100", "'X[#101+5]' at column 5", True),
+        ("#101=20.", "'#101=20.' at column 1", True),
+        ("G01 X1 Y$2 F100", "'Y$2' at column 8", False),
+    ],
+)
+def test_bad_block_names_the_token_as_written(tmp_path, block, token, macro):
+    """issue #28: the refusal quotes the first token that is not an address word, as written
+    (it quoted what was left once the words were removed: 'IF [#1 G] GOT'), and says a macro is
+    one."""
+    from roboisf.errors import InputError
+    from roboisf.io.gcode import read_iso_moves
+
+    p = tmp_path / "m.nc"
+    p.write_text(f"G90 G21\nG0 X0 Y0 Z5\n{block}\nG1 X1 F100\n")
+    with pytest.raises(InputError) as e:
+        read_iso_moves(p)
+    assert e.value.line == 3 and token in e.value.message
+    assert ("macro statement" in e.value.message) == macro

@@ -259,13 +259,36 @@ def _iso_words(code: str, file: Path, line: int) -> list[Word]:
     ]
     rest = _ISO_WORD.sub("", code).strip()
     if rest:
-        raise InputError(
-            f"cannot parse {rest!r} (expected address words like X10.5, G01; macros, variables "
-            "and expressions are not supported)",
-            file=file,
-            line=line,
-        )
+        raise InputError(_bad_token(code), file=file, line=line)
     return words
+
+
+#: Fanuc Custom Macro B / LinuxCNC O-word control flow and variables
+_MACRO = re.compile(r"#|\[|\b(?:IF|WHILE|GOTO|DO\d*|END\d*|THEN|EQ|NE|GT|LT|GE|LE)\b")
+
+
+def _bad_token(code: str) -> str:
+    """The message for a block with text that is no address word: the first such token as
+    written (not what is left once the words are removed), and whether it is a macro."""
+    pos = 0
+    while pos < len(code):
+        m = _ISO_WORD.match(code, pos)
+        if m:
+            pos = m.end()
+        elif code[pos].isspace():
+            pos += 1
+        else:
+            break
+    tok = code[pos:].split()[0] if code[pos:].split() else code[pos:]
+    if _MACRO.search(code):
+        return (
+            f"cannot parse {tok!r} at column {pos + 1}: a macro statement (Fanuc Custom Macro B "
+            "variables #…, [expressions], IF/WHILE/GOTO) — roboisf reads posted moves only; "
+            "post the program without macros (expanded), or export the moves from the CAM system"
+        )
+    return (
+        f"cannot parse {tok!r} at column {pos + 1} (expected address words like X10.5, G01)"
+    )
 
 
 #: Largest magnitude of a number in a program (10 km in mm): beyond it a typo, not a position.
