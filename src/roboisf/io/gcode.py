@@ -571,7 +571,7 @@ class Interpreter:
             )
             if not math.isfinite(length):
                 raise self.err("G93 inverse-time move from an unknown position", line)
-            if "F" not in other:
+            if "F" not in other or st.feed is None:
                 raise self.err("G93 inverse-time feed needs an F word on every feed move", line)
             feed = length / (60.0 / st.feed) if length > 0 else st.feed * 1e-3 / 60
         elif st.feed is None:

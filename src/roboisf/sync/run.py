@@ -154,9 +154,10 @@ def align_run(
     except InputError as e:
         # the program's own import may know why: a ball-centre program read as tips (or the
         # reverse) puts the path a ball radius off, which the logged tip then misses
+        warned = tp.meta.get("warnings", [])
         said = [
             w
-            for w in tp.meta.get("warnings", [])  # type: ignore[union-attr]
+            for w in (warned if isinstance(warned, list) else [])
             if isinstance(w, str) and "does the program name" in w
         ]
         if not said:
