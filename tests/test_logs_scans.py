@@ -63,15 +63,20 @@ def test_e57_written_by_pye57(tmp_path):
     assert cloud.unit == "m"
 
 
-def test_las_written_by_laspy(tmp_path):
-    laspy = pytest.importorskip("laspy")
-    f = tmp_path / "scan.las"
+def _write_las(laspy, f):
+    """PTS_MM with laspy at 1 µm scale (LAZ when ``f`` ends in .laz: laspy compresses)."""
     header = laspy.LasHeader(point_format=3, version="1.2")
     header.scales = np.array([1e-3, 1e-3, 1e-3])
     header.offsets = np.zeros(3)
     las = laspy.LasData(header)
     las.x, las.y, las.z = PTS_MM[:, 0], PTS_MM[:, 1], PTS_MM[:, 2]
     las.write(str(f))
+
+
+def test_las_written_by_laspy(tmp_path):
+    laspy = pytest.importorskip("laspy")
+    f = tmp_path / "scan.las"
+    _write_las(laspy, f)
     np.testing.assert_allclose(read_scan(f, unit="mm").points, PTS_MM * 1e-3, atol=1e-9)
 
 
@@ -98,12 +103,7 @@ def test_laz_written_by_laspy_with_lazrs(tmp_path):
     laspy = pytest.importorskip("laspy")
     pytest.importorskip("lazrs")
     f = tmp_path / "scan.laz"
-    header = laspy.LasHeader(point_format=3, version="1.2")
-    header.scales = np.array([1e-3, 1e-3, 1e-3])
-    header.offsets = np.zeros(3)
-    las = laspy.LasData(header)
-    las.x, las.y, las.z = PTS_MM[:, 0], PTS_MM[:, 1], PTS_MM[:, 2]
-    las.write(str(f))
+    _write_las(laspy, f)
     assert f.read_bytes()[:4] == b"LASF" and f.read_bytes()[104] & 0x80  # compressed
     np.testing.assert_allclose(read_scan(f, unit="mm").points, PTS_MM * 1e-3, atol=1e-9)
 
@@ -111,10 +111,7 @@ def test_laz_written_by_laspy_with_lazrs(tmp_path):
 def test_laz_without_a_backend_names_the_extra(tmp_path, monkeypatch):
     laspy = pytest.importorskip("laspy")
     f = tmp_path / "scan.laz"
-    header = laspy.LasHeader(point_format=3, version="1.2")
-    las = laspy.LasData(header)
-    las.x, las.y, las.z = PTS_MM[:, 0], PTS_MM[:, 1], PTS_MM[:, 2]
-    las.write(str(tmp_path / "plain.las"))
+    _write_las(laspy, tmp_path / "plain.las")
     raw = bytearray((tmp_path / "plain.las").read_bytes())
     raw[104] |= 0x80  # the point format's compression bit: a LAZ file to laspy
     f.write_bytes(bytes(raw))
