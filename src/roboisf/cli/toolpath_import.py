@@ -150,7 +150,8 @@ def import_command(
 
     Forming points are the feed moves with the tip at or below the sheet plane z = 0 (program zero
     = blank centre on the sheet, z up); rapids and feed moves above the sheet (approach, retract)
-    are dropped. Laps: z levels (step-down) or full turns about the z axis (spiral). Times from
+    are dropped. Laps: z levels (step-down, with ramps and wiggles) or full turns about the
+    part's axis (spiral), whatever the program's rounding. Times from
     the feeds. Everything ignored is listed; anything not understood is an error naming the line.
     See docs/toolpaths.md, "Importing a CAM program".
 
