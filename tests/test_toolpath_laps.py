@@ -220,3 +220,39 @@ def test_bad_block_names_the_token_as_written(tmp_path, block, token, macro):
         read_iso_moves(p)
     assert e.value.line == 3 and token in e.value.message
     assert ("macro statement" in e.value.message) == macro
+
+
+def _own_paths():
+    from roboisf.toolpath import spiral, step_down, toolpath_for_part
+
+    c = Cone(depth=30e-3)
+    p = Pyramid(top_length=80e-3, top_width=60e-3, wall_angle=math.radians(50), depth=12e-3)
+    return {
+        "cone step": lambda: step_down(c, 5e-3, 0.5e-3, spacing=1e-3),
+        "cone spiral": lambda: spiral(c, 5e-3, 0.5e-3, spacing=1e-3),
+        # extra heights on the shallow wall: steps and pitches from 1 mm down to ~0.3 mm; the
+        # spiral then descends ~1.2 µm per point, less than the 1.5 µm z tolerance
+        "cone step, max wall step": lambda: step_down(
+            c, 5e-3, 1e-3, spacing=1e-3, max_wall_step=0.3e-3
+        ),
+        "cone spiral, max wall step": lambda: spiral(
+            c, 5e-3, 1e-3, spacing=1e-3, max_wall_step=0.3e-3
+        ),
+        "pyramid spiral": lambda: toolpath_for_part(p, 5e-3, 0.5e-3, spacing=1e-3, spiral=True),
+        "pyramid scallop step": lambda: toolpath_for_part(
+            p, 5e-3, 1e-3, spacing=1e-3, scallop_height=0.02e-3
+        ),
+    }
+
+
+@pytest.mark.parametrize("name", list(_own_paths()))
+@pytest.mark.parametrize("decimals", [3, 4])
+def test_roboisf_paths_posted_at_any_resolution_keep_their_laps(name, decimals):
+    """roboisf's own paths (the laps known) rounded as a post-processor writes them: the laps
+    found are the generator's, point for point, on step-downs and spirals of a cone and a
+    pyramid, with uneven steps."""
+    tp = _own_paths()[name]()
+    tip = np.round(tp.tip / MM, decimals) * MM
+    rule = detect_laps(tip)
+    assert rule.rule == ("spiral" if "spiral" in name else "z-level")
+    np.testing.assert_array_equal(rule.lap, tp.lap)

@@ -20,7 +20,8 @@ rounding (docs/toolpaths.md, "Laps of an imported program"):
    the points between two levels (a ramp, a plunge) belong to the level below; points after the
    last level to the last lap.
 4. **Spiral** otherwise: a new lap starts at each full turn about the axis from the first point;
-   a final stretch at constant z (a closing contour) stays in the last lap.
+   the final stretch whose z stays within :data:`Z_TOL` (a closing contour) stays in the lap the
+   descent ended in.
 
 A path that turns less than once about the axis (a line, a test snippet) has no turns to count:
 a level is then any run of two or more points at one z (to :data:`Z_TOL`), and it is a z-level
@@ -191,8 +192,10 @@ def detect_laps(tip: F64, axis_xy: tuple[float, float] = (0.0, 0.0)) -> LapRule:
             return LapRule(_level_laps(n, levels), "z-level", turns, D, wig, axis)
     turned = np.abs(phi - phi[0]) / (2 * math.pi)
     lap = np.maximum.accumulate(np.floor(turned + 1e-6).astype(np.int64))
-    moving = np.flatnonzero(np.abs(np.diff(z)) > Z_TOL)
-    if moving.size:
-        last = int(moving[-1])  # the segment last → last+1 is the last one that changes z
-        lap[last + 1 :] = np.minimum(lap[last + 1 :], lap[last])
+    # the closing stretch: the longest end of the path whose z stays within Z_TOL (not the last
+    # segment that changes z by more than Z_TOL — a fine helix moves less than that per block)
+    lo = np.minimum.accumulate(z[::-1])[::-1]
+    hi = np.maximum.accumulate(z[::-1])[::-1]
+    k = int(np.argmax(hi - lo <= Z_TOL))  # the stretch starts where the descent ends, at k
+    lap[k:] = np.minimum(lap[k:], lap[max(k - 1, 0)])
     return LapRule(lap, "spiral", turns, D, 0.0, axis)
