@@ -309,6 +309,8 @@ def deflect_cmd(
     ),
 ) -> None:
     """VJM deflection of the tool tip along a toolpath under the logged forming wrench."""
+    import warnings
+
     import numpy as np
 
     from roboisf.io.atomic import atomic_write, check_not_input
@@ -316,6 +318,7 @@ def deflect_cmd(
     from roboisf.io.jointlog import read_joint_log
     from roboisf.io.table import format_rows
     from roboisf.robot import ik_toolpath, rotate_6
+    from roboisf.robot.ik import NumericalIKWarning
     from roboisf.toolpath.importer import read_toolpath_file
 
     inputs: list[str | Path] = [toolpath, forces]
@@ -347,17 +350,21 @@ def deflect_cmd(
             raise InputError(
                 "give at most one of --start-joints, --confdata, --kuka-st", field="--confdata"
             )
-        q = ik_toolpath(
-            m,
-            tp.tip,
-            T_base_work,
-            tool_rotation=np.radians(tool_rotation),
-            match_q=None
-            if start_joints is None
-            else np.radians(_floats(start_joints, 6, "--start-joints")),
-            confdata=None if confdata is None else _ints(confdata, 4, "--confdata"),
-            kuka_st=None if kuka_st is None else _ints(kuka_st, 2, "--kuka-st"),
-        ).q
+        if m.ik_note:
+            state.warn(m.ik_note)  # one line, before the (slower) numerical solve
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NumericalIKWarning)  # said just above
+            q = ik_toolpath(
+                m,
+                tp.tip,
+                T_base_work,
+                tool_rotation=np.radians(tool_rotation),
+                match_q=None
+                if start_joints is None
+                else np.radians(_floats(start_joints, 6, "--start-joints")),
+                confdata=None if confdata is None else _ints(confdata, 4, "--confdata"),
+                kuka_st=None if kuka_st is None else _ints(kuka_st, 2, "--kuka-st"),
+            ).q
     frame = log.frame.strip().lower()
     R_base_work = T_base_work[:3, :3]
     T_tip = m.fk(q)
