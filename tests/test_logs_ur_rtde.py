@@ -59,3 +59,17 @@ def test_rtde_without_forces_names_the_profiles(tmp_path):
         read_joint_log(p)
     with pytest.raises(InputError, match="UR RTDE"):
         read_force_log(p)
+
+
+def test_fanuc_profile_reads_j_columns(tmp_path):
+    """format = "fanuc": J1..J6 as a FANUC export writes them (pendant angles, degrees)."""
+    p = tmp_path / "fanuc.csv"
+    p.write_text(
+        "Time [s];J1 [deg];J2 [deg];J3 [deg];J4 [deg];J5 [deg];J6 [deg]\n"
+        "0,0;10,0;-20,0;5,0;0,0;-70,0;0,0\n"
+        "0,1;10,5;-20,0;5,0;0,0;-70,0;0,0\n"
+    )
+    jl = read_joint_log(p, fmt="fanuc")
+    np.testing.assert_allclose(np.degrees(jl.q[1]), [10.5, -20, 5, 0, -70, 0])
+    np.testing.assert_allclose(jl.time, [0.0, 0.1])
+    assert detect_joint_format(p, fmt="fanuc")[0] == "fanuc"

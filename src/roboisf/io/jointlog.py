@@ -45,10 +45,13 @@ __all__ = [
 ]
 
 #: ``format`` values of a joint log (study ``[runs.X.joints] format``).
-JOINT_FORMATS = ("auto", "roboisf", "abb", "kuka", "ur", "generic", "columns")
+JOINT_FORMATS = ("auto", "roboisf", "abb", "fanuc", "kuka", "ur", "generic", "columns")
 _TIME = re.compile(r"time|t|zeit|timestamp|time stamp|sec|seconds|elapsed time")
 _PREFIX = {
     "abb": r"j|joint ?",
+    # FANUC exports name the axes J1..J6 as ABB does; the angles as logged (the pendant's, which
+    # the FANUC presets take: docs/robot.md)
+    "fanuc": r"j|joint ?",
     "kuka": r"a|axis ?|(?:.* )?a",  # A1, axis 1, "AxisActPos A1" (KUKA trace text export)
     "generic": r"q|j|a|joint ?|axis ?|(?:.* )?a",
 }
@@ -124,7 +127,8 @@ def detect_joint_format(
     path: str | Path, *, fmt: str = "auto", columns: dict[str, str] | None = None
 ) -> tuple[str, dict[str, str], dict[str, str]]:
     """Which profile reads a joint log: (profile, canonical column → header cell, quantity →
-    unit declared by the file). Profiles: "parquet", "roboisf", "abb" (J1..J6), "kuka" (A1..A6,
+    unit declared by the file). Profiles: "parquet", "roboisf", "abb" and "fanuc" (J1..J6; auto
+    names a J1..J6 file "abb"), "kuka" (A1..A6,
     KUKA trace text export), "ur" (Universal Robots RTDE recording: ``timestamp``,
     ``actual_q_0..5``, s and rad), "generic" (q1..q6, joint/axis N), "columns" (``columns``
     given).
