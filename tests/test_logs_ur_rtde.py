@@ -73,3 +73,24 @@ def test_fanuc_profile_reads_j_columns(tmp_path):
     np.testing.assert_allclose(np.degrees(jl.q[1]), [10.5, -20, 5, 0, -70, 0])
     np.testing.assert_allclose(jl.time, [0.0, 0.1])
     assert detect_joint_format(p, fmt="fanuc")[0] == "fanuc"
+
+
+def test_a_real_rtde_recording():
+    """A recording from UR's RTDE client repository (tests/data/logs/README.md): found as 'ur' by
+    auto, every value equal to the csv module's parse, seconds and radians as RTDE states."""
+    import csv
+    from pathlib import Path
+
+    p = Path(__file__).parent / "data" / "logs" / "ur_rtde_jointData_head.csv"
+    with p.open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    t = np.array([float(r["timestamp"]) for r in rows])
+    q = np.array([[float(r[f"actual_q_{i}"]) for i in range(6)] for r in rows])
+    prof, cols, units = detect_joint_format(p)
+    assert prof == "ur" and units == {"time": "s", "angle": "rad"}
+    jl = read_joint_log(p)
+    np.testing.assert_array_equal(jl.time, t)
+    np.testing.assert_array_equal(jl.q, q)
+    assert len(jl.time) == 250 and np.median(np.diff(jl.time)) == pytest.approx(0.008, abs=1e-4)
+    with pytest.raises(InputError, match="no force-log format recognised"):
+        read_force_log(p)  # joints and poses only: no actual_TCP_force columns
