@@ -88,6 +88,7 @@ def test_a_real_rtde_recording():
     q = np.array([[float(r[f"actual_q_{i}"]) for i in range(6)] for r in rows])
     prof, cols, units = detect_joint_format(p)
     assert prof == "ur" and units == {"time": "s", "angle": "rad"}
+    assert cols["q1"] == "actual_q_0" and cols["time"] == "timestamp"
     jl = read_joint_log(p)
     np.testing.assert_array_equal(jl.time, t)
     np.testing.assert_array_equal(jl.q, q)
