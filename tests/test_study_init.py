@@ -298,3 +298,25 @@ def test_robot_file_is_written_relative_to_the_study_and_checked(tmp_path, monke
     assert not (d / "study.toml").exists()
     assert main(["-q", "study", "init", "cell", "--part", "nope.toml"]) == 2
     assert "[--part]" in capsys.readouterr().err
+
+
+def test_a_log_with_repeated_stamps_is_drafted_with_repair(tmp_path):
+    """issue #28: a force log whose clock repeats a few stamps is not left out of the draft: it
+    gets timestamps = "repair", and the note says what that repairs."""
+    d = tmp_path / "cell"
+    d.mkdir()
+    rows = [f"{0.01 * i:.2f},1,2,-300,0,0,0" for i in range(50)]
+    rows.insert(20, rows[19])  # one row written twice
+    (d / "robot_forces.csv").write_text(
+        "# units: time=s force=N moment=N*m\n# frame: sensor\ntime,Fx,Fy,Fz,Mx,My,Mz\n"
+        + "\n".join(rows)
+        + "\n"
+    )
+    from roboisf.study.init import draft_study
+
+    files = detect_files(d)
+    (f,) = files
+    assert f.kind == "force_log" and f.keys["timestamps"] == "repair"
+    draft = draft_study(d, files)
+    assert draft.data["runs"]["robot"]["forces"]["timestamps"] == "repair"
+    assert any("1 exact duplicate row(s) dropped" in n for n in draft.notes)

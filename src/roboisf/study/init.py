@@ -109,20 +109,35 @@ def _force_log(p: Path) -> _Result:
         units, shown = _units_keys(needed, declared, _FORCE_TODO)
     given = {"time": "s", "force": "N", "moment": "N*m"}  # placeholders to count samples only
     frame = None if profile == "roboisf" else "sensor"
-    try:
-        log = read_force_log(p, frame=frame, fmt=profile if profile != "parquet" else "auto")
-    except InputError as e:
-        if "not declared" not in e.message:
-            raise
-        # read it once with placeholder units to report its size; the study says the real ones
-        log = read_force_log(
-            p,
-            frame="sensor",
-            fmt=profile if profile != "parquet" else "auto",
-            time_unit=None if "time" in declared or profile == "ati" else given["time"],
-            force_unit=None if "force" in declared else given["force"],
-            moment_unit=None if "moment" in declared or not has_m else given["moment"],
-        )
+    policy = "refuse"
+    for _ in range(2):
+        try:
+            try:
+                log = read_force_log(
+                    p,
+                    frame=frame,
+                    fmt=profile if profile != "parquet" else "auto",
+                    timestamps=policy,
+                )
+            except InputError as e:
+                if "not declared" not in e.message:
+                    raise
+                # read it once with placeholder units to report its size; the study says the
+                # real ones
+                log = read_force_log(
+                    p,
+                    frame="sensor",
+                    fmt=profile if profile != "parquet" else "auto",
+                    time_unit=None if "time" in declared or profile == "ati" else given["time"],
+                    force_unit=None if "force" in declared else given["force"],
+                    moment_unit=None if "moment" in declared or not has_m else given["moment"],
+                    timestamps=policy,
+                )
+            break
+        except InputError as e:
+            if policy == "repair" or not _dirty_clock(e):
+                raise
+            policy = "repair"  # drafted as such, said in the details and the notes
     details = {
         "profile": profile,
         "samples": str(len(log)),
@@ -140,7 +155,16 @@ def _force_log(p: Path) -> _Result:
         keys["format"] = profile
     if units:
         keys["units"] = units
+    if log.notes:
+        details["notes"] = "; ".join(log.notes)
+    if policy == "repair":
+        keys["timestamps"] = "repair"
     return f"force log ({profile})", details, keys
+
+
+def _dirty_clock(e: InputError) -> bool:
+    """A log refused only for times that do not strictly increase (a few repairable rows)."""
+    return e.message.startswith("time must strictly increase")
 
 
 _JOINT_TODO = {
@@ -156,12 +180,21 @@ def _joint_log(p: Path) -> _Result:
     if profile == "roboisf" and "angle" not in declared:
         raise InputError("missing '# units: time=s angle=deg' line", file=p, field="units")
     units, shown = _units_keys(["time", "angle"], declared, _JOINT_TODO)
-    log = read_joint_log(
-        p,
-        fmt=profile if profile != "parquet" else "auto",
-        time_unit=None if "time" in declared else "s",
-        angle_unit=None if "angle" in declared else "rad",
-    )
+    policy = "refuse"
+    for _ in range(2):
+        try:
+            log = read_joint_log(
+                p,
+                fmt=profile if profile != "parquet" else "auto",
+                time_unit=None if "time" in declared else "s",
+                angle_unit=None if "angle" in declared else "rad",
+                timestamps=policy,
+            )
+            break
+        except InputError as e:
+            if policy == "repair" or not _dirty_clock(e):
+                raise
+            policy = "repair"
     if "angle" in units:
         # undeclared angles: values beyond 2π rad (with margin) can only be degrees
         big = float(np.abs(log.q).max())
@@ -185,6 +218,10 @@ def _joint_log(p: Path) -> _Result:
         keys["format"] = profile
     if units:
         keys["units"] = units
+    if log.notes:
+        details["notes"] = "; ".join(log.notes)
+    if policy == "repair":
+        keys["timestamps"] = "repair"
     return f"joint log ({profile})", details, keys
 
 
@@ -298,6 +335,13 @@ def detect_files(folder: str | Path) -> list[DetectedFile]:
         else:
             out.append(DetectedFile(p, "unknown", "", {}, "; ".join(problems[:3])))
     return out
+
+
+def _repair_note(key: str, f: DetectedFile) -> str:
+    return (
+        f'{key}.timestamps = "repair": {f.path.name}\'s time does not strictly increase '
+        f"({f.details.get('notes', '')}); check the logger's clock, or remove the key to refuse"
+    )
 
 
 def _role(name: str) -> str | None:
@@ -476,6 +520,8 @@ def draft_study(
             if j is not None:
                 r["joints"] = {"file": rel(j.path), **j.keys} if j.keys else rel(j.path)
                 todo += [f"runs.{run}.joints.units.{q}" for q in _todos(j.keys.get("units"))]
+                if j.keys.get("timestamps") == "repair":
+                    notes.append(_repair_note(f"runs.{run}.joints", j))
             th = pick("thickness", run)
             if th is not None:
                 r["thickness"] = rel(th.path)
@@ -491,6 +537,8 @@ def draft_study(
         if fl is not None and fl.keys:
             r["forces"].update(fl.keys)
             todo += [f"runs.{run}.forces.units.{q}" for q in _todos(fl.keys.get("units"))]
+            if fl.keys.get("timestamps") == "repair":
+                notes.append(_repair_note(f"runs.{run}.forces", fl))
         if fl is None:
             todo.append(f"runs.{run}.forces.file")
         if pose is None:
