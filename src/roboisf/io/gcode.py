@@ -286,9 +286,7 @@ def _bad_token(code: str) -> str:
             "variables #…, [expressions], IF/WHILE/GOTO) — roboisf reads posted moves only; "
             "post the program without macros (expanded), or export the moves from the CAM system"
         )
-    return (
-        f"cannot parse {tok!r} at column {pos + 1} (expected address words like X10.5, G01)"
-    )
+    return f"cannot parse {tok!r} at column {pos + 1} (expected address words like X10.5, G01)"
 
 
 #: Largest magnitude of a number in a program (10 km in mm): beyond it a typo, not a position.
