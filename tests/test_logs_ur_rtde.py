@@ -95,3 +95,48 @@ def test_a_real_rtde_recording():
     assert len(jl.time) == 250 and np.median(np.diff(jl.time)) == pytest.approx(0.008, abs=1e-4)
     with pytest.raises(InputError, match="no force-log format recognised"):
         read_force_log(p)  # joints and poses only: no actual_TCP_force columns
+
+
+def _named_joint_log(tmp_path):
+    p = tmp_path / "j.csv"
+    head = "Zeit [s];" + ";".join(f"Achse {i} [deg]" for i in range(1, 7)) + ";Status"
+    rows = [
+        f"{0.01 * k:.2f};" + ";".join(f"{10 * i + k}" for i in range(1, 7)) + ";ok"
+        for k in range(5)
+    ]
+    p.write_text(head + "\n" + "\n".join(rows) + "\n")
+    return p
+
+
+JOINT_COLUMNS_MAP = {"time": "Zeit", **{f"q{i}": f"Achse {i}" for i in range(1, 7)}}
+
+
+def test_joint_log_columns_map(tmp_path):
+    """issue #28: joint logs take ``columns = {…}`` as force logs do — any header names, units
+    from the names' brackets; a name not in the file is refused naming what was looked for."""
+    p = _named_joint_log(tmp_path)
+    jl = read_joint_log(p, columns=JOINT_COLUMNS_MAP)
+    np.testing.assert_allclose(np.degrees(jl.q[2]), [12, 22, 32, 42, 52, 62])
+    np.testing.assert_allclose(jl.time, [0, 0.01, 0.02, 0.03, 0.04])
+    with pytest.raises(InputError, match="no joint-log format recognised"):
+        read_joint_log(p)  # without the map: Achse is no known name
+    bad = dict(JOINT_COLUMNS_MAP, q6="Achse 7")
+    with pytest.raises(InputError) as e:
+        read_joint_log(p, columns=bad)
+    assert "Achse 7" in e.value.message  # the names the study gave, not q1..q6
+    with pytest.raises(InputError, match="columns must map each of"):
+        read_joint_log(p, columns={"time": "Zeit"})
+
+
+def test_joint_log_columns_from_the_study(tmp_path):
+    from roboisf.decompose.pipeline import read_run_joint_log
+    from roboisf.study import load_study
+    from test_logs_study import _study
+
+    cols = ", ".join(f'{k} = "{v}"' for k, v in JOINT_COLUMNS_MAP.items())
+    s = _study(tmp_path, joints=f'[runs.robot.joints]\nfile = "j.csv"\ncolumns = {{{cols}}}')
+    _named_joint_log(tmp_path)  # replaces the placeholder j.csv
+    st = load_study(s)
+    assert st.robot_run.joints_format == "columns"
+    jl = read_run_joint_log(st.robot_run)
+    np.testing.assert_allclose(np.degrees(jl.q[0]), [10, 20, 30, 40, 50, 60])

@@ -163,7 +163,9 @@ def _read_text_log(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[s
                 field="columns",
             )
         match = {k: re.compile(re.escape(split_name_unit(v)[0])) for k, v in columns.items()}
-        return "columns", read_log_table(p, match, req, what="joint log")
+        return "columns", read_log_table(
+            p, match, req, what="joint log", expected=", ".join(columns.values())
+        )
     if fmt in ("auto", "roboisf") and _is_roboisf(p):
         match = {k: re.compile(k) for k in JOINT_COLUMNS}
         return "roboisf", read_log_table(p, match, req, what="joint log")
