@@ -32,7 +32,10 @@ PRESET_URDF = {
     "r2000ic-210f": ("r2000ic210f.urdf", 1.0),
     "m900ib-700": ("m900ib700.urdf", 1.0),
 }
-ALL_URDFS = sorted(p.name for p in URDF.glob("*.urdf"))
+#: URDFs whose angles are rounded in the file (their OPW model is snapped, not the file to 1e-9:
+#: tests/test_robot_urdf_rounding.py)
+ROUNDED = {"m0609.urdf"}
+ALL_URDFS = sorted(p.name for p in URDF.glob("*.urdf") if p.name not in ROUNDED)
 
 
 def _pin_fk(urdf: Path, q_urdf: np.ndarray, frame: str = "tool0") -> np.ndarray:

@@ -273,3 +273,50 @@ def test_draft_writes_format_and_units_keys(tmp_path):
         "tool.ball_diameter",
     ):
         assert key in text.splitlines()[1]  # the TODO header line names every undeclared unit
+
+
+def test_robot_file_is_written_relative_to_the_study_and_checked(tmp_path, monkeypatch, capsys):
+    """issue #28: ``--robot cell/urdf/x.urdf`` typed from the folder above the study is found
+    there and written as ``urdf/x.urdf`` (study paths are relative to the study); a robot file
+    that does not exist is refused at once, naming where it was looked for."""
+    from pathlib import Path
+
+    d = tmp_path / "cell"
+    (d / "urdf").mkdir(parents=True)
+    src = Path(__file__).parent / "data" / "urdf" / "kr210_r2700_2.urdf"
+    shutil.copy(src, d / "urdf" / "kr.urdf")
+    monkeypatch.chdir(tmp_path)
+    assert main(["-q", "study", "init", "cell", "--robot", "cell/urdf/kr.urdf"]) == 0
+    data = tomllib.loads((d / "study.toml").read_text())
+    assert data["robot"]["model"] == "urdf/kr.urdf"
+    assert (d / data["robot"]["model"]).is_file()
+    (d / "study.toml").unlink()
+    assert main(["-q", "study", "init", "cell", "--robot", "urdf/kr.urdf"]) == 2
+    err = capsys.readouterr().err
+    assert "[--robot]" in err and "neither a preset" in err
+    assert str(tmp_path / "urdf" / "kr.urdf") in err.replace("\n", "")
+    assert not (d / "study.toml").exists()
+    assert main(["-q", "study", "init", "cell", "--part", "nope.toml"]) == 2
+    assert "[--part]" in capsys.readouterr().err
+
+
+def test_a_log_with_repeated_stamps_is_drafted_with_repair(tmp_path):
+    """issue #28: a force log whose clock repeats a few stamps is not left out of the draft: it
+    gets timestamps = "repair", and the note says what that repairs."""
+    d = tmp_path / "cell"
+    d.mkdir()
+    rows = [f"{0.01 * i:.2f},1,2,-300,0,0,0" for i in range(50)]
+    rows.insert(20, rows[19])  # one row written twice
+    (d / "robot_forces.csv").write_text(
+        "# units: time=s force=N moment=N*m\n# frame: sensor\ntime,Fx,Fy,Fz,Mx,My,Mz\n"
+        + "\n".join(rows)
+        + "\n"
+    )
+    from roboisf.study.init import draft_study
+
+    files = detect_files(d)
+    (f,) = files
+    assert f.kind == "force_log" and f.keys["timestamps"] == "repair"
+    draft = draft_study(d, files)
+    assert draft.data["runs"]["robot"]["forces"]["timestamps"] == "repair"
+    assert any("1 exact duplicate row(s) dropped" in n for n in draft.notes)

@@ -53,11 +53,13 @@ def _ints(text: str, n: int, field: str) -> np.ndarray:
     return v.astype(np.int64)
 
 
-def _model(robot: str, stiffness: Path | None, tool: str | None) -> RobotModel:
+def _model(
+    robot: str, stiffness: Path | None, tool: str | None, tip_link: str | None = None
+) -> RobotModel:
     from roboisf.frames import make_transform
     from roboisf.robot import load_robot, load_stiffness
 
-    m = load_robot(robot)
+    m = load_robot(robot, tip_link=tip_link)
     if stiffness is not None:
         m = m.with_stiffness(load_stiffness(stiffness), source=str(stiffness))
     if tool is not None:
@@ -93,6 +95,12 @@ PLACEMENT_OPT = typer.Option(
     help="x,y,z,yaw of the work frame in the base (mm, deg); default: preset's.",
 )
 TOOL_OPT = typer.Option(None, "--tool", help="Tool tip in the flange frame: x,y,z (mm).")
+TIP_LINK_OPT = typer.Option(
+    None,
+    "--tip-link",
+    help="URDF robots: the link that is the arm's flange (default tool0 or flange, else the link "
+    "behind the most revolute joints); a gripper's or a 7th joint's link is not.",
+)
 
 
 LIST_HELP = (
@@ -141,6 +149,7 @@ def show_cmd(
     robot: str = ROBOT_OPT,
     stiffness: Path | None = STIFF_OPT,
     tool: str | None = TOOL_OPT,
+    tip_link: str | None = TIP_LINK_OPT,
     placement: str | None = PLACEMENT_OPT,
     output: Path | None = typer.Option(
         None, "--output", "-o", help=f"Stiffness map PNG over the work area. {FILE_HELP}"
@@ -154,10 +163,12 @@ def show_cmd(
 
     if output is not None:
         output_file(output, "robot show", overwrite, [stiffness, *_files(robot, tool)])
-    m = _model(robot, stiffness, tool)
+    m = _model(robot, stiffness, tool, tip_link)
     state.out.print(f"[bold]{escape(m.name)}[/bold]")
     if m.source:
         state.out.print(m.source, markup=False)
+    if m.ik_note:
+        state.warn(m.ik_note)
     for i in range(6):
         K = "—" if m.stiffness is None else f"{m.stiffness[i]:.4g} N·m/rad"
         state.out.print(
@@ -187,6 +198,7 @@ def identify_cmd(
     overwrite: Overwrite = False,
     robot: str = ROBOT_OPT,
     tool: str | None = TOOL_OPT,
+    tip_link: str | None = TIP_LINK_OPT,
     sigma: float = typer.Option(0.01, "--sigma", help="Measurement std of displacements (mm)."),
     sigma_rot: float = typer.Option(
         1e-5, "--sigma-rot", help="Measurement std of rotations (rad)."
@@ -203,7 +215,7 @@ def identify_cmd(
 
     check_not_input(output, [calib])
     output_file(output, "robot identify", overwrite, [calib, *_files(robot, tool)])
-    m = _model(robot, None, tool)
+    m = _model(robot, None, tool, tip_link)
     data = read_calibration_csv(calib, m)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", PoorExcitationWarning)
@@ -270,6 +282,7 @@ def deflect_cmd(
     robot: str = ROBOT_OPT,
     stiffness: Path | None = STIFF_OPT,
     tool: str | None = TOOL_OPT,
+    tip_link: str | None = TIP_LINK_OPT,
     placement: str | None = PLACEMENT_OPT,
     joints: Path | None = typer.Option(
         None,
@@ -296,6 +309,8 @@ def deflect_cmd(
     ),
 ) -> None:
     """VJM deflection of the tool tip along a toolpath under the logged forming wrench."""
+    import warnings
+
     import numpy as np
 
     from roboisf.io.atomic import atomic_write, check_not_input
@@ -303,6 +318,7 @@ def deflect_cmd(
     from roboisf.io.jointlog import read_joint_log
     from roboisf.io.table import format_rows
     from roboisf.robot import ik_toolpath, rotate_6
+    from roboisf.robot.ik import NumericalIKWarning
     from roboisf.toolpath.importer import read_toolpath_file
 
     inputs: list[str | Path] = [toolpath, forces]
@@ -310,7 +326,7 @@ def deflect_cmd(
         inputs.append(joints)
     check_not_input(output, inputs)
     output_file(output, "robot deflect", overwrite, [*inputs, stiffness, *_files(robot, tool)])
-    m = _model(robot, stiffness, tool)
+    m = _model(robot, stiffness, tool, tip_link)
     K = m.joint_stiffness  # fail early, before IK
     del K
     T_base_work = _placement(placement, m)
@@ -334,17 +350,21 @@ def deflect_cmd(
             raise InputError(
                 "give at most one of --start-joints, --confdata, --kuka-st", field="--confdata"
             )
-        q = ik_toolpath(
-            m,
-            tp.tip,
-            T_base_work,
-            tool_rotation=np.radians(tool_rotation),
-            match_q=None
-            if start_joints is None
-            else np.radians(_floats(start_joints, 6, "--start-joints")),
-            confdata=None if confdata is None else _ints(confdata, 4, "--confdata"),
-            kuka_st=None if kuka_st is None else _ints(kuka_st, 2, "--kuka-st"),
-        ).q
+        if m.ik_note:
+            state.warn(m.ik_note)  # one line, before the (slower) numerical solve
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NumericalIKWarning)  # said just above
+            q = ik_toolpath(
+                m,
+                tp.tip,
+                T_base_work,
+                tool_rotation=np.radians(tool_rotation),
+                match_q=None
+                if start_joints is None
+                else np.radians(_floats(start_joints, 6, "--start-joints")),
+                confdata=None if confdata is None else _ints(confdata, 4, "--confdata"),
+                kuka_st=None if kuka_st is None else _ints(kuka_st, 2, "--kuka-st"),
+            ).q
     frame = log.frame.strip().lower()
     R_base_work = T_base_work[:3, :3]
     T_tip = m.fk(q)

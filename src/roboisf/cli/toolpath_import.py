@@ -137,16 +137,21 @@ def import_command(
         typer.Option(help="Length unit of an x,y,z list: mm (default), m or in."),
     ] = None,
     feed: Annotated[
-        float,
-        typer.Option(help="Feed of an x,y,z list [mm/min] (a list has none)."),
-    ] = 750.0,
+        float | None,
+        typer.Option(
+            help="Feed [mm/min] of an x,y,z list (a list has none; default 750), and of a G-code "
+            "program's feed moves before its first F word (a program posted without feeds; "
+            "without --feed such a program is refused, naming the line).",
+        ),
+    ] = None,
     overwrite: Overwrite = False,
 ) -> None:
     """Import a CAM program as a roboisf toolpath CSV (contact, normal, centre, tip, laps, times).
 
     Forming points are the feed moves with the tip at or below the sheet plane z = 0 (program zero
     = blank centre on the sheet, z up); rapids and feed moves above the sheet (approach, retract)
-    are dropped. Laps: z levels (step-down) or full turns about the z axis (spiral). Times from
+    are dropped. Laps: z levels (step-down, with ramps and wiggles) or full turns about the
+    part's axis (spiral), whatever the program's rounding. Times from
     the feeds. Everything ignored is listed; anything not understood is an error naming the line.
     See docs/toolpaths.md, "Importing a CAM program".
 
@@ -192,7 +197,7 @@ def import_command(
         work_offsets=parse_work_offsets(work_offset),
         ignore_words=words,
         units=units,
-        feed=feed / 60e3,
+        feed=None if feed is None else feed / 60e3,
         origin=shift,
     )
     nominal = load_part(part)

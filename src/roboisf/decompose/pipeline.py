@@ -114,6 +114,7 @@ def read_run_joint_log(run: RunSpec) -> JointLog:
         columns=run.joints_columns,
         time_unit=ju.get("time"),
         angle_unit=ju.get("angle"),
+        timestamps=run.joints_timestamps,
     )
 
 
@@ -251,6 +252,10 @@ def _logs_part(
         with task(progress, f"{r.name} logs: alignment"):
             log = read_run_force_log(study, r)
             joints = None if r.joints is None else read_run_joint_log(r)
+            # what timestamps = "repair" changed is said in the summary's warnings
+            input_warnings.extend(f"{r.forces.file.name}: {n}" for n in log.notes)
+            if joints is not None and r.joints is not None:
+                input_warnings.extend(f"{r.joints.name}: {n}" for n in joints.notes)
             aligned[r.name] = align_run(cell, r, tp, log, joints)
         R_fk = None
         if r is rob:

@@ -54,11 +54,14 @@ class ReadOptions:
         coordinates are taken as they are, with a warning.
     ignore_words : frozenset[str] — address letters a 3-axis path cannot use (``A B C U V W``)
         to ignore with a one-line warning (listing the lines) instead of refusing the file
+    feed : float or None, m/s — the feed of feed moves before the program's first F word (a
+        program posted without feeds); None: such a move is refused, naming its line
     """
 
     chord_tol: float = DEFAULT_CHORD_TOL
     work_offsets: dict[str, tuple[float, float, float]] = field(default_factory=dict)
     ignore_words: frozenset[str] = frozenset()
+    feed: float | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.chord_tol) and self.chord_tol > 0):

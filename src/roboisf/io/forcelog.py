@@ -35,6 +35,7 @@ from roboisf.io.table import (
     read_table,
     split_name_unit,
 )
+from roboisf.io.timestamps import repair_time
 from roboisf.io.units import log_unit_to_si, to_si
 from roboisf.toolpath.toolpath import Toolpath
 
@@ -70,6 +71,8 @@ class ForceLog:
         dynamometer): its Mx, My, Mz are zeros standing for "not measured", and the analysis
         takes the load as a point force at the tool tip (``docs/study.md``, logs)
     profile : str — the format it was read as ("roboisf", "ati", "kistler", "dyno3", ...)
+    notes : tuple of str — what reading changed (``timestamps = "repair"``: rows reordered,
+        dropped, averaged; :mod:`roboisf.io.timestamps`)
     """
 
     time: F64
@@ -79,6 +82,7 @@ class ForceLog:
     position: F64 | None = None
     moments_known: bool = True
     profile: str = "roboisf"
+    notes: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         t = np.asarray(self.time, dtype=float)
@@ -162,6 +166,7 @@ def _read_roboisf_csv(
     force_unit: str | None = None,
     moment_unit: str | None = None,
     length_unit: str | None = None,
+    timestamps: str = "refuse",
 ) -> ForceLog:
     """Read a roboisf force log CSV (see the module docstring) into SI.
 
@@ -225,14 +230,6 @@ def _read_roboisf_csv(
             field="frame",
         )
     time = t.column("time") * scale["time"]
-    if time.size > 1 and np.any(np.diff(time) <= 0):
-        r = int(np.argmax(np.diff(time) <= 0)) + 1
-        raise t.error(
-            f"time must strictly increase; {t.column('time')[r]:g} follows "
-            f"{t.column('time')[r - 1]:g}",
-            r,
-            "time",
-        )
     # scaled straight into one (N, 6) array (six scaled columns stacked held the wrench twice)
     wrench = np.empty((t.data.shape[0], 6))
     for k, c in enumerate(("Fx", "Fy", "Fz", "Mx", "My", "Mz")):
@@ -242,13 +239,22 @@ def _read_roboisf_csv(
         if has_pos
         else None
     )
-    return ForceLog(time, wrench, fr, path, position)
+    notes: tuple[str, ...] = ()
+    if time.size > 1 and not bool(np.all(np.diff(time) > 0)):
+        vals = wrench if position is None else np.hstack([wrench, position])
+        time, vals, rep = repair_time(
+            time, vals, timestamps, error=lambda m, r: t.error(m, r, "time")
+        )
+        wrench = vals[:, :6]
+        position = vals[:, 6:] if position is not None else None
+        notes = (rep.describe(),)
+    return ForceLog(time, wrench, fr, path, position, notes=notes)
 
 
 # -- logs as instruments write them: profiles ---------------------------------------------------
 
 #: ``format`` values of a force log (study ``[runs.X.forces] format``).
-FORCE_FORMATS = ("auto", "roboisf", "ati", "kistler", "dyno3", "generic", "columns")
+FORCE_FORMATS = ("auto", "roboisf", "ati", "kistler", "ur", "dyno3", "generic", "columns")
 
 _F = {f"F{a}": re.compile(rf"f ?{a}|force ?{a}") for a in "xyz"}
 _M = {f"M{a}": re.compile(rf"m ?{a}|moment ?{a}") for a in "xyz"}
@@ -258,6 +264,14 @@ _TIME = {"time": re.compile(r"time|t|zeit|timestamp|seconds|sec|time stamp|elaps
 _RDT = {"rdt": re.compile(r"rdt ?sequence|rdtsequence")}
 _FORCES = tuple(_F)
 _MOMENTS = tuple(_M)
+#: Universal Robots' RTDE recording: ``timestamp`` [s], ``actual_TCP_force_0..5`` — the wrench
+#: at the TCP in the robot's base axes [N, N·m] (UR's definition; units fixed by RTDE)
+_UR = {
+    "time": re.compile(r"timestamp"),
+    **{c: re.compile(rf"actual tcp force {k}") for k, c in enumerate((*_FORCES, *_MOMENTS))},
+}
+#: the units a profile's format fixes (the file states none)
+_PROFILE_UNITS = {"ur": {"time": "s", "force": "N", "moment": "N*m"}}
 
 _PROFILES: dict[str, tuple[dict[str, re.Pattern[str]], tuple[str, ...]]] = {
     # name: (matchers, required)
@@ -265,6 +279,7 @@ _PROFILES: dict[str, tuple[dict[str, re.Pattern[str]], tuple[str, ...]]] = {
     "generic": ({**_TIME, **_F, **_MT}, ("time", *_FORCES, *_MOMENTS)),
     "kistler": ({**_TIME, **_F, **_M}, ("time", *_FORCES)),
     "dyno3": ({**_TIME, **_F, **_MT}, ("time", *_FORCES)),
+    "ur": (_UR, ("time", *_FORCES, *_MOMENTS)),
 }
 
 
@@ -323,7 +338,7 @@ def _open(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[str, LogTa
             'time,Fx,Fy,Fz,Mx,My,Mz (or set format = "auto")',
             file=p,
         )
-    order = ("ati", "generic", "dyno3") if fmt == "auto" else (fmt,)
+    order = ("ati", "ur", "generic", "dyno3") if fmt == "auto" else (fmt,)
     last: InputError | None = None
     for name in order:
         match, req = _PROFILES[name]
@@ -356,7 +371,8 @@ def _open(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[str, LogTa
     if fmt == "auto":
         raise InputError(
             "no force-log format recognised: expected a header naming time, Fx, Fy, Fz (and "
-            "Mx, My, Mz or Tx, Ty, Tz), an ATI Net F/T CSV, a Kistler DynoWare text export or "
+            "Mx, My, Mz or Tx, Ty, Tz), an ATI Net F/T CSV, a Kistler DynoWare text export, a "
+            "UR RTDE recording (timestamp, actual_TCP_force_0..5) or "
             'a roboisf log; for other names give columns = {time = "...", Fx = "...", ...} '
             "in the study",
             file=p,
@@ -397,7 +413,7 @@ def detect_force_format(
             {k: k for k in FORCE_COLUMNS},
             _parse_units(meta.get("units", ""), file=p, line=line),
         )
-    return profile, _found(t), _file_units(t)
+    return profile, _found(t), {**_PROFILE_UNITS.get(profile, {}), **_file_units(t)}
 
 
 def _head_meta(path: Path) -> dict[str, str]:
@@ -443,12 +459,14 @@ def read_force_log(
     length_unit: str | None = None,
     fmt: str = "auto",
     columns: dict[str, str] | None = None,
+    timestamps: str = "refuse",
 ) -> ForceLog:
     """Read a force log into SI, as it comes from the instrument.
 
     ``fmt`` (study key ``format``): ``"auto"`` tries, in order, a ``.parquet`` log
     (:mod:`roboisf.io.logparquet`), the roboisf CSV (module docstring), an ATI Net F/T CSV, a
-    6-component table (time, Fx…Fz, Mx…Mz or Tx…Tz), a Kistler DynoWare text export and a
+    Universal Robots RTDE recording (``timestamp``, ``actual_TCP_force_0..5``), a 6-component
+    table (time, Fx…Fz, Mx…Mz or Tx…Tz), a Kistler DynoWare text export and a
     3-component dynamometer (time, Fx, Fy, Fz: moments unknown, ``moments_known=False``).
     ``columns`` maps canonical names to the file's header cells for anything else.
 
@@ -477,8 +495,9 @@ def read_force_log(
             force_unit=force_unit,
             moment_unit=moment_unit,
             length_unit=length_unit,
+            timestamps=timestamps,
         )
-    declared = _file_units(t)
+    declared = {**_PROFILE_UNITS.get(profile, {}), **_file_units(t)}
     units: dict[str, float] = {}
     has_m = all(m in t.data for m in _MOMENTS)
     needed = ["force"] + (["moment"] if has_m else []) + ([] if profile == "ati" else ["time"])
@@ -537,17 +556,21 @@ def read_force_log(
         time = (seq - seq[0]) / rate
     else:
         time = col("time", "time")
-    if time.size > 1 and np.any(np.diff(time) <= 0):
-        r = int(np.argmax(np.diff(time) <= 0)) + 1
-        raise t.error(
-            f"time must strictly increase; sample {r} ({time[r]:g} s) follows {time[r - 1]:g} s",
-            r,
-            "rdt" if profile == "ati" else "time",
-        )
     F = np.column_stack([col(c, "force") for c in _FORCES])
     M = np.column_stack([col(c, "moment") for c in _MOMENTS]) if has_m else np.zeros_like(F)
-    fr = frame or t.meta.get("frame") or "sensor"
-    return ForceLog(time, np.hstack([F, M]), fr, p, None, moments_known=has_m, profile=profile)
+    W = np.hstack([F, M])
+    notes: tuple[str, ...] = ()
+    if time.size > 1 and not bool(np.all(np.diff(time) > 0)):
+        tcol = "rdt" if profile == "ati" else "time"
+        time, W, rep = repair_time(time, W, timestamps, error=lambda m, r: t.error(m, r, tcol))
+        notes = (rep.describe(),)
+    fr = frame or t.meta.get("frame") or ("base" if profile == "ur" else "sensor")
+    if profile == "ur":
+        notes += (
+            "UR RTDE actual_TCP_force: the wrench at the TCP in the robot's base axes (UR's "
+            "definition), not a sensor frame; give the sensor pose that matches it",
+        )
+    return ForceLog(time, W, fr, p, None, moments_known=has_m, profile=profile, notes=notes)
 
 
 def write_force_log(

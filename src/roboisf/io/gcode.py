@@ -259,13 +259,34 @@ def _iso_words(code: str, file: Path, line: int) -> list[Word]:
     ]
     rest = _ISO_WORD.sub("", code).strip()
     if rest:
-        raise InputError(
-            f"cannot parse {rest!r} (expected address words like X10.5, G01; macros, variables "
-            "and expressions are not supported)",
-            file=file,
-            line=line,
-        )
+        raise InputError(_bad_token(code), file=file, line=line)
     return words
+
+
+#: Fanuc Custom Macro B / LinuxCNC O-word control flow and variables
+_MACRO = re.compile(r"#|\[|\b(?:IF|WHILE|GOTO|DO\d*|END\d*|THEN|EQ|NE|GT|LT|GE|LE)\b")
+
+
+def _bad_token(code: str) -> str:
+    """The message for a block with text that is no address word: the first such token as
+    written (not what is left once the words are removed), and whether it is a macro."""
+    pos = 0
+    while pos < len(code):
+        m = _ISO_WORD.match(code, pos)
+        if m:
+            pos = m.end()
+        elif code[pos].isspace():
+            pos += 1
+        else:
+            break
+    tok = code[pos:].split()[0] if code[pos:].split() else code[pos:]
+    if _MACRO.search(code):
+        return (
+            f"cannot parse {tok!r} at column {pos + 1}: a macro statement (Fanuc Custom Macro B "
+            "variables #…, [expressions], IF/WHILE/GOTO) — roboisf reads posted moves only; "
+            "post the program without macros (expanded), or export the moves from the CAM system"
+        )
+    return f"cannot parse {tok!r} at column {pos + 1} (expected address words like X10.5, G01)"
 
 
 #: Largest magnitude of a number in a program (10 km in mm): beyond it a typo, not a position.
@@ -295,6 +316,12 @@ class _State:
     pos: F64 = field(default_factory=lambda: np.full(3, np.nan))
 
 
+_NO_F = (
+    "feed move before any F word (a program posted without feeds: give its feed with "
+    "--feed MM/MIN, or put an F word on the first feed move)"
+)
+
+
 class Interpreter:
     """Runs the blocks of a G-code program (ISO or Sinumerik words) into :class:`CamMoves`.
 
@@ -313,6 +340,7 @@ class Interpreter:
         self.shift = np.zeros(3)  # active offset − reference offset, m
         self.m_codes: list[str] = []
         self.ignored: dict[str, list[int]] = {}
+        self.defaulted_feed: list[int] = []  # lines of feed moves that took options.feed
         self.tools: list[int] = []
         self.length_comp: list[int] = []
         self.offsets_used: list[str] = []
@@ -352,6 +380,12 @@ class Interpreter:
             self.moves.note_once(
                 "M codes ignored (spindle, coolant, tool change, stops, end): "
                 + " ".join(sorted(set(self.m_codes), key=lambda m: float(m[1:])))
+            )
+        if self.defaulted_feed and self.opt.feed is not None:
+            n = len(self.defaulted_feed)
+            self.moves.warnings.append(
+                f"{n} feed move(s) before any F word (first on line {self.defaulted_feed[0]}) "
+                f"take the feed given, {self.opt.feed * 60e3:g} mm/min"
             )
         for letter, lines in self.ignored.items():
             shown = ", ".join(str(x) for x in lines[:5]) + (" …" if len(lines) > 5 else "")
@@ -515,8 +549,8 @@ class Interpreter:
             st.pos = target
             return
         arc_motion = st.motion if st.motion in (2.0, 3.0) else None
-        if st.feed is None:
-            raise self.err("feed move before any F word", line)
+        if st.feed is None and (self.opt.feed is None or st.inverse_time):
+            raise self.err(_NO_F, line)
         unknown = np.isnan(target) | (np.isnan(st.pos) if arc_motion is not None else False)
         if np.any(unknown):
             missing = "".join(a for a, x in zip(_AXES, unknown, strict=True) if x)
@@ -535,9 +569,13 @@ class Interpreter:
             )
             if not math.isfinite(length):
                 raise self.err("G93 inverse-time move from an unknown position", line)
-            if "F" not in other:
+            if "F" not in other or st.feed is None:
                 raise self.err("G93 inverse-time feed needs an F word on every feed move", line)
             feed = length / (60.0 / st.feed) if length > 0 else st.feed * 1e-3 / 60
+        elif st.feed is None:
+            assert self.opt.feed is not None
+            feed = self.opt.feed  # the program has no F yet: the feed given (--feed)
+            self.defaulted_feed.append(line)
         else:
             feed = st.feed * st.scale / 60.0
         self.moves.add(pts, FEED, feed, line)
@@ -601,9 +639,11 @@ class Interpreter:
                     f"G53 G01 feed move with {ref}'s value unknown; give --work-offset {ref}=X,Y,Z",
                     line,
                 )
-            if self.st.feed is None:
-                raise self.err("feed move before any F word", line)
-            self.moves.add(pos, FEED, self.st.feed * self.st.scale / 60.0, line)
+            if self.st.feed is None and self.opt.feed is None:
+                raise self.err(_NO_F, line)
+            f = self.opt.feed if self.st.feed is None else self.st.feed * self.st.scale / 60.0
+            assert f is not None
+            self.moves.add(pos, FEED, f, line)
         else:
             self.moves.add(pos, RAPID, math.nan, line)
         self.st.pos = pos

@@ -11,7 +11,9 @@ Angles in the **controller's convention** (as logged; see ``docs/robot.md``), de
 
 Logs as controllers write them are read too (:func:`detect_joint_format`): any separator, decimal
 comma, a free-text header block, names in any case — ABB ``J1..J6``, KUKA ``A1..A6`` (also as in
-a KUKA trace's text export, ``AxisActPos A1 [°]``), ``q1..q6``, ``joint 1``/``axis 1`` — a time
+a KUKA trace's text export, ``AxisActPos A1 [°]``; FANUC ``J1..J6`` as ABB), Universal Robots'
+RTDE recordings (``timestamp actual_q_0 … actual_q_5``, blank-separated, s and rad by the RTDE
+specification), ``q1..q6``, ``joint 1``/``axis 1`` — a time
 column ``time``/``t``/``timestamp``/``Zeit``, units in the header names (``[deg]``, ``(rad)``,
 ``[°]``, ``[ms]``), a ``# units:`` line or given by the study. Unknown units are an error.
 A ``.parquet`` name is a Parquet joint log (:mod:`roboisf.io.logparquet`).
@@ -20,6 +22,7 @@ A ``.parquet`` name is a Parquet joint log (:mod:`roboisf.io.logparquet`).
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,6 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 from roboisf.errors import InputError
 from roboisf.io.atomic import atomic_write
 from roboisf.io.table import LogTable, format_rows, read_log_table, read_table, split_name_unit
+from roboisf.io.timestamps import repair_time
 from roboisf.io.units import log_unit_to_si, to_si
 
 __all__ = [
@@ -41,16 +45,32 @@ __all__ = [
 ]
 
 #: ``format`` values of a joint log (study ``[runs.X.joints] format``).
-JOINT_FORMATS = ("auto", "roboisf", "abb", "kuka", "generic", "columns")
+JOINT_FORMATS = ("auto", "roboisf", "abb", "fanuc", "kuka", "ur", "generic", "columns")
 _TIME = re.compile(r"time|t|zeit|timestamp|time stamp|sec|seconds|elapsed time")
 _PREFIX = {
     "abb": r"j|joint ?",
+    # FANUC exports name the axes J1..J6 as ABB does; the angles as logged (the pendant's, which
+    # the FANUC presets take: docs/robot.md)
+    "fanuc": r"j|joint ?",
     "kuka": r"a|axis ?|(?:.* )?a",  # A1, axis 1, "AxisActPos A1" (KUKA trace text export)
     "generic": r"q|j|a|joint ?|axis ?|(?:.* )?a",
 }
 
 
+#: Universal Robots' RTDE recorder (``record.py`` of UR's RTDE client, ``ur_rtde``'s
+#: ``RTDEReceiveInterface.startFileRecording``): ``timestamp`` [s] and ``actual_q_0..5`` [rad],
+#: units fixed by the RTDE specification
+_UR = {
+    "time": re.compile(r"timestamp"),
+    **{f"q{i}": re.compile(rf"actual q {i - 1}") for i in range(1, 7)},
+}
+#: the units a profile's format fixes (the file states none)
+_PROFILE_UNITS = {"ur": {"time": "s", "angle": "rad"}}
+
+
 def _joint_match(profile: str) -> dict[str, re.Pattern[str]]:
+    if profile == "ur":
+        return _UR
     pre = _PREFIX[profile]
     return {
         "time": _TIME,
@@ -64,11 +84,13 @@ JOINT_COLUMNS = ("time", "q1", "q2", "q3", "q4", "q5", "q6")
 
 @dataclass(frozen=True, eq=False)
 class JointLog:
-    """time : (N,) s, strictly increasing; q : (N, 6) rad (controller convention); path."""
+    """time : (N,) s, strictly increasing; q : (N, 6) rad (controller convention); path;
+    notes: what reading changed (``timestamps = "repair"``, :mod:`roboisf.io.timestamps`)."""
 
     time: F64
     q: F64
     path: Path | None = None
+    notes: tuple[str, ...] = ()
 
 
 def _is_roboisf(path: Path) -> bool:
@@ -105,8 +127,11 @@ def detect_joint_format(
     path: str | Path, *, fmt: str = "auto", columns: dict[str, str] | None = None
 ) -> tuple[str, dict[str, str], dict[str, str]]:
     """Which profile reads a joint log: (profile, canonical column → header cell, quantity →
-    unit declared by the file). Profiles: "parquet", "roboisf", "abb" (J1..J6), "kuka" (A1..A6,
-    KUKA trace text export), "generic" (q1..q6, joint/axis N), "columns" (``columns`` given).
+    unit declared by the file). Profiles: "parquet", "roboisf", "abb" and "fanuc" (J1..J6; auto
+    names a J1..J6 file "abb"), "kuka" (A1..A6,
+    KUKA trace text export), "ur" (Universal Robots RTDE recording: ``timestamp``,
+    ``actual_q_0..5``, s and rad), "generic" (q1..q6, joint/axis N), "columns" (``columns``
+    given).
 
     Raises
     ------
@@ -124,7 +149,8 @@ def detect_joint_format(
     t = _read_text_log(p, fmt, columns)
     profile = t[0]
     tab = t[1]
-    return profile, {c: tab.columns[j] for c, j in tab.col_index.items()}, _file_units(tab)
+    units = {**_PROFILE_UNITS.get(profile, {}), **_file_units(tab)}
+    return profile, {c: tab.columns[j] for c, j in tab.col_index.items()}, units
 
 
 def _read_text_log(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[str, LogTable]:
@@ -137,7 +163,9 @@ def _read_text_log(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[s
                 field="columns",
             )
         match = {k: re.compile(re.escape(split_name_unit(v)[0])) for k, v in columns.items()}
-        return "columns", read_log_table(p, match, req, what="joint log")
+        return "columns", read_log_table(
+            p, match, req, what="joint log", expected=", ".join(columns.values())
+        )
     if fmt in ("auto", "roboisf") and _is_roboisf(p):
         match = {k: re.compile(k) for k in JOINT_COLUMNS}
         return "roboisf", read_log_table(p, match, req, what="joint log")
@@ -147,7 +175,7 @@ def _read_text_log(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[s
             'time,q1,...,q6 (or set format = "auto")',
             file=p,
         )
-    order = ("abb", "kuka", "generic") if fmt in ("auto", "roboisf") else (fmt,)
+    order = ("abb", "kuka", "ur", "generic") if fmt in ("auto", "roboisf") else (fmt,)
     for name in order:
         try:
             return name, read_log_table(p, _joint_match(name), req, what="joint log")
@@ -156,7 +184,8 @@ def _read_text_log(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[s
                 raise
     raise InputError(
         "no joint-log format recognised: expected a header naming a time column (time, t, "
-        "timestamp, Zeit) and six joints (q1..q6, ABB J1..J6, KUKA A1..A6); for other names "
+        "timestamp, Zeit) and six joints (q1..q6, ABB/FANUC J1..J6, KUKA A1..A6, UR RTDE "
+        "actual_q_0..5); for other names "
         'give columns = {time = "…", q1 = "…", …} in the study',
         file=p,
     )
@@ -169,11 +198,13 @@ def read_joint_log(
     columns: dict[str, str] | None = None,
     time_unit: str | None = None,
     angle_unit: str | None = None,
+    timestamps: str = "refuse",
 ) -> JointLog:
     """Read a joint log into SI (errors name the file line); see the module docstring.
 
     Units: the file's (``# units:`` line, header names such as ``A1 [°]``) or the arguments;
-    neither, or both disagreeing, is an error.
+    neither, or both disagreeing, is an error. ``timestamps``: ``"refuse"`` a time that does not
+    strictly increase, or ``"repair"`` it (:mod:`roboisf.io.timestamps`; counted in ``notes``).
     """
     p = Path(path)
     if p.suffix.lower() == ".parquet":
@@ -184,8 +215,8 @@ def read_joint_log(
             raise InputError("time must increase strictly", file=p, field="time")
         return JointLog(time=t_si, q=q_si, path=p)
     if not (fmt in ("auto", "roboisf") and not columns and _is_roboisf(p)):
-        _, tab = _read_text_log(p, fmt, columns)
-        declared = _file_units(tab)
+        profile, tab = _read_text_log(p, fmt, columns)
+        declared = {**_PROFILE_UNITS.get(profile, {}), **_file_units(tab)}
         given = {"time": time_unit, "angle": angle_unit}
         f = {}
         for qty in ("time", "angle"):
@@ -206,12 +237,8 @@ def read_joint_log(
                 )
             f[qty] = log_unit_to_si(u, qty, file=p, field="units")
         time = tab.data["time"] * f["time"]
-        if time.size > 1:
-            bad = np.flatnonzero(np.diff(time) <= 0)
-            if bad.size:
-                raise tab.error("time must increase strictly", int(bad[0]) + 1, "time")
         q = np.column_stack([tab.data[f"q{i}"] for i in range(1, 7)]) * f["angle"]
-        return JointLog(time=time, q=q, path=p)
+        return _checked(time, q, p, timestamps, lambda m, r: tab.error(m, r, "time"))
     t = read_table(p, JOINT_COLUMNS, what="joint log")
     units = {"time": "s", "angle": "deg"}
     if "units" not in t.meta and angle_unit is None:
@@ -243,14 +270,18 @@ def read_joint_log(
     ft = log_unit_to_si(units["time"], "time", file=p, field="units.time")
     fa = log_unit_to_si(units["angle"], "angle", file=p, field="units.angle")
     time = t.column("time") * ft
-    if time.size > 1:
-        bad = np.flatnonzero(np.diff(time) <= 0)
-        if bad.size:
-            raise InputError(
-                "time must increase strictly", file=p, line=int(t.lines[bad[0] + 1]), field="time"
-            )
     q = np.stack([t.column(f"q{i}") for i in range(1, 7)], axis=1) * fa
-    return JointLog(time=time, q=q, path=p)
+    return _checked(time, q, p, timestamps, lambda m, r: t.error(m, r, "time"))
+
+
+def _checked(
+    time: F64, q: F64, p: Path, policy: str, error: Callable[[str, int], Exception]
+) -> JointLog:
+    """The joint log, its times under the timestamp ``policy``."""
+    if time.size < 2 or bool(np.all(np.diff(time) > 0)):
+        return JointLog(time=time, q=q, path=p)
+    time, q, rep = repair_time(time, q, policy, error=error)
+    return JointLog(time=time, q=q, path=p, notes=(rep.describe(),))
 
 
 def write_joint_log(

@@ -36,6 +36,7 @@ from roboisf.robot.singularity import sigma_min as _sigma_min
 
 __all__ = [
     "IKResult",
+    "NumericalIKWarning",
     "SingularityWarning",
     "ik_toolpath",
     "opw_ik",
@@ -47,6 +48,11 @@ F64 = NDArray[np.float64]
 
 class SingularityWarning(UserWarning):
     """A pose is close to a kinematic singularity (compliance there is huge and unreliable)."""
+
+
+class NumericalIKWarning(UserWarning):
+    """The robot has no closed-form IK: the toolpath is solved numerically (the message says why:
+    ``RobotModel.ik_note``)."""
 
 
 def opw_ik(
@@ -262,6 +268,13 @@ def ik_toolpath(
             field="branch",
         )
     if model.opw is None:
+        warnings.warn(
+            NumericalIKWarning(
+                model.ik_note
+                or f"robot {model.name!r} has no OPW geometry: IK along the toolpath is numerical"
+            ),
+            stacklevel=2,
+        )
         return _numerical_path(
             model, tip, T_bw, tool_rotation, match_q, any(chosen[1:]), singular_threshold,
             length_scale,

@@ -66,6 +66,11 @@ class RobotModel:
     opw : OPWGeometry or None — set for ortho-parallel robots; enables closed-form IK
     default_placement : (4, 4) float or None — a sensible ``T_base_work`` for this robot
     source : str — where the numbers come from
+    T_flange_link : (4, 4) float — the robot file's tip link in the model's flange frame:
+        identity, unless a URDF's tip link is not an OPW flange (:func:`roboisf.robot.load_urdf`
+        then puts the flange on axis 6); :meth:`with_tool` takes tools in the tip link's frame
+    ik_note : str — why the robot has no closed-form IK ("" when it has, or is a preset); said
+        whenever :func:`~roboisf.robot.ik.ik_toolpath` falls back to numerical IK
     backend : VJM engine of :meth:`compliance`, :meth:`deflection` and
         :func:`~roboisf.robot.vjm_batch`: ``"auto"`` (default: ``"numba"`` when numba is
         installed, else ``"numpy"``), ``"numba"`` (fused compiled kernel, install
@@ -84,6 +89,8 @@ class RobotModel:
     source: str = ""
     stiffness_source: str = ""
     backend: str = "auto"
+    T_flange_link: F64 = field(default_factory=lambda: np.eye(4))
+    ik_note: str = ""
 
     def __post_init__(self) -> None:
         vjm_kernel.check_backend(self.backend)
@@ -106,6 +113,9 @@ class RobotModel:
         T = _ro(self.T_flange_tip, (4, 4), "T_flange_tip")
         _check_rigid(T, "T_flange_tip")
         object.__setattr__(self, "T_flange_tip", T)
+        L = _ro(self.T_flange_link, (4, 4), "T_flange_link")
+        _check_rigid(L, "T_flange_link")
+        object.__setattr__(self, "T_flange_link", L)
         if self.opw is not None:
             ref = chain_from_opw(self.opw)
             if np.max(np.abs(ref.F - self.chain.F)) > 1e-12:
@@ -117,8 +127,10 @@ class RobotModel:
 
     # ------------------------------------------------------------------ construction
     def with_tool(self, T_flange_tip: ArrayLike) -> RobotModel:
-        """A copy with the tool tip at ``T_flange_tip`` (4, 4) in the flange frame (m)."""
-        return replace(self, T_flange_tip=np.asarray(T_flange_tip, dtype=float))
+        """A copy with the tool tip at ``T_flange_tip`` (4, 4) in the flange frame (m) — the
+        robot file's tip link (:attr:`T_flange_link`; the flange itself for presets)."""
+        T = self.T_flange_link @ np.asarray(T_flange_tip, dtype=float)
+        return replace(self, T_flange_tip=T)
 
     def with_stiffness(self, K: ArrayLike, source: str = "user") -> RobotModel:
         """A copy with joint stiffness ``K`` (6,) N·m/rad."""

@@ -61,17 +61,23 @@ def list_robots() -> list[str]:
     )
 
 
-def load_robot(name_or_path: str | Path) -> RobotModel:
+def load_robot(name_or_path: str | Path, *, tip_link: str | None = None) -> RobotModel:
     """Load a preset by name (see :func:`list_robots`), a robot TOML file, or a URDF file.
 
-    URDF needs the optional extra ``roboisf[urdf]`` (pinocchio).
+    ``tip_link``: the URDF link that is the arm's flange (default: ``tool0``/``flange``, else the
+    link behind the most revolute joints; :func:`roboisf.robot.urdf.load_urdf`); only for a URDF.
     """
     s = str(name_or_path)
     p = Path(s)
     if p.suffix.lower() == ".urdf":
         from roboisf.robot.urdf import load_urdf
 
-        return load_urdf(p)
+        return load_urdf(p, tip_link)
+    if tip_link is not None:
+        raise InputError(
+            f"--tip-link names a link of a URDF robot; {s!r} is not a .urdf file",
+            field="--tip-link",
+        )
     if p.suffix.lower() == ".toml" or p.exists():
         return robot_from_dict(_read_toml(p, "robot"), file=p)
     known = list_robots()

@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 import warnings
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -42,6 +42,36 @@ __all__ = ["UrdfArm", "load_urdf", "read_urdf_arm", "to_urdf"]
 F64 = NDArray[np.float64]
 
 _TIP_NAMES = ("tool0", "flange")
+#: Largest rounding [rad] of a URDF angle that ``snap`` undoes: an ``rpy`` angle this close to a
+#: multiple of 15° (π/12), or an axis component this close to 0 or ±1, is taken as that value —
+#: any angle written to 3 decimals (``1.571``, ``3.142``) or more (``3.1415926``); 1e-3 rad moves a
+#: point 1 m away by 1 mm, and the model says by how much its FK moved.
+SNAP_TOL = 1e-3
+
+
+def _snap_rpy(v: F64, where: str, notes: list[str]) -> F64:
+    out = v.copy()
+    for i, a in enumerate(v):
+        k = round(float(a) / (math.pi / 12))
+        d = float(a) - k * math.pi / 12
+        if 0 < abs(d) <= SNAP_TOL:
+            out[i] = k * math.pi / 12
+            notes.append(f"{where} rpy[{i}] {a:.10g} → {k * 15}° ({d:+.2g} rad)")
+    return out
+
+
+def _snap_axis(v: F64, where: str, notes: list[str]) -> F64:
+    n = float(np.linalg.norm(v))
+    if n == 0:
+        return v
+    u = v / n
+    small = (np.abs(u) > 0) & (np.abs(u) <= SNAP_TOL)
+    if small.any():
+        ax = " ".join(f"{c:g}" for c in v)
+        notes.append(f"{where} axis {ax} → components {np.flatnonzero(small).tolist()} = 0")
+        u = np.where(small, 0.0, u)
+        return u / np.linalg.norm(u)
+    return v
 
 
 def _align_z(axis: F64) -> F64:
@@ -108,6 +138,8 @@ class UrdfArm:
     tip_frame : str
     skipped : list[str] — joints off the base→tip path (passive/mimic branches), ignored
     name : str — the URDF's robot name
+    snapped : list[str] — angles and axis components moved to the value they round (read with
+        ``snap=True``): ``joint 'j' rpy[0] 3.1415926 → 180°``
     """
 
     chain: Chain
@@ -117,10 +149,16 @@ class UrdfArm:
     tip_frame: str
     skipped: list[str]
     name: str
+    snapped: list[str] = field(default_factory=list)
 
 
-def read_urdf_arm(path: str | Path, tip_frame: str | None = None) -> UrdfArm:
-    """Read the base→tip 6R chain of a URDF (see the module docstring)."""
+def read_urdf_arm(path: str | Path, tip_frame: str | None = None, *, snap: bool = False) -> UrdfArm:
+    """Read the base→tip 6R chain of a URDF (see the module docstring).
+
+    ``snap``: undo the rounding of angles written with few decimals (:data:`SNAP_TOL`), each
+    change listed in :attr:`UrdfArm.snapped`.
+    """
+    snapped: list[str] = []
     p = Path(path)
     if not p.is_file():
         raise InputError("URDF file not found", file=p)
@@ -147,6 +185,8 @@ def read_urdf_arm(path: str | Path, tip_frame: str | None = None) -> UrdfArm:
         rpy = _floats(
             None if org is None else org.get("rpy"), 3, (0, 0, 0), f"joint {name!r} origin rpy", p
         )
+        if snap:
+            rpy = _snap_rpy(rpy, f"joint {name!r}", snapped)
         M = np.eye(4)
         M[:3, :3] = _rpy(*rpy)
         M[:3, 3] = xyz
@@ -154,6 +194,8 @@ def read_urdf_arm(path: str | Path, tip_frame: str | None = None) -> UrdfArm:
         axis = _floats(
             None if ax_el is None else ax_el.get("xyz"), 3, (1, 0, 0), f"joint {name!r} axis", p
         )
+        if snap:
+            axis = _snap_axis(axis, f"joint {name!r}", snapped)
         lim = el.find("limit")
         lo = float(lim.get("lower", "nan")) if lim is not None else math.nan
         hi = float(lim.get("upper", "nan")) if lim is not None else math.nan
@@ -175,19 +217,23 @@ def read_urdf_arm(path: str | Path, tip_frame: str | None = None) -> UrdfArm:
     by_child = {j.child: j for j in joints.values()}
     if tip_frame is None:
         tip_frame = next((n for n in _TIP_NAMES if n in links), None)
-        if tip_frame is None:  # the leaf reached through the most revolute joints
-            leaves = [ln for ln in links if ln not in {j.parent for j in joints.values()}]
-
-            def depth(link: str) -> tuple[int, int]:
+        if tip_frame is None:
+            # the link reached through the most revolute joints (and then the deepest) with only
+            # revolute and fixed joints on the way: a gripper's fingers (prismatic) or a mimic
+            # branch is not the arm's end
+            def depth(link: str) -> tuple[int, int] | None:
                 k = n = 0
                 while link in by_child and n <= len(joints):
                     j = by_child[link]
-                    k += j.type in ("revolute", "continuous") and j.mimic is None
+                    if j.type not in ("revolute", "continuous", "fixed") or j.mimic is not None:
+                        return None
+                    k += j.type != "fixed"
                     n += 1
                     link = j.parent
                 return k, n
 
-            tip_frame = max(leaves, key=depth) if leaves else None
+            ranked = [(d, ln) for ln in links if (d := depth(ln)) is not None]
+            tip_frame = max(ranked)[1] if ranked else None
     if tip_frame is None or tip_frame not in links:
         raise InputError(f"frame {tip_frame!r} not in URDF; links: {', '.join(links)}", file=p)
     path_joints: list[_Joint] = []
@@ -207,7 +253,8 @@ def read_urdf_arm(path: str | Path, tip_frame: str | None = None) -> UrdfArm:
         if j.type not in ("revolute", "continuous"):
             raise InputError(
                 f"joint {j.name!r} ({j.type}) lies between the base and {tip_frame!r}; only "
-                "revolute joints are supported there",
+                "revolute joints are supported there: name the arm's flange link with "
+                "--tip-link",
                 file=p,
             )
         if j.mimic is not None:
@@ -218,9 +265,14 @@ def read_urdf_arm(path: str | Path, tip_frame: str | None = None) -> UrdfArm:
             )
         active.append(j)
     if len(active) != 6:
+        what = (
+            f"a {len(active)}-joint arm: roboisf models 6-joint arms (6R) only"
+            if len(active) > 6
+            else "is the tip link right? name the arm's flange link with --tip-link"
+        )
         raise InputError(
             f"expected 6 actuated revolute joints between the base and {tip_frame!r}, found "
-            f"{len(active)} ({', '.join(j.name for j in active)})",
+            f"{len(active)} ({', '.join(j.name for j in active)}): {what}",
             file=p,
         )
     # F_0 … F_6 with every joint axis on its local z
@@ -260,6 +312,34 @@ def read_urdf_arm(path: str | Path, tip_frame: str | None = None) -> UrdfArm:
         tip_frame=tip_frame,
         skipped=skipped,
         name=root.get("name", p.stem),
+        snapped=snapped,
+    )
+
+
+def _flanges_on_axis6(chain: Chain) -> list[tuple[Chain, F64]]:
+    """The chain with its tip frame moved to an OPW flange — origin on axis 6 where the tip's
+    origin projects, z along axis 6 one way or the other — and the tip frame in that flange
+    frame (a constant: both ride on link 6)."""
+    F6 = chain.F[6]  # tip in the joint-6 frame, whose z is axis 6
+    out = []
+    for s in (1.0, -1.0):
+        Fl = np.eye(4)
+        Fl[:3, :3] = np.diag([1.0, s, s])  # z along ±axis 6 (a half turn about x for −)
+        Fl[2, 3] = F6[2, 3]
+        F = chain.F.copy()
+        F[6] = Fl
+        out.append((Chain(F, chain.sign, chain.offset), np.linalg.inv(Fl) @ F6))
+    return out
+
+
+def _fk_gap(a: Chain, b: Chain, q_min: F64, q_max: F64, n: int = 200) -> float:
+    """Largest tip position difference [m] of two chains at random configurations."""
+    from roboisf.robot.kinematics import chain_fk
+
+    rng = np.random.default_rng(1)
+    q = rng.uniform(np.maximum(q_min, -2 * np.pi), np.minimum(q_max, 2 * np.pi), (n, 6))
+    return float(
+        np.max(np.linalg.norm(chain_fk(a, q)[:, :3, 3] - chain_fk(b, q)[:, :3, 3], axis=1))
     )
 
 
@@ -267,14 +347,26 @@ def load_urdf(path: str | Path, tip_frame: str | None = None, *, opw: bool = Tru
     """A :class:`RobotModel` of the 6R arm of a URDF.
 
     ``tip_frame``: the URDF link used as the flange (default ``tool0``/``flange`` if present,
-    else the leaf link behind the most revolute joints, the deepest of those). With ``opw``
-    (default) the chain is re-expressed as an OPW robot when its structure fits
-    (:func:`roboisf.robot.opw_fit.fit_opw`: parameters, signs and offsets, accepted only when FK
-    agrees to 1e-9 m / rad at random configurations): closed-form IK and the compiled kernels
-    then apply. Otherwise the model has no OPW geometry and
-    :func:`~roboisf.robot.ik.ik_toolpath` uses the numerical IK.
+    else the link behind the most revolute joints with only revolute and fixed joints on its way,
+    the deepest of those). With ``opw`` (default) the chain is re-expressed as an OPW robot when
+    its structure fits (:func:`roboisf.robot.opw_fit.fit_opw`: parameters, signs and offsets,
+    accepted only when FK agrees to 1e-9 m / rad at random configurations): closed-form IK and
+    the compiled kernels then apply. Two things a real URDF does that the 1e-9 test refuses are
+    undone, and said in the model's ``source``:
+
+    * **angles rounded** in the file (``rpy="3.1415926 -1.570796 0"``): read again with every
+      ``rpy`` angle within :data:`SNAP_TOL` (1e-3 rad) of a multiple of 15° snapped to it (and
+      axis components within it of 0 set to 0); the FK of the snapped chain is compared with the
+      file's and the largest tip difference stated;
+    * **a tip link that is not an OPW flange** (its z not along axis 6, e.g. x along it): the
+      flange is put on axis 6 (the tip link's origin projected on it, z along it) and the tip
+      link becomes a constant transform on it (``RobotModel.T_flange_link``): tools given to
+      :meth:`~RobotModel.with_tool` stay in the tip link's frame.
+
+    Otherwise the model has no OPW geometry, :func:`~roboisf.robot.ik.ik_toolpath` uses the
+    numerical IK and ``RobotModel.ik_note`` says why (a warning repeats it at every IK).
     """
-    from roboisf.robot.opw_fit import fit_opw
+    from roboisf.robot.opw_fit import explain_opw
 
     p = Path(path)
     arm = read_urdf_arm(p, tip_frame)
@@ -283,12 +375,66 @@ def load_urdf(path: str | Path, tip_frame: str | None = None, *, opw: bool = Tru
         src += f"; joints off the tool's chain skipped: {', '.join(arm.skipped)}"
     src += ")"
     chain, g = arm.chain, None
+    T_fl = np.eye(4)
+    note = ""
     if opw:
-        fit = fit_opw(arm.chain, arm.q_min, arm.q_max)
-        if fit is not None:
-            chain, g = fit
+        fit, why = explain_opw(arm.chain, arm.q_min, arm.q_max)
+        tried = [arm]
+        if fit is None:
+            snapped = read_urdf_arm(p, arm.tip_frame, snap=True)
+            if snapped.snapped:
+                tried.append(snapped)
+        for a in tried:
+            cands: list[tuple[Chain, F64]] = [(a.chain, np.eye(4))]
+            cands += [
+                c
+                for c in _flanges_on_axis6(a.chain)
+                if not np.allclose(c[1], np.eye(4), atol=1e-12)
+            ]
+            for k, (ch0, T) in enumerate(cands):
+                f, w = explain_opw(ch0, a.q_min, a.q_max)
+                if f is None:
+                    if k == 0 and a is not arm:
+                        why = w  # the snapped chain's reason: its structure, not the rounding
+                    continue
+                fit, chain, g, T_fl = f, f[0], f[1], T
+                if a is not arm:
+                    gap = _fk_gap(a.chain, arm.chain, arm.q_min, arm.q_max)
+                    src += (
+                        f"; angles rounded in the file snapped to their exact values (within "
+                        f"{SNAP_TOL:g} rad: {'; '.join(a.snapped)}); FK moves by ≤ "
+                        f"{gap * 1e6:.3g} µm at the tip link"
+                    )
+                if T is not cands[0][1]:
+                    src += (
+                        f"; the tip link {arm.tip_frame!r} is not an OPW flange (its z is not "
+                        "along axis 6): the flange is taken on axis 6, the tip link fixed on it"
+                    )
+                break
+            if g is not None:
+                break
+        if g is None:
+            note = (
+                f"closed-form IK not available for {p.name} (tip {arm.tip_frame}): {why}; IK "
+                "along a toolpath is numerical (slower; the start configuration only by "
+                "joints, no confdata or S/T)"
+            )
+            src += "; " + note
+        else:
             src += "; OPW parameters extracted, FK-checked"
-    return RobotModel(name=p.stem, chain=chain, q_min=arm.q_min, q_max=arm.q_max, opw=g, source=src)
+    else:
+        note = f"closed-form IK not tried for {p.name} (opw=False); IK is numerical"
+    return RobotModel(
+        name=p.stem,
+        chain=chain,
+        q_min=arm.q_min,
+        q_max=arm.q_max,
+        opw=g,
+        source=src,
+        T_flange_tip=T_fl,
+        T_flange_link=T_fl,
+        ik_note=note,
+    )
 
 
 def to_urdf(model: RobotModel, name: str | None = None) -> str:

@@ -17,7 +17,7 @@ Library choices (one per format, for memory and robustness):
 * **E57** — ``pye57`` (optional extra ``roboisf[scan-formats]``): every scan in the file, with
   its pose applied (points in the file's common frame). E57 coordinates are metres by the
   standard (ASTM E2807), so the declared ``unit`` does not apply and the cloud is in m.
-* **LAS/LAZ** — ``laspy`` (same extra; LAZ also needs its ``lazrs`` backend): the scaled
+* **LAS/LAZ** — ``laspy`` (same extra, with its ``lazrs`` backend for LAZ): the scaled
   coordinates, in the declared ``unit`` (LAS carries no length unit of its own).
 * **STL/OBJ** (and PLY meshes as nominals) — ``trimesh``: ascii and binary STL, OBJ with any
   polygons (triangulated), merged vertices. Scans exported as meshes give their vertices, or
@@ -635,7 +635,11 @@ def _read_las(path: Path) -> F64:
         las = laspy.read(str(path))  # type: ignore[attr-defined]
     except Exception as e:  # laspy.LaspyException, or a missing LAZ backend
         msg = str(e)
-        hint = " (LAZ needs a backend: pip install lazrs)" if "laz" in msg.lower() else ""
+        hint = (
+            ' (LAZ needs a backend: pip install "roboisf[scan-formats]", which brings lazrs)'
+            if "laz" in msg.lower()
+            else ""
+        )
         raise InputError(f"not a readable LAS/LAZ file: {msg}{hint}", file=path) from None
     return np.column_stack(
         [
@@ -702,6 +706,16 @@ def check_units(points: F64, part_size: float, *, unit: str, source: str | Path 
     factor = LENGTH_UNITS[unit.strip()]
     # the unit that brings the extent closest to the part size
     best = min(LENGTH_UNITS, key=lambda u: abs(math.log(ratio * LENGTH_UNITS[u] / factor)))
+    if source is not None and SCAN_FORMATS.get(Path(source).suffix.lower()) == "e57":
+        # E57 coordinates are metres by the standard: --unit / scan_unit is not applied
+        raise InputError(
+            f"scan extent is {extent * 1e3:.6g} mm, {ratio:.3g}× the part's size "
+            f"({part_size * 1e3:.4g} mm); E57 coordinates are metres by the standard (--unit "
+            f"does not apply), so the file's numbers look like {best!r}: re-export the scan in "
+            "metres, or check that the part and the scan are the same object",
+            file=source,
+            field="unit",
+        )
     raise InputError(
         f"scan extent is {extent * 1e3:.6g} mm read as {unit!r}, {ratio:.3g}× the part's size "
         f"({part_size * 1e3:.4g} mm); the file is probably in {best!r} — pass --unit {best}",

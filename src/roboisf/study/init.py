@@ -109,20 +109,35 @@ def _force_log(p: Path) -> _Result:
         units, shown = _units_keys(needed, declared, _FORCE_TODO)
     given = {"time": "s", "force": "N", "moment": "N*m"}  # placeholders to count samples only
     frame = None if profile == "roboisf" else "sensor"
-    try:
-        log = read_force_log(p, frame=frame, fmt=profile if profile != "parquet" else "auto")
-    except InputError as e:
-        if "not declared" not in e.message:
-            raise
-        # read it once with placeholder units to report its size; the study says the real ones
-        log = read_force_log(
-            p,
-            frame="sensor",
-            fmt=profile if profile != "parquet" else "auto",
-            time_unit=None if "time" in declared or profile == "ati" else given["time"],
-            force_unit=None if "force" in declared else given["force"],
-            moment_unit=None if "moment" in declared or not has_m else given["moment"],
-        )
+    policy = "refuse"
+    for _ in range(2):
+        try:
+            try:
+                log = read_force_log(
+                    p,
+                    frame=frame,
+                    fmt=profile if profile != "parquet" else "auto",
+                    timestamps=policy,
+                )
+            except InputError as e:
+                if "not declared" not in e.message:
+                    raise
+                # read it once with placeholder units to report its size; the study says the
+                # real ones
+                log = read_force_log(
+                    p,
+                    frame="sensor",
+                    fmt=profile if profile != "parquet" else "auto",
+                    time_unit=None if "time" in declared or profile == "ati" else given["time"],
+                    force_unit=None if "force" in declared else given["force"],
+                    moment_unit=None if "moment" in declared or not has_m else given["moment"],
+                    timestamps=policy,
+                )
+            break
+        except InputError as e:
+            if policy == "repair" or not _dirty_clock(e):
+                raise
+            policy = "repair"  # drafted as such, said in the details and the notes
     details = {
         "profile": profile,
         "samples": str(len(log)),
@@ -140,7 +155,16 @@ def _force_log(p: Path) -> _Result:
         keys["format"] = profile
     if units:
         keys["units"] = units
+    if log.notes:
+        details["notes"] = "; ".join(log.notes)
+    if policy == "repair":
+        keys["timestamps"] = "repair"
     return f"force log ({profile})", details, keys
+
+
+def _dirty_clock(e: InputError) -> bool:
+    """A log refused only for times that do not strictly increase (a few repairable rows)."""
+    return e.message.startswith("time must strictly increase")
 
 
 _JOINT_TODO = {
@@ -156,12 +180,21 @@ def _joint_log(p: Path) -> _Result:
     if profile == "roboisf" and "angle" not in declared:
         raise InputError("missing '# units: time=s angle=deg' line", file=p, field="units")
     units, shown = _units_keys(["time", "angle"], declared, _JOINT_TODO)
-    log = read_joint_log(
-        p,
-        fmt=profile if profile != "parquet" else "auto",
-        time_unit=None if "time" in declared else "s",
-        angle_unit=None if "angle" in declared else "rad",
-    )
+    policy = "refuse"
+    for _ in range(2):
+        try:
+            log = read_joint_log(
+                p,
+                fmt=profile if profile != "parquet" else "auto",
+                time_unit=None if "time" in declared else "s",
+                angle_unit=None if "angle" in declared else "rad",
+                timestamps=policy,
+            )
+            break
+        except InputError as e:
+            if policy == "repair" or not _dirty_clock(e):
+                raise
+            policy = "repair"
     if "angle" in units:
         # undeclared angles: values beyond 2π rad (with margin) can only be degrees
         big = float(np.abs(log.q).max())
@@ -185,6 +218,10 @@ def _joint_log(p: Path) -> _Result:
         keys["format"] = profile
     if units:
         keys["units"] = units
+    if log.notes:
+        details["notes"] = "; ".join(log.notes)
+    if policy == "repair":
+        keys["timestamps"] = "repair"
     return f"joint log ({profile})", details, keys
 
 
@@ -300,6 +337,13 @@ def detect_files(folder: str | Path) -> list[DetectedFile]:
     return out
 
 
+def _repair_note(key: str, f: DetectedFile) -> str:
+    return (
+        f'{key}.timestamps = "repair": {f.path.name}\'s time does not strictly increase '
+        f"({f.details.get('notes', '')}); check the logger's clock, or remove the key to refuse"
+    )
+
+
 def _role(name: str) -> str | None:
     n = name.lower()
     if "cnc" in n:
@@ -373,6 +417,13 @@ def draft_study(
     data: dict[str, Any] = {"study": {"name": root.name, "description": "drafted by study init"}}
     # part
     part_file = Path(part) if part is not None else None
+    if part_file is not None and not part_file.is_file():
+        raise InputError(
+            f"no part file here (looked for {part_file.resolve()}; a path relative to the "
+            "working folder, as typed)",
+            file=part_file,
+            field="--part",
+        )
     if part_file is None and len(by.get("part", [])) == 1:
         part_file = by["part"][0].path
     if part_file is not None:
@@ -415,9 +466,26 @@ def draft_study(
     else:
         data["tool_holder"] = {"rigid": True}
         notes.append("no holder compliance JSON: the holder is taken as rigid")
-    # robot
+    # robot: a preset by name, or a robot file — found where the user typed it (the working
+    # folder) and written relative to the study, as every study path is
+    model: str = _todo("a preset (roboisf robot list) or file")
+    if robot is not None:
+        from roboisf.robot import list_robots
+
+        model = robot
+        if robot not in list_robots():
+            rp = Path(robot)
+            if not rp.is_file():
+                raise InputError(
+                    f"{robot!r} is neither a preset ({', '.join(list_robots())}) nor a robot "
+                    f"file (looked for {rp.resolve()}, relative to the working folder)",
+                    field="--robot",
+                )
+            model = rel(rp)
+            if model != robot:
+                notes.append(f"robot.model = {model!r}: {robot} relative to the study folder")
     rb: dict[str, Any] = {
-        "model": robot if robot is not None else _todo("a preset (roboisf robot list) or file"),
+        "model": model,
         "placement": _pose(placement, "[x, y, z, roll, pitch, yaw] of the work frame, mm/deg"),
     }
     if flange_to_tip is not None:
@@ -452,6 +520,8 @@ def draft_study(
             if j is not None:
                 r["joints"] = {"file": rel(j.path), **j.keys} if j.keys else rel(j.path)
                 todo += [f"runs.{run}.joints.units.{q}" for q in _todos(j.keys.get("units"))]
+                if j.keys.get("timestamps") == "repair":
+                    notes.append(_repair_note(f"runs.{run}.joints", j))
             th = pick("thickness", run)
             if th is not None:
                 r["thickness"] = rel(th.path)
@@ -467,6 +537,8 @@ def draft_study(
         if fl is not None and fl.keys:
             r["forces"].update(fl.keys)
             todo += [f"runs.{run}.forces.units.{q}" for q in _todos(fl.keys.get("units"))]
+            if fl.keys.get("timestamps") == "repair":
+                notes.append(_repair_note(f"runs.{run}.forces", fl))
         if fl is None:
             todo.append(f"runs.{run}.forces.file")
         if pose is None:

@@ -106,6 +106,7 @@ def read_study_force_log(study: Study, run: RunSpec) -> ForceLog:
         length_unit=u.get("length"),
         fmt="auto" if f.format == "columns" else f.format,
         columns=f.columns,
+        timestamps=f.timestamps,
     )
 
 

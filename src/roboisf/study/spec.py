@@ -147,6 +147,8 @@ class ForceSensorSpec:
     #: ``"joint"``: the log's clock is the joint log's (one controller logs both); ``"own"``: a
     #: separate logger, aligned by its force signature against the joint-log timing
     clock: Literal["joint", "own"] = "joint"
+    #: times that do not strictly increase: "refuse" or "repair" (``roboisf.io.timestamps``)
+    timestamps: str = "refuse"
 
 
 @dataclass(frozen=True)
@@ -169,6 +171,8 @@ class RunSpec:
     joints_format: str = "auto"
     joints_columns: dict[str, str] | None = None
     joints_units: dict[str, str] | None = None
+    #: the joint log's timestamp policy: "refuse" | "repair" (``roboisf.io.timestamps``)
+    joints_timestamps: str = "refuse"
     #: how the logs are matched to the toolpath (roboisf.sync): ``"time"``, ``"position"``
     #: (the default with a joint log) or ``"force"``
     sync: Literal["time", "position", "force"] = "time"
@@ -388,6 +392,7 @@ def _forces(c: _Collector, root: Path, t: Any, key: str, machine: str) -> ForceS
     fmt, cols, units = _log_keys(c, t, key, FORCE_FORMATS, ("time", "force", "moment", "length"))
     tare, mass, cog = _conditioning(c, t, key, mount)
     clock = c.choice(t, key, "clock", ("joint", "own"), default="joint")
+    ts = _timestamps(c, t, key)
     if (
         f is None
         or pose is None
@@ -410,10 +415,18 @@ def _forces(c: _Collector, root: Path, t: Any, key: str, machine: str) -> ForceS
         mass,
         cog,
         clock,  # type: ignore[arg-type]
+        ts,
     )
 
 
-_LOG_KEYS = ("format", "columns", "units")
+def _timestamps(c: _Collector, t: dict[str, Any], key: str) -> str:
+    """A log's ``timestamps`` policy (``roboisf.io.timestamps``)."""
+    from roboisf.io.timestamps import TIME_POLICIES
+
+    return c.choice(t, key, "timestamps", TIME_POLICIES, default="refuse") or "refuse"
+
+
+_LOG_KEYS = ("format", "columns", "units", "timestamps")
 _COND_KEYS = ("tare", "tool_mass", "tool_cog")
 
 
@@ -681,12 +694,16 @@ def load_study(path: str | Path) -> Study:
             c.add("missing table", f"{key}.forces")
         else:
             fs = _forces(c, root, r["forces"], f"{key}.forces", machine or "cnc")
-        j_fmt, j_cols, j_units = "auto", None, None
+        j_fmt, j_cols, j_units, j_ts = "auto", None, None, "refuse"
         if isinstance(r.get("joints"), dict):
             jt = r["joints"]
             jkey = f"{key}.joints"
             for k in sorted(set(jt) - {"file", *_LOG_KEYS}):
-                c.add("unknown key; expected file, format, columns, units", f"{jkey}.{k}")
+                c.add(
+                    "unknown key; expected file, format, columns, units, timestamps",
+                    f"{jkey}.{k}",
+                )
+            j_ts = _timestamps(c, jt, jkey)
             from roboisf.io.jointlog import JOINT_FORMATS
 
             joints = c.path(root, jt, jkey, "file")
@@ -713,6 +730,7 @@ def load_study(path: str | Path) -> Study:
                 joints_format=j_fmt,
                 joints_columns=j_cols,
                 joints_units=j_units,
+                joints_timestamps=j_ts,
                 sync=sync,  # type: ignore[arg-type]
             )
     machines = [r.get("machine") for r in rt.values() if isinstance(r, dict)]

@@ -149,7 +149,26 @@ def align_run(
             field="sync",
         )
     tip = cell.robot.tip_positions(joint_log.q, check_limits=False, T_base_work=cell.T_base_work)
-    j = align_by_position(joint_log.time, tip, tp, file=joint_log.path)
+    try:
+        j = align_by_position(joint_log.time, tip, tp, file=joint_log.path)
+    except InputError as e:
+        # the program's own import may know why: a ball-centre program read as tips (or the
+        # reverse) puts the path a ball radius off, which the logged tip then misses
+        warned = tp.meta.get("warnings", [])
+        said = [
+            w
+            for w in (warned if isinstance(warned, list) else [])
+            if isinstance(w, str) and "does the program name" in w
+        ]
+        if not said:
+            raise
+        raise InputError(
+            f"{e.message}. The toolpath's import warned: {said[0]} (set runs.{run.name}."
+            'toolpath_point = "center" or "tip" to match the program)',
+            file=e.file,
+            line=e.line,
+            field=e.field,
+        ) from None
     if run.forces.clock == "joint":
         # the force log's clock is the joint log's, shifted by time_offset (0 for one controller;
         # the meaning time_offset had before alignment: joints at t, forces at t + time_offset)

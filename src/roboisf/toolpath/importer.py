@@ -25,11 +25,10 @@ point against the nominal part (docs/toolpaths.md, "Importing a CAM program"):
    the edge, the direction from the edge to the centre); the wall angle is ``acos(n_z)``. The gap
    ``|C − P| − R`` (0 for a path that follows the nominal exactly) is reported; a large one
    usually means the wrong ``--point`` or ball diameter.
-5. **Laps**: if at least half of the forming segments keep their z (to ``Z_TOL``), the path is a
-   z-level (step-down) path and a lap is a run of points at one z; the points of a ramp between
-   two levels belong to the lap below. Otherwise it is a spiral: a new lap starts each full turn
-   of the tip's polar angle about the work z axis, and a final turn at constant depth (a closing
-   contour) stays in the last lap.
+5. **Laps** (:mod:`roboisf.toolpath.laps`): levels of a z-level path — runs that turn at least
+   half a turn about the part's axis with z in a band (exact, or wiggling by less than a quarter
+   of the step) and no trend; a ramp belongs to the level below — or else turns of a spiral about
+   the part's axis (the centre of its bounding box), a closing contour staying in the last lap.
 6. **Times** from the feeds: each feed move takes its length / its feed (G93: 1/F min), rapids
    take their length / ``rapid_rate`` or no time when no rapid rate is given; dwells are not
    counted. A point's time is the program time since the first forming point, so time spent in
@@ -52,6 +51,7 @@ from numpy.typing import NDArray
 from roboisf.errors import InputError
 from roboisf.io.cam import DEFAULT_CHORD_TOL, FEED, CamMoves, ReadOptions
 from roboisf.parts.base import Part
+from roboisf.toolpath.laps import detect_laps
 from roboisf.toolpath.toolpath import Toolpath
 
 if TYPE_CHECKING:
@@ -85,8 +85,8 @@ FORMAT_SUFFIXES = {
 SHEET_TOL = 1e-6
 #: Consecutive points closer than this are one point [m].
 MERGE_TOL = 1e-6
-#: Two points are on one z level within this [m] (the 1 µm resolution of programs).
-Z_TOL = 1.5e-6
+#: Feed [m/s] of a point list when none is given (750 mm/min).
+POINT_LIST_FEED = 750.0 / 60e3
 #: Without ``spacing``, forming segments longer than this [m] are reported.
 LONG_SEGMENT = 5e-3
 #: A gap |C − P| − R above this [m] is reported.
@@ -108,7 +108,8 @@ class ImportOptions:
     work_offsets : dict[str, (3,) float m] — work-offset values (see ``ReadOptions``)
     ignore_words : frozenset[str] — extra-axis letters to ignore with a warning
     units : str or None — length unit of a point list (``mm`` default, ``m``, ``in``)
-    feed : float, m/s — feed of a point list (it has none)
+    feed : float or None, m/s — feed of a point list (it has none; default 750 mm/min), and of
+        a program's feed moves before its first F word (a program without F; default: refused)
     origin : (3,) float, m — where roboisf's work origin (the blank centre on the sheet top) is in
         the program's coordinates; subtracted from every point (default: the program zero is it)
     """
@@ -121,7 +122,7 @@ class ImportOptions:
     work_offsets: dict[str, tuple[float, float, float]] = field(default_factory=dict)
     ignore_words: frozenset[str] = frozenset()
     units: str | None = None
-    feed: float = 750.0 / 60e3
+    feed: float | None = None
     origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
@@ -135,7 +136,7 @@ class ImportOptions:
         for name, v in (("spacing", self.spacing), ("rapid_rate", self.rapid_rate)):
             if v is not None and not (math.isfinite(v) and v > 0):
                 raise InputError(f"must be > 0, got {v:g}", field=name)
-        if not (math.isfinite(self.feed) and self.feed > 0):
+        if self.feed is not None and not (math.isfinite(self.feed) and self.feed > 0):
             raise InputError(f"must be > 0, got {self.feed * 60e3:g} mm/min", field="feed")
         if len(self.origin) != 3 or not all(math.isfinite(v) for v in self.origin):
             raise InputError(f"expected 3 finite numbers, got {self.origin!r}", field="origin")
@@ -145,6 +146,7 @@ class ImportOptions:
             chord_tol=self.chord_tol,
             work_offsets=dict(self.work_offsets),
             ignore_words=self.ignore_words,
+            feed=self.feed,
         )
 
 
@@ -226,7 +228,9 @@ def read_cam_moves(path: str | Path, options: ImportOptions | None = None) -> Ca
         "iso": lambda: read_iso_moves(path, opt.read_options()),
         "sinumerik": lambda: read_sinumerik_moves(path, opt.read_options()),
         "apt": lambda: read_apt_moves(path, opt.read_options()),
-        "xyz": lambda: read_xyz_moves(path, units=opt.units, feed=opt.feed),
+        "xyz": lambda: read_xyz_moves(
+            path, units=opt.units, feed=POINT_LIST_FEED if opt.feed is None else opt.feed
+        ),
     }
     moves = readers[fmt]()
     moves.meta["format"] = fmt
@@ -259,30 +263,6 @@ def _move_times(moves: CamMoves, rapid_rate: float | None) -> F64:
     if rapid_rate is not None:
         dt[~feed_m] = seg[~feed_m] / rapid_rate
     return np.cumsum(dt)
-
-
-def _laps(tip: F64) -> tuple[NDArray[np.int64], str]:
-    """Lap of every forming point and the rule used (module docstring, step 5)."""
-    n = len(tip)
-    if n == 1:
-        return np.zeros(1, dtype=np.int64), "z-level"
-    flat = np.abs(np.diff(tip[:, 2])) <= Z_TOL
-    if flat.mean() >= 0.5:
-        run = np.cumsum(np.concatenate([[True], ~flat])) - 1  # runs of one z
-        real = np.bincount(run) > 1  # a run of one point is a ramp point
-        if not real.any():
-            return np.zeros(n, dtype=np.int64), "z-level"
-        # real runs before each run: a real run's own number, a ramp point's next real run
-        lap_of_run: NDArray[np.int64] = np.cumsum(real) - real
-        lap = np.minimum(lap_of_run[run], int(real.sum()) - 1)
-        return lap.astype(np.int64), "z-level"
-    phi = np.unwrap(np.arctan2(tip[:, 1], tip[:, 0]))
-    turned = np.abs(phi - phi[0]) / (2 * math.pi)
-    lap = np.maximum.accumulate(np.floor(turned + 1e-6).astype(np.int64))
-    moving = np.flatnonzero(~flat)
-    last = int(moving[-1])  # the segment last → last+1 is the last one that changes z
-    lap[last + 1 :] = np.minimum(lap[last + 1 :], lap[last])
-    return lap, "spiral"
 
 
 def _resample(
@@ -442,7 +422,10 @@ def moves_to_toolpath(
             f"the ball is {gap[i] * 1e3:+.3f} mm off the nominal at point {i} (line "
             f"{int(lines[i])}; + clear of it, − into it){hint}"
         )
-    lap, rule = _laps(tip)
+    lo, hi = part.bounds
+    laps = detect_laps(tip, (0.5 * float(lo[0] + hi[0]), 0.5 * float(lo[1] + hi[1])))
+    lap, rule = laps.lap, laps.rule
+    notes.append(laps.describe())
     seg = np.linalg.norm(np.diff(tip, axis=0), axis=1)
     s = np.concatenate([[0.0], np.cumsum(seg)])
     time = t - t[0]
