@@ -202,6 +202,27 @@ def register(app: typer.Typer) -> None:
                 rich_help_panel="Equipment logs",
             ),
         ] = "roboisf",
+        toolpath: Annotated[
+            Path | None,
+            typer.Option(
+                "--toolpath",
+                help="Form the robot part with this commanded path instead of the nominal: a "
+                "compensated program (roboisf compensate's compensated.csv, .mod, .src, .ls, "
+                ".nc or any CAM program) with one forming move per toolpath point. Give the "
+                "same options as the study it was computed from (same cell, truth, seed).",
+                rich_help_panel="Re-forming (the loop)",
+            ),
+        ] = None,
+        from_study: Annotated[
+            Path | None,
+            typer.Option(
+                "--from",
+                help="With --toolpath: copy this virtual-cell study (all its runs) and add the "
+                "new part as its next robot run, robot_<k> — the iteration's history in one "
+                "study. Checked to be the same cell.",
+                rich_help_panel="Re-forming (the loop)",
+            ),
+        ] = None,
     ) -> None:
         """Write a synthetic study (CNC and robot runs with known ground truth in truth/).
 
@@ -214,6 +235,10 @@ def register(app: typer.Typer) -> None:
 
         Logs as real equipment keeps time (analyze must align them, docs/study.md):
         roboisf virtual-cell cone --clock-scale 1.02 --clock-offset 7 --pause 300,30 -o S
+
+        The loop — form, compensate, re-form in the same cell (docs/compensate.md):
+        roboisf virtual-cell pyramid --truth T.toml -o S1 && roboisf compensate S1 -o C1 &&
+        roboisf virtual-cell pyramid --truth T.toml --toolpath C1/compensated.mod --from S1 -o S2
         """
         from roboisf.cell import PAPER_CELL_PLACEMENT
         from roboisf.parts import Pyramid, load_part
@@ -226,7 +251,14 @@ def register(app: typer.Typer) -> None:
             virtual_cell,
         )
 
-        output_dir(output, "virtual-cell", overwrite)
+        if from_study is not None and toolpath is None:
+            raise InputError("--from needs --toolpath (the program to re-form)", field="--from")
+        output_dir(
+            output,
+            "virtual-cell",
+            overwrite,
+            [p for p in (toolpath, from_study, truth_file, part_file) if p is not None],
+        )
         makers = {"cone": paper_cone_cell, "vwacf": paper_vwacf_cell, "pyramid": pyramid_cell}
         shape = {
             "top_length": top_length,
@@ -290,6 +322,19 @@ def register(app: typer.Typer) -> None:
         )
         from roboisf.virtual.equipment import Equipment, parse_pauses
 
+        if toolpath is not None:
+            clean = (clock_scale, clock_offset, force_clock_scale) == (1.0, 0.0, 1.0) and not (
+                pause or force_clock_offset is not None
+            )
+            profiles = {cnc_force_profile, robot_force_profile, joint_profile}
+            if not clean or profiles != {"roboisf"}:
+                raise InputError(
+                    "a re-formed part is written with clean roboisf logs; leave out the "
+                    "equipment-log options",
+                    field="--toolpath",
+                )
+            _reform(cell, toolpath, from_study, output, log_format)
+            return
         own = force_clock_offset is not None or force_clock_scale != 1.0
         equipment = Equipment(
             clock_scale=clock_scale,
@@ -308,6 +353,21 @@ def register(app: typer.Typer) -> None:
         state.info(
             f"wrote the study {cell.name!r} to {output}/ (analyse: roboisf analyze {output})"
         )
+
+
+def _reform(
+    cell: VirtualCell, program: Path, previous: Path | None, output: Path, log_format: str
+) -> None:
+    """``virtual-cell --toolpath``: the commanded part in the same cell (clean logs)."""
+    from roboisf.virtual.reform import reform_study
+
+    _, run = reform_study(
+        cell, program, output, previous=previous, log_format=log_format, progress=state.progress()
+    )
+    state.info(
+        f"wrote the study {cell.name!r} to {output}/, robot run {run!r} formed with "
+        f"{program.name} (analyse: roboisf analyze {output})"
+    )
 
 
 def _truth_settings(
