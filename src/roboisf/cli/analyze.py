@@ -35,8 +35,20 @@ def register(app: typer.Typer) -> None:
         png: Annotated[
             bool, typer.Option("--png/--no-png", help="Also write static PNG figures.")
         ] = True,
+        run: Annotated[
+            str | None,
+            typer.Option(
+                help="With several robot runs: analyse only this one (default: each in turn, "
+                "the report is the last run's with the iteration history)."
+            ),
+        ] = None,
     ) -> None:
         """Split a robot-formed part's error: springback, tool, tool holder, robot compliance.
+
+        A study with several robot runs ([runs.robot], [runs.robot_2], … — successive
+        compensated parts) is analysed run by run: the report and files are the last run's, with
+        an Iterations section (per run and term: RMS, max, share; the improvement) and
+        iterations.csv.
 
         Reads the study folder (docs/study.md): the part, tool and holder compliance, robot and
         placement, and a CNC and a robot run with their toolpath, force log, joint log and scan.
@@ -44,10 +56,10 @@ def register(app: typer.Typer) -> None:
         summary.json and figures/*.png.
         """
         output_dir(output, "analyze", overwrite, study_inputs(study))
-        from roboisf.decompose.pipeline import analyze, write_results
+        from roboisf.decompose.pipeline import write_results
 
         progress = state.progress()
-        result = analyze(study, progress=progress)
+        result = _analyze_runs(study, run, progress)
         write_results(result, output, png=png, progress=progress)
         _print_table(result.contributions, result.summary)
         state.info(f"report: {output / 'report.html'}")
@@ -353,6 +365,40 @@ def register(app: typer.Typer) -> None:
         state.info(
             f"wrote the study {cell.name!r} to {output}/ (analyse: roboisf analyze {output})"
         )
+
+
+def _analyze_runs(study_path: Path, run: str | None, progress: object) -> object:
+    """The analysis of ``run`` or, with several robot runs, of each with the history
+    (``summary["iterations"]``) on the last one's result."""
+    from roboisf.decompose.pipeline import analyze
+    from roboisf.report.iterations import history_row
+    from roboisf.study import load_study
+
+    study = load_study(study_path)
+    names = [r.name for r in study.robot_runs]
+    if run is not None:
+        names = [study.for_run(run).robot_run.name]
+    rows, result = [], None
+    for name in names:
+        sub = study.for_run(name)
+        result = analyze(sub, progress=progress)  # type: ignore[arg-type]
+        row = history_row(
+            name,
+            sub.robot_run.toolpath.name,
+            result.per_point,
+            result.contributions_normal,
+        )
+        rows.append(row)
+        if len(names) > 1:
+            state.info(
+                f"{name} ({row['program']}): mean |dn| {row['mean_abs_dn_mm']:.3f} mm, "
+                f"{100 * (1 - row['mean_abs_dn_mm'] / rows[0]['mean_abs_dn_mm']):.1f} % below "
+                "the first run"
+            )
+    assert result is not None
+    if len(rows) > 1:
+        result.summary["iterations"] = rows
+    return result
 
 
 def _reform(
