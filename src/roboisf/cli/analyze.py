@@ -59,6 +59,8 @@ def register(app: typer.Typer) -> None:
         from roboisf.decompose.pipeline import write_results
 
         progress = state.progress()
+        if _robot_only(study, run, output, progress):
+            return
         result = _analyze_runs(study, run, progress)
         write_results(result, output, png=png, progress=progress)
         _print_table(result.contributions, result.summary)
@@ -365,6 +367,33 @@ def register(app: typer.Typer) -> None:
         state.info(
             f"wrote the study {cell.name!r} to {output}/ (analyse: roboisf analyze {output})"
         )
+
+
+def _robot_only(study_path: Path, run: str | None, output: Path, progress: object) -> bool:
+    """A study without a CNC run: the model-based springback of its robot run (the last, or
+    ``run``) written to ``output``; False for a study with a CNC run."""
+    from roboisf.study import load_study
+
+    study = load_study(study_path)
+    if study.has_cnc:
+        return False
+    from roboisf.decompose.robot_only import analyze_robot_only, write_robot_only
+
+    sub = study.for_run(study.robot_runs[-1].name if run is None else run)
+    result = analyze_robot_only(sub, progress=progress)
+    write_robot_only(result, output, progress=progress)
+    sb = result.estimate
+    if sb.separable:
+        st = sb.stats
+        state.info(
+            f"{sub.robot_run.name}: springback (model-based, no CNC run) mean |dn| "
+            f"{st['mean_abs_dn'] * 1e3:.3f} mm (model interval {st['mean_abs_dn_lo'] * 1e3:.3f}"
+            f"–{st['mean_abs_dn_hi'] * 1e3:.3f}); {sb.reason}"
+        )
+    else:
+        state.info(f"{sub.robot_run.name}: springback not separable: {sb.reason}")
+    state.info(f"report: {output / 'report.html'}")
+    return True
 
 
 def _analyze_runs(study_path: Path, run: str | None, progress: object) -> object:

@@ -82,6 +82,10 @@ class StudyCompensation:
 
 def _per_point(study: Study, results: Path | None, progress: Progress | None) -> pd.DataFrame:
     if results is None:
+        if not study.has_cnc:  # springback model-based (robot_only): its per-point columns
+            from roboisf.decompose.robot_only import analyze_robot_only
+
+            return analyze_robot_only(study, progress=progress).per_point
         return analyze(study, progress=progress).per_point
     f = Path(results) / "per_point.parquet"
     if not f.is_file():

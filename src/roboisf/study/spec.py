@@ -207,7 +207,19 @@ class Study:
 
     @property
     def cnc(self) -> RunSpec:
-        return next(r for r in self.runs.values() if r.machine == "cnc")
+        """The CNC run (:class:`InputError` when the study has none: see :attr:`has_cnc`)."""
+        for r in self.runs.values():
+            if r.machine == "cnc":
+                return r
+        raise InputError(
+            "the study has no CNC run (machine = 'cnc')", file=self.root / "study.toml"
+        )
+
+    @property
+    def has_cnc(self) -> bool:
+        """A CNC twin is there: springback is measured; else it is model-based
+        (:mod:`roboisf.decompose.robot_only`)."""
+        return any(r.machine == "cnc" for r in self.runs.values())
 
     @property
     def robot_run(self) -> RunSpec:
@@ -742,8 +754,12 @@ def load_study(path: str | Path) -> Study:
                 compensation=comp,
             )
     machines = [r.get("machine") for r in rt.values() if isinstance(r, dict)]
-    if rt and ("cnc" not in machines or "robot" not in machines):
-        c.add("the decomposition needs one run with machine = 'cnc' and one with 'robot'", "runs")
+    if rt and "robot" not in machines:
+        c.add(
+            "the analysis needs a run with machine = 'robot' (and one with 'cnc' of the same "
+            "toolpath to measure springback; without it springback is model-based)",
+            "runs",
+        )
 
     robot = None
     if "robot" in data:
