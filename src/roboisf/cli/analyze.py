@@ -15,6 +15,7 @@ from roboisf.cli.outputs import DIR_HELP, Overwrite, output_dir, study_inputs
 from roboisf.errors import InputError
 
 if TYPE_CHECKING:
+    from roboisf.decompose.pipeline import AnalysisResult
     from roboisf.virtual.cell import VirtualCell
 
 __all__ = ["register"]
@@ -396,7 +397,7 @@ def _robot_only(study_path: Path, run: str | None, output: Path, progress: objec
     return True
 
 
-def _analyze_runs(study_path: Path, run: str | None, progress: object) -> object:
+def _analyze_runs(study_path: Path, run: str | None, progress: object) -> AnalysisResult:
     """The analysis of ``run`` or, with several robot runs, of each with the history
     (``summary["iterations"]``) on the last one's result."""
     from roboisf.decompose.pipeline import analyze

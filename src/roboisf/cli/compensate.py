@@ -199,11 +199,10 @@ def register(app: typer.Typer) -> None:
                 "--stiffness applies to a STUDY (the virtual cell knows its robot)",
                 field="--stiffness",
             )
-        for flag, v, want in (("--truth", truth_file, virtual), ("--run", run, study)):
-            if v is not None and want is None:
-                raise InputError(
-                    "applies to " + ("--virtual" if flag == "--truth" else "a STUDY"), field=flag
-                )
+        if truth_file is not None and virtual is None:
+            raise InputError("applies to --virtual", field="--truth")
+        if run is not None and study is None:
+            raise InputError("applies to a STUDY", field="--run")
         output_dir(
             output,
             "compensate",
