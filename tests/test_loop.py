@@ -246,3 +246,31 @@ def test_compensate_virtual_takes_a_part_file_and_a_truth(tmp_path):
         )
     assert means[1][0] > means[0][0] + 0.05  # the softer robot's first part
     assert means[1][-1] < 0.1 * means[1][0]
+
+
+def test_reform_without_from_and_from_gcode(loop, tmp_path):
+    """Without --from the study holds the CNC run and one robot run formed with the program (its
+    toolpath the commanded CSV, its compensation beside it); the G-code of a compensation (the
+    nominal + springback offsets, no pre-deflection) re-forms too."""
+    cell = ["virtual-cell", "cone", "--truth", str(loop / "truth.toml"), *CELL]
+    _run(*cell, "--toolpath", str(loop / "C1" / "compensated.csv"), "-o", str(tmp_path / "X"))
+    st = load_study(tmp_path / "X")
+    assert [r.name for r in st.robot_runs] == ["robot"]
+    rob = st.robot_run
+    assert rob.toolpath.name == "robot_toolpath.csv" and rob.compensation is not None
+    np.testing.assert_allclose(
+        read_toolpath_csv(rob.toolpath).tip,
+        read_toolpath_csv(loop / "C1" / "compensated.csv").tip,
+        atol=1e-9,
+    )
+    # the same part as the --from route's robot_2 (same cell, the same command — there read from
+    # the RAPID module, whose positions are rounded to 1 µm per axis): the truth agrees (mm)
+    a = pd.read_parquet(tmp_path / "X" / "truth" / "per_point.parquet")["dn_robot"]
+    b = pd.read_parquet(loop / "S2" / "truth" / "runs" / "robot_2" / "per_point.parquet")
+    np.testing.assert_allclose(a, b["dn_robot"], atol=0.5e-3 * np.sqrt(3))
+    _run(*cell, "--toolpath", str(loop / "C1" / "compensated.nc"), "-o", str(tmp_path / "G"))
+    g = read_toolpath_csv(tmp_path / "G" / "robot_toolpath.csv")
+    pp = pd.read_csv(loop / "C1" / "per_point.csv")
+    nominal = read_toolpath_csv(loop / "S1" / "toolpath.csv")
+    c = pp["springback_offset_dn"].to_numpy()[:, None] * 1e-3 * nominal.normal
+    np.testing.assert_allclose(g.tip, nominal.tip + c, atol=2e-6)  # G-code: 1 µm resolution
