@@ -26,6 +26,10 @@ from roboisf.cli.main import main as cli
 CELL = ["--step-down", "2", "--spacing", "4", "--scan-points", "100000"]
 CELL += ["--force-rate", "50", "--joint-rate", "20"]
 
+#: a hole of a 100 k-point scan of the pyramid can leave a few points without data in reach:
+#: they keep their offset (flagged) instead of stopping the loop
+COMP = ["--no-png", "--hold-gaps"]
+
 TRUTHS = {
     "j0.5": "[robot]\njoint_stiffness_scale = 0.5\n",
     "j0.6": "[robot]\njoint_stiffness_scale = 0.6\n",
@@ -67,11 +71,11 @@ def run_case(name: str, d: Path) -> dict:
     _run([*cell, "-o", str(d / "S1")])
     verdicts = []
     for k in range(1, 4):
-        _run(["compensate", str(d / f"S{k}"), "--no-png", "-o", str(d / f"C{k}")])
+        _run(["compensate", str(d / f"S{k}"), *COMP, "-o", str(d / f"C{k}")])
         verdicts.append(json.loads((d / f"C{k}" / "compensation.json").read_text())["stopping"])
         prog = str(d / f"C{k}" / "compensated.mod")
         _run([*cell, "--toolpath", prog, "--from", str(d / f"S{k}"), "-o", str(d / f"S{k + 1}")])
-    _run(["compensate", str(d / "S4"), "--no-png", "-o", str(d / "C4")])
+    _run(["compensate", str(d / "S4"), *COMP, "-o", str(d / "C4")])
     verdicts.append(json.loads((d / "C4" / "compensation.json").read_text())["stopping"])
     _run(["analyze", str(d / "S4"), "--no-png", "-o", str(d / "R")])
     wall = time.perf_counter() - t0
