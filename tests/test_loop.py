@@ -274,3 +274,14 @@ def test_reform_without_from_and_from_gcode(loop, tmp_path):
     nominal = read_toolpath_csv(loop / "S1" / "toolpath.csv")
     c = pp["springback_offset_dn"].to_numpy()[:, None] * 1e-3 * nominal.normal
     np.testing.assert_allclose(g.tip, nominal.tip + c, atol=2e-6)  # G-code: 1 µm resolution
+
+
+def test_results_of_another_run_are_refused(loop, tmp_path, capsys):
+    """analyze's output is the last run's (summary.json → robot_run): compensate --results of
+    it for another run is a one-line error, not a silent mix."""
+    s = json.loads((loop / "R" / "summary.json").read_text())
+    assert s["robot_run"] == "robot_4"
+    args = ["compensate", str(loop / "S4"), "--results", str(loop / "R"), "--no-png"]
+    err = _err(capsys, *args, "--run", "robot_2", "-o", str(tmp_path / "c"))
+    assert "robot_4" in err and "robot_2" in err
+    _run(*args, "-o", str(tmp_path / "ok"))  # the last run: accepted

@@ -426,6 +426,7 @@ def _analyze_runs(study_path: Path, run: str | None, progress: object) -> Analys
                 "the first run"
             )
     assert result is not None
+    result.summary["robot_run"] = names[-1]  # compensate --results checks it
     if len(rows) > 1:
         result.summary["iterations"] = rows
     return result

@@ -17,6 +17,7 @@ The "after" of the comparison is predicted by superposition::
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -160,6 +161,8 @@ def compensate_study(
     o = options or CompensationOptions()
     rspec = study.robot_run
     formed = study_toolpath(study, rspec, cell.part)  # a toolpath CSV or a CAM program
+    if results is not None:
+        _check_results_run(Path(results), rspec.name)
     pp = _per_point(study, None if results is None else Path(results), progress)
     if len(pp) != len(formed):
         raise InputError(
@@ -283,6 +286,23 @@ def _state_column(f: Path, n: int, column: str, *, finite: bool) -> F64:
             field=column,
         )
     return c
+
+
+def _check_results_run(results: Path, run: str) -> None:
+    """An analyze output records the robot run it is of (``summary.json`` → ``robot_run``;
+    older outputs do not, and are taken as they are)."""
+    try:
+        s = json.loads((results / "summary.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return
+    got = s.get("robot_run") if isinstance(s, dict) else None
+    if isinstance(got, str) and got != run:
+        raise InputError(
+            f"these results are of robot run {got!r}, not {run!r}: analyze with --run {run}, "
+            "or give --run " + got,
+            file=results / "summary.json",
+            field="--results",
+        )
 
 
 def _previous_offset(f: Path, n: int) -> F64:
