@@ -118,3 +118,22 @@ def test_estimator_on_synthetic_laps():
         assert covered >= 15
     with pytest.raises(InputError, match="shape"):
         springback_without_cnc(n, dn[:-1], z, z, v, ok, lap)
+
+
+def test_a_compensated_run_without_a_cnc_run(studies, tmp_path):
+    """A robot-only part formed with a compensated program: the commanded offset is a modelled
+    term, so the springback is still recovered (without it the residual would carry the
+    pre-deflection, −VJM along each lap: β ≈ −1, not separable)."""
+    comp = tmp_path / "C"
+    assert main(["-q", "compensate", str(studies / "model"), "--no-png", "-o", str(comp)]) == 0
+    s2 = tmp_path / "S2"
+    args = ["virtual-cell", "cone", *CELL, "--toolpath", str(comp / "compensated.csv")]
+    assert main(["-q", *args, "-o", str(s2)]) == 0
+    (s2 / ".roboisf-output.json").unlink()
+    _robot_only(s2)
+    assert main(["-q", "analyze", str(s2), "-o", str(tmp_path / "R")]) == 0
+    s = json.loads((tmp_path / "R" / "summary.json").read_text())
+    assert s["springback_model_based"]["separable"]
+    assert s["modelled_mean_abs_dn_mm"]["command"] > 0.5
+    assert s["measured_mean_abs_dn_mm"] < 0.5
+    assert s["truth"]["springback_rms_error_mm"] < 0.05
