@@ -150,5 +150,5 @@ def test_missing_study_file(tmp_path):
 
 def test_a_cnc_and_a_robot_run_are_required(tmp_path):
     text = GOOD[: GOOD.index("[runs.robot]")]
-    with pytest.raises(StudyError, match="machine = 'cnc' and one with 'robot'"):
+    with pytest.raises(StudyError, match="needs a run with machine = 'robot'"):
         load_study(write_min_study(tmp_path, text))

@@ -15,6 +15,7 @@ from roboisf.cli.outputs import DIR_HELP, Overwrite, output_dir, study_inputs
 from roboisf.errors import InputError
 
 if TYPE_CHECKING:
+    from roboisf.decompose.pipeline import AnalysisResult
     from roboisf.virtual.cell import VirtualCell
 
 __all__ = ["register"]
@@ -35,8 +36,20 @@ def register(app: typer.Typer) -> None:
         png: Annotated[
             bool, typer.Option("--png/--no-png", help="Also write static PNG figures.")
         ] = True,
+        run: Annotated[
+            str | None,
+            typer.Option(
+                help="With several robot runs: analyse only this one (default: each in turn, "
+                "the report is the last run's with the iteration history)."
+            ),
+        ] = None,
     ) -> None:
         """Split a robot-formed part's error: springback, tool, tool holder, robot compliance.
+
+        A study with several robot runs ([runs.robot], [runs.robot_2], … — successive
+        compensated parts) is analysed run by run: the report and files are the last run's, with
+        an Iterations section (per run and term: RMS, max, share; the improvement) and
+        iterations.csv.
 
         Reads the study folder (docs/study.md): the part, tool and holder compliance, robot and
         placement, and a CNC and a robot run with their toolpath, force log, joint log and scan.
@@ -44,10 +57,12 @@ def register(app: typer.Typer) -> None:
         summary.json and figures/*.png.
         """
         output_dir(output, "analyze", overwrite, study_inputs(study))
-        from roboisf.decompose.pipeline import analyze, write_results
+        from roboisf.decompose.pipeline import write_results
 
         progress = state.progress()
-        result = analyze(study, progress=progress)
+        if _robot_only(study, run, output, progress):
+            return
+        result = _analyze_runs(study, run, progress)
         write_results(result, output, png=png, progress=progress)
         _print_table(result.contributions, result.summary)
         state.info(f"report: {output / 'report.html'}")
@@ -202,6 +217,27 @@ def register(app: typer.Typer) -> None:
                 rich_help_panel="Equipment logs",
             ),
         ] = "roboisf",
+        toolpath: Annotated[
+            Path | None,
+            typer.Option(
+                "--toolpath",
+                help="Form the robot part with this commanded path instead of the nominal: a "
+                "compensated program (roboisf compensate's compensated.csv, .mod, .src, .ls, "
+                ".nc or any CAM program) with one forming move per toolpath point. Give the "
+                "same options as the study it was computed from (same cell, truth, seed).",
+                rich_help_panel="Re-forming (the loop)",
+            ),
+        ] = None,
+        from_study: Annotated[
+            Path | None,
+            typer.Option(
+                "--from",
+                help="With --toolpath: copy this virtual-cell study (all its runs) and add the "
+                "new part as its next robot run, robot_<k> — the iteration's history in one "
+                "study. Checked to be the same cell.",
+                rich_help_panel="Re-forming (the loop)",
+            ),
+        ] = None,
     ) -> None:
         """Write a synthetic study (CNC and robot runs with known ground truth in truth/).
 
@@ -214,6 +250,10 @@ def register(app: typer.Typer) -> None:
 
         Logs as real equipment keeps time (analyze must align them, docs/study.md):
         roboisf virtual-cell cone --clock-scale 1.02 --clock-offset 7 --pause 300,30 -o S
+
+        The loop — form, compensate, re-form in the same cell (docs/compensate.md):
+        roboisf virtual-cell pyramid --truth T.toml -o S1 && roboisf compensate S1 -o C1 &&
+        roboisf virtual-cell pyramid --truth T.toml --toolpath C1/compensated.mod --from S1 -o S2
         """
         from roboisf.cell import PAPER_CELL_PLACEMENT
         from roboisf.parts import Pyramid, load_part
@@ -226,7 +266,14 @@ def register(app: typer.Typer) -> None:
             virtual_cell,
         )
 
-        output_dir(output, "virtual-cell", overwrite)
+        if from_study is not None and toolpath is None:
+            raise InputError("--from needs --toolpath (the program to re-form)", field="--from")
+        output_dir(
+            output,
+            "virtual-cell",
+            overwrite,
+            [p for p in (toolpath, from_study, truth_file, part_file) if p is not None],
+        )
         makers = {"cone": paper_cone_cell, "vwacf": paper_vwacf_cell, "pyramid": pyramid_cell}
         shape = {
             "top_length": top_length,
@@ -290,6 +337,19 @@ def register(app: typer.Typer) -> None:
         )
         from roboisf.virtual.equipment import Equipment, parse_pauses
 
+        if toolpath is not None:
+            clean = (clock_scale, clock_offset, force_clock_scale) == (1.0, 0.0, 1.0) and not (
+                pause or force_clock_offset is not None
+            )
+            profiles = {cnc_force_profile, robot_force_profile, joint_profile}
+            if not clean or profiles != {"roboisf"}:
+                raise InputError(
+                    "a re-formed part is written with clean roboisf logs; leave out the "
+                    "equipment-log options",
+                    field="--toolpath",
+                )
+            _reform(cell, toolpath, from_study, output, log_format)
+            return
         own = force_clock_offset is not None or force_clock_scale != 1.0
         equipment = Equipment(
             clock_scale=clock_scale,
@@ -308,6 +368,83 @@ def register(app: typer.Typer) -> None:
         state.info(
             f"wrote the study {cell.name!r} to {output}/ (analyse: roboisf analyze {output})"
         )
+
+
+def _robot_only(study_path: Path, run: str | None, output: Path, progress: object) -> bool:
+    """A study without a CNC run: the model-based springback of its robot run (the last, or
+    ``run``) written to ``output``; False for a study with a CNC run."""
+    from roboisf.study import load_study
+
+    study = load_study(study_path)
+    if study.has_cnc:
+        return False
+    from roboisf.decompose.robot_only import analyze_robot_only, write_robot_only
+
+    sub = study.for_run(study.robot_runs[-1].name if run is None else run)
+    result = analyze_robot_only(sub, progress=progress)
+    write_robot_only(result, output, progress=progress)
+    sb = result.estimate
+    if sb.separable:
+        st = sb.stats
+        state.info(
+            f"{sub.robot_run.name}: springback (model-based, no CNC run) mean |dn| "
+            f"{st['mean_abs_dn'] * 1e3:.3f} mm (model interval {st['mean_abs_dn_lo'] * 1e3:.3f}"
+            f"–{st['mean_abs_dn_hi'] * 1e3:.3f}); {sb.reason}"
+        )
+    else:
+        state.info(f"{sub.robot_run.name}: springback not separable: {sb.reason}")
+    state.info(f"report: {output / 'report.html'}")
+    return True
+
+
+def _analyze_runs(study_path: Path, run: str | None, progress: object) -> AnalysisResult:
+    """The analysis of ``run`` or, with several robot runs, of each with the history
+    (``summary["iterations"]``) on the last one's result."""
+    from roboisf.decompose.pipeline import analyze
+    from roboisf.report.iterations import history_row
+    from roboisf.study import load_study
+
+    study = load_study(study_path)
+    names = [r.name for r in study.robot_runs]
+    if run is not None:
+        names = [study.for_run(run).robot_run.name]
+    rows, result = [], None
+    for name in names:
+        sub = study.for_run(name)
+        result = analyze(sub, progress=progress)  # type: ignore[arg-type]
+        row = history_row(
+            name,
+            sub.robot_run.toolpath.name,
+            result.per_point,
+            result.contributions_normal,
+        )
+        rows.append(row)
+        if len(names) > 1:
+            state.info(
+                f"{name} ({row['program']}): mean |dn| {row['mean_abs_dn_mm']:.3f} mm, "
+                f"{100 * (1 - row['mean_abs_dn_mm'] / rows[0]['mean_abs_dn_mm']):.1f} % below "
+                "the first run"
+            )
+    assert result is not None
+    result.summary["robot_run"] = names[-1]  # compensate --results checks it
+    if len(rows) > 1:
+        result.summary["iterations"] = rows
+    return result
+
+
+def _reform(
+    cell: VirtualCell, program: Path, previous: Path | None, output: Path, log_format: str
+) -> None:
+    """``virtual-cell --toolpath``: the commanded part in the same cell (clean logs)."""
+    from roboisf.virtual.reform import reform_study
+
+    _, run = reform_study(
+        cell, program, output, previous=previous, log_format=log_format, progress=state.progress()
+    )
+    state.info(
+        f"wrote the study {cell.name!r} to {output}/, robot run {run!r} formed with "
+        f"{program.name} (analyse: roboisf analyze {output})"
+    )
 
 
 def _truth_settings(

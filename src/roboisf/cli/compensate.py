@@ -6,6 +6,9 @@ Examples (mm)::
     roboisf compensate study/ --results results/ -o comp/     # reuse an analyze output
     roboisf compensate --virtual cone --iterations 3 -o comp/ # iterate on the virtual cell
     roboisf compensate study/ --no-springback -o comp/        # robot/tool pre-deflection only
+    roboisf compensate --virtual part.toml --truth truth.toml -o comp/  # any part, a truth
+    roboisf compensate study2/ -o comp2/  # the newest robot run, formed with comp/'s program:
+                                          # updates its offsets (the run's `compensation` key)
 """
 
 from __future__ import annotations
@@ -49,10 +52,31 @@ def register(app: typer.Typer) -> None:
         virtual: Annotated[
             str | None,
             typer.Option(
-                help="Iterate on the virtual cell instead: cone, vwacf or pyramid (the "
-                "virtual-cell pyramid: 100 mm, 60°, 40 mm deep)."
+                help="Iterate on the virtual cell instead: cone, vwacf, pyramid (the "
+                "virtual-cell pyramid: 100 mm, 60°, 40 mm deep) or any part file "
+                "(roboisf part …, e.g. a mesh part)."
             ),
         ] = None,
+        truth_file: Annotated[
+            Path | None,
+            typer.Option(
+                "--truth",
+                help="Virtual cell: a truth TOML (how the cell differs from the model, "
+                "docs/virtual-cell.md), e.g. [robot] joint_stiffness_scale = 0.6.",
+            ),
+        ] = None,
+        run: Annotated[
+            str | None,
+            typer.Option(
+                help="The robot run of STUDY to correct (default: the last, the newest part)."
+            ),
+        ] = None,
+        target: Annotated[
+            float,
+            typer.Option(
+                help="Stopping rule: the wall's mean |deviation| at which the part is right [mm]."
+            ),
+        ] = 0.05,
         iterations: Annotated[
             int, typer.Option(help="Virtual cell: form–measure–adjust iterations.")
         ] = 3,
@@ -145,6 +169,7 @@ def register(app: typer.Typer) -> None:
             ("--rim-blend", rim_blend),
             ("--step-down", step_down),
             ("--spacing", spacing),
+            ("--target", target),
         ):
             if not (math.isfinite(v) and v >= 0) or (
                 flag in ("--step-down", "--spacing") and v == 0
@@ -174,12 +199,21 @@ def register(app: typer.Typer) -> None:
                 "--stiffness applies to a STUDY (the virtual cell knows its robot)",
                 field="--stiffness",
             )
+        if truth_file is not None and virtual is None:
+            raise InputError("applies to --virtual", field="--truth")
+        if run is not None and study is None:
+            raise InputError("applies to a STUDY", field="--run")
         output_dir(
-            output, "compensate", overwrite, [*study_inputs(study), results, previous, stiffness]
+            output,
+            "compensate",
+            overwrite,
+            [*study_inputs(study), results, previous, stiffness, truth_file],
         )
         if virtual is not None:
-            cell_kw = {"step_down": step_down * 1e-3, "spacing": spacing * 1e-3}
-            _virtual(virtual, iterations, cell_kw, opts, output, tool_mass, png, progress)
+            cell_kw: dict[str, object] = {"step_down": step_down * 1e-3, "spacing": spacing * 1e-3}
+            _virtual(
+                virtual, truth_file, iterations, cell_kw, opts, output, tool_mass, png, progress
+            )
             return
         from roboisf.compensate.study import compensate_study
 
@@ -191,6 +225,8 @@ def register(app: typer.Typer) -> None:
             options=opts,
             tool_mass=tool_mass,
             stiffness=stiffness,
+            run=run,
+            target=target * 1e-3,
             progress=progress,
         )
         write_compensation(
@@ -209,16 +245,34 @@ def register(app: typer.Typer) -> None:
         )
         s = sc.compensation.summary()
         state.info(
-            f"mean |dn| {np.nanmean(np.abs(sc.dn_before)) * 1e3:.3f} mm → predicted "
-            f"{np.nanmean(np.abs(sc.dn_after)) * 1e3:.3f} mm; max commanded offset "
-            f"{s['max_command_offset_mm']:.3f} mm; report: {output / 'compensation.html'}"
+            f"{sc.compensation.meta['run']}: mean |dn| {np.nanmean(np.abs(sc.dn_before)) * 1e3:.3f}"
+            f" mm → predicted {np.nanmean(np.abs(sc.dn_after)) * 1e3:.3f} mm; max commanded "
+            f"offset {s['max_command_offset_mm']:.3f} mm; report: {output / 'compensation.html'}"
         )
+        state.info(_stopping_line(sc.compensation.meta["stopping"]))
+
+
+def _stopping_line(rec: dict) -> str:
+    """The stopping rule's verdict, one line."""
+    m, t = rec["mean_abs_dn_mm"], rec["target_mm"]
+    if rec["reason"] == "target":
+        return f"stop: mean |dn| {m:.3f} mm ≤ target {t:g} mm — the part is right"
+    ratio = rec.get("ratio_to_previous")
+    if rec["reason"] == "stalled":
+        return (
+            f"stop: mean |dn| {m:.3f} mm is {ratio:.2f}× the previous part's (not below "
+            f"{rec['stall_ratio']:g}×): the iteration no longer gains; lower --gain or check "
+            "the model"
+        )
+    gain = "" if ratio is None else f", {ratio:.2f}× the previous part's"
+    return f"continue: mean |dn| {m:.3f} mm > target {t:g} mm{gain}; form the new program"
 
 
 def _virtual(
     name: str,
+    truth_file: Path | None,
     iterations: int,
-    cell_kw: dict[str, float],
+    cell_kw: dict[str, object],
     opts: object,
     output: Path,
     tool_mass: float,
@@ -233,14 +287,27 @@ def _virtual(
     from roboisf.virtual.cell import paper_cone_cell, paper_vwacf_cell, pyramid_cell
 
     makers = {"cone": paper_cone_cell, "vwacf": paper_vwacf_cell, "pyramid": pyramid_cell}
-    if name not in makers:
-        raise InputError(
-            f"unknown part {name!r}; expected cone, vwacf or pyramid", field="--virtual"
-        )
     if iterations < 1:
         raise InputError(f"must be ≥ 1, got {iterations}", field="--iterations")
     assert isinstance(opts, CompensationOptions)
-    cell = makers[name](**cell_kw)
+    if truth_file is not None:
+        from roboisf.virtual.truth import load_truth
+
+        cell_kw = {**cell_kw, "truth": load_truth(truth_file)}
+    if name in makers:
+        cell = makers[name](**cell_kw)
+    elif Path(name).is_file():
+        from roboisf.cell import PAPER_CELL_PLACEMENT
+        from roboisf.parts import load_part
+        from roboisf.virtual.cell import virtual_cell
+
+        part = load_part(name)
+        cell = virtual_cell(Path(name).stem, part, T_base_work=PAPER_CELL_PLACEMENT, **cell_kw)
+    else:
+        raise InputError(
+            f"unknown part {name!r}; expected cone, vwacf, pyramid or a part file",
+            field="--virtual",
+        )
     run = iterate_virtual(cell, iterations=iterations, options=opts, progress=progress)  # type: ignore[arg-type]
     comp = run.commands[-1]
     means = (run.mean_abs_dn * 1e3).tolist()

@@ -17,6 +17,7 @@ The "after" of the comparison is predicted by superposition::
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -42,9 +43,20 @@ from roboisf.robot.model import RobotModel
 from roboisf.study.spec import Study, load_study
 from roboisf.toolpath.importer import study_toolpath
 
-__all__ = ["StudyCompensation", "compensate_study", "study_deflection_model"]
+__all__ = [
+    "DEFAULT_TARGET",
+    "STALL_RATIO",
+    "StudyCompensation",
+    "compensate_study",
+    "stopping_rule",
+    "study_deflection_model",
+]
 
 F64 = NDArray[np.float64]
+#: The stopping rule's target [m]: the wall's mean |deviation| at which the part is right.
+DEFAULT_TARGET = 0.05e-3
+#: Stop when a part's mean |deviation| is not below this fraction of the previous part's.
+STALL_RATIO = 0.8
 _WRENCH = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
 
 
@@ -71,6 +83,10 @@ class StudyCompensation:
 
 def _per_point(study: Study, results: Path | None, progress: Progress | None) -> pd.DataFrame:
     if results is None:
+        if not study.has_cnc:  # springback model-based (robot_only): its per-point columns
+            from roboisf.decompose.robot_only import analyze_robot_only
+
+            return analyze_robot_only(study, progress=progress).per_point
         return analyze(study, progress=progress).per_point
     f = Path(results) / "per_point.parquet"
     if not f.is_file():
@@ -109,9 +125,17 @@ def compensate_study(
     options: CompensationOptions | None = None,
     tool_mass: float = 2.0,
     stiffness: str | Path | None = None,
+    run: str | None = None,
+    target: float = DEFAULT_TARGET,
     progress: Progress | None = None,
 ) -> StudyCompensation:
     """Compensate the robot part of ``study`` (a folder, ``study.toml`` or :class:`Study`).
+
+    ``run`` — which robot run (default: the last one in the file, the newest part of an
+    iteration). A run formed with a compensated program says so with its ``compensation`` key
+    (the ``per_point.csv`` of the ``roboisf compensate`` output that wrote the program): its
+    ``springback_offset_dn`` is ``c_k`` and its ``dn_before`` the previous part's deviation, which
+    the stopping rule (:func:`stopping_rule`, ``target`` [m]) compares with this part's.
 
     ``results`` — an earlier ``roboisf analyze`` output folder to reuse (else analyze runs).
     ``previous`` — the ``roboisf compensate`` output folder of the command that formed the
@@ -123,6 +147,7 @@ def compensate_study(
     """
     if not isinstance(study, Study):
         study = load_study(study)
+    study = study.for_run(study.robot_runs[-1].name if run is None else run)
     if study.robot is None:
         raise InputError(
             "compensation needs a [robot] table (model, placement)", file=study.root / "study.toml"
@@ -134,8 +159,10 @@ def compensate_study(
         K = load_stiffness(stiffness)
         cell = replace(cell, robot=cell.robot.with_stiffness(K, source=str(stiffness)))
     o = options or CompensationOptions()
-    run = study.robot_run
-    formed = study_toolpath(study, run, cell.part)  # a toolpath CSV or a CAM program
+    rspec = study.robot_run
+    formed = study_toolpath(study, rspec, cell.part)  # a toolpath CSV or a CAM program
+    if results is not None:
+        _check_results_run(Path(results), rspec.name)
     pp = _per_point(study, None if results is None else Path(results), progress)
     if len(pp) != len(formed):
         raise InputError(
@@ -149,7 +176,10 @@ def compensate_study(
     region = formed.depth > study.analysis.rim_band
     blend = rim_blend(formed.depth, study.analysis.rim_band, o.rim_blend)
     source = edge_source(formed, study.analysis.rim_band, blend)
-    c_prev = None if previous is None else _previous_offset(Path(previous), len(formed))
+    state_file = (
+        None if previous is None else Path(previous) / "per_point.csv"
+    ) or rspec.compensation
+    c_prev = None if state_file is None else _previous_offset(state_file, len(formed))
     with task(progress, "deflection model"):
         model = cell_deflection_model(cell, progress=progress)
     comp = compensate(
@@ -183,6 +213,13 @@ def compensate_study(
         "rim_band_mm": study.analysis.rim_band * 1e3,
         "stiffness": str(stiffness) if stiffness is not None else "study.toml",
     }
+    meta["run"] = rspec.name
+    meta["stopping"] = stopping_rule(
+        np.where(judged, dn, np.nan),
+        None if state_file is None else _previous_before(state_file, len(formed)),
+        target,
+    )
+    meta["gain"] = o.gain
     comp = replace(comp, meta=meta)
     return StudyCompensation(
         study,
@@ -198,25 +235,85 @@ def compensate_study(
     )
 
 
-def _previous_offset(folder: Path, n: int) -> F64:
-    """``c_k`` [m] (n,) from an earlier ``roboisf compensate`` output folder."""
-    f = folder / "per_point.csv"
+def stopping_rule(dn: F64, dn_previous: F64 | None, target: float = DEFAULT_TARGET) -> dict:
+    """The iteration's stopping rule on the analysed wall (NaN = not judged), m → a record (mm).
+
+    ``stop`` with ``reason``: ``"target"`` when the mean |dn| is at most ``target`` (the part is
+    right: form it); ``"stalled"`` when it is not below :data:`STALL_RATIO` × the previous part's
+    (with λ ≤ 1 a working iteration shrinks the residual by ≥ (1 − λ) ≈ 5× per part, so a
+    part that gains less than 20 % means what is left is not what the adjustment can remove —
+    scan noise, a model error the offsets cannot learn, or a gain too high: lower ``--gain``);
+    otherwise ``continue``. The first part (no previous) stops only on the target.
+    """
+    m = float(np.nanmean(np.abs(dn))) if np.any(np.isfinite(dn)) else float("nan")
+    rec: dict[str, object] = {
+        "mean_abs_dn_mm": m * 1e3,
+        "target_mm": target * 1e3,
+        "stall_ratio": STALL_RATIO,
+    }
+    prev = None
+    if dn_previous is not None and np.any(np.isfinite(dn_previous)):
+        prev = float(np.nanmean(np.abs(dn_previous)))
+        rec["previous_mean_abs_dn_mm"] = prev * 1e3
+        rec["ratio_to_previous"] = m / prev if prev > 0 else float("inf")
+    if m <= target:
+        rec.update(stop=True, reason="target")
+    elif prev is not None and m > STALL_RATIO * prev:
+        rec.update(stop=True, reason="stalled")
+    else:
+        rec.update(stop=False, reason="continue")
+    return rec
+
+
+def _state_column(f: Path, n: int, column: str, *, finite: bool) -> F64:
+    """Column ``column`` [mm → m] (n,) of a ``roboisf compensate`` per_point.csv."""
     if not f.is_file():
-        raise InputError(
-            "expected a `roboisf compensate` output folder with per_point.csv", file=folder
-        )
+        raise InputError("expected a `roboisf compensate` output folder with per_point.csv", file=f)
     try:
         df = pd.read_csv(f)
     except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as e:
         raise InputError(f"not a readable CSV ({type(e).__name__}: {e})", file=f) from None
-    if "springback_offset_dn" not in df:
-        raise InputError("missing column springback_offset_dn", file=f)
+    if column not in df:
+        raise InputError(f"missing column {column}", file=f)
     try:
-        c = df["springback_offset_dn"].to_numpy(dtype=float) * 1e-3
+        c = df[column].to_numpy(dtype=float) * 1e-3
     except (TypeError, ValueError):
-        raise InputError("expected numbers (mm)", file=f, field="springback_offset_dn") from None
-    if c.shape != (n,) or not np.all(np.isfinite(c)):
+        raise InputError("expected numbers (mm)", file=f, field=column) from None
+    if c.shape != (n,) or (finite and not np.all(np.isfinite(c))):
         raise InputError(
-            f"expected {n} finite offsets (one per toolpath point), got {c.shape[0]}", file=f
+            f"expected {n} finite values (one per toolpath point), got {c.shape[0]}",
+            file=f,
+            field=column,
         )
     return c
+
+
+def _check_results_run(results: Path, run: str) -> None:
+    """An analyze output records the robot run it is of (``summary.json`` → ``robot_run``;
+    older outputs do not, and are taken as they are)."""
+    try:
+        s = json.loads((results / "summary.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return
+    got = s.get("robot_run") if isinstance(s, dict) else None
+    if isinstance(got, str) and got != run:
+        raise InputError(
+            f"these results are of robot run {got!r}, not {run!r}: analyze with --run {run}, "
+            "or give --run " + got,
+            file=results / "summary.json",
+            field="--results",
+        )
+
+
+def _previous_offset(f: Path, n: int) -> F64:
+    """``c_k`` [m] (n,) from an earlier ``roboisf compensate`` output's per_point.csv."""
+    return _state_column(f, n, "springback_offset_dn", finite=True)
+
+
+def _previous_before(f: Path, n: int) -> F64 | None:
+    """The measured deviation [m] (n,; NaN where not judged) of the part the earlier
+    compensation corrected (its ``dn_before``), or None when the file has none."""
+    try:
+        return _state_column(f, n, "dn_before", finite=False)
+    except InputError:
+        return None

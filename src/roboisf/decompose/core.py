@@ -74,6 +74,7 @@ def decompose(
     holder_robot: F64,
     vjm: F64,
     valid: B,
+    command: F64 | None = None,
 ) -> Decomposition:
     """Split the robot part's deviation into its contributions.
 
@@ -86,6 +87,9 @@ def decompose(
         taken as rigid, like the CNC)
     vjm : (N, 3) m — robot deflection predicted by the VJM
     valid : (N,) bool — points to use
+    command : (N, 3) m, optional — the robot run's commanded tip minus the nominal tip (a
+        compensated command): what the robot part deviates by design, taken out of the robot
+        compliance term and kept as ``vectors["command"]`` (zeros when None)
     """
     n = np.asarray(normal, dtype=float)
     N = n.shape[0]
@@ -97,13 +101,15 @@ def decompose(
         ("holder_robot", holder_robot, (N, 3)),
         ("vjm", vjm, (N, 3)),
         ("valid", valid, (N,)),
+        *((("command", command, (N, 3)),) if command is not None else ()),
     ):
         if np.shape(a) != shape:
             raise InputError(f"expected shape {shape}, got {np.shape(a)}", field=name)
     cnc = dn_cnc[:, None] * n
     rob = dn_robot[:, None] * n
     springback = cnc - tool_cnc
-    robot_c = rob - springback - tool_robot - holder_robot
+    cmd = np.zeros_like(rob) if command is None else np.asarray(command, dtype=float)
+    robot_c = rob - springback - tool_robot - holder_robot - cmd
     vectors = {
         "tool": tool_robot,
         "tool_holder": holder_robot,
@@ -113,6 +119,7 @@ def decompose(
         "delta": robot_c - vjm,
         "cnc": cnc,
         "robot": rob,
+        "command": cmd,
     }
     normal_c = {k: np.einsum("ij,ij->i", v, n) for k, v in vectors.items()}
     return Decomposition(vectors, normal_c, np.asarray(valid, dtype=bool), n)

@@ -234,14 +234,19 @@ def _compare(
 
 
 def _logs_part(
-    study: Study, cell: Cell, tp: Toolpath, progress: Progress | None
+    study: Study,
+    cell: Cell,
+    tp: Toolpath,
+    progress: Progress | None,
+    tp_robot: Toolpath | None = None,
 ) -> tuple[dict[str, RunAlignment], F64, str, list[str], F64, F64]:
     """The logs' part of the analysis: read, align, joint angles, tip wrenches of both runs.
 
     One run at a time: a run's raw logs (2.3 M samples at 1 kHz on the paper cone, ~0.15 GB as
     float64) are freed before the next run's are read, so that only one sits beside the scan
     comparison running in the other thread (holding both made the command's peak RSS depend on
-    how the two threads met: 0.83–1.03 GiB on the paper cone)."""
+    how the two threads met: 0.83–1.03 GiB on the paper cone). ``tp_robot``: the robot run's
+    own path when it was formed with a commanded (compensated) version of ``tp``."""
     cnc, rob = study.cnc, study.robot_run
     aligned: dict[str, RunAlignment] = {}
     wrench: dict[str, F64] = {}
@@ -249,6 +254,7 @@ def _logs_part(
     q: F64 | None = None
     q_source = ""
     for r in (cnc, rob):
+        tp_run = tp_robot if (r is rob and tp_robot is not None) else tp
         with task(progress, f"{r.name} logs: alignment"):
             log = read_run_force_log(study, r)
             joints = None if r.joints is None else read_run_joint_log(r)
@@ -256,11 +262,11 @@ def _logs_part(
             input_warnings.extend(f"{r.forces.file.name}: {n}" for n in log.notes)
             if joints is not None and r.joints is not None:
                 input_warnings.extend(f"{r.joints.name}: {n}" for n in joints.notes)
-            aligned[r.name] = align_run(cell, r, tp, log, joints)
+            aligned[r.name] = align_run(cell, r, tp_run, log, joints)
         R_fk = None
         if r is rob:
             with task(progress, "robot joint angles"):
-                q, q_source = _joint_angles(cell, rob, tp, aligned[rob.name].joints, joints)
+                q, q_source = _joint_angles(cell, rob, tp_run, aligned[rob.name].joints, joints)
             if rob.forces.tool_mass is not None:
                 # the sensor's orientation for its tool-weight model
                 R_fk = cell.robot.fk(q, check_limits=False)[:, :3, :3]
@@ -268,7 +274,7 @@ def _logs_part(
             wrench[r.name] = run_tip_wrench(
                 study,
                 r,
-                tp,
+                tp_run,
                 warnings=input_warnings,
                 alignment=None if r.sync == "time" else aligned[r.name].forces,
                 log=log,
@@ -391,11 +397,17 @@ def analyze(
                 "not on the nominal surface of [part] (a toolpath of another part?)",
                 file=cnc.toolpath,
             )
-    truth_file = study.root / "truth" / "per_point.parquet"
+    # a compensated robot run: its commanded tips minus the nominal (the ball centre moves alike)
+    command = tp_r.tip - tp.tip
+    has_command = bool(np.max(np.abs(command)) > 1e-9)
+    truth_dir = run_truth_dir(study)
+    truth_file = truth_dir / "per_point.parquet"
     truth = _read_truth(truth_file) if truth_file.is_file() else None  # before the long work
     beside = _ScansBeside(study, cell, (cnc, rob), tp, progress, keep_points) if overlap else None
     try:
-        aligned, q, q_source, input_warnings, W_cnc, W_rob = _logs_part(study, cell, tp, progress)
+        aligned, q, q_source, input_warnings, W_cnc, W_rob = _logs_part(
+            study, cell, tp, progress, tp_r if has_command else None
+        )
         _trim()
     except BaseException:
         if beside is not None:
@@ -433,9 +445,21 @@ def analyze(
         vjm = at_ball_centre(np.einsum("nij,nj->ni", k_c, W_rob), R_ball)
 
     valid = dev_c.valid & dev_r.valid & (tp.depth > study.analysis.rim_band)
-    d = decompose(tp.normal, dev_c.dn, dev_r.dn, tool_cnc, tool_rob, holder_rob, vjm, valid)
+    d = decompose(
+        tp.normal,
+        dev_c.dn,
+        dev_r.dn,
+        tool_cnc,
+        tool_rob,
+        holder_rob,
+        vjm,
+        valid,
+        command if has_command else None,
+    )
 
     per_point = _per_point(cell, tp, W_cnc, W_rob, dev_c, dev_r, d)
+    if has_command:
+        per_point["command_dn"] = d.normal["command"] * 1e3
     thick = rob.thickness or cnc.thickness
     if thick is not None:
         per_point["thickness_measured"] = read_thickness_csv(thick).at(tp.depth) * 1e3
@@ -455,7 +479,7 @@ def analyze(
     if truth is not None:
         _attach_truth(truth_file, per_point, summary, d, truth)
         k_model = None if cell.robot.stiffness is None else cell.robot.joint_stiffness
-        _truth_vs_model(study.root / "truth", per_point, summary, d, k_model)
+        _truth_vs_model(truth_dir, per_point, summary, d, k_model)
     return AnalysisResult(
         study, cell, d, per_point, contributions, contributions_normal, summary, scans, ident, q
     )
@@ -785,6 +809,13 @@ TRUTH_COLUMNS = (
 )
 
 
+def run_truth_dir(study: Study) -> Path:
+    """A virtual cell's ground truth of the study's robot run: ``truth/runs/<run>/`` for a run
+    it re-formed with a commanded path (``roboisf virtual-cell --from``), else ``truth/``."""
+    own = study.root / "truth" / "runs" / study.robot_run.name
+    return own if own.is_dir() else study.root / "truth"
+
+
 def _in_study(path: str | Path, root: Path) -> str:
     """A file's name as ``summary.json`` records it: relative to the study folder (POSIX) when it
     lies inside it — so the record stays true when the folder is moved or was built in a staging
@@ -867,6 +898,7 @@ def _attach_truth(
         vec("tool_holder"),
         vec("robot_compliance"),
         used,
+        vec("command_offset") if "command_offset_dx" in truth else None,
     )
     shares = {}
     for book, projected in (("per_axis", False), ("normal", True)):

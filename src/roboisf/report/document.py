@@ -495,6 +495,15 @@ def _write_report(
                 html_parts["thickness"],
             )
         )
+        if summ.get("iterations"):  # several robot runs: report/iterations.py
+            from roboisf.report import iterations as it
+
+            body.append(
+                _section(
+                    "iterations", "Iterations", it.LEAD, it.iterations_section(summ["iterations"])
+                )
+            )
+            it.write_iterations_csv(summ["iterations"], out)
         items = [(k, summ.get(k)) for k in ("study", "part", "robot", "tool", "units")]
         items.append(
             (

@@ -13,7 +13,7 @@ Poses are written ``[x, y, z, roll, pitch, yaw]`` in mm and degrees, rotation
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal, cast
 
@@ -176,6 +176,9 @@ class RunSpec:
     #: how the logs are matched to the toolpath (roboisf.sync): ``"time"``, ``"position"``
     #: (the default with a joint log) or ``"force"``
     sync: Literal["time", "position", "force"] = "time"
+    #: a robot run formed with a compensated program: the ``per_point.csv`` of the ``roboisf
+    #: compensate`` output that wrote it (its ``springback_offset_dn`` is the iteration's state)
+    compensation: Path | None = None
 
 
 @dataclass(frozen=True)
@@ -208,11 +211,43 @@ class Study:
 
     @property
     def cnc(self) -> RunSpec:
-        return next(r for r in self.runs.values() if r.machine == "cnc")
+        """The CNC run (:class:`InputError` when the study has none: see :attr:`has_cnc`)."""
+        for r in self.runs.values():
+            if r.machine == "cnc":
+                return r
+        raise InputError(
+            "the study has no CNC run (machine = 'cnc')", file=self.root / "study.toml"
+        )
+
+    @property
+    def has_cnc(self) -> bool:
+        """A CNC twin is there: springback is measured; else it is model-based
+        (:mod:`roboisf.decompose.robot_only`)."""
+        return any(r.machine == "cnc" for r in self.runs.values())
 
     @property
     def robot_run(self) -> RunSpec:
+        """The robot run analysed: the first in the file (see :meth:`for_run`)."""
         return next(r for r in self.runs.values() if r.machine == "robot")
+
+    @property
+    def robot_runs(self) -> list[RunSpec]:
+        """Every robot run, in the file's order (successive commanded paths of an iteration:
+        ``[runs.robot]``, ``[runs.robot_2]``, …; docs/study.md, "Several robot runs")."""
+        return [r for r in self.runs.values() if r.machine == "robot"]
+
+    def for_run(self, name: str) -> Study:
+        """This study with its CNC run and the one robot run ``name`` (what ``analyze`` and
+        ``compensate`` work on). Raises :class:`InputError` for an unknown robot run."""
+        names = [r.name for r in self.robot_runs]
+        if name not in names:
+            raise InputError(
+                f"no robot run {name!r}; the study has {', '.join(names)}",
+                file=self.root / "study.toml",
+                field="--run",
+            )
+        keep = {k: r for k, r in self.runs.items() if r.machine != "robot" or k == name}
+        return replace(self, runs=keep)
 
 
 # -- loading -----------------------------------------------------------------------------------
@@ -678,6 +713,7 @@ def load_study(path: str | Path) -> Study:
         allowed = {"machine", "toolpath", "forces", "scan", "scan_unit", "joints", "thickness"}
         allowed |= {"toolpath_format", "toolpath_point"}  # CAM import (docs/toolpaths.md)
         allowed |= {"sync"}  # log alignment (docs/study.md, Alignment)
+        allowed |= {"compensation"}  # the compensate output of its program (docs/study.md)
         for k in sorted(set(r) - allowed):
             c.add(f"unknown key; expected one of {', '.join(sorted(allowed))}", f"{key}.{k}")
         machine = c.choice(r, key, "machine", ("cnc", "robot"))
@@ -715,6 +751,7 @@ def load_study(path: str | Path) -> Study:
             c.add("a robot run needs 'joints' (a joint log) or a [robot] table to solve IK", key)
         tp_fmt, tp_point = _toolpath_import_keys(c, r, key)
         sync = _sync(c, r, key, fs)
+        comp = c.path(root, r, key, "compensation", required=False)
         if None not in (machine, tp, sc, fs, sync):
             runs[rname] = RunSpec(
                 rname,
@@ -732,10 +769,15 @@ def load_study(path: str | Path) -> Study:
                 joints_units=j_units,
                 joints_timestamps=j_ts,
                 sync=sync,  # type: ignore[arg-type]
+                compensation=comp,
             )
     machines = [r.get("machine") for r in rt.values() if isinstance(r, dict)]
-    if rt and ("cnc" not in machines or "robot" not in machines):
-        c.add("the decomposition needs one run with machine = 'cnc' and one with 'robot'", "runs")
+    if rt and "robot" not in machines:
+        c.add(
+            "the analysis needs a run with machine = 'robot' (and one with 'cnc' of the same "
+            "toolpath to measure springback; without it springback is model-based)",
+            "runs",
+        )
 
     robot = None
     if "robot" in data:

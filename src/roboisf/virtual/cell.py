@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -702,6 +703,8 @@ def build_study(
     log_format: str = "parquet",
     equipment: Equipment | None = None,
     commanded: Toolpath | None = None,
+    robot_toolpath: str | None = None,
+    compensation: Path | None = None,
 ) -> Path:
     """Write the study folder for ``cell`` into ``out_dir`` (replaced atomically). Returns it.
 
@@ -709,7 +712,11 @@ def build_study(
     (:func:`simulate`; e.g. an online loop's corrected path): its joint log holds the commanded
     joints and its scan the part so formed; ``toolpath.csv`` keeps the nominal path (the program
     both runs follow; the correction is the controller's) and the truth gains the
-    ``command_offset`` columns.
+    ``command_offset`` columns. With ``robot_toolpath`` (a file name) the commanded path is
+    written there instead and is the robot run's toolpath — a compensated program, the robot's
+    own (``roboisf virtual-cell --toolpath``); ``compensation`` (the ``per_point.csv`` of the
+    ``roboisf compensate`` output that wrote it) is copied beside it as the run's
+    ``compensation`` (:mod:`roboisf.virtual.reform`).
 
     ``log_format``: the force and joint logs as Parquet (default: SI, exact, ~4× smaller than
     the CSV; ``roboisf.io.logparquet``) or as the roboisf CSV (``"csv"``).
@@ -729,6 +736,9 @@ def build_study(
     rng = np.random.default_rng(cell.seed)
     truth = simulate(cell, progress=progress, commanded=commanded)
     tp = truth.toolpath if commanded is None else cell_toolpath(cell)
+    # the robot's logs keep the time of the path it ran: its own program's, or the nominal's
+    # when the correction is the controller's (an online loop)
+    tp_rob = truth.toolpath if robot_toolpath is not None else tp
     cnc_sensor = ForceSensorSpec(
         Path(f"cnc_forces{ext}"), "fixture", cell.fixture_sensor_pose, "workpiece"
     )
@@ -739,6 +749,15 @@ def build_study(
             write_toolpath_csv(
                 tp, d / "toolpath.csv", generator=f"roboisf virtual-cell ({cell.name})"
             )
+            run_files: dict[str, str] = {}
+            if commanded is not None and robot_toolpath is not None:
+                write_toolpath_csv(
+                    truth.toolpath, d / robot_toolpath, generator=f"commanded ({cell.name})"
+                )
+                run_files["toolpath"] = robot_toolpath
+                if compensation is not None:
+                    run_files["compensation"] = f"{Path(robot_toolpath).stem}_compensation.csv"
+                    shutil.copyfile(compensation, d / run_files["compensation"])
             save_compliance_json(truth.tool_compliance, d / "tool_compliance.json")
             if truth.holder_compliance is not None:
                 save_compliance_json(truth.holder_compliance, d / "holder_compliance.json")
@@ -747,12 +766,12 @@ def build_study(
                 _force_log(cell, tp, truth.wrench_cnc, cnc_sensor, rng), d / cnc_sensor.file
             )
             write_force_log(
-                _force_log(cell, tp, truth.wrench_robot, rob_sensor, rng, cell.truth),
+                _force_log(cell, tp_rob, truth.wrench_robot, rob_sensor, rng, cell.truth),
                 d / rob_sensor.file,
             )
         with task(progress, "joint log"):
-            t = _log_times(tp, cell.joint_rate)
-            q = np.column_stack([np.interp(t, tp.time, truth.q[:, j]) for j in range(6)])
+            t = _log_times(tp_rob, cell.joint_rate)
+            q = np.column_stack([np.interp(t, tp_rob.time, truth.q[:, j]) for j in range(6)])
             write_joint_log(d / f"robot_joints{ext}", t, q)
         with task(progress, "thickness"):
             _thickness(cell, tp, d / "robot_thickness.csv", rng)
@@ -768,7 +787,13 @@ def build_study(
                 scan_misregistration(cell.truth),
             )
         _write_study_toml(
-            cell, truth, cnc_sensor, rob_sensor, d / "study.toml", joints=f"robot_joints{ext}"
+            cell,
+            truth,
+            cnc_sensor,
+            rob_sensor,
+            d / "study.toml",
+            joints=f"robot_joints{ext}",
+            robot_files=run_files,
         )
         if equipment is not None:
             with task(progress, "equipment logs"):
@@ -815,6 +840,7 @@ def _write_study_toml(
     path: Path,
     *,
     joints: str = "robot_joints.csv",
+    robot_files: dict[str, str] | None = None,
 ) -> None:
     c = cell.cell
     robot: dict[str, Any] = {
@@ -874,6 +900,7 @@ def _write_study_toml(
                     "pose": _pose_list(rob.pose),
                     "load_on": rob.load_on,
                 },
+                **(robot_files or {}),
             },
         },
     }
@@ -905,6 +932,30 @@ def _max_distance(truth: CellTruth) -> dict[str, float]:
     if worst <= 2.5e-3:
         return {}
     return {"max_distance": math.ceil((worst + 2e-3) * 1e3)}
+
+
+def cell_settings(cell: VirtualCell) -> dict[str, Any]:
+    """What makes the cell this cell (JSON values; mm, deg, Hz): recorded in
+    ``truth/truth.json`` so that a re-formed run (:mod:`roboisf.virtual.reform`) can be checked
+    to come from the same cell, truth and seed."""
+    c = cell.cell
+    settings = {
+        "name": cell.name,
+        "part": c.part.to_dict() if not isinstance(c.part, MeshPart) else "mesh",
+        "robot": c.robot_name,
+        "placement": _pose_list(c.T_base_work),
+        "flange_to_tip": _pose_list(c.T_flange_tip),
+        "tool_rotation_deg": math.degrees(c.tool_rotation),
+        "step_down_mm": cell.step_down * 1e3,
+        "spacing_mm": cell.spacing * 1e3,
+        "seed": cell.seed,
+        "scan_points": cell.scan_points,
+        "force_rate_hz": cell.force_rate,
+        "joint_rate_hz": cell.joint_rate,
+        "truth": cell.truth.to_table(),
+    }
+    out: dict[str, Any] = json.loads(json.dumps(settings))
+    return out
 
 
 def _write_truth(cell: VirtualCell, truth: CellTruth, folder: Path) -> None:
@@ -942,6 +993,7 @@ def _write_truth(cell: VirtualCell, truth: CellTruth, folder: Path) -> None:
             * 1e3
         },
         "robot": cell.cell.robot_name,
+        "cell_settings": cell_settings(cell),
         # how the cell differs from the model in study.toml (file units; all off: is_model)
         "truth": cell.truth.to_table(),
         # read by analyze: a VJM check on a cell whose truth is the model holds by construction
