@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 from report_fixtures import make_study
-from roboisf.report import FIGURES, figure_ids, write_index, write_report
+from roboisf.report import FIGURES, HTML_FIGURES, figure_ids, write_index, write_report
 
 pytestmark = pytest.mark.browser
 
@@ -163,7 +163,7 @@ def test_page_loads_without_errors_and_every_plot_renders(part, request, tmp_pat
         assert 'class="main-svg"' in chunk, f"{fid}: plotly did not render"
         # data drawn, not just empty axes: line/bar traces, heatmap image or polar traces
         assert re.search(r'class="(trace|hm|scatterlayer|barlayer)', chunk), f"{fid}: no trace"
-    assert dom.count('class="plot-container plotly"') == len(ids)
+    assert dom.count('class="plot-container plotly"') == len(HTML_FIGURES) + len(ids)
 
 
 def test_screenshot_is_not_blank(report, tmp_path):

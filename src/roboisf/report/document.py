@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import html as _html
 import json
+import dataclasses
 import os
 import re
 from collections.abc import Callable, Mapping, Sequence
@@ -26,9 +27,17 @@ from roboisf.report.alignment import alignment_html
 from roboisf.report.model_check import check_card, check_tables
 from roboisf.report.render import PngRenderer, default_processes
 from roboisf.report.schema import FACTORS, check_contributions, check_per_point, check_summary
+from roboisf.report.statements import diagnosis_html, kind_banner, scope_html, study_kind
 from roboisf.report.style import FACTOR_LABELS
 
-__all__ = ["FIGURES", "figure_ids", "read_headline", "write_index", "write_report"]
+__all__ = [
+    "FIGURES",
+    "HTML_FIGURES",
+    "figure_ids",
+    "read_headline",
+    "write_index",
+    "write_report",
+]
 
 #: Plot ids of the report of a round part, in page order; each is ``<div id="fig-<id>">`` in
 #: the HTML and ``figures/<id>.png``. A part that is not round has ``vjm_contour`` (the contour
@@ -44,6 +53,11 @@ FIGURES: tuple[str, ...] = (
     "vjm_polar",
     "thickness",
 )
+
+
+#: Plot ids in the HTML only (no PNG), before every figure of :data:`FIGURES`: the 3D view of
+#: the formed part.
+HTML_FIGURES: tuple[str, ...] = ("part_3d",)
 
 
 def figure_ids(round_part: bool = True) -> tuple[str, ...]:
@@ -184,6 +198,40 @@ def _figures(
     return {s.id: s for s in specs}
 
 
+#: The 3D view of the formed part: HTML only (a PNG of a point cloud says little).
+_PART_FIGURE = _Figure(
+    "part_3d",
+    "The formed part, coloured by each term",
+    f"At most {agg.MAX_3D_POINTS} toolpath points (a fixed random subset), each coloured by the "
+    "normal value δn of the term picked above (positive: the material lies on the tool side of "
+    "the nominal); every term has its own symmetric colour scale, so compare sizes in the "
+    "cards and tables, patterns here. Total: the robot part's measured deviation, the sum of "
+    "the four factors; residual: what the robot model leaves, Δ = δc_exp − δc_VJM. Scan holes "
+    "are left out.",
+    lambda: go.Figure(),
+    lambda: None,
+)
+
+
+def _truth_reason(summary: Mapping[str, Any]) -> str:
+    """Why the robot panel's recovered term differs from the dashed truth, when the truth says
+    ('' otherwise): a springback coupling moves part of the machine's deflection into the
+    sheet's recovery."""
+    truth = summary.get("truth")
+    sc = truth.get("springback_coupling") if isinstance(truth, Mapping) else None
+    if not isinstance(sc, Mapping) or not sc.get("coupling"):
+        return ""
+    c, depth = float(sc["coupling"]), sc.get("depth_mm")
+    law = f"{c:g}·exp(−depth / {float(depth):g} mm)" if depth else f"{c:g}"
+    return (
+        "Robot compliance: the dashed truth is the machine's deflection; the recovered term is "
+        "what the formed part keeps of it. The truth's springback coupling makes the sheet "
+        f"recover c(depth) = {law} of the machine's normal deflection, so the recovered robot "
+        "term lies below the truth where c is large and approaches it where c fades — the "
+        "method separates what the part shows, as intended, not a failure."
+    )
+
+
 def _figure_html(spec: _Figure, fig: go.Figure, first: bool) -> str:
     div = pio.to_html(
         fig,
@@ -219,6 +267,7 @@ def _headline_dict(
         "largest_factor": ranked[0],
         "shares_percent": {f: float(contrib.loc[f, "share_percent"]) for f in FACTORS},
         "n_warnings": len(summary["warnings"]),
+        "study_kind": study_kind(summary).kind,
         **_check_headline(summary),
     }
 
@@ -236,6 +285,9 @@ def _check_headline(summary: Mapping[str, Any]) -> dict[str, Any]:
 def _cards(h: agg.Headline, summary: Mapping[str, Any]) -> str:
     vjm = summary.get("vjm_vs_experiment") or {}
     resultant = vjm.get("resultant") if isinstance(vjm, Mapping) else None
+    tuned = study_kind(summary).kind == "virtual_tuned"
+    mark = f" {pg.BY_CONSTRUCTION}" if tuned else ""
+    why = " · truth tuned to the paper's share" if tuned else ""
     cards = [
         (
             "",
@@ -245,16 +297,16 @@ def _cards(h: agg.Headline, summary: Mapping[str, Any]) -> str:
         ),
         (
             " accent",
-            "Robot compliance share",
+            f"Robot compliance share{mark}",
             f"{h.robot_share_percent:.1f}<small>%</small>",
             f"R<sub>m</sub> {h.robot_R_m:.3f} mm · normal projection: "
-            f"{h.robot_share_percent_normal:.1f} %",
+            f"{h.robot_share_percent_normal:.1f} %{why}",
         ),
         (
             "",
-            "Springback share",
+            f"Springback share{mark}",
             f"{h.springback_share_percent:.1f}<small>%</small>",
-            "CNC part taken as rigid",
+            f"CNC part taken as rigid{why}",
         ),
     ]
     check = check_card(summary)
@@ -377,6 +429,10 @@ def _write_report(
     kind = part.get("kind") if isinstance(part, Mapping) else part
     contour_id = ids[ids.index("vjm_path") + 1]
     figs = _figures(pp, contrib, contrib_n, summ["contour_z"], round_part)
+    reason = _truth_reason(summ)
+    if reason and any(f"truth_{f}_dn" in pp.columns for f in FACTORS):
+        spec = figs["factors_depth"]
+        figs["factors_depth"] = dataclasses.replace(spec, caption=f"{spec.caption} {reason}")
 
     html_parts: dict[str, str] = {}
     with task(progress, "report", total=len(ids) * (2 if png else 1) + 1) as advance:
@@ -391,15 +447,33 @@ def _write_report(
             on_done=lambda: advance(1),
         )
         with renderer:  # PNG workers draw while this process writes the plotly HTML
-            for k, fid in enumerate(ids):
-                html_parts[fid] = _figure_html(figs[fid], figs[fid].plotly(), first=k == 0)
+            # the 3D view comes first on the page and carries plotly.js (HTML only, no PNG)
+            part3d = _figure_html(_PART_FIGURE, ia.part_figure(pp), first=True)
+            for fid in ids:
+                html_parts[fid] = _figure_html(figs[fid], figs[fid].plotly(), first=False)
                 advance(1)
             renderer.finish()  # draws what the workers have not taken, waits for them
 
         h = agg.headline(contrib, contrib_n)
         head = _headline_dict(h, summ, contrib)
-        body = [_cards(h, summ), _verdict(contrib), pg.warnings_box(summ["warnings"])]
+        n_used = int(pp["used"].sum()) if "used" in pp.columns else None
+        body = [
+            kind_banner(summ),
+            _cards(h, summ),
+            _verdict(contrib),
+            scope_html(summ, len(pp), n_used),
+            diagnosis_html(summ),
+            pg.warnings_box(summ["warnings"]),
+            _section(
+                "part",
+                "The formed part",
+                "Each term along the surface normal at the toolpath points, in 3D: pick a term "
+                "with the buttons, drag to turn, scroll to zoom.",
+                part3d,
+            ),
+        ]
         toc = [
+            ("part", "3D part"),
             ("contributions", "Contributions"),
             ("forces", "Forces"),
             ("deviations", "Deviations"),

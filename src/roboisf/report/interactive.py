@@ -33,6 +33,7 @@ __all__ = [
     "deviation_top_figure",
     "factors_depth_figure",
     "forces_figure",
+    "part_figure",
     "thickness_figure",
     "vjm_contour_figure",
     "vjm_path_figure",
@@ -533,4 +534,80 @@ def thickness_figure(per_point: pd.DataFrame) -> go.Figure:
         )
     fig.update_xaxes(title_text="depth (mm)")
     fig.update_yaxes(title_text="wall thickness (mm)", rangemode="tozero")
+    return fig
+
+
+def part_figure(per_point: pd.DataFrame) -> go.Figure:
+    """The formed part in 3D (contact points in the work frame, mm), coloured by the normal value
+    of one term at a time — total, springback, tool, holder, robot compliance, residual Δ — with
+    buttons to switch; at most :data:`~roboisf.report.aggregate.MAX_3D_POINTS` points. Each term
+    has its own symmetric colour scale (its 99th percentile of |δn|), blue below the nominal,
+    red above; scan holes are left out."""
+    view = agg.part_view(per_point)
+    terms = [(c, label) for c, label in agg.PART_VIEW_TERMS if c in view.values]
+    fig = go.Figure()
+    for k, (col, label) in enumerate(terms):
+        v = view.values[col]
+        ok = np.isfinite(v)
+        vmax = _vmax(v) or 1.0
+        fig.add_trace(
+            go.Scatter3d(
+                x=_f(view.x[ok]),
+                y=_f(view.y[ok]),
+                z=_f(view.z[ok]),
+                mode="markers",
+                name=label,
+                visible=k == 0,
+                marker={
+                    "color": _f(v[ok]),
+                    "colorscale": "RdBu_r",
+                    "cmin": -vmax,
+                    "cmax": vmax,
+                    "size": 2.5,
+                    "showscale": True,
+                    "colorbar": {"title": {"text": "δn (mm)", "side": "right"}, "thickness": 14},
+                },
+                hovertemplate="x %{x:.1f}, y %{y:.1f}, z %{z:.1f} mm<br>"
+                + label
+                + " δn %{marker.color:.3f} mm<extra></extra>",
+            )
+        )
+    buttons = [
+        {
+            "label": label,
+            "method": "update",
+            "args": [{"visible": [j == k for j in range(len(terms))]}],
+        }
+        for k, (_, label) in enumerate(terms)
+    ]
+    fig.update_layout(
+        plotly_layout(
+            height=620,
+            hovermode="closest",
+            showlegend=False,
+            margin={"l": 0, "r": 0, "t": 56, "b": 0},
+            scene={
+                "aspectmode": "data",
+                "xaxis": {"title": {"text": "x (mm)"}},
+                "yaxis": {"title": {"text": "y (mm)"}},
+                "zaxis": {"title": {"text": "z (mm)"}},
+                "camera": {"eye": {"x": 1.3, "y": -1.3, "z": 0.9}},
+            },
+            updatemenus=[
+                {
+                    "type": "buttons",
+                    "direction": "right",
+                    "buttons": buttons,
+                    "active": 0,
+                    "x": 0,
+                    "xanchor": "left",
+                    "y": 1.0,
+                    "yanchor": "bottom",
+                    "pad": {"t": 0, "b": 8},
+                    "showactive": True,
+                    "font": {"size": 12},
+                }
+            ],
+        )
+    )
     return fig

@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from roboisf.report.page import esc, fmt
+from roboisf.report.page import BY_CONSTRUCTION, esc, fmt
 
 __all__ = ["check_card", "check_tables", "terms_table"]
 
@@ -32,7 +32,7 @@ def check_card(summary: Mapping[str, Any]) -> tuple[str, str, str, str] | None:
     if vc.get("by_construction"):
         return (
             "",
-            "Robot model check",
+            f"Robot model check {BY_CONSTRUCTION}",
             "holds by construction",
             "virtual cell whose truth is the model: measured/VJM "
             f"{fmt(ratio, 3)} ({interval}) shows only the measurement's error",
