@@ -50,7 +50,7 @@ def register(app: typer.Typer) -> None:
         result = analyze(study, progress=progress)
         write_results(result, output, png=png, progress=progress)
         _print_table(result.contributions, result.summary)
-        state.info(f"report: {output / 'report.html'}")
+        _print_verdicts(result.summary, study, output)
 
     @app.command("virtual-cell")
     def _virtual_cell(
@@ -346,3 +346,45 @@ def _print_table(df: object, summary: dict) -> None:
         )
     if state.verbosity >= 1:
         state.out.print(t)
+
+
+def next_command(summary: dict, study: Path, output: Path) -> str:
+    """The command to run after ``analyze``: compensate the study from these results — with the
+    stiffness identified from the run when the robot model check failed (``mismatch``) and one
+    was written."""
+    import shlex
+
+    args = ["roboisf", "compensate", str(study), "--results", str(output)]
+    vc = summary.get("vjm_check") or {}
+    if vc.get("verdict") == "mismatch" and summary.get("identified_stiffness"):
+        args += ["--stiffness", str(output / "identified_stiffness.toml")]
+    args += ["-o", "compensated"]
+    return " ".join(shlex.quote(a) for a in args)
+
+
+def _print_verdicts(summary: dict, study: Path, output: Path) -> None:
+    """The end of ``analyze``'s output: the warnings, the verdicts (study kind, model check,
+    diagnosis), the report and the next command."""
+    from roboisf.report.statements import verdict_lines
+
+    for line in summary.get("warnings") or []:
+        state.warn(str(line))
+    for line in verdict_lines(summary):
+        state.info(line)
+    state.info(f"report: {output / 'report.html'}")
+    diagnosis = summary.get("diagnosis")
+    faults = [
+        e
+        for e in (diagnosis if isinstance(diagnosis, list) else [])
+        if isinstance(e, dict)
+        and e.get("verdict") == "fault"
+        and e.get("suspect") != "robot_stiffness"
+    ]
+    if faults:
+        state.info(
+            "next: the diagnosis finds a fault outside the robot model ("
+            + ", ".join(str(e["suspect"]) for e in faults)
+            + "): fix it and measure again before compensating; the report's diagnosis says how"
+        )
+    else:
+        state.info(f"next: {next_command(summary, study, output)}")

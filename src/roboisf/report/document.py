@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import html as _html
 import json
-import dataclasses
 import os
 import re
 from collections.abc import Callable, Mapping, Sequence

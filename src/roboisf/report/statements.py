@@ -81,8 +81,7 @@ def study_kind(summary: Mapping[str, Any]) -> StudyKind:
             "are compared with that truth (dashed in the figures).",
         )
     model = (
-        " The truth's robot is the study's model, so the robot model check holds by "
-        "construction."
+        " The truth's robot is the study's model, so the robot model check holds by construction."
         if truth.get("model_equals_truth")
         else ""
     )
@@ -200,7 +199,7 @@ def diagnosis_html(summary: Mapping[str, Any]) -> str:
     return (
         f'<div id="diagnosis">{lead}<table><caption>Diagnosis <span>— what could make the '
         "robot model and the measurement disagree, each estimated from this run with its 95 % "
-        "interval</span></caption><thead><tr><th>suspect</th><th class=\"t\">verdict</th>"
+        'interval</span></caption><thead><tr><th>suspect</th><th class="t">verdict</th>'
         '<th>estimate [95 %]</th><th class="t">why</th></tr></thead>'
         f"<tbody>{rows}</tbody></table></div>"
     )
