@@ -23,8 +23,8 @@ __all__ = [
     "verdict_lines",
 ]
 
-#: The verdicts a ``summary["diagnosis"]`` entry may carry.
-DIAGNOSIS_VERDICTS = ("fault", "ok", "cannot_tell")
+#: The verdicts a ``summary["diagnosis"]`` entry may carry, in the order the report lists them.
+DIAGNOSIS_VERDICTS = ("fault", "cannot_tell", "ok")
 
 _SUSPECTS = {
     "robot_stiffness": "robot joint stiffness",
