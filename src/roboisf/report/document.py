@@ -85,6 +85,40 @@ class _Figure:
     png: Callable[[], Any]
 
 
+#: What the blank areas of a point view are.
+_SPARSE = (
+    "Blank areas are scan holes, or stretches the toolpath's contact points skip: at the "
+    "corners of a part that is not round the ball's centre turns on a tighter radius than the "
+    "wall, so consecutive contact points lie several mm apart there."
+)
+
+
+def _thickness_caption(pp: pd.DataFrame, has_meas: bool) -> str:
+    """What the thickness figure shows: a band only where the measurement varies within a lap,
+    and why the sine law rises at the top when it does (the rim's rounding)."""
+    cols = ["thickness_predicted"] + (["thickness_measured"] if has_meas else [])
+    prof = agg.lap_profile(pp, cols)
+    text = "Sine law t = t₀·cos α (dashed)"
+    if has_meas:
+        width = (prof["thickness_measured_hi"] - prof["thickness_measured_lo"]).max()
+        text += (
+            " and the measured thickness (lap mean, 5–95 % band)."
+            if width > 1e-3
+            else " and the measured thickness (lap mean; it does not vary within a lap, so "
+            "no band)."
+        )
+    else:
+        text += "; no measured thickness was given."
+    pred = prof["thickness_predicted"].dropna()
+    if len(pred) > 2 and pred.iloc[0] > 1.05 * pred.median():
+        text += (
+            f" At the top (depth {prof['depth'].iloc[0]:.1f} mm) the tool is still on the "
+            "rounding into the rim, where the wall is flatter, so the sine law rises towards "
+            "the sheet's thickness there."
+        )
+    return text
+
+
 def _figures(
     pp: pd.DataFrame,
     contrib: pd.DataFrame,
@@ -143,8 +177,8 @@ def _figures(
             "Deviation map (top view)",
             "The same δn at the toolpath points seen from above (x, y in the work frame), at "
             f"most {agg.MAX_TOP_POINTS} points per part (a fixed random subset: an even stride "
-            "would alias with the laps into spokes and rings); "
-            "gaps are scan holes. Same colour scale rule as the unrolled map.",
+            "would alias with the laps into spokes and rings). "
+            f"{_SPARSE} Same colour scale rule as the unrolled map.",
             lambda: ia.deviation_top_figure(pp),
             lambda: st.deviation_top_png(pp),
         ),
@@ -185,12 +219,7 @@ def _figures(
         _Figure(
             "thickness",
             "Wall thickness",
-            "Sine law t = t₀·cos α (dashed)"
-            + (
-                " and the measured thickness (lap mean, 5–95 % band)."
-                if has_meas
-                else "; no measured thickness was given."
-            ),
+            _thickness_caption(pp, has_meas),
             lambda: ia.thickness_figure(pp),
             lambda: st.thickness_png(pp),
         ),
@@ -206,8 +235,7 @@ _PART_FIGURE = _Figure(
     "normal value δn of the term picked above (positive: the material lies on the tool side of "
     "the nominal); every term has its own symmetric colour scale, so compare sizes in the "
     "cards and tables, patterns here. Total: the robot part's measured deviation, the sum of "
-    "the four factors; residual: what the robot model leaves, Δ = δc_exp − δc_VJM. Scan holes "
-    "are left out.",
+    "the four factors; residual: what the robot model leaves, Δ = δc_exp − δc_VJM. " + _SPARSE,
     lambda: go.Figure(),
     lambda: None,
 )

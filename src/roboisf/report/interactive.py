@@ -507,7 +507,7 @@ def contributions_figure(
             )
     fig.update_layout(barmode="group", hovermode="closest", bargap=0.25)
     fig.update_yaxes(title_text="share (%)", row=1, col=1)
-    fig.update_yaxes(title_text="R_m (mm)", row=1, col=2)
+    fig.update_yaxes(title_text="R<sub>m</sub> (mm)", row=1, col=2)
     return fig
 
 

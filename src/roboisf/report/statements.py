@@ -67,7 +67,7 @@ def study_kind(summary: Mapping[str, Any]) -> StudyKind:
         return StudyKind(
             "measured",
             "measured study",
-            "Measured: forces, joint angles and scans come from the forming cell; nothing "
+            "Forces, joint angles and scans come from the forming cell; nothing "
             "below was set beforehand, every number is a finding.",
         )
     source = str(truth.get("truth_source") or "")
@@ -75,7 +75,7 @@ def study_kind(summary: Mapping[str, Any]) -> StudyKind:
         return StudyKind(
             "virtual_tuned",
             "virtual cell, truth tuned to the paper",
-            f"Virtual cell (synthetic data) whose hidden truth ({source}) was tuned so this "
+            f"Synthetic data whose hidden truth ({source}) was tuned so this "
             "analysis reproduces the paper's Table 5: the shares land on the paper's by "
             "construction — they reproduce it, they do not confirm it. The recovered terms "
             "are compared with that truth (dashed in the figures).",
@@ -88,7 +88,7 @@ def study_kind(summary: Mapping[str, Any]) -> StudyKind:
     return StudyKind(
         "virtual",
         "virtual cell",
-        "Virtual cell (synthetic data) with a hidden ground truth: the recovered terms are "
+        "Synthetic data with a hidden ground truth: the recovered terms are "
         f"compared with it (dashed in the figures).{model}",
     )
 
@@ -208,7 +208,7 @@ def diagnosis_html(summary: Mapping[str, Any]) -> str:
 def verdict_lines(summary: Mapping[str, Any]) -> list[str]:
     """The verdicts as plain lines for the terminal: the study kind, the model check, the
     diagnosis (faults and what cannot be told) and the identified stiffness."""
-    lines = [study_kind(summary).label]
+    lines = ["study: " + study_kind(summary).label]
     vc = summary.get("vjm_check")
     if isinstance(vc, Mapping):
         verdict = str(vc.get("verdict", ""))
