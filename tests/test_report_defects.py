@@ -29,7 +29,7 @@ def _near_equal_bars(contrib):
 def test_static_bar_labels_do_not_run_into_each_other(small):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-    _, contrib, contrib_n, _ = small
+    _, contrib, _, _ = small
     c = _near_equal_bars(contrib)
     fig = st.contributions_png(c, c)
     canvas = FigureCanvasAgg(fig)
@@ -44,7 +44,7 @@ def test_static_bar_labels_do_not_run_into_each_other(small):
 
 
 def test_plotly_axis_titles_have_no_literal_underscore(small):
-    _, contrib, contrib_n, _ = small
+    _, contrib, _, _ = small
     c = check_contributions(contrib, name="c")
     fig = ia.contributions_figure(c, c)
     titles = [fig.layout[k].title.text for k in fig.layout if k.startswith("yaxis")]
@@ -91,13 +91,12 @@ def test_scale_mode_does_not_call_joints_separately_identified():
     assert per_joint.count(">yes<") == 1 and per_joint.count(">no<") == 5
 
 
-def test_top_view_and_3d_captions_name_the_sparse_corners(small, tmp_path):
+def test_top_view_caption_names_the_sparse_corners(small, tmp_path):
     from roboisf.report import write_report
 
     pp, c, cn, s = small
     text = write_report(pp, c, cn, s, tmp_path, png=False).read_text(encoding="utf-8")
-    for fid in ("deviation_top", "part_3d"):
-        block = text[text.index(f'id="figure-{fid}"') :]
-        cap = block[block.index("<figcaption>") : block.index("</figcaption>")]
-        assert "scan holes" in cap and "corners" in cap, fid
+    block = text[text.index('id="figure-deviation_top"') :]
+    cap = block[block.index("<figcaption>") : block.index("</figcaption>")]
+    assert "scan holes" in cap and "corners" in cap
     assert np.isfinite(pp["thickness_predicted"]).all()

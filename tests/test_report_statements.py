@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from report_fixtures import make_study
-from roboisf.report import read_headline, write_report
 from roboisf.report import aggregate as agg
 from roboisf.report import interactive as ia
+from roboisf.report import read_headline, write_report
 from roboisf.report.statements import scope_sentence, study_kind, verdict_lines
 
 TUNED = {"truth_source": "scenario paper (cone)", "model_equals_truth": False}
@@ -179,36 +179,55 @@ def test_contour_lap_skips_the_rim_band(small):
     lap, _, note = agg.contour_lap(pp, float(z.iloc[2]))
     assert lap == int(z.index[2]) and note is None
     pp["used"] = pp["depth"] > 20.0  # a rim band of 20 mm
-    lap, zl, note = agg.contour_lap(pp, float(z.iloc[2]))
+    lap, _, note = agg.contour_lap(pp, float(z.iloc[2]))
     first_used = pp.loc[pp["used"], "lap"].min()
     assert lap == first_used and note is not None and "rim band" in note
     assert pp.loc[pp["lap"] == lap, "used"].any()
 
 
-def test_part_view_is_decimated_masked_and_toggles(small):
-    pp = small[0]
+def test_part_view_keeps_whole_laps_breaks_between_them_and_masks_holes(small):
+    pp = small[0]  # 30 laps × 40 points
     view = agg.part_view(pp, max_points=500)
-    assert view.x.size == 500 and view.n_total == len(pp)
+    assert view.lap_step == 3 and view.n_total == len(pp)  # 10 laps × 40 = 400 ≤ 500 < 15 × 40
+    sep = np.isnan(view.x)
+    assert sep.sum() == 9  # one break between consecutive laps kept
+    assert (~sep).sum() == 400
+    # the rows between breaks are whole laps, in toolpath order
+    rows = np.split(np.arange(view.x.size), np.flatnonzero(sep))
+    xs = pp["contact_x"].to_numpy()
+    for k, r in enumerate(rows):
+        r = r[~sep[r]]
+        lap = pp["lap"].unique()[3 * k]
+        np.testing.assert_array_equal(view.x[r], xs[pp["lap"].to_numpy() == lap])
     assert set(view.values) == {c for c, _ in agg.PART_VIEW_TERMS}
-    # the same subset for every term; scan holes NaN where the scan column says so
+    full = agg.part_view(pp, max_points=len(pp))
+    assert full.lap_step == 1
     holes = ~pp["robot_valid"].to_numpy()
     assert holes.any()
-    full = agg.part_view(pp, max_points=len(pp))
-    assert np.isnan(full.values["robot_dn"][holes]).all()
-    assert np.isfinite(full.values["tool_dn"]).all()  # a model term is never masked
+    keep = ~np.isnan(full.x)
+    assert np.isnan(full.values["robot_dn"][keep][holes]).all()
+    assert np.isfinite(full.values["tool_dn"][keep]).all()  # a model term is never masked
+
+
+def test_part_figure_lines_break_at_holes_and_toggle(small):
+    pp = small[0]
     fig = ia.part_figure(pp)
     assert len(fig.data) == len(agg.PART_VIEW_TERMS)
     assert [t.visible for t in fig.data] == [True] + [False] * (len(fig.data) - 1)
-    assert all(t.type == "scatter3d" for t in fig.data)
-    assert sum(t.x.size for t in fig.data[:1]) <= agg.MAX_3D_POINTS
+    assert all(t.type == "scatter3d" and t.mode == "lines" for t in fig.data)
+    total = fig.data[0]  # the robot part's deviation: NaN (a break) at its scan holes
+    n_holes = int((~pp["robot_valid"]).sum())
+    n_laps = pp["lap"].nunique()
+    assert np.isnan(np.asarray(total.x, dtype=float)).sum() == n_holes + n_laps - 1
+    tool = fig.data[2]
+    assert np.isnan(np.asarray(tool.x, dtype=float)).sum() == n_laps - 1
     buttons = fig.layout.updatemenus[0].buttons
     assert [b.label for b in buttons] == [t.name for t in fig.data]
     for k, b in enumerate(buttons):
         vis = b.args[0]["visible"]
         assert vis[k] and sum(vis) == 1
-    # each trace its own symmetric colour scale around 0
-    for t in fig.data:
-        assert t.marker.cmin == pytest.approx(-t.marker.cmax) and t.marker.cmax > 0
+    for t in fig.data:  # each its own symmetric colour scale around 0
+        assert t.line.cmin == pytest.approx(-t.line.cmax) and t.line.cmax > 0
 
 
 def test_part_view_comes_first_and_carries_plotly_js(small, tmp_path):

@@ -525,11 +525,12 @@ def contour_along(per_point: pd.DataFrame, contour_z: float) -> ContourPath:
 
 @dataclass(frozen=True)
 class PartView:
-    """The formed part's points for the 3D view: one random subset of the toolpath (seed 0).
+    """The formed part for the 3D view: whole laps of the toolpath, every ``lap_step``-th one,
+    each a polyline in toolpath order, the laps separated by one NaN row (a break in the line).
 
     ``x, y, z`` (M,) float, mm — contact points in the work frame; ``values`` maps each column of
-    :data:`PART_VIEW_TERMS` to (M,) float, mm (NaN at scan holes, see :func:`masked`);
-    ``n_total`` the number of toolpath points it was drawn from.
+    :data:`PART_VIEW_TERMS` to (M,) float, mm (NaN at scan holes, see :func:`masked`, and at the
+    separators); ``n_total`` the number of toolpath points it was drawn from.
     """
 
     x: np.ndarray
@@ -537,23 +538,41 @@ class PartView:
     z: np.ndarray
     values: dict[str, np.ndarray]
     n_total: int
+    lap_step: int
 
 
 @_reusable
 def part_view(per_point: pd.DataFrame, max_points: int = MAX_3D_POINTS) -> PartView:
-    """At most ``max_points`` toolpath points (a fixed random subset: an even stride along the
-    path would alias with the laps into stripes) with the normal value of each 3D-view term."""
+    """Every ``k``-th lap whole, ``k`` the smallest step that keeps at most ``max_points``
+    toolpath points, with the normal value of each 3D-view term. Whole laps drawn as lines
+    leave no decimation gaps inside a lap (a random subset of points showed them as holes) and
+    join the contact points across a corner where the toolpath skips."""
     n = len(per_point)
-    keep = np.arange(n)
-    if n > max_points:
-        keep = np.sort(np.random.default_rng(0).choice(n, size=max_points, replace=False))
+    lap = per_point["lap"].to_numpy()
+    laps = np.unique(lap)
+    step = 1
+    while step < len(laps) and np.isin(lap, laps[::step]).sum() > max_points:
+        step += 1
+    keep = np.flatnonzero(np.isin(lap, laps[::step]))
+    # one NaN row after each lap kept: the line breaks between laps
+    breaks = np.flatnonzero(np.diff(lap[keep]) != 0) + 1
+    rows = np.insert(keep.astype(float), breaks, np.nan)
+    gap = np.isnan(rows)
+    take = np.where(gap, 0, rows).astype(np.intp)
+
+    def pick(values: np.ndarray) -> np.ndarray:
+        out = values[take].astype(float)
+        out[gap] = np.nan
+        return out
+
     values = {
-        col: masked(per_point, col)[keep] for col, _ in PART_VIEW_TERMS if col in per_point.columns
+        col: pick(masked(per_point, col)) for col, _ in PART_VIEW_TERMS if col in per_point.columns
     }
     return PartView(
-        per_point["contact_x"].to_numpy(dtype=float)[keep],
-        per_point["contact_y"].to_numpy(dtype=float)[keep],
-        per_point["contact_z"].to_numpy(dtype=float)[keep],
+        pick(per_point["contact_x"].to_numpy(dtype=float)),
+        pick(per_point["contact_y"].to_numpy(dtype=float)),
+        pick(per_point["contact_z"].to_numpy(dtype=float)),
         values,
         n,
+        step,
     )

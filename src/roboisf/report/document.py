@@ -227,18 +227,22 @@ def _figures(
     return {s.id: s for s in specs}
 
 
-#: The 3D view of the formed part: HTML only (a PNG of a point cloud says little).
-_PART_FIGURE = _Figure(
-    "part_3d",
-    "The formed part, coloured by each term",
-    f"At most {agg.MAX_3D_POINTS} toolpath points (a fixed random subset), each coloured by the "
-    "normal value δn of the term picked above (positive: the material lies on the tool side of "
-    "the nominal); every term has its own symmetric colour scale, so compare sizes in the "
-    "cards and tables, patterns here. Total: the robot part's measured deviation, the sum of "
-    "the four factors; residual: what the robot model leaves, Δ = δc_exp − δc_VJM. " + _SPARSE,
-    lambda: go.Figure(),
-    lambda: None,
-)
+def _part_figure(pp: pd.DataFrame) -> _Figure:
+    """The 3D view of the formed part: HTML only (a PNG of it says little)."""
+    view = agg.part_view(pp)
+    laps = "every lap" if view.lap_step == 1 else f"every {view.lap_step}th lap"
+    return _Figure(
+        "part_3d",
+        "The formed part, coloured by each term",
+        f"The toolpath's contact points, {laps} whole (at most {agg.MAX_3D_POINTS} points), "
+        "drawn as lines coloured by the normal value δn of the term picked above (positive: "
+        "the material lies on the tool side of the nominal); every term has its own symmetric "
+        "colour scale, so compare sizes in the cards and tables, patterns here. Total: the "
+        "robot part's measured deviation, the sum of the four factors; residual: what the robot "
+        "model leaves, Δ = δc_exp − δc_VJM. A break in a line is a scan hole.",
+        lambda: ia.part_figure(pp),
+        lambda: None,
+    )
 
 
 def _truth_reason(summary: Mapping[str, Any]) -> str:
@@ -476,7 +480,8 @@ def _write_report(
         )
         with renderer:  # PNG workers draw while this process writes the plotly HTML
             # the 3D view comes first on the page and carries plotly.js (HTML only, no PNG)
-            part3d = _figure_html(_PART_FIGURE, ia.part_figure(pp), first=True)
+            spec3d = _part_figure(pp)
+            part3d = _figure_html(spec3d, spec3d.plotly(), first=True)
             for fid in ids:
                 html_parts[fid] = _figure_html(figs[fid], figs[fid].plotly(), first=False)
                 advance(1)
@@ -647,6 +652,14 @@ def read_headline(report: str | Path) -> dict[str, Any]:
     return result
 
 
+#: The index's words for each study kind (:func:`roboisf.report.statements.study_kind`).
+_KIND_LABELS = {
+    "measured": "measured",
+    "virtual": "virtual cell",
+    "virtual_tuned": "virtual, tuned truth",
+}
+
+
 def write_index(entries: Sequence[str | Path], out_path: str | Path) -> Path:
     """Write an index page linking several study reports, with their headline numbers.
 
@@ -661,15 +674,17 @@ def write_index(entries: Sequence[str | Path], out_path: str | Path) -> Path:
     if not entries:
         raise InputError("no reports to index (expected at least one report.html)", field="entries")
     out = Path(out_path)
-    rows = []
+    rows, kinds = [], set()
     for entry in entries:
         path = Path(entry)
         path = path / "report.html" if path.is_dir() else path
         h = read_headline(path)
+        kinds.add(h.get("study_kind"))
         href = os.path.relpath(path.resolve(), out.resolve().parent).replace(os.sep, "/")
         warn = h.get("n_warnings", 0)
         rows.append(
             f'<tr><td><a href="{pg.esc(href)}">{pg.esc(h["study"])}</a></td>'
+            f'<td class="t">{pg.esc(_KIND_LABELS.get(h.get("study_kind", ""), "—"))}</td>'
             f'<td class="t">{pg.esc(h.get("part", ""))}</td>'
             f'<td class="t">{pg.esc(h.get("robot", ""))}</td>'
             f"<td>{pg.fmt(h['R_m_total_mm'], 3)}</td>"
@@ -679,8 +694,15 @@ def write_index(entries: Sequence[str | Path], out_path: str | Path) -> Path:
             f'<td class="t">{pg.esc(h.get("vjm_verdict") or "—")}</td>'
             f'<td class="t">{pg.share_bar(h.get("shares_percent") or {})}</td><td>{warn}</td></tr>'
         )
+    tuned = (
+        " A virtual cell whose truth was tuned to the paper reproduces the paper's shares by "
+        "construction: they reproduce it, they do not confirm it."
+        if "virtual_tuned" in kinds
+        else ""
+    )
     table = (
-        '<table><thead><tr><th>study</th><th class="t">part</th><th class="t">robot</th>'
+        '<table><thead><tr><th>study</th><th class="t">kind</th><th class="t">part</th>'
+        '<th class="t">robot</th>'
         "<th>R<sub>m</sub> (mm)</th><th>robot share (%)</th><th>springback share (%)</th>"
         '<th>measured / VJM</th><th class="t">robot model</th>'
         '<th class="t">shares</th><th>warnings</th>'
@@ -689,7 +711,8 @@ def write_index(entries: Sequence[str | Path], out_path: str | Path) -> Path:
     body = (
         '<section><h2>Studies</h2><p class="lead">Each row links to a self-contained report. '
         "R<sub>m</sub> and shares are the per-axis (paper's) version; each report also gives them "
-        f"projected on the surface normal.</p>{table}{pg.share_legend()}</section>"
+        f'projected on the surface normal.{tuned}</p><div class="scroll">{table}</div>'
+        f"{pg.share_legend()}</section>"
     )
     document = pg.page("roboisf — study reports", body, subtitle=f"{len(rows)} studies")
     with atomic_write(out, "w") as fh:

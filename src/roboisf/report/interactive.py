@@ -538,38 +538,44 @@ def thickness_figure(per_point: pd.DataFrame) -> go.Figure:
 
 
 def part_figure(per_point: pd.DataFrame) -> go.Figure:
-    """The formed part in 3D (contact points in the work frame, mm), coloured by the normal value
-    of one term at a time — total, springback, tool, holder, robot compliance, residual Δ — with
-    buttons to switch; at most :data:`~roboisf.report.aggregate.MAX_3D_POINTS` points. Each term
-    has its own symmetric colour scale (its 99th percentile of |δn|), blue below the nominal,
-    red above; scan holes are left out."""
+    """The formed part in 3D: whole laps of the toolpath (contact points in the work frame, mm)
+    drawn as lines coloured by the normal value of one term at a time — total, springback, tool,
+    holder, robot compliance, residual Δ — with buttons to switch; at most
+    :data:`~roboisf.report.aggregate.MAX_3D_POINTS` points. Each term has its own symmetric
+    colour scale (its 99th percentile of |δn|), blue below the nominal, red above; a scan hole
+    breaks the line."""
     view = agg.part_view(per_point)
     terms = [(c, label) for c, label in agg.PART_VIEW_TERMS if c in view.values]
     fig = go.Figure()
     for k, (col, label) in enumerate(terms):
         v = view.values[col]
-        ok = np.isfinite(v)
+        hole = ~np.isfinite(v)
         vmax = _vmax(v) or 1.0
+
+        def cut(a: np.ndarray, hole: np.ndarray = hole) -> np.ndarray:
+            return _f(np.where(hole, np.nan, a))
+
         fig.add_trace(
             go.Scatter3d(
-                x=_f(view.x[ok]),
-                y=_f(view.y[ok]),
-                z=_f(view.z[ok]),
-                mode="markers",
+                x=cut(view.x),
+                y=cut(view.y),
+                z=cut(view.z),
+                mode="lines",
                 name=label,
                 visible=k == 0,
-                marker={
-                    "color": _f(v[ok]),
+                connectgaps=False,
+                line={
+                    "color": _f(np.where(hole, 0.0, v)),
                     "colorscale": "RdBu_r",
                     "cmin": -vmax,
                     "cmax": vmax,
-                    "size": 2.5,
+                    "width": 5,
                     "showscale": True,
                     "colorbar": {"title": {"text": "δn (mm)", "side": "right"}, "thickness": 14},
                 },
                 hovertemplate="x %{x:.1f}, y %{y:.1f}, z %{z:.1f} mm<br>"
                 + label
-                + " δn %{marker.color:.3f} mm<extra></extra>",
+                + " δn %{line.color:.3f} mm<extra></extra>",
             )
         )
     buttons = [
