@@ -172,3 +172,16 @@ def test_quiet_silences_the_verdicts(capsys):
         state.verbosity = 1
     cap = capsys.readouterr()
     assert cap.out == "" and cap.err == ""
+
+
+def test_toolpath_names_every_file_it_writes(tmp_path, capsys):
+    """A KRL program is two files (.src and .dat): the line says so instead of naming one."""
+    out = tmp_path / "tp.src"
+    args = ["toolpath", "cone", "--step-down", "4", "--spacing", "4"]
+    assert main([*args, "--placement", "1800,0,600", "--tool", "300", "-o", str(out)]) == 0
+    line = capsys.readouterr().out
+    assert (tmp_path / "tp.dat").is_file()
+    assert "and 1 more file beside it (tp.dat)" in line
+    csv = tmp_path / "tp.csv"
+    assert main([*args, "-o", str(csv)]) == 0
+    assert "more file" not in capsys.readouterr().out
