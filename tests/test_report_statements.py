@@ -234,3 +234,14 @@ def test_part_view_comes_first_and_carries_plotly_js(small, tmp_path):
     _, text = _write(small, tmp_path)
     assert text.index('id="fig-part_3d"') < text.index('id="fig-contributions"')
     assert text.index("* plotly.js v") < text.index('id="fig-part_3d"')
+
+
+def test_experiment_vs_vjm_captions_give_the_mismatch(small, tmp_path):
+    check = {"ratio": 2.0, "ci_low": 1.98, "ci_high": 2.02, "verdict": "mismatch"}
+    _, text = _write(small, tmp_path / "m", vjm_check=check)
+    for fid in ("vjm_path", "vjm_polar"):
+        block = text[text.index(f'<figure id="figure-{fid}">') :]
+        cap = block[block.index("<figcaption>") : block.index("</figcaption>")]
+        assert "2.00× the VJM" in cap and "does not hold" in cap, fid
+    _, ok = _write(small, tmp_path / "o", vjm_check={**check, "verdict": "consistent"})
+    assert "does not hold:" not in ok

@@ -245,6 +245,20 @@ def _part_figure(pp: pd.DataFrame) -> _Figure:
     )
 
 
+def _mismatch_reason(summary: Mapping[str, Any]) -> str:
+    """Why experiment and VJM differ when the model check says the model does not hold ('' when
+    it holds or there is no check)."""
+    vc = summary.get("vjm_check")
+    if not isinstance(vc, Mapping) or vc.get("verdict") != "mismatch" or vc.get("ratio") is None:
+        return ""
+    return (
+        f"Experiment and VJM differ because the robot model does not hold: the measured robot "
+        f"deflection is {float(vc['ratio']):.2f}× the VJM's along the normal (95 % "
+        f"[{pg.fmt(vc.get('ci_low'), 2)}, {pg.fmt(vc.get('ci_high'), 2)}], the check in the "
+        "table above); the robot term of the decomposition is the measured one."
+    )
+
+
 def _truth_reason(summary: Mapping[str, Any]) -> str:
     """Why the robot panel's recovered term differs from the dashed truth, when the truth says
     ('' otherwise): a springback coupling moves part of the machine's deflection into the
@@ -465,6 +479,9 @@ def _write_report(
     if reason and any(f"truth_{f}_dn" in pp.columns for f in FACTORS):
         spec = figs["factors_depth"]
         figs["factors_depth"] = dataclasses.replace(spec, caption=f"{spec.caption} {reason}")
+    mismatch = _mismatch_reason(summ)
+    for fid in ("vjm_path", contour_id) if mismatch else ():
+        figs[fid] = dataclasses.replace(figs[fid], caption=f"{figs[fid].caption} {mismatch}")
 
     html_parts: dict[str, str] = {}
     with task(progress, "report", total=len(ids) * (2 if png else 1) + 1) as advance:
