@@ -219,10 +219,17 @@ window.addEventListener('load', function () {
     out.canvas = part ? part.querySelectorAll('canvas').length : 0;
     out.traces = part && part.data ? part.data.length : 0;
     out.buttons = part ? part.querySelectorAll('.updatemenu-button').length : 0;
-    var pre = document.createElement('pre');
-    pre.id = '__roboisf_seen';
-    pre.textContent = JSON.stringify(out);
-    document.body.appendChild(pre);
+    // press the second term's button: only its trace is shown then
+    var b = part ? part.querySelectorAll('.updatemenu-button')[1] : null;
+    if (b) { b.dispatchEvent(new MouseEvent('click', {bubbles: true})); }
+    setTimeout(function () {
+      out.visible_after_click = part && part.data
+        ? part.data.map(function (t) { return t.visible === true; }) : [];
+      var pre = document.createElement('pre');
+      pre.id = '__roboisf_seen';
+      pre.textContent = JSON.stringify(out);
+      document.body.appendChild(pre);
+    }, 800);
   }, 1500);
 });
 </script>"""
@@ -270,3 +277,4 @@ def test_statements_are_visible_at_the_top_and_the_3d_view_renders(stated_report
     # the 3D view drew: a WebGL canvas, one trace per term, a button per term
     assert seen["canvas"] >= 1 and seen["part"]["h"] > 400
     assert seen["traces"] == 6 and seen["buttons"] == 6
+    assert seen["visible_after_click"] == [False, True, False, False, False, False]
