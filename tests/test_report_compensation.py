@@ -102,3 +102,22 @@ def test_says_why_the_curves_start_late(tmp_path):
 def test_legend_under_the_panels():
     fig = compensation_figure(_laps(), _summary())
     assert fig.layout.legend.y < 0 and fig.layout.legend.yanchor == "top"
+
+
+def test_virtual_cell_iterations_named_and_listed(tmp_path):
+    extra = {
+        "study": None,
+        "robot": None,
+        "stiffness": None,
+        "rim_band_mm": None,
+        "cell": "pyramid",
+        "mean_abs_dn_per_iteration_mm": [1.29, 0.164, 0.037],
+        "after": "virtual cell",
+        "mean_abs_dn_after_virtual_cell_mm": 0.037,
+    }
+    text = html.unescape(_write(tmp_path, **extra))
+    assert "roboisf compensation — pyramid" in text and "virtual cell" in text
+    assert "1.290 → 0.164 → 0.037 mm" in text
+    assert "after: formed again on the virtual cell" in text
+    assert "Mean |dn| after (virtual cell)" in text
+    assert "the cell's robot model" in text  # no stiffness file: the cell's own

@@ -223,14 +223,29 @@ def _body(laps: pd.DataFrame, summary: dict[str, Any], div: str) -> str:
     elif (summary.get("terms") or {}).get("compliance"):
         lines.append("<p><b>Joint stiffness of the pre-deflection:</b> the cell's robot model.</p>")
     start = _start(laps, summary)
+    how = (
+        "predicted by superposition of the deflection model"
+        if after == "predicted"
+        else "formed again on the virtual cell"
+        if after == "virtual cell"
+        else after
+    )
     caption = (
         "Left: mean |dn| per lap of the part formed with the nominal command (before) and with "
-        "the compensated one (after: predicted by the superposition model, or formed on the "
-        "virtual cell). Right: commanded offset = compensated − nominal tip, per-lap mean, its "
-        "normal part n·Δ and its length |Δ|." + (f" {start}" if start else "")
+        f"the compensated one (after: {how}). Right: commanded offset = compensated − nominal "
+        "tip, per-lap mean, its normal part n·Δ and its length |Δ|."
+        + (f" {start}" if start else "")
     )
+    history = summary.get("mean_abs_dn_per_iteration_mm")
     details = [
         ("study", summary.get("study")),
+        ("virtual cell", summary.get("cell")),
+        (
+            "mean |dn| per iteration",
+            " → ".join(f"{fmt(v, 3)}" for v in history) + " mm"
+            if isinstance(history, list) and history
+            else None,
+        ),
         ("robot", summary.get("robot")),
         ("complete", "yes" if summary.get("complete") else "no (partial, see per_point.csv)"),
         ("toolpath points", summary.get("n_points")),
@@ -278,8 +293,10 @@ def write_compensation_report(
         default_height="420px",
         default_width="100%",
     )
-    title = "roboisf compensation" + (f" — {summary['study']}" if summary.get("study") else "")
-    document = page(title, _body(laps, summary, div), subtitle=esc(summary.get("robot") or ""))
+    name = summary.get("study") or summary.get("cell")
+    title = "roboisf compensation" + (f" — {name}" if name else "")
+    sub = summary.get("robot") or ("virtual cell" if summary.get("cell") else "")
+    document = page(title, _body(laps, summary, div), subtitle=esc(sub))
     with atomic_write(out / "compensation.html") as fh:
         fh.write(document)
     if png:
