@@ -156,12 +156,16 @@ def test_analyze_ends_with_verdicts_warnings_and_the_next_command(capsys):
     assert "identified_stiffness.toml" in cap.err  # the warning reaches the terminal
 
 
-def test_a_fault_outside_the_robot_says_fix_it_first(capsys):
+def test_a_fault_outside_the_robot_says_check_it_first(capsys):
     state.verbosity = 1
     diag = [{"suspect": "scan_shift", "verdict": "fault", "estimate": 0.3, "unit": "mm"}]
     _print_verdicts(_summary(diagnosis=diag), Path("st"), Path("res"))
     last = capsys.readouterr().out.rstrip().splitlines()[-1]
-    assert "scan_shift" in last and "before compensating" in last
+    assert last.startswith("next: check the scan shift the diagnosis names")
+    assert last.endswith(
+        "roboisf compensate st --results res --stiffness "
+        "res/identified_stiffness.toml -o compensated"
+    )
 
 
 def test_quiet_silences_the_verdicts(capsys):

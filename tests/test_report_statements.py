@@ -144,13 +144,22 @@ def test_diagnosis_rendered_faults_first_with_its_headline(small, tmp_path):
     assert 'id="diagnosis"' not in without
 
 
-def test_diagnosis_headline_inside_a_mapping_and_in_the_terminal():
-    s = {"study": "s", "diagnosis": {"headline": "Scan shifted 0.3 mm.", "entries": DIAG}}
+def test_diagnosis_in_the_terminal_headline_or_one_line_per_fault():
+    # the analysis' headline comes as its terminal line: said once, not "diagnosis: diagnosis:"
+    s = {"study": "s", "diagnosis": DIAG, "diagnosis_headline": "diagnosis: robot 2x softer"}
     lines = verdict_lines(s)
-    assert "diagnosis: Scan shifted 0.3 mm." in lines
+    assert [ln for ln in lines if "diagnosis" in ln] == ["diagnosis: robot 2x softer"]
+    s = {"study": "s", "diagnosis": {"headline": "Scan shifted 0.3 mm.", "entries": DIAG}}
+    assert "diagnosis: Scan shifted 0.3 mm." in verdict_lines(s)
+    lines = verdict_lines({"study": "s", "diagnosis": DIAG})  # no headline: one line each
     assert any(ln.startswith("diagnosis: robot joint stiffness — fault") for ln in lines)
     assert any("scan rotation — cannot tell" in ln for ln in lines)
     assert not any("force sensor bias" in ln for ln in lines)
+
+
+def test_report_shows_the_headline_without_its_terminal_prefix(small, tmp_path):
+    _, text = _write(small, tmp_path, diagnosis=DIAG, diagnosis_headline="diagnosis: robot soft")
+    assert '<p class="verdict" id="diagnosis-headline">robot soft</p>' in text
 
 
 def test_study_kind_words():

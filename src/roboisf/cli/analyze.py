@@ -381,11 +381,11 @@ def _print_verdicts(summary: dict, study: Path, output: Path) -> None:
         and e.get("verdict") == "fault"
         and e.get("suspect") != "robot_stiffness"
     ]
+    cmd = next_command(summary, study, output)
     if faults:
-        state.info(
-            "next: the diagnosis finds a fault outside the robot model ("
-            + ", ".join(str(e["suspect"]) for e in faults)
-            + "): fix it and measure again before compensating; the report's diagnosis says how"
-        )
+        from roboisf.report.statements import suspect_name
+
+        names = ", ".join(suspect_name(str(e["suspect"])) for e in faults)
+        state.info(f"next: check the {names} the diagnosis names (report.html), then: {cmd}")
     else:
-        state.info(f"next: {next_command(summary, study, output)}")
+        state.info(f"next: {cmd}")

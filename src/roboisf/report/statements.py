@@ -20,6 +20,7 @@ __all__ = [
     "scope_html",
     "scope_sentence",
     "study_kind",
+    "suspect_name",
     "verdict_lines",
 ]
 
@@ -41,6 +42,11 @@ _CHECK = {
     "mismatch": "the robot model does not hold",
     "not_observable": "the robot model check is not observable",
 }
+
+
+def suspect_name(suspect: str) -> str:
+    """A diagnosis suspect in words (``force_gain`` → "force sensor gain")."""
+    return _SUSPECTS.get(suspect, suspect.replace("_", " "))
 
 
 @dataclass(frozen=True)
@@ -167,7 +173,11 @@ def _diagnosis_headline(summary: Mapping[str, Any]) -> str | None:
     diag = summary.get("diagnosis")
     if head is None and isinstance(diag, Mapping):
         head = diag.get("headline")
-    return None if head is None else str(head)
+    if head is None:
+        return None
+    text = str(head).strip()
+    # the analysis writes it as the terminal line ("diagnosis: …"); the prefix is said here
+    return text[len("diagnosis:") :].strip() if text.lower().startswith("diagnosis:") else text
 
 
 def _estimate(e: Mapping[str, Any]) -> str:
@@ -188,7 +198,7 @@ def diagnosis_html(summary: Mapping[str, Any]) -> str:
     ranked = sorted(entries, key=lambda e: order.get(str(e.get("verdict")), len(order)))
     rows = "".join(
         f'<tr class="v-{esc(e.get("verdict"))}"><td class="t">'
-        f"{esc(_SUSPECTS.get(str(e['suspect']), e['suspect']))}</td>"
+        f"{esc(suspect_name(str(e['suspect'])))}</td>"
         f'<td class="t"><b>{esc(str(e.get("verdict", "")).replace("_", " "))}</b></td>'
         f"<td>{_estimate(e)}</td>"
         f'<td class="t wrap">{esc(e.get("explanation", ""))}</td></tr>'
@@ -206,8 +216,9 @@ def diagnosis_html(summary: Mapping[str, Any]) -> str:
 
 
 def verdict_lines(summary: Mapping[str, Any]) -> list[str]:
-    """The verdicts as plain lines for the terminal: the study kind, the model check, the
-    diagnosis (faults and what cannot be told) and the identified stiffness."""
+    """The verdicts as plain lines for the terminal: the study kind, the model check and the
+    diagnosis — its headline when the summary has one, else a line per fault and per suspect
+    it cannot tell."""
     lines = ["study: " + study_kind(summary).label]
     vc = summary.get("vjm_check")
     if isinstance(vc, Mapping):
@@ -223,11 +234,12 @@ def verdict_lines(summary: Mapping[str, Any]) -> list[str]:
             )
         lines.append("model check: " + text)
     head = _diagnosis_headline(summary)
-    if head:
+    if head:  # the analysis' own line says the faults (or that there are none) already
         lines.append("diagnosis: " + head)
+        return lines
     for e in _diagnosis(summary):
         if e.get("verdict") in ("fault", "cannot_tell"):
-            name = _SUSPECTS.get(str(e["suspect"]), str(e["suspect"]))
+            name = suspect_name(str(e["suspect"]))
             lines.append(
                 f"diagnosis: {name} — {str(e['verdict']).replace('_', ' ')}, {_estimate(e)}"
             )
