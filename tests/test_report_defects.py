@@ -98,5 +98,5 @@ def test_top_view_caption_names_the_sparse_corners(small, tmp_path):
     text = write_report(pp, c, cn, s, tmp_path, png=False).read_text(encoding="utf-8")
     block = text[text.index('id="figure-deviation_top"') :]
     cap = block[block.index("<figcaption>") : block.index("</figcaption>")]
-    assert "scan holes" in cap and "corners" in cap
+    assert "scan holes" in cap and "corners" in cap and "subset leaves out" in cap
     assert np.isfinite(pp["thickness_predicted"]).all()

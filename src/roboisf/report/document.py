@@ -87,9 +87,10 @@ class _Figure:
 
 #: What the blank areas of a point view are.
 _SPARSE = (
-    "Blank areas are scan holes, or stretches the toolpath's contact points skip: at the "
-    "corners of a part that is not round the ball's centre turns on a tighter radius than the "
-    "wall, so consecutive contact points lie several mm apart there."
+    "Blank specks are points the subset leaves out (when a part has more) or scan holes (the "
+    "unrolled map shows the holes alone); blank wedges at the corners of a part that is not "
+    "round are stretches the toolpath's contact points skip: the ball's centre turns on a "
+    "tighter radius than the wall, so consecutive contact points lie several mm apart there."
 )
 
 
