@@ -14,7 +14,7 @@ import pytest
 from report_fixtures import make_study, square_lap
 from roboisf.errors import InputError
 from roboisf.parts import Cone
-from roboisf.report import FIGURES, figure_ids, write_report
+from roboisf.report import FIGURES, HTML_FIGURES, figure_ids, write_report
 from roboisf.report import aggregate as agg
 from roboisf.report import interactive as ia
 from roboisf.report import static as st
@@ -226,7 +226,7 @@ def test_pyramid_report_written_with_the_contour_not_the_polar_plot(pyramid, tmp
     text = path.read_text(encoding="utf-8")
     ids = figure_ids(False)
     assert "vjm_contour" in ids and "vjm_polar" not in ids and "deviation_top" in ids
-    assert text.count("Plotly.newPlot(") == len(ids)
+    assert text.count("Plotly.newPlot(") == len(HTML_FIGURES) + len(ids)
     for fid in ids:
         assert text.count(f'id="fig-{fid}"') == 1, fid
         assert (tmp_path / "figures" / f"{fid}.png").read_bytes().startswith(PNG_MAGIC)

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 from report_fixtures import make_study
-from roboisf.report import FIGURES, figure_ids, write_index, write_report
+from roboisf.report import FIGURES, HTML_FIGURES, figure_ids, write_index, write_report
 
 pytestmark = pytest.mark.browser
 
@@ -163,7 +163,7 @@ def test_page_loads_without_errors_and_every_plot_renders(part, request, tmp_pat
         assert 'class="main-svg"' in chunk, f"{fid}: plotly did not render"
         # data drawn, not just empty axes: line/bar traces, heatmap image or polar traces
         assert re.search(r'class="(trace|hm|scatterlayer|barlayer)', chunk), f"{fid}: no trace"
-    assert dom.count('class="plot-container plotly"') == len(ids)
+    assert dom.count('class="plot-container plotly"') == len(HTML_FIGURES) + len(ids)
 
 
 def test_screenshot_is_not_blank(report, tmp_path):
@@ -199,3 +199,82 @@ def test_index_page_loads(report, tmp_path):
     assert result.returncode == 0
     assert 'href="cone/report.html"' in result.stdout
     assert _uncaught(result.stderr) == []
+
+
+SEEN = """<script>
+window.addEventListener('load', function () {
+  setTimeout(function () {
+    var out = {};
+    var probes = [['kind', '#study-kind'], ['check', '.cards .card.warn'],
+                  ['scope', '#analysis-scope'], ['part', '#fig-part_3d']];
+    probes.forEach(function (p) {
+      var el = document.querySelector(p[1]);
+      if (!el) { out[p[0]] = null; return; }
+      var r = el.getBoundingClientRect(), cs = getComputedStyle(el);
+      out[p[0]] = {text: el.innerText, h: r.height, w: r.width, top: r.top + window.scrollY,
+                   shown: cs.display !== 'none' && cs.visibility !== 'hidden'
+                          && parseFloat(cs.opacity) > 0};
+    });
+    var part = document.querySelector('#fig-part_3d');
+    out.canvas = part ? part.querySelectorAll('canvas').length : 0;
+    out.traces = part && part.data ? part.data.length : 0;
+    out.buttons = part ? part.querySelectorAll('.updatemenu-button').length : 0;
+    // press the second term's button: only its trace is shown then
+    var b = part ? part.querySelectorAll('.updatemenu-button')[1] : null;
+    if (b) { b.dispatchEvent(new MouseEvent('click', {bubbles: true})); }
+    setTimeout(function () {
+      out.visible_after_click = part && part.data
+        ? part.data.map(function (t) { return t.visible === true; }) : [];
+      var pre = document.createElement('pre');
+      pre.id = '__roboisf_seen';
+      pre.textContent = JSON.stringify(out);
+      document.body.appendChild(pre);
+    }, 800);
+  }, 1500);
+});
+</script>"""
+
+
+@pytest.fixture(scope="module")
+def stated_report(tmp_path_factory) -> Path:
+    """A pyramid of a virtual cell whose robot is softer than its model: the model check fails,
+    20 mm of rim band leave 30 % of the points."""
+    out = tmp_path_factory.mktemp("browser_stated")
+    pp, c, cn, s = make_study(n_laps=60, points_per_lap=80, shape="pyramid", name="soft")
+    s = {
+        **s,
+        "truth": {"model_equals_truth": False, "truth_source": "soft.toml"},
+        "vjm_check": {"ratio": 2.0, "ci_low": 1.98, "ci_high": 2.02, "verdict": "mismatch"},
+        "n_points": len(pp),
+        "n_points_used": int(0.3 * len(pp)),
+        "rim_band_mm": 20.0,
+    }
+    return write_report(pp, c, cn, s, out / "soft", png=False)
+
+
+def test_statements_are_visible_at_the_top_and_the_3d_view_renders(stated_report, tmp_path):
+    """The headline's study kind, the model-check verdict, the rim band and the 3D view are on
+    the rendered page, visible, and in that order before the figures."""
+    page = stated_report.with_name("seen.html")
+    page.write_text(
+        stated_report.read_text(encoding="utf-8").replace("<head>", "<head>" + SEEN, 1),
+        encoding="utf-8",
+    )
+    dom, errors, _ = _load(page, tmp_path / "profile")
+    assert errors == [], errors
+    m = re.search(r'<pre id="__roboisf_seen">(.*?)</pre>', dom, flags=re.S)
+    assert m, "the probe did not run"
+    seen = json.loads(html.unescape(m.group(1)))
+    for key in ("kind", "check", "scope", "part"):
+        assert seen[key] is not None, f"{key}: not on the page"
+        assert seen[key]["shown"] and seen[key]["h"] > 10 and seen[key]["w"] > 200, seen[key]
+    assert "Virtual cell" in seen["kind"]["text"]
+    assert "model does not hold" in seen["check"]["text"] and "2.00" in seen["check"]["text"]
+    assert "rim band: the top 20.0 mm" in seen["scope"]["text"]
+    assert "30 %" in seen["scope"]["text"]
+    assert seen["kind"]["top"] < seen["check"]["top"] < seen["scope"]["top"] < seen["part"]["top"]
+    assert seen["kind"]["top"] < 300  # the first thing under the title
+    # the 3D view drew: a WebGL canvas, one trace per term, a button per term
+    assert seen["canvas"] >= 1 and seen["part"]["h"] > 400
+    assert seen["traces"] == 6 and seen["buttons"] == 6
+    assert seen["visible_after_click"] == [False, True, False, False, False, False]

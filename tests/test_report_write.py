@@ -20,6 +20,7 @@ from report_fixtures import make_study
 from roboisf.errors import InputError
 from roboisf.report import (
     FIGURES,
+    HTML_FIGURES,
     OPTIONAL_COLUMNS,
     REQUIRED_COLUMNS,
     read_headline,
@@ -67,8 +68,8 @@ def test_report_is_offline(written):
 def test_plotly_js_inlined_exactly_once_and_every_figure_present(written):
     _, text = written
     assert len(re.findall(r"\* plotly\.js v\d", text)) == 1
-    assert text.count("Plotly.newPlot(") == len(FIGURES)
-    for fid in FIGURES:
+    assert text.count("Plotly.newPlot(") == len(HTML_FIGURES) + len(FIGURES)
+    for fid in HTML_FIGURES + FIGURES:
         assert text.count(f'id="fig-{fid}"') == 1, fid
     # the JS bundle comes before the first figure's newPlot call
     assert text.index("* plotly.js v") < text.index("Plotly.newPlot(")
@@ -107,7 +108,7 @@ def test_optional_columns_absent(tmp_path):
     assert "no measured thickness was given" in text
     assert "ground truth" not in text
     assert "No warnings" in text
-    assert text.count("Plotly.newPlot(") == len(FIGURES)
+    assert text.count("Plotly.newPlot(") == len(HTML_FIGURES) + len(FIGURES)
     assert not (tmp_path / "figures").exists()
 
 

@@ -54,7 +54,8 @@ def register(app: typer.Typer) -> None:
         Reads the study folder (docs/study.md): the part, tool and holder compliance, robot and
         placement, and a CNC and a robot run with their toolpath, force log, joint log and scan.
         Writes report.html, contributions.csv (mm, %), contributions_normal.csv, per_point.parquet,
-        summary.json and figures/*.png.
+        summary.json and figures/*.png. Ends with the warnings, the verdicts (study kind, robot
+        model check, diagnosis) and the next command to run.
         """
         output_dir(output, "analyze", overwrite, study_inputs(study))
         from roboisf.decompose.pipeline import write_results
@@ -65,7 +66,7 @@ def register(app: typer.Typer) -> None:
         result = _analyze_runs(study, run, progress)
         write_results(result, output, png=png, progress=progress)
         _print_table(result.contributions, result.summary)
-        state.info(f"report: {output / 'report.html'}")
+        _print_verdicts(result.summary, study, output)
 
     @app.command("virtual-cell")
     def _virtual_cell(
@@ -483,3 +484,45 @@ def _print_table(df: object, summary: dict) -> None:
         )
     if state.verbosity >= 1:
         state.out.print(t)
+
+
+def next_command(summary: dict, study: Path, output: Path) -> str:
+    """The command to run after ``analyze``: compensate the study from these results — with the
+    stiffness identified from the run when the robot model check failed (``mismatch``) and one
+    was written."""
+    import shlex
+
+    args = ["roboisf", "compensate", str(study), "--results", str(output)]
+    vc = summary.get("vjm_check") or {}
+    if vc.get("verdict") == "mismatch" and summary.get("identified_stiffness"):
+        args += ["--stiffness", str(output / "identified_stiffness.toml")]
+    args += ["-o", "compensated"]
+    return " ".join(shlex.quote(a) for a in args)
+
+
+def _print_verdicts(summary: dict, study: Path, output: Path) -> None:
+    """The end of ``analyze``'s output: the warnings, the verdicts (study kind, model check,
+    diagnosis), the report and the next command."""
+    from roboisf.report.statements import verdict_lines
+
+    for line in summary.get("warnings") or []:
+        state.warn(str(line))
+    for line in verdict_lines(summary):
+        state.info(line)
+    state.info(f"report: {output / 'report.html'}")
+    diagnosis = summary.get("diagnosis")
+    faults = [
+        e
+        for e in (diagnosis if isinstance(diagnosis, list) else [])
+        if isinstance(e, dict)
+        and e.get("verdict") == "fault"
+        and e.get("suspect") != "robot_stiffness"
+    ]
+    cmd = next_command(summary, study, output)
+    if faults:
+        from roboisf.report.statements import suspect_name
+
+        names = ", ".join(suspect_name(str(e["suspect"])) for e in faults)
+        state.info(f"next: check the {names} the diagnosis names (report.html), then: {cmd}")
+    else:
+        state.info(f"next: {cmd}")

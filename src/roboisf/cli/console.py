@@ -46,6 +46,11 @@ class _State:
         if self.verbosity >= 1:
             self.out.print(msg, markup=False, soft_wrap=True)
 
+    def notice(self, msg: str) -> None:
+        """A line on stderr (not -q): what is happening that takes long, e.g. a first compile."""
+        if self.verbosity >= 1:
+            self.err.print(msg, markup=False, soft_wrap=True)
+
     def debug(self, msg: str) -> None:
         if self.verbosity >= 2:
             from rich.markup import escape

@@ -21,6 +21,7 @@ from roboisf.cli.console import state
 from roboisf.cli.lazy import LazyCommand, LazyGroup
 from roboisf.errors import ConvergenceError, InputError
 from roboisf.io.outdir import Interrupted, deferred_signals, output_session, signal_handlers
+from roboisf.progress import set_notice
 
 # every command, in the order --help lists them (the workflow first, then the building blocks),
 # with the module whose register(app) adds it and its one-line help: --help lists them without
@@ -97,7 +98,7 @@ app = typer.Typer(
         "Measure, split and remove the geometric error of robot-formed ISF parts.\n\n"
         "Typical session:  roboisf demo   ·   roboisf analyze study/ -o results/   ·   "
         "roboisf compensate ...\n\nLengths on the command line are mm, angles degrees; files "
-        "declare their own units."
+        "declare their own units. -q/-v may come before or after the command."
     ),
     no_args_is_help=True,
     add_completion=False,
@@ -133,7 +134,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     SIGINT and SIGTERM unwind the stack (outputs in progress are discarded, previous results
     kept) and give 130 and 143 with one line on stderr saying what happened to the outputs.
     """
-    args = list(sys.argv[1:] if argv is None else argv)
+    args = hoist_verbosity(list(sys.argv[1:] if argv is None else argv))
+    set_notice(state.notice)  # a first build of the compiled kernels says so
     try:
         with signal_handlers(), output_session() as session:
             try:
@@ -149,6 +151,21 @@ def main(argv: Sequence[str] | None = None) -> int:
             return code
     finally:
         state.verbosity = 1
+        set_notice(None)
+
+
+#: The root's verbosity flags; no command has options of these names.
+VERBOSITY_FLAGS = frozenset({"-q", "--quiet", "-v", "--verbose"})
+
+
+def hoist_verbosity(args: list[str]) -> list[str]:
+    """``-q``/``-v`` anywhere before a ``--`` moved in front of the command, where the root
+    reads them: ``roboisf analyze study -v`` is ``roboisf -v analyze study``. After ``--``
+    every word is an argument and stays."""
+    end = args.index("--") if "--" in args else len(args)
+    flags = [a for a in args[:end] if a in VERBOSITY_FLAGS]
+    rest = [a for a in args[:end] if a not in VERBOSITY_FLAGS]
+    return flags + rest + args[end:]
 
 
 def _run(args: list[str]) -> int:

@@ -328,8 +328,9 @@ def warn_truncated(tp: Toolpath, tool_diameter: float) -> None:
         )
 
 
-def write(tp: Toolpath, output: Path, fmt: str | None, opts: PathOptions) -> str:
-    """Write ``tp`` with the program options; return the format used.
+def write(tp: Toolpath, output: Path, fmt: str | None, opts: PathOptions) -> tuple[str, list[Path]]:
+    """Write ``tp`` with the program options; return the format used and every file written
+    (a RAPID program too long for one module is a main module and its part modules).
 
     A robot program needs ``--placement`` and ``--tool``; with a robot (``--robot`` or the
     study's) IK along the path gives the configuration data.
@@ -346,7 +347,7 @@ def write(tp: Toolpath, output: Path, fmt: str | None, opts: PathOptions) -> str
         config = program_config(
             model, tp, T, math.radians(opts.tool_rotation), **parse_arm_config(opts.arm_config)
         )
-    fmt, _ = write_toolpath(
+    fmt, paths = write_toolpath(
         tp,
         output,
         fmt,
@@ -357,7 +358,7 @@ def write(tp: Toolpath, output: Path, fmt: str | None, opts: PathOptions) -> str
         safe_height=opts.safe_height * 1e-3,
         work_offset=opts.work_offset,
     )
-    return fmt
+    return fmt, paths
 
 
 def program_frames(
@@ -406,9 +407,18 @@ def _run(
     part = part_factory()
     tp = generate(part, opts)
     warn_truncated(tp, opts.tool_diameter)
-    fmt = write(tp, output, fmt, opts)
+    fmt, paths = write(tp, output, fmt, opts)
+    extra = [p.name for p in paths[1:]]  # a KRL .dat, a long RAPID program's part modules
+    more = (
+        f" and {len(extra)} more file{'s' if len(extra) > 1 else ''} beside it ("
+        + ", ".join(extra[:3])
+        + (" …" if len(extra) > 3 else "")
+        + ")"
+        if extra
+        else ""
+    )
     state.info(
-        f"wrote {output} ({fmt}): {len(tp)} points, {tp.n_laps} laps, "
+        f"wrote {output}{more} ({fmt}): {len(tp)} points, {tp.n_laps} laps, "
         f"{tp.path_length[-1]:.2f} m of path, {tp.time[-1] / 60:.1f} min at {opts.feed:g} mm/min"
     )
 

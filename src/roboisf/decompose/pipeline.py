@@ -650,6 +650,22 @@ def _truth_vs_model(
         how = "the truth's robot term against the VJM at the measured forces"
     summary.setdefault("truth", {})["model_equals_truth"] = flag
     summary["truth"]["model_equals_truth_from"] = how
+    # what the report says about the study: a truth from a shipped scenario was tuned (the
+    # paper's shares), and a springback coupling explains the robot panel's truth vs recovered
+    table = meta.get("truth") if isinstance(meta, dict) else None
+    if isinstance(table, dict):
+        # file names only: the report carries no absolute path
+        summary["truth"]["truth_source"] = " + ".join(
+            part if part.startswith("scenario ") else Path(part).name
+            for part in str(table.get("source") or "").split(" + ")
+            if part
+        )
+        sb = table.get("springback")
+        if isinstance(sb, dict) and sb.get("deflection_coupling"):
+            summary["truth"]["springback_coupling"] = {
+                "coupling": float(sb["deflection_coupling"]),
+                "depth_mm": float(sb["coupling_depth"]) if "coupling_depth" in sb else None,
+            }
     if flag and "vjm_check" in summary:
         summary["vjm_check"]["by_construction"] = True
 
@@ -765,6 +781,14 @@ def _summary(
         "n_points": len(tp),
         "n_points_used": int(np.sum(valid)),
         "rim_band_mm": study.analysis.rim_band * 1e3,
+        "max_distance_mm": study.analysis.max_distance * 1e3,
+        "beyond_max_distance": {
+            name: {
+                "n": int(sc.counts.get("wall_beyond_max_distance", 0)),
+                "of": int(sc.counts.get("wall_total", 0)),
+            }
+            for name, sc in scans.items()
+        },
         "contour_z": study.analysis.contour_z * 1e3,
         "compliance_stats": stats,
         "force_contributions": table4,

@@ -24,6 +24,10 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from roboisf.progress import compile_notice
+
+compile_notice(__file__)  # numba compiles these on first call: say so once
+
 __all__ = ["row_norms", "running_integral_at"]
 
 F64 = NDArray[np.float64]

@@ -251,7 +251,25 @@ def part_files(path: str | Path) -> list[Path]:
     return files
 
 
+#: Significant digits of the numbers in a written part file: the SI → mm/deg conversion leaves
+#: binary noise (0.087 m → 87.00000000000001 mm); 12 digits keep 1e-12 of each value.
+PART_DIGITS = 12
+
+
+def _tidy(value: Any) -> Any:
+    """``value`` with every float rounded to :data:`PART_DIGITS` significant digits."""
+    if isinstance(value, float):
+        return float(f"{value:.{PART_DIGITS}g}")
+    if isinstance(value, dict):
+        return {k: _tidy(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_tidy(v) for v in value]
+    return value
+
+
 def save_part(part: Part, path: str | Path) -> None:
-    """Write ``part`` as a ``[part]`` TOML table (mm, deg), atomically."""
+    """Write ``part`` as a ``[part]`` TOML table (mm, deg), atomically; numbers to
+    :data:`PART_DIGITS` significant digits (``opening_diameter = 87.0``, not
+    ``87.00000000000001``)."""
     with atomic_write(path, "wb") as fh:
-        fh.write(tomli_w.dumps({"part": part.to_dict()}).encode())
+        fh.write(tomli_w.dumps({"part": _tidy(part.to_dict())}).encode())

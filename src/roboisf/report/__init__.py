@@ -6,6 +6,7 @@ data contract of :mod:`roboisf.report.schema` (mm, deg, N, N·m, s).
 
 from roboisf.report.document import (
     FIGURES,
+    HTML_FIGURES,
     figure_ids,
     read_headline,
     write_index,
@@ -25,6 +26,7 @@ __all__ = [
     "FACTOR_COLORS",
     "FACTOR_LABELS",
     "FIGURES",
+    "HTML_FIGURES",
     "OPTIONAL_COLUMNS",
     "REQUIRED_COLUMNS",
     "RUN_COLORS",

@@ -35,6 +35,7 @@ __all__ = [
     "lap_map",
     "lap_profile",
     "masked",
+    "part_view",
     "reused",
     "top_view",
     "unrolled_map",
@@ -50,6 +51,19 @@ ROUND_TOLERANCE = 0.02
 MAX_MAP_BINS = 360
 #: Most points per part drawn in the top view.
 MAX_TOP_POINTS = 12_000
+#: Most toolpath points drawn in the 3D view of the formed part (one subset for every term).
+MAX_3D_POINTS = 8_000
+#: The terms of the 3D view: (column, label). ``robot_dn`` is the robot part's measured normal
+#: deviation (the total the factors add up to); ``delta_dn`` the residual the robot model leaves,
+#: Δ = δc_exp − δc_VJM.
+PART_VIEW_TERMS: tuple[tuple[str, str], ...] = (
+    ("robot_dn", "total (robot part, measured)"),
+    ("springback_dn", "springback"),
+    ("tool_dn", "tool"),
+    ("tool_holder_dn", "tool holder"),
+    ("robot_compliance_dn", "robot compliance"),
+    ("delta_dn", "residual Δ = measured − VJM robot"),
+)
 
 #: Percentiles of the spread band drawn around a lap mean.
 BAND = (5.0, 95.0)
@@ -184,17 +198,19 @@ def unrolled_map(
 
 
 def contour_lap(per_point: pd.DataFrame, contour_z: float) -> tuple[int, float, str | None]:
-    """The lap whose mean contact height is nearest ``contour_z`` (mm) and has valid scan data.
+    """The lap whose mean contact height is nearest ``contour_z`` (mm) and has valid scan data
+    the analysis used (the ``used`` column when present: below the rim band, no scan hole).
 
     Returns ``(lap, z, note)``: the lap number, its mean contact z (mm) and a note for the reader
-    when the nearest lap had to be skipped because both scans were holes there (else None).
+    when the nearest lap had to be skipped because it lies in the rim band or both scans were
+    holes there (else None).
     """
     z = per_point.groupby("lap", sort=True)["contact_z"].mean()
-    usable = (
-        pd.Series(np.isfinite(masked(per_point, "robot_compliance_dn")), index=per_point.index)
-        .groupby(per_point["lap"])
-        .any()
-    )
+    ok = np.isfinite(masked(per_point, "robot_compliance_dn"))
+    rim = "used" in per_point.columns
+    if rim:
+        ok &= per_point["used"].to_numpy(dtype=bool)
+    usable = pd.Series(ok, index=per_point.index).groupby(per_point["lap"]).any()
     order = np.argsort(np.abs(z.to_numpy() - contour_z), kind="stable")
     first = int(z.index[order[0]])
     for k in order:
@@ -202,10 +218,12 @@ def contour_lap(per_point: pd.DataFrame, contour_z: float) -> tuple[int, float, 
         if usable.loc[lap]:
             note = None
             if lap != first:
-                note = (
-                    f"lap {first} (z = {z.loc[first]:.2f} mm) has no valid scan data; "
-                    f"showing lap {lap} instead"
+                why = (
+                    "lies in the rim band the analysis leaves out or has no valid scan data"
+                    if rim
+                    else "has no valid scan data"
                 )
+                note = f"lap {first} (z = {z.loc[first]:.2f} mm) {why}; showing lap {lap} instead"
             return lap, float(z.loc[lap]), note
     return (
         first,
@@ -502,4 +520,59 @@ def contour_along(per_point: pd.DataFrame, contour_z: float) -> ContourPath:
         resultant("robot_compliance"),
         resultant("vjm"),
         resultant("delta"),
+    )
+
+
+@dataclass(frozen=True)
+class PartView:
+    """The formed part for the 3D view: whole laps of the toolpath, every ``lap_step``-th one,
+    each a polyline in toolpath order, the laps separated by one NaN row (a break in the line).
+
+    ``x, y, z`` (M,) float, mm — contact points in the work frame; ``values`` maps each column of
+    :data:`PART_VIEW_TERMS` to (M,) float, mm (NaN at scan holes, see :func:`masked`, and at the
+    separators); ``n_total`` the number of toolpath points it was drawn from.
+    """
+
+    x: np.ndarray
+    y: np.ndarray
+    z: np.ndarray
+    values: dict[str, np.ndarray]
+    n_total: int
+    lap_step: int
+
+
+@_reusable
+def part_view(per_point: pd.DataFrame, max_points: int = MAX_3D_POINTS) -> PartView:
+    """Every ``k``-th lap whole, ``k`` the smallest step that keeps at most ``max_points``
+    toolpath points, with the normal value of each 3D-view term. Whole laps drawn as lines
+    leave no decimation gaps inside a lap (a random subset of points showed them as holes) and
+    join the contact points across a corner where the toolpath skips."""
+    n = len(per_point)
+    lap = per_point["lap"].to_numpy()
+    laps = np.unique(lap)
+    step = 1
+    while step < len(laps) and np.isin(lap, laps[::step]).sum() > max_points:
+        step += 1
+    keep = np.flatnonzero(np.isin(lap, laps[::step]))
+    # one NaN row after each lap kept: the line breaks between laps
+    breaks = np.flatnonzero(np.diff(lap[keep]) != 0) + 1
+    rows = np.insert(keep.astype(float), breaks, np.nan)
+    gap = np.isnan(rows)
+    take = np.where(gap, 0, rows).astype(np.intp)
+
+    def pick(values: np.ndarray) -> np.ndarray:
+        out = values[take].astype(float)
+        out[gap] = np.nan
+        return out
+
+    values = {
+        col: pick(masked(per_point, col)) for col, _ in PART_VIEW_TERMS if col in per_point.columns
+    }
+    return PartView(
+        pick(per_point["contact_x"].to_numpy(dtype=float)),
+        pick(per_point["contact_y"].to_numpy(dtype=float)),
+        pick(per_point["contact_z"].to_numpy(dtype=float)),
+        values,
+        n,
+        step,
     )

@@ -9,8 +9,6 @@ inline) and ``compensation.png`` (matplotlib), both atomically.
 
 from __future__ import annotations
 
-import html
-import json
 from pathlib import Path
 from typing import Any, cast
 
@@ -22,6 +20,7 @@ from matplotlib.figure import Figure
 from plotly.subplots import make_subplots
 
 from roboisf.io.atomic import atomic_write
+from roboisf.report.page import esc, fmt, kv_table, page
 from roboisf.report.static import save_png
 from roboisf.report.style import mpl_rc, plotly_layout
 
@@ -72,7 +71,15 @@ def compensation_figure(laps: pd.DataFrame, summary: dict[str, Any]) -> go.Figur
         2,
     )
     fig.update_xaxes(title_text="lap")
-    fig.update_layout(**plotly_layout(height=380))
+    # the legend under the panels: above them it covered the first panel's title
+    fig.update_layout(
+        **plotly_layout(
+            height=420,
+            margin={"l": 64, "r": 24, "t": 40, "b": 96},
+            legend={"orientation": "h", "yanchor": "top", "y": -0.22, "xanchor": "left", "x": 0},
+        )
+    )
+    fig.update_yaxes(title_text="mm")
     return fig
 
 
@@ -102,37 +109,177 @@ def compensation_png(laps: pd.DataFrame, summary: dict[str, Any]) -> Figure:
     return fig
 
 
-def _kv_rows(summary: dict[str, Any]) -> str:
-    keys = [
-        ("terms", "terms compensated"),
-        ("mean_abs_dn_before_mm", "mean |dn| before [mm]"),
-        (
-            f"mean_abs_dn_after_{str(summary.get('after', 'predicted')).replace(' ', '_')}_mm",
-            _after_label(summary),
-        ),
-        ("max_command_offset_mm", "max commanded offset [mm]"),
-        ("max_lap_step_springback_offset_mm", "max lap-to-lap step of the springback offset [mm]"),
-        ("max_lap_step_command_dn_mm", "max lap-to-lap step of the commanded offset [mm]"),
-        ("complete", "complete"),
-    ]
-    rows = []
-    for k, label in keys:
-        if k in summary:
-            v = summary[k]
-            txt = f"{v:.4f}" if isinstance(v, float) else json.dumps(v)
-            rows.append(f"<tr><th>{html.escape(label)}</th><td>{html.escape(txt)}</td></tr>")
-    g = summary.get("gouge") or {}
-    rows.append(
-        f"<tr><th>gouge check</th><td>{'ok' if g.get('ok') else 'GOUGE'} — "
-        f"{html.escape(str(g.get('rule', '')))}</td></tr>"
+def _terms(summary: dict[str, Any]) -> str:
+    """What was compensated, in words."""
+    terms = summary.get("terms") or {}
+    done = []
+    if terms.get("compliance"):
+        done.append(
+            "the robot's, tool's and holder's deflection under the forming force (pre-deflection)"
+        )
+    if terms.get("springback"):
+        sb = summary.get("springback") or {}
+        gain = sb.get("gain")
+        done.append(
+            "the springback (displacement adjustment from the measured deviation"
+            + (f", gain λ = {gain:g}" if isinstance(gain, int | float) else "")
+            + ")"
+        )
+    return " and ".join(done) if done else "nothing (both terms switched off)"
+
+
+def _stiffness(summary: dict[str, Any]) -> str | None:
+    """Which joint stiffness the pre-deflection used (file name only), or None if not said."""
+    src = summary.get("stiffness")
+    if not src:
+        return None
+    name = Path(str(src)).name
+    if name == "study.toml":
+        return "the study's own robot model (study.toml)"
+    if name == "identified_stiffness.toml":
+        return f"{name}: identified from the forming run by roboisf analyze"
+    return f"{name} (given with --stiffness)"
+
+
+def _start(laps: pd.DataFrame, summary: dict[str, Any]) -> str | None:
+    """Why the before/after curves start at their first lap (the rim band), or None."""
+    cols = [c for c in ("abs_dn_before", "abs_dn_after") if c in laps]
+    if not cols:
+        return None
+    has = laps[cols].notna().any(axis=1).to_numpy()
+    if not has.any():
+        return None
+    first = int(laps["lap"].to_numpy()[has.argmax()])
+    if first == int(laps["lap"].min()):
+        return None
+    rim = summary.get("rim_band_mm")
+    where = (
+        f"the first lap below the rim band (the top {float(rim):g} mm of depth, which the "
+        "analysis leaves out)"
+        if isinstance(rim, int | float)
+        else "the first lap with measured deviation"
     )
-    return "".join(rows)
+    blend = summary.get("rim_blend_mm")
+    ramp = (
+        f"; the springback offset ramps in over the last {float(blend):g} mm of the rim band, "
+        "the pre-deflection applies everywhere"
+        if isinstance(blend, int | float) and blend > 0
+        else ""
+    )
+    return f"The before/after curves start at lap {first}: {where}{ramp}."
+
+
+def _card(label: str, value: str, note: str = "", cls: str = "") -> str:
+    return (
+        f'<div class="card{cls}"><div class="label">{label}</div><div class="value">{value}</div>'
+        f'<div class="note">{note}</div></div>'
+    )
+
+
+def _body(laps: pd.DataFrame, summary: dict[str, Any], div: str) -> str:
+    after = str(summary.get("after", "predicted"))
+    key = f"mean_abs_dn_after_{after.replace(' ', '_')}_mm"
+    g = summary.get("gouge") or {}
+    cards = []
+    if "mean_abs_dn_before_mm" in summary:
+        cards.append(
+            _card(
+                "Mean |dn| before",
+                f"{fmt(summary['mean_abs_dn_before_mm'], 3)}<small>mm</small>",
+                "the part formed with the nominal command",
+            )
+        )
+    if key in summary:
+        cards.append(
+            _card(
+                f"Mean |dn| after ({esc(after)})",
+                f"{fmt(summary[key], 3)}<small>mm</small>",
+                "predicted by superposition of the deflection model"
+                if after == "predicted"
+                else "formed again with the compensated command",
+                " accent",
+            )
+        )
+    if "max_command_offset_mm" in summary:
+        cards.append(
+            _card(
+                "Largest commanded offset",
+                f"{fmt(summary['max_command_offset_mm'], 3)}<small>mm</small>",
+                f"mean {fmt(summary.get('mean_command_offset_mm'), 3)} mm",
+            )
+        )
+    cards.append(
+        _card(
+            "Gouge check",
+            "ok" if g.get("ok") else "GOUGE",
+            esc(g.get("rule", "")),
+            "" if g.get("ok") else " warn",
+        )
+    )
+    lines = [f"<p><b>Compensated:</b> {esc(_terms(summary))}.</p>"]
+    stiff = _stiffness(summary)
+    if stiff:
+        lines.append(f"<p><b>Joint stiffness of the pre-deflection:</b> {esc(stiff)}.</p>")
+    elif (summary.get("terms") or {}).get("compliance"):
+        lines.append("<p><b>Joint stiffness of the pre-deflection:</b> the cell's robot model.</p>")
+    start = _start(laps, summary)
+    how = (
+        "predicted by superposition of the deflection model"
+        if after == "predicted"
+        else "formed again on the virtual cell"
+        if after == "virtual cell"
+        else after
+    )
+    caption = (
+        "Left: mean |dn| per lap of the part formed with the nominal command (before) and with "
+        f"the compensated one (after: {how}). Right: commanded offset = compensated − nominal "
+        "tip, per-lap mean, its normal part n·Δ and its length |Δ|."
+        + (f" {start}" if start else "")
+    )
+    history = summary.get("mean_abs_dn_per_iteration_mm")
+    details = [
+        ("study", summary.get("study")),
+        ("virtual cell", summary.get("cell")),
+        (
+            "mean |dn| per iteration",
+            " → ".join(f"{fmt(v, 3)}" for v in history) + " mm"
+            if isinstance(history, list) and history
+            else None,
+        ),
+        ("robot", summary.get("robot")),
+        ("complete", "yes" if summary.get("complete") else "no (partial, see per_point.csv)"),
+        ("toolpath points", summary.get("n_points")),
+        (
+            "rim band",
+            None if summary.get("rim_band_mm") is None else f"{summary['rim_band_mm']:g} mm",
+        ),
+        (
+            "largest lap-to-lap step",
+            "springback offset "
+            f"{fmt(summary.get('max_lap_step_springback_offset_mm'), 3)} mm, commanded offset "
+            f"{fmt(summary.get('max_lap_step_command_dn_mm'), 3)} mm",
+        ),
+        ("G-code", summary.get("gcode")),
+    ]
+    return (
+        f'<div class="cards">{"".join(cards)}</div>'
+        + "".join(lines)
+        + '<section id="curves"><h2>Before / after, lap by lap</h2>'
+        f'<figure><div class="plot">{div}</div><figcaption>{esc(caption)}</figcaption></figure>'
+        "</section>"
+        '<section id="details"><h2>Details</h2>'
+        f"{kv_table(details)}</section>"
+    )
 
 
 def write_compensation_report(
     laps: pd.DataFrame, summary: dict[str, Any], out_dir: str | Path, *, png: bool = True
 ) -> Path:
-    """Write ``compensation.html`` (and ``compensation.png``) into ``out_dir``; return the HTML."""
+    """Write ``compensation.html`` (the study report's look: cards, sections, self-contained)
+    and ``compensation.png`` into ``out_dir``; return the HTML.
+
+    Says what was compensated, with which joint stiffness (``summary["stiffness"]``, file name
+    only) and why the before/after curves start where they do (``rim_band_mm``)."""
     out = Path(out_dir)
     fig = compensation_figure(laps, summary)
     # a fixed div id (plotly draws a random one otherwise): two runs give the same bytes
@@ -142,19 +289,16 @@ def write_compensation_report(
         include_plotlyjs=True,
         include_mathjax=False,
         div_id="roboisf-compensation",
+        config={"displaylogo": False, "responsive": True},
+        default_height="420px",
+        default_width="100%",
     )
-    page = (
-        "<!DOCTYPE html><html><head><meta charset='utf-8'><title>roboisf compensation</title>"
-        "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto}"
-        "th{text-align:left;padding-right:1em}</style></head><body>"
-        "<h1>Compensation: before / after</h1>"
-        f"<table>{_kv_rows(summary)}</table>{div}"
-        "<p>Mean |dn| per lap of the part formed with the nominal command (before) and with the "
-        "compensated one (after: predicted by the superposition model, or formed on the virtual "
-        "cell); commanded offset = compensated − nominal tip, per-lap mean.</p></body></html>"
-    )
+    name = summary.get("study") or summary.get("cell")
+    title = "roboisf compensation" + (f" — {name}" if name else "")
+    sub = summary.get("robot") or ("virtual cell" if summary.get("cell") else "")
+    document = page(title, _body(laps, summary, div), subtitle=esc(sub))
     with atomic_write(out / "compensation.html") as fh:
-        fh.write(page)
+        fh.write(document)
     if png:
         save_png(compensation_png(laps, summary), out / "compensation.png")
     return out / "compensation.html"

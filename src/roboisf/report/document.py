@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import html as _html
 import json
 import os
@@ -26,9 +27,17 @@ from roboisf.report.alignment import alignment_html
 from roboisf.report.model_check import check_card, check_tables
 from roboisf.report.render import PngRenderer, default_processes
 from roboisf.report.schema import FACTORS, check_contributions, check_per_point, check_summary
+from roboisf.report.statements import diagnosis_html, kind_banner, scope_html, study_kind
 from roboisf.report.style import FACTOR_LABELS
 
-__all__ = ["FIGURES", "figure_ids", "read_headline", "write_index", "write_report"]
+__all__ = [
+    "FIGURES",
+    "HTML_FIGURES",
+    "figure_ids",
+    "read_headline",
+    "write_index",
+    "write_report",
+]
 
 #: Plot ids of the report of a round part, in page order; each is ``<div id="fig-<id>">`` in
 #: the HTML and ``figures/<id>.png``. A part that is not round has ``vjm_contour`` (the contour
@@ -44,6 +53,11 @@ FIGURES: tuple[str, ...] = (
     "vjm_polar",
     "thickness",
 )
+
+
+#: Plot ids in the HTML only (no PNG), before every figure of :data:`FIGURES`: the 3D view of
+#: the formed part.
+HTML_FIGURES: tuple[str, ...] = ("part_3d",)
 
 
 def figure_ids(round_part: bool = True) -> tuple[str, ...]:
@@ -69,6 +83,41 @@ class _Figure:
     caption: str
     plotly: Callable[[], go.Figure]
     png: Callable[[], Any]
+
+
+#: What the blank areas of a point view are.
+_SPARSE = (
+    "Blank specks are points the subset leaves out (when a part has more) or scan holes (the "
+    "unrolled map shows the holes alone); blank wedges at the corners of a part that is not "
+    "round are stretches the toolpath's contact points skip: the ball's centre turns on a "
+    "tighter radius than the wall, so consecutive contact points lie several mm apart there."
+)
+
+
+def _thickness_caption(pp: pd.DataFrame, has_meas: bool) -> str:
+    """What the thickness figure shows: a band only where the measurement varies within a lap,
+    and why the sine law rises at the top when it does (the rim's rounding)."""
+    cols = ["thickness_predicted"] + (["thickness_measured"] if has_meas else [])
+    prof = agg.lap_profile(pp, cols)
+    text = "Sine law t = t₀·cos α (dashed)"
+    if has_meas:
+        width = (prof["thickness_measured_hi"] - prof["thickness_measured_lo"]).max()
+        text += (
+            " and the measured thickness (lap mean, 5–95 % band)."
+            if width > 1e-3
+            else " and the measured thickness (lap mean; it does not vary within a lap, so "
+            "no band)."
+        )
+    else:
+        text += "; no measured thickness was given."
+    pred = prof["thickness_predicted"].dropna()
+    if len(pred) > 2 and pred.iloc[0] > 1.05 * pred.median():
+        text += (
+            f" At the top (depth {prof['depth'].iloc[0]:.1f} mm) the tool is still on the "
+            "rounding into the rim, where the wall is flatter, so the sine law rises towards "
+            "the sheet's thickness there."
+        )
+    return text
 
 
 def _figures(
@@ -129,8 +178,8 @@ def _figures(
             "Deviation map (top view)",
             "The same δn at the toolpath points seen from above (x, y in the work frame), at "
             f"most {agg.MAX_TOP_POINTS} points per part (a fixed random subset: an even stride "
-            "would alias with the laps into spokes and rings); "
-            "gaps are scan holes. Same colour scale rule as the unrolled map.",
+            "would alias with the laps into spokes and rings). "
+            f"{_SPARSE} Same colour scale rule as the unrolled map.",
             lambda: ia.deviation_top_figure(pp),
             lambda: st.deviation_top_png(pp),
         ),
@@ -171,17 +220,63 @@ def _figures(
         _Figure(
             "thickness",
             "Wall thickness",
-            "Sine law t = t₀·cos α (dashed)"
-            + (
-                " and the measured thickness (lap mean, 5–95 % band)."
-                if has_meas
-                else "; no measured thickness was given."
-            ),
+            _thickness_caption(pp, has_meas),
             lambda: ia.thickness_figure(pp),
             lambda: st.thickness_png(pp),
         ),
     ]
     return {s.id: s for s in specs}
+
+
+def _part_figure(pp: pd.DataFrame) -> _Figure:
+    """The 3D view of the formed part: HTML only (a PNG of it says little)."""
+    view = agg.part_view(pp)
+    laps = "every lap" if view.lap_step == 1 else f"every {view.lap_step}th lap"
+    return _Figure(
+        "part_3d",
+        "The formed part, coloured by each term",
+        f"The toolpath's contact points, {laps} whole (at most {agg.MAX_3D_POINTS} points), "
+        "drawn as lines coloured by the normal value δn of the term picked above (positive: "
+        "the material lies on the tool side of the nominal); every term has its own symmetric "
+        "colour scale, so compare sizes in the cards and tables, patterns here. Total: the "
+        "robot part's measured deviation, the sum of the four factors; residual: what the robot "
+        "model leaves, Δ = δc_exp − δc_VJM. A break in a line is a scan hole.",
+        lambda: ia.part_figure(pp),
+        lambda: None,
+    )
+
+
+def _mismatch_reason(summary: Mapping[str, Any]) -> str:
+    """Why experiment and VJM differ when the model check says the model does not hold ('' when
+    it holds or there is no check)."""
+    vc = summary.get("vjm_check")
+    if not isinstance(vc, Mapping) or vc.get("verdict") != "mismatch" or vc.get("ratio") is None:
+        return ""
+    return (
+        f"Experiment and VJM differ because the robot model does not hold: the measured robot "
+        f"deflection is {float(vc['ratio']):.2f}× the VJM's along the normal (95 % "
+        f"[{pg.fmt(vc.get('ci_low'), 2)}, {pg.fmt(vc.get('ci_high'), 2)}], the check in the "
+        "table above); the robot term of the decomposition is the measured one."
+    )
+
+
+def _truth_reason(summary: Mapping[str, Any]) -> str:
+    """Why the robot panel's recovered term differs from the dashed truth, when the truth says
+    ('' otherwise): a springback coupling moves part of the machine's deflection into the
+    sheet's recovery."""
+    truth = summary.get("truth")
+    sc = truth.get("springback_coupling") if isinstance(truth, Mapping) else None
+    if not isinstance(sc, Mapping) or not sc.get("coupling"):
+        return ""
+    c, depth = float(sc["coupling"]), sc.get("depth_mm")
+    law = f"{c:g}·exp(−depth / {float(depth):g} mm)" if depth else f"{c:g}"
+    return (
+        "Robot compliance: the dashed truth is the machine's deflection; the recovered term is "
+        "what the formed part keeps of it. The truth's springback coupling makes the sheet "
+        f"recover c(depth) = {law} of the machine's normal deflection, so the recovered robot "
+        "term lies below the truth where c is large and approaches it where c fades — the "
+        "method separates what the part shows, as intended, not a failure."
+    )
 
 
 def _figure_html(spec: _Figure, fig: go.Figure, first: bool) -> str:
@@ -219,6 +314,7 @@ def _headline_dict(
         "largest_factor": ranked[0],
         "shares_percent": {f: float(contrib.loc[f, "share_percent"]) for f in FACTORS},
         "n_warnings": len(summary["warnings"]),
+        "study_kind": study_kind(summary).kind,
         **_check_headline(summary),
     }
 
@@ -236,6 +332,9 @@ def _check_headline(summary: Mapping[str, Any]) -> dict[str, Any]:
 def _cards(h: agg.Headline, summary: Mapping[str, Any]) -> str:
     vjm = summary.get("vjm_vs_experiment") or {}
     resultant = vjm.get("resultant") if isinstance(vjm, Mapping) else None
+    tuned = study_kind(summary).kind == "virtual_tuned"
+    mark = f" {pg.BY_CONSTRUCTION}" if tuned else ""
+    why = " · truth tuned to the paper's share" if tuned else ""
     cards = [
         (
             "",
@@ -245,16 +344,16 @@ def _cards(h: agg.Headline, summary: Mapping[str, Any]) -> str:
         ),
         (
             " accent",
-            "Robot compliance share",
+            f"Robot compliance share{mark}",
             f"{h.robot_share_percent:.1f}<small>%</small>",
             f"R<sub>m</sub> {h.robot_R_m:.3f} mm · normal projection: "
-            f"{h.robot_share_percent_normal:.1f} %",
+            f"{h.robot_share_percent_normal:.1f} %{why}",
         ),
         (
             "",
-            "Springback share",
+            f"Springback share{mark}",
             f"{h.springback_share_percent:.1f}<small>%</small>",
-            "CNC part taken as rigid",
+            f"CNC part taken as rigid{why}",
         ),
     ]
     check = check_card(summary)
@@ -377,6 +476,13 @@ def _write_report(
     kind = part.get("kind") if isinstance(part, Mapping) else part
     contour_id = ids[ids.index("vjm_path") + 1]
     figs = _figures(pp, contrib, contrib_n, summ["contour_z"], round_part)
+    reason = _truth_reason(summ)
+    if reason and any(f"truth_{f}_dn" in pp.columns for f in FACTORS):
+        spec = figs["factors_depth"]
+        figs["factors_depth"] = dataclasses.replace(spec, caption=f"{spec.caption} {reason}")
+    mismatch = _mismatch_reason(summ)
+    for fid in ("vjm_path", contour_id) if mismatch else ():
+        figs[fid] = dataclasses.replace(figs[fid], caption=f"{figs[fid].caption} {mismatch}")
 
     html_parts: dict[str, str] = {}
     with task(progress, "report", total=len(ids) * (2 if png else 1) + 1) as advance:
@@ -391,15 +497,34 @@ def _write_report(
             on_done=lambda: advance(1),
         )
         with renderer:  # PNG workers draw while this process writes the plotly HTML
-            for k, fid in enumerate(ids):
-                html_parts[fid] = _figure_html(figs[fid], figs[fid].plotly(), first=k == 0)
+            # the 3D view comes first on the page and carries plotly.js (HTML only, no PNG)
+            spec3d = _part_figure(pp)
+            part3d = _figure_html(spec3d, spec3d.plotly(), first=True)
+            for fid in ids:
+                html_parts[fid] = _figure_html(figs[fid], figs[fid].plotly(), first=False)
                 advance(1)
             renderer.finish()  # draws what the workers have not taken, waits for them
 
         h = agg.headline(contrib, contrib_n)
         head = _headline_dict(h, summ, contrib)
-        body = [_cards(h, summ), _verdict(contrib), pg.warnings_box(summ["warnings"])]
+        n_used = int(pp["used"].sum()) if "used" in pp.columns else None
+        body = [
+            kind_banner(summ),
+            _cards(h, summ),
+            _verdict(contrib),
+            scope_html(summ, len(pp), n_used),
+            diagnosis_html(summ),
+            pg.warnings_box(summ["warnings"]),
+            _section(
+                "part",
+                "The formed part",
+                "Each term along the surface normal at the toolpath points, in 3D: pick a term "
+                "with the buttons, drag to turn, scroll to zoom.",
+                part3d,
+            ),
+        ]
         toc = [
+            ("part", "3D part"),
             ("contributions", "Contributions"),
             ("forces", "Forces"),
             ("deviations", "Deviations"),
@@ -554,6 +679,14 @@ def read_headline(report: str | Path) -> dict[str, Any]:
     return result
 
 
+#: The index's words for each study kind (:func:`roboisf.report.statements.study_kind`).
+_KIND_LABELS = {
+    "measured": "measured",
+    "virtual": "virtual cell",
+    "virtual_tuned": "virtual, tuned truth",
+}
+
+
 def write_index(entries: Sequence[str | Path], out_path: str | Path) -> Path:
     """Write an index page linking several study reports, with their headline numbers.
 
@@ -568,15 +701,17 @@ def write_index(entries: Sequence[str | Path], out_path: str | Path) -> Path:
     if not entries:
         raise InputError("no reports to index (expected at least one report.html)", field="entries")
     out = Path(out_path)
-    rows = []
+    rows, kinds = [], set()
     for entry in entries:
         path = Path(entry)
         path = path / "report.html" if path.is_dir() else path
         h = read_headline(path)
+        kinds.add(h.get("study_kind"))
         href = os.path.relpath(path.resolve(), out.resolve().parent).replace(os.sep, "/")
         warn = h.get("n_warnings", 0)
         rows.append(
             f'<tr><td><a href="{pg.esc(href)}">{pg.esc(h["study"])}</a></td>'
+            f'<td class="t">{pg.esc(_KIND_LABELS.get(h.get("study_kind", ""), "—"))}</td>'
             f'<td class="t">{pg.esc(h.get("part", ""))}</td>'
             f'<td class="t">{pg.esc(h.get("robot", ""))}</td>'
             f"<td>{pg.fmt(h['R_m_total_mm'], 3)}</td>"
@@ -586,8 +721,15 @@ def write_index(entries: Sequence[str | Path], out_path: str | Path) -> Path:
             f'<td class="t">{pg.esc(h.get("vjm_verdict") or "—")}</td>'
             f'<td class="t">{pg.share_bar(h.get("shares_percent") or {})}</td><td>{warn}</td></tr>'
         )
+    tuned = (
+        " A virtual cell whose truth was tuned to the paper reproduces the paper's shares by "
+        "construction: they reproduce it, they do not confirm it."
+        if "virtual_tuned" in kinds
+        else ""
+    )
     table = (
-        '<table><thead><tr><th>study</th><th class="t">part</th><th class="t">robot</th>'
+        '<table><thead><tr><th>study</th><th class="t">kind</th><th class="t">part</th>'
+        '<th class="t">robot</th>'
         "<th>R<sub>m</sub> (mm)</th><th>robot share (%)</th><th>springback share (%)</th>"
         '<th>measured / VJM</th><th class="t">robot model</th>'
         '<th class="t">shares</th><th>warnings</th>'
@@ -596,7 +738,8 @@ def write_index(entries: Sequence[str | Path], out_path: str | Path) -> Path:
     body = (
         '<section><h2>Studies</h2><p class="lead">Each row links to a self-contained report. '
         "R<sub>m</sub> and shares are the per-axis (paper's) version; each report also gives them "
-        f"projected on the surface normal.</p>{table}{pg.share_legend()}</section>"
+        f'projected on the surface normal.{tuned}</p><div class="scroll">{table}</div>'
+        f"{pg.share_legend()}</section>"
     )
     document = pg.page("roboisf — study reports", body, subtitle=f"{len(rows)} studies")
     with atomic_write(out, "w") as fh:

@@ -33,6 +33,7 @@ __all__ = [
     "deviation_top_figure",
     "factors_depth_figure",
     "forces_figure",
+    "part_figure",
     "thickness_figure",
     "vjm_contour_figure",
     "vjm_path_figure",
@@ -506,7 +507,7 @@ def contributions_figure(
             )
     fig.update_layout(barmode="group", hovermode="closest", bargap=0.25)
     fig.update_yaxes(title_text="share (%)", row=1, col=1)
-    fig.update_yaxes(title_text="R_m (mm)", row=1, col=2)
+    fig.update_yaxes(title_text="R<sub>m</sub> (mm)", row=1, col=2)
     return fig
 
 
@@ -533,4 +534,86 @@ def thickness_figure(per_point: pd.DataFrame) -> go.Figure:
         )
     fig.update_xaxes(title_text="depth (mm)")
     fig.update_yaxes(title_text="wall thickness (mm)", rangemode="tozero")
+    return fig
+
+
+def part_figure(per_point: pd.DataFrame) -> go.Figure:
+    """The formed part in 3D: whole laps of the toolpath (contact points in the work frame, mm)
+    drawn as lines coloured by the normal value of one term at a time — total, springback, tool,
+    holder, robot compliance, residual Δ — with buttons to switch; at most
+    :data:`~roboisf.report.aggregate.MAX_3D_POINTS` points. Each term has its own symmetric
+    colour scale (its 99th percentile of |δn|), blue below the nominal, red above; a scan hole
+    breaks the line."""
+    view = agg.part_view(per_point)
+    terms = [(c, label) for c, label in agg.PART_VIEW_TERMS if c in view.values]
+    fig = go.Figure()
+    for k, (col, label) in enumerate(terms):
+        v = view.values[col]
+        hole = ~np.isfinite(v)
+        vmax = _vmax(v) or 1.0
+
+        def cut(a: np.ndarray, hole: np.ndarray = hole) -> np.ndarray:
+            return _f(np.where(hole, np.nan, a))
+
+        fig.add_trace(
+            go.Scatter3d(
+                x=cut(view.x),
+                y=cut(view.y),
+                z=cut(view.z),
+                mode="lines",
+                name=label,
+                visible=k == 0,
+                connectgaps=False,
+                line={
+                    "color": _f(np.where(hole, 0.0, v)),
+                    "colorscale": "RdBu_r",
+                    "cmin": -vmax,
+                    "cmax": vmax,
+                    "width": 5,
+                    "showscale": True,
+                    "colorbar": {"title": {"text": "δn (mm)", "side": "right"}, "thickness": 14},
+                },
+                hovertemplate="x %{x:.1f}, y %{y:.1f}, z %{z:.1f} mm<br>"
+                + label
+                + " δn %{line.color:.3f} mm<extra></extra>",
+            )
+        )
+    buttons = [
+        {
+            "label": label,
+            "method": "update",
+            "args": [{"visible": [j == k for j in range(len(terms))]}],
+        }
+        for k, (_, label) in enumerate(terms)
+    ]
+    fig.update_layout(
+        plotly_layout(
+            height=620,
+            hovermode="closest",
+            showlegend=False,
+            margin={"l": 0, "r": 0, "t": 56, "b": 0},
+            scene={
+                "aspectmode": "data",
+                "xaxis": {"title": {"text": "x (mm)"}},
+                "yaxis": {"title": {"text": "y (mm)"}},
+                "zaxis": {"title": {"text": "z (mm)"}},
+                "camera": {"eye": {"x": 1.3, "y": -1.3, "z": 0.9}},
+            },
+            updatemenus=[
+                {
+                    "type": "buttons",
+                    "direction": "right",
+                    "buttons": buttons,
+                    "active": 0,
+                    "x": 0,
+                    "xanchor": "left",
+                    "y": 1.0,
+                    "yanchor": "bottom",
+                    "pad": {"t": 0, "b": 8},
+                    "showactive": True,
+                    "font": {"size": 12},
+                }
+            ],
+        )
+    )
     return fig

@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from roboisf.report.page import esc, fmt
+from roboisf.report.page import BY_CONSTRUCTION, esc, fmt
 
 __all__ = ["check_card", "check_tables", "terms_table"]
 
@@ -32,7 +32,7 @@ def check_card(summary: Mapping[str, Any]) -> tuple[str, str, str, str] | None:
     if vc.get("by_construction"):
         return (
             "",
-            "Robot model check",
+            f"Robot model check {BY_CONSTRUCTION}",
             "holds by construction",
             "virtual cell whose truth is the model: measured/VJM "
             f"{fmt(ratio, 3)} ({interval}) shows only the measurement's error",
@@ -97,10 +97,18 @@ def check_tables(summary: Mapping[str, Any]) -> str:
     if isinstance(ident, Mapping) and ident.get("mode"):
         K, lo, hi = ident.get("K", []), ident.get("ci_low", []), ident.get("ci_high", [])
         K0 = ident.get("K_nominal", [])
+        alone = ident.get("identified_joints", [])
+        scale = ident["mode"] == "scale"  # one factor on every joint: none is separate
+
+        def how(i: int) -> str:
+            if scale:
+                return "common scale" + (" (alone: yes)" if i + 1 in alone else "")
+            return "yes" if i + 1 in alone else "no"
+
         rows = "".join(
             f"<tr><td>A{i + 1}</td><td>{fmt(K0[i] if i < len(K0) else None, 0)}</td>"
             f"<td>{fmt(K[i], 0)}</td><td>{fmt(lo[i], 0)} – {fmt(hi[i], 0)}</td>"
-            f"<td>{'yes' if i + 1 in ident.get('identified_joints', []) else 'no'}</td></tr>"
+            f'<td class="t">{how(i)}</td></tr>'
             for i in range(len(K))
         )
         path = summary.get("identified_stiffness")
@@ -110,8 +118,13 @@ def check_tables(summary: Mapping[str, Any]) -> str:
             + (f"; written to {esc(path)}" if path else "")
             + " (accepted by compensate, plan and robot deflect with --stiffness)</span>"
             "</caption><thead><tr><th>joint</th><th>nominal K (N·m/rad)</th>"
-            "<th>identified K (N·m/rad)</th><th>95 % interval</th><th>separately identifiable</th>"
-            f"</tr></thead><tbody>{rows}</tbody></table>"
+            "<th>identified K (N·m/rad)</th><th>95 % interval</th>"
+            + (
+                '<th class="t">identified as</th>'
+                if scale
+                else '<th class="t">separately identifiable</th>'
+            )
+            + f"</tr></thead><tbody>{rows}</tbody></table>"
         )
     terms = summary.get("terms_normal")
     if isinstance(terms, Mapping) and terms:

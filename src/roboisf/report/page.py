@@ -16,6 +16,7 @@ from roboisf.report.schema import FACTORS
 from roboisf.report.style import FACTOR_COLORS, FACTOR_LABELS, FONT_STACK
 
 __all__ = [
+    "BY_CONSTRUCTION",
     "HEADLINE_META",
     "compliance_table",
     "contribution_table",
@@ -32,6 +33,13 @@ __all__ = [
 
 #: ``<meta name=...>`` carrying the headline numbers as JSON, read back by the index page.
 HEADLINE_META = "roboisf-headline"
+
+#: The mark of a number that holds by construction: the study's truth was set to give it, so it
+#: is not a finding.
+BY_CONSTRUCTION = (
+    '<span class="bc" title="set by the study\'s truth, not found by the analysis">'
+    "by construction</span>"
+)
 
 CSS = """
 :root { --text:#1F2933; --muted:#616E7C; --line:#E4E7EB; --bg:#F5F7FA; --accent:#D55E00; }
@@ -60,6 +68,16 @@ nav.toc a:hover { color:var(--text); }
 .card .note { color:var(--muted); font-size:12.5px; margin-top:2px; }
 .card.accent { border-top:4px solid var(--accent); }
 .card.warn { border-top:4px solid #D55E00; }
+.bc { display:inline-block; font-size:11px; font-weight:600; color:#7A4D00; background:#FFF1CC;
+    border:1px solid #F0C36D; border-radius:4px; padding:0 5px; margin-left:4px;
+    vertical-align:1px; letter-spacing:0; }
+.kind { background:white; border:1px solid var(--line); border-left:5px solid #0072B2;
+    border-radius:8px; padding:10px 16px; margin:0 0 14px; font-size:14.5px; }
+.kind-virtual_tuned, .kind-virtual { border-left-color:#E69F00; }
+p.scope { font-size:14px; margin:-8px 0 18px; color:var(--text); }
+td.wrap { white-space:normal; min-width:260px; }
+tr.v-fault td { background:#FDECEA; }
+tr.v-cannot_tell td { color:var(--muted); }
 p.verdict { font-size:16px; margin:4px 0 20px; }
 section { background:white; border:1px solid var(--line); border-radius:10px; padding:20px 24px;
           margin:0 0 20px; }

@@ -333,13 +333,18 @@ def contributions_png(contributions: pd.DataFrame, contributions_normal: pd.Data
                     linewidth=1.2,
                     label=label,
                 )
+                # upright labels of neighbouring bars ran into each other ("1.1341.132")
                 ax.bar_label(
-                    bars, fmt="%.1f" if col == "share_percent" else "%.3f", fontsize=7, padding=1
+                    bars,
+                    fmt="%.1f" if col == "share_percent" else "%.3f",
+                    fontsize=7,
+                    padding=2,
+                    rotation=90,
                 )
             ax.set_xticks(x, [FACTOR_LABELS[f] for f in FACTORS], rotation=15)
             ax.set_ylabel(ylabel)
             ax.grid(axis="x", visible=False)
-            ax.margins(y=0.12)
+            ax.margins(y=0.3)
         fig.legend(*axes[0].get_legend_handles_labels(), loc="upper center", ncols=2)
     return fig
 

@@ -20,7 +20,10 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from roboisf.progress import compile_notice
 from roboisf.robot.vjm_chain import chain_walk
+
+compile_notice(__file__)  # numba compiles these on first call: say so once
 
 __all__ = ["BLOCK", "tip_positions"]
 

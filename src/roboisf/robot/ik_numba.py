@@ -26,8 +26,11 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from roboisf.progress import compile_notice
 from roboisf.robot.vjm_numba import BLOCK, _c64, sincos
 from roboisf.robot.vjm_numba import _rows as _vjm_kernel_rows
+
+compile_notice(__file__)  # numba compiles these on first call: say so once
 
 __all__ = ["PathVJM", "flange_ik", "path_ik", "path_vjm"]
 

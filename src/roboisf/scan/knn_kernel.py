@@ -34,6 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.parts.mesh_kernel import bounds as _bounds
+from roboisf.progress import compile_notice
 
 __all__ = ["HAVE_NUMBA", "mean_knn_distance"]
 
@@ -44,6 +45,9 @@ try:  # pragma: no cover - exercised by whichever path the environment has
 except ImportError:  # pragma: no cover
     numba = None  # type: ignore[assignment]
     HAVE_NUMBA = False
+
+if HAVE_NUMBA:
+    compile_notice(__file__)  # numba compiles these on first call: say so once
 
 #: Rings searched before a point is left to a k-d tree (the ring search grows as R³ far from
 #: the cloud: a stray point 0.5 m from a scan with 0.4 mm cells would need 10⁹ cells).

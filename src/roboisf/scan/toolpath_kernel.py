@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.parts.mesh_kernel import bounds as _bounds
+from roboisf.progress import compile_notice
 from roboisf.scan.knn_kernel import (
     HAVE_NUMBA,
     MAX_CELLS,
@@ -38,6 +39,9 @@ from roboisf.scan.knn_kernel import (
     _njit,
     _shape,
 )
+
+if HAVE_NUMBA:
+    compile_notice(__file__)  # numba compiles these on first call: say so once
 
 __all__ = ["HAVE_NUMBA", "contact_statistics"]
 

@@ -23,6 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from roboisf.progress import compile_notice
+
 __all__ = ["HAVE_NUMBA", "project_segments", "track_blocks"]
 
 try:
@@ -31,6 +33,9 @@ try:
     HAVE_NUMBA = True
 except ImportError:  # pragma: no cover - numba is a test dependency
     HAVE_NUMBA = False
+
+if HAVE_NUMBA:
+    compile_notice(__file__)  # numba compiles these on first call: say so once
 
 
 def _identity(f: Callable[..., Any]) -> Callable[..., Any]:

@@ -1,0 +1,191 @@
+"""-q/-v after the command, the compile notice of the compiled kernels, the end of analyze's
+output (verdicts, next command) and the part file's numbers (issue #30)."""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+import pytest
+
+from roboisf import progress
+from roboisf.cli.analyze import _print_verdicts, next_command
+from roboisf.cli.console import state
+from roboisf.cli.main import hoist_verbosity, main
+
+
+def test_hoist_moves_the_flags_in_front_but_not_after_double_dash():
+    assert hoist_verbosity(["analyze", "s", "-v"]) == ["-v", "analyze", "s"]
+    assert hoist_verbosity(["-q", "part", "cone"]) == ["-q", "part", "cone"]
+    assert hoist_verbosity(["part", "--quiet", "cone", "--", "-v"]) == [
+        "--quiet",
+        "part",
+        "cone",
+        "--",
+        "-v",
+    ]
+
+
+@pytest.mark.parametrize("where", ["before", "after"])
+def test_quiet_works_before_and_after_the_command(where, tmp_path, capsys):
+    out = tmp_path / "c.toml"
+    args = ["part", "cone", "-o", str(out)]
+    assert main(["-q", *args] if where == "before" else [*args, "-q"]) == 0
+    assert capsys.readouterr().out == ""
+    assert main([*args, "--overwrite"]) == 0
+    assert "wrote" in capsys.readouterr().out  # without -q it prints: the test can fail
+
+
+def test_part_file_numbers_have_no_binary_noise(tmp_path):
+    out = tmp_path / "c.toml"
+    assert main(["part", "cone", "-o", str(out), "-q"]) == 0
+    text = out.read_text()
+    assert "opening_diameter = 87.0\n" in text and "0000000" not in text
+    from roboisf.parts import load_part
+
+    assert load_part(out).to_dict()["opening_diameter"] == pytest.approx(87.0, rel=1e-12)
+
+
+def _module(tmp_path: Path) -> Path:
+    src = tmp_path / "pkg" / "kern.py"
+    src.parent.mkdir()
+    src.write_text("x = 1\n")
+    return src
+
+
+def test_kernel_cached_reads_the_numba_index_beside_the_module(tmp_path, monkeypatch):
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    src = _module(tmp_path)
+    assert not progress.kernel_cached(src)
+    index = src.parent / "__pycache__" / "kern._rows-33.py311.nbi"
+    index.parent.mkdir()
+    index.write_text("")
+    assert progress.kernel_cached(src)
+    old = time.time() - 100
+    os.utime(index, (old, old))  # older than the source: numba recompiles
+    assert not progress.kernel_cached(src)
+
+
+def test_kernel_cached_reads_numba_cache_dir(tmp_path, monkeypatch):
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    src = _module(tmp_path)
+    cache = tmp_path / "nbcache"
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(cache))
+    assert not progress.kernel_cached(src)
+    mirror = cache / str(src.parent.resolve()).lstrip(os.sep)
+    mirror.mkdir(parents=True)
+    (mirror / "kern.f-1.py311.nbi").write_text("")
+    assert progress.kernel_cached(src)
+
+
+def test_compile_notice_once_and_only_when_not_cached(tmp_path, monkeypatch):
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    src = _module(tmp_path)
+    said: list[str] = []
+    progress.set_notice(said.append)
+    try:
+        progress.compile_notice(src)
+        progress.compile_notice(src)
+        assert len(said) == 1 and "first time" in said[0] and "minutes" in said[0]
+        progress.set_notice(said.append)  # a new run
+        (src.parent / "__pycache__").mkdir()
+        (src.parent / "__pycache__" / "kern.f-1.py311.nbi").write_text("")
+        progress.compile_notice(src)
+        assert len(said) == 1
+    finally:
+        progress.set_notice(None)
+    progress.compile_notice(tmp_path / "other.py")  # no hook: silent, no error
+
+
+def _summary(**extra):
+    return {
+        "study": "s",
+        "warnings": ["the robot model does not hold: use identified_stiffness.toml"],
+        "vjm_check": {"ratio": 2.0, "ci_low": 1.98, "ci_high": 2.02, "verdict": "mismatch"},
+        "identified_stiffness": "identified_stiffness.toml",
+        **extra,
+    }
+
+
+def test_next_command_uses_the_identified_stiffness_on_a_mismatch():
+    cmd = next_command(_summary(), Path("st"), Path("res"))
+    assert cmd == (
+        "roboisf compensate st --results res --stiffness res/identified_stiffness.toml "
+        "-o compensated"
+    )
+    ok = _summary(vjm_check={"ratio": 1.0, "verdict": "consistent"})
+    assert "--stiffness" not in next_command(ok, Path("st"), Path("res"))
+
+
+def test_analyze_ends_with_verdicts_warnings_and_the_next_command(capsys):
+    state.verbosity = 1
+    diag = [
+        {
+            "suspect": "robot_stiffness",
+            "verdict": "fault",
+            "estimate": 0.5,
+            "ci_low": 0.49,
+            "ci_high": 0.51,
+            "unit": "× nominal",
+            "explanation": "softer",
+        },
+        {
+            "suspect": "force_bias",
+            "verdict": "ok",
+            "estimate": 0.1,
+            "ci_low": -1,
+            "ci_high": 1,
+            "unit": "N",
+            "explanation": "none",
+        },
+    ]
+    _print_verdicts(_summary(diagnosis=diag), Path("st"), Path("res"))
+    cap = capsys.readouterr()
+    assert "mismatch" not in cap.out  # said in words
+    assert (
+        "model check: the robot model does not hold: measured / VJM robot deflection 2.00"
+        in cap.out
+    )
+    assert "diagnosis: robot joint stiffness — fault, 0.500 [0.490, 0.510] × nominal" in cap.out
+    assert "force sensor bias" not in cap.out  # 'ok' suspects stay in the report
+    assert "measured study" in cap.out
+    assert cap.out.rstrip().splitlines()[-1].startswith("next: roboisf compensate st")
+    assert "identified_stiffness.toml" in cap.err  # the warning reaches the terminal
+
+
+def test_a_fault_outside_the_robot_says_check_it_first(capsys):
+    state.verbosity = 1
+    diag = [{"suspect": "scan_shift", "verdict": "fault", "estimate": 0.3, "unit": "mm"}]
+    _print_verdicts(_summary(diagnosis=diag), Path("st"), Path("res"))
+    last = capsys.readouterr().out.rstrip().splitlines()[-1]
+    assert last.startswith("next: check the scan shift the diagnosis names")
+    assert last.endswith(
+        "roboisf compensate st --results res --stiffness "
+        "res/identified_stiffness.toml -o compensated"
+    )
+
+
+def test_quiet_silences_the_verdicts(capsys):
+    state.verbosity = 0
+    try:
+        _print_verdicts(_summary(), Path("st"), Path("res"))
+    finally:
+        state.verbosity = 1
+    cap = capsys.readouterr()
+    assert cap.out == "" and cap.err == ""
+
+
+def test_toolpath_names_every_file_it_writes(tmp_path, capsys):
+    """A KRL program is two files (.src and .dat): the line says so instead of naming one."""
+    out = tmp_path / "tp.src"
+    args = ["toolpath", "cone", "--step-down", "4", "--spacing", "4"]
+    assert main([*args, "--placement", "1800,0,600", "--tool", "300", "-o", str(out)]) == 0
+    line = capsys.readouterr().out
+    assert (tmp_path / "tp.dat").is_file()
+    assert "and 1 more file beside it (tp.dat)" in line
+    csv = tmp_path / "tp.csv"
+    assert main([*args, "-o", str(csv)]) == 0
+    assert "more file" not in capsys.readouterr().out

@@ -1,0 +1,123 @@
+"""The compensation report (issue #30): the study report's look, what was compensated in words,
+which stiffness (file name only), why the before/after curves start where they start, and a
+legend that covers no title."""
+
+from __future__ import annotations
+
+import html
+import re
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from roboisf.report.compensation import compensation_figure, write_compensation_report
+
+
+def _laps(first: int = 22, n: int = 35) -> pd.DataFrame:
+    lap = np.arange(n)
+    before = np.where(lap >= first, 2.2, np.nan)
+    return pd.DataFrame(
+        {
+            "lap": lap,
+            "command_dn": -np.linspace(0, 2, n),
+            "command_norm": np.linspace(0, 2.2, n),
+            "abs_dn_before": before,
+            "abs_dn_after": before / 10,
+        }
+    )
+
+
+def _summary(**extra):
+    return {
+        "complete": True,
+        "terms": {"compliance": True, "springback": True},
+        "n_points": 5404,
+        "max_command_offset_mm": 2.637,
+        "mean_command_offset_mm": 1.434,
+        "rim_blend_mm": 5.0,
+        "max_lap_step_springback_offset_mm": 0.24,
+        "max_lap_step_command_dn_mm": 0.25,
+        "springback": {"gain": 0.8},
+        "gouge": {"ok": True, "rule": "ball centre ≥ R − over-bend"},
+        "study": "pyramid",
+        "robot": "irb7600-500-2.55",
+        "rim_band_mm": 20.0,
+        "stiffness": "/somewhere/results/identified_stiffness.toml",
+        "mean_abs_dn_before_mm": 2.211,
+        "mean_abs_dn_after_predicted_mm": 0.220,
+        "after": "predicted",
+        **extra,
+    }
+
+
+def _write(tmp_path, laps=None, **extra) -> str:
+    path = write_compensation_report(
+        _laps() if laps is None else laps, _summary(**extra), tmp_path, png=False
+    )
+    return path.read_text(encoding="utf-8")
+
+
+def test_styled_like_the_study_report_with_cards(tmp_path):
+    text = _write(tmp_path)
+    assert 'class="cards"' in text and '<header class="top">' in text
+    assert "roboisf compensation — pyramid" in text
+    cards = re.findall(r'<div class="label">(.*?)</div><div class="value">(.*?)</div>', text)
+    labels = [c[0] for c in cards]
+    assert labels[:2] == ["Mean |dn| before", "Mean |dn| after (predicted)"]
+    assert "2.211" in cards[0][1] and "0.220" in cards[1][1]
+    assert "Gouge check" in labels
+
+
+def test_terms_in_words_not_json(tmp_path):
+    text = _write(tmp_path)
+    assert '{"compliance"' not in text and "{&quot;" not in text
+    assert "pre-deflection" in text and "springback" in text and "gain λ = 0.8" in text
+    only = _write(tmp_path / "o", terms={"compliance": False, "springback": True})
+    assert "pre-deflection)" not in only.split("Compensated:")[1].split("</p>")[0]
+
+
+@pytest.mark.parametrize(
+    ("stiffness", "words"),
+    [
+        ("/somewhere/results/identified_stiffness.toml", "identified from the forming run"),
+        ("study.toml", "the study's own robot model"),
+        ("/x/y/my_k.toml", "my_k.toml (given with --stiffness)"),
+    ],
+)
+def test_says_which_stiffness_by_file_name_only(tmp_path, stiffness, words):
+    text = _write(tmp_path, stiffness=stiffness)
+    line = text.split("Joint stiffness of the pre-deflection:</b>")[1].split("</p>")[0]
+    assert words in html.unescape(line) and "/" not in line
+
+
+def test_says_why_the_curves_start_late(tmp_path):
+    text = _write(tmp_path)
+    assert "The before/after curves start at lap 22: the first lap below the rim band" in text
+    assert "the top 20 mm of depth" in text
+    early = _write(tmp_path / "e", laps=_laps(first=0))
+    assert "curves start at lap" not in early  # nothing to explain
+
+
+def test_legend_under_the_panels():
+    fig = compensation_figure(_laps(), _summary())
+    assert fig.layout.legend.y < 0 and fig.layout.legend.yanchor == "top"
+
+
+def test_virtual_cell_iterations_named_and_listed(tmp_path):
+    extra = {
+        "study": None,
+        "robot": None,
+        "stiffness": None,
+        "rim_band_mm": None,
+        "cell": "pyramid",
+        "mean_abs_dn_per_iteration_mm": [1.29, 0.164, 0.037],
+        "after": "virtual cell",
+        "mean_abs_dn_after_virtual_cell_mm": 0.037,
+    }
+    text = html.unescape(_write(tmp_path, **extra))
+    assert "roboisf compensation — pyramid" in text and "virtual cell" in text
+    assert "1.290 → 0.164 → 0.037 mm" in text
+    assert "after: formed again on the virtual cell" in text
+    assert "Mean |dn| after (virtual cell)" in text
+    assert "the cell's robot model" in text  # no stiffness file: the cell's own

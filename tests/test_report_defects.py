@@ -1,0 +1,102 @@
+"""Small defects of the report found by a new user (issue #30), each checked where it was."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from report_fixtures import make_study
+from roboisf.report import interactive as ia
+from roboisf.report import static as st
+from roboisf.report.document import _thickness_caption
+from roboisf.report.model_check import check_tables
+from roboisf.report.schema import check_contributions
+
+
+@pytest.fixture(scope="module")
+def small():
+    return make_study(n_laps=30, points_per_lap=40)
+
+
+def _near_equal_bars(contrib):
+    """Neighbouring bars of nearly the same height: the labels sit side by side (the table
+    checked and indexed by factor, as the report draws it)."""
+    c = check_contributions(contrib, name="contributions").copy()
+    c["R_m"] = [1.134, 1.132, 1.134, 1.132, 2.0]
+    return c
+
+
+def test_static_bar_labels_do_not_run_into_each_other(small):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    _, contrib, _, _ = small
+    c = _near_equal_bars(contrib)
+    fig = st.contributions_png(c, c)
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    for ax in fig.axes:
+        boxes = [t.get_window_extent(renderer) for t in ax.texts]
+        assert len(boxes) == 8
+        for i in range(len(boxes)):
+            for j in range(i + 1, len(boxes)):
+                assert not boxes[i].overlaps(boxes[j]), (ax.texts[i], ax.texts[j])
+
+
+def test_plotly_axis_titles_have_no_literal_underscore(small):
+    _, contrib, _, _ = small
+    c = check_contributions(contrib, name="c")
+    fig = ia.contributions_figure(c, c)
+    titles = [fig.layout[k].title.text for k in fig.layout if k.startswith("yaxis")]
+    assert "R<sub>m</sub> (mm)" in titles and not any("R_m" in (t or "") for t in titles)
+
+
+def test_thickness_caption_promises_a_band_only_when_there_is_one(small):
+    pp = small[0].copy()
+    varying = _thickness_caption(pp, True)
+    assert "5–95 % band" in varying
+    pp["thickness_measured"] = pp.groupby("lap")["thickness_measured"].transform("mean")
+    flat = _thickness_caption(pp, True)
+    assert "5–95 %" not in flat and "no band" in flat
+    assert "no measured thickness" in _thickness_caption(pp, False)
+
+
+def test_thickness_caption_explains_the_rise_at_the_rim(small):
+    pp = small[0].copy()
+    assert "rim" not in _thickness_caption(pp, True)  # a constant wall angle: nothing to say
+    first = pp["lap"] == pp["lap"].min()
+    pp.loc[first, "thickness_predicted"] = 1.0  # the rounding into the rim: wall flatter
+    assert "rounding into the rim" in _thickness_caption(pp, True)
+
+
+def _ident(mode):
+    return {
+        "identification": {
+            "mode": mode,
+            "K": [1.0e6] * 6,
+            "ci_low": [0.9e6] * 6,
+            "ci_high": [1.1e6] * 6,
+            "K_nominal": [2.0e6] * 6,
+            "identified_joints": [2],
+            "observability": "joints not separable (identified alone: [2])",
+        }
+    }
+
+
+def test_scale_mode_does_not_call_joints_separately_identified():
+    html = check_tables(_ident("scale"))
+    assert ">yes<" not in html and ">no<" not in html
+    assert html.count("common scale") == 6 and html.count("(alone: yes)") == 1
+    per_joint = check_tables(_ident("joints"))
+    assert per_joint.count(">yes<") == 1 and per_joint.count(">no<") == 5
+
+
+def test_top_view_caption_names_the_sparse_corners(small, tmp_path):
+    from roboisf.report import write_report
+
+    pp, c, cn, s = small
+    text = write_report(pp, c, cn, s, tmp_path, png=False).read_text(encoding="utf-8")
+    block = text[text.index('id="figure-deviation_top"') :]
+    cap = block[block.index("<figcaption>") : block.index("</figcaption>")]
+    assert "scan holes" in cap and "corners" in cap and "subset leaves out" in cap
+    assert np.isfinite(pp["thickness_predicted"]).all()
