@@ -2,9 +2,9 @@
 
 Run by hand:  python benchmarks/history.py [--keep DIR] [--skip-studies]
 
-1. **Training history.** Seven virtual studies whose springback follows the geometry rule of
-   docs/virtual-cell.md (``[springback] curvature_gain = 0.4``): three cones, two VWACFs, two
-   pyramids, coarse paths (1.5 mm step-down, 3 mm spacing) and 150 k-point scans; each analysed
+1. **Training history.** Ten virtual studies whose springback follows the geometry rule of
+   docs/virtual-cell.md (``[springback] curvature_gain = 0.4``): four cones (30–71°), three VWACFs, three
+   pyramids (40–60°), coarse paths (1.5 mm step-down, 3 mm spacing) and 150 k-point scans; each analysed
    (``roboisf analyze``) and added (``roboisf history add``).
 2. **A part of another shape.** An elliptic paraboloid pit (a mesh dome, 100 × 70 mm, 30 mm deep)
    is predicted with ``roboisf predict`` and compared with the virtual cell's true springback on
@@ -30,6 +30,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -43,14 +44,22 @@ TRAINING = {
     "cone60": ["cone", "--opening-diameter", "90", "--wall-angle", "60", "--depth", "40"],
     "cone45": ["cone", "--opening-diameter", "100", "--wall-angle", "45", "--depth", "30"],
     "cone71": ["cone", "--opening-diameter", "70", "--wall-angle", "71", "--depth", "45"],
+    "cone30": ["cone", "--opening-diameter", "110", "--wall-angle", "30", "--depth", "25"],
     "vwacf80": ["vwacf", "--opening-diameter", "88", "--final-wall-angle", "80"],
     "vwacf70": [
         "vwacf", "--opening-diameter", "100", "--arc-radius", "50", "--final-wall-angle", "70"
+    ],
+    "vwacf50": [
+        "vwacf", "--opening-diameter", "100", "--arc-radius", "60", "--final-wall-angle", "50"
     ],
     "pyramid60": ["pyramid", "--top-length", "100", "--wall-angle", "60", "--depth", "35"],
     "pyramid50": [
         "pyramid", "--top-length", "90", "--top-width", "70", "--wall-angle", "50",
         "--depth", "30", "--corner-radius", "15",
+    ],
+    "pyramid40": [
+        "pyramid", "--top-length", "100", "--top-width", "80", "--wall-angle", "40",
+        "--depth", "25", "--corner-radius", "20",
     ],
 }  # fmt: skip
 
@@ -106,7 +115,7 @@ def build(root: Path) -> None:
         run("part", "mesh", str(root / "dome.stl"), "-o", str(root / "dome.toml"))
 
 
-def dome_cell(root: Path):  # noqa: ANN201
+def dome_cell(root: Path) -> Any:
     from roboisf.parts.io import load_part
     from roboisf.virtual.cell import PAPER_CELL_PLACEMENT, virtual_cell
     from roboisf.virtual.truth import load_truth
@@ -155,6 +164,7 @@ def stage2(root: Path) -> None:
     s_pred = pred["springback_dn"].to_numpy()
     lo, hi = pred["springback_dn_low"].to_numpy(), pred["springback_dn_high"].to_numpy()
     rim = summary["rim_band_mm"]
+    nominal = summary["springback_model"]["coverage"]
     wall = pred["depth"].to_numpy() > rim
     for name, m in (("wall (below the rim band)", wall), ("every point", np.ones_like(wall))):
         rms = math.sqrt(np.mean(s_true[m] ** 2))
@@ -163,7 +173,7 @@ def stage2(root: Path) -> None:
         print(
             f"dome springback, {name}: RMS {rms:.3f} mm, prediction RMS error {err:.3f} mm "
             f"= {100 * err / rms:.1f} % of it; interval ±{(hi - lo)[0] / 2:.3f} mm covers "
-            f"{100 * cover:.1f} % of the points (nominal {100 * summary['springback_model']['coverage']:.0f} %)"
+            f"{100 * cover:.1f} % of the points (nominal {100 * nominal:.0f} %)"
         )
     val = summary["springback_model"]["validation"]
     print("leave-one-part-out on the history: " + ", ".join(

@@ -1,0 +1,212 @@
+"""``roboisf history``: analysed parts into a database (SQLite file, PostgreSQL server) and out.
+
+Two small virtual studies (a cone and a pyramid whose springback follows the geometry rule),
+analysed once per module. What is checked: the stored values are the results' (units converted,
+shares, per-point terms), a part is stored once, list/show/trend, the trend's slope, a crash during
+``add`` leaves no half-written part (a real SIGKILL mid-transaction), bad inputs are refused with
+one line and the user's files are untouched — on SQLite and on a real PostgreSQL server when one
+is reachable (CI starts one: .ci/run).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from roboisf.cli.main import main
+
+TRUTH = "[springback]\ncurvature_gain = 0.4\ncurvature_length = 15.0\n"
+CELL = [
+    "--step-down", "2", "--spacing", "4", "--scan-points", "60000",
+    "--force-rate", "50", "--joint-rate", "20",
+]  # fmt: skip
+PARTS = {
+    "cone": ["cone", "--opening-diameter", "70", "--wall-angle", "55", "--depth", "25"],
+    "pyramid": ["pyramid", "--top-length", "80", "--wall-angle", "50", "--depth", "22"],
+}
+#: the PostgreSQL server the tests use (CI: .ci/run creates this role and database)
+PG_URL = os.environ.get(
+    "ROBOISF_TEST_POSTGRES", "postgresql://roboisf:roboisf@127.0.0.1:5432/roboisf_test"
+)
+
+
+def _run(args, capsys=None):
+    code = main(["-q", *args])
+    return code if capsys is None else (code, capsys.readouterr())
+
+
+@pytest.fixture(scope="module")
+def analysed(tmp_path_factory):
+    """Two `analyze` results folders: {name: path}."""
+    root = tmp_path_factory.mktemp("history-studies")
+    (root / "truth.toml").write_text(TRUTH)
+    out = {}
+    for name, spec in PARTS.items():
+        part = root / f"{name}.toml"
+        assert _run(["part", *spec, "-o", str(part)]) == 0
+        study, res = root / f"S_{name}", root / f"R_{name}"
+        assert _run(["virtual-cell", "--part", str(part), "--truth", str(root / "truth.toml"),
+                     *CELL, "-o", str(study)]) == 0  # fmt: skip
+        assert _run(["analyze", str(study), "-o", str(res), "--no-png"]) == 0
+        out[name] = res
+    return out
+
+
+def _pg_or_skip() -> str:
+    """The test server's URL, its tables dropped; skip when no server is reachable — except
+    where ROBOISF_REQUIRE_POSTGRES is set (CI, which starts one): fail there."""
+    skip = pytest.fail if os.environ.get("ROBOISF_REQUIRE_POSTGRES") else pytest.skip
+    try:
+        import psycopg
+    except ImportError:
+        skip("psycopg is not installed (pip install 'roboisf[history]')")
+    try:
+        with psycopg.connect(PG_URL, connect_timeout=3, autocommit=True) as c:
+            c.execute("DROP TABLE IF EXISTS points, shares, parts, meta CASCADE")
+    except psycopg.OperationalError as e:
+        skip(f"no PostgreSQL server reachable at {PG_URL} ({str(e).splitlines()[0]})")
+    return PG_URL
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def db_url(request, tmp_path):
+    if request.param == "sqlite":
+        return str(tmp_path / "history.db")
+    return _pg_or_skip()
+
+
+def test_add_stores_the_results_values_once(analysed, db_url, capsys):
+    from roboisf.history.db import Database
+    from roboisf.history.store import list_parts, points_table, show_part
+
+    args = ["history", "add", str(analysed["cone"]), str(analysed["pyramid"]), "--db", db_url]
+    assert _run(args) == 0
+    code, out = _run(["history", "add", str(analysed["cone"]), "--db", db_url], capsys)
+    assert code == 0
+    with Database(db_url, create=False) as db:
+        parts = list_parts(db)
+        assert [p["study"] for p in parts] == [
+            json.loads((analysed[k] / "summary.json").read_text())["study"]
+            for k in ("cone", "pyramid")
+        ]  # oldest analysis first, the second add of the cone skipped
+        table = points_table(db)
+        info = show_part(db, parts[0]["id"])
+    pp = pd.read_parquet(analysed["cone"] / "per_point.parquet")
+    cone = table[table["part_id"] == parts[0]["id"]]
+    assert len(cone) == len(pp)
+    np.testing.assert_allclose(cone["depth"], pp["depth"] * 1e-3)
+    np.testing.assert_allclose(cone["wall_angle"], np.radians(pp["wall_angle_deg"]))
+    np.testing.assert_allclose(cone["springback_dn"], pp["springback_dn"] * 1e-3)
+    np.testing.assert_allclose(cone["robot_dn"], pp["robot_compliance_dn"] * 1e-3)
+    assert cone["used"].sum() == pp["used"].sum()
+    shares = pd.read_csv(analysed["cone"] / "contributions_normal.csv").set_index("factor")
+    assert parts[0]["r_m_springback"] == pytest.approx(shares.loc["springback", "R_m"] * 1e-3)
+    used = pp[pp["used"]]
+    assert info["rms_dn"]["springback_dn"] == pytest.approx(
+        np.sqrt(np.mean((used["springback_dn"] * 1e-3) ** 2))
+    )
+    assert info["part"]["kind"] == "cone" and info["sheet_thickness"] == pytest.approx(1.22e-3)
+    assert info["identified_k"] is not None and len(info["identified_k"]) == 6
+    assert info["step_down"] == pytest.approx(2e-3, rel=0.05)
+    assert len([s for s in info["shares"] if s["book"] == "normal"]) == 5
+
+
+def test_list_show_and_trend_commands(analysed, db_url, capsys, tmp_path):
+    for i, k in enumerate(("cone", "pyramid")):
+        args = ["history", "add", str(analysed[k]), "--db", db_url, "--formed", f"2026-0{i + 1}-01"]
+        assert _run(args) == 0
+    code, out = _run(["history", "list", "--db", db_url, "--kind", "pyramid"], capsys)
+    assert code == 0 and "pyramid" in out.out and " cone " not in out.out
+    code, out = _run(["history", "show", "1", "--db", db_url], capsys)
+    assert code == 0 and json.loads(out.out)["formed_at"] == "2026-01-01T00:00:00Z"
+    code, out = _run(
+        ["history", "trend", "--db", db_url, "--json", "--factor", "springback"], capsys
+    )
+    assert code == 0
+    (group,) = json.loads(out.out)
+    v = group["r_m_m"]
+    # two parts 31 days apart: the slope per 30 days is their difference × 30/31
+    assert group["slope_m_per_30_days"] == pytest.approx((v[1] - v[0]) * 30 / 31)
+    png = tmp_path / "trend.png"
+    code, out = _run(["history", "trend", "--db", db_url, "--by", "tool", "-o", str(png)], capsys)
+    assert code == 0 and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "Ø10.0 mm" in out.out  # grouped by the tool the summaries describe
+
+
+_CRASH = textwrap.dedent(
+    """
+    import os, signal, sys
+    from roboisf.history import db as dbm
+    real = dbm.Database.executemany
+    def crash(self, sql, rows):
+        real(self, sql, rows)
+        if sql.startswith("INSERT INTO points"):
+            os.kill(os.getpid(), signal.SIGKILL)   # the part's points are in, its shares not
+    dbm.Database.executemany = crash
+    from roboisf.cli.main import main
+    sys.exit(main(["history", "add", sys.argv[1], "--db", sys.argv[2]]))
+    """
+)
+
+
+def test_a_crash_during_add_leaves_no_half_written_part(analysed, db_url):
+    from roboisf.history.db import Database
+
+    assert _run(["history", "add", str(analysed["cone"]), "--db", db_url]) == 0
+    proc = subprocess.run(
+        [sys.executable, "-c", _CRASH, str(analysed["pyramid"]), db_url],
+        env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
+        capture_output=True,
+        timeout=120,
+    )
+    assert proc.returncode == -signal.SIGKILL, proc.stderr.decode()
+    with Database(db_url, create=False) as db:
+        assert db.query("SELECT count(*) FROM parts")[0][0] == 1
+        assert db.query("SELECT count(DISTINCT part_id) FROM points")[0][0] == 1
+        n_cone = len(pd.read_parquet(analysed["cone"] / "per_point.parquet"))
+        assert db.query("SELECT count(*) FROM points")[0][0] == n_cone
+    # the next add stores the pyramid whole
+    assert _run(["history", "add", str(analysed["pyramid"]), "--db", db_url]) == 0
+    with Database(db_url, create=False) as db:
+        assert db.query("SELECT count(*) FROM parts")[0][0] == 2
+
+
+def test_bad_inputs_are_refused_in_one_line(analysed, tmp_path, capsys):
+    mine = tmp_path / "notes.db"
+    mine.write_text("my notes, not a database\n")
+    code, out = _run(["history", "add", str(analysed["cone"]), "--db", str(mine)], capsys)
+    assert code == 2 and "not a history database" in out.err and str(mine) in out.err
+    assert mine.read_text() == "my notes, not a database\n"
+    empty = tmp_path / "empty.db"
+    empty.touch()
+    code, out = _run(["history", "add", str(analysed["cone"]), "--db", str(empty)], capsys)
+    assert code == 2 and empty.stat().st_size == 0
+    code, out = _run(["history", "list", "--db", str(tmp_path / "typo.db")], capsys)
+    assert code == 2 and "no such history database" in out.err
+    assert not (tmp_path / "typo.db").exists()
+    code, out = _run(["history", "add", str(tmp_path), "--db", str(tmp_path / "h.db")], capsys)
+    assert code == 2 and "summary.json" in out.err and len(out.err.strip().splitlines()) == 1
+    args = ["history", "add", str(analysed["cone"]), "--db", str(tmp_path / "h.db")]
+    code, out = _run([*args, "--formed", "yesterday"], capsys)
+    assert code == 2 and "--formed" in out.err
+    code, out = _run(["history", "trend", "--db", str(tmp_path / "h.db"), "--by", "x"], capsys)
+    assert code == 2  # (the database does not exist either: the first problem is reported)
+    code, out = _run(["history", "show", "7", "--db", str(tmp_path / "h.db")], capsys)
+    assert code == 2
+
+
+def test_unreachable_postgres_is_one_line(capsys):
+    pytest.importorskip("psycopg")
+    url = "postgresql://nobody:x@127.0.0.1:1/none"
+    code, out = _run(["history", "list", "--db", url], capsys)
+    assert code == 2 and "cannot connect to the PostgreSQL server" in out.err
+    assert ":x@" not in out.err  # the password is never echoed
