@@ -328,7 +328,7 @@ def _predicted(
     dn = pp["total_dn"].to_numpy(float) * 1e-3
     if not (np.all(np.isfinite(W)) and np.all(np.isfinite(dn))):
         raise InputError("non-finite wrench or total_dn values", file=table)
-    from roboisf.compensate import rim_blend
+    from roboisf.compensate.pipeline import rim_blend
     from roboisf.scan.deviation import default_rim_band
 
     rim = default_rim_band(cell.part.depth)

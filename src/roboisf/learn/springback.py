@@ -127,6 +127,9 @@ class SpringbackLearner:
     feature_range: F64 = field(default_factory=lambda: np.zeros((len(FEATURES), 2)))
     n_points: int = 0
     n_parts: int = 0
+    #: (n,) m — the out-of-part residuals (truth − prediction of a model without the point's
+    #: part), the interval's calibration set
+    residuals: F64 = field(default_factory=lambda: np.zeros(0))
 
     def _inputs(self, X: F64, material: str) -> F64:
         if material not in self.materials:
@@ -251,5 +254,13 @@ def fit_springback(
     model = _fit(Xm, y, w, F, seed)
     rng = np.column_stack([Xm[:, :F].min(axis=0), Xm[:, :F].max(axis=0)])
     return SpringbackLearner(
-        model, materials, half, coverage, validation, rng, n_points=n, n_parts=len(parts)
+        model,
+        materials,
+        half,
+        coverage,
+        validation,
+        rng,
+        n_points=n,
+        n_parts=len(parts),
+        residuals=resid,
     )
