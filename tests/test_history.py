@@ -211,3 +211,81 @@ def test_unreachable_postgres_is_one_line(capsys):
     code, out = _run(["history", "list", "--db", url], capsys)
     assert code == 2 and "cannot connect to the PostgreSQL server" in out.err
     assert ":x@" not in out.err  # the password is never echoed
+
+
+def test_predict_and_the_first_part_program_on_a_new_part(analysed, tmp_path, capsys):
+    """``predict`` a pyramid of another size from the two-part history, compare each term with
+    the virtual cell's truth for that part, then ``compensate --predicted`` and re-form it."""
+    from roboisf.io.toolpath_csv import read_toolpath_csv
+    from roboisf.parts.io import load_part
+    from roboisf.virtual.cell import PAPER_CELL_PLACEMENT, simulate, virtual_cell
+    from roboisf.virtual.truth import load_truth
+
+    pytest.importorskip("sklearn")
+    db = tmp_path / "h.db"
+    assert _run(["history", "add", *(str(p) for p in analysed.values()), "--db", str(db)]) == 0
+    part = tmp_path / "new.toml"
+    spec = ["pyramid", "--top-length", "90", "--top-width", "75", "--wall-angle", "55"]
+    assert _run(["part", *spec, "--depth", "24", "-o", str(part)]) == 0
+    pred = tmp_path / "P"
+    args = ["predict", "--part", str(part), "--history", str(db), "-o", str(pred),
+            "--placement", "2200,-500,200,0", "--step-down", "2", "--spacing", "4"]  # fmt: skip
+    assert _run(args) == 0
+    pp = pd.read_parquet(pred / "prediction.parquet")
+    summary = json.loads((pred / "prediction.json").read_text())
+    assert (pred / "report.html").is_file() and (pred / "prediction.png").is_file()
+    terms = ["springback_dn", "tool_dn", "tool_holder_dn", "robot_compliance_dn"]
+    np.testing.assert_allclose(pp["total_dn"], pp[terms].sum(axis=1), atol=1e-9)
+    assert np.all(pp["springback_dn_low"] <= pp["springback_dn"])
+    assert np.all(pp["springback_dn"] <= pp["springback_dn_high"])
+    assert "identified in history part" in summary["joint_stiffness_from"]
+
+    # the truth of this part in the same virtual cell (its truth rule, the same toolpath)
+    (tmp_path / "truth.toml").write_text(TRUTH)
+    vc = virtual_cell("new", load_part(part), T_base_work=PAPER_CELL_PLACEMENT,
+                      truth=load_truth(tmp_path / "truth.toml"), step_down=2e-3, spacing=4e-3)  # fmt: skip
+    truth = simulate(vc)
+    n = truth.toolpath.normal
+    np.testing.assert_allclose(
+        pp[["contact_x", "contact_y", "contact_z"]], truth.toolpath.contact * 1e3
+    )
+    wall = pp["depth"].to_numpy() > summary["rim_band_mm"]
+
+    def rel(pred_mm, true_m):
+        t = true_m[wall] * 1e3
+        return np.sqrt(np.mean((pred_mm[wall] - t) ** 2)) / np.sqrt(np.mean(t**2))
+
+    # tool and robot: the same models as the cell's (the robot run forms with ≤ 6 % less force)
+    assert rel(pp["tool_dn"].to_numpy(), np.einsum("ij,ij->i", truth.tool_robot, n)) < 0.1
+    assert rel(pp["robot_compliance_dn"].to_numpy(), np.einsum("ij,ij->i", truth.robot, n)) < 0.1
+    # springback learned from two parts only: a loose bound (the benchmark's history has ten)
+    assert rel(pp["springback_dn"].to_numpy(), truth.springback) < 0.5
+
+    comp = tmp_path / "C"
+    assert _run(["compensate", "--predicted", str(pred), "-o", str(comp), "--no-png"]) == 0
+    for name in ("compensated.mod", "compensated.src", "compensated.csv", "compensation.json"):
+        assert (comp / name).is_file()
+    reformed = simulate(vc, commanded=read_toolpath_csv(comp / "compensated.csv"))
+    before = np.sqrt(np.mean(truth.dn_robot[wall] ** 2))
+    after = np.sqrt(np.mean(reformed.dn_robot[wall] ** 2))
+    assert after < 0.5 * before, (before, after)
+
+    # a prediction is tied to its part file: an edited part is refused, nothing written
+    part.write_text(part.read_text().replace("24.0", "25.0"))
+    code, out = _run(["compensate", "--predicted", str(pred), "-o", str(tmp_path / "C2")], capsys)
+    assert code == 2 and "changed since the prediction" in out.err
+    assert not (tmp_path / "C2").exists()
+
+
+def test_predict_refuses_a_history_it_cannot_validate(analysed, tmp_path, capsys):
+    pytest.importorskip("sklearn")
+    db = tmp_path / "h.db"
+    assert _run(["history", "add", str(analysed["cone"]), "--db", str(db)]) == 0
+    part = tmp_path / "p.toml"
+    assert _run(["part", "cone", "--depth", "20", "-o", str(part)]) == 0
+    code, out = _run(["predict", "--part", str(part), "--history", str(db),
+                      "-o", str(tmp_path / "P")], capsys)  # fmt: skip
+    assert code == 2 and "at least 2" in out.err
+    code, out = _run(["predict", "--part", str(tmp_path / "none.toml"), "--history", str(db)],
+                     capsys)  # fmt: skip
+    assert code == 2 and "no such part file" in out.err

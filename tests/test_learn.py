@@ -17,13 +17,13 @@ import pytest
 
 pytest.importorskip("sklearn")
 
-from roboisf.errors import InputError  # noqa: E402
-from roboisf.learn.features import FEATURES, point_features  # noqa: E402
-from roboisf.learn.springback import fit_springback  # noqa: E402
-from roboisf.parts import VWACF, Cone, Pyramid  # noqa: E402
-from roboisf.scan.deviation import default_rim_band  # noqa: E402
-from roboisf.virtual.cell import pyramid_cell, simulate, virtual_cell  # noqa: E402
-from roboisf.virtual.truth import TruthSpec  # noqa: E402
+from roboisf.errors import InputError
+from roboisf.learn.features import FEATURES, point_features
+from roboisf.learn.springback import fit_springback
+from roboisf.parts import VWACF, Cone, Pyramid
+from roboisf.scan.deviation import default_rim_band
+from roboisf.virtual.cell import pyramid_cell, simulate, virtual_cell
+from roboisf.virtual.truth import TruthSpec
 
 RULE = TruthSpec(springback_curvature_gain=0.4, springback_curvature_length=15e-3)
 PATH = {"step_down": 2e-3, "spacing": 4e-3}

@@ -107,14 +107,15 @@ def register(app: typer.Typer) -> None:
 
         require_sklearn()
         if placement is not None:
-            v = _floats(placement, 4, "--placement")
-            T = make_transform(rot_z(math.radians(v[3])), v[:3] * 1e-3)
+            xyz_yaw = _floats(placement, 4, "--placement")
+            T = make_transform(rot_z(math.radians(xyz_yaw[3])), xyz_yaw[:3] * 1e-3)
         elif robot.startswith("irb7600"):
             T = PAPER_CELL_PLACEMENT
         else:
-            T = build_robot(robot).default_placement
-            if T is None:
+            preset = build_robot(robot).default_placement
+            if preset is None:
                 raise InputError(f"robot {robot} has no default placement", field="--placement")
+            T = preset
         progress = state.progress()
         with Database(history, create=False) as db:
             K, source = identified_stiffness(db, robot) if use_identified else (None, "")
