@@ -242,8 +242,11 @@ def test_predict_and_the_first_part_program_on_a_new_part(analysed, tmp_path, ca
 
     # the truth of this part in the same virtual cell (its truth rule, the same toolpath)
     (tmp_path / "truth.toml").write_text(TRUTH)
-    vc = virtual_cell("new", load_part(part), T_base_work=PAPER_CELL_PLACEMENT,
-                      truth=load_truth(tmp_path / "truth.toml"), step_down=2e-3, spacing=4e-3)  # fmt: skip
+    truth_spec = load_truth(tmp_path / "truth.toml")
+    vc = virtual_cell(
+        "new", load_part(part), T_base_work=PAPER_CELL_PLACEMENT, truth=truth_spec,
+        step_down=2e-3, spacing=4e-3,
+    )  # fmt: skip
     truth = simulate(vc)
     n = truth.toolpath.normal
     np.testing.assert_allclose(

@@ -33,6 +33,7 @@ __all__ = [
     "PartRecord",
     "add_parts",
     "list_parts",
+    "part_filter",
     "points_table",
     "read_results",
     "show_part",
@@ -325,11 +326,9 @@ _LIST = (
 )
 
 
-def list_parts(
-    db: Database, *, robot: str | None = None, kind: str | None = None
-) -> list[dict[str, Any]]:
-    """The parts in the history (oldest formed first) with their normal-book R_m per factor
-    (``r_m_<factor>``, m) and total; ``robot`` / ``kind`` filter."""
+def part_filter(*, robot: str | None = None, kind: str | None = None) -> tuple[str, list[Any]]:
+    """A `` WHERE …`` clause on the ``parts`` table aliased ``p`` (empty without a filter) and
+    its parameters."""
     where, params = [], []
     if robot is not None:
         where.append("p.robot = ?")
@@ -337,10 +336,19 @@ def list_parts(
     if kind is not None:
         where.append("p.part_kind = ?")
         params.append(kind)
+    return (" WHERE " + " AND ".join(where) if where else ""), params
+
+
+def list_parts(
+    db: Database, *, robot: str | None = None, kind: str | None = None
+) -> list[dict[str, Any]]:
+    """The parts in the history (oldest formed first) with their normal-book R_m per factor
+    (``r_m_<factor>``, m) and total; ``robot`` / ``kind`` filter."""
+    where, params = part_filter(robot=robot, kind=kind)
     sql = (
         f"SELECT {', '.join('p.' + c for c in _LIST)}, s.factor, s.r_m FROM parts p "
         "LEFT JOIN shares s ON s.part_id = p.id AND s.book = 'normal'"
-        + (" WHERE " + " AND ".join(where) if where else "")
+        + where
         + " ORDER BY p.formed_at, p.id"
     )
     parts: dict[int, dict[str, Any]] = {}

@@ -17,7 +17,7 @@ from typing import Any
 
 from roboisf.errors import InputError
 from roboisf.history.db import Database
-from roboisf.history.store import FACTORS
+from roboisf.history.store import FACTORS, part_filter
 
 __all__ = ["GROUPS", "TrendGroup", "trend"]
 
@@ -94,21 +94,12 @@ def trend(
         raise InputError(f"expected one of {', '.join(GROUPS)}, got {by!r}", field="--by")
     if factor not in FACTORS:
         raise InputError(f"expected one of {', '.join(FACTORS)}, got {factor!r}", field="--factor")
-    where: list[str] = []
-    params: list[Any] = [factor]
-    if robot is not None:
-        where.append("p.robot = ?")
-        params.append(robot)
-    if kind is not None:
-        where.append("p.part_kind = ?")
-        params.append(kind)
+    where, params = part_filter(robot=robot, kind=kind)
     rows = db.query(
         "SELECT p.id, p.formed_at, p.robot, p.part_kind, p.tool_json, p.vjm_ratio, s.r_m "
         "FROM parts p LEFT JOIN shares s ON s.part_id = p.id AND s.book = 'normal' "
-        "AND s.factor = ?"
-        + (" WHERE " + " AND ".join(where) if where else "")
-        + " ORDER BY p.formed_at, p.id",
-        params,
+        "AND s.factor = ?" + where + " ORDER BY p.formed_at, p.id",
+        [factor, *params],
     )
     groups: dict[str, list[tuple[Any, ...]]] = {}
     for pid, formed, rob, knd, tool, ratio, r_m in rows:
