@@ -232,7 +232,6 @@ class TruthSpec:
             and not np.any(self.scan_shift)
             and not np.any(self.scan_rotation)
             and self.springback_coupling == 0
-            and self.springback_curvature_gain == 0
             and not np.any(self.cnc_compliance)
         )
 
