@@ -253,6 +253,7 @@ def test_predict_and_the_first_part_program_on_a_new_part(analysed, tmp_path, ca
         pp[["contact_x", "contact_y", "contact_z"]], truth.toolpath.contact * 1e3
     )
     wall = pp["depth"].to_numpy() > summary["rim_band_mm"]
+    np.testing.assert_array_equal(pp["below_rim_band"], wall)
 
     def rel(pred_mm, true_m):
         t = true_m[wall] * 1e3

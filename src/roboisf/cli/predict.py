@@ -145,10 +145,14 @@ def register(app: typer.Typer) -> None:
             progress=progress,
         )
         pp = pred.per_point()
+        rim = default_rim_band(cell.part.depth)
+        # where the history measured springback (below the rim band); above it the learned
+        # springback is an extrapolation (docs/history.md, Limits)
+        pp["below_rim_band"] = tp.depth > rim
         summary = {
             "part": str(part),
             "robot": robot,
-            "rim_band_mm": default_rim_band(cell.part.depth) * 1e3,
+            "rim_band_mm": rim * 1e3,
             **pred.summary(),
             "setup": setup.to_json(),
         }

@@ -65,15 +65,17 @@ _TERMS = ("springback", "robot_compliance", "tool", "tool_holder")
 
 def prediction_png(per_point: pd.DataFrame) -> Figure:
     """Top views (x, y in mm) of each predicted term's normal deviation and of the total, and
-    of the springback interval's width (``roboisf.learn.predict.Prediction.per_point``)."""
+    the springback against depth with its interval and the rim band
+    (``roboisf.learn.predict.Prediction.per_point`` with ``below_rim_band``)."""
     cols = [f"{t}_dn" for t in _TERMS] + ["total_dn"]
     vmax = _vmax(*(per_point[c].to_numpy() for c in cols))
     x, y = per_point["contact_x"].to_numpy(), per_point["contact_y"].to_numpy()
     with _style():
-        fig = _figure(9.0, 5.6, left=0.55, right=0.1, bottom=0.45, wspace=0.25, hspace=0.35)
-        axes = fig.subplots(2, 3, sharex=True, sharey=True).ravel()
+        fig = _figure(9.5, 6.0, left=0.6, right=1.0, bottom=0.5, top=0.35)
+        gs = fig.add_gridspec(2, 3, wspace=0.3, hspace=0.35)
         sc = None
-        for ax, c in zip(axes, cols, strict=False):
+        for i, c in enumerate(cols):
+            ax = fig.add_subplot(gs[i // 3, i % 3])
             name = c.removesuffix("_dn")
             sc = ax.scatter(
                 x,
@@ -87,20 +89,27 @@ def prediction_png(per_point: pd.DataFrame) -> Figure:
                 rasterized=True,
             )
             ax.set_title(FACTOR_LABELS.get(name, name), color=FACTOR_COLORS.get(name, "#1F2933"))
-            ax.set_aspect("equal")
+            ax.set(aspect="equal", xlabel="x (mm)" if i >= 3 else "", ylabel="y (mm)")
             ax.grid(False)
-        width = (per_point["springback_dn_high"] - per_point["springback_dn_low"]) / 2
-        w = axes[5].scatter(x, y, c=width, s=2, cmap="viridis", linewidths=0, rasterized=True)
-        axes[5].set_title("springback interval ± (mm)")
-        axes[5].set_aspect("equal")
-        axes[5].grid(False)
         assert sc is not None
-        fig.colorbar(sc, ax=list(axes[:5]), label="predicted δn (mm)", shrink=0.8)
-        fig.colorbar(w, ax=axes[5], shrink=0.8)
-        for ax in axes[3:]:
-            ax.set_xlabel("x (mm)")
-        axes[0].set_ylabel("y (mm)")
-        axes[3].set_ylabel("y (mm)")
+        cax = fig.add_axes((1 - 0.8 / 9.5, 0.5 / 6.0, 0.12 / 9.5, 1 - 0.85 / 6.0))
+        fig.colorbar(sc, cax=cax, label="predicted δn (mm)")
+        ax = fig.add_subplot(gs[1, 2])
+        d = per_point["depth"].to_numpy()
+        laps = per_point.groupby("lap").agg(
+            depth=("depth", "mean"),
+            lo=("springback_dn_low", "min"),
+            hi=("springback_dn_high", "max"),
+        )
+        color = FACTOR_COLORS["springback"]
+        ax.fill_between(laps["depth"], laps["lo"], laps["hi"], color=color, alpha=0.18, linewidth=0)
+        ax.plot(d, per_point["springback_dn"], ".", color=color, markersize=1.5)
+        if "below_rim_band" in per_point:
+            band = d[~per_point["below_rim_band"].to_numpy(dtype=bool)]
+            if band.size:
+                ax.axvspan(0, band.max(), color="#E4E7EB", zorder=0, label="rim band")
+                ax.legend(loc="lower right")
+        ax.set(title="Springback ± interval", xlabel="depth (mm)", ylabel="δn (mm)")
     return fig
 
 
