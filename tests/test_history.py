@@ -293,3 +293,13 @@ def test_predict_refuses_a_history_it_cannot_validate(analysed, tmp_path, capsys
     code, out = _run(["predict", "--part", str(tmp_path / "none.toml"), "--history", str(db)],
                      capsys)  # fmt: skip
     assert code == 2 and "no such part file" in out.err
+
+
+def test_trend_slopes():
+    from roboisf.history.trend import _days, _slope
+
+    t = [_days("2026-11-28T01:20:10Z")] * 100  # 100 parts formed at once
+    v = [float(i % 3) for i in range(100)]
+    assert _slope(t, v) is None  # one date: no slope (not the rounding noise of the mean)
+    assert _slope([20000.0, 20030.0, 20060.0], [1.0, 2.0, 3.0]) == pytest.approx(1.0)
+    assert _slope([20000.0, 20030.0], [1.0, None]) is None

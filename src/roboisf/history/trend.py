@@ -64,6 +64,12 @@ def _slope(t: list[float], v: list[float | None]) -> float | None:
     pairs = [(a, b) for a, b in zip(t, v, strict=True) if b is not None and math.isfinite(b)]
     if len(pairs) < 2:
         return None
+    # times from the first: identical stamps give exact zeros (days since 1970 rounded in the
+    # mean would leave a spurious ~1e-20 spread and a slope of rounding noise)
+    t0 = pairs[0][0]
+    pairs = [(a - t0, b) for a, b in pairs]
+    if max(a for a, _ in pairs) == min(a for a, _ in pairs):
+        return None
     mt = sum(a for a, _ in pairs) / len(pairs)
     mv = sum(b for _, b in pairs) / len(pairs)
     sxx = sum((a - mt) ** 2 for a, _ in pairs)
