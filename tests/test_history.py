@@ -187,6 +187,14 @@ def test_bad_inputs_are_refused_in_one_line(analysed, tmp_path, capsys):
     code, out = _run(["history", "add", str(analysed["cone"]), "--db", str(mine)], capsys)
     assert code == 2 and "not a history database" in out.err and str(mine) in out.err
     assert mine.read_text() == "my notes, not a database\n"
+    other = tmp_path / "other.db"  # another application's SQLite database
+    import sqlite3
+
+    with sqlite3.connect(other) as con:
+        con.execute("CREATE TABLE parts (sku TEXT)")
+    before = other.read_bytes()
+    code, out = _run(["history", "add", str(analysed["cone"]), "--db", str(other)], capsys)
+    assert code == 2 and "not a roboisf history" in out.err and other.read_bytes() == before
     empty = tmp_path / "empty.db"
     empty.touch()
     code, out = _run(["history", "add", str(analysed["cone"]), "--db", str(empty)], capsys)

@@ -5,7 +5,8 @@
 Statements are written once with ``?`` placeholders and the portable subset of SQL both speak;
 :meth:`Database.transaction` is one transaction: everything in it is written or nothing is (a
 process killed halfway leaves the database as it was — SQLite's rollback journal, PostgreSQL's
-write-ahead log).
+write-ahead log). A database holding tables of something else is refused, never written into
+(``meta.application`` marks a history), and a database error is one line naming the database.
 
 The schema (:data:`SCHEMA_VERSION`, lengths in m, angles in rad, compliances in m/N, times as
 ISO 8601 UTC text) is created on first use; ``meta`` holds its version, and a database written by
@@ -23,9 +24,11 @@ from typing import Any
 
 from roboisf.errors import InputError
 
-__all__ = ["SCHEMA_VERSION", "Database"]
+__all__ = ["APPLICATION", "SCHEMA_VERSION", "Database"]
 
 SCHEMA_VERSION = 1
+#: ``meta.application``: what marks a database as a roboisf history
+APPLICATION = "roboisf-history"
 
 _PART_COLUMNS = (
     ("fingerprint", "TEXT NOT NULL UNIQUE"),
@@ -179,15 +182,39 @@ class Database:
                 f"cannot connect to the PostgreSQL server: {msg}", field="--db"
             ) from None
 
+    def _tables(self) -> set[str]:
+        if self.kind == "sqlite":
+            rows = self.query("SELECT name FROM sqlite_master WHERE type = 'table'")
+        else:
+            rows = self.query(
+                "SELECT table_name FROM information_schema.tables "
+                "WHERE table_schema = current_schema()"
+            )
+        return {str(r[0]) for r in rows}
+
     def _prepare(self) -> None:
         with self.transaction():
+            tables = self._tables()
+            ours = {"meta", "parts", "points", "shares"}
+            mine = ours & tables
+            # tables of another application are never written into: an SQLite file with
+            # tables but no history, or a server database whose `parts`… are someone else's
+            known = "meta" in tables and self.query(
+                "SELECT value FROM meta WHERE key = 'application'"
+            ) == [(APPLICATION,)]
+            if (mine and not known) or (self.kind == "sqlite" and tables and not known):
+                raise InputError(
+                    "holds tables that are not a roboisf history "
+                    f"({', '.join(sorted(tables))}); give another --db",
+                    file=self.describe(),
+                )
             for stmt in _ddl(self.kind):
                 self.execute(stmt)
             row = self.query("SELECT value FROM meta WHERE key = 'schema_version'")
             if not row:
-                self.execute(
-                    "INSERT INTO meta (key, value) VALUES ('schema_version', ?)",
-                    (str(SCHEMA_VERSION),),
+                self.executemany(
+                    "INSERT INTO meta (key, value) VALUES (?, ?)",
+                    [("schema_version", str(SCHEMA_VERSION)), ("application", APPLICATION)],
                 )
             elif row[0][0] != str(SCHEMA_VERSION):
                 raise InputError(
@@ -199,16 +226,33 @@ class Database:
     def _sql(self, sql: str) -> str:
         return sql.replace("?", "%s") if self.kind == "postgresql" else sql
 
+    @contextmanager
+    def _errors(self) -> Iterator[None]:
+        """A database's own error (locked, disk full, permission, connection lost) as one line
+        naming the database; the transaction around it is rolled back."""
+        errors: tuple[type[BaseException], ...] = (sqlite3.Error,)
+        if self.kind == "postgresql":
+            import psycopg
+
+            errors = (psycopg.Error,)
+        try:
+            yield
+        except errors as e:
+            msg = " ".join(str(e).split())
+            raise InputError(f"database error: {msg}", file=self.describe()) from None
+
     def execute(self, sql: str, params: Sequence[Any] = ()) -> Any:
         """Run one statement (``?`` placeholders); returns the cursor."""
-        cur = self._conn.cursor()
-        cur.execute(self._sql(sql), tuple(params))
+        with self._errors():
+            cur = self._conn.cursor()
+            cur.execute(self._sql(sql), tuple(params))
         return cur
 
     def executemany(self, sql: str, rows: Iterable[Sequence[Any]]) -> None:
         """Run one statement for many parameter rows."""
-        cur = self._conn.cursor()
-        cur.executemany(self._sql(sql), list(rows))
+        with self._errors():
+            cur = self._conn.cursor()
+            cur.executemany(self._sql(sql), list(rows))
 
     def query(self, sql: str, params: Sequence[Any] = ()) -> list[tuple[Any, ...]]:
         """Rows of a query (``?`` placeholders)."""
@@ -227,13 +271,15 @@ class Database:
             with self._conn.transaction():
                 yield self
             return
-        self._conn.execute("BEGIN IMMEDIATE")
+        with self._errors():  # "database is locked" after the 30 s timeout
+            self._conn.execute("BEGIN IMMEDIATE")
         try:
             yield self
         except BaseException:
             self._conn.execute("ROLLBACK")
             raise
-        self._conn.execute("COMMIT")
+        with self._errors():
+            self._conn.execute("COMMIT")
 
     def close(self) -> None:
         if self._conn is not None:
