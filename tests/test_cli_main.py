@@ -21,6 +21,12 @@ COMMANDS = [
     ["online"],
     ["study"],
     ["study", "init"],
+    ["predict"],
+    ["history"],
+    ["history", "add"],
+    ["history", "list"],
+    ["history", "show"],
+    ["history", "trend"],
 ]
 
 

@@ -144,8 +144,9 @@ def register(app: typer.Typer) -> None:
                 "--truth",
                 help="Truth TOML: how the simulated cell differs from the model the study "
                 "carries (joint stiffness scale, link compliance, kinematic error, sensor bias/"
-                "gain/crosstalk, tool weight, scan misregistration, springback coupling, CNC "
-                "compliance; mm, deg, N, N·m, kg). Keys override --scenario's. See "
+                "gain/crosstalk, tool weight, scan misregistration, springback coupling and "
+                "geometry rule, CNC compliance; mm, deg, N, N·m, kg). Keys override "
+                "--scenario's. See "
                 "docs/virtual-cell.md.",
             ),
         ] = None,

@@ -77,6 +77,14 @@ def register(app: typer.Typer) -> None:
                 help="Stopping rule: the wall's mean |deviation| at which the part is right [mm]."
             ),
         ] = 0.05,
+        predicted: Annotated[
+            Path | None,
+            typer.Option(
+                help="A `roboisf predict` output folder: write the first-part program of a "
+                "part not yet formed (pre-deflection for the predicted robot, tool and holder "
+                "deflection, springback adjustment by the learned springback)."
+            ),
+        ] = None,
         iterations: Annotated[
             int, typer.Option(help="Virtual cell: form–measure–adjust iterations.")
         ] = 3,
@@ -190,10 +198,21 @@ def register(app: typer.Typer) -> None:
             rim_blend=rim_blend * 1e-3,
         )
         progress = state.progress()
-        if (study is None) == (virtual is None):
+        if sum(x is not None for x in (study, virtual, predicted)) != 1:
             raise InputError(
-                "give either a STUDY folder or --virtual cone|vwacf|pyramid", field="STUDY"
+                "give either a STUDY folder, --virtual cone|vwacf|pyramid|PART.toml or --predicted DIR",
+                field="STUDY",
             )
+        if predicted is not None:
+            if stiffness is not None or results is not None or previous is not None:
+                raise InputError(
+                    "--stiffness, --results and --previous apply to a STUDY (the prediction "
+                    "carries its robot and terms)",
+                    field="--predicted",
+                )
+            output_dir(output, "compensate", overwrite, [predicted])
+            _predicted(predicted, opts, output, tool_mass, png, progress)
+            return
         if stiffness is not None and virtual is not None:
             raise InputError(
                 "--stiffness applies to a STUDY (the virtual cell knows its robot)",
@@ -330,4 +349,83 @@ def _virtual(
         "mean |dn| per iteration [mm]: "
         + " → ".join(f"{m:.3f}" for m in means)
         + f"; report: {output / 'compensation.html'}"
+    )
+
+
+def _predicted(
+    folder: Path, opts: object, output: Path, tool_mass: float, png: bool, progress: object
+) -> None:
+    """The first-part program from a ``roboisf predict`` folder: the predicted total normal
+    error is the "measured" deviation of the nominal command (docs/history.md)."""
+    import json
+
+    import numpy as np
+    import pandas as pd
+
+    from roboisf.compensate import CompensationOptions, compensate, write_compensation
+    from roboisf.compensate.cell import cell_deflection_model
+    from roboisf.io.program import RobotTool
+    from roboisf.learn.predict import PredictionSetup
+
+    assert isinstance(opts, CompensationOptions)
+    meta, table = folder / "prediction.json", folder / "prediction.parquet"
+    for f in (meta, table):
+        if not f.is_file():
+            raise InputError(f"no {f.name}: not a `roboisf predict` output", file=folder)
+    try:
+        summary = json.loads(meta.read_text(encoding="utf-8"))
+        setup = PredictionSetup.from_json(summary["setup"], str(meta))
+    except (json.JSONDecodeError, KeyError, TypeError) as e:
+        raise InputError(f"not a roboisf prediction ({e})", file=meta) from None
+    try:
+        pp = pd.read_parquet(table)
+    except Exception as e:  # pyarrow raises several types for a damaged file
+        raise InputError(f"not a readable Parquet table ({e})", file=table) from None
+    cell, tp = setup.build()
+    need = ["contact_x", "contact_y", "contact_z", "total_dn", "Fx", "Fy", "Fz", "Mx", "My", "Mz"]
+    missing = [c for c in need if c not in pp.columns]
+    if missing:
+        raise InputError(f"missing columns {', '.join(missing)}", file=table)
+    contact = pp[["contact_x", "contact_y", "contact_z"]].to_numpy(float) * 1e-3
+    if len(pp) != len(tp) or np.max(np.abs(contact - tp.contact)) > 1e-6:
+        raise InputError(
+            "its toolpath is not the one its setup gives (edited, or another roboisf)", file=table
+        )
+    W = pp[["Fx", "Fy", "Fz", "Mx", "My", "Mz"]].to_numpy(float)
+    dn = pp["total_dn"].to_numpy(float) * 1e-3
+    if not (np.all(np.isfinite(W)) and np.all(np.isfinite(dn))):
+        raise InputError("non-finite wrench or total_dn values", file=table)
+    from roboisf.compensate.pipeline import rim_blend
+    from roboisf.scan.deviation import default_rim_band
+
+    rim = default_rim_band(cell.part.depth)
+    comp = compensate(
+        cell.part,
+        tp,
+        model=cell_deflection_model(cell, progress=progress),  # type: ignore[arg-type]
+        wrench=W,
+        deviation=dn,
+        blend=rim_blend(tp.depth, rim, opts.rim_blend) if opts.rim_blend > 0 else None,
+        options=opts,
+        progress=progress,  # type: ignore[arg-type]
+    )
+    from dataclasses import replace
+
+    comp = replace(comp, meta={"predicted": str(folder), "first_part": True})
+    robot = cell.robot
+    write_compensation(
+        comp,
+        output,
+        T_base_work=cell.T_base_work,
+        tool=RobotTool(length=float(robot.T_flange_tip[2, 3]), mass=tool_mass),
+        tool_rotation=cell.tool_rotation,
+        robot=robot,
+        dn_before=dn,
+        inputs=(folder,),
+        png=png,
+        progress=progress,  # type: ignore[arg-type]
+    )
+    state.info(
+        f"first-part program from the prediction (mean |dn| {np.mean(np.abs(dn)) * 1e3:.3f} mm "
+        f"predicted for the nominal program); report: {output / 'compensation.html'}"
     )

@@ -54,6 +54,17 @@ COMMANDS: tuple[LazyCommand, ...] = (
         "plan",
         "Rank work-object placements (x, y, z, yaw) and tool rotations by predicted deflection.",
     ),
+    LazyCommand(
+        "predict",
+        "predict",
+        "Predict the error of a part before it is formed: springback learned from the history, "
+        "tool and holder by their compliance, robot by the VJM (identified stiffness).",
+    ),
+    LazyCommand(
+        "history",
+        "history",
+        "The cell's history: analysed parts in a database (add, list, show, trend).",
+    ),
     LazyCommand("part", "part", "Write a part file (TOML, mm and degrees)."),
     LazyCommand(
         "toolpath",

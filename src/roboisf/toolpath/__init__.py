@@ -20,6 +20,7 @@ if TYPE_CHECKING:
         step_down,
         tip_levels,
     )
+    from roboisf.toolpath.geometry import contour_curvature, meridian_curvature, rim_distance
     from roboisf.toolpath.slice import (
         level_contour,
         scallop_step,
@@ -31,6 +32,7 @@ if TYPE_CHECKING:
 _WHERE = {
     "dispatch": ("toolpath_for_part",),
     "generate": ("DEFAULT_FEED", "ball_position", "spiral", "step_down", "tip_levels"),
+    "geometry": ("contour_curvature", "meridian_curvature", "rim_distance"),
     "slice": ("level_contour", "scallop_step", "sliced_spiral", "sliced_step_down"),
     "toolpath": ("Toolpath", "tool_points"),
 }
@@ -38,7 +40,10 @@ __all__ = [
     "DEFAULT_FEED",
     "Toolpath",
     "ball_position",
+    "contour_curvature",
     "level_contour",
+    "meridian_curvature",
+    "rim_distance",
     "scallop_step",
     "sliced_spiral",
     "sliced_step_down",

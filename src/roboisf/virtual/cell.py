@@ -375,6 +375,12 @@ def cell_toolpath(cell: VirtualCell) -> Toolpath:
     return tp
 
 
+def _contour_curvature(tp: Toolpath) -> F64:
+    from roboisf.toolpath.geometry import contour_curvature
+
+    return contour_curvature(tp.contact, tp.normal, tp.lap)
+
+
 def simulate(
     cell: VirtualCell,
     *,
@@ -430,7 +436,10 @@ def simulate(
     # the CNC: rigid unless the truth gives it a translational compliance
     cnc = W[:, :3] * truth.cnc_compliance[None, :]
     n = tp.normal
-    s = sb.normal(tp.depth, tp.wall_angle)
+    if truth.springback_curvature_gain:  # the geometry rule (docs/virtual-cell.md)
+        sb = replace(sb, curvature_gain=truth.springback_curvature_gain)
+        sb = replace(sb, curvature_length=truth.springback_curvature_length)
+    s = sb.normal(tp.depth, tp.wall_angle, _contour_curvature(tp) if sb.curvature_gain else None)
     # springback that depends on the machine's own deflection: the sheet recovers a fraction c
     # of the machine's normal deflection (docs/virtual-cell.md, "Truth beyond the model")
     c = truth.coupling_at(tp.depth)

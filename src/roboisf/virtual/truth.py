@@ -37,6 +37,8 @@ Every key is optional; every effect is off when its key is absent. Units as in `
     deflection_coupling = 0.3            # s_run = s − c(depth) · (n · δ_machine), each run
     coupling_depth = 30.0                # mm, c(depth) = c · exp(−depth / this) (absent: c)
     amplitude = 1.33                     # mm, the springback model's amplitude (both runs)
+    curvature_gain = 0.4                 # the geometry rule: × (1 − gain·tanh(κ·length))
+    curvature_length = 15.0              # mm (κ: the contour's curvature, springback.py)
 
     [cnc]
     compliance = 2e-5                    # mm/N, the CNC's translational compliance (1 or 3)
@@ -84,7 +86,13 @@ _KEYS: dict[str, tuple[str, ...]] = {
     "force_sensor": ("bias", "gain", "crosstalk"),
     "tool": ("mass", "cog"),
     "scan": ("shift", "rotation"),
-    "springback": ("deflection_coupling", "coupling_depth", "amplitude"),
+    "springback": (
+        "deflection_coupling",
+        "coupling_depth",
+        "amplitude",
+        "curvature_gain",
+        "curvature_length",
+    ),
     "cnc": ("compliance",),
 }
 _KIN_KEYS = ("joint_offset", "work_object", *OPW_KEYS)
@@ -114,6 +122,9 @@ class TruthSpec:
     springback_coupling : float — each run: ``s − c(depth) · (n · δ_machine)``
     springback_coupling_depth : float, m — ``c(depth) = c · exp(−depth / this)`` (inf: constant)
     springback_amplitude : float or None, m — replaces the cell's springback amplitude
+    springback_curvature_gain : float — the geometry rule of
+        :class:`~roboisf.virtual.springback.SpringbackModel` (0: off)
+    springback_curvature_length : float, m — its length scale
     cnc_compliance : (3,) float, m/N — the CNC's translational compliance (zeros: rigid)
     source : str — the file(s) or scenario it came from
     """
@@ -134,6 +145,8 @@ class TruthSpec:
     springback_coupling: float = 0.0
     springback_coupling_depth: float = math.inf
     springback_amplitude: float | None = None
+    springback_curvature_gain: float = 0.0
+    springback_curvature_length: float = 15e-3
     cnc_compliance: F64 = field(default_factory=lambda: np.zeros(3))
     source: str = ""
 
@@ -178,6 +191,10 @@ class TruthSpec:
         amp = self.springback_amplitude
         if amp is not None and not (math.isfinite(amp) and amp >= 0):
             raise InputError("must be ≥ 0", field="truth.springback_amplitude")
+        if not (0 <= self.springback_curvature_gain < 1):
+            raise InputError("must be in [0, 1)", field="truth.springback.curvature_gain")
+        if not (0 < self.springback_curvature_length < math.inf):
+            raise InputError("must be > 0 mm", field="truth.springback.curvature_length")
         if np.any(self.cnc_compliance < 0):
             raise InputError("must be ≥ 0", field="truth.cnc_compliance")
         for k, v in self.opw_error.items():
@@ -268,6 +285,14 @@ class TruthSpec:
                 **(
                     {"amplitude": self.springback_amplitude * mm}
                     if self.springback_amplitude is not None
+                    else {}
+                ),
+                **(
+                    {
+                        "curvature_gain": self.springback_curvature_gain,
+                        "curvature_length": self.springback_curvature_length * mm,
+                    }
+                    if self.springback_curvature_gain
                     else {}
                 ),
             },
@@ -407,6 +432,12 @@ def _from_table(data: Mapping[str, Any], source: str) -> TruthSpec:
         )
     if "amplitude" in sb:
         kw["springback_amplitude"] = _number(sb["amplitude"], "springback.amplitude") * 1e-3
+    if "curvature_gain" in sb:
+        kw["springback_curvature_gain"] = _number(sb["curvature_gain"], "springback.curvature_gain")
+    if "curvature_length" in sb:
+        kw["springback_curvature_length"] = (
+            _number(sb["curvature_length"], "springback.curvature_length") * 1e-3
+        )
     cnc = _table(data, "cnc", "cnc")
     _check_keys(cnc, _KEYS["cnc"], "cnc")
     if "compliance" in cnc:
