@@ -200,7 +200,8 @@ def register(app: typer.Typer) -> None:
         progress = state.progress()
         if sum(x is not None for x in (study, virtual, predicted)) != 1:
             raise InputError(
-                "give either a STUDY folder, --virtual cone|vwacf|pyramid|PART.toml or --predicted DIR",
+                "give either a STUDY folder, --virtual cone|vwacf|pyramid|PART.toml or "
+                "--predicted DIR",
                 field="STUDY",
             )
         if predicted is not None:
