@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import warnings
+import zlib
 
 import numpy as np
 import pytest
@@ -231,7 +232,7 @@ def test_numba_opw_matches_numpy_on_every_branch(name):
     near-singular wrists and unreachable poses included."""
     _needs_numba()
     m = load_robot(name).with_tool(TOOL)
-    T = _flange_poses(m, 3000, seed=hash(name) % 1000)
+    T = _flange_poses(m, 3000, seed=zlib.crc32(name.encode()) % 1000)  # hash() varies per run
     for s, e, w in BRANCHES:
         qn, okn = opw_ik(m, T, shoulder=s, elbow=e, wrist=w, backend="numba")
         qp, okp = opw_ik(m, T, shoulder=s, elbow=e, wrist=w, backend="numpy")
@@ -240,10 +241,12 @@ def test_numba_opw_matches_numpy_on_every_branch(name):
         assert np.isnan(qn[~okn]).all()
         d = np.abs(_wrapped(qn[okn] - qp[okp]))
         assert d[:, :3].max() <= 1e-12 and d[:, 4].max() <= 1e-12
-        # A4 and A6 are ill-conditioned at a small θ5 (alone, not their sum): one rounding of
-        # the wrist matrix moves them by ~1e-16 / |sin θ5|; 1e-12 from |θ5| ≥ 1e-3 rad
+        # A4 and A6 are ill-conditioned at a small θ5 (alone, not their sum): a rounding δ of
+        # the wrist matrix's entries moves them by ~δ / |sin θ5|. With δ ≈ 9 ulp (2e-15) the
+        # bound is 2e-15 / |sin θ5| (1e-12 from |θ5| ≥ 2e-3 rad); the worst of 1,000 seeds × 3
+        # presets × 8 branches was 1.1e-15 / |sin θ5| (θ5 ≈ 2.6e-4 rad, KR 210).
         s5 = np.abs(np.sin(qp[okp, 4]))
-        assert np.all(d[:, [3, 5]] <= 1e-12 * np.maximum(1.0, 1e-3 / s5)[:, None])
+        assert np.all(d[:, [3, 5]] <= 1e-12 * np.maximum(1.0, 2e-3 / s5)[:, None])
         assert np.all(np.abs(qn[okn]) <= np.pi)  # wrapped to (−π, π] like numpy's
 
 
