@@ -60,15 +60,27 @@ MAX_REL_SE = 0.3
 MIN_SHARE = 0.05
 
 
-def forming_design(model: RobotModel, q: F64, W_work: F64, T_base_work: F64, normal: F64) -> F64:
-    """``A`` (N, 6) [m per rad/(N·m)]: the normal tip deflection per unit compliance of each joint.
+def forming_design(
+    model: RobotModel,
+    q: F64,
+    W_work: F64,
+    T_base_work: F64,
+    normal: F64,
+    ball_radius: float = 0.0,
+) -> F64:
+    """``A`` (N, 6) [m per rad/(N·m)]: the normal deflection of the ball centre per unit
+    compliance of each joint.
 
     q : (N, 6) rad; W_work : (N, 6) [N; N·m] the sheet's wrench on the tool at the tip, work
-    axes; T_base_work : (4, 4); normal : (N, 3) unit, work axes. ``A @ (1/K)`` equals
-    ``n · model.deflection(q, W, T_base_work)[:, :3]``."""
+    axes; T_base_work : (4, 4); normal : (N, 3) unit, work axes; ball_radius : m, the ball
+    centre ``tip + R ẑ`` whose normal motion ``analyze`` measures and checks
+    (:func:`roboisf.cell.at_ball_centre`; 0: the tip). ``A @ (1/K)`` equals
+    ``n · at_ball_centre(model.deflection(q, W, T_base_work), R)``."""
     J = model.jacobian(q, check_limits=False, T_base_work=T_base_work)  # (N, 6, 6) work axes
     tau = np.einsum("nji,nj->ni", J, W_work)  # J_iᵀ W
-    nJ = np.einsum("nj,nji->ni", normal, J[:, :3, :])  # n · J_i,lin
+    # ball centre: δ_C = δ_T + θ × R ẑ, column by column
+    lin = J[:, :3, :] + np.cross(J[:, 3:, :], [0.0, 0.0, ball_radius], axisa=1, axisc=1)
+    nJ = np.einsum("nj,nji->ni", normal, lin)  # n · J_i at the ball centre
     return np.asarray(nJ * tau, dtype=float)
 
 

@@ -41,9 +41,9 @@ from roboisf.decompose.core import (
     decompose,
     resultant_mean_deviation,
 )
+from roboisf.decompose.diagnose import Finding, diagnose, diagnosis_headline
 from roboisf.decompose.identify import (
     FormingIdentification,
-    forming_design,
     identify_from_forming,
     write_stiffness_toml,
 )
@@ -443,8 +443,8 @@ def analyze(
         entry["source"] = _in_study(entry["source"], study.root)
     for a in aligned.values():
         summary["warnings"].extend(f"{a.run} alignment: {n}" for n in a.primary.notes)
-    with task(progress, "model check and identification"):
-        ident = _model_checks(cell, tp, q, W_cnc, W_rob, d, summary)
+    with task(progress, "model check, diagnosis and identification"):
+        ident = _model_checks(cell, tp, q, W_cnc, W_rob, d, summary, k_t, k_th, k_c)
     if ident is not None:
         per_point["identified_dn"] = ident.predicted * 1e3
     if truth is not None:
@@ -463,13 +463,47 @@ FORCE_BIAS_WARN = 5.0
 
 
 def _model_checks(
-    cell: Cell, tp: Toolpath, q: F64, W_cnc: F64, W_rob: F64, d: Decomposition, summary: Any
+    cell: Cell,
+    tp: Toolpath,
+    q: F64,
+    W_cnc: F64,
+    W_rob: F64,
+    d: Decomposition,
+    summary: Any,
+    k_t: F64,
+    k_th: F64,
+    k_c: F64,
 ) -> FormingIdentification | None:
-    """``vjm_check``, the identification, the term statistics and the warnings of the robot term
-    (docs/analyze.md, "Does the model hold?"), into ``summary``."""
+    """``vjm_check``, the diagnosis, the identification, the term statistics and the warnings of
+    the robot term (docs/analyze.md, "Does the model hold?", docs/diagnosis.md), into
+    ``summary``. The identification runs on the robot term and forces the diagnosis corrected
+    (a flange sensor at fault against the CNC dynamometer)."""
     meas, pred, valid = d.normal["robot_compliance"], d.normal["vjm"], d.valid
     vc = vjm_check(meas, pred, valid, tp.lap, tp.depth)
     summary["vjm_check"] = vc.to_dict()
+    diag, corr = diagnose(
+        robot=cell.robot,
+        q=q,
+        T_base_work=cell.T_base_work,
+        k_t=k_t,
+        k_th=k_th,
+        k_c=k_c,
+        ball_radius=cell.tool.radius,
+        normal=tp.normal,
+        contact=tp.contact,
+        tip=tp.tip,
+        lap=tp.lap,
+        depth=tp.depth,
+        W_cnc=W_cnc,
+        W_rob=W_rob,
+        measured=meas,
+        valid=valid,
+        axisymmetric=cell.part.symmetry.order == 0,
+    )
+    summary["diagnosis"] = diag.to_list()
+    summary["diagnosis_headline"] = diagnosis_headline(diag.findings)
+    summary["diagnosis_forces_corrected"] = diag.forces_corrected
+    verdicts = {f.suspect: f for f in diag.findings}
     summary["terms_normal"] = term_statistics(
         {k: d.normal[k] for k in (*FACTORS, "vjm", "delta", "cnc", "robot")}, valid
     )
@@ -480,9 +514,10 @@ def _model_checks(
             "the robot's compliance is not identified from this run: " + vc.reason
         )
     else:
-        A = forming_design(cell.robot, q, W_rob, cell.T_base_work, tp.normal)
         try:
-            ident = identify_from_forming(A, meas, valid, tp.lap, cell.robot.joint_stiffness)
+            ident = identify_from_forming(
+                corr.A, corr.measured, valid, tp.lap, cell.robot.joint_stiffness
+            )
         except InputError as e:
             summary["identification"] = {"mode": None, "observability": e.message}
             summary["warnings"].append(f"robot compliance not identified: {e.message}")
@@ -499,15 +534,26 @@ def _model_checks(
             f"the robot model does not hold: {vc.reason}; the robot term is the measured one, "
             f"the VJM's prediction is off{use}"
         )
-    summary["warnings"].extend(_lateral_warnings(tp, d, vc, summary))
-    summary["warnings"].extend(_force_bias_warnings(tp, W_cnc, W_rob, valid))
+    summary["warnings"].extend(_lateral_warnings(tp, d, vc, summary, verdicts["scan_shift"]))
+    if verdicts["force_bias"].verdict == "fault":
+        summary["warnings"].extend(_force_bias_warnings(tp, W_cnc, W_rob, valid))
+    for name in ("force_gain", "force_moment_crosstalk", "scan_rotation"):
+        if verdicts[name].verdict == "fault":
+            summary["warnings"].append(verdicts[name].headline)
     return ident
 
 
 def _lateral_warnings(
-    tp: Toolpath, d: Decomposition, vc: VjmCheck, summary: dict[str, Any]
+    tp: Toolpath,
+    d: Decomposition,
+    vc: VjmCheck,
+    summary: dict[str, Any],
+    shift: Finding | None = None,
 ) -> list[str]:
-    """A sideways scan shift the fixture registration cannot see (z and tilts only)."""
+    """A sideways scan shift the fixture registration cannot see (z and tilts only). The robot
+    scan's is warned only when the diagnosis's ``shift`` finding calls it a fault (a joint-by-joint
+    stiffness error or a sensor fault leaves a similar pattern beside one scale); a
+    ``cannot_tell`` is said as such."""
     reg = summary.get("registration") or {}
     out = []
     fits = {}
@@ -530,6 +576,10 @@ def _lateral_warnings(
             "explained_variance": lo.explained,
         }
         if not (lo.size > LATERAL_WARN and lo.size > 4 * lo.se):
+            continue
+        if run == "robot" and shift is not None and shift.verdict != "fault":
+            if shift.verdict == "cannot_tell":
+                out.append(f"robot scan: {shift.explanation}")
             continue
         # the registrations are in run order (CNC, robot)
         regs = [v for v in reg.values() if isinstance(v, dict)]
