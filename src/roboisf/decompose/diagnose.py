@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from roboisf.decompose.check import N_BOOT, RATIO_TOLERANCE, lap_blocks, lap_index
+from roboisf.decompose.check import RATIO_TOLERANCE, lap_blocks, lap_index
 
 __all__ = [
     "DETECTION_LIMITS",
