@@ -9,10 +9,14 @@ end up. This module tells them apart, suspect by suspect, with what the study ho
 * **The two force logs.** The CNC run's fixture dynamometer and the robot's flange sensor record
   the same toolpath in the same material. On the deeper half of the used laps (the robot's first
   laps form with somewhat less force while its deflection settles: the "stated difference of the
-  two processes", whose size is taken from the shallow half's disagreement and added to the
-  interval) the robot's tip force is fitted as ``F_rob = G F_cnc + b``: ``G`` (3×3) a gain with
-  the force channels' crosstalk, ``b`` (3,) N a constant (a bias: an untared sensor, the tool's
-  weight below the sensor). The CNC dynamometer is the reference.
+  two processes", whose size is taken from the shallow half's disagreement — twice it is added to
+  the interval away from the shallow half, once towards it) the robot's tip force is fitted as
+  ``F_rob = g F_cnc + b``: ``g`` one gain (the lateral forces, which turn around the part, carry
+  it), ``b`` (3,) N a constant (a bias: an untared sensor, the tool's weight below the sensor).
+  The lateral channels' coupling is fitted on what is left. A constant may also be the axial
+  force's crosstalk into the lateral channels (the axial force barely changes along a wall): a
+  second fit with that crosstalk beside the constant says whether the two can be told apart.
+  The CNC dynamometer is the reference.
 * **A physical bound on the tip moment.** The ball touches the sheet at one point, so the tip
   moment is ``(contact − tip) × F`` (friction acts at the contact and is in ``F``): at most
   ``R · |F|``. What the moment channels add beyond it, fitted as ``C F + m₀`` (``C`` in
@@ -232,7 +236,9 @@ class SensorFit:
     lateral_coupling : (c_xy, c_yx) the lateral channels' coupling (removed by :meth:`corrected`);
     gain, gain_ci : ``g`` of ``F_rob = g F_cnc + b`` and its 95 % interval (the processes' own
     difference included); gain_boot : its bootstrap replicates; b : (3,) N the constant; bias,
-    bias_ci : ``|b|`` N; force_crosstalk : largest lateral coupling left after the gain;
+    bias_ci : ``|b|`` N; bias_axial, bias_axial_ci, axial_crosstalk : ``|b|`` fitted beside the
+    axial force's crosstalk into the lateral channels (c_xz, c_yz); force_crosstalk : largest
+    lateral coupling left after the gain;
     moment_crosstalk, moment_crosstalk_ci : RMS of the false tip moment (beyond the point-contact
     moment, the part explained by the force) per RMS newton of force, m; moment_proportional,
     moment_proportional_ci : the same for the part that follows the lateral force (not a
@@ -246,6 +252,9 @@ class SensorFit:
     b: F64
     bias: float
     bias_ci: tuple[float, float]
+    bias_axial: float
+    bias_axial_ci: tuple[float, float]
+    axial_crosstalk: tuple[float, float]
     force_crosstalk: float
     lateral_coupling: tuple[float, float]
     moment_crosstalk: float
@@ -344,10 +353,24 @@ def fit_sensor(
     g_sh = float(_solve(G_s.sum(0), h_s.sum(0))[0])
     gap = g_sh / gain - 1 if gain else math.nan
     lo, hi = _pct(boot[:, 0])
+    # the processes' difference fades with depth, so the deep half keeps some of it, on the
+    # shallow half's side of the truth: twice the halves' difference away from the shallow
+    # half, once towards it
     widen = abs(gain * gap) if math.isfinite(gap) else 0.0
-    gain_ci = (min(lo, gain) - widen, max(hi, gain) + widen)
+    w_lo, w_hi = (widen, 2 * widen) if gap < 0 else (2 * widen, widen)
+    gain_ci = (min(lo, gain) - w_lo, max(hi, gain) + w_hi)
     bias = float(np.linalg.norm(b))
     blo, bhi = _size_ci(boot[:, 1:4], b)
+    # the same with the axial force's crosstalk into the lateral channels beside the constant:
+    # along a wall the axial force barely changes, so that crosstalk may look like a bias
+    Md = int(deep.sum())
+    Xa = np.zeros((3 * Md, 6))
+    Xa[:, :4] = _gain_design(Fc[deep])
+    Xa[:Md, 4] = Fc[deep, 2]
+    Xa[Md : 2 * Md, 5] = Fc[deep, 2]
+    beta_a, boot_a = _lap_ls(Xa, Fr[deep].T.ravel(), np.tile(inv, 3), L, weights)
+    b_axial = beta_a[1:4]
+    bias_axial_ci = _size_ci(boot_a[:, 1:4], b_axial)
     # lateral force crosstalk: the residual of each lateral channel against the other's force
     res = Fr[deep] - gain * Fc[deep] - b[None, :]
     xt = []
@@ -378,6 +401,9 @@ def fit_sensor(
         b=b,
         bias=bias,
         bias_ci=(blo, bhi),
+        bias_axial=float(np.linalg.norm(b_axial)),
+        bias_axial_ci=bias_axial_ci,
+        axial_crosstalk=(float(beta_a[4] / gain), float(beta_a[5] / gain)),
         force_crosstalk=xtalk,
         lateral_coupling=(xt[0], xt[1]),
         moment_crosstalk=cm,
@@ -626,7 +652,9 @@ def sensor_findings(sf: SensorFit | None, R: float) -> list[Finding]:
     )
     b = sf.b
     bias_limits = DETECTION_LIMITS["force_bias"]
-    bias_fault = verdict(sf.bias_ci[0], sf.bias_ci[1], bias_limits) == "fault"
+    v_b = verdict(sf.bias_ci[0], sf.bias_ci[1], bias_limits)
+    v_ba = verdict(sf.bias_axial_ci[0], sf.bias_axial_ci[1], bias_limits)
+    bias_fault = v_b == "fault"
     ct_est, ct_ci, ct_force = cm, (clo, chi), None
     if bias_fault:
         plo, phi = (v * 1e3 for v in sf.moment_proportional_ci)
@@ -650,6 +678,18 @@ def sensor_findings(sf: SensorFit | None, R: float) -> list[Finding]:
         "sensor's and the dynamometer's tip forces, the gain fitted beside it; an untared sensor "
         "or the tool's weight below the sensor"
     )
+    bias_force = None
+    bias_ci = sf.bias_ci
+    # no constant on this path (ok) rules out both; a constant may be either
+    if v_b == "fault" and v_ba != "fault":
+        bias_force = "cannot_tell"
+        bias_ci = (min(sf.bias_ci[0], sf.bias_axial_ci[0]), max(sf.bias_ci[1], sf.bias_axial_ci[1]))
+        cx, cy = sf.axial_crosstalk
+        bias_text += (
+            f"; or crosstalk of the axial force into the lateral channels ({cx:+.3f}, {cy:+.3f}) "
+            f"with a constant of {sf.bias_axial:.1f} N: the path's axial force varies too little "
+            "to tell them apart (either way the analysis removed the constant)"
+        )
     return [
         _finding(
             "force_gain",
@@ -671,10 +711,11 @@ def sensor_findings(sf: SensorFit | None, R: float) -> list[Finding]:
         _finding(
             "force_bias",
             sf.bias,
-            sf.bias_ci,
+            bias_ci,
             "N",
             bias_text,
             "tare the sensor with the tool mounted, or declare tool_mass (the analysis removed it)",
+            force=bias_force,
         ),
     ]
 
