@@ -596,6 +596,25 @@ class Diagnosis:
     def by_suspect(self) -> dict[str, Finding]:
         return {f.suspect: f for f in self.findings}
 
+    def scan_pattern(self, normal: F64, contact: F64) -> F64 | None:
+        """(N,) m — the normal deviation the scan's faults put on the robot part: ``n · s`` for
+        a shift and ``θ n · (ẑ × p)`` for a rotation, each only when its verdict is ``fault``
+        (None when neither is). ``normal``, ``contact`` (N, 3) work frame."""
+        f = self.by_suspect()
+        rf = self.robot
+        if rf is None:
+            return None
+        out = np.zeros(len(normal))
+        hit = False
+        if f["scan_shift"].verdict == "fault":
+            out += normal[:, :2] @ rf.shift
+            hit = True
+        if f["scan_rotation"].verdict == "fault" and rf.rotation is not None:
+            rot_col = np.einsum("ij,ij->i", normal, np.cross([0.0, 0.0, 1.0], contact))
+            out += rf.rotation * rot_col
+            hit = True
+        return out if hit else None
+
 
 def _finding(
     suspect: str,
@@ -848,7 +867,8 @@ def diagnosis_headline(findings: list[Finding]) -> str:
 class CorrectedRobotTerm:
     """The robot term and the robot wrench after the diagnosis's force correction.
 
-    W_rob : (N, 6) [N, N·m] tip wrench, work axes; measured : (N,) m normal robot term;
+    W_rob : (N, 6) [N, N·m] tip wrench, work axes; measured : (N,) m normal robot term (less
+    the pattern of the scan's faults);
     vjm : (N,) m the VJM's normal deflection at ``W_rob``; A : (N, 6) the identification's
     design at ``W_rob`` (ball centre)."""
 
@@ -919,4 +939,8 @@ def diagnose(
     findings += robot_findings(rf, axisymmetric=axisymmetric)
     order = {s: i for i, s in enumerate(SUSPECTS)}
     findings.sort(key=lambda f: order[f.suspect])
-    return Diagnosis(findings, sf, rf, correct), CorrectedRobotTerm(W, y, vjm, A)
+    diag = Diagnosis(findings, sf, rf, correct)
+    pattern = diag.scan_pattern(normal, contact)
+    if pattern is not None:  # the identification sees the robot, not the scan's misregistration
+        y = y - pattern
+    return diag, CorrectedRobotTerm(W, y, vjm, A)

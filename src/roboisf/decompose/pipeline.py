@@ -41,7 +41,13 @@ from roboisf.decompose.core import (
     decompose,
     resultant_mean_deviation,
 )
-from roboisf.decompose.diagnose import Finding, diagnose, diagnosis_headline
+from roboisf.decompose.diagnose import (
+    CorrectedRobotTerm,
+    Diagnosis,
+    Finding,
+    diagnose,
+    diagnosis_headline,
+)
 from roboisf.decompose.identify import (
     FormingIdentification,
     identify_from_forming,
@@ -444,7 +450,13 @@ def analyze(
     for a in aligned.values():
         summary["warnings"].extend(f"{a.run} alignment: {n}" for n in a.primary.notes)
     with task(progress, "model check, diagnosis and identification"):
-        ident = _model_checks(cell, tp, q, W_cnc, W_rob, d, summary, k_t, k_th, k_c)
+        ident, diag, corr = _model_checks(cell, tp, q, W_cnc, W_rob, d, summary, k_t, k_th, k_c)
+    if diag.forces_corrected:  # what compensate pre-deflects with (docs/diagnosis.md)
+        for j, name in enumerate(_WRENCH):
+            per_point[f"robot_corrected_{name}"] = corr.W_rob[:, j]
+    pattern = diag.scan_pattern(tp.normal, tp.contact)
+    if pattern is not None:  # what the diagnosis put on the scan: never pre-deflected for
+        per_point["scan_pattern_dn"] = pattern * 1e3
     if ident is not None:
         per_point["identified_dn"] = ident.predicted * 1e3
     if truth is not None:
@@ -473,7 +485,7 @@ def _model_checks(
     k_t: F64,
     k_th: F64,
     k_c: F64,
-) -> FormingIdentification | None:
+) -> tuple[FormingIdentification | None, Diagnosis, CorrectedRobotTerm]:
     """``vjm_check``, the diagnosis, the identification, the term statistics and the warnings of
     the robot term (docs/analyze.md, "Does the model hold?", docs/diagnosis.md), into
     ``summary``. The identification runs on the robot term and forces the diagnosis corrected
@@ -540,7 +552,7 @@ def _model_checks(
     for name in ("force_gain", "force_moment_crosstalk", "scan_rotation"):
         if verdicts[name].verdict == "fault":
             summary["warnings"].append(verdicts[name].headline)
-    return ident
+    return ident, diag, corr
 
 
 def _lateral_warnings(
