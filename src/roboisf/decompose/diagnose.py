@@ -112,6 +112,10 @@ JOINT_RIDGE = 0.05
 #: the competing fits (the other terms' systematic errors: calibrated by coverage,
 #: benchmarks/diagnosis.py).
 RATIO_MODEL_ERROR = 0.01
+#: Model error added to each end of the shift's interval, m: the other terms leave a first
+#: harmonic of ~0.01 mm in the robot term of a cell whose scan is right (calibrated by coverage,
+#: benchmarks/diagnosis.py).
+SHIFT_MODEL_ERROR = 0.01e-3
 
 
 def verdict(lo: float, hi: float, limits: tuple[float, float]) -> str:
@@ -446,6 +450,11 @@ class RobotTermFit:
     n_laps: int = 0
 
 
+def _widen(ci: tuple[float, float], e: float) -> tuple[float, float]:
+    """A size's interval widened by ``e`` on each side, kept ≥ 0."""
+    return max(ci[0] - e, 0.0), ci[1] + e
+
+
 def _size_ci(boot: F64, est: F64) -> tuple[float, float]:
     """Interval of ``|s|`` from bootstrap replicates (n, k) of a vector ``s`` (k,): 0 at the
     low end when the replicates' 95 % ellipse holds the origin."""
@@ -538,8 +547,8 @@ def fit_robot_term(
 
     r1 = float(b1[0])
     s1, sj = b1[1:3], bj[k : k + 2]
-    s1_ci = _size_ci(B1[:, 1:3], s1)
-    sj_ci = _size_ci(Bj[:, k : k + 2], sj)
+    s1_ci = _widen(_size_ci(B1[:, 1:3], s1), SHIFT_MODEL_ERROR)
+    sj_ci = _widen(_size_ci(Bj[:, k : k + 2], sj), SHIFT_MODEL_ERROR)
     lim = DETECTION_LIMITS["scan_shift"]
     shifted = verdict(s1_ci[0] * 1e3, s1_ci[1] * 1e3, lim) == "fault" and (
         verdict(sj_ci[0] * 1e3, sj_ci[1] * 1e3, lim) == "fault"

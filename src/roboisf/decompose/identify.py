@@ -14,12 +14,13 @@ the scan noise is homogeneous). Along one part's path the configurations barely 
 six columns are nearly collinear: the **observability** is stated from the singular values of the
 column-equilibrated ``A`` (condition number) and from the bootstrap spread of each ``c_i``
 (moving blocks of laps, as :func:`roboisf.decompose.check.vjm_check`). A joint is *identified*
-when its compliance is positive with a relative standard error below :data:`MAX_REL_SE`. When
-every joint that carries at least :data:`MIN_SHARE` of the predicted deflection is identified, the
+when its compliance is positive with a relative standard error below :data:`MAX_REL_SE`. The
 identified joints are refitted with the others held at their nominal compliance (**joints**
-mode); otherwise, or when that model predicts held-out laps (5 contiguous groups of laps, each
-left out in turn) no better than one scale, the fit is **one scale on the nominal compliance**:
-``y ≈ s · (A c_nom)``, ``K = K_nom / s`` — what one forming run can always tell.
+mode; the held joints are named, also those carrying ≥ :data:`MIN_SHARE` of the predicted
+deflection — one joint the path cannot separate is no reason to give up the others, issue #26);
+when no joint is identified, or when that model predicts held-out laps (5 contiguous groups of
+laps, each left out in turn) no better than one scale, the fit is **one scale on the nominal
+compliance**: ``y ≈ s · (A c_nom)``, ``K = K_nom / s`` — what one forming run can always tell.
 
 The result is written as the stiffness TOML ``roboisf robot identify`` writes
 (``[stiffness] K = [...]`` N·m/rad, ``ci_low``, ``ci_high``, ``source``), which
@@ -124,8 +125,16 @@ class FormingIdentification:
         )
         cv = ", ".join(f"{k} {v * 1e3:.4f} mm" for k, v in self.cv_rms.items())
         base += f"; held-out-lap RMS error: {cv}"
+        held = [int(i) + 1 for i in np.flatnonzero(~self.identified)]
+        held_needed = [j for j in held if j in needed]
         if self.mode == "joints":
-            return f"each needed joint identified ({ok}); {base}"
+            tail = (
+                f"; joints {held_needed} carry ≥ {MIN_SHARE:.0%} but the path cannot separate "
+                "them: held at their nominal stiffness"
+                if held_needed
+                else ""
+            )
+            return f"joints {ok} identified, joints {held} held at nominal{tail}; {base}"
         return (
             f"joints not separable (identified alone: {ok or 'none'}); one scale on the nominal "
             f"compliance fitted ({self.scale:.3f}, 95 % [{self.scale_ci[0]:.3f}, "
@@ -256,7 +265,6 @@ def identify_from_forming(
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = np.where(live & (c_all > 0), se / np.abs(c_all), math.inf)
     identified = live & (c_all > 0) & (rel < MAX_REL_SE)
-    needed = share >= MIN_SHARE
     b_nom = _mv(Au, c_nom)
     # the joints model: the identified joints refitted with the others held at their nominal
     # compliance (a joint left out of the refit must not keep a share the fit gave it)
@@ -278,7 +286,9 @@ def identify_from_forming(
     def fit_scale(w: F64) -> F64:
         return float(w @ by) / float(w @ bb) * c_nom
 
-    joints_ok = bool(idx_id.size) and bool(np.all(identified | ~needed))
+    # every joint the path excites is fitted; a needed joint it cannot separate is held at its
+    # nominal and named (observability()), not a reason to fall back to one scale
+    joints_ok = bool(idx_id.size)
     cv = {"scale": _cv_rms(fit_scale, Au, y, inv, L)}
     if joints_ok:
         cv["joints"] = _cv_rms(fit_joints, Au, y, inv, L)
