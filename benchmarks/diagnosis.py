@@ -13,8 +13,9 @@ truth:
 * **verdicts** — per suspect: right (``fault`` for a fault beyond the detection limit, ``ok``
   for none), honest (``cannot_tell``), or wrong; "missed" counts ``ok`` for a fault beyond the
   limit. A suspect whose truth is ambiguous on the path is not scored (a force bias when the
-  axial force's crosstalk makes a constant too, force-moment crosstalk when force crosstalk
-  carried up the arm makes a false tip moment).
+  axial force's crosstalk makes a constant too, force-moment crosstalk beside a force bias,
+  which carried up the arm makes a constant false tip moment). The moment crosstalk's truth is
+  the larger of ``crosstalk_moment`` (mm) and the force crosstalk times the ~250 mm arm.
 * **coverage** — the 95 % intervals against the truth: the robot's measured-over-modelled
   compliance (the true deflection against the VJM at the true forces), the gain, the shift's
   size, the rotation's size (when seen).
@@ -113,7 +114,13 @@ def truth_values(cell, t, u) -> dict[str, float]:
         "robot_stiffness": float(x @ y / (x @ x)),
         "force_gain": float(np.mean(tr.sensor_gain)),
         "force_bias": float(bias),
-        "force_moment_crosstalk": float(np.max(np.abs(tr.sensor_crosstalk[3:, :3])) * 1e3),
+        # force into moment channels (mm), or force crosstalk carried ~0.25 m up the arm
+        "force_moment_crosstalk": float(
+            max(
+                np.max(np.abs(tr.sensor_crosstalk[3:, :3])) * 1e3,
+                np.max(np.abs(tr.sensor_crosstalk[:3, :3])) * 250.0,
+            )
+        ),
         "scan_shift": float(np.linalg.norm(tr.scan_shift[:2]) * 1e3),
         "scan_rotation": float(abs(math.degrees(tr.scan_rotation[2]))),
         "springback_coupling": 0.0,
@@ -130,8 +137,10 @@ def ambiguous(name: str, tr) -> bool:
     if name == "force_bias":
         return xf * 500 > DETECTION_LIMITS["force_bias"][1]  # axial force's crosstalk: a constant
     if name == "force_moment_crosstalk":
-        # force crosstalk or a bias carried ~0.25 m up the arm makes a false tip moment too
-        return xf * 250 > 0.2 or bool(np.any(tr.sensor_bias[:3])) or tr.tool_mass > 0
+        # a force bias carried up the arm makes a constant false tip moment too: a fault of the
+        # tip moment that is not crosstalk (the diagnosis says cannot_tell or names the part
+        # that follows the force)
+        return bool(np.any(tr.sensor_bias[:3]))
     return False
 
 
