@@ -100,6 +100,17 @@ DETECTION_LIMITS: dict[str, tuple[float, float]] = {
     "springback_coupling": (0.0, 0.1),
 }
 
+#: Each suspect's unit in summary.json.
+UNITS = {
+    "robot_stiffness": "1",
+    "force_gain": "1",
+    "force_moment_crosstalk": "mm",
+    "force_bias": "N",
+    "scan_shift": "mm",
+    "scan_rotation": "deg",
+    "springback_coupling": "1",
+}
+
 #: Bootstrap replicates of the diagnosis's fits.
 N_BOOT_DIAG = 400
 #: A joint whose column carries less than this share of the nominal prediction is held at its
@@ -652,18 +663,16 @@ def _finding(
     return Finding(suspect, v, est, lo, hi, unit, text, head, limits)
 
 
+def _unknown(suspects: tuple[str, ...], why: str) -> list[Finding]:
+    """``cannot_tell`` without an estimate for each of ``suspects``, saying ``why``."""
+    return [_finding(s, None, None, UNITS[s], why, "") for s in suspects]
+
+
 def sensor_findings(sf: SensorFit | None, R: float) -> list[Finding]:
     """force_gain, force_moment_crosstalk, force_bias from the sensor fit (None: no fit)."""
     if sf is None:
         why = "fewer than 6 used laps to compare the flange sensor with the CNC dynamometer"
-        return [
-            _finding(s, None, None, u, why, "")
-            for s, u in (
-                ("force_gain", "1"),
-                ("force_moment_crosstalk", "mm"),
-                ("force_bias", "N"),
-            )
-        ]
+        return _unknown(("force_gain", "force_moment_crosstalk", "force_bias"), why)
     g, (glo, ghi) = sf.gain, sf.gain_ci
     gain_text = (
         f"the flange sensor reads {g:.3f}× the CNC dynamometer's force on the same path (95 % "
@@ -752,15 +761,9 @@ def robot_findings(rf: RobotTermFit | None, *, axisymmetric: bool) -> list[Findi
     """robot_stiffness, scan_shift, scan_rotation, springback_coupling from the robot term."""
     if rf is None:
         why = "too few used points or laps to fit the robot term"
-        return [
-            _finding(s, None, None, u, why, "")
-            for s, u in (
-                ("robot_stiffness", "1"),
-                ("scan_shift", "mm"),
-                ("scan_rotation", "deg"),
-                ("springback_coupling", "1"),
-            )
-        ]
+        return _unknown(
+            ("robot_stiffness", "scan_shift", "scan_rotation", "springback_coupling"), why
+        )
     out = []
     lo, hi = rf.ratio_ci
     out.append(
