@@ -35,7 +35,9 @@ end up. This module tells them apart, suspect by suspect, with what the study ho
 
 Intervals: moving-block bootstrap over laps (:func:`roboisf.decompose.check.lap_blocks`) of each
 fit, widened by the model error — the disagreement between the competing fits (one scale or per
-joint, with or without a shift), the shallow/deep gain difference. Verdicts against stated
+joint, with or without a shift), the shallow/deep gain difference — and the robot ratio by the
+gain's relative interval when the forces were corrected (the VJM runs on forces divided by
+it). Verdicts against stated
 detection limits (``DETECTION_LIMITS``): ``fault`` when the whole interval lies beyond the limit,
 ``ok`` when it lies within, ``cannot_tell`` otherwise.
 
@@ -47,7 +49,7 @@ term exactly as a stiffer robot would: it is ``cannot_tell`` whenever the robot 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -948,6 +950,11 @@ def diagnose(
     A = forming_design(robot, q, W, T_base_work, normal, ball_radius)
     per_joint = A / robot.joint_stiffness[None, :]
     rf = fit_robot_term(y, vjm, per_joint, normal, contact, valid, lap)
+    if correct and rf is not None and sf is not None:
+        # the VJM runs on forces divided by the fitted gain: the ratio carries its uncertainty
+        g_lo, g_hi = sf.gain_ci
+        lo, hi = rf.ratio_ci
+        rf = replace(rf, ratio_ci=(lo * min(g_lo / sf.gain, 1.0), hi * max(g_hi / sf.gain, 1.0)))
     findings += robot_findings(rf, axisymmetric=axisymmetric)
     order = {s: i for i, s in enumerate(SUSPECTS)}
     findings.sort(key=lambda f: order[f.suspect])
