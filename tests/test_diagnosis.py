@@ -185,6 +185,10 @@ CELLS = {
     "shift": ("cone", {"scan": {"shift": [0.0, 0.2, 0.0]}}),
     "tool_mass": ("cone", {"tool": {"mass": 4.0}}),
     "rotation": ("pyramid", {"scan": {"rotation": [0.0, 0.0, 0.25]}}),
+    "joints_gain": (
+        "cone",
+        {"robot": {"joint_stiffness_scale": 0.6}, "force_sensor": {"gain": 0.88}},
+    ),
 }
 
 #: what each cell's diagnosis must call a fault (the others: ok or cannot_tell)
@@ -195,6 +199,7 @@ FAULTS = {
     "shift": {"scan_shift"},
     "tool_mass": {"force_bias"},
     "rotation": {"scan_rotation"},
+    "joints_gain": {"robot_stiffness", "force_gain"},
 }
 
 
@@ -272,3 +277,68 @@ def test_corrected_forces_identify_the_robot(diagnosed):
     assert s["vjm_check"]["verdict"] == "mismatch"  # on the measured forces, as before
     assert abs(s["identification"]["compliance_scale"] - 1.0) < 0.03
     assert not any("re-register" in w for w in s["warnings"])
+
+
+def test_compensation_inputs_follow_the_diagnosis():
+    """compensate pre-deflects with the corrected wrench when the diagnosis wrote one, and takes
+    the scan's pattern out of the deviation it corrects."""
+    import pandas as pd
+
+    from roboisf.compensate.study import diagnosed_inputs
+
+    names = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
+    pp = pd.DataFrame({f"robot_{w}": [1.0, 2.0] for w in names})
+    pp["robot_dn"] = [0.5, np.nan]
+    W, dn = diagnosed_inputs(pp)
+    np.testing.assert_array_equal(W, np.ones((2, 6)) * [[1], [2]])
+    np.testing.assert_array_equal(dn, [0.5e-3, np.nan])
+    for w in names:
+        pp[f"robot_corrected_{w}"] = [10.0, 20.0]
+    pp["scan_pattern_dn"] = [0.2, 0.1]
+    W, dn = diagnosed_inputs(pp)
+    np.testing.assert_array_equal(W, np.ones((2, 6)) * [[10], [20]])
+    np.testing.assert_allclose(dn, [0.3e-3, np.nan])
+
+
+@pytest.mark.slow
+def test_compensation_with_the_diagnosis_removes_the_compliance_error(diagnosed, tmp_path):
+    """A robot 0.6× stiff with a flange sensor reading 12 % low: compensating with the
+    identified stiffness and the corrected forces removes ≥ 80 % of the compliance error (the
+    issue's bar where sensor and robot are both off), more than with the measured forces."""
+    import pandas as pd
+
+    from roboisf.compensate import CompensationOptions
+    from roboisf.compensate.study import compensate_study
+    from roboisf.virtual.cell import simulate
+
+    name, cell, r, s, t0 = diagnosed
+    if name != "joints_gain":
+        pytest.skip("the robot-and-sensor case")
+    res = tmp_path / "results"
+    from roboisf.decompose.pipeline import write_results
+
+    write_results(r, res, png=False)
+
+    def removed(results) -> float:
+        comp = compensate_study(
+            r.study.root,
+            results=results,
+            options=CompensationOptions(springback=False),
+            stiffness=s["identified_stiffness"],
+        )
+        t1 = simulate(cell, commanded=comp.compensation.toolpath)
+        sel = t0.toolpath.depth > 20e-3
+        before = (t0.dn_robot - t0.springback)[sel]
+        after = (t1.dn_robot - t1.springback)[sel]
+        return 1 - float(np.sqrt(np.mean(after**2)) / np.sqrt(np.mean(before**2)))
+
+    with_diag = removed(res)
+    pp = pd.read_parquet(res / "per_point.parquet")
+    assert "robot_corrected_Fz" in pp
+    pp.drop(columns=[c for c in pp if c.startswith("robot_corrected_")]).to_parquet(
+        res / "per_point.parquet", index=False
+    )
+    measured = removed(res)
+    print(f"removed {with_diag:.3f} with the corrected forces, {measured:.3f} with the measured")
+    assert with_diag >= 0.80
+    assert with_diag > measured + 0.05
