@@ -435,6 +435,17 @@ def analyze(
 
     valid = dev_c.valid & dev_r.valid & (tp.depth > study.analysis.rim_band)
     d = decompose(tp.normal, dev_c.dn, dev_r.dn, tool_cnc, tool_rob, holder_rob, vjm, valid)
+    with task(progress, "diagnosis"):
+        diag, corr = _diagnose(cell, tp, q, W_cnc, W_rob, d, k_t, k_th, k_c)
+    W_used = W_rob
+    if diag.forces_corrected:
+        # the terms a force drives, at the forces the diagnosis corrected (a flange sensor at
+        # fault against the CNC dynamometer: docs/diagnosis.md); the logs' columns stay measured
+        W_used = corr.W_rob
+        tool_rob = at_ball_centre(W_used @ k_t.T, R_ball)
+        holder_rob = at_ball_centre(W_used @ k_th.T, R_ball)
+        vjm = at_ball_centre(np.einsum("nij,nj->ni", k_c, W_used), R_ball)
+        d = decompose(tp.normal, dev_c.dn, dev_r.dn, tool_cnc, tool_rob, holder_rob, vjm, valid)
 
     per_point = _per_point(cell, tp, W_cnc, W_rob, dev_c, dev_r, d)
     thick = rob.thickness or cnc.thickness
@@ -442,15 +453,15 @@ def analyze(
         per_point["thickness_measured"] = read_thickness_csv(thick).at(tp.depth) * 1e3
     contributions = pd.DataFrame(_mm_rows(contribution_rows(d, projected=False)))
     contributions_normal = pd.DataFrame(_mm_rows(contribution_rows(d, projected=True)))
-    summary = _summary(study, cell, tp, d, k_c, W_rob, valid, k_tool, k_holder, q_source, scans)
+    summary = _summary(study, cell, tp, d, k_c, W_used, valid, k_tool, k_holder, q_source, scans)
     summary["warnings"].extend(input_warnings)
     summary["alignment"] = {name: a.to_dict() for name, a in aligned.items()}
     for entry in summary["alignment"].values():
         entry["source"] = _in_study(entry["source"], study.root)
     for a in aligned.values():
         summary["warnings"].extend(f"{a.run} alignment: {n}" for n in a.primary.notes)
-    with task(progress, "model check, diagnosis and identification"):
-        ident, diag, corr = _model_checks(cell, tp, q, W_cnc, W_rob, d, summary, k_t, k_th, k_c)
+    with task(progress, "model check and identification"):
+        ident = _model_checks(cell, tp, W_cnc, W_rob, d, summary, diag, corr)
     if diag.forces_corrected:  # what compensate pre-deflects with (docs/diagnosis.md)
         for j, name in enumerate(_WRENCH):
             per_point[f"robot_corrected_{name}"] = corr.W_rob[:, j]
@@ -474,26 +485,19 @@ LATERAL_WARN = 0.05e-3
 FORCE_BIAS_WARN = 5.0
 
 
-def _model_checks(
+def _diagnose(
     cell: Cell,
     tp: Toolpath,
     q: F64,
     W_cnc: F64,
     W_rob: F64,
     d: Decomposition,
-    summary: Any,
     k_t: F64,
     k_th: F64,
     k_c: F64,
-) -> tuple[FormingIdentification | None, Diagnosis, CorrectedRobotTerm]:
-    """``vjm_check``, the diagnosis, the identification, the term statistics and the warnings of
-    the robot term (docs/analyze.md, "Does the model hold?", docs/diagnosis.md), into
-    ``summary``. The identification runs on the robot term and forces the diagnosis corrected
-    (a flange sensor at fault against the CNC dynamometer)."""
-    meas, pred, valid = d.normal["robot_compliance"], d.normal["vjm"], d.valid
-    vc = vjm_check(meas, pred, valid, tp.lap, tp.depth)
-    summary["vjm_check"] = vc.to_dict()
-    diag, corr = diagnose(
+) -> tuple[Diagnosis, CorrectedRobotTerm]:
+    """The diagnosis of the decomposition ``d`` at the measured forces (docs/diagnosis.md)."""
+    return diagnose(
         robot=cell.robot,
         q=q,
         T_base_work=cell.T_base_work,
@@ -508,9 +512,33 @@ def _model_checks(
         depth=tp.depth,
         W_cnc=W_cnc,
         W_rob=W_rob,
-        measured=meas,
-        valid=valid,
+        measured=d.normal["robot_compliance"],
+        valid=d.valid,
         axisymmetric=cell.part.symmetry.order == 0,
+    )
+
+
+def _model_checks(
+    cell: Cell,
+    tp: Toolpath,
+    W_cnc: F64,
+    W_rob: F64,
+    d: Decomposition,
+    summary: Any,
+    diag: Diagnosis,
+    corr: CorrectedRobotTerm,
+) -> FormingIdentification | None:
+    """``vjm_check``, the identification, the term statistics and the warnings of the robot
+    term (docs/analyze.md, "Does the model hold?") and the diagnosis's findings
+    (docs/diagnosis.md), into ``summary``. ``d`` is at the forces the diagnosis corrected when
+    it corrected them; the identification runs on the robot term less the scan's pattern."""
+    meas, pred, valid = d.normal["robot_compliance"], d.normal["vjm"], d.valid
+    vc = vjm_check(meas, pred, valid, tp.lap, tp.depth)
+    summary["vjm_check"] = vc.to_dict()
+    summary["vjm_check"]["forces"] = (
+        "corrected by the diagnosis (flange sensor against the CNC dynamometer)"
+        if diag.forces_corrected
+        else "measured"
     )
     summary["diagnosis"] = diag.to_list()
     summary["diagnosis_headline"] = diagnosis_headline(diag.findings)
@@ -552,7 +580,7 @@ def _model_checks(
     for name in ("force_gain", "force_moment_crosstalk", "scan_rotation"):
         if verdicts[name].verdict == "fault":
             summary["warnings"].append(verdicts[name].headline)
-    return ident, diag, corr
+    return ident
 
 
 def _lateral_warnings(
