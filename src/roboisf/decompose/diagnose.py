@@ -36,8 +36,8 @@ end up. This module tells them apart, suspect by suspect, with what the study ho
 Intervals: moving-block bootstrap over laps (:func:`roboisf.decompose.check.lap_blocks`) of each
 fit, widened by the model error — the disagreement between the competing fits (one scale or per
 joint, with or without a shift), the shallow/deep gain difference — and the robot ratio by the
-gain's relative interval when the forces were corrected (the VJM runs on forces divided by
-it). Verdicts against stated
+gain's interval (relative to the fitted gain when the forces were corrected, to 1 when not:
+the VJM runs on the forces it corrects or leaves). Verdicts against stated
 detection limits (``DETECTION_LIMITS``): ``fault`` when the whole interval lies beyond the limit,
 ``ok`` when it lies within, ``cannot_tell`` otherwise.
 
@@ -950,11 +950,15 @@ def diagnose(
     A = forming_design(robot, q, W, T_base_work, normal, ball_radius)
     per_joint = A / robot.joint_stiffness[None, :]
     rf = fit_robot_term(y, vjm, per_joint, normal, contact, valid, lap)
-    if correct and rf is not None and sf is not None:
-        # the VJM runs on forces divided by the fitted gain: the ratio carries its uncertainty
+    if rf is not None and sf is not None:
+        # the VJM runs on the forces as measured, or divided by the fitted gain: the ratio
+        # carries the gain's uncertainty (a gain inside the ok band is not corrected, but a
+        # 2 % gain is 2 % of the ratio)
         g_lo, g_hi = sf.gain_ci
+        if correct:
+            g_lo, g_hi = g_lo / sf.gain, g_hi / sf.gain
         lo, hi = rf.ratio_ci
-        rf = replace(rf, ratio_ci=(lo * min(g_lo / sf.gain, 1.0), hi * max(g_hi / sf.gain, 1.0)))
+        rf = replace(rf, ratio_ci=(lo * min(g_lo, 1.0), hi * max(g_hi, 1.0)))
     findings += robot_findings(rf, axisymmetric=axisymmetric)
     order = {s: i for i, s in enumerate(SUSPECTS)}
     findings.sort(key=lambda f: order[f.suspect])
