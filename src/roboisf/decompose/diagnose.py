@@ -442,9 +442,12 @@ class RobotTermFit:
     """The robot term fitted by the competing explanations (module docstring).
 
     ratio, ratio_ci : measured over modelled compliance (model error included); shift, shift_ci :
-    (2,) m and the interval of its size; rotation, rotation_ci : rad (None when the part's
-    symmetry hides it); models : per model the fitted values, for the explanations;
-    shift_pattern_mm : RMS of ``n · s`` (mm) of each model."""
+    (2,) m beside one scale and the interval of its size (m); shift_joint, shift_joint_ci : the
+    same beside the per-joint fit; rotation, rotation_ci, rotation_joint, rotation_joint_ci :
+    rad, the same for a rotation about work z (None when the part's symmetry hides it); rms_vjm,
+    rms_shift_pattern, rms_rotation_pattern : m, RMS of the VJM's normal deflection and of the
+    fitted patterns ``n · s`` and ``θ n · (ẑ × p)``; joints_fitted : 1-based joints of the
+    per-joint fit; n_laps."""
 
     ratio: float
     ratio_ci: tuple[float, float]
