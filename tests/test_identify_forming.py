@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 import tomli_w
 
+from roboisf.cell import at_ball_centre
 from roboisf.cli.main import main
 from roboisf.compensate import CompensationOptions
 from roboisf.compensate.study import compensate_study
@@ -108,7 +109,10 @@ def test_identified_compliance_predicts_truth(soft):
     W = pp[[f"robot_{w}" for w in ("Fx", "Fy", "Fz", "Mx", "My", "Mz")]].to_numpy()
     # the joints where the tool passed each point (the log aligned by position), as analyze used
     assert r.q_robot is not None and r.q_robot.shape == (len(pp), 6)
-    d = rob.deflection(r.q_robot, W, T_base_work=r.cell.T_base_work)[:, :3]
+    # at the ball centre, the point the check measures (the design's point too, issue #26)
+    d = at_ball_centre(
+        rob.deflection(r.q_robot, W, T_base_work=r.cell.T_base_work), r.cell.tool.radius
+    )
     n = pp[["normal_x", "normal_y", "normal_z"]].to_numpy()
     np.testing.assert_allclose(np.einsum("ij,ij->i", d, n) * 1e3, pp["identified_dn"], atol=1e-9)
     ident = s["identification"]

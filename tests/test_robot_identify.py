@@ -128,3 +128,95 @@ def test_t_quantile_is_scipy_stats_students_t(dof, confidence):
     assert stdtrit(dof, p) == pytest.approx(stats.t.ppf(p, dof), rel=1e-13)
     if dof == 1 and confidence == 0.95:
         assert stdtrit(dof, p) == pytest.approx(12.706, abs=5e-4)
+
+
+# --------------------------------------------------------------------------------------------
+# the designed experiment (issue #26): all six joints from a virtual experiment
+
+
+def _designed(name: str, prior: np.ndarray | None = None):
+    from roboisf.robot import load_robot
+    from roboisf.robot.identify import design_experiment
+
+    m = load_robot(name)
+    if prior is not None:
+        m = m.with_stiffness(prior)
+    m = m.with_tool(make_transform(None, [0.25, 0.0, 0.306]))  # a bracket off joint 6's axis
+    return m, design_experiment(m, m.default_placement, sigma=0.02e-3)
+
+
+@pytest.mark.parametrize("name", ["irb7600-500-2.55", "kr210-r2700-2"])
+def test_designed_experiment_recovers_all_six_joints(name):
+    """The design's poses and loads, deflected by a robot whose joints are 0.5–1.5× the prior
+    and measured with 0.02 mm noise: every joint within 10 %, the 95 % intervals covering."""
+    from roboisf.robot.identify import CalibrationData, identify_stiffness
+
+    prior = (
+        None
+        if name.startswith("irb7600")
+        else 0.6 * np.array([3.73e6, 4.82e6, 4.04e6, 6.38e5, 7.59e5, 4.72e5])
+    )  # a guessed prior for a robot without published values
+    m, d = _designed(name, prior)
+    assert len(d.q) == 24 and np.all(d.rel_se < 0.05)
+    rng = np.random.default_rng(7)
+    covered = total = 0
+    for _ in range(10):
+        K_true = m.joint_stiffness * rng.uniform(0.5, 1.5, 6)
+        truth = m.with_stiffness(K_true)
+        dfl = truth.deflection(d.q, d.wrench, check_limits=False)[:, :3]
+        dfl = dfl + rng.normal(0, 0.02e-3, dfl.shape)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # no joint weakly excited
+            r = identify_stiffness(
+                m, CalibrationData(d.q, d.wrench, dfl), sigma_translation=0.02e-3
+            )
+        np.testing.assert_allclose(r.K, K_true, rtol=0.10)
+        covered += int(np.sum((r.K_ci[:, 0] <= K_true) & (K_true <= r.K_ci[:, 1])))
+        total += 6
+    assert covered >= 0.85 * total, (covered, total)
+
+
+def test_design_needs_a_point_off_joint_six():
+    """A load on joint 6's axis never twists it: the design says so (a bracket is needed)."""
+    from roboisf.robot import load_robot
+    from roboisf.robot.identify import design_experiment
+
+    m = load_robot("irb7600-500-2.55").with_tool(make_transform(None, [0, 0, 0.306]))
+    with pytest.raises(InputError, match=r"joint\(s\) \[6\].*bracket"):
+        design_experiment(m, m.default_placement)
+
+
+def test_design_cli_round_trip(tmp_path):
+    """``robot identify --design`` writes the sheet, the program and the expected intervals; the
+    sheet filled with a virtual robot's deflections identifies it with ``robot identify``."""
+    import tomllib
+
+    import pandas as pd
+
+    from roboisf.cli.main import main
+    from roboisf.robot import load_robot, load_stiffness
+
+    out = tmp_path / "design"
+    assert main(["-q", "robot", "identify", "--design", "-o", str(out), "--tool", "0,0,306"]) == 0
+    assert {p.name for p in out.iterdir()} >= {"experiment.csv", "experiment.mod", "design.toml"}
+    des = tomllib.loads((out / "design.toml").read_text(encoding="utf-8"))["design"]
+    assert des["tool_mm"] == [250.0, 0.0, 306.0]
+    assert "MoveAbsJ" in (out / "experiment.mod").read_text(encoding="utf-8")
+    sheet = (out / "experiment.csv").read_text(encoding="utf-8").splitlines()
+    t = pd.read_csv(out / "experiment.csv", comment="#")
+    q = np.radians(t[[f"q{i}" for i in range(1, 7)]].to_numpy())
+    W = t[["Fx", "Fy", "Fz", "Mx", "My", "Mz"]].to_numpy()
+    m = load_robot("irb7600-500-2.55").with_tool(make_transform(None, [0.25, 0, 0.306]))
+    K_true = m.joint_stiffness * np.array([0.7, 1.2, 0.9, 1.3, 0.8, 1.1])
+    dfl = m.with_stiffness(K_true).deflection(q, W, check_limits=False)[:, :3] * 1e3
+    head = [ln for ln in sheet if ln.startswith("#") or ln.startswith("q1")]
+    rows = [ln for ln in sheet if ln and not ln.startswith("#") and not ln.startswith("q1")]
+    filled = [
+        r.rstrip(",") + "," + ",".join(f"{v:.5f}" for v in d)
+        for r, d in zip(rows, dfl, strict=True)
+    ]
+    (tmp_path / "measured.csv").write_text("\n".join(head + filled) + "\n", encoding="utf-8")
+    k_out = tmp_path / "K.toml"
+    args = ["-q", "robot", "identify", str(tmp_path / "measured.csv"), "--tool", "250,0,306"]
+    assert main([*args, "-o", str(k_out)]) == 0
+    np.testing.assert_allclose(load_stiffness(k_out), K_true, rtol=1e-3)

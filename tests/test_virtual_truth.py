@@ -349,3 +349,25 @@ def test_study_max_distance_key_and_the_cell_sets_it_when_the_part_deviates_more
     worst = float(np.max(np.abs(big.dn_robot)))
     got = _max_distance(big)["max_distance"]
     assert got >= (worst + 2e-3) * 1e3 and got < (worst + 2e-3) * 1e3 + 1
+
+
+def test_crosstalk_keys_state_their_units():
+    """``crosstalk_force`` (N per N) fills the force-to-force block, ``crosstalk_moment`` (mm =
+    N·m per kN) the force-to-moment block in m; nothing else; both add to ``crosstalk``."""
+    from roboisf.virtual.truth import truth_from_table
+
+    t = truth_from_table({"force_sensor": {"crosstalk_force": 0.02, "crosstalk_moment": 3.0}})
+    C = t.sensor_crosstalk
+    off = np.ones((3, 3)) - np.eye(3)
+    np.testing.assert_array_equal(C[:3, :3], 0.02 * off)
+    np.testing.assert_array_equal(C[3:, :3], np.full((3, 3), 3e-3))
+    np.testing.assert_array_equal(C[:, 3:], 0.0)
+    # 1000 N on Fz reads 3 N·m on every moment channel and 20 N on Fx, Fy
+    r = t.sensor_matrix() @ np.array([0, 0, 1000.0, 0, 0, 0])
+    np.testing.assert_allclose(r, [20, 20, 1000, 3, 3, 3])
+    both = truth_from_table(
+        {"force_sensor": {"crosstalk": 0.001, "crosstalk_moment": 1.0}}
+    ).sensor_crosstalk
+    assert both[3, 0] == pytest.approx(0.002) and both[0, 3] == 0.001
+    with pytest.raises(InputError, match="crosstalk_moment"):
+        truth_from_table({"force_sensor": {"crosstalk_moment": "x"}})

@@ -191,9 +191,14 @@ def show_cmd(
 
 @robot_app.command("identify")
 def identify_cmd(
-    calib: Path = typer.Argument(..., help="Calibration CSV (see docs/robot.md)."),
+    calib: Path | None = typer.Argument(
+        None, help="Calibration CSV (see docs/robot.md); not with --design."
+    ),
     output: Path = typer.Option(
-        ..., "--output", "-o", help=f"stiffness TOML to write. {FILE_HELP}"
+        ...,
+        "--output",
+        "-o",
+        help=f"stiffness TOML to write (with --design: a folder). {FILE_HELP}",
     ),
     overwrite: Overwrite = False,
     robot: str = ROBOT_OPT,
@@ -203,8 +208,47 @@ def identify_cmd(
     sigma_rot: float = typer.Option(
         1e-5, "--sigma-rot", help="Measurement std of rotations (rad)."
     ),
+    design: bool = typer.Option(
+        False,
+        "--design",
+        help="Design the experiment instead: poses and loads near the work frame that make all "
+        "six joints identifiable, written into the -o folder as a measuring sheet "
+        "(experiment.csv, the calibration CSV with dx,dy,dz to fill), a program that stops at "
+        "each pose (experiment.mod for ABB, .src for KUKA) and the intervals it should give "
+        "(design.toml).",
+    ),
+    placement: str | None = PLACEMENT_OPT,
+    stiffness: Path | None = typer.Option(
+        None,
+        "--stiffness",
+        help="With --design: the prior joint stiffness the intervals are predicted at (needed "
+        "for a robot without published values).",
+    ),
+    bracket: float = typer.Option(
+        250.0,
+        "--bracket",
+        help="With --design: the measured and loaded point sits this far (mm) along flange x "
+        "from the tool tip (off joint 6's axis, which a load on it never twists).",
+    ),
+    force: float = typer.Option(2000.0, "--force", help="With --design: the load (N)."),
+    experiments: int = typer.Option(
+        24, "--experiments", help="With --design: how many experiments (load cases)."
+    ),
 ) -> None:
-    """Identify joint stiffness K_1..K_6 from elasto-static experiments."""
+    """Identify joint stiffness K_1..K_6 from elasto-static experiments, or design them.
+
+    With --design the measuring sheet is experiment.csv: move to each pose, measure the point
+    unloaded and under the load, fill dx,dy,dz (mm, base axes), then run `roboisf robot identify
+    experiment.csv --tool X,Y,Z --sigma S -o K.toml` with the tool the sheet names (the
+    bracket point).
+    """
+    if design:
+        _design_cmd(
+            output, overwrite, robot, tool, placement, stiffness, bracket, force, experiments, sigma
+        )
+        return
+    if calib is None:
+        raise InputError("expected a calibration CSV (or --design)", field="CALIB")
     import warnings
 
     import numpy as np
@@ -245,6 +289,85 @@ def identify_cmd(
         f.write(b"# joint stiffness K in N*m/rad, 95 % confidence interval [ci_low, ci_high]\n")
         tomli_w.dump(doc, f)
     state.info(f"wrote {output}")
+
+
+def _design_cmd(
+    output: Path,
+    overwrite: bool,
+    robot: str,
+    tool: str | None,
+    placement: str | None,
+    stiffness: Path | None,
+    bracket: float,
+    force: float,
+    experiments: int,
+    sigma: float,
+) -> None:
+    import numpy as np
+    import tomli_w
+
+    from roboisf.cli.outputs import output_dir
+    from roboisf.frames import make_transform
+    from roboisf.io.atomic import atomic_write, staged_directory
+    from roboisf.robot.identify import design_experiment, write_experiment_csv, write_joint_program
+
+    if not (force > 0 and sigma > 0 and experiments >= 7):
+        raise InputError(
+            "--force and --sigma must be > 0 and --experiments ≥ 7 (six joints and an error "
+            "estimate)",
+            field="--design",
+        )
+    inputs = [p for p in (stiffness,) if p is not None]
+    output_dir(output, "robot identify --design", overwrite, [*inputs, *_files(robot, tool)])
+    m = _model(robot, stiffness, tool)
+    tip = m.T_flange_tip[:3, 3] if tool is None else _floats(tool, 3, "--tool") * 1e-3
+    point = tip + np.array([bracket * 1e-3, 0.0, 0.0])
+    m = m.with_tool(make_transform(None, point))
+    T_bw = _placement(placement, m)
+    d = design_experiment(m, T_bw, n_experiments=experiments, force=force, sigma=sigma * 1e-3)
+    ext = ".src" if m.name.lower().startswith("kr") else ".mod"
+    tool_mm = ",".join(f"{v:g}" for v in np.round(point * 1e3, 3))
+    command = (
+        f"roboisf robot identify experiment.csv --robot {robot} --tool {tool_mm} "
+        f"--sigma {sigma:g} -o K.toml"
+    )
+    with staged_directory(output, "robot identify --design") as stage:
+        write_experiment_csv(
+            d,
+            stage / "experiment.csv",
+            m.name,
+            f"{tool_mm} mm in the flange frame ({bracket:g} mm along x from the tool tip: a "
+            "bracket)",
+            command,
+        )
+        write_joint_program(d, stage / f"experiment{ext}", "roboisf_identify")
+        doc = {
+            "design": {
+                "robot": m.name,
+                "tool_mm": [float(v) for v in point * 1e3],
+                "sigma_mm": sigma,
+                "force_N": force,
+                "experiments": len(d.q),
+                "K_prior": [float(v) for v in m.joint_stiffness],
+                "expected_relative_se": [float(v) for v in d.rel_se],
+                "expected_ci_low": [float(v) for v in d.K_ci[:, 0]],
+                "expected_ci_high": [float(v) if np.isfinite(v) else 1e300 for v in d.K_ci[:, 1]],
+                "condition_number": d.condition_number,
+                "identify": command,
+            }
+        }
+        with atomic_write(stage / "design.toml", "wb", encoding=None) as f:
+            tomli_w.dump(doc, f)
+    for i in range(6):
+        state.out.print(
+            f"K{i + 1}: expected relative standard error {d.rel_se[i]:.1%} "
+            f"(95 % [{d.K_ci[i, 0]:.4g}, {d.K_ci[i, 1]:.4g}] N·m/rad at the prior)"
+        )
+    state.info(
+        f"wrote {output}: {len(d.q)} experiments; measure the point {tool_mm} mm (flange "
+        f"frame), then: roboisf robot identify {output / 'experiment.csv'} --tool {tool_mm} "
+        f"--sigma {sigma:g} -o K.toml"
+    )
 
 
 DEFLECT_HELP = (

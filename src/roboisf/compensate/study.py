@@ -81,6 +81,23 @@ class StudyCompensation:
     robot: RobotModel | None = None
 
 
+def diagnosed_inputs(pp: pd.DataFrame) -> tuple[F64, F64]:
+    """The robot run's tip wrench (N, 6) [N, N·m] and normal deviation (N,) m to compensate, as
+    the analysis's diagnosis left them (docs/diagnosis.md): the wrench its force correction gave
+    (``robot_corrected_*``: a flange sensor at fault against the CNC dynamometer) when present,
+    else the measured one; the deviation less the pattern the diagnosis put on the scan
+    (``scan_pattern_dn``, mm: a sideways shift or a rotation of the scan, which no command can
+    correct) when present."""
+    cols = [f"robot_corrected_{w}" for w in _WRENCH]
+    if not all(c in pp for c in cols):
+        cols = [f"robot_{w}" for w in _WRENCH]
+    W = pp[cols].to_numpy(dtype=float)
+    dn = pp["robot_dn"].to_numpy(dtype=float) * 1e-3
+    if "scan_pattern_dn" in pp:
+        dn = dn - np.nan_to_num(pp["scan_pattern_dn"].to_numpy(dtype=float)) * 1e-3
+    return W, dn
+
+
 def _per_point(study: Study, results: Path | None, progress: Progress | None) -> pd.DataFrame:
     if results is None:
         if not study.has_cnc:  # springback model-based (robot_only): its per-point columns
@@ -170,8 +187,7 @@ def compensate_study(
             "of another study?)",
             file=results,
         )
-    W = pp[[f"robot_{w}" for w in _WRENCH]].to_numpy(dtype=float)
-    dn = pp["robot_dn"].to_numpy(dtype=float) * 1e-3
+    W, dn = diagnosed_inputs(pp)
     valid = pp["robot_valid"].to_numpy(dtype=bool)
     region = formed.depth > study.analysis.rim_band
     blend = rim_blend(formed.depth, study.analysis.rim_band, o.rim_blend)

@@ -14,12 +14,13 @@ the scan noise is homogeneous). Along one part's path the configurations barely 
 six columns are nearly collinear: the **observability** is stated from the singular values of the
 column-equilibrated ``A`` (condition number) and from the bootstrap spread of each ``c_i``
 (moving blocks of laps, as :func:`roboisf.decompose.check.vjm_check`). A joint is *identified*
-when its compliance is positive with a relative standard error below :data:`MAX_REL_SE`. When
-every joint that carries at least :data:`MIN_SHARE` of the predicted deflection is identified, the
+when its compliance is positive with a relative standard error below :data:`MAX_REL_SE`. The
 identified joints are refitted with the others held at their nominal compliance (**joints**
-mode); otherwise, or when that model predicts held-out laps (5 contiguous groups of laps, each
-left out in turn) no better than one scale, the fit is **one scale on the nominal compliance**:
-``y ≈ s · (A c_nom)``, ``K = K_nom / s`` — what one forming run can always tell.
+mode; the held joints are named, also those carrying ≥ :data:`MIN_SHARE` of the predicted
+deflection — one joint the path cannot separate is no reason to give up the others, issue #26);
+when no joint is identified, or when that model predicts held-out laps (5 contiguous groups of
+laps, each left out in turn) no better than one scale, the fit is **one scale on the nominal
+compliance**: ``y ≈ s · (A c_nom)``, ``K = K_nom / s`` — what one forming run can always tell.
 
 The result is written as the stiffness TOML ``roboisf robot identify`` writes
 (``[stiffness] K = [...]`` N·m/rad, ``ci_low``, ``ci_high``, ``source``), which
@@ -60,15 +61,27 @@ MAX_REL_SE = 0.3
 MIN_SHARE = 0.05
 
 
-def forming_design(model: RobotModel, q: F64, W_work: F64, T_base_work: F64, normal: F64) -> F64:
-    """``A`` (N, 6) [m per rad/(N·m)]: the normal tip deflection per unit compliance of each joint.
+def forming_design(
+    model: RobotModel,
+    q: F64,
+    W_work: F64,
+    T_base_work: F64,
+    normal: F64,
+    ball_radius: float = 0.0,
+) -> F64:
+    """``A`` (N, 6) [m per rad/(N·m)]: the normal deflection of the ball centre per unit
+    compliance of each joint.
 
     q : (N, 6) rad; W_work : (N, 6) [N; N·m] the sheet's wrench on the tool at the tip, work
-    axes; T_base_work : (4, 4); normal : (N, 3) unit, work axes. ``A @ (1/K)`` equals
-    ``n · model.deflection(q, W, T_base_work)[:, :3]``."""
+    axes; T_base_work : (4, 4); normal : (N, 3) unit, work axes; ball_radius : m, the ball
+    centre ``tip + R ẑ`` whose normal motion ``analyze`` measures and checks
+    (:func:`roboisf.cell.at_ball_centre`; 0: the tip). ``A @ (1/K)`` equals
+    ``n · at_ball_centre(model.deflection(q, W, T_base_work), R)``."""
     J = model.jacobian(q, check_limits=False, T_base_work=T_base_work)  # (N, 6, 6) work axes
     tau = np.einsum("nji,nj->ni", J, W_work)  # J_iᵀ W
-    nJ = np.einsum("nj,nji->ni", normal, J[:, :3, :])  # n · J_i,lin
+    # ball centre: δ_C = δ_T + θ × R ẑ, column by column
+    lin = J[:, :3, :] + np.cross(J[:, 3:, :], [0.0, 0.0, ball_radius], axisa=1, axisc=1)
+    nJ = np.einsum("nj,nji->ni", normal, lin)  # n · J_i at the ball centre
     return np.asarray(nJ * tau, dtype=float)
 
 
@@ -112,8 +125,16 @@ class FormingIdentification:
         )
         cv = ", ".join(f"{k} {v * 1e3:.4f} mm" for k, v in self.cv_rms.items())
         base += f"; held-out-lap RMS error: {cv}"
+        held = [int(i) + 1 for i in np.flatnonzero(~self.identified)]
+        held_needed = [j for j in held if j in needed]
         if self.mode == "joints":
-            return f"each needed joint identified ({ok}); {base}"
+            tail = (
+                f"; joints {held_needed} carry ≥ {MIN_SHARE:.0%} but the path cannot separate "
+                "them: held at their nominal stiffness"
+                if held_needed
+                else ""
+            )
+            return f"joints {ok} identified, joints {held} held at nominal{tail}; {base}"
         return (
             f"joints not separable (identified alone: {ok or 'none'}); one scale on the nominal "
             f"compliance fitted ({self.scale:.3f}, 95 % [{self.scale_ci[0]:.3f}, "
@@ -244,7 +265,6 @@ def identify_from_forming(
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = np.where(live & (c_all > 0), se / np.abs(c_all), math.inf)
     identified = live & (c_all > 0) & (rel < MAX_REL_SE)
-    needed = share >= MIN_SHARE
     b_nom = _mv(Au, c_nom)
     # the joints model: the identified joints refitted with the others held at their nominal
     # compliance (a joint left out of the refit must not keep a share the fit gave it)
@@ -266,7 +286,9 @@ def identify_from_forming(
     def fit_scale(w: F64) -> F64:
         return float(w @ by) / float(w @ bb) * c_nom
 
-    joints_ok = bool(idx_id.size) and bool(np.all(identified | ~needed))
+    # every joint the path excites is fitted; a needed joint it cannot separate is held at its
+    # nominal and named (observability()), not a reason to fall back to one scale
+    joints_ok = bool(idx_id.size)
     cv = {"scale": _cv_rms(fit_scale, Au, y, inv, L)}
     if joints_ok:
         cv["joints"] = _cv_rms(fit_joints, Au, y, inv, L)

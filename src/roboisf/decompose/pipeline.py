@@ -41,9 +41,15 @@ from roboisf.decompose.core import (
     decompose,
     resultant_mean_deviation,
 )
+from roboisf.decompose.diagnose import (
+    CorrectedRobotTerm,
+    Diagnosis,
+    Finding,
+    diagnose,
+    diagnosis_headline,
+)
 from roboisf.decompose.identify import (
     FormingIdentification,
-    forming_design,
     identify_from_forming,
     write_stiffness_toml,
 )
@@ -445,17 +451,21 @@ def analyze(
         vjm = at_ball_centre(np.einsum("nij,nj->ni", k_c, W_rob), R_ball)
 
     valid = dev_c.valid & dev_r.valid & (tp.depth > study.analysis.rim_band)
-    d = decompose(
-        tp.normal,
-        dev_c.dn,
-        dev_r.dn,
-        tool_cnc,
-        tool_rob,
-        holder_rob,
-        vjm,
-        valid,
-        command if has_command else None,
-    )
+    cmd = command if has_command else None
+    d = decompose(tp.normal, dev_c.dn, dev_r.dn, tool_cnc, tool_rob, holder_rob, vjm, valid, cmd)
+    with task(progress, "diagnosis"):
+        diag, corr = _diagnose(cell, tp, q, W_cnc, W_rob, d, k_t, k_th, k_c)
+    W_used = W_rob
+    if diag.forces_corrected:
+        # the terms a force drives, at the forces the diagnosis corrected (a flange sensor at
+        # fault against the CNC dynamometer: docs/diagnosis.md); the logs' columns stay measured
+        W_used = corr.W_rob
+        tool_rob = at_ball_centre(W_used @ k_t.T, R_ball)
+        holder_rob = at_ball_centre(W_used @ k_th.T, R_ball)
+        vjm = at_ball_centre(np.einsum("nij,nj->ni", k_c, W_used), R_ball)
+        d = decompose(
+            tp.normal, dev_c.dn, dev_r.dn, tool_cnc, tool_rob, holder_rob, vjm, valid, cmd
+        )
 
     per_point = _per_point(cell, tp, W_cnc, W_rob, dev_c, dev_r, d)
     if has_command:
@@ -465,7 +475,7 @@ def analyze(
         per_point["thickness_measured"] = read_thickness_csv(thick).at(tp.depth) * 1e3
     contributions = pd.DataFrame(_mm_rows(contribution_rows(d, projected=False)))
     contributions_normal = pd.DataFrame(_mm_rows(contribution_rows(d, projected=True)))
-    summary = _summary(study, cell, tp, d, k_c, W_rob, valid, k_tool, k_holder, q_source, scans)
+    summary = _summary(study, cell, tp, d, k_c, W_used, valid, k_tool, k_holder, q_source, scans)
     summary["warnings"].extend(input_warnings)
     summary["alignment"] = {name: a.to_dict() for name, a in aligned.items()}
     for entry in summary["alignment"].values():
@@ -473,7 +483,13 @@ def analyze(
     for a in aligned.values():
         summary["warnings"].extend(f"{a.run} alignment: {n}" for n in a.primary.notes)
     with task(progress, "model check and identification"):
-        ident = _model_checks(cell, tp, q, W_cnc, W_rob, d, summary)
+        ident = _model_checks(cell, tp, W_cnc, W_rob, d, summary, diag, corr)
+    if diag.forces_corrected:  # what compensate pre-deflects with (docs/diagnosis.md)
+        for j, name in enumerate(_WRENCH):
+            per_point[f"robot_corrected_{name}"] = corr.W_rob[:, j]
+    pattern = diag.scan_pattern(tp.normal, tp.contact)
+    if pattern is not None:  # what the diagnosis put on the scan: never pre-deflected for
+        per_point["scan_pattern_dn"] = pattern * 1e3
     if ident is not None:
         per_point["identified_dn"] = ident.predicted * 1e3
     if truth is not None:
@@ -491,14 +507,65 @@ LATERAL_WARN = 0.05e-3
 FORCE_BIAS_WARN = 5.0
 
 
+def _diagnose(
+    cell: Cell,
+    tp: Toolpath,
+    q: F64,
+    W_cnc: F64,
+    W_rob: F64,
+    d: Decomposition,
+    k_t: F64,
+    k_th: F64,
+    k_c: F64,
+) -> tuple[Diagnosis, CorrectedRobotTerm]:
+    """The diagnosis of the decomposition ``d`` at the measured forces (docs/diagnosis.md)."""
+    return diagnose(
+        robot=cell.robot,
+        q=q,
+        T_base_work=cell.T_base_work,
+        k_t=k_t,
+        k_th=k_th,
+        k_c=k_c,
+        ball_radius=cell.tool.radius,
+        normal=tp.normal,
+        contact=tp.contact,
+        tip=tp.tip,
+        lap=tp.lap,
+        depth=tp.depth,
+        W_cnc=W_cnc,
+        W_rob=W_rob,
+        measured=d.normal["robot_compliance"],
+        valid=d.valid,
+        axisymmetric=cell.part.symmetry.order == 0,
+    )
+
+
 def _model_checks(
-    cell: Cell, tp: Toolpath, q: F64, W_cnc: F64, W_rob: F64, d: Decomposition, summary: Any
+    cell: Cell,
+    tp: Toolpath,
+    W_cnc: F64,
+    W_rob: F64,
+    d: Decomposition,
+    summary: Any,
+    diag: Diagnosis,
+    corr: CorrectedRobotTerm,
 ) -> FormingIdentification | None:
-    """``vjm_check``, the identification, the term statistics and the warnings of the robot term
-    (docs/analyze.md, "Does the model hold?"), into ``summary``."""
+    """``vjm_check``, the identification, the term statistics and the warnings of the robot
+    term (docs/analyze.md, "Does the model hold?") and the diagnosis's findings
+    (docs/diagnosis.md), into ``summary``. ``d`` is at the forces the diagnosis corrected when
+    it corrected them; the identification runs on the robot term less the scan's pattern."""
     meas, pred, valid = d.normal["robot_compliance"], d.normal["vjm"], d.valid
     vc = vjm_check(meas, pred, valid, tp.lap, tp.depth)
     summary["vjm_check"] = vc.to_dict()
+    summary["vjm_check"]["forces"] = (
+        "corrected by the diagnosis (flange sensor against the CNC dynamometer)"
+        if diag.forces_corrected
+        else "measured"
+    )
+    summary["diagnosis"] = diag.to_list()
+    summary["diagnosis_headline"] = diagnosis_headline(diag.findings)
+    summary["diagnosis_forces_corrected"] = diag.forces_corrected
+    verdicts = {f.suspect: f for f in diag.findings}
     summary["terms_normal"] = term_statistics(
         {k: d.normal[k] for k in (*FACTORS, "vjm", "delta", "cnc", "robot")}, valid
     )
@@ -509,9 +576,10 @@ def _model_checks(
             "the robot's compliance is not identified from this run: " + vc.reason
         )
     else:
-        A = forming_design(cell.robot, q, W_rob, cell.T_base_work, tp.normal)
         try:
-            ident = identify_from_forming(A, meas, valid, tp.lap, cell.robot.joint_stiffness)
+            ident = identify_from_forming(
+                corr.A, corr.measured, valid, tp.lap, cell.robot.joint_stiffness
+            )
         except InputError as e:
             summary["identification"] = {"mode": None, "observability": e.message}
             summary["warnings"].append(f"robot compliance not identified: {e.message}")
@@ -528,15 +596,26 @@ def _model_checks(
             f"the robot model does not hold: {vc.reason}; the robot term is the measured one, "
             f"the VJM's prediction is off{use}"
         )
-    summary["warnings"].extend(_lateral_warnings(tp, d, vc, summary))
-    summary["warnings"].extend(_force_bias_warnings(tp, W_cnc, W_rob, valid))
+    summary["warnings"].extend(_lateral_warnings(tp, d, vc, summary, verdicts["scan_shift"]))
+    if verdicts["force_bias"].verdict == "fault":
+        summary["warnings"].extend(_force_bias_warnings(tp, W_cnc, W_rob, valid))
+    for name in ("force_gain", "force_moment_crosstalk", "scan_rotation"):
+        if verdicts[name].verdict == "fault":
+            summary["warnings"].append(verdicts[name].headline)
     return ident
 
 
 def _lateral_warnings(
-    tp: Toolpath, d: Decomposition, vc: VjmCheck, summary: dict[str, Any]
+    tp: Toolpath,
+    d: Decomposition,
+    vc: VjmCheck,
+    summary: dict[str, Any],
+    shift: Finding | None = None,
 ) -> list[str]:
-    """A sideways scan shift the fixture registration cannot see (z and tilts only)."""
+    """A sideways scan shift the fixture registration cannot see (z and tilts only). The robot
+    scan's is warned only when the diagnosis's ``shift`` finding calls it a fault (a joint-by-joint
+    stiffness error or a sensor fault leaves a similar pattern beside one scale); a
+    ``cannot_tell`` is said as such."""
     reg = summary.get("registration") or {}
     out = []
     fits = {}
@@ -559,6 +638,10 @@ def _lateral_warnings(
             "explained_variance": lo.explained,
         }
         if not (lo.size > LATERAL_WARN and lo.size > 4 * lo.se):
+            continue
+        if run == "robot" and shift is not None and shift.verdict != "fault":
+            if shift.verdict == "cannot_tell":
+                out.append(f"robot scan: {shift.explanation}")
             continue
         # the registrations are in run order (CNC, robot)
         regs = [v for v in reg.values() if isinstance(v, dict)]

@@ -34,10 +34,14 @@ from roboisf.robot.model import RobotModel, _check_wrench
 
 __all__ = [
     "CalibrationData",
+    "ExperimentDesign",
     "PoorExcitationWarning",
     "StiffnessIdentification",
+    "design_experiment",
     "identify_stiffness",
     "read_calibration_csv",
+    "write_experiment_csv",
+    "write_joint_program",
 ]
 
 F64 = NDArray[np.float64]
@@ -272,3 +276,183 @@ def read_calibration_csv(path: str | Path, model: RobotModel | None = None) -> C
             [np.einsum("nij,nj->ni", R, W[:, :3]), np.einsum("nij,nj->ni", R, W[:, 3:])], axis=1
         )
     return CalibrationData(q=q, wrench=W, displacement=d)
+
+
+# --------------------------------------------------------------------------------------------
+# a designed identification experiment (issue #26)
+
+
+@dataclass(frozen=True, eq=False)
+class ExperimentDesign:
+    """A set of poses and tip loads that makes all six joints identifiable.
+
+    q : (M, 6) rad — the poses (controller convention), one experiment per row; wrench : (M, 6)
+    [N; N·m] the load at the tip, base axes; tip : (M, 3) m tip positions, base frame; sigma : m
+    the displacement measurement's standard deviation assumed; rel_se : (6,) the expected
+    relative standard error of each joint's compliance; K_ci : (6, 2) N·m/rad the expected 95 %
+    interval around the nominal stiffness; condition_number : of the column-equilibrated
+    design."""
+
+    q: F64
+    wrench: F64
+    tip: F64
+    sigma: float
+    rel_se: F64
+    K_ci: F64
+    condition_number: float
+
+
+def _experiment_rows(model: RobotModel, q: F64, W: F64) -> F64:
+    """(M, 3, 6): each experiment's tip translation per unit compliance of each joint."""
+    J = model.jacobian(q, check_limits=False)
+    tau = np.einsum("nji,nj->ni", J, W)
+    return np.asarray(J[:, :3, :] * tau[:, None, :], dtype=float)
+
+
+def design_experiment(
+    model: RobotModel,
+    T_base_work: F64,
+    *,
+    n_experiments: int = 24,
+    force: float = 2000.0,
+    sigma: float = 0.02e-3,
+    reach: float = 1.0,
+    n_candidates: int = 40000,
+    seed: int = 0,
+) -> ExperimentDesign:
+    """Poses near the work frame and tip loads chosen for the joints' identifiability.
+
+    Candidates: random joint configurations within the limits whose tip lies within ``reach``
+    (m) of the work origin and above its plane, away from singularities, each loaded by
+    ``force`` (N) along ±x, ±y, ±z of the base at the model's tool point, whose deflection is
+    measured (the paper's auxiliary experiments: a load at the tip, the deflection measured by a
+    laser tracker or dial gauges). That point must lie off joint 6's axis — a bracket — or
+    joint 6 is never twisted. Experiments are picked
+    greedily for the largest determinant of the information matrix of the relative compliances
+    (D-optimal), at most two loads per pose. Expected intervals: ``σ² (AᵀA)⁻¹`` at the nominal
+    stiffness (``sigma`` m per measured component). Raises :class:`InputError` when the
+    candidates cannot make every joint identifiable."""
+    rng = np.random.default_rng(seed)
+    K = model.joint_stiffness
+    c_nom = 1.0 / K
+    q = rng.uniform(model.q_min, model.q_max, size=(n_candidates, 6))
+    T = model.fk(q, check_limits=False)
+    p = T[:, :3, 3]
+    p_work = (p - T_base_work[:3, 3]) @ T_base_work[:3, :3]
+    keep = (np.linalg.norm(p_work, axis=1) <= reach) & (p_work[:, 2] >= 0.05)
+    q = q[keep]
+    if len(q) < 2 * n_experiments:
+        raise InputError(
+            f"only {len(q)} of {n_candidates} random poses of {model.name} put the tip within "
+            f"{reach * 1e3:.0f} mm of the work origin: place the robot closer or raise the reach",
+            field="--design",
+        )
+    J = model.jacobian(q, check_limits=False)
+    sv = np.linalg.svd(J, compute_uv=False)
+    q = q[sv[:, -1] / sv[:, 0] > 1e-2]  # away from singularities
+    # each pose: ±force along the base axes at the measured point
+    loads = np.vstack([np.eye(3), -np.eye(3)]) * force
+    n_l = 6
+    Wc = np.zeros((len(q) * n_l, 6))
+    Wc[:, :3] = np.tile(loads, (len(q), 1))
+    qc = np.repeat(q, n_l, axis=0)
+    rows = _experiment_rows(model, qc, Wc) * c_nom[None, None, :] / sigma  # relative units
+    info = np.zeros((6, 6)) + 1e-9 * np.eye(6)
+    chosen: list[int] = []
+    per_pose = np.zeros(len(q), int)
+    for _ in range(n_experiments):
+        # log det(I + Rᵀ R) for each candidate: det(I₃ + R I⁻¹ Rᵀ)
+        Iinv = np.linalg.inv(info)
+        M = np.einsum("nai,ij,nbj->nab", rows, Iinv, rows) + np.eye(3)[None]
+        gain = np.linalg.slogdet(M)[1]
+        gain[chosen] = -np.inf
+        gain[np.repeat(per_pose >= 2, n_l)] = -np.inf
+        k = int(np.argmax(gain))
+        chosen.append(k)
+        per_pose[k // n_l] += 1
+        info += rows[k].T @ rows[k]
+    idx = np.array(sorted(chosen))
+    dead = np.linalg.norm(rows[idx].reshape(-1, 6), axis=0) < 1e-6 * np.sqrt(np.trace(info))
+    if np.any(dead):
+        raise InputError(
+            f"no load of the design twists joint(s) {[int(j) + 1 for j in np.flatnonzero(dead)]}"
+            ": measure and load a point off the joint-6 axis (a bracket)",
+            field="--design",
+        )
+    cov = np.linalg.inv(info)
+    rel = np.sqrt(np.diag(cov))
+    A = rows[idx].reshape(-1, 6)
+    As = A / np.linalg.norm(A, axis=0)
+    s = np.linalg.svd(As, compute_uv=False)
+    lo_c, hi_c = c_nom * (1 - 1.96 * rel), c_nom * (1 + 1.96 * rel)
+    with np.errstate(divide="ignore"):
+        K_ci = np.stack([1 / hi_c, np.where(lo_c > 0, 1 / np.where(lo_c > 0, lo_c, 1), np.inf)], 1)
+    q_sel, W_sel = qc[idx], Wc[idx]
+    return ExperimentDesign(
+        q=q_sel,
+        wrench=W_sel,
+        tip=model.fk(q_sel, check_limits=False)[:, :3, 3],
+        sigma=sigma,
+        rel_se=rel,
+        K_ci=K_ci,
+        condition_number=float(s[0] / s[-1]),
+    )
+
+
+def write_experiment_csv(
+    design: ExperimentDesign, path: str | Path, robot: str, point: str, command: str
+) -> Path:
+    """The measuring sheet: the calibration CSV :func:`read_calibration_csv` reads, one row per
+    experiment (pose in deg, load in N at the measured point, base axes), with ``dx, dy, dz``
+    (mm, base axes) left empty for the measured deflection under the load (loaded minus unloaded
+    position). ``point`` names the measured point (the model's tool), ``command`` the identify
+    command to run on the filled sheet."""
+    from roboisf.io.atomic import atomic_write
+
+    lines = [
+        f"# roboisf robot identify --design: {robot}, {len(design.q)} experiments",
+        f"# the point: {point}; move to each pose, measure the point unloaded, apply the load",
+        "# at the point (N, base axes), measure again; fill dx,dy,dz with loaded minus unloaded",
+        f"# (mm, base axes); then run: {command}",
+        "# units: angle=deg length=mm force=N moment=N*m",
+        "# frame: base",
+        "q1,q2,q3,q4,q5,q6,Fx,Fy,Fz,Mx,My,Mz,dx,dy,dz",
+    ]
+    for q, W in zip(design.q, design.wrench, strict=True):
+        cells = [f"{v:.4f}" for v in np.degrees(q)] + [f"{v:.1f}" for v in W[:3]]
+        cells += [f"{v:.2f}" for v in W[3:]] + ["", "", ""]
+        lines.append(",".join(cells))
+    p = Path(path)
+    with atomic_write(p) as fh:
+        fh.write("\n".join(lines) + "\n")
+    return p
+
+
+def write_joint_program(design: ExperimentDesign, path: str | Path, module: str) -> Path:
+    """The poses as a robot program that stops at each (a RAPID module of ``MoveAbsJ`` for a
+    ``.mod`` path, a KRL ``PTP {A1 …}`` program for ``.src``): joint angles in degrees, the
+    external axes unused. Each stop is a ``Stop`` / ``HALT`` for the load and the reading."""
+    from roboisf.io.atomic import atomic_write
+
+    p = Path(path)
+    qd = np.degrees(design.q)
+    if p.suffix.lower() == ".src":
+        body = [f"DEF {module}()", "  ; roboisf robot identify --design: one stop per experiment"]
+        for i, q in enumerate(qd):
+            a = ",".join(f"A{j + 1} {v:.4f}" for j, v in enumerate(q))
+            body += [f"  PTP {{{a}}} ; experiment {i + 1}", "  HALT"]
+        body.append("END")
+    elif p.suffix.lower() == ".mod":
+        body = [f"MODULE {module}", "  ! roboisf robot identify --design: one stop per experiment"]
+        for i, q in enumerate(qd):
+            v = ",".join(f"{x:.4f}" for x in q)
+            body.append(f"  CONST jointtarget jt{i + 1}:=[[{v}],[9E9,9E9,9E9,9E9,9E9,9E9]];")
+        body.append("  PROC main()")
+        for i in range(len(qd)):
+            body += [f"    MoveAbsJ jt{i + 1},v100,fine,tool0; ! experiment {i + 1}", "    Stop;"]
+        body += ["  ENDPROC", "ENDMODULE"]
+    else:
+        raise InputError(f"expected a .mod (RAPID) or .src (KRL) program, got {p.name}", file=p)
+    with atomic_write(p) as fh:
+        fh.write("\n".join(body) + "\n")
+    return p

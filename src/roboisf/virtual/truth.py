@@ -23,7 +23,14 @@ Every key is optional; every effect is off when its key is absent. Units as in `
     [force_sensor]                       # the robot's flange F/T sensor
     bias = [30, 0, 0, 0, 0, 0]           # N, N·m in the sensor's axes
     gain = 1.02                          # a number or six (per channel)
-    crosstalk = 0.01                     # a number (every off-diagonal coupling) or a 6×6 matrix
+    crosstalk_force = 0.01               # 1 (N per N): each force channel reads this share of
+                                         # the other two force channels
+    crosstalk_moment = 2.0               # mm (N·m per kN): each moment channel reads this much
+                                         # moment per newton on each force channel
+    # crosstalk = [[...], ...]           # or the whole 6×6 coupling in the sensor's own units
+                                         # (rows read, columns cause; N per N, N per N·m, m, 1);
+                                         # a single number fills every off-diagonal entry (mixing
+                                         # N and N·m: kept for old files, prefer the two above)
 
     [tool]
     mass = 4.0                           # kg, the weight below the flange sensor (no tare)
@@ -43,7 +50,9 @@ Every key is optional; every effect is off when its key is absent. Units as in `
     [cnc]
     compliance = 2e-5                    # mm/N, the CNC's translational compliance (1 or 3)
 
-The sensor reads ``diag(gain) · (I + crosstalk) · W + bias (+ the tool's weight)``.
+The sensor reads ``diag(gain) · (I + crosstalk) · W + bias (+ the tool's weight)``, its axes,
+``W = [F; M]`` in N and N·m; ``crosstalk_force`` and ``crosstalk_moment`` add to ``crosstalk``'s
+force-to-force and force-to-moment blocks.
 """
 
 from __future__ import annotations
@@ -83,7 +92,7 @@ SCENARIOS: dict[tuple[str, str], str] = {
 
 _KEYS: dict[str, tuple[str, ...]] = {
     "robot": ("joint_stiffness_scale", "link_compliance", "thermal_drift", "kinematic_error"),
-    "force_sensor": ("bias", "gain", "crosstalk"),
+    "force_sensor": ("bias", "gain", "crosstalk", "crosstalk_force", "crosstalk_moment"),
     "tool": ("mass", "cog"),
     "scan": ("shift", "rotation"),
     "springback": (
@@ -114,7 +123,8 @@ class TruthSpec:
         in ``T_err = [R(rx, ry, rz) | (x, y, z)]`` of the blank's true frame
     sensor_bias : (6,) float, N and N·m — flange-sensor bias in the sensor's axes
     sensor_gain : (6,) float — per-channel gain
-    sensor_crosstalk : (6, 6) float — off-diagonal coupling (zero diagonal)
+    sensor_crosstalk : (6, 6) float — off-diagonal coupling (zero diagonal), rows read, columns
+        cause, SI (force→moment entries in m = N·m per N)
     tool_mass : float, kg — weight below the flange sensor (0: none)
     tool_cog : (3,) float, m — its centre of gravity in the flange frame
     scan_shift : (3,) float, m — the robot scan's misregistration, work axes
@@ -408,6 +418,15 @@ def _from_table(data: Mapping[str, Any], source: str) -> TruthSpec:
                     field="force_sensor.crosstalk",
                 )
             kw["sensor_crosstalk"] = m
+    if "crosstalk_force" in fs or "crosstalk_moment" in fs:
+        C = np.array(kw.get("sensor_crosstalk", np.zeros((6, 6))), dtype=float)
+        off = np.ones((3, 3)) - np.eye(3)
+        if "crosstalk_force" in fs:
+            C[:3, :3] += _number(fs["crosstalk_force"], "force_sensor.crosstalk_force") * off
+        if "crosstalk_moment" in fs:  # mm = N·m per kN → m = N·m per N
+            cm = _number(fs["crosstalk_moment"], "force_sensor.crosstalk_moment") * 1e-3
+            C[3:, :3] += cm
+        kw["sensor_crosstalk"] = C
     tool = _table(data, "tool", "tool")
     _check_keys(tool, _KEYS["tool"], "tool")
     if "mass" in tool:

@@ -1,0 +1,259 @@
+"""The diagnosis over random hidden truths: verdict accuracy, interval coverage, compensation.
+
+Run by hand:  PYTHONPATH=src python benchmarks/diagnosis.py [N_TRUTHS] [SEED]
+
+Draws ``N_TRUTHS`` (default 40) truths — faults alone and in pairs among: joint stiffness
+(each joint 0.4–1.6×), flange-sensor gain (0.85–1.15), crosstalk (force channels ≤ 0.03, force
+into moment ≤ 30 mm = N·m per kN), a force bias (10–40 N), an unmodelled tool mass (1–5 kg),
+a sideways scan shift (≤ 0.3 mm) and a rotation about the part axis (≤ 0.3°) — on the cone, the
+VWACF, the pyramid and a mesh part (the cone tessellated), builds each as a small virtual study
+(2–3 mm step-down, 40–60 k scan points), runs ``analyze`` and compares the diagnosis with the
+truth:
+
+* **verdicts** — per suspect: right (``fault`` for a fault beyond the detection limit, ``ok``
+  for none), honest (``cannot_tell``), or wrong; "missed" counts ``ok`` for a fault beyond the
+  limit. A suspect whose truth is ambiguous on the path is not scored (a force bias when the
+  axial force's crosstalk makes a constant too, force-moment crosstalk beside a force bias,
+  which carried up the arm makes a constant false tip moment). The moment crosstalk's truth is
+  the larger of ``crosstalk_moment`` (mm) and the force crosstalk times the ~250 mm arm.
+* **coverage** — the 95 % intervals against the truth: the robot's measured-over-modelled
+  compliance (the true deflection against the VJM at the true forces), the gain, the shift's
+  size, the rotation's size (when seen).
+* **compensation** — where the robot is at fault: ``compensate --stiffness
+  identified_stiffness.toml`` (no springback compensation), formed again in the same truth cell;
+  the share of the compliance error (robot part − springback, below 20 mm) removed.
+
+Prints one line per truth and the table of docs/diagnosis.md.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from roboisf.cell import at_ball_centre
+from roboisf.compensate import CompensationOptions
+from roboisf.compensate.study import compensate_study
+from roboisf.decompose.diagnose import DETECTION_LIMITS, SUSPECTS
+from roboisf.decompose.pipeline import analyze, write_results
+from roboisf.parts import Cone
+from roboisf.parts.mesh import tessellate
+from roboisf.virtual.cell import (
+    PAPER_CELL_PLACEMENT,
+    build_study,
+    paper_cone_cell,
+    paper_vwacf_cell,
+    pyramid_cell,
+    simulate,
+    virtual_cell,
+)
+from roboisf.virtual.truth import truth_from_table
+
+SMALL = dict(spacing=3e-3, scan_points=50_000, force_rate=100.0, joint_rate=50.0)
+PARTS = ("cone", "vwacf", "pyramid", "mesh")
+FAULTS = ("joints", "gain", "crosstalk", "bias", "tool_mass", "shift", "rotation")
+
+
+def make_cell(part: str, table: dict):
+    truth = truth_from_table(table)
+    if part == "cone":
+        return paper_cone_cell(truth=truth, step_down=3e-3, **SMALL)
+    if part == "vwacf":
+        return paper_vwacf_cell(truth=truth, step_down=2e-3, **SMALL)
+    if part == "pyramid":
+        return pyramid_cell(truth=truth, step_down=2e-3, **SMALL)
+    mesh = tessellate(Cone(), chordal_error=0.2e-3, edge=4e-3)
+    return virtual_cell(
+        "mesh-cone", mesh, T_base_work=PAPER_CELL_PLACEMENT, truth=truth, step_down=3e-3, **SMALL
+    )
+
+
+def draw(rng: np.random.Generator, faults: tuple[str, ...]) -> dict:
+    t: dict = {}
+    for f in faults:
+        if f == "joints":
+            t["robot"] = {"joint_stiffness_scale": list(np.round(rng.uniform(0.4, 1.6, 6), 3))}
+        elif f == "gain":
+            g = rng.uniform(0.85, 1.15)
+            t.setdefault("force_sensor", {})["gain"] = round(float(g), 4)
+        elif f == "crosstalk":
+            fs = t.setdefault("force_sensor", {})
+            fs["crosstalk_force"] = round(float(rng.uniform(0.0, 0.03)), 4)
+            fs["crosstalk_moment"] = round(float(rng.uniform(0.0, 30.0)), 2)
+        elif f == "bias":
+            b = rng.uniform(10, 40) * rng.normal(size=3)
+            b = b / np.linalg.norm(b) * rng.uniform(10, 40)
+            t.setdefault("force_sensor", {})["bias"] = [*np.round(b, 2).tolist(), 0, 0, 0]
+        elif f == "tool_mass":
+            t["tool"] = {"mass": round(float(rng.uniform(1, 5)), 2), "cog": [0, 0, 150]}
+        elif f == "shift":
+            a = rng.uniform(0, 2 * math.pi)
+            s = rng.uniform(0.0, 0.3)
+            t.setdefault("scan", {})["shift"] = [s * math.cos(a), s * math.sin(a), 0.0]
+        elif f == "rotation":
+            t.setdefault("scan", {})["rotation"] = [0.0, 0.0, float(rng.uniform(-0.3, 0.3))]
+    return t
+
+
+def truth_values(cell, t, u) -> dict[str, float]:
+    """The true value of each suspect in the diagnosis's units (nan: not defined)."""
+    tr = cell.truth
+    k_c = cell.cell.robot.compliance(t.q, T_base_work=cell.cell.T_base_work)
+    vjm = at_ball_centre(np.einsum("nij,nj->ni", k_c, t.wrench_robot), cell.cell.tool.radius)
+    x = np.einsum("ij,ij->i", vjm, t.toolpath.normal)[u]
+    y = np.einsum("ij,ij->i", t.robot, t.toolpath.normal)[u]
+    bias = np.linalg.norm(tr.sensor_bias[:3] + np.array([0, 0, -tr.tool_mass * 9.80665]))
+    return {
+        "robot_stiffness": float(x @ y / (x @ x)),
+        "force_gain": float(np.mean(tr.sensor_gain)),
+        "force_bias": float(bias),
+        # force into moment channels (mm), or force crosstalk carried ~0.25 m up the arm
+        "force_moment_crosstalk": float(
+            max(
+                np.max(np.abs(tr.sensor_crosstalk[3:, :3])) * 1e3,
+                np.max(np.abs(tr.sensor_crosstalk[:3, :3])) * 250.0,
+            )
+        ),
+        "scan_shift": float(np.linalg.norm(tr.scan_shift[:2]) * 1e3),
+        "scan_rotation": float(abs(math.degrees(tr.scan_rotation[2]))),
+        "springback_coupling": 0.0,
+    }
+
+
+def is_fault(name: str, v: float) -> bool:
+    lo, hi = DETECTION_LIMITS[name]
+    return v < lo or v > hi
+
+
+def ambiguous(name: str, tr) -> bool:
+    xf = float(np.max(np.abs(tr.sensor_crosstalk[:3, :3])))
+    if name == "force_bias":
+        return xf * 500 > DETECTION_LIMITS["force_bias"][1]  # axial force's crosstalk: a constant
+    if name == "force_moment_crosstalk":
+        # a force bias carried up the arm makes a constant false tip moment too: a fault of the
+        # tip moment that is not crosstalk (the diagnosis says cannot_tell or names the part
+        # that follows the force)
+        return bool(np.any(tr.sensor_bias[:3]))
+    return False
+
+
+def compliance_removed(cell, root: Path, summary: dict) -> float | None:
+    k = summary.get("identified_stiffness")
+    if not k:
+        return None
+    comp = compensate_study(
+        root / "study",
+        results=root / "results",
+        options=CompensationOptions(springback=False),
+        stiffness=k,
+    )
+    t0 = simulate(cell)
+    t1 = simulate(cell, commanded=comp.compensation.toolpath)
+    sel = t0.toolpath.depth > 20e-3
+
+    def rms(v):
+        return float(np.sqrt(np.mean(v**2)))
+
+    before = (t0.dn_robot - t0.springback)[sel]
+    after = (t1.dn_robot - t1.springback)[sel]
+    return 1 - rms(after) / rms(before)
+
+
+def main(n: int = 40, seed: int = 2026) -> None:
+    rng = np.random.default_rng(seed)
+    plans = []
+    for i in range(n):
+        part = PARTS[i % len(PARTS)]
+        k = 1 if i % 3 == 0 else 2
+        faults = tuple(sorted(rng.choice(FAULTS, size=k, replace=False)))
+        plans.append((part, faults, draw(rng, faults)))
+    score = {s: {"right": 0, "cannot_tell": 0, "wrong": 0, "missed": 0} for s in SUSPECTS}
+    cover = {s: [0, 0] for s in ("robot_stiffness", "force_gain", "scan_shift", "scan_rotation")}
+    removal: dict[str, list[float]] = {"robot only": [], "robot and sensor": []}
+    tmp = Path(tempfile.mkdtemp(prefix="roboisf-diag-"))
+    t_start = time.perf_counter()
+    try:
+        for i, (part, faults, table) in enumerate(plans):
+            root = tmp / f"t{i:02d}"
+            cell = make_cell(part, table)
+            build_study(cell, root / "study")
+            r = analyze(root / "study")
+            write_results(r, root / "results", png=False)
+            s = json.loads((root / "results" / "summary.json").read_text(encoding="utf-8"))
+            t = simulate(cell)
+            u = r.per_point["used"].to_numpy()
+            tv = truth_values(cell, t, u)
+            diag = {d["suspect"]: d for d in s["diagnosis"]}
+            marks = []
+            for name in SUSPECTS:
+                d, v = diag[name], tv[name]
+                if ambiguous(name, cell.truth):
+                    marks.append(f"{name}:{d['verdict'][0]}?")
+                    continue
+                fault = is_fault(name, v)
+                if d["verdict"] == "cannot_tell":
+                    score[name]["cannot_tell"] += 1
+                elif (d["verdict"] == "fault") == fault:
+                    score[name]["right"] += 1
+                else:
+                    score[name]["wrong"] += 1
+                    if fault and d["verdict"] == "ok":
+                        score[name]["missed"] += 1
+                    marks.append(f"{name}:{d['verdict']}≠{'fault' if fault else 'ok'}({v:.3g})")
+                if name in cover and d["ci_low"] is not None and d["ci_high"] is not None:
+                    cover[name][1] += 1
+                    hit = d["ci_low"] <= v <= d["ci_high"]
+                    cover[name][0] += hit
+                    if not hit:
+                        marks.append(f"{name}∉[{d['ci_low']:.4g},{d['ci_high']:.4g}]∌{v:.4g}")
+            rem = None
+            if diag["robot_stiffness"]["verdict"] == "fault" and is_fault(
+                "robot_stiffness", tv["robot_stiffness"]
+            ):
+                rem = compliance_removed(cell, root, s)
+                sensor = any(f in faults for f in ("gain", "crosstalk", "bias", "tool_mass"))
+                if rem is not None:
+                    removal["robot and sensor" if sensor else "robot only"].append(rem)
+            shutil.rmtree(root, ignore_errors=True)
+            print(
+                f"{i:2d} {part:8s} {'+'.join(faults):20s} "
+                f"removed {'-' if rem is None else f'{rem:.3f}'}  {' '.join(marks)}",
+                flush=True,
+            )
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    wall = time.perf_counter() - t_start
+    print(f"\n{n} truths, seed {seed}, {wall:.0f} s\n")
+    print("| suspect | right | cannot tell | wrong | of which ok for a fault |")
+    print("|---|---|---|---|---|")
+    tot = {"right": 0, "cannot_tell": 0, "wrong": 0, "missed": 0}
+    for name, c in score.items():
+        print(f"| {name} | {c['right']} | {c['cannot_tell']} | {c['wrong']} | {c['missed']} |")
+        for k in tot:
+            tot[k] += c[k]
+    m = tot["right"] + tot["cannot_tell"] + tot["wrong"]
+    print(f"| **all** | {tot['right']} | {tot['cannot_tell']} | {tot['wrong']} | {tot['missed']} |")
+    print(f"\nright or honestly cannot tell: {(tot['right'] + tot['cannot_tell']) / m:.1%}")
+    print("\n| interval | covers the truth |\n|---|---|")
+    for name, (h, k) in cover.items():
+        print(f"| {name} | {h}/{k} ({h / k:.0%}) |" if k else f"| {name} | – |")
+    hk = sum(h for h, _ in cover.values()), sum(k for _, k in cover.values())
+    print(f"| **all** | {hk[0]}/{hk[1]} ({hk[0] / max(hk[1], 1):.0%}) |")
+    print("\n| compensation | cases | compliance error removed: min / median |\n|---|---|---|")
+    for k, v in removal.items():
+        if v:
+            print(f"| {k} | {len(v)} | {min(v):.1%} / {float(np.median(v)):.1%} |")
+        else:
+            print(f"| {k} | 0 | – |")
+
+
+if __name__ == "__main__":
+    args = [int(a) for a in sys.argv[1:3]]
+    main(*args)

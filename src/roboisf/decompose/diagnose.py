@@ -1,0 +1,972 @@
+"""Blame the right part: a verdict per suspect from the redundancies a study holds.
+
+``analyze`` measures the robot's deflection as what is left of the robot part's deviation when
+springback, tool and holder are taken out, and compares it with the VJM at the *measured* forces.
+That robot term is also where a miscalibrated flange sensor (the VJM then runs on wrong forces),
+a misregistered scan (its geometry error lands in the robot part) and an unmodelled tool weight
+end up. This module tells them apart, suspect by suspect, with what the study holds twice:
+
+* **The two force logs.** The CNC run's fixture dynamometer and the robot's flange sensor record
+  the same toolpath in the same material. On the deeper half of the used laps (the robot's first
+  laps form with somewhat less force while its deflection settles: the "stated difference of the
+  two processes", whose size is taken from the shallow half's disagreement — twice it is added to
+  the interval away from the shallow half, once towards it) the robot's tip force is fitted as
+  ``F_rob = g F_cnc + b``: ``g`` one gain (the lateral forces, which turn around the part, carry
+  it), ``b`` (3,) N a constant (a bias: an untared sensor, the tool's weight below the sensor).
+  The lateral channels' coupling is fitted on what is left. A constant may also be the axial
+  force's crosstalk into the lateral channels (the axial force barely changes along a wall): a
+  second fit with that crosstalk beside the constant says whether the two can be told apart.
+  The CNC dynamometer is the reference.
+* **A physical bound on the tip moment.** The ball touches the sheet at one point, so the tip
+  moment is ``(contact − tip) × F`` (friction acts at the contact and is in ``F``): at most
+  ``R · |F|``. What the moment channels add beyond it, fitted as ``C F + m₀`` (``C`` in
+  N·m per N = m, quoted in mm), is crosstalk into the moment channels (or, through the arm
+  from the flange to the tip, a force crosstalk).
+* **The robot term's pattern along the path.** With the forces corrected (``G⁻¹ (F − b)``, the
+  moments replaced by the point-contact moment when the moment channels fail their bound) the
+  measured robot term ``y`` is fitted as ``r · x + n_x s_x + n_y s_y + θ n · (ẑ × p)``: a
+  stiffness error follows the VJM's ``x = n · J K⁻¹ Jᵀ W`` pose by pose, a sideways scan shift
+  ``s`` the normals, a rotation ``θ`` of the scan about the part's axis the tangential direction
+  at the contact ``p`` — zero on a surface of revolution, where it cannot be seen (nor does it
+  matter). A second fit puts one column per joint (``J_i K_i⁻¹ J_iᵀ W``, the joints that carry a
+  share of the prediction) in place of ``r x``: a shift that only the one-scale model needs is
+  told apart from a joint-by-joint stiffness error, or named ``cannot_tell`` when the data
+  cannot choose.
+
+Intervals: moving-block bootstrap over laps (:func:`roboisf.decompose.check.lap_blocks`) of each
+fit, widened by the model error — the disagreement between the competing fits (one scale or per
+joint, with or without a shift), the shallow/deep gain difference — and the robot ratio by the
+gain's interval (relative to the fitted gain when the forces were corrected, to 1 when not:
+the VJM runs on the forces it corrects or leaves). Verdicts against stated
+detection limits (``DETECTION_LIMITS``): ``fault`` when the whole interval lies beyond the limit,
+``ok`` when it lies within, ``cannot_tell`` otherwise.
+
+``springback_coupling`` (the sheet recovering part of the machine's deflection) scales the robot
+term exactly as a stiffer robot would: it is ``cannot_tell`` whenever the robot term is off, and
+``ok`` only when the robot term agrees with the model.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from roboisf.decompose.check import RATIO_TOLERANCE, lap_blocks, lap_index
+
+__all__ = [
+    "DETECTION_LIMITS",
+    "SUSPECTS",
+    "Diagnosis",
+    "Finding",
+    "RobotTermFit",
+    "SensorFit",
+    "diagnosis_headline",
+    "fit_robot_term",
+    "fit_sensor",
+    "verdict",
+]
+
+F64 = NDArray[np.float64]
+
+#: The suspects, in the order summary.json lists them.
+SUSPECTS = (
+    "robot_stiffness",
+    "force_gain",
+    "force_moment_crosstalk",
+    "force_bias",
+    "scan_shift",
+    "scan_rotation",
+    "springback_coupling",
+)
+
+#: Detection limits: (low, high) of the ``ok`` band in each suspect's unit. A fault beyond them
+#: is never called ``ok`` (unless the interval misses); within them it is not worth acting on.
+DETECTION_LIMITS: dict[str, tuple[float, float]] = {
+    # measured over modelled compliance: the accepted model error of the VJM check
+    "robot_stiffness": (1 - RATIO_TOLERANCE, 1 + RATIO_TOLERANCE),
+    # flange over dynamometer force: 3 % (a 3 % force error is 3 % of every force-driven term)
+    "force_gain": (0.97, 1.03),
+    # false tip moment per newton of force, mm (1 mm: 0.6 N·m at 600 N, ~0.01 mm of tool term)
+    "force_moment_crosstalk": (0.0, 1.0),
+    # a constant force, N (the old warning's 5 N on the lateral channels)
+    "force_bias": (0.0, 5.0),
+    # sideways shift of the robot scan, mm
+    "scan_shift": (0.0, 0.05),
+    # rotation of the robot scan about the part axis, deg
+    "scan_rotation": (0.0, 0.05),
+    # fraction of the machine's deflection the sheet recovers
+    "springback_coupling": (0.0, 0.1),
+}
+
+#: Each suspect's unit in summary.json.
+UNITS = {
+    "robot_stiffness": "1",
+    "force_gain": "1",
+    "force_moment_crosstalk": "mm",
+    "force_bias": "N",
+    "scan_shift": "mm",
+    "scan_rotation": "deg",
+    "springback_coupling": "1",
+}
+
+#: Bootstrap replicates of the diagnosis's fits.
+N_BOOT_DIAG = 400
+#: A joint whose column carries less than this share of the nominal prediction is held at its
+#: nominal compliance in the per-joint fit.
+JOINT_SHARE = 0.02
+#: Ridge of the per-joint fit on its equilibrated columns: directions of the joints' scales whose
+#: singular value is well below this are held at the one scale (the path cannot tell them).
+JOINT_RIDGE = 0.05
+#: Relative model error added to each end of the robot ratio's interval, beyond the spread of
+#: the competing fits (the other terms' systematic errors: calibrated by coverage,
+#: benchmarks/diagnosis.py).
+RATIO_MODEL_ERROR = 0.01
+#: Model error added to each end of the shift's interval, m: the other terms leave a first
+#: harmonic of ~0.01 mm in the robot term of a cell whose scan is right (calibrated by coverage,
+#: benchmarks/diagnosis.py).
+SHIFT_MODEL_ERROR = 0.01e-3
+
+
+def verdict(lo: float, hi: float, limits: tuple[float, float]) -> str:
+    """``fault`` when ``[lo, hi]`` lies wholly outside ``limits``, ``ok`` when wholly inside,
+    else ``cannot_tell`` (also for a non-finite interval)."""
+    a, b = limits
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        return "cannot_tell"
+    if hi < a or lo > b:
+        return "fault"
+    if lo >= a and hi <= b:
+        return "ok"
+    return "cannot_tell"
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One suspect's verdict. ``estimate``, ``ci_low``, ``ci_high`` in ``unit`` (None when the
+    data hold no estimate); ``headline`` one short line for the terminal and the report."""
+
+    suspect: str
+    verdict: str
+    estimate: float | None
+    ci_low: float | None
+    ci_high: float | None
+    unit: str
+    explanation: str
+    headline: str
+    limits: tuple[float, float] = (math.nan, math.nan)
+
+    def to_dict(self) -> dict[str, Any]:
+        def f(v: float | None) -> float | None:
+            return float(v) if v is not None and math.isfinite(v) else None
+
+        return {
+            "suspect": self.suspect,
+            "verdict": self.verdict,
+            "estimate": f(self.estimate),
+            "ci_low": f(self.ci_low),
+            "ci_high": f(self.ci_high),
+            "unit": self.unit,
+            "explanation": self.explanation,
+            "headline": self.headline,
+            "detection_limits": [f(self.limits[0]), f(self.limits[1])],
+        }
+
+
+# --------------------------------------------------------------------------------------------
+# lap-block least squares
+
+
+def _lap_normal_equations(X: F64, y: F64, inv: NDArray[np.intp], L: int) -> tuple[F64, F64]:
+    """Per-lap ``XᵀX`` (L, k, k) and ``Xᵀy`` (L, k): a fit on any multiset of laps sums them."""
+    k = X.shape[1]
+    G = np.zeros((L, k, k))
+    np.add.at(G, inv, X[:, :, None] * X[:, None, :])
+    h = np.zeros((L, k))
+    np.add.at(h, inv, X * y[:, None])
+    return G, h
+
+
+def _solve(G: F64, h: F64) -> F64:
+    x, *_ = np.linalg.lstsq(G, h, rcond=None)
+    return np.asarray(x, dtype=float)
+
+
+def _boot_weights(L: int, n_boot: int, seed: int) -> F64:
+    rng = np.random.default_rng(seed)
+    draws = lap_blocks(L, rng, n_boot)
+    return np.stack([np.bincount(d, minlength=L) for d in draws]).astype(float)
+
+
+def _lap_ls(
+    X: F64,
+    y: F64,
+    inv: NDArray[np.intp],
+    L: int,
+    weights: F64,
+    *,
+    prior: F64 | None = None,
+    penalty: F64 | None = None,
+) -> tuple[F64, F64]:
+    """Least squares ``X β ≈ y`` (columns equilibrated to unit norm) and its bootstrap
+    replicates (n_boot, k) over the lap weights ``weights`` (n_boot, L). ``penalty`` (k,) adds
+    ``Σ penalty_j (β_j − prior_j)²`` in the equilibrated coordinates, per unit of the normal
+    matrix's mean eigenvalue (a ridge towards ``prior``, in β's units)."""
+    scale = np.linalg.norm(X, axis=0)
+    scale[scale == 0] = 1.0
+    Xs = X / scale
+    G, h = _lap_normal_equations(Xs, y, inv, L)
+    k = X.shape[1]
+    pen = np.zeros(k) if penalty is None else np.asarray(penalty, dtype=float)
+    p0 = np.zeros(k) if prior is None else np.asarray(prior, dtype=float) * scale
+
+    def solve(M: F64, v: F64) -> F64:
+        t = float(np.trace(M)) / k
+        return _solve(M + np.diag(pen * t), v + pen * t * p0)
+
+    beta = solve(G.sum(axis=0), h.sum(axis=0)) / scale
+    Gb = np.einsum("bl,lij->bij", weights, G)
+    hb = np.einsum("bl,li->bi", weights, h)
+    boot = np.array([solve(Gb[i], hb[i]) for i in range(len(weights))]) / scale
+    return beta, boot
+
+
+def _pct(v: F64) -> tuple[float, float]:
+    v = v[np.isfinite(v)]
+    if v.size < 10:
+        return math.nan, math.nan
+    lo, hi = np.percentile(v, [2.5, 97.5])
+    return float(lo), float(hi)
+
+
+# --------------------------------------------------------------------------------------------
+# the two force logs
+
+
+@dataclass(frozen=True)
+class SensorFit:
+    """The flange sensor against the CNC dynamometer (work axes at the tip).
+
+    lateral_coupling : (c_xy, c_yx) the lateral channels' coupling (removed by :meth:`corrected`);
+    gain, gain_ci : ``g`` of ``F_rob = g F_cnc + b`` and its 95 % interval (the processes' own
+    difference included); gain_boot : its bootstrap replicates; b : (3,) N the constant; bias,
+    bias_ci : ``|b|`` N; bias_axial, bias_axial_ci, axial_crosstalk : ``|b|`` fitted beside the
+    axial force's crosstalk into the lateral channels (c_xz, c_yz); force_crosstalk : largest
+    lateral coupling left after the gain;
+    moment_crosstalk, moment_crosstalk_ci : RMS of the false tip moment (beyond the point-contact
+    moment, the part explained by the force) per RMS newton of force, m; moment_proportional,
+    moment_proportional_ci : the same for the part that follows the lateral force (not a
+    constant); moment_excess : RMS of
+    the moment beyond the point-contact moment / RMS of ``R|F|``; process_gap : shallow-half over
+    deep-half gain − 1."""
+
+    gain: float
+    gain_ci: tuple[float, float]
+    gain_boot: F64
+    b: F64
+    bias: float
+    bias_ci: tuple[float, float]
+    bias_axial: float
+    bias_axial_ci: tuple[float, float]
+    axial_crosstalk: tuple[float, float]
+    force_crosstalk: float
+    lateral_coupling: tuple[float, float]
+    moment_crosstalk: float
+    moment_crosstalk_ci: tuple[float, float]
+    moment_proportional: float
+    moment_proportional_ci: tuple[float, float]
+    moment_excess: float
+    process_gap: float
+    n_laps: int
+
+    def corrected(self, W_rob: F64, arm: F64, *, moments: bool) -> F64:
+        """The robot's tip wrench (N, 6) corrected: forces ``(F − b) / g`` and the lateral
+        coupling undone; moments replaced by
+        the point-contact moment ``arm × F`` (``arm`` (N, 3) m, contact − tip) when ``moments``,
+        else divided by ``g``."""
+        W = np.array(W_rob, dtype=float)
+        W[:, :3] = (W_rob[:, :3] - self.b[None, :]) / self.gain
+        cxy, cyx = self.lateral_coupling
+        C = np.array([[1.0, cxy], [cyx, 1.0]])
+        W[:, :2] = W[:, :2] @ np.linalg.inv(C).T
+        if moments:
+            W[:, 3:] = np.cross(arm, W[:, :3])
+        else:
+            W[:, 3:] = W_rob[:, 3:] / self.gain
+        return W
+
+
+def _gain_design(Fc: F64) -> F64:
+    """Rows of ``F_rob = g F_cnc + b`` stacked x, y, z: (3M, 4) columns [F_cnc, e_x, e_y, e_z]."""
+    M = len(Fc)
+    X = np.zeros((3 * M, 4))
+    X[:, 0] = Fc.T.ravel()
+    for i in range(3):
+        X[i * M : (i + 1) * M, 1 + i] = 1.0
+    return X
+
+
+def _gain_fit(Fc: F64, Fr: F64, inv: NDArray[np.intp], L: int, weights: F64) -> tuple[F64, F64]:
+    """One gain shared by the three force channels and a constant per channel: ([g, b] (4,),
+    bootstrap (n_boot, 4)). The lateral forces turn around the part, so they carry the gain; the
+    axial force, nearly constant along a wall, carries the constant."""
+    X = _gain_design(Fc)
+    return _lap_ls(X, Fr.T.ravel(), np.tile(inv, 3), L, weights)
+
+
+def _false_moment(
+    Fc: F64, Mres: F64, inv: NDArray[np.intp], L: int, weights: F64
+) -> tuple[F64, F64, F64]:
+    """The moment beyond the point-contact moment fitted as ``C F_xy + m₀`` per channel:
+    (fitted (M, 3) N·m, coefficient rows (3, 3), bootstrap (n_boot, 3, 3)). The axial force's
+    share folds into ``m₀`` (it barely varies along a wall)."""
+    X = np.column_stack([Fc[:, :2], np.ones(len(Fc))])
+    rows, boots = [], []
+    for i in range(3):
+        beta, boot = _lap_ls(X, Mres[:, i], inv, L, weights)
+        rows.append(beta)
+        boots.append(boot)
+    B = np.stack(rows)
+    return X @ B.T, B, np.stack(boots, axis=1)
+
+
+def fit_sensor(
+    W_cnc: F64,
+    W_rob: F64,
+    arm: F64,
+    valid: NDArray[np.bool_],
+    lap: NDArray[Any],
+    depth: F64,
+    *,
+    n_boot: int = N_BOOT_DIAG,
+    seed: int = 0,
+) -> SensorFit | None:
+    """The flange sensor against the CNC dynamometer on the same path (module docstring).
+
+    W_cnc, W_rob : (N, 6) [N, N·m] tip wrenches of the two runs, work axes; arm : (N, 3) m
+    contact − tip; valid : (N,) bool; lap : (N,); depth : (N,) m. None with fewer than 6 laps."""
+    sel = np.asarray(valid, bool) & np.all(np.isfinite(W_cnc), 1) & np.all(np.isfinite(W_rob), 1)
+    lp = np.asarray(lap)[sel]
+    laps = np.unique(lp)
+    if laps.size < 6:
+        return None
+    lap_depth = np.array([np.mean(depth[sel][lp == v]) for v in laps])
+    deep_laps = laps[lap_depth >= np.median(lap_depth)]
+    deep = np.isin(lp, deep_laps)
+    Fc, Fr = W_cnc[sel, :3], W_rob[sel, :3]
+    # deep half: the reference fit
+    inv, L = lap_index(lp[deep])
+    weights = _boot_weights(L, n_boot, seed)
+    beta, boot = _gain_fit(Fc[deep], Fr[deep], inv, L, weights)
+    gain, b = float(beta[0]), beta[1:4]
+    # shallow half: how much the processes themselves differ there
+    inv_s, L_s = lap_index(lp[~deep])
+    G_s, h_s = _lap_normal_equations(
+        _gain_design(Fc[~deep]), Fr[~deep].T.ravel(), np.tile(inv_s, 3), L_s
+    )
+    g_sh = float(_solve(G_s.sum(0), h_s.sum(0))[0])
+    gap = g_sh / gain - 1 if gain else math.nan
+    lo, hi = _pct(boot[:, 0])
+    # the processes' difference fades with depth, so the deep half keeps some of it, on the
+    # shallow half's side of the truth: twice the halves' difference away from the shallow
+    # half, once towards it
+    widen = abs(gain * gap) if math.isfinite(gap) else 0.0
+    w_lo, w_hi = (widen, 2 * widen) if gap < 0 else (2 * widen, widen)
+    gain_ci = (min(lo, gain) - w_lo, max(hi, gain) + w_hi)
+    bias = float(np.linalg.norm(b))
+    blo, bhi = _size_ci(boot[:, 1:4], b)
+    # the same with the axial force's crosstalk into the lateral channels beside the constant:
+    # along a wall the axial force barely changes, so that crosstalk may look like a bias
+    Md = int(deep.sum())
+    Xa = np.zeros((3 * Md, 6))
+    Xa[:, :4] = _gain_design(Fc[deep])
+    Xa[:Md, 4] = Fc[deep, 2]
+    Xa[Md : 2 * Md, 5] = Fc[deep, 2]
+    beta_a, boot_a = _lap_ls(Xa, Fr[deep].T.ravel(), np.tile(inv, 3), L, weights)
+    b_axial = beta_a[1:4]
+    bias_axial_ci = _size_ci(boot_a[:, 1:4], b_axial)
+    # lateral force crosstalk: the residual of each lateral channel against the other's force
+    res = Fr[deep] - gain * Fc[deep] - b[None, :]
+    xt = []
+    for i, j in ((0, 1), (1, 0)):
+        fj = gain * Fc[deep, j]
+        xt.append(float(fj @ res[:, i]) / float(fj @ fj) if float(fj @ fj) > 0 else 0.0)
+    xtalk = float(np.max(np.abs(xt)))
+    # moment channels beyond the point-contact moment
+    Mres = W_rob[sel, 3:] - np.cross(arm[sel], W_rob[sel, :3])
+    fitted, _B, bootM = _false_moment(Fc[deep], Mres[deep], inv, L, weights)
+    Fn = np.sqrt(np.mean(np.sum(Fc[deep] ** 2, 1)))
+    cm = float(np.sqrt(np.mean(np.sum(fitted**2, 1)))) / Fn
+    Xd = np.column_stack([Fc[deep, :2], np.ones(int(deep.sum()))])
+    cb = np.array([np.sqrt(np.mean(np.sum((Xd @ Bb.T) ** 2, 1))) / Fn for Bb in bootM])
+    clo, chi = _pct(cb)
+    # the part that follows the lateral force alone (a force bias carried up the arm from the
+    # flange to the tip is a constant moment; crosstalk from the axial force is one too)
+    Xp = np.column_stack([Fc[deep, :2], np.zeros(int(deep.sum()))])
+    cp = float(np.sqrt(np.mean(np.sum((Xp @ _B.T) ** 2, 1)))) / Fn
+    cpb = np.array([np.sqrt(np.mean(np.sum((Xp @ Bb.T) ** 2, 1))) / Fn for Bb in bootM])
+    cplo, cphi = _pct(cpb)
+    bound = np.linalg.norm(arm[sel], axis=1) * np.linalg.norm(W_rob[sel, :3], axis=1)
+    excess = float(np.sqrt(np.mean(np.sum(Mres**2, 1))) / max(np.sqrt(np.mean(bound**2)), 1e-300))
+    return SensorFit(
+        gain=gain,
+        gain_ci=gain_ci,
+        gain_boot=boot[:, 0],
+        b=b,
+        bias=bias,
+        bias_ci=(blo, bhi),
+        bias_axial=float(np.linalg.norm(b_axial)),
+        bias_axial_ci=bias_axial_ci,
+        axial_crosstalk=(float(beta_a[4] / gain), float(beta_a[5] / gain)),
+        force_crosstalk=xtalk,
+        lateral_coupling=(xt[0], xt[1]),
+        moment_crosstalk=cm,
+        moment_crosstalk_ci=(min(clo, cm), max(chi, cm)),
+        moment_proportional=cp,
+        moment_proportional_ci=(min(cplo, cp), max(cphi, cp)),
+        moment_excess=excess,
+        process_gap=gap,
+        n_laps=int(laps.size),
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# the robot term's pattern
+
+
+@dataclass(frozen=True)
+class RobotTermFit:
+    """The robot term fitted by the competing explanations (module docstring).
+
+    ratio, ratio_ci : measured over modelled compliance (model error included); shift, shift_ci :
+    (2,) m beside one scale and the interval of its size (m); shift_joint, shift_joint_ci : the
+    same beside the per-joint fit; rotation, rotation_ci, rotation_joint, rotation_joint_ci :
+    rad, the same for a rotation about work z (None when the part's symmetry hides it); rms_vjm,
+    rms_shift_pattern, rms_rotation_pattern : m, RMS of the VJM's normal deflection and of the
+    fitted patterns ``n · s`` and ``θ n · (ẑ × p)``; joints_fitted : 1-based joints of the
+    per-joint fit; n_laps."""
+
+    ratio: float
+    ratio_ci: tuple[float, float]
+    shift: F64
+    shift_ci: tuple[float, float]
+    shift_joint: F64
+    shift_joint_ci: tuple[float, float]
+    rotation: float | None
+    rotation_ci: tuple[float, float] | None
+    rotation_joint: float | None
+    rotation_joint_ci: tuple[float, float] | None
+    rms_vjm: float
+    rms_shift_pattern: float
+    rms_rotation_pattern: float
+    joints_fitted: list[int] = field(default_factory=list)
+    n_laps: int = 0
+
+
+def _widen(ci: tuple[float, float], e: float) -> tuple[float, float]:
+    """A size's interval widened by ``e`` on each side, kept ≥ 0."""
+    return max(ci[0] - e, 0.0), ci[1] + e
+
+
+def _size_ci(boot: F64, est: F64) -> tuple[float, float]:
+    """Interval of ``|s|`` from bootstrap replicates (n, k) of a vector ``s`` (k,): 0 at the
+    low end when the replicates' 95 % ellipse holds the origin."""
+    size = np.linalg.norm(boot, axis=1)
+    lo, hi = _pct(size)
+    cov = np.atleast_2d(np.cov(boot.T))
+    try:
+        d2 = float(est @ np.linalg.solve(cov, est))
+    except np.linalg.LinAlgError:
+        d2 = math.inf
+    crit = {1: 3.84, 2: 5.99, 3: 7.81}.get(est.size, 9.49)
+    if d2 < crit:
+        lo = 0.0
+    s = float(np.linalg.norm(est))
+    return min(lo, s), max(hi, s)
+
+
+def fit_robot_term(
+    measured: F64,
+    vjm: F64,
+    per_joint: F64,
+    normal: F64,
+    contact: F64,
+    valid: NDArray[np.bool_],
+    lap: NDArray[Any],
+    *,
+    n_boot: int = N_BOOT_DIAG,
+    seed: int = 1,
+) -> RobotTermFit | None:
+    """Fit the measured normal robot term by one scale on the VJM and by one column per joint,
+    each with a sideways shift and (where the geometry shows it) a rotation about work z.
+
+    measured, vjm : (N,) m normal robot term and the VJM's (corrected forces); per_joint : (N, 6)
+    m each joint's nominal share of ``vjm``; normal : (N, 3); contact : (N, 3) m work frame;
+    valid : (N,) bool; lap : (N,). None with fewer than 20 points or 3 laps."""
+    sel = (
+        np.asarray(valid, bool)
+        & np.isfinite(measured)
+        & np.isfinite(vjm)
+        & np.all(np.isfinite(per_joint), 1)
+    )
+    y, x, Aj, n, p, lp = (
+        measured[sel],
+        vjm[sel],
+        per_joint[sel],
+        normal[sel],
+        contact[sel],
+        np.asarray(lap)[sel],
+    )
+    inv, L = lap_index(lp)
+    if y.size < 20 or L < 3 or not np.any(x):
+        return None
+    rot_col = np.einsum("ij,ij->i", n, np.cross([0.0, 0.0, 1.0], p))  # n · (ẑ × p), m/rad
+    rho = float(np.sqrt(np.mean(np.sum(p[:, :2] ** 2, 1))))
+    # a rotation is seen when its column is not ~0 nor ~ a combination of the others
+    rot_seen = bool(np.sqrt(np.mean(rot_col**2)) > 0.02 * rho)
+    shift_cols = n[:, :2]
+    weights = _boot_weights(L, n_boot, seed)
+
+    def model(cols: F64) -> tuple[F64, F64]:
+        X = np.column_stack([cols, shift_cols] + ([rot_col] if rot_seen else []))
+        return _lap_ls(X, y, inv, L, weights)
+
+    # one scale on the VJM, with the scan's patterns and without (the scan taken as right)
+    b1, B1 = model(x[:, None])
+    b0, B0 = _lap_ls(x[:, None], y, inv, L, weights)
+    r0 = float(b0[0])
+    # one column per joint that carries a share, the others at nominal; the joints' scales are
+    # drawn towards the one scale ``r0`` where the path cannot separate them (ridge on the
+    # equilibrated columns), the scan's patterns are not (a shift hidden among the joints'
+    # patterns stays uncertain instead of being called zero)
+    share = np.sqrt(np.mean(Aj**2, 0))
+    share = share / share.sum() if share.sum() > 0 else share
+    live = np.flatnonzero(share >= JOINT_SHARE)
+    held = np.setdiff1d(np.arange(6), live)
+    k = live.size
+    yj = y - Aj[:, held].sum(axis=1)  # the others at nominal
+    Xj = np.column_stack([Aj[:, live], shift_cols] + ([rot_col] if rot_seen else []))
+    prior = np.zeros(Xj.shape[1])
+    prior[:k] = r0
+    pen = np.zeros(Xj.shape[1])
+    pen[:k] = JOINT_RIDGE**2
+    bj, Bj = _lap_ls(Xj, yj, inv, L, weights, prior=prior, penalty=pen)
+    # the per-joint model's scale on the nominal prediction (linear in its joint scales)
+    xx = float(x @ x)
+    v = np.einsum("i,ij->j", x, Aj[:, live]) / xx
+    c_held = float(x @ Aj[:, held].sum(axis=1)) / xx
+    r_joint = float(v @ bj[:k]) + c_held
+    rj_boot = Bj[:, :k] @ v + c_held
+
+    r1 = float(b1[0])
+    s1, sj = b1[1:3], bj[k : k + 2]
+    s1_ci = _widen(_size_ci(B1[:, 1:3], s1), SHIFT_MODEL_ERROR)
+    sj_ci = _widen(_size_ci(Bj[:, k : k + 2], sj), SHIFT_MODEL_ERROR)
+    lim = DETECTION_LIMITS["scan_shift"]
+    shifted = verdict(s1_ci[0] * 1e3, s1_ci[1] * 1e3, lim) == "fault" and (
+        verdict(sj_ci[0] * 1e3, sj_ci[1] * 1e3, lim) == "fault"
+    )
+    # model error: the interval spans the competing fits — the per-joint fit, and the one scale
+    # with the scan's patterns when both fits see a shift, else without them
+    cands = [(r_joint, _pct(rj_boot)), (r1, _pct(B1[:, 0])) if shifted else (r0, _pct(B0[:, 0]))]
+    est = r1 if shifted else r0
+    lo = min(min(c[0], c[1][0]) for c in cands)
+    hi = max(max(c[0], c[1][1]) for c in cands)
+    ratio_ci = (lo - RATIO_MODEL_ERROR * est, hi + RATIO_MODEL_ERROR * est)
+    rot = rot_ci = rotj = rotj_ci = None
+    if rot_seen:
+        rot = float(b1[3])
+        rot_ci = _pct(B1[:, 3])
+        rotj = float(bj[k + 2])
+        rotj_ci = _pct(Bj[:, k + 2])
+    return RobotTermFit(
+        ratio=est,
+        ratio_ci=ratio_ci,
+        shift=s1,
+        shift_ci=s1_ci,
+        shift_joint=sj,
+        shift_joint_ci=sj_ci,
+        rotation=rot,
+        rotation_ci=rot_ci,
+        rotation_joint=rotj,
+        rotation_joint_ci=rotj_ci,
+        rms_vjm=float(np.sqrt(np.mean(x**2))),
+        rms_shift_pattern=float(np.sqrt(np.mean((shift_cols @ s1) ** 2))),
+        rms_rotation_pattern=float(np.sqrt(np.mean((rot_col * (rot or 0.0)) ** 2))),
+        joints_fitted=[int(i) + 1 for i in live],
+        n_laps=L,
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# the findings
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """Every suspect's :class:`Finding`, the sensor and robot-term fits behind them."""
+
+    findings: list[Finding]
+    sensor: SensorFit | None
+    robot: RobotTermFit | None
+    #: the robot's corrected tip wrench was used for the robot term (the sensor was at fault)
+    forces_corrected: bool
+
+    def to_list(self) -> list[dict[str, Any]]:
+        return [f.to_dict() for f in self.findings]
+
+    def by_suspect(self) -> dict[str, Finding]:
+        return {f.suspect: f for f in self.findings}
+
+    def scan_pattern(self, normal: F64, contact: F64) -> F64 | None:
+        """(N,) m — the normal deviation the scan's faults put on the robot part: ``n · s`` for
+        a shift and ``θ n · (ẑ × p)`` for a rotation, each only when its verdict is ``fault``
+        (None when neither is). ``normal``, ``contact`` (N, 3) work frame."""
+        f = self.by_suspect()
+        rf = self.robot
+        if rf is None:
+            return None
+        out = np.zeros(len(normal))
+        hit = False
+        if f["scan_shift"].verdict == "fault":
+            out += normal[:, :2] @ rf.shift
+            hit = True
+        if f["scan_rotation"].verdict == "fault" and rf.rotation is not None:
+            rot_col = np.einsum("ij,ij->i", normal, np.cross([0.0, 0.0, 1.0], contact))
+            out += rf.rotation * rot_col
+            hit = True
+        return out if hit else None
+
+
+def _finding(
+    suspect: str,
+    est: float | None,
+    ci: tuple[float, float] | None,
+    unit: str,
+    text: str,
+    todo: str,
+    *,
+    force: str | None = None,
+) -> Finding:
+    limits = DETECTION_LIMITS[suspect]
+    if est is None or ci is None:
+        v = "cannot_tell"
+        lo = hi = None
+    else:
+        lo, hi = ci
+        v = force or verdict(lo, hi, limits)
+    label = suspect.replace("_", " ")
+    if v == "fault":
+        head = f"{label}: FAULT — {text.split(';')[0]}; {todo}"
+    elif v == "ok":
+        head = f"{label}: ok"
+    else:
+        head = f"{label}: cannot tell — {text.split(';')[0]}"
+    return Finding(suspect, v, est, lo, hi, unit, text, head, limits)
+
+
+def _unknown(suspects: tuple[str, ...], why: str) -> list[Finding]:
+    """``cannot_tell`` without an estimate for each of ``suspects``, saying ``why``."""
+    return [_finding(s, None, None, UNITS[s], why, "") for s in suspects]
+
+
+def sensor_findings(sf: SensorFit | None, R: float) -> list[Finding]:
+    """force_gain, force_moment_crosstalk, force_bias from the sensor fit (None: no fit)."""
+    if sf is None:
+        why = "fewer than 6 used laps to compare the flange sensor with the CNC dynamometer"
+        return _unknown(("force_gain", "force_moment_crosstalk", "force_bias"), why)
+    g, (glo, ghi) = sf.gain, sf.gain_ci
+    gain_text = (
+        f"the flange sensor reads {g:.3f}× the CNC dynamometer's force on the same path (95 % "
+        f"[{glo:.3f}, {ghi:.3f}], deeper half of the laps; the shallow half differs by "
+        f"{sf.process_gap:+.1%}, the processes' own difference, added to the interval); "
+        f"largest force crosstalk {sf.force_crosstalk:.3f}"
+    )
+    cm = sf.moment_crosstalk * 1e3
+    clo, chi = (v * 1e3 for v in sf.moment_crosstalk_ci)
+    ct_text = (
+        f"the moment channels carry {cm:.2f} mm (N·m per kN) of false tip moment per unit force "
+        f"beyond the point-contact moment (contact − tip) × F, whose size is at most R·|F| "
+        f"(R = {R * 1e3:.1f} mm); the excess is {sf.moment_excess:.0%} of that bound"
+    )
+    b = sf.b
+    bias_limits = DETECTION_LIMITS["force_bias"]
+    v_b = verdict(sf.bias_ci[0], sf.bias_ci[1], bias_limits)
+    v_ba = verdict(sf.bias_axial_ci[0], sf.bias_axial_ci[1], bias_limits)
+    bias_fault = v_b == "fault"
+    ct_est, ct_ci, ct_force = cm, (clo, chi), None
+    if bias_fault:
+        plo, phi = (v * 1e3 for v in sf.moment_proportional_ci)
+        lim = DETECTION_LIMITS["force_moment_crosstalk"]
+        vp = verdict(plo, phi, lim)
+        ct_text += (
+            f"; with a force bias at fault, a constant false moment is also what the bias makes "
+            f"carried up the arm from the flange to the tip: the part that follows the force is "
+            f"{sf.moment_proportional * 1e3:.2f} mm ([{plo:.2f}, {phi:.2f}])"
+        )
+        if vp != "fault" and verdict(clo, chi, lim) == "fault":
+            ct_force = "cannot_tell"
+            ct_text += (
+                "; crosstalk from the axial force into the moment channels, or the bias, cannot "
+                "be told apart"
+            )
+        elif vp == "fault":
+            ct_est, ct_ci = sf.moment_proportional * 1e3, (plo, phi)
+    bias_text = (
+        f"a constant ({b[0]:+.1f}, {b[1]:+.1f}, {b[2]:+.1f}) N (work axes) between the flange "
+        "sensor's and the dynamometer's tip forces, the gain fitted beside it; an untared sensor "
+        "or the tool's weight below the sensor"
+    )
+    bias_force = None
+    bias_ci = sf.bias_ci
+    # no constant on this path (ok) rules out both; a constant may be either
+    if v_b == "fault" and v_ba != "fault":
+        bias_force = "cannot_tell"
+        bias_ci = (min(sf.bias_ci[0], sf.bias_axial_ci[0]), max(sf.bias_ci[1], sf.bias_axial_ci[1]))
+        cx, cy = sf.axial_crosstalk
+        bias_text += (
+            f"; or crosstalk of the axial force into the lateral channels ({cx:+.3f}, {cy:+.3f}) "
+            f"with a constant of {sf.bias_axial:.1f} N: the path's axial force varies too little "
+            "to tell them apart (either way the analysis removed the constant)"
+        )
+    return [
+        _finding(
+            "force_gain",
+            g,
+            sf.gain_ci,
+            "1",
+            gain_text,
+            "recalibrate the flange sensor (the analysis used forces divided by the gain)",
+        ),
+        _finding(
+            "force_moment_crosstalk",
+            ct_est,
+            ct_ci,
+            "mm",
+            ct_text,
+            "check the sensor's calibration matrix (the analysis used the point-contact moment)",
+            force=ct_force,
+        ),
+        _finding(
+            "force_bias",
+            sf.bias,
+            bias_ci,
+            "N",
+            bias_text,
+            "tare the sensor with the tool mounted, or declare tool_mass (the analysis removed it)",
+            force=bias_force,
+        ),
+    ]
+
+
+def robot_findings(rf: RobotTermFit | None, *, axisymmetric: bool) -> list[Finding]:
+    """robot_stiffness, scan_shift, scan_rotation, springback_coupling from the robot term."""
+    if rf is None:
+        why = "too few used points or laps to fit the robot term"
+        return _unknown(
+            ("robot_stiffness", "scan_shift", "scan_rotation", "springback_coupling"), why
+        )
+    out = []
+    lo, hi = rf.ratio_ci
+    out.append(
+        _finding(
+            "robot_stiffness",
+            rf.ratio,
+            rf.ratio_ci,
+            "1",
+            f"the robot gives way {rf.ratio:.3f}× the VJM's prediction at the corrected forces "
+            f"(95 % [{lo:.3f}, {hi:.3f}], spanning the one-scale and per-joint fits, joints "
+            f"{rf.joints_fitted} fitted, the others at nominal); VJM RMS "
+            f"{rf.rms_vjm * 1e3:.3f} mm",
+            "use identified_stiffness.toml for compensate and plan",
+        )
+    )
+    s1, sj = rf.shift * 1e3, rf.shift_joint * 1e3
+    c1 = tuple(v * 1e3 for v in rf.shift_ci)
+    cj = tuple(v * 1e3 for v in rf.shift_joint_ci)
+    lim = DETECTION_LIMITS["scan_shift"]
+    v1, vj = verdict(c1[0], c1[1], lim), verdict(cj[0], cj[1], lim)
+    text = (
+        f"the robot term carries the pattern of a sideways scan shift of "
+        f"{np.linalg.norm(s1):.3f} mm (x {s1[0]:+.3f}, y {s1[1]:+.3f}; 95 % of its size "
+        f"[{c1[0]:.3f}, {c1[1]:.3f}] mm) beside one stiffness scale, and "
+        f"{np.linalg.norm(sj):.3f} mm ([{cj[0]:.3f}, {cj[1]:.3f}]) beside a per-joint fit"
+    )
+    if v1 == vj:
+        force = v1
+        est, ci = float(np.linalg.norm(s1)), (min(c1[0], cj[0]), max(c1[1], cj[1]))
+    else:
+        force = "cannot_tell"
+        est, ci = float(np.linalg.norm(sj)), (min(c1[0], cj[0]), max(c1[1], cj[1]))
+        text += (
+            f"; the two explanations disagree: a shift of {np.linalg.norm(s1):.3f} mm "
+            f"(RMS {rf.rms_shift_pattern * 1e3:.3f} mm of normal deviation) with one stiffness "
+            "scale, or joint stiffness errors that differ joint by joint with a shift of "
+            f"{np.linalg.norm(sj):.3f} mm"
+        )
+    out.append(
+        _finding(
+            "scan_shift",
+            est,
+            ci,
+            "mm",
+            text,
+            "re-register the robot scan laterally (reference marks); the robot term holds it",
+            force=force,
+        )
+    )
+    if rf.rotation is None or rf.rotation_ci is None:
+        why = (
+            "the part is a surface of revolution: a rotation of the scan about its axis moves no "
+            "point off the surface, so it can be neither seen nor matter"
+            if axisymmetric
+            else "the geometry does not show a rotation about the part axis apart from the "
+            "other patterns"
+        )
+        out.append(_finding("scan_rotation", None, None, "deg", why, ""))
+    else:
+        r1 = math.degrees(rf.rotation)
+        ci1 = tuple(math.degrees(v) for v in rf.rotation_ci)
+        rj = math.degrees(rf.rotation_joint or 0.0)
+        cij = tuple(math.degrees(v) for v in (rf.rotation_joint_ci or (math.nan, math.nan)))
+        ci = (min(ci1[0], cij[0]), max(ci1[1], cij[1]))
+        # the size's interval (a signed angle: |θ| within [0, max |end|] when it spans 0)
+        lo_abs = 0.0 if ci[0] <= 0 <= ci[1] else min(abs(ci[0]), abs(ci[1]))
+        hi_abs = max(abs(ci[0]), abs(ci[1]))
+        out.append(
+            _finding(
+                "scan_rotation",
+                abs(r1),
+                (lo_abs, hi_abs),
+                "deg",
+                f"the robot term carries the pattern of a rotation of the scan about the part "
+                f"axis of {r1:+.3f}° (95 % [{ci1[0]:+.3f}, {ci1[1]:+.3f}]°; {rj:+.3f}° beside "
+                f"a per-joint fit), RMS {rf.rms_rotation_pattern * 1e3:.3f} mm of normal "
+                "deviation",
+                "re-register the robot scan about the part axis (reference marks)",
+            )
+        )
+    in_band = verdict(lo, hi, DETECTION_LIMITS["robot_stiffness"]) == "ok"
+    out.append(
+        _finding(
+            "springback_coupling",
+            0.0 if in_band else None,
+            (0.0, max(1 - lo, hi - 1)) if in_band else None,
+            "1",
+            "a sheet that recovers part of the robot's deflection scales the robot term as a "
+            "stiffer robot would: "
+            + (
+                "the robot term agrees with the model, so neither is off"
+                if in_band
+                else f"the ratio {rf.ratio:.3f} is a softer robot, or a coupling, or both"
+            ),
+            "",
+        )
+    )
+    return out
+
+
+def diagnosis_headline(findings: list[Finding]) -> str:
+    """One line: the faults (or that nothing is off, or what cannot be told)."""
+    faults = [f for f in findings if f.verdict == "fault"]
+    if faults:
+        return "diagnosis: " + " | ".join(f.headline for f in faults)
+    unsure = [f.suspect for f in findings if f.verdict == "cannot_tell"]
+    if unsure:
+        return "diagnosis: no fault found; cannot tell: " + ", ".join(unsure)
+    return "diagnosis: no fault found"
+
+
+@dataclass(frozen=True)
+class CorrectedRobotTerm:
+    """The robot term and the robot wrench after the diagnosis's force correction.
+
+    W_rob : (N, 6) [N, N·m] tip wrench, work axes; measured : (N,) m normal robot term (less
+    the pattern of the scan's faults);
+    vjm : (N,) m the VJM's normal deflection at ``W_rob``; A : (N, 6) the identification's
+    design at ``W_rob`` (ball centre)."""
+
+    W_rob: F64
+    measured: F64
+    vjm: F64
+    A: F64
+
+
+def diagnose(
+    *,
+    robot: Any,
+    q: F64,
+    T_base_work: F64,
+    k_t: F64,
+    k_th: F64 | None,
+    k_c: F64,
+    ball_radius: float,
+    normal: F64,
+    contact: F64,
+    tip: F64,
+    lap: NDArray[Any],
+    depth: F64,
+    W_cnc: F64,
+    W_rob: F64,
+    measured: F64,
+    valid: NDArray[np.bool_],
+    axisymmetric: bool,
+) -> tuple[Diagnosis, CorrectedRobotTerm]:
+    """Every suspect's verdict for one study (module docstring) and the corrected robot term.
+
+    robot : the study's :class:`roboisf.robot.RobotModel`; q : (N, 6) rad; k_t, k_th : (6, 6)
+    tool and holder compliance at the tip (None: rigid holder); k_c : (N, 6, 6) the robot's
+    VJM compliance at the tip; ball_radius : m; normal, contact, tip : (N, 3) work frame, m;
+    W_cnc, W_rob : (N, 6) tip wrenches [N, N·m]; measured : (N,) m the analysis's normal robot
+    term (at the measured robot forces); valid : (N,) bool."""
+    from roboisf.cell import at_ball_centre
+    from roboisf.decompose.identify import forming_design
+
+    arm = contact - tip
+    sf = fit_sensor(W_cnc, W_rob, arm, valid, lap, depth)
+    findings = sensor_findings(sf, ball_radius)
+    fv = {f.suspect: f.verdict for f in findings}
+    correct = sf is not None and any(
+        fv[s] == "fault" for s in ("force_gain", "force_moment_crosstalk", "force_bias")
+    )
+    W = W_rob
+    y = measured
+    if correct:
+        assert sf is not None
+        # the tip moment is replaced by the point-contact moment whenever it is in doubt
+        W = sf.corrected(W_rob, arm, moments=fv["force_moment_crosstalk"] != "ok")
+
+        def tool_terms(Wx: F64) -> F64:
+            d = at_ball_centre(Wx @ k_t.T, ball_radius)
+            if k_th is not None:
+                d = d + at_ball_centre(Wx @ k_th.T, ball_radius)
+            return np.einsum("ij,ij->i", d, normal)
+
+        # the robot term keeps what the scans measured; only the force-driven terms change
+        y = measured + tool_terms(W_rob) - tool_terms(W)
+    vjm = np.einsum(
+        "ij,ij->i", at_ball_centre(np.einsum("nij,nj->ni", k_c, W), ball_radius), normal
+    )
+    A = forming_design(robot, q, W, T_base_work, normal, ball_radius)
+    per_joint = A / robot.joint_stiffness[None, :]
+    rf = fit_robot_term(y, vjm, per_joint, normal, contact, valid, lap)
+    if rf is not None and sf is not None:
+        # the VJM runs on the forces as measured, or divided by the fitted gain: the ratio
+        # carries the gain's uncertainty (a gain inside the ok band is not corrected, but a
+        # 2 % gain is 2 % of the ratio)
+        g_lo, g_hi = sf.gain_ci
+        if correct:
+            g_lo, g_hi = g_lo / sf.gain, g_hi / sf.gain
+        lo, hi = rf.ratio_ci
+        rf = replace(rf, ratio_ci=(lo * min(g_lo, 1.0), hi * max(g_hi, 1.0)))
+    findings += robot_findings(rf, axisymmetric=axisymmetric)
+    order = {s: i for i, s in enumerate(SUSPECTS)}
+    findings.sort(key=lambda f: order[f.suspect])
+    diag = Diagnosis(findings, sf, rf, correct)
+    pattern = diag.scan_pattern(normal, contact)
+    if pattern is not None:  # the identification sees the robot, not the scan's misregistration
+        y = y - pattern
+    return diag, CorrectedRobotTerm(W, y, vjm, A)
