@@ -2,8 +2,9 @@
 
 Every command: ``--help``; ``-o/--output`` (checked and locked before computing, never loses a
 file roboisf did not write: docs/conventions.md, Outputs); exit code 0 on success, 2 on bad input
-(one line on stderr naming the file/field and what was expected), 1 on an internal error, 130/143
-when interrupted by SIGINT/SIGTERM. ``-q`` silences
+(one line on stderr naming the file/field and what was expected) or a refusal of the machine (a
+full disk, a name too long, no permission, an unreachable host: one line naming the path and what
+to do), 1 on an internal error, 130/143 when interrupted by SIGINT/SIGTERM. ``-q`` silences
 progress and info, ``-v`` adds detail. Call :func:`main` with an argv list from tests.
 """
 
@@ -20,7 +21,13 @@ from roboisf import __version__
 from roboisf.cli.console import state
 from roboisf.cli.lazy import LazyCommand, LazyGroup
 from roboisf.errors import ConvergenceError, InputError
-from roboisf.io.outdir import Interrupted, deferred_signals, output_session, signal_handlers
+from roboisf.io.outdir import (
+    Interrupted,
+    deferred_signals,
+    environment_error,
+    output_session,
+    signal_handlers,
+)
 
 # every command, in the order --help lists them (the workflow first, then the building blocks),
 # with the module whose register(app) adds it and its one-line help: --help lists them without
@@ -162,6 +169,13 @@ def _run(args: list[str]) -> int:
         return 3
     except typer.Exit as e:
         return int(e.exit_code or 0)
+    except (OSError, MemoryError) as e:
+        # what the machine refused (a full disk, a name too long, no permission, an unreachable
+        # host, no memory): one line naming the path and what to do, like a bad input; the
+        # staging folders and temporary files were removed on the way up, the locks are
+        # released by the output session
+        _error(environment_error(e))
+        return 2
     except Exception as e:
         # usage errors (unknown option, missing argument): click's ClickException interface —
         # typer ≥ 0.16 vendors its own click, so match the interface, not the class

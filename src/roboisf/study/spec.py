@@ -284,7 +284,15 @@ class _Collector:
             return None
         p = Path(v)
         p = p if p.is_absolute() else root / p
-        if not p.is_file():
+        try:
+            found = p.is_file()
+        except OSError as e:  # a name too long for the file system, a loop of links …
+            what = e.strerror or str(e)
+            self.add(
+                f"{what[:1].lower()}{what[1:]}: {v[:40]}… ({len(v)} characters)", f"{key}.{name}"
+            )
+            return None
+        if not found:
             self.add(f"file not found: {p}", f"{key}.{name}")
             return None
         return p
@@ -626,12 +634,14 @@ def load_study(path: str | Path) -> Study:
     tt = c.table(
         data, "tool", {"ball_diameter", "compliance", "free_length", "shank_diameter", "method"}
     )
-    ball = c.number(tt, "tool", "ball_diameter", positive=True) if tt else None
+    # an empty [tool] table still needs its ball (c.table reported a missing or non-table one)
+    has_tool = isinstance(data.get("tool"), dict)
+    ball = c.number(tt, "tool", "ball_diameter", positive=True) if has_tool else None
     tool_c = c.path(root, tt, "tool", "compliance", required=False)
     free = c.number(tt, "tool", "free_length", positive=True, required=False)
     shank = c.number(tt, "tool", "shank_diameter", positive=True, required=False)
     method = c.choice(tt, "tool", "method", ("beam", "fe"), default="beam")
-    if tt and tool_c is None and "compliance" not in tt and free is None:
+    if has_tool and tool_c is None and "compliance" not in tt and free is None:
         c.add("give either 'compliance' (a JSON file) or 'free_length' (mm) to compute it", "tool")
     tool = None
     if ball is not None:

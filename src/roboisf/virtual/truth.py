@@ -58,6 +58,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.errors import InputError
+from roboisf.io.text import read_text
 
 __all__ = [
     "OPW_KEYS",
@@ -417,11 +418,10 @@ def _from_table(data: Mapping[str, Any], source: str) -> TruthSpec:
 
 
 def _read_toml(path: Path) -> dict[str, Any]:
-    try:
-        with open(path, "rb") as fh:
-            return tomllib.load(fh)
-    except FileNotFoundError:
-        raise InputError("truth file not found", file=str(path)) from None
+    if not path.exists():
+        raise InputError("truth file not found", file=str(path))
+    try:  # UTF-8 only: another encoding is refused with the line and byte, not a traceback
+        return tomllib.loads(read_text(path, what="truth TOML"))
     except tomllib.TOMLDecodeError as e:
         raise InputError(f"not valid TOML: {e}", file=str(path)) from None
 
