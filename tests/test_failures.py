@@ -176,3 +176,189 @@ def test_a_missing_folder_name_too_long_is_refused(tmp_path, capsys):
     assert main(argv) == 2
     assert "300 bytes long" in _err_line(capsys)
     assert os.listdir(tmp_path) == []
+
+
+# -- plausibility: the range a real cell has, and the unit slip that explains a value ----------
+
+TINY_VC = ["virtual-cell", "cone", "--scan-points", "3000", "--step-down", "2", "--spacing", "4"]
+
+
+@pytest.fixture(scope="module")
+def tiny_study(tmp_path_factory) -> Path:
+    """A small virtual cone study (read-only: tests copy it)."""
+    root = tmp_path_factory.mktemp("tiny")
+    assert main(["-q", *TINY_VC, "-o", str(root / "s")]) == 0
+    return root / "s"
+
+
+def _edited(study: Path, dst: Path, old: str, new: str) -> Path:
+    import shutil
+
+    shutil.copytree(study, dst)
+    text = (dst / "study.toml").read_text()
+    assert old in text, old
+    (dst / "study.toml").write_text(text.replace(old, new, 1))
+    return dst
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "field", "words"),
+    [
+        # a µm/mm slip: the issue's 66 000 gave holder and robot R_m of 4 670 mm
+        ("offset = 66.0", "offset = 66000", "tool_holder.offset", "66 mm if it was written in µm"),
+        ("offset = 66.0", "offset = 1e30", "tool_holder.offset", "no usual unit slip"),
+        ("sheet_thickness = 1.22", "sheet_thickness = 1e29", "part.sheet_thickness", "0.02 to 20"),
+        # a plausible sheet, but thicker than the part is wide / 10
+        (
+            "sheet_thickness = 1.22",
+            "sheet_thickness = 15",
+            "part.sheet_thickness",
+            "cannot be formed",
+        ),
+        (
+            "ball_diameter = 10.0",
+            "ball_diameter = 0.01",
+            "tool.ball_diameter",
+            "10 mm if it was written in m",
+        ),
+        ("    -286.0,", "    1e29,", "runs.robot.forces.pose[z]", "force sensor's position"),
+        ("    2200.0,", "    2200000.0,", "robot.placement[x]", "2200 mm if it was written in µm"),
+        ("contour_z = -11.0", "contour_z = 5", "analysis.contour_z", "not on the part's wall"),
+        ("contour_z = -11.0", "contour_z = 1e308", "analysis.contour_z", "not on the part's wall"),
+        ("contour_z = -11.0", "contour_z = -0.011", "analysis.contour_z", None),  # shallow: fine
+        (
+            "rim_band = 20.0",
+            "rim_band = 20000.0",
+            "analysis.rim_band",
+            "20 mm if it was written in µm",
+        ),
+    ],
+)
+def test_absurd_study_values_are_refused_with_the_unit_slip(
+    tiny_study, tmp_path, old, new, field, words
+):
+    from roboisf.study import load_study
+    from roboisf.study.spec import StudyError
+
+    s = _edited(tiny_study, tmp_path / "s", old, new)
+    if words is None:
+        load_study(s)
+        return
+    with pytest.raises(StudyError) as e:
+        load_study(s)
+    assert f"[{field}]" in str(e.value) and words in str(e.value), str(e.value)
+
+
+def test_the_cli_names_the_key_and_writes_nothing(tiny_study, tmp_path, capsys):
+    s = _edited(tiny_study, tmp_path / "s", "offset = 66.0", "offset = 66000")
+    assert main(["analyze", str(s), "-o", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert "[tool_holder.offset]" in err and "Traceback" not in err
+    assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.parametrize(
+    ("text", "field", "words"),
+    [
+        ("[tool]\nmass = -3\n", "tool.mass", "0 to 500 kg"),
+        ("[tool]\nmass = 4000\n", "tool.mass", "4 kg if it was written in g"),
+        ("[scan]\nshift = [150000, 0, 0]\n", "scan.shift[0]", "150 mm if it was written in µm"),
+        ("[robot]\nthermal_drift = [0, 0, 1e9]\n", "robot.thermal_drift[2]", "outside"),
+        ("[force_sensor]\nbias = [3e7, 0, 0, 0, 0, 0]\n", "force_sensor.bias[0]", "outside"),
+        (
+            "[springback]\namplitude = 1330\n",
+            "springback.amplitude",
+            "1.33 mm if it was written in µm",
+        ),
+        ("[cnc]\ncompliance = 20\n", "cnc.compliance[0]", "0.02 mm/N if it was written in µm/N"),
+        ("[robot.kinematic_error]\nc2 = 20000\n", "robot.kinematic_error.c2", "20 mm if it"),
+    ],
+)
+def test_absurd_truth_values_are_refused(tmp_path, text, field, words):
+    from roboisf.errors import InputError
+    from roboisf.virtual.truth import load_truth
+
+    p = tmp_path / "truth.toml"
+    p.write_text(text)
+    with pytest.raises(InputError) as e:
+        load_truth(p)
+    assert e.value.field == field and words in str(e.value), str(e.value)
+    assert str(p) in str(e.value)
+
+
+def test_a_truth_toml_that_is_not_utf8_is_refused(tmp_path, capsys):
+    p = tmp_path / "t.toml"
+    p.write_bytes("[tool]\nmass = 4.0 # café\n".encode("latin-1"))
+    argv = [*TINY_VC, "--truth", str(p), "-o", str(tmp_path / "s")]
+    assert main(argv) == 2
+    assert "t.toml:2: truth TOML is not UTF-8 text" in _err_line(capsys)
+
+
+@pytest.mark.parametrize(
+    ("argv", "words"),
+    [
+        (["cone", "--sheet-thickness", "500"], "0.5 mm if it was written in µm"),
+        (["cone", "--sheet-thickness", "0.001"], "1 mm if it was written in m"),
+        (["cone", "--depth", "40", "--sheet-thickness", "12"], "cannot be formed"),
+    ],
+)
+def test_absurd_parts_are_refused_before_writing(tmp_path, capsys, argv, words):
+    out = tmp_path / "p.toml"
+    assert main(["part", *argv, "-o", str(out)]) == 2
+    assert words in _err_line(capsys)
+    assert not out.exists()
+
+
+def test_an_empty_tool_table_is_a_study_problem_not_an_assertion(tiny_study, tmp_path):
+    from roboisf.study import load_study
+    from roboisf.study.spec import StudyError
+
+    s = _edited(
+        tiny_study,
+        tmp_path / "s",
+        'ball_diameter = 10.0\ncompliance = "tool_compliance.json"\n',
+        "",
+    )
+    with pytest.raises(StudyError, match=r"\[tool\.ball_diameter\]: missing key"):
+        load_study(s)
+
+
+def test_a_study_file_name_too_long_names_the_key(tiny_study, tmp_path):
+    from roboisf.study import load_study
+    from roboisf.study.spec import StudyError
+
+    s = _edited(tiny_study, tmp_path / "s", 'scan = "cnc_scan.ply"', f'scan = "{"s" * 300}.ply"')
+    with pytest.raises(StudyError, match=r"\[runs\.cnc\.scan\]: file name too long"):
+        load_study(s)
+
+
+# -- URDF limits, validated like a robot TOML's ------------------------------------------------
+
+URDF_DIR = Path(__file__).parent / "data" / "urdf"
+
+
+@pytest.mark.parametrize(
+    ("lower", "upper", "words"),
+    [
+        ("2.0", "-2.0", "needs lower < upper"),
+        ("nan", "2.0", "must be a finite angle in rad"),
+        ("-2.0", "abc", "must be a finite angle in rad"),
+        ("-170", "170", "URDF limits are radians"),  # degrees written where URDF has radians
+    ],
+)
+def test_urdf_limits_are_refused_not_widened_to_360(tmp_path, lower, upper, words):
+    import re
+
+    from roboisf.errors import InputError
+    from roboisf.robot.urdf import load_urdf
+
+    src = next(iter(sorted(URDF_DIR.glob("*.urdf"))))
+    text = src.read_text()
+    # the first revolute joint's limits
+    m = re.search(r'<limit[^>]*lower="([^"]+)"[^>]*upper="([^"]+)"', text)
+    assert m is not None
+    bad = text[: m.start(1)] + lower + text[m.end(1) : m.start(2)] + upper + text[m.end(2) :]
+    p = tmp_path / src.name
+    p.write_text(bad)
+    with pytest.raises(InputError, match=words):
+        load_urdf(p)
