@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from roboisf.cli.main import main
-from roboisf.errors import ResourceError
+from roboisf.errors import InputError, ResourceError
 from roboisf.io import outdir
 from roboisf.io.atomic import staged_directory
 from roboisf.io.outdir import claim_output_file, environment_error, output_session
@@ -362,3 +362,91 @@ def test_urdf_limits_are_refused_not_widened_to_360(tmp_path, lower, upper, word
     p.write_text(bad)
     with pytest.raises(InputError, match=words):
         load_urdf(p)
+
+
+# -- results carry the fingerprint of their study; a stiffness the robot it was identified on ---
+
+
+def _results_for(study: Path, folder: Path, *, fingerprint_of: Path, nan_rows: int = 0) -> Path:
+    """A results folder for ``study``'s robot toolpath (per_point.parquet with the columns
+    compensate reads) whose summary.json carries the fingerprint of ``fingerprint_of``."""
+    import json
+
+    import numpy as np
+    import pandas as pd
+
+    from roboisf.io.toolpath_csv import read_toolpath_csv
+    from roboisf.study import load_study
+    from roboisf.study.fingerprint import study_fingerprint
+
+    n = len(read_toolpath_csv(study / "toolpath.csv"))
+    folder.mkdir()
+    pp = pd.DataFrame({f"robot_{w}": np.zeros(n) for w in ("Fx", "Fy", "Fz", "Mx", "My", "Mz")})
+    pp["robot_Fz"] = 500.0
+    pp["robot_dn"] = 0.1
+    pp["robot_valid"] = True
+    pp.loc[: nan_rows - 1, "robot_dn"] = np.nan if nan_rows else 0.1
+    pp.to_parquet(folder / "per_point.parquet")
+    fp = study_fingerprint(load_study(fingerprint_of))
+    (folder / "summary.json").write_text(json.dumps({"fingerprint": fp}))
+    return folder
+
+
+def test_results_of_another_study_are_refused(tiny_study, tmp_path, capsys):
+    from roboisf.study import load_study
+    from roboisf.study.fingerprint import check_results
+
+    other = _edited(tiny_study, tmp_path / "other", 'name = "cone-71"', 'name = "cone-b"')
+    res = _results_for(tiny_study, tmp_path / "res", fingerprint_of=other)
+    with pytest.raises(InputError, match=r"come from the study 'cone-b'"):
+        check_results(load_study(tiny_study), res)
+    mine = _results_for(tiny_study, tmp_path / "mine", fingerprint_of=tiny_study)
+    check_results(load_study(tiny_study), mine)  # its own results pass
+    # the same study with one input file changed since: refused naming the key
+    changed = _edited(tiny_study, tmp_path / "changed", "", "")
+    with open(changed / "robot_scan.ply", "ab") as fh:
+        fh.write(b"\0")
+    with pytest.raises(InputError, match=r"runs\.robot\.scan differs"):
+        check_results(load_study(changed), mine)
+    # the CLI: exit 2 naming summary.json, nothing written
+    out = tmp_path / "o"
+    assert main(["compensate", str(tiny_study), "--results", str(res), "-o", str(out)]) == 2
+    err = _err_line(capsys)
+    assert "res/summary.json [fingerprint]" in err and "cone-b" in err
+    assert not out.exists()
+
+
+def test_results_without_a_fingerprint_are_refused(tiny_study, tmp_path):
+    from roboisf.study import load_study
+    from roboisf.study.fingerprint import check_results
+
+    res = _results_for(tiny_study, tmp_path / "res", fingerprint_of=tiny_study)
+    (res / "summary.json").write_text('{"study": "cone-71"}')  # the name alone: not enough
+    with pytest.raises(InputError, match="carry no study fingerprint"):
+        check_results(load_study(tiny_study), res)
+    (res / "summary.json").unlink()
+    with pytest.raises(InputError, match=r"no summary\.json"):
+        check_results(load_study(tiny_study), res)
+
+
+def test_nan_deviation_in_measured_rows_is_refused(tiny_study, tmp_path, capsys):
+    res = _results_for(tiny_study, tmp_path / "res", fingerprint_of=tiny_study, nan_rows=104)
+    out = tmp_path / "o"
+    assert main(["compensate", str(tiny_study), "--results", str(res), "-o", str(out)]) == 2
+    err = _err_line(capsys)
+    assert "[robot_dn]: NaN in 104 rows flagged robot_valid (first: row 0)" in err
+    assert not out.exists()
+
+
+def test_a_stiffness_identified_on_another_robot_is_refused(tmp_path, capsys):
+    from roboisf.errors import InputError
+    from roboisf.robot import load_stiffness
+
+    k = tmp_path / "K.toml"
+    k.write_text('[stiffness]\nK = [1e6, 1e6, 1e6, 1e5, 1e5, 1e5]\nrobot = "kr500-r2800-2"\n')
+    with pytest.raises(InputError, match=r"identified on the robot 'kr500-r2800-2', not on"):
+        load_stiffness(k, robot="irb7600-500-2.55")
+    assert load_stiffness(k, robot="kr500-r2800-2")[0] == 1e6
+    assert load_stiffness(k)[0] == 1e6  # no robot to compare with (a plain file)
+    assert main(["robot", "show", "--robot", "irb7600-500-2.55", "--stiffness", str(k)]) == 2
+    assert "[stiffness.robot]" in _err_line(capsys)

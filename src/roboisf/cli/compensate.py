@@ -38,7 +38,10 @@ def register(app: typer.Typer) -> None:
         overwrite: Overwrite = False,
         results: Annotated[
             Path | None,
-            typer.Option(help="An `roboisf analyze` results folder of STUDY to reuse."),
+            typer.Option(
+                help="An `roboisf analyze` results folder of STUDY to reuse; refused when its "
+                "fingerprint (summary.json) is not that of STUDY as its files are now."
+            ),
         ] = None,
         previous: Annotated[
             Path | None,

@@ -223,7 +223,7 @@ def _problem(
 
     def _override(m: Any) -> Any:
         if stiffness is not None:
-            m = m.with_stiffness(load_stiffness(stiffness), source=str(stiffness))
+            m = m.with_stiffness(load_stiffness(stiffness, robot=m.name), source=str(stiffness))
         if tool is not None:
             m = m.with_tool(make_transform(None, _floats(tool, 3, "--tool") * 1e-3))
         return m

@@ -59,7 +59,7 @@ def _model(robot: str, stiffness: Path | None, tool: str | None) -> RobotModel:
 
     m = load_robot(robot)
     if stiffness is not None:
-        m = m.with_stiffness(load_stiffness(stiffness), source=str(stiffness))
+        m = m.with_stiffness(load_stiffness(stiffness, robot=m.name), source=str(stiffness))
     if tool is not None:
         m = m.with_tool(make_transform(None, _floats(tool, 3, "--tool") * 1e-3))
     return m
@@ -227,6 +227,7 @@ def identify_cmd(
             "residual_rms_m": r.residual_rms,
             "condition_number": r.condition_number,
             "source": f"roboisf robot identify {calib.name} ({m.name})",
+            "robot": m.name,  # load_stiffness refuses it for another robot
         }
     }
     with atomic_write(output, "wb", encoding=None) as f:
