@@ -450,3 +450,109 @@ def test_a_stiffness_identified_on_another_robot_is_refused(tmp_path, capsys):
     assert load_stiffness(k)[0] == 1e6  # no robot to compare with (a plain file)
     assert main(["robot", "show", "--robot", "irb7600-500-2.55", "--stiffness", str(k)]) == 2
     assert "[stiffness.robot]" in _err_line(capsys)
+
+
+# -- size limits and CAM programs that cannot be on the part ----------------------------------
+
+
+@pytest.fixture(scope="module")
+def cone_program(tmp_path_factory) -> tuple[Path, Path]:
+    """The paper cone as a part TOML and roboisf's own G-code of it (2 mm step-down)."""
+    root = tmp_path_factory.mktemp("cam")
+    assert main(["-q", "part", "cone", "-o", str(root / "cone.toml")]) == 0
+    assert main(["-q", "toolpath", "cone", "--step-down", "2", "-o", str(root / "cone.nc")]) == 0
+    return root / "cone.toml", root / "cone.nc"
+
+
+def _import(program: Path, part: Path, out: Path, *extra: str) -> list[str]:
+    return ["toolpath", "import", str(program), "--part", str(part), "--tool-diameter", "10",
+            "-o", str(out), *extra]  # fmt: skip
+
+
+def _rewrite(src: Path, dst: Path, fn) -> Path:
+    import re
+
+    text = src.read_text()
+    dst.write_text(re.sub(r"([XYZ])(-?[\d.]+)", lambda m: fn(m.group(1), float(m.group(2))), text))
+    return dst
+
+
+@pytest.mark.parametrize(
+    ("case", "words"),
+    [
+        ("inches", "likely in inches (G20) read as mm"),
+        ("metres", "likely in m read as mm"),
+        ("g91", "incremental moves (G91) where absolute ones (G90) were meant"),
+        ("deeper", "goes 52.97 mm into the part"),
+        ("other", "for another part"),
+    ],
+)
+def test_cam_programs_that_cannot_be_on_the_part_are_refused(
+    cone_program, tmp_path, capsys, case, words
+):
+    part, prog = cone_program
+    if case == "inches":
+        prog = _rewrite(prog, tmp_path / "p.nc", lambda a, v: f"{a}{v / 25.4:.5f}")
+    elif case == "metres":
+        prog = _rewrite(prog, tmp_path / "p.nc", lambda a, v: f"{a}{v / 1000:.6f}")
+    elif case == "g91":  # an absolute program with a stray G91 before its first feed move
+        text = prog.read_text()
+        i = text.index("G01")
+        prog = tmp_path / "p.nc"
+        prog.write_text(text[:i] + "G91\n" + text[i:])
+    elif case == "deeper":  # the 103 mm program on a 50 mm deep cone
+        part = tmp_path / "c50.toml"
+        assert main(["-q", "part", "cone", "--depth", "50", "-o", str(part)]) == 0
+    else:
+        part = tmp_path / "pyr.toml"
+        assert main(["-q", "part", "pyramid", "-o", str(part)]) == 0
+    capsys.readouterr()
+    out = tmp_path / "t.csv"
+    assert main(_import(prog, part, out)) == 2
+    err = _err_line(capsys)
+    assert words in err, err
+    assert not out.exists()
+
+
+def test_the_program_itself_still_imports(cone_program, tmp_path):
+    part, prog = cone_program
+    assert main(["-q", *_import(prog, part, tmp_path / "t.csv")]) == 0
+
+
+@pytest.mark.parametrize(
+    ("extra", "words"),
+    [
+        (["--spacing", "1e-6"], "use a spacing of at least 0.0014 mm"),
+        (["--units", "furlong"], "unknown length unit 'furlong'"),
+        (["--units", "in"], "units applies to an x,y,z point list"),
+    ],
+)
+def test_import_options_that_explode_or_are_ignored_are_refused(
+    cone_program, tmp_path, capsys, extra, words
+):
+    part, prog = cone_program
+    out = tmp_path / "t.csv"
+    assert main(_import(prog, part, out, *extra)) == 2
+    assert words in _err_line(capsys)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("ranges", "words"),
+    [
+        (["--x-range", "1000:2200:100000"], "100,000 values"),
+        (["--x-range", "1000:2200:1000", "--y-range", "-400:400:200"], "1,000,000 candidates"),
+        (["--tool-rotations", ",".join(["0"] * 10001)], "10,001 values"),
+    ],
+)
+def test_plan_grids_that_explode_are_refused_before_building(
+    cone_program, tmp_path, capsys, monkeypatch, ranges, words
+):
+    import roboisf.cli.plan as plan_cli
+
+    monkeypatch.setattr(plan_cli, "_problem", lambda *a, **k: pytest.fail("built the problem"))
+    part, _ = cone_program
+    out = tmp_path / "plan"
+    assert main(["plan", "--part", str(part), *ranges, "-o", str(out)]) == 2
+    assert words in _err_line(capsys)
+    assert not out.exists()

@@ -97,7 +97,8 @@ def import_command(
         float | None,
         typer.Option(
             help="Split forming moves longer than this [mm] evenly (long CAM lines → points "
-            "every SPACING for the force and scan look-ups). Default: the points as programmed.",
+            "every SPACING for the force and scan look-ups; at most 5 M points). Default: the "
+            "points as programmed.",
         ),
     ] = None,
     rapid_rate: Annotated[
@@ -134,7 +135,10 @@ def import_command(
     ] = None,
     units: Annotated[
         str | None,
-        typer.Option(help="Length unit of an x,y,z list: mm (default), m or in."),
+        typer.Option(
+            help="Length unit of an x,y,z list: mm (default), m or in (refused for a G-code, "
+            "Sinumerik or APT program: they declare their own)."
+        ),
     ] = None,
     feed: Annotated[
         float,
