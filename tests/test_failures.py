@@ -556,3 +556,50 @@ def test_plan_grids_that_explode_are_refused_before_building(
     assert main(["plan", "--part", str(part), *ranges, "-o", str(out)]) == 2
     assert words in _err_line(capsys)
     assert not out.exists()
+
+
+# -- outputs independent of where they were written ----------------------------------------------
+
+
+def _same_bytes(a: Path, b: Path) -> None:
+    """Every file roboisf wrote in ``a`` and ``b`` is byte-identical (the marker, which holds the
+    time and the files' mtimes, aside), and no file names either folder."""
+    ta = {k: v for k, v in _tree(a).items() if Path(k).name != outdir.MARKER}
+    tb = {k: v for k, v in _tree(b).items() if Path(k).name != outdir.MARKER}
+    assert ta.keys() == tb.keys()
+    assert [k for k in ta if ta[k] != tb[k]] == []
+    for p in a.rglob("*"):
+        if p.is_file() and p.suffix in (".json", ".html", ".csv", ".toml", ".mod", ".src", ".nc"):
+            text = p.read_text(encoding="utf-8", errors="replace")
+            assert str(a) not in text and str(a.resolve()) not in text, p
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["part", "cone", "-o", "{o}/p.toml"],
+        ["toolpath", "cone", "--step-down", "2", "-o", "{o}/t.csv"],
+        ["toolpath", "cone", "--step-down", "2", "--placement", "base", "--tool", "300",
+         "-o", "{o}/t.src"],
+        [*TINY_VC, "-o", "{o}/vc"],
+    ],
+    ids=["part", "toolpath", "toolpath krl", "virtual-cell"],
+)  # fmt: skip
+def test_the_same_inputs_give_the_same_bytes_in_any_folder(tmp_path, argv):
+    a, b = tmp_path / "a", tmp_path / "deeper" / "and" / "b"
+    for o in (a, b):
+        o.mkdir(parents=True)
+        assert main(["-q", *(x.format(o=o) for x in argv)]) == 0
+    _same_bytes(a, b)
+
+
+@pytest.mark.slow
+def test_analyze_and_compensate_give_the_same_bytes_in_any_folder(fast_cone_study, tmp_path):
+    # before: summary.json and report.html embedded the absolute path of the results folder
+    a, b = tmp_path / "a", tmp_path / "x" / "y" / "b"
+    for o in (a, b):
+        o.mkdir(parents=True)
+        assert main(["-q", "analyze", str(fast_cone_study), "-o", str(o / "r")]) == 0
+        argv = ["-q", "compensate", str(fast_cone_study), "--results", str(o / "r")]
+        assert main([*argv, "-o", str(o / "c")]) == 0
+    _same_bytes(a, b)
