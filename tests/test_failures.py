@@ -603,3 +603,88 @@ def test_analyze_and_compensate_give_the_same_bytes_in_any_folder(fast_cone_stud
         argv = ["-q", "compensate", str(fast_cone_study), "--results", str(o / "r")]
         assert main([*argv, "-o", str(o / "c")]) == 0
     _same_bytes(a, b)
+
+
+# -- mesh parts that cannot be a formed sheet ---------------------------------------------------
+
+
+def _pocket() -> tuple[list[list[float]], list[list[int]]]:
+    """A 100 × 100 × 40 mm open pocket below the sheet plane, normals up/inwards (tool side)."""
+    V = [[x, y, z] for z in (0.0, -40.0) for y in (-50.0, 50.0) for x in (-50.0, 50.0)]
+    # top ring 0..3 (z = 0), bottom 4..7; x fastest, then y
+    quads = [(4, 5, 7, 6), (0, 1, 5, 4), (1, 3, 7, 5), (3, 2, 6, 7), (2, 0, 4, 6)]
+    F = [t for a, b, c, d in quads for t in ([a, b, c], [a, c, d])]
+    return V, F
+
+
+@pytest.mark.parametrize(
+    ("case", "orient", "words"),
+    [
+        ("closed", "up", "the mesh is closed"),
+        ("fin", "up", "shared by three or more triangles"),
+        ("flag", "up", "stand on one edge with the others open"),
+        ("inverted", "winding", "normals point down"),
+        ("pocket", "winding", None),
+        ("pocket", "up", None),
+    ],
+)
+def test_mesh_files_that_cannot_be_a_formed_sheet_are_refused(
+    tmp_path, capsys, case, orient, words
+):
+    import trimesh
+
+    V, F = _pocket()
+    if case == "closed":
+        F = [*F, [0, 3, 1], [0, 2, 3]]
+    elif case == "fin":  # a vertical triangle on the bottom's diagonal
+        V = [*V, [0.0, 0.0, -20.0]]
+        F = [*F, [4, 7, 8]]
+    elif case == "flag":  # a (near-)vertical triangle hanging off the rim, outside the pocket
+        V = [*V, [0.0, -52.0, -30.0]]
+        F = [*F, [0, 8, 1]]
+    elif case == "inverted":
+        F = [f[::-1] for f in F]
+    stl = tmp_path / "m.stl"
+    trimesh.Trimesh(V, F, process=False).export(stl)
+    out = tmp_path / "m.toml"
+    code = main(["part", "mesh", str(stl), "--orient", orient, "-o", str(out)])
+    if words is None:
+        assert code == 0, capsys.readouterr().err
+        return
+    assert code == 2
+    assert words in _err_line(capsys)
+    assert not out.exists()
+
+
+def test_a_force_log_in_ms_read_as_s_is_named_not_blamed_on_a_longer_path():
+    import numpy as np
+
+    from roboisf.io.forcelog import ForceLog
+    from roboisf.parts import Cone
+    from roboisf.study.checks import check_force_log
+    from roboisf.toolpath.generate import step_down
+
+    tp = step_down(Cone(opening_diameter=0.06, wall_angle=0.8, depth=0.01), 5e-3, 2e-3)
+    span = float(tp.time[-1])
+    for factor, refused in ((1000.0, True), (1.5, False)):
+        t = np.linspace(0, span * factor, 400)
+        w = np.column_stack([0 * t + 50, 0 * t, 0 * t + 400, 0 * t + 2, 0 * t, 0 * t])
+        log = ForceLog(t, w, "sensor", Path("f.csv"), None)
+        if refused:
+            with pytest.raises(InputError, match=r"f\.csv \[time\].*1000× the toolpath.*ms"):
+                check_force_log(log, tp)
+        else:
+            check_force_log(log, tp)
+
+
+def test_a_robot_scan_identical_to_the_cnc_scan_is_refused(tiny_study, tmp_path):
+    import shutil
+
+    from roboisf.decompose.pipeline import analyze
+
+    s = _edited(tiny_study, tmp_path / "s", "", "")
+    shutil.copy2(s / "cnc_scan.ply", s / "robot_scan.ply")  # the CNC part scanned twice
+    with pytest.raises(
+        InputError, match=r"\[runs\.robot\.scan\]: the robot run's scan is the same"
+    ):
+        analyze(s)

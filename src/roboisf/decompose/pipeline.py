@@ -58,7 +58,12 @@ from roboisf.parts import sine_law_thickness
 from roboisf.progress import Cancelled, Progress, cancellable, task
 from roboisf.robot import compliance_stats, deflection_contributions, ik_toolpath
 from roboisf.scan import CompareOptions, ScanComparison, compare_scan, read_scan
-from roboisf.study.checks import check_force_log, check_joint_log, check_tool_radius
+from roboisf.study.checks import (
+    check_distinct_runs,
+    check_force_log,
+    check_joint_log,
+    check_tool_radius,
+)
 from roboisf.study.fingerprint import study_fingerprint
 from roboisf.study.sensors import condition_study_log, read_study_force_log, sensor_to_tip
 from roboisf.study.spec import RunSpec, Study, load_study
@@ -367,6 +372,10 @@ def analyze(
         study = load_study(study)
     cell = cell_from_study(study)
     cnc, rob = study.cnc, study.robot_run
+    check_distinct_runs(  # the robot part measured on its own, not the CNC's files copied
+        {"scan": cnc.scan, "forces.file": cnc.forces.file},
+        {"scan": rob.scan, "forces.file": rob.forces.file},
+    )
     with task(progress, "toolpath"):
         tp = study_toolpath(study, cnc, cell.part)  # a toolpath CSV or a CAM program
         tp_r = tp if rob.toolpath == cnc.toolpath else study_toolpath(study, rob, cell.part)
