@@ -688,3 +688,28 @@ def test_a_robot_scan_identical_to_the_cnc_scan_is_refused(tiny_study, tmp_path)
         InputError, match=r"\[runs\.robot\.scan\]: the robot run's scan is the same"
     ):
         analyze(s)
+
+
+# -- a second Ctrl-C after the outcome is decided -----------------------------------------------
+
+
+def test_a_second_ctrl_c_after_the_outcome_keeps_exit_130():
+    # main() decides 130 and returns; a second SIGINT then arrives with the default handler
+    # back (in the return path) and another during the interpreter's shutdown (atexit): before,
+    # the process died by SIGINT (returncode -2) instead of exiting 130
+    code = """
+import atexit, os, signal
+import roboisf.cli.main as m
+
+def fake_main():
+    os.kill(os.getpid(), signal.SIGINT)  # the default handler: KeyboardInterrupt here
+    return 0
+
+m.main = fake_main
+atexit.register(lambda: os.kill(os.getpid(), signal.SIGINT))
+m.entry()
+"""
+    env = {**os.environ, "PYTHONPATH": str(SRC)}
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert r.returncode == 130, (r.returncode, r.stderr)
+    assert "Traceback" not in r.stderr

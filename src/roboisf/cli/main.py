@@ -199,5 +199,19 @@ def _error(e: Exception) -> None:
     typer.echo(f" {e}", err=True, color=color)
 
 
-def entry() -> None:  # pragma: no cover - console script
-    sys.exit(main())
+def entry() -> None:
+    """The ``roboisf`` console script: :func:`main`, then exit with its code.
+
+    Once the outcome is decided and reported, a second Ctrl-C (or SIGTERM) must not change it:
+    one arriving after :func:`main` restored the default handlers, or during the interpreter's
+    shutdown (thread pools, atexit), used to end the process by SIGINT instead of exit 130. It
+    is ignored from then on; one escaping :func:`main` as KeyboardInterrupt gives 130."""
+    import signal
+
+    try:
+        code = main()
+    except KeyboardInterrupt:
+        code = 130
+    for s in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(s, signal.SIG_IGN)
+    sys.exit(code)
