@@ -713,3 +713,18 @@ m.entry()
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
     assert r.returncode == 130, (r.returncode, r.stderr)
     assert "Traceback" not in r.stderr
+
+
+def test_rotate_6_takes_one_rotation_per_vector():
+    # robot deflect with a force log in tip axes ended in a numpy ValueError (einsum)
+    import numpy as np
+
+    from roboisf.frames import rpy_to_matrix
+    from roboisf.robot.kinematics import rotate_6
+
+    rng = np.random.default_rng(1)
+    R = np.array([rpy_to_matrix(a) for a in rng.uniform(-3, 3, (5, 3))])
+    v = rng.normal(size=(5, 6))
+    each = np.array([rotate_6(v[i : i + 1], R[i])[0] for i in range(5)])
+    np.testing.assert_allclose(rotate_6(v, R), each, atol=1e-15)
+    np.testing.assert_allclose(each[:, :3], np.einsum("nij,nj->ni", R, v[:, :3]), atol=1e-15)
