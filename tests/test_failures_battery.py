@@ -126,6 +126,37 @@ def _params(fast_only: bool = False, without: tuple[str, ...] = ()) -> list[obje
     return out
 
 
+#: nonsense each command must refuse before writing (exit 2, one line): absurd magnitudes,
+#: sizes that explode, values a real cell cannot have
+NONSENSE: dict[str, list[str]] = {
+    "part sheet 500 mm": ["part", "cone", "--sheet-thickness", "500", "-o", "{o}.toml"],
+    "part flange 1e9": ["part", "cone", "--flange-width", "1e9", "-o", "{o}.toml"],
+    "toolpath ball 0.1 µm": ["toolpath", "cone", "--tool-diameter", "0.0001", "-o", "{o}.csv"],
+    "toolpath step 1 nm": ["toolpath", "cone", "--step-down", "1e-6", "-o", "{o}.csv"],
+    "import spacing 1 nm": ["toolpath", "import", "{d}/prog.nc", "--part", "{d}/p.toml",
+                            "--tool-diameter", "10", "--spacing", "1e-6", "-o", "{o}.csv"],
+    "import ball 1e9": ["toolpath", "import", "{d}/prog.nc", "--part", "{d}/p.toml",
+                        "--tool-diameter", "1e9", "-o", "{o}.csv"],
+    "virtual-cell rotation 1e30": [*TINY_VC, "--tool-rotation", "1e30", "-o", "{o}"],
+    "virtual-cell spacing 1 µm": [*TINY_VC[:-2], "--spacing", "1e-3", "-o", "{o}"],
+    "holder 1e30 mm": ["holder-stiffness", "--section", "1e30:1e30", "-o", "{o}.json"],
+    "tool ball 1e30": ["tool-stiffness", "--ball-diameter", "1e30", "-o", "{o}.json"],
+    "plan 1e5 x": ["plan", "--part", "{d}/p.toml", "--x-range", "0:1:100000", "-o", "{o}"],
+    "compensate smoothing 1e30": ["compensate", "--virtual", "cone", "--smooth-along", "1e30",
+                                  "-o", "{o}"],
+    "compensate gain nan": ["compensate", "--virtual", "cone", "--gain", "nan", "-o", "{o}"],
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("case", list(NONSENSE), ids=list(NONSENSE))
+def test_nonsense_is_refused_in_one_line_and_writes_nothing(case, inputs, tmp_path, capsys):
+    (tmp_path / "mine.txt").write_text("precious")
+    argv = [a.format(d=inputs, o=tmp_path / "out") for a in NONSENSE[case]]
+    assert main(argv) == 2
+    _one_line(capsys)
+    assert sorted(os.listdir(tmp_path)) == ["mine.txt"]
+
+
 @pytest.mark.parametrize("cmd", _params())
 def test_an_output_name_too_long_is_refused_before_anything(cmd, inputs, tmp_path, capsys):
     (tmp_path / "mine.txt").write_text("precious")

@@ -56,6 +56,8 @@ BOUNDS: dict[str, Bound] = {
     "free_length": Bound(1.0, 1000.0, "mm", "a tool's free length"),
     "shank_diameter": Bound(0.5, 200.0, "mm", "a tool's shank diameter"),
     "holder_offset": Bound(0.0, 1000.0, "mm", "a holder's offset from its nose to the tool tip"),
+    "holder_length": Bound(0.1, 2000.0, "mm", "a holder section's length"),
+    "holder_diameter": Bound(0.5, 1000.0, "mm", "a holder's diameter"),
     "placement": Bound(-6000.0, 6000.0, "mm", "a work object's position from the robot base"),
     "flange_to_tip": Bound(-2000.0, 2000.0, "mm", "a tool tip's position from the flange"),
     "sensor_position": Bound(-2000.0, 2000.0, "mm", "a force sensor's position"),

@@ -153,6 +153,16 @@ def register(app: typer.Typer) -> None:
                 flag in ("--step-down", "--spacing") and v == 0
             ):
                 raise InputError(f"must be ≥ 0 (step and spacing > 0), got {v:g}", field=flag)
+            if (
+                v > 1000
+            ):  # lengths along a part: more than a metre is a unit slip (roboisf.plausible)
+                raise InputError(
+                    f"{v:g} mm is longer than any forming part; check the unit (mm)", field=flag
+                )
+        if not (math.isfinite(gain) and 0 < gain < 2):  # before anything is computed
+            raise InputError(
+                f"must be in (0, 2) for the iteration to contract, got {gain:g}", field="--gain"
+            )
         opts = CompensationOptions(
             compliance=compliance,
             springback=springback,

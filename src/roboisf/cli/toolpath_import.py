@@ -172,6 +172,9 @@ def import_command(
     for flag, v in (("--tool-diameter", tool_diameter), ("--chord-tolerance", chord_tolerance)):
         if not (math.isfinite(v) and v > 0):
             raise InputError(f"must be > 0 mm, got {v:g}", field=flag)
+    from roboisf.plausible import check_plausible
+
+    check_plausible(tool_diameter, "ball_diameter", field="--tool-diameter")
     words = frozenset(w.strip().upper() for w in (ignore_words or "").split(",") if w.strip())
     bad = sorted(words - set("ABCUVW"))
     if bad:
