@@ -92,7 +92,12 @@ def plan_cmd(
     tool: str | None = typer.Option(
         None, "--tool", help="Tool tip in the flange frame x,y,z (mm); default: the paper cell's."
     ),
-    x_range: str | None = typer.Option(None, "--x-range", help="start:stop:count or list (mm)."),
+    x_range: str | None = typer.Option(
+        None,
+        "--x-range",
+        help="start:stop:count or list (mm); each range ≤ 10 000 values, the whole grid ≤ "
+        "100 000 candidates (placements × tool rotations).",
+    ),
     y_range: str | None = typer.Option(None, "--y-range", help="start:stop:count or list (mm)."),
     z_range: str | None = typer.Option(None, "--z-range", help="start:stop:count or list (mm)."),
     yaw_range: str = typer.Option("0", "--yaw-range", help="start:stop:count or list (deg)."),
