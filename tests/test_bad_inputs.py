@@ -259,6 +259,9 @@ def test_missing_robot_file_names_the_study_folder(tmp_path):
 
 def test_placement_out_of_reach_is_refused(tmp_path):
     text = STUDY.replace("placement = [1800, 0, 500", "placement = [1e9, 0, 500")
+    with pytest.raises(StudyError, match=r"\[robot\.placement\[x\]\].*outside what a real cell"):
+        load_study(study(tmp_path, text))
+    text = STUDY.replace("placement = [1800, 0, 500", "placement = [5000, 0, 500")
     with pytest.raises(StudyError, match=r"\[robot\.placement\].*out of reach"):
         load_study(study(tmp_path, text))
     # in reach with the part's extent: 2.55 m + links is fine

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 
 import numpy as np
 import pandas as pd
@@ -140,6 +141,7 @@ def test_scan_gap_where_compensation_is_asked(analyzed, tmp_path, capsys):
     bad = tmp_path / "res"
     bad.mkdir()
     pp.to_parquet(bad / "per_point.parquet")
+    shutil.copy2(res / "summary.json", bad / "summary.json")  # the study's fingerprint
     out = tmp_path / "o"
     args = ["compensate", str(st), "--results", str(bad), "-o", str(out), "--no-png"]
     assert main(args) == 2

@@ -90,9 +90,8 @@ def test_soft_robot_is_flagged(soft):
 def test_identified_compliance_predicts_truth(soft):
     cell, _study, results, r = soft
     s = json.loads((results / "summary.json").read_text())
-    path = s["identified_stiffness"]
-    assert path is not None and path.endswith(IDENTIFIED_STIFFNESS)
-    K = load_stiffness(path)  # the `robot identify` format: loads as a stiffness file
+    assert s["identified_stiffness"] == IDENTIFIED_STIFFNESS  # relative: the same bytes anywhere
+    K = load_stiffness(results / s["identified_stiffness"])  # the `robot identify` format
     pp = r.per_point
     u = pp["used"].to_numpy()
     truth = pp["truth_robot_compliance_dn"].to_numpy()[u]
@@ -137,7 +136,7 @@ def test_compensate_with_identified_stiffness(soft):
     s = json.loads((results / "summary.json").read_text())
     opts = CompensationOptions(springback=False)
     ident = compensate_study(
-        study, results=results, options=opts, stiffness=s["identified_stiffness"]
+        study, results=results, options=opts, stiffness=results / s["identified_stiffness"]
     )
     nominal = compensate_study(study, results=results, options=opts)
     removed = _compliance_error_removed(cell, ident.compensation.toolpath)
@@ -149,7 +148,7 @@ def test_compensate_with_identified_stiffness(soft):
 
 def test_cli_accepts_identified_stiffness(soft, tmp_path, capsys):
     _cell, study, results, _r = soft
-    f = json.loads((results / "summary.json").read_text())["identified_stiffness"]
+    f = str(results / json.loads((results / "summary.json").read_text())["identified_stiffness"])
     out = tmp_path / "comp"
     rc = main(
         ["compensate", str(study), "--results", str(results), "--stiffness", f, "-o", str(out),
@@ -244,7 +243,7 @@ def test_sensor_bias_is_flagged_and_identification_holds(soft, tmp_path):
         st,
         results=tmp_path / "res",
         options=CompensationOptions(springback=False),
-        stiffness=r.summary["identified_stiffness"],
+        stiffness=tmp_path / "res" / r.summary["identified_stiffness"],
     )
     assert _compliance_error_removed(cell, comp.compensation.toolpath) >= 0.85
 

@@ -130,15 +130,13 @@ def test_part_pyramid_command(tmp_path):
 
 
 def test_mesh_outside_the_work_frame(tmp_path, capsys):
-    """A mesh above the sheet plane: `part mesh` warns, the slicer refuses (exit 2, one line)."""
+    """A mesh above the sheet plane: `part mesh` refuses it (exit 2, one line; issue 29: before,
+    it warned and the next toolpath failed)."""
     import trimesh
 
     stl = tmp_path / "up.stl"
     trimesh.Trimesh([[0, 0, 10], [50, 0, 10], [0, 50, 20]], [[0, 1, 2]], process=False).export(stl)
     toml = tmp_path / "up.toml"
-    assert main(["part", "mesh", str(stl), "-o", str(toml)]) == 0
-    assert "sheet plane at z = 0" in capsys.readouterr().err
-    out = tmp_path / "up.csv"
-    assert main(["toolpath", "--part", str(toml), "-o", str(out)]) == 2
+    assert main(["part", "mesh", str(stl), "-o", str(toml)]) == 2
     assert "below the sheet plane" in capsys.readouterr().err
-    assert not out.exists()
+    assert not toml.exists()

@@ -148,9 +148,14 @@ def test_identify_cli(tmp_path, capsys):
     from roboisf.robot import load_stiffness
 
     np.testing.assert_allclose(load_stiffness(out), m.joint_stiffness, rtol=0.03)
-    # the identified file feeds a robot without published stiffness
+    # a stiffness file feeds a robot without published stiffness; the identified one names the
+    # robot it was identified on and is refused for another (issue 29)
     capsys.readouterr()
-    assert main(["robot", "show", "--robot", "kr210-r2700-2", "--stiffness", str(out)]) == 0
+    assert main(["robot", "show", "--robot", "kr210-r2700-2", "--stiffness", str(out)]) == 2
+    assert "identified on the robot 'irb7600-500-2.55'" in capsys.readouterr().err
+    plain = tmp_path / "plain.toml"
+    plain.write_text("".join(ln for ln in out.read_text().splitlines(True) if "robot =" not in ln))
+    assert main(["robot", "show", "--robot", "kr210-r2700-2", "--stiffness", str(plain)]) == 0
     assert "3.7" in capsys.readouterr().out
     # bare flange: joint 6 cannot be identified → exit 2, no output
     out2 = tmp_path / "s2.toml"

@@ -86,7 +86,7 @@ def test_compensate_identified_removes_compliance_error(case):
         root / "study",
         results=root / "results",
         options=CompensationOptions(springback=False),
-        stiffness=r.summary["identified_stiffness"],
+        stiffness=root / "results" / r.summary["identified_stiffness"],
     )
     t0 = simulate(cell)
     t1 = simulate(cell, commanded=comp.compensation.toolpath)

@@ -92,7 +92,8 @@ def test_empty_truth_is_the_model():
         ("[robot]\njoint_stiffnes_scale = 0.5\n", "robot.joint_stiffnes_scale", "unknown key"),
         ("[robots]\nx = 1\n", "robots", "unknown key"),
         ("[robot]\njoint_stiffness_scale = [1, 2]\n", "robot.joint_stiffness_scale", "six"),
-        ("[robot]\njoint_stiffness_scale = -1\n", "truth.joint_stiffness_scale", "> 0"),
+        # refused where it is read, with the range a real cell has (roboisf.plausible)
+        ("[robot]\njoint_stiffness_scale = -1\n", "robot.joint_stiffness_scale[0]", "0.01 to 100"),
         ("[robot]\nlink_compliance = 1\n", "robot.link_compliance", "true or false"),
         ("[force_sensor]\nbias = [1, 2, 3]\n", "force_sensor.bias", "6 numbers"),
         ("[force_sensor]\ncrosstalk = [[0, 1], [1, 0]]\n", "force_sensor.crosstalk", "6×6"),

@@ -12,6 +12,7 @@ from pathlib import Path
 __all__ = [
     "ConvergenceError",
     "InputError",
+    "ResourceError",
     "RoboisfError",
     "UnreachableError",
 ]
@@ -71,6 +72,15 @@ class UnreachableError(InputError):
     def __init__(self, message: str, indices: list[int] | None = None, **kw: object) -> None:
         self.indices = list(indices or [])
         super().__init__(message, **kw)  # type: ignore[arg-type]
+
+
+class ResourceError(InputError):
+    """The machine refused an operation: no space left, a name too long for the file system, no
+    permission, a host that cannot be reached, not enough memory.
+
+    Not a bug and not a bad value: the message names the path (or host) and what to do; the CLI
+    prints it on one line and exits 2 like any other :class:`InputError`.
+    """
 
 
 class ConvergenceError(RoboisfError):

@@ -327,6 +327,9 @@ def register(app: typer.Typer) -> None:
         for key, mm in coarse.items():
             if mm is not None and not (math.isfinite(mm) and mm > 0):
                 raise InputError(f"must be > 0 mm, got {mm}", field="--" + key.replace("_", "-"))
+        from roboisf.plausible import check_plausible
+
+        check_plausible(tool_rotation, "angle", field="--tool-rotation")
         path_kw: dict[str, float] = {k: v * 1e-3 for k, v in coarse.items() if v is not None}
         if joint_rate is not None:
             path_kw["joint_rate"] = joint_rate

@@ -41,7 +41,10 @@ def register(app: typer.Typer) -> None:
         overwrite: Overwrite = False,
         results: Annotated[
             Path | None,
-            typer.Option(help="An `roboisf analyze` results folder of STUDY to reuse."),
+            typer.Option(
+                help="An `roboisf analyze` results folder of STUDY to reuse; refused when its "
+                "fingerprint (summary.json) is not that of STUDY as its files are now."
+            ),
         ] = None,
         previous: Annotated[
             Path | None,
@@ -183,6 +186,16 @@ def register(app: typer.Typer) -> None:
                 flag in ("--step-down", "--spacing") and v == 0
             ):
                 raise InputError(f"must be ≥ 0 (step and spacing > 0), got {v:g}", field=flag)
+            if (
+                v > 1000
+            ):  # lengths along a part: more than a metre is a unit slip (roboisf.plausible)
+                raise InputError(
+                    f"{v:g} mm is longer than any forming part; check the unit (mm)", field=flag
+                )
+        if not (math.isfinite(gain) and 0 < gain < 2):  # before anything is computed
+            raise InputError(
+                f"must be in (0, 2) for the iteration to contract, got {gain:g}", field="--gain"
+            )
         opts = CompensationOptions(
             compliance=compliance,
             springback=springback,

@@ -109,6 +109,15 @@ def _parse_section(text: str) -> HolderSection:
     length, outer = vals[0], vals[1]
     inner = vals[2] if len(vals) > 2 else 0.0
     end = vals[3] if len(vals) > 3 else None
+    # a holder no cell has (1e30 mm) would send gmsh into an endless mesh: refused first
+    from roboisf.plausible import check_plausible
+
+    for i, v in enumerate(vals):
+        if i == 2 and v == 0:
+            continue  # no bore
+        check_plausible(
+            v / MM, "holder_length" if i == 0 else "holder_diameter", field=f"--section {text}"
+        )
     try:
         return HolderSection(length, outer, inner, end)
     except InputError as e:
@@ -156,6 +165,16 @@ def register(app: typer.Typer) -> None:
         from roboisf.fem import BallEndTool, StepGeometry
 
         output_file(output, "tool-stiffness", overwrite, [step])
+        from roboisf.plausible import check_plausible
+
+        for flag, v, bound in (
+            ("--ball-diameter", ball_diameter, "ball_diameter"),
+            ("--length", length, "free_length"),
+            ("--shank-diameter", shank_diameter, "shank_diameter"),
+            ("--neck-diameter", neck_diameter, "shank_diameter"),
+        ):
+            if v is not None:
+                check_plausible(v, bound, field=flag)
         mat = _material(youngs_modulus, poisson)
         how = _method(method, no_fe)
         inputs: list[Path] = []

@@ -2,8 +2,9 @@
 
 Every command: ``--help``; ``-o/--output`` (checked and locked before computing, never loses a
 file roboisf did not write: docs/conventions.md, Outputs); exit code 0 on success, 2 on bad input
-(one line on stderr naming the file/field and what was expected), 1 on an internal error, 130/143
-when interrupted by SIGINT/SIGTERM. ``-q`` silences
+(one line on stderr naming the file/field and what was expected) or a refusal of the machine (a
+full disk, a name too long, no permission, an unreachable host: one line naming the path and what
+to do), 1 on an internal error, 130/143 when interrupted by SIGINT/SIGTERM. ``-q`` silences
 progress and info, ``-v`` adds detail. Call :func:`main` with an argv list from tests.
 """
 
@@ -20,7 +21,13 @@ from roboisf import __version__
 from roboisf.cli.console import state
 from roboisf.cli.lazy import LazyCommand, LazyGroup
 from roboisf.errors import ConvergenceError, InputError
-from roboisf.io.outdir import Interrupted, deferred_signals, output_session, signal_handlers
+from roboisf.io.outdir import (
+    Interrupted,
+    deferred_signals,
+    environment_error,
+    output_session,
+    signal_handlers,
+)
 from roboisf.progress import set_notice
 
 # every command, in the order --help lists them (the workflow first, then the building blocks),
@@ -190,6 +197,13 @@ def _run(args: list[str]) -> int:
         return 3
     except typer.Exit as e:
         return int(e.exit_code or 0)
+    except (OSError, MemoryError) as e:
+        # what the machine refused (a full disk, a name too long, no permission, an unreachable
+        # host, no memory): one line naming the path and what to do, like a bad input; the
+        # staging folders and temporary files were removed on the way up, the locks are
+        # released by the output session
+        _error(environment_error(e))
+        return 2
     except Exception as e:
         # usage errors (unknown option, missing argument): click's ClickException interface —
         # typer ≥ 0.16 vendors its own click, so match the interface, not the class
@@ -213,5 +227,19 @@ def _error(e: Exception) -> None:
     typer.echo(f" {e}", err=True, color=color)
 
 
-def entry() -> None:  # pragma: no cover - console script
-    sys.exit(main())
+def entry() -> None:
+    """The ``roboisf`` console script: :func:`main`, then exit with its code.
+
+    Once the outcome is decided and reported, a second Ctrl-C (or SIGTERM) must not change it:
+    one arriving after :func:`main` restored the default handlers, or during the interpreter's
+    shutdown (thread pools, atexit), used to end the process by SIGINT instead of exit 130. It
+    is ignored from then on; one escaping :func:`main` as KeyboardInterrupt gives 130."""
+    import signal
+
+    try:
+        code = main()
+    except KeyboardInterrupt:
+        code = 130
+    for s in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(s, signal.SIG_IGN)
+    sys.exit(code)

@@ -16,7 +16,14 @@ from roboisf.errors import InputError
 if TYPE_CHECKING:  # numpy is imported by the command that runs (fast --help)
     import numpy as np
 
-__all__ = ["parse_range", "register"]
+__all__ = ["MAX_CANDIDATES", "MAX_RANGE_COUNT", "parse_range", "register"]
+
+#: Most values one range may have (``start:stop:count``): 1000:2200:100000 asked for 0.1 M x
+#: values alone.
+MAX_RANGE_COUNT = 10_000
+#: Most candidates (placements × tool rotations) one plan evaluates: each is an IK + VJM pass
+#: over the whole toolpath (docs/plan.md); a larger grid is refused before anything is computed.
+MAX_CANDIDATES = 100_000
 
 
 def register(app: typer.Typer) -> None:
@@ -51,6 +58,12 @@ def parse_range(text: str, field: str) -> np.ndarray:
             raise InputError(f"empty range {text!r}: stop < start", field=field)
         if n == 1 and b != a:
             raise InputError(f"count 1 needs start = stop, got {text!r}", field=field)
+        if n > MAX_RANGE_COUNT:
+            raise InputError(
+                f"{int(n):,} values in {text!r}; at most {MAX_RANGE_COUNT:,} per range (each "
+                "value multiplies the candidates to evaluate): use a smaller count",
+                field=field,
+            )
         return np.linspace(a, b, int(n))
     try:
         v = np.array([float(x) for x in t.split(",")])
@@ -58,6 +71,8 @@ def parse_range(text: str, field: str) -> np.ndarray:
         raise bad from None
     if not np.all(np.isfinite(v)):
         raise InputError(f"values must be finite, got {text!r}", field=field)
+    if v.size > MAX_RANGE_COUNT:
+        raise InputError(f"{v.size:,} values; at most {MAX_RANGE_COUNT:,} per range", field=field)
     return v
 
 
@@ -77,7 +92,12 @@ def plan_cmd(
     tool: str | None = typer.Option(
         None, "--tool", help="Tool tip in the flange frame x,y,z (mm); default: the paper cell's."
     ),
-    x_range: str | None = typer.Option(None, "--x-range", help="start:stop:count or list (mm)."),
+    x_range: str | None = typer.Option(
+        None,
+        "--x-range",
+        help="start:stop:count or list (mm); each range ≤ 10 000 values, the whole grid ≤ "
+        "100 000 candidates (placements × tool rotations).",
+    ),
     y_range: str | None = typer.Option(None, "--y-range", help="start:stop:count or list (mm)."),
     z_range: str | None = typer.Option(None, "--z-range", help="start:stop:count or list (mm)."),
     yaw_range: str = typer.Option("0", "--yaw-range", help="start:stop:count or list (deg)."),
@@ -136,6 +156,26 @@ def plan_cmd(
     from roboisf.robot import stiffness_map
 
     gammas = np.radians(parse_range(tool_rotations, "--tool-rotations"))
+    # the grid's size before the problem is built: the default x, y, z ranges have 7, 5, 5
+    sizes = [
+        parse_range(text, flag).size if text is not None else default
+        for text, flag, default in (
+            (x_range, "--x-range", 7),
+            (y_range, "--y-range", 5),
+            (z_range, "--z-range", 5),
+            (yaw_range, "--yaw-range", 1),
+        )
+    ] + [gammas.size]
+    n_cand = math.prod(sizes)
+    if n_cand > MAX_CANDIDATES:
+        raise InputError(
+            "{} x × {} y × {} z × {} yaw × {} tool rotations = {:,} candidates, more than the "
+            "{:,} one plan evaluates (each an IK + VJM pass over the whole toolpath): plan on a "
+            "coarse grid first, then on a fine one around the best".format(
+                *sizes, n_cand, MAX_CANDIDATES
+            ),
+            field="--x-range/--y-range/--z-range",
+        )
     opts: dict[str, Any] = {
         "objective": objective,
         "sigma_threshold": sigma_min,
@@ -223,7 +263,7 @@ def _problem(
 
     def _override(m: Any) -> Any:
         if stiffness is not None:
-            m = m.with_stiffness(load_stiffness(stiffness), source=str(stiffness))
+            m = m.with_stiffness(load_stiffness(stiffness, robot=m.name), source=str(stiffness))
         if tool is not None:
             m = m.with_tool(make_transform(None, _floats(tool, 3, "--tool") * 1e-3))
         return m

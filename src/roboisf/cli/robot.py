@@ -61,7 +61,7 @@ def _model(
 
     m = load_robot(robot, tip_link=tip_link)
     if stiffness is not None:
-        m = m.with_stiffness(load_stiffness(stiffness), source=str(stiffness))
+        m = m.with_stiffness(load_stiffness(stiffness, robot=m.name), source=str(stiffness))
     if tool is not None:
         m = m.with_tool(make_transform(None, _floats(tool, 3, "--tool") * 1e-3))
     return m
@@ -283,6 +283,7 @@ def identify_cmd(
             "residual_rms_m": r.residual_rms,
             "condition_number": r.condition_number,
             "source": f"roboisf robot identify {calib.name} ({m.name})",
+            "robot": m.name,  # load_stiffness refuses it for another robot
         }
     }
     with atomic_write(output, "wb", encoding=None) as f:

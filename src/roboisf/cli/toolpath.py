@@ -188,6 +188,9 @@ class PathOptions:
         ):
             if not (math.isfinite(v) and v > 0):
                 raise InputError(f"must be > 0, got {v:g}", field=flag)
+        from roboisf.plausible import check_plausible
+
+        check_plausible(self.tool_diameter, "ball_diameter", field="--tool-diameter")
         if self.max_wall_step is not None and not (
             math.isfinite(self.max_wall_step) and self.max_wall_step > 0
         ):

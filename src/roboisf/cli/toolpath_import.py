@@ -97,7 +97,8 @@ def import_command(
         float | None,
         typer.Option(
             help="Split forming moves longer than this [mm] evenly (long CAM lines → points "
-            "every SPACING for the force and scan look-ups). Default: the points as programmed.",
+            "every SPACING for the force and scan look-ups; at most 5 M points). Default: the "
+            "points as programmed.",
         ),
     ] = None,
     rapid_rate: Annotated[
@@ -134,7 +135,10 @@ def import_command(
     ] = None,
     units: Annotated[
         str | None,
-        typer.Option(help="Length unit of an x,y,z list: mm (default), m or in."),
+        typer.Option(
+            help="Length unit of an x,y,z list: mm (default), m or in (refused for a G-code, "
+            "Sinumerik or APT program: they declare their own)."
+        ),
     ] = None,
     feed: Annotated[
         float | None,
@@ -173,6 +177,9 @@ def import_command(
     for flag, v in (("--tool-diameter", tool_diameter), ("--chord-tolerance", chord_tolerance)):
         if not (math.isfinite(v) and v > 0):
             raise InputError(f"must be > 0 mm, got {v:g}", field=flag)
+    from roboisf.plausible import check_plausible
+
+    check_plausible(tool_diameter, "ball_diameter", field="--tool-diameter")
     words = frozenset(w.strip().upper() for w in (ignore_words or "").split(",") if w.strip())
     bad = sorted(words - set("ABCUVW"))
     if bad:

@@ -40,6 +40,7 @@ from roboisf.errors import InputError
 from roboisf.io.program import RobotTool
 from roboisf.progress import Progress, task
 from roboisf.robot.model import RobotModel
+from roboisf.study.fingerprint import check_results
 from roboisf.study.spec import Study, load_study
 from roboisf.toolpath.importer import study_toolpath
 
@@ -131,6 +132,17 @@ def _per_point(study: Study, results: Path | None, progress: Progress | None) ->
         bad = np.isinf(v) if c == "robot_dn" else ~np.isfinite(v)
         if bad.any():
             raise InputError(f"NaN or inf in row {int(np.argmax(bad))}", file=f, field=c)
+    # a point the results call measured (robot_valid) has a measured deviation: NaN there is a
+    # damaged file, not a hole of the scan (before, compensate said complete: true regardless)
+    holes = np.isnan(df["robot_dn"].to_numpy(dtype=float)) & df["robot_valid"].to_numpy(dtype=bool)
+    if holes.any():
+        raise InputError(
+            f"NaN in {int(holes.sum())} rows flagged robot_valid (first: row "
+            f"{int(np.argmax(holes))}); a measured point needs a finite deviation: run "
+            "`roboisf analyze` again to rewrite the results",
+            file=f,
+            field="robot_dn",
+        )
     return df
 
 
@@ -173,7 +185,7 @@ def compensate_study(
     if stiffness is not None:
         from roboisf.robot import load_stiffness
 
-        K = load_stiffness(stiffness)
+        K = load_stiffness(stiffness, robot=cell.robot.name)
         cell = replace(cell, robot=cell.robot.with_stiffness(K, source=str(stiffness)))
     o = options or CompensationOptions()
     rspec = study.robot_run
@@ -181,6 +193,8 @@ def compensate_study(
     if results is not None:
         _check_results_run(Path(results), rspec.name)
     pp = _per_point(study, None if results is None else Path(results), progress)
+    if results is not None:  # results of this study as its files are now (summary.json)
+        check_results(study, results)
     if len(pp) != len(formed):
         raise InputError(
             f"the results have {len(pp)} points but the robot toolpath {len(formed)} (results "

@@ -347,7 +347,9 @@ def identify_from_forming(
     )
 
 
-def write_stiffness_toml(r: FormingIdentification, path: str | Path, source: str) -> Path:
+def write_stiffness_toml(
+    r: FormingIdentification, path: str | Path, source: str, robot: str | None = None
+) -> Path:
     """Write ``r`` as a stiffness TOML (the ``roboisf robot identify`` format, N·m/rad), with
     the observability as extra keys. An unbounded upper CI is written as 1e300. ``weak`` marks
     the joints not identified separately: held at the nominal in ``joints`` mode (their interval
@@ -368,6 +370,8 @@ def write_stiffness_toml(r: FormingIdentification, path: str | Path, source: str
             "K_nominal": [float(v) for v in r.K_nominal],
             "observability": r.observability(),
             "source": source,
+            # the model it was identified on: load_stiffness refuses it for another robot
+            **({"robot": robot} if robot else {}),
         }
     }
     with atomic_write(p, "wb", encoding=None) as f:

@@ -59,13 +59,18 @@ from roboisf.frames import vertical_tool
 from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
 from roboisf.io.forcelog import ForceLog, attach_to_toolpath
 from roboisf.io.jointlog import JointLog, read_joint_log
-from roboisf.io.outdir import final_location
 from roboisf.io.thickness import read_thickness_csv
 from roboisf.parts import sine_law_thickness
 from roboisf.progress import Cancelled, Progress, cancellable, task
 from roboisf.robot import compliance_stats, deflection_contributions, ik_toolpath
 from roboisf.scan import CompareOptions, ScanComparison, compare_scan, read_scan
-from roboisf.study.checks import check_force_log, check_joint_log, check_tool_radius
+from roboisf.study.checks import (
+    check_distinct_runs,
+    check_force_log,
+    check_joint_log,
+    check_tool_radius,
+)
+from roboisf.study.fingerprint import study_fingerprint
 from roboisf.study.sensors import condition_study_log, read_study_force_log, sensor_to_tip
 from roboisf.study.spec import RunSpec, Study, load_study
 from roboisf.sync import Alignment
@@ -384,6 +389,10 @@ def analyze(
         study = load_study(study)
     cell = cell_from_study(study)
     cnc, rob = study.cnc, study.robot_run
+    check_distinct_runs(  # the robot part measured on its own, not the CNC's files copied
+        {"scan": cnc.scan, "forces.file": cnc.forces.file},
+        {"scan": rob.scan, "forces.file": rob.forces.file},
+    )
     with task(progress, "toolpath"):
         tp = study_toolpath(study, cnc, cell.part)  # a toolpath CSV or a CAM program
         tp_r = tp if rob.toolpath == cnc.toolpath else study_toolpath(study, rob, cell.part)
@@ -476,6 +485,8 @@ def analyze(
     contributions = pd.DataFrame(_mm_rows(contribution_rows(d, projected=False)))
     contributions_normal = pd.DataFrame(_mm_rows(contribution_rows(d, projected=True)))
     summary = _summary(study, cell, tp, d, k_c, W_used, valid, k_tool, k_holder, q_source, scans)
+    # which study and input files these results came from: compensate --results checks it
+    summary["fingerprint"] = study_fingerprint(study)
     summary["warnings"].extend(input_warnings)
     summary["alignment"] = {name: a.to_dict() for name, a in aligned.items()}
     for entry in summary["alignment"].values():
@@ -1034,7 +1045,8 @@ def write_results(
 ) -> Path:
     """Write ``report.html``, ``contributions.csv``, ``contributions_normal.csv``,
     ``per_point.parquet``, ``summary.json``, ``identified_stiffness.toml`` (when the robot's
-    compliance was identified; its absolute path in ``summary["identified_stiffness"]``) and
+    compliance was identified; its name, relative to ``out_dir``, in
+    ``summary["identified_stiffness"]``) and
     ``figures/*.png`` into ``out_dir`` (replaced only when everything is written)."""
     from roboisf.report import write_report
 
@@ -1048,9 +1060,9 @@ def write_results(
         )
     ident = result.identification
     if ident is not None:
-        # where the file ends up (the results folder may itself sit in a staging folder: demo)
-        final = final_location(out_dir) / IDENTIFIED_STIFFNESS
-        result.summary["identified_stiffness"] = str(final)
+        # relative to the results folder, never the absolute path: the same inputs give the
+        # same bytes in any output folder (issue 29)
+        result.summary["identified_stiffness"] = IDENTIFIED_STIFFNESS
     with staged_directory(out_dir, "analyze") as stage:
         if ident is not None:
             write_stiffness_toml(
@@ -1058,6 +1070,7 @@ def write_results(
                 stage / IDENTIFIED_STIFFNESS,
                 f"roboisf analyze {result.study.name} ({result.cell.robot_name}): "
                 f"identified from the forming run, mode {ident.mode}",
+                robot=result.cell.robot.name,
             )
         with task(progress, "tables"):
             with atomic_path(stage / "per_point.parquet") as tmp:

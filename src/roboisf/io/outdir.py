@@ -40,7 +40,7 @@ from pathlib import Path, PurePosixPath
 from types import FrameType
 from typing import Any
 
-from roboisf.errors import InputError
+from roboisf.errors import InputError, ResourceError
 
 __all__ = [
     "MARKER",
@@ -50,6 +50,7 @@ __all__ = [
     "claim_output_dir",
     "claim_output_file",
     "deferred_signals",
+    "environment_error",
     "final_location",
     "mark_written",
     "output_session",
@@ -220,6 +221,7 @@ def _check_location(out: Path, shown: str | Path, kind: str, inputs: Sequence[st
         )
     if out.parent == out:
         raise InputError(f"the file system root is not an output {what}", file=shown)
+    _check_name_lengths(out, shown)
     if out.is_symlink():
         raise InputError(f"is a symbolic link; give a plain output {what}", file=shown)
     if out.exists():
@@ -260,6 +262,50 @@ def _check_location(out: Path, shown: str | Path, kind: str, inputs: Sequence[st
                 f"the output folder contains the input {item}; choose a -o that holds no input",
                 file=shown,
             )
+
+
+#: characters roboisf adds to an output's name for its siblings: the lock ``.NAME.roboisf-lock``,
+#: the staging folder ``.NAME.staging.XXXXXXXX`` and a temporary file ``.NAME.XXXXXXXX.parquet``
+_SIBLING_EXTRA = 24
+
+
+def _name_max(anc: Path) -> tuple[int, int]:
+    """(longest file name, longest path) in bytes on the file system holding ``anc``."""
+    try:
+        return os.pathconf(anc, "PC_NAME_MAX"), os.pathconf(anc, "PC_PATH_MAX")
+    except (OSError, ValueError, AttributeError):  # pragma: no cover - not POSIX
+        return 255, 4096
+
+
+def _check_name_lengths(out: Path, shown: str | Path) -> None:
+    """Refuse an output whose name (or a folder to create for it) the file system cannot hold,
+    with roboisf's lock and staging siblings, before anything is created (ENAMETOOLONG)."""
+    anc = out.parent
+    while True:
+        try:
+            if anc.exists():
+                break
+        except OSError:
+            pass
+        anc = anc.parent
+    name_max, path_max = _name_max(anc)
+    for i, part in enumerate(out.parts[1:], start=1):
+        extra = _SIBLING_EXTRA if i == len(out.parts) - 1 else 0
+        n = len(os.fsencode(part))
+        if n + extra > name_max:
+            limit = name_max - extra
+            raise ResourceError(
+                f"the name {part[:40]}… is {n} bytes long; the file system allows {name_max} per "
+                f"name ({limit} for an output, roboisf adds its lock and staging suffixes): "
+                "choose a shorter name",
+                file=shown if len(str(shown)) <= 120 else f"{str(shown)[:60]}…",
+            )
+    if len(os.fsencode(str(out))) + _SIBLING_EXTRA + 32 > path_max:
+        raise ResourceError(
+            f"the path is {len(os.fsencode(str(out)))} bytes long; the file system allows "
+            f"{path_max} in all: choose a shorter path",
+            file=f"{str(shown)[:60]}…",
+        )
 
 
 def claim_output_dir(
@@ -351,6 +397,75 @@ def mark_written(path: str | Path) -> None:
     c = _active_claim(_resolve(path))
     if c is not None:
         c.committed = True
+
+
+# --------------------------------------------------------------------------------------------
+# environment errors: what the machine refused, as one line naming the path and what to do
+
+#: errno → what to do (the operating system's own text comes first)
+_ADVICE = {
+    errno.ENOSPC: "free space on that disk or choose a -o on another one",
+    errno.EDQUOT: "your disk quota is used up: free space or choose a -o on another disk",
+    errno.ENAMETOOLONG: "choose a shorter name (most file systems allow 255 bytes per name)",
+    errno.EACCES: "choose a location you may write to (or read, for an input), or ask for "
+    "the permission",
+    errno.EPERM: "choose a location you may write to, or ask for the permission",
+    errno.EROFS: "the disk is read-only: choose a -o on a writable disk",
+    errno.EIO: "the disk reported an input/output error: check it, or use another disk",
+    errno.EMFILE: "too many open files: raise the limit (ulimit -n) or close other programs",
+    errno.ENFILE: "too many open files on this machine: close other programs and run again",
+    errno.EFBIG: "the file is larger than the file system or a size limit (ulimit -f) allows: "
+    "choose another disk or raise the limit",
+    errno.ENOENT: "check the name: the file or folder does not exist (any more)",
+    errno.ENOTDIR: "a part of the path is a file, not a folder: check the path",
+    errno.EISDIR: "a folder is where a file is expected: check the path",
+    errno.ELOOP: "the path has a symbolic-link loop: check the path",
+    errno.EHOSTUNREACH: "check the address and the network cable/route to the device",
+    errno.ENETUNREACH: "check the network settings: the device's network cannot be reached",
+    errno.ECONNREFUSED: "nothing listens at that address and port: start the device or check "
+    "the address",
+    errno.ETIMEDOUT: "the device did not answer in time: check it is on and on the network",
+}
+
+
+def environment_error(e: OSError | MemoryError, shown: str | Path | None = None) -> ResourceError:
+    """``e`` (an error of the operating system: a full disk, a name too long, no permission, an
+    unreachable host, no memory) as a one-line :class:`ResourceError` naming the path and what
+    to do; when the error names no path, the outputs claimed by the running command are named
+    with what happened to them (nothing written, previous contents intact)."""
+    if isinstance(e, MemoryError):
+        return ResourceError(
+            "not enough memory for this run: close other programs, or make the input smaller "
+            "(a coarser step or spacing, fewer points)",
+            file=shown,
+        )
+    import socket
+
+    what = (e.strerror or str(e) or type(e).__name__).rstrip(".")
+    if isinstance(e, socket.gaierror):
+        what = f"the host name cannot be resolved ({what})"
+        advice = "check the address (a name or four numbers 0–255, e.g. 192.168.125.1)"
+    else:
+        advice = _ADVICE.get(e.errno or -1, "")
+    where = shown
+    for name in (e.filename, e.filename2):
+        if name is not None:
+            where = os.fsdecode(name) if isinstance(name, bytes) else str(name)
+            break
+    outcome = ""
+    if _sessions and _sessions[-1].claims:
+        claims = _sessions[-1].claims
+        if where is None:
+            where = claims[0].shown or str(claims[0].path)
+        outcome = "; ".join(c.outcome() for c in claims if not c.committed)
+    if where is not None and len(str(where)) > 120:
+        where = f"{str(where)[:60]}…{str(where)[-40:]}"
+    msg = what[0].lower() + what[1:] if what[1:2].islower() else what
+    if advice:
+        msg += f"; {advice}"
+    if outcome:
+        msg += f" ({outcome})"
+    return ResourceError(msg, file=where)
 
 
 # --------------------------------------------------------------------------------------------
@@ -511,9 +626,7 @@ class _Lock:
                 out.parent.mkdir(parents=True, exist_ok=True)
                 fd = os.open(lp, os.O_RDWR | os.O_CREAT, 0o644)
             except OSError as e:
-                raise InputError(
-                    f"cannot create the output here: {e.strerror or e}", file=shown
-                ) from None
+                raise environment_error(e, shown) from None
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError as e:
@@ -527,8 +640,7 @@ class _Lock:
             except FileNotFoundError:
                 same = False
             if same:
-                os.ftruncate(fd, 0)
-                os.write(fd, f"pid {os.getpid()} roboisf {command}\n".encode())
+                _write_holder(fd, lp, shown, command)
                 return cls(lp, fd)
             os.close(fd)
         raise InputError("cannot lock the output (lock file keeps changing)", file=shown)
@@ -550,10 +662,8 @@ class _Lock:
                     os.unlink(lp.with_name(f"{lp.name}.stale.{os.getpid()}"))
                 continue
             except OSError as e:
-                raise InputError(
-                    f"cannot create the output here: {e.strerror or e}", file=shown
-                ) from None
-            os.write(fd, f"pid {os.getpid()} roboisf {command}\n".encode())
+                raise environment_error(e, shown) from None
+            _write_holder(fd, lp, shown, command)
             return cls(lp, fd)
         raise InputError("cannot lock the output (lock file keeps changing)", file=shown)
 
@@ -568,6 +678,21 @@ class _Lock:
             for d in reversed(self.made):
                 with contextlib.suppress(OSError):
                     d.rmdir()
+
+
+def _write_holder(fd: int, lock_file: Path, shown: str | Path, command: str) -> None:
+    """Write ``pid N roboisf COMMAND`` into the lock; when the disk refuses (full, quota), remove
+    the lock file again and say so: no empty lock is left behind."""
+    try:
+        os.ftruncate(fd, 0)
+        data = f"pid {os.getpid()} roboisf {command}\n".encode()
+        if os.write(fd, data) != len(data):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+    except OSError as e:
+        with contextlib.suppress(OSError):
+            os.unlink(lock_file)
+        os.close(fd)
+        raise environment_error(e, shown) from None
 
 
 def _busy(lock_file: Path, shown: str | Path) -> InputError:
@@ -612,10 +737,14 @@ def _pid_alive(pid: int) -> bool:
 
 def _make_work_dir(out: Path, kind: str) -> Path:
     d = Path(tempfile.mkdtemp(prefix=f".{out.name}.{kind}.", dir=out.parent))
-    (d / STAGING_MARKER).write_text(
-        json.dumps({"format": _MARKER_FORMAT, "pid": os.getpid(), "output": out.name}),
-        encoding="utf-8",
-    )
+    try:
+        (d / STAGING_MARKER).write_text(
+            json.dumps({"format": _MARKER_FORMAT, "pid": os.getpid(), "output": out.name}),
+            encoding="utf-8",
+        )
+    except BaseException:  # a full disk: no staging folder without its marker is left behind
+        shutil.rmtree(d, ignore_errors=True)
+        raise
     return d
 
 

@@ -44,6 +44,7 @@ from roboisf.parts.axisymmetric import (
 from roboisf.parts.base import Part
 from roboisf.parts.mesh import MeshPart
 from roboisf.parts.pyramid import Pyramid
+from roboisf.plausible import check_part
 
 __all__ = ["load_part", "part_files", "part_from_dict", "read_profile_csv", "save_part"]
 
@@ -128,7 +129,17 @@ def _numbers(table: dict[str, Any], key: str, where: Path | None) -> np.ndarray:
 
 
 def part_from_dict(table: dict[str, Any], *, where: str | Path | None = None) -> Part:
-    """Build a part from a ``[part]`` table (mm, deg). ``where`` resolves relative files."""
+    """Build a part from a ``[part]`` table (mm, deg). ``where`` resolves relative files.
+
+    A part no forming cell makes (a sheet 500 mm thick, a depth in µm read as mm) is refused
+    with the key and the unit slip that explains it (:func:`roboisf.plausible.check_part`).
+    """
+    part = _part_from_dict(table, where)
+    check_part(part, file=where)
+    return part
+
+
+def _part_from_dict(table: dict[str, Any], where: str | Path | None) -> Part:
     src = Path(where) if where is not None else None
     if not isinstance(table, dict):
         raise InputError(
@@ -270,6 +281,8 @@ def _tidy(value: Any) -> Any:
 def save_part(part: Part, path: str | Path) -> None:
     """Write ``part`` as a ``[part]`` TOML table (mm, deg), atomically; numbers to
     :data:`PART_DIGITS` significant digits (``opening_diameter = 87.0``, not
-    ``87.00000000000001``)."""
+    ``87.00000000000001``); a part no forming cell makes is refused first
+    (:func:`roboisf.plausible.check_part`)."""
+    check_part(part)
     with atomic_write(path, "wb") as fh:
         fh.write(tomli_w.dumps({"part": _tidy(part.to_dict())}).encode())

@@ -56,7 +56,14 @@ from roboisf.parts import mesh_kernel
 from roboisf.parts.axisymmetric import PAPER_SHEET_THICKNESS, SurfaceQuery
 from roboisf.parts.base import Symmetry
 
-__all__ = ["MeshPart", "point_triangle_distance2", "read_mesh", "spatial_order", "tessellate"]
+__all__ = [
+    "MeshPart",
+    "check_sheet_mesh",
+    "point_triangle_distance2",
+    "read_mesh",
+    "spatial_order",
+    "tessellate",
+]
 
 F64 = NDArray[np.float64]
 
@@ -199,6 +206,66 @@ def _check_backend(backend: str) -> str:
     return backend
 
 
+def check_sheet_mesh(V: F64, F: NDArray[np.int64], orient: str, where: str | Path) -> None:
+    """Refuse a mesh file that cannot be a formed sheet's surface, naming what it is instead.
+
+    A formed part is an open 2-manifold surface with the tool above it: a closed mesh is a solid
+    (the CAD body, not its tool-side surface); an edge shared by three or more triangles is a fin
+    or a doubled surface; with ``orient = "winding"`` normals pointing down put the tool under the
+    part. Before, such meshes were accepted and the next toolpath failed with "a Ø10 mm ball does
+    not fit". ``V`` (N, 3) m, ``F`` (M, 3) vertex indices.
+    """
+    V = np.asarray(V, dtype=float)
+    F = np.asarray(F, dtype=np.int64)
+    if V.ndim != 2 or F.ndim != 2 or F.shape[1] != 3 or not len(F):
+        return  # the shape errors are MeshPart's
+    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+    nrm = np.cross(b - a, c - a)
+    area2 = np.linalg.norm(nrm, axis=1)
+    ok = area2 > 0
+    if not ok.any():
+        return
+    F, nrm, area2 = F[ok], nrm[ok], area2[ok]
+    edges = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
+    uniq, count = np.unique(edges, axis=0, return_counts=True)
+    many = uniq[count > 2]
+    if len(many):
+        p = V[many[0]].mean(axis=0) * 1e3
+        raise InputError(
+            f"{len(many)} edge(s) shared by three or more triangles (a fin, or a surface "
+            f"doubled), the first at ({p[0]:.3g}, {p[1]:.3g}, {p[2]:.3g}) mm: a formed sheet's "
+            "surface has each edge in at most two triangles; remove the extra faces",
+            file=where,
+        )
+    # a fin: a (near-)vertical triangle hanging on one edge, its other edges open
+    _, inverse = np.unique(edges, axis=0, return_inverse=True)
+    open_edges = (count[inverse.reshape(-1)] == 1).reshape(3, len(F)).sum(axis=0)
+    steep = np.abs(nrm[:, 2]) / area2 < 0.26  # walls steeper than 75°
+    fins = np.flatnonzero((open_edges >= 2) & steep)
+    if len(fins):
+        p = V[F[fins[0]]].mean(axis=0) * 1e3
+        raise InputError(
+            f"{len(fins)} triangle(s) stand on one edge with the others open (a fin), the first "
+            f"at ({p[0]:.3g}, {p[1]:.3g}, {p[2]:.3g}) mm: no sheet forms that; remove them",
+            file=where,
+        )
+    if not np.any(count == 1):
+        raise InputError(
+            f"the mesh is closed ({len(F)} triangles, no open edge): a solid body, not the "
+            "sheet's surface; export only the tool-side (inner, upper) surface of the part",
+            file=where,
+        )
+    if orient == "winding":
+        down = float(np.sum(nrm[:, 2])) / float(np.sum(area2))
+        if down < 0:
+            raise InputError(
+                f"with orient = 'winding' the faces' normals point down (area-weighted mean "
+                f"n_z = {down:.2f}): the tool side would be under the part; flip the faces, or "
+                "use orient = 'up' (the default)",
+                file=where,
+            )
+
+
 @dataclass(frozen=True)
 class MeshPart:
     """A nominal surface given as a triangle mesh (work frame, m).
@@ -329,6 +396,7 @@ class MeshPart:
                     field="unit",
                 )
             V, F, _ = tessellate_cad(path, tolerance)
+            check_sheet_mesh(V, F, orient, path)
             return cls(
                 V,
                 F,
@@ -338,6 +406,7 @@ class MeshPart:
                 tolerance=tolerance,
             )
         V, F = read_mesh(path, unit=unit)
+        check_sheet_mesh(V, F, orient, path)
         return cls(V, F, orient=orient, sheet_thickness=sheet_thickness, source=src, unit=unit)
 
     @property

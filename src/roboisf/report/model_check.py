@@ -115,7 +115,7 @@ def check_tables(summary: Mapping[str, Any]) -> str:
         out.append(
             "<table><caption>Joint stiffness identified from this forming run <span>— mode "
             f"<b>{esc(ident['mode'])}</b>; {esc(ident.get('observability', ''))}"
-            + (f"; written to {esc(path)}" if path else "")
+            + (f"; written to {esc(path)} next to this report" if path else "")
             + " (accepted by compensate, plan and robot deflect with --stiffness)</span>"
             "</caption><thead><tr><th>joint</th><th>nominal K (N·m/rad)</th>"
             "<th>identified K (N·m/rad)</th><th>95 % interval</th>"

@@ -185,12 +185,14 @@ def rotate_6x6(k_b: ArrayLike, R_a_b: ArrayLike) -> F64:
 
 
 def rotate_6(v_b: ArrayLike, R_a_b: ArrayLike) -> F64:
-    """Re-express [lin; ang] 6-vectors (N, 6) from axes *b* to axes *a*."""
+    """Re-express [lin; ang] 6-vectors (N, 6) from axes *b* to axes *a*; ``R_a_b`` is one
+    rotation (3, 3) or one per vector (N, 3, 3) (``robot deflect`` with a log in tip axes)."""
     v = np.asarray(v_b, dtype=float)
     R = np.asarray(R_a_b, dtype=float)
     out = np.empty_like(v)
-    out[:, :3] = np.einsum("...ij,nj->ni", R, v[:, :3])
-    out[:, 3:] = np.einsum("...ij,nj->ni", R, v[:, 3:])
+    spec = "nij,nj->ni" if R.ndim == 3 else "ij,nj->ni"
+    out[:, :3] = np.einsum(spec, R, v[:, :3])
+    out[:, 3:] = np.einsum(spec, R, v[:, 3:])
     return out
 
 

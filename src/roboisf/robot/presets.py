@@ -232,16 +232,28 @@ def preset_info(name: str) -> PresetInfo:
     )
 
 
-def load_stiffness(path: str | Path) -> np.ndarray:
+def load_stiffness(path: str | Path, *, robot: str | None = None) -> np.ndarray:
     """Joint stiffness (6,) N·m/rad from a TOML file with ``[stiffness] K = [...]``.
 
-    This is the format ``roboisf robot identify`` writes.
+    This is the format ``roboisf robot identify`` and ``roboisf analyze`` write; they record the
+    robot model it was identified on (``[stiffness] robot``, the model's name). Given ``robot``
+    (the name of the model it is about to be used with), a file identified on another robot is
+    refused: a joint stiffness belongs to one robot.
     """
     p = Path(path)
     data = _read_toml(p, "stiffness")
     if "stiffness" not in data:
         raise InputError(
             "missing [stiffness] table with K = [6 values] N*m/rad", file=p, field="stiffness"
+        )
+    on = data["stiffness"].get("robot") if isinstance(data["stiffness"], dict) else None
+    if robot is not None and isinstance(on, str) and on and on != robot:
+        raise InputError(
+            f"this stiffness was identified on the robot {on!r}, not on {robot!r}: a joint "
+            f"stiffness belongs to one robot model; give the stiffness of {robot!r} (or "
+            "identify it: roboisf robot identify)",
+            file=p,
+            field="stiffness.robot",
         )
     K = _vec(data["stiffness"], "K", 6, p, "stiffness")
     if np.any(K <= 0):

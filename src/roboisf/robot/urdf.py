@@ -28,6 +28,7 @@ import warnings
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -115,6 +116,31 @@ def _floats(text: str | None, n: int, default: tuple[float, ...], where: str, p:
     return v
 
 
+def _limit(lim: Any, attr: str, joint: str, jt: str, p: Path) -> float:
+    """A joint's ``<limit lower/upper>`` (rad); NaN when absent (the arm then gets ±2π, as for a
+    continuous joint). A value given but not a finite number, or beyond ±720° (degrees written
+    where URDF has radians), is refused like a robot TOML's limits, not widened to ±360°."""
+    text = None if lim is None else lim.get(attr)
+    if text is None or jt != "revolute":
+        return math.nan
+    try:
+        v = float(text)
+    except ValueError:
+        v = math.nan
+    if not math.isfinite(v):
+        raise InputError(
+            f"joint {joint!r}: <limit {attr}={text!r}> must be a finite angle in rad", file=p
+        )
+    if abs(v) > 4 * math.pi:
+        raise InputError(
+            f"joint {joint!r}: <limit {attr}={text!r}> is {math.degrees(v):.6g}° in rad, beyond "
+            f"the ±720° a joint turns; URDF limits are radians ({v:g}° is "
+            f"{math.radians(v):.4g} rad)",
+            file=p,
+        )
+    return v
+
+
 @dataclass(frozen=True)
 class _Joint:
     name: str
@@ -197,8 +223,13 @@ def read_urdf_arm(path: str | Path, tip_frame: str | None = None, *, snap: bool 
         if snap:
             axis = _snap_axis(axis, f"joint {name!r}", snapped)
         lim = el.find("limit")
-        lo = float(lim.get("lower", "nan")) if lim is not None else math.nan
-        hi = float(lim.get("upper", "nan")) if lim is not None else math.nan
+        lo = _limit(lim, "lower", name, jt, p)
+        hi = _limit(lim, "upper", name, jt, p)
+        if jt == "revolute" and math.isfinite(lo) and math.isfinite(hi) and lo >= hi:
+            raise InputError(
+                f"joint {name!r}: <limit lower={lo:g} upper={hi:g}> (rad) needs lower < upper",
+                file=p,
+            )
         mim = el.find("mimic")
         child = ch.get("link", "")
         if child in {j.child for j in joints.values()}:

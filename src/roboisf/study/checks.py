@@ -25,6 +25,7 @@ __all__ = [
     "MOMENT_MAX",
     "PATH_TOL",
     "TOOL_RADIUS_TOL",
+    "check_distinct_runs",
     "check_force_log",
     "check_joint_log",
     "check_tool_radius",
@@ -141,6 +142,15 @@ def check_force_log(
                 )
     warnings = []
     span = float(tp.time[-1] - tp.time[0])
+    ratio = float(log.time[-1] - log.time[0]) / span if span > 0 else 0.0
+    if 300 <= ratio <= 3000:  # no forming run logs for 300× its path: a time unit slip
+        raise InputError(
+            f"the log lasts {log.time[-1] - log.time[0]:.4g} s, {ratio:.0f}× the toolpath's "
+            f"{span:.4g} s: its time is likely in ms read as s; declare time=ms in its "
+            "'# units:' line (or units = {time = \"ms\"} in study.toml)",
+            file=log.path,
+            field="time",
+        )
     after = float(log.time[-1] - t[-1])
     if after > max(60.0, 0.5 * span):
         warnings.append(
@@ -177,3 +187,28 @@ def check_joint_log(
             "flange_to_tip or angle unit",
             file=file,
         )
+
+
+def check_distinct_runs(cnc_files: dict[str, Path], robot_files: dict[str, Path]) -> None:
+    """Refuse a robot run whose scan or force log is the same bytes as the CNC run's: one part
+    measured twice, which the decomposition would report as "no robot error, the model does not
+    hold (−0.06×)". ``cnc_files``/``robot_files`` map the study key's last part (``scan``,
+    ``forces.file``) to the run's file. Sizes first, contents only when they agree."""
+    import filecmp
+
+    for key, fa in cnc_files.items():
+        fb = robot_files.get(key)
+        if fb is None or fb == fa:
+            continue
+        try:
+            same = fa.stat().st_size == fb.stat().st_size and filecmp.cmp(fa, fb, shallow=False)
+        except OSError:
+            continue
+        if same:
+            what = "scan" if key == "scan" else "force log"
+            raise InputError(
+                f"the robot run's {what} is the same bytes as the CNC run's ({fb.name} = "
+                f"{fa.name}): each machine's part is measured on its own",
+                file=fb,
+                field=f"runs.robot.{key}",
+            )

@@ -24,6 +24,7 @@ from roboisf.errors import InputError
 from roboisf.frames import make_transform, rpy_to_matrix
 from roboisf.io.units import ANGLE_UNITS, FORCE_UNITS, LENGTH_UNITS, MOMENT_UNITS, TIME_UNITS
 from roboisf.parts import Part, part_from_dict
+from roboisf.plausible import Bound, check_plausible, unit_slip
 from roboisf.scan.deviation import default_rim_band
 from roboisf.study.locate import read_study_toml
 
@@ -53,8 +54,15 @@ class StudyError(InputError):
         super().__init__(f"{len(problems)} problem(s) in the study:\n{lines}", file=file)
 
 
-def pose_to_transform(values: Any, *, field: str, file: Path | None = None) -> F64:
-    """``[x, y, z, roll, pitch, yaw]`` (mm, deg) → 4×4 transform (m)."""
+def pose_to_transform(
+    values: Any, *, field: str, file: Path | None = None, position: str | None = None
+) -> F64:
+    """``[x, y, z, roll, pitch, yaw]`` (mm, deg) → 4×4 transform (m).
+
+    ``position`` names the :data:`roboisf.plausible.BOUNDS` entry x, y and z must lie in (the
+    angles lie in ±720°): a position no real cell has (1e29 mm, a value in µm) is refused with
+    the unit slip that explains it.
+    """
     if not (isinstance(values, list) and len(values) == 6) or not all(
         isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in values
     ):
@@ -64,6 +72,11 @@ def pose_to_transform(values: Any, *, field: str, file: Path | None = None) -> F
             file=file,
             field=field,
         )
+    if position is not None:
+        for i, axis in enumerate(("x", "y", "z", "roll", "pitch", "yaw")):
+            check_plausible(
+                values[i], position if i < 3 else "angle", file=file, field=f"{field}[{axis}]"
+            )
     v = np.asarray(values, dtype=float)
     return make_transform(rpy_to_matrix(np.radians(v[3:])), v[:3] * 1e-3)
 
@@ -296,6 +309,7 @@ class _Collector:
         default: float | None = None,
         positive: bool = False,
         required: bool = True,
+        bound: str | None = None,
     ) -> float | None:
         if name not in t:
             if default is None and required:
@@ -308,6 +322,12 @@ class _Collector:
         if positive and v <= 0:
             self.add(f"must be > 0, got {v}", f"{key}.{name}")
             return default
+        if bound is not None:  # the range a real cell has (roboisf.plausible)
+            try:
+                check_plausible(v, bound, file=self.file, field=f"{key}.{name}")
+            except InputError as e:
+                self.problems.append(e)
+                return default
         return float(v)
 
     def path(
@@ -323,7 +343,15 @@ class _Collector:
             return None
         p = Path(v)
         p = p if p.is_absolute() else root / p
-        if not p.is_file():
+        try:
+            found = p.is_file()
+        except OSError as e:  # a name too long for the file system, a loop of links …
+            what = e.strerror or str(e)
+            self.add(
+                f"{what[:1].lower()}{what[1:]}: {v[:40]}… ({len(v)} characters)", f"{key}.{name}"
+            )
+            return None
+        if not found:
             self.add(f"file not found: {p}", f"{key}.{name}")
             return None
         return p
@@ -418,10 +446,12 @@ def _forces(c: _Collector, root: Path, t: Any, key: str, machine: str) -> ForceS
         )
     else:
         try:
-            pose = pose_to_transform(t["pose"], field=f"{key}.pose", file=c.file)
+            pose = pose_to_transform(
+                t["pose"], field=f"{key}.pose", file=c.file, position="sensor_position"
+            )
         except InputError as e:
             c.catch(e, f"{key}.pose")
-    off = c.number(t, key, "time_offset", default=0.0)
+    off = c.number(t, key, "time_offset", default=0.0, bound="time_offset")
     from roboisf.io.forcelog import FORCE_FORMATS
 
     fmt, cols, units = _log_keys(c, t, key, FORCE_FORMATS, ("time", "force", "moment", "length"))
@@ -535,7 +565,7 @@ def _conditioning(
             tare = (float(v[0]), float(v[1]))
         else:
             c.add(f'expected "none", "auto" or [t0, t1] (s, t1 > t0), got {v!r}', f"{key}.tare")
-    mass = c.number(t, key, "tool_mass", positive=True, required=False)
+    mass = c.number(t, key, "tool_mass", positive=True, required=False, bound="tool_mass")
     cog = None
     if "tool_cog" in t:
         v = t["tool_cog"]
@@ -546,6 +576,11 @@ def _conditioning(
         ):
             c.add(f"expected [x, y, z] in mm (sensor frame), got {v!r}", f"{key}.tool_cog")
         else:
+            for i, x in enumerate(v):
+                try:
+                    check_plausible(x, "tool_cog", file=c.file, field=f"{key}.tool_cog[{i}]")
+                except InputError as e:
+                    c.problems.append(e)
             cog = (float(v[0]) * 1e-3, float(v[1]) * 1e-3, float(v[2]) * 1e-3)
     if (mass is None) != (cog is None):
         c.add("give both tool_mass (kg) and tool_cog (mm) for gravity compensation", key)
@@ -674,12 +709,20 @@ def load_study(path: str | Path) -> Study:
     tt = c.table(
         data, "tool", {"ball_diameter", "compliance", "free_length", "shank_diameter", "method"}
     )
-    ball = c.number(tt, "tool", "ball_diameter", positive=True) if tt else None
+    # an empty [tool] table still needs its ball (c.table reported a missing or non-table one)
+    has_tool = isinstance(data.get("tool"), dict)
+    ball = (
+        c.number(tt, "tool", "ball_diameter", positive=True, bound="ball_diameter")
+        if has_tool
+        else None
+    )
     tool_c = c.path(root, tt, "tool", "compliance", required=False)
-    free = c.number(tt, "tool", "free_length", positive=True, required=False)
-    shank = c.number(tt, "tool", "shank_diameter", positive=True, required=False)
+    free = c.number(tt, "tool", "free_length", positive=True, required=False, bound="free_length")
+    shank = c.number(
+        tt, "tool", "shank_diameter", positive=True, required=False, bound="shank_diameter"
+    )
     method = c.choice(tt, "tool", "method", ("beam", "fe"), default="beam")
-    if tt and tool_c is None and "compliance" not in tt and free is None:
+    if has_tool and tool_c is None and "compliance" not in tt and free is None:
         c.add("give either 'compliance' (a JSON file) or 'free_length' (mm) to compute it", "tool")
     tool = None
     if ball is not None:
@@ -694,7 +737,7 @@ def load_study(path: str | Path) -> Study:
     ht = c.table(data, "tool_holder", {"compliance", "offset", "rigid"}, required=False)
     rigid = c.boolean(ht, "tool_holder", "rigid", not ht)
     holder_c = c.path(root, ht, "tool_holder", "compliance", required=not rigid)
-    offset = c.number(ht, "tool_holder", "offset", default=0.0)
+    offset = c.number(ht, "tool_holder", "offset", default=0.0, bound="holder_offset")
     holder = HolderSpec(holder_c, (offset or 0.0) * 1e-3, rigid)
 
     runs: dict[str, RunSpec] = {}
@@ -794,13 +837,18 @@ def load_study(path: str | Path) -> Study:
             model = _robot_model(c, root, model)
         T_bw = T_ft = None
         try:
-            T_bw = pose_to_transform(rb.get("placement"), field="robot.placement", file=file)
+            T_bw = pose_to_transform(
+                rb.get("placement"), field="robot.placement", file=file, position="placement"
+            )
         except InputError as e:
             c.catch(e, "robot.placement")
         if "flange_to_tip" in rb:
             try:
                 T_ft = pose_to_transform(
-                    rb["flange_to_tip"], field="robot.flange_to_tip", file=file
+                    rb["flange_to_tip"],
+                    field="robot.flange_to_tip",
+                    file=file,
+                    position="flange_to_tip",
                 )
             except InputError as e:
                 c.catch(e, "robot.flange_to_tip")
@@ -812,7 +860,16 @@ def load_study(path: str | Path) -> Study:
         ):
             c.add(f"expected 6 positive numbers (N·m/rad), got {K!r}", "robot.joint_stiffness")
             K = None
-        rot = c.number(rb, "robot", "tool_rotation", default=0.0)
+        for i, k in enumerate(K or ()):
+            try:
+                check_plausible(
+                    k, "joint_stiffness", file=file, field=f"robot.joint_stiffness[{i}]"
+                )
+            except InputError as e:
+                c.problems.append(e)
+                K = None
+                break
+        rot = c.number(rb, "robot", "tool_rotation", default=0.0, bound="angle")
         if isinstance(model, str) and T_bw is not None:
             _check_reach(c, model, T_bw, T_ft, part)
             robot = RobotSpec(
@@ -829,8 +886,19 @@ def load_study(path: str | Path) -> Study:
         {"rim_band", "contour_z", "registration", "point_radius", "max_distance"},
         required=False,
     )
-    rim = c.number(at, "analysis", "rim_band", required=False)
+    rim = c.number(at, "analysis", "rim_band", required=False, bound="rim_band")
     cz = c.number(at, "analysis", "contour_z", default=-11.0)
+    if part is not None and cz is not None and "contour_z" in at:
+        depth_mm = part.depth * 1e3
+        if not -depth_mm <= cz < 0:  # the polar plot's contour cuts the formed wall
+            slip = unit_slip(cz, Bound(-depth_mm, -1e-9, "mm", ""))
+            c.add(
+                f"{cz:.6g} mm is not on the part's wall: a contour lies below the sheet "
+                f"(z < 0) and above the bottom (z ≥ −{depth_mm:.6g} mm)"
+                + (f"; {slip}" if slip else ""),
+                "analysis.contour_z",
+            )
+            cz = None
     reg = c.choice(
         at,
         "analysis",
@@ -838,8 +906,12 @@ def load_study(path: str | Path) -> Study:
         ("fixture", "flange", "axisymmetric", "icp", "none"),
         default="fixture",
     )
-    prad = c.number(at, "analysis", "point_radius", default=1.0, positive=True)
-    maxd = c.number(at, "analysis", "max_distance", default=3.0, positive=True)
+    prad = c.number(
+        at, "analysis", "point_radius", default=1.0, positive=True, bound="point_radius"
+    )
+    maxd = c.number(
+        at, "analysis", "max_distance", default=3.0, positive=True, bound="max_distance"
+    )
     if rim is not None and rim < 0:
         c.add("must be ≥ 0 mm", "analysis.rim_band")
     if rim is None:  # scaled with the part's depth: min(20 mm, 0.6·depth)

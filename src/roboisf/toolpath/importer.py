@@ -52,6 +52,7 @@ from roboisf.errors import InputError
 from roboisf.io.cam import DEFAULT_CHORD_TOL, FEED, CamMoves, ReadOptions
 from roboisf.parts.base import Part
 from roboisf.toolpath.laps import detect_laps
+from roboisf.toolpath.limits import MAX_POINTS
 from roboisf.toolpath.toolpath import Toolpath
 
 if TYPE_CHECKING:
@@ -140,6 +141,13 @@ class ImportOptions:
             raise InputError(f"must be > 0, got {self.feed * 60e3:g} mm/min", field="feed")
         if len(self.origin) != 3 or not all(math.isfinite(v) for v in self.origin):
             raise InputError(f"expected 3 finite numbers, got {self.origin!r}", field="origin")
+        from roboisf.io.xyz import XYZ_UNITS
+
+        if self.units is not None and self.units not in XYZ_UNITS:
+            raise InputError(
+                f"unknown length unit {self.units!r}; expected one of {', '.join(XYZ_UNITS)}",
+                field="units",
+            )
 
     def read_options(self) -> ReadOptions:
         return ReadOptions(
@@ -232,6 +240,12 @@ def read_cam_moves(path: str | Path, options: ImportOptions | None = None) -> Ca
             path, units=opt.units, feed=POINT_LIST_FEED if opt.feed is None else opt.feed
         ),
     }
+    if opt.units is not None and fmt != "xyz":
+        raise InputError(
+            f"units applies to an x,y,z point list; a {fmt} program declares its own unit "
+            "(G20/G21, INCH/METRIC, UNITS/): leave --units out",
+            field="units",
+        )
     moves = readers[fmt]()
     moves.meta["format"] = fmt
     return moves
@@ -268,10 +282,22 @@ def _move_times(moves: CamMoves, rapid_rate: float | None) -> F64:
 def _resample(
     spacing: float, tip: F64, t: F64, lines: NDArray[np.int64], feeds: F64, cont: NDArray[np.bool_]
 ) -> tuple[F64, F64, NDArray[np.int64], F64, NDArray[np.bool_]]:
-    """Split every contiguous forming segment longer than ``spacing`` evenly."""
+    """Split every contiguous forming segment longer than ``spacing`` evenly; refused before any
+    allocation when the result would exceed :data:`MAX_POINTS` (``--spacing 1e-6`` asked for
+    26 GiB)."""
     seg = np.linalg.norm(np.diff(tip, axis=0), axis=1)
-    p = np.where(cont[1:], np.ceil(seg / spacing - 1e-9), 1).astype(np.int64)
-    p = np.maximum(p, 1)
+    n_new = np.where(cont[1:], np.ceil(seg / spacing - 1e-9), 1.0)
+    total = float(np.sum(np.maximum(n_new, 1.0))) + 1
+    if total > MAX_POINTS:
+        length = float(np.sum(seg[cont[1:]]))
+        least = length / (MAX_POINTS - len(tip))
+        raise InputError(
+            f"a spacing of {spacing * 1e3:g} mm splits the program's {length * 1e3:.6g} mm of "
+            f"forming path into {total:.3g} points, more than the {MAX_POINTS:,} roboisf builds "
+            f"(≈ 1 kB each); use a spacing of at least {least * 1e3:.2g} mm",
+            field="spacing",
+        )
+    p = np.maximum(n_new.astype(np.int64), 1)
     if not (p > 1).any():
         return tip, t, lines, feeds, cont
     src = np.repeat(np.arange(1, len(tip)), p)
@@ -290,6 +316,71 @@ def _resample(
 
 #: Probe height [m] and jump [m] of the corner tie-break in :func:`_contacts`.
 _TIE_PROBE, _TIE_JUMP, _TIE_TOL = 5e-6, 50e-6, 2e-6
+
+
+#: The median |gap| of the ball to the part above which the program is refused as not being on
+#: the part [m] (with the ball's diameter, whichever is larger): a tip/centre mix-up is a gap of
+#: one radius (warned), a program in inches read as mm or an incremental one (G91) read as
+#: absolute is tens to thousands of mm off.
+OFF_PART = 10e-3
+
+
+def _refuse_off_part(tip: F64, gap: F64, part: Part, R: float, source: Path | str | None) -> None:
+    """Refuse a program whose geometry cannot be on ``part``, naming the likely cause: a unit
+    (the tips scaled by 25.4 or 1000 would fit), incremental coordinates (the points run far
+    outside the part and keep going), or another part."""
+    med = float(np.median(np.abs(gap)))
+    limit = max(OFF_PART, 2 * R)
+    deepest = int(np.argmin(gap))
+    if med <= limit and gap[deepest] >= -limit:
+        return
+    lo, hi = (np.asarray(b, dtype=float) for b in part.bounds)
+    span = float(np.max(hi - lo))
+    reach = float(np.max(np.abs(tip[:, :2]))) * 1e3
+    depth = float(-np.min(tip[:, 2])) * 1e3
+    if med <= limit:  # on the part mostly, but somewhere through it: a deeper or other part
+        raise InputError(
+            f"the ball goes {-gap[deepest] * 1e3:.4g} mm into the part at point {deepest} (tip "
+            f"z = {tip[deepest, 2] * 1e3:.4g} mm; the part is {part.depth * 1e3:.4g} mm deep): "
+            "the program is for a deeper or another part; nothing written (check the program "
+            "and the part)",
+            file=source,
+        )
+    where = (
+        f"the ball is {med * 1e3:.4g} mm (median) off the nominal part; the program's points "
+        f"reach {reach:.4g} mm from the axis and {depth:.4g} mm deep, the part spans "
+        f"{span * 1e3:.4g} mm and is {part.depth * 1e3:.4g} mm deep"
+    )
+    cause = ""
+    sample = tip[:: max(1, len(tip) // 2000)]
+    for name, factor in (
+        ("inches (G20) read as mm", 25.4),
+        ("mm read as inches", 1 / 25.4),
+        ("m read as mm", 1e3),
+        ("µm read as mm", 1e-3),
+    ):
+        c = sample * factor
+        c[:, 2] += R
+        g = np.abs(np.asarray(part.closest_point(c).distance, dtype=float) - R)
+        if float(np.median(g)) < 0.1 * med and float(np.median(g)) < max(2 * R, 1e-3):
+            cause = f"the program is likely in {name} (the points × {factor:.4g} lie on the part)"
+            break
+    if not cause:
+        steps = np.diff(tip[:, 2])
+        runaway = depth > 3 * part.depth * 1e3 or reach > 3 * span * 1e3
+        if runaway and np.mean(steps <= 0) > 0.95:
+            cause = (
+                "the points keep moving one way far past the part: incremental moves (G91) "
+                "where absolute ones (G90) were meant?"
+            )
+        elif runaway:
+            cause = "the points run far outside the part: a wrong --origin or work offset?"
+        else:
+            cause = "the program is for another part, or its zero is not the blank centre"
+    raise InputError(
+        f"{where}: {cause}; nothing written (check the program, --units, --origin, the part)",
+        file=source,
+    )
 
 
 def _contacts(part: Part, center: F64) -> tuple[F64, F64, F64]:
@@ -422,6 +513,7 @@ def moves_to_toolpath(
             f"the ball is {gap[i] * 1e3:+.3f} mm off the nominal at point {i} (line "
             f"{int(lines[i])}; + clear of it, − into it){hint}"
         )
+    _refuse_off_part(tip, gap, part, R, moves.path)
     lo, hi = part.bounds
     laps = detect_laps(tip, (0.5 * float(lo[0] + hi[0]), 0.5 * float(lo[1] + hi[1])))
     lap, rule = laps.lap, laps.rule

@@ -69,6 +69,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.errors import InputError
+from roboisf.io.text import read_text
+from roboisf.plausible import check_plausible
 
 __all__ = [
     "OPW_KEYS",
@@ -329,6 +331,14 @@ def _vector(v: Any, n: int, where: str, *, scalar_ok: bool = False) -> F64:
     return a
 
 
+def _bounded(a: F64, bound: str, where: str) -> F64:
+    """``a`` (file units) with every value in the range a real cell has
+    (:data:`roboisf.plausible.BOUNDS`), else the InputError naming the unit slip."""
+    for i, x in enumerate(np.ravel(a)):
+        check_plausible(float(x), bound, field=where if a.size == 1 else f"{where}[{i}]")
+    return a
+
+
 def _number(v: Any, where: str) -> float:
     if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
         raise InputError(f"expected a finite number, got {v!r}", field=where)
@@ -371,8 +381,10 @@ def _from_table(data: Mapping[str, Any], source: str) -> TruthSpec:
     rob = _table(data, "robot", "robot")
     _check_keys(rob, _KEYS["robot"], "robot")
     if "joint_stiffness_scale" in rob:
-        kw["joint_stiffness_scale"] = _vector(
-            rob["joint_stiffness_scale"], 6, "robot.joint_stiffness_scale", scalar_ok=True
+        kw["joint_stiffness_scale"] = _bounded(
+            _vector(rob["joint_stiffness_scale"], 6, "robot.joint_stiffness_scale", scalar_ok=True),
+            "stiffness_scale",
+            "robot.joint_stiffness_scale",
         )
     if "link_compliance" in rob:
         if not isinstance(rob["link_compliance"], bool):
@@ -382,31 +394,48 @@ def _from_table(data: Mapping[str, Any], source: str) -> TruthSpec:
             )
         kw["link_compliance"] = rob["link_compliance"]
     if "thermal_drift" in rob:
-        kw["thermal_drift"] = _vector(rob["thermal_drift"], 3, "robot.thermal_drift") * 1e-3
+        drift = _vector(rob["thermal_drift"], 3, "robot.thermal_drift")
+        kw["thermal_drift"] = _bounded(drift, "drift", "robot.thermal_drift") * 1e-3
     kin = _table(rob, "kinematic_error", "robot.kinematic_error")
     _check_keys(kin, _KIN_KEYS, "robot.kinematic_error")
     if "joint_offset" in kin:
-        kw["joint_offset"] = np.radians(
-            _vector(kin["joint_offset"], 6, "robot.kinematic_error.joint_offset", scalar_ok=True)
-        )
+        where = "robot.kinematic_error.joint_offset"
+        off = _vector(kin["joint_offset"], 6, where, scalar_ok=True)
+        kw["joint_offset"] = np.radians(_bounded(off, "joint_offset", where))
     if "work_object" in kin:
         wo = _vector(kin["work_object"], 6, "robot.kinematic_error.work_object")
+        _bounded(wo[:3], "work_object_shift", "robot.kinematic_error.work_object")
+        _bounded(wo[3:], "work_object_turn", "robot.kinematic_error.work_object")
         kw["work_object_error"] = np.concatenate([wo[:3] * 1e-3, np.radians(wo[3:])])
     kw["opw_error"] = {
-        k: _number(kin[k], f"robot.kinematic_error.{k}") * 1e-3 for k in OPW_KEYS if k in kin
+        k: check_plausible(
+            _number(kin[k], f"robot.kinematic_error.{k}"),
+            "geometry_error",
+            field=f"robot.kinematic_error.{k}",
+        )
+        * 1e-3
+        for k in OPW_KEYS
+        if k in kin
     }
     fs = _table(data, "force_sensor", "force_sensor")
     _check_keys(fs, _KEYS["force_sensor"], "force_sensor")
     if "bias" in fs:
-        kw["sensor_bias"] = _vector(fs["bias"], 6, "force_sensor.bias")
+        kw["sensor_bias"] = _bounded(
+            _vector(fs["bias"], 6, "force_sensor.bias"), "sensor_bias", "force_sensor.bias"
+        )
     if "gain" in fs:
-        kw["sensor_gain"] = _vector(fs["gain"], 6, "force_sensor.gain", scalar_ok=True)
+        kw["sensor_gain"] = _bounded(
+            _vector(fs["gain"], 6, "force_sensor.gain", scalar_ok=True),
+            "sensor_gain",
+            "force_sensor.gain",
+        )
     if "crosstalk" in fs:
         c = fs["crosstalk"]
         if isinstance(c, int | float) and not isinstance(c, bool):
-            kw["sensor_crosstalk"] = _number(c, "force_sensor.crosstalk") * (
-                np.ones((6, 6)) - np.eye(6)
+            ct = check_plausible(
+                _number(c, "force_sensor.crosstalk"), "crosstalk", field="force_sensor.crosstalk"
             )
+            kw["sensor_crosstalk"] = ct * (np.ones((6, 6)) - np.eye(6))
         else:
             try:
                 m = np.array(c, dtype=float)
@@ -417,6 +446,9 @@ def _from_table(data: Mapping[str, Any], source: str) -> TruthSpec:
                     f"expected a number or a 6×6 matrix (six rows of six), got {c!r}"[:200],
                     field="force_sensor.crosstalk",
                 )
+            off_diag = m[~np.eye(6, dtype=bool)]
+            if np.all(np.isfinite(off_diag)):
+                _bounded(off_diag, "crosstalk", "force_sensor.crosstalk")
             kw["sensor_crosstalk"] = m
     if "crosstalk_force" in fs or "crosstalk_moment" in fs:
         C = np.array(kw.get("sensor_crosstalk", np.zeros((6, 6))), dtype=float)
@@ -430,15 +462,21 @@ def _from_table(data: Mapping[str, Any], source: str) -> TruthSpec:
     tool = _table(data, "tool", "tool")
     _check_keys(tool, _KEYS["tool"], "tool")
     if "mass" in tool:
-        kw["tool_mass"] = _number(tool["mass"], "tool.mass")
+        kw["tool_mass"] = check_plausible(
+            _number(tool["mass"], "tool.mass"), "tool_mass", field="tool.mass"
+        )
     if "cog" in tool:
-        kw["tool_cog"] = _vector(tool["cog"], 3, "tool.cog") * 1e-3
+        kw["tool_cog"] = (
+            _bounded(_vector(tool["cog"], 3, "tool.cog"), "tool_cog", "tool.cog") * 1e-3
+        )
     scan = _table(data, "scan", "scan")
     _check_keys(scan, _KEYS["scan"], "scan")
     if "shift" in scan:
-        kw["scan_shift"] = _vector(scan["shift"], 3, "scan.shift") * 1e-3
+        shift = _vector(scan["shift"], 3, "scan.shift")
+        kw["scan_shift"] = _bounded(shift, "scan_shift", "scan.shift") * 1e-3
     if "rotation" in scan:
-        kw["scan_rotation"] = np.radians(_vector(scan["rotation"], 3, "scan.rotation"))
+        rot = _vector(scan["rotation"], 3, "scan.rotation")
+        kw["scan_rotation"] = np.radians(_bounded(rot, "scan_rotation", "scan.rotation"))
     sb = _table(data, "springback", "springback")
     _check_keys(sb, _KEYS["springback"], "springback")
     if "deflection_coupling" in sb:
@@ -446,11 +484,13 @@ def _from_table(data: Mapping[str, Any], source: str) -> TruthSpec:
             sb["deflection_coupling"], "springback.deflection_coupling"
         )
     if "coupling_depth" in sb:
-        kw["springback_coupling_depth"] = (
-            _number(sb["coupling_depth"], "springback.coupling_depth") * 1e-3
-        )
+        where = "springback.coupling_depth"
+        depth = check_plausible(_number(sb["coupling_depth"], where), "coupling_depth", field=where)
+        kw["springback_coupling_depth"] = depth * 1e-3
     if "amplitude" in sb:
-        kw["springback_amplitude"] = _number(sb["amplitude"], "springback.amplitude") * 1e-3
+        where = "springback.amplitude"
+        amp = check_plausible(_number(sb["amplitude"], where), "springback_amplitude", field=where)
+        kw["springback_amplitude"] = amp * 1e-3
     if "curvature_gain" in sb:
         kw["springback_curvature_gain"] = _number(sb["curvature_gain"], "springback.curvature_gain")
     if "curvature_length" in sb:
@@ -460,18 +500,16 @@ def _from_table(data: Mapping[str, Any], source: str) -> TruthSpec:
     cnc = _table(data, "cnc", "cnc")
     _check_keys(cnc, _KEYS["cnc"], "cnc")
     if "compliance" in cnc:
-        kw["cnc_compliance"] = (
-            _vector(cnc["compliance"], 3, "cnc.compliance", scalar_ok=True) * 1e-3
-        )
+        cc = _vector(cnc["compliance"], 3, "cnc.compliance", scalar_ok=True)
+        kw["cnc_compliance"] = _bounded(cc, "cnc_compliance", "cnc.compliance") * 1e-3
     return TruthSpec(**kw)
 
 
 def _read_toml(path: Path) -> dict[str, Any]:
-    try:
-        with open(path, "rb") as fh:
-            return tomllib.load(fh)
-    except FileNotFoundError:
-        raise InputError("truth file not found", file=str(path)) from None
+    if not path.exists():
+        raise InputError("truth file not found", file=str(path))
+    try:  # UTF-8 only: another encoding is refused with the line and byte, not a traceback
+        return tomllib.loads(read_text(path, what="truth TOML"))
     except tomllib.TOMLDecodeError as e:
         raise InputError(f"not valid TOML: {e}", file=str(path)) from None
 
