@@ -125,5 +125,5 @@ def test_ctrl_c_ends_the_loop_and_writes_the_log(tmp_path):
     p.send_signal(signal.SIGINT)
     rest, err = p.communicate(timeout=60)
     assert p.returncode == 0, err
-    assert "stopped (Ctrl-C)" in rest and "Traceback" not in err
+    assert "stopped: interrupted (Ctrl-C)" in rest and "Traceback" not in err
     assert len(pd.read_parquet(out)) == 0

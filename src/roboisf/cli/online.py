@@ -32,6 +32,27 @@ def _floats(text: str | None, n: int, field: str) -> list[float] | None:
     return v
 
 
+def _check_run(controller: str, duration: float, cycles: int | None, cycle: float) -> None:
+    """--duration, --cycles and --cycle, before anything is started."""
+    if not duration > 0:  # NaN too
+        raise InputError(
+            f"must be > 0 s (default: until Ctrl-C), got {duration}", field="--duration"
+        )
+    if cycles is not None and cycles < 1:
+        raise InputError(f"must be ≥ 1, got {cycles}", field="--cycles")
+    if not (math.isfinite(cycle) and cycle > 0):
+        raise InputError(f"must be a cycle time > 0 ms, got {cycle}", field="--cycle")
+    if controller == "egm" and (cycle < 4 or not math.isclose(cycle / 4, round(cycle / 4))):
+        raise InputError(
+            f"EGM cycles are multiples of 4 ms (EGMActMove \\SampleRate), got {cycle:g} ms",
+            field="--cycle",
+        )
+    if controller == "rsi" and not any(math.isclose(cycle, c) for c in (4.0, 12.0)):
+        raise InputError(
+            f"RSI cycles are 4 ms (IPO_FAST) or 12 ms (IPO), got {cycle:g} ms", field="--cycle"
+        )
+
+
 def online(
     controller: str = typer.Option(
         ...,
@@ -135,6 +156,26 @@ def online(
         help="Pin the loop to this CPU (best one kept free of other work); --simulate's "
         "devices then run on the other CPUs.",
     ),
+    max_force: float | None = typer.Option(
+        None,
+        "--max-force",
+        help="Plausibility: a force sample above this (tare and tool weight removed) is "
+        "dropped and the correction held, N. Default: 2× the expected peak forming force (the "
+        "study's robot force log, the virtual cell's force model); inf: no bound.",
+    ),
+    max_force_rate: float | None = typer.Option(
+        None,
+        "--max-force-rate",
+        help="Plausibility: the fastest the force may change, N/s (a sample further from the "
+        "filtered force than half the expected peak + this × the time since the last sample "
+        "is dropped). Default: the expected peak in 50 ms.",
+    ),
+    max_tip_moment: float | None = typer.Option(
+        None,
+        "--max-tip-moment",
+        help="Plausibility: the largest moment about the tool tip, N·m (a ball-end tool takes "
+        "its load at the tip). Default: the expected peak × 20 mm.",
+    ),
     mlock: bool = typer.Option(
         False,
         "--mlock",
@@ -145,9 +186,13 @@ def online(
     """Correct the robot while it forms: force stream → tip wrench → VJM + tool + holder
     compliance at the current joints → pre-deflection sent every controller cycle.
 
-    Limits (never exceeded): --max-correction, --max-rate per cycle, --deadband; the watchdog
-    holds and then ramps the correction to zero when the sensor goes quiet. Every cycle is
-    logged to -o (Parquet). Ctrl-C ends the loop and writes the log. Lengths mm, angles deg.
+    Limits (never exceeded): --max-correction, --max-rate (per unit of the controller's time,
+    whatever its message rate), --deadband; the watchdog holds and then ramps the correction to
+    zero when the sensor goes quiet; an implausible force (--max-force, --max-force-rate,
+    --max-tip-moment) is dropped and the correction held. Every stop (the end of --duration or
+    --cycles, Ctrl-C, SIGTERM, a controller silent for 0.5 s, 25 late replies in a second, an
+    error) first ramps the correction to zero at --ramp-rate, and says so. Every cycle is
+    logged to -o (Parquet); the summary counts every episode. Lengths mm, angles deg.
     On a PC with a core to spare for the loop: --realtime 50 --cpu N --mlock (a 2-core VM
     cannot show what they give). See docs/online.md.
     """
@@ -189,6 +234,53 @@ def online(
     if controller == "replay" and kind != "replay":
         raise InputError("--controller replay needs --sensor replay:STUDY", field="--controller")
     rt = Realtime(realtime, cpu, mlock)  # InputError for a priority or CPU that cannot be
+    _check_run(controller, duration, cycles, cycle)
+    cpf, cpt = _floats(counts, 2, "--counts") or [1e6, 1e6]
+    if not (cpf > 0 and cpt > 0):
+        raise InputError(f"counts per N and per N·m must be > 0, got {counts!r}", field="--counts")
+    user_plaus = {
+        "--max-force": max_force,
+        "--max-force-rate": max_force_rate,
+        "--max-tip-moment": max_tip_moment,
+    }
+    for name, v in user_plaus.items():
+        if v is not None and not v > 0:  # NaN, 0 and negatives
+            raise InputError(f"must be > 0 (inf: no bound), got {v}", field=name)
+    if kind == "netft":
+        parse_address(arg, 49152, "--sensor", resolve=True)
+    parse_address(listen, 6510, "--listen", resolve=True)
+    # the sensor's settings are checked whether or not --simulate then replaces them
+    cog = _floats(tool_cog, 3, "--tool-cog")
+    assert cog is not None
+    user_sensor = dict(
+        load_on=load_on,
+        tare=np.array(_floats(tare, 6, "--tare") or [0.0] * 6),
+        tool_mass=tool_mass,
+        tool_cog=np.array(cog) * 1e-3,
+        cutoff=cutoff,
+    )
+    try:
+        SensorSetup(**user_sensor)  # type: ignore[arg-type]
+    except InputError as e:
+        flag = {"load_on": "--load-on", "tool_mass": "--tool-mass", "tool_cog": "--tool-cog"}
+        raise InputError(e.message, field=flag.get(str(e.field), f"--{e.field}")) from None
+    if simulate:
+        given = [
+            f
+            for f, v in (
+                ("--tare", tare),
+                ("--tool-mass", tool_mass or None),
+                ("--load-on", None if load_on == "tool" else load_on),
+                ("--tool-cog", None if tool_cog == "0,0,0" else tool_cog),
+                ("--sensor-pose", sensor_pose),
+            )
+            if v is not None
+        ]
+        if given:
+            state.warn(
+                f"--simulate: the simulated sensor's own tool, weight and tare are used; "
+                f"{', '.join(given)} not"
+            )
     if output.suffix.lower() != ".parquet":
         raise InputError(f"the log is Parquet: expected a .parquet file, got {output}", field="-o")
     output_file(output, "online", overwrite, study_inputs(study))
@@ -205,7 +297,6 @@ def online(
         watchdog * 1e-3,
         ramp_rate * 1e-3,
     )
-    cpf, cpt = _floats(counts, 2, "--counts") or [1e6, 1e6]
     setup: Any = None
     spec_pose = None
     if virtual is not None:
@@ -237,16 +328,7 @@ def online(
     if simulate:
         sensor_setup = setup.sensor  # the simulated sensor's tool, weight and tare
     else:
-        cog = _floats(tool_cog, 3, "--tool-cog")
-        assert cog is not None
-        sensor_setup = SensorSetup(
-            T_fs,
-            load_on=load_on,
-            tare=np.array(_floats(tare, 6, "--tare") or [0.0] * 6),
-            tool_mass=tool_mass,
-            tool_cog=np.array(cog) * 1e-3,
-            cutoff=cutoff,
-        )
+        sensor_setup = SensorSetup(T_fs, **user_sensor)  # type: ignore[arg-type]
 
     if controller == "replay":
         _replay(study, limits, cutoff, output)
@@ -269,11 +351,16 @@ def online(
         src = ReplaySensor(rep.force_time, rep.force)
         if pose is None:  # the study's sensor (pose, sign); the log is tared and compensated
             sensor_setup = rep.sensor
-    oc = OnlineCompensator(cell.robot, cell.T_base_work, _k_tip(cell), sensor_setup, limits)
+    peak = _expected_peak(setup, study)
+    plaus = _plausibility(peak, max_force, max_force_rate, max_tip_moment)
+    oc = OnlineCompensator(cell.robot, cell.T_base_work, _k_tip(cell), sensor_setup, limits, plaus)
     loop = Loop(oc, adapter, (host, port), src, counts=(cpf, cpt), realtime=rt)
     banner = (
         f"online: {adapter.name} on {loop.listen[0]}:{loop.listen[1]}, sensor {sensor}; "
-        f"limits {max_correction:g} mm, {max_rate:g} mm/s, dead band {deadband * 1e3:g} µm"
+        f"limits {max_correction:g} mm, {max_rate:g} mm/s, dead band {deadband * 1e3:g} µm; "
+        f"plausible force ≤ {plaus.max_force:.4g} N, ≤ {plaus.max_force_rate:.4g} N/s, "
+        f"tip moment ≤ {plaus.max_tip_moment:.4g} N·m"
+        + (f" (expected peak {peak:.0f} N)" if math.isfinite(peak) else "")
     )
     sim_result: dict[str, Any] | None = None
     if simulate:
@@ -324,14 +411,9 @@ def online(
             "wrench_and_deflection": "base axes, at the tool tip",
         },
     )
-    c = loop.counters
-    state.info(
-        f"{c.cycles} cycles, {c.samples} force samples; dropped: {c.bad_controller} bad "
-        f"controller and {c.bad_sensor} bad sensor packets, {c.late_sensor} late samples"
-        + (f", sensor unreachable {c.sensor_unreachable}×" if c.sensor_unreachable else "")
-        + "; "
-        f"log → {output}"
-    )
+    for line in summary_lines(loop.counters, loop.log.data[:, 20], loop.log.data[:, 0]):
+        state.info(line)
+    state.info(f"log → {output}")
     if sim_result is not None:
         for w in sim_result.get("warnings", []):
             state.warn(w)
@@ -349,6 +431,73 @@ def online(
             )
     if form is not None:
         _form(setup, sim_result, form)
+
+
+def _expected_peak(setup: Any, study: Path | None) -> float:
+    """The expected peak forming force, N: the virtual cell's force model, or the study's robot
+    force log (NaN when it has none)."""
+    import numpy as np
+
+    from roboisf.online.replay import expected_peak_force
+
+    if setup is not None:
+        return expected_peak_force(np.asarray(setup.wrench))
+    if study is None:
+        return math.nan
+    from roboisf.io.forcelog import read_force_log
+    from roboisf.study import load_study
+
+    spec = load_study(study).robot_run.forces
+    return expected_peak_force(read_force_log(spec.file).wrench)
+
+
+def _plausibility(peak: float, max_force: Any, rate: Any, moment: Any) -> Any:
+    """The plausibility bounds: the options given, the rest from the expected peak force."""
+    from roboisf.online import Plausibility
+
+    base = Plausibility.from_expected(peak) if math.isfinite(peak) and peak > 0 else Plausibility()
+    return Plausibility(
+        base.max_force if max_force is None else max_force,
+        base.force_band,
+        base.max_force_rate if rate is None else rate,
+        base.max_tip_moment if moment is None else moment,
+    )
+
+
+def summary_lines(c: Any, status: Any, t: Any) -> list[str]:
+    """The run's summary: why it stopped and how the correction ended, what was dropped, and
+    every episode of each status bit (count, longest)."""
+    from roboisf.online import netft
+    from roboisf.online.core import episodes
+
+    ended = (
+        f"ramped to zero in {c.ramp_time:.2f} s"
+        if c.ramped
+        else f"NOT ramped to zero: left at {c.left_mm:.3f} mm (nothing answered the ramp; the "
+        "controller's own timeout ends the motion)"
+    )
+    lines = [
+        f"stopped: {c.stop_reason or 'not started'}; correction {ended}",
+        f"{c.cycles} cycles, {c.samples} force samples; late replies {c.late_replies} "
+        f"(max latency {c.max_latency * 1e3:.2f} ms); dropped: {c.bad_controller} bad "
+        f"controller and {c.bad_sensor} bad sensor packets",
+        f"sensor: {c.lost_sensor} records lost, {c.late_sensor} out of order or duplicated, "
+        f"{c.sensor_resyncs} stream restarts followed, {c.implausible} implausible samples held, "
+        f"{c.sensor_status} with a fault status"
+        + (f" ({netft.status_text(c.sensor_status_bits)})" if c.sensor_status_bits else "")
+        + (f", unreachable {c.sensor_unreachable}×" if c.sensor_unreachable else ""),
+    ]
+    ep = episodes(status, t)
+    shown = {k: v for k, v in ep.items() if k != "deadband"}
+    lines.append(
+        "episodes: "
+        + (
+            ", ".join(f"{k} {n}× (longest {dt * 1e3:.0f} ms)" for k, (n, dt) in shown.items())
+            if shown
+            else "none (every cycle ok or in the dead band)"
+        )
+    )
+    return lines
 
 
 def _form(setup: Any, sim_result: dict[str, Any] | None, folder: Path) -> None:
@@ -419,8 +568,9 @@ def _run(loop: Any, duration: float, cycles: int | None, status_text: Any, banne
                 status_every=1.0,
                 warn=state.warn,
             )
-    except Interrupted:
+    except Interrupted:  # a signal before the loop served (run() handles its own)
         loop.close()
+        loop.counters.stop_reason = "interrupted before the loop started"
         state.info("stopped (Ctrl-C); writing the log")
 
 

@@ -48,7 +48,7 @@ from roboisf.online import kernel as kn
 from roboisf.robot import RobotModel
 from roboisf.robot.kinematics import rotate_6x6
 
-__all__ = ["Limits", "OnlineCompensator", "Plausibility", "SensorSetup"]
+__all__ = ["Limits", "OnlineCompensator", "Plausibility", "SensorSetup", "episodes", "status_text"]
 
 F64 = NDArray[np.float64]
 
@@ -374,3 +374,28 @@ def status_text(status: int) -> str:
     """``"ok"`` or the names of the status bits, ``+``-joined."""
     names = [n for b, n in kn.STATUS_NAMES.items() if status & b]
     return "+".join(names) if names else "ok"
+
+
+def episodes(status: ArrayLike, t: ArrayLike) -> dict[str, tuple[int, float]]:
+    """Per status bit, its episodes in a run: ``{name: (count, longest s)}``.
+
+    ``status`` (n,) int, the cycles' status bits (the log's ``status`` column), ``t`` (n,) s
+    their times. An episode is a run of consecutive cycles with the bit set; its length runs
+    from its first cycle to the first cycle after it (to its last cycle at the end of the log).
+    Bits never set are left out.
+    """
+    st = np.asarray(status, dtype=np.int64)
+    tt = np.asarray(t, dtype=float)
+    if st.shape != tt.shape or st.ndim != 1:
+        raise InputError("status and t must be (n,) arrays of one length", field="status")
+    out: dict[str, tuple[int, float]] = {}
+    for bit, name in kn.STATUS_NAMES.items():
+        on = (st & bit) != 0
+        if not on.any():
+            continue
+        edges = np.diff(np.concatenate([[0], on.astype(np.int8), [0]]))
+        starts = np.flatnonzero(edges == 1)
+        ends = np.flatnonzero(edges == -1)  # first cycle after (may be n)
+        t_end = tt[np.minimum(ends, len(tt) - 1)]
+        out[name] = (len(starts), float(np.max(t_end - tt[starts])))
+    return out
