@@ -141,7 +141,22 @@ def online(
         help="Net F/T counts per N and per N·m (cfgcpf, cfgcpt of the calibration).",
     ),
     path_correction: bool = typer.Option(False, "--path-correction", help="EGM path correction."),
-    relative: bool = typer.Option(False, "--relative", help="RSI: send per-cycle increments."),
+    relative: bool = typer.Option(
+        False,
+        "--relative",
+        help='RSI: send per-cycle increments (RSI_ON(#RELATIVE), HOLDON="0"); an increment '
+        "in a reply that came late (the controller's Delay count) is sent again.",
+    ),
+    rsi_correction: str = typer.Option(
+        "cartesian",
+        "--rsi-correction",
+        help="RSI: cartesian (<RKorr X Y Z A B C>, mm, a POSCORR object in the part's BASE) | "
+        "joint (<AK A1…A6>, deg, an AXISCORR object: ROS-Industrial's layout). The matching "
+        "configuration files and KRL program ship in roboisf/online/rsi_config (docs/online.md).",
+    ),
+    rsi_sentype: str = typer.Option(
+        "ImFree", "--rsi-sentype", help="RSI: the configuration's SENTYPE (<Sen Type=…>)."
+    ),
     realtime: int | None = typer.Option(
         None,
         "--realtime",
@@ -235,6 +250,15 @@ def online(
         raise InputError("--controller replay needs --sensor replay:STUDY", field="--controller")
     rt = Realtime(realtime, cpu, mlock)  # InputError for a priority or CPU that cannot be
     _check_run(controller, duration, cycles, cycle)
+    if rsi_correction not in ("cartesian", "joint"):
+        raise InputError(
+            f"must be cartesian or joint, got {rsi_correction!r}", field="--rsi-correction"
+        )
+    if simulate and rsi_correction == "joint":
+        raise InputError(
+            "the simulated controller takes Cartesian corrections only (RKorr)",
+            field="--rsi-correction",
+        )
     cpf, cpt = _floats(counts, 2, "--counts") or [1e6, 1e6]
     if not (cpf > 0 and cpt > 0):
         raise InputError(f"counts per N and per N·m must be > 0, got {counts!r}", field="--counts")
@@ -334,9 +358,17 @@ def online(
         _replay(study, limits, cutoff, output)
         return
 
-    adapter: Any = (
-        EgmAdapter(path_correction) if controller == "egm" else RsiAdapter(limits.cycle, relative)
-    )
+    adapter: Any
+    if controller == "egm":
+        adapter = EgmAdapter(path_correction)
+    else:
+        adapter = RsiAdapter(
+            limits.cycle,
+            relative,
+            correction=rsi_correction,
+            dq_dp=_dq_dp(cell),
+            sentype=rsi_sentype,
+        )
     host, port = parse_address(listen, 6510, "--listen")
     if simulate:
         host, port = "127.0.0.1", 0
@@ -381,6 +413,7 @@ def online(
             cycle=limits.cycle,
             point_step=step,
             realtime=sim_rt,
+            relative=relative and controller == "rsi",
         ) as sim:
             assert loop.ft is not None
             loop.ft.connect(("127.0.0.1", sim.sensor_port))
@@ -520,6 +553,20 @@ def _form(setup: Any, sim_result: dict[str, Any] | None, folder: Path) -> None:
         f"{reached} of {n} toolpath points"
         + ("" if reached >= n else " — the rest formed uncorrected (a longer --duration)")
     )
+
+
+def _dq_dp(cell: Any) -> Any:
+    """q (6,) rad → (6, 3) rad/m: the axis change per tip translation (work axes) at q."""
+    import numpy as np
+
+    e = np.eye(6)[:, :3]
+    T_bw = cell.T_base_work
+
+    def f(q: Any) -> Any:
+        J = cell.robot.jacobian(np.asarray(q)[None], check_limits=False, T_base_work=T_bw)[0]
+        return np.linalg.solve(J, e)
+
+    return f
 
 
 def _k_tip(cell: Any) -> Any:
