@@ -441,3 +441,58 @@ def test_too_many_late_replies_stop_the_loop(cell, q0, monkeypatch):
     assert "10 late replies within 1 s" in c.stop_reason, c.stop_reason
     assert c.late_replies >= 10
     assert math.isfinite(c.max_latency) and c.max_latency > 4e-3
+
+
+# ------------------------------------------------------------------------------- selftest
+class _Clock:
+    """An injected clock: the absolute sleep lands ``late[k]`` s after its target, and each
+    reading of the clock takes 150 µs (so the cycle's work measures 150 µs)."""
+
+    def __init__(self, late):
+        self.now, self.late, self.k = 0.0, list(late), 0
+
+    def __call__(self) -> float:
+        t = self.now
+        self.now += 150e-6
+        return t
+
+    def sleep(self, target: float) -> None:
+        self.now = max(self.now, target) + self.late[self.k]
+        self.k += 1
+
+
+@pytest.mark.parametrize("worst", [1e-4, 3e-3])
+def test_selftest_gives_its_verdict_against_the_cycle_budget(cell, q0, worst):
+    """Deterministic: 250 cycles of 4 ms; every wake-up 50 µs late but one of ``worst``: within
+    the 2 ms budget it passes, one 3 ms wake-up fails it (a reply the controller counts late)."""
+    from roboisf.online import egm
+    from roboisf.online.selftest import selftest
+
+    oc = OnlineCompensator.from_cell(cell)
+    late = [50e-6] * 250
+    late[100] = worst
+    clk = _Clock(late)
+    msg = egm.encode_robot(1, 0, q0, np.array([1.2, 0, 0.3, 0, 0, 1.0, 0]))
+    res = selftest(oc, egm.EgmAdapter(), msg, seconds=1.0, clock=clk, sleep=clk.sleep)
+    assert len(res.wake) == 250
+    np.testing.assert_allclose(res.compute, 150e-6, rtol=1e-9)
+    assert res.wake[100] == pytest.approx(worst) and res.wake[0] == pytest.approx(50e-6)
+    assert res.passed == (worst < 1e-3)
+    assert res.over == (0 if worst < 1e-3 else 1)
+    verdict = res.lines()[-1]
+    assert verdict.startswith("PASS" if res.passed else "FAIL: 1 of 250 cycles")
+    np.testing.assert_array_equal(oc.correction, 0.0)  # the compensator is left reset
+
+
+def test_selftest_from_the_command_line_gives_a_verdict_on_this_host(capsys, tmp_path):
+    """On this host, whatever it is: the figures, a PASS (exit 0) or FAIL (exit 1) line."""
+    from roboisf.cli.main import main
+
+    code = main(
+        ["online", "-c", "rsi", "--virtual", "cone", "--selftest", "--selftest-seconds", "0.3"]
+    )
+    out = capsys.readouterr().out
+    assert "wake-up latency: p50" in out and "loop compute:" in out
+    assert (code, "PASS" in out) in ((0, True), (1, False)), (code, out)
+    code = main(["online", "-c", "rsi", "--virtual", "cone", "--selftest", "--simulate"])
+    assert code == 2

@@ -69,8 +69,12 @@ def online(
         help="netft:HOST[:PORT] (ATI Net F/T, RDT over UDP, port 49152) | replay:STUDY (the "
         "study's robot force log, released in real time).",
     ),
-    output: Path = typer.Option(
-        ..., "--output", "-o", help=f"Per-cycle log, Parquet (units in column names). {FILE_HELP}"
+    output: Path | None = typer.Option(
+        None,
+        "--output",
+        "-o",
+        help=f"Per-cycle log, Parquet (units in column names); required but with --selftest. "
+        f"{FILE_HELP}",
     ),
     overwrite: Overwrite = False,
     study: Path | None = typer.Option(
@@ -140,7 +144,15 @@ def online(
         "--counts",
         help="Net F/T counts per N and per N·m (cfgcpf, cfgcpt of the calibration).",
     ),
-    path_correction: bool = typer.Option(False, "--path-correction", help="EGM path correction."),
+    path_correction: bool = typer.Option(
+        False,
+        "--path-correction",
+        help="EGM path correction (EGMActMove + EGMMoveL: the controller's path planning stays "
+        "in charge; the mode for a forming program). pathCorr is sent in EGM's sensor frame, "
+        "the TCP frame when EGMActMove is given tool.tframe (the RAPID module "
+        "roboisf/online/egm_config/roboisf_egm.mod). Without it: position guidance, the "
+        "controller's planned pose + the correction (docs/online.md).",
+    ),
     relative: bool = typer.Option(
         False,
         "--relative",
@@ -170,6 +182,17 @@ def online(
         "--cpu",
         help="Pin the loop to this CPU (best one kept free of other work); --simulate's "
         "devices then run on the other CPUs.",
+    ),
+    selftest: bool = typer.Option(
+        False,
+        "--selftest",
+        help="Measure this host instead of serving: wake-up latency and the loop's compute, "
+        "once per --cycle for --selftest-seconds under --realtime/--cpu/--mlock, then PASS "
+        "(exit 0) or FAIL (exit 1) against the budget, half the cycle. Needs the cell "
+        "(--virtual or --study) and -c egm|rsi; no network.",
+    ),
+    selftest_seconds: float = typer.Option(
+        10.0, "--selftest-seconds", help="How long --selftest measures, s."
     ),
     max_force: float | None = typer.Option(
         None,
@@ -305,9 +328,21 @@ def online(
                 f"--simulate: the simulated sensor's own tool, weight and tare are used; "
                 f"{', '.join(given)} not"
             )
-    if output.suffix.lower() != ".parquet":
+    if selftest:
+        if controller == "replay" or simulate or form is not None:
+            raise InputError(
+                "--selftest measures the host for -c egm|rsi; not with replay, --simulate "
+                "or --form",
+                field="--selftest",
+            )
+        if not (math.isfinite(selftest_seconds) and selftest_seconds > 0):
+            raise InputError(f"must be > 0 s, got {selftest_seconds}", field="--selftest-seconds")
+    elif output is None:
+        raise InputError("the per-cycle log: give -o LOG.parquet", field="-o")
+    if output is not None and output.suffix.lower() != ".parquet":
         raise InputError(f"the log is Parquet: expected a .parquet file, got {output}", field="-o")
-    output_file(output, "online", overwrite, study_inputs(study))
+    if output is not None and not selftest:
+        output_file(output, "online", overwrite, study_inputs(study))
     if form is not None:
         from roboisf.cli.outputs import output_dir
 
@@ -355,6 +390,7 @@ def online(
         sensor_setup = SensorSetup(T_fs, **user_sensor)  # type: ignore[arg-type]
 
     if controller == "replay":
+        assert output is not None
         _replay(study, limits, cutoff, output)
         return
 
@@ -386,6 +422,10 @@ def online(
     peak = _expected_peak(setup, study)
     plaus = _plausibility(peak, max_force, max_force_rate, max_tip_moment)
     oc = OnlineCompensator(cell.robot, cell.T_base_work, _k_tip(cell), sensor_setup, limits, plaus)
+    if selftest:
+        _selftest(oc, adapter, cell, setup, selftest_seconds, rt)
+        return
+    assert output is not None
     loop = Loop(oc, adapter, (host, port), src, counts=(cpf, cpt), realtime=rt)
     banner = (
         f"online: {adapter.name} on {loop.listen[0]}:{loop.listen[1]}, sensor {sensor}; "
@@ -464,6 +504,37 @@ def online(
             )
     if form is not None:
         _form(setup, sim_result, form)
+
+
+def _selftest(oc: Any, adapter: Any, cell: Any, setup: Any, seconds: float, rt: Any) -> None:
+    """``--selftest``: the host's verdict against the cycle budget (exit 1 on FAIL)."""
+    import numpy as np
+
+    from roboisf.online import egm, rsi
+    from roboisf.online.selftest import selftest
+    from roboisf.robot import ik_toolpath
+
+    if setup is not None:
+        q = np.asarray(setup.q[len(setup.q) // 2])
+    else:
+        q = ik_toolpath(cell.robot, np.zeros((1, 3)), cell.T_base_work).q[0]
+    T = cell.robot.fk(q[None])[0]
+    from roboisf.frames import matrix_to_quat
+
+    planned = np.r_[T[:3, 3], matrix_to_quat(T[:3, :3])]
+    msg = egm.encode_robot(1, 0, q, planned) if adapter.name == "egm" else rsi.encode_robot(4, q)
+    state.info(
+        f"selftest: {seconds:g} s, one {adapter.name} cycle of {oc.limits.cycle * 1e3:g} ms at "
+        f"a time (realtime {rt.priority or 'off'}, cpu {rt.cpu if rt.cpu is not None else 'any'}"
+        f", mlock {'on' if rt.mlock else 'off'})"
+    )
+    res = selftest(oc, adapter, msg, seconds=seconds, realtime=rt)
+    for w in res.warnings:
+        state.warn(w)
+    for line in res.lines():
+        state.info(line)
+    if not res.passed:
+        raise typer.Exit(1)
 
 
 def _expected_peak(setup: Any, study: Path | None) -> float:

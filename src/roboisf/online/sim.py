@@ -41,7 +41,7 @@ from numpy.typing import NDArray
 from roboisf.cell import tip_compliances
 from roboisf.compensate.compliance import DeflectionModel, precompensate
 from roboisf.errors import InputError
-from roboisf.frames import matrix_to_quat, vertical_tool
+from roboisf.frames import matrix_to_quat, quat_to_matrix, vertical_tool
 from roboisf.online import egm, netft, rsi
 from roboisf.online import kernel as kn
 from roboisf.online.base import ProtocolError
@@ -498,7 +498,11 @@ class _ControllerSim:
             return
         j = rseq - 1
         if self.protocol == "egm":
-            corr = pose[:3] - self.planned[int(self.ks[j]), :3]
+            pl = self.planned[int(self.ks[j])]
+            if np.isnan(pose[3]):  # path correction: in the TCP frame of the planned pose
+                corr = quat_to_matrix(pl[3:]) @ pose[:3]
+            else:  # position guidance: the pose sent, less the program's path
+                corr = pose[:3] - pl[:3]
         # the arrival on this process's perf_counter clock: kernel stamp, else the read
         if arrival_ns is not None:
             arrived = float(self.sent[j] + (arrival_ns - self.sent_ns[j]) * 1e-9)
