@@ -423,13 +423,17 @@ class Loop:
         except OSError:
             return None
         now = time.perf_counter()
-        ns = kernel_stamp(anc) if self._ctl_stamped else None
-        # arrival on the perf_counter clock (the read, without a kernel stamp)
-        arrived = now if ns is None else ns * 1e-9 - self._rt_offset
-        if not now - 1.0 < arrived <= now + 1e-3:  # the wall clock was stepped: follow it
+        return data, addr, now, self._arrival(anc, self._ctl_stamped, now)
+
+    def _arrival(self, anc: Any, stamped: bool, read: float) -> float:
+        """A datagram's arrival on the perf_counter clock: the kernel's stamp (``anc``), or
+        the ``read`` time without one."""
+        ns = kernel_stamp(anc) if stamped else None
+        t = read if ns is None else ns * 1e-9 - self._rt_offset
+        if not read - 1.0 < t <= read + 1e-3:  # the wall clock was stepped: follow it
             self._rt_offset = time.time() - time.perf_counter()
-            arrived = now
-        return data, addr, now, arrived
+            t = read
+        return t
 
     def _serve(self, t0: float, duration: float, cycles: int | None) -> str:
         """Answer the controller until a reason to stop; returns it."""
@@ -497,12 +501,7 @@ class Loop:
             except OSError:  # ICMP port unreachable from the sensor's host
                 self.counters.sensor_unreachable += 1
                 continue
-            read = time.perf_counter()
-            ns = kernel_stamp(anc) if self._ft_stamped else None
-            t = read if ns is None else ns * 1e-9 - self._rt_offset
-            if not read - 1.0 < t <= read + 1e-3:  # the wall clock was stepped: follow it
-                self._rt_offset = time.time() - time.perf_counter()
-                t = read
+            t = self._arrival(anc, self._ft_stamped, time.perf_counter())
             self._on_sensor(data, t - t0)
 
     def _housekeeping(self, now: float) -> None:
