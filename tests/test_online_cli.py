@@ -146,6 +146,10 @@ def test_ctrl_c_ends_the_loop_and_writes_the_log(tmp_path):
         (["--cycle", "1"], "--cycle"),
         (["--max-force", "-5"], "--max-force"),
         (["--rsi-correction", "tool"], "--rsi-correction"),
+        (["--max-rate", "-1"], "--max-rate"),
+        (["--watchdog", "0"], "--watchdog"),
+        (["--cutoff", "nan"], "--cutoff"),
+        (["-s", "netft:127.0.0.1:99999"], "--sensor"),
     ],
 )
 def test_online_options_fail_the_same_with_and_without_simulate(

@@ -273,6 +273,17 @@ def online(
         raise InputError("--controller replay needs --sensor replay:STUDY", field="--controller")
     rt = Realtime(realtime, cpu, mlock)  # InputError for a priority or CPU that cannot be
     _check_run(controller, duration, cycles, cycle)
+    try:
+        limits = Limits(
+            deadband * 1e-3,
+            max_correction * 1e-3,
+            max_rate * 1e-3,
+            cycle * 1e-3,
+            watchdog * 1e-3,
+            ramp_rate * 1e-3,
+        )
+    except InputError as e:
+        raise InputError(e.message, field=f"--{str(e.field).replace('_', '-')}") from None
     if rsi_correction not in ("cartesian", "joint"):
         raise InputError(
             f"must be cartesian or joint, got {rsi_correction!r}", field="--rsi-correction"
@@ -348,14 +359,6 @@ def online(
 
         output_dir(form, "virtual-cell", overwrite)
 
-    limits = Limits(
-        deadband * 1e-3,
-        max_correction * 1e-3,
-        max_rate * 1e-3,
-        cycle * 1e-3,
-        watchdog * 1e-3,
-        ramp_rate * 1e-3,
-    )
     setup: Any = None
     spec_pose = None
     if virtual is not None:
