@@ -13,7 +13,7 @@ import time
 import numpy as np
 import pytest
 
-from online_fakes import FakeKuka, RsiConfig, RsiReplyError, rdt_record
+from online_fakes import FakeKuka, FakeNetFT, RsiConfig, RsiReplyError, rdt_record
 from roboisf.cell import make_cell
 from roboisf.frames import make_transform
 from roboisf.online import Limits, OnlineCompensator, Plausibility, netft, rsi
@@ -379,7 +379,7 @@ def test_every_stop_ramps_the_correction_to_zero_first(cell, q0, how, monkeypatc
         except RuntimeError as e:
             out["e"] = e
 
-    th = threading.Thread(target=serve)
+    th = threading.Thread(target=serve, daemon=True)
     th.start()
     ctl.start()
     time.sleep(0.8)
@@ -387,6 +387,7 @@ def test_every_stop_ramps_the_correction_to_zero_first(cell, q0, how, monkeypatc
     if how == "stop":
         loop.stop()
     th.join(20)
+    assert not th.is_alive(), loop.counters
     ctl.halt.set()
     ctl.join(5)
     c = loop.counters
@@ -408,12 +409,13 @@ def test_every_stop_ramps_the_correction_to_zero_first(cell, q0, how, monkeypatc
 def test_a_silent_controller_stops_the_loop_and_says_the_ramp_could_not_run(cell, q0):
     loop = _loop(cell, controller_timeout=0.2)
     ctl = _Controller(loop.listen[1], list(np.degrees(q0)))
-    th = threading.Thread(target=lambda: loop.run(duration=30))
+    th = threading.Thread(target=lambda: loop.run(duration=30), daemon=True)
     th.start()
     ctl.start()
     time.sleep(0.6)
     ctl.halt.set()  # the controller goes away (its own timeout would stop the robot)
     th.join(20)
+    assert not th.is_alive(), loop.counters
     c = loop.counters
     assert "controller silent for 0.2 s" in c.stop_reason
     assert not c.ramped and c.left_mm > 0.2
@@ -431,10 +433,11 @@ def test_too_many_late_replies_stop_the_loop(cell, q0, monkeypatch):
 
     monkeypatch.setattr(loop.adapter, "encode", slow)
     ctl = _Controller(loop.listen[1], list(np.degrees(q0)))
-    th = threading.Thread(target=lambda: loop.run(duration=30))
+    th = threading.Thread(target=lambda: loop.run(duration=30), daemon=True)
     th.start()
     ctl.start()
     th.join(20)
+    assert not th.is_alive(), loop.counters
     ctl.halt.set()
     ctl.join(5)
     c = loop.counters
@@ -496,3 +499,44 @@ def test_selftest_from_the_command_line_gives_a_verdict_on_this_host(capsys, tmp
     assert (code, "PASS" in out) in ((0, True), (1, False)), (code, out)
     code = main(["online", "-c", "rsi", "--virtual", "cone", "--selftest", "--simulate"])
     assert code == 2
+
+
+def test_a_lost_sensor_ramps_by_the_watchdog_and_stops_the_loop(cell, q0):
+    """A fake Net F/T streams a forming force, then dies: the watchdog holds and ramps the
+    correction to zero while the controller keeps taking replies, and after sensor_timeout the
+    loop stops, saying so — a restart within that time would have been followed."""
+    ft = FakeNetFT(wrench=[0, 0, 1500.0, 0, 0, 0])
+    lim = Limits(watchdog=0.05, ramp_rate=5e-3)
+    oc = OnlineCompensator.from_cell(cell, limits=lim)
+    loop = Loop(
+        oc,
+        rsi.RsiAdapter(0.004),
+        ("127.0.0.1", 0),
+        ("127.0.0.1", ft.port),
+        quiet_gc=False,
+        sensor_timeout=1.0,
+    )
+    ctl = _Controller(loop.listen[1], list(np.degrees(q0)))
+    th = threading.Thread(target=lambda: loop.run(duration=30), daemon=True)
+    th.start()
+    ctl.start()
+    try:
+        t_end = time.time() + 20
+        while (not ctl.got or np.linalg.norm(ctl.got[-1][1]) < 0.2) and time.time() < t_end:
+            time.sleep(0.02)
+        assert ft.requests[0] == (2, 0)  # start high-speed real-time streaming, no count
+        t_dead = time.perf_counter()
+        ft.close()  # the sensor dies
+        th.join(20)
+        assert not th.is_alive(), loop.counters
+    finally:
+        ctl.halt.set()
+        ctl.join(5)
+    c = loop.counters
+    assert "sensor silent for 1 s" in c.stop_reason and c.ramped
+    tt = np.array([g[0] for g in ctl.got])
+    mm = np.linalg.norm(np.array([g[1] for g in ctl.got]), axis=1)
+    after = tt > t_dead
+    assert mm[after][-1] == 0.0
+    zero_at = tt[after][np.argmax(mm[after] == 0.0)]
+    assert zero_at - t_dead < 1.0  # ramped by the watchdog before the loop gave up on it

@@ -25,8 +25,9 @@ core's rate limits act per unit of the messages' own time.
 **Every stop ramps the correction to zero first** (:meth:`Loop.run`): the end of ``duration``
 or ``cycles``, :meth:`Loop.stop`, Ctrl-C / SIGTERM (``KeyboardInterrupt`` or
 :class:`roboisf.io.outdir.Interrupted`), an error inside the loop, a controller silent for
-``controller_timeout`` s, or too many late replies (``late_limit`` in ``late_window`` s: the host
-cannot keep the cycle). The loop then answers the controller's messages with the correction
+``controller_timeout`` s, a Net F/T silent for ``sensor_timeout`` s (after the watchdog's
+ramp), or too many late replies (``late_limit`` in ``late_window`` s: the host cannot keep the
+cycle). The loop then answers the controller's messages with the correction
 ramping at ``ramp_rate`` until it is zero, and :attr:`Counters.stop_reason` /
 :attr:`Counters.ramped` say why it stopped and whether the ramp finished (it cannot when the
 controller is silent: nothing to send it to).
@@ -248,6 +249,9 @@ class Loop:
         the thread that calls :meth:`run` (refused settings: one line each in ``warnings``)
     controller_timeout : float, s — no controller message for this long (after the first):
         the controller is lost; the loop stops (default 0.5 s)
+    sensor_timeout : float, s — a Net F/T that streamed and then sent nothing for this long
+        (the loop asks it to start again after 1 s: a restart within this time is followed)
+        is lost; the loop stops (default 2 s; the watchdog has ramped the correction by then)
     late_limit, late_window : int, float s — this many replies later than a cycle after their
         message's arrival within ``late_window`` s: the host cannot keep the cycle; the loop
         ramps down and stops (default 25 in 1 s)
@@ -273,16 +277,21 @@ class Loop:
         realtime: Realtime | None = None,
         quiet_gc: bool = True,
         controller_timeout: float = 0.5,
+        sensor_timeout: float = 2.0,
         late_limit: int = 25,
         late_window: float = 1.0,
     ) -> None:
-        if not (controller_timeout > 0 and late_window > 0 and late_limit >= 1):
+        if not (
+            controller_timeout > 0 and sensor_timeout > 0 and late_window > 0 and late_limit >= 1
+        ):
             raise InputError(
                 "controller_timeout and late_window must be > 0 s and late_limit ≥ 1",
                 field="controller_timeout",
             )
         self.oc = oc
         self.controller_timeout = float(controller_timeout)
+        self.sensor_timeout = float(sensor_timeout)
+        self._last_record_at = math.nan  # perf_counter of the last sensor packet (none yet)
         self.late_limit = int(late_limit)
         self.late_window = float(late_window)
         self._late_times = np.full(self.late_limit, -math.inf)  # ring: the last late replies
@@ -447,6 +456,8 @@ class Loop:
                 return f"{cycles} cycles run"
             if now - self._last_msg > self.controller_timeout:
                 return f"controller silent for {self.controller_timeout:g} s"
+            if now - self._last_record_at > self.sensor_timeout:
+                return f"sensor silent for {self.sensor_timeout:g} s"
             if status is not None and now >= self._next_status + status_every:
                 self._housekeeping(now)  # no controller: the status still shows it
             if self.ft is not None and now - self._last_sample_at > 1.0:
@@ -473,9 +484,13 @@ class Loop:
         self.oc.begin_stop()
         start = time.perf_counter()
         last = self._last_msg if math.isfinite(self._last_msg) else start
+        lim = self.oc.limits  # the ramp's own length, twice, and a silent controller's wait
+        give_up = start + 2.0 * lim.max_correction / lim.ramp_rate + self.controller_timeout
         while np.any(self.oc.correction != 0.0):
             got = self._receive(t0)
             now = time.perf_counter()
+            if now > give_up:
+                break  # the messages' clock did not advance: never wait on it for ever
             if got is None:
                 if now - max(last, start) > self.controller_timeout:
                     break  # nobody to send the ramp to
@@ -523,7 +538,7 @@ class Loop:
             self.counters.sensor_unreachable += 1
 
     def _on_sensor(self, data: bytes, t: float) -> None:
-        self._last_sample_at = time.perf_counter()
+        self._last_sample_at = self._last_record_at = time.perf_counter()
         try:
             recs = netft.decode_records(data, *self.counts)
         except ProtocolError:
