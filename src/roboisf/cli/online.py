@@ -430,7 +430,10 @@ def online(
         _selftest(oc, adapter, cell, setup, selftest_seconds, rt)
         return
     assert output is not None
-    loop = Loop(oc, adapter, (host, port), src, counts=(cpf, cpt), realtime=rt)
+    from roboisf.online.loop import RULES_OFF
+
+    rules: dict[str, Any] = dict(RULES_OFF) if simulate else {}
+    loop = Loop(oc, adapter, (host, port), src, counts=(cpf, cpt), realtime=rt, **rules)
     banner = (
         f"online: {adapter.name} on {loop.listen[0]}:{loop.listen[1]}, sensor {sensor}; "
         f"limits {max_correction:g} mm, {max_rate:g} mm/s, dead band {deadband * 1e3:g} µm; "
