@@ -82,7 +82,7 @@ def compute(setup, controller: str, n: int) -> np.ndarray:
 
 def udp(setup, controller: str, minutes: float, a):
     from roboisf.online import Limits, OnlineCompensator, egm, rsi
-    from roboisf.online.loop import CycleLog, Loop
+    from roboisf.online.loop import RULES_OFF, CycleLog, Loop
     from roboisf.online.rt import Realtime, other_cpus
     from roboisf.online.sim import Simulation
 
@@ -104,6 +104,7 @@ def udp(setup, controller: str, minutes: float, a):
         log=CycleLog(),
         realtime=rt,
         quiet_gc=not a.no_quiet_gc,
+        **RULES_OFF,
     )
     step = max(1, len(setup.q) // n)
     # the controller's first message 1 s after it is up: the loop's own start (one garbage

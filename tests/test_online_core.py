@@ -314,3 +314,141 @@ def test_online_kernel_runs_without_numba():
     assert out.returncode == 0, out.stderr[-2000:]
     c23, e, r = (float(v) for v in out.stdout.split())
     assert c23 == 1.0 and e < 1e-12 and r < 1e-13
+
+
+# ------------------------------------------------------------------ limits in time, stop, spikes
+def _loaded(cell, poses, lim, plaus=None, fz=600.0):
+    """A compensator that has settled on a steady forming force (1 kHz samples, 4 ms cycles)."""
+    from roboisf.online import Plausibility
+
+    oc = OnlineCompensator.from_cell(cell, limits=lim, plausibility=plaus or Plausibility())
+    q = poses[0]
+    oc.set_joints(q)
+    W = np.array([0, 0, fz, 0, 0, 0])
+    t = 0.0
+    for _ in range(400):
+        for _ in range(4):
+            t += 1e-3
+            assert oc.sample(t, W)
+        oc.cycle(t, q)
+    return oc, q, W, t
+
+
+def test_a_burst_of_messages_moves_the_correction_by_rate_times_the_time_it_spans(cell, poses):
+    """31 controller messages within 0.3 ms (a controller flushing its queue, a replay): the
+    correction may move by 20 mm/s × 0.3 ms = 6 µm, not 31 cycles' worth (2.5 mm)."""
+    lim = Limits(max_rate=20e-3, max_correction=5e-3)
+    oc, q, _, t = _loaded(cell, poses, lim, fz=0.0)
+    np.testing.assert_array_equal(oc.correction, 0.0)
+    oc.sample(t + 1e-4, 4 * np.array([0, 0, 600.0, 0, 0, 0]))  # the force steps up
+    oc.filtered[:] = [0, 0, 2400.0, 0, 0, 0]  # at once (the filter is not under test)
+    t0 = t + 1e-3
+    for k in range(31):
+        oc.cycle(t0 + k * 1e-5, q)
+        assert oc.status & kn.STATUS_LIMITED
+    spanned = t0 + 30 * 1e-5 - t  # from the last cycle before the burst to its last message
+    assert np.linalg.norm(oc.correction) <= lim.max_rate * spanned * (1 + 1e-9)
+    assert np.linalg.norm(oc.correction) > 0.9 * lim.max_rate * spanned  # and it did move
+
+
+def test_the_ramp_takes_its_time_whatever_the_message_rate(cell, poses):
+    """A watchdog ramp of ~0.5 mm at 5 mm/s takes ≥ 0.1 s of the messages' own time, at 4 ms,
+    1 ms or irregular spacing; a message not after the last moves nothing."""
+    lim = Limits(max_rate=1.0, ramp_rate=5e-3, watchdog=0.02)
+    rng = np.random.default_rng(3)
+    for spacing in ("4ms", "1ms", "irregular"):
+        oc, q, _, t = _loaded(cell, poses, lim)
+        c0 = np.linalg.norm(oc.correction)
+        assert c0 > 0.3e-3
+        prev, t_prev = c0, t  # the last cycle
+        t += 2 * lim.watchdog
+        t_start = t
+        while np.linalg.norm(oc.correction) > 0:
+            dt = {"4ms": 4e-3, "1ms": 1e-3, "irregular": rng.choice([0.0, 1e-5, 3e-3, 9e-3])}[
+                spacing
+            ]
+            t += dt
+            oc.cycle(t, q)
+            n = np.linalg.norm(oc.correction)
+            assert prev - n <= lim.ramp_rate * min(t - t_prev, 2 * lim.cycle) * (1 + 1e-9) + 1e-15
+            if dt == 0.0:
+                assert n == prev
+            prev, t_prev = n, t
+        assert t - t_start >= c0 / lim.ramp_rate * (1 - 1e-9) - 2 * lim.cycle
+
+
+def test_a_stop_ramps_the_correction_to_zero_at_the_ramp_rate(cell, poses):
+    lim = Limits(ramp_rate=5e-3)
+    oc, q, W, t = _loaded(cell, poses, lim)
+    c0 = np.linalg.norm(oc.correction)
+    assert c0 > 0.3e-3 and not oc.stopping
+    oc.begin_stop()
+    n_cycles = 0
+    while np.linalg.norm(oc.correction) > 0:
+        t += 4e-3
+        oc.sample(t - 1e-3, W)  # the force is still there: the stop wins
+        before = np.linalg.norm(oc.correction)
+        oc.cycle(t, q)
+        assert oc.status & kn.STATUS_STOP
+        assert before - np.linalg.norm(oc.correction) <= lim.ramp_rate * 4e-3 * (1 + 1e-9)
+        n_cycles += 1
+    assert n_cycles == math.ceil(c0 / (lim.ramp_rate * 4e-3) - 1e-9)
+    oc.reset()
+    assert not oc.stopping
+
+
+def test_a_force_spike_is_held_not_followed(cell, poses):
+    """10 kN for 20 ms on a 600 N forming force: with the bounds of a 600 N study the spike
+    never reaches the filter and the correction holds; without them it jumps."""
+    from roboisf.online import Plausibility
+
+    lim = Limits(max_rate=50e-3)
+    out = {}
+    for name, plaus in (("bounded", Plausibility.from_expected(600.0)), ("open", None)):
+        oc, q, W, t = _loaded(cell, poses, lim, plaus)
+        c0 = oc.correction.copy()
+        spike = W + np.array([0, 0, 10e3, 0, 0, 0])
+        worst = 0.0
+        seen = 0
+        for k in range(50):  # 200 ms: 20 ms spike, then the forming force again
+            for _ in range(4):
+                t += 1e-3
+                oc.sample(t, spike if k < 5 else W)
+            oc.cycle(t, q)
+            seen |= oc.status
+            worst = max(worst, float(np.linalg.norm(oc.correction - c0)))
+        out[name] = (worst, seen, oc.implausible)
+    worst, seen, bad = out["bounded"]
+    assert worst < 5e-6, worst  # held (only the noise-free force's own drift: none)
+    assert seen & kn.STATUS_IMPLAUSIBLE and bad == 20
+    worst_open, seen_open, bad_open = out["open"]
+    assert worst_open > 0.3e-3 and bad_open == 0 and not seen_open & kn.STATUS_IMPLAUSIBLE
+
+
+def test_plausibility_bounds_each_act(cell, poses):
+    """Magnitude, the jump from the filtered force, the tip moment: each rejects on its own;
+    a real step of the force within the magnitude bound is taken once it persists."""
+    from roboisf.online import Plausibility
+
+    W = np.array([0, 0, 600.0, 0, 0, 0])
+    jump = Plausibility(force_band=100.0, max_force_rate=1e4)
+    dz, dm = np.array([0, 0, 1.0, 0, 0, 0]), np.array([0, 0, 0, 1.0, 0, 0])
+    cases = {
+        "magnitude": (Plausibility(max_force=1000.0), W * 2, False),
+        "jump": (jump, W + 300 * dz, False),
+        "tip moment": (Plausibility(max_tip_moment=5.0), W + 20 * dm, False),
+        "within": (Plausibility(1000.0, 100.0, 1e4, 50.0), W + 50 * dz + dm, True),
+    }
+    for name, (plaus, sample, ok) in cases.items():
+        oc, _, _, t = _loaded(cell, poses, Limits(), plaus)
+        assert oc.sample(t + 1e-3, sample) is ok, name
+        assert oc.implausible == (0 if ok else 1), name
+    # the jump bound grows with the time since the last sample taken: a persisting step is
+    # taken (300 − 100) N / 1e4 N/s = 20 ms after the last sample taken
+    oc, _, _, t = _loaded(cell, poses, Limits(), jump)
+    taken = [oc.sample(t + k * 1e-3, cases["jump"][1]) for k in range(1, 40)]
+    assert taken.index(True) + 1 == 20
+    with pytest.raises(InputError, match="max_force"):
+        Plausibility(max_force=-1)
+    with pytest.raises(InputError, match="expected force"):
+        Plausibility.from_expected(math.nan)

@@ -14,7 +14,7 @@ import pytest
 
 from roboisf.online import Limits, OnlineCompensator, egm, netft, rsi
 from roboisf.online import kernel as kn
-from roboisf.online.loop import CycleLog, Loop
+from roboisf.online.loop import RULES_OFF, CycleLog, Loop
 from roboisf.online.replay import load_replay, replay_study
 from roboisf.online.sim import (
     Simulation,
@@ -68,7 +68,7 @@ def _serve(loop: Loop, **kw):
 def test_udp_end_to_end_with_the_simulated_processes(setup, tmp_path):
     lim = Limits(max_correction=0.3e-3, max_rate=10e-3)
     oc = OnlineCompensator.from_cell(setup.vc.cell, setup.sensor, lim)
-    loop = Loop(oc, egm.EgmAdapter(), ("127.0.0.1", 0), ("127.0.0.1", 9))
+    loop = Loop(oc, egm.EgmAdapter(), ("127.0.0.1", 0), ("127.0.0.1", 9), **RULES_OFF)
     step = max(1, len(setup.q) // 400)  # 400 cycles over the whole path
     with Simulation(setup, "egm", loop.listen[1], n_cycles=400, point_step=step) as sim:
         assert loop.ft is not None
@@ -91,8 +91,13 @@ def test_udp_end_to_end_with_the_simulated_processes(setup, tmp_path):
     assert len(df) == c.cycles
     corr = df[["corr_x_mm", "corr_y_mm", "corr_z_mm"]].to_numpy() * 1e-3
     assert np.linalg.norm(corr, axis=1).max() <= lim.max_correction * (1 + 1e-12)  # mm → m
+    # the rate limit in the messages' own time (their kernel arrival: the log's t_s); a gap
+    # of more than two cycles counts as two
     steps = np.linalg.norm(np.diff(corr, axis=0), axis=1)
-    assert steps.max() <= lim.max_rate * lim.cycle * (1 + 1e-9)
+    dt = np.minimum(np.diff(df["t_s"].to_numpy()), 2 * lim.cycle)
+    assert np.all(steps <= lim.max_rate * dt * (1 + 1e-9) + 1e-12)
+    # the run ended with the ramp to zero the controller's last messages carried, or said why
+    assert c.stop_reason
 
 
 def _recv(s: socket.socket, timeout: float = 2.0) -> bytes | None:
@@ -149,7 +154,7 @@ def test_malformed_and_late_packets_are_dropped_never_answered(setup):
 def test_a_sensor_that_stops_trips_the_watchdog(setup):
     lim = Limits(watchdog=0.05, ramp_rate=5e-3)
     oc = OnlineCompensator.from_cell(setup.vc.cell, setup.sensor, lim)
-    loop = Loop(oc, egm.EgmAdapter(), ("127.0.0.1", 0), ("127.0.0.1", 9))
+    loop = Loop(oc, egm.EgmAdapter(), ("127.0.0.1", 0), ("127.0.0.1", 9), **RULES_OFF)
     mid = len(setup.q) // 2
     with Simulation(
         setup, "egm", loop.listen[1], n_cycles=700, point_step=0, sensor_silent_after=0.8

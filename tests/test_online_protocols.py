@@ -71,7 +71,20 @@ def test_egm_round_trip_and_correction():
     np.testing.assert_allclose(pose[:3], PLANNED[:3] + CORR)
     np.testing.assert_allclose(pose[3:], PLANNED[3:])
     _, pc = egm.decode_sensor(egm.EgmAdapter(path_correction=True).encode(s, CORR))
-    np.testing.assert_allclose(pc[:3], CORR)
+    # EGMActMove's sensor frame is the TCP (tool.tframe): the planned TCP here is turned 180°
+    # about the work y axis (quaternion 0, 0, 1, 0), so x and z change sign, y does not
+    np.testing.assert_allclose(pc[:3], CORR * [-1, 1, -1], atol=1e-15)
+    # a general orientation: the TCP-frame vector, rotated back, is the work-axes correction
+    from roboisf.frames import matrix_to_quat, rpy_to_matrix
+
+    R = rpy_to_matrix(np.radians([20.0, -35.0, 110.0]))
+    s2 = egm.decode_robot(egm.encode_robot(6, 104, Q, np.r_[PLANNED[:3], matrix_to_quat(R)]))
+    _, pc2 = egm.decode_sensor(egm.EgmAdapter(path_correction=True).encode(s2, CORR))
+    np.testing.assert_allclose(R @ pc2[:3], CORR, atol=1e-12)
+    with pytest.raises(ProtocolError, match="planned orientation"):
+        egm.EgmAdapter(path_correction=True).encode(
+            egm.decode_robot(egm.encode_robot(1, 0, Q)), CORR
+        )
     with pytest.raises(ProtocolError, match="planned pose"):
         egm.EgmAdapter().encode(egm.decode_robot(egm.encode_robot(1, 0, Q)), CORR)
 

@@ -18,7 +18,7 @@ import pytest
 
 from roboisf.errors import InputError
 from roboisf.online import Limits, OnlineCompensator, egm, netft, rt
-from roboisf.online.loop import CycleLog, Loop
+from roboisf.online.loop import RULES_OFF, CycleLog, Loop
 from roboisf.online.rt import GcQuiet, Realtime, apply
 from roboisf.online.sim import _recv_stamped, _stamping, virtual_setup
 from roboisf.parts import Cone
@@ -484,7 +484,7 @@ def test_the_simulated_devices_in_one_process_or_two(setup, processes):
     from roboisf.online.sim import Simulation, missed_causes
 
     oc = OnlineCompensator.from_cell(setup.vc.cell, setup.sensor, Limits())
-    loop = Loop(oc, egm.EgmAdapter(), ("127.0.0.1", 0), ("127.0.0.1", 9))
+    loop = Loop(oc, egm.EgmAdapter(), ("127.0.0.1", 0), ("127.0.0.1", 9), **RULES_OFF)
     step = max(1, len(setup.q) // 150)
     with Simulation(
         setup, "egm", loop.listen[1], n_cycles=150, point_step=step, processes=processes

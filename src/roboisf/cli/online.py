@@ -32,6 +32,27 @@ def _floats(text: str | None, n: int, field: str) -> list[float] | None:
     return v
 
 
+def _check_run(controller: str, duration: float, cycles: int | None, cycle: float) -> None:
+    """--duration, --cycles and --cycle, before anything is started."""
+    if not duration > 0:  # NaN too
+        raise InputError(
+            f"must be > 0 s (default: until Ctrl-C), got {duration}", field="--duration"
+        )
+    if cycles is not None and cycles < 1:
+        raise InputError(f"must be ≥ 1, got {cycles}", field="--cycles")
+    if not (math.isfinite(cycle) and cycle > 0):
+        raise InputError(f"must be a cycle time > 0 ms, got {cycle}", field="--cycle")
+    if controller == "egm" and (cycle < 4 or not math.isclose(cycle / 4, round(cycle / 4))):
+        raise InputError(
+            f"EGM cycles are multiples of 4 ms (EGMActMove \\SampleRate), got {cycle:g} ms",
+            field="--cycle",
+        )
+    if controller == "rsi" and not any(math.isclose(cycle, c) for c in (4.0, 12.0)):
+        raise InputError(
+            f"RSI cycles are 4 ms (IPO_FAST) or 12 ms (IPO), got {cycle:g} ms", field="--cycle"
+        )
+
+
 def online(
     controller: str = typer.Option(
         ...,
@@ -48,8 +69,12 @@ def online(
         help="netft:HOST[:PORT] (ATI Net F/T, RDT over UDP, port 49152) | replay:STUDY (the "
         "study's robot force log, released in real time).",
     ),
-    output: Path = typer.Option(
-        ..., "--output", "-o", help=f"Per-cycle log, Parquet (units in column names). {FILE_HELP}"
+    output: Path | None = typer.Option(
+        None,
+        "--output",
+        "-o",
+        help=f"Per-cycle log, Parquet (units in column names); required but with --selftest. "
+        f"{FILE_HELP}",
     ),
     overwrite: Overwrite = False,
     study: Path | None = typer.Option(
@@ -119,8 +144,31 @@ def online(
         "--counts",
         help="Net F/T counts per N and per N·m (cfgcpf, cfgcpt of the calibration).",
     ),
-    path_correction: bool = typer.Option(False, "--path-correction", help="EGM path correction."),
-    relative: bool = typer.Option(False, "--relative", help="RSI: send per-cycle increments."),
+    path_correction: bool = typer.Option(
+        False,
+        "--path-correction",
+        help="EGM path correction (EGMActMove + EGMMoveL: the controller's path planning stays "
+        "in charge; the mode for a forming program). pathCorr is sent in EGM's sensor frame, "
+        "the TCP frame when EGMActMove is given tool.tframe (the RAPID module "
+        "roboisf/online/egm_config/roboisf_egm.mod). Without it: position guidance, the "
+        "controller's planned pose + the correction (docs/online.md).",
+    ),
+    relative: bool = typer.Option(
+        False,
+        "--relative",
+        help='RSI: send per-cycle increments (RSI_ON(#RELATIVE), HOLDON="0"); an increment '
+        "in a reply that came late (the controller's Delay count) is sent again.",
+    ),
+    rsi_correction: str = typer.Option(
+        "cartesian",
+        "--rsi-correction",
+        help="RSI: cartesian (<RKorr X Y Z A B C>, mm, a POSCORR object in the part's BASE) | "
+        "joint (<AK A1…A6>, deg, an AXISCORR object: ROS-Industrial's layout). The matching "
+        "configuration files and KRL program ship in roboisf/online/rsi_config (docs/online.md).",
+    ),
+    rsi_sentype: str = typer.Option(
+        "ImFree", "--rsi-sentype", help="RSI: the configuration's SENTYPE (<Sen Type=…>)."
+    ),
     realtime: int | None = typer.Option(
         None,
         "--realtime",
@@ -135,6 +183,37 @@ def online(
         help="Pin the loop to this CPU (best one kept free of other work); --simulate's "
         "devices then run on the other CPUs.",
     ),
+    selftest: bool = typer.Option(
+        False,
+        "--selftest",
+        help="Measure this host instead of serving: wake-up latency and the loop's compute, "
+        "once per --cycle for --selftest-seconds under --realtime/--cpu/--mlock, then PASS "
+        "(exit 0) or FAIL (exit 1) against the budget, half the cycle. Needs the cell "
+        "(--virtual or --study) and -c egm|rsi; no network.",
+    ),
+    selftest_seconds: float = typer.Option(
+        10.0, "--selftest-seconds", help="How long --selftest measures, s."
+    ),
+    max_force: float | None = typer.Option(
+        None,
+        "--max-force",
+        help="Plausibility: a force sample above this (tare and tool weight removed) is "
+        "dropped and the correction held, N. Default: 2× the expected peak forming force (the "
+        "study's robot force log, the virtual cell's force model); inf: no bound.",
+    ),
+    max_force_rate: float | None = typer.Option(
+        None,
+        "--max-force-rate",
+        help="Plausibility: the fastest the force may change, N/s (a sample further from the "
+        "filtered force than half the expected peak + this × the time since the last sample "
+        "is dropped). Default: the expected peak in 50 ms.",
+    ),
+    max_tip_moment: float | None = typer.Option(
+        None,
+        "--max-tip-moment",
+        help="Plausibility: the largest moment about the tool tip, N·m (a ball-end tool takes "
+        "its load at the tip). Default: the expected peak × 20 mm.",
+    ),
     mlock: bool = typer.Option(
         False,
         "--mlock",
@@ -145,9 +224,14 @@ def online(
     """Correct the robot while it forms: force stream → tip wrench → VJM + tool + holder
     compliance at the current joints → pre-deflection sent every controller cycle.
 
-    Limits (never exceeded): --max-correction, --max-rate per cycle, --deadband; the watchdog
-    holds and then ramps the correction to zero when the sensor goes quiet. Every cycle is
-    logged to -o (Parquet). Ctrl-C ends the loop and writes the log. Lengths mm, angles deg.
+    Limits (never exceeded): --max-correction, --max-rate (per unit of the controller's time,
+    whatever its message rate), --deadband; the watchdog holds and then ramps the correction to
+    zero when the sensor goes quiet; an implausible force (--max-force, --max-force-rate,
+    --max-tip-moment) is dropped and the correction held. Every stop (the end of --duration or
+    --cycles, Ctrl-C, SIGTERM, a controller silent for 0.5 s, a Net F/T silent for 2 s, 25 late
+    replies in a second, an error) first ramps the correction to zero at --ramp-rate, and says
+    so. Every cycle is logged to -o (Parquet); the summary counts every episode. Lengths mm,
+    angles deg.
     On a PC with a core to spare for the loop: --realtime 50 --cpu N --mlock (a 2-core VM
     cannot show what they give). See docs/online.md.
     """
@@ -189,23 +273,93 @@ def online(
     if controller == "replay" and kind != "replay":
         raise InputError("--controller replay needs --sensor replay:STUDY", field="--controller")
     rt = Realtime(realtime, cpu, mlock)  # InputError for a priority or CPU that cannot be
-    if output.suffix.lower() != ".parquet":
+    _check_run(controller, duration, cycles, cycle)
+    try:
+        limits = Limits(
+            deadband * 1e-3,
+            max_correction * 1e-3,
+            max_rate * 1e-3,
+            cycle * 1e-3,
+            watchdog * 1e-3,
+            ramp_rate * 1e-3,
+        )
+    except InputError as e:
+        raise InputError(e.message, field=f"--{str(e.field).replace('_', '-')}") from None
+    if rsi_correction not in ("cartesian", "joint"):
+        raise InputError(
+            f"must be cartesian or joint, got {rsi_correction!r}", field="--rsi-correction"
+        )
+    if simulate and rsi_correction == "joint":
+        raise InputError(
+            "the simulated controller takes Cartesian corrections only (RKorr)",
+            field="--rsi-correction",
+        )
+    cpf, cpt = _floats(counts, 2, "--counts") or [1e6, 1e6]
+    if not (cpf > 0 and cpt > 0):
+        raise InputError(f"counts per N and per N·m must be > 0, got {counts!r}", field="--counts")
+    user_plaus = {
+        "--max-force": max_force,
+        "--max-force-rate": max_force_rate,
+        "--max-tip-moment": max_tip_moment,
+    }
+    for name, v in user_plaus.items():
+        if v is not None and not v > 0:  # NaN, 0 and negatives
+            raise InputError(f"must be > 0 (inf: no bound), got {v}", field=name)
+    if kind == "netft":
+        parse_address(arg, 49152, "--sensor", resolve=True)
+    parse_address(listen, 6510, "--listen", resolve=True)
+    # the sensor's settings are checked whether or not --simulate then replaces them
+    cog = _floats(tool_cog, 3, "--tool-cog")
+    assert cog is not None
+    user_sensor = dict(
+        load_on=load_on,
+        tare=np.array(_floats(tare, 6, "--tare") or [0.0] * 6),
+        tool_mass=tool_mass,
+        tool_cog=np.array(cog) * 1e-3,
+        cutoff=cutoff,
+    )
+    try:
+        SensorSetup(**user_sensor)  # type: ignore[arg-type]
+    except InputError as e:
+        flag = {"load_on": "--load-on", "tool_mass": "--tool-mass", "tool_cog": "--tool-cog"}
+        raise InputError(e.message, field=flag.get(str(e.field), f"--{e.field}")) from None
+    if simulate:
+        given = [
+            f
+            for f, v in (
+                ("--tare", tare),
+                ("--tool-mass", tool_mass or None),
+                ("--load-on", None if load_on == "tool" else load_on),
+                ("--tool-cog", None if tool_cog == "0,0,0" else tool_cog),
+                ("--sensor-pose", sensor_pose),
+            )
+            if v is not None
+        ]
+        if given:
+            state.warn(
+                f"--simulate: the simulated sensor's own tool, weight and tare are used; "
+                f"{', '.join(given)} not"
+            )
+    if selftest:
+        if controller == "replay" or simulate or form is not None:
+            raise InputError(
+                "--selftest measures the host for -c egm|rsi; not with replay, --simulate "
+                "or --form",
+                field="--selftest",
+            )
+        if not (math.isfinite(selftest_seconds) and selftest_seconds > 0):
+            raise InputError(f"must be > 0 s, got {selftest_seconds}", field="--selftest-seconds")
+    elif output is None:
+        raise InputError("the per-cycle log: give -o LOG.parquet", field="-o")
+    if output is not None and output.suffix.lower() != ".parquet":
         raise InputError(f"the log is Parquet: expected a .parquet file, got {output}", field="-o")
-    output_file(output, "online", overwrite, study_inputs(study))
+    if output is not None and not selftest:
+        output_file(output, "online", overwrite, study_inputs(study))
     if form is not None:
         from roboisf.cli.outputs import output_dir
 
         output_dir(form, "virtual-cell", overwrite)
 
-    limits = Limits(
-        deadband * 1e-3,
-        max_correction * 1e-3,
-        max_rate * 1e-3,
-        cycle * 1e-3,
-        watchdog * 1e-3,
-        ramp_rate * 1e-3,
-    )
-    cpf, cpt = _floats(counts, 2, "--counts") or [1e6, 1e6]
     setup: Any = None
     spec_pose = None
     if virtual is not None:
@@ -237,24 +391,24 @@ def online(
     if simulate:
         sensor_setup = setup.sensor  # the simulated sensor's tool, weight and tare
     else:
-        cog = _floats(tool_cog, 3, "--tool-cog")
-        assert cog is not None
-        sensor_setup = SensorSetup(
-            T_fs,
-            load_on=load_on,
-            tare=np.array(_floats(tare, 6, "--tare") or [0.0] * 6),
-            tool_mass=tool_mass,
-            tool_cog=np.array(cog) * 1e-3,
-            cutoff=cutoff,
-        )
+        sensor_setup = SensorSetup(T_fs, **user_sensor)  # type: ignore[arg-type]
 
     if controller == "replay":
+        assert output is not None
         _replay(study, limits, cutoff, output)
         return
 
-    adapter: Any = (
-        EgmAdapter(path_correction) if controller == "egm" else RsiAdapter(limits.cycle, relative)
-    )
+    adapter: Any
+    if controller == "egm":
+        adapter = EgmAdapter(path_correction)
+    else:
+        adapter = RsiAdapter(
+            limits.cycle,
+            relative,
+            correction=rsi_correction,
+            dq_dp=_dq_dp(cell),
+            sentype=rsi_sentype,
+        )
     host, port = parse_address(listen, 6510, "--listen")
     if simulate:
         host, port = "127.0.0.1", 0
@@ -269,11 +423,23 @@ def online(
         src = ReplaySensor(rep.force_time, rep.force)
         if pose is None:  # the study's sensor (pose, sign); the log is tared and compensated
             sensor_setup = rep.sensor
-    oc = OnlineCompensator(cell.robot, cell.T_base_work, _k_tip(cell), sensor_setup, limits)
-    loop = Loop(oc, adapter, (host, port), src, counts=(cpf, cpt), realtime=rt)
+    peak = _expected_peak(setup, study)
+    plaus = _plausibility(peak, max_force, max_force_rate, max_tip_moment)
+    oc = OnlineCompensator(cell.robot, cell.T_base_work, _k_tip(cell), sensor_setup, limits, plaus)
+    if selftest:
+        _selftest(oc, adapter, cell, setup, selftest_seconds, rt)
+        return
+    assert output is not None
+    from roboisf.online.loop import RULES_OFF
+
+    rules: dict[str, Any] = dict(RULES_OFF) if simulate else {}
+    loop = Loop(oc, adapter, (host, port), src, counts=(cpf, cpt), realtime=rt, **rules)
     banner = (
         f"online: {adapter.name} on {loop.listen[0]}:{loop.listen[1]}, sensor {sensor}; "
-        f"limits {max_correction:g} mm, {max_rate:g} mm/s, dead band {deadband * 1e3:g} µm"
+        f"limits {max_correction:g} mm, {max_rate:g} mm/s, dead band {deadband * 1e3:g} µm; "
+        f"plausible force ≤ {plaus.max_force:.4g} N, ≤ {plaus.max_force_rate:.4g} N/s, "
+        f"tip moment ≤ {plaus.max_tip_moment:.4g} N·m"
+        + (f" (expected peak {peak:.0f} N)" if math.isfinite(peak) else "")
     )
     sim_result: dict[str, Any] | None = None
     if simulate:
@@ -294,6 +460,7 @@ def online(
             cycle=limits.cycle,
             point_step=step,
             realtime=sim_rt,
+            relative=relative and controller == "rsi",
         ) as sim:
             assert loop.ft is not None
             loop.ft.connect(("127.0.0.1", sim.sensor_port))
@@ -324,14 +491,9 @@ def online(
             "wrench_and_deflection": "base axes, at the tool tip",
         },
     )
-    c = loop.counters
-    state.info(
-        f"{c.cycles} cycles, {c.samples} force samples; dropped: {c.bad_controller} bad "
-        f"controller and {c.bad_sensor} bad sensor packets, {c.late_sensor} late samples"
-        + (f", sensor unreachable {c.sensor_unreachable}×" if c.sensor_unreachable else "")
-        + "; "
-        f"log → {output}"
-    )
+    for line in summary_lines(loop.counters, loop.log.data[:, 20], loop.log.data[:, 0]):
+        state.info(line)
+    state.info(f"log → {output}")
     if sim_result is not None:
         for w in sim_result.get("warnings", []):
             state.warn(w)
@@ -349,6 +511,104 @@ def online(
             )
     if form is not None:
         _form(setup, sim_result, form)
+
+
+def _selftest(oc: Any, adapter: Any, cell: Any, setup: Any, seconds: float, rt: Any) -> None:
+    """``--selftest``: the host's verdict against the cycle budget (exit 1 on FAIL)."""
+    import numpy as np
+
+    from roboisf.online import egm, rsi
+    from roboisf.online.selftest import selftest
+    from roboisf.robot import ik_toolpath
+
+    if setup is not None:
+        q = np.asarray(setup.q[len(setup.q) // 2])
+    else:
+        q = ik_toolpath(cell.robot, np.zeros((1, 3)), cell.T_base_work).q[0]
+    T = cell.robot.fk(q[None])[0]
+    from roboisf.frames import matrix_to_quat
+
+    planned = np.r_[T[:3, 3], matrix_to_quat(T[:3, :3])]
+    msg = egm.encode_robot(1, 0, q, planned) if adapter.name == "egm" else rsi.encode_robot(4, q)
+    state.info(
+        f"selftest: {seconds:g} s, one {adapter.name} cycle of {oc.limits.cycle * 1e3:g} ms at "
+        f"a time (realtime {rt.priority or 'off'}, cpu {rt.cpu if rt.cpu is not None else 'any'}"
+        f", mlock {'on' if rt.mlock else 'off'})"
+    )
+    res = selftest(oc, adapter, msg, seconds=seconds, realtime=rt)
+    for w in res.warnings:
+        state.warn(w)
+    for line in res.lines():
+        state.info(line)
+    if not res.passed:
+        raise typer.Exit(1)
+
+
+def _expected_peak(setup: Any, study: Path | None) -> float:
+    """The expected peak forming force, N: the virtual cell's force model, or the study's robot
+    force log (NaN when it has none)."""
+    import numpy as np
+
+    from roboisf.online.replay import expected_peak_force
+
+    if setup is not None:
+        return expected_peak_force(np.asarray(setup.wrench))
+    if study is None:
+        return math.nan
+    from roboisf.io.forcelog import read_force_log
+    from roboisf.study import load_study
+
+    spec = load_study(study).robot_run.forces
+    return expected_peak_force(read_force_log(spec.file).wrench)
+
+
+def _plausibility(peak: float, max_force: Any, rate: Any, moment: Any) -> Any:
+    """The plausibility bounds: the options given, the rest from the expected peak force."""
+    from roboisf.online import Plausibility
+
+    base = Plausibility.from_expected(peak) if math.isfinite(peak) and peak > 0 else Plausibility()
+    return Plausibility(
+        base.max_force if max_force is None else max_force,
+        base.force_band,
+        base.max_force_rate if rate is None else rate,
+        base.max_tip_moment if moment is None else moment,
+    )
+
+
+def summary_lines(c: Any, status: Any, t: Any) -> list[str]:
+    """The run's summary: why it stopped and how the correction ended, what was dropped, and
+    every episode of each status bit (count, longest)."""
+    from roboisf.online import netft
+    from roboisf.online.core import episodes
+
+    ended = (
+        f"ramped to zero in {c.ramp_time:.2f} s"
+        if c.ramped
+        else f"NOT ramped to zero: left at {c.left_mm:.3f} mm (nothing answered the ramp; the "
+        "controller's own timeout ends the motion)"
+    )
+    lines = [
+        f"stopped: {c.stop_reason or 'not started'}; correction {ended}",
+        f"{c.cycles} cycles, {c.samples} force samples; late replies {c.late_replies} "
+        f"(max latency {c.max_latency * 1e3:.2f} ms); dropped: {c.bad_controller} bad "
+        f"controller and {c.bad_sensor} bad sensor packets",
+        f"sensor: {c.lost_sensor} records lost, {c.late_sensor} out of order or duplicated, "
+        f"{c.sensor_resyncs} stream restarts followed, {c.implausible} implausible samples held, "
+        f"{c.sensor_status} with a fault status"
+        + (f" ({netft.status_text(c.sensor_status_bits)})" if c.sensor_status_bits else "")
+        + (f", unreachable {c.sensor_unreachable}×" if c.sensor_unreachable else ""),
+    ]
+    ep = episodes(status, t)
+    shown = {k: v for k, v in ep.items() if k != "deadband"}
+    lines.append(
+        "episodes: "
+        + (
+            ", ".join(f"{k} {n}× (longest {dt * 1e3:.0f} ms)" for k, (n, dt) in shown.items())
+            if shown
+            else "none (every cycle ok or in the dead band)"
+        )
+    )
+    return lines
 
 
 def _form(setup: Any, sim_result: dict[str, Any] | None, folder: Path) -> None:
@@ -371,6 +631,20 @@ def _form(setup: Any, sim_result: dict[str, Any] | None, folder: Path) -> None:
         f"{reached} of {n} toolpath points"
         + ("" if reached >= n else " — the rest formed uncorrected (a longer --duration)")
     )
+
+
+def _dq_dp(cell: Any) -> Any:
+    """q (6,) rad → (6, 3) rad/m: the axis change per tip translation (work axes) at q."""
+    import numpy as np
+
+    e = np.eye(6)[:, :3]
+    T_bw = cell.T_base_work
+
+    def f(q: Any) -> Any:
+        J = cell.robot.jacobian(np.asarray(q)[None], check_limits=False, T_base_work=T_bw)[0]
+        return np.linalg.solve(J, e)
+
+    return f
 
 
 def _k_tip(cell: Any) -> Any:
@@ -419,8 +693,9 @@ def _run(loop: Any, duration: float, cycles: int | None, status_text: Any, banne
                 status_every=1.0,
                 warn=state.warn,
             )
-    except Interrupted:
+    except Interrupted:  # a signal before the loop served (run() handles its own)
         loop.close()
+        loop.counters.stop_reason = "interrupted before the loop started"
         state.info("stopped (Ctrl-C); writing the log")
 
 

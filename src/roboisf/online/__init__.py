@@ -7,6 +7,6 @@ simulated controller and sensor :mod:`~roboisf.online.sim` and the loop
 :mod:`~roboisf.online.loop`. See ``docs/online.md``.
 """
 
-from roboisf.online.core import Limits, OnlineCompensator, SensorSetup, status_text
+from roboisf.online.core import Limits, OnlineCompensator, Plausibility, SensorSetup, status_text
 
-__all__ = ["Limits", "OnlineCompensator", "SensorSetup", "status_text"]
+__all__ = ["Limits", "OnlineCompensator", "Plausibility", "SensorSetup", "status_text"]

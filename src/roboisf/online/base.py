@@ -28,8 +28,14 @@ class RobotState:
     q : (6,) float, rad — joint angles, controller convention
     planned : (7,) float — the controller's planned pose: position (3,) m and unit quaternion
         (w, x, y, z), in the frame the corrections are in; NaN when the message has none
+    delay : int — the controller's count of replies that came late (RSI ``<Delay D=…/>``,
+        ``DEF_Delay``); −1 when the message has none
     """
 
     seq: int = 0
     q: F64 = field(default_factory=lambda: np.zeros(6))
     planned: F64 = field(default_factory=lambda: np.full(7, np.nan))
+    delay: int = -1
+
+    def __post_init__(self) -> None:
+        self.delay = int(self.delay)

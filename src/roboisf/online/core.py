@@ -11,10 +11,18 @@ moves. The correction then passes, in this order:
 
 1. **dead band** — ``‖c‖ < deadband`` sends zero (no correction from sensor noise in the air);
 2. **size limit** — ``‖c‖ ≤ max_correction`` (scaled down along its direction);
-3. **rate limit** — ``‖c_k − c_{k−1}‖ ≤ max_rate · cycle`` per cycle;
+3. **rate limit** — ``‖c_k − c_{k−1}‖ ≤ max_rate · dt``, ``dt`` the time since the last cycle
+   (the controller's messages' arrival times; at most two cycles): a burst of messages moves
+   the correction by no more than the time it spans allows;
 4. **watchdog** — no sample for longer than ``watchdog`` s: the last correction is held; after
-   twice that, ramped to zero at ``ramp_rate``. A cycle therefore never sends a correction
-   outside ``max_correction``, nor one that moved by more than ``max_rate · cycle``.
+   twice that, ramped to zero at ``ramp_rate`` (mm/s, in time as well);
+5. **plausibility** (:class:`Plausibility`) — a force sample too large, too far from the
+   filtered force for the time since the last sample, or with too large a moment about the tool
+   tip never reaches the filter; the correction is held until ``watchdog`` s after the last
+   such sample (and ramps to zero, as for a silent sensor, when they go on);
+6. **stop** (:meth:`OnlineCompensator.begin_stop`) — the correction ramps to zero at
+   ``ramp_rate`` whatever the force. A cycle therefore never sends a correction outside
+   ``max_correction``, nor one that moved by more than ``max_rate · dt``.
 
 Everything is preallocated at construction; :meth:`sample` and :meth:`cycle` run a compiled
 kernel (:mod:`roboisf.online.kernel`) on those buffers and allocate nothing.
@@ -40,7 +48,7 @@ from roboisf.online import kernel as kn
 from roboisf.robot import RobotModel
 from roboisf.robot.kinematics import rotate_6x6
 
-__all__ = ["Limits", "OnlineCompensator", "SensorSetup"]
+__all__ = ["Limits", "OnlineCompensator", "Plausibility", "SensorSetup", "episodes", "status_text"]
 
 F64 = NDArray[np.float64]
 
@@ -92,6 +100,45 @@ class Limits:
                 self.ramp_rate,
             ]
         )
+
+
+@dataclass(frozen=True)
+class Plausibility:
+    """Bounds on a force sample (tare and tool weight removed; SI). ``inf`` switches one off.
+
+    A sample is implausible — dropped before the filter, the correction held — when
+
+    * ``‖f‖ > max_force`` [N] (magnitude);
+    * ``‖f − f_filtered‖ > force_band + max_force_rate · Δt`` [N, N/s] (rate: the jump from the
+      filtered force, ``Δt`` the time since the last sample taken — so a real change of the
+      force, slower than the rate bound, is taken once it persists);
+    * ``‖m_tip‖ > max_tip_moment`` [N·m] (the moment about the tool tip: a ball-end tool takes
+      the sheet's load as a force at its tip; a large moment there is a load elsewhere).
+    """
+
+    max_force: float = math.inf
+    force_band: float = math.inf
+    max_force_rate: float = math.inf
+    max_tip_moment: float = math.inf
+
+    def __post_init__(self) -> None:
+        for name in ("max_force", "force_band", "max_force_rate", "max_tip_moment"):
+            v = float(getattr(self, name))
+            if math.isnan(v) or v <= 0:
+                raise InputError(f"must be > 0 (inf: no bound), got {v}", field=name)
+
+    @classmethod
+    def from_expected(cls, peak_force: float, tool_length: float = 0.02) -> Plausibility:
+        """Bounds from the expected peak forming force [N]: magnitude 2×, band ½×, the whole
+        force in 50 ms as the rate, and the peak acting ``tool_length`` m off the tip as the
+        tip moment."""
+        f = float(peak_force)
+        if not math.isfinite(f) or f <= 0:
+            raise InputError(f"must be a finite force > 0 N, got {f}", field="expected force")
+        return cls(2.0 * f, 0.5 * f, f / 0.05, f * tool_length)
+
+    def array(self) -> F64:
+        return np.array([self.max_force, self.force_band, self.max_force_rate, self.max_tip_moment])
 
 
 @dataclass(frozen=True, eq=False)
@@ -152,6 +199,7 @@ class OnlineCompensator:
         vertical in the work frame, as in :class:`roboisf.cell.Cell`
     sensor : SensorSetup
     limits : Limits
+    plausibility : Plausibility — bounds on a force sample (default: none)
 
     After :meth:`cycle`, ``correction`` (3,) m (work axes), ``tip_wrench`` (6,) and
     ``deflection`` (6,) (base axes) and ``status`` hold the cycle's values; they are the
@@ -165,8 +213,11 @@ class OnlineCompensator:
         k_tip: ArrayLike,
         sensor: SensorSetup | None = None,
         limits: Limits | None = None,
+        plausibility: Plausibility | None = None,
     ) -> None:
         self.robot = robot
+        self.plausibility = plausibility or Plausibility()
+        self._plaus = self.plausibility.array()
         self.sensor = sensor or SensorSetup()
         self.limits = limits or Limits()
         T_bw = np.asarray(T_base_work, dtype=float)
@@ -199,9 +250,8 @@ class OnlineCompensator:
         self._lim = self.limits.array()
         self._q = np.zeros(6)
         self._Ws = np.zeros(6)
-        self.st = np.zeros(5)
-        self.st[kn.S_LAST_SAMPLE] = -math.inf
-        self.st[kn.S_LAST_CYCLE] = -math.inf
+        self.st = np.zeros(kn.N_STATE)
+        self._clear_clocks()
         self.filtered = np.zeros(6)
         self.correction = np.zeros(3)
         self.tip_wrench = np.zeros(6)
@@ -209,14 +259,38 @@ class OnlineCompensator:
         self._scr = np.zeros((20, 6))
         self.status = kn.STATUS_NO_SAMPLE
 
+    def _clear_clocks(self) -> None:
+        self.st[kn.S_LAST_SAMPLE] = -math.inf
+        self.st[kn.S_LAST_CYCLE] = -math.inf
+        self.st[kn.S_LAST_BAD] = -math.inf
+
     @classmethod
     def from_cell(
-        cls, cell: Cell, sensor: SensorSetup | None = None, limits: Limits | None = None
+        cls,
+        cell: Cell,
+        sensor: SensorSetup | None = None,
+        limits: Limits | None = None,
+        plausibility: Plausibility | None = None,
     ) -> OnlineCompensator:
         """The compensator of a :class:`~roboisf.cell.Cell`: its robot (joint stiffness,
         tool), placement and tool + holder compliance at the tip."""
         _, _, k_t, k_th = tip_compliances(cell)
-        return cls(cell.robot, cell.T_base_work, k_t + k_th, sensor, limits)
+        return cls(cell.robot, cell.T_base_work, k_t + k_th, sensor, limits, plausibility)
+
+    @property
+    def implausible(self) -> int:
+        """Force samples rejected as implausible so far."""
+        return int(self.st[kn.S_BAD])
+
+    @property
+    def stopping(self) -> bool:
+        """:meth:`begin_stop` was called: every cycle ramps the correction towards zero."""
+        return bool(self.st[kn.S_STOP] > 0)
+
+    def begin_stop(self) -> None:
+        """From the next cycle on, ramp the correction to zero at ``ramp_rate`` (the loop's
+        way out: Ctrl-C, SIGTERM, an error, a lost sensor or controller)."""
+        self.st[kn.S_STOP] = 1.0
 
     def set_joints(self, q: ArrayLike) -> None:
         """The latest joint angles (6,) rad (controller convention), used to orient the tool's
@@ -226,7 +300,8 @@ class OnlineCompensator:
     def sample(self, t: float, W_s: F64) -> bool:
         """One sensor sample ``W_s`` (6,) [N; N·m] (sensor axes) at time ``t`` [s].
 
-        Returns False when it was dropped (non-finite, or not later than the previous one).
+        Returns False when it was dropped (non-finite, not later than the previous one, or
+        implausible: :attr:`implausible` counts those).
         """
         self._Ws[:] = W_s
         return bool(
@@ -237,8 +312,10 @@ class OnlineCompensator:
                 self._c23,
                 self._kinv,
                 self._R_tip_sensor,
+                self._X_ts,
                 self._grav,
                 self._tare,
+                self._plaus,
                 self._cutoff,
                 t,
                 self._Ws,
@@ -277,10 +354,9 @@ class OnlineCompensator:
         return self.correction
 
     def reset(self) -> None:
-        """Forget the filter, the last correction and the watchdog's clock."""
+        """Forget the filter, the last correction, the watchdog's clock and a stop."""
         self.st[:] = 0.0
-        self.st[kn.S_LAST_SAMPLE] = -math.inf
-        self.st[kn.S_LAST_CYCLE] = -math.inf
+        self._clear_clocks()
         self.filtered[:] = 0.0
         self.correction[:] = 0.0
         self.status = kn.STATUS_NO_SAMPLE
@@ -298,3 +374,28 @@ def status_text(status: int) -> str:
     """``"ok"`` or the names of the status bits, ``+``-joined."""
     names = [n for b, n in kn.STATUS_NAMES.items() if status & b]
     return "+".join(names) if names else "ok"
+
+
+def episodes(status: ArrayLike, t: ArrayLike) -> dict[str, tuple[int, float]]:
+    """Per status bit, its episodes in a run: ``{name: (count, longest s)}``.
+
+    ``status`` (n,) int, the cycles' status bits (the log's ``status`` column), ``t`` (n,) s
+    their times. An episode is a run of consecutive cycles with the bit set; its length runs
+    from its first cycle to the first cycle after it (to its last cycle at the end of the log).
+    Bits never set are left out.
+    """
+    st = np.asarray(status, dtype=np.int64)
+    tt = np.asarray(t, dtype=float)
+    if st.shape != tt.shape or st.ndim != 1:
+        raise InputError("status and t must be (n,) arrays of one length", field="status")
+    out: dict[str, tuple[int, float]] = {}
+    for bit, name in kn.STATUS_NAMES.items():
+        on = (st & bit) != 0
+        if not on.any():
+            continue
+        edges = np.diff(np.concatenate([[0], on.astype(np.int8), [0]]))
+        starts = np.flatnonzero(edges == 1)
+        ends = np.flatnonzero(edges == -1)  # first cycle after (may be n)
+        t_end = tt[np.minimum(ends, len(tt) - 1)]
+        out[name] = (len(starts), float(np.max(t_end - tt[starts])))
+    return out

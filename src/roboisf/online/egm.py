@@ -11,6 +11,17 @@ Externally Guided Motion*):
   with the correction added to its position (mm; orientation unchanged);
 * **path correction** (``EGMActMove`` + ``EGMMoveL``): an ``EgmSensorPathCorr`` with
   ``mtype = MSGTYPE_PATH_CORRECTION``, ``pathCorr.pos`` = the correction (mm) and ``age`` (ms).
+  ABB defines ``pathCorr.pos`` in the **sensor frame** that ``EGMActMove``'s ``SensorFrame``
+  argument places on the tool; roboisf's module ``egm_config/roboisf_egm.mod`` passes the
+  tool's own frame (``tool.tframe``), so the sensor frame is the TCP frame, and roboisf turns the
+  work-axes correction into it with the TCP's planned orientation in the message
+  (``c_tcp = R_work_tcpᵀ c_work``, ``EgmRobot.planned.cartesian.orient``). The controller's path
+  planning stays in charge: this is the mode for a forming program.
+
+Position guidance replaces the path: the controller goes where the sensor says. roboisf sends
+``planned`` + correction, which is right only while ``planned`` is the program's path (the
+simulated controller's assumption); a real program under ``EGMRunPose`` plans nothing, so
+position guidance needs the path from the sensor side — use path correction (docs/online.md).
 
 The messages are those of ABB's ``egm.proto`` (a wire-compatible subset written for roboisf,
 ``proto/roboisf_egm.proto``; generated module :mod:`roboisf.online.roboisf_egm_pb2`, protobuf
@@ -23,10 +34,11 @@ import numpy as np
 from google.protobuf.message import DecodeError
 from numpy.typing import NDArray
 
+from roboisf.frames import quat_to_matrix
 from roboisf.online import roboisf_egm_pb2 as pb
 from roboisf.online.base import ProtocolError, RobotState
 
-__all__ = ["EgmAdapter", "decode_robot", "encode_correction", "encode_robot"]
+__all__ = ["EgmAdapter", "decode_robot", "encode_correction", "encode_robot", "to_sensor_frame"]
 
 F64 = NDArray[np.float64]
 
@@ -93,8 +105,9 @@ def encode_correction(
 
     Position guidance: ``EgmSensor.planned.cartesian`` = ``planned`` (7,) with the correction
     added to its position (a :class:`ProtocolError` without a planned pose); path correction:
-    ``EgmSensorPathCorr.pathCorr`` = the correction with ``age`` 0 ms (the correction is for
-    the coming cycle).
+    ``EgmSensorPathCorr.pathCorr`` = the correction as given (the caller turns it into the
+    sensor frame: :class:`EgmAdapter`) with ``age`` 0 ms (the correction is for the coming
+    cycle).
     """
     c_mm = [float(v) * 1e3 for v in correction]
     if path_correction:
@@ -146,8 +159,22 @@ def decode_sensor(data: bytes) -> tuple[int, F64]:
     )
 
 
+def to_sensor_frame(correction: F64, planned: F64) -> F64:
+    """A work-axes correction (3,) in the TCP frame of the planned pose (7,): ``R_work_tcpᵀ c``
+    (EGM's path-correction sensor frame when ``EGMActMove`` is given ``tool.tframe``).
+    :class:`ProtocolError` when the message has no planned orientation."""
+    if not np.all(np.isfinite(planned[3:])):
+        raise ProtocolError(
+            "path correction in the tool frame needs the planned orientation "
+            "(EgmRobot.planned.cartesian.orient)",
+            field="planned",
+        )
+    return np.asarray(quat_to_matrix(planned[3:]).T @ correction, dtype=float)
+
+
 class EgmAdapter:
-    """Decode ``EgmRobot``, encode the reply (position guidance, or ``path_correction``)."""
+    """Decode ``EgmRobot``, encode the reply (position guidance, or ``path_correction`` in the
+    TCP frame: :func:`to_sensor_frame`)."""
 
     name = "egm"
     cycle = CYCLE
@@ -161,10 +188,7 @@ class EgmAdapter:
 
     def encode(self, state: RobotState, correction: F64) -> bytes:
         # the sensor's own sequence number; echoing the robot's lets a log pair them
-        return encode_correction(
-            state.seq,
-            0,
-            correction,
-            state.planned,
-            path_correction=self.path_correction,
-        )
+        if self.path_correction:
+            c = to_sensor_frame(correction, state.planned)
+            return encode_correction(state.seq, 0, c, None, path_correction=True)
+        return encode_correction(state.seq, 0, correction, state.planned)

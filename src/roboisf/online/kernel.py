@@ -37,19 +37,25 @@ from roboisf.robot.vjm_kernel import HAVE_NUMBA
 
 __all__ = [
     "COMPILED",
+    "N_STATE",
     "STATUS_BAD_INPUT",
     "STATUS_DEADBAND",
     "STATUS_HOLD",
+    "STATUS_IMPLAUSIBLE",
     "STATUS_LIMITED",
     "STATUS_NAMES",
     "STATUS_NO_SAMPLE",
     "STATUS_OK",
     "STATUS_RAMP",
+    "STATUS_STOP",
+    "S_BAD",
     "S_CYCLES",
     "S_HAVE",
+    "S_LAST_BAD",
     "S_LAST_CYCLE",
     "S_LAST_SAMPLE",
     "S_STATUS",
+    "S_STOP",
     "cycle_kernel",
     "fk_deflection",
     "sample_kernel",
@@ -63,6 +69,10 @@ S_LAST_SAMPLE = 1  # time of the last sample [s]
 S_LAST_CYCLE = 2  # time of the last cycle [s]
 S_STATUS = 3  # status bits of the last cycle
 S_CYCLES = 4  # cycles run
+S_LAST_BAD = 5  # time of the last implausible sample [s]
+S_BAD = 6  # implausible samples rejected
+S_STOP = 7  # 1: stopping — the correction ramps to zero whatever the force
+N_STATE = 8
 
 # status bits of a cycle (several may be set)
 STATUS_OK = 0
@@ -72,6 +82,8 @@ STATUS_HOLD = 4  # watchdog: no fresh sample, correction held
 STATUS_RAMP = 8  # watchdog: no fresh sample for long, correction ramped towards zero
 STATUS_NO_SAMPLE = 16  # no sample yet
 STATUS_BAD_INPUT = 32  # non-finite joint angles or wrench: correction held
+STATUS_IMPLAUSIBLE = 64  # an implausible force sample within the hold time: correction held
+STATUS_STOP = 128  # the loop is stopping: correction ramped to zero
 STATUS_NAMES = {
     STATUS_DEADBAND: "deadband",
     STATUS_LIMITED: "limited",
@@ -79,6 +91,8 @@ STATUS_NAMES = {
     STATUS_RAMP: "ramp",
     STATUS_NO_SAMPLE: "no-sample",
     STATUS_BAD_INPUT: "bad-input",
+    STATUS_IMPLAUSIBLE: "implausible-force",
+    STATUS_STOP: "stopping",
 }
 
 
@@ -147,8 +161,10 @@ def sample_kernel(
     c23: float,
     kinv: F64,
     R_tip_sensor: F64,
+    X_ts: F64,
     grav: F64,
     tare: F64,
+    plaus: F64,
     cutoff: float,
     t: float,
     W_s: F64,
@@ -160,9 +176,13 @@ def sample_kernel(
     """Filter one sensor sample into ``y`` (6,) (sensor axes, tare and tool weight removed).
 
     ``grav`` (7,): tool mass [kg], CoG in the sensor frame (3,) [m], gravity in base axes (3,)
-    [m/s²]. ``q`` (6,) rad: the latest joint angles (orientation of the sensor). Returns False
-    (sample dropped, state unchanged) for a non-finite sample or time, or a time not after
-    the last sample's.
+    [m/s²]. ``q`` (6,) rad: the latest joint angles (orientation of the sensor). ``X_ts``
+    (6, 6): the wrench transform sensor → tip (for the tip moment). ``plaus`` (4,): the
+    plausibility bounds (:class:`roboisf.online.core.Plausibility`) — force magnitude [N],
+    force band [N] and force rate [N/s] about the filtered force, tip moment [N·m] (inf: off).
+    Returns False (sample dropped, filter unchanged) for a non-finite sample or time, a time
+    not after the last sample's, or an implausible sample (then ``st[S_LAST_BAD]`` = ``t`` and
+    ``st[S_BAD]`` counts it).
     """
     for i in range(6):
         if not math.isfinite(W_s[i]):
@@ -193,6 +213,29 @@ def sample_kernel(
             W_c[i] = 0.0
     for i in range(6):
         W_c[i] = W_s[i] - tare[i] - W_c[i]
+    # plausibility: the force's magnitude, its distance from the filtered force (a band plus
+    # the rate bound × the time since the last sample taken), the moment at the tool tip
+    f2 = W_c[0] ** 2 + W_c[1] ** 2 + W_c[2] ** 2
+    bad = f2 > plaus[0] * plaus[0]
+    if st[S_HAVE] > 0 and not bad:
+        d2 = (W_c[0] - y[0]) ** 2 + (W_c[1] - y[1]) ** 2 + (W_c[2] - y[2]) ** 2
+        allowed = plaus[1]
+        if plaus[2] > 0.0 and allowed < math.inf:
+            allowed += plaus[2] * (t - st[S_LAST_SAMPLE])
+        bad = d2 > allowed * allowed
+    if not bad and plaus[3] < math.inf:
+        m2 = 0.0
+        for i in range(3, 6):
+            acc = 0.0
+            for k in range(6):
+                acc += X_ts[i, k] * W_c[k]
+            m2 += acc * acc
+        bad = m2 > plaus[3] * plaus[3]
+    if bad:
+        st[S_BAD] += 1.0
+        if not t <= st[S_LAST_BAD]:
+            st[S_LAST_BAD] = t
+        return False
     if st[S_HAVE] == 0:
         for i in range(6):
             y[i] = W_c[i]
@@ -230,6 +273,10 @@ def cycle_kernel(
     ``lim`` (6,): dead band [m], size limit [m], rate limit [m/s], cycle time [s], watchdog
     hold [s], watchdog ramp-down rate [m/s]. Writes the tip wrench ``W_tip`` (6,) and the
     deflection ``delta`` (6,) (base axes) used; returns the status bits.
+
+    The rate limits act per unit of time: a cycle's step is at most ``rate · dt`` (the ramps
+    ``ramp · dt``), ``dt`` the time since the last cycle, 0 for a time not after it, at most two
+    cycles (one after a gap moves by no more than two cycles' worth; the first by one).
     """
     deadband, size, rate, cycle, hold, ramp = lim[0], lim[1], lim[2], lim[3], lim[4], lim[5]
     status = 0
@@ -239,8 +286,18 @@ def cycle_kernel(
         if not math.isfinite(q[i]):
             finite_q = False
     age = t - st[S_LAST_SAMPLE]
-    step_max = rate * cycle
-    if not finite_q or not math.isfinite(t):
+    dt = t - st[S_LAST_CYCLE] if st[S_LAST_CYCLE] > -math.inf else cycle
+    if not dt > 0.0:  # NaN, or not after the last cycle: no step at all
+        dt = 0.0
+    elif dt > 2.0 * cycle:
+        dt = 2.0 * cycle
+    step_max = rate * dt
+    if st[S_STOP] > 0:
+        status |= STATUS_STOP
+        step_max = min(step_max, ramp * dt)
+        for i in range(3):
+            tgt[i] = 0.0
+    elif not finite_q or not math.isfinite(t):
         status |= STATUS_BAD_INPUT
         for i in range(3):
             tgt[i] = corr[i]
@@ -249,12 +306,17 @@ def cycle_kernel(
         status |= STATUS_NO_SAMPLE if st[S_HAVE] == 0 else STATUS_HOLD
         if st[S_HAVE] == 0 or age > 2.0 * hold:
             status |= STATUS_RAMP
-            step_max = min(step_max, ramp * cycle)
+            step_max = min(step_max, ramp * dt)
             for i in range(3):
                 tgt[i] = 0.0
         else:
             for i in range(3):
                 tgt[i] = corr[i]
+    elif t - st[S_LAST_BAD] < hold:
+        # an implausible sample lately: hold what was sent until the force is plausible again
+        status |= STATUS_IMPLAUSIBLE | STATUS_HOLD
+        for i in range(3):
+            tgt[i] = corr[i]
     else:
         R = scr[14:17, 0:3]
         Wb = scr[17]
@@ -308,7 +370,8 @@ def cycle_kernel(
     s = math.sqrt(s2)
     if s > step_max:
         f = step_max / s
-        if status & (STATUS_HOLD | STATUS_RAMP | STATUS_NO_SAMPLE | STATUS_BAD_INPUT) == 0:
+        quiet = STATUS_HOLD | STATUS_RAMP | STATUS_NO_SAMPLE | STATUS_BAD_INPUT | STATUS_STOP
+        if status & quiet == 0:
             status |= STATUS_LIMITED
         for i in range(3):
             corr[i] += f * (tgt[i] - corr[i])
@@ -322,7 +385,8 @@ def cycle_kernel(
         f = size / math.sqrt(n2) * (1.0 - 1e-12)
         for i in range(3):
             corr[i] *= f
-    st[S_LAST_CYCLE] = t
+    if math.isfinite(t) and not t <= st[S_LAST_CYCLE]:
+        st[S_LAST_CYCLE] = t
     st[S_STATUS] = status
     st[S_CYCLES] += 1
     return status

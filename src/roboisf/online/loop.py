@@ -15,9 +15,24 @@ One thread, woken only by the controller:
   and never busy with a sample when the controller's message comes. With a
   :class:`~roboisf.online.replay.ReplaySensor` the samples are fed by the clock.
 
-A malformed packet is dropped and counted (the loop never answers it); a sensor record older
-than the last one (its ``rdt_sequence``) is dropped as late; a sensor that stops trips the
-core's watchdog. Every cycle is logged (time, sequence, joints, tip wrench, correction, status,
+A malformed packet is dropped and counted (the loop never answers it); the sensor's
+``rdt_sequence`` is followed by :class:`~roboisf.online.netft.SequenceTracker` (lost,
+out-of-order and duplicate records counted, a restarted stream followed at once); a record with a
+non-zero status word is not used (its bits counted); a sensor that stops trips the core's
+watchdog. The cycle's time is the kernel's arrival stamp of the controller's message, so the
+core's rate limits act per unit of the messages' own time.
+
+**Every stop ramps the correction to zero first** (:meth:`Loop.run`): the end of ``duration``
+or ``cycles``, :meth:`Loop.stop`, Ctrl-C / SIGTERM (``KeyboardInterrupt`` or
+:class:`roboisf.io.outdir.Interrupted`), an error inside the loop, a controller silent for
+``controller_timeout`` s, a Net F/T silent for ``sensor_timeout`` s (after the watchdog's
+ramp), or too many late replies (``late_limit`` in ``late_window`` s: the host cannot keep the
+cycle). The loop then answers the controller's messages with the correction
+ramping at ``ramp_rate`` until it is zero, and :attr:`Counters.stop_reason` /
+:attr:`Counters.ramped` say why it stopped and whether the ramp finished (it cannot when the
+controller is silent: nothing to send it to).
+
+Every cycle is logged (time, sequence, joints, tip wrench, correction, status,
 compute time, and the latency from the kernel's arrival of the message to the reply sent) in
 preallocated chunks and written to Parquet (atomically) at the end: nothing is written, printed
 or collected between a message's arrival and its reply.
@@ -39,18 +54,29 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.errors import InputError
+from roboisf.io.outdir import Interrupted
 from roboisf.online import netft
 from roboisf.online.base import ProtocolError, RobotState
 from roboisf.online.core import OnlineCompensator
 from roboisf.online.rt import STAMP_SPACE, GcQuiet, Realtime, apply, enable_stamps, kernel_stamp
 
-__all__ = ["IDLE", "Counters", "CycleLog", "Loop", "parse_address"]
+__all__ = ["IDLE", "RULES_OFF", "Counters", "CycleLog", "Loop", "parse_address"]
 
 F64 = NDArray[np.float64]
 
 #: s — how long the loop waits for a controller message before it looks at its clock (stop,
 #: duration, status, a silent sensor) and drains the sensor socket
 IDLE = 0.05
+
+
+#: :class:`Loop` keywords that switch its runtime stop rules off (a silent controller or sensor,
+#: late replies) — for simulated devices that share the loop's CPUs (``--simulate``, the tests,
+#: the benchmark), whose stalls on a loaded machine are no verdict on a real cell's host
+RULES_OFF: dict[str, Any] = {
+    "controller_timeout": 3600.0,
+    "sensor_timeout": 3600.0,
+    "late_limit": 1 << 30,
+}
 
 
 def _timeval(seconds: float) -> bytes:
@@ -71,8 +97,11 @@ class SampleSource(Protocol):
     def samples_until(self, t: float) -> tuple[F64, F64]: ...
 
 
-def parse_address(text: str, default_port: int, what: str) -> tuple[str, int]:
-    """``HOST`` or ``HOST:PORT`` → (host, port); :class:`InputError` naming ``what``."""
+def parse_address(
+    text: str, default_port: int, what: str, *, resolve: bool = False
+) -> tuple[str, int]:
+    """``HOST`` or ``HOST:PORT`` → (host, port); :class:`InputError` naming ``what`` (and,
+    with ``resolve``, for a host name that does not resolve to an IPv4 address)."""
     host, _, port = text.rpartition(":") if ":" in text else (text, "", "")
     if not host:
         raise InputError(f"expected HOST or HOST:PORT, got {text!r}", field=what)
@@ -82,6 +111,13 @@ def parse_address(text: str, default_port: int, what: str) -> tuple[str, int]:
         raise InputError(f"port must be a number, got {port!r}", field=what) from None
     if not 0 <= p < 65536:
         raise InputError(f"port must be 0–65535, got {p}", field=what)
+    if resolve:
+        try:
+            socket.getaddrinfo(host, p, socket.AF_INET, socket.SOCK_DGRAM)
+        except (OSError, UnicodeError) as e:
+            raise InputError(
+                f"host {host!r} is not an IPv4 address or a name that resolves ({e})", field=what
+            ) from None
     return host, p
 
 
@@ -93,8 +129,17 @@ class Counters:
     samples: int = 0
     bad_controller: int = 0
     bad_sensor: int = 0
-    late_sensor: int = 0
+    late_sensor: int = 0  # records out of order or duplicated (behind the last): dropped
+    lost_sensor: int = 0  # records missing from the sequence
+    sensor_resyncs: int = 0  # the sensor's stream restarted (power cycle, RDT restart, wrap)
     sensor_status: int = 0  # records with a non-zero RDT status (saturation, fault)
+    sensor_status_bits: int = 0  # every status bit seen (netft.status_text names them)
+    implausible: int = 0  # force samples rejected as implausible (core.Plausibility)
+    late_replies: int = 0  # replies the loop sent more than a cycle after the message arrived
+    stop_reason: str = ""  # why the loop stopped
+    ramped: bool = False  # the correction was ramped to zero before the loop ended
+    ramp_time: float = 0.0  # s, the ramp to zero at the stop
+    left_mm: float = 0.0  # mm, the correction when the loop ended (0 when ramped)
     sensor_unreachable: int = 0  # the sensor's host answered "port unreachable"
     send_errors: int = 0  # replies the operating system refused to send
     max_compute: float = 0.0  # s, per cycle
@@ -212,6 +257,16 @@ class Loop:
     counts : (counts per N, counts per N·m) of the Net F/T
     realtime : :class:`~roboisf.online.rt.Realtime` — scheduler, CPU and memory lock asked for
         the thread that calls :meth:`run` (refused settings: one line each in ``warnings``)
+    controller_timeout : float, s — no controller message for this long (after the first):
+        the controller is lost; the loop stops (default 0.5 s)
+    sensor_timeout : float, s — a Net F/T that streamed and then sent nothing for this long
+        (the loop asks it to start again after 1 s: a restart within this time is followed)
+        is lost; the loop stops (default 2 s; the watchdog has ramped the correction by then)
+    ramp_timeout : float, s — while a stop ramps the correction down, no controller message
+        for this long ends the ramp unfinished (nothing to send it to; default 0.5 s)
+    late_limit, late_window : int, float s — this many replies later than a cycle after their
+        message's arrival within ``late_window`` s: the host cannot keep the cycle; the loop
+        ramps down and stops (default 25 in 1 s)
     quiet_gc : bool — keep the garbage collector out of the cycle
         (:class:`~roboisf.online.rt.GcQuiet`; default True). The full collection it needs is
         done here, with ``gc.freeze()``, so that :meth:`run` starts at once (the objects alive
@@ -233,8 +288,33 @@ class Loop:
         log: CycleLog | None = None,
         realtime: Realtime | None = None,
         quiet_gc: bool = True,
+        controller_timeout: float = 0.5,
+        sensor_timeout: float = 2.0,
+        ramp_timeout: float = 0.5,
+        late_limit: int = 25,
+        late_window: float = 1.0,
     ) -> None:
+        for name, v in (
+            ("controller_timeout", controller_timeout),
+            ("sensor_timeout", sensor_timeout),
+            ("ramp_timeout", ramp_timeout),
+            ("late_window", late_window),
+        ):
+            if not v > 0:
+                raise InputError(f"must be > 0 s, got {v}", field=name)
+        if late_limit < 1:
+            raise InputError(f"must be ≥ 1, got {late_limit}", field="late_limit")
         self.oc = oc
+        self.controller_timeout = float(controller_timeout)
+        self.sensor_timeout = float(sensor_timeout)
+        self.ramp_timeout = float(ramp_timeout)
+        self._last_record_at = math.nan  # perf_counter of the last sensor packet (none yet)
+        self.late_limit = int(late_limit)
+        self.late_window = float(late_window)
+        self._late_times = np.full(self.late_limit, -math.inf)  # ring: the last late replies
+        self._late_i = 0
+        self._last_msg = math.nan  # perf_counter of the last controller message answered
+        self.seq = netft.SequenceTracker()
         self.realtime = realtime or Realtime()
         self.quiet_gc = quiet_gc
         self.warnings: list[str] = []
@@ -260,10 +340,16 @@ class Loop:
         if isinstance(sensor, tuple):
             self.ft = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
             self._ft_stamped = enable_stamps(self.ft)
-            self.ft.connect(sensor)
+            try:
+                self.ft.connect(sensor)
+            except (OSError, UnicodeError) as e:
+                self.ft.close()
+                self.ctl.close()
+                raise InputError(
+                    f"cannot reach the sensor at {sensor[0]}:{sensor[1]} ({e})", field="sensor"
+                ) from None
         else:
             self.replay = sensor
-        self._last_rdt = -1
         self._last_sample_at = -math.inf
         self._stop = False
         self.t0 = math.nan
@@ -301,10 +387,12 @@ class Loop:
         status_every: float = 0.25,
         warn: Callable[[str], None] | None = None,
     ) -> Counters:
-        """Serve until ``duration`` s, ``cycles`` cycles, :meth:`stop` or Ctrl-C (which ends
-        the loop cleanly: KeyboardInterrupt is caught here). ``status(loop)`` is called every
-        ``status_every`` s; ``warn(line)`` once per real-time setting refused (also kept in
-        ``warnings``)."""
+        """Serve until ``duration`` s, ``cycles`` cycles, :meth:`stop`, Ctrl-C or SIGTERM
+        (``KeyboardInterrupt`` / :class:`~roboisf.io.outdir.Interrupted`, caught here), a lost
+        controller, too many late replies or an error — then ramp the correction to zero
+        (module docstring) and return the counters (an error is raised again after the ramp).
+        ``status(loop)`` is called every ``status_every`` s; ``warn(line)`` once per real-time
+        setting refused (also kept in ``warnings``)."""
         rt = apply(self.realtime)  # before the sensor streams: a collection takes its time
         self.warnings = rt.warnings
         if warn is not None:
@@ -321,43 +409,115 @@ class Loop:
         self._status_every = status_every
         self._next_status = t0 + status_every
         ctl = self.ctl
-        stamped = self._ctl_stamped  # the latency column: from the kernel's arrival
         self._rt_offset = time.time() - time.perf_counter()  # CLOCK_REALTIME − perf_counter, s
         ctl.settimeout(None)  # blocking in Python: one recvmsg system call per message …
         ctl.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(IDLE))  # … or a timeout
+        error: BaseException | None = None
         try:
-            while not self._stop:
-                now = time.perf_counter()
-                if now - t0 >= duration or (cycles is not None and self.counters.cycles >= cycles):
-                    break
-                if status is not None and now >= self._next_status + status_every:
-                    self._housekeeping(now)  # no controller: the status still shows it
-                if self.ft is not None and now - self._last_sample_at > 1.0:
-                    self._start_sensor()  # no data for a second: ask again (sensor restarted)
-                try:
-                    data, anc, _, addr = ctl.recvmsg(65536, STAMP_SPACE)
-                except (BlockingIOError, TimeoutError):  # no message for IDLE s
-                    self._drain_sensor(t0)  # samples keep the watchdog fed, the socket empty
-                    continue
-                except OSError:
-                    continue
-                now = time.perf_counter()
-                ns = kernel_stamp(anc) if stamped else None
-                # arrival on the perf_counter clock (the read, without a kernel stamp)
-                arrived = now if ns is None else ns * 1e-9 - self._rt_offset
-                self._drain_sensor(t0)  # every sample since the last cycle, at its arrival
-                if self._on_controller(data, addr, now - t0, arrived, started=now):
-                    self._housekeeping(time.perf_counter())
-        except KeyboardInterrupt:
-            pass
+            try:
+                reason = self._serve(t0, duration, cycles)
+            except KeyboardInterrupt:
+                reason = "interrupted (Ctrl-C)"
+            except Interrupted as e:
+                reason = "terminated (SIGTERM)" if e.exit_code == 143 else "interrupted (Ctrl-C)"
+            except Exception as e:  # an error in the loop: the ramp first, then the error
+                reason, error = f"error ({type(e).__name__}: {e})", e
+            self._ramp_down(t0, reason)
+        except (KeyboardInterrupt, Interrupted):  # a second signal: the ramp is cut short
+            self.counters.stop_reason += "; the ramp to zero cut short by a second signal"
         finally:
+            self.counters.left_mm = float(np.linalg.norm(self.oc.correction)) * 1e3
+            self.counters.implausible = self.oc.implausible
             if gcq is not None:
                 gcq.__exit__(None, None, None)
                 self.counters.gc_collections = gcq.collections
                 self.counters.gc_max_pause = gcq.max_pause
             rt.restore()
             self.close()
+        if error is not None:
+            raise error
         return self.counters
+
+    def _receive(self, t0: float) -> tuple[bytes, Any, float, float] | None:
+        """One controller message (``data, addr, read time, arrival time``, perf_counter s)
+        or None after ``IDLE`` s (the sensor socket drained meanwhile)."""
+        try:
+            data, anc, _, addr = self.ctl.recvmsg(65536, STAMP_SPACE)
+        except (BlockingIOError, TimeoutError):  # no message for IDLE s
+            self._drain_sensor(t0)  # samples keep the watchdog fed, the socket empty
+            return None
+        except OSError:
+            return None
+        now = time.perf_counter()
+        return data, addr, now, self._arrival(anc, self._ctl_stamped, now)
+
+    def _arrival(self, anc: Any, stamped: bool, read: float) -> float:
+        """A datagram's arrival on the perf_counter clock: the kernel's stamp (``anc``), or
+        the ``read`` time without one."""
+        ns = kernel_stamp(anc) if stamped else None
+        t = read if ns is None else ns * 1e-9 - self._rt_offset
+        if not read - 1.0 < t <= read + 1e-3:  # the wall clock was stepped: follow it
+            self._rt_offset = time.time() - time.perf_counter()
+            t = read
+        return t
+
+    def _serve(self, t0: float, duration: float, cycles: int | None) -> str:
+        """Answer the controller until a reason to stop; returns it."""
+        status = self._status
+        status_every = self._status_every
+        while not self._stop:
+            now = time.perf_counter()
+            if now - t0 >= duration:
+                return f"--duration {duration:g} s reached"
+            if cycles is not None and self.counters.cycles >= cycles:
+                return f"{cycles} cycles run"
+            if now - self._last_msg > self.controller_timeout:
+                return f"controller silent for {self.controller_timeout:g} s"
+            if now - self._last_record_at > self.sensor_timeout:
+                return f"sensor silent for {self.sensor_timeout:g} s"
+            if status is not None and now >= self._next_status + status_every:
+                self._housekeeping(now)  # no controller: the status still shows it
+            if self.ft is not None and now - self._last_sample_at > 1.0:
+                self._start_sensor()  # no data for a second: ask again (sensor restarted)
+            got = self._receive(t0)
+            if got is None:
+                continue
+            data, addr, now, arrived = got
+            self._drain_sensor(t0)  # every sample since the last cycle, at its arrival
+            if self._on_controller(data, addr, arrived - t0, arrived, started=now):
+                self._last_msg = now
+                if self._late_times[self._late_i] >= now - self.late_window:  # the oldest of them
+                    return (
+                        f"{self.late_limit} late replies within {self.late_window:g} s "
+                        "(the host cannot keep the cycle: docs/online.md, --selftest)"
+                    )
+                self._housekeeping(time.perf_counter())
+        return "stop requested"
+
+    def _ramp_down(self, t0: float, reason: str) -> None:
+        """Ramp the correction to zero at ``ramp_rate``, answering the controller, then end."""
+        c = self.counters
+        c.stop_reason = reason
+        self.oc.begin_stop()
+        start = time.perf_counter()
+        last = self._last_msg if math.isfinite(self._last_msg) else start
+        lim = self.oc.limits  # the ramp's own length, twice, and a silent controller's wait
+        give_up = start + 2.0 * lim.max_correction / lim.ramp_rate + self.ramp_timeout
+        while np.any(self.oc.correction != 0.0):
+            got = self._receive(t0)
+            now = time.perf_counter()
+            if now > give_up:
+                break  # the messages' clock did not advance: never wait on it for ever
+            if got is None:
+                if now - max(last, start) > self.ramp_timeout:
+                    break  # nobody to send the ramp to
+                continue
+            data, addr, now, arrived = got
+            self._drain_sensor(t0)
+            if self._on_controller(data, addr, arrived - t0, arrived, started=now):
+                last = now
+        c.ramped = not np.any(self.oc.correction != 0.0)
+        c.ramp_time = time.perf_counter() - start
 
     def _drain_sensor(self, t0: float) -> None:
         """Every record queued in the sensor socket through :meth:`_on_sensor`, each timed by
@@ -373,12 +533,7 @@ class Loop:
             except OSError:  # ICMP port unreachable from the sensor's host
                 self.counters.sensor_unreachable += 1
                 continue
-            read = time.perf_counter()
-            ns = kernel_stamp(anc) if self._ft_stamped else None
-            t = read if ns is None else ns * 1e-9 - self._rt_offset
-            if not read - 1.0 < t <= read + 1e-3:  # the wall clock was stepped: follow it
-                self._rt_offset = time.time() - time.perf_counter()
-                t = read
+            t = self._arrival(anc, self._ft_stamped, time.perf_counter())
             self._on_sensor(data, t - t0)
 
     def _housekeeping(self, now: float) -> None:
@@ -400,25 +555,24 @@ class Loop:
             self.counters.sensor_unreachable += 1
 
     def _on_sensor(self, data: bytes, t: float) -> None:
-        self._last_sample_at = time.perf_counter()
+        self._last_sample_at = self._last_record_at = time.perf_counter()
         try:
             recs = netft.decode_records(data, *self.counts)
         except ProtocolError:
             self.counters.bad_sensor += 1
             return
+        seq = self.seq
+        c = self.counters
         for r in recs:
-            if self._last_rdt >= 0 and ((r.rdt_sequence - self._last_rdt) & 0xFFFFFFFF) >= 1 << 31:
-                self.counters.late_sensor += 1  # older than the last: dropped
+            if not seq.accept(r.rdt_sequence):
                 continue
-            if r.rdt_sequence == self._last_rdt:
-                self.counters.late_sensor += 1
-                continue
-            self._last_rdt = r.rdt_sequence
             if r.status:
-                self.counters.sensor_status += 1
+                c.sensor_status += 1
+                c.sensor_status_bits |= r.status
                 continue
             if self.oc.sample(t, r.wrench):
-                self.counters.samples += 1
+                c.samples += 1
+        c.late_sensor, c.lost_sensor, c.sensor_resyncs = seq.out_of_order, seq.lost, seq.resyncs
 
     def _on_controller(
         self,
@@ -461,5 +615,9 @@ class Loop:
         self.counters.cycles += 1
         self.counters.max_compute = max(self.counters.max_compute, compute)
         self.counters.max_latency = max(self.counters.max_latency, latency)
+        if latency > self.oc.limits.cycle:  # the controller had its next message due
+            self.counters.late_replies += 1
+            self._late_times[self._late_i] = done
+            self._late_i = (self._late_i + 1) % self.late_limit
         self.log.add(t, state, self.oc, compute, latency)
         return True

@@ -16,6 +16,15 @@ mode (several in buffered mode)::
     uint32 status         (0 = healthy; bits flag saturation and faults)
     int32  Fx Fy Fz Tx Ty Tz   (counts)
 
+The ``status`` word is the Net F/T's *system status code* (the manual's table; :data:`STATUS_BITS`
+names each bit, :func:`status_text` decodes a word): 0 is healthy, bit 31 summarises an error,
+bit 17 is a saturated transducer or an A/D error. A record with a non-zero status is not used.
+
+``rdt_sequence`` counts the packets of one stream; it restarts when the sensor is power cycled
+or streaming is restarted, and wraps at 2³². :class:`SequenceTracker` follows it: lost records
+(a gap), out-of-order and duplicate ones (behind the last, dropped) and restarts (far behind the
+last, or several in a row: followed at once, not dropped as late).
+
 Force = counts / counts-per-force, torque = counts / counts-per-torque: the calibration's
 ``cfgcpf`` / ``cfgcpt`` (the sensor's web page or ``netftapi2.xml``); with the force unit N and
 the torque unit N·m the Net F/T default is 1,000,000 counts per unit.
@@ -38,11 +47,14 @@ __all__ = [
     "DEFAULT_COUNTS",
     "PORT",
     "RECORD_SIZE",
+    "STATUS_BITS",
     "RdtRecord",
+    "SequenceTracker",
     "decode_records",
     "decode_request",
     "encode_record",
     "encode_request",
+    "status_text",
 ]
 
 F64 = NDArray[np.float64]
@@ -60,6 +72,104 @@ _REQ = struct.Struct(">HHI")
 _REC = struct.Struct(">IIIiiiiii")
 RECORD_SIZE = _REC.size  # 36
 _MAXC = 2**31 - 1
+
+
+#: the Net F/T system status code, bit → meaning (ATI manual 9620-05-NET FT, "System Status
+#: Code"; bits 0 and 15 are not used)
+STATUS_BITS: dict[int, str] = {
+    31: "error (summary)",
+    30: "CPU or RAM error",
+    29: "digital board error",
+    28: "analog board error",
+    27: "serial link error",
+    26: "program memory check failed",
+    25: "halted: configuration error",
+    24: "settings validation error",
+    23: "configuration does not match the calibration",
+    22: "network error",
+    21: "CAN error",
+    20: "RDT error",
+    19: "EtherNet/IP error",
+    18: "DeviceNet error",
+    17: "transducer saturated or A/D error",
+    16: "monitor condition latched",
+    14: "watchdog timeout",
+    13: "stack check error",
+    12: "EEPROM error",
+    11: "flash error",
+    10: "analog board watchdog timeout",
+    9: "strain gage excitation current too high",
+    8: "strain gage excitation current too low",
+    7: "artificial analog ground out of range",
+    6: "analog supply too high",
+    5: "analog supply too low",
+    4: "serial link data unavailable",
+    3: "reference voltage or power monitor error",
+    2: "internal temperature error",
+    1: "HTTP error",
+}
+
+
+def status_text(status: int) -> str:
+    """``"healthy"`` or the meanings of the set bits of a status word, ``"; "``-joined (an
+    unnamed bit as ``bit N``)."""
+    if status == 0:
+        return "healthy"
+    return "; ".join(STATUS_BITS.get(b, f"bit {b}") for b in range(31, -1, -1) if status >> b & 1)
+
+
+class SequenceTracker:
+    """Follows ``rdt_sequence`` (mod 2³²) across losses, reordering, wraps and restarts.
+
+    :meth:`accept` says whether a record is new: one up to ``max_gap`` ahead of the last is
+    taken (the records between count as ``lost``; 2³² − 1 → 0 is one step); one at or behind
+    the last by up to ``window`` is ``out_of_order`` (a duplicate or a late packet: dropped) —
+    unless ``resync_after`` of them come in a row; anything else (further behind, or further
+    ahead) is a restarted stream (``resyncs``): taken, and followed from there.
+    """
+
+    __slots__ = (
+        "_behind",
+        "last",
+        "lost",
+        "max_gap",
+        "out_of_order",
+        "resync_after",
+        "resyncs",
+        "window",
+    )
+
+    def __init__(self, window: int = 64, resync_after: int = 3, max_gap: int = 1 << 16) -> None:
+        self.window = window
+        self.resync_after = resync_after
+        self.max_gap = max_gap
+        self.last = -1
+        self.lost = 0
+        self.out_of_order = 0
+        self.resyncs = 0
+        self._behind = 0
+
+    def accept(self, seq: int) -> bool:
+        """True: a new record (take it); False: out of order or a duplicate (drop it)."""
+        if self.last < 0:
+            self.last = seq
+            return True
+        ahead = (seq - self.last) & 0xFFFFFFFF
+        if 0 < ahead <= self.max_gap:
+            self.lost += ahead - 1
+            self.last = seq
+            self._behind = 0
+            return True
+        if ((self.last - seq) & 0xFFFFFFFF) <= self.window:
+            self._behind += 1
+            if self._behind < self.resync_after:
+                self.out_of_order += 1
+                return False
+            self.out_of_order -= self.resync_after - 1  # they were the new stream's start
+        self.resyncs += 1
+        self.last = seq
+        self._behind = 0
+        return True
 
 
 def encode_request(command: int, sample_count: int = 0) -> bytes:

@@ -12,6 +12,7 @@ The study's robot run must have a flange-mounted force sensor (``mount = "flange
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,7 +26,7 @@ from roboisf.io.jointlog import read_joint_log
 from roboisf.online.core import Limits, OnlineCompensator, SensorSetup
 from roboisf.study import load_study
 
-__all__ = ["ReplaySensor", "StudyReplay", "load_replay", "replay_study"]
+__all__ = ["ReplaySensor", "StudyReplay", "expected_peak_force", "load_replay", "replay_study"]
 
 F64 = NDArray[np.float64]
 
@@ -87,6 +88,17 @@ def load_replay(study_dir: str | Path, *, cutoff: float = 20.0) -> StudyReplay:
     jl = read_joint_log(run.joints)
     sensor = SensorSetup(cell.T_flange_tip @ spec.pose, load_on=spec.load_on, cutoff=cutoff)
     return StudyReplay(cell, sensor, fl.time + spec.time_offset, fl.wrench, jl.time, jl.q)
+
+
+def expected_peak_force(force: F64) -> float:
+    """The expected peak forming force [N] of a force log ``force`` (N, 6) [N; N·m]: the
+    99.9th percentile of ‖f‖ (a single spike in the log does not set it); NaN when empty."""
+    f = np.asarray(force, dtype=float)
+    if f.ndim != 2 or f.shape[1] < 3 or len(f) == 0:
+        return math.nan
+    n = np.linalg.norm(f[:, :3], axis=1)
+    n = n[np.isfinite(n)]
+    return float(np.percentile(n, 99.9)) if len(n) else math.nan
 
 
 def replay_study(rep: StudyReplay, limits: Limits | None = None) -> tuple[OnlineCompensator, F64]:

@@ -41,7 +41,7 @@ from numpy.typing import NDArray
 from roboisf.cell import tip_compliances
 from roboisf.compensate.compliance import DeflectionModel, precompensate
 from roboisf.errors import InputError
-from roboisf.frames import matrix_to_quat, vertical_tool
+from roboisf.frames import matrix_to_quat, quat_to_matrix, vertical_tool
 from roboisf.online import egm, netft, rsi
 from roboisf.online import kernel as kn
 from roboisf.online.base import ProtocolError
@@ -435,8 +435,11 @@ class _ControllerSim:
         cycle: float,
         n_cycles: int,
         point_step: int,
+        relative: bool = False,
     ) -> None:
         self.q_nom, self.dq_dp, self.planned = setup_arrays
+        self.relative = relative and protocol == "rsi"
+        self.ipoc_step = max(1, round(cycle * 1e3))
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind(("127.0.0.1", 0))
         self.sock.setblocking(False)
@@ -487,11 +490,19 @@ class _ControllerSim:
                 rseq, corr = rsi.decode_reply(data)
         except ProtocolError:
             return
+        if self.protocol == "rsi":  # IPOC: the cycle's time stamp in ms
+            if rseq % self.ipoc_step:
+                return
+            rseq //= self.ipoc_step
         if not 1 <= rseq <= self.c:
             return
         j = rseq - 1
         if self.protocol == "egm":
-            corr = pose[:3] - self.planned[int(self.ks[j]), :3]
+            pl = self.planned[int(self.ks[j])]
+            if np.isnan(pose[3]):  # path correction: in the TCP frame of the planned pose
+                corr = quat_to_matrix(pl[3:]) @ pose[:3]
+            else:  # position guidance: the pose sent, less the program's path
+                corr = pose[:3] - pl[:3]
         # the arrival on this process's perf_counter clock: kernel stamp, else the read
         if arrival_ns is not None:
             arrived = float(self.sent[j] + (arrival_ns - self.sent_ns[j]) * 1e-9)
@@ -501,7 +512,8 @@ class _ControllerSim:
         if j == self.c - 1 and self.awaiting and arrived < deadline:
             self.rtt[j] = arrived - self.sent[j]
             self.read_late[j] = read_at - arrived
-            self.rx = corr
+            # RSI_ON(#RELATIVE) adds each reply taken to the sum; #ABSOLUTE replaces it
+            self.rx = self.rx + corr if self.relative else corr
             self.awaiting = False
         elif np.isnan(self.rtt[j]) and np.isnan(self.rtt_late[j]):
             self.rtt_late[j] = arrived - self.sent[j]  # after its next cycle was due: dropped
@@ -526,8 +538,8 @@ class _ControllerSim:
         seq = c + 1
         if self.protocol == "egm":
             msg = egm.encode_robot(seq, int((c * self.cycle) * 1e3), q, self.planned[k])
-        else:
-            msg = rsi.encode_robot(seq, q)
+        else:  # Delay: the replies that missed their cycle so far (DEF_Delay)
+            msg = rsi.encode_robot(seq * self.ipoc_step, q, delay=self.missed)
         self.wake_late[c] = wake_late
         self.sent[c] = time.perf_counter()  # the round trip from before the send (an upper
         self.sent_ns[c] = time.time_ns()  # bound) …
@@ -813,6 +825,7 @@ class Simulation:
         realtime: Realtime | None = None,
         processes: int = 2,
         spin: float = SPIN,
+        relative: bool = False,
     ) -> None:
         import multiprocessing as mp
 
@@ -844,6 +857,7 @@ class Simulation:
             "cycle": cycle,
             "n_cycles": n_cycles,
             "point_step": point_step,
+            "relative": relative,
         }
         common: dict[str, Any] = {"realtime": realtime, "spin": spin, "processes": processes}
         idx, stop, q = self.index, self.stop, self._queue
@@ -864,11 +878,31 @@ class Simulation:
         self._result: dict[str, Any] | None = None
 
     def __enter__(self) -> Simulation:
-        for p, ev in zip(self._procs, self._ready, strict=True):
-            p.start()
-            if not ev.wait(60):  # imported and set up (seconds on a busy machine)
-                self.close()
-                raise RuntimeError("the simulated devices did not start")
+        import signal
+
+        # the devices never see Ctrl-C (a signal mask survives fork and exec): a Ctrl-C while
+        # they start would break the unpickling of their arguments (a child's traceback); this
+        # process stops them (``stop``, then SIGTERM) whatever ends it
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            for p in self._procs:
+                p.start()
+        except BaseException:
+            self.close()
+            raise
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)  # a Ctrl-C held meanwhile: now
+        try:
+            for ev in self._ready:
+                if not ev.wait(60):  # imported and set up (seconds on a busy machine)
+                    raise InputError(
+                        "the simulated devices did not start within 60 s (a heavily loaded "
+                        "machine?)",
+                        field="--simulate",
+                    )
+        except BaseException:
+            self.close()
+            raise
         return self
 
     def result(self, timeout: float | None = None) -> dict[str, Any]:

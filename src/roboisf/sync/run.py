@@ -101,6 +101,22 @@ def _force_work(log: ForceLog, run: RunSpec, tool_rotation: float) -> F64:
     return W[:, :3]
 
 
+def _end_shift(tp: Toolpath, residual: F64) -> float:
+    """s — how far the position alignment may place the toolpath's ends in time when the
+    logged tip stands ``residual`` (N,) m off them: that distance at the feed there."""
+    if len(tp) < 3 or len(residual) != len(tp):
+        return 0.0
+    dS = np.diff(np.asarray(tp.path_length, dtype=float))
+    dt = np.diff(np.asarray(tp.time, dtype=float))
+    shift = 0.0
+    for r, sl in ((residual[0], slice(0, 3)), (residual[-1], slice(-3, None))):
+        ok = dt[sl] > 0
+        v = float(np.max(dS[sl][ok] / dt[sl][ok])) if np.any(ok) else 0.0
+        if v > 0 and np.isfinite(r):
+            shift = max(shift, float(r) / v)
+    return shift
+
+
 def _clip(a: Alignment, t0: float, t1: float) -> Alignment:
     return Alignment(
         a.method,
@@ -175,8 +191,11 @@ def align_run(
         off = run.forces.time_offset
         f = j if off == 0 else j.mapped(1.0, off, method="position", source=str(run.forces.file))
         t0, t1 = float(force_log.time[0]), float(force_log.time[-1])
-        # the joint log's sampling places the ends to within one of its samples
+        # the joint log's sampling places the ends to within one of its samples; a commanded
+        # path off the toolpath at an end (a compensated or online-corrected run: the residual
+        # there) moves where the tool is taken to pass it by up to that offset over the feed
         slack = float(np.max(np.diff(joint_log.time))) + 1e-6
+        slack += _end_shift(tp, j.residual)
         if f.lo[0] < t0 - slack or f.hi[-1] > t1 + slack:
             raise InputError(
                 f"the force log covers {t0:.3f} … {t1:.3f} s but the joint log puts the toolpath "
