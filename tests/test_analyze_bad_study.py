@@ -121,7 +121,8 @@ def _fail_fast(s, match):
     """analyze raises ``match`` before the scans (the long work): scans are removed, so reaching
     them would raise a different error."""
     for name in ("cnc_scan.ply", "robot_scan.ply"):
-        (s / name).write_bytes(b"ply\nformat ascii 1.0\nend_header\n")
+        # distinct bytes: a robot scan equal to the CNC's is refused first (check_distinct_runs)
+        (s / name).write_text(f"ply\nformat ascii 1.0\ncomment {name}\nend_header\n")
     with pytest.raises(InputError, match=match):
         analyze(s)
 

@@ -329,7 +329,7 @@ def test_compensation_with_the_diagnosis_removes_the_compliance_error(diagnosed,
             r.study.root,
             results=results,
             options=CompensationOptions(springback=False),
-            stiffness=s["identified_stiffness"],
+            stiffness=res / s["identified_stiffness"],  # named relative to summary.json
         )
         t1 = simulate(cell, commanded=comp.compensation.toolpath)
         sel = t0.toolpath.depth > 20e-3

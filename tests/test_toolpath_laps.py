@@ -70,7 +70,8 @@ def _levels(
 
 @pytest.fixture(scope="module")
 def cone():
-    return Cone(opening_diameter=120e-3, wall_angle=math.radians(45), depth=30e-3)
+    # r = 40 mm + z: the tip paths below (_helix, _levels with r0 = 40 mm) run on its wall
+    return Cone(opening_diameter=80e-3, wall_angle=math.radians(45), depth=30e-3)
 
 
 def test_rounded_helix_is_a_spiral_of_its_turns(tmp_path, cone):
