@@ -120,6 +120,7 @@ def test_logged_joints_pick_branch(tp):
         np.testing.assert_allclose(_ik(m, tp, match_q=noisy).q, q, atol=1e-12)
 
 
+@pytest.mark.filterwarnings("ignore::roboisf.robot.ik.NumericalIKWarning")  # opw=False on purpose
 def test_numerical_ik_equals_closed_form(tp):
     """A URDF robot read without its OPW form: DLS IK seeded by the first logged pose gives the
     closed-form path to 1e-10 rad, continuous; the deflections agree to 1e-12 m."""
