@@ -55,9 +55,9 @@ def build_demo(
     ``jobs`` = 2 builds the VWACF in a second process while this one builds the cone (the two
     studies are independent; the same files and numbers as one after the other, about twice the
     peak memory); 1 builds them in turn. ``all_dialects``: every program format
-    (:data:`roboisf.io.export.FORMAT_SUFFIXES`), else :data:`DEMO_FORMATS`.
+    (:data:`roboisf.programs.export.FORMAT_SUFFIXES`), else :data:`DEMO_FORMATS`.
     """
-    from roboisf.io.export import FORMAT_SUFFIXES
+    from roboisf.programs.export import FORMAT_SUFFIXES
     from roboisf.report import write_index
 
     if jobs < 1:
@@ -193,8 +193,9 @@ def write_demo_programs(
     cell's tool (flange to ball tip, 2 kg) and the configuration data of the cell's IK branch.
     Returns the written paths (a RAPID program too long for one module is a set of files next to
     its main module)."""
-    from roboisf.io.export import FORMAT_SUFFIXES, write_toolpath
-    from roboisf.io.program import RobotTool, program_config
+    from roboisf.io.program import RobotTool
+    from roboisf.programs.export import FORMAT_SUFFIXES, write_toolpath
+    from roboisf.robot.armconfig import program_config
 
     bad = [f for f in formats if f not in FORMAT_SUFFIXES]
     if bad:

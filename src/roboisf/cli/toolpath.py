@@ -51,8 +51,8 @@ if typing.TYPE_CHECKING:
 
     from roboisf.io.program import RobotTool
     from roboisf.parts import AxisymmetricPart, Part
+    from roboisf.path.toolpath import Toolpath
     from roboisf.robot.model import RobotModel
-    from roboisf.toolpath.toolpath import Toolpath
 
 __all__ = ["PathOptions", "generate", "register", "warn_truncated"]
 
@@ -339,8 +339,8 @@ def write(tp: Toolpath, output: Path, fmt: str | None, opts: PathOptions) -> tup
     study's) IK along the path gives the configuration data.
     """
     from roboisf.frames.se3 import make_transform
-    from roboisf.io.export import infer_format, write_toolpath
-    from roboisf.io.program import parse_arm_config, program_config
+    from roboisf.programs.export import infer_format, write_toolpath
+    from roboisf.robot.armconfig import parse_arm_config, program_config
 
     fmt = infer_format(output, fmt)
     T, tool, model = program_frames(fmt, opts, output)
@@ -369,8 +369,8 @@ def program_frames(
 ) -> tuple[np.ndarray | None, RobotTool | None, RobotModel | None]:
     """Placement, tool and robot of a program; a robot program must have the first two and a
     file name that is a valid program name."""
-    from roboisf.io.export import ROBOT_FORMATS, check_program_name
     from roboisf.io.gcode import WORK_OFFSETS
+    from roboisf.programs.export import ROBOT_FORMATS, check_program_name
 
     check_program_name(output, fmt)
     if opts.work_offset not in WORK_OFFSETS:
@@ -401,7 +401,7 @@ def program_frames(
 def _run(
     part_factory, output: Path, fmt: str | None, opts: PathOptions, inputs: list[Path]
 ) -> None:
-    from roboisf.io.export import infer_format
+    from roboisf.programs.export import infer_format
 
     check_not_input(output, inputs)
     fmt = infer_format(output, fmt)  # fail before the (possibly long) generation

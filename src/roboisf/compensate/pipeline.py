@@ -39,11 +39,11 @@ from roboisf.compensate.compliance import (
 from roboisf.compensate.gouge import GougeReport, gouge_check
 from roboisf.errors import InputError
 from roboisf.io.atomic import atomic_write, staged_directory
-from roboisf.io.export import write_toolpath
 from roboisf.io.program import RobotTool
 from roboisf.parts.base import Part
+from roboisf.path.toolpath import Toolpath
+from roboisf.programs.export import write_toolpath
 from roboisf.progress import Progress, task
-from roboisf.toolpath.toolpath import Toolpath
 
 if TYPE_CHECKING:
     from roboisf.robot.model import RobotModel
@@ -446,7 +446,7 @@ def write_compensation(
     summary["after"] = after_label
     config = None
     if robot is not None:
-        from roboisf.io.program import program_config
+        from roboisf.robot.armconfig import program_config
 
         with task(progress, "IK along the compensated command"):
             config = program_config(robot, comp.toolpath, T_base_work, tool_rotation)

@@ -5,9 +5,9 @@ another programmed ``tip`` (:meth:`Toolpath.with_tip`). This module reads the ti
 
 * roboisf's toolpath CSV (``compensated.csv``; any row count check below applies),
 * a robot program — ABB RAPID module or module set (``.mod``), KUKA KRL (``.src`` + ``.dat``),
-  FANUC TP (``.ls``): the forming moves of :func:`roboisf.io.rapid.read_rapid`,
-  :func:`roboisf.io.krl.read_krl`, :func:`roboisf.io.fanuc.read_fanuc` (approach and retract
-  moves are not forming moves),
+  FANUC TP (``.ls``): the forming moves of :func:`roboisf.programs.rapid.read_rapid`,
+  :func:`roboisf.programs.krl.read_krl`, :func:`roboisf.programs.fanuc.read_fanuc` (approach and
+  retract moves are not forming moves),
 * a CAM program (G-code, Sinumerik, APT/CL, a point list): its feed moves, approach moves
   above the sheet plane dropped,
 
@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.errors import InputError
-from roboisf.toolpath.toolpath import Toolpath
+from roboisf.path.toolpath import Toolpath
 
 __all__ = ["POSE_TOL", "ROBOT_PROGRAM_SUFFIXES", "read_commanded"]
 
@@ -53,7 +53,7 @@ def _program_tips(
         import importlib
 
         kind = ROBOT_PROGRAM_SUFFIXES[suffix]
-        reader = getattr(importlib.import_module(f"roboisf.io.{kind}"), f"read_{kind}")
+        reader = getattr(importlib.import_module(f"roboisf.programs.{kind}"), f"read_{kind}")
         prog = reader(path)
         if T_base_work is not None and prog.T_base_work is not None:
             dt = float(np.linalg.norm(prog.T_base_work[:3, 3] - T_base_work[:3, 3]))

@@ -37,7 +37,7 @@ time. Copy all files into the folder ``sDir`` names on the controller (``HOME:``
 * Orientation ``[q1, q2, q3, q4] = (w, x, y, z)`` of ``R_work_tool``; tool pointing down is
   ``[0, 1, 0, 0]``; a rotation γ about the tool axis gives ``[0, cos γ/2, −sin γ/2, 0]``.
 * ``confdata`` of every robtarget from the joint angles of the IK branch
-  (:func:`~roboisf.io.program.abb_confdata`: quadrants of axes 1, 4, 6 and the cfx bits). The
+  (:func:`~roboisf.robot.armconfig.abb_confdata`: quadrants of axes 1, 4, 6 and the cfx bits). The
   approach ``MoveJ`` runs with ``ConfJ\On`` so the robot takes that branch; the forming
   ``MoveL`` run with ``ConfL\Off`` (the path is continuous from there). Without joint angles
   (no robot model) confdata is ``[0,0,0,0]`` and both checks are off, said in the header.
@@ -61,10 +61,8 @@ from roboisf.io.atomic import atomic_write
 from roboisf.io.program import (
     MAX_MODULE_MOVES,
     NUMBER_RE,
-    ArmConfig,
     ProgramPath,
     RobotTool,
-    abb_confdata,
     fmt_num,
     identifier,
     prepare_program,
@@ -73,7 +71,8 @@ from roboisf.io.program import (
     split_chunks,
     split_modules,
 )
-from roboisf.toolpath.toolpath import Toolpath
+from roboisf.path.toolpath import Toolpath
+from roboisf.robot.armconfig import ArmConfig, abb_confdata
 
 __all__ = ["ZONES", "read_rapid", "write_rapid"]
 

@@ -5,14 +5,14 @@ format            suffixes                    writer
 ================  ==========================  ===========================================
 ``csv``           ``.csv``                    :func:`roboisf.io.toolpath_csv.write_toolpath_csv`
 ``gcode``         ``.nc .gcode .ngc .tap``    :func:`roboisf.io.gcode.write_gcode`
-``rapid``         ``.mod``                    :func:`roboisf.io.rapid.write_rapid`
-``krl``           ``.src`` (+ ``.dat``)       :func:`roboisf.io.krl.write_krl`
-``fanuc``         ``.ls``                     :func:`roboisf.io.fanuc.write_fanuc`
+``rapid``         ``.mod``                    :func:`roboisf.programs.rapid.write_rapid`
+``krl``           ``.src`` (+ ``.dat``)       :func:`roboisf.programs.krl.write_krl`
+``fanuc``         ``.ls``                     :func:`roboisf.programs.fanuc.write_fanuc`
 ================  ==========================  ===========================================
 
 Robot programs (RAPID, KRL, FANUC) need the work-object placement ``T_base_work``: there is no
 default (the identity, passed explicitly, means the robot base). With ``config`` (the joint angles
-of every point, :func:`roboisf.io.program.program_config`) they carry the controller's
+of every point, :func:`roboisf.robot.armconfig.program_config`) they carry the controller's
 configuration data (confdata, S/T, CONFIG).
 """
 
@@ -28,8 +28,9 @@ from roboisf.errors import InputError
 if TYPE_CHECKING:  # the writers (numpy, pandas) load on the first write: checks stay fast
     from numpy.typing import ArrayLike
 
-    from roboisf.io.program import ArmConfig, RobotTool
-    from roboisf.toolpath.toolpath import Toolpath
+    from roboisf.io.program import RobotTool
+    from roboisf.path.toolpath import Toolpath
+    from roboisf.robot.armconfig import ArmConfig
 
 __all__ = [
     "FORMAT_SUFFIXES",
@@ -83,11 +84,11 @@ def check_program_name(path: str | Path, fmt: str) -> None:
     (KRL DEF/DEFDAT, RAPID module, FANUC program: the writers name the program after the file)."""
     path = Path(path)
     if fmt == "krl":
-        from roboisf.io.krl import krl_name
+        from roboisf.programs.krl import krl_name
 
         krl_name(path)
     elif fmt == "rapid":
-        from roboisf.io.rapid import _module_name
+        from roboisf.programs.rapid import _module_name
 
         _module_name(path, None)
     elif fmt == "fanuc" and not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]{0,31}", path.stem):
@@ -125,11 +126,11 @@ def write_toolpath(
     ``gcode_notes`` to G-code; ``safe_height`` [m] to every program format. Returns the format
     and the files written.
     """
-    from roboisf.io.fanuc import write_fanuc
     from roboisf.io.gcode import write_gcode
-    from roboisf.io.krl import write_krl
-    from roboisf.io.rapid import write_rapid
     from roboisf.io.toolpath_csv import write_toolpath_csv
+    from roboisf.programs.fanuc import write_fanuc
+    from roboisf.programs.krl import write_krl
+    from roboisf.programs.rapid import write_rapid
 
     fmt = infer_format(path, fmt)
     if fmt == "csv":
