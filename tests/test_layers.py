@@ -153,6 +153,6 @@ def test_the_checker_finds_a_cycle_through_a_function_level_import(tmp_path):
 )
 def test_layer_order(lower, higher):
     graph = package_graph()
-    assert higher not in graph.get(lower, {}), (
-        f"{lower} must not import {higher}: " + "; ".join(graph[lower][higher][:3])
+    assert higher not in graph.get(lower, {}), f"{lower} must not import {higher}: " + "; ".join(
+        graph[lower][higher][:3]
     )

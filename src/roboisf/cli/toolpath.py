@@ -65,10 +65,17 @@ OptOutput = Annotated[
     Path | None,
     typer.Option("--output", "-o", help=f"Output file; its suffix picks the format. {FILE_HELP}"),
 ]
-Format = Annotated[
-    str | None,
-    typer.Option("--format", "-f", help="csv | gcode | rapid | krl | fanuc (default: from -o)."),
-]
+
+
+def _format_help() -> str:
+    """``--format``'s help: every registered format (roboisf.programs.registry) and its suffixes."""
+    from roboisf.programs.registry import program_formats
+
+    listed = ", ".join(f"{f.name} ({' '.join(f.suffixes)})" for f in program_formats())
+    return f"One of {listed} (default: from -o)."
+
+
+Format = Annotated[str | None, typer.Option("--format", "-f", help=_format_help())]
 StepDown = Annotated[float, typer.Option(help="Depth step between laps [mm].")]
 ToolDiameter = Annotated[float, typer.Option(help="Ball diameter [mm].")]
 Spiral = Annotated[bool, typer.Option("--spiral", help="Spiral path (z ramps within each lap).")]
@@ -370,7 +377,8 @@ def program_frames(
     """Placement, tool and robot of a program; a robot program must have the first two and a
     file name that is a valid program name."""
     from roboisf.io.gcode import WORK_OFFSETS
-    from roboisf.programs.export import ROBOT_FORMATS, check_program_name
+    from roboisf.programs.export import check_program_name
+    from roboisf.programs.registry import get_format
 
     check_program_name(output, fmt)
     if opts.work_offset not in WORK_OFFSETS:
@@ -381,7 +389,7 @@ def program_frames(
     T = opts.placement()
     tool = opts.robot_tool()
     model = None
-    if fmt in ROBOT_FORMATS:
+    if get_format(fmt).kind == "robot":
         if T is None:
             raise InputError(
                 "a robot program needs the work-object placement: --placement X,Y,Z[,RX,RY,RZ] "
@@ -450,14 +458,18 @@ _SHARED: list[tuple[str, Any, Any]] = [
 
 
 def _claim_output(kwargs: dict[str, Any], overwrite: bool) -> None:
-    """Check and lock -o (and the .dat of a KRL program) before generating anything."""
+    """Check and lock -o (and the companion files of its format, a KRL program's .dat) before
+    generating anything."""
+    from roboisf.programs.registry import find_format
+
     output = kwargs.get("output")
     if output is None:
         return
     inputs = [kwargs.get("part"), kwargs.get("profile")]
     output_file(output, "toolpath", overwrite, inputs)
-    if kwargs.get("fmt") == "krl" or output.suffix.lower() == ".src":
-        output_file(output.with_suffix(".dat"), "toolpath", overwrite, inputs)
+    fmt = find_format(output, kwargs.get("fmt"))
+    for companion in fmt.output_files(output)[1:] if fmt is not None else []:
+        output_file(companion, "toolpath", overwrite, inputs)
 
 
 def _with_path_options(fn: Callable[..., None]) -> Callable[..., None]:

@@ -75,7 +75,7 @@ from roboisf.io.program import (
 from roboisf.path.toolpath import Toolpath
 from roboisf.robot.armconfig import ArmConfig, fanuc_config
 
-__all__ = ["read_fanuc", "write_fanuc"]
+__all__ = ["check_program_name", "read_fanuc", "write_fanuc"]
 
 _NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
 _MAX_NAME = 36
@@ -133,6 +133,18 @@ def _frame_lines(pr: int, values: np.ndarray, target: str) -> list[str]:
     out += [f"  PR[{pr},{j + 1}]={v:.3f}    " for j, v in enumerate(values)]
     out.append(f"  {target}=PR[{pr}]    ")
     return out
+
+
+def check_program_name(path: str | Path) -> None:
+    """Refuse a file name that does not give a FANUC program name (the program is named after
+    the file: a letter, then letters, digits or _, at most 32 characters)."""
+    path = Path(path)
+    if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]{0,31}", path.stem):
+        raise InputError(
+            f"the file name {path.stem!r} does not give a FANUC program name (a letter, then "
+            "letters, digits or _)",
+            file=path,
+        )
 
 
 def write_fanuc(

@@ -74,7 +74,7 @@ from roboisf.io.program import (
 from roboisf.path.toolpath import Toolpath
 from roboisf.robot.armconfig import ArmConfig, abb_confdata
 
-__all__ = ["ZONES", "read_rapid", "write_rapid"]
+__all__ = ["ZONES", "module_name", "read_rapid", "write_rapid"]
 
 #: Predefined RAPID zonedata names.
 ZONES = ("fine", "z0", "z1", "z5", "z10", "z15", "z20", "z30", "z40", "z50", "z60", "z80", "z100")
@@ -147,7 +147,7 @@ def write_rapid(
     path = Path(path)
     if zone not in ZONES:
         raise InputError(f"unknown zone {zone!r}; expected one of {', '.join(ZONES)}", field="zone")
-    name = _module_name(path, module)
+    name = module_name(path, module)
     identifier(wobj_name, "wobj_name", 32)
     if '"' in load_dir or "\\" in load_dir:
         raise InputError(f"not a RAPID string: {load_dir!r}", field="load_dir")
@@ -266,7 +266,9 @@ def write_rapid(
     return [files[-1][0], *(f for f, _ in files[:-1])]  # main first, then the parts
 
 
-def _module_name(path: Path, module: str | None) -> str:
+def module_name(path: Path, module: str | None = None) -> str:
+    """The RAPID module name of a program written to ``path``: ``module`` if given, else the file
+    stem, which must be a RAPID identifier (``InputError`` naming the file otherwise)."""
     if module:
         return identifier(module, "module", 26)
     stem = path.stem
