@@ -35,9 +35,11 @@ __all__ = [
     "WriteOptions",
     "find_format",
     "get_format",
+    "lazy",
     "program_formats",
     "register",
     "robot_kwargs",
+    "robot_writer",
     "unregister",
 ]
 
@@ -78,6 +80,31 @@ def robot_kwargs(o: WriteOptions) -> dict[str, Any]:
         "config": o.config,
         "safe_height": o.safe_height,
     }
+
+
+def lazy(module: str, name: str) -> Callable[..., Any]:
+    """``module.name`` as a function that imports ``module`` on its first call (a format's
+    module registers its reader and writer without importing numpy or pandas)."""
+
+    def call(*args: Any, **kwargs: Any) -> Any:
+        return getattr(importlib.import_module(module), name)(*args, **kwargs)
+
+    call.__name__ = call.__qualname__ = name
+    call.__doc__ = f"{module}.{name}, imported on the first call."
+    return call
+
+
+def robot_writer(module: str, name: str) -> Callable[[Toolpath, Path, WriteOptions], list[Path]]:
+    """A :attr:`ProgramFormat.write` calling the robot-program writer ``module.name(tp, path,
+    **robot_kwargs(options))`` (imported on the first call)."""
+    writer = lazy(module, name)
+
+    def write(tp: Toolpath, path: Path, o: WriteOptions) -> list[Path]:
+        files: list[Path] = writer(tp, path, **robot_kwargs(o))
+        return files
+
+    write.__name__ = write.__qualname__ = name
+    return write
 
 
 @dataclass(frozen=True)

@@ -5,10 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from roboisf.programs.registry import ProgramFormat, WriteOptions, register
+from roboisf.programs.registry import ProgramFormat, WriteOptions, lazy, register
 
 if TYPE_CHECKING:
-    from roboisf.io.program import ProgramPath
     from roboisf.path.toolpath import Toolpath
 
 
@@ -20,12 +19,6 @@ def _write(tp: Toolpath, path: Path, o: WriteOptions) -> list[Path]:
     )
 
 
-def _read(path: Path) -> ProgramPath:
-    from roboisf.io.gcode import read_gcode
-
-    return read_gcode(path)
-
-
 register(
     ProgramFormat(
         name="gcode",
@@ -33,7 +26,7 @@ register(
         kind="cnc",
         label="G-code",
         write=_write,
-        read=_read,
+        read=lazy("roboisf.io.gcode", "read_gcode"),
         rank=10,
     )
 )

@@ -2,33 +2,9 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-from typing import TYPE_CHECKING
+from roboisf.programs.registry import ProgramFormat, lazy, register, robot_writer
 
-from roboisf.programs.registry import ProgramFormat, WriteOptions, register, robot_kwargs
-
-if TYPE_CHECKING:
-    from roboisf.io.program import ProgramPath
-    from roboisf.path.toolpath import Toolpath
-
-
-def _write(tp: Toolpath, path: Path, o: WriteOptions) -> list[Path]:
-    from roboisf.programs.krl import write_krl
-
-    return write_krl(tp, path, **robot_kwargs(o))
-
-
-def _read(path: Path) -> ProgramPath:
-    from roboisf.programs.krl import read_krl
-
-    return read_krl(path)
-
-
-def _check_name(path: Path) -> None:
-    from roboisf.programs.krl import krl_name
-
-    krl_name(path)
-
+_MODULE = "roboisf.programs.krl"
 
 register(
     ProgramFormat(
@@ -36,11 +12,11 @@ register(
         suffixes=(".src",),
         kind="robot",
         label="KRL",
-        write=_write,
-        read=_read,
         companions=(".dat",),
-        check_name=_check_name,
         suffix_required=True,
         rank=30,
+        write=robot_writer(_MODULE, "write_krl"),
+        read=lazy(_MODULE, "read_krl"),
+        check_name=lazy(_MODULE, "krl_name"),
     )
 )

@@ -3,33 +3,9 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-from typing import TYPE_CHECKING
+from roboisf.programs.registry import ProgramFormat, lazy, register, robot_writer
 
-from roboisf.programs.registry import ProgramFormat, WriteOptions, register, robot_kwargs
-
-if TYPE_CHECKING:
-    from roboisf.io.program import ProgramPath
-    from roboisf.path.toolpath import Toolpath
-
-
-def _write(tp: Toolpath, path: Path, o: WriteOptions) -> list[Path]:
-    from roboisf.programs.rapid import write_rapid
-
-    return write_rapid(tp, path, **robot_kwargs(o))
-
-
-def _read(path: Path) -> ProgramPath:
-    from roboisf.programs.rapid import read_rapid
-
-    return read_rapid(path)
-
-
-def _check_name(path: Path) -> None:
-    from roboisf.programs.rapid import module_name
-
-    module_name(path)
-
+_MODULE = "roboisf.programs.rapid"
 
 register(
     ProgramFormat(
@@ -37,11 +13,10 @@ register(
         suffixes=(".mod",),
         kind="robot",
         label="ABB RAPID",
-        write=_write,
-        read=_read,
         read_suffixes=(".modx",),
-        check_name=_check_name,
-        suffix_required=False,
         rank=20,
+        write=robot_writer(_MODULE, "write_rapid"),
+        read=lazy(_MODULE, "read_rapid"),
+        check_name=lazy(_MODULE, "module_name"),
     )
 )
