@@ -19,11 +19,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from roboisf.io.fanuc import write_fanuc
 from roboisf.io.forcelog import ForceLog, attach_to_toolpath
 from roboisf.io.gcode import write_gcode
-from roboisf.io.krl import write_krl
-from roboisf.io.rapid import write_rapid
 from roboisf.io.toolpath_csv import (
     TOOLPATH_COLUMNS,
     read_toolpath_csv,
@@ -31,6 +28,9 @@ from roboisf.io.toolpath_csv import (
     write_toolpath_csv,
 )
 from roboisf.parts import Cone
+from roboisf.programs.fanuc import write_fanuc
+from roboisf.programs.krl import write_krl
+from roboisf.programs.rapid import write_rapid
 from roboisf.toolpath import spiral, step_down
 
 

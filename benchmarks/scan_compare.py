@@ -49,7 +49,7 @@ def _inputs(args: argparse.Namespace) -> tuple[Any, Any, Any, Any]:
         from roboisf.cell import cell_from_study
         from roboisf.decompose.pipeline import scan_options
         from roboisf.study.spec import load_study
-        from roboisf.toolpath.importer import study_toolpath
+        from roboisf.study.toolpaths import study_toolpath
 
         study = load_study(args.study)
         cell = cell_from_study(study)

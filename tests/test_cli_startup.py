@@ -125,7 +125,7 @@ def test_lazy_packages_export_the_objects_of_their_modules(package):
     pkg = importlib.import_module(package)
     for name in pkg.__all__:
         value = getattr(pkg, name)
-        module = importlib.import_module(f"{package}.{pkg._MODULE_OF[name]}")
+        module = importlib.import_module(f".{pkg._MODULE_OF[name]}", package)
         assert value is getattr(module, name), name
         assert name in dir(pkg)
     with pytest.raises(AttributeError, match="no attribute 'nope'"):

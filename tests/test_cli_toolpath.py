@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 from roboisf.cli.main import main
-from roboisf.io.fanuc import read_fanuc
 from roboisf.io.gcode import read_gcode
-from roboisf.io.krl import read_krl
-from roboisf.io.rapid import read_rapid
 from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.parts import Cone, load_part
+from roboisf.programs.fanuc import read_fanuc
+from roboisf.programs.krl import read_krl
+from roboisf.programs.rapid import read_rapid
 
 SMALL_CONE = ["--opening-diameter", "60", "--wall-angle", "60", "--depth", "5", "--spacing", "3"]
 
@@ -247,7 +247,7 @@ def test_placement_tool_and_robot_flags(tmp_path):
     IK branch; --placement base is the identity, said explicitly."""
     from roboisf.frames.rotations import rpy_to_matrix
     from roboisf.frames.se3 import make_transform
-    from roboisf.io.program import abb_confdata, program_config
+    from roboisf.robot.armconfig import abb_confdata, program_config
     from roboisf.robot.presets import load_robot
 
     out = tmp_path / "cell.mod"

@@ -12,8 +12,8 @@ import pytest
 
 from roboisf.cli.main import main
 from roboisf.io.program import MAX_MODULE_MOVES
-from roboisf.io.rapid import read_rapid
 from roboisf.io.toolpath_csv import read_toolpath_csv
+from roboisf.programs.rapid import read_rapid
 
 COARSE = ["--step-down", "2", "--spacing", "3"]
 FILES = {
@@ -245,9 +245,9 @@ def test_compensated_programs_are_a_loadable_set(analyzed, tmp_path):
     robot's pre-deflection, continuity, and a byte-identical report on a second run."""
     from roboisf.cell import cell_from_study
     from roboisf.compensate.pipeline import nominal_of
-    from roboisf.io.fanuc import read_fanuc
     from roboisf.io.gcode import read_gcode
-    from roboisf.io.krl import read_krl
+    from roboisf.programs.fanuc import read_fanuc
+    from roboisf.programs.krl import read_krl
     from roboisf.robot.ik import ik_toolpath
     from roboisf.study.spec import load_study
 
@@ -301,8 +301,8 @@ def test_confdata_from_the_joint_log_agrees_with_ik(analyzed, tmp_path):
     they differ only where q6 sits within the interpolation error of the 180° boundary."""
     from roboisf.cell import cell_from_study
     from roboisf.io.jointlog import read_joint_log
-    from roboisf.io.program import abb_confdata, arm_config, program_config
-    from roboisf.io.rapid import read_rapid, write_rapid
+    from roboisf.programs.rapid import read_rapid, write_rapid
+    from roboisf.robot.armconfig import abb_confdata, arm_config, program_config
     from roboisf.study.spec import load_study
 
     _, st, _ = analyzed

@@ -132,3 +132,37 @@ def test_deflection_model_needs_stiffness(cone):
     soft = replace(m.robot, stiffness=None)
     with pytest.raises(InputError, match="joint stiffness"):
         DeflectionModel(soft, m.T_base_work)
+
+
+def test_every_registered_format_is_a_compensation_output(cone, tmp_path):
+    # the compensation's programs loop over the format registry: a format registered in one
+    # place is written too, a robot format with the pre-deflected command, a CNC one without it
+    from pathlib import Path
+
+    from roboisf.compensate import write_compensation
+    from roboisf.io.program import RobotTool
+    from roboisf.programs.registry import ProgramFormat, WriteOptions, register, unregister
+
+    def write(tp, path: Path, o: WriteOptions) -> list[Path]:
+        np.save(path.with_name(path.name + ".npy"), tp.tip)
+        path.write_text("toy\n")
+        return [path]
+
+    cell, truth = cone
+    m = cell_deflection_model(cell.cell)
+    opts = CompensationOptions(springback=False, max_iter=2, tol=1e-9, partial=True)
+    comp = compensate(cell.part, truth.toolpath, model=m, wrench=truth.wrench_robot, options=opts)
+    register(ProgramFormat("toyrobot", (".toyr",), "robot", "toy robot", write))
+    register(ProgramFormat("toycnc", (".toyc",), "cnc", "toy CNC", write))
+    try:
+        out = tmp_path / "c"
+        write_compensation(comp, out, T_base_work=m.T_base_work, tool=RobotTool(0.3))
+    finally:
+        unregister("toyrobot")
+        unregister("toycnc")
+    robot, cnc = np.load(out / "compensated.toyr.npy"), np.load(out / "compensated.toyc.npy")
+    np.testing.assert_array_equal(robot, comp.toolpath.tip)  # pre-deflected for the robot
+    np.testing.assert_array_equal(cnc, comp.target)  # the CNC command: no pre-deflection
+    assert np.max(np.abs(robot - cnc)) > 1e-5
+    for name in ("compensated.csv", "compensated.mod", "compensated.src", "compensated.ls"):
+        assert (out / name).is_file(), name

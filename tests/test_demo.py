@@ -5,11 +5,11 @@ import pandas as pd
 import pytest
 
 from roboisf.cli.main import main
-from roboisf.io.fanuc import read_fanuc
-from roboisf.io.krl import read_krl
 from roboisf.io.program import MAX_MODULE_MOVES
-from roboisf.io.rapid import read_rapid
 from roboisf.io.toolpath_csv import read_toolpath_csv
+from roboisf.programs.fanuc import read_fanuc
+from roboisf.programs.krl import read_krl
+from roboisf.programs.rapid import read_rapid
 from roboisf.report import read_headline
 from roboisf.virtual.cell import PAPER_TABLE5
 
@@ -71,7 +71,7 @@ def test_demo_builds_both_studies_atomically(tmp_path):
     for name in parts:
         assert 0 < (progs / name).read_text().count("MoveL [[") <= MAX_MODULE_MOVES
     # (the blank off the base's x-axis: q6 stays in one quadrant, 90°–180°)
-    from roboisf.io.program import abb_confdata, program_config
+    from roboisf.robot.armconfig import abb_confdata, program_config
 
     ik = abb_confdata(program_config(model, cone, T, c.tool_rotation))
     np.testing.assert_array_equal(rapid.meta["confdata"], ik)

@@ -69,3 +69,30 @@ def test_mistakes_in_the_table_are_refused():
     with pytest.raises(AttributeError, match="NoSuchThing"):
         getattr_("NoSuchThing")
     assert isinstance(sys.modules["json.decoder"], types.ModuleType)
+
+
+def test_a_leading_dot_loads_from_a_sibling_package_lazily(tmp_path, monkeypatch):
+    # roboisf.toolpath re-exports Toolpath from roboisf.path this way: lazily, like its own names
+    for name in ("top", "top/low", "top/high"):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "__init__.py").write_text("")
+    (tmp_path / "top/low/value.py").write_text(
+        "import builtins\nbuiltins._lazy_log.append('low.value')\nV = object()\n"
+    )
+    (tmp_path / "top/high/__init__.py").write_text(
+        "from roboisf._lazy import attach\n"
+        "_WHERE = {'.low.value': ('V',)}\n"
+        "__getattr__, __dir__, _MODULE_OF = attach(__name__, globals(), _WHERE)\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr("builtins._lazy_log", [], raising=False)
+    try:
+        import builtins
+
+        high = importlib.import_module("top.high")
+        assert builtins._lazy_log == []
+        assert high.V is importlib.import_module("top.low.value").V
+        assert builtins._lazy_log == ["low.value"]
+    finally:
+        for m in [m for m in sys.modules if m == "top" or m.startswith("top.")]:
+            del sys.modules[m]

@@ -27,21 +27,21 @@ from roboisf.errors import InputError
 from roboisf.frames import invert
 from roboisf.frames.rotations import rot_z
 from roboisf.frames.se3 import make_transform
-from roboisf.io.export import write_toolpath
-from roboisf.io.fanuc import read_fanuc, write_fanuc
 from roboisf.io.gcode import read_gcode, write_gcode
-from roboisf.io.krl import read_krl, write_krl
-from roboisf.io.program import (
+from roboisf.io.program import RobotTool
+from roboisf.parts import Cone
+from roboisf.programs.export import write_toolpath
+from roboisf.programs.fanuc import read_fanuc, write_fanuc
+from roboisf.programs.krl import read_krl, write_krl
+from roboisf.programs.rapid import read_rapid, write_rapid
+from roboisf.robot.armconfig import (
     ArmConfig,
-    RobotTool,
     abb_confdata,
     arm_config,
     fanuc_config,
     kuka_status_turn,
     program_config,
 )
-from roboisf.io.rapid import read_rapid, write_rapid
-from roboisf.parts import Cone
 from roboisf.robot.ik import ik_toolpath, opw_ik, tool_poses
 from roboisf.robot.presets import load_robot
 from roboisf.toolpath import spiral, step_down

@@ -24,10 +24,10 @@ from roboisf.compensate import precompensate
 from roboisf.compensate.virtual import cell_deflection_model
 from roboisf.decompose import FACTORS
 from roboisf.errors import InputError
-from roboisf.io.rapid import read_rapid
 from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.parts import Pyramid
 from roboisf.parts.io import save_part
+from roboisf.programs.rapid import read_rapid
 from roboisf.scan.synthetic import height_field_mesh, synthetic_scan
 from roboisf.study import load_study
 from roboisf.virtual.cell import PYRAMID, paper_cone_cell, pyramid_cell, simulate

@@ -13,11 +13,11 @@ from roboisf.cli.main import main
 from roboisf.errors import InputError
 from roboisf.frames import make_transform
 from roboisf.io.forcelog import ForceLog, write_force_log
-from roboisf.io.program import abb_confdata, arm_config, kuka_status_turn, program_config
 from roboisf.io.table import read_table
 from roboisf.io.toolpath_csv import write_toolpath_csv
 from roboisf.parts import Cone
 from roboisf.robot import SingularityWarning, ik_toolpath, load_robot, load_urdf
+from roboisf.robot.armconfig import abb_confdata, arm_config, kuka_status_turn, program_config
 from roboisf.robot.ik import BRANCHES, start_candidates
 from roboisf.toolpath import step_down
 
@@ -199,10 +199,10 @@ def test_toolpath_program_follows_the_chosen_configuration(tmp_path):
     """`roboisf toolpath … --robot R --arm-config …`: the RAPID confdata / KRL S,T written in the
     program are those of the chosen branch (first point as requested, the rest from its joints)."""
     from roboisf.frames.rotations import rpy_to_matrix
-    from roboisf.io.krl import read_krl
-    from roboisf.io.program import abb_confdata, parse_arm_config
-    from roboisf.io.rapid import read_rapid
     from roboisf.io.toolpath_csv import read_toolpath_csv
+    from roboisf.programs.krl import read_krl
+    from roboisf.programs.rapid import read_rapid
+    from roboisf.robot.armconfig import abb_confdata, parse_arm_config
 
     cone = ["--opening-diameter", "60", "--wall-angle", "60", "--depth", "5", "--spacing", "3"]
     cell = ["--placement", "2200,0,200,0,0,10", "--tool", "306", "--robot", "irb7600-500-2.55"]

@@ -22,8 +22,8 @@ from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.io.xyz import read_xyz_moves
 from roboisf.parts import Cone, save_part
 from roboisf.study import load_study
+from roboisf.study.toolpaths import study_toolpath
 from roboisf.toolpath import step_down
-from roboisf.toolpath.importer import study_toolpath
 from roboisf.virtual.cell import PAPER_CELL_PLACEMENT, build_study, virtual_cell
 
 

@@ -85,7 +85,7 @@ def test_demo_programs_default_to_the_cells_machines(tmp_path):
     to the toolpath's tips (the readers are independent of the writers' layouts)."""
     from roboisf.cli.demo import DEMO_FORMATS, write_demo_programs
     from roboisf.io.gcode import read_gcode
-    from roboisf.io.rapid import read_rapid
+    from roboisf.programs.rapid import read_rapid
     from roboisf.virtual.cell import cell_toolpath
 
     cell = _cell()

@@ -34,7 +34,10 @@ def attach(
         The package's ``globals()``; a loaded name is stored there, so later look-ups are plain
         attribute access.
     where : mapping of str to iterable of str
-        Submodule name (relative to ``package``) → the names it exports.
+        Submodule name (relative to ``package``) → the names it exports. A name with a leading
+        dot climbs out of the package as a relative import does (``".path.toolpath"`` in
+        ``roboisf.toolpath`` is ``roboisf.path.toolpath``): a package re-exports a lower
+        package's object without importing it eagerly.
 
     Returns
     -------
@@ -71,7 +74,7 @@ def attach(
         module = module_of.get(name)
         if module is None:
             raise AttributeError(f"module {package!r} has no attribute {name!r}")
-        value = getattr(importlib.import_module(f"{package}.{module}"), name)
+        value = getattr(importlib.import_module(f".{module}", package), name)
         namespace[name] = value
         return value
 

@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.errors import InputError
-from roboisf.toolpath.toolpath import Toolpath
+from roboisf.path.toolpath import Toolpath
 
 __all__ = ["ForceModel", "aerens_axial_force", "tip_wrench"]
 

@@ -379,7 +379,7 @@ def nominal_toolpath(
     Axisymmetric parts (cone, VWACF, profile) use the generatrix generator
     (:func:`roboisf.toolpath.step_down`; results unchanged); every other part kind (pyramid,
     mesh, CAD) z-level contours sliced from its ball-centre surface — the choice of
-    :func:`roboisf.toolpath.toolpath_for_part`, shared with ``roboisf toolpath``.
+    :func:`roboisf.path.toolpath_for_part`, shared with ``roboisf toolpath``.
     ``max_wall_step`` (laps refined along a steep generatrix) exists only for axisymmetric parts.
     """
     return toolpath_for_part(part, tool_radius, step, spacing=spacing, max_wall_step=max_wall_step)

@@ -55,14 +55,14 @@ def build_demo(
     ``jobs`` = 2 builds the VWACF in a second process while this one builds the cone (the two
     studies are independent; the same files and numbers as one after the other, about twice the
     peak memory); 1 builds them in turn. ``all_dialects``: every program format
-    (:data:`roboisf.io.export.FORMAT_SUFFIXES`), else :data:`DEMO_FORMATS`.
+    (:func:`roboisf.programs.registry.program_formats`), else :data:`DEMO_FORMATS`.
     """
-    from roboisf.io.export import FORMAT_SUFFIXES
+    from roboisf.programs.registry import program_formats
     from roboisf.report import write_index
 
     if jobs < 1:
         raise InputError(f"must be ≥ 1, got {jobs}", field="jobs")
-    formats = tuple(FORMAT_SUFFIXES) if all_dialects else DEMO_FORMATS
+    formats = tuple(f.name for f in program_formats()) if all_dialects else DEMO_FORMATS
     args: dict[str, Any] = {
         "scan_points": scan_points,
         "force_rate": force_rate,
@@ -193,13 +193,16 @@ def write_demo_programs(
     cell's tool (flange to ball tip, 2 kg) and the configuration data of the cell's IK branch.
     Returns the written paths (a RAPID program too long for one module is a set of files next to
     its main module)."""
-    from roboisf.io.export import FORMAT_SUFFIXES, write_toolpath
-    from roboisf.io.program import RobotTool, program_config
+    from roboisf.io.program import RobotTool
+    from roboisf.programs.export import write_toolpath
+    from roboisf.programs.registry import program_formats
+    from roboisf.robot.armconfig import program_config
 
-    bad = [f for f in formats if f not in FORMAT_SUFFIXES]
+    suffix = {f.name: f.suffixes[0] for f in program_formats()}
+    bad = [f for f in formats if f not in suffix]
     if bad:
         raise InputError(
-            f"unknown format {bad[0]!r}; expected one of {', '.join(FORMAT_SUFFIXES)}",
+            f"unknown format {bad[0]!r}; expected one of {', '.join(suffix)}",
             field="formats",
         )
     model, T_base_work = cell.cell.robot, cell.cell.T_base_work
@@ -209,7 +212,7 @@ def write_demo_programs(
     paths = []
     with task(progress, f"{cell.name}: robot programs", total=len(formats)) as advance:
         for fmt in formats:
-            paths.append(folder / f"toolpath{FORMAT_SUFFIXES[fmt][0]}")
+            paths.append(folder / f"toolpath{suffix[fmt]}")
             write_toolpath(
                 tp,
                 paths[-1],

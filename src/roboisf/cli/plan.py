@@ -276,7 +276,7 @@ def _problem(
     assert study is not None
     from roboisf.decompose.pipeline import run_tip_wrench
     from roboisf.study.spec import load_study
-    from roboisf.toolpath.importer import study_toolpath
+    from roboisf.study.toolpaths import study_toolpath
 
     s = load_study(study)
     if s.robot is None:

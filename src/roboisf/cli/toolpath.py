@@ -51,8 +51,8 @@ if typing.TYPE_CHECKING:
 
     from roboisf.io.program import RobotTool
     from roboisf.parts import AxisymmetricPart, Part
+    from roboisf.path.toolpath import Toolpath
     from roboisf.robot.model import RobotModel
-    from roboisf.toolpath.toolpath import Toolpath
 
 __all__ = ["PathOptions", "generate", "register", "warn_truncated"]
 
@@ -65,10 +65,17 @@ OptOutput = Annotated[
     Path | None,
     typer.Option("--output", "-o", help=f"Output file; its suffix picks the format. {FILE_HELP}"),
 ]
-Format = Annotated[
-    str | None,
-    typer.Option("--format", "-f", help="csv | gcode | rapid | krl | fanuc (default: from -o)."),
-]
+
+
+def _format_help() -> str:
+    """``--format``'s help: every registered format (roboisf.programs.registry) and its suffixes."""
+    from roboisf.programs.registry import program_formats
+
+    listed = ", ".join(f"{f.name} ({' '.join(f.suffixes)})" for f in program_formats())
+    return f"One of {listed} (default: from -o)."
+
+
+Format = Annotated[str | None, typer.Option("--format", "-f", help=_format_help())]
 StepDown = Annotated[float, typer.Option(help="Depth step between laps [mm].")]
 ToolDiameter = Annotated[float, typer.Option(help="Ball diameter [mm].")]
 Spiral = Annotated[bool, typer.Option("--spiral", help="Spiral path (z ramps within each lap).")]
@@ -339,8 +346,8 @@ def write(tp: Toolpath, output: Path, fmt: str | None, opts: PathOptions) -> tup
     study's) IK along the path gives the configuration data.
     """
     from roboisf.frames.se3 import make_transform
-    from roboisf.io.export import infer_format, write_toolpath
-    from roboisf.io.program import parse_arm_config, program_config
+    from roboisf.programs.export import infer_format, write_toolpath
+    from roboisf.robot.armconfig import parse_arm_config, program_config
 
     fmt = infer_format(output, fmt)
     T, tool, model = program_frames(fmt, opts, output)
@@ -369,8 +376,9 @@ def program_frames(
 ) -> tuple[np.ndarray | None, RobotTool | None, RobotModel | None]:
     """Placement, tool and robot of a program; a robot program must have the first two and a
     file name that is a valid program name."""
-    from roboisf.io.export import ROBOT_FORMATS, check_program_name
     from roboisf.io.gcode import WORK_OFFSETS
+    from roboisf.programs.export import check_program_name
+    from roboisf.programs.registry import get_format
 
     check_program_name(output, fmt)
     if opts.work_offset not in WORK_OFFSETS:
@@ -381,7 +389,7 @@ def program_frames(
     T = opts.placement()
     tool = opts.robot_tool()
     model = None
-    if fmt in ROBOT_FORMATS:
+    if get_format(fmt).kind == "robot":
         if T is None:
             raise InputError(
                 "a robot program needs the work-object placement: --placement X,Y,Z[,RX,RY,RZ] "
@@ -401,7 +409,7 @@ def program_frames(
 def _run(
     part_factory, output: Path, fmt: str | None, opts: PathOptions, inputs: list[Path]
 ) -> None:
-    from roboisf.io.export import infer_format
+    from roboisf.programs.export import infer_format
 
     check_not_input(output, inputs)
     fmt = infer_format(output, fmt)  # fail before the (possibly long) generation
@@ -450,14 +458,18 @@ _SHARED: list[tuple[str, Any, Any]] = [
 
 
 def _claim_output(kwargs: dict[str, Any], overwrite: bool) -> None:
-    """Check and lock -o (and the .dat of a KRL program) before generating anything."""
+    """Check and lock -o (and the companion files of its format, a KRL program's .dat) before
+    generating anything."""
+    from roboisf.programs.registry import find_format
+
     output = kwargs.get("output")
     if output is None:
         return
     inputs = [kwargs.get("part"), kwargs.get("profile")]
     output_file(output, "toolpath", overwrite, inputs)
-    if kwargs.get("fmt") == "krl" or output.suffix.lower() == ".src":
-        output_file(output.with_suffix(".dat"), "toolpath", overwrite, inputs)
+    fmt = find_format(output, kwargs.get("fmt"))
+    for companion in fmt.output_files(output)[1:] if fmt is not None else []:
+        output_file(companion, "toolpath", overwrite, inputs)
 
 
 def _with_path_options(fn: Callable[..., None]) -> Callable[..., None]:

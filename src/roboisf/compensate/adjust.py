@@ -32,8 +32,8 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import gaussian_filter1d
 
 from roboisf.errors import InputError
+from roboisf.path.toolpath import Toolpath
 from roboisf.robot.model import _short
-from roboisf.toolpath.toolpath import Toolpath
 
 __all__ = ["Adjustment", "displacement_adjustment", "smooth_on_laps"]
 

@@ -27,10 +27,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from roboisf.cell.model import at_ball_centre
 from roboisf.errors import ConvergenceError, InputError
+from roboisf.path.toolpath import Toolpath
 from roboisf.progress import Progress, task
 from roboisf.robot import RobotModel, ik_toolpath
 from roboisf.robot.model import _short
-from roboisf.toolpath.toolpath import Toolpath
 
 __all__ = ["ComplianceCompensation", "DeflectionModel", "precompensate"]
 

@@ -39,11 +39,12 @@ from roboisf.compensate.compliance import (
 from roboisf.compensate.gouge import GougeReport, gouge_check
 from roboisf.errors import InputError
 from roboisf.io.atomic import atomic_write, staged_directory
-from roboisf.io.export import write_toolpath
 from roboisf.io.program import RobotTool
 from roboisf.parts.base import Part
+from roboisf.path.toolpath import Toolpath
+from roboisf.programs.export import write_toolpath
+from roboisf.programs.registry import program_formats
 from roboisf.progress import Progress, task
-from roboisf.toolpath.toolpath import Toolpath
 
 if TYPE_CHECKING:
     from roboisf.robot.model import RobotModel
@@ -391,9 +392,11 @@ def write_compensation(
 ) -> Path:
     """Write the compensated command and the before/after comparison into ``out_dir``.
 
-    Files: ``compensated.csv`` (toolpath CSV), ``compensated.mod`` (RAPID; with part modules
+    Files: ``compensated<suffix>`` in every registered format (:mod:`roboisf.programs.registry`;
+    built in: ``compensated.csv`` (toolpath CSV), ``compensated.mod`` (RAPID; with part modules
     ``compensated_<k>.mod`` for a long path), ``compensated.src`` + ``.dat`` (KRL),
-    ``compensated.ls`` (FANUC), ``compensated.nc`` (G-code), ``per_point.csv`` (mm, flags),
+    ``compensated.ls`` (FANUC), ``compensated.nc`` (G-code: the CNC command, no pre-deflection)),
+    ``per_point.csv`` (mm, flags),
     ``compensation.json``, ``compensation.html`` and ``compensation.png`` (with ``png``). The
     folder is replaced only when everything is written. Refuses a gouging command, and a
     partial (non-converged) one unless the options asked for it (then ``complete`` is false in
@@ -446,7 +449,7 @@ def write_compensation(
     summary["after"] = after_label
     config = None
     if robot is not None:
-        from roboisf.io.program import program_config
+        from roboisf.robot.armconfig import program_config
 
         with task(progress, "IK along the compensated command"):
             config = program_config(robot, comp.toolpath, T_base_work, tool_rotation)
@@ -456,24 +459,28 @@ def write_compensation(
     )
     with staged_directory(out_dir, "compensate") as d:
         with task(progress, "programs"):
-            for name in ("compensated.csv", "compensated.mod", "compensated.src", "compensated.ls"):
-                write_toolpath(
-                    comp.toolpath,
-                    d / name,
-                    T_base_work=T_base_work,
-                    tool=tool,
-                    tool_rotation=tool_rotation,
-                    config=config,
-                )
             sb = "with" if comp.options.springback else "without"
-            write_toolpath(
-                cnc,
-                d / "compensated.nc",
-                gcode_notes=(
-                    f"roboisf compensate: nominal path {sb} the springback adjustment",
-                    "NOT in it: the robot/tool/holder pre-deflection of the robot programs",
-                ),
-            )
+            for fmt in program_formats():  # every registered format, each once
+                if fmt.kind == "cnc":  # a CNC machine is stiff: no pre-deflection
+                    write_toolpath(
+                        cnc,
+                        d / f"compensated{fmt.suffixes[0]}",
+                        fmt.name,
+                        gcode_notes=(
+                            f"roboisf compensate: nominal path {sb} the springback adjustment",
+                            "NOT in it: the robot/tool/holder pre-deflection of the robot programs",
+                        ),
+                    )
+                else:
+                    write_toolpath(
+                        comp.toolpath,
+                        d / f"compensated{fmt.suffixes[0]}",
+                        fmt.name,
+                        T_base_work=T_base_work,
+                        tool=tool,
+                        tool_rotation=tool_rotation,
+                        config=config,
+                    )
         with atomic_write(d / "per_point.csv") as fh:
             pp.to_csv(fh, index=False, float_format="%.6g")
         with atomic_write(d / "compensation.json") as fh:

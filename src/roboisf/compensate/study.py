@@ -42,7 +42,7 @@ from roboisf.progress import Progress, task
 from roboisf.robot.model import RobotModel
 from roboisf.study.fingerprint import check_results
 from roboisf.study.spec import Study, load_study
-from roboisf.toolpath.importer import study_toolpath
+from roboisf.study.toolpaths import study_toolpath
 
 __all__ = [
     "DEFAULT_TARGET",

@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.errors import InputError
+from roboisf.scan.summary import resultant_mean_deviation
 
 __all__ = [
     "FACTORS",
@@ -40,14 +41,6 @@ B = NDArray[np.bool_]
 
 #: Contribution factors, in report order.
 FACTORS = ("tool", "tool_holder", "springback", "robot_compliance")
-
-
-def resultant_mean_deviation(v: F64) -> float:
-    """R_m = sqrt(mean|δx|² + mean|δy|² + mean|δz|²) of (N, 3) vectors (eq. 6), same unit."""
-    if v.shape[0] == 0:
-        raise InputError("no valid toolpath points to average over")
-    m = np.mean(np.abs(v), axis=0)
-    return float(np.sqrt(np.sum(m**2)))
 
 
 @dataclass(frozen=True)

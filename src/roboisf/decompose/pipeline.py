@@ -73,10 +73,10 @@ from roboisf.study.checks import (
 from roboisf.study.fingerprint import study_fingerprint
 from roboisf.study.sensors import condition_study_log, read_study_force_log, sensor_to_tip
 from roboisf.study.spec import RunSpec, Study, load_study
+from roboisf.study.toolpaths import study_toolpath
 from roboisf.sync import Alignment
 from roboisf.sync.run import RunAlignment, align_run
 from roboisf.toolpath import Toolpath
-from roboisf.toolpath.importer import study_toolpath
 
 __all__ = [
     "AnalysisResult",

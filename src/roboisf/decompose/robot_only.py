@@ -241,10 +241,10 @@ def analyze_robot_only(study: Any, *, progress: Any = None) -> RobotOnlyResult:
 
     from roboisf.cell import at_ball_centre, cell_from_study, tip_compliances
     from roboisf.decompose import pipeline as pl
+    from roboisf.path.toolpath import tool_points
     from roboisf.progress import task
+    from roboisf.study.toolpaths import study_toolpath
     from roboisf.sync.run import align_run
-    from roboisf.toolpath.importer import study_toolpath
-    from roboisf.toolpath.toolpath import tool_points
 
     cell = cell_from_study(study)
     rob = study.robot_run

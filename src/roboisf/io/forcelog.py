@@ -37,7 +37,7 @@ from roboisf.io.table import (
 )
 from roboisf.io.timestamps import repair_time
 from roboisf.io.units import log_unit_to_si, to_si
-from roboisf.toolpath.toolpath import Toolpath
+from roboisf.path.toolpath import Toolpath
 
 __all__ = [
     "FORCE_COLUMNS",

@@ -68,7 +68,7 @@ from roboisf.io.program import (
     read_program_text,
     tip_mm,
 )
-from roboisf.toolpath.toolpath import Toolpath
+from roboisf.path.toolpath import Toolpath
 
 __all__ = [
     "Interpreter",

@@ -38,7 +38,7 @@ from roboisf.errors import InputError
 from roboisf.io.atomic import atomic_write
 from roboisf.io.table import Table, finite_float, format_rows, read_table
 from roboisf.io.units import to_si
-from roboisf.toolpath.toolpath import Toolpath
+from roboisf.path.toolpath import Toolpath
 
 __all__ = [
     "CONSISTENCY_TOL",

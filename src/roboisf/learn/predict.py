@@ -29,9 +29,9 @@ from roboisf.cell.model import at_ball_centre
 from roboisf.errors import InputError
 from roboisf.learn.features import FEATURES, point_features
 from roboisf.learn.springback import SpringbackLearner
+from roboisf.path.toolpath import Toolpath
 from roboisf.progress import Progress, task
 from roboisf.robot import ik_toolpath
-from roboisf.toolpath.toolpath import Toolpath
 
 __all__ = ["TERMS", "Prediction", "PredictionSetup", "identified_stiffness", "predict_part"]
 

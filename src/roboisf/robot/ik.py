@@ -226,8 +226,8 @@ def ik_toolpath(
     * ``match_q`` (6,) rad — the nearest solution to these joints (e.g. the robot's logged
       joints at the first point; largest joint difference);
     * ``confdata`` (cf1, cf4, cf6, cfx) — ABB RAPID confdata
-      (:func:`roboisf.io.program.abb_confdata`);
-    * ``kuka_st`` (S, T) — KUKA Status and Turn (:func:`roboisf.io.program.kuka_status_turn`).
+      (:func:`roboisf.robot.armconfig.abb_confdata`);
+    * ``kuka_st`` (S, T) — KUKA Status and Turn (:func:`roboisf.robot.armconfig.kuka_status_turn`).
 
     No solution with the requested configuration at the first point → InputError listing the
     ones there are. Robots without OPW geometry (a URDF that is not OPW) are solved numerically
@@ -368,7 +368,7 @@ def choose_start(
 ) -> tuple[tuple[str, str, str], F64]:
     """The (branch, q (6,) rad) of one tip pose matching logged joints, ABB confdata or KUKA S/T
     (see :func:`ik_toolpath`)."""
-    from roboisf.io.program import abb_confdata, arm_config, kuka_status_turn
+    from roboisf.robot.armconfig import abb_confdata, arm_config, kuka_status_turn
 
     cands = start_candidates(model, T_base_tip)
     if not cands:

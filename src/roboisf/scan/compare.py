@@ -15,6 +15,7 @@ from roboisf.errors import InputError
 from roboisf.frames.se3 import transform_points
 from roboisf.parts.base import Part
 from roboisf.parts.mesh import spatial_order
+from roboisf.path.toolpath import Toolpath
 from roboisf.progress import Progress, task
 from roboisf.scan.deviation import (
     PointDeviations,
@@ -28,7 +29,6 @@ from roboisf.scan.deviation import (
 from roboisf.scan.readers import ScanCloud, check_units
 from roboisf.scan.registration import METHODS, Registration, register
 from roboisf.scan.summary import by_angle, by_depth, deviation_stats
-from roboisf.toolpath.toolpath import Toolpath
 
 __all__ = ["CompareOptions", "ScanComparison", "compare_scan", "part_size"]
 

@@ -7,7 +7,7 @@ Resultant mean deviation (paper eq. 6)::
 
 i.e. the norm of the per-axis *mean absolute* deviations — the paper's springback figures
 (0.72 mm in x and y, 0.49 mm in z) give its resultant 1.132 mm this way. The function is
-:func:`roboisf.decompose.resultant_mean_deviation` (one implementation), re-exported here.
+:func:`resultant_mean_deviation` (one implementation; :mod:`roboisf.decompose` re-exports it).
 """
 
 from __future__ import annotations
@@ -19,7 +19,6 @@ import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 
-from roboisf.decompose.core import resultant_mean_deviation
 from roboisf.errors import InputError
 
 __all__ = [
@@ -33,6 +32,14 @@ __all__ = [
 ]
 
 F64 = NDArray[np.float64]
+
+
+def resultant_mean_deviation(v: F64) -> float:
+    """R_m = sqrt(mean|δx|² + mean|δy|² + mean|δz|²) of (N, 3) vectors (eq. 6), same unit."""
+    if v.shape[0] == 0:
+        raise InputError("no valid toolpath points to average over")
+    m = np.mean(np.abs(v), axis=0)
+    return float(np.sqrt(np.sum(m**2)))
 
 
 @dataclass(frozen=True)

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 from roboisf._lazy import attach
 
 if TYPE_CHECKING:
+    from roboisf.path.toolpath import Toolpath, tool_points
     from roboisf.toolpath.dispatch import toolpath_for_part
     from roboisf.toolpath.generate import (
         DEFAULT_FEED,
@@ -27,14 +28,13 @@ if TYPE_CHECKING:
         sliced_spiral,
         sliced_step_down,
     )
-    from roboisf.toolpath.toolpath import Toolpath, tool_points
 
 _WHERE = {
     "dispatch": ("toolpath_for_part",),
     "generate": ("DEFAULT_FEED", "ball_position", "spiral", "step_down", "tip_levels"),
     "geometry": ("contour_curvature", "meridian_curvature", "rim_distance"),
     "slice": ("level_contour", "scallop_step", "sliced_spiral", "sliced_step_down"),
-    "toolpath": ("Toolpath", "tool_points"),
+    ".path.toolpath": ("Toolpath", "tool_points"),  # the value object lives below the formats
 }
 __all__ = [
     "DEFAULT_FEED",

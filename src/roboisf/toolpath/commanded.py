@@ -4,10 +4,11 @@ A *commanded* path (a compensated command) keeps the nominal contacts and normal
 another programmed ``tip`` (:meth:`Toolpath.with_tip`). This module reads the tips back from
 
 * roboisf's toolpath CSV (``compensated.csv``; any row count check below applies),
-* a robot program — ABB RAPID module or module set (``.mod``), KUKA KRL (``.src`` + ``.dat``),
-  FANUC TP (``.ls``): the forming moves of :func:`roboisf.io.rapid.read_rapid`,
-  :func:`roboisf.io.krl.read_krl`, :func:`roboisf.io.fanuc.read_fanuc` (approach and retract
-  moves are not forming moves),
+* a robot program of any format of :mod:`roboisf.programs.registry` with a reader — ABB RAPID
+  module or module set (``.mod``), KUKA KRL (``.src`` + ``.dat``),
+  FANUC TP (``.ls``): the forming moves of :func:`roboisf.programs.rapid.read_rapid`,
+  :func:`roboisf.programs.krl.read_krl`, :func:`roboisf.programs.fanuc.read_fanuc` (approach and
+  retract moves are not forming moves),
 * a CAM program (G-code, Sinumerik, APT/CL, a point list): its feed moves, approach moves
   above the sheet plane dropped,
 
@@ -20,21 +21,35 @@ correction, not another path). A robot program's work object and tool must be th
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.errors import InputError
-from roboisf.toolpath.toolpath import Toolpath
+from roboisf.path.toolpath import Toolpath
 
-__all__ = ["POSE_TOL", "ROBOT_PROGRAM_SUFFIXES", "read_commanded"]
+if TYPE_CHECKING:
+    from roboisf.programs.registry import ProgramFormat
+
+__all__ = ["POSE_TOL", "read_commanded", "robot_program_format"]
 
 F64 = NDArray[np.float64]
 
-#: Robot program suffixes and their reader (module ``roboisf.io.<name>``, ``read_<name>``).
-ROBOT_PROGRAM_SUFFIXES = {".mod": "rapid", ".modx": "rapid", ".src": "krl", ".ls": "fanuc"}
 #: Accepted difference [m] between a program's work object / tool length and the cell's.
 POSE_TOL = 1e-5
+
+
+def robot_program_format(path: Path) -> ProgramFormat | None:
+    """The registered robot-program format whose suffixes (written or read) hold ``path``'s,
+    with a reader; None for any other file."""
+    from roboisf.programs.registry import program_formats
+
+    suffix = path.suffix.lower()
+    for f in program_formats():
+        if f.kind == "robot" and f.read is not None and suffix in (*f.suffixes, *f.read_suffixes):
+            return f
+    return None
 
 
 def _program_tips(
@@ -49,12 +64,10 @@ def _program_tips(
             from roboisf.io.toolpath_csv import read_toolpath_csv
 
             return read_toolpath_csv(path).tip
-    if suffix in ROBOT_PROGRAM_SUFFIXES:
-        import importlib
-
-        kind = ROBOT_PROGRAM_SUFFIXES[suffix]
-        reader = getattr(importlib.import_module(f"roboisf.io.{kind}"), f"read_{kind}")
-        prog = reader(path)
+    robot_format = robot_program_format(path)
+    if robot_format is not None:
+        assert robot_format.read is not None
+        prog = robot_format.read(path)
         if T_base_work is not None and prog.T_base_work is not None:
             dt = float(np.linalg.norm(prog.T_base_work[:3, 3] - T_base_work[:3, 3]))
             dr = float(np.max(np.abs(prog.T_base_work[:3, :3] - T_base_work[:3, :3])))

@@ -10,10 +10,10 @@ from __future__ import annotations
 
 from roboisf.errors import InputError
 from roboisf.parts import AxisymmetricPart, Part
+from roboisf.path.toolpath import Toolpath
 from roboisf.toolpath import generate
 from roboisf.toolpath.generate import DEFAULT_FEED, MAX_POINTS
 from roboisf.toolpath.slice import sliced_spiral, sliced_step_down
-from roboisf.toolpath.toolpath import Toolpath
 
 __all__ = ["toolpath_for_part"]
 

@@ -39,8 +39,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
 from roboisf.parts.axisymmetric import AxisymmetricPart
+from roboisf.path.toolpath import Toolpath
 from roboisf.toolpath.limits import MAX_POINTS
-from roboisf.toolpath.toolpath import Toolpath
 
 __all__ = [
     "BYTES_PER_POINT",

@@ -43,7 +43,6 @@ import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -51,12 +50,9 @@ from numpy.typing import NDArray
 from roboisf.errors import InputError
 from roboisf.io.cam import DEFAULT_CHORD_TOL, FEED, CamMoves, ReadOptions
 from roboisf.parts.base import Part
+from roboisf.path.toolpath import Toolpath
 from roboisf.toolpath.laps import detect_laps
 from roboisf.toolpath.limits import MAX_POINTS
-from roboisf.toolpath.toolpath import Toolpath
-
-if TYPE_CHECKING:
-    from roboisf.study.spec import RunSpec, Study
 
 __all__ = [
     "CAM_FORMATS",
@@ -68,7 +64,6 @@ __all__ = [
     "moves_to_toolpath",
     "read_cam_moves",
     "read_toolpath_file",
-    "study_toolpath",
 ]
 
 F64 = NDArray[np.float64]
@@ -634,16 +629,3 @@ def read_toolpath_file(
             field=option,
         )
     return load_toolpath(path, part, tool_radius, fmt=fmt)
-
-
-def study_toolpath(study: Study, run: RunSpec, part: Part) -> Toolpath:
-    """The toolpath of ``run`` of ``study`` (:func:`load_toolpath` with the study's settings)."""
-    if study.tool is None:  # pragma: no cover - load_study requires [tool]
-        raise InputError("the study has no [tool] table", file=study.root / "study.toml")
-    return load_toolpath(
-        run.toolpath,
-        part,
-        study.tool.radius,
-        fmt=getattr(run, "toolpath_format", "auto"),
-        point=getattr(run, "toolpath_point", "tip"),
-    )

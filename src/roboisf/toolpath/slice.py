@@ -58,8 +58,8 @@ from numpy.typing import NDArray
 
 from roboisf.errors import InputError
 from roboisf.parts.base import Part
+from roboisf.path.toolpath import Toolpath
 from roboisf.toolpath.generate import DEFAULT_FEED, MAX_POINTS, refuse_size
-from roboisf.toolpath.toolpath import Toolpath
 
 __all__ = ["ball_centre_rays", "level_contour", "scallop_step", "sliced_spiral", "sliced_step_down"]
 

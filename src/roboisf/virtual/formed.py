@@ -31,7 +31,7 @@ from scipy.spatial import cKDTree
 
 from roboisf.errors import InputError
 from roboisf.parts.axisymmetric import AxisymmetricPart
-from roboisf.toolpath.toolpath import Toolpath
+from roboisf.path.toolpath import Toolpath
 
 __all__ = ["NormalField", "PointField"]
 

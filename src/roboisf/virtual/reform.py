@@ -36,10 +36,10 @@ from roboisf.io.forcelog import write_force_log
 from roboisf.io.jointlog import write_joint_log
 from roboisf.io.outdir import MARKER
 from roboisf.io.toolpath_csv import read_toolpath_csv, write_toolpath_csv
+from roboisf.path.toolpath import Toolpath
 from roboisf.progress import Progress, task
 from roboisf.study.spec import ForceSensorSpec
 from roboisf.toolpath.commanded import read_commanded
-from roboisf.toolpath.toolpath import Toolpath
 from roboisf.virtual.cell import (
     LOG_FORMATS,
     VirtualCell,

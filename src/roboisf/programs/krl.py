@@ -39,8 +39,9 @@ Layout written (``cone.src``; the ``.dat`` next to it holds the frames)::
   tool (see :mod:`roboisf.io.program`); tool pointing down is ``A, B, C = 0, 0, 180``, a rotation
   γ about the tool axis gives ``A = −γ`` (``Rx(180°) Rz(γ) = Rz(−γ) Rx(180°)``).
 * ``S``/``T`` of the first PTP from the joint angles of the IK branch
-  (:func:`~roboisf.io.program.kuka_status_turn`); LIN moves keep the status of their start (KSS),
-  so the forming moves carry none. Without joint angles the PTP has none either (header note).
+  (:func:`~roboisf.robot.armconfig.kuka_status_turn`); LIN moves keep the status of their start
+  (KSS), so the forming moves carry none. Without joint angles the PTP has none either (header
+  note).
 * ``$TOOL``: TCP at the ball tip, ``X = L`` along the flange's x axis (KUKA's flange x points out
   of the flange) and ``B = 90°`` so that the tool z axis lies on the flange x axis.
 * ``XHOME`` is the HOME position of the controller's ``$config.dat``.
@@ -62,16 +63,15 @@ from roboisf.frames.rotations import abc_to_matrix, matrix_to_abc
 from roboisf.io.atomic import atomic_write
 from roboisf.io.program import (
     NUMBER_RE,
-    ArmConfig,
     ProgramPath,
     RobotTool,
     fmt_num,
-    kuka_status_turn,
     prepare_program,
     program_identifier,
     read_program_text,
 )
-from roboisf.toolpath.toolpath import Toolpath
+from roboisf.path.toolpath import Toolpath
+from roboisf.robot.armconfig import ArmConfig, kuka_status_turn
 
 __all__ = ["KRL_NAME", "frame_to_krl", "krl_name", "read_krl", "write_krl"]
 

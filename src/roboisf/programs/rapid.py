@@ -37,7 +37,7 @@ time. Copy all files into the folder ``sDir`` names on the controller (``HOME:``
 * Orientation ``[q1, q2, q3, q4] = (w, x, y, z)`` of ``R_work_tool``; tool pointing down is
   ``[0, 1, 0, 0]``; a rotation γ about the tool axis gives ``[0, cos γ/2, −sin γ/2, 0]``.
 * ``confdata`` of every robtarget from the joint angles of the IK branch
-  (:func:`~roboisf.io.program.abb_confdata`: quadrants of axes 1, 4, 6 and the cfx bits). The
+  (:func:`~roboisf.robot.armconfig.abb_confdata`: quadrants of axes 1, 4, 6 and the cfx bits). The
   approach ``MoveJ`` runs with ``ConfJ\On`` so the robot takes that branch; the forming
   ``MoveL`` run with ``ConfL\Off`` (the path is continuous from there). Without joint angles
   (no robot model) confdata is ``[0,0,0,0]`` and both checks are off, said in the header.
@@ -61,10 +61,8 @@ from roboisf.io.atomic import atomic_write
 from roboisf.io.program import (
     MAX_MODULE_MOVES,
     NUMBER_RE,
-    ArmConfig,
     ProgramPath,
     RobotTool,
-    abb_confdata,
     fmt_num,
     identifier,
     prepare_program,
@@ -73,9 +71,10 @@ from roboisf.io.program import (
     split_chunks,
     split_modules,
 )
-from roboisf.toolpath.toolpath import Toolpath
+from roboisf.path.toolpath import Toolpath
+from roboisf.robot.armconfig import ArmConfig, abb_confdata
 
-__all__ = ["ZONES", "read_rapid", "write_rapid"]
+__all__ = ["ZONES", "module_name", "read_rapid", "write_rapid"]
 
 #: Predefined RAPID zonedata names.
 ZONES = ("fine", "z0", "z1", "z5", "z10", "z15", "z20", "z30", "z40", "z50", "z60", "z80", "z100")
@@ -148,7 +147,7 @@ def write_rapid(
     path = Path(path)
     if zone not in ZONES:
         raise InputError(f"unknown zone {zone!r}; expected one of {', '.join(ZONES)}", field="zone")
-    name = _module_name(path, module)
+    name = module_name(path, module)
     identifier(wobj_name, "wobj_name", 32)
     if '"' in load_dir or "\\" in load_dir:
         raise InputError(f"not a RAPID string: {load_dir!r}", field="load_dir")
@@ -267,7 +266,9 @@ def write_rapid(
     return [files[-1][0], *(f for f, _ in files[:-1])]  # main first, then the parts
 
 
-def _module_name(path: Path, module: str | None) -> str:
+def module_name(path: Path, module: str | None = None) -> str:
+    """The RAPID module name of a program written to ``path``: ``module`` if given, else the file
+    stem, which must be a RAPID identifier (``InputError`` naming the file otherwise)."""
     if module:
         return identifier(module, "module", 26)
     stem = path.stem

@@ -38,7 +38,7 @@ Layout written (``cone.ls``; compile it to ``.tp`` with FANUC's ASCII upload or 
 * Orientation ``W, P, R`` (deg): ``R_work_tool = Rz(R) Ry(P) Rx(W)``; tool pointing down is
   ``W, P, R = 180, 0, 0``.
 * ``CONFIG`` of every position from the joint angles of the IK branch
-  (:func:`~roboisf.io.program.fanuc_config`); without joint angles ``'N U T, 0, 0, 0'`` with a
+  (:func:`~roboisf.robot.armconfig.fanuc_config`); without joint angles ``'N U T, 0, 0, 0'`` with a
   header note.
 * Speed: ``mm/sec`` when the feed is a whole number of mm/s, else ``cm/min`` (whole numbers; the
   rounding, if any, is stated in the header). ``CNT100`` blends the forming moves.
@@ -65,18 +65,17 @@ from roboisf.io.atomic import atomic_write
 from roboisf.io.program import (
     MAX_MODULE_MOVES,
     NUMBER_RE,
-    ArmConfig,
     ProgramPath,
     RobotTool,
-    fanuc_config,
     prepare_program,
     program_identifier,
     read_program_text,
     split_modules,
 )
-from roboisf.toolpath.toolpath import Toolpath
+from roboisf.path.toolpath import Toolpath
+from roboisf.robot.armconfig import ArmConfig, fanuc_config
 
-__all__ = ["read_fanuc", "write_fanuc"]
+__all__ = ["check_program_name", "read_fanuc", "write_fanuc"]
 
 _NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
 _MAX_NAME = 36
@@ -134,6 +133,18 @@ def _frame_lines(pr: int, values: np.ndarray, target: str) -> list[str]:
     out += [f"  PR[{pr},{j + 1}]={v:.3f}    " for j, v in enumerate(values)]
     out.append(f"  {target}=PR[{pr}]    ")
     return out
+
+
+def check_program_name(path: str | Path) -> None:
+    """Refuse a file name that does not give a FANUC program name (the program is named after
+    the file: a letter, then letters, digits or _, at most 32 characters)."""
+    path = Path(path)
+    if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]{0,31}", path.stem):
+        raise InputError(
+            f"the file name {path.stem!r} does not give a FANUC program name (a letter, then "
+            "letters, digits or _)",
+            file=path,
+        )
 
 
 def write_fanuc(

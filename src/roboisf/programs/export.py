@@ -1,76 +1,62 @@
-"""Write a toolpath in any supported format, chosen by name or by the file suffix.
+"""Write a toolpath in any registered format, chosen by name or by the file suffix.
+
+The formats are those of :mod:`roboisf.programs.registry` (built in: ``csv``, ``gcode``,
+``rapid``, ``krl``, ``fanuc``, one module each in :mod:`roboisf.programs.formats`):
 
 ================  ==========================  ===========================================
 format            suffixes                    writer
 ================  ==========================  ===========================================
 ``csv``           ``.csv``                    :func:`roboisf.io.toolpath_csv.write_toolpath_csv`
 ``gcode``         ``.nc .gcode .ngc .tap``    :func:`roboisf.io.gcode.write_gcode`
-``rapid``         ``.mod``                    :func:`roboisf.io.rapid.write_rapid`
-``krl``           ``.src`` (+ ``.dat``)       :func:`roboisf.io.krl.write_krl`
-``fanuc``         ``.ls``                     :func:`roboisf.io.fanuc.write_fanuc`
+``rapid``         ``.mod``                    :func:`roboisf.programs.rapid.write_rapid`
+``krl``           ``.src`` (+ ``.dat``)       :func:`roboisf.programs.krl.write_krl`
+``fanuc``         ``.ls``                     :func:`roboisf.programs.fanuc.write_fanuc`
 ================  ==========================  ===========================================
 
 Robot programs (RAPID, KRL, FANUC) need the work-object placement ``T_base_work``: there is no
 default (the identity, passed explicitly, means the robot base). With ``config`` (the joint angles
-of every point, :func:`roboisf.io.program.program_config`) they carry the controller's
+of every point, :func:`roboisf.robot.armconfig.program_config`) they carry the controller's
 configuration data (confdata, S/T, CONFIG).
 """
 
 from __future__ import annotations
 
-import re
-from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from roboisf.errors import InputError
+from roboisf.programs.registry import WriteOptions, get_format, program_formats
 
 if TYPE_CHECKING:  # the writers (numpy, pandas) load on the first write: checks stay fast
     from numpy.typing import ArrayLike
 
-    from roboisf.io.program import ArmConfig, RobotTool
-    from roboisf.toolpath.toolpath import Toolpath
+    from roboisf.io.program import RobotTool
+    from roboisf.path.toolpath import Toolpath
+    from roboisf.robot.armconfig import ArmConfig
 
 __all__ = [
-    "FORMAT_SUFFIXES",
-    "ROBOT_FORMATS",
     "check_program_name",
     "infer_format",
     "output_files",
     "write_toolpath",
 ]
 
-#: Format name → accepted file suffixes (the first is the default).
-FORMAT_SUFFIXES: dict[str, tuple[str, ...]] = {
-    "csv": (".csv",),
-    "gcode": (".nc", ".gcode", ".ngc", ".tap"),
-    "rapid": (".mod",),
-    "krl": (".src",),
-    "fanuc": (".ls",),
-}
-
-#: Formats that are robot programs (they need the placement and the tool).
-ROBOT_FORMATS = ("rapid", "krl", "fanuc")
-
 
 def infer_format(path: str | Path, fmt: str | None = None) -> str:
     """Format for ``path``: ``fmt`` if given (checked against the suffix), else from the suffix."""
     suffix = Path(path).suffix.lower()
     if fmt is not None:
-        if fmt not in FORMAT_SUFFIXES:
+        f = get_format(fmt)
+        if f.suffix_required and suffix not in f.suffixes:
             raise InputError(
-                f"unknown format {fmt!r}; expected one of {', '.join(FORMAT_SUFFIXES)}",
-                field="format",
+                f"a {f.label} program must be written to a {' or '.join(f.suffixes)} file",
+                file=path,
             )
-        if fmt == "krl" and suffix != ".src":
-            raise InputError("a KRL program must be written to a .src file", file=path)
-        if fmt == "fanuc" and suffix != ".ls":
-            raise InputError("a FANUC TP program must be written to a .ls file", file=path)
         return fmt
-    for name, suffixes in FORMAT_SUFFIXES.items():
-        if suffix in suffixes:
-            return name
-    known = ", ".join(f"{s} ({n})" for n, ss in FORMAT_SUFFIXES.items() for s in ss)
+    for f in program_formats():
+        if suffix in f.suffixes:
+            return f.name
+    known = ", ".join(f"{s} ({f.name})" for f in program_formats() for s in f.suffixes)
     raise InputError(
         f"cannot tell the format from the suffix {suffix or '(none)'!r}; use one of {known} "
         "or pass --format",
@@ -81,28 +67,15 @@ def infer_format(path: str | Path, fmt: str | None = None) -> str:
 def check_program_name(path: str | Path, fmt: str) -> None:
     """Refuse, before any computation, a file name that is not a valid program name for ``fmt``
     (KRL DEF/DEFDAT, RAPID module, FANUC program: the writers name the program after the file)."""
-    path = Path(path)
-    if fmt == "krl":
-        from roboisf.io.krl import krl_name
-
-        krl_name(path)
-    elif fmt == "rapid":
-        from roboisf.io.rapid import _module_name
-
-        _module_name(path, None)
-    elif fmt == "fanuc" and not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]{0,31}", path.stem):
-        raise InputError(
-            f"the file name {path.stem!r} does not give a FANUC program name (a letter, then "
-            "letters, digits or _)",
-            file=path,
-        )
+    f = get_format(fmt)
+    if f.check_name is not None:
+        f.check_name(Path(path))
 
 
 def output_files(path: str | Path, fmt: str) -> list[Path]:
     """Main files a write produces (KRL writes the ``.dat`` beside the ``.src``; long RAPID and
     FANUC programs also write part modules ``<stem>_<k>``, returned by :func:`write_toolpath`)."""
-    path = Path(path)
-    return [path, path.with_suffix(".dat")] if fmt == "krl" else [path]
+    return get_format(fmt).output_files(Path(path))
 
 
 def write_toolpath(
@@ -125,34 +98,14 @@ def write_toolpath(
     ``gcode_notes`` to G-code; ``safe_height`` [m] to every program format. Returns the format
     and the files written.
     """
-    from roboisf.io.fanuc import write_fanuc
-    from roboisf.io.gcode import write_gcode
-    from roboisf.io.krl import write_krl
-    from roboisf.io.rapid import write_rapid
-    from roboisf.io.toolpath_csv import write_toolpath_csv
-
     fmt = infer_format(path, fmt)
-    if fmt == "csv":
-        write_toolpath_csv(tp, path)
-        return fmt, [Path(path)]
-    if fmt == "gcode":
-        files = write_gcode(
-            tp, path, safe_height=safe_height, notes=gcode_notes, work_offset=work_offset
-        )
-        return fmt, files
-    writers: dict[str, Callable[..., list[Path]]] = {
-        "rapid": write_rapid,
-        "krl": write_krl,
-        "fanuc": write_fanuc,
-    }
-    writer = writers[fmt]
-    files = writer(
-        tp,
-        path,
+    options = WriteOptions(
         T_base_work=T_base_work,
         tool=tool,
         tool_rotation=tool_rotation,
         config=config,
         safe_height=safe_height,
+        gcode_notes=gcode_notes,
+        work_offset=work_offset,
     )
-    return fmt, files
+    return fmt, get_format(fmt).write(tp, Path(path), options)
