@@ -93,6 +93,8 @@ def test_gain_is_told_from_a_bias(gain):
     assert abs(f["force_gain"].estimate - gain) < 0.005
     assert f["force_bias"].verdict == "ok", f["force_bias"].explanation
     assert f["force_moment_crosstalk"].verdict == "ok"  # a gain scales the moments too
+    head = f["force_gain"].headline  # its interval's "(…; …)" is not cut at the inner ";"
+    assert head.count("(") == head.count(")") and head.count("[") == head.count("]")
 
 
 def test_bias_is_told_from_a_gain():

@@ -660,12 +660,26 @@ def _finding(
         v = force or verdict(lo, hi, limits)
     label = suspect.replace("_", " ")
     if v == "fault":
-        head = f"{label}: FAULT — {text.split(';')[0]}; {todo}"
+        head = f"{label}: FAULT — {_first_clause(text)}; {todo}"
     elif v == "ok":
         head = f"{label}: ok"
     else:
-        head = f"{label}: cannot tell — {text.split(';')[0]}"
+        head = f"{label}: cannot tell — {_first_clause(text)}"
     return Finding(suspect, v, est, lo, hi, unit, text, head, limits)
+
+
+def _first_clause(text: str) -> str:
+    """``text`` up to its first ``;`` outside brackets (a ``;`` inside an interval's parenthesis
+    does not end the clause, so the headline keeps its brackets balanced)."""
+    depth = 0
+    for i, ch in enumerate(text):
+        if ch in "([":
+            depth += 1
+        elif ch in ")]":
+            depth = max(0, depth - 1)
+        elif ch == ";" and depth == 0:
+            return text[:i]
+    return text
 
 
 def _unknown(suspects: tuple[str, ...], why: str) -> list[Finding]:
