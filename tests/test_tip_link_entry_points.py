@@ -85,9 +85,7 @@ def test_plan_part(tmp_path, capsys):
     c = make_cell(cone, robot=str(p), T_base_work=T, force=ForceModel(), tip_link="link6")
     assert "tip link6" in c.robot.source and c.tip_link == "link6"
     part = tmp_path / "cone.toml"
-    part.write_text(
-        '[part]\nkind = "cone"\nopening_diameter = 60\nwall_angle = 60\ndepth = 5\n'
-    )
+    part.write_text('[part]\nkind = "cone"\nopening_diameter = 60\nwall_angle = 60\ndepth = 5\n')
     argv = ["-q", "plan", "--part", str(part), "--robot", str(p)]
     assert main([*argv, "--tip-link", "nolink", "-o", str(tmp_path / "a")]) == 2
     err = _err(capsys)
