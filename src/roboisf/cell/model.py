@@ -201,6 +201,7 @@ class Cell:
     robot : RobotModel — kinematics, joint stiffness and the tool (``robot.T_flange_tip``)
     T_base_work : (4, 4) float, m — placement of the work frame in the robot base
     robot_name : str — the preset name or robot file the model came from (``[robot].model``)
+    tip_link : str or None — the URDF link taken as the flange (``[robot].tip_link``)
     tool_rotation : float, rad — rotation of the tool about its own axis
     force : ForceModel or None — the forming-force model (the virtual cell, ``plan --part``);
         None for a real study, whose forces are measured
@@ -214,6 +215,7 @@ class Cell:
     robot_name: str = ""
     tool_rotation: float = 0.0
     force: ForceModel | None = field(default=None)
+    tip_link: str | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.part, Part):
@@ -294,6 +296,7 @@ def build_robot(
     T_flange_tip: ArrayLike | None = None,
     joint_stiffness: Sequence[float] | ArrayLike | None = None,
     stiffness_source: str = "user",
+    tip_link: str | None = None,
 ) -> RobotModel:
     """The robot model: a preset name, robot TOML or URDF, with its tool and joint stiffness.
 
@@ -303,8 +306,10 @@ def build_robot(
     T_flange_tip : (4, 4) float, m — the tool tip in the flange frame (default: the model's)
     joint_stiffness : (6,) float, N·m/rad — replaces the model's (default: the model's)
     stiffness_source : where the stiffness came from (shown in reports)
+    tip_link : a URDF robot's flange link (``[robot].tip_link``, ``--tip-link``; default: the
+        URDF reader's choice); an error for a preset or robot TOML
     """
-    model = load_robot(name)
+    model = load_robot(name, tip_link=tip_link)
     if T_flange_tip is not None:
         model = model.with_tool(T_flange_tip)
     if joint_stiffness is not None:
@@ -331,13 +336,14 @@ def make_cell(
     T_base_work: ArrayLike | None = None,
     tool_rotation: float = 0.0,
     force: ForceModel | None = None,
+    tip_link: str | None = None,
 ) -> Cell:
     """A cell from a part and the tool, holder and robot geometry (defaults: the paper-like cell:
     Ø10 mm ball 66 mm free, :data:`DEFAULT_HOLDER`, IRB 7600-500/2.55).
 
     The tool sits straight out of the flange (:func:`flange_to_tip`); ``holder=None`` is a rigid
     holder. ``T_base_work`` (4, 4) m defaults to the robot preset's default placement. Lengths m,
-    angles rad.
+    angles rad. ``tip_link``: a URDF robot's flange link (default: the URDF reader's choice).
     """
     _method(compliance_method, "compliance_method")
     tool = tool if tool is not None else BallEndTool(10e-3, PAPER_TOOL_LENGTH)
@@ -345,6 +351,7 @@ def make_cell(
         robot,
         T_flange_tip=flange_to_tip(tool, holder),
         joint_stiffness=joint_stiffness,
+        tip_link=tip_link,
     )
     T_bw = model.default_placement if T_base_work is None else T_base_work
     if T_bw is None:
@@ -362,6 +369,7 @@ def make_cell(
         robot,
         tool_rotation,
         force,
+        tip_link,
     )
 
 

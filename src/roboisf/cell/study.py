@@ -41,5 +41,15 @@ def cell_from_study(study: Study) -> Cell:
         T_flange_tip=r.T_flange_tip,
         joint_stiffness=r.joint_stiffness,
         stiffness_source="study.toml",
+        tip_link=r.tip_link,
     )
-    return Cell(study.part, tool, holder, model, r.T_base_work, r.model, r.tool_rotation)
+    return Cell(
+        study.part,
+        tool,
+        holder,
+        model,
+        r.T_base_work,
+        r.model,
+        r.tool_rotation,
+        tip_link=r.tip_link,
+    )

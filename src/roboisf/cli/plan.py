@@ -11,6 +11,7 @@ import typer
 
 from roboisf.cli.console import state
 from roboisf.cli.outputs import DIR_HELP, Overwrite, output_dir, study_inputs
+from roboisf.cli.robot import TIP_LINK_HELP
 from roboisf.errors import InputError
 
 if TYPE_CHECKING:  # numpy is imported by the command that runs (fast --help)
@@ -88,6 +89,11 @@ def plan_cmd(
         None, "--study", help="Study folder/study.toml: its toolpath, robot-run forces, robot."
     ),
     robot: str = typer.Option("irb7600-500-2.55", "--robot", "-r", help="Preset, .toml or .urdf."),
+    tip_link: str | None = typer.Option(
+        None,
+        "--tip-link",
+        help=f"{TIP_LINK_HELP} With --part only: a study's is its [robot] tip_link.",
+    ),
     stiffness: Path | None = typer.Option(None, "--stiffness", help="Joint stiffness TOML."),
     tool: str | None = typer.Option(
         None, "--tool", help="Tool tip in the flange frame x,y,z (mm); default: the paper cell's."
@@ -134,6 +140,11 @@ def plan_cmd(
     """Rank work-object placements (x, y, z, yaw) and tool rotations by predicted deflection."""
     if (part is None) == (study is None):
         raise InputError("give exactly one of --part or --study", field="--part/--study")
+    if study is not None and tip_link is not None:
+        raise InputError(
+            "goes with --part; a study's robot takes its flange link from [robot] tip_link",
+            field="--tip-link",
+        )
     for flag, v in (("--workers", workers), ("--top", top)):
         if v < 1:
             raise InputError(f"must be ≥ 1, got {v}", field=flag)
@@ -182,7 +193,7 @@ def plan_cmd(
         "max_joint_step": math.radians(max_joint_step),
     }
     prob, model, base_T, source = _problem(
-        part, study, robot, stiffness, tool, not no_tool_compliance, opts
+        part, study, robot, stiffness, tool, not no_tool_compliance, opts, tip_link
     )
     base_T = _baseline(baseline, base_T, model)
     c = model.default_placement if model.default_placement is not None else base_T
@@ -253,6 +264,7 @@ def _problem(
     tool: str | None,
     with_tool: bool,
     opts: dict[str, Any],
+    tip_link: str | None = None,
 ) -> tuple[Any, Any, np.ndarray | None, str]:
     from roboisf.cell import ForceModel, build_robot, cell_from_study, make_cell
     from roboisf.cli.robot import _floats
@@ -269,7 +281,7 @@ def _problem(
         return m
 
     if part is not None:
-        cell = make_cell(load_part(part), robot=robot, force=ForceModel())
+        cell = make_cell(load_part(part), robot=robot, force=ForceModel(), tip_link=tip_link)
         m = _override(cell.robot)
         prob, _ = problem_from_cell(cell, with_tool=with_tool, model=m, **opts)
         return prob, m, None, f"part {part.name}, force model"
@@ -283,7 +295,11 @@ def _problem(
         raise InputError("the study has no [robot] table", file=s.root / "study.toml")
     c = cell_from_study(s)
     # the study's robot and tool; --stiffness wins over the study's joint stiffness
-    m = c.robot if stiffness is None else build_robot(c.robot_name, T_flange_tip=c.T_flange_tip)
+    m = (
+        c.robot
+        if stiffness is None
+        else build_robot(c.robot_name, T_flange_tip=c.T_flange_tip, tip_link=c.tip_link)
+    )
     m = _override(m)
     rob = s.robot_run
     tp = study_toolpath(s, rob, c.part)  # a toolpath CSV or a CAM program

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -95,12 +95,13 @@ PLACEMENT_OPT = typer.Option(
     help="x,y,z,yaw of the work frame in the base (mm, deg); default: preset's.",
 )
 TOOL_OPT = typer.Option(None, "--tool", help="Tool tip in the flange frame: x,y,z (mm).")
-TIP_LINK_OPT = typer.Option(
-    None,
-    "--tip-link",
-    help="URDF robots: the link that is the arm's flange (default tool0 or flange, else the link "
-    "behind the most revolute joints); a gripper's or a 7th joint's link is not.",
+TIP_LINK_HELP = (
+    "URDF robots: the link that is the arm's flange (default tool0 or flange, else the link "
+    "behind the most revolute joints); a gripper's or a 7th joint's link is not."
 )
+TIP_LINK_OPT = typer.Option(None, "--tip-link", help=TIP_LINK_HELP)
+#: ``--tip-link`` for commands written with ``Annotated`` options (toolpath, plan, study init)
+TipLink = Annotated[str | None, typer.Option("--tip-link", help=TIP_LINK_HELP)]
 
 
 LIST_HELP = (

@@ -11,6 +11,7 @@ import typer
 from roboisf.cli.console import state
 from roboisf.cli.lazy import FullHelpGroup
 from roboisf.cli.outputs import Overwrite, output_file
+from roboisf.cli.robot import TipLink
 from roboisf.errors import InputError
 
 __all__ = ["register"]
@@ -94,6 +95,7 @@ def _init(
         float | None,
         typer.Option(help="Tool holder nose → tool tip along the tool axis (mm)."),
     ] = None,
+    tip_link: TipLink = None,
 ) -> None:
     """Look at every file in FOLDER, say what it is, and write a study.toml to confirm.
 
@@ -133,6 +135,7 @@ def _init(
         cnc_sensor_pose=_pose(cnc_sensor_pose, "--cnc-sensor-pose"),
         robot_sensor_pose=_pose(robot_sensor_pose, "--robot-sensor-pose"),
         holder_offset=holder_offset,
+        tip_link=tip_link,
     )
     t = Table(title=f"{escape(str(folder))}: detected files")
     for c in ("file", "kind", "format", "details", "study key"):

@@ -40,6 +40,7 @@ from roboisf.cli.part import (
     VwacfDiameter,
     WallAngle,
 )
+from roboisf.cli.robot import TipLink
 from roboisf.errors import InputError
 from roboisf.io.atomic import check_not_input
 from roboisf.parts.defaults import VWACF_DEFAULT_ARC_RADIUS
@@ -182,6 +183,7 @@ class PathOptions:
     robot: str | None = None
     work_offset: str = "G54"
     arm_config: str | None = None
+    tip_link: str | None = None
 
     def check(self) -> None:
         for flag, v in (
@@ -271,13 +273,20 @@ class PathOptions:
         return RobotTool(length=length * 1e-3, mass=self.tool_mass)
 
     def robot_model(self) -> RobotModel | None:
-        """The robot for the configuration data: ``--robot``, else the study of ``--placement``."""
+        """The robot for the configuration data: ``--robot``, else the study of ``--placement``
+        (its ``[robot] tip_link`` unless ``--tip-link`` names one)."""
         from roboisf.robot.presets import load_robot
 
         if self.robot is not None:
-            return load_robot(self.robot)
+            return load_robot(self.robot, tip_link=self.tip_link)
         if self.placement_ is not None and _is_study(self.placement_):
-            return load_robot(_study_robot(self.placement_).model)
+            r = _study_robot(self.placement_)
+            return load_robot(r.model, tip_link=self.tip_link or r.tip_link)
+        if self.tip_link is not None:
+            raise InputError(
+                "names the flange link of a URDF robot: give --robot or --placement STUDY",
+                field="--tip-link",
+            )
         return None
 
 
@@ -454,6 +463,7 @@ _SHARED: list[tuple[str, Any, Any]] = [
     ("robot", Robot, None),
     ("work_offset", WorkOffset, "G54"),
     ("arm_config", ArmConfigOpt, None),
+    ("tip_link", TipLink, None),
 ]
 
 

@@ -386,10 +386,12 @@ def draft_study(
     cnc_sensor_pose: list[float] | None = None,
     robot_sensor_pose: list[float] | None = None,
     holder_offset: float | None = None,
+    tip_link: str | None = None,
 ) -> StudyDraft:
     """Assign detected files to a study (see the module docstring). Poses ``[x, y, z, roll,
     pitch, yaw]`` in mm and deg, ``holder_offset`` in mm, ``tool_rotation`` in deg, ``part`` a
-    part TOML (instead of one in the folder)."""
+    part TOML (instead of one in the folder), ``tip_link`` a URDF robot's flange link (checked
+    against the file, written as ``[robot] tip_link``)."""
     root = Path(folder).resolve()
     by: dict[str, list[DetectedFile]] = {}
     for f in files:
@@ -484,6 +486,17 @@ def draft_study(
             model = rel(rp)
             if model != robot:
                 notes.append(f"robot.model = {model!r}: {robot} relative to the study folder")
+    if tip_link is not None:
+        if robot is None:
+            raise InputError(
+                "--tip-link names a link of the --robot URDF; give --robot", field="--tip-link"
+            )
+        from roboisf.robot import load_robot
+
+        try:
+            load_robot(robot, tip_link=tip_link)
+        except InputError as e:
+            raise InputError(e.message, file=e.file, line=e.line, field="--tip-link") from None
     rb: dict[str, Any] = {
         "model": model,
         "placement": _pose(placement, "[x, y, z, roll, pitch, yaw] of the work frame, mm/deg"),
@@ -494,6 +507,8 @@ def draft_study(
         notes.append("robot.flange_to_tip: the preset's tool (give --flange-to-tip)")
     if tool_rotation is not None:
         rb["tool_rotation"] = float(tool_rotation)
+    if tip_link is not None:
+        rb["tip_link"] = tip_link
     todo += [f"robot.{k}" for k in ("model", "placement") if str(rb[k]).startswith("TODO")]
     data["robot"] = rb
     # runs

@@ -130,6 +130,8 @@ class RobotSpec:
     T_flange_tip: F64 | None = None
     joint_stiffness: tuple[float, ...] | None = None
     tool_rotation: float = 0.0
+    #: a URDF robot's flange link (default: the URDF reader's choice; ``--tip-link``)
+    tip_link: str | None = None
 
 
 @dataclass(frozen=True)
@@ -635,7 +637,14 @@ def _robot_model(c: _Collector, root: Path, model: str) -> str | None:
     return str(p)
 
 
-def _check_reach(c: _Collector, model: str, T_bw: F64, T_ft: F64 | None, part: Part | None) -> None:
+def _check_reach(
+    c: _Collector,
+    model: str,
+    T_bw: F64,
+    T_ft: F64 | None,
+    part: Part | None,
+    tip_link: str | None = None,
+) -> None:
     """Refuse a placement that puts the part outside any pose the robot could reach.
 
     The bound is generous and cheap: no point is farther from the base origin than the sum of
@@ -647,9 +656,9 @@ def _check_reach(c: _Collector, model: str, T_bw: F64, T_ft: F64 | None, part: P
     from roboisf.robot import load_robot
 
     try:
-        robot = load_robot(model)
+        robot = load_robot(model, tip_link=tip_link)
     except InputError as e:
-        c.catch(e, "robot.model")
+        c.catch(e, "robot.model" if tip_link is None else "robot.tip_link")
         return
     tip = robot.T_flange_tip if T_ft is None else T_ft
     reach = float(
@@ -827,7 +836,7 @@ def load_study(path: str | Path) -> Study:
         rb = c.table(
             data,
             "robot",
-            {"model", "placement", "flange_to_tip", "joint_stiffness", "tool_rotation"},
+            {"model", "placement", "flange_to_tip", "joint_stiffness", "tool_rotation", "tip_link"},
         )
         model = rb.get("model")
         if not isinstance(model, str) or not model:
@@ -870,14 +879,19 @@ def load_study(path: str | Path) -> Study:
                 K = None
                 break
         rot = c.number(rb, "robot", "tool_rotation", default=0.0, bound="angle")
+        tip = rb.get("tip_link")
+        if tip is not None and not (isinstance(tip, str) and tip):
+            c.add(f"expected the name of a link of the URDF, got {tip!r}", "robot.tip_link")
+            model = None
         if isinstance(model, str) and T_bw is not None:
-            _check_reach(c, model, T_bw, T_ft, part)
+            _check_reach(c, model, T_bw, T_ft, part, tip)
             robot = RobotSpec(
                 model,
                 T_bw,
                 T_ft,
                 None if K is None else tuple(float(k) for k in K),
                 math.radians(rot or 0.0),
+                tip,
             )
 
     at = c.table(

@@ -858,7 +858,9 @@ def _write_study_toml(
         "flange_to_tip": _pose_list(c.T_flange_tip),
         "tool_rotation": math.degrees(c.tool_rotation),
     }
-    preset = load_robot(c.robot_name).stiffness
+    if c.tip_link is not None:
+        robot["tip_link"] = c.tip_link
+    preset = load_robot(c.robot_name, tip_link=c.tip_link).stiffness
     K = c.robot.stiffness
     if K is not None and (preset is None or not np.array_equal(K, preset)):
         robot["joint_stiffness"] = [float(k) for k in K]
