@@ -159,7 +159,10 @@ def read_results(folder: str | Path, *, formed_at: str | None = None) -> PartRec
     }
     for name, path in files.items():
         if not path.is_file():
-            raise InputError(f"no {name}: not an `roboisf analyze` results folder", file=root)
+            raise InputError(
+                f"no {name}: not a results folder of `roboisf analyze`",
+                file=root,
+            )
     summary = _json(files["summary.json"])
     try:
         df = pd.read_parquet(files["per_point.parquet"])
