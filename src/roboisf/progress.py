@@ -8,6 +8,7 @@ implementation (``roboisf.cli.console``); library users get silence by default.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
 import threading
 from collections.abc import Callable, Iterator
@@ -101,14 +102,16 @@ def set_notice(fn: Callable[[str], None] | None) -> None:
 
 def _cache_dirs(source: Path) -> list[Path]:
     """Where numba keeps the on-disk cache of ``source``'s ``cache=True`` functions: beside it
-    in ``__pycache__``, or under ``$NUMBA_CACHE_DIR`` / the user's cache folder, mirroring the
-    source's folder."""
-    tail = str(source.parent.resolve()).lstrip(os.sep)
+    in ``__pycache__``, or under ``$NUMBA_CACHE_DIR`` / the user's cache folder in a folder
+    named after the source's folder and the SHA-1 of its absolute path (numba's
+    ``_CacheLocator.get_suitable_cache_subpath``)."""
+    parent = os.path.dirname(os.path.abspath(source))
+    sub = os.path.basename(parent) + "_" + hashlib.sha1(parent.encode()).hexdigest()
     dirs = [source.parent / "__pycache__"]
     env = os.environ.get("NUMBA_CACHE_DIR")
     if env:
-        dirs.insert(0, Path(env) / tail)
-    dirs.append(Path.home() / ".cache" / "numba" / tail)
+        dirs.insert(0, Path(env) / sub)
+    dirs.append(Path.home() / ".cache" / "numba" / sub)
     return dirs
 
 
