@@ -107,12 +107,10 @@ def _cache_dirs(source: Path) -> list[Path]:
     ``_CacheLocator.get_suitable_cache_subpath``)."""
     parent = os.path.dirname(os.path.abspath(source))
     sub = os.path.basename(parent) + "_" + hashlib.sha1(parent.encode()).hexdigest()
-    dirs = [source.parent / "__pycache__"]
     env = os.environ.get("NUMBA_CACHE_DIR")
-    if env:
-        dirs.insert(0, Path(env) / sub)
-    dirs.append(Path.home() / ".cache" / "numba" / sub)
-    return dirs
+    if env:  # numba then looks nowhere else
+        return [Path(env) / sub]
+    return [source.parent / "__pycache__", Path.home() / ".cache" / "numba" / sub]
 
 
 def kernel_cached(module_file: str | os.PathLike[str]) -> bool:
