@@ -107,3 +107,19 @@ def test_first_process_serves_numpy_builds_in_background_next_runs_compiled(tmp_
     # numpy vs numba engine: same arithmetic up to rounding (tests/test_robot_vjm.py: ≤ 1e-14
     # relative on compliances); deflections here are ≤ 1e-3 m, so 1e-15 m absolute ≈ 1e-12 rel.
     np.testing.assert_allclose(d2, d1, rtol=1e-10, atol=1e-15)
+
+
+def test_spawning_a_builder_says_so_once(monkeypatch, tmp_path):
+    from roboisf import progress
+
+    said: list[str] = []
+    progress.set_notice(said.append)
+    try:
+        monkeypatch.setattr(warm, "lock_path", lambda: tmp_path / "x.lock")
+        monkeypatch.setattr(warm.subprocess, "Popen", lambda *a, **k: None)
+        warm._spawn()
+        (tmp_path / "x.lock").unlink()
+        warm._spawn()
+    finally:
+        progress.set_notice(None)
+    assert len(said) == 1 and "background" in said[0] and warm.BUILD_WAIT in said[0]

@@ -21,6 +21,7 @@ __all__ = [
     "Cancelled",
     "Progress",
     "cancellable",
+    "background_build_notice",
     "compile_notice",
     "kernel_cached",
     "noop_advance",
@@ -143,4 +144,17 @@ def compile_notice(module_file: str | os.PathLike[str]) -> None:
     _notice(
         "building roboisf's compiled kernels (numba) for the first time — "
         f"{COMPILE_WAIT}; they are cached on disk, later runs start in seconds"
+    )
+
+
+def background_build_notice(what: str, wait: str) -> None:
+    """Say once per process (through :func:`set_notice`'s hook) that ``what`` kernels are being
+    built in a background process taking ``wait``, while this run uses the numpy engine."""
+    global _announced
+    if _notice is None or _announced:
+        return
+    _announced = True
+    _notice(
+        f"building roboisf's compiled {what} kernels (numba) in the background ({wait}); "
+        "this run uses the numpy engine, later runs the compiled one"
     )
