@@ -40,8 +40,16 @@ def cases(d: str) -> dict[str, list[str]]:
         "robot show": ["robot", "show", "--robot", "irb7600-500-2.55", "-o", "{o}/map.png"],
         "plan": ["plan", "--part", f"{d}/cone.toml", "-o", "{o}"],
         "online --simulate": [
-            "online", "-c", "egm", "--virtual", "cone", "--simulate", "--duration", "5",
-            "-o", "{o}/sim.parquet",
+            "online",
+            "-c",
+            "egm",
+            "--virtual",
+            "cone",
+            "--simulate",
+            "--duration",
+            "5",
+            "-o",
+            "{o}/sim.parquet",
         ],
     }
 
@@ -49,8 +57,12 @@ def cases(d: str) -> dict[str, list[str]]:
 def _run(args: list[str], env: dict[str, str], cwd: str) -> tuple[float, int]:
     t = time.perf_counter()
     r = subprocess.run(
-        [sys.executable, "-c", RUN, "-q", *args], env=env, cwd=cwd,
-        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+        [sys.executable, "-c", RUN, "-q", *args],
+        env=env,
+        cwd=cwd,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
     )
     if r.returncode != 0:
         print(f"  ! {' '.join(args)} → exit {r.returncode}: {r.stderr.strip()[-300:]}", flush=True)
@@ -84,15 +96,31 @@ def main() -> None:
         print("inputs (not timed) …", flush=True)
         for args in (
             ["part", "cone", "-o", f"{d}/cone.toml"],
-            ["virtual-cell", "cone", "--step-down", "2", "--spacing", "4", "--scan-points",
-             "150000", "--force-rate", "50", "--joint-rate", "20", "-o", f"{d}/small"],
+            [
+                "virtual-cell",
+                "cone",
+                "--step-down",
+                "2",
+                "--spacing",
+                "4",
+                "--scan-points",
+                "150000",
+                "--force-rate",
+                "50",
+                "--joint-rate",
+                "20",
+                "-o",
+                f"{d}/small",
+            ],
         ):
             if _run(args, setup, d)[1] != 0:
                 sys.exit("could not make the inputs")
         _wait_builders(a.wait)
         print(f"background build: {os.environ.get('ROBOISF_BACKGROUND_COMPILE', '1') != '0'}")
-        print(f"{'command':32s} {'first s':>8s} {'second s':>9s} {'ratio':>6s} "
-              f"{'builder s':>9s}  load (1/5/15 min)")
+        print(
+            f"{'command':32s} {'first s':>8s} {'second s':>9s} {'ratio':>6s} "
+            f"{'builder s':>9s}  load (1/5/15 min)"
+        )
         for k, (name, args) in enumerate(cases(d).items()):
             if a.only and not any(name.startswith(p) for p in a.only.split(",")):
                 continue
@@ -107,8 +135,11 @@ def main() -> None:
                 shutil.rmtree(out, ignore_errors=True)
                 if call == 0:
                     waited = _wait_builders(a.wait)
-            print(f"{name:32s} {times[0]:8.1f} {times[1]:9.1f} {times[0] / times[1]:6.2f} "
-                  f"{waited:9.1f}  {load}", flush=True)
+            print(
+                f"{name:32s} {times[0]:8.1f} {times[1]:9.1f} {times[0] / times[1]:6.2f} "
+                f"{waited:9.1f}  {load}",
+                flush=True,
+            )
     print("ratios are from back-to-back pairs; absolute times need a quiet machine")
 
 

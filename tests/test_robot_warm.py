@@ -89,8 +89,9 @@ def test_first_process_serves_numpy_builds_in_background_next_runs_compiled(tmp_
     env["PYTHONPATH"] = os.pathsep.join(p for p in sys.path if p)
     run = [sys.executable, "-c", _PROBE]
     first = json.loads(
-        subprocess.run([*run, str(tmp_path / "d1.npy")], env=env, check=True,
-                       capture_output=True, text=True).stdout
+        subprocess.run(
+            [*run, str(tmp_path / "d1.npy")], env=env, check=True, capture_output=True, text=True
+        ).stdout
     )
     assert first["compiled"] is False  # empty cache: numpy serves the first run
     lock = Path(first["lock"])
@@ -99,8 +100,9 @@ def test_first_process_serves_numpy_builds_in_background_next_runs_compiled(tmp_
         time.sleep(1.0)
     assert not lock.exists(), "background build did not finish in 10 min"
     second = json.loads(
-        subprocess.run([*run, str(tmp_path / "d2.npy")], env=env, check=True,
-                       capture_output=True, text=True).stdout
+        subprocess.run(
+            [*run, str(tmp_path / "d2.npy")], env=env, check=True, capture_output=True, text=True
+        ).stdout
     )
     assert second["compiled"] is True  # the cache the builder left is used
     d1, d2 = np.load(tmp_path / "d1.npy"), np.load(tmp_path / "d2.npy")

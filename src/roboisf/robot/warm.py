@@ -29,7 +29,17 @@ from pathlib import Path
 
 from roboisf.progress import background_build_notice, kernel_cached
 
-__all__ = ["BUILD_WAIT", "ENV", "KERNEL_FILES", "STALE_S", "background_enabled", "compiled_ready", "lock_path"]
+__all__ = [
+    "BUILD_WAIT",
+    "ENV",
+    "KERNEL_FILES",
+    "STALE_S",
+    "all_cached",
+    "background_enabled",
+    "build",
+    "compiled_ready",
+    "lock_path",
+]
 
 #: Environment switch: "0" compiles in the foreground on first use (no background builder).
 ENV = "ROBOISF_BACKGROUND_COMPILE"
@@ -53,15 +63,17 @@ def background_enabled() -> bool:
 
 def lock_path() -> Path:
     """The builder's lock file: one per cache folder and per version of the kernel sources."""
-    key = os.environ.get("NUMBA_CACHE_DIR", "") + "|" + "|".join(
-        f"{p}:{p.stat().st_mtime_ns}" for p in KERNEL_FILES if p.exists()
+    key = (
+        os.environ.get("NUMBA_CACHE_DIR", "")
+        + "|"
+        + "|".join(f"{p}:{p.stat().st_mtime_ns}" for p in KERNEL_FILES if p.exists())
     )
     digest = hashlib.sha1(key.encode()).hexdigest()[:16]
     return Path(tempfile.gettempdir()) / f"roboisf-kernel-build-{digest}.lock"
 
 
 def _take_lock(path: Path) -> bool:
-    """Create ``path`` exclusively (a stale one is replaced); False when another builder holds it."""
+    """Create ``path`` exclusively (a stale one is replaced); False while another builder has it."""
     for _ in range(2):
         try:
             fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
