@@ -125,3 +125,25 @@ def test_spawning_a_builder_says_so_once(monkeypatch, tmp_path):
     finally:
         progress.set_notice(None)
     assert len(said) == 1 and "background" in said[0] and warm.BUILD_WAIT in said[0]
+
+
+def test_builder_is_detached_silent_and_does_not_spawn_builders(monkeypatch, tmp_path):
+    """Its own session (a Ctrl-C of the user's command does not reach it), stdio on /dev/null
+    (never writes to the user's terminal), background building off in its environment."""
+    seen: dict = {}
+    monkeypatch.setattr(warm, "lock_path", lambda: tmp_path / "y.lock")
+    monkeypatch.setattr(warm.subprocess, "Popen", lambda cmd, **k: seen.update(cmd=cmd, **k))
+    warm._spawn()
+    assert seen["start_new_session"] is True
+    assert all(seen[s] is subprocess.DEVNULL for s in ("stdin", "stdout", "stderr"))
+    assert seen["env"][warm.ENV] == "0"
+    assert seen["cmd"][1:3] == ["-m", "roboisf.robot.warm"]
+    assert seen["cmd"][3] == str(tmp_path / "y.lock")  # the builder removes the lock when done
+
+
+def test_builder_removes_its_lock_even_when_the_build_fails(monkeypatch, tmp_path):
+    lock = tmp_path / "z.lock"
+    lock.write_text("1")
+    monkeypatch.setattr(warm, "build", lambda: 1 / 0)
+    assert warm.main([str(lock)]) == 1
+    assert not lock.exists()
