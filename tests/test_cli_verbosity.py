@@ -4,6 +4,8 @@ output (verdicts, next command) and the part file's numbers (issue #30)."""
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -69,14 +71,18 @@ def test_kernel_cached_reads_the_numba_index_beside_the_module(tmp_path, monkeyp
 
 
 def test_kernel_cached_reads_numba_cache_dir(tmp_path, monkeypatch):
+    """The layout numba itself writes under $NUMBA_CACHE_DIR (``<folder>_<sha1 of its path>``),
+    checked against a real cached compile, not a hand-made folder."""
+    pytest.importorskip("numba")
     monkeypatch.setenv("HOME", str(tmp_path / "home"))
-    src = _module(tmp_path)
+    src = tmp_path / "pkg" / "kern.py"
+    src.parent.mkdir()
+    src.write_text("import numba\n\n@numba.njit(cache=True)\ndef f(x):\n    return x + 1\n")
     cache = tmp_path / "nbcache"
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(cache))
     assert not progress.kernel_cached(src)
-    mirror = cache / str(src.parent.resolve()).lstrip(os.sep)
-    mirror.mkdir(parents=True)
-    (mirror / "kern.f-1.py311.nbi").write_text("")
+    env = dict(os.environ, PYTHONPATH=str(src.parent))
+    subprocess.run([sys.executable, "-c", "import kern; kern.f(1)"], env=env, check=True)
     assert progress.kernel_cached(src)
 
 

@@ -8,6 +8,7 @@ implementation (``roboisf.cli.console``); library users get silence by default.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
 import threading
 from collections.abc import Callable, Iterator
@@ -19,6 +20,7 @@ __all__ = [
     "NULL_PROGRESS",
     "Cancelled",
     "Progress",
+    "background_build_notice",
     "cancellable",
     "compile_notice",
     "kernel_cached",
@@ -101,15 +103,15 @@ def set_notice(fn: Callable[[str], None] | None) -> None:
 
 def _cache_dirs(source: Path) -> list[Path]:
     """Where numba keeps the on-disk cache of ``source``'s ``cache=True`` functions: beside it
-    in ``__pycache__``, or under ``$NUMBA_CACHE_DIR`` / the user's cache folder, mirroring the
-    source's folder."""
-    tail = str(source.parent.resolve()).lstrip(os.sep)
-    dirs = [source.parent / "__pycache__"]
+    in ``__pycache__``, or under ``$NUMBA_CACHE_DIR`` / the user's cache folder in a folder
+    named after the source's folder and the SHA-1 of its absolute path (numba's
+    ``_CacheLocator.get_suitable_cache_subpath``)."""
+    parent = os.path.dirname(os.path.abspath(source))
+    sub = os.path.basename(parent) + "_" + hashlib.sha1(parent.encode()).hexdigest()
     env = os.environ.get("NUMBA_CACHE_DIR")
-    if env:
-        dirs.insert(0, Path(env) / tail)
-    dirs.append(Path.home() / ".cache" / "numba" / tail)
-    return dirs
+    if env:  # numba then looks nowhere else
+        return [Path(env) / sub]
+    return [source.parent / "__pycache__", Path.home() / ".cache" / "numba" / sub]
 
 
 def kernel_cached(module_file: str | os.PathLike[str]) -> bool:
@@ -142,4 +144,17 @@ def compile_notice(module_file: str | os.PathLike[str]) -> None:
     _notice(
         "building roboisf's compiled kernels (numba) for the first time — "
         f"{COMPILE_WAIT}; they are cached on disk, later runs start in seconds"
+    )
+
+
+def background_build_notice(what: str, wait: str) -> None:
+    """Say once per process (through :func:`set_notice`'s hook) that ``what`` kernels are being
+    built in a background process taking ``wait``, while this run uses the numpy engine."""
+    global _announced
+    if _notice is None or _announced:
+        return
+    _announced = True
+    _notice(
+        f"building roboisf's compiled {what} kernels (numba) in the background ({wait}); "
+        "this run uses the numpy engine, later runs the compiled one"
     )

@@ -84,11 +84,18 @@ def use_numba(backend: str) -> bool:
     """True when ``backend`` ("auto", "numba" or "numpy") resolves to the compiled engine.
 
     The first time, imports :mod:`roboisf.robot.vjm_numba`; if numba is installed but fails to
-    import, "auto" falls back to numpy and "numba" is an :class:`InputError` saying why.
+    import, "auto" falls back to numpy and "numba" is an :class:`InputError` saying why. While
+    the compiled kernels are not cached yet, "auto" resolves to numpy and starts their build in
+    a background process (:mod:`roboisf.robot.warm`): no first run waits for the compiler.
     """
     global HAVE_NUMBA
     if check_backend(backend) == "numpy" or not HAVE_NUMBA:
         return False
+    if backend == "auto":
+        from roboisf.robot.warm import compiled_ready
+
+        if not compiled_ready():  # not built yet: numpy serves, a background process builds
+            return False
     try:
         import roboisf.robot.vjm_numba  # noqa: F401
     except ImportError as e:  # pragma: no cover - a broken numba install

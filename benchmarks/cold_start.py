@@ -1,0 +1,147 @@
+"""First call vs second call of every heavy command from a fresh kernel cache (issue #31).
+
+Run by hand:  PYTHONPATH=src python benchmarks/cold_start.py [--only demo,analyze] [--wait 600]
+
+For each command — ``demo``, ``analyze`` of a small virtual study, ``robot show``, ``plan``,
+``online --simulate`` — a fresh, empty ``NUMBA_CACHE_DIR`` (what a new install has), then:
+the **first** call (timed), a wait until any background kernel builder it started has finished
+(its lock file in the temp folder is gone; the wait is printed, it is not the user's), then the
+**second** call (timed), back to back so that both see the same machine load. Printed side by
+side: first, second, first/second (the issue's target: ≤ 1.5), the builder wait, and the load
+average before the pair. The inputs (a cone part, the small virtual study) are made once up
+front with their own cache and are not timed. ``ROBOISF_BACKGROUND_COMPILE=0`` in the
+environment measures the old behaviour (compile in the foreground on first use).
+
+The machine is usually shared: ratios from back-to-back pairs hold up under load, absolute
+times need a quiet machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import glob
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+RUN = (
+    "import sys; from roboisf.cli.main import entry; sys.argv = ['roboisf', *sys.argv[1:]]; entry()"
+)
+
+
+def cases(d: str) -> dict[str, list[str]]:
+    """Command name → arguments; ``{o}`` is replaced by a fresh output folder per call."""
+    return {
+        "demo": ["demo", "-o", "{o}"],
+        "analyze (small virtual study)": ["analyze", f"{d}/small", "-o", "{o}"],
+        "robot show": ["robot", "show", "--robot", "irb7600-500-2.55", "-o", "{o}/map.png"],
+        "plan": ["plan", "--part", f"{d}/cone.toml", "-o", "{o}"],
+        "online --simulate": [
+            "online",
+            "-c",
+            "egm",
+            "--virtual",
+            "cone",
+            "--simulate",
+            "--duration",
+            "5",
+            "-o",
+            "{o}/sim.parquet",
+        ],
+    }
+
+
+def _run(args: list[str], env: dict[str, str], cwd: str) -> tuple[float, int]:
+    t = time.perf_counter()
+    r = subprocess.run(
+        [sys.executable, "-c", RUN, "-q", *args],
+        env=env,
+        cwd=cwd,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    if r.returncode != 0:
+        print(f"  ! {' '.join(args)} → exit {r.returncode}: {r.stderr.strip()[-300:]}", flush=True)
+    return time.perf_counter() - t, r.returncode
+
+
+def _builders() -> list[str]:
+    return glob.glob(os.path.join(tempfile.gettempdir(), "roboisf-kernel-build-*.lock"))
+
+
+def _wait_builders(timeout: float) -> float:
+    t = time.perf_counter()
+    while _builders() and time.perf_counter() - t < timeout:
+        time.sleep(0.5)
+    return time.perf_counter() - t
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--only", help="comma-separated case names (prefixes) to run")
+    ap.add_argument("--wait", type=float, default=600.0, help="longest wait for a builder [s]")
+    a = ap.parse_args()
+
+    base = dict(os.environ)
+    here = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir, "src"))
+    base["PYTHONPATH"] = here + os.pathsep + base.get("PYTHONPATH", "")
+    if _builders():
+        sys.exit(f"kernel builders already running ({_builders()}); wait for them first")
+    with tempfile.TemporaryDirectory(prefix="roboisf-cold-") as d:
+        setup = dict(base, NUMBA_CACHE_DIR=os.path.join(d, "setup-cache"))
+        print("inputs (not timed) …", flush=True)
+        for args in (
+            ["part", "cone", "-o", f"{d}/cone.toml"],
+            [
+                "virtual-cell",
+                "cone",
+                "--step-down",
+                "2",
+                "--spacing",
+                "4",
+                "--scan-points",
+                "150000",
+                "--force-rate",
+                "50",
+                "--joint-rate",
+                "20",
+                "-o",
+                f"{d}/small",
+            ],
+        ):
+            if _run(args, setup, d)[1] != 0:
+                sys.exit("could not make the inputs")
+        _wait_builders(a.wait)
+        print(f"background build: {os.environ.get('ROBOISF_BACKGROUND_COMPILE', '1') != '0'}")
+        print(
+            f"{'command':32s} {'first s':>8s} {'second s':>9s} {'ratio':>6s} "
+            f"{'builder s':>9s}  load (1/5/15 min)"
+        )
+        for k, (name, args) in enumerate(cases(d).items()):
+            if a.only and not any(name.startswith(p) for p in a.only.split(",")):
+                continue
+            env = dict(base, NUMBA_CACHE_DIR=os.path.join(d, f"cache-{k}"))
+            load = " ".join(f"{x:.2f}" for x in os.getloadavg())
+            times = []
+            waited = 0.0
+            for call in range(2):
+                out = os.path.join(d, f"out-{k}-{call}")
+                t, _ = _run([x.replace("{o}", out) for x in args], env, d)
+                times.append(t)
+                shutil.rmtree(out, ignore_errors=True)
+                if call == 0:
+                    waited = _wait_builders(a.wait)
+            print(
+                f"{name:32s} {times[0]:8.1f} {times[1]:9.1f} {times[0] / times[1]:6.2f} "
+                f"{waited:9.1f}  {load}",
+                flush=True,
+            )
+    print("ratios are from back-to-back pairs; absolute times need a quiet machine")
+
+
+if __name__ == "__main__":
+    main()
