@@ -65,3 +65,24 @@ def test_every_registered_command_is_covered():
     assert len(names) >= 13
     covered = {c[0] for c in COMMANDS if c}
     assert names <= covered, names - covered
+
+
+def test_python_dash_m_runs_the_cli():
+    """``python -m roboisf`` is the ``roboisf`` command (it once exited 0 and did nothing)."""
+    import subprocess
+    import sys
+
+    from roboisf import __version__
+
+    out = subprocess.run(
+        [sys.executable, "-m", "roboisf", "--version"], capture_output=True, text=True, timeout=60
+    )
+    assert out.returncode == 0, out.stderr
+    assert __version__ in out.stdout
+    bad = subprocess.run(
+        [sys.executable, "-m", "roboisf", "no-such-command"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert bad.returncode == 2
