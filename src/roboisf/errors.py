@@ -9,12 +9,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+from numpy.typing import ArrayLike
+
 __all__ = [
     "ConvergenceError",
     "InputError",
     "ResourceError",
     "RoboisfError",
     "UnreachableError",
+    "short_indices",
 ]
 
 
@@ -88,3 +92,11 @@ class ConvergenceError(RoboisfError):
 
     The message says what was tried and where it stopped.
     """
+
+
+def short_indices(idx: ArrayLike, n: int = 8) -> str:
+    """The indices an error message names: the first ``n`` of ``idx`` (any shape, flattened),
+    comma-separated, then ``, … (K in all)`` when there are more — ``"3, 4, 9"``."""
+    items: list[int] = [int(i) for i in np.asarray(idx).reshape(-1)]
+    s = ", ".join(str(i) for i in items[:n])
+    return s + (f", … ({len(items)} in all)" if len(items) > n else "")

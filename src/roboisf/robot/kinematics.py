@@ -33,6 +33,7 @@ __all__ = [
     "chain_from_dh",
     "chain_from_opw",
     "rz",
+    "sweep",
 ]
 
 F64 = NDArray[np.float64]
@@ -214,7 +215,7 @@ def chain_from_dh(
 
 def chain_fk(chain: Chain, q: F64, T_flange_tip: F64 | None = None) -> F64:
     """Forward kinematics ``T_base_tip`` (N, 4, 4) for ``q`` (N, 6) rad."""
-    R, p, _, _ = _sweep(chain, q, T_flange_tip, want_axes=False)
+    R, p, _, _ = sweep(chain, q, T_flange_tip, want_axes=False)
     T = np.zeros((q.shape[0], 4, 4))
     T[:, :3, :3] = R
     T[:, :3, 3] = p
@@ -224,7 +225,7 @@ def chain_fk(chain: Chain, q: F64, T_flange_tip: F64 | None = None) -> F64:
 
 def chain_fk_jacobian(chain: Chain, q: F64, T_flange_tip: F64 | None = None) -> tuple[F64, F64]:
     """``T_base_tip`` (N, 4, 4) and the tip Jacobian (N, 6, 6), base frame, rows [v; ω]."""
-    R, p, z, o = _sweep(chain, q, T_flange_tip, want_axes=True)
+    R, p, z, o = sweep(chain, q, T_flange_tip, want_axes=True)
     assert z is not None and o is not None
     n = q.shape[0]
     T = np.zeros((n, 4, 4))
@@ -241,7 +242,7 @@ def chain_fk_jacobian(chain: Chain, q: F64, T_flange_tip: F64 | None = None) -> 
     return T, J
 
 
-def _sweep(
+def sweep(
     chain: Chain, q: F64, T_flange_tip: F64 | None, *, want_axes: bool
 ) -> tuple[F64, F64, F64 | None, F64 | None]:
     """Walk the chain once: rotation (N,3,3), position (N,3), joint axes and origins (N,6,3).

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from roboisf.errors import InputError
+from roboisf.errors import InputError, short_indices
 from roboisf.progress import Progress
 from roboisf.robot import vjm_kernel
 from roboisf.robot.kinematics import (
@@ -165,7 +165,9 @@ class RobotModel:
             )
         if not np.isfinite(arr).all():  # one pass; the rows only for the message
             idx = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
-            raise InputError(f"joint angles contain NaN or inf at rows {_short(idx)}", field=field)
+            raise InputError(
+                f"joint angles contain NaN or inf at rows {short_indices(idx)}", field=field
+            )
         if limits:
             tol = 1e-9
             out = (arr < self.q_min - tol) | (arr > self.q_max + tol)
@@ -173,7 +175,7 @@ class RobotModel:
                 rows, cols = np.nonzero(out)
                 j = cols[0]
                 raise InputError(
-                    f"joint angles beyond the limits of {self.name} at rows {_short(rows)}: "
+                    f"joint angles beyond the limits of {self.name} at rows {short_indices(rows)}: "
                     f"e.g. row {rows[0]} A{j + 1} = {np.degrees(arr[rows[0], j]):.3f} deg, "
                     f"limits [{np.degrees(self.q_min[j]):.1f}, "
                     f"{np.degrees(self.q_max[j]):.1f}] deg",
@@ -426,9 +428,3 @@ def _check_rigid(T: F64, name: str) -> None:
         raise InputError(
             "must be a rigid transform (orthonormal rotation, last row 0 0 0 1)", field=name
         )
-
-
-def _short(idx: ArrayLike, n: int = 8) -> str:
-    items: list[int] = [int(i) for i in np.asarray(idx).reshape(-1)]
-    s = ", ".join(str(i) for i in items[:n])
-    return s + (f", … ({len(items)} in all)" if len(items) > n else "")
