@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
+from roboisf.frames.se3 import check_rigid
 
 __all__ = [
     "Chain",
@@ -86,9 +87,7 @@ class Chain:
         offset = np.asarray(self.offset, dtype=float).reshape(-1)
         if F.shape != (7, 4, 4) or not np.all(np.isfinite(F)):
             raise InputError(f"chain needs 7 finite 4×4 fixed transforms, got {F.shape}", field="F")
-        R = F[:, :3, :3]
-        if np.max(np.abs(R @ np.swapaxes(R, -1, -2) - np.eye(3))) > 1e-9:
-            raise InputError("fixed transforms must have orthonormal rotations", field="F")
+        check_rigid(F, "F")  # the chain's fixed transforms
         if sign.shape != (6,) or not np.all(np.isin(sign, (-1.0, 1.0))):
             raise InputError(f"sign must be 6 values of ±1, got {sign.tolist()}", field="sign")
         if offset.shape != (6,) or not np.all(np.isfinite(offset)):
