@@ -12,10 +12,12 @@ import typer
 from roboisf.cli.console import state
 from roboisf.cli.outputs import FILE_HELP, Overwrite, output_file, study_inputs
 from roboisf.errors import InputError
+from roboisf.virtual.builtin import builtin_names, paper_scenario_names
 
 __all__ = ["register"]
 
-VIRTUAL = ("cone", "vwacf", "pyramid")
+VIRTUAL = builtin_names()
+SCENARIO_CELLS = paper_scenario_names()
 
 
 def _floats(text: str | None, n: int, field: str) -> list[float] | None:
@@ -103,8 +105,8 @@ def online(
     scenario: str | None = typer.Option(
         None,
         "--scenario",
-        help="With --virtual cone|vwacf: the cell's truth (e.g. `paper`, the paper's robot that "
-        "differs from the VJM model the loop uses; docs/virtual-cell.md).",
+        help=f"With --virtual {'|'.join(SCENARIO_CELLS)}: the cell's truth (e.g. `paper`, the "
+        "paper's robot that differs from the VJM model the loop uses; docs/virtual-cell.md).",
     ),
     scan_points: int = typer.Option(
         300_000, "--scan-points", help="Points per simulated scan of --form's study."
@@ -262,14 +264,18 @@ def online(
         raise InputError(
             "--form needs --simulate (the part a simulated run formed)", field="--form"
         )
-    if scenario is not None and virtual not in ("cone", "vwacf"):
-        raise InputError("--scenario needs --virtual cone|vwacf", field="--scenario")
+    if scenario is not None and virtual not in SCENARIO_CELLS:
+        raise InputError(
+            f"--scenario needs --virtual {'|'.join(SCENARIO_CELLS)}", field="--scenario"
+        )
     if kind == "replay":
         study = Path(arg)
     if (study is None) == (virtual is None):
         raise InputError("give the cell: --study STUDY or --virtual NAME", field="--study")
-    if virtual is not None and virtual not in VIRTUAL:
-        raise InputError(f"must be one of {', '.join(VIRTUAL)}, got {virtual!r}", field="--virtual")
+    if virtual is not None and virtual not in builtin_names():
+        raise InputError(
+            f"must be one of {', '.join(builtin_names())}, got {virtual!r}", field="--virtual"
+        )
     if controller == "replay" and kind != "replay":
         raise InputError("--controller replay needs --sensor replay:STUDY", field="--controller")
     rt = Realtime(realtime, cpu, mlock)  # InputError for a priority or CPU that cannot be
@@ -364,15 +370,14 @@ def online(
     spec_pose = None
     if virtual is not None:
         from roboisf.online.sim import virtual_setup
-        from roboisf.virtual.cell import paper_cone_cell, paper_vwacf_cell, pyramid_cell
+        from roboisf.virtual.builtin import make_builtin_cell
 
-        makers = {"cone": paper_cone_cell, "vwacf": paper_vwacf_cell, "pyramid": pyramid_cell}
         cell_kw: dict[str, Any] = {"scan_points": scan_points if form is not None else 1000}
         if scenario is not None:
             from roboisf.virtual.truth import load_truth
 
             cell_kw["truth"] = load_truth(scenario=scenario, part=virtual)
-        vc = makers[virtual](**cell_kw)
+        vc = make_builtin_cell(virtual, field="--virtual", **cell_kw)
         setup = virtual_setup(vc, cutoff=cutoff)
         cell = vc.cell
         spec_pose = setup.sensor.T_flange_sensor

@@ -110,6 +110,7 @@ __all__ = [
     "paper_cone_cell",
     "paper_scenario_cell",
     "paper_vwacf_cell",
+    "part_cell",
     "pyramid_cell",
     "quantize_wrench",
     "sensor_wrench",
@@ -300,13 +301,15 @@ def paper_scenario_cell(part: str, **overrides: Any) -> VirtualCell:
     """The paper's cone or VWACF (``part`` = ``"cone"`` / ``"vwacf"``) with the ``paper``
     scenario's truth (:mod:`roboisf.virtual.truth`, package data ``scenarios/paper_*.toml``):
     the cell whose analysis reproduces the paper's Table 5. ``truth=`` in ``overrides`` wins."""
+    from roboisf.virtual.builtin import BUILTIN_CELLS, paper_scenario_names
     from roboisf.virtual.truth import load_truth
 
-    makers = {"cone": paper_cone_cell, "vwacf": paper_vwacf_cell}
-    if part not in makers:
-        raise InputError(f"expected 'cone' or 'vwacf', got {part!r}", field="part")
+    names = paper_scenario_names()
+    if part not in names:
+        expected = " or ".join(repr(n) for n in names)
+        raise InputError(f"expected {expected}, got {part!r}", field="part")
     settings = {"truth": load_truth(scenario="paper", part=part), **overrides}
-    return makers[part](**settings)
+    return BUILTIN_CELLS[part].make(**settings)
 
 
 #: The built-in pyramid of ``roboisf virtual-cell pyramid``: the common ISF benchmark's size, a
@@ -315,10 +318,16 @@ def paper_scenario_cell(part: str, **overrides: Any) -> VirtualCell:
 PYRAMID = Pyramid(100e-3, 100e-3, math.radians(60.0), 40e-3, corner_radius=10e-3)
 
 
-def pyramid_cell(part: Pyramid = PYRAMID, **overrides: Any) -> VirtualCell:
+def part_cell(name: str, part: Part, **overrides: Any) -> VirtualCell:
     """The paper-like cell (Ø10 ball, IRB 7600 at :data:`PAPER_CELL_PLACEMENT`, Aerens force,
-    the cone's springback model) around a pyramid (default :data:`PYRAMID`)."""
-    return virtual_cell("pyramid", part, **{"T_base_work": PAPER_CELL_PLACEMENT, **overrides})
+    the cone's springback model) around any ``part`` — a part file's
+    (``roboisf virtual-cell --part``, ``compensate --virtual PART.toml``)."""
+    return virtual_cell(name, part, **{"T_base_work": PAPER_CELL_PLACEMENT, **overrides})
+
+
+def pyramid_cell(part: Pyramid = PYRAMID, **overrides: Any) -> VirtualCell:
+    """:func:`part_cell` around a pyramid (default :data:`PYRAMID`)."""
+    return part_cell("pyramid", part, **overrides)
 
 
 @dataclass(frozen=True)
