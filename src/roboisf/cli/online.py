@@ -240,7 +240,7 @@ def online(
     import numpy as np
 
     from roboisf.cell import cell_from_study
-    from roboisf.frames import make_transform, rpy_to_matrix
+    from roboisf.frames.pose import XYZ_RPY_MM_DEG, parse_pose
     from roboisf.online import Limits, OnlineCompensator, SensorSetup, status_text
     from roboisf.online.egm import EgmAdapter
     from roboisf.online.loop import Loop, parse_address
@@ -388,9 +388,8 @@ def online(
         f = st.robot_run.forces
         if f.mount == "flange":
             spec_pose = cell.T_flange_tip @ f.pose
-    pose = _floats(sensor_pose, 6, "--sensor-pose")
-    if pose is not None:
-        T_fs = make_transform(rpy_to_matrix(np.radians(pose[3:])), np.array(pose[:3]) * 1e-3)
+    if sensor_pose is not None:
+        T_fs = parse_pose(sensor_pose, XYZ_RPY_MM_DEG, field="--sensor-pose")
     else:
         T_fs = spec_pose if spec_pose is not None else np.eye(4)
     if simulate:
@@ -426,7 +425,7 @@ def online(
 
         rep = load_replay(arg, cutoff=cutoff)
         src = ReplaySensor(rep.force_time, rep.force)
-        if pose is None:  # the study's sensor (pose, sign); the log is tared and compensated
+        if sensor_pose is None:  # the study's sensor (pose, sign); the log is tared and compensated
             sensor_setup = rep.sensor
     peak = _expected_peak(setup, study)
     plaus = _plausibility(peak, max_force, max_force_rate, max_tip_moment)

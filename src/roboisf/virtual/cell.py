@@ -68,11 +68,11 @@ from roboisf.fem import ComplianceResult, save_compliance_json
 from roboisf.frames import (
     invert,
     make_transform,
-    matrix_to_rpy,
     rpy_to_matrix,
     transform_wrench,
     vertical_tool,
 )
+from roboisf.frames.pose import format_pose
 from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
 from roboisf.io.forcelog import ForceLog, write_force_log
 from roboisf.io.jointlog import write_joint_log
@@ -134,12 +134,6 @@ CELL_KEYS = (
     "tool_rotation",
     "force",
 )
-
-
-def _pose_list(T: F64) -> list[float]:
-    """4×4 → [x, y, z, roll, pitch, yaw] in mm and deg (for study.toml)."""
-    rpy = np.degrees(matrix_to_rpy(T[:3, :3]))
-    return [round(float(v), 9) for v in (*(T[:3, 3] * 1e3), *rpy)]
 
 
 @dataclass(frozen=True, eq=False)
@@ -863,8 +857,8 @@ def _write_study_toml(
     c = cell.cell
     robot: dict[str, Any] = {
         "model": c.robot_name,
-        "placement": _pose_list(c.T_base_work),
-        "flange_to_tip": _pose_list(c.T_flange_tip),
+        "placement": format_pose(c.T_base_work),
+        "flange_to_tip": format_pose(c.T_flange_tip),
         "tool_rotation": math.degrees(c.tool_rotation),
     }
     if c.tip_link is not None:
@@ -903,7 +897,7 @@ def _write_study_toml(
                 "forces": {
                     "file": str(cnc.file),
                     "mount": cnc.mount,
-                    "pose": _pose_list(cnc.pose),
+                    "pose": format_pose(cnc.pose),
                     "load_on": cnc.load_on,
                 },
             },
@@ -917,7 +911,7 @@ def _write_study_toml(
                 "forces": {
                     "file": str(rob.file),
                     "mount": rob.mount,
-                    "pose": _pose_list(rob.pose),
+                    "pose": format_pose(rob.pose),
                     "load_on": rob.load_on,
                 },
                 **(robot_files or {}),
@@ -963,8 +957,8 @@ def cell_settings(cell: VirtualCell) -> dict[str, Any]:
         "name": cell.name,
         "part": c.part.to_dict() if not isinstance(c.part, MeshPart) else "mesh",
         "robot": c.robot_name,
-        "placement": _pose_list(c.T_base_work),
-        "flange_to_tip": _pose_list(c.T_flange_tip),
+        "placement": format_pose(c.T_base_work),
+        "flange_to_tip": format_pose(c.T_flange_tip),
         "tool_rotation_deg": math.degrees(c.tool_rotation),
         "step_down_mm": cell.step_down * 1e3,
         "spacing_mm": cell.spacing * 1e3,
