@@ -138,3 +138,15 @@ def test_no_module_converts_pose_angles_by_itself():
         if pattern.search(line)
     ]
     assert not found, "pose angles converted outside roboisf.frames.pose: " + ", ".join(found)
+
+
+def test_draft_study_checks_the_poses_it_is_given(tmp_path):
+    # the Python API of `study init` takes poses as lists (mm, deg): checked by the one parser
+    from roboisf.study.init import draft_study
+
+    with pytest.raises(InputError, match=r"\[placement\]: expected \[x, y, z, roll, pitch, yaw\]"):
+        draft_study(tmp_path, [], placement=[1.0, 2.0, 3.0])
+    with pytest.raises(InputError, match=r"\[robot_sensor_pose\].*got \[0, 0, 0, 0, 0, nan\]"):
+        draft_study(tmp_path, [], robot_sensor_pose=[0, 0, 0, 0, 0, math.nan])
+    draft = draft_study(tmp_path, [], placement=[2200, 0, 300, 0, 0, 90])
+    assert draft.data["robot"]["placement"] == [2200.0, 0.0, 300.0, 0.0, 0.0, 90.0]
