@@ -308,6 +308,7 @@ def _design_cmd(
 
     from roboisf.cli.outputs import output_dir
     from roboisf.frames import make_transform
+    from roboisf.frames.pose import XYZ_MM, parse_pose
     from roboisf.io.atomic import atomic_write, staged_directory
     from roboisf.robot.identify import design_experiment, write_experiment_csv, write_joint_program
 
@@ -320,7 +321,7 @@ def _design_cmd(
     inputs = [p for p in (stiffness,) if p is not None]
     output_dir(output, "robot identify --design", overwrite, [*inputs, *_files(robot, tool)])
     m = _model(robot, stiffness, tool)
-    tip = m.T_flange_tip[:3, 3] if tool is None else _floats(tool, 3, "--tool") * 1e-3
+    tip = m.T_flange_tip[:3, 3] if tool is None else parse_pose(tool, XYZ_MM, field="--tool")[:3, 3]
     point = tip + np.array([bracket * 1e-3, 0.0, 0.0])
     m = m.with_tool(make_transform(None, point))
     T_bw = _placement(placement, m)
