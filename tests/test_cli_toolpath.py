@@ -238,7 +238,7 @@ def test_robot_program_needs_placement_and_tool(tmp_path, capsys, suffix):
     code, cap = _run(
         ["toolpath", "cone", "--placement", "1,2", "--tool", "9", "-o", str(out)], capsys
     )
-    assert code == 2 and "X,Y,Z[,RX,RY,RZ]" in cap.err
+    assert code == 2 and "x,y,z[,roll,pitch,yaw] (mm, deg), 'base' or a study" in cap.err
     assert not list(tmp_path.iterdir())
 
 

@@ -5,9 +5,12 @@ import pytest
 
 from roboisf.errors import InputError
 from roboisf.frames import (
+    RIGID_TOL,
     abc_to_matrix,
     adjoint,
     check_compliance,
+    check_rigid,
+    check_rotation,
     compose,
     invert,
     make_transform,
@@ -243,3 +246,100 @@ def test_vertical_tool_by_hand():
     np.testing.assert_allclose(R @ [0, 0, 1], [0, 0, -1], atol=1e-15)  # tool z points down
     np.testing.assert_allclose(vertical_tool(0.3), rot_x(np.pi) @ rot_z(0.3), atol=1e-15)
     assert vertical_tool(np.zeros(4)).shape == (4, 3, 3)
+
+
+# -- the one rigid-transform check --------------------------------------------------------------
+
+
+def test_check_rigid_accepts_rigid_transforms_and_returns_floats():
+    T = random_T(5)
+    np.testing.assert_array_equal(check_rigid(T, "T"), T)
+    out = check_rigid(np.eye(4, dtype=int), "T")
+    assert out.dtype == np.float64
+    # a 45° rotation typed with seven decimals is rigid within RIGID_TOL
+    c = 0.7071068
+    T45 = [[c, -c, 0, 0.1], [c, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+    check_rigid(T45, "T_base_work")
+    assert RIGID_TOL == 1e-6
+
+
+@pytest.mark.parametrize(
+    ("damage", "why"),
+    [
+        (lambda T: T @ np.diag([1.0, 1.0, -1.0, 1.0]), "det R = -1"),  # a mirror
+        (lambda T: T @ np.diag([2.0, 1.0, 1.0, 1.0]), r"max \|R Rᵀ − I\|"),  # a scale
+        (lambda T: T @ np.diag([0.0, 1.0, 1.0, 1.0]), "det R = 0"),  # degenerate
+        (lambda T: T + np.diag([0.0, 0.0, 0.0, 1.0]), "last row"),
+        (lambda T: T + np.r_[np.zeros((3, 4)), [[0.0, 0.0, 1e-12, 0.0]]], "last row"),
+        (lambda T: np.where(np.eye(4) > 0, np.nan, T), "not finite"),
+    ],
+)
+def test_check_rigid_names_what_is_wrong(damage, why):
+    T = random_T()
+    with pytest.raises(InputError, match=rf"\[T_flange_tip\]: must be a rigid transform.*{why}"):
+        check_rigid(damage(T), "T_flange_tip", file="robot.toml")
+    with pytest.raises(InputError, match=r"^robot\.toml"):
+        check_rigid(damage(T), "T_flange_tip", file="robot.toml")
+
+
+def test_check_rigid_has_one_tolerance_and_names_the_batch_index():
+    T = random_T(4)
+    E = np.zeros((3, 3))
+    E[0, 1] = 0.8 * RIGID_TOL  # R Rᵀ − I ≈ E + Eᵀ: off-diagonal 0.8 × tolerance
+    ok = T.copy()
+    ok[2, :3, :3] = (np.eye(3) + E) @ T[2, :3, :3]
+    check_rigid(ok, "F")
+    bad = T.copy()
+    bad[2, :3, :3] = (np.eye(3) + 2 * E) @ T[2, :3, :3]  # 1.6 × tolerance
+    with pytest.raises(InputError, match="at index 2"):
+        check_rigid(bad, "F")
+    with pytest.raises(InputError, match=r"4×4 transform, got shape \(3, 3\)"):
+        check_rigid(np.eye(3), "F")
+
+
+def test_check_rotation_refuses_a_mirror_in_a_batch():
+    R = rot_z(np.linspace(0, 1, 3))
+    np.testing.assert_array_equal(check_rotation(R, "R_work_tool"), R)
+    R[1] = R[1] @ np.diag([1.0, -1.0, 1.0])
+    with pytest.raises(InputError, match=r"\[R_work_tool\].*det R = -1 at index 1"):
+        check_rotation(R, "R_work_tool")
+
+
+@pytest.mark.parametrize("where", ["robot", "cell", "program", "chain", "sensor"])
+def test_every_transform_input_uses_the_one_check(where):
+    # every consumer accepts a transform 0.5 × RIGID_TOL from orthonormal (the robot model, the
+    # cell, the chain and the sensor refused 1e-9 before) and refuses one 2 × RIGID_TOL away
+    # with the same message: one check, one tolerance
+    from roboisf.robot import load_robot
+
+    model = load_robot("irb4600-60-2.05")
+
+    def consume(scale):
+        E = np.eye(4)
+        E[0, 1] = scale * RIGID_TOL
+        if where == "robot":
+            model.with_tool(E)
+        elif where == "cell":
+            from roboisf.cell.model import _rigid_transform
+
+            _rigid_transform(E, "T_base_work")
+        elif where == "program":
+            from roboisf.io.program import check_placement
+
+            check_placement(E)
+        elif where == "chain":
+            from roboisf.robot.kinematics import Chain
+
+            F = model.chain.F.copy()
+            F[3] = F[3] @ E
+            Chain(F=F, sign=model.chain.sign, offset=model.chain.offset)
+        else:
+            from roboisf.online.core import SensorSetup
+
+            SensorSetup(T_flange_sensor=E)
+
+    consume(0.5)
+    with pytest.raises(
+        InputError, match=r"must be a rigid transform.*max \|R Rᵀ − I\| = .* > 1e-06"
+    ):
+        consume(2.0)

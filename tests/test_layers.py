@@ -1,9 +1,12 @@
-"""The package import graph has no cycle: roboisf's subpackages form layers.
+"""roboisf's subpackages form layers: every import goes down, none climbs back, none is private.
 
 The graph is built from the source with ``ast`` — module-level imports, imports inside functions
 and ``TYPE_CHECKING`` imports alike, since each is a dependency a reader has to follow — and an
-arrow ``a -> b`` means some module of subpackage ``a`` imports something of subpackage ``b``.
-A cycle is reported with the imports that make it, so the message says which line to move.
+arrow ``a -> b`` means some module of subpackage (or top-level module) ``a`` imports something of
+``b``. :data:`LAYERS` declares the order, lowest first; an arrow may only point to a lower layer.
+A cycle or a climbing arrow is reported with the imports that make it, so the message says which
+line to move. A name with a leading underscore is private to its subpackage: importing it from
+another one is reported too (make it public, or move it).
 """
 
 from __future__ import annotations
@@ -11,8 +14,6 @@ from __future__ import annotations
 import ast
 from collections import defaultdict
 from pathlib import Path
-
-import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src"
 PACKAGE = "roboisf"
@@ -43,14 +44,21 @@ def _imported(node: ast.AST, module: str, is_pkg: bool) -> list[str]:
     return []
 
 
-def package_graph(src: Path = SRC, package: str = PACKAGE) -> Graph:
-    """``graph[a][b]``: the imports (``"module:line -> target"``) by which subpackage ``a`` of
-    ``package`` imports subpackage ``b`` (a ≠ b). Top-level modules (``errors``, ``_lazy``) are no
-    package and import none, so they are left out."""
+def nodes(src: Path = SRC, package: str = PACKAGE) -> set[str]:
+    """The subpackages and top-level modules (but ``__init__``) of ``package``."""
     root = src / package
     subpackages = {p.name for p in root.iterdir() if (p / "__init__.py").is_file()}
+    modules = {p.stem for p in root.glob("*.py") if p.stem != "__init__"}
+    return subpackages | modules
+
+
+def package_graph(src: Path = SRC, package: str = PACKAGE) -> Graph:
+    """``graph[a][b]``: the imports (``"module:line -> target"``) by which subpackage ``a`` of
+    ``package`` imports subpackage ``b`` (a ≠ b). A top-level module (``errors``, ``progress``,
+    ``_lazy``, ``__main__``) is a node of its own; the package's ``__init__`` is left out."""
+    subpackages = nodes(src, package)
     graph: Graph = defaultdict(lambda: defaultdict(list))
-    for path in sorted(root.rglob("*.py")):
+    for path in sorted((src / package).rglob("*.py")):
         module, is_pkg = _module_name(path, src)
         parts = module.split(".")
         if len(parts) < 2 or parts[1] not in subpackages:
@@ -140,19 +148,141 @@ def test_the_checker_finds_a_cycle_through_a_function_level_import(tmp_path):
     assert cycles(package_graph(tmp_path, "demo")) == []
 
 
-@pytest.mark.parametrize(
-    ("lower", "higher"),
-    [
-        ("path", "io"),  # the Toolpath value object is below every format
-        ("io", "robot"),  # the robot reads tables and units; formats do not need the robot
-        ("robot", "programs"),  # controllers' programs use the arm configuration, not back
-        ("io", "programs"),
-        ("toolpath", "study"),  # a study reads toolpaths; the toolpath package knows no study
-        ("scan", "decompose"),
-    ],
-)
-def test_layer_order(lower, higher):
+# The layers, lowest first. A package may import only packages of lower layers: not one of its
+# own layer (peers are independent) and never one above. A new subpackage or top-level module
+# must be placed here before the test passes.
+LAYERS: list[tuple[str, set[str]]] = [
+    ("foundation", {"errors", "progress", "_lazy"}),  # error classes, progress, lazy loading
+    ("value objects", {"frames", "path", "plausible", "history"}),  # transforms, Toolpath
+    ("io base and file formats", {"io"}),  # the Toolpath value object is below every format
+    ("models", {"robot", "fem", "sensor"}),  # the robot reads tables and units, not formats
+    ("parts and programs", {"parts", "programs"}),  # controllers' programs use the robot
+    ("toolpaths and scans", {"toolpath", "scan"}),
+    ("study", {"study"}),  # a study reads toolpaths and scans; neither knows a study
+    ("cell", {"cell"}),
+    ("cell consumers", {"plan", "learn", "sync"}),
+    ("report and virtual cell", {"report", "virtual"}),  # plotting only in report
+    ("decomposition", {"decompose"}),  # scan below decompose
+    ("compensation", {"compensate"}),
+    ("online", {"online"}),
+    ("command line", {"cli"}),
+    ("python -m roboisf", {"__main__"}),
+]
+
+
+def layer_of(layers: list[tuple[str, set[str]]]) -> dict[str, int]:
+    """Each package's layer index (0 = lowest); a package declared twice is an error."""
+    out: dict[str, int] = {}
+    for i, (_, members) in enumerate(layers):
+        for m in members:
+            assert m not in out, f"{m} is declared in two layers"
+            out[m] = i
+    return out
+
+
+def climbing(graph: Graph, layers: list[tuple[str, set[str]]]) -> list[str]:
+    """Every arrow that does not go to a strictly lower layer, with its first import."""
+    level = layer_of(layers)
+    found = []
+    for a in sorted(graph):
+        for b in sorted(graph[a]):
+            if level[b] >= level[a]:
+                how = "climbs to" if level[b] > level[a] else "imports its peer"
+                imports = graph[a][b]
+                more = f" (+{len(imports) - 1} more)" if len(imports) > 1 else ""
+                found.append(
+                    f"{a} ({layers[level[a]][0]}) {how} {b} ({layers[level[b]][0]}): "
+                    f"{imports[0]}{more}"
+                )
+    return found
+
+
+def test_every_package_has_a_layer():
+    declared = set(layer_of(LAYERS))
+    present = nodes()
+    assert not present - declared, f"declare a layer in LAYERS for {sorted(present - declared)}"
+    assert not declared - present, f"LAYERS names what does not exist: {sorted(declared - present)}"
+
+
+def test_no_arrow_climbs():
     graph = package_graph()
-    assert higher not in graph.get(lower, {}), f"{lower} must not import {higher}: " + "; ".join(
-        graph[lower][higher][:3]
+    assert "errors" in graph["cli"], "the graph misses top-level modules"
+    found = climbing(graph, LAYERS)
+    assert not found, "imports against the layer order:\n" + "\n".join(found)
+
+
+def test_the_layer_check_finds_a_climbing_and_a_sideways_import(tmp_path):
+    pkg = tmp_path / "demo"
+    for name in ("low", "mid", "peer", "top"):
+        (pkg / name).mkdir(parents=True)
+        (pkg / name / "__init__.py").write_text("")
+    (pkg / "__init__.py").write_text("")
+    (pkg / "base.py").write_text("")
+    (pkg / "top" / "t.py").write_text("from demo.mid import m\nfrom demo import base\n")
+    (pkg / "mid" / "m.py").write_text("from ..low import x\n")
+    layers = [("b", {"base"}), ("l", {"low"}), ("m", {"mid", "peer"}), ("t", {"top"})]
+    assert climbing(package_graph(tmp_path, "demo"), layers) == []
+    (pkg / "low" / "x.py").write_text("def f():\n    from demo.top import t\n")
+    (pkg / "peer" / "p.py").write_text("import demo.mid.m\n")
+    found = climbing(package_graph(tmp_path, "demo"), layers)
+    assert found == [
+        "low (l) climbs to top (t): demo.low.x:2 -> demo.top",
+        "peer (m) imports its peer mid (m): demo.peer.p:1 -> demo.mid.m",
+    ]
+
+
+def private_imports(src: Path = SRC, package: str = PACKAGE) -> list[str]:
+    """Imports of a private name (a leading underscore, not a dunder) from outside the
+    subpackage that owns it: ``from roboisf.robot.model import _x`` in ``roboisf.compensate``.
+    The owner is the subpackage of the first private part of the dotted name (the package itself
+    for a top-level private module such as ``roboisf._lazy``)."""
+    found: list[tuple[str, int, str]] = []
+    for path in sorted((src / package).rglob("*.py")):
+        module, is_pkg = _module_name(path, src)
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), str(path))):
+            if isinstance(node, ast.ImportFrom):
+                names = _imported(node, module, is_pkg)[1:]
+            elif isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            else:
+                continue
+            for name in names:
+                parts = name.split(".")
+                if parts[0] != package:
+                    continue
+                private = [
+                    i for i, x in enumerate(parts) if x.startswith("_") and not x.endswith("__")
+                ]
+                if not private:
+                    continue
+                owner = ".".join(parts[: min(private[0], 2)])
+                if module != owner and not module.startswith(owner + "."):
+                    found.append((module, node.lineno, name))
+    return [f"{m}:{line} imports {name}" for m, line, name in sorted(found)]
+
+
+def test_no_private_name_is_imported_across_packages():
+    found = private_imports()
+    assert not found, "private names used outside their package (make them public):\n" + "\n".join(
+        found
     )
+
+
+def test_the_private_check_finds_a_private_name_from_another_package(tmp_path):
+    pkg = tmp_path / "demo"
+    for name in ("a", "b"):
+        (pkg / name).mkdir(parents=True)
+        (pkg / name / "__init__.py").write_text("")
+    (pkg / "__init__.py").write_text("")
+    (pkg / "_helper.py").write_text("")
+    (pkg / "a" / "x.py").write_text("def _f():\n    pass\n__version__ = 1\n")
+    (pkg / "a" / "y.py").write_text("from .x import _f\n")  # its own package: fine
+    (pkg / "b" / "z.py").write_text(
+        "from demo._helper import g\nfrom demo.a.x import __version__\nfrom demo.a import x\n"
+    )
+    assert private_imports(tmp_path, "demo") == []
+    (pkg / "b" / "z.py").write_text("def h():\n    from ..a.x import _f\nimport demo.a._m\n")
+    assert private_imports(tmp_path, "demo") == [
+        "demo.b.z:2 imports demo.a.x._f",
+        "demo.b.z:3 imports demo.a._m",
+    ]

@@ -8,6 +8,10 @@ expected*. The CLI turns these into a one-line message and exit code 2; anything
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # numpy is not loaded by `roboisf --help` (tests/test_cli_startup.py)
+    from numpy.typing import ArrayLike
 
 __all__ = [
     "ConvergenceError",
@@ -15,6 +19,7 @@ __all__ = [
     "ResourceError",
     "RoboisfError",
     "UnreachableError",
+    "short_indices",
 ]
 
 
@@ -88,3 +93,13 @@ class ConvergenceError(RoboisfError):
 
     The message says what was tried and where it stopped.
     """
+
+
+def short_indices(idx: ArrayLike, n: int = 8) -> str:
+    """The indices an error message names: the first ``n`` of ``idx`` (any shape, flattened),
+    comma-separated, then ``, … (K in all)`` when there are more — ``"3, 4, 9"``."""
+    import numpy as np
+
+    items: list[int] = [int(i) for i in np.asarray(idx).reshape(-1)]
+    s = ", ".join(str(i) for i in items[:n])
+    return s + (f", … ({len(items)} in all)" if len(items) > n else "")

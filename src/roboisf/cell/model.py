@@ -41,7 +41,7 @@ from roboisf.fem import (
     holder_compliance,
     tool_compliance,
 )
-from roboisf.frames import make_transform, to_tip
+from roboisf.frames import check_rigid, make_transform, to_tip
 from roboisf.parts import Part
 from roboisf.progress import Progress
 from roboisf.robot import RobotModel, load_robot
@@ -176,15 +176,7 @@ def _rigid_transform(T: ArrayLike, name: str) -> F64:
     A = np.array(T, dtype=float)
     if A.shape != (4, 4) or not np.all(np.isfinite(A)):
         raise InputError(f"expected a finite 4×4 transform, got shape {A.shape}", field=name)
-    R = A[:3, :3]
-    if (
-        np.max(np.abs(R @ R.T - np.eye(3))) > 1e-9
-        or np.linalg.det(R) < 0
-        or np.any(A[3] != (0, 0, 0, 1))
-    ):
-        raise InputError(
-            "must be a rigid transform (orthonormal rotation, last row 0 0 0 1)", field=name
-        )
+    check_rigid(A, name)
     A.setflags(write=False)
     return A
 

@@ -260,16 +260,9 @@ def register(app: typer.Typer) -> None:
         roboisf virtual-cell pyramid --truth T.toml -o S1 && roboisf compensate S1 -o C1 &&
         roboisf virtual-cell pyramid --truth T.toml --toolpath C1/compensated.mod --from S1 -o S2
         """
-        from roboisf.cell import PAPER_CELL_PLACEMENT
         from roboisf.parts import Pyramid, load_part
-        from roboisf.virtual.cell import (
-            PYRAMID,
-            build_study,
-            paper_cone_cell,
-            paper_vwacf_cell,
-            pyramid_cell,
-            virtual_cell,
-        )
+        from roboisf.virtual.builtin import BUILTIN_CELLS
+        from roboisf.virtual.cell import PYRAMID, build_study, part_cell, pyramid_cell
 
         if from_study is not None and toolpath is None:
             raise InputError("--from needs --toolpath (the program to re-form)", field="--from")
@@ -279,7 +272,7 @@ def register(app: typer.Typer) -> None:
             overwrite,
             [p for p in (toolpath, from_study, truth_file, part_file) if p is not None],
         )
-        makers = {"cone": paper_cone_cell, "vwacf": paper_vwacf_cell, "pyramid": pyramid_cell}
+        makers = {name: c.make for name, c in BUILTIN_CELLS.items()}
         shape = {
             "top_length": top_length,
             "top_width": top_width,
@@ -305,9 +298,7 @@ def register(app: typer.Typer) -> None:
         make: Callable[..., VirtualCell]
         if part_file is not None:
             p = load_part(part_file)
-            make = functools.partial(
-                virtual_cell, part_file.stem, p, T_base_work=PAPER_CELL_PLACEMENT
-            )
+            make = functools.partial(part_cell, part_file.stem, p)
         elif part == "pyramid":
             length = PYRAMID.top_length if top_length is None else top_length * 1e-3
             pyr = Pyramid(

@@ -317,9 +317,8 @@ def _virtual(
     from roboisf.compensate import CompensationOptions, write_compensation
     from roboisf.compensate.virtual import iterate_virtual
     from roboisf.io.program import RobotTool
-    from roboisf.virtual.cell import paper_cone_cell, paper_vwacf_cell, pyramid_cell
+    from roboisf.virtual.builtin import BUILTIN_CELLS
 
-    makers = {"cone": paper_cone_cell, "vwacf": paper_vwacf_cell, "pyramid": pyramid_cell}
     if iterations < 1:
         raise InputError(f"must be ≥ 1, got {iterations}", field="--iterations")
     assert isinstance(opts, CompensationOptions)
@@ -327,18 +326,16 @@ def _virtual(
         from roboisf.virtual.truth import load_truth
 
         cell_kw = {**cell_kw, "truth": load_truth(truth_file)}
-    if name in makers:
-        cell = makers[name](**cell_kw)
+    if name in BUILTIN_CELLS:
+        cell = BUILTIN_CELLS[name].make(**cell_kw)
     elif Path(name).is_file():
-        from roboisf.cell import PAPER_CELL_PLACEMENT
         from roboisf.parts import load_part
-        from roboisf.virtual.cell import virtual_cell
+        from roboisf.virtual.cell import part_cell
 
-        part = load_part(name)
-        cell = virtual_cell(Path(name).stem, part, T_base_work=PAPER_CELL_PLACEMENT, **cell_kw)
+        cell = part_cell(Path(name).stem, load_part(name), **cell_kw)
     else:
         raise InputError(
-            f"unknown part {name!r}; expected cone, vwacf, pyramid or a part file",
+            f"unknown part {name!r}; expected {', '.join(BUILTIN_CELLS)} or a part file",
             field="--virtual",
         )
     run = iterate_virtual(cell, iterations=iterations, options=opts, progress=progress)  # type: ignore[arg-type]

@@ -12,10 +12,12 @@ import typer
 from roboisf.cli.console import state
 from roboisf.cli.outputs import FILE_HELP, Overwrite, output_file, study_inputs
 from roboisf.errors import InputError
+from roboisf.virtual.builtin import builtin_names, paper_scenario_names
 
 __all__ = ["register"]
 
-VIRTUAL = ("cone", "vwacf", "pyramid")
+VIRTUAL = builtin_names()
+SCENARIO_CELLS = paper_scenario_names()
 
 
 def _floats(text: str | None, n: int, field: str) -> list[float] | None:
@@ -103,8 +105,8 @@ def online(
     scenario: str | None = typer.Option(
         None,
         "--scenario",
-        help="With --virtual cone|vwacf: the cell's truth (e.g. `paper`, the paper's robot that "
-        "differs from the VJM model the loop uses; docs/virtual-cell.md).",
+        help=f"With --virtual {'|'.join(SCENARIO_CELLS)}: the cell's truth (e.g. `paper`, the "
+        "paper's robot that differs from the VJM model the loop uses; docs/virtual-cell.md).",
     ),
     scan_points: int = typer.Option(
         300_000, "--scan-points", help="Points per simulated scan of --form's study."
@@ -237,54 +239,15 @@ def online(
     """
     import numpy as np
 
-    from roboisf.cell import cell_from_study
-    from roboisf.frames import make_transform, rpy_to_matrix
-    from roboisf.online import Limits, OnlineCompensator, SensorSetup, status_text
-    from roboisf.online.egm import EgmAdapter
+    from roboisf.frames.pose import XYZ_RPY_MM_DEG, parse_pose
+    from roboisf.online import OnlineCompensator, SensorSetup, status_text
     from roboisf.online.loop import Loop, parse_address
-    from roboisf.online.rsi import RsiAdapter
     from roboisf.online.rt import Realtime
-    from roboisf.study import load_study
 
-    if controller not in ("egm", "rsi", "replay"):
-        raise InputError(f"must be egm, rsi or replay, got {controller!r}", field="--controller")
-    kind, _, arg = sensor.partition(":")
-    if kind not in ("netft", "replay") or not arg:
-        raise InputError(
-            f"expected netft:HOST[:PORT] or replay:STUDY, got {sensor!r}", field="--sensor"
-        )
-    if simulate and (virtual is None or kind != "netft" or controller == "replay"):
-        raise InputError(
-            "--simulate needs --virtual NAME, --controller egm|rsi and a netft sensor",
-            field="--simulate",
-        )
-    if form is not None and not simulate:
-        raise InputError(
-            "--form needs --simulate (the part a simulated run formed)", field="--form"
-        )
-    if scenario is not None and virtual not in ("cone", "vwacf"):
-        raise InputError("--scenario needs --virtual cone|vwacf", field="--scenario")
-    if kind == "replay":
-        study = Path(arg)
-    if (study is None) == (virtual is None):
-        raise InputError("give the cell: --study STUDY or --virtual NAME", field="--study")
-    if virtual is not None and virtual not in VIRTUAL:
-        raise InputError(f"must be one of {', '.join(VIRTUAL)}, got {virtual!r}", field="--virtual")
-    if controller == "replay" and kind != "replay":
-        raise InputError("--controller replay needs --sensor replay:STUDY", field="--controller")
+    kind, arg, study = _check_sources(controller, sensor, simulate, form, scenario, study, virtual)
     rt = Realtime(realtime, cpu, mlock)  # InputError for a priority or CPU that cannot be
     _check_run(controller, duration, cycles, cycle)
-    try:
-        limits = Limits(
-            deadband * 1e-3,
-            max_correction * 1e-3,
-            max_rate * 1e-3,
-            cycle * 1e-3,
-            watchdog * 1e-3,
-            ramp_rate * 1e-3,
-        )
-    except InputError as e:
-        raise InputError(e.message, field=f"--{str(e.field).replace('_', '-')}") from None
+    limits = _limits(deadband, max_correction, max_rate, cycle, watchdog, ramp_rate)
     if rsi_correction not in ("cartesian", "joint"):
         raise InputError(
             f"must be cartesian or joint, got {rsi_correction!r}", field="--rsi-correction"
@@ -309,106 +272,28 @@ def online(
         parse_address(arg, 49152, "--sensor", resolve=True)
     parse_address(listen, 6510, "--listen", resolve=True)
     # the sensor's settings are checked whether or not --simulate then replaces them
-    cog = _floats(tool_cog, 3, "--tool-cog")
-    assert cog is not None
-    user_sensor = dict(
-        load_on=load_on,
-        tare=np.array(_floats(tare, 6, "--tare") or [0.0] * 6),
-        tool_mass=tool_mass,
-        tool_cog=np.array(cog) * 1e-3,
-        cutoff=cutoff,
-    )
-    try:
-        SensorSetup(**user_sensor)  # type: ignore[arg-type]
-    except InputError as e:
-        flag = {"load_on": "--load-on", "tool_mass": "--tool-mass", "tool_cog": "--tool-cog"}
-        raise InputError(e.message, field=flag.get(str(e.field), f"--{e.field}")) from None
+    user_sensor = _user_sensor(load_on, tare, tool_mass, tool_cog, cutoff)
     if simulate:
-        given = [
-            f
-            for f, v in (
-                ("--tare", tare),
-                ("--tool-mass", tool_mass or None),
-                ("--load-on", None if load_on == "tool" else load_on),
-                ("--tool-cog", None if tool_cog == "0,0,0" else tool_cog),
-                ("--sensor-pose", sensor_pose),
-            )
-            if v is not None
-        ]
-        if given:
-            state.warn(
-                f"--simulate: the simulated sensor's own tool, weight and tare are used; "
-                f"{', '.join(given)} not"
-            )
-    if selftest:
-        if controller == "replay" or simulate or form is not None:
-            raise InputError(
-                "--selftest measures the host for -c egm|rsi; not with replay, --simulate "
-                "or --form",
-                field="--selftest",
-            )
-        if not (math.isfinite(selftest_seconds) and selftest_seconds > 0):
-            raise InputError(f"must be > 0 s, got {selftest_seconds}", field="--selftest-seconds")
-    elif output is None:
-        raise InputError("the per-cycle log: give -o LOG.parquet", field="-o")
-    if output is not None and output.suffix.lower() != ".parquet":
-        raise InputError(f"the log is Parquet: expected a .parquet file, got {output}", field="-o")
-    if output is not None and not selftest:
-        output_file(output, "online", overwrite, study_inputs(study))
-    if form is not None:
-        from roboisf.cli.outputs import output_dir
-
-        output_dir(form, "virtual-cell", overwrite)
-
-    setup: Any = None
-    spec_pose = None
-    if virtual is not None:
-        from roboisf.online.sim import virtual_setup
-        from roboisf.virtual.cell import paper_cone_cell, paper_vwacf_cell, pyramid_cell
-
-        makers = {"cone": paper_cone_cell, "vwacf": paper_vwacf_cell, "pyramid": pyramid_cell}
-        cell_kw: dict[str, Any] = {"scan_points": scan_points if form is not None else 1000}
-        if scenario is not None:
-            from roboisf.virtual.truth import load_truth
-
-            cell_kw["truth"] = load_truth(scenario=scenario, part=virtual)
-        vc = makers[virtual](**cell_kw)
-        setup = virtual_setup(vc, cutoff=cutoff)
-        cell = vc.cell
-        spec_pose = setup.sensor.T_flange_sensor
-    else:
-        assert study is not None
-        st = load_study(study)
-        cell = cell_from_study(st)
-        f = st.robot_run.forces
-        if f.mount == "flange":
-            spec_pose = cell.T_flange_tip @ f.pose
-    pose = _floats(sensor_pose, 6, "--sensor-pose")
-    if pose is not None:
-        T_fs = make_transform(rpy_to_matrix(np.radians(pose[3:])), np.array(pose[:3]) * 1e-3)
+        _warn_simulated_sensor(tare, tool_mass, load_on, tool_cog, sensor_pose)
+    _claim_outputs(selftest, selftest_seconds, controller, simulate, form, output, overwrite, study)
+    cell, setup, spec_pose = _load_cell(virtual, study, scenario, scan_points, form, cutoff)
+    if sensor_pose is not None:
+        T_fs = parse_pose(sensor_pose, XYZ_RPY_MM_DEG, field="--sensor-pose")
     else:
         T_fs = spec_pose if spec_pose is not None else np.eye(4)
     if simulate:
         sensor_setup = setup.sensor  # the simulated sensor's tool, weight and tare
     else:
-        sensor_setup = SensorSetup(T_fs, **user_sensor)  # type: ignore[arg-type]
+        sensor_setup = SensorSetup(T_fs, **user_sensor)
 
     if controller == "replay":
         assert output is not None
         _replay(study, limits, cutoff, output)
         return
 
-    adapter: Any
-    if controller == "egm":
-        adapter = EgmAdapter(path_correction)
-    else:
-        adapter = RsiAdapter(
-            limits.cycle,
-            relative,
-            correction=rsi_correction,
-            dq_dp=_dq_dp(cell),
-            sentype=rsi_sentype,
-        )
+    adapter = _adapter(
+        controller, path_correction, limits, relative, rsi_correction, rsi_sentype, cell
+    )
     host, port = parse_address(listen, 6510, "--listen")
     if simulate:
         host, port = "127.0.0.1", 0
@@ -421,7 +306,7 @@ def online(
 
         rep = load_replay(arg, cutoff=cutoff)
         src = ReplaySensor(rep.force_time, rep.force)
-        if pose is None:  # the study's sensor (pose, sign); the log is tared and compensated
+        if sensor_pose is None:  # the study's sensor (pose, sign); the log is tared and compensated
             sensor_setup = rep.sensor
     peak = _expected_peak(setup, study)
     plaus = _plausibility(peak, max_force, max_force_rate, max_tip_moment)
@@ -443,45 +328,27 @@ def online(
     )
     sim_result: dict[str, Any] | None = None
     if simulate:
-        from roboisf.online.sim import Simulation
-
-        n = int(min(duration, 3600.0) / limits.cycle) if math.isfinite(duration) else 15_000
-        n = min(n, cycles) if cycles is not None else n
-        step = max(1, math.ceil(len(setup.q) / max(n, 1)))
-        from roboisf.online.rt import other_cpus
-
-        others = other_cpus(cpu)  # the loop alone real-time; the devices beside it, not on it
-        sim_rt = Realtime(None, None, False, others) if others is not None else None
-        with Simulation(
-            setup,
-            controller,
-            loop.listen[1],
-            n_cycles=n,
-            cycle=limits.cycle,
-            point_step=step,
-            realtime=sim_rt,
-            relative=relative and controller == "rsi",
-        ) as sim:
-            assert loop.ft is not None
-            loop.ft.connect(("127.0.0.1", sim.sensor_port))
-
-            def _finish() -> None:
-                sim.result()
-                loop.stop()
-
-            done = threading.Thread(target=_finish, daemon=True)
-            done.start()
-            # the controller's last cycle ends the run (--duration sets its cycle count), not
-            # the loop's clock, which started before the controller's first message: cut by
-            # the loop's clock, its last cycles went unanswered and counted as missed (and
-            # --form's part needs the whole path)
-            wait = duration + 60.0
-            _run(loop, wait, cycles, status_text, banner)
-            sim.stop.set()  # the loop has ended: the controller reports what it saw
-            done.join(30)
-            sim_result = sim.result(timeout=0.1) if not done.is_alive() else None
+        sim_result = _run_simulated(
+            loop, setup, controller, limits, duration, cycles, cpu, relative, banner
+        )
     else:
         _run(loop, duration, cycles, status_text, banner)
+    _report(loop, output, controller, sensor, sim_result, limits)
+    if form is not None:
+        _form(setup, sim_result, form)
+
+
+def _report(
+    loop: Any,
+    output: Path,
+    controller: str,
+    sensor: str,
+    sim_result: dict[str, Any] | None,
+    limits: Any,
+) -> None:
+    """Write the per-cycle log and print the run's summary (and the simulated controller's)."""
+    import numpy as np
+
     loop.log.write(
         output,
         {
@@ -509,8 +376,267 @@ def online(
                 f"the loop's); round trip p50 {np.percentile(rtt[got], 50) * 1e3:.3f} ms, "
                 f"p99 {np.percentile(rtt[got], 99) * 1e3:.3f} ms"
             )
+
+
+def _check_sources(
+    controller: str,
+    sensor: str,
+    simulate: bool,
+    form: Path | None,
+    scenario: str | None,
+    study: Path | None,
+    virtual: str | None,
+) -> tuple[str, str, Path | None]:
+    """The controller, the sensor (``kind``, its argument) and the cell (``--study`` or
+    ``--virtual``) that go together; the study (``replay:STUDY`` implies it)."""
+    if controller not in ("egm", "rsi", "replay"):
+        raise InputError(f"must be egm, rsi or replay, got {controller!r}", field="--controller")
+    kind, _, arg = sensor.partition(":")
+    if kind not in ("netft", "replay") or not arg:
+        raise InputError(
+            f"expected netft:HOST[:PORT] or replay:STUDY, got {sensor!r}", field="--sensor"
+        )
+    if simulate and (virtual is None or kind != "netft" or controller == "replay"):
+        raise InputError(
+            "--simulate needs --virtual NAME, --controller egm|rsi and a netft sensor",
+            field="--simulate",
+        )
+    if form is not None and not simulate:
+        raise InputError(
+            "--form needs --simulate (the part a simulated run formed)", field="--form"
+        )
+    if scenario is not None and virtual not in SCENARIO_CELLS:
+        raise InputError(
+            f"--scenario needs --virtual {'|'.join(SCENARIO_CELLS)}", field="--scenario"
+        )
+    if kind == "replay":
+        study = Path(arg)
+    if (study is None) == (virtual is None):
+        raise InputError("give the cell: --study STUDY or --virtual NAME", field="--study")
+    if virtual is not None and virtual not in builtin_names():
+        raise InputError(
+            f"must be one of {', '.join(builtin_names())}, got {virtual!r}", field="--virtual"
+        )
+    if controller == "replay" and kind != "replay":
+        raise InputError("--controller replay needs --sensor replay:STUDY", field="--controller")
+    return kind, arg, study
+
+
+def _limits(
+    deadband: float,
+    max_correction: float,
+    max_rate: float,
+    cycle: float,
+    watchdog: float,
+    ramp_rate: float,
+) -> Any:
+    """The loop's :class:`~roboisf.online.Limits` from the options (mm, mm/s, ms → SI); an
+    error names the option."""
+    from roboisf.online import Limits
+
+    try:
+        return Limits(
+            deadband * 1e-3,
+            max_correction * 1e-3,
+            max_rate * 1e-3,
+            cycle * 1e-3,
+            watchdog * 1e-3,
+            ramp_rate * 1e-3,
+        )
+    except InputError as e:
+        raise InputError(e.message, field=f"--{str(e.field).replace('_', '-')}") from None
+
+
+def _user_sensor(
+    load_on: str, tare: str | None, tool_mass: float, tool_cog: str, cutoff: float
+) -> dict[str, Any]:
+    """The F/T sensor's settings from the options (SI), checked as a
+    :class:`~roboisf.online.SensorSetup` would; an error names the option."""
+    import numpy as np
+
+    from roboisf.online import SensorSetup
+
+    cog = _floats(tool_cog, 3, "--tool-cog")
+    assert cog is not None
+    user_sensor = dict(
+        load_on=load_on,
+        tare=np.array(_floats(tare, 6, "--tare") or [0.0] * 6),
+        tool_mass=tool_mass,
+        tool_cog=np.array(cog) * 1e-3,
+        cutoff=cutoff,
+    )
+    try:
+        SensorSetup(**user_sensor)  # type: ignore[arg-type]
+    except InputError as e:
+        flag = {"load_on": "--load-on", "tool_mass": "--tool-mass", "tool_cog": "--tool-cog"}
+        raise InputError(e.message, field=flag.get(str(e.field), f"--{e.field}")) from None
+    return user_sensor
+
+
+def _warn_simulated_sensor(
+    tare: str | None, tool_mass: float, load_on: str, tool_cog: str, sensor_pose: str | None
+) -> None:
+    """--simulate uses the simulated sensor's settings: say which given options it ignores."""
+    given = [
+        f
+        for f, v in (
+            ("--tare", tare),
+            ("--tool-mass", tool_mass or None),
+            ("--load-on", None if load_on == "tool" else load_on),
+            ("--tool-cog", None if tool_cog == "0,0,0" else tool_cog),
+            ("--sensor-pose", sensor_pose),
+        )
+        if v is not None
+    ]
+    if given:
+        state.warn(
+            f"--simulate: the simulated sensor's own tool, weight and tare are used; "
+            f"{', '.join(given)} not"
+        )
+
+
+def _claim_outputs(
+    selftest: bool,
+    selftest_seconds: float,
+    controller: str,
+    simulate: bool,
+    form: Path | None,
+    output: Path | None,
+    overwrite: Overwrite,
+    study: Path | None,
+) -> None:
+    """Check the run's outputs (the log; --form's study) and claim them before anything is
+    computed; --selftest writes none."""
+    if selftest:
+        if controller == "replay" or simulate or form is not None:
+            raise InputError(
+                "--selftest measures the host for -c egm|rsi; not with replay, --simulate "
+                "or --form",
+                field="--selftest",
+            )
+        if not (math.isfinite(selftest_seconds) and selftest_seconds > 0):
+            raise InputError(f"must be > 0 s, got {selftest_seconds}", field="--selftest-seconds")
+    elif output is None:
+        raise InputError("the per-cycle log: give -o LOG.parquet", field="-o")
+    if output is not None and output.suffix.lower() != ".parquet":
+        raise InputError(f"the log is Parquet: expected a .parquet file, got {output}", field="-o")
+    if output is not None and not selftest:
+        output_file(output, "online", overwrite, study_inputs(study))
     if form is not None:
-        _form(setup, sim_result, form)
+        from roboisf.cli.outputs import output_dir
+
+        output_dir(form, "virtual-cell", overwrite)
+
+
+def _load_cell(
+    virtual: str | None,
+    study: Path | None,
+    scenario: str | None,
+    scan_points: int,
+    form: Path | None,
+    cutoff: float,
+) -> tuple[Any, Any, Any]:
+    """The cell the loop corrects: ``(cell, setup, T_flange_sensor)`` — a built-in virtual
+    cell's (with its simulation ``setup`` and sensor pose) or a study's (``setup`` None; the
+    sensor pose of its robot run's flange sensor, else None)."""
+    if virtual is not None:
+        from roboisf.online.sim import virtual_setup
+        from roboisf.virtual.builtin import make_builtin_cell
+
+        cell_kw: dict[str, Any] = {"scan_points": scan_points if form is not None else 1000}
+        if scenario is not None:
+            from roboisf.virtual.truth import load_truth
+
+            cell_kw["truth"] = load_truth(scenario=scenario, part=virtual)
+        vc = make_builtin_cell(virtual, field="--virtual", **cell_kw)
+        setup = virtual_setup(vc, cutoff=cutoff)
+        return vc.cell, setup, setup.sensor.T_flange_sensor
+    from roboisf.cell import cell_from_study
+    from roboisf.study import load_study
+
+    assert study is not None
+    st = load_study(study)
+    cell = cell_from_study(st)
+    f = st.robot_run.forces
+    return cell, None, cell.T_flange_tip @ f.pose if f.mount == "flange" else None
+
+
+def _adapter(
+    controller: str,
+    path_correction: bool,
+    limits: Any,
+    relative: bool,
+    rsi_correction: str,
+    rsi_sentype: str,
+    cell: Any,
+) -> Any:
+    """The controller's protocol: ABB EGM or KUKA RSI."""
+    if controller == "egm":
+        from roboisf.online.egm import EgmAdapter
+
+        return EgmAdapter(path_correction)
+    from roboisf.online.rsi import RsiAdapter
+
+    return RsiAdapter(
+        limits.cycle,
+        relative,
+        correction=rsi_correction,
+        dq_dp=_dq_dp(cell),
+        sentype=rsi_sentype,
+    )
+
+
+def _run_simulated(
+    loop: Any,
+    setup: Any,
+    controller: str,
+    limits: Any,
+    duration: float,
+    cycles: int | None,
+    cpu: int | None,
+    relative: bool,
+    banner: str,
+) -> dict[str, Any] | None:
+    """Run the loop against the simulated controller and Net F/T on localhost; what the
+    simulated controller saw (None if it did not report in time)."""
+    from roboisf.online import status_text
+    from roboisf.online.rt import Realtime, other_cpus
+    from roboisf.online.sim import Simulation
+
+    n = int(min(duration, 3600.0) / limits.cycle) if math.isfinite(duration) else 15_000
+    n = min(n, cycles) if cycles is not None else n
+    step = max(1, math.ceil(len(setup.q) / max(n, 1)))
+    others = other_cpus(cpu)  # the loop alone real-time; the devices beside it, not on it
+    sim_rt = Realtime(None, None, False, others) if others is not None else None
+    with Simulation(
+        setup,
+        controller,
+        loop.listen[1],
+        n_cycles=n,
+        cycle=limits.cycle,
+        point_step=step,
+        realtime=sim_rt,
+        relative=relative and controller == "rsi",
+    ) as sim:
+        assert loop.ft is not None
+        loop.ft.connect(("127.0.0.1", sim.sensor_port))
+
+        def _finish() -> None:
+            sim.result()
+            loop.stop()
+
+        done = threading.Thread(target=_finish, daemon=True)
+        done.start()
+        # the controller's last cycle ends the run (--duration sets its cycle count), not
+        # the loop's clock, which started before the controller's first message: cut by
+        # the loop's clock, its last cycles went unanswered and counted as missed (and
+        # --form's part needs the whole path)
+        wait = duration + 60.0
+        _run(loop, wait, cycles, status_text, banner)
+        sim.stop.set()  # the loop has ended: the controller reports what it saw
+        done.join(30)
+        result: dict[str, Any] | None = sim.result(timeout=0.1) if not done.is_alive() else None
+        return result
 
 
 def _selftest(oc: Any, adapter: Any, cell: Any, setup: Any, seconds: float, rt: Any) -> None:

@@ -267,8 +267,7 @@ def _problem(
     tip_link: str | None = None,
 ) -> tuple[Any, Any, np.ndarray | None, str]:
     from roboisf.cell import ForceModel, build_robot, cell_from_study, make_cell
-    from roboisf.cli.robot import _floats
-    from roboisf.frames import make_transform
+    from roboisf.frames.pose import XYZ_MM, parse_pose
     from roboisf.parts import load_part
     from roboisf.plan import PlanProblem, problem_from_cell
     from roboisf.robot import load_stiffness
@@ -277,7 +276,7 @@ def _problem(
         if stiffness is not None:
             m = m.with_stiffness(load_stiffness(stiffness, robot=m.name), source=str(stiffness))
         if tool is not None:
-            m = m.with_tool(make_transform(None, _floats(tool, 3, "--tool") * 1e-3))
+            m = m.with_tool(parse_pose(tool, XYZ_MM, field="--tool"))
         return m
 
     if part is not None:
@@ -310,12 +309,10 @@ def _problem(
 
 def _baseline(text: str | None, study_T: np.ndarray | None, model: Any) -> np.ndarray:
     from roboisf.cell import PAPER_CELL_PLACEMENT
-    from roboisf.cli.robot import _floats
-    from roboisf.frames import make_transform, rot_z
+    from roboisf.frames.pose import XYZ_YAW_MM_DEG, parse_pose
 
     if text is not None:
-        v = _floats(text, 4, "--baseline")
-        return make_transform(rot_z(math.radians(v[3])), v[:3] * 1e-3)
+        return parse_pose(text, XYZ_YAW_MM_DEG, field="--baseline")
     if study_T is not None:
         return study_T
     if model.name.startswith("irb7600"):

@@ -95,8 +95,7 @@ def register(app: typer.Typer) -> None:
         import numpy as np
 
         from roboisf.cell import PAPER_CELL_PLACEMENT, build_robot
-        from roboisf.cli.robot import _floats
-        from roboisf.frames import make_transform, rot_z
+        from roboisf.frames.pose import XYZ_YAW_MM_DEG, parse_pose
         from roboisf.history.db import Database
         from roboisf.history.store import points_table
         from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
@@ -107,8 +106,7 @@ def register(app: typer.Typer) -> None:
 
         require_sklearn()
         if placement is not None:
-            xyz_yaw = _floats(placement, 4, "--placement")
-            T = make_transform(rot_z(math.radians(xyz_yaw[3])), xyz_yaw[:3] * 1e-3)
+            T = parse_pose(placement, XYZ_YAW_MM_DEG, field="--placement")
         elif robot.startswith("irb7600"):
             T = PAPER_CELL_PLACEMENT
         else:

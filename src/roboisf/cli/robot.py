@@ -56,21 +56,20 @@ def _ints(text: str, n: int, field: str) -> np.ndarray:
 def _model(
     robot: str, stiffness: Path | None, tool: str | None, tip_link: str | None = None
 ) -> RobotModel:
-    from roboisf.frames import make_transform
+    from roboisf.frames.pose import XYZ_MM, parse_pose
     from roboisf.robot import load_robot, load_stiffness
 
     m = load_robot(robot, tip_link=tip_link)
     if stiffness is not None:
         m = m.with_stiffness(load_stiffness(stiffness, robot=m.name), source=str(stiffness))
     if tool is not None:
-        m = m.with_tool(make_transform(None, _floats(tool, 3, "--tool") * 1e-3))
+        m = m.with_tool(parse_pose(tool, XYZ_MM, field="--tool"))
     return m
 
 
 def _placement(text: str | None, model: RobotModel) -> np.ndarray:
-    import numpy as np
 
-    from roboisf.frames import make_transform, rot_z
+    from roboisf.frames.pose import XYZ_YAW_MM_DEG, parse_pose
 
     if text is None:
         if model.default_placement is None:
@@ -79,8 +78,7 @@ def _placement(text: str | None, model: RobotModel) -> np.ndarray:
                 field="--placement",
             )
         return model.default_placement
-    v = _floats(text, 4, "--placement")
-    return make_transform(rot_z(np.radians(v[3])), v[:3] * 1e-3)
+    return parse_pose(text, XYZ_YAW_MM_DEG, field="--placement")
 
 
 ROBOT_OPT = typer.Option(
@@ -310,6 +308,7 @@ def _design_cmd(
 
     from roboisf.cli.outputs import output_dir
     from roboisf.frames import make_transform
+    from roboisf.frames.pose import XYZ_MM, parse_pose
     from roboisf.io.atomic import atomic_write, staged_directory
     from roboisf.robot.identify import design_experiment, write_experiment_csv, write_joint_program
 
@@ -322,7 +321,7 @@ def _design_cmd(
     inputs = [p for p in (stiffness,) if p is not None]
     output_dir(output, "robot identify --design", overwrite, [*inputs, *_files(robot, tool)])
     m = _model(robot, stiffness, tool)
-    tip = m.T_flange_tip[:3, 3] if tool is None else _floats(tool, 3, "--tool") * 1e-3
+    tip = m.T_flange_tip[:3, 3] if tool is None else parse_pose(tool, XYZ_MM, field="--tool")[:3, 3]
     point = tip + np.array([bracket * 1e-3, 0.0, 0.0])
     m = m.with_tool(make_transform(None, point))
     T_bw = _placement(placement, m)

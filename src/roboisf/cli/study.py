@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -32,15 +31,9 @@ def register(app: typer.Typer) -> None:
 def _pose(text: str | None, field: str) -> list[float] | None:
     if text is None:
         return None
-    try:
-        v = [float(t) for t in text.split(",")]
-    except ValueError:
-        v = []
-    if len(v) != 6 or not all(math.isfinite(x) for x in v):
-        raise InputError(
-            f"expected 6 comma-separated numbers ({POSE_HELP}), got {text!r}", field=field
-        )
-    return v
+    from roboisf.frames.pose import XYZ_RPY_MM_DEG, pose_numbers
+
+    return pose_numbers(text, XYZ_RPY_MM_DEG, field=field)
 
 
 def _roles(data: dict[str, Any], prefix: str = "") -> dict[str, list[str]]:

@@ -217,16 +217,12 @@ class PathOptions:
         """``T_base_work`` (4, 4) m from ``--placement`` or ``--work-frame`` (None: not given)."""
         import numpy as np
 
-        from roboisf.frames.rotations import abc_to_matrix, rpy_to_matrix
+        from roboisf.frames.pose import XYZ_ABC_MM_DEG, XYZ_RPY_MM_DEG, parse_pose
 
         if self.placement_ is not None and self.work_frame is not None:
             raise InputError("give --placement or --work-frame, not both", field="--placement")
         if self.work_frame is not None:
-            v = _numbers(self.work_frame, "--work-frame", (6,), "'X,Y,Z,A,B,C' (mm, deg)")
-            T = np.eye(4)
-            T[:3, :3] = abc_to_matrix(np.radians(v[3:]))
-            T[:3, 3] = np.array(v[:3]) * 1e-3
-            return T
+            return parse_pose(self.work_frame, XYZ_ABC_MM_DEG, field="--work-frame")
         if self.placement_ is None:
             return None
         text = self.placement_.strip()
@@ -234,12 +230,13 @@ class PathOptions:
             return np.eye(4)
         if _is_study(text):
             return _study_robot(text).T_base_work
-        v = _numbers(text, "--placement", (3, 6), "'X,Y,Z[,RX,RY,RZ]' (mm, deg), 'base' or a study")
-        T = np.eye(4)
-        if len(v) == 6:
-            T[:3, :3] = rpy_to_matrix(np.radians(v[3:]))
-        T[:3, 3] = np.array(v[:3]) * 1e-3
-        return T
+        return parse_pose(
+            text,
+            XYZ_RPY_MM_DEG,
+            field="--placement",
+            position_only=True,
+            alternatives="'base' or a study",
+        )
 
     def robot_tool(self) -> RobotTool | None:
         """The tool from ``--tool`` / ``--tool-length`` (None: not given)."""

@@ -31,9 +31,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import gaussian_filter1d
 
-from roboisf.errors import InputError
+from roboisf.errors import InputError, short_indices
 from roboisf.path.toolpath import Toolpath
-from roboisf.robot.model import _short
 
 __all__ = ["Adjustment", "displacement_adjustment", "smooth_on_laps"]
 
@@ -235,7 +234,8 @@ def displacement_adjustment(
         idx = np.flatnonzero(gap)
         raise InputError(
             f"{idx.size} toolpath points to compensate have no valid measurement within the "
-            f"smoothing reach (support < {min_support:g}) at indices {_short(idx)}: widen the "
+            f"smoothing reach (support < {min_support:g}) at indices {short_indices(idx)}: "
+            "widen the "
             "smoothing, rescan, leave them out of the region, or hold them (on_gap='hold')",
             field="deviation",
         )

@@ -26,11 +26,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roboisf.cell.model import at_ball_centre
-from roboisf.errors import ConvergenceError, InputError
+from roboisf.errors import ConvergenceError, InputError, short_indices
 from roboisf.path.toolpath import Toolpath
 from roboisf.progress import Progress, task
 from roboisf.robot import RobotModel, ik_toolpath
-from roboisf.robot.model import _short
 
 __all__ = ["ComplianceCompensation", "DeflectionModel", "precompensate"]
 
@@ -198,7 +197,7 @@ def precompensate(
         raise ConvergenceError(
             f"compliance pre-deflection did not converge at {bad.size} of {len(p)} points after "
             f"{it} iterations (ω = {relax:g}; residual up to {res.max() * 1e6:.3g} µm > "
-            f"{tol * 1e6:.3g} µm) at indices {_short(bad)}; nothing was written — raise "
+            f"{tol * 1e6:.3g} µm) at indices {short_indices(bad)}; nothing was written — raise "
             "max_iter, lower ω, or check the stiffness"
         )
     return out

@@ -24,9 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from roboisf.errors import InputError
+from roboisf.errors import InputError, short_indices
 from roboisf.parts.base import Part
-from roboisf.robot.model import _short
 
 __all__ = ["GougeReport", "gouge_check"]
 
@@ -76,7 +75,7 @@ class GougeReport:
         worst = int(idx[np.argmin((self.distance - self.allowed)[idx])])
         raise InputError(
             f"the compensated command gouges the part at {idx.size} points (indices "
-            f"{_short(idx)}): at point {worst} the ball centre is "
+            f"{short_indices(idx)}): at point {worst} the ball centre is "
             f"{self.distance[worst] * 1e3:.3f} mm from the nominal, allowed ≥ "
             f"{self.allowed[worst] * 1e3:.3f} mm (intended over-bend "
             f"{self.intended[worst] * 1e3:.3f} mm, limit {self.max_overbend * 1e3:.3f} mm); "

@@ -43,6 +43,7 @@ __all__ = [
     "StepGeometry",
     "ToolHolder",
     "ToolInHolder",
+    "import_step",
     "step_faces",
 ]
 
@@ -527,11 +528,11 @@ def step_faces(path: str | Path) -> list[dict[str, Any]]:
     from roboisf.fem.mesh import gmsh_session
 
     with gmsh_session() as (gmsh, _):
-        _import_step(gmsh, Path(path))
+        import_step(gmsh, Path(path))
         return _face_table(gmsh.model)
 
 
-def _import_step(gmsh: Any, path: Path, *, require_solid: bool = True) -> list[tuple[int, int]]:
+def import_step(gmsh: Any, path: Path, *, require_solid: bool = True) -> list[tuple[int, int]]:
     """Import a STEP (or IGES) file into the current gmsh model, in mm; ``require_solid=False``
     accepts surfaces and shells (a part's nominal surface, :mod:`roboisf.parts.cad`)."""
     if not path.is_file():
@@ -641,7 +642,7 @@ class StepGeometry:
     def build(self, occ: Any, model: Any) -> Built:
         import gmsh
 
-        out = _import_step(gmsh, self.path)
+        out = import_step(gmsh, self.path)
         vols = [t for d, t in out if d == 3]
         clamped = _select_faces(model, self.clamped, "clamped", self.path)
         coupling = _select_faces(model, self.coupling, "coupling", self.path)

@@ -24,8 +24,11 @@ from roboisf.frames.rotations import (
     vertical_tool,
 )
 from roboisf.frames.se3 import (
+    RIGID_TOL,
     adjoint,
     adjoint_inv,
+    check_rigid,
+    check_rotation,
     compose,
     invert,
     make_transform,
@@ -36,11 +39,14 @@ from roboisf.frames.se3 import (
 from roboisf.frames.wrench import shift_wrench, transform_wrench, wrench_transform_matrix
 
 __all__ = [
+    "RIGID_TOL",
     "abc_to_matrix",
     "adjoint",
     "adjoint_inv",
     "axis_angle_to_matrix",
     "check_compliance",
+    "check_rigid",
+    "check_rotation",
     "compose",
     "invert",
     "make_transform",

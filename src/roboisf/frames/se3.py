@@ -15,12 +15,19 @@ All functions accept a single matrix (4, 4) or a batch (N, 4, 4) and return the 
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from roboisf.errors import InputError
+
 __all__ = [
+    "RIGID_TOL",
     "adjoint",
     "adjoint_inv",
+    "check_rigid",
+    "check_rotation",
     "compose",
     "invert",
     "make_transform",
@@ -67,6 +74,64 @@ def make_transform(R: ArrayLike | None = None, p: ArrayLike | None = None) -> F6
     T[..., :3, 3] = pv
     T[..., 3, 3] = 1.0
     return T
+
+
+#: The one tolerance of a rigid transform or rotation: ``max |R Rᵀ − I| ≤ RIGID_TOL``. 1e-6 accepts
+#: a rotation matrix written with six or seven decimals (a hand-typed 0.7071068); the point of a
+#: rotation so far from orthonormal moves by at most ~1 µm at 1 m, the programs' resolution.
+RIGID_TOL = 1e-6
+
+
+def _rotation_fault(R: F64) -> str | None:
+    """Why ``R`` (..., 3, 3) is not a proper rotation (None if it is); names the first bad index
+    of a batch."""
+    err = np.abs(R @ np.swapaxes(R, -1, -2) - np.eye(3)).max(axis=(-1, -2))
+    det = np.linalg.det(R)
+    bad = (err > RIGID_TOL) | (det <= 0) | ~np.isfinite(err)
+    if not np.any(bad):
+        return None
+    first = np.unravel_index(int(np.argmax(bad)), bad.shape) if bad.ndim else ()
+    at = f" at index {', '.join(str(int(i)) for i in first)}" if first else ""
+    if not np.isfinite(err[first]):
+        return f"not finite{at}"
+    if det[first] <= 0:
+        return f"det R = {float(det[first]):.6g}{at}, a reflection or degenerate (expected +1)"
+    return f"max |R Rᵀ − I| = {float(err[first]):.3g} > {RIGID_TOL:g}{at}"
+
+
+def check_rotation(R: ArrayLike, name: str, *, file: str | Path | None = None) -> F64:
+    """``R`` (3, 3) or (..., 3, 3) as a float array if every matrix is a proper rotation
+    (orthonormal within :data:`RIGID_TOL`, det +1); else :class:`~roboisf.errors.InputError`
+    naming ``name`` (the field) and ``file``, and the first bad index of a batch."""
+    A = np.asarray(R, dtype=float)
+    if A.ndim < 2 or A.shape[-2:] != (3, 3):
+        raise InputError(f"expected a 3×3 rotation, got shape {A.shape}", file=file, field=name)
+    fault = _rotation_fault(A)
+    if fault is not None:
+        raise InputError(
+            f"must be a proper rotation (orthonormal, det +1): {fault}", file=file, field=name
+        )
+    return A
+
+
+def check_rigid(T: ArrayLike, name: str, *, file: str | Path | None = None) -> F64:
+    """``T`` (4, 4) or (..., 4, 4) as a float array if every matrix is a proper rigid transform:
+    finite, rotation block orthonormal within :data:`RIGID_TOL` with det +1, last row exactly
+    ``0 0 0 1``. Else :class:`~roboisf.errors.InputError` naming ``name`` (the field) and
+    ``file``. The translation's unit is the caller's (m inside roboisf)."""
+    A = np.asarray(T, dtype=float)
+    if A.ndim < 2 or A.shape[-2:] != (4, 4):
+        raise InputError(f"expected a 4×4 transform, got shape {A.shape}", file=file, field=name)
+    fault = "not finite" if not np.all(np.isfinite(A)) else _rotation_fault(A[..., :3, :3])
+    if fault is None and np.any(A[..., 3, :] != (0.0, 0.0, 0.0, 1.0)):
+        fault = "last row is not 0 0 0 1"
+    if fault is not None:
+        raise InputError(
+            f"must be a rigid transform (orthonormal rotation, det +1, last row 0 0 0 1): {fault}",
+            file=file,
+            field=name,
+        )
+    return A
 
 
 def compose(*Ts: ArrayLike) -> F64:

@@ -45,6 +45,8 @@ __all__ = [
     "ForceLog",
     "attach_to_toolpath",
     "detect_force_format",
+    "is_roboisf_log",
+    "log_kernel",
     "read_force_log",
     "window_average",
     "write_force_log",
@@ -283,7 +285,7 @@ _PROFILES: dict[str, tuple[dict[str, re.Pattern[str]], tuple[str, ...]]] = {
 }
 
 
-def _roboisf_header(path: Path) -> bool:
+def is_roboisf_log(path: Path) -> bool:
     """The roboisf layout: ``# key: value`` lines, then exactly ``time,Fx,...`` (case-sensitive)."""
     try:
         with open(path, encoding="utf-8-sig") as fh:
@@ -330,7 +332,7 @@ def _open(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[str, LogTa
         return "columns", read_log_table(
             p, match, req, what="force log", expected=", ".join(columns.values())
         )
-    if fmt in ("auto", "roboisf") and _roboisf_header(p):
+    if fmt in ("auto", "roboisf") and is_roboisf_log(p):
         return "roboisf", None
     if fmt == "roboisf":
         raise InputError(
@@ -712,7 +714,7 @@ def _integral_at(t: F64, y: F64, cum: F64, x: F64) -> F64:
     return _integral_from(t, y, cum[k], k, x)
 
 
-def _log_kernel() -> Any:
+def log_kernel() -> Any:
     """:mod:`roboisf.io.forcelog_kernel` when numba is installed (imported on first use), else
     None (the numpy forms run)."""
     global _KERNEL
@@ -746,7 +748,7 @@ def window_average(t: F64, y: F64, lo: F64, hi: F64) -> F64:
     mean = np.empty((len(lo), y.shape[1]))
     nz = ~zero
     if np.any(nz):
-        kern = _log_kernel()
+        kern = log_kernel()
         if kern is not None:
             x = np.concatenate([hi[nz], lo[nz]])
             k = _segment(t, x)

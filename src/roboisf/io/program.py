@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
 from roboisf.frames.rotations import vertical_tool
+from roboisf.frames.se3 import check_rigid, check_rotation
 from roboisf.path.toolpath import Toolpath
 
 __all__ = [
@@ -123,10 +124,7 @@ def orientations(
             raise InputError(
                 f"R_work_tool must have shape ({n}, 3, 3), got {R.shape}", field="R_work_tool"
             )
-        err = np.abs(R @ np.swapaxes(R, 1, 2) - np.eye(3)).max()
-        if err > 1e-6 or np.any(np.linalg.det(R) < 0):
-            raise InputError("R_work_tool must be proper rotations", field="R_work_tool")
-        return np.array(R)
+        return np.array(check_rotation(R, "R_work_tool"))
     g = np.asarray(tool_rotation, dtype=float)
     if g.ndim == 1 and g.shape != (n,):
         raise InputError(
@@ -157,14 +155,7 @@ def check_placement(T_base_work: ArrayLike | None) -> F64:
             f"T_base_work must be a finite (4, 4) transform, got shape {T.shape}",
             field="T_base_work",
         )
-    R = T[:3, :3]
-    if (
-        np.abs(R @ R.T - np.eye(3)).max() > 1e-6
-        or np.linalg.det(R) < 0
-        or np.any(T[3] != [0, 0, 0, 1])
-    ):
-        raise InputError("T_base_work must be a rigid transform", field="T_base_work")
-    return T
+    return check_rigid(T, "T_base_work")
 
 
 def split_chunks(n: int, max_moves: int) -> list[slice]:

@@ -42,7 +42,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from roboisf.cell import Cell, tip_compliances
 from roboisf.errors import InputError
-from roboisf.frames import invert
+from roboisf.frames import check_rigid, invert
 from roboisf.frames.wrench import wrench_transform_matrix
 from roboisf.online import kernel as kn
 from roboisf.robot import RobotModel
@@ -167,9 +167,7 @@ class SensorSetup:
         T = np.asarray(self.T_flange_sensor, dtype=float)
         if T.shape != (4, 4) or not np.all(np.isfinite(T)):
             raise InputError("expected a finite (4, 4) transform", field="T_flange_sensor")
-        R = T[:3, :3]
-        if np.max(np.abs(R @ R.T - np.eye(3))) > 1e-9 or np.linalg.det(R) < 0:
-            raise InputError("must be a rigid transform", field="T_flange_sensor")
+        check_rigid(T, "T_flange_sensor")
         if self.load_on not in ("tool", "workpiece"):
             raise InputError(
                 f"must be 'tool' or 'workpiece', got {self.load_on!r}", field="load_on"

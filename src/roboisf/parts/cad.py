@@ -1,7 +1,7 @@
 """CAD nominal surfaces (STEP, IGES) tessellated with gmsh's OpenCASCADE kernel to a tolerance.
 
 The file is imported through the same path as the FE geometries
-(:func:`roboisf.fem.geometry._import_step`, coordinates converted to mm by OCC whatever unit the
+(:func:`roboisf.fem.geometry.import_step`, coordinates converted to mm by OCC whatever unit the
 file declares), here accepting surfaces and shells as well as solids. Every face is meshed with
 triangles of at most size h; the **chordal deviation** — the distance of the triangles from the
 CAD surface — is then measured at every triangle's centroid and edge midpoints by projecting
@@ -44,7 +44,7 @@ def tessellate_cad(path: str | Path, tolerance: float) -> tuple[F64, NDArray[np.
     faces : (F, 3) int
     deviation : float, m — the measured max. deviation (≤ tolerance)
     """
-    from roboisf.fem.geometry import _import_step
+    from roboisf.fem.geometry import import_step
     from roboisf.fem.mesh import gmsh_session
 
     path = Path(path)
@@ -52,7 +52,7 @@ def tessellate_cad(path: str | Path, tolerance: float) -> tuple[F64, NDArray[np.
         raise InputError(f"must be > 0 mm, got {tolerance * 1e3:g}", field="tolerance")
     tol_mm = tolerance * 1e3
     with gmsh_session() as (gmsh, _):
-        _import_step(gmsh, path, require_solid=False)
+        import_step(gmsh, path, require_solid=False)
         model = gmsh.model
         surfaces = [t for _, t in model.getEntities(2)]
         if not surfaces:

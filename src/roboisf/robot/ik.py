@@ -27,10 +27,10 @@ from typing import Any, Literal, cast
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from roboisf.errors import InputError, UnreachableError
+from roboisf.errors import InputError, UnreachableError, short_indices
 from roboisf.frames import invert, vertical_tool
 from roboisf.robot import vjm_kernel
-from roboisf.robot.model import RobotModel, _short
+from roboisf.robot.model import RobotModel
 from roboisf.robot.singularity import scaled_jacobian
 from roboisf.robot.singularity import sigma_min as _sigma_min
 
@@ -433,7 +433,8 @@ def _numerical_path(
         bad = np.flatnonzero(~ok)
         raise UnreachableError(
             f"{bad.size} of {len(ok)} toolpath points: the numerical IK of {model.name} did not "
-            f"converge (out of reach, or a jump the path cannot follow) at indices {_short(bad)}",
+            "converge (out of reach, or a jump the path cannot follow) at indices "
+            f"{short_indices(bad)}",
             indices=bad.tolist(),
         )
     if q0 is None:
@@ -467,7 +468,7 @@ def _checked_result(
         idx = np.flatnonzero(near)
         warnings.warn(
             f"{idx.size} toolpath points are near a singularity (σ_min < {singular_threshold}) "
-            f"at indices {_short(idx)}; the compliance there is unreliable",
+            f"at indices {short_indices(idx)}; the compliance there is unreliable",
             SingularityWarning,
             stacklevel=stacklevel + 1,
         )
@@ -479,7 +480,7 @@ def raise_out_of_reach(model: RobotModel, ok: NDArray[np.bool_], branch: tuple[s
     bad = np.flatnonzero(~ok)
     raise UnreachableError(
         f"{bad.size} of {len(ok)} toolpath points are out of reach of {model.name} "
-        f"(branch {'/'.join(branch)}) at indices {_short(bad)}",
+        f"(branch {'/'.join(branch)}) at indices {short_indices(bad)}",
         indices=bad.tolist(),
     )
 
@@ -493,7 +494,7 @@ def raise_beyond_limits(model: RobotModel, q: F64) -> None:
         joints = sorted({int(j) + 1 for j in np.nonzero(out)[1]})
         raise UnreachableError(
             f"{bad.size} of {len(q)} toolpath points need joint angles beyond the limits of "
-            f"{model.name} (axes {joints}) at indices {_short(bad)}; try another placement, "
+            f"{model.name} (axes {joints}) at indices {short_indices(bad)}; try another placement, "
             "tool rotation or branch",
             indices=bad.tolist(),
         )

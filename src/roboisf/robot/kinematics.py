@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
+from roboisf.frames.se3 import check_rigid
 
 __all__ = [
     "Chain",
@@ -33,6 +34,7 @@ __all__ = [
     "chain_from_dh",
     "chain_from_opw",
     "rz",
+    "sweep",
 ]
 
 F64 = NDArray[np.float64]
@@ -85,9 +87,7 @@ class Chain:
         offset = np.asarray(self.offset, dtype=float).reshape(-1)
         if F.shape != (7, 4, 4) or not np.all(np.isfinite(F)):
             raise InputError(f"chain needs 7 finite 4×4 fixed transforms, got {F.shape}", field="F")
-        R = F[:, :3, :3]
-        if np.max(np.abs(R @ np.swapaxes(R, -1, -2) - np.eye(3))) > 1e-9:
-            raise InputError("fixed transforms must have orthonormal rotations", field="F")
+        check_rigid(F, "F")  # the chain's fixed transforms
         if sign.shape != (6,) or not np.all(np.isin(sign, (-1.0, 1.0))):
             raise InputError(f"sign must be 6 values of ±1, got {sign.tolist()}", field="sign")
         if offset.shape != (6,) or not np.all(np.isfinite(offset)):
@@ -214,7 +214,7 @@ def chain_from_dh(
 
 def chain_fk(chain: Chain, q: F64, T_flange_tip: F64 | None = None) -> F64:
     """Forward kinematics ``T_base_tip`` (N, 4, 4) for ``q`` (N, 6) rad."""
-    R, p, _, _ = _sweep(chain, q, T_flange_tip, want_axes=False)
+    R, p, _, _ = sweep(chain, q, T_flange_tip, want_axes=False)
     T = np.zeros((q.shape[0], 4, 4))
     T[:, :3, :3] = R
     T[:, :3, 3] = p
@@ -224,7 +224,7 @@ def chain_fk(chain: Chain, q: F64, T_flange_tip: F64 | None = None) -> F64:
 
 def chain_fk_jacobian(chain: Chain, q: F64, T_flange_tip: F64 | None = None) -> tuple[F64, F64]:
     """``T_base_tip`` (N, 4, 4) and the tip Jacobian (N, 6, 6), base frame, rows [v; ω]."""
-    R, p, z, o = _sweep(chain, q, T_flange_tip, want_axes=True)
+    R, p, z, o = sweep(chain, q, T_flange_tip, want_axes=True)
     assert z is not None and o is not None
     n = q.shape[0]
     T = np.zeros((n, 4, 4))
@@ -241,7 +241,7 @@ def chain_fk_jacobian(chain: Chain, q: F64, T_flange_tip: F64 | None = None) -> 
     return T, J
 
 
-def _sweep(
+def sweep(
     chain: Chain, q: F64, T_flange_tip: F64 | None, *, want_axes: bool
 ) -> tuple[F64, F64, F64 | None, F64 | None]:
     """Walk the chain once: rotation (N,3,3), position (N,3), joint axes and origins (N,6,3).

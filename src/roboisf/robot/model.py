@@ -23,7 +23,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from roboisf.errors import InputError
+from roboisf.errors import InputError, short_indices
+from roboisf.frames.se3 import check_rigid
 from roboisf.progress import Progress
 from roboisf.robot import vjm_kernel
 from roboisf.robot.kinematics import (
@@ -111,10 +112,10 @@ class RobotModel:
                 )
             object.__setattr__(self, "stiffness", K)
         T = _ro(self.T_flange_tip, (4, 4), "T_flange_tip")
-        _check_rigid(T, "T_flange_tip")
+        check_rigid(T, "T_flange_tip")
         object.__setattr__(self, "T_flange_tip", T)
         L = _ro(self.T_flange_link, (4, 4), "T_flange_link")
-        _check_rigid(L, "T_flange_link")
+        check_rigid(L, "T_flange_link")
         object.__setattr__(self, "T_flange_link", L)
         if self.opw is not None:
             ref = chain_from_opw(self.opw)
@@ -122,7 +123,7 @@ class RobotModel:
                 raise InputError("chain does not match the OPW parameters", field="chain")
         if self.default_placement is not None:
             P = _ro(self.default_placement, (4, 4), "default_placement")
-            _check_rigid(P, "default_placement")
+            check_rigid(P, "default_placement")
             object.__setattr__(self, "default_placement", P)
 
     # ------------------------------------------------------------------ construction
@@ -165,7 +166,9 @@ class RobotModel:
             )
         if not np.isfinite(arr).all():  # one pass; the rows only for the message
             idx = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
-            raise InputError(f"joint angles contain NaN or inf at rows {_short(idx)}", field=field)
+            raise InputError(
+                f"joint angles contain NaN or inf at rows {short_indices(idx)}", field=field
+            )
         if limits:
             tol = 1e-9
             out = (arr < self.q_min - tol) | (arr > self.q_max + tol)
@@ -173,7 +176,7 @@ class RobotModel:
                 rows, cols = np.nonzero(out)
                 j = cols[0]
                 raise InputError(
-                    f"joint angles beyond the limits of {self.name} at rows {_short(rows)}: "
+                    f"joint angles beyond the limits of {self.name} at rows {short_indices(rows)}: "
                     f"e.g. row {rows[0]} A{j + 1} = {np.degrees(arr[rows[0], j]):.3f} deg, "
                     f"limits [{np.degrees(self.q_min[j]):.1f}, "
                     f"{np.degrees(self.q_max[j]):.1f}] deg",
@@ -412,23 +415,5 @@ def _placement(T_base_work: ArrayLike) -> F64:
     T = np.asarray(T_base_work, dtype=float)
     if T.shape != (4, 4) or not np.all(np.isfinite(T)):
         raise InputError(f"expected a finite (4, 4) transform, got {T.shape}", field="T_base_work")
-    _check_rigid(T, "T_base_work")
+    check_rigid(T, "T_base_work")
     return T
-
-
-def _check_rigid(T: F64, name: str) -> None:
-    R = T[:3, :3]
-    if (
-        np.max(np.abs(R @ R.T - np.eye(3))) > 1e-9
-        or np.linalg.det(R) < 0
-        or np.any(T[3] != (0, 0, 0, 1))
-    ):
-        raise InputError(
-            "must be a rigid transform (orthonormal rotation, last row 0 0 0 1)", field=name
-        )
-
-
-def _short(idx: ArrayLike, n: int = 8) -> str:
-    items: list[int] = [int(i) for i in np.asarray(idx).reshape(-1)]
-    s = ", ".join(str(i) for i in items[:n])
-    return s + (f", … ({len(items)} in all)" if len(items) > n else "")

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from roboisf.errors import InputError
-from roboisf.frames import make_transform, rpy_to_matrix
+from roboisf.frames.pose import XYZ_RPY_M_DEG, pose_transform
 from roboisf.io.text import read_text
 from roboisf.robot.kinematics import Chain, chain_from_dh, chain_from_opw
 from roboisf.robot.model import OPWGeometry, RobotModel
@@ -114,9 +114,10 @@ def _vec(d: dict[str, Any], key: str, n: int, file: Any, section: str) -> np.nda
 
 
 def _pose(d: dict[str, Any], file: object, section: str) -> np.ndarray:
+    """``[section] xyz_m`` (m) and ``rpy_deg`` (deg, roll-pitch-yaw; default 0) → T (4, 4) m."""
     xyz = _vec(d, "xyz_m", 3, file, section)
-    rpy = np.radians(_vec(d, "rpy_deg", 3, file, section)) if "rpy_deg" in d else np.zeros(3)
-    return make_transform(rpy_to_matrix(rpy), xyz)
+    rpy = _vec(d, "rpy_deg", 3, file, section) if "rpy_deg" in d else np.zeros(3)
+    return pose_transform([*xyz, *rpy], XYZ_RPY_M_DEG)
 
 
 def robot_from_dict(data: dict[str, Any], *, file: object = None) -> RobotModel:

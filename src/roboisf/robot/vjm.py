@@ -18,7 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 from roboisf.errors import InputError
 from roboisf.frames import serial_assembly
 from roboisf.progress import Progress
-from roboisf.robot.kinematics import _sweep, rotate_6, rotate_6x6
+from roboisf.robot.kinematics import rotate_6, rotate_6x6, sweep
 from roboisf.robot.model import RobotModel, _check_wrench
 
 __all__ = [
@@ -70,7 +70,7 @@ def geometric_stiffness(model: RobotModel, q: ArrayLike, wrench: ArrayLike) -> F
     """
     qv = model.check_q(q, limits=False)
     W = _check_wrench(wrench, qv.shape[0])
-    _R, p, z, o = _sweep(model.chain, qv, model.T_flange_tip, want_axes=True)
+    _R, p, z, o = sweep(model.chain, qv, model.T_flange_tip, want_axes=True)
     assert z is not None and o is not None
     f, m = W[:, :3], W[:, 3:]
     s = model.chain.sign

@@ -164,9 +164,9 @@ class Conditioning:
 def _distances(W: F64, level: F64) -> F64:
     """``|F − level|`` per sample (N,) for the force columns of ``W`` (N, ≥3): one compiled pass
     with numba (the same bits as ``np.linalg.norm(F − level, axis=1)``, tested), else numpy."""
-    from roboisf.io.forcelog import _log_kernel
+    from roboisf.io.forcelog import log_kernel
 
-    kern = _log_kernel()
+    kern = log_kernel()
     if kern is None:
         return np.asarray(np.linalg.norm(W[:, :3] - level, axis=1))
     return np.asarray(kern.row_norms(W, 0, level))

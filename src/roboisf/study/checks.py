@@ -71,9 +71,9 @@ def check_tool_radius(ball_diameter: float, tp: Toolpath, *, study_file: Path) -
 def _magnitudes(log: ForceLog) -> tuple[F64, F64]:
     """|F| and |M| per sample (N,) each: compiled with numba (the same bits as
     ``np.linalg.norm(log.force, axis=1)``, without its (N, 3) temporaries), else numpy."""
-    from roboisf.io.forcelog import _log_kernel
+    from roboisf.io.forcelog import log_kernel
 
-    kern = _log_kernel()
+    kern = log_kernel()
     if kern is None:
         return np.linalg.norm(log.force, axis=1), np.linalg.norm(log.moment, axis=1)
     return kern.row_norms(log.wrench, 0), kern.row_norms(log.wrench, 3)

@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from roboisf.errors import InputError
+from roboisf.frames.pose import pose_numbers
 
 __all__ = ["READERS", "DetectedFile", "StudyDraft", "detect_files", "draft_study", "render_toml"]
 
@@ -370,8 +371,9 @@ class StudyDraft:
     notes: list[str]
 
 
-def _pose(values: list[float] | None, what: str) -> list[float] | str:
-    return [float(v) for v in values] if values is not None else _todo(what)
+def _pose(values: list[float] | None, what: str, field: str) -> list[float] | str:
+    """The pose (mm, deg) as given (checked), or the TODO that asks for it."""
+    return pose_numbers(values, field=field) if values is not None else _todo(what)
 
 
 def draft_study(
@@ -499,10 +501,12 @@ def draft_study(
             raise InputError(e.message, file=e.file, line=e.line, field="--tip-link") from None
     rb: dict[str, Any] = {
         "model": model,
-        "placement": _pose(placement, "[x, y, z, roll, pitch, yaw] of the work frame, mm/deg"),
+        "placement": _pose(
+            placement, "[x, y, z, roll, pitch, yaw] of the work frame, mm/deg", "placement"
+        ),
     }
     if flange_to_tip is not None:
-        rb["flange_to_tip"] = [float(v) for v in flange_to_tip]
+        rb["flange_to_tip"] = pose_numbers(flange_to_tip, field="flange_to_tip")
     else:
         notes.append("robot.flange_to_tip: the preset's tool (give --flange-to-tip)")
     if tool_rotation is not None:
@@ -546,7 +550,9 @@ def draft_study(
         r["forces"] = {
             "file": rel(fl.path) if fl else _todo(f"the {run} run's force log"),
             "mount": mount,
-            "pose": _pose(pose, f"{what} [x, y, z, roll, pitch, yaw] in mm and deg"),
+            "pose": _pose(
+                pose, f"{what} [x, y, z, roll, pitch, yaw] in mm and deg", f"{run}_sensor_pose"
+            ),
             "load_on": load_on,
         }
         if fl is not None and fl.keys:

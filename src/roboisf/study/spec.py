@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.errors import InputError
-from roboisf.frames import make_transform, rpy_to_matrix
+from roboisf.frames.pose import XYZ_RPY_MM_DEG, pose_numbers, pose_transform
 from roboisf.io.units import ANGLE_UNITS, FORCE_UNITS, LENGTH_UNITS, MOMENT_UNITS, TIME_UNITS
 from roboisf.parts import Part, part_from_dict
 from roboisf.plausible import Bound, check_plausible, unit_slip
@@ -63,22 +63,13 @@ def pose_to_transform(
     angles lie in ±720°): a position no real cell has (1e29 mm, a value in µm) is refused with
     the unit slip that explains it.
     """
-    if not (isinstance(values, list) and len(values) == 6) or not all(
-        isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in values
-    ):
-        raise InputError(
-            "expected [x, y, z, roll, pitch, yaw] in mm and deg (6 finite numbers), "
-            f"got {values!r}",
-            file=file,
-            field=field,
-        )
+    values = pose_numbers(values, XYZ_RPY_MM_DEG, field=field, file=file, strings=False)
     if position is not None:
         for i, axis in enumerate(("x", "y", "z", "roll", "pitch", "yaw")):
             check_plausible(
                 values[i], position if i < 3 else "angle", file=file, field=f"{field}[{axis}]"
             )
-    v = np.asarray(values, dtype=float)
-    return make_transform(rpy_to_matrix(np.radians(v[3:])), v[:3] * 1e-3)
+    return pose_transform(values, XYZ_RPY_MM_DEG)
 
 
 @dataclass(frozen=True)

@@ -68,11 +68,11 @@ from roboisf.fem import ComplianceResult, save_compliance_json
 from roboisf.frames import (
     invert,
     make_transform,
-    matrix_to_rpy,
     rpy_to_matrix,
     transform_wrench,
     vertical_tool,
 )
+from roboisf.frames.pose import format_pose
 from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
 from roboisf.io.forcelog import ForceLog, write_force_log
 from roboisf.io.jointlog import write_joint_log
@@ -110,6 +110,7 @@ __all__ = [
     "paper_cone_cell",
     "paper_scenario_cell",
     "paper_vwacf_cell",
+    "part_cell",
     "pyramid_cell",
     "quantize_wrench",
     "sensor_wrench",
@@ -133,12 +134,6 @@ CELL_KEYS = (
     "tool_rotation",
     "force",
 )
-
-
-def _pose_list(T: F64) -> list[float]:
-    """4×4 → [x, y, z, roll, pitch, yaw] in mm and deg (for study.toml)."""
-    rpy = np.degrees(matrix_to_rpy(T[:3, :3]))
-    return [round(float(v), 9) for v in (*(T[:3, 3] * 1e3), *rpy)]
 
 
 @dataclass(frozen=True, eq=False)
@@ -300,13 +295,15 @@ def paper_scenario_cell(part: str, **overrides: Any) -> VirtualCell:
     """The paper's cone or VWACF (``part`` = ``"cone"`` / ``"vwacf"``) with the ``paper``
     scenario's truth (:mod:`roboisf.virtual.truth`, package data ``scenarios/paper_*.toml``):
     the cell whose analysis reproduces the paper's Table 5. ``truth=`` in ``overrides`` wins."""
+    from roboisf.virtual.builtin import BUILTIN_CELLS, paper_scenario_names
     from roboisf.virtual.truth import load_truth
 
-    makers = {"cone": paper_cone_cell, "vwacf": paper_vwacf_cell}
-    if part not in makers:
-        raise InputError(f"expected 'cone' or 'vwacf', got {part!r}", field="part")
+    names = paper_scenario_names()
+    if part not in names:
+        expected = " or ".join(repr(n) for n in names)
+        raise InputError(f"expected {expected}, got {part!r}", field="part")
     settings = {"truth": load_truth(scenario="paper", part=part), **overrides}
-    return makers[part](**settings)
+    return BUILTIN_CELLS[part].make(**settings)
 
 
 #: The built-in pyramid of ``roboisf virtual-cell pyramid``: the common ISF benchmark's size, a
@@ -315,10 +312,16 @@ def paper_scenario_cell(part: str, **overrides: Any) -> VirtualCell:
 PYRAMID = Pyramid(100e-3, 100e-3, math.radians(60.0), 40e-3, corner_radius=10e-3)
 
 
-def pyramid_cell(part: Pyramid = PYRAMID, **overrides: Any) -> VirtualCell:
+def part_cell(name: str, part: Part, **overrides: Any) -> VirtualCell:
     """The paper-like cell (Ø10 ball, IRB 7600 at :data:`PAPER_CELL_PLACEMENT`, Aerens force,
-    the cone's springback model) around a pyramid (default :data:`PYRAMID`)."""
-    return virtual_cell("pyramid", part, **{"T_base_work": PAPER_CELL_PLACEMENT, **overrides})
+    the cone's springback model) around any ``part`` — a part file's
+    (``roboisf virtual-cell --part``, ``compensate --virtual PART.toml``)."""
+    return virtual_cell(name, part, **{"T_base_work": PAPER_CELL_PLACEMENT, **overrides})
+
+
+def pyramid_cell(part: Pyramid = PYRAMID, **overrides: Any) -> VirtualCell:
+    """:func:`part_cell` around a pyramid (default :data:`PYRAMID`)."""
+    return part_cell("pyramid", part, **overrides)
 
 
 @dataclass(frozen=True)
@@ -854,8 +857,8 @@ def _write_study_toml(
     c = cell.cell
     robot: dict[str, Any] = {
         "model": c.robot_name,
-        "placement": _pose_list(c.T_base_work),
-        "flange_to_tip": _pose_list(c.T_flange_tip),
+        "placement": format_pose(c.T_base_work),
+        "flange_to_tip": format_pose(c.T_flange_tip),
         "tool_rotation": math.degrees(c.tool_rotation),
     }
     if c.tip_link is not None:
@@ -894,7 +897,7 @@ def _write_study_toml(
                 "forces": {
                     "file": str(cnc.file),
                     "mount": cnc.mount,
-                    "pose": _pose_list(cnc.pose),
+                    "pose": format_pose(cnc.pose),
                     "load_on": cnc.load_on,
                 },
             },
@@ -908,7 +911,7 @@ def _write_study_toml(
                 "forces": {
                     "file": str(rob.file),
                     "mount": rob.mount,
-                    "pose": _pose_list(rob.pose),
+                    "pose": format_pose(rob.pose),
                     "load_on": rob.load_on,
                 },
                 **(robot_files or {}),
@@ -954,8 +957,8 @@ def cell_settings(cell: VirtualCell) -> dict[str, Any]:
         "name": cell.name,
         "part": c.part.to_dict() if not isinstance(c.part, MeshPart) else "mesh",
         "robot": c.robot_name,
-        "placement": _pose_list(c.T_base_work),
-        "flange_to_tip": _pose_list(c.T_flange_tip),
+        "placement": format_pose(c.T_base_work),
+        "flange_to_tip": format_pose(c.T_flange_tip),
         "tool_rotation_deg": math.degrees(c.tool_rotation),
         "step_down_mm": cell.step_down * 1e3,
         "spacing_mm": cell.spacing * 1e3,

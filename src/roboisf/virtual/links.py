@@ -34,7 +34,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
 from roboisf.robot import RobotModel
-from roboisf.robot.kinematics import _sweep, rotate_6
+from roboisf.robot.kinematics import rotate_6, sweep
 
 __all__ = [
     "IRB7600_LINKS",
@@ -205,7 +205,7 @@ def link_deflection(
     if T_base_work is not None:
         R_bw = np.asarray(T_base_work, dtype=float)[:3, :3]
         W = rotate_6(W, R_bw)
-    _, p, z, o = _sweep(model.chain, qv, model.T_flange_tip, want_axes=True)
+    _, p, z, o = sweep(model.chain, qv, model.T_flange_tip, want_axes=True)
     assert z is not None and o is not None
     starts = np.stack([o[:, lk.start] for lk in links], axis=1)
     ends = np.stack([o[:, lk.end] for lk in links], axis=1)

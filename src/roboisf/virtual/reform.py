@@ -31,6 +31,7 @@ import numpy as np
 import tomli_w
 
 from roboisf.errors import InputError
+from roboisf.frames.pose import format_pose
 from roboisf.io.atomic import atomic_write, staged_directory
 from roboisf.io.forcelog import write_force_log
 from roboisf.io.jointlog import write_joint_log
@@ -46,7 +47,6 @@ from roboisf.virtual.cell import (
     _force_log,
     _log_times,
     _max_distance,
-    _pose_list,
     _scan,
     _write_truth,
     build_study,
@@ -201,7 +201,7 @@ def reform_study(
             "forces": {
                 "file": str(sensor.file),
                 "mount": sensor.mount,
-                "pose": _pose_list(sensor.pose),
+                "pose": format_pose(sensor.pose),
                 "load_on": sensor.load_on,
             },
         }
