@@ -28,8 +28,11 @@ import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator
+from functools import partial
 from pathlib import Path
 from typing import Any
+
+from roboisf.progress import Advance, noop_advance
 
 
 class StepTimes:
@@ -50,7 +53,7 @@ class StepTimes:
         self._scan = threading.local()
 
     @contextlib.contextmanager
-    def task(self, description: str, total: float | None = None) -> Iterator[object]:
+    def task(self, description: str, total: float | None = None) -> Iterator[Advance]:
         with self._lock:
             row = len(self.rows)
             depth = self._depth if threading.current_thread() is threading.main_thread() else 2
@@ -64,7 +67,7 @@ class StepTimes:
                 self.scan_of[row] = run
         t, c = time.perf_counter(), time.process_time()
         try:
-            yield lambda amount=1.0: None
+            yield noop_advance
         finally:
             if description.startswith("scan "):
                 self._scan.run = None
@@ -101,6 +104,13 @@ def _best(f: Callable[[], object], repeats: int = 3) -> float:
 def _read_bytes(*files: Path) -> None:
     for f in files:
         f.read_bytes()
+
+
+def _one_pass(X: Any) -> None:
+    """One numpy pass over the points (N, 3): the norm of each (reads N×3, writes N)."""
+    import numpy as np
+
+    np.sqrt(np.einsum("ij,ij->i", X, X))
 
 
 def _knn_scipy(X: Any, k: int) -> None:
@@ -172,8 +182,8 @@ def step_floors(spec: Any, steps: StepTimes) -> None:
     for name, r in runs.items():
         X = read_scan(r.scan, unit=r.scan_unit).points
         X = np.take(X, spatial_order(X), axis=0)
-        t_bytes = _best(lambda f=r.scan: _read_bytes(f))
-        t_pass = _best(lambda X=X: np.sqrt(np.einsum("ij,ij->i", X, X)))
+        t_bytes = _best(partial(_read_bytes, r.scan))
+        t_pass = _best(partial(_one_pass, X))
         floor[name, "read"] = t_bytes + t_pass
         for step in (
             "register",
@@ -183,8 +193,8 @@ def step_floors(spec: Any, steps: StepTimes) -> None:
             "toolpath deviations",
         ):
             floor[name, step] = t_pass
-        peer[name, "spatial order"] = ("numpy argsort", _best(lambda X=X: np.argsort(X[:, 0])))
-        peer[name, "outlier removal"] = ("scipy cKDTree", _best(lambda X=X: _knn_scipy(X, k), 1))
+        peer[name, "spatial order"] = ("numpy argsort", _best(partial(np.argsort, X[:, 0])))
+        peer[name, "outlier removal"] = ("scipy cKDTree", _best(partial(_knn_scipy, X, k), 1))
         o3d_knn = _knn_open3d(X, k)
         if o3d_knn is not None:
             peer[name, "outlier removal"] = ("Open3D", _best(o3d_knn, 1))
@@ -193,8 +203,8 @@ def step_floors(spec: Any, steps: StepTimes) -> None:
             peer[name, "register"] = ("Open3D ICP", _best(o3d_icp, 1))
         del X
         logs = [f for f in (r.forces.file, r.joints) if f is not None]
-        floor[name, "logs"] = _best(lambda logs=logs: _read_bytes(*logs))
-        peer[name, "logs"] = ("pyarrow/pandas", _best(lambda logs=logs: _read_logs(logs), 1))
+        floor[name, "logs"] = _best(partial(_read_bytes, *logs))
+        peer[name, "logs"] = ("pyarrow/pandas", _best(partial(_read_logs, logs), 1))
 
     def key(i: int, step: str) -> tuple[str, str] | None:
         if step.endswith(" logs: alignment"):
@@ -207,7 +217,7 @@ def step_floors(spec: Any, steps: StepTimes) -> None:
         return (run, step.split(" (")[0])
 
     print(
-        f"    {'step vs floor and peer (same run)':<40} {'wall':>7} {'floor':>7} {'x floor':>8}"
+        f"    {'step vs floor and peer (same run)':<40} {'wall':>7} {'floor':>9} {'x floor':>8}"
         f"  {'peer':<15} {'x peer':>7}"
     )
     for i, (_depth, step, dt, _cpu, _rss) in enumerate(steps.rows):
@@ -224,7 +234,7 @@ def step_floors(spec: Any, steps: StepTimes) -> None:
         label = f"{step} ({run})" if run and kk[1] != "read" else step
         label = label + ": reading, rest" if kk[1] == "read" else label
         f = floor[kk]
-        line = f"    {label:<40} {dt:5.2f} s {f:5.3f} s {dt / f:7.0f}x"
+        line = f"    {label:<40} {dt:5.2f} s {f * 1e3:6.1f} ms {dt / f:7.0f}x"
         if kk in peer:
             pname, tp = peer[kk]
             line += f"  {pname:<15} {dt / tp:6.2f}x"
