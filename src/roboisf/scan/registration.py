@@ -47,6 +47,7 @@ import math
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, fields
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -316,6 +317,239 @@ def _search_rz(
     return make_transform(rot_z(float(offsets[best]))) @ base
 
 
+class _Equations(NamedTuple):
+    """One Gauss–Newton iteration's weighted normal equations, the rotation columns scaled by
+    the RMS lever arm L (``scale`` = [1, 1, 1, L, L, L, 1]): every column in m."""
+
+    A: F64  # (7, 7) Jᵀ W J (IRLS)
+    b: F64  # (7,) Jᵀ ψ(r): the gradient of the Huber cost
+    H: F64  # (7, 7) Jᵀ 1{|r| ≤ k} J: the Huber cost's Hessian
+    G: F64  # (7, 7) Σ ψ² J Jᵀ: the sandwich covariance's meat
+    quad: F64  # (N,) 1 where the point is in Huber's quadratic zone
+    scale: F64  # (7,)
+
+
+def _checked_input(
+    points: ArrayLike, method: str, T_init: ArrayLike | None, source: str | None
+) -> tuple[F64, F64]:
+    """The scan points (N, 3) [m] and the starting ``T_work_scan`` (4, 4), checked."""
+    if method not in METHODS:
+        raise InputError(
+            f"unknown registration {method!r}; expected one of {', '.join(METHODS)}",
+            field="register",
+        )
+    X = np.atleast_2d(np.asarray(points, dtype=float))
+    if X.ndim != 2 or X.shape[1] != 3 or not np.all(np.isfinite(X)):
+        raise InputError(
+            f"scan points must be finite (N, 3) coordinates, got shape {X.shape}",
+            file=source,
+            field="points",
+        )
+    if T_init is not None:
+        T0 = np.asarray(T_init, dtype=float)
+        if T0.shape != (4, 4) or not np.all(np.isfinite(T0)):
+            raise InputError("T_init must be a finite 4×4 transform", field="T_init")
+    T = np.eye(4) if T_init is None else np.asarray(T_init, dtype=float).copy()
+    return X, T
+
+
+def _free_coordinates(
+    part: Part, method: str, symmetry: Symmetry | int | None
+) -> tuple[SymmetryEstimate | None, NDArray[np.bool_], dict[str, str]]:
+    """The part's symmetry, the coordinates ``method`` fits (mask over :data:`DOF`) and why each
+    other one is locked."""
+    sym: SymmetryEstimate | None = None
+    free = np.zeros(6, dtype=bool)
+    locked: dict[str, str] = {}
+    if method == "none":
+        return sym, free, locked
+    sym = part_symmetry(part, symmetry=symmetry)
+    free[:] = True
+    if method == "fixture":
+        free[[0, 1, 5]] = False
+        for name in ("x", "y", "rz"):
+            locked[name] = "fixture registration: kept where the fixture puts it"
+    if sym.order == 0 and free[5]:
+        free[5] = False
+        locked["rz"] = f"continuous symmetry about z ({sym.how}): changes no distance"
+    if method == "axisymmetric" and sym.order != 0:
+        raise InputError(
+            "the axisymmetric registration needs a part with a continuous symmetry about z; "
+            f"this part's symmetry: {sym.describe()}; use icp or flange",
+            field="register",
+        )
+    return sym, free, locked
+
+
+def _jacobian(P: F64, q: SurfaceQuery) -> F64:
+    """(N, 7) ∂r/∂[v; ω; e] at the points ``P`` (N, 3) [m] with their nominal feet ``q``; the
+    nuisance column e is left 0. The gradient of the signed distance is (p − q)/r — the face
+    normal on a face, the direction from the edge or vertex where the foot is one (a mesh's or a
+    pyramid's edges: with the face normal there Gauss–Newton creeps instead of converging
+    quadratically)."""
+    r = q.distance
+    off = np.abs(r) > 1e-9
+    g = np.where(off[:, None], (P - q.point) / np.where(off, r, 1.0)[:, None], q.normal)
+    J = np.zeros((P.shape[0], 7))
+    J[:, :3] = g
+    J[:, 3:6] = np.cross(P, g)
+    return J
+
+
+def _flange_weights(
+    method: str,
+    q: SurfaceQuery,
+    r: F64,
+    w: F64,
+    J: F64,
+    flange_mask: NDArray[np.bool_],
+    it: int,
+    scales: dict[str, float],
+    max_distance: float,
+    where: str,
+) -> tuple[F64, F64]:
+    """Residuals and weights of the ``fixture`` and ``flange`` fits (``J`` edited in place).
+
+    ``fixture``: the flange points alone. ``flange``: the flange fixes z and the tilts, the wall
+    x, y and rz, each group with its own Huber scale, and a uniform wall offset e fitted as a
+    nuisance (column 6); the wall's median offset is removed from its residuals first, so they
+    stay noise-sized, in Huber's quadratic zone."""
+    on_flange = flange_mask & (w > 0)
+    if np.count_nonzero(on_flange) < 50:
+        raise ConvergenceError(
+            f"{method} registration{where}: only {np.count_nonzero(on_flange)} scan "
+            "points on the flange; scan the clamped sheet around the part"
+            + (", or use icp" if method == "flange" else "")
+        )
+    if method == "fixture":
+        return r, np.where(on_flange, w, 0.0)
+    on_wall = (q.region == 1) & (q.point[:, 2] <= -FLANGE_CLEARANCE) & (w > 0)
+    r = r.copy()
+    if on_wall.any():
+        r[on_wall] -= np.median(r[on_wall])
+    w = np.zeros_like(r)
+    for name, grp in (("flange", on_flange), ("wall", on_wall)):
+        if grp.any():
+            w[grp], sg = _huber_weights(r[grp], max_distance, scales.get(name))
+            if it == FREEZE_SCALE:
+                scales[name] = sg
+    J[np.ix_(np.flatnonzero(on_flange), np.array([0, 1, 5]))] = 0.0
+    J[np.ix_(np.flatnonzero(~on_flange), np.array([2, 3, 4]))] = 0.0
+    J[~(on_flange | on_wall)] = 0.0
+    J[on_wall, 6] = -1.0  # r_i − e
+    return r, w
+
+
+def _normal_equations(J: F64, P: F64, r: F64, w: F64) -> _Equations:
+    """The iteration's normal equations. Rotation columns × 1/L (L = RMS lever arm): every
+    column in m, so observability compares like with like (a column that vanishes, as rotation
+    about the axis of a surface of revolution does, stays ~0 instead of being normalised up to
+    1). Newton on the Huber cost once its scale is frozen uses H = Jᵀ·1{|r| ≤ k}·J (ψ' = 1 in the
+    quadratic zone, 0 outside) instead of IRLS's Jᵀ·(ψ/r)·J, which converges only linearly when
+    many points sit in the linear zone (a wall offset against the flange)."""
+    L = math.sqrt(float(np.average(np.einsum("ij,ij->i", P, P), weights=w)))
+    scale = np.array([1.0, 1.0, 1.0, L, L, L, 1.0])
+    Js = J / scale
+    A = Js.T @ (Js * w[:, None])
+    b = Js.T @ (w * r)
+    quad = (w >= 1.0).astype(float)
+    H = Js.T @ (Js * quad[:, None])
+    G = Js.T @ (Js * ((w * r) ** 2)[:, None])
+    return _Equations(A, b, H, G, quad, scale)
+
+
+def _lock_unobservable(
+    A: F64,
+    free: NDArray[np.bool_],
+    nuisance: bool,
+    locked: dict[str, str],
+    min_observability: float,
+) -> list[int]:
+    """Lock (in ``free`` and ``locked``) what the surface does not determine, worst first, until
+    the rest is well posed; returns the columns fitted (the nuisance column 6 included)."""
+    while True:
+        fit_cols = [int(k) for k in np.flatnonzero(free)] + ([6] if nuisance else [])
+        rho = {k: _observability(A, fit_cols, k) for k in fit_cols if k < 6}
+        if not rho:
+            return fit_cols
+        worst = min(rho, key=lambda k: rho[k])
+        if rho[worst] >= min_observability:
+            return fit_cols
+        free[worst] = False
+        locked[DOF[worst]] = (
+            f"not determined by the scanned surface (observability {rho[worst]:.1e})"
+        )
+
+
+def _step(eq: _Equations, fit_cols: list[int], it: int) -> F64:
+    """The Gauss–Newton step ξ (7,) [m, rad, m]: Newton on the frozen Huber cost when enough
+    points are in its quadratic zone and H is well conditioned, IRLS otherwise."""
+    Hf = eq.H[np.ix_(fit_cols, fit_cols)]
+    newton = it > FREEZE_SCALE and np.count_nonzero(eq.quad) >= 10 * len(fit_cols)
+    if newton and np.linalg.cond(Hf) < 1e12:
+        sol = -np.linalg.solve(Hf, eq.b[fit_cols])
+    else:
+        sol = -np.linalg.solve(eq.A[np.ix_(fit_cols, fit_cols)], eq.b[fit_cols])
+    xi = np.zeros(7)
+    xi[fit_cols] = sol
+    xi[:6] /= eq.scale[:6]
+    return xi
+
+
+def _fit_quality(
+    part: Part,
+    T: F64,
+    X: F64,
+    method: str,
+    max_distance: float,
+    min_overlap: float,
+    where: str,
+) -> tuple[float, float]:
+    """Overlap (share of the points within ``max_distance`` of the nominal) and the RMS residual
+    [m] of the inliers: within ``max_distance`` and within 3 robust σ of the median (stray points
+    — 1 % of reflections a few mm off — would otherwise dominate the figure)."""
+    P = transform_points(T, X)
+    r = _closest(part, P).distance
+    inside = np.abs(r) <= max_distance
+    overlap = float(np.mean(inside))
+    if method != "none" and overlap < min_overlap:
+        raise ConvergenceError(
+            f"{method} registration{where}: only {overlap:.1%} of the points lie within "
+            f"{max_distance * 1e3:g} mm of the nominal after the fit (need {min_overlap:.0%})"
+        )
+    rms = math.inf
+    if inside.any():
+        ri = r[inside]
+        med = float(np.median(ri))
+        s_in = max(1.4826 * float(np.median(np.abs(ri - med))), 1e-9)
+        core = ri[np.abs(ri - med) <= 3.0 * s_in]
+        rms = float(np.sqrt(np.mean(core**2)))
+    return overlap, rms
+
+
+def _uncertainty(
+    eq: _Equations, fit_cols: list[int]
+) -> tuple[dict[str, float], float, dict[str, float]]:
+    """Observability ρ of every coordinate, the condition number of the fitted normal matrix
+    and the standard errors of the fitted coordinates [m, rad] from the robust (sandwich)
+    covariance of the M-estimate, H⁻¹ (Σ ψ² J Jᵀ) H⁻¹."""
+    obs: dict[str, float] = {}
+    std: dict[str, float] = {}
+    A = eq.A
+    for k in range(6):
+        obs[DOF[k]] = _observability(A, sorted(set(fit_cols) | {k}), k)
+    Af = A[np.ix_(fit_cols, fit_cols)]
+    ev = np.linalg.eigvalsh(Af)
+    cond = float(ev[-1] / ev[0]) if ev[0] > 0 else math.inf
+    Hf = eq.H[np.ix_(fit_cols, fit_cols)]
+    Hi = np.linalg.pinv(Hf if np.linalg.cond(Hf) < 1e12 else Af, hermitian=True)
+    cov = Hi @ eq.G[np.ix_(fit_cols, fit_cols)] @ Hi
+    for i, c in enumerate(fit_cols):
+        if c < 6:
+            std[DOF[c]] = float(math.sqrt(max(cov[i, i], 0.0)) / eq.scale[c])
+    return obs, cond, std
+
+
 def register(
     points: ArrayLike,
     part: Part,
@@ -372,46 +606,12 @@ def register(
     ConvergenceError — no convergence in ``max_iterations``, tilt beyond ``max_rotation``
         (``icp``), too little overlap, no flange in the scan (``fixture``, ``flange``).
     """
-    if method not in METHODS:
-        raise InputError(
-            f"unknown registration {method!r}; expected one of {', '.join(METHODS)}",
-            field="register",
-        )
-    X = np.atleast_2d(np.asarray(points, dtype=float))
-    if X.ndim != 2 or X.shape[1] != 3 or not np.all(np.isfinite(X)):
-        raise InputError(
-            f"scan points must be finite (N, 3) coordinates, got shape {X.shape}",
-            file=source,
-            field="points",
-        )
-    if T_init is not None:
-        T0 = np.asarray(T_init, dtype=float)
-        if T0.shape != (4, 4) or not np.all(np.isfinite(T0)):
-            raise InputError("T_init must be a finite 4×4 transform", field="T_init")
+    X, T = _checked_input(points, method, T_init, source)
     if X.shape[0] > max_points:
         rng = np.random.default_rng(seed)
         X = X[rng.choice(X.shape[0], max_points, replace=False)]
-    T = np.eye(4) if T_init is None else np.asarray(T_init, dtype=float).copy()
     where = f" ({source})" if source else ""
-    sym: SymmetryEstimate | None = None
-    free = np.zeros(6, dtype=bool)
-    locked: dict[str, str] = {}
-    if method != "none":
-        sym = part_symmetry(part, symmetry=symmetry)
-        free[:] = True
-        if method == "fixture":
-            free[[0, 1, 5]] = False
-            for name in ("x", "y", "rz"):
-                locked[name] = "fixture registration: kept where the fixture puts it"
-        if sym.order == 0 and free[5]:
-            free[5] = False
-            locked["rz"] = f"continuous symmetry about z ({sym.how}): changes no distance"
-        if method == "axisymmetric" and sym.order != 0:
-            raise InputError(
-                "the axisymmetric registration needs a part with a continuous symmetry about z; "
-                f"this part's symmetry: {sym.describe()}; use icp or flange",
-                field="register",
-            )
+    sym, free, locked = _free_coordinates(part, method, symmetry)
     nuisance = method == "flange"  # a uniform wall offset, fitted alongside, never applied
     period = 2.0 * math.pi / sym.order if sym is not None and sym.order >= 2 else 2.0 * math.pi
     centre = twist_about_z(T) if rz_hint is None else float(rz_hint)
@@ -421,12 +621,8 @@ def register(
     step_norm = math.inf
     converged = not free.any()
     flange_mask: NDArray[np.bool_] | None = None
-    A = np.zeros((7, 7))
-    H = np.zeros((7, 7))
-    G = np.zeros((7, 7))
+    eq: _Equations | None = None
     fit_cols: list[int] = []
-    sigma = math.nan
-    L = 1.0
     scales: dict[str, float] = {}
     while not converged:
         if it >= max_iterations:
@@ -440,7 +636,7 @@ def register(
         q = _closest(part, P)
         r = q.distance
         # the robust scale is re-estimated for the first iterations, then frozen: the Huber
-        # cost is then a fixed function, which the Newton steps below minimise (a moving scale
+        # cost is then a fixed function, which the Newton steps minimise (a moving scale
         # moves the minimum)
         w, sigma = _huber_weights(r, max_distance, scales.get("all"))
         if it == FREEZE_SCALE:
@@ -450,83 +646,18 @@ def register(
                 f"{method} registration{where}: only {np.count_nonzero(w)} points within "
                 f"{max_distance * 1e3:g} mm of the nominal; the scan does not overlap the part"
             )
-        # gradient of the signed distance: (p − q)/r — the face normal on a face, the direction
-        # from the edge or vertex where the foot is one (a mesh's or a pyramid's edges: with the
-        # face normal there Gauss–Newton creeps instead of converging quadratically)
-        off = np.abs(r) > 1e-9
-        g = np.where(off[:, None], (P - q.point) / np.where(off, r, 1.0)[:, None], q.normal)
-        J = np.zeros((X.shape[0], 7))
-        J[:, :3] = g
-        J[:, 3:6] = np.cross(P, g)
+        J = _jacobian(P, q)
         if method in ("fixture", "flange"):
             if flange_mask is None or it <= 3:  # then frozen: no point switches sides
                 flange_mask = _flange_points(part, q, w)
-            on_flange = flange_mask & (w > 0)
-            if np.count_nonzero(on_flange) < 50:
-                raise ConvergenceError(
-                    f"{method} registration{where}: only {np.count_nonzero(on_flange)} scan "
-                    "points on the flange; scan the clamped sheet around the part"
-                    + (", or use icp" if method == "flange" else "")
-                )
-            if method == "fixture":
-                w = np.where(on_flange, w, 0.0)
-            else:
-                on_wall = (q.region == 1) & (q.point[:, 2] <= -FLANGE_CLEARANCE) & (w > 0)
-                # the wall's median offset removed before weighting (the nuisance column takes
-                # the rest): its residuals stay noise-sized, in Huber's quadratic zone
-                r = r.copy()
-                if on_wall.any():
-                    r[on_wall] -= np.median(r[on_wall])
-                w = np.zeros_like(r)
-                for name, grp in (("flange", on_flange), ("wall", on_wall)):
-                    if grp.any():
-                        w[grp], sg = _huber_weights(r[grp], max_distance, scales.get(name))
-                        if it == FREEZE_SCALE:
-                            scales[name] = sg
-                J[np.ix_(np.flatnonzero(on_flange), np.array([0, 1, 5]))] = 0.0
-                J[np.ix_(np.flatnonzero(~on_flange), np.array([2, 3, 4]))] = 0.0
-                J[~(on_flange | on_wall)] = 0.0
-                J[on_wall, 6] = -1.0  # r_i − e
-        # rotation columns × 1/L (L = RMS lever arm): every column in m, so observability
-        # compares like with like (a column that vanishes, as rotation about the axis of a
-        # surface of revolution does, stays ~0 instead of being normalised up to 1)
-        L = math.sqrt(float(np.average(np.einsum("ij,ij->i", P, P), weights=w)))
-        scale = np.array([1.0, 1.0, 1.0, L, L, L, 1.0])
-        Js = J / scale
-        A = Js.T @ (Js * w[:, None])
-        b = Js.T @ (w * r)  # = Jᵀψ(r): the gradient of the Huber cost
-        # Newton on the Huber cost once its scale is frozen: Hessian Jᵀ·1{|r| ≤ k}·J (ψ' = 1 in
-        # the quadratic zone, 0 outside) instead of IRLS's Jᵀ·(ψ/r)·J, which converges only
-        # linearly when many points sit in the linear zone (a wall offset against the flange)
-        quad = (w >= 1.0).astype(float)
-        H = Js.T @ (Js * quad[:, None])
-        G = Js.T @ (Js * ((w * r) ** 2)[:, None])  # Σ ψ² J Jᵀ: the sandwich's meat
-        # lock what the surface does not determine, worst first, until the rest is well posed
-        while True:
-            fit_cols = [int(k) for k in np.flatnonzero(free)] + ([6] if nuisance else [])
-            rho = {k: _observability(A, fit_cols, k) for k in fit_cols if k < 6}
-            if not rho:
-                break
-            worst = min(rho, key=lambda k: rho[k])
-            if rho[worst] >= min_observability:
-                break
-            free[worst] = False
-            locked[DOF[worst]] = (
-                f"not determined by the scanned surface (observability {rho[worst]:.1e})"
-            )
+            r, w = _flange_weights(method, q, r, w, J, flange_mask, it, scales, max_distance, where)
+        eq = _normal_equations(J, P, r, w)
+        fit_cols = _lock_unobservable(eq.A, free, nuisance, locked, min_observability)
         if not free.any():
             raise ConvergenceError(
                 f"{method} registration{where}: no coordinate is determined by the scanned surface"
             )
-        Hf = H[np.ix_(fit_cols, fit_cols)]
-        newton = it > FREEZE_SCALE and np.count_nonzero(quad) >= 10 * len(fit_cols)
-        if newton and np.linalg.cond(Hf) < 1e12:
-            sol = -np.linalg.solve(Hf, b[fit_cols])
-        else:
-            sol = -np.linalg.solve(A[np.ix_(fit_cols, fit_cols)], b[fit_cols])
-        xi = np.zeros(7)
-        xi[fit_cols] = sol
-        xi[:6] /= scale[:6]
+        xi = _step(eq, fit_cols, it)
         T = make_transform(rotvec_to_matrix(xi[3:6]), xi[:3]) @ T
         if not free[5] and ((sym is not None and sym.order == 0) or method == "fixture"):
             T = _untwist(T)
@@ -544,42 +675,13 @@ def register(
                 f"than the limit of {math.degrees(max_rotation):.3g}°; the start pose is far "
                 "off, or the scan does not show enough of the part"
             )
-    P = transform_points(T, X)
-    r = _closest(part, P).distance
-    inside = np.abs(r) <= max_distance
-    overlap = float(np.mean(inside))
-    if method != "none" and overlap < min_overlap:
-        raise ConvergenceError(
-            f"{method} registration{where}: only {overlap:.1%} of the points lie within "
-            f"{max_distance * 1e3:g} mm of the nominal after the fit (need {min_overlap:.0%})"
-        )
-    rms = math.inf
-    if inside.any():
-        # inliers: within max_distance and within 3 robust σ of the median (stray points
-        # — 1 % of reflections a few mm off — would otherwise dominate the figure)
-        ri = r[inside]
-        med = float(np.median(ri))
-        s_in = max(1.4826 * float(np.median(np.abs(ri - med))), 1e-9)
-        core = ri[np.abs(ri - med) <= 3.0 * s_in]
-        rms = float(np.sqrt(np.mean(core**2)))
+    overlap, rms = _fit_quality(part, T, X, method, max_distance, min_overlap, where)
     fitted = tuple(DOF[k] for k in range(6) if free[k])
     obs: dict[str, float] = {}
     std: dict[str, float] = {}
     cond = math.nan
-    if fitted:
-        for k in range(6):
-            obs[DOF[k]] = _observability(A, sorted(set(fit_cols) | {k}), k)
-        Af = A[np.ix_(fit_cols, fit_cols)]
-        ev = np.linalg.eigvalsh(Af)
-        cond = float(ev[-1] / ev[0]) if ev[0] > 0 else math.inf
-        # robust (sandwich) covariance of the M-estimate: H⁻¹ (Σ ψ² J Jᵀ) H⁻¹
-        Hf = H[np.ix_(fit_cols, fit_cols)]
-        Hi = np.linalg.pinv(Hf if np.linalg.cond(Hf) < 1e12 else Af, hermitian=True)
-        cov = Hi @ G[np.ix_(fit_cols, fit_cols)] @ Hi
-        sc = np.array([1.0, 1.0, 1.0, L, L, L, 1.0])
-        for i, c in enumerate(fit_cols):
-            if c < 6:
-                std[DOF[c]] = float(math.sqrt(max(cov[i, i], 0.0)) / sc[c])
+    if fitted and eq is not None:
+        obs, cond, std = _uncertainty(eq, fit_cols)
     return Registration(
         T,
         rms,
