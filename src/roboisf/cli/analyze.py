@@ -68,8 +68,9 @@ def register(app: typer.Typer) -> None:
             return
         result = _analyze_runs(study, run, progress)
         write_results(result, output, png=png, progress=progress)
-        _print_table(result.contributions, result.summary)
-        _print_verdicts(result.summary, study, output)
+        summary = result.summary.to_dict()  # the file's object, as the report reads it
+        _print_table(result.contributions, summary)
+        _print_verdicts(summary, study, output)
 
     @app.command("virtual-cell")
     def _virtual_cell(
@@ -407,7 +408,9 @@ def _robot_only(study_path: Path, run: str | None, output: Path, progress: objec
 
 def _analyze_runs(study_path: Path, run: str | None, progress: object) -> AnalysisResult:
     """The analysis of ``run`` or, with several robot runs, of each with the history
-    (``summary["iterations"]``) on the last one's result."""
+    (``summary.iterations``) on the last one's result."""
+    import dataclasses
+
     from roboisf.decompose.pipeline import analyze
     from roboisf.report.iterations import history_row
     from roboisf.study import load_study
@@ -434,10 +437,12 @@ def _analyze_runs(study_path: Path, run: str | None, progress: object) -> Analys
                 "the first run"
             )
     assert result is not None
-    result.summary["robot_run"] = names[-1]  # compensate --results checks it
-    if len(rows) > 1:
-        result.summary["iterations"] = rows
-    return result
+    summary = dataclasses.replace(
+        result.summary,
+        robot_run=names[-1],  # compensate --results checks it
+        iterations=rows if len(rows) > 1 else None,
+    )
+    return dataclasses.replace(result, summary=summary)
 
 
 def _reform(
