@@ -186,3 +186,11 @@ def test_compensate_reads_the_robot_run_through_the_reader(tmp_path):
     (tmp_path / "summary.json").write_text(json.dumps(data))
     with pytest.raises(InputError, match="schema_version"):
         _check_results_run(tmp_path, "robot")
+
+
+def test_every_field_is_documented():
+    text = (SCHEMA_FILE.parent / "summary.md").read_text(encoding="utf-8")
+    for cls in (AnalysisSummary, RobotInfo, ToolInfo, Units, RobotOnlySummary):
+        assert f"### `{cls.__name__}`" in text
+        for f in dataclasses.fields(cls):
+            assert f"| `{f.name}` |" in text, f"{cls.__name__}.{f.name} not in docs/summary.md"
