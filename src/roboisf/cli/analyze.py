@@ -320,21 +320,22 @@ def virtual_cell_command(
         seed=seed,
         **truth_kw,
     )
-    logs = {
-        "clock_scale": clock_scale,
-        "clock_offset": clock_offset,
-        "pause": pause,
-        "force_clock_offset": force_clock_offset,
-        "force_clock_scale": force_clock_scale,
-        "cnc_force_profile": cnc_force_profile,
-        "robot_force_profile": robot_force_profile,
-        "joint_profile": joint_profile,
-    }
+    logs = functools.partial(
+        _equipment,
+        clock_scale=clock_scale,
+        clock_offset=clock_offset,
+        pause=pause,
+        force_clock_offset=force_clock_offset,
+        force_clock_scale=force_clock_scale,
+        cnc_force_profile=cnc_force_profile,
+        robot_force_profile=robot_force_profile,
+        joint_profile=joint_profile,
+    )
     if toolpath is not None:
-        _check_clean_logs(**logs)
+        logs(check_clean=True)
         _reform(cell, toolpath, from_study, output, log_format)
         return
-    equipment = _equipment(**logs)
+    equipment = logs()
     build_study(cell, output, progress=state.progress(), equipment=equipment, log_format=log_format)
     state.info(f"wrote the study {cell.name!r} to {output}/ (analyse: roboisf analyze {output})")
 
@@ -419,31 +420,6 @@ def _path_settings(
     return path_kw
 
 
-def _check_clean_logs(
-    *,
-    clock_scale: float,
-    clock_offset: float,
-    pause: list[str] | None,
-    force_clock_offset: float | None,
-    force_clock_scale: float,
-    cnc_force_profile: str,
-    robot_force_profile: str,
-    joint_profile: str,
-) -> None:
-    """A re-formed part (--toolpath) is written with clean roboisf logs: refuse the
-    equipment-log options."""
-    clean = (clock_scale, clock_offset, force_clock_scale) == (1.0, 0.0, 1.0) and not (
-        pause or force_clock_offset is not None
-    )
-    profiles = {cnc_force_profile, robot_force_profile, joint_profile}
-    if not clean or profiles != {"roboisf"}:
-        raise InputError(
-            "a re-formed part is written with clean roboisf logs; leave out the "
-            "equipment-log options",
-            field="--toolpath",
-        )
-
-
 def _equipment(
     *,
     clock_scale: float,
@@ -454,10 +430,26 @@ def _equipment(
     cnc_force_profile: str,
     robot_force_profile: str,
     joint_profile: str,
-) -> Equipment:
+    check_clean: bool = False,
+) -> Equipment | None:
     """How the virtual equipment keeps time and lays out its logs (clocks in s, the force
-    logger's own clock when --force-clock-offset or --force-clock-scale is given)."""
+    logger's own clock when --force-clock-offset or --force-clock-scale is given); with
+    ``check_clean`` (a re-formed part, --toolpath: written with clean roboisf logs) the
+    equipment-log options are refused and None returned."""
     from roboisf.virtual.equipment import Equipment, parse_pauses
+
+    if check_clean:
+        clean = (clock_scale, clock_offset, force_clock_scale) == (1.0, 0.0, 1.0) and not (
+            pause or force_clock_offset is not None
+        )
+        profiles = {cnc_force_profile, robot_force_profile, joint_profile}
+        if not clean or profiles != {"roboisf"}:
+            raise InputError(
+                "a re-formed part is written with clean roboisf logs; leave out the "
+                "equipment-log options",
+                field="--toolpath",
+            )
+        return None
 
     own = force_clock_offset is not None or force_clock_scale != 1.0
     return Equipment(
