@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import types
 import typing
 from collections.abc import Mapping
@@ -29,9 +28,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Union
 
-import numpy as np
-
 from roboisf.errors import InputError
+from roboisf.scan.output import jsonable
 
 __all__ = [
     "SCHEMA_VERSION",
@@ -315,24 +313,9 @@ def _to_dict(obj: Any) -> dict[str, Any]:
     return out
 
 
-def _jsonable(x: Any) -> Any:
-    """JSON values: numpy scalars as Python numbers, non-finite floats as null."""
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, np.generic):
-        x = x.item()
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    return x
-
-
 def dumps(summary: Summary) -> str:
     """``summary.json``'s text (two-space indent, the fields' order; NaN and inf as null)."""
-    return json.dumps(_jsonable(summary.to_dict()), indent=2)
+    return json.dumps(jsonable(summary.to_dict()), indent=2)
 
 
 # --------------------------------------------------------------------------- read
