@@ -7,7 +7,6 @@ import dataclasses
 import json
 
 import jsonschema
-import numpy as np
 import pytest
 
 from roboisf.cli.main import main
@@ -25,43 +24,7 @@ from roboisf.decompose.summary import (
     schema_text,
 )
 from roboisf.errors import InputError
-from summary_check import SCHEMA_FILE, schema
-
-
-def _summary(**kw: object) -> AnalysisSummary:
-    base: dict[str, object] = {
-        "study": "s",
-        "description": "a test",
-        "part": {"kind": "cone", "sheet_thickness": 1.22},
-        "part_symmetry": 0,
-        "robot": RobotInfo("irb", "irb", np.eye(4).tolist(), "inverse kinematics"),
-        "tool": ToolInfo(10.0, "beam", 9.4e-7, None),
-        "units": Units("mm", "N", "N*m", "deg", "s", "SI"),
-        "n_points": 3,
-        "n_points_used": 2,
-        "rim_band_mm": 20.0,
-        "max_distance_mm": 3.0,
-        "beyond_max_distance": {"cnc": {"n": 0, "of": 10}},
-        "contour_z": -11.0,
-        "compliance_stats": {"k_11": {"mean": 1e-6, "std": 0.0, "min": 1e-6, "max": 1e-6}},
-        "force_contributions": {"dx": {"Fx": 0.1}},
-        "vjm_vs_experiment": {"x": np.float64(0.5), "resultant": float("nan")},
-        "vjm_vs_experiment_per_axis": {"x": 0.3},
-        "registration": {"cnc": {"method": "fixture"}},
-        "warnings": ["w"],
-        "fingerprint": {"format": "roboisf-study-fingerprint-1"},
-        "alignment": {},
-        "vjm_check": {"verdict": "consistent"},
-        "diagnosis": [{"suspect": "force_bias", "verdict": "ok"}],
-        "diagnosis_headline": "no fault",
-        "diagnosis_forces_corrected": False,
-        "terms_normal": {"tool": {"rms": 0.1}},
-        "identification": {"mode": None},
-        "identified_stiffness": None,
-        "lateral_offset": {},
-    }
-    base.update(kw)
-    return AnalysisSummary(**base)  # type: ignore[arg-type]
+from summary_check import SCHEMA_FILE, minimal_summary, schema
 
 
 def test_the_published_schema_is_the_generated_one():
@@ -77,7 +40,7 @@ def test_the_published_schema_is_the_generated_one():
 
 
 def test_the_serialiser_writes_the_version_first_and_optional_sections_only_when_set():
-    s = _summary()
+    s = minimal_summary()
     data = json.loads(dumps(s))
     assert list(data)[:3] == ["schema_version", "study", "description"]
     assert data["schema_version"] == SCHEMA_VERSION
@@ -91,7 +54,7 @@ def test_the_serialiser_writes_the_version_first_and_optional_sections_only_when
 
 
 def test_the_reader_reads_what_the_serialiser_writes(tmp_path):
-    s = _summary(robot_run="robot", iterations=[{"run": "robot", "mean_abs_dn_mm": 0.2}])
+    s = minimal_summary(robot_run="robot", iterations=[{"run": "robot", "mean_abs_dn_mm": 0.2}])
     f = tmp_path / "summary.json"
     f.write_text(dumps(s), encoding="utf-8")
     back = read_summary(tmp_path)  # the results folder or the file
@@ -134,7 +97,7 @@ def test_the_reader_reads_what_the_serialiser_writes(tmp_path):
     ],
 )
 def test_a_file_of_another_version_or_a_bad_field_is_named(tmp_path, edit, field, words):
-    data = json.loads(dumps(_summary()))
+    data = json.loads(dumps(minimal_summary()))
     edit(data)
     f = tmp_path / "summary.json"
     f.write_text(json.dumps(data), encoding="utf-8")
@@ -164,7 +127,7 @@ def test_history_add_refuses_a_summary_of_another_version(tmp_path, capsys):
     res.mkdir()
     for name in ("per_point.parquet", "contributions.csv", "contributions_normal.csv"):
         (res / name).write_text("")
-    data = json.loads(dumps(_summary()))
+    data = json.loads(dumps(minimal_summary()))
     data["schema_version"] = 0
     (res / "summary.json").write_text(json.dumps(data), encoding="utf-8")
     code = main(["history", "add", str(res), "--db", str(tmp_path / "h.db")])
@@ -177,11 +140,11 @@ def test_history_add_refuses_a_summary_of_another_version(tmp_path, capsys):
 def test_compensate_reads_the_robot_run_through_the_reader(tmp_path):
     from roboisf.compensate.study import _check_results_run
 
-    (tmp_path / "summary.json").write_text(dumps(_summary(robot_run="robot_2")))
+    (tmp_path / "summary.json").write_text(dumps(minimal_summary(robot_run="robot_2")))
     _check_results_run(tmp_path, "robot_2")
     with pytest.raises(InputError, match="robot run 'robot_2', not 'robot'"):
         _check_results_run(tmp_path, "robot")
-    data = json.loads(dumps(_summary()))
+    data = json.loads(dumps(minimal_summary()))
     del data["schema_version"]  # an output of an older roboisf
     (tmp_path / "summary.json").write_text(json.dumps(data))
     with pytest.raises(InputError, match="schema_version"):

@@ -57,7 +57,8 @@ def analyze_command(
     Reads the study folder (docs/study.md): the part, tool and holder compliance, robot and
     placement, and a CNC and a robot run with their toolpath, force log, joint log and scan.
     Writes report.html, contributions.csv (mm, %), contributions_normal.csv, per_point.parquet,
-    summary.json and figures/*.png. summary.json's diagnosis gives each suspect (robot
+    summary.json (versioned, schema_version; its fields and JSON Schema: docs/summary.md) and
+    figures/*.png. summary.json's diagnosis gives each suspect (robot
     stiffness, force-sensor gain, moment crosstalk and bias, scan shift and rotation,
     springback coupling) a verdict — fault, ok or cannot_tell — with a 95 % interval
     (docs/diagnosis.md). Ends with the warnings, the verdicts (study kind, robot model check,

@@ -190,10 +190,11 @@ def compensate_study(
     o = options or CompensationOptions()
     rspec = study.robot_run
     formed = study_toolpath(study, rspec, cell.part)  # a toolpath CSV or a CAM program
+    if results is not None:
+        _check_results_run(Path(results), rspec.name)
     pp = _per_point(study, None if results is None else Path(results), progress)
     if results is not None:  # results of this study as its files are now (summary.json)
         check_results(study, results)
-        _check_results_run(Path(results), rspec.name)
     if len(pp) != len(formed):
         raise InputError(
             f"the results have {len(pp)} points but the robot toolpath {len(formed)} (results "
@@ -319,7 +320,10 @@ def _state_column(f: Path, n: int, column: str, *, finite: bool) -> F64:
 
 def _check_results_run(results: Path, run: str) -> None:
     """An analyze output records the robot run it is of (``summary.json`` → ``robot_run``, read
-    by :func:`roboisf.decompose.summary.read_summary`: a file of another version is refused)."""
+    by :func:`roboisf.decompose.summary.read_summary`: a file of another version is refused;
+    a missing one is left to the fingerprint check, which says what to do)."""
+    if not (results / "summary.json").is_file():
+        return
     s = read_summary(results / "summary.json")
     got = s.robot_run if isinstance(s, AnalysisSummary) else None
     if got is not None and got != run:
