@@ -109,7 +109,7 @@ def test_without_a_joint_log_the_configurations_come_from_ik(study, tmp_path):
     (s / "robot_joints.csv").unlink()
     with_log = analyze(study)
     with_ik = analyze(s)
-    assert with_ik.summary["robot"]["joint_angles_from"] == "inverse kinematics of the toolpath"
+    assert with_ik.summary.robot.joint_angles_from == "inverse kinematics of the toolpath"
     # the log holds the commanded angles, so IK of the same toolpath predicts the same VJM term
     a = with_log.per_point.vjm_dn.to_numpy()
     b = with_ik.per_point.vjm_dn.to_numpy()

@@ -6,8 +6,6 @@ normal component, the shares within 2 percentage points, and Δ(VJM − experime
 the normal book (the cell used the same VJM).
 """
 
-import json
-
 import numpy as np
 import pandas as pd
 import pytest
@@ -15,6 +13,7 @@ import pytest
 from roboisf.decompose import FACTORS
 from roboisf.decompose.pipeline import analyze, write_results
 from roboisf.virtual.cell import build_study, paper_cone_cell, paper_vwacf_cell
+from summary_check import validated
 
 pytestmark = pytest.mark.slow
 
@@ -45,7 +44,7 @@ def analysed(request, tmp_path_factory):
 
 def test_every_contribution_recovered_within_20_um(analysed):
     result, _ = analysed
-    rms = result.summary["truth"]["rms_error_dn_mm"]
+    rms = result.summary.truth["rms_error_dn_mm"]
     assert set(rms) == set(FACTORS)
     for factor, err in rms.items():
         assert err < 0.020, (factor, err)
@@ -56,7 +55,7 @@ def test_every_contribution_recovered_within_20_um(analysed):
 
 def test_shares_within_2_points_of_the_truth(analysed):
     result, _ = analysed
-    truth = result.summary["truth"]
+    truth = result.summary.truth
     for table, book in (
         (result.contributions, "shares_per_axis"),
         (result.contributions_normal, "shares_normal"),
@@ -68,9 +67,9 @@ def test_shares_within_2_points_of_the_truth(analysed):
 
 def test_vjm_matches_experiment_in_the_normal_book(analysed):
     result, _ = analysed
-    d = result.summary["vjm_vs_experiment"]
+    d = result.summary.vjm_vs_experiment
     assert d["resultant"] < 0.01  # mm; the per-axis book keeps the unobservable tangential part
-    assert result.summary["vjm_vs_experiment_per_axis"]["resultant"] > d["resultant"]
+    assert result.summary.vjm_vs_experiment_per_axis["resultant"] > d["resultant"]
 
 
 def test_output_files(analysed):
@@ -87,7 +86,7 @@ def test_output_files(analysed):
     assert list(c.factor) == ["tool", "tool_holder", "springback", "robot_compliance", "total"]
     pp = pd.read_parquet(out / "per_point.parquet")
     assert len(pp) == len(result.per_point)
-    s = json.loads((out / "summary.json").read_text())
+    s = validated(out / "summary.json")
     assert s["study"] == result.study.name and "compliance_stats" in s
     html = (out / "report.html").read_text()
     assert "plotly" in html.lower() and 'src="http' not in html

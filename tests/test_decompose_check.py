@@ -172,16 +172,16 @@ def test_shifted_scan_is_warned(tmp_path, fast_cone_study):
     meta = json.loads((st / "truth" / "truth.json").read_text())
     (st / "truth" / "truth.json").write_text(json.dumps({**meta, "model_equals_truth": False}))
     r = analyze(st)
-    warn = [w for w in r.summary["warnings"] if "sideways shift" in w]
-    assert len(warn) == 1 and warn[0].startswith("robot scan"), r.summary["warnings"]
+    warn = [w for w in r.summary.warnings if "sideways shift" in w]
+    assert len(warn) == 1 and warn[0].startswith("robot scan"), r.summary.warnings
     assert "lateral registration is ambiguous" in warn[0] and "fits rx, ry, z" in warn[0]
-    lo = r.summary["lateral_offset"]["robot"]
+    lo = r.summary.lateral_offset["robot"]
     assert abs(lo["size_mm"] - 0.3) < 0.05 and abs(lo["direction_deg"] - 90) < 10
-    assert r.summary["lateral_offset"]["cnc"]["size_mm"] < 0.05
-    assert r.summary["truth"]["model_equals_truth"] is False
-    assert r.summary["truth"]["model_equals_truth_from"] == "truth/truth.json"
+    assert r.summary.lateral_offset["cnc"]["size_mm"] < 0.05
+    assert r.summary.truth["model_equals_truth"] is False
+    assert r.summary.truth["model_equals_truth_from"] == "truth/truth.json"
     # a zero-mean error: the robot term's mean |·| grows, its signed mean does not
-    t = r.summary["terms_normal"]["robot_compliance"]
+    t = r.summary.terms_normal["robot_compliance"]
     assert t["mean_abs_mm"] > t["mean_mm"] > 0
 
 

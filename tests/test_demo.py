@@ -12,6 +12,7 @@ from roboisf.programs.krl import read_krl
 from roboisf.programs.rapid import read_rapid
 from roboisf.report import read_headline
 from roboisf.virtual.cell import PAPER_TABLE5
+from summary_check import validated
 
 pytestmark = pytest.mark.slow
 
@@ -39,6 +40,7 @@ def test_demo_builds_both_studies_atomically(tmp_path):
             "programs/toolpath.csv",
         ):
             assert (sub / f).is_file(), f"{name}/{f}"
+        assert validated(sub / "results")["study"] == name  # the published schema
         head = read_headline(sub / "results" / "report.html")
         assert 0 < head["robot_share_percent"] < 100
         # the paper scenario's robot is not the model: the check says so, not "by construction"

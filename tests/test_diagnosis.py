@@ -8,7 +8,6 @@ honestly ``cannot_tell``, never ``fault``.
 
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
@@ -22,6 +21,7 @@ from roboisf.decompose.diagnose import (
     sensor_findings,
     verdict,
 )
+from summary_check import validated
 
 R = 5e-3
 
@@ -218,7 +218,7 @@ def diagnosed(request, tmp_path_factory):
     build_study(cell, root / "study")
     r = analyze(root / "study")
     write_results(r, root / "results", png=False)
-    s = json.loads((root / "results" / "summary.json").read_text(encoding="utf-8"))
+    s = validated(root / "results" / "summary.json")
     return request.param, cell, r, s, simulate(cell)
 
 

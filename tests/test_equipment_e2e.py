@@ -77,7 +77,7 @@ def test_files_are_written_as_the_equipment_writes_them(studies):
 def test_untared_bias_is_flagged(studies):
     _, real, _ = studies
     got = analyze(real)
-    flagged = [w for w in got.summary["warnings"] if "not tared" in w]
+    flagged = [w for w in got.summary.warnings if "not tared" in w]
     assert len(flagged) == 1 and "robot_forces.csv" in flagged[0]
 
 
@@ -95,7 +95,7 @@ def test_stated_tool_and_auto_tare_recover_the_clean_decomposition(studies, tmp_
     f.update(tare="auto", tool_mass=MASS, tool_cog=[float(v) * 1e3 for v in cog_s])
     (s / "study.toml").write_text(tomli_w.dumps(data))
     got = analyze(s)
-    assert not [w for w in got.summary["warnings"] if "not tared" in w]
+    assert not [w for w in got.summary.warnings if "not tared" in w]
     for table in ("contributions", "contributions_normal"):
         a, b = _shares(clean, table), _shares(got, table)
         for fac in FACTORS:

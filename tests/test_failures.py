@@ -370,14 +370,14 @@ def test_urdf_limits_are_refused_not_widened_to_360(tmp_path, lower, upper, word
 def _results_for(study: Path, folder: Path, *, fingerprint_of: Path, nan_rows: int = 0) -> Path:
     """A results folder for ``study``'s robot toolpath (per_point.parquet with the columns
     compensate reads) whose summary.json carries the fingerprint of ``fingerprint_of``."""
-    import json
-
     import numpy as np
     import pandas as pd
 
+    from roboisf.decompose.summary import dumps
     from roboisf.io.toolpath_csv import read_toolpath_csv
     from roboisf.study import load_study
     from roboisf.study.fingerprint import study_fingerprint
+    from summary_check import minimal_summary
 
     n = len(read_toolpath_csv(study / "toolpath.csv"))
     folder.mkdir()
@@ -388,7 +388,8 @@ def _results_for(study: Path, folder: Path, *, fingerprint_of: Path, nan_rows: i
     pp.loc[: nan_rows - 1, "robot_dn"] = np.nan if nan_rows else 0.1
     pp.to_parquet(folder / "per_point.parquet")
     fp = study_fingerprint(load_study(fingerprint_of))
-    (folder / "summary.json").write_text(json.dumps({"fingerprint": fp}))
+    # a valid summary.json (the published schema) of made-up values but the study's fingerprint
+    (folder / "summary.json").write_text(dumps(minimal_summary(fingerprint=fp)))
     return folder
 
 

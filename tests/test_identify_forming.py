@@ -29,6 +29,7 @@ from roboisf.report import read_headline, write_index
 from roboisf.report.model_check import check_card
 from roboisf.robot import load_robot, load_stiffness
 from roboisf.virtual.cell import paper_cone_cell, simulate
+from summary_check import validated
 
 ROBOT = "irb7600-500-2.55"
 K_NOM = load_robot(ROBOT).stiffness
@@ -64,7 +65,7 @@ def _rms(v):
 
 def test_soft_robot_is_flagged(soft):
     cell, _study, results, r = soft
-    s = json.loads((results / "summary.json").read_text())
+    s = validated(results / "summary.json")
     vc = s["vjm_check"]
     assert vc["verdict"] == "mismatch"
     # a robot 1/scale as compliant: measured/VJM ≈ 1/scale with the interval around it
@@ -89,7 +90,7 @@ def test_soft_robot_is_flagged(soft):
 
 def test_identified_compliance_predicts_truth(soft):
     cell, _study, results, r = soft
-    s = json.loads((results / "summary.json").read_text())
+    s = validated(results / "summary.json")
     assert s["identified_stiffness"] == IDENTIFIED_STIFFNESS  # relative: the same bytes anywhere
     K = load_stiffness(results / s["identified_stiffness"])  # the `robot identify` format
     pp = r.per_point
@@ -133,7 +134,7 @@ def _compliance_error_removed(cell, comp_toolpath):
 
 def test_compensate_with_identified_stiffness(soft):
     cell, study, results, _r = soft
-    s = json.loads((results / "summary.json").read_text())
+    s = validated(results / "summary.json")
     opts = CompensationOptions(springback=False)
     ident = compensate_study(
         study, results=results, options=opts, stiffness=results / s["identified_stiffness"]
@@ -148,7 +149,7 @@ def test_compensate_with_identified_stiffness(soft):
 
 def test_cli_accepts_identified_stiffness(soft, tmp_path, capsys):
     _cell, study, results, _r = soft
-    f = str(results / json.loads((results / "summary.json").read_text())["identified_stiffness"])
+    f = str(results / validated(results / "summary.json")["identified_stiffness"])
     out = tmp_path / "comp"
     rc = main(
         ["compensate", str(study), "--results", str(results), "--stiffness", f, "-o", str(out),
@@ -184,15 +185,15 @@ def test_consistent_cell(fast_cone_settings, fast_cone_study):
     """Truth = model: the check says ``consistent`` and that it holds by construction."""
     assert fast_cone_settings == FAST  # the shared study (tests/conftest.py) is this cell
     r = analyze(fast_cone_study)
-    vc = r.summary["vjm_check"]
+    vc = r.summary.vjm_check
     assert vc["verdict"] == "consistent", vc
     assert vc["ci_low"] <= 1.0 + 0.1 and vc["ci_high"] >= 1.0 - 0.1
     assert abs(vc["ratio"] - 1) < 0.05
     print(f"consistent cell: ratio {vc['ratio']:.4f} [{vc['ci_low']:.4f}, {vc['ci_high']:.4f}]")
-    assert r.summary["truth"]["model_equals_truth"] is True
+    assert r.summary.truth["model_equals_truth"] is True
     assert vc["by_construction"] is True
-    assert not any("does not hold" in w for w in r.summary["warnings"])
-    card = check_card(r.summary)
+    assert not any("does not hold" in w for w in r.summary.warnings)
+    card = check_card(r.summary.to_dict())
     assert card is not None and card[2] == "holds by construction"
 
 
@@ -232,9 +233,9 @@ def test_sensor_bias_is_flagged_and_identification_holds(soft, tmp_path):
     f.write_text("\n".join(head) + "\n" + df.to_csv(index=False), encoding="utf-8")
     r = analyze(st)
     write_results(r, tmp_path / "res", png=False)
-    (bias,) = [w for w in r.summary["warnings"] if "sensor bias" in w]
+    (bias,) = [w for w in r.summary.warnings if "sensor bias" in w]
     assert "-30" in bias or "+30" in bias
-    assert r.summary["vjm_check"]["verdict"] == "mismatch"
+    assert r.summary.vjm_check["verdict"] == "mismatch"
     pp = r.per_point
     u = pp["used"].to_numpy()
     truth = pp["truth_robot_compliance_dn"].to_numpy()[u]
@@ -243,7 +244,7 @@ def test_sensor_bias_is_flagged_and_identification_holds(soft, tmp_path):
         st,
         results=tmp_path / "res",
         options=CompensationOptions(springback=False),
-        stiffness=tmp_path / "res" / r.summary["identified_stiffness"],
+        stiffness=tmp_path / "res" / r.summary.identified_stiffness,
     )
     assert _compliance_error_removed(cell, comp.compensation.toolpath) >= 0.85
 
@@ -256,7 +257,7 @@ def test_stiff_robot_is_not_observable(tmp_path):
     build_study(paper_cone_cell(joint_stiffness=100 * K_NOM, **FAST), tmp_path / "study")
     r = analyze(tmp_path / "study")
     write_results(r, tmp_path / "res", png=False)
-    s = json.loads((tmp_path / "res" / "summary.json").read_text())
+    s = validated(tmp_path / "res" / "summary.json")
     assert s["vjm_check"]["verdict"] == "not_observable"
     assert s["vjm_check"]["rms_predicted_mm"] < 2 * s["vjm_check"]["noise_mm"]
     assert s["identified_stiffness"] is None and s["identification"]["mode"] is None

@@ -103,7 +103,7 @@ def test_ati_log_with_bias_and_tool_weight_recovers_the_clean_decomposition(
     )
     got = analyze(s)
     np.testing.assert_allclose(_shares(got), _shares(clean), atol=1.0)  # percentage points
-    assert not [w for w in got.summary["warnings"] if "not tared" in w]
+    assert not [w for w in got.summary.warnings if "not tared" in w]
 
     # the same log without conditioning: the 30 N offset and 41 N of weight are flagged
     s2 = tmp_path / "s2"
@@ -111,7 +111,7 @@ def test_ati_log_with_bias_and_tool_weight_recovers_the_clean_decomposition(
     unloaded = _ati_log(s2, s2 / "robot_ati.csv", bias=BIAS, mass=MASS)
     _use_ati(s2, "robot_ati.csv", "")
     raw = analyze(s2)
-    flagged = [w for w in raw.summary["warnings"] if "not tared" in w]
+    flagged = [w for w in raw.summary.warnings if "not tared" in w]
     assert len(flagged) == 1 and "robot_ati.csv" in flagged[0]
     size = float(flagged[0].split("|F| = ")[1].split(" N")[0])
     # the size reported is the unloaded reading: offset plus the weight in sensor axes

@@ -22,6 +22,7 @@ from roboisf.programs.krl import read_krl
 from roboisf.programs.rapid import read_rapid
 from roboisf.study import load_study
 from roboisf.toolpath.commanded import read_commanded
+from summary_check import validated
 
 # a coarse cone (2 mm step-down, 4 mm spacing), 100 k-point scans, slow logs: seconds per part
 CELL = ["--step-down", "2", "--spacing", "4", "--scan-points", "100000"]
@@ -102,7 +103,7 @@ def test_history_terms_hold_across_runs(loop):
     assert np.ptp(sb) < 1e-3
     cmd = hist["command_rms_mm"].to_numpy()
     assert cmd[0] == 0 and np.all(cmd[1:] > 1.0)
-    s = json.loads((loop / "R" / "summary.json").read_text())
+    s = validated(loop / "R" / "summary.json")
     assert [r["run"] for r in s["iterations"]] == list(hist["run"])
     # the last run's truth is the run's own (truth/runs/robot_4): the recovered robot term
     assert s["truth"]["rms_error_dn_mm"]["robot_compliance"] < 0.03
@@ -279,7 +280,7 @@ def test_reform_without_from_and_from_gcode(loop, tmp_path):
 def test_results_of_another_run_are_refused(loop, tmp_path, capsys):
     """analyze's output is the last run's (summary.json → robot_run): compensate --results of
     it for another run is a one-line error, not a silent mix."""
-    s = json.loads((loop / "R" / "summary.json").read_text())
+    s = validated(loop / "R" / "summary.json")
     assert s["robot_run"] == "robot_4"
     args = ["compensate", str(loop / "S4"), "--results", str(loop / "R"), "--no-png"]
     err = _err(capsys, *args, "--run", "robot_2", "-o", str(tmp_path / "c"))

@@ -32,6 +32,7 @@ from roboisf.scan.synthetic import height_field_mesh, synthetic_scan
 from roboisf.study import load_study
 from roboisf.virtual.cell import PYRAMID, paper_cone_cell, pyramid_cell, simulate
 from roboisf.virtual.formed import PointField
+from summary_check import validated
 
 pytestmark = pytest.mark.slow
 
@@ -87,7 +88,7 @@ def analysed(request, tmp_path_factory):
 
 
 def test_every_term_within_20_um_rms_and_shares_within_2_points(analysed):
-    s = json.loads((analysed / "R" / "summary.json").read_text())
+    s = validated(analysed / "R" / "summary.json")
     truth = s["truth"]
     rms = truth["rms_error_dn_mm"]
     assert set(rms) == set(FACTORS)

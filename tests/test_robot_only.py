@@ -16,6 +16,7 @@ from roboisf.cli.main import main
 from roboisf.decompose.robot_only import SEPARABLE_TOL, springback_without_cnc
 from roboisf.errors import InputError
 from roboisf.study import load_study
+from summary_check import validated
 
 CELL = ["--step-down", "2", "--spacing", "4", "--scan-points", "100000"]
 CELL += ["--force-rate", "50", "--joint-rate", "20"]
@@ -47,7 +48,7 @@ def studies(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def _summary(d: Path, name: str) -> dict:
-    return json.loads((d / f"R-{name}" / "summary.json").read_text())
+    return validated(d / f"R-{name}" / "summary.json")
 
 
 def test_the_study_loads_without_a_cnc_run(studies):
@@ -132,7 +133,7 @@ def test_a_compensated_run_without_a_cnc_run(studies, tmp_path):
     (s2 / ".roboisf-output.json").unlink()
     _robot_only(s2)
     assert main(["-q", "analyze", str(s2), "-o", str(tmp_path / "R")]) == 0
-    s = json.loads((tmp_path / "R" / "summary.json").read_text())
+    s = validated(tmp_path / "R" / "summary.json")
     assert s["springback_model_based"]["separable"]
     assert s["modelled_mean_abs_dn_mm"]["command"] > 0.5
     assert s["measured_mean_abs_dn_mm"] < 0.5

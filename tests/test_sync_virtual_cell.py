@@ -7,7 +7,6 @@ The end-to-end pair is slow (two small studies); the alignment itself is covered
 test_sync.py, and the CLI options here fast (the writer is replaced).
 """
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +17,7 @@ from roboisf.decompose import FACTORS
 from roboisf.decompose.pipeline import analyze, write_results
 from roboisf.virtual.cell import build_study, paper_cone_cell
 from roboisf.virtual.equipment import Equipment
+from summary_check import validated
 
 SMALL = {
     "scan_points": 150_000,
@@ -116,7 +116,7 @@ def test_nominal_time_would_put_the_forces_on_the_wrong_points(pair, tmp_path):
 @pytest.mark.slow
 def test_summary_reports_the_alignment(pair):
     *_, study, out = pair
-    s = json.loads((out / "summary.json").read_text())
+    s = validated(out / "summary.json")
     al = s["alignment"]
     assert set(al) == {"cnc", "robot"}
     for a in al.values():  # named inside the study folder, so the record survives a move

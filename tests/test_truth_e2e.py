@@ -86,7 +86,7 @@ def test_compensate_identified_removes_compliance_error(case):
         root / "study",
         results=root / "results",
         options=CompensationOptions(springback=False),
-        stiffness=root / "results" / r.summary["identified_stiffness"],
+        stiffness=root / "results" / r.summary.identified_stiffness,
     )
     t0 = simulate(cell)
     t1 = simulate(cell, commanded=comp.compensation.toolpath)
@@ -102,7 +102,7 @@ def test_truth_cells_keep_their_wall(case):
     """The cells' studies set max_distance where their parts deviate more than 3 mm: no wall
     point is dropped silently, so no beyond-the-cut warning."""
     _c, _cell, _root, r = case
-    assert not any("from the nominal and are left out" in w for w in r.summary["warnings"])
+    assert not any("from the nominal and are left out" in w for w in r.summary.warnings)
 
 
 @pytest.fixture(scope="module", params=["cone", "vwacf"])
@@ -153,7 +153,7 @@ def test_points_beyond_max_distance_are_named(paper, tmp_path):
     del d["analysis"]["max_distance"]
     (st / "study.toml").write_text(tomli_w.dumps(d), encoding="utf-8")
     r = analyze(st)
-    (w,) = [w for w in r.summary["warnings"] if "from the nominal and are left out" in w]
+    (w,) = [w for w in r.summary.warnings if "from the nominal and are left out" in w]
     assert w.startswith("robot scan:") and "3 mm" in w and "max_distance" in w
     n, total = (int(v) for v in re.findall(r"(\d+) of (\d+) wall points", w)[0])
     counts = r.scans["robot"].counts
@@ -178,7 +178,7 @@ def test_bias_seen_in_the_unloaded_start_and_tared(case, tmp_path):
     W_true = simulate(cell).wrench_robot[:, :3]
     F = r.per_point[["robot_Fx", "robot_Fy", "robot_Fz"]].to_numpy()
     off = np.median(F - W_true, axis=0)
-    untared = [w for w in r.summary["warnings"] if "not tared" in w]
+    untared = [w for w in r.summary.warnings if "not tared" in w]
     if not bias:
         assert not untared and np.linalg.norm(off) < 1.0
         return
@@ -190,7 +190,7 @@ def test_bias_seen_in_the_unloaded_start_and_tared(case, tmp_path):
     d["runs"]["robot"]["forces"]["tare"] = "auto"
     (st / "study.toml").write_text(tomli_w.dumps(d), encoding="utf-8")
     r2 = analyze(st)
-    assert not any("not tared" in w or "sensor bias" in w for w in r2.summary["warnings"])
+    assert not any("not tared" in w or "sensor bias" in w for w in r2.summary.warnings)
     F2 = r2.per_point[["robot_Fx", "robot_Fy", "robot_Fz"]].to_numpy()
     assert np.linalg.norm(np.median(F2 - W_true, axis=0)) < 1.0  # N, of ~30 N bias
     pp = r2.per_point
@@ -208,9 +208,9 @@ def test_sideways_scan_shift_is_warned(tmp_path):
     cell = paper_cone_cell(truth=load_truth(tmp_path / "t.toml"), **FAST)
     build_study(cell, tmp_path / "study")
     r = analyze(tmp_path / "study")
-    (w,) = [w for w in r.summary["warnings"] if w.startswith("robot scan: its normal deviation")]
+    (w,) = [w for w in r.summary.warnings if w.startswith("robot scan: its normal deviation")]
     assert "lateral registration is ambiguous" in w
-    fit = r.summary["lateral_offset"]["robot"]
+    fit = r.summary.lateral_offset["robot"]
     assert fit["size_mm"] == pytest.approx(0.3, abs=0.05)
     assert abs(fit["shift_mm"][1]) > 4 * abs(fit["shift_mm"][0])  # along y, as shifted
-    assert not any(w.startswith("cnc scan: its normal deviation") for w in r.summary["warnings"])
+    assert not any(w.startswith("cnc scan: its normal deviation") for w in r.summary.warnings)

@@ -161,15 +161,15 @@ def _build_part(
         f"{paper['robot_share_percent']:.2f} %), springback R_m "
         f"{row.loc['springback', 'R_m']:.3f} mm (paper {paper['springback_R_m_mm']:.3f} mm)"
     ]
-    vc = result.summary.get("vjm_check") or {}
+    vc = result.summary.vjm_check
     if vc.get("ratio") is not None:
         verdict = "holds by construction" if vc.get("by_construction") else vc.get("verdict")
         infos.append(
             f"{cell.name}: model check {verdict} — measured/VJM robot deflection "
             f"{vc['ratio']:.2f} (95 % [{vc['ci_low']:.2f}, {vc['ci_high']:.2f}])"
         )
-    delta = result.summary.get("vjm_vs_experiment_per_axis")
-    if isinstance(delta, dict) and all(k in delta for k in "xyz"):
+    delta = result.summary.vjm_vs_experiment_per_axis
+    if all(delta.get(k) is not None for k in "xyz"):
         infos.append(
             f"{cell.name}: Δ = mean|δ_exp| − mean|δ_VJM| x/y/z "
             + "/".join(f"{delta[k]:.2f}" for k in "xyz")

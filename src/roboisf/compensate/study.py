@@ -17,7 +17,6 @@ The "after" of the comparison is predicted by superposition::
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -36,6 +35,7 @@ from roboisf.compensate.pipeline import (
     rim_blend,
 )
 from roboisf.decompose.pipeline import analyze
+from roboisf.decompose.summary import AnalysisSummary, read_summary
 from roboisf.errors import InputError
 from roboisf.io.program import RobotTool
 from roboisf.progress import Progress, task
@@ -319,14 +319,14 @@ def _state_column(f: Path, n: int, column: str, *, finite: bool) -> F64:
 
 
 def _check_results_run(results: Path, run: str) -> None:
-    """An analyze output records the robot run it is of (``summary.json`` → ``robot_run``;
-    older outputs do not, and are taken as they are)."""
-    try:
-        s = json.loads((results / "summary.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+    """An analyze output records the robot run it is of (``summary.json`` → ``robot_run``, read
+    by :func:`roboisf.decompose.summary.read_summary`: a file of another version is refused;
+    a missing one is left to the fingerprint check, which says what to do)."""
+    if not (results / "summary.json").is_file():
         return
-    got = s.get("robot_run") if isinstance(s, dict) else None
-    if isinstance(got, str) and got != run:
+    s = read_summary(results / "summary.json")
+    got = s.robot_run if isinstance(s, AnalysisSummary) else None
+    if got is not None and got != run:
         raise InputError(
             f"these results are of robot run {got!r}, not {run!r}: analyze with --run {run}, "
             "or give --run " + got,

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import functools
 import json
-import math
 import threading
 from dataclasses import dataclass
 from pathlib import Path
@@ -53,6 +52,7 @@ from roboisf.decompose.identify import (
     identify_from_forming,
     write_stiffness_toml,
 )
+from roboisf.decompose.summary import AnalysisSummary, RobotInfo, ToolInfo, Units, dumps
 from roboisf.errors import InputError
 from roboisf.fem import ComplianceResult
 from roboisf.frames import vertical_tool
@@ -101,7 +101,8 @@ class AnalysisResult:
     per_point: pd.DataFrame
     contributions: pd.DataFrame
     contributions_normal: pd.DataFrame
-    summary: dict[str, Any]
+    #: ``summary.json`` (:mod:`roboisf.decompose.summary`)
+    summary: AnalysisSummary
     scans: dict[str, ScanComparison]
     #: the robot's compliance identified from this run (None when it cannot be)
     identification: FormingIdentification | None = None
@@ -484,6 +485,8 @@ def analyze(
         per_point["thickness_measured"] = read_thickness_csv(thick).at(tp.depth) * 1e3
     contributions = pd.DataFrame(_mm_rows(contribution_rows(d, projected=False)))
     contributions_normal = pd.DataFrame(_mm_rows(contribution_rows(d, projected=True)))
+    # the summary's fields, in the file's order, as the steps below find them; built into the
+    # typed AnalysisSummary once they are all known
     summary = _summary(study, cell, tp, d, k_c, W_used, valid, k_tool, k_holder, q_source, scans)
     # which study and input files these results came from: compensate --results checks it
     summary["fingerprint"] = study_fingerprint(study)
@@ -507,8 +510,21 @@ def analyze(
         _attach_truth(truth_file, per_point, summary, d, truth)
         k_model = None if cell.robot.stiffness is None else cell.robot.joint_stiffness
         _truth_vs_model(truth_dir, per_point, summary, d, k_model)
+    if ident is not None:
+        # the file write_results writes beside summary.json, relative to the results folder,
+        # never the absolute path: the same inputs give the same bytes anywhere (issue 29)
+        summary["identified_stiffness"] = IDENTIFIED_STIFFNESS
     return AnalysisResult(
-        study, cell, d, per_point, contributions, contributions_normal, summary, scans, ident, q
+        study,
+        cell,
+        d,
+        per_point,
+        contributions,
+        contributions_normal,
+        AnalysisSummary(**summary),
+        scans,
+        ident,
+        q,
     )
 
 
@@ -596,7 +612,7 @@ def _model_checks(
             summary["warnings"].append(f"robot compliance not identified: {e.message}")
         else:
             summary["identification"] = ident.to_dict()
-    summary["identified_stiffness"] = None  # set by write_results when the file is written
+    summary["identified_stiffness"] = None  # named by analyze when identified
     if vc.verdict == "mismatch":
         use = (
             " — use the identified stiffness (identified_stiffness.toml) for compensate and plan"
@@ -852,26 +868,21 @@ def _summary(
         "description": study.description,
         "part": cell.part.to_dict(),
         "part_symmetry": cell.part.symmetry.order,  # the report: polar plot only when 0
-        "robot": {
-            "model": cell.robot_name,
-            "preset": cell.robot_name,
-            "placement_T_base_work_m": cell.T_base_work.tolist(),
-            "joint_angles_from": q_source,
-        },
-        "tool": {
-            "ball_diameter_mm": cell.tool.ball_diameter * 1e3,
-            "method": k_tool.method,
-            "lateral_compliance_m_per_N": k_tool.lateral,
-            "holder_lateral_compliance_m_per_N": None if k_holder is None else k_holder.lateral,
-        },
-        "units": {
-            "length": "mm",
-            "force": "N",
-            "moment": "N*m",
-            "angle": "deg",
-            "time": "s",
-            "compliance": "SI",
-        },
+        "robot": RobotInfo(
+            model=cell.robot_name,
+            preset=cell.robot_name,
+            placement_T_base_work_m=cell.T_base_work.tolist(),
+            joint_angles_from=q_source,
+        ),
+        "tool": ToolInfo(
+            ball_diameter_mm=cell.tool.ball_diameter * 1e3,
+            method=k_tool.method,
+            lateral_compliance_m_per_N=k_tool.lateral,
+            holder_lateral_compliance_m_per_N=None if k_holder is None else k_holder.lateral,
+        ),
+        "units": Units(
+            length="mm", force="N", moment="N*m", angle="deg", time="s", compliance="SI"
+        ),
         "n_points": len(tp),
         "n_points_used": int(np.sum(valid)),
         "rim_band_mm": study.analysis.rim_band * 1e3,
@@ -1046,7 +1057,7 @@ def write_results(
     """Write ``report.html``, ``contributions.csv``, ``contributions_normal.csv``,
     ``per_point.parquet``, ``summary.json``, ``identified_stiffness.toml`` (when the robot's
     compliance was identified; its name, relative to ``out_dir``, in
-    ``summary["identified_stiffness"]``) and
+    ``summary.identified_stiffness``) and
     ``figures/*.png`` into ``out_dir`` (replaced only when everything is written)."""
     from roboisf.report import write_report
 
@@ -1059,10 +1070,6 @@ def write_results(
             file=out_dir,
         )
     ident = result.identification
-    if ident is not None:
-        # relative to the results folder, never the absolute path: the same inputs give the
-        # same bytes in any output folder (issue 29)
-        result.summary["identified_stiffness"] = IDENTIFIED_STIFFNESS
     with staged_directory(out_dir, "analyze") as stage:
         if ident is not None:
             write_stiffness_toml(
@@ -1083,30 +1090,18 @@ def write_results(
                 with atomic_write(stage / name) as fh:  # mm and percent (docs/analyze.md)
                     df.to_csv(fh, index=False, float_format="%.6g")
             with atomic_write(stage / "summary.json") as fh:
-                json.dump(_jsonable(result.summary), fh, indent=2)
+                fh.write(dumps(result.summary))
         with task(progress, "report"):
             write_report(
                 result.per_point,
                 result.contributions,
                 result.contributions_normal,
-                result.summary,
+                result.summary.to_dict(),
                 stage,
                 png=png,
                 progress=progress,
             )
     return out_dir
-
-
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.generic):
-        return x.item()
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    return x
 
 
 #: fraction of a scan's wall points beyond ``[analysis] max_distance`` above which the analysis

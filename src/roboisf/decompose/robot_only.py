@@ -38,6 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.decompose.check import N_BOOT, lap_blocks, lap_index, point_scatter
+from roboisf.decompose.summary import RobotOnlySummary, dumps
 from roboisf.errors import InputError
 
 __all__ = ["MIN_SPREAD", "SEPARABLE_TOL", "SpringbackEstimate", "springback_without_cnc"]
@@ -230,7 +231,8 @@ class RobotOnlyResult:
     cell: Any
     estimate: SpringbackEstimate
     per_point: Any
-    summary: dict[str, Any]
+    #: ``summary.json`` (:mod:`roboisf.decompose.summary`)
+    summary: RobotOnlySummary
 
 
 def analyze_robot_only(study: Any, *, progress: Any = None) -> RobotOnlyResult:
@@ -306,20 +308,7 @@ def analyze_robot_only(study: Any, *, progress: Any = None) -> RobotOnlyResult:
     cols["springback_sigma_dn"] = est.sigma_dn * 1e3
     cols["used"] = valid
     per_point = pd.DataFrame(cols)
-    summary: dict[str, Any] = {
-        "study": study.name,
-        "run": rob.name,
-        "kind": "robot-only",
-        "robot": cell.robot_name,
-        "joint_angles": q_source,
-        "springback_model_based": est.to_dict(),
-        "modelled_mean_abs_dn_mm": {
-            k: float(np.mean(np.abs(per_point[f"{k}_dn"].to_numpy()[valid])))
-            for k in ("tool", "tool_holder", "vjm", "command")
-        },
-        "measured_mean_abs_dn_mm": float(np.mean(np.abs(dev.dn[valid]))) * 1e3,
-        "warnings": warnings,
-    }
+    truth: dict[str, Any] | None = None
     truth_file = pl.run_truth_dir(study) / "per_point.parquet"
     if truth_file.is_file():
         t = pd.read_parquet(truth_file)
@@ -328,14 +317,28 @@ def analyze_robot_only(study: Any, *, progress: Any = None) -> RobotOnlyResult:
             per_point["truth_springback_dn"] = t[col].to_numpy()
             if est.separable:
                 err = (per_point["springback_dn"] - per_point["truth_springback_dn"])[valid]
-                summary["truth"] = {"springback_rms_error_mm": float(np.sqrt(np.mean(err**2)))}
+                truth = {"springback_rms_error_mm": float(np.sqrt(np.mean(err**2)))}
+    summary = RobotOnlySummary(
+        study=study.name,
+        run=rob.name,
+        kind="robot-only",
+        robot=cell.robot_name,
+        joint_angles=q_source,
+        springback_model_based=est.to_dict(),
+        modelled_mean_abs_dn_mm={
+            k: float(np.mean(np.abs(per_point[f"{k}_dn"].to_numpy()[valid])))
+            for k in ("tool", "tool_holder", "vjm", "command")
+        },
+        measured_mean_abs_dn_mm=float(np.mean(np.abs(dev.dn[valid]))) * 1e3,
+        warnings=warnings,
+        truth=truth,
+    )
     return RobotOnlyResult(study, cell, est, per_point, summary)
 
 
 def write_robot_only(result: RobotOnlyResult, out_dir: Any, *, progress: Any = None) -> Any:
     """``per_point.parquet``, ``summary.json`` and ``report.html`` (model-based springback,
     no figures) into ``out_dir`` (replaced only when complete)."""
-    import json
     from pathlib import Path
 
     from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
@@ -346,6 +349,6 @@ def write_robot_only(result: RobotOnlyResult, out_dir: Any, *, progress: Any = N
         with atomic_path(stage / "per_point.parquet") as tmp:
             result.per_point.to_parquet(tmp, index=False)
         with atomic_write(stage / "summary.json") as fh:
-            json.dump(result.summary, fh, indent=2, allow_nan=True)
-        write_robot_only_report(result.summary, stage)
+            fh.write(dumps(result.summary))
+        write_robot_only_report(result.summary.to_dict(), stage)
     return out_dir

@@ -13,6 +13,7 @@ Units in the database: m, rad, m/N (the results' mm and degrees are converted on
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import math
@@ -25,6 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from roboisf.decompose.summary import AnalysisSummary, dumps, read_summary
 from roboisf.errors import InputError
 from roboisf.history.db import PART_COLUMNS, POINT_COLUMNS, SHARE_COLUMNS, Database
 
@@ -163,7 +165,13 @@ def read_results(folder: str | Path, *, formed_at: str | None = None) -> PartRec
                 f"no {name}: not a results folder of `roboisf analyze`",
                 file=root,
             )
-    summary = _json(files["summary.json"])
+    summary = read_summary(files["summary.json"])
+    if not isinstance(summary, AnalysisSummary):
+        raise InputError(
+            "the results of a robot-only study (no CNC run): the history holds analyses that "
+            "split the error with a CNC run",
+            file=files["summary.json"],
+        )
     try:
         df = pd.read_parquet(files["per_point.parquet"])
     except Exception as e:  # pyarrow raises several types for a damaged file
@@ -181,17 +189,18 @@ def read_results(folder: str | Path, *, formed_at: str | None = None) -> PartRec
 
     def need(key: str, table: dict[str, Any], where: str) -> Any:
         if key not in table:
-            raise InputError(f"missing {where}.{key}", file=files["summary.json"])
+            raise InputError("missing field", file=files["summary.json"], field=f"{where}.{key}")
         return table[key]
 
-    part = need("part", summary, "")
-    robot = need("robot", summary, "")
-    tool = need("tool", summary, "")
-    if not isinstance(part, dict) or not isinstance(robot, dict) or not isinstance(tool, dict):
-        raise InputError("part, robot and tool must be objects", file=files["summary.json"])
+    part, robot, tool = summary.part, summary.robot, summary.tool
     kind = str(need("kind", part, "part"))
-    t = float(need("sheet_thickness", part, "part")) * 1e-3
-    ball = float(need("ball_diameter_mm", tool, "tool")) * 1e-3 / 2
+    try:
+        t = float(need("sheet_thickness", part, "part")) * 1e-3
+    except (TypeError, ValueError):
+        raise InputError(
+            "expected a number (mm)", file=files["summary.json"], field="part.sheet_thickness"
+        ) from None
+    ball = tool.ball_diameter_mm * 1e-3 / 2
     if formed_at is None:
         marker = root / ".roboisf-output.json"
         stamp = None
@@ -230,35 +239,34 @@ def read_results(folder: str | Path, *, formed_at: str | None = None) -> PartRec
         **{k: df[v].to_numpy(dtype=float) * mm for k, v in _TERMS.items()},
     }
     points = np.column_stack([cols[c] for c in POINT_COLUMNS])
-    check = summary.get("vjm_check") if isinstance(summary.get("vjm_check"), dict) else {}
-    ident = summary.get("identification") if isinstance(summary.get("identification"), dict) else {}
-    k_ident = ident.get("K") if ident else None
-    placement = robot.get("placement_T_base_work_m")
-    tool_c = tool.get("lateral_compliance_m_per_N")
-    rim = summary.get("rim_band_mm")
+    check = summary.vjm_check
+    k_ident = summary.identification.get("K")
+    placement = robot.placement_T_base_work_m
+    tool_c = tool.lateral_compliance_m_per_N
+    rim = summary.rim_band_mm
     meta = {
         "fingerprint": _sha(files["summary.json"], files["per_point.parquet"]),
-        "study": str(summary.get("study", root.name)),
+        "study": summary.study,
         "source": str(root.resolve()),
         "formed_at": formed_at,
         "added_at": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "part_kind": kind,
         "part_json": json.dumps(part, sort_keys=True),
-        "robot": str(robot.get("model", robot.get("preset", "unknown"))),
+        "robot": robot.model,
         "placement_json": json.dumps(placement),
-        "tool_json": json.dumps(tool, sort_keys=True),
+        "tool_json": json.dumps(dataclasses.asdict(tool), sort_keys=True),
         "tool_radius": ball,
-        "tool_compliance": None if tool_c is None else float(tool_c),
+        "tool_compliance": float(tool_c),
         "sheet_thickness": t,
         "material": str(part.get("material", "unknown")),
         "step_down": _step_down(depth, lap),
-        "rim_band": None if rim is None else float(rim) * mm,
+        "rim_band": float(rim) * mm,
         "n_points": len(df),
         "n_used": int(df["used"].sum()),
         "vjm_ratio": _finite(check.get("ratio")) if check else None,
         "vjm_verdict": check.get("verdict") if check else None,
         "identified_k_json": json.dumps(k_ident) if k_ident is not None else None,
-        "summary_json": json.dumps(summary, sort_keys=True),
+        "summary_json": json.dumps(json.loads(dumps(summary)), sort_keys=True),
     }
     shares = _shares(files["contributions.csv"], "per_axis") + _shares(
         files["contributions_normal.csv"], "normal"

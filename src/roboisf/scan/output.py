@@ -23,6 +23,7 @@ from roboisf.scan.deviation import PointDeviations, ToolpathDeviations
 __all__ = [
     "POINT_COLUMNS",
     "TOOLPATH_COLUMNS",
+    "jsonable",
     "point_table",
     "toolpath_table",
     "write_summary_json",
@@ -131,13 +132,15 @@ def write_table(df: pd.DataFrame, path: str | Path, units: dict[str, str], kind:
         )
 
 
-def _jsonable(x: Any) -> Any:
+def jsonable(x: Any) -> Any:
+    """``x`` as JSON values: numpy scalars and arrays as Python numbers and lists, dict keys as
+    strings, non-finite floats as null (JSON has no NaN)."""
     if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
+        return {str(k): jsonable(v) for k, v in x.items()}
     if isinstance(x, list | tuple):
-        return [_jsonable(v) for v in x]
+        return [jsonable(v) for v in x]
     if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
+        return jsonable(x.tolist())
     if isinstance(x, np.integer):
         return int(x)
     if isinstance(x, np.floating | float):
@@ -151,5 +154,5 @@ def _jsonable(x: Any) -> Any:
 def write_summary_json(summary: dict[str, Any], path: str | Path) -> None:
     """Write the summary dict as JSON (atomically; non-finite numbers become null)."""
     with atomic_write(path, "w") as fh:
-        json.dump(_jsonable(summary), fh, indent=2)
+        json.dump(jsonable(summary), fh, indent=2)
         fh.write("\n")
