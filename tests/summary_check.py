@@ -1,6 +1,6 @@
 """Every ``summary.json`` a test's study produces, checked against the published JSON Schema
 (``docs/summary.schema.json``, with the ``jsonschema`` library) and read back by the one reader
-(:func:`roboisf.decompose.summary.read_summary`), whose serialiser must give the same bytes."""
+(:func:`roboisf.summary.read_summary`), whose serialiser must give the same bytes."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from typing import Any
 import jsonschema
 import numpy as np
 
-from roboisf.decompose.summary import (
+from roboisf.summary import (
     AnalysisSummary,
     RobotInfo,
     ToolInfo,

@@ -373,10 +373,10 @@ def _results_for(study: Path, folder: Path, *, fingerprint_of: Path, nan_rows: i
     import numpy as np
     import pandas as pd
 
-    from roboisf.decompose.summary import dumps
     from roboisf.io.toolpath_csv import read_toolpath_csv
     from roboisf.study import load_study
     from roboisf.study.fingerprint import study_fingerprint
+    from roboisf.summary import dumps
     from summary_check import minimal_summary
 
     n = len(read_toolpath_csv(study / "toolpath.csv"))

@@ -10,7 +10,8 @@ import jsonschema
 import pytest
 
 from roboisf.cli.main import main
-from roboisf.decompose.summary import (
+from roboisf.errors import InputError
+from roboisf.summary import (
     SCHEMA_VERSION,
     AnalysisSummary,
     RobotInfo,
@@ -23,12 +24,11 @@ from roboisf.decompose.summary import (
     read_summary,
     schema_text,
 )
-from roboisf.errors import InputError
 from summary_check import SCHEMA_FILE, minimal_summary, schema
 
 
 def test_the_published_schema_is_the_generated_one():
-    # regenerate with: python -c "from roboisf.decompose.summary import schema_text; \
+    # regenerate with: python -c "from roboisf.summary import schema_text; \
     #   open('docs/summary.schema.json', 'w').write(schema_text())"
     assert SCHEMA_FILE.read_text(encoding="utf-8") == schema_text()
     jsonschema.Draft202012Validator.check_schema(json_schema())

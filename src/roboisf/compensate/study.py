@@ -35,7 +35,6 @@ from roboisf.compensate.pipeline import (
     rim_blend,
 )
 from roboisf.decompose.pipeline import analyze
-from roboisf.decompose.summary import AnalysisSummary, read_summary
 from roboisf.errors import InputError
 from roboisf.io.program import RobotTool
 from roboisf.progress import Progress, task
@@ -43,6 +42,7 @@ from roboisf.robot.model import RobotModel
 from roboisf.study.fingerprint import check_results
 from roboisf.study.spec import Study, load_study
 from roboisf.study.toolpaths import study_toolpath
+from roboisf.summary import AnalysisSummary, read_summary
 
 __all__ = [
     "DEFAULT_TARGET",
@@ -320,7 +320,7 @@ def _state_column(f: Path, n: int, column: str, *, finite: bool) -> F64:
 
 def _check_results_run(results: Path, run: str) -> None:
     """An analyze output records the robot run it is of (``summary.json`` → ``robot_run``, read
-    by :func:`roboisf.decompose.summary.read_summary`: a file of another version is refused;
+    by :func:`roboisf.summary.read_summary`: a file of another version is refused;
     a missing one is left to the fingerprint check, which says what to do)."""
     if not (results / "summary.json").is_file():
         return

@@ -52,7 +52,6 @@ from roboisf.decompose.identify import (
     identify_from_forming,
     write_stiffness_toml,
 )
-from roboisf.decompose.summary import AnalysisSummary, RobotInfo, ToolInfo, Units, dumps
 from roboisf.errors import InputError
 from roboisf.fem import ComplianceResult
 from roboisf.frames import vertical_tool
@@ -74,6 +73,7 @@ from roboisf.study.fingerprint import study_fingerprint
 from roboisf.study.sensors import condition_study_log, read_study_force_log, sensor_to_tip
 from roboisf.study.spec import RunSpec, Study, load_study
 from roboisf.study.toolpaths import study_toolpath
+from roboisf.summary import AnalysisSummary, RobotInfo, ToolInfo, Units, dumps
 from roboisf.sync import Alignment
 from roboisf.sync.run import RunAlignment, align_run
 from roboisf.toolpath import Toolpath
@@ -101,7 +101,7 @@ class AnalysisResult:
     per_point: pd.DataFrame
     contributions: pd.DataFrame
     contributions_normal: pd.DataFrame
-    #: ``summary.json`` (:mod:`roboisf.decompose.summary`)
+    #: ``summary.json`` (:mod:`roboisf.summary`)
     summary: AnalysisSummary
     scans: dict[str, ScanComparison]
     #: the robot's compliance identified from this run (None when it cannot be)

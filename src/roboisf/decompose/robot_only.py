@@ -38,8 +38,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.decompose.check import N_BOOT, lap_blocks, lap_index, point_scatter
-from roboisf.decompose.summary import RobotOnlySummary, dumps
 from roboisf.errors import InputError
+from roboisf.summary import RobotOnlySummary, dumps
 
 __all__ = ["MIN_SPREAD", "SEPARABLE_TOL", "SpringbackEstimate", "springback_without_cnc"]
 
@@ -231,7 +231,7 @@ class RobotOnlyResult:
     cell: Any
     estimate: SpringbackEstimate
     per_point: Any
-    #: ``summary.json`` (:mod:`roboisf.decompose.summary`)
+    #: ``summary.json`` (:mod:`roboisf.summary`)
     summary: RobotOnlySummary
 
 

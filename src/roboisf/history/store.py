@@ -26,9 +26,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from roboisf.decompose.summary import AnalysisSummary, dumps, read_summary
 from roboisf.errors import InputError
 from roboisf.history.db import PART_COLUMNS, POINT_COLUMNS, SHARE_COLUMNS, Database
+from roboisf.summary import AnalysisSummary, dumps, read_summary
 
 __all__ = [
     "FACTORS",

@@ -18,6 +18,7 @@ import pandas as pd
 
 from roboisf.errors import InputError
 from roboisf.io.atomic import atomic_path, atomic_write
+from roboisf.io.jsonvalues import jsonable
 from roboisf.scan.deviation import PointDeviations, ToolpathDeviations
 
 __all__ = [
@@ -130,25 +131,6 @@ def write_table(df: pd.DataFrame, path: str | Path, units: dict[str, str], kind:
         raise InputError(
             f"unknown table format {path.suffix!r}; expected .parquet or .csv", file=path
         )
-
-
-def jsonable(x: Any) -> Any:
-    """``x`` as JSON values: numpy scalars and arrays as Python numbers and lists, dict keys as
-    strings, non-finite floats as null (JSON has no NaN)."""
-    if isinstance(x, dict):
-        return {str(k): jsonable(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return jsonable(x.tolist())
-    if isinstance(x, np.integer):
-        return int(x)
-    if isinstance(x, np.floating | float):
-        v = float(x)
-        return v if math.isfinite(v) else None
-    if isinstance(x, np.bool_):
-        return bool(x)
-    return x
 
 
 def write_summary_json(summary: dict[str, Any], path: str | Path) -> None:
