@@ -858,8 +858,8 @@ def sensor_findings(
         if vp != "fault" and verdict(clo, chi, lim) == "fault":
             ct_force = "cannot_tell"
             ct_text += (
-                "; crosstalk from the axial force into the moment channels, or the constant force, cannot "
-                "be told apart"
+                "; crosstalk from the axial force into the moment channels, or the constant "
+                "force, cannot be told apart"
             )
         elif vp == "fault":
             ct_est, ct_ci = sf.moment_proportional * 1e3, (plo, phi)
