@@ -109,7 +109,10 @@ def truth_values(cell, t, u) -> dict[str, float]:
     vjm = at_ball_centre(np.einsum("nij,nj->ni", k_c, t.wrench_robot), cell.cell.tool.radius)
     x = np.einsum("ij,ij->i", vjm, t.toolpath.normal)[u]
     y = np.einsum("ij,ij->i", t.robot, t.toolpath.normal)[u]
-    bias = np.linalg.norm(tr.sensor_bias[:3] + np.array([0, 0, -tr.tool_mass * 9.80665]))
+    # what the flange sensor reads at rest: the tool's weight through its gain and crosstalk,
+    # plus its bias (the diagnosis's static offset)
+    weight = np.array([0, 0, -tr.tool_mass * 9.80665])
+    bias = np.linalg.norm(tr.sensor_matrix()[:3, :3] @ weight + tr.sensor_bias[:3])
     return {
         "robot_stiffness": float(x @ y / (x @ x)),
         "force_gain": float(np.mean(tr.sensor_gain)),
@@ -153,7 +156,7 @@ def compliance_removed(cell, root: Path, summary: dict) -> float | None:
         root / "study",
         results=root / "results",
         options=CompensationOptions(springback=False),
-        stiffness=k,
+        stiffness=root / "results" / k,  # summary.json names it relative to the results
     )
     t0 = simulate(cell)
     t1 = simulate(cell, commanded=comp.compensation.toolpath)

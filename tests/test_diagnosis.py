@@ -502,3 +502,43 @@ def test_compensation_with_the_diagnosis_removes_the_compliance_error(diagnosed,
     print(f"removed {with_diag:.3f} with the corrected forces, {measured:.3f} with the measured")
     assert with_diag >= 0.80
     assert with_diag > measured + 0.05
+
+
+def test_size_interval_covers_a_true_zero():
+    """The size of a noisy zero vector is biased upward: its percentile interval alone never
+    holds 0. Over many noisy zeros the interval covers 0 about 95 % of the time, and a clear
+    offset's interval stays away from 0 and covers its size."""
+    from roboisf.decompose.diagnose import size_interval
+
+    rng = np.random.default_rng(11)
+    se = np.array([0.1, 0.1, 0.1])
+    hits = sum(size_interval(rng.normal(0, 0.1, 3), se)[0] == 0.0 for _ in range(400))
+    assert 0.9 * 400 <= hits <= 0.99 * 400, hits
+    b = np.array([3.0, -4.0, 0.0])
+    lo, hi = size_interval(b + rng.normal(0, 0.1, 3), se)
+    assert 4.6 < lo <= 5.0 <= hi < 5.4
+
+
+def test_unloaded_stretch_stays_off_the_path():
+    """With the path's log times known, the start stretch ends where the path begins (a part
+    whose first laps form below the noise threshold would lend them to it); a log that starts
+    on the path keeps its low-force start, marked on_path, and its creep widens the offset."""
+    from roboisf.sensor import unloaded_stretches
+
+    rng = np.random.default_rng(5)
+    t = np.arange(4000) * 1e-2
+    W = rng.normal(0, 1.0, (4000, 6))
+    W[1000:, 2] += np.minimum((t[1000:] - 10.0) * 0.3, 600.0)  # forming creeps in from 10 s
+    W[2000:, 2] += 600.0
+    W[2000:, 0] += 200 * np.sin(t[2000:])
+    (free,) = unloaded_stretches(t, W)
+    assert free.t1 > 12.0  # the creeping first laps look unloaded
+    (off,) = unloaded_stretches(t, W, path=(10.0, 40.0))
+    assert off.t1 < 10.0 and not off.on_path
+    assert abs(off.mean[2]) < 5 * off.se[2]
+    (on,) = unloaded_stretches(t, W, path=(0.05, 40.0))
+    assert on.on_path
+    ev_on = UnloadedEvidence.from_stretches([on], [])
+    ev_off = UnloadedEvidence.from_stretches([off], [])
+    assert ev_on.robot_se[2] > 2 * ev_off.robot_se[2]
+    assert "on the path below the onset" in ev_on.where

@@ -71,6 +71,7 @@ __all__ = [
     "diagnosis_headline",
     "fit_robot_term",
     "fit_sensor",
+    "size_interval",
     "verdict",
 ]
 
@@ -255,6 +256,23 @@ def _pct(v: F64) -> tuple[float, float]:
 # the two force logs
 
 
+def size_interval(b: F64, se: F64) -> tuple[float, float]:
+    """95 % interval of ``|b|`` for a vector ``b`` (k,) with independent normal errors of
+    standard deviation ``se`` (k,): the percentiles of the size over draws, reaching down to 0
+    when ``b = 0`` is inside the vector's 95 % region (χ² test: a size is biased upward, so a
+    true zero would never be covered otherwise) and always containing ``|b|``."""
+    from scipy.stats import chi2
+
+    b = np.asarray(b, dtype=float)
+    se = np.maximum(np.asarray(se, dtype=float), 1e-300)
+    draws = b[None, :] + np.random.default_rng(7).standard_normal((N_BOOT_DIAG, b.size)) * se
+    lo, hi = np.percentile(np.linalg.norm(draws, axis=1), [2.5, 97.5])
+    est = float(np.linalg.norm(b))
+    if float(np.sum((b / se) ** 2)) < float(chi2.ppf(0.95, b.size)):
+        lo = 0.0
+    return min(float(lo), est), max(float(hi), est)
+
+
 @dataclass(frozen=True)
 class UnloadedEvidence:
     """What the two logs read with the tool off the sheet (tip forces, work axes, N).
@@ -285,9 +303,23 @@ class UnloadedEvidence:
             return None
         c = [u for u in cnc if not u.tared]
 
+        from scipy.stats import t as student_t
+
         def pooled(us: list[UnloadedStretch]) -> tuple[F64, F64]:
-            B = np.vstack([u.blocks[:, :3] for u in us])
-            return B.mean(axis=0), B.std(axis=0, ddof=1) / np.sqrt(len(B))
+            # each stretch about its own mean (a drift is added below), the standard error
+            # stretched by Student's t over the normal's 1.96: few blocks estimate it
+            B = np.vstack([u.blocks[:, :3] - u.blocks[:, :3].mean(axis=0) for u in us])
+            dof = len(B) - len(us)
+            sd = np.sqrt(np.sum(B**2, axis=0) / max(dof, 1))
+            t = float(student_t.ppf(0.975, max(dof, 1))) / 1.96
+            mean = np.vstack([u.blocks[:, :3] for u in us]).mean(axis=0)
+            se = t * sd / np.sqrt(len(B))
+            for u in us:
+                if u.on_path:  # forming below the threshold: its creep is in the error
+                    q = max(1, len(u.blocks) // 4)
+                    creep = u.blocks[-q:, :3].mean(axis=0) - u.blocks[:q, :3].mean(axis=0)
+                    se = np.sqrt(se**2 + creep**2)
+            return mean, se
 
         b_r, se_r = pooled(r)
         drift = math.nan
@@ -296,7 +328,11 @@ class UnloadedEvidence:
             drift = float(np.linalg.norm(d))
             se_r = np.sqrt(se_r**2 + (0.5 * d) ** 2)
         b_c, se_c = pooled(c) if c else (np.zeros(3), np.zeros(3))
-        where = " and ".join(f"{u.where} {u.t0:.2f}–{u.t1:.2f} s" for u in r)
+        where = " and ".join(
+            f"{u.where} {u.t0:.2f}–{u.t1:.2f} s"
+            + (", on the path below the onset" if u.on_path else "")
+            for u in r
+        )
         return cls(b_r, se_r, b_c, se_c, bool(c), drift, where)
 
     def static_offset(self, gain: float) -> tuple[F64, F64]:
@@ -532,11 +568,6 @@ def _static_fit(
     if unloaded is None:
         return {}
     b_s, se = unloaded.static_offset(gain)
-    rng = np.random.default_rng(7)
-    draws = b_s[None, :] + rng.standard_normal((N_BOOT_DIAG, 3)) * se[None, :]
-    size = np.linalg.norm(draws, axis=1)
-    lo, hi = np.percentile(size, [2.5, 97.5])
-    bias = float(np.linalg.norm(b_s))
     M = len(Fz)
     X = np.zeros((2 * M, 2))
     X[:M, 0] = Fz
@@ -549,7 +580,7 @@ def _static_fit(
     return {
         "unloaded": unloaded,
         "static_b": b_s,
-        "static_bias_ci": (min(float(lo), bias), max(float(hi), bias)),
+        "static_bias_ci": size_interval(b_s, se),
         "axial_fixed": (float(c[0]), float(c[1])),
         "axial_fixed_ci": (max(min(clo, c_size) - widen, 0.0), max(chi, c_size) + widen),
     }
@@ -934,12 +965,7 @@ def _static_bias_finding(u: UnloadedEvidence, gain: float, sf: SensorFit | None)
         b_s, ci = sf.static_b, sf.static_bias_ci
     else:
         b_s, se = u.static_offset(gain)
-        size = np.linalg.norm(
-            b_s[None, :] + np.random.default_rng(7).standard_normal((N_BOOT_DIAG, 3)) * se, axis=1
-        )
-        lo, hi = np.percentile(size, [2.5, 97.5])
-        est = float(np.linalg.norm(b_s))
-        ci = (min(float(lo), est), max(float(hi), est))
+        ci = size_interval(b_s, se)
     text = (
         f"with the tool off the sheet ({u.where} of the log) the flange sensor reads "
         f"{_vec(u.robot)} at the tip (work axes)"

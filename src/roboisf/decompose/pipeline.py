@@ -184,7 +184,8 @@ def run_tip_wrench(
         W_s = alignment.average(log.time, log.wrench, file=f.file)
     W_tip = sensor_to_tip(W_s, f, tp.tip, vertical_tool(rot))
     if unloaded is not None:
-        unloaded.extend(_unloaded_at_tip(log, f, tp, vertical_tool(rot)))
+        t_path = tp.time[[0, -1]] + off if pt is None else np.asarray(pt)[[0, -1]]
+        unloaded.extend(_unloaded_at_tip(log, f, tp, vertical_tool(rot), t_path))
     if not log.moments_known:
         # a 3-component dynamometer: the load is a point force at the contact point, so its
         # moment about the tip is (contact − tip) × F (a few N·m on a Ø10 mm ball: dropping it
@@ -199,17 +200,19 @@ def run_tip_wrench(
 
 
 def _unloaded_at_tip(
-    log: ForceLog, f: ForceSensorSpec, tp: Toolpath, R_work_tip: F64
+    log: ForceLog, f: ForceSensorSpec, tp: Toolpath, R_work_tip: F64, t_path: F64
 ) -> list[UnloadedStretch]:
-    """The conditioned log's unloaded stretches, their readings moved to the tip like the log's
-    (at the path's first tip: the forces do not depend on it). A stretch inside the tare window
-    reads zero by construction: marked ``tared``."""
+    """The conditioned log's unloaded stretches outside ``t_path`` (the log times of the path's
+    first and last point), their readings moved to the tip like the log's (at the path's first
+    tip: the forces do not depend on it). A stretch inside the tare window reads zero by
+    construction: marked ``tared``."""
 
     def to_tip(B: F64) -> F64:
         return sensor_to_tip(B, f, np.repeat(tp.tip[:1], len(B), 0), R_work_tip)
 
     out = []
-    for s in unloaded_stretches(log.time, log.wrench):
+    path = (float(t_path[0]), float(t_path[1]))
+    for s in unloaded_stretches(log.time, log.wrench, path=path):
         if f.tare == "auto":
             tared = s.where == "start"
         elif isinstance(f.tare, tuple):

@@ -218,9 +218,9 @@ def unloaded_samples(time: F64, W: F64, *, min_samples: int = 25) -> slice | Non
 
 
 #: Blocks an unloaded stretch is cut into for the standard error of its mean (a sensor's noise
-#: is correlated over neighbouring samples; block means of ≥ 1/8 of a stretch are close to
+#: is correlated over neighbouring samples; block means of ≥ 1/16 of a stretch are close to
 #: independent).
-UNLOADED_BLOCKS = 8
+UNLOADED_BLOCKS = 16
 
 
 @dataclass(frozen=True)
@@ -232,7 +232,9 @@ class UnloadedStretch:
     blocks : (B, 6) [N, N·m] the reading's means over B consecutive equal blocks of the
         stretch, in the axes of whoever made them (the sensor's; :meth:`map` moves them);
     tared : True when this stretch was the tare window — its mean is zero by construction and
-        tells nothing about the sensor.
+        tells nothing about the sensor;
+    on_path : True when the stretch lies on the toolpath (the log has too little before or after
+        it): the tool already forms there, with a force below the detection threshold.
     """
 
     where: str
@@ -241,6 +243,7 @@ class UnloadedStretch:
     n: int
     blocks: F64
     tared: bool = False
+    on_path: bool = False
 
     @property
     def mean(self) -> F64:
@@ -260,15 +263,22 @@ class UnloadedStretch:
 
 
 def unloaded_stretches(
-    time: ArrayLike, W: ArrayLike, *, min_samples: int = 25
+    time: ArrayLike,
+    W: ArrayLike,
+    *,
+    min_samples: int = 25,
+    path: tuple[float, float] | None = None,
 ) -> list[UnloadedStretch]:
     """The stretches of a log with the tool off the sheet: its start before the force's onset
     and its end after the force falls away (a retract), each found as
     :func:`unloaded_samples` finds the start (the end: the same on the reversed log).
 
-    time : (N,) s; W : (N, 6) [N, N·m]. A stretch shorter than ``min_samples`` or than
-    :data:`UNLOADED_BLOCKS` × 4 samples is left out. Stretches between passes (the tool lifted
-    mid-log) are not looked for.
+    time : (N,) s; W : (N, 6) [N, N·m]; path : (t0, t1) s on the log's clock, when the tool
+    was on the toolpath (its first and last point): the start stretch ends before t0 and the
+    end stretch begins after t1 — a part whose first laps form with a force below the noise
+    threshold would otherwise lend them to the start. A stretch shorter than ``min_samples`` or
+    than :data:`UNLOADED_BLOCKS` × 4 samples is left out. Stretches between passes (the tool
+    lifted mid-log) are not looked for.
     """
     t = np.asarray(time, dtype=float)
     Wf = np.asarray(W, dtype=float)
@@ -283,10 +293,23 @@ def unloaded_stretches(
         if win is None:
             continue
         i0, i1 = (0, win.stop) if where == "start" else (n - win.stop, n)
+        on_path = False
+        if path is not None:
+            # off the path only, unless that leaves too little: then the stretch is the path's
+            # first (last) moments at a force below the threshold, and says so
+            j0, j1 = (i0, min(i1, int(np.searchsorted(t, path[0], "left"))))
+            if where == "end":
+                j0, j1 = (max(i0, int(np.searchsorted(t, path[1], "right"))), i1)
+            if j1 - j0 >= max(min_samples, 4 * UNLOADED_BLOCKS):
+                i0, i1 = j0, j1
+            else:
+                on_path = True
         if i1 - i0 < 4 * UNLOADED_BLOCKS:
             continue
         blocks = np.stack([b.mean(axis=0) for b in np.array_split(Wf[i0:i1], UNLOADED_BLOCKS)])
-        out.append(UnloadedStretch(where, float(t[i0]), float(t[i1 - 1]), i1 - i0, blocks))
+        out.append(
+            UnloadedStretch(where, float(t[i0]), float(t[i1 - 1]), i1 - i0, blocks, on_path=on_path)
+        )
     if len(out) == 2 and out[1].t0 <= out[0].t1:
         return out[:1]  # never loaded in between: one stretch, not two
     return out
