@@ -9,6 +9,7 @@ honestly ``cannot_tell``, never ``fault``.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -16,6 +17,7 @@ import pytest
 from roboisf.decompose.diagnose import (
     DETECTION_LIMITS,
     SUSPECTS,
+    UnloadedEvidence,
     fit_robot_term,
     fit_sensor,
     sensor_findings,
@@ -129,6 +131,137 @@ def test_false_tip_moment_beyond_the_point_contact_bound():
     assert np.sqrt(np.mean((Wc[:, 3:] - p["W"][:, 3:]) ** 2)) < 0.05
 
 
+# --------------------------------------------------------------------------------------------
+# the logs at rest: a static offset told from the axial force's crosstalk
+
+
+def _at_rest(b_robot, b_cnc=(0.0, 0.0, 0.0), *, tared=False, seed=3, n=400, noise=2.0):
+    """The unloaded start of each log as :func:`roboisf.sensor.unloaded_stretches` finds it
+    (tip forces, work axes): ``n`` samples of white noise around the offset."""
+    from roboisf.sensor import unloaded_stretches
+
+    rng = np.random.default_rng(seed)
+    out = {}
+    for name, b in (("robot", b_robot), ("cnc", b_cnc)):
+        t = np.arange(2 * n) * 0.01
+        W = rng.normal(0, noise, (2 * n, 6)) * [1, 1, 1, 0.01, 0.01, 0.01]
+        W[:, :3] += b
+        W[n:, 2] += 600.0  # the forming starts
+        W[n:, 0] += 250 * np.sin(t[n:])
+        (u,) = unloaded_stretches(t, W)
+        assert u.where == "start" and abs(u.n - n) < n // 5
+        out[name] = [replace(u, tared=tared)]
+    return out
+
+
+def _axial_crosstalk(W, c=(0.03, -0.02)):
+    """The flange sensor's lateral channels read c × the axial force besides their own."""
+    Wr = W.copy()
+    Wr[:, 0] += c[0] * W[:, 2]
+    Wr[:, 1] += c[1] * W[:, 2]
+    return Wr
+
+
+def test_unloaded_stretches_start_and_end():
+    from roboisf.sensor import unloaded_stretches
+
+    rng = np.random.default_rng(0)
+    t = np.arange(3000) * 1e-2
+    W = rng.normal(0, 1.0, (3000, 6))
+    W[:, :3] += [3.0, -2.0, 10.0]
+    W[500:2500, 2] += 600.0
+    W[500:2500, 0] += 200 * np.sin(t[500:2500])
+    start, end = unloaded_stretches(t, W)
+    assert (start.where, end.where) == ("start", "end")
+    assert start.t1 < 5.0 and end.t0 > 25.0
+    for u in (start, end):
+        np.testing.assert_allclose(u.mean[:3], [3.0, -2.0, 10.0], atol=5 * u.se.max())
+        assert 0.01 < u.se.max() < 0.2  # ~1/sqrt(450) of the noise
+    # a log that ramps up from its first sample has no unloaded stretch
+    ramp = W[400:2600].copy()
+    ramp[:, 2] += np.linspace(0, 600, len(ramp))
+    assert unloaded_stretches(t[400:2600], ramp) == []
+
+
+def test_axial_crosstalk_is_told_from_a_bias_by_the_logs_at_rest():
+    """The axial force's crosstalk into the lateral channels is a near-constant lateral force
+    along a wall: on the path alone it looks like a bias (the fit called it one). The logs at
+    rest read no offset: the constant is what the load brings — force_crosstalk, not force_bias,
+    and the correction takes the axial share out."""
+    p = _path()
+    valid = np.ones(len(p["lap"]), bool)
+    c = (0.03, -0.02)
+    Wr = _noisy(_axial_crosstalk(p["W"], c))
+    blind = _findings(fit_sensor(p["W"], Wr, p["arm"], valid, p["lap"], p["depth"]))
+    assert blind["force_crosstalk"].verdict == "cannot_tell"
+    assert blind["force_bias"].verdict != "ok"  # the path alone cannot clear the bias
+    ev = UnloadedEvidence.from_stretches(**_at_rest((0.0, 0.0, 0.0)))
+    sf = fit_sensor(p["W"], Wr, p["arm"], valid, p["lap"], p["depth"], unloaded=ev)
+    f = {x.suspect: x for x in sensor_findings(sf, R, ev)}
+    assert f["force_bias"].verdict == "ok", f["force_bias"].explanation
+    assert f["force_crosstalk"].verdict == "fault"
+    size = math.hypot(*c)
+    assert f["force_crosstalk"].ci_low <= size <= f["force_crosstalk"].ci_high
+    np.testing.assert_allclose(sf.axial_fixed, c, atol=0.002)
+    Wc = replace(sf, correct_axial=True).corrected(Wr, p["arm"], moments=False)
+    err = np.sqrt(np.mean((Wc[:, :2] - p["W"][:, :2]) ** 2))
+    assert err < 1.2 * 2.0, err  # the 2 N noise _noisy added; uncorrected: ~13 N
+    assert np.sqrt(np.mean((Wr[:, :2] - p["W"][:, :2]) ** 2)) > 10.0
+
+
+def test_a_bias_seen_at_rest_is_a_bias_not_crosstalk():
+    p = _path()
+    valid = np.ones(len(p["lap"]), bool)
+    b = np.array([10.0, -5.0, 30.0])
+    W = p["W"].copy()
+    W[:, :3] += b
+    ev = UnloadedEvidence.from_stretches(**_at_rest(b, (0.5, 0.0, -0.3)))
+    sf = fit_sensor(p["W"], _noisy(W), p["arm"], valid, p["lap"], p["depth"], unloaded=ev)
+    f = {x.suspect: x for x in sensor_findings(sf, R, ev)}
+    assert f["force_bias"].verdict == "fault"
+    rel = np.linalg.norm(b - [0.5, 0.0, -0.3])  # relative to the dynamometer's own zero
+    assert f["force_bias"].ci_low <= rel <= f["force_bias"].ci_high
+    assert f["force_crosstalk"].verdict == "ok", f["force_crosstalk"].explanation
+    c = ev.cnc
+    assert (
+        f"the dynamometer ({c[0]:+.1f}, {c[1]:+.1f}, {c[2]:+.1f}) N" in f["force_bias"].explanation
+    )
+    np.testing.assert_allclose(ev.cnc, [0.5, 0.0, -0.3], atol=5 * ev.cnc_se.max())
+
+
+def test_the_logs_at_rest_without_a_fit_still_tell_the_bias():
+    """Fewer than 6 laps: no comparison of the sensors, but the flange sensor at rest reads its
+    offset all the same (the dynamometer's log without a stretch: its zero is taken as right)."""
+    robot = _at_rest((0.0, 20.0, 0.0))["robot"]
+    ev = UnloadedEvidence.from_stretches(robot, [])
+    f = {x.suspect: x for x in sensor_findings(None, R, ev)}
+    assert f["force_bias"].verdict == "fault"
+    assert f["force_bias"].ci_low <= 20.0 <= f["force_bias"].ci_high
+    assert "its zero is taken as right" in f["force_bias"].explanation
+    assert f["force_gain"].verdict == f["force_crosstalk"].verdict == "cannot_tell"
+
+
+def test_a_tared_stretch_is_no_evidence():
+    """The tare window reads zero by construction: it must not clear a bias."""
+    assert UnloadedEvidence.from_stretches(**_at_rest((0.0, 0.0, 0.0), tared=True)) is None
+
+
+def test_a_drifting_zero_widens_the_offset():
+    from roboisf.sensor import UnloadedStretch
+
+    def stretch(where, level):
+        blocks = np.zeros((8, 6))
+        blocks[:, 0] = level + np.linspace(-0.1, 0.1, 8)
+        return UnloadedStretch(where, 0.0, 1.0, 800, blocks)
+
+    ev = UnloadedEvidence.from_stretches([stretch("start", 0.0), stretch("end", 8.0)], [])
+    assert ev is not None and abs(ev.drift - 8.0) < 1e-9
+    assert ev.robot_se[0] > 4.0 - 1e-9  # half the drift is in the error
+    f = {x.suspect: x for x in sensor_findings(None, R, ev)}
+    assert "drifts" in f["force_bias"].explanation
+    assert f["force_bias"].ci_low <= 0.0 + 1.0 and f["force_bias"].ci_high >= 8.0
+
+
 def test_robot_term_scale_shift_and_joint_pattern():
     """The robot term's pattern: a scale on the VJM with a sideways shift is found as such; a
     joint-by-joint stiffness error (joint 2 softer, its own pattern along the path) is not
@@ -186,6 +319,16 @@ CELLS = {
     "joints": ("cone", {"robot": {"joint_stiffness_scale": [1, 0.45, 0.7, 1, 1, 1]}}),
     "shift": ("cone", {"scan": {"shift": [0.0, 0.2, 0.0]}}),
     "tool_mass": ("cone", {"tool": {"mass": 4.0}}),
+    # the axial force's crosstalk into the lateral channels: a near-constant lateral force along
+    # the wall that the path alone takes for a bias; the logs' unloaded start reads no offset
+    "axial": (
+        "cone",
+        {
+            "force_sensor": {
+                "crosstalk": [[0, 0, 0.03, 0, 0, 0], [0, 0, 0.02, 0, 0, 0]] + [[0] * 6] * 4
+            }
+        },
+    ),
     "rotation": ("pyramid", {"scan": {"rotation": [0.0, 0.0, 0.25]}}),
     "joints_gain": (
         "cone",
@@ -196,10 +339,13 @@ CELLS = {
 #: what each cell's diagnosis must call a fault (the others: ok or cannot_tell)
 FAULTS = {
     "model": set(),
-    "gain_crosstalk": {"force_gain", "force_moment_crosstalk"},
+    # crosstalk_force 0.02: every force channel reads 2 % of the others, the axial one included
+    # (hypot(0.02, 0.02) = 0.028 N per N into the lateral channels)
+    "gain_crosstalk": {"force_gain", "force_moment_crosstalk", "force_crosstalk"},
     "joints": {"robot_stiffness"},
     "shift": {"scan_shift"},
     "tool_mass": {"force_bias"},
+    "axial": {"force_crosstalk"},
     "rotation": {"scan_rotation"},
     "joints_gain": {"robot_stiffness", "force_gain"},
 }
@@ -257,6 +403,13 @@ def test_intervals_cover_the_truth(diagnosed):
     gain = float(np.mean(cell.truth.sensor_gain))
     d = diag["force_gain"]
     assert d["ci_low"] <= gain <= d["ci_high"], (gain, d)
+    if name in ("axial", "gain_crosstalk"):
+        c = math.hypot(0.03, 0.02) if name == "axial" else math.hypot(0.02, 0.02)
+        d = diag["force_crosstalk"]
+        assert d["ci_low"] <= c <= d["ci_high"], d
+    if name == "axial":
+        d = diag["force_bias"]
+        assert d["ci_low"] <= 0.0 + DETECTION_LIMITS["force_bias"][1] and d["verdict"] == "ok", d
     if name == "shift":
         d = diag["scan_shift"]
         assert d["ci_low"] - 0.01 <= 0.2 <= d["ci_high"] + 0.01, d  # ±0.01 mm scan resolution
@@ -349,3 +502,43 @@ def test_compensation_with_the_diagnosis_removes_the_compliance_error(diagnosed,
     print(f"removed {with_diag:.3f} with the corrected forces, {measured:.3f} with the measured")
     assert with_diag >= 0.80
     assert with_diag > measured + 0.05
+
+
+def test_size_interval_covers_a_true_zero():
+    """The size of a noisy zero vector is biased upward: its percentile interval alone never
+    holds 0. Over many noisy zeros the interval covers 0 about 95 % of the time, and a clear
+    offset's interval stays away from 0 and covers its size."""
+    from roboisf.decompose.diagnose import size_interval
+
+    rng = np.random.default_rng(11)
+    se = np.array([0.1, 0.1, 0.1])
+    hits = sum(size_interval(rng.normal(0, 0.1, 3), se)[0] == 0.0 for _ in range(400))
+    assert 0.9 * 400 <= hits <= 0.99 * 400, hits
+    b = np.array([3.0, -4.0, 0.0])
+    lo, hi = size_interval(b + rng.normal(0, 0.1, 3), se)
+    assert 4.6 < lo <= 5.0 <= hi < 5.4
+
+
+def test_unloaded_stretch_stays_off_the_path():
+    """With the path's log times known, the start stretch ends where the path begins (a part
+    whose first laps form below the noise threshold would lend them to it); a log that starts
+    on the path keeps its low-force start, marked on_path, and its creep widens the offset."""
+    from roboisf.sensor import unloaded_stretches
+
+    rng = np.random.default_rng(5)
+    t = np.arange(4000) * 1e-2
+    W = rng.normal(0, 1.0, (4000, 6))
+    W[1000:, 2] += np.minimum((t[1000:] - 10.0) * 0.3, 600.0)  # forming creeps in from 10 s
+    W[2000:, 2] += 600.0
+    W[2000:, 0] += 200 * np.sin(t[2000:])
+    (free,) = unloaded_stretches(t, W)
+    assert free.t1 > 12.0  # the creeping first laps look unloaded
+    (off,) = unloaded_stretches(t, W, path=(10.0, 40.0))
+    assert off.t1 < 10.0 and not off.on_path
+    assert abs(off.mean[2]) < 5 * off.se[2]
+    (on,) = unloaded_stretches(t, W, path=(0.05, 40.0))
+    assert on.on_path
+    ev_on = UnloadedEvidence.from_stretches([on], [])
+    ev_off = UnloadedEvidence.from_stretches([off], [])
+    assert ev_on.robot_se[2] > 2 * ev_off.robot_se[2]
+    assert "on the path below the onset" in ev_on.where

@@ -50,12 +50,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.decompose.check import RATIO_TOLERANCE, lap_blocks, lap_index
+
+if TYPE_CHECKING:
+    from roboisf.sensor import UnloadedStretch
 
 __all__ = [
     "DETECTION_LIMITS",
@@ -64,9 +67,11 @@ __all__ = [
     "Finding",
     "RobotTermFit",
     "SensorFit",
+    "UnloadedEvidence",
     "diagnosis_headline",
     "fit_robot_term",
     "fit_sensor",
+    "size_interval",
     "verdict",
 ]
 
@@ -78,6 +83,7 @@ SUSPECTS = (
     "force_gain",
     "force_moment_crosstalk",
     "force_bias",
+    "force_crosstalk",
     "scan_shift",
     "scan_rotation",
     "springback_coupling",
@@ -94,6 +100,9 @@ DETECTION_LIMITS: dict[str, tuple[float, float]] = {
     "force_moment_crosstalk": (0.0, 1.0),
     # a constant force, N (the old warning's 5 N on the lateral channels)
     "force_bias": (0.0, 5.0),
+    # the axial force's crosstalk into the lateral channels, N per N (1 % of a 600 N axial force
+    # is 6 N on a lateral channel: the bias's limit)
+    "force_crosstalk": (0.0, 0.01),
     # sideways shift of the robot scan, mm
     "scan_shift": (0.0, 0.05),
     # rotation of the robot scan about the part axis, deg
@@ -108,6 +117,7 @@ UNITS = {
     "force_gain": "1",
     "force_moment_crosstalk": "mm",
     "force_bias": "N",
+    "force_crosstalk": "1",
     "scan_shift": "mm",
     "scan_rotation": "deg",
     "springback_coupling": "1",
@@ -246,6 +256,91 @@ def _pct(v: F64) -> tuple[float, float]:
 # the two force logs
 
 
+def size_interval(b: F64, se: F64) -> tuple[float, float]:
+    """95 % interval of ``|b|`` for a vector ``b`` (k,) with independent normal errors of
+    standard deviation ``se`` (k,): the percentiles of the size over draws, reaching down to 0
+    when ``b = 0`` is inside the vector's 95 % region (χ² test: a size is biased upward, so a
+    true zero would never be covered otherwise) and always containing ``|b|``."""
+    from scipy.stats import chi2
+
+    b = np.asarray(b, dtype=float)
+    se = np.maximum(np.asarray(se, dtype=float), 1e-300)
+    draws = b[None, :] + np.random.default_rng(7).standard_normal((N_BOOT_DIAG, b.size)) * se
+    lo, hi = np.percentile(np.linalg.norm(draws, axis=1), [2.5, 97.5])
+    est = float(np.linalg.norm(b))
+    if float(np.sum((b / se) ** 2)) < float(chi2.ppf(0.95, b.size)):
+        lo = 0.0
+    return min(float(lo), est), max(float(hi), est)
+
+
+@dataclass(frozen=True)
+class UnloadedEvidence:
+    """What the two logs read with the tool off the sheet (tip forces, work axes, N).
+
+    robot, robot_se : (3,) the flange sensor's mean reading over its untared unloaded stretches
+    and its standard error (block means: :class:`roboisf.sensor.UnloadedStretch`), widened by
+    half the start–end difference when the two disagree (a drifting zero); cnc, cnc_se : (3,)
+    the dynamometer's, zero when its log has no untared unloaded stretch (``cnc_seen`` False:
+    its zero is then taken as right, and said); drift : N, the flange sensor's |start − end|
+    (nan with one stretch); where : the stretches, in words."""
+
+    robot: F64
+    robot_se: F64
+    cnc: F64
+    cnc_se: F64
+    cnc_seen: bool
+    drift: float
+    where: str
+
+    @classmethod
+    def from_stretches(
+        cls, robot: list[UnloadedStretch], cnc: list[UnloadedStretch]
+    ) -> UnloadedEvidence | None:
+        """None when the robot's log has no untared unloaded stretch (it starts loaded, or was
+        tared on the one it has: that reads zero by construction)."""
+        r = [u for u in robot if not u.tared]
+        if not r:
+            return None
+        c = [u for u in cnc if not u.tared]
+
+        from scipy.stats import t as student_t
+
+        def pooled(us: list[UnloadedStretch]) -> tuple[F64, F64]:
+            # each stretch about its own mean (a drift is added below), the standard error
+            # stretched by Student's t over the normal's 1.96: few blocks estimate it
+            B = np.vstack([u.blocks[:, :3] - u.blocks[:, :3].mean(axis=0) for u in us])
+            dof = len(B) - len(us)
+            sd = np.sqrt(np.sum(B**2, axis=0) / max(dof, 1))
+            t = float(student_t.ppf(0.975, max(dof, 1))) / 1.96
+            mean = np.vstack([u.blocks[:, :3] for u in us]).mean(axis=0)
+            se = t * sd / np.sqrt(len(B))
+            for u in us:
+                if u.on_path:  # forming below the threshold: its creep is in the error
+                    q = max(1, len(u.blocks) // 4)
+                    creep = u.blocks[-q:, :3].mean(axis=0) - u.blocks[:q, :3].mean(axis=0)
+                    se = np.sqrt(se**2 + creep**2)
+            return mean, se
+
+        b_r, se_r = pooled(r)
+        drift = math.nan
+        if len(r) == 2:
+            d = r[0].mean[:3] - r[1].mean[:3]
+            drift = float(np.linalg.norm(d))
+            se_r = np.sqrt(se_r**2 + (0.5 * d) ** 2)
+        b_c, se_c = pooled(c) if c else (np.zeros(3), np.zeros(3))
+        where = " and ".join(
+            f"{u.where} {u.t0:.2f}–{u.t1:.2f} s"
+            + (", on the path below the onset" if u.on_path else "")
+            for u in r
+        )
+        return cls(b_r, se_r, b_c, se_c, bool(c), drift, where)
+
+    def static_offset(self, gain: float) -> tuple[F64, F64]:
+        """(3,) N the flange sensor's constant beyond the dynamometer's at rest, in the fit's
+        terms (``b`` of ``F_rob = g F_cnc + b``), and its standard error."""
+        return self.robot - gain * self.cnc, np.sqrt(self.robot_se**2 + (gain * self.cnc_se) ** 2)
+
+
 @dataclass(frozen=True)
 class SensorFit:
     """The flange sensor against the CNC dynamometer (work axes at the tip).
@@ -281,6 +376,14 @@ class SensorFit:
     moment_excess: float
     process_gap: float
     n_laps: int
+    axial_force: float = math.nan
+    unloaded: UnloadedEvidence | None = None
+    static_b: F64 | None = None
+    static_bias_ci: tuple[float, float] | None = None
+    axial_fixed: tuple[float, float] | None = None
+    axial_fixed_ci: tuple[float, float] | None = None
+    #: Set by the diagnosis when the crosstalk is at fault: :meth:`corrected` removes it.
+    correct_axial: bool = False
 
     def corrected(self, W_rob: F64, arm: F64, *, moments: bool) -> F64:
         """The robot's tip wrench (N, 6) corrected: forces ``(F − b) / g`` and the lateral
@@ -288,7 +391,14 @@ class SensorFit:
         the point-contact moment ``arm × F`` (``arm`` (N, 3) m, contact − tip) when ``moments``,
         else divided by ``g``."""
         W = np.array(W_rob, dtype=float)
-        W[:, :3] = (W_rob[:, :3] - self.b[None, :]) / self.gain
+        b = self.b
+        if self.correct_axial and self.static_b is not None and self.axial_fixed is not None:
+            # F_read,xy = g (F_xy + c F_z) + b: the static offset, then the axial share
+            b = self.static_b
+            W[:, :3] = (W_rob[:, :3] - b[None, :]) / self.gain
+            W[:, :2] -= np.outer(W[:, 2], self.axial_fixed)
+        else:
+            W[:, :3] = (W_rob[:, :3] - b[None, :]) / self.gain
         cxy, cyx = self.lateral_coupling
         C = np.array([[1.0, cxy], [cyx, 1.0]])
         W[:, :2] = W[:, :2] @ np.linalg.inv(C).T
@@ -343,11 +453,14 @@ def fit_sensor(
     *,
     n_boot: int = N_BOOT_DIAG,
     seed: int = 0,
+    unloaded: UnloadedEvidence | None = None,
 ) -> SensorFit | None:
     """The flange sensor against the CNC dynamometer on the same path (module docstring).
 
     W_cnc, W_rob : (N, 6) [N, N·m] tip wrenches of the two runs, work axes; arm : (N, 3) m
-    contact − tip; valid : (N,) bool; lap : (N,); depth : (N,) m. None with fewer than 6 laps."""
+    contact − tip; valid : (N,) bool; lap : (N,); depth : (N,) m; unloaded : the logs at rest,
+    when they have an untared unloaded stretch: the static offset, and the axial force's
+    crosstalk fitted with the constant held at it. None with fewer than 6 laps."""
     sel = np.asarray(valid, bool) & np.all(np.isfinite(W_cnc), 1) & np.all(np.isfinite(W_rob), 1)
     lp = np.asarray(lap)[sel]
     laps = np.unique(lp)
@@ -411,6 +524,9 @@ def fit_sensor(
     cplo, cphi = _pct(cpb)
     bound = np.linalg.norm(arm[sel], axis=1) * np.linalg.norm(W_rob[sel, :3], axis=1)
     excess = float(np.sqrt(np.mean(np.sum(Mres**2, 1))) / max(np.sqrt(np.mean(bound**2)), 1e-300))
+    Fz = gain * Fc[deep, 2]  # the axial force as the flange sensor should read it
+    axial_force = float(np.sqrt(np.mean(Fz**2)))
+    static = _static_fit(unloaded, gain, Fz, Fr[deep], Fc[deep], inv, L, weights)
     return SensorFit(
         gain=gain,
         gain_ci=gain_ci,
@@ -430,7 +546,44 @@ def fit_sensor(
         moment_excess=excess,
         process_gap=gap,
         n_laps=int(laps.size),
+        axial_force=axial_force,
+        **static,
     )
+
+
+def _static_fit(
+    unloaded: UnloadedEvidence | None,
+    gain: float,
+    Fz: F64,
+    Fr: F64,
+    Fc: F64,
+    inv: NDArray[np.intp],
+    L: int,
+    weights: F64,
+) -> dict[str, Any]:
+    """The static offset from the logs at rest and, with the constant held at it, the axial
+    force's crosstalk into the lateral channels: ``F_rob,xy − g F_cnc,xy − b_xy = c g F_cnc,z``
+    (lap-block bootstrap; the offset's standard error moves ``c`` by ``se / |F_z|``, added to
+    both ends). {} without an unloaded stretch."""
+    if unloaded is None:
+        return {}
+    b_s, se = unloaded.static_offset(gain)
+    M = len(Fz)
+    X = np.zeros((2 * M, 2))
+    X[:M, 0] = Fz
+    X[M:, 1] = Fz
+    y = (Fr[:, :2] - gain * Fc[:, :2] - b_s[None, :2]).T.ravel()
+    c, boot = _lap_ls(X, y, np.tile(inv, 2), L, weights)
+    c_size = float(np.hypot(c[0], c[1]))
+    clo, chi = _pct(np.hypot(boot[:, 0], boot[:, 1]))
+    widen = 1.96 * float(np.hypot(se[0], se[1])) / max(float(np.mean(np.abs(Fz))), 1e-300)
+    return {
+        "unloaded": unloaded,
+        "static_b": b_s,
+        "static_bias_ci": size_interval(b_s, se),
+        "axial_fixed": (float(c[0]), float(c[1])),
+        "axial_fixed_ci": (max(min(clo, c_size) - widen, 0.0), max(chi, c_size) + widen),
+    }
 
 
 # --------------------------------------------------------------------------------------------
@@ -687,11 +840,21 @@ def _unknown(suspects: tuple[str, ...], why: str) -> list[Finding]:
     return [_finding(s, None, None, UNITS[s], why, "") for s in suspects]
 
 
-def sensor_findings(sf: SensorFit | None, R: float) -> list[Finding]:
-    """force_gain, force_moment_crosstalk, force_bias from the sensor fit (None: no fit)."""
+def sensor_findings(
+    sf: SensorFit | None, R: float, unloaded: UnloadedEvidence | None = None
+) -> list[Finding]:
+    """force_gain, force_moment_crosstalk, force_bias, force_crosstalk from the sensor fit
+    (None: no fit; then ``unloaded``, the logs at rest, still tells the bias)."""
     if sf is None:
         why = "fewer than 6 used laps to compare the flange sensor with the CNC dynamometer"
-        return _unknown(("force_gain", "force_moment_crosstalk", "force_bias"), why)
+        out = _unknown(("force_gain", "force_moment_crosstalk"), why)
+        if unloaded is None:
+            return out + _unknown(("force_bias", "force_crosstalk"), why)
+        return [
+            *out,
+            _static_bias_finding(unloaded, 1.0, None),
+            *_unknown(("force_crosstalk",), why),
+        ]
     g, (glo, ghi) = sf.gain, sf.gain_ci
     gain_text = (
         f"the flange sensor reads {g:.3f}× the CNC dynamometer's force on the same path (95 % "
@@ -717,15 +880,17 @@ def sensor_findings(sf: SensorFit | None, R: float) -> list[Finding]:
         lim = DETECTION_LIMITS["force_moment_crosstalk"]
         vp = verdict(plo, phi, lim)
         ct_text += (
-            f"; with a force bias at fault, a constant false moment is also what the bias makes "
-            f"carried up the arm from the flange to the tip: the part that follows the force is "
+            f"; with a constant force between the sensors at fault (a bias, or the axial force's "
+            f"crosstalk: force_bias, force_crosstalk), a constant false moment is also what it "
+            f"makes carried up the arm from the flange to the tip: the part that follows the "
+            f"force is "
             f"{sf.moment_proportional * 1e3:.2f} mm ([{plo:.2f}, {phi:.2f}])"
         )
         if vp != "fault" and verdict(clo, chi, lim) == "fault":
             ct_force = "cannot_tell"
             ct_text += (
-                "; crosstalk from the axial force into the moment channels, or the bias, cannot "
-                "be told apart"
+                "; crosstalk from the axial force into the moment channels, or the constant "
+                "force, cannot be told apart"
             )
         elif vp == "fault":
             ct_est, ct_ci = sf.moment_proportional * 1e3, (plo, phi)
@@ -736,8 +901,12 @@ def sensor_findings(sf: SensorFit | None, R: float) -> list[Finding]:
     )
     bias_force = None
     bias_ci = sf.bias_ci
+    if sf.unloaded is not None:
+        # the logs at rest tell the static offset apart from what the load brings
+        bias_finding = _static_bias_finding(sf.unloaded, sf.gain, sf)
+        xt_finding = _axial_crosstalk_finding(sf)
     # no constant on this path (ok) rules out both; a constant may be either
-    if v_b == "fault" and v_ba != "fault":
+    elif v_b == "fault" and v_ba != "fault":
         bias_force = "cannot_tell"
         bias_ci = (min(sf.bias_ci[0], sf.bias_axial_ci[0]), max(sf.bias_ci[1], sf.bias_axial_ci[1]))
         cx, cy = sf.axial_crosstalk
@@ -746,6 +915,17 @@ def sensor_findings(sf: SensorFit | None, R: float) -> list[Finding]:
             f"with a constant of {sf.bias_axial:.1f} N: the path's axial force varies too little "
             "to tell them apart (either way the analysis removed the constant)"
         )
+    if sf.unloaded is None:
+        bias_finding = _finding(
+            "force_bias",
+            sf.bias,
+            bias_ci,
+            "N",
+            bias_text,
+            BIAS_TODO,
+            force=bias_force,
+        )
+        xt_finding = _axial_crosstalk_unseen(sf, v_b)
     return [
         _finding(
             "force_gain",
@@ -764,16 +944,93 @@ def sensor_findings(sf: SensorFit | None, R: float) -> list[Finding]:
             "check the sensor's calibration matrix (the analysis used the point-contact moment)",
             force=ct_force,
         ),
-        _finding(
-            "force_bias",
-            sf.bias,
-            bias_ci,
-            "N",
-            bias_text,
-            "tare the sensor with the tool mounted, or declare tool_mass (the analysis removed it)",
-            force=bias_force,
-        ),
+        bias_finding,
+        xt_finding,
     ]
+
+
+BIAS_TODO = "tare the sensor with the tool mounted, or declare tool_mass (the analysis removed it)"
+XT_TODO = "check the sensor's calibration matrix (the analysis removed the axial force's share)"
+
+
+def _vec(v: F64) -> str:
+    """A force vector (3,) N as the explanations print it."""
+    return f"({v[0]:+.1f}, {v[1]:+.1f}, {v[2]:+.1f}) N"
+
+
+def _static_bias_finding(u: UnloadedEvidence, gain: float, sf: SensorFit | None) -> Finding:
+    """force_bias from the logs at rest: the flange sensor's reading with the tool off the sheet
+    beyond the dynamometer's (a constant that does not need the load)."""
+    if sf is not None and sf.static_b is not None and sf.static_bias_ci is not None:
+        b_s, ci = sf.static_b, sf.static_bias_ci
+    else:
+        b_s, se = u.static_offset(gain)
+        ci = size_interval(b_s, se)
+    text = (
+        f"with the tool off the sheet ({u.where} of the log) the flange sensor reads "
+        f"{_vec(u.robot)} at the tip (work axes)"
+    )
+    text += (
+        f", the dynamometer {_vec(u.cnc)}: a static offset of {_vec(b_s)} between them"
+        if u.cnc_seen
+        else " (the dynamometer's log has no unloaded stretch: its zero is taken as right)"
+    )
+    text += "; an untared sensor or the tool's weight below the sensor"
+    if math.isfinite(u.drift) and u.drift > BIAS_DRIFT:
+        text += f"; its zero drifts: start and end differ by {u.drift:.1f} N (in the interval)"
+    if sf is not None:
+        text += (
+            f"; while forming, the fitted constant is {_vec(sf.b)}, the static offset and what "
+            "the load adds (force_crosstalk)"
+        )
+    return _finding("force_bias", float(np.linalg.norm(b_s)), ci, "N", text, BIAS_TODO)
+
+
+#: A start–end difference of the flange sensor at rest above this [N] is said as a drift.
+BIAS_DRIFT = 2.0
+
+
+def _axial_crosstalk_finding(sf: SensorFit) -> Finding:
+    """force_crosstalk with the constant held at the static offset."""
+    assert sf.axial_fixed is not None and sf.axial_fixed_ci is not None
+    cx, cy = sf.axial_fixed
+    text = (
+        f"beyond the static offset, the lateral channels read {math.hypot(cx, cy):.4f} N per N "
+        f"of the axial force (x {cx:+.4f}, y {cy:+.4f}, work axes; {sf.axial_force:.0f} N RMS "
+        "axial force): crosstalk of the axial force into the lateral channels — along a wall it "
+        "is a near-constant lateral force that only the logs at rest tell from a bias"
+    )
+    return _finding("force_crosstalk", math.hypot(cx, cy), sf.axial_fixed_ci, "1", text, XT_TODO)
+
+
+def _axial_crosstalk_unseen(sf: SensorFit, v_b: str) -> Finding:
+    """force_crosstalk without the logs at rest: no constant on the path rules it out (it would
+    make one); a constant may be it or a bias."""
+    Fz = max(sf.axial_force, 1e-300)
+    if v_b == "ok":
+        hi = sf.bias_ci[1] / Fz
+        text = (
+            f"no constant between the two sensors on this path (|b| ≤ {sf.bias_ci[1]:.1f} N), "
+            f"so the axial force's crosstalk into the lateral channels is at most {hi:.4f} N "
+            f"per N ({sf.axial_force:.0f} N RMS axial force)"
+        )
+        return _finding("force_crosstalk", sf.bias / Fz, (0.0, hi), "1", text, XT_TODO)
+    cx, cy = sf.axial_crosstalk
+    text = (
+        f"a constant of {sf.bias:.1f} N between the sensors on this path may be the axial "
+        f"force's crosstalk into the lateral channels (up to {sf.bias / Fz:.4f} N per N) or a "
+        "bias: the path's axial force varies too little to tell, and the logs have no unloaded "
+        "stretch to read the sensor at rest (either way the analysis removed the constant)"
+    )
+    return _finding(
+        "force_crosstalk",
+        math.hypot(cx, cy),
+        (0.0, sf.bias_ci[1] / Fz),
+        "1",
+        text,
+        XT_TODO,
+        force="cannot_tell",
+    )
 
 
 def robot_findings(rf: RobotTermFit | None, *, axisymmetric: bool) -> list[Finding]:
@@ -928,6 +1185,7 @@ def diagnose(
     measured: F64,
     valid: NDArray[np.bool_],
     axisymmetric: bool,
+    unloaded: dict[str, list[UnloadedStretch]] | None = None,
 ) -> tuple[Diagnosis, CorrectedRobotTerm]:
     """Every suspect's verdict for one study (module docstring) and the corrected robot term.
 
@@ -935,17 +1193,27 @@ def diagnose(
     tool and holder compliance at the tip (None: rigid holder); k_c : (N, 6, 6) the robot's
     VJM compliance at the tip; ball_radius : m; normal, contact, tip : (N, 3) work frame, m;
     W_cnc, W_rob : (N, 6) tip wrenches [N, N·m]; measured : (N,) m the analysis's normal robot
-    term (at the measured robot forces); valid : (N,) bool."""
+    term (at the measured robot forces); valid : (N,) bool; unloaded : each run's stretches
+    with the tool off the sheet at the tip, work axes (keys "cnc", "robot"; the static offset
+    and the axial crosstalk, docs/diagnosis.md)."""
     from roboisf.cell import at_ball_centre
     from roboisf.decompose.identify import forming_design
 
     arm = contact - tip
-    sf = fit_sensor(W_cnc, W_rob, arm, valid, lap, depth)
-    findings = sensor_findings(sf, ball_radius)
+    ev = (
+        UnloadedEvidence.from_stretches(unloaded.get("robot", []), unloaded.get("cnc", []))
+        if unloaded
+        else None
+    )
+    sf = fit_sensor(W_cnc, W_rob, arm, valid, lap, depth, unloaded=ev)
+    findings = sensor_findings(sf, ball_radius, ev)
     fv = {f.suspect: f.verdict for f in findings}
     correct = sf is not None and any(
-        fv[s] == "fault" for s in ("force_gain", "force_moment_crosstalk", "force_bias")
+        fv[s] == "fault"
+        for s in ("force_gain", "force_moment_crosstalk", "force_bias", "force_crosstalk")
     )
+    if sf is not None and fv["force_crosstalk"] == "fault" and sf.axial_fixed is not None:
+        sf = replace(sf, correct_axial=True)
     W = W_rob
     y = measured
     if correct:

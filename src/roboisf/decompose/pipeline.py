@@ -18,7 +18,7 @@ from __future__ import annotations
 import functools
 import json
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -63,6 +63,7 @@ from roboisf.parts import sine_law_thickness
 from roboisf.progress import Cancelled, Progress, cancellable, task
 from roboisf.robot import compliance_stats, deflection_contributions, ik_toolpath
 from roboisf.scan import CompareOptions, ScanComparison, compare_scan, read_scan
+from roboisf.sensor import UnloadedStretch, unloaded_stretches
 from roboisf.study.checks import (
     check_distinct_runs,
     check_force_log,
@@ -71,7 +72,7 @@ from roboisf.study.checks import (
 )
 from roboisf.study.fingerprint import study_fingerprint
 from roboisf.study.sensors import condition_study_log, read_study_force_log, sensor_to_tip
-from roboisf.study.spec import RunSpec, Study, load_study
+from roboisf.study.spec import ForceSensorSpec, RunSpec, Study, load_study
 from roboisf.study.toolpaths import study_toolpath
 from roboisf.summary import AnalysisSummary, RobotInfo, ToolInfo, Units, dumps
 from roboisf.sync import Alignment
@@ -139,6 +140,7 @@ def run_tip_wrench(
     alignment: Alignment | None = None,
     log: ForceLog | None = None,
     R_base_tip: F64 | None = None,
+    unloaded: list[UnloadedStretch] | None = None,
 ) -> F64:
     """A run's force log at each toolpath point, moved to the tool tip: (N, 6) [N, N·m], work
     axes, the sheet's load on the tool (units from the log or the study's ``[units]``).
@@ -152,7 +154,11 @@ def run_tip_wrench(
     (:func:`roboisf.study.checks.check_force_log`: forming-force magnitudes, logged positions on
     the path); warnings are appended to ``warnings``. The alignment runs on the raw log: the
     position sync does not use the forces, and the force sync uses the turning direction of the
-    horizontal force, which a constant bias small against the forming force barely moves."""
+    horizontal force, which a constant bias small against the forming force barely moves.
+
+    ``unloaded``: the conditioned log's stretches with the tool off the sheet
+    (:func:`roboisf.sensor.unloaded_stretches`), moved to the tip in work axes like the log, are
+    appended to it (the diagnosis reads a sensor's static offset there, docs/diagnosis.md)."""
     f = run.forces
     rot = study.robot.tool_rotation if study.robot is not None else 0.0
     log = read_run_force_log(study, run) if log is None else log
@@ -178,6 +184,9 @@ def run_tip_wrench(
     else:
         W_s = alignment.average(log.time, log.wrench, file=f.file)
     W_tip = sensor_to_tip(W_s, f, tp.tip, vertical_tool(rot))
+    if unloaded is not None:
+        t_path = tp.time[[0, -1]] + off if pt is None else np.asarray(pt)[[0, -1]]
+        unloaded.extend(_unloaded_at_tip(log, f, tp, vertical_tool(rot), t_path))
     if not log.moments_known:
         # a 3-component dynamometer: the load is a point force at the contact point, so its
         # moment about the tip is (contact − tip) × F (a few N·m on a Ø10 mm ball: dropping it
@@ -189,6 +198,30 @@ def run_tip_wrench(
                 "point force at the contact point (tip moments (contact − tip) × F)"
             )
     return W_tip
+
+
+def _unloaded_at_tip(
+    log: ForceLog, f: ForceSensorSpec, tp: Toolpath, R_work_tip: F64, t_path: F64
+) -> list[UnloadedStretch]:
+    """The conditioned log's unloaded stretches outside ``t_path`` (the log times of the path's
+    first and last point), their readings moved to the tip like the log's (at the path's first
+    tip: the forces do not depend on it). A stretch inside the tare window reads zero by
+    construction: marked ``tared``."""
+
+    def to_tip(B: F64) -> F64:
+        return sensor_to_tip(B, f, np.repeat(tp.tip[:1], len(B), 0), R_work_tip)
+
+    out = []
+    path = (float(t_path[0]), float(t_path[1]))
+    for s in unloaded_stretches(log.time, log.wrench, path=path):
+        if f.tare == "auto":
+            tared = s.where == "start"
+        elif isinstance(f.tare, tuple):
+            tared = s.t0 < float(f.tare[1]) and float(f.tare[0]) < s.t1
+        else:
+            tared = False
+        out.append(replace(s.map(to_tip), tared=tared))
+    return out
 
 
 def _joint_angles(
@@ -251,8 +284,11 @@ def _logs_part(
     tp: Toolpath,
     progress: Progress | None,
     tp_robot: Toolpath | None = None,
-) -> tuple[dict[str, RunAlignment], F64, str, list[str], F64, F64]:
-    """The logs' part of the analysis: read, align, joint angles, tip wrenches of both runs.
+) -> tuple[
+    dict[str, RunAlignment], F64, str, list[str], F64, F64, dict[str, list[UnloadedStretch]]
+]:
+    """The logs' part of the analysis: read, align, joint angles, tip wrenches of both runs,
+    and each run's unloaded stretches (at the tip, work axes: :func:`run_tip_wrench`).
 
     One run at a time: a run's raw logs (2.3 M samples at 1 kHz on the paper cone, ~0.15 GB as
     float64) are freed before the next run's are read, so that only one sits beside the scan
@@ -262,6 +298,7 @@ def _logs_part(
     cnc, rob = study.cnc, study.robot_run
     aligned: dict[str, RunAlignment] = {}
     wrench: dict[str, F64] = {}
+    unloaded: dict[str, list[UnloadedStretch]] = {}
     input_warnings: list[str] = []
     q: F64 | None = None
     q_source = ""
@@ -291,11 +328,20 @@ def _logs_part(
                 alignment=None if r.sync == "time" else aligned[r.name].forces,
                 log=log,
                 R_base_tip=R_fk,
+                unloaded=unloaded.setdefault(r.name, []),
             )
         del log, joints
         _trim()
     assert q is not None
-    return aligned, q, q_source, input_warnings, wrench[cnc.name], wrench[rob.name]
+    return (
+        aligned,
+        q,
+        q_source,
+        input_warnings,
+        wrench[cnc.name],
+        wrench[rob.name],
+        {"cnc": unloaded[cnc.name], "robot": unloaded[rob.name]},
+    )
 
 
 @functools.cache
@@ -421,7 +467,7 @@ def analyze(
     truth = _read_truth(truth_file) if truth_file.is_file() else None  # before the long work
     beside = _ScansBeside(study, cell, (cnc, rob), tp, progress, keep_points) if overlap else None
     try:
-        aligned, q, q_source, input_warnings, W_cnc, W_rob = _logs_part(
+        aligned, q, q_source, input_warnings, W_cnc, W_rob, unloaded = _logs_part(
             study, cell, tp, progress, tp_r if has_command else None
         )
         _trim()
@@ -464,7 +510,7 @@ def analyze(
     cmd = command if has_command else None
     d = decompose(tp.normal, dev_c.dn, dev_r.dn, tool_cnc, tool_rob, holder_rob, vjm, valid, cmd)
     with task(progress, "diagnosis"):
-        diag, corr = _diagnose(cell, tp, q, W_cnc, W_rob, d, k_t, k_th, k_c)
+        diag, corr = _diagnose(cell, tp, q, W_cnc, W_rob, d, k_t, k_th, k_c, unloaded)
     W_used = W_rob
     if diag.forces_corrected:
         # the terms a force drives, at the forces the diagnosis corrected (a flange sensor at
@@ -544,8 +590,10 @@ def _diagnose(
     k_t: F64,
     k_th: F64,
     k_c: F64,
+    unloaded: dict[str, list[UnloadedStretch]] | None = None,
 ) -> tuple[Diagnosis, CorrectedRobotTerm]:
-    """The diagnosis of the decomposition ``d`` at the measured forces (docs/diagnosis.md)."""
+    """The diagnosis of the decomposition ``d`` at the measured forces (docs/diagnosis.md);
+    ``unloaded``: each run's stretches with the tool off the sheet (keys "cnc", "robot")."""
     return diagnose(
         robot=cell.robot,
         q=q,
@@ -564,6 +612,7 @@ def _diagnose(
         measured=d.normal["robot_compliance"],
         valid=d.valid,
         axisymmetric=cell.part.symmetry.order == 0,
+        unloaded=unloaded,
     )
 
 
@@ -626,7 +675,7 @@ def _model_checks(
     summary["warnings"].extend(_lateral_warnings(tp, d, vc, summary, verdicts["scan_shift"]))
     if verdicts["force_bias"].verdict == "fault":
         summary["warnings"].extend(_force_bias_warnings(tp, W_cnc, W_rob, valid))
-    for name in ("force_gain", "force_moment_crosstalk", "scan_rotation"):
+    for name in ("force_gain", "force_moment_crosstalk", "force_crosstalk", "scan_rotation"):
         if verdicts[name].verdict == "fault":
             summary["warnings"].append(verdicts[name].headline)
     return ident

@@ -15,18 +15,22 @@ from roboisf.sensor.conditioning import (
     G_WORLD,
     Conditioning,
     ToolLoad,
+    UnloadedStretch,
     condition_wrench,
     gravity_wrench,
     identify_tool_load,
     unloaded_samples,
+    unloaded_stretches,
 )
 
 __all__ = [
     "G_WORLD",
     "Conditioning",
     "ToolLoad",
+    "UnloadedStretch",
     "condition_wrench",
     "gravity_wrench",
     "identify_tool_load",
     "unloaded_samples",
+    "unloaded_stretches",
 ]

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Literal
 
@@ -15,10 +16,12 @@ __all__ = [
     "G_WORLD",
     "Conditioning",
     "ToolLoad",
+    "UnloadedStretch",
     "condition_wrench",
     "gravity_wrench",
     "identify_tool_load",
     "unloaded_samples",
+    "unloaded_stretches",
 ]
 
 F64 = NDArray[np.float64]
@@ -212,6 +215,104 @@ def unloaded_samples(time: F64, W: F64, *, min_samples: int = 25) -> slice | Non
     if drift > 2.0 * noise:
         return None
     return slice(0, stop)
+
+
+#: Blocks an unloaded stretch is cut into for the standard error of its mean (a sensor's noise
+#: is correlated over neighbouring samples; block means of ≥ 1/16 of a stretch are close to
+#: independent).
+UNLOADED_BLOCKS = 16
+
+
+@dataclass(frozen=True)
+class UnloadedStretch:
+    """A stretch of a force log with the tool off the sheet (:func:`unloaded_stretches`).
+
+    where : "start" (before the force's onset) or "end" (after the force falls away);
+    t0, t1 : s, the log's own clock; n : samples in it;
+    blocks : (B, 6) [N, N·m] the reading's means over B consecutive equal blocks of the
+        stretch, in the axes of whoever made them (the sensor's; :meth:`map` moves them);
+    tared : True when this stretch was the tare window — its mean is zero by construction and
+        tells nothing about the sensor;
+    on_path : True when the stretch lies on the toolpath (the log has too little before or after
+        it): the tool already forms there, with a force below the detection threshold.
+    """
+
+    where: str
+    t0: float
+    t1: float
+    n: int
+    blocks: F64
+    tared: bool = False
+    on_path: bool = False
+
+    @property
+    def mean(self) -> F64:
+        """(6,) the mean reading over the stretch."""
+        return np.asarray(self.blocks.mean(axis=0))
+
+    @property
+    def se(self) -> F64:
+        """(6,) standard error of :attr:`mean`, from the spread of the block means."""
+        B = self.blocks
+        return np.asarray(B.std(axis=0, ddof=1) / np.sqrt(len(B)))
+
+    def map(self, f: Callable[[F64], F64]) -> UnloadedStretch:
+        """The same stretch with ``f`` (a linear map of (B, 6) wrenches, e.g. sensor → tip axes)
+        applied to its block means."""
+        return replace(self, blocks=np.asarray(f(self.blocks), dtype=float))
+
+
+def unloaded_stretches(
+    time: ArrayLike,
+    W: ArrayLike,
+    *,
+    min_samples: int = 25,
+    path: tuple[float, float] | None = None,
+) -> list[UnloadedStretch]:
+    """The stretches of a log with the tool off the sheet: its start before the force's onset
+    and its end after the force falls away (a retract), each found as
+    :func:`unloaded_samples` finds the start (the end: the same on the reversed log).
+
+    time : (N,) s; W : (N, 6) [N, N·m]; path : (t0, t1) s on the log's clock, when the tool
+    was on the toolpath (its first and last point): the start stretch ends before t0 and the
+    end stretch begins after t1 — a part whose first laps form with a force below the noise
+    threshold would otherwise lend them to the start. A stretch shorter than ``min_samples`` or
+    than :data:`UNLOADED_BLOCKS` × 4 samples is left out. Stretches between passes (the tool
+    lifted mid-log) are not looked for.
+    """
+    t = np.asarray(time, dtype=float)
+    Wf = np.asarray(W, dtype=float)
+    n = len(t)
+    out = []
+    for where in ("start", "end"):
+        win = (
+            unloaded_samples(t, Wf, min_samples=min_samples)
+            if where == "start"
+            else unloaded_samples(t[::-1], Wf[::-1], min_samples=min_samples)
+        )
+        if win is None:
+            continue
+        i0, i1 = (0, win.stop) if where == "start" else (n - win.stop, n)
+        on_path = False
+        if path is not None:
+            # off the path only, unless that leaves too little: then the stretch is the path's
+            # first (last) moments at a force below the threshold, and says so
+            j0, j1 = (i0, min(i1, int(np.searchsorted(t, path[0], "left"))))
+            if where == "end":
+                j0, j1 = (max(i0, int(np.searchsorted(t, path[1], "right"))), i1)
+            if j1 - j0 >= max(min_samples, 4 * UNLOADED_BLOCKS):
+                i0, i1 = j0, j1
+            else:
+                on_path = True
+        if i1 - i0 < 4 * UNLOADED_BLOCKS:
+            continue
+        blocks = np.stack([b.mean(axis=0) for b in np.array_split(Wf[i0:i1], UNLOADED_BLOCKS)])
+        out.append(
+            UnloadedStretch(where, float(t[i0]), float(t[i1 - 1]), i1 - i0, blocks, on_path=on_path)
+        )
+    if len(out) == 2 and out[1].t0 <= out[0].t1:
+        return out[:1]  # never loaded in between: one stretch, not two
+    return out
 
 
 def _window(time: F64, t0: float, t1: float, file: Path | None) -> slice:
