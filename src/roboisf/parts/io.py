@@ -38,7 +38,7 @@ import numpy as np
 import tomli_w
 
 from roboisf.errors import InputError
-from roboisf.formats import file_formats, get_file_format
+from roboisf.formats import FileFormat, file_formats
 from roboisf.io.atomic import atomic_write
 from roboisf.io.text import read_text
 from roboisf.parts.base import Part
@@ -61,7 +61,14 @@ __all__ = [
 
 def part_kinds() -> tuple[str, ...]:
     """The registered part kinds (``[part] kind``), in listing order."""
-    return tuple(f.name for f in file_formats("part"))
+    return tuple(f.name for f in _part_formats())
+
+
+def _part_formats() -> tuple[FileFormat, ...]:
+    """Registered part kinds: a builder (``reader``) and a :class:`PartSpec`."""
+    return tuple(
+        f for f in file_formats("part") if f.reader is not None and isinstance(f.spec, PartSpec)
+    )
 
 
 _COMMON = {"kind", "sheet_thickness", "flange_width"}
@@ -160,15 +167,15 @@ def _part_from_dict(table: dict[str, Any], where: str | Path | None) -> Part:
             f"expected a table [part] with a 'kind', got {table!r}", file=src, field="part"
         )
     kind = table.get("kind")
-    kinds = part_kinds()
-    if not isinstance(kind, str) or kind not in kinds:
+    fmt = next((f for f in _part_formats() if f.name == kind), None)
+    if not isinstance(kind, str) or fmt is None or fmt.reader is None:
         raise InputError(
-            f"unknown part kind {kind!r}; expected one of {', '.join(kinds)}",
+            f"unknown part kind {kind!r}; expected one of {', '.join(part_kinds())}",
             file=src,
             field="part.kind",
         )
-    fmt = get_file_format("part", kind)
-    keys = set(fmt.spec.keys)
+    spec: PartSpec = fmt.spec
+    keys = set(spec.keys)
     unknown = set(table) - keys - _COMMON
     if unknown:
         raise InputError(
@@ -182,7 +189,7 @@ def _part_from_dict(table: dict[str, Any], where: str | Path | None) -> Part:
         "flange_width": part_number(table, "flange_width", src, 10.0) * 1e-3,
     }
     try:
-        if not fmt.spec.flange and "flange_width" in table:
+        if not spec.flange and "flange_width" in table:
             raise InputError(
                 f"a {kind} part has no flange_width (its flange is in the {kind})",
                 file=src,
