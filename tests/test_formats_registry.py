@@ -157,3 +157,20 @@ def test_loading_the_registry_imports_no_numpy():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_study_formats_lists_the_registry(capsys):
+    from roboisf.cli.main import main
+
+    toy = FileFormat(name="toylog", kind="joint_log", label="toy joint log", suffixes=(".toy",))
+    register_format(toy)
+    try:
+        assert main(["study", "formats", "joint_log"]) == 0
+        out = capsys.readouterr().out
+        for f in file_formats("joint_log"):
+            assert f.name in out
+        assert "toylog" in out and "ati" not in out  # one kind only
+    finally:
+        unregister_format("joint_log", "toylog")
+    assert main(["study", "formats", "mesh"]) == 2
+    assert "unknown kind 'mesh'" in capsys.readouterr().err
