@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -174,3 +175,50 @@ def test_study_formats_lists_the_registry(capsys):
         unregister_format("joint_log", "toylog")
     assert main(["study", "formats", "mesh"]) == 2
     assert "unknown kind 'mesh'" in capsys.readouterr().err
+
+
+def test_cam_import_detects_and_reads_through_the_registry(tmp_path):
+    """A CAM format registered from outside is detected by its own test (before the suffix
+    fallback), accepted by ImportOptions and read by its registered reader."""
+    from roboisf.io.camformat import CamSpec, head_lines
+    from roboisf.toolpath.importer import (
+        ImportOptions,
+        cam_format_names,
+        detect_toolpath_format,
+        read_cam_moves,
+    )
+
+    assert cam_format_names() == ("sinumerik", "apt", "xyz", "iso")  # built in, detection order
+    prog = tmp_path / "part.nc"  # an ISO suffix: only the content can say it is the toy's
+    prog.write_text("TOYCAM 1\nMOVE 0 0 0\n")
+    assert detect_toolpath_format(prog) == "iso"  # by suffix, as nothing else knows it
+    seen = []
+
+    def read(path, options, *, units, feed):
+        seen.append((path, units, feed))
+        return SimpleNamespace(meta={})
+
+    toy = FileFormat(
+        name="toycam",
+        kind="cnc",
+        label="toy CAM",
+        suffixes=(".toy",),
+        reader=read,
+        detect=lambda p: head_lines(p)[0].startswith("TOYCAM"),
+        rank=5,
+        spec=CamSpec(),
+    )
+    register_format(toy)
+    try:
+        assert detect_toolpath_format(prog) == "toycam"
+        assert "toycam" in cam_format_names()
+        moves = read_cam_moves(prog, ImportOptions(fmt="auto"))
+        assert moves.meta == {"format": "toycam"}
+        assert seen and seen[0][0] == prog and seen[0][1] is None
+        with pytest.raises(InputError, match="units applies to an x,y,z point list"):
+            read_cam_moves(prog, ImportOptions(fmt="toycam", units="mm"))
+    finally:
+        unregister_format("cnc", "toycam")
+    assert detect_toolpath_format(prog) == "iso"
+    with pytest.raises(InputError, match="expected auto or one of sinumerik, apt, xyz, iso"):
+        ImportOptions(fmt="toycam")

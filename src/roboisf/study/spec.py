@@ -680,9 +680,9 @@ def _check_reach(
 
 def _toolpath_import_keys(c: _Collector, r: dict[str, Any], key: str) -> tuple[str, str]:
     """``toolpath_format`` and ``toolpath_point`` of a run (a CAM program as its toolpath)."""
-    from roboisf.toolpath.importer import CAM_FORMATS
+    from roboisf.toolpath.importer import cam_format_names
 
-    fmt = c.choice(r, key, "toolpath_format", ("auto", "csv", *CAM_FORMATS), default="auto")
+    fmt = c.choice(r, key, "toolpath_format", ("auto", "csv", *cam_format_names()), default="auto")
     point = c.choice(r, key, "toolpath_point", ("tip", "center"), default="tip")
     return fmt or "auto", point or "tip"
 
