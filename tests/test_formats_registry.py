@@ -222,3 +222,29 @@ def test_cam_import_detects_and_reads_through_the_registry(tmp_path):
     assert detect_toolpath_format(prog) == "iso"
     with pytest.raises(InputError, match="expected auto or one of sinumerik, apt, xyz, iso"):
         ImportOptions(fmt="toycam")
+
+
+def test_scans_are_read_through_the_registry(tmp_path):
+    """read_scan picks the reader by the registered suffixes; a scan format registered from
+    outside is read (in the declared unit), and unregistered its suffix is refused by name."""
+    from roboisf.scan.readers import read_scan, scan_formats
+
+    sfx = scan_formats()
+    assert sfx[".ply"] == "ply" and sfx[".e57"] == "e57" and sfx[".stl"] == "mesh"
+    f = tmp_path / "cloud.toyscan"
+    f.write_text("1 2 3\n4 5 6\n")
+
+    def read(path, sample, seed):
+        rows = [ln.split() for ln in path.read_text().splitlines()]
+        return np.array(rows, dtype=float), None
+
+    register_format(
+        FileFormat(name="toyscan", kind="scan", label="toy", suffixes=(".toyscan",), reader=read)
+    )
+    try:
+        cloud = read_scan(f, unit="mm")
+        np.testing.assert_array_equal(cloud.points, [[1e-3, 2e-3, 3e-3], [4e-3, 5e-3, 6e-3]])
+    finally:
+        unregister_format("scan", "toyscan")
+    with pytest.raises(InputError, match="unknown scan format '.toyscan'; expected one of"):
+        read_scan(f)

@@ -44,7 +44,12 @@ KINDS = ("toolpath", "cnc", "robot", "force_log", "joint_log", "scan", "part")
 Kind = Literal["toolpath", "cnc", "robot", "force_log", "joint_log", "scan", "part"]
 
 #: The packages whose every module registers built-in formats (imported on first use, by name).
-PLUGIN_PACKAGES = ("roboisf.io.formats", "roboisf.parts.formats", "roboisf.programs.formats")
+PLUGIN_PACKAGES = (
+    "roboisf.io.formats",
+    "roboisf.parts.formats",
+    "roboisf.programs.formats",
+    "roboisf.scan.formats",
+)
 
 
 def lazy(module: str, name: str) -> Callable[..., Any]:

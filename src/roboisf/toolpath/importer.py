@@ -69,7 +69,6 @@ __all__ = [
 F64 = NDArray[np.float64]
 
 
-
 def cam_formats() -> tuple[FileFormat, ...]:
     """The CAM formats ``import`` reads: the registered ``cnc`` formats with a :class:`CamSpec`
     (:mod:`roboisf.formats`; built in: ``sinumerik``, ``apt``, ``xyz``, ``iso``, one module each in
