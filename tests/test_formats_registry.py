@@ -246,5 +246,5 @@ def test_scans_are_read_through_the_registry(tmp_path):
         np.testing.assert_array_equal(cloud.points, [[1e-3, 2e-3, 3e-3], [4e-3, 5e-3, 6e-3]])
     finally:
         unregister_format("scan", "toyscan")
-    with pytest.raises(InputError, match="unknown scan format '.toyscan'; expected one of"):
+    with pytest.raises(InputError, match=r"unknown scan format '\.toyscan'; expected one of"):
         read_scan(f)
