@@ -8,10 +8,12 @@ change, and unregistered it is gone.
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import math
 import re
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -36,33 +38,28 @@ def _example_source(name: str = "roboisf_urscript") -> str:
     return block
 
 
-def _load_example(name: str, tmp_path: Path) -> Any:
-    """The page's module ``name``, imported from a file as a user's module would be."""
+@contextlib.contextmanager
+def _example(name: str, tmp_path: Path, kind: str, fmt: str) -> Iterator[Any]:
+    """The page's module ``name``, imported from a file as a user's module would be (which
+    registers the ``kind`` format ``fmt``); unregistered and forgotten after."""
     module = tmp_path / f"{name}.py"
     module.write_text(_example_source(name), encoding="utf-8")
     spec = importlib.util.spec_from_file_location(name, module)
     assert spec is not None and spec.loader is not None
     mod = importlib.util.module_from_spec(spec)
     sys.modules[name] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
-@pytest.fixture
-def urscript(tmp_path):
-    """The page's module, imported from a file as a user's module would be; unregistered after."""
-    module = tmp_path / "roboisf_urscript.py"
-    module.write_text(_example_source(), encoding="utf-8")
-    spec = importlib.util.spec_from_file_location("roboisf_urscript", module)
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["roboisf_urscript"] = mod
     try:
         spec.loader.exec_module(mod)
         yield mod
     finally:
-        unregister("urscript")
-        sys.modules.pop("roboisf_urscript", None)
+        unregister_format(kind, fmt)
+        sys.modules.pop(name, None)
+
+
+@pytest.fixture
+def urscript(tmp_path):
+    with _example("roboisf_urscript", tmp_path, "robot", "urscript") as mod:
+        yield mod
 
 
 def test_the_example_is_one_registered_format(urscript):
@@ -114,11 +111,8 @@ def test_a_compensated_command_in_the_example_format_is_read_back(urscript, tmp_
 
 @pytest.fixture
 def labview(tmp_path):
-    try:
-        yield _load_example("roboisf_labview_forces", tmp_path)
-    finally:
-        unregister_format("force_log", "labview")
-        sys.modules.pop("roboisf_labview_forces", None)
+    with _example("roboisf_labview_forces", tmp_path, "force_log", "labview") as mod:
+        yield mod
 
 
 def _log():
@@ -164,11 +158,8 @@ DOME = '[part]\nkind = "dome"\nsphere_radius = 60.0\ndepth = 20.0\n'
 
 @pytest.fixture
 def dome(tmp_path):
-    try:
-        yield _load_example("roboisf_dome", tmp_path)
-    finally:
-        unregister_format("part", "dome")
-        sys.modules.pop("roboisf_dome", None)
+    with _example("roboisf_dome", tmp_path, "part", "dome") as mod:
+        yield mod
 
 
 def test_the_part_example_is_the_sphere(dome, tmp_path):
