@@ -114,7 +114,9 @@ def test_a_command_that_runs_still_loads_what_it_needs(tmp_path):
     out = _child(
         _CHILD, json.dumps([["part", "cone", "-o", "c.toml"]]), json.dumps(HEAVY), cwd=tmp_path
     )
-    assert out == [{"code": 0, "heavy": ["numba", "numpy", "scipy"]}]
+    # (numpy only: part kinds are registered formats, so writing a cone no longer imports the
+    # mesh part's numba and scipy through parts/io.py)
+    assert out == [{"code": 0, "heavy": ["numpy"]}]
     assert (tmp_path / "c.toml").is_file()
 
 

@@ -282,51 +282,11 @@ def test_roboisf_joint_log_units_from_study_or_conflict(tmp_path):
     np.testing.assert_allclose(read_joint_log(g, angle_unit="°").q[0, 0], math.radians(0.1))
 
 
-# -- writers in instrument profiles round-trip through auto detection ----------------------------
-
-
-def _random_log(n=400, rate=500.0, seed=11):
-    rng = np.random.default_rng(seed)
-    t = 3.0 + np.arange(n) / rate
-    W = rng.normal(scale=[100, 100, 400, 2, 2, 0.5], size=(n, 6))
-    return ForceLog(t, W, "sensor")
-
-
-@pytest.mark.parametrize(
-    ("profile", "detected", "shift", "moments"),
-    [
-        ("ati", "ati", 3.0, True),
-        ("kistler", "kistler", 0.0, True),
-        ("dyno3", "dyno3", 0.0, False),
-        ("generic", "generic", 0.0, True),
-    ],
-)
-def test_force_profiles_round_trip(tmp_path, profile, detected, shift, moments):
-    log = _random_log()
-    f = tmp_path / f"{profile}.txt"
-    write_force_log(log, f, profile=profile)
-    assert detect_force_format(f)[0] == detected
-    back = read_force_log(f)
-    np.testing.assert_allclose(back.time, log.time - shift, atol=1e-9)
-    np.testing.assert_allclose(back.force, log.force, rtol=1e-9)
-    assert back.moments_known is moments
-    if moments:
-        np.testing.assert_allclose(back.moment, log.moment, rtol=1e-9)
+# -- writers in instrument profiles (every registered writer's round trip through auto
+# detection: tests/test_formats_registry.py) ------------------------------------------------------
 
 
 def test_ati_writer_needs_uniform_sampling(tmp_path):
     log = ForceLog(np.array([0.0, 0.001, 0.0025]), np.ones((3, 6)), "sensor")
     with pytest.raises(InputError, match="uniformly sampled"):
         write_force_log(log, tmp_path / "a.csv", profile="ati")
-
-
-@pytest.mark.parametrize(("profile", "detected"), [("abb", "abb"), ("kuka", "kuka")])
-def test_joint_profiles_round_trip(tmp_path, profile, detected):
-    t = np.arange(50) * 0.004
-    q = np.radians(np.random.default_rng(2).uniform(-170, 170, size=(50, 6)))
-    f = tmp_path / f"{profile}.txt"
-    write_joint_log(f, t, q, profile=profile)
-    assert detect_joint_format(f)[0] == detected
-    back = read_joint_log(f)
-    np.testing.assert_allclose(back.time, t, atol=1e-9)
-    np.testing.assert_allclose(back.q, q, atol=1e-10)

@@ -132,11 +132,12 @@ def test_joint_log_in_blocks(tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("case", list(CASES))
 def test_the_table_is_the_same_field_by_field(tmp_path, monkeypatch, case):
-    from roboisf.io.forcelog import _PROFILES
+    from roboisf.formats import get_file_format
 
     f = tmp_path / "log.txt"
     _write(f, case)
-    match, req = _PROFILES["generic"]
+    spec = get_file_format("force_log", "generic").spec
+    match, req = spec.match, spec.required
     fast, whole = _both(monkeypatch, lambda p: table.read_log_table(p, match, req), f)
     for name in ("meta", "preamble", "columns", "names", "units", "header_line", "separator"):
         assert getattr(fast, name) == getattr(whole, name), name

@@ -1,4 +1,5 @@
-"""Equipment log layouts written by the virtual cell (issue #13): ATI Net F/T CSV, Kistler
+"""Equipment log layouts written by the virtual cell (issue #13) — each a registered format's
+writer (roboisf.formats, issue #25): ATI Net F/T CSV, Kistler
 DynoWare text (3 components, decimal comma), ABB J1..J6, KUKA A1..A6 trace CSV.
 
 Checked by an independent parser (pandas with the layout's separator, decimal mark and header
@@ -26,12 +27,13 @@ def log():
 
 
 def test_ati_netft_csv(log, tmp_path):
+    # the ATI demo's layout, as roboisf's ATI reader expects it (one registered writer)
     p = tmp_path / "ati.csv"
     write_force_profile(log, p, "ati")
     lines = p.read_text().splitlines()
-    assert lines[1] == "RDT Sample Rate,500" and lines[2] == "Force Units,N"
-    assert lines[4] == "Torque Units,Nm"
-    df = pd.read_csv(p, skiprows=6)
+    assert lines[1] == "RDT Sample Rate: 500" and lines[3] == "Force Units: N"
+    assert lines[5] == "Torque Units: Nm"
+    df = pd.read_csv(p, skiprows=7, skipinitialspace=True)
     assert list(df.columns) == [
         "Status (hex)",
         "RDT Sequence",
@@ -45,9 +47,10 @@ def test_ati_netft_csv(log, tmp_path):
         "Time",
     ]
     assert (df["Status (hex)"] == "0x0").all()
-    np.testing.assert_array_equal(df["RDT Sequence"], np.arange(1, 201))
+    # RDT sequence counts samples at the sample rate: time = sequence / rate
+    np.testing.assert_array_equal(np.diff(df["RDT Sequence"]), np.ones(199))
+    np.testing.assert_allclose(df["RDT Sequence"] / 500.0, log.time, atol=1e-9)
     np.testing.assert_allclose(df[["Fx", "Fy", "Fz", "Tx", "Ty", "Tz"]], log.wrench, rtol=1e-9)
-    np.testing.assert_allclose(df["Time"], log.time, atol=1e-9)
 
 
 def test_kistler_dynoware_text(log, tmp_path):
@@ -76,7 +79,7 @@ def test_abb_and_kuka_joint_logs(tmp_path):
 
 
 def test_unknown_profiles_are_refused(log, tmp_path):
-    with pytest.raises(InputError, match="unknown force log profile"):
+    with pytest.raises(InputError, match="unknown force log format 'dewesoft'"):
         write_force_profile(log, tmp_path / "x.csv", "dewesoft")
     with pytest.raises(InputError, match="expected one of roboisf, abb, kuka"):
         Equipment(joint_profile="fanuc")
@@ -96,10 +99,11 @@ def test_virtual_cell_writes_the_profiles(tmp_path):
     eq = Equipment(cnc_force_profile="kistler", robot_force_profile="ati", joint_profile="kuka")
     prof = build_study(paper_cone_cell(**kw), tmp_path / "prof", equipment=eq)
     ref = read_force_log(clean / "robot_forces.csv")
-    ati = pd.read_csv(prof / "robot_forces.csv", skiprows=6)
+    ati = pd.read_csv(prof / "robot_forces.csv", skiprows=7, skipinitialspace=True)
     n = len(ref) - 2  # the equipment logs 2 s past the end out of contact, the clean log in it
     assert len(ati) > n
-    np.testing.assert_allclose(ati["Time"][:n], ref.time[:n], atol=1e-9)
+    seq = ati["RDT Sequence"].to_numpy()[:n]  # ATI's time axis: RDT sequence / sample rate
+    np.testing.assert_allclose((seq - seq[0]) / kw["force_rate"], ref.time[:n] - ref.time[0])
     # same cell, other noise draw: the same forces within the sensor noise (2 N)
     d = ati[["Fx", "Fy", "Fz"]].to_numpy()[:n] - ref.force[:n]
     assert np.abs(d).max() < 20.0 and np.abs(d).mean() < 4.0

@@ -1,4 +1,5 @@
-"""``roboisf study init``: draft a study.toml from the files of a folder."""
+"""``roboisf study init``: draft a study.toml from the files of a folder; ``roboisf study
+formats``: the registered file formats (:mod:`roboisf.formats`)."""
 
 from __future__ import annotations
 
@@ -95,7 +96,8 @@ def _init(
     Each file is tried with roboisf's readers (toolpath CSV, force logs — roboisf, ATI Net
     F/T, Kistler DynoWare, 3-component —, joint logs — roboisf, ABB J1..J6, KUKA A1..A6 —,
     scans — PLY, XYZ, PTS, E57, LAS —, thickness, part TOML, compliance JSON, and last CAM
-    programs — G-code, .mpf, APT, x,y,z — as a toolpath); the table shows what was detected
+    programs — G-code, .mpf, APT, x,y,z — as a toolpath; `roboisf study formats` lists every
+    registered format); the table shows what was detected
     (profile, units, size) and the role given to it. A log's units the file does not declare,
     and the ball diameter a CAM program does not say, are written as "TODO" values for you to
     fill in — never guessed. Roles: the CNC and robot runs by "cnc" and "robot"/"rob" in the
@@ -151,3 +153,43 @@ def _init(
         )
     else:
         state.info(f"wrote {out}; check it, then: roboisf analyze {folder}")
+
+
+@study_app.command("formats")
+def study_formats(
+    kind: Annotated[
+        str | None,
+        typer.Argument(
+            help="Only this kind: toolpath, cnc, robot, force_log, joint_log, scan or part.",
+            show_default=False,
+        ),
+    ] = None,
+) -> None:
+    """List the registered file formats a study can name (a log's format, a part's kind, a
+    program's format): name, kind, suffixes, what roboisf does with it (read, write, detect).
+
+    One registry holds them (roboisf.formats, docs/extending.md): a format added by a module —
+    roboisf's or yours — is listed here, detected by the readers and offered by the virtual cell.
+
+    Example: roboisf study formats force_log
+    """
+    from rich.markup import escape
+    from rich.table import Table
+
+    from roboisf.formats import KINDS, file_formats
+
+    if kind is not None and kind not in KINDS:
+        raise InputError(f"unknown kind {kind!r}; expected one of {', '.join(KINDS)}", field="kind")
+    t = Table(title="registered file formats")
+    for c in ("kind", "name", "label", "suffixes", "roboisf"):
+        t.add_column(c)
+    for f in file_formats(*((kind,) if kind else ())):
+        does = [w for w, on in (("read", f.reader), ("write", f.writer)) if on is not None]
+        t.add_row(
+            f.kind,
+            f.name,
+            escape(f.label),
+            " ".join(f.suffixes) or "–",
+            ", ".join(does) or "–",
+        )
+    state.out.print(t)

@@ -26,10 +26,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
+from roboisf.formats import FileFormat, file_formats, get_file_format
 from roboisf.io.atomic import atomic_write
+from roboisf.io.logprofile import FORCES, MOMENTS, ForceLogSpec
 from roboisf.io.table import (
     LogTable,
-    finite_float,
     format_rows,
     read_log_table,
     read_table,
@@ -41,11 +42,12 @@ from roboisf.path.toolpath import Toolpath
 
 __all__ = [
     "FORCE_COLUMNS",
-    "FORCE_FORMATS",
     "ForceLog",
     "attach_to_toolpath",
     "detect_force_format",
-    "is_roboisf_log",
+    "force_formats",
+    "force_profiles_written",
+    "is_roboisf_force_log",
     "log_kernel",
     "read_force_log",
     "window_average",
@@ -254,38 +256,35 @@ def _read_roboisf_csv(
 
 
 # -- logs as instruments write them: profiles ---------------------------------------------------
+# Each profile is a force-log format of the registry (roboisf.formats, one module per profile in
+# roboisf.io.formats): its column matchers, fixed units and time axis are its ForceLogSpec.
 
-#: ``format`` values of a force log (study ``[runs.X.forces] format``).
-FORCE_FORMATS = ("auto", "roboisf", "ati", "kistler", "ur", "dyno3", "generic", "columns")
-
-_F = {f"F{a}": re.compile(rf"f ?{a}|force ?{a}") for a in "xyz"}
-_M = {f"M{a}": re.compile(rf"m ?{a}|moment ?{a}") for a in "xyz"}
-_T = {f"M{a}": re.compile(rf"t ?{a}|torque ?{a}") for a in "xyz"}
-_MT = {f"M{a}": re.compile(rf"[mt] ?{a}|moment ?{a}|torque ?{a}") for a in "xyz"}
-_TIME = {"time": re.compile(r"time|t|zeit|timestamp|seconds|sec|time stamp|elapsed time")}
-_RDT = {"rdt": re.compile(r"rdt ?sequence|rdtsequence")}
-_FORCES = tuple(_F)
-_MOMENTS = tuple(_M)
-#: Universal Robots' RTDE recording: ``timestamp`` [s], ``actual_TCP_force_0..5`` — the wrench
-#: at the TCP in the robot's base axes [N, N·m] (UR's definition; units fixed by RTDE)
-_UR = {
-    "time": re.compile(r"timestamp"),
-    **{c: re.compile(rf"actual tcp force {k}") for k, c in enumerate((*_FORCES, *_MOMENTS))},
-}
-#: the units a profile's format fixes (the file states none)
-_PROFILE_UNITS = {"ur": {"time": "s", "force": "N", "moment": "N*m"}}
-
-_PROFILES: dict[str, tuple[dict[str, re.Pattern[str]], tuple[str, ...]]] = {
-    # name: (matchers, required)
-    "ati": ({**_RDT, **_F, **_T}, ("rdt", *_FORCES, *_MOMENTS)),
-    "generic": ({**_TIME, **_F, **_MT}, ("time", *_FORCES, *_MOMENTS)),
-    "kistler": ({**_TIME, **_F, **_M}, ("time", *_FORCES)),
-    "dyno3": ({**_TIME, **_F, **_MT}, ("time", *_FORCES)),
-    "ur": (_UR, ("time", *_FORCES, *_MOMENTS)),
-}
+_FORCES = FORCES
+_MOMENTS = MOMENTS
 
 
-def is_roboisf_log(path: Path) -> bool:
+def _profiles() -> tuple[FileFormat, ...]:
+    """The registered force-log formats read as text tables (they carry a ``ForceLogSpec``)."""
+    return tuple(f for f in file_formats("force_log") if isinstance(f.spec, ForceLogSpec))
+
+
+def _spec(profile: str) -> ForceLogSpec | None:
+    return next((f.spec for f in _profiles() if f.name == profile), None)
+
+
+def force_formats() -> tuple[str, ...]:
+    """``format`` values of a force log (study ``[runs.X.forces] format``): ``auto``, every
+    registered text profile, and ``columns`` (header names given in the study)."""
+    names = [f.name for f in file_formats("force_log") if not f.binary]
+    return ("auto", *names, "columns")
+
+
+def force_profiles_written() -> tuple[str, ...]:
+    """The force-log profiles with a text writer (the virtual cell's ``--*-force-profile``)."""
+    return tuple(f.name for f in file_formats("force_log") if f.writer and not f.binary)
+
+
+def is_roboisf_force_log(path: Path) -> bool:
     """The roboisf layout: ``# key: value`` lines, then exactly ``time,Fx,...`` (case-sensitive)."""
     try:
         with open(path, encoding="utf-8-sig") as fh:
@@ -313,8 +312,9 @@ def _columns_matcher(columns: dict[str, str]) -> dict[str, re.Pattern[str]]:
 
 def _open(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[str, LogTable | None]:
     """(profile, parsed table); the roboisf CSV is left to its own reader (None)."""
-    if fmt not in FORCE_FORMATS:
-        raise InputError(f"format must be one of {', '.join(FORCE_FORMATS)}, got {fmt!r}", file=p)
+    known = force_formats()
+    if fmt not in known:
+        raise InputError(f"format must be one of {', '.join(known)}, got {fmt!r}", file=p)
     if fmt == "columns" or columns:
         if not columns:
             raise InputError(
@@ -332,7 +332,7 @@ def _open(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[str, LogTa
         return "columns", read_log_table(
             p, match, req, what="force log", expected=", ".join(columns.values())
         )
-    if fmt in ("auto", "roboisf") and is_roboisf_log(p):
+    if fmt in ("auto", "roboisf") and is_roboisf_force_log(p):
         return "roboisf", None
     if fmt == "roboisf":
         raise InputError(
@@ -340,12 +340,15 @@ def _open(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[str, LogTa
             'time,Fx,Fy,Fz,Mx,My,Mz (or set format = "auto")',
             file=p,
         )
-    order = ("ati", "ur", "generic", "dyno3") if fmt == "auto" else (fmt,)
+    profiles = _profiles()
+    # automatic detection tries every profile that no other refines, in rank order
+    order = [f for f in profiles if not f.spec.refines] if fmt == "auto" else []
+    order += [f for f in profiles if f.name == fmt]
     last: InputError | None = None
-    for name in order:
-        match, req = _PROFILES[name]
+    for f in order:
+        spec: ForceLogSpec = f.spec
         try:
-            t = read_log_table(p, match, req, what="force log")
+            t = read_log_table(p, spec.match, spec.required, what="force log")
         except InputError as e:
             if "no header line" not in e.message:
                 raise
@@ -362,21 +365,27 @@ def _open(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[str, LogTa
                 line=t.header_line,
                 field=miss[0],
             )
-        if name == "dyno3" and got:
+        if spec.moments == "none" and got:
             raise InputError(
-                "format 'dyno3' is a 3-component log but the file has moment columns", file=p
+                f"format {f.name!r} is a 3-component log but the file has moment columns", file=p
             )
-        if fmt == "auto" and name in ("generic", "dyno3") and t.separator == "tab" and t.preamble:
-            name = "kistler"  # a DynoWare-style export: free-text block, tab-separated
+        name = f.name
+        if fmt == "auto":  # a profile found as another's table (DynoWare: a tab-separated table)
+            name = next(
+                (
+                    g.name
+                    for g in profiles
+                    if name in g.spec.refines and g.spec.accept is not None and g.spec.accept(t)
+                ),
+                name,
+            )
         return name, t
-    assert last is not None
-    if fmt == "auto":
+    if fmt == "auto" or last is None:
+        labels = ", ".join(f.label for f in profiles)
         raise InputError(
             "no force-log format recognised: expected a header naming time, Fx, Fy, Fz (and "
-            "Mx, My, Mz or Tx, Ty, Tz), an ATI Net F/T CSV, a Kistler DynoWare text export, a "
-            "UR RTDE recording (timestamp, actual_TCP_force_0..5) or "
-            'a roboisf log; for other names give columns = {time = "...", Fx = "...", ...} '
-            "in the study",
+            f"Mx, My, Mz or Tx, Ty, Tz), a roboisf log or one of: {labels}; for other names "
+            'give columns = {time = "...", Fx = "...", ...} in the study',
             file=p,
         )
     raise last
@@ -415,7 +424,13 @@ def detect_force_format(
             {k: k for k in FORCE_COLUMNS},
             _parse_units(meta.get("units", ""), file=p, line=line),
         )
-    return profile, _found(t), {**_PROFILE_UNITS.get(profile, {}), **_file_units(t)}
+    return profile, _found(t), _declared_units(profile, t)
+
+
+def _declared_units(profile: str, t: LogTable) -> dict[str, str]:
+    """Units the profile's layout fixes, then those the file declares."""
+    spec = _spec(profile)
+    return {**((spec.units or {}) if spec else {}), **_file_units(t)}
 
 
 def _head_meta(path: Path) -> dict[str, str]:
@@ -499,10 +514,12 @@ def read_force_log(
             length_unit=length_unit,
             timestamps=timestamps,
         )
-    declared = {**_PROFILE_UNITS.get(profile, {}), **_file_units(t)}
+    declared = _declared_units(profile, t)
+    spec = _spec(profile)
     units: dict[str, float] = {}
     has_m = all(m in t.data for m in _MOMENTS)
-    needed = ["force"] + (["moment"] if has_m else []) + ([] if profile == "ati" else ["time"])
+    timed = spec is not None and spec.time is not None  # the layout's own time axis (ATI)
+    needed = ["force"] + (["moment"] if has_m else []) + ([] if timed else ["time"])
     qcols = {"time": ("time",), "force": _FORCES, "moment": _MOMENTS}
     for q in needed:
         b = given[q]
@@ -542,36 +559,17 @@ def read_force_log(
         f = log_unit_to_si(t.units[c], q, file=p, field=c) if c in t.units else units[q]
         return t.data[c] * f
 
-    if profile == "ati":
-        rate_txt = t.preamble.get("rdt sample rate")
-        if rate_txt is None:
-            raise InputError(
-                "ATI log without the 'RDT Sample Rate:' line: the time axis is the RDT "
-                "sequence divided by that rate",
-                file=p,
-                field="rdt sample rate",
-            )
-        rate = finite_float(rate_txt, file=p, field="rdt sample rate")
-        if rate <= 0:
-            raise InputError(f"RDT Sample Rate must be > 0 Hz, got {rate_txt}", file=p)
-        seq = t.data["rdt"]
-        time = (seq - seq[0]) / rate
-    else:
-        time = col("time", "time")
+    time = spec.time(t) if spec is not None and spec.time is not None else col("time", "time")
     F = np.column_stack([col(c, "force") for c in _FORCES])
     M = np.column_stack([col(c, "moment") for c in _MOMENTS]) if has_m else np.zeros_like(F)
     W = np.hstack([F, M])
     notes: tuple[str, ...] = ()
     if time.size > 1 and not bool(np.all(np.diff(time) > 0)):
-        tcol = "rdt" if profile == "ati" else "time"
+        tcol = spec.time_column if spec is not None else "time"
         time, W, rep = repair_time(time, W, timestamps, error=lambda m, r: t.error(m, r, tcol))
         notes = (rep.describe(),)
-    fr = frame or t.meta.get("frame") or ("base" if profile == "ur" else "sensor")
-    if profile == "ur":
-        notes += (
-            "UR RTDE actual_TCP_force: the wrench at the TCP in the robot's base axes (UR's "
-            "definition), not a sensor frame; give the sensor pose that matches it",
-        )
+    fr = frame or t.meta.get("frame") or (spec.frame if spec and spec.frame else "sensor")
+    notes += spec.notes if spec is not None else ()
     return ForceLog(time, W, fr, p, None, moments_known=has_m, profile=profile, notes=notes)
 
 
@@ -591,12 +589,9 @@ def write_force_log(
     The CSV is written at 1e-9 of the time unit and 10 significant digits for wrenches, so
     reading back reproduces the log to ≈ 1e-9 relative.
 
-    ``profile`` writes the text as an instrument would (for synthetic cells and tests; units
-    fixed by the profile, N and N·m): ``"ati"`` — ATI's Net F/T demo CSV (uniform sampling
-    required; the reader's time axis then starts at 0 at the first sample), ``"kistler"`` — a
-    DynoWare-style tab-separated export with a units row and decimal commas, ``"dyno3"`` — a
-    3-component dynamometer (``time [s];Fx [N];Fy [N];Fz [N]``, moments dropped),
-    ``"generic"`` — ``time [s],Fx [N],…,Mz [N*m]``.
+    ``profile`` writes the text as an instrument would, with that force-log format's registered
+    writer (:mod:`roboisf.formats`; each profile's module in :mod:`roboisf.io.formats` states its
+    layout, units and rounding): ``"ati"``, ``"kistler"``, ``"dyno3"``, ``"generic"``, …
     """
     if Path(path).suffix.lower() == ".parquet":
         from roboisf.io.logparquet import write_force_parquet
@@ -604,7 +599,14 @@ def write_force_log(
         write_force_parquet(log, path)
         return
     if profile != "roboisf":
-        _write_profile(log, Path(path), profile)
+        fmt = get_file_format("force_log", profile, field="profile")
+        if fmt.writer is None or fmt.binary:
+            names = ", ".join(force_profiles_written())
+            raise InputError(
+                f"force-log profile {profile!r} has no text writer; expected one of {names}",
+                field="profile",
+            )
+        fmt.writer(log, path)
         return
     s = {
         "time": to_si(time_unit, "time"),
@@ -625,54 +627,6 @@ def write_force_log(
         fh.write(f"# units: {units}\n# frame: {log.frame}\n")
         fh.write(",".join(cols) + "\n")
         fh.write(format_rows(np.column_stack(data), fmts))
-
-
-def _write_profile(log: ForceLog, path: Path, profile: str) -> None:
-    t, W = log.time, log.wrench
-    if profile == "ati":
-        dt = np.diff(t)
-        rate = 1.0 / float(np.median(dt)) if t.size > 1 else 1000.0
-        if t.size > 1 and np.max(np.abs(dt * rate - 1.0)) > 1e-6:
-            raise InputError(
-                "an ATI log is uniformly sampled (its time is RDT sequence / rate); this log's "
-                "sample spacing varies",
-                field="profile",
-            )
-        seq = np.rint(t * rate)
-        data = np.column_stack([seq, seq * 7, W])
-        rows = format_rows(data, ["%d", "%d"] + ["%.10g"] * 6).splitlines()
-        stamp = '","Mar 14, 2024 10:21:07 AM"'
-        head = (
-            "Start Time: 3/14/24 10:21 AM\n"
-            f"RDT Sample Rate: {rate:.12g}\n"
-            '"PLEASE NOTE: The sample rate is read from the Net F/T when the program starts."\n'
-            "Force Units: N\nCounts per Unit Force: 1000000.0\n"
-            "Torque Units: Nm\nCounts per Unit Torque: 1000000.0\n"
-            "Status (hex), RDT Sequence, F/T Sequence, Fx, Fy, Fz, Tx, Ty, Tz, Time\n"
-        )
-        body = "\n".join('"0x0","' + r.replace(",", '","') + stamp for r in rows)
-    elif profile == "kistler":
-        rows_txt = format_rows(np.column_stack([t, W]), ["%.9f"] + ["%.10g"] * 6)
-        head = (
-            "DynoWare\troboisf synthetic export\nAbtastrate\t"
-            f"{(1.0 / float(np.median(np.diff(t)))) if t.size > 1 else 0:.6g}\n\n"
-            "Zeit\tFx\tFy\tFz\tMx\tMy\tMz\ns\tN\tN\tN\tNm\tNm\tNm\n"
-        )
-        body = rows_txt.replace(".", "#").replace(",", "\t").replace("#", ",").rstrip("\n")
-    elif profile == "dyno3":
-        head = "Time [s];Fx [N];Fy [N];Fz [N]\n"
-        rows_txt = format_rows(np.column_stack([t, W[:, :3]]), ["%.9f"] + ["%.10g"] * 3)
-        body = rows_txt.replace(",", ";").rstrip("\n")
-    elif profile == "generic":
-        head = "time [s],Fx [N],Fy [N],Fz [N],Mx [N*m],My [N*m],Mz [N*m]\n"
-        body = format_rows(np.column_stack([t, W]), ["%.9f"] + ["%.10g"] * 6).rstrip("\n")
-    else:
-        raise InputError(
-            f"profile must be roboisf, ati, kistler, dyno3 or generic, got {profile!r}",
-            field="profile",
-        )
-    with atomic_write(path) as fh:
-        fh.write(head + body + "\n")
 
 
 # -- attaching a log to toolpath points ---------------------------------------------------------

@@ -30,52 +30,53 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
+from roboisf.formats import FileFormat, file_formats, get_file_format
 from roboisf.io.atomic import atomic_write
+from roboisf.io.logprofile import JointLogSpec
 from roboisf.io.table import LogTable, format_rows, read_log_table, read_table, split_name_unit
 from roboisf.io.timestamps import repair_time
 from roboisf.io.units import log_unit_to_si, to_si
 
 __all__ = [
     "JOINT_COLUMNS",
-    "JOINT_FORMATS",
     "JointLog",
     "detect_joint_format",
+    "is_roboisf_joint_log",
+    "joint_formats",
+    "joint_profiles_written",
+    "joint_rows",
     "read_joint_log",
+    "unstated_units",
     "write_joint_log",
 ]
 
-#: ``format`` values of a joint log (study ``[runs.X.joints] format``).
-JOINT_FORMATS = ("auto", "roboisf", "abb", "fanuc", "kuka", "ur", "generic", "columns")
-_TIME = re.compile(r"time|t|zeit|timestamp|time stamp|sec|seconds|elapsed time")
-_PREFIX = {
-    "abb": r"j|joint ?",
-    # FANUC exports name the axes J1..J6 as ABB does; the angles as logged (the pendant's, which
-    # the FANUC presets take: docs/robot.md)
-    "fanuc": r"j|joint ?",
-    "kuka": r"a|axis ?|(?:.* )?a",  # A1, axis 1, "AxisActPos A1" (KUKA trace text export)
-    "generic": r"q|j|a|joint ?|axis ?|(?:.* )?a",
-}
+
+def _profiles() -> tuple[FileFormat, ...]:
+    """The registered joint-log formats read as text tables (they carry a ``JointLogSpec``)."""
+    return tuple(f for f in file_formats("joint_log") if isinstance(f.spec, JointLogSpec))
 
 
-#: Universal Robots' RTDE recorder (``record.py`` of UR's RTDE client, ``ur_rtde``'s
-#: ``RTDEReceiveInterface.startFileRecording``): ``timestamp`` [s] and ``actual_q_0..5`` [rad],
-#: units fixed by the RTDE specification
-_UR = {
-    "time": re.compile(r"timestamp"),
-    **{f"q{i}": re.compile(rf"actual q {i - 1}") for i in range(1, 7)},
-}
-#: the units a profile's format fixes (the file states none)
-_PROFILE_UNITS = {"ur": {"time": "s", "angle": "rad"}}
+def joint_formats() -> tuple[str, ...]:
+    """``format`` values of a joint log (study ``[runs.X.joints] format``): ``auto``, every
+    registered text profile, and ``columns`` (header names given in the study)."""
+    return ("auto", *(f.name for f in file_formats("joint_log") if not f.binary), "columns")
 
 
-def _joint_match(profile: str) -> dict[str, re.Pattern[str]]:
-    if profile == "ur":
-        return _UR
-    pre = _PREFIX[profile]
-    return {
-        "time": _TIME,
-        **{f"q{i}": re.compile(rf"(?:{pre}) ?{i}") for i in range(1, 7)},
-    }
+def joint_profiles_written() -> tuple[str, ...]:
+    """The joint-log profiles with a text writer (the virtual cell's ``--joint-profile``)."""
+    return tuple(f.name for f in file_formats("joint_log") if f.writer and not f.binary)
+
+
+def _fixed_units(profile: str) -> dict[str, str]:
+    spec = next((f.spec for f in _profiles() if f.name == profile), None)
+    return dict(spec.units or {}) if spec is not None else {}
+
+
+def unstated_units(profile: str) -> dict[str, str]:
+    """The units ``profile``'s writer writes in but its files do not state (quantity → unit);
+    empty when the file says them (a study reading such a file must give them)."""
+    spec = next((f.spec for f in _profiles() if f.name == profile), None)
+    return dict(spec.unstated_units or {}) if spec is not None else {}
 
 
 F64 = NDArray[np.float64]
@@ -93,7 +94,8 @@ class JointLog:
     notes: tuple[str, ...] = ()
 
 
-def _is_roboisf(path: Path) -> bool:
+def is_roboisf_joint_log(path: Path) -> bool:
+    """The roboisf layout: ``# key: value`` lines, then exactly ``time,q1,…,q6``."""
     try:
         with open(path, encoding="utf-8-sig") as fh:
             for line in fh:
@@ -139,8 +141,9 @@ def detect_joint_format(
         no profile recognises the file.
     """
     p = Path(path)
-    if fmt not in JOINT_FORMATS:
-        raise InputError(f"format must be one of {', '.join(JOINT_FORMATS)}, got {fmt!r}", file=p)
+    known = joint_formats()
+    if fmt not in known:
+        raise InputError(f"format must be one of {', '.join(known)}, got {fmt!r}", file=p)
     if p.suffix.lower() == ".parquet":
         from roboisf.io.logparquet import parquet_log_info
 
@@ -149,7 +152,7 @@ def detect_joint_format(
     t = _read_text_log(p, fmt, columns)
     profile = t[0]
     tab = t[1]
-    units = {**_PROFILE_UNITS.get(profile, {}), **_file_units(tab)}
+    units = {**_fixed_units(profile), **_file_units(tab)}
     return profile, {c: tab.columns[j] for c, j in tab.col_index.items()}, units
 
 
@@ -166,7 +169,7 @@ def _read_text_log(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[s
         return "columns", read_log_table(
             p, match, req, what="joint log", expected=", ".join(columns.values())
         )
-    if fmt in ("auto", "roboisf") and _is_roboisf(p):
+    if fmt in ("auto", "roboisf") and is_roboisf_joint_log(p):
         match = {k: re.compile(k) for k in JOINT_COLUMNS}
         return "roboisf", read_log_table(p, match, req, what="joint log")
     if fmt == "roboisf":
@@ -175,10 +178,10 @@ def _read_text_log(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[s
             'time,q1,...,q6 (or set format = "auto")',
             file=p,
         )
-    order = ("abb", "kuka", "ur", "generic") if fmt in ("auto", "roboisf") else (fmt,)
-    for name in order:
+    order = [f for f in _profiles() if (f.spec.auto if fmt == "auto" else f.name == fmt)]
+    for f in order:
         try:
-            return name, read_log_table(p, _joint_match(name), req, what="joint log")
+            return f.name, read_log_table(p, f.spec.match, req, what="joint log")
         except InputError as e:
             if "no header line" not in e.message:
                 raise
@@ -214,9 +217,9 @@ def read_joint_log(
         if t_si.size > 1 and np.any(np.diff(t_si) <= 0):
             raise InputError("time must increase strictly", file=p, field="time")
         return JointLog(time=t_si, q=q_si, path=p)
-    if not (fmt in ("auto", "roboisf") and not columns and _is_roboisf(p)):
+    if not (fmt in ("auto", "roboisf") and not columns and is_roboisf_joint_log(p)):
         profile, tab = _read_text_log(p, fmt, columns)
-        declared = {**_PROFILE_UNITS.get(profile, {}), **_file_units(tab)}
+        declared = {**_fixed_units(profile), **_file_units(tab)}
         given = {"time": time_unit, "angle": angle_unit}
         f = {}
         for qty in ("time", "angle"):
@@ -284,13 +287,23 @@ def _checked(
     return JointLog(time=time, q=q, path=p, notes=(rep.describe(),))
 
 
+def joint_rows(time: ArrayLike, q: ArrayLike) -> tuple[F64, F64]:
+    """(time (N,) s, q (N, 6) in degrees) for a writer; ``InputError`` (field ``q``) on a shape
+    mismatch."""
+    tt = np.asarray(time, dtype=float).reshape(-1)
+    qq = np.asarray(q, dtype=float)
+    if qq.shape != (tt.size, 6):
+        raise InputError(f"expected q of shape ({tt.size}, 6), got {qq.shape}", field="q")
+    return tt, np.degrees(qq)
+
+
 def write_joint_log(
     path: str | Path, time: ArrayLike, q: ArrayLike, *, profile: str = "roboisf"
 ) -> None:
     """Write ``time`` (N,) s and ``q`` (N, 6) rad as a joint log, atomically: Parquet (SI) for a
     ``.parquet`` name, else the roboisf CSV in degrees — or, with ``profile``, as a controller
-    would: ``"abb"`` (``Time [s],J1 [deg],…``) or ``"kuka"`` (a trace text export: description
-    lines, ``Time [ms];AxisActPos A1 [°];…``, decimal commas)."""
+    would, with that joint-log format's registered writer (:mod:`roboisf.formats`; ``"abb"``,
+    ``"kuka"``: their modules in :mod:`roboisf.io.formats` state the layout and rounding)."""
     tt = np.asarray(time, dtype=float).reshape(-1)
     qq = np.asarray(q, dtype=float)
     if qq.shape != (tt.size, 6):
@@ -300,23 +313,16 @@ def write_joint_log(
 
         write_joint_parquet(path, tt, qq)
         return
-    if profile == "abb":
-        head = "Time [s]," + ",".join(f"J{i} [deg]" for i in range(1, 7)) + "\n"
-        rows = format_rows(np.column_stack([tt, np.degrees(qq)]), ["%.6f"] + ["%.9f"] * 6)
-        with atomic_write(path) as f:
-            f.write(head + rows)
-        return
-    if profile == "kuka":
-        head = (
-            "Trace: roboisf synthetic\nController: KRC4\n"
-            "Time [ms];" + ";".join(f"AxisActPos A{i} [°]" for i in range(1, 7)) + "\n"
-        )
-        rows = format_rows(np.column_stack([tt * 1e3, np.degrees(qq)]), ["%.3f"] + ["%.9f"] * 6)
-        with atomic_write(path) as f:
-            f.write(head + rows.replace(".", "#").replace(",", ";").replace("#", ","))
-        return
     if profile != "roboisf":
-        raise InputError(f"profile must be roboisf, abb or kuka, got {profile!r}", field="profile")
+        fmt = get_file_format("joint_log", profile, field="profile")
+        if fmt.writer is None or fmt.binary:
+            raise InputError(
+                f"joint-log profile {profile!r} has no text writer; expected one of "
+                f"{', '.join(joint_profiles_written())}",
+                field="profile",
+            )
+        fmt.writer(path, tt, qq)
+        return
     data = np.column_stack([tt, np.degrees(qq)])
     body = "# units: time=s angle=deg\n" + ",".join(JOINT_COLUMNS) + "\n"
     body += format_rows(data, ["%.6f"] + ["%.9f"] * 6)

@@ -3,7 +3,7 @@
 Example::
 
     [part]
-    kind = "cone"              # cone | vwacf | profile | pyramid | mesh
+    kind = "cone"              # a registered part kind: cone | vwacf | profile | pyramid | mesh
     opening_diameter = 87.0    # mm
     wall_angle = 71.0          # deg
     depth = 102.97             # mm
@@ -19,6 +19,11 @@ optional ``corner_radius`` (mm, default 0; see :class:`roboisf.parts.Pyramid`); 
 file; ``.step``/``.stp``/``.iges``/``.igs`` are tessellated with gmsh to ``tolerance`` mm,
 default 0.01), optional ``unit`` (default ``"mm"``) and ``orient`` (``"up"`` default, or
 ``"winding"``; see :class:`roboisf.parts.MeshPart`) and no ``flange_width``.
+
+Each kind is a format of kind ``part`` in the file-format registry (:mod:`roboisf.formats`), one
+module each in :mod:`roboisf.parts.formats`: its ``reader(table, where, common) -> Part`` builds
+the part from the table (mm, deg; ``common``: ``sheet_thickness`` and ``flange_width`` in m) and
+its ``spec`` (:class:`~roboisf.parts.kind.PartSpec`) lists its keys.
 """
 
 from __future__ import annotations
@@ -33,28 +38,39 @@ import numpy as np
 import tomli_w
 
 from roboisf.errors import InputError
+from roboisf.formats import FileFormat, file_formats
 from roboisf.io.atomic import atomic_write
 from roboisf.io.text import read_text
-from roboisf.parts.axisymmetric import (
-    VWACF,
-    VWACF_DEFAULT_ARC_RADIUS,
-    Cone,
-    ProfilePart,
-)
 from roboisf.parts.base import Part
-from roboisf.parts.mesh import MeshPart
-from roboisf.parts.pyramid import Pyramid
+from roboisf.parts.kind import PartSpec
 from roboisf.plausible import check_part
 
-__all__ = ["load_part", "part_files", "part_from_dict", "read_profile_csv", "save_part"]
+__all__ = [
+    "PartSpec",
+    "load_part",
+    "part_files",
+    "part_from_dict",
+    "part_kinds",
+    "part_number",
+    "part_numbers",
+    "part_string",
+    "read_profile_csv",
+    "save_part",
+]
 
-_KEYS = {
-    "cone": {"opening_diameter", "wall_angle", "depth"},
-    "vwacf": {"opening_diameter", "arc_radius", "final_wall_angle"},
-    "profile": {"file", "r", "z"},
-    "pyramid": {"top_length", "top_width", "wall_angle", "wall_angle_y", "depth", "corner_radius"},
-    "mesh": {"file", "unit", "orient", "tolerance"},
-}
+
+def part_kinds() -> tuple[str, ...]:
+    """The registered part kinds (``[part] kind``), in listing order."""
+    return tuple(f.name for f in _part_formats())
+
+
+def _part_formats() -> tuple[FileFormat, ...]:
+    """Registered part kinds: a builder (``reader``) and a :class:`PartSpec`."""
+    return tuple(
+        f for f in file_formats("part") if f.reader is not None and isinstance(f.spec, PartSpec)
+    )
+
+
 _COMMON = {"kind", "sheet_thickness", "flange_width"}
 
 
@@ -88,9 +104,11 @@ def read_profile_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     return a[:, 0], a[:, 1]
 
 
-def _num(
+def part_number(
     table: dict[str, Any], key: str, where: Path | None, default: float | None = None
 ) -> float:
+    """``table[key]`` as a finite number (in the file's unit), ``default`` if absent (None:
+    required), else an InputError naming ``part.<key>``."""
     if key not in table:
         if default is not None:
             return default
@@ -101,8 +119,11 @@ def _num(
     return float(v)
 
 
-def _str(table: dict[str, Any], key: str, where: Path | None, default: str | None = None) -> str:
-    """``table[key]`` as a string (TOML string), else an InputError naming ``part.<key>``."""
+def part_string(
+    table: dict[str, Any], key: str, where: Path | None, default: str | None = None
+) -> str:
+    """``table[key]`` as a string (TOML string), ``default`` if absent (None: required), else an
+    InputError naming ``part.<key>``."""
     if key not in table:
         if default is not None:
             return default
@@ -113,8 +134,8 @@ def _str(table: dict[str, Any], key: str, where: Path | None, default: str | Non
     return v
 
 
-def _numbers(table: dict[str, Any], key: str, where: Path | None) -> np.ndarray:
-    """``table[key]`` as a list of finite numbers (mm), else an InputError naming the key."""
+def part_numbers(table: dict[str, Any], key: str, where: Path | None) -> np.ndarray:
+    """``table[key]`` as an array of finite numbers (mm), else an InputError naming the key."""
     v = table[key]
     if not (
         isinstance(v, list)
@@ -146,89 +167,42 @@ def _part_from_dict(table: dict[str, Any], where: str | Path | None) -> Part:
             f"expected a table [part] with a 'kind', got {table!r}", file=src, field="part"
         )
     kind = table.get("kind")
-    if not isinstance(kind, str) or kind not in _KEYS:
+    fmt = next((f for f in _part_formats() if f.name == kind), None)
+    if not isinstance(kind, str) or fmt is None or fmt.reader is None:
         raise InputError(
-            f"unknown part kind {kind!r}; expected one of {', '.join(_KEYS)}",
+            f"unknown part kind {kind!r}; expected one of {', '.join(part_kinds())}",
             file=src,
             field="part.kind",
         )
-    unknown = set(table) - _KEYS[kind] - _COMMON
+    spec: PartSpec = fmt.spec
+    keys = set(spec.keys)
+    unknown = set(table) - keys - _COMMON
     if unknown:
         raise InputError(
             f"unknown key(s) {', '.join(sorted(unknown))} for kind {kind!r}; "
-            f"expected {', '.join(sorted(_KEYS[kind] | _COMMON))}",
+            f"expected {', '.join(sorted(keys | _COMMON))}",
             file=src,
             field="part",
         )
     common: dict[str, Any] = {
-        "sheet_thickness": _num(table, "sheet_thickness", src, 1.22) * 1e-3,
-        "flange_width": _num(table, "flange_width", src, 10.0) * 1e-3,
+        "sheet_thickness": part_number(table, "sheet_thickness", src, 1.22) * 1e-3,
+        "flange_width": part_number(table, "flange_width", src, 10.0) * 1e-3,
     }
     try:
-        if kind == "cone":
-            return Cone(
-                opening_diameter=_num(table, "opening_diameter", src) * 1e-3,
-                wall_angle=math.radians(_num(table, "wall_angle", src)),
-                depth=_num(table, "depth", src) * 1e-3,
-                **common,
+        if not spec.flange and "flange_width" in table:
+            raise InputError(
+                f"a {kind} part has no flange_width (its flange is in the {kind})",
+                file=src,
+                field="part.flange_width",
             )
-        if kind == "vwacf":
-            return VWACF(
-                opening_diameter=_num(table, "opening_diameter", src, 88.15) * 1e-3,
-                arc_radius=_num(table, "arc_radius", src, VWACF_DEFAULT_ARC_RADIUS * 1e3) * 1e-3,
-                final_wall_angle=math.radians(_num(table, "final_wall_angle", src, 90.0)),
-                **common,
-            )
-        if kind == "profile":
-            if "file" in table:
-                f = Path(_str(table, "file", src))
-                fpath = f if f.is_absolute() or src is None else src.parent / f
-                r, z = read_profile_csv(fpath)
-                return ProfilePart(r=tuple(r), z=tuple(z), source=str(table["file"]), **common)
-            if "r" not in table or "z" not in table:
-                raise InputError("profile needs 'file' or both 'r' and 'z'", file=src, field="part")
-            r = _numbers(table, "r", src) * 1e-3
-            z = _numbers(table, "z", src) * 1e-3
-            return ProfilePart(r=tuple(r), z=tuple(z), **common)
-        if kind == "pyramid":
-            ay = table.get("wall_angle_y")
-            return Pyramid(
-                top_length=_num(table, "top_length", src) * 1e-3,
-                top_width=_num(table, "top_width", src) * 1e-3,
-                wall_angle=math.radians(_num(table, "wall_angle", src)),
-                depth=_num(table, "depth", src) * 1e-3,
-                wall_angle_y=None if ay is None else math.radians(_num(table, "wall_angle_y", src)),
-                corner_radius=_num(table, "corner_radius", src, 0.0) * 1e-3,
-                **common,
-            )
-        if kind == "mesh":
-            if "flange_width" in table:
-                raise InputError(
-                    "a mesh part has no flange_width (its flange is in the mesh)",
-                    file=src,
-                    field="part.flange_width",
-                )
-            if not isinstance(table.get("file"), str):
-                raise InputError(
-                    "mesh needs 'file' (an STL/OBJ/PLY/STEP/IGES path)", file=src, field="part.file"
-                )
-            f = Path(table["file"])
-            fpath = f if f.is_absolute() or src is None else src.parent / f
-            return MeshPart.from_file(
-                fpath,
-                unit=_str(table, "unit", src, "mm"),
-                orient=_str(table, "orient", src, "up"),
-                sheet_thickness=common["sheet_thickness"],
-                source=str(table["file"]),
-                tolerance=_num(table, "tolerance", src, 0.01) * 1e-3,
-            )
+        part: Part = fmt.reader(table, src, common)
+        return part
     except InputError as e:
         if e.file is None and src is not None:
             raise InputError(
                 e.message, file=src, field=f"part.{e.field}" if e.field else "part"
             ) from None
         raise
-    raise AssertionError(kind)  # pragma: no cover - every kind returns above
 
 
 def load_part(path: str | Path) -> Part:

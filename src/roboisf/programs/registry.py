@@ -1,8 +1,12 @@
-"""The registry of toolpath and program formats: one entry per format, one module per entry.
+"""Toolpath and program formats in the file-format registry: one entry per format, one module
+per entry.
 
 Each format — roboisf's toolpath CSV, G-code, and every robot controller's program — is a
 :class:`ProgramFormat` registered by one module of :mod:`roboisf.programs.formats` (or by a user's
-module calling :func:`register`), as meshio registers its mesh formats. The export
+module calling :func:`register`), as meshio registers its mesh formats. :func:`register` puts it
+into the one registry of file formats (:mod:`roboisf.formats`) as a ``FileFormat`` of kind
+``toolpath``, ``cnc`` or ``robot`` whose ``spec`` is the ``ProgramFormat`` (the program-specific
+part: write options, program-name check); this module is the typed view of those kinds. The export
 (:func:`roboisf.programs.export.write_toolpath`), the suffix inference, the program-name checks,
 the companion files a command claims before writing (KRL's ``.dat``), the compensation's output
 programs and the demo's programs all loop over :func:`program_formats`, so a new format is one new
@@ -13,14 +17,19 @@ This module imports nothing heavy; a format's writer and reader load their modul
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 from roboisf.errors import InputError
+from roboisf.formats.registry import (
+    FileFormat,
+    file_formats,
+    lazy,
+    register_format,
+    unregister_format,
+)
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
@@ -80,18 +89,6 @@ def robot_kwargs(o: WriteOptions) -> dict[str, Any]:
         "config": o.config,
         "safe_height": o.safe_height,
     }
-
-
-def lazy(module: str, name: str) -> Callable[..., Any]:
-    """``module.name`` as a function that imports ``module`` on its first call (a format's
-    module registers its reader and writer without importing numpy or pandas)."""
-
-    def call(*args: Any, **kwargs: Any) -> Any:
-        return getattr(importlib.import_module(module), name)(*args, **kwargs)
-
-    call.__name__ = call.__qualname__ = name
-    call.__doc__ = f"{module}.{name}, imported on the first call."
-    return call
 
 
 def robot_writer(module: str, name: str) -> Callable[[Toolpath, Path, WriteOptions], list[Path]]:
@@ -163,53 +160,48 @@ def _is_suffix(s: str) -> bool:
     return s.startswith(".") and len(s) > 1 and s == s.lower()
 
 
-_FORMATS: dict[str, ProgramFormat] = {}
-_builtins_loaded = False
-
-
-def _load_builtins() -> None:
-    """Import every module of :mod:`roboisf.programs.formats` (each registers its format)."""
-    global _builtins_loaded
-    if _builtins_loaded:
-        return
-    _builtins_loaded = True
-    from roboisf.programs import formats
-
-    for info in sorted(pkgutil.iter_modules(formats.__path__), key=lambda m: m.name):
-        importlib.import_module(f"{formats.__name__}.{info.name}")
-
-
 def register(fmt: ProgramFormat) -> ProgramFormat:
-    """Add ``fmt`` to the registry; returns it. A name or suffix already taken is a
-    ``ValueError`` (two formats for one suffix would make the inference ambiguous)."""
-    _load_builtins()
-    if fmt.name in _FORMATS:
-        raise ValueError(f"a format named {fmt.name!r} is already registered")
-    for other in _FORMATS.values():
+    """Add ``fmt`` to the registry of file formats; returns it. A program format's name or
+    suffix already taken is a ``ValueError`` (two formats for one suffix would make the inference
+    ambiguous)."""
+    for other in program_formats():
+        if other.name == fmt.name:
+            raise ValueError(f"a format named {fmt.name!r} is already registered")
         shared = {*fmt.suffixes, *fmt.read_suffixes} & {*other.suffixes, *other.read_suffixes}
         if shared:
             raise ValueError(
                 f"format {fmt.name!r}: suffix {sorted(shared)[0]} is {other.name!r}'s already"
             )
-    _FORMATS[fmt.name] = fmt
+    register_format(
+        FileFormat(
+            name=fmt.name,
+            kind=fmt.kind,
+            label=fmt.label,
+            suffixes=(*fmt.suffixes, *fmt.read_suffixes),
+            reader=fmt.read,
+            writer=fmt.write,
+            companions=fmt.companions,
+            rank=fmt.rank,
+            spec=fmt,
+        )
+    )
     return fmt
 
 
 def unregister(name: str) -> None:
-    """Remove the format ``name`` (a test's toy format); unknown names are ignored."""
-    _FORMATS.pop(name, None)
+    """Remove the program format ``name`` (a test's toy format); unknown names are ignored."""
+    for kind in KINDS:
+        unregister_format(kind, name)
 
 
 def program_formats() -> tuple[ProgramFormat, ...]:
-    """Every registered format, in listing order (``rank``, then name)."""
-    _load_builtins()
-    return tuple(sorted(_FORMATS.values(), key=lambda f: (f.rank, f.name)))
+    """Every registered toolpath/program format, in listing order (``rank``, then name)."""
+    return tuple(f.spec for f in file_formats(*KINDS) if isinstance(f.spec, ProgramFormat))
 
 
 def get_format(name: str) -> ProgramFormat:
     """The format called ``name``; ``InputError`` (field ``format``) listing the known ones."""
-    _load_builtins()
-    fmt = _FORMATS.get(name)
+    fmt = next((f for f in program_formats() if f.name == name), None)
     if fmt is None:
         names = ", ".join(f.name for f in program_formats())
         raise InputError(f"unknown format {name!r}; expected one of {names}", field="format")
@@ -220,7 +212,6 @@ def find_format(path: str | Path, name: str | None = None) -> ProgramFormat | No
     """The format ``name`` if registered, else the one whose suffixes hold ``path``'s; None if
     neither (no error: for callers that only need a guess, such as claiming companion files)."""
     if name is not None:
-        _load_builtins()
-        return _FORMATS.get(name)
+        return next((f for f in program_formats() if f.name == name), None)
     suffix = Path(path).suffix.lower()
     return next((f for f in program_formats() if suffix in f.suffixes), None)

@@ -1,51 +1,121 @@
 """Scans vs nominal: read point clouds and meshes, register them to the nominal part, signed
 deviation vectors per scan point, per toolpath point, per depth, per angle and per arc length
-along a lap."""
+along a lap.
 
-from roboisf.scan.compare import CompareOptions, ScanComparison, compare_scan, part_size
-from roboisf.scan.deviation import (
-    PointDeviations,
-    ToolpathDeviations,
-    default_rim_band,
-    point_deviations,
-    select_wall,
-    statistical_outliers,
-    toolpath_deviations,
-)
-from roboisf.scan.output import (
-    POINT_COLUMNS,
-    TOOLPATH_COLUMNS,
-    point_table,
-    toolpath_table,
-    write_summary_json,
-    write_table,
-)
-from roboisf.scan.readers import (
-    SCAN_FORMATS,
-    ScanCloud,
-    check_units,
-    read_mesh,
-    read_scan,
-    sample_faces,
-)
-from roboisf.scan.registration import METHODS, Registration, register
-from roboisf.scan.summary import (
-    DeviationStats,
-    by_angle,
-    by_arc_length,
-    by_depth,
-    deviation_stats,
-    lap_arc_length,
-    resultant_mean_deviation,
-)
-from roboisf.scan.symmetry import SymmetryEstimate, detect_symmetry, part_symmetry
-from roboisf.scan.synthetic import OffsetField, SyntheticScan, radial_offset, synthetic_scan
-from roboisf.scan.writers import write_ply
+The names below load their module on first use (PEP 562), so that the file-format registry
+(which lists the scan formats of :mod:`roboisf.scan.formats`) and the commands that only read a
+scan do not import scipy and numba.
+"""
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from roboisf._lazy import attach
+
+if TYPE_CHECKING:
+    from roboisf.scan.compare import CompareOptions, ScanComparison, compare_scan, part_size
+    from roboisf.scan.deviation import (
+        PointDeviations,
+        ToolpathDeviations,
+        default_rim_band,
+        point_deviations,
+        select_wall,
+        statistical_outliers,
+        toolpath_deviations,
+    )
+    from roboisf.scan.output import (
+        POINT_COLUMNS,
+        TOOLPATH_COLUMNS,
+        point_table,
+        toolpath_table,
+        write_summary_json,
+        write_table,
+    )
+    from roboisf.scan.readers import (
+        ScanCloud,
+        check_units,
+        read_mesh,
+        read_scan,
+        sample_faces,
+        scan_formats,
+    )
+    from roboisf.scan.registration import METHODS, Registration, register
+    from roboisf.scan.summary import (
+        DeviationStats,
+        by_angle,
+        by_arc_length,
+        by_depth,
+        deviation_stats,
+        lap_arc_length,
+        resultant_mean_deviation,
+    )
+    from roboisf.scan.symmetry import SymmetryEstimate, detect_symmetry, part_symmetry
+    from roboisf.scan.synthetic import OffsetField, SyntheticScan, radial_offset, synthetic_scan
+    from roboisf.scan.writers import write_ply
+
+_WHERE = {
+    "compare": (
+        "CompareOptions",
+        "ScanComparison",
+        "compare_scan",
+        "part_size",
+    ),
+    "deviation": (
+        "PointDeviations",
+        "ToolpathDeviations",
+        "default_rim_band",
+        "point_deviations",
+        "select_wall",
+        "statistical_outliers",
+        "toolpath_deviations",
+    ),
+    "output": (
+        "POINT_COLUMNS",
+        "TOOLPATH_COLUMNS",
+        "point_table",
+        "toolpath_table",
+        "write_summary_json",
+        "write_table",
+    ),
+    "readers": (
+        "ScanCloud",
+        "check_units",
+        "read_mesh",
+        "read_scan",
+        "sample_faces",
+        "scan_formats",
+    ),
+    "registration": (
+        "METHODS",
+        "Registration",
+        "register",
+    ),
+    "summary": (
+        "DeviationStats",
+        "by_angle",
+        "by_arc_length",
+        "by_depth",
+        "deviation_stats",
+        "lap_arc_length",
+        "resultant_mean_deviation",
+    ),
+    "symmetry": (
+        "SymmetryEstimate",
+        "detect_symmetry",
+        "part_symmetry",
+    ),
+    "synthetic": (
+        "OffsetField",
+        "SyntheticScan",
+        "radial_offset",
+        "synthetic_scan",
+    ),
+    "writers": ("write_ply",),
+}
 __all__ = [
     "METHODS",
     "POINT_COLUMNS",
-    "SCAN_FORMATS",
     "TOOLPATH_COLUMNS",
     "CompareOptions",
     "DeviationStats",
@@ -76,6 +146,7 @@ __all__ = [
     "register",
     "resultant_mean_deviation",
     "sample_faces",
+    "scan_formats",
     "select_wall",
     "statistical_outliers",
     "synthetic_scan",
@@ -85,3 +156,4 @@ __all__ = [
     "write_summary_json",
     "write_table",
 ]
+__getattr__, __dir__, _MODULE_OF = attach(__name__, globals(), _WHERE)

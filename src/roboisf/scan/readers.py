@@ -37,35 +37,34 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.errors import InputError
+from roboisf.formats import file_formats, find_file_format
 from roboisf.io.text import read_text
 from roboisf.io.units import LENGTH_UNITS, to_si
 from roboisf.parts.mesh import read_mesh
+from roboisf.scan.formatspec import ScanSpec
 
 __all__ = [
-    "SCAN_FORMATS",
     "ScanCloud",
     "check_units",
+    "read_e57_points",
+    "read_las_points",
     "read_mesh",
+    "read_mesh_points",
+    "read_pcd_points",
+    "read_ply_points",
     "read_scan",
+    "read_xyz_points",
     "sample_faces",
+    "scan_formats",
 ]
 
 F64 = NDArray[np.float64]
 
-SCAN_FORMATS = {
-    ".ply": "ply",
-    ".pcd": "pcd",
-    ".xyz": "xyz",
-    ".csv": "xyz",
-    ".txt": "xyz",
-    ".asc": "xyz",
-    ".pts": "xyz",
-    ".e57": "e57",
-    ".las": "las",
-    ".laz": "las",
-    ".stl": "mesh",
-    ".obj": "mesh",
-}
+
+def scan_formats() -> dict[str, str]:
+    """Suffix (lower case, with the dot) → the registered scan format that reads it
+    (:mod:`roboisf.formats`; one module per format in :mod:`roboisf.scan.formats`)."""
+    return {sfx: f.name for f in file_formats("scan") for sfx in f.suffixes}
 
 
 @dataclass(frozen=True)
@@ -118,7 +117,8 @@ def read_scan(
 
     Parameters
     ----------
-    path : the file; its format is chosen by extension (see :data:`SCAN_FORMATS`)
+    path : the file; its format is chosen by extension (:func:`scan_formats`: the registered
+        scan formats)
     unit : the length unit of the file's numbers (``mm`` default, ``m``, ``um``, ``cm``, ``in``)
     sample : for mesh files (STL/OBJ, or a PLY with faces when given): draw this many points
         uniformly over the faces instead of returning the vertices
@@ -128,32 +128,18 @@ def read_scan(
     if not path.is_file():
         raise InputError("scan file not found", file=path)
     scale = to_si(unit, "length", file=path, field="unit")
-    fmt = SCAN_FORMATS.get(path.suffix.lower())
-    if fmt is None:
+    fmt = find_file_format(path, "scan")
+    if fmt is None or fmt.reader is None:
         raise InputError(
-            f"unknown scan format {path.suffix!r}; expected one of {', '.join(SCAN_FORMATS)}",
+            f"unknown scan format {path.suffix!r}; expected one of {', '.join(scan_formats())}",
             file=path,
         )
     if path.stat().st_size == 0:
         raise InputError("file is empty", file=path)
     normals: F64 | None
-    if fmt == "ply":
-        pts, normals = _read_ply(path, sample, seed)
-    elif fmt == "pcd":
-        pts, normals = _read_pcd(path)
-    elif fmt == "xyz":
-        pts, normals = _read_xyz(path)
-    elif fmt == "e57":
-        pts, normals = _read_e57(path), None
-        scale, unit = 1.0, "m"  # metres by the E57 standard
-    elif fmt == "las":
-        pts, normals = _read_las(path), None
-    else:
-        V, F = read_mesh(path, unit="m")
-        if sample:
-            pts, normals = sample_faces(V, F, sample, seed)
-        else:
-            pts, normals = V, None
+    pts, normals = fmt.reader(path, sample, seed)
+    if isinstance(fmt.spec, ScanSpec):  # the length unit the format fixes (E57: metres)
+        scale, unit = to_si(fmt.spec.unit, "length"), fmt.spec.unit
     if pts.shape[0] == 0:
         raise InputError("scan has no points", file=path)
     check_finite(pts, path)
@@ -163,6 +149,15 @@ def read_scan(
         ok = np.isfinite(nn[:, 0]) & (nn[:, 0] > 0)
         normals = np.where(ok[:, None], normals / np.where(ok[:, None], nn, 1.0), 0.0)
     return ScanCloud(pts, normals, str(path), unit)
+
+
+def read_mesh_points(path: Path, sample: int | None, seed: int) -> tuple[F64, F64 | None]:
+    """A mesh's vertices, or ``sample`` points drawn uniformly over its faces (with their
+    normals); in the file's unit."""
+    V, F = read_mesh(path, unit="m")
+    if sample:
+        return sample_faces(V, F, sample, seed)
+    return V, None
 
 
 def _xyz_normals(rec: np.ndarray, normal_names: tuple[str, str, str]) -> tuple[F64, F64 | None]:
@@ -295,7 +290,7 @@ def check_ply_header(path: Path) -> None:
             )
 
 
-def _read_ply(path: Path, sample: int | None, seed: int) -> tuple[F64, F64 | None]:
+def read_ply_points(path: Path, sample: int | None, seed: int) -> tuple[F64, F64 | None]:
     from plyfile import PlyData
 
     check_ply_header(path)
@@ -360,7 +355,7 @@ def _pcd_int(text: str) -> int:
     return int(text)
 
 
-def _read_pcd(path: Path) -> tuple[F64, F64 | None]:
+def read_pcd_points(path: Path) -> tuple[F64, F64 | None]:
     header: dict[str, list[str]] = {}
     offset = 0
     with open(path, "rb") as fh:
@@ -480,7 +475,7 @@ def _read_pcd(path: Path) -> tuple[F64, F64 | None]:
 _NUM = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^[+-]?(nan|inf)$", re.IGNORECASE)
 
 
-def _read_xyz(path: Path) -> tuple[F64, F64 | None]:
+def read_xyz_points(path: Path) -> tuple[F64, F64 | None]:
     import pandas as pd
 
     first = None
@@ -606,7 +601,7 @@ def _optional(module: str, what: str, path: Path) -> object:
         ) from None
 
 
-def _read_e57(path: Path) -> F64:
+def read_e57_points(path: Path) -> F64:
     pye57: object = _optional("pye57", "E57 scans", path)
     try:
         e57 = pye57.E57(str(path))  # type: ignore[attr-defined]
@@ -629,7 +624,7 @@ def _read_e57(path: Path) -> F64:
     return np.ascontiguousarray(np.vstack(parts), dtype=np.float64)
 
 
-def _read_las(path: Path) -> F64:
+def read_las_points(path: Path) -> F64:
     laspy: object = _optional("laspy", "LAS/LAZ scans", path)
     try:
         las = laspy.read(str(path))  # type: ignore[attr-defined]
@@ -706,13 +701,15 @@ def check_units(points: F64, part_size: float, *, unit: str, source: str | Path 
     factor = LENGTH_UNITS[unit.strip()]
     # the unit that brings the extent closest to the part size
     best = min(LENGTH_UNITS, key=lambda u: abs(math.log(ratio * LENGTH_UNITS[u] / factor)))
-    if source is not None and SCAN_FORMATS.get(Path(source).suffix.lower()) == "e57":
-        # E57 coordinates are metres by the standard: --unit / scan_unit is not applied
+    fmt = find_file_format(source, "scan") if source is not None else None
+    if fmt is not None and isinstance(fmt.spec, ScanSpec):
+        # a format that fixes its unit (E57: metres by the standard): --unit is not applied
+        u = fmt.spec
         raise InputError(
             f"scan extent is {extent * 1e3:.6g} mm, {ratio:.3g}× the part's size "
-            f"({part_size * 1e3:.4g} mm); E57 coordinates are metres by the standard (--unit "
-            f"does not apply), so the file's numbers look like {best!r}: re-export the scan in "
-            "metres, or check that the part and the scan are the same object",
+            f"({part_size * 1e3:.4g} mm); {fmt.label} coordinates are {u.unit_name} {u.why} "
+            f"(--unit does not apply), so the file's numbers look like {best!r}: re-export the "
+            f"scan in {u.unit_name}, or check that the part and the scan are the same object",
             file=source,
             field="unit",
         )

@@ -86,12 +86,12 @@ def read_study_force_log(study: Study, run: RunSpec) -> ForceLog:
     ``[units]`` (as before). Other formats take units from the file or the table only — the
     study-wide defaults are never applied to an instrument's export (no guess).
     """
-    from roboisf.io.forcelog import is_roboisf_log, read_force_log
+    from roboisf.io.forcelog import is_roboisf_force_log, read_force_log
 
     f = run.forces
     u = dict(f.units or {})
     is_roboisf = f.file.suffix.lower() != ".parquet" and (
-        f.format == "roboisf" or (f.format == "auto" and is_roboisf_log(f.file))
+        f.format == "roboisf" or (f.format == "auto" and is_roboisf_force_log(f.file))
     )
     if is_roboisf and not u and not _declared(f.file, "units"):
         su = study.units

@@ -140,7 +140,7 @@ class ForceSensorSpec:
     pose: F64
     load_on: Literal["tool", "workpiece"]
     time_offset: float = 0.0
-    #: the log's format (``roboisf.io.forcelog.FORCE_FORMATS``), header names for "columns",
+    #: the log's format (``roboisf.io.forcelog.force_formats()``), header names for "columns",
     #: and its units (quantity → unit) when the file does not declare them
     format: str = "auto"
     columns: dict[str, str] | None = None
@@ -445,9 +445,9 @@ def _forces(c: _Collector, root: Path, t: Any, key: str, machine: str) -> ForceS
         except InputError as e:
             c.catch(e, f"{key}.pose")
     off = c.number(t, key, "time_offset", default=0.0, bound="time_offset")
-    from roboisf.io.forcelog import FORCE_FORMATS
+    from roboisf.io.forcelog import force_formats
 
-    fmt, cols, units = _log_keys(c, t, key, FORCE_FORMATS, ("time", "force", "moment", "length"))
+    fmt, cols, units = _log_keys(c, t, key, force_formats(), ("time", "force", "moment", "length"))
     tare, mass, cog = _conditioning(c, t, key, mount)
     clock = c.choice(t, key, "clock", ("joint", "own"), default="joint")
     ts = _timestamps(c, t, key)
@@ -671,9 +671,9 @@ def _check_reach(
 
 def _toolpath_import_keys(c: _Collector, r: dict[str, Any], key: str) -> tuple[str, str]:
     """``toolpath_format`` and ``toolpath_point`` of a run (a CAM program as its toolpath)."""
-    from roboisf.toolpath.importer import CAM_FORMATS
+    from roboisf.toolpath.importer import cam_format_names
 
-    fmt = c.choice(r, key, "toolpath_format", ("auto", "csv", *CAM_FORMATS), default="auto")
+    fmt = c.choice(r, key, "toolpath_format", ("auto", "csv", *cam_format_names()), default="auto")
     point = c.choice(r, key, "toolpath_point", ("tip", "center"), default="tip")
     return fmt or "auto", point or "tip"
 
@@ -696,7 +696,20 @@ def load_study(path: str | Path) -> Study:
     name = c.string(st, "study", "name", root.name) or root.name
     description = c.string(st, "study", "description", "") or ""
     units = _units(c, data)
+    part = _load_part(c, data, file)
+    tool = _load_tool(c, data, root)
+    holder = _load_holder(c, data, root)
+    runs = _load_runs(c, data, root, units)
+    robot = _load_robot(c, data, root, file, part)
+    analysis = _load_analysis(c, data, part)
+    if c.problems:
+        raise StudyError(c.problems, file)
+    assert part is not None and tool is not None
+    return Study(root, name, part, tool, holder, robot, runs, analysis, units, description)
 
+
+def _load_part(c: _Collector, data: dict[str, Any], file: Path) -> Part | None:
+    """``[part]``: any registered part kind (None, with the problem collected, if it fails)."""
     part = None
     if "part" not in data:
         c.add("missing table", "part")
@@ -706,6 +719,11 @@ def load_study(path: str | Path) -> Study:
         except InputError as e:
             c.catch(e, "part")
 
+    return part
+
+
+def _load_tool(c: _Collector, data: dict[str, Any], root: Path) -> ToolSpec | None:
+    """``[tool]``: the ball and the source of its compliance."""
     tt = c.table(
         data, "tool", {"ball_diameter", "compliance", "free_length", "shank_diameter", "method"}
     )
@@ -734,12 +752,22 @@ def load_study(path: str | Path) -> Study:
             cast(Literal["beam", "fe"], method),
         )
 
+    return tool
+
+
+def _load_holder(c: _Collector, data: dict[str, Any], root: Path) -> HolderSpec:
+    """``[tool_holder]``: its compliance file and offset, or rigid."""
     ht = c.table(data, "tool_holder", {"compliance", "offset", "rigid"}, required=False)
     rigid = c.boolean(ht, "tool_holder", "rigid", not ht)
     holder_c = c.path(root, ht, "tool_holder", "compliance", required=not rigid)
     offset = c.number(ht, "tool_holder", "offset", default=0.0, bound="holder_offset")
-    holder = HolderSpec(holder_c, (offset or 0.0) * 1e-3, rigid)
+    return HolderSpec(holder_c, (offset or 0.0) * 1e-3, rigid)
 
+
+def _load_runs(
+    c: _Collector, data: dict[str, Any], root: Path, units: UnitsSpec
+) -> dict[str, RunSpec]:
+    """``[runs.NAME]``: every run (those with a problem are left out, the problem collected)."""
     runs: dict[str, RunSpec] = {}
     rt = data.get("runs")
     if not isinstance(rt, dict) or not rt:
@@ -749,71 +777,9 @@ def load_study(path: str | Path) -> Study:
         )
         rt = {}
     for rname, r in rt.items():
-        key = f"runs.{rname}"
-        if not isinstance(r, dict):
-            c.add("expected a table", key)
-            continue
-        allowed = {"machine", "toolpath", "forces", "scan", "scan_unit", "joints", "thickness"}
-        allowed |= {"toolpath_format", "toolpath_point"}  # CAM import (docs/toolpaths.md)
-        allowed |= {"sync"}  # log alignment (docs/study.md, Alignment)
-        allowed |= {"compensation"}  # the compensate output of its program (docs/study.md)
-        for k in sorted(set(r) - allowed):
-            c.add(f"unknown key; expected one of {', '.join(sorted(allowed))}", f"{key}.{k}")
-        machine = c.choice(r, key, "machine", ("cnc", "robot"))
-        tp = c.path(root, r, key, "toolpath")
-        sc = c.path(root, r, key, "scan")
-        su = r.get("scan_unit", units.length)
-        if not isinstance(su, str) or su not in LENGTH_UNITS:
-            c.add(
-                f"unknown length unit {su!r}; expected one of {', '.join(LENGTH_UNITS)}",
-                f"{key}.scan_unit",
-            )
-        fs = None
-        if "forces" not in r:
-            c.add("missing table", f"{key}.forces")
-        else:
-            fs = _forces(c, root, r["forces"], f"{key}.forces", machine or "cnc")
-        j_fmt, j_cols, j_units, j_ts = "auto", None, None, "refuse"
-        if isinstance(r.get("joints"), dict):
-            jt = r["joints"]
-            jkey = f"{key}.joints"
-            for k in sorted(set(jt) - {"file", *_LOG_KEYS}):
-                c.add(
-                    "unknown key; expected file, format, columns, units, timestamps",
-                    f"{jkey}.{k}",
-                )
-            j_ts = _timestamps(c, jt, jkey)
-            from roboisf.io.jointlog import JOINT_FORMATS
-
-            joints = c.path(root, jt, jkey, "file")
-            j_fmt, j_cols, j_units = _log_keys(c, jt, jkey, JOINT_FORMATS, ("time", "angle"))
-        else:
-            joints = c.path(root, r, key, "joints", required=False)
-        thick = c.path(root, r, key, "thickness", required=False)
-        if machine == "robot" and joints is None and "joints" not in r and "robot" not in data:
-            c.add("a robot run needs 'joints' (a joint log) or a [robot] table to solve IK", key)
-        tp_fmt, tp_point = _toolpath_import_keys(c, r, key)
-        sync = _sync(c, r, key, fs)
-        comp = c.path(root, r, key, "compensation", required=False)
-        if None not in (machine, tp, sc, fs, sync):
-            runs[rname] = RunSpec(
-                rname,
-                machine,  # type: ignore[arg-type]
-                tp,  # type: ignore[arg-type]
-                fs,  # type: ignore[arg-type]
-                sc,  # type: ignore[arg-type]
-                su,
-                joints,
-                thick,
-                toolpath_format=tp_fmt,
-                toolpath_point=tp_point,
-                joints_format=j_fmt,
-                joints_columns=j_cols,
-                joints_units=j_units,
-                joints_timestamps=j_ts,
-                sync=sync,  # type: ignore[arg-type]
-                compensation=comp,
-            )
+        run = _load_run(c, data, root, units, rname, r)
+        if run is not None:
+            runs[rname] = run
     machines = [r.get("machine") for r in rt.values() if isinstance(r, dict)]
     if rt and "robot" not in machines:
         c.add(
@@ -822,6 +788,85 @@ def load_study(path: str | Path) -> Study:
             "runs",
         )
 
+    return runs
+
+
+def _load_run(
+    c: _Collector, data: dict[str, Any], root: Path, units: UnitsSpec, rname: str, r: Any
+) -> RunSpec | None:
+    """One ``[runs.NAME]`` table: its machine, files, log formats, alignment and compensation."""
+    key = f"runs.{rname}"
+    if not isinstance(r, dict):
+        c.add("expected a table", key)
+        return None
+    allowed = {"machine", "toolpath", "forces", "scan", "scan_unit", "joints", "thickness"}
+    allowed |= {"toolpath_format", "toolpath_point"}  # CAM import (docs/toolpaths.md)
+    allowed |= {"sync"}  # log alignment (docs/study.md, Alignment)
+    allowed |= {"compensation"}  # the compensate output of its program (docs/study.md)
+    for k in sorted(set(r) - allowed):
+        c.add(f"unknown key; expected one of {', '.join(sorted(allowed))}", f"{key}.{k}")
+    machine = c.choice(r, key, "machine", ("cnc", "robot"))
+    tp = c.path(root, r, key, "toolpath")
+    sc = c.path(root, r, key, "scan")
+    su = r.get("scan_unit", units.length)
+    if not isinstance(su, str) or su not in LENGTH_UNITS:
+        c.add(
+            f"unknown length unit {su!r}; expected one of {', '.join(LENGTH_UNITS)}",
+            f"{key}.scan_unit",
+        )
+    fs = None
+    if "forces" not in r:
+        c.add("missing table", f"{key}.forces")
+    else:
+        fs = _forces(c, root, r["forces"], f"{key}.forces", machine or "cnc")
+    j_fmt, j_cols, j_units, j_ts = "auto", None, None, "refuse"
+    if isinstance(r.get("joints"), dict):
+        jt = r["joints"]
+        jkey = f"{key}.joints"
+        for k in sorted(set(jt) - {"file", *_LOG_KEYS}):
+            c.add(
+                "unknown key; expected file, format, columns, units, timestamps",
+                f"{jkey}.{k}",
+            )
+        j_ts = _timestamps(c, jt, jkey)
+        from roboisf.io.jointlog import joint_formats
+
+        joints = c.path(root, jt, jkey, "file")
+        j_fmt, j_cols, j_units = _log_keys(c, jt, jkey, joint_formats(), ("time", "angle"))
+    else:
+        joints = c.path(root, r, key, "joints", required=False)
+    thick = c.path(root, r, key, "thickness", required=False)
+    if machine == "robot" and joints is None and "joints" not in r and "robot" not in data:
+        c.add("a robot run needs 'joints' (a joint log) or a [robot] table to solve IK", key)
+    tp_fmt, tp_point = _toolpath_import_keys(c, r, key)
+    sync = _sync(c, r, key, fs)
+    comp = c.path(root, r, key, "compensation", required=False)
+    if None not in (machine, tp, sc, fs, sync):
+        return RunSpec(
+            rname,
+            machine,  # type: ignore[arg-type]
+            tp,  # type: ignore[arg-type]
+            fs,  # type: ignore[arg-type]
+            sc,  # type: ignore[arg-type]
+            su,
+            joints,
+            thick,
+            toolpath_format=tp_fmt,
+            toolpath_point=tp_point,
+            joints_format=j_fmt,
+            joints_columns=j_cols,
+            joints_units=j_units,
+            joints_timestamps=j_ts,
+            sync=sync,  # type: ignore[arg-type]
+            compensation=comp,
+        )
+    return None
+
+
+def _load_robot(
+    c: _Collector, data: dict[str, Any], root: Path, file: Path, part: Part | None
+) -> RobotSpec | None:
+    """``[robot]``: the model, its placement, the tool and the joint stiffness (reach checked)."""
     robot = None
     if "robot" in data:
         rb = c.table(
@@ -885,6 +930,11 @@ def load_study(path: str | Path) -> Study:
                 tip,
             )
 
+    return robot
+
+
+def _load_analysis(c: _Collector, data: dict[str, Any], part: Part | None) -> AnalysisSpec:
+    """``[analysis]``: rim band, contour, registration and the scan's point neighbourhoods."""
     at = c.table(
         data,
         "analysis",
@@ -923,15 +973,10 @@ def load_study(path: str | Path) -> Study:
         rim_band = default_rim_band(part.depth) if part is not None else 20e-3
     else:
         rim_band = rim * 1e-3
-    analysis = AnalysisSpec(
+    return AnalysisSpec(
         rim_band,
         (cz or -11.0) * 1e-3,
         cast(Literal["fixture", "flange", "axisymmetric", "icp", "none"], reg or "fixture"),
         (prad or 1.0) * 1e-3,
         (maxd or 3.0) * 1e-3,
     )
-
-    if c.problems:
-        raise StudyError(c.problems, file)
-    assert part is not None and tool is not None
-    return Study(root, name, part, tool, holder, robot, runs, analysis, units, description)

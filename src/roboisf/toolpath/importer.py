@@ -39,8 +39,6 @@ point against the nominal part (docs/toolpaths.md, "Importing a CAM program"):
 from __future__ import annotations
 
 import math
-import re
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -48,16 +46,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.errors import InputError
+from roboisf.formats import FileFormat, file_formats
 from roboisf.io.cam import DEFAULT_CHORD_TOL, FEED, CamMoves, ReadOptions
+from roboisf.io.camformat import CamSpec, head_lines
 from roboisf.parts.base import Part
 from roboisf.path.toolpath import Toolpath
 from roboisf.toolpath.laps import detect_laps
 from roboisf.toolpath.limits import MAX_POINTS
 
 __all__ = [
-    "CAM_FORMATS",
-    "FORMAT_SUFFIXES",
     "ImportOptions",
+    "cam_format_names",
+    "cam_formats",
     "detect_toolpath_format",
     "import_toolpath",
     "load_toolpath",
@@ -68,15 +68,20 @@ __all__ = [
 
 F64 = NDArray[np.float64]
 
-#: CAM formats ``import`` reads (``auto`` picks one by suffix and content).
-CAM_FORMATS = ("iso", "sinumerik", "apt", "xyz")
-#: Suffixes of each format (lower case). ``csv`` is roboisf's own toolpath CSV or a point list.
-FORMAT_SUFFIXES = {
-    "iso": (".nc", ".gcode", ".ngc", ".tap", ".cnc", ".iso", ".g", ".eia", ".min", ".ptp"),
-    "sinumerik": (".mpf", ".spf"),
-    "apt": (".apt", ".cls", ".cl", ".aptsource", ".clt"),
-    "xyz": (".xyz", ".txt", ".dat", ".asc", ".csv", ".tsv"),
-}
+
+def cam_formats() -> tuple[FileFormat, ...]:
+    """The CAM formats ``import`` reads: the registered ``cnc`` formats with a :class:`CamSpec`
+    (:mod:`roboisf.formats`; built in: ``sinumerik``, ``apt``, ``xyz``, ``iso``, one module each in
+    :mod:`roboisf.io.formats`), in detection order."""
+    return tuple(f for f in file_formats("cnc") if isinstance(f.spec, CamSpec))
+
+
+def cam_format_names() -> tuple[str, ...]:
+    """The names ``--format``/``toolpath_format`` accept besides ``auto`` (and a study's
+    ``csv``), in detection order."""
+    return tuple(f.name for f in cam_formats())
+
+
 #: A forming point has its tip at most this far above the sheet plane [m].
 SHEET_TOL = 1e-6
 #: Consecutive points closer than this are one point [m].
@@ -96,7 +101,7 @@ class ImportOptions:
     Attributes
     ----------
     point : ``"tip"`` or ``"center"`` — which point of the ball the program names
-    fmt : ``"auto"`` or one of :data:`CAM_FORMATS`
+    fmt : ``"auto"`` or one of :func:`cam_format_names`
     chord_tol : float, m — arcs linearised to this chord error
     spacing : float or None, m — longest forming segment (split evenly beyond); None (default):
         the points as programmed, with a warning when a forming segment exceeds ``LONG_SEGMENT``
@@ -124,9 +129,10 @@ class ImportOptions:
     def __post_init__(self) -> None:
         if self.point not in ("tip", "center"):
             raise InputError(f"expected 'tip' or 'center', got {self.point!r}", field="point")
-        if self.fmt not in ("auto", *CAM_FORMATS):
+        names = cam_format_names()
+        if self.fmt not in ("auto", *names):
             raise InputError(
-                f"expected auto or one of {', '.join(CAM_FORMATS)}, got {self.fmt!r}",
+                f"expected auto or one of {', '.join(names)}, got {self.fmt!r}",
                 field="format",
             )
         for name, v in (("spacing", self.spacing), ("rapid_rate", self.rapid_rate)):
@@ -153,23 +159,6 @@ class ImportOptions:
         )
 
 
-def _head(path: Path, n: int = 40) -> list[str]:
-    try:
-        with path.open("r", encoding="utf-8-sig", errors="replace") as fh:
-            return [fh.readline() for _ in range(n)]
-    except OSError as e:
-        raise InputError(f"cannot read the file ({e.strerror})", file=path) from None
-
-
-_SINUMERIK_HINT = re.compile(
-    r"(^%_N_|^;\$PATH|\b[XYZIJKF]\s*=|\bCR\s*=|\bG64[1-5]\b|\bCYCLE\d|\bSOFT\b|\bFFWON\b|\bMSG\s*\()",
-    re.I,
-)
-_APT_HINT = re.compile(r"^\s*(GOTO|FEDRAT|TLAXIS|MULTAX|PARTNO|FROM|RAPID|UNITS)\s*(/|$)", re.I)
-_ISO_HINT = re.compile(r"^\s*(%|O\d|N\d|[GM]\d|[XYZF][-+.\d])", re.I)
-_NUMERIC_ROW = re.compile(r"^\s*[-+.\d]")
-
-
 def detect_toolpath_format(path: str | Path) -> str:
     """The format of a toolpath file: ``"csv"`` (roboisf's own toolpath CSV), ``"iso"``,
     ``"sinumerik"``, ``"apt"`` or ``"xyz"``.
@@ -183,28 +172,19 @@ def detect_toolpath_format(path: str | Path) -> str:
     path = Path(path)
     if not path.is_file():
         raise InputError("toolpath file not found", file=path)
-    head = [ln.strip() for ln in _head(path) if ln.strip()]
-    suffix = path.suffix.lower()
+    head = head_lines(path)
     if any(ln.lower().startswith("# roboisf toolpath") for ln in head) or any(
         ln.replace(" ", "").lower().startswith("index,lap,contact_x") for ln in head
     ):
         return "csv"
-    if suffix in FORMAT_SUFFIXES["sinumerik"]:
-        return "sinumerik"
-    if any(_APT_HINT.match(ln) for ln in head):
-        return "apt"
-    code = [re.sub(r"\([^)]*\)", "", ln) for ln in head if not ln.startswith(("(", "#", "//"))]
-    if any(_SINUMERIK_HINT.search(ln) for ln in code):
-        return "sinumerik"
-    rows = [ln for ln in code if not ln.startswith(";")]
-    if rows and all(_NUMERIC_ROW.match(ln) for ln in rows[1:] or rows):
-        if not any(re.search(r"[GMN]\d", ln, re.I) for ln in rows):
-            return "xyz"
-    if any(_ISO_HINT.match(ln) for ln in code):
-        return "iso"
-    for name, suffixes in FORMAT_SUFFIXES.items():
-        if suffix in suffixes and name != "xyz":
-            return name
+    formats = cam_formats()
+    for fmt in formats:  # by content, in rank order (each format's own detector)
+        if fmt.detect is not None and fmt.detect(path):
+            return fmt.name
+    suffix = path.suffix.lower()
+    for fmt in formats:  # the suffix decides only what the content leaves open
+        if fmt.spec.by_suffix and suffix in fmt.suffixes:
+            return fmt.name
     raise InputError(
         "cannot tell the toolpath format from the content or the suffix; expected a roboisf "
         "toolpath CSV, ISO G-code, a Sinumerik .mpf, APT/CL data or an x,y,z list (pass --format)",
@@ -214,11 +194,6 @@ def detect_toolpath_format(path: str | Path) -> str:
 
 def read_cam_moves(path: str | Path, options: ImportOptions | None = None) -> CamMoves:
     """The moves of a CAM file in ``options.fmt`` (``auto``: :func:`detect_toolpath_format`)."""
-    from roboisf.io.apt import read_apt_moves
-    from roboisf.io.gcode import read_iso_moves
-    from roboisf.io.sinumerik import read_sinumerik_moves
-    from roboisf.io.xyz import read_xyz_moves
-
     path = Path(path)
     opt = options or ImportOptions()
     fmt = opt.fmt if opt.fmt != "auto" else detect_toolpath_format(path)
@@ -227,21 +202,17 @@ def read_cam_moves(path: str | Path, options: ImportOptions | None = None) -> Ca
             "this is already a roboisf toolpath CSV; use it as it is (nothing to import)",
             file=path,
         )
-    readers: dict[str, Callable[[], CamMoves]] = {
-        "iso": lambda: read_iso_moves(path, opt.read_options()),
-        "sinumerik": lambda: read_sinumerik_moves(path, opt.read_options()),
-        "apt": lambda: read_apt_moves(path, opt.read_options()),
-        "xyz": lambda: read_xyz_moves(
-            path, units=opt.units, feed=POINT_LIST_FEED if opt.feed is None else opt.feed
-        ),
-    }
-    if opt.units is not None and fmt != "xyz":
+    cam = next((f for f in cam_formats() if f.name == fmt), None)
+    if cam is None or cam.reader is None:  # pragma: no cover - ImportOptions checked the name
+        raise InputError(f"unknown CAM format {fmt!r}", field="format")
+    if opt.units is not None and not cam.spec.takes_units:
         raise InputError(
             f"units applies to an x,y,z point list; a {fmt} program declares its own unit "
             "(G20/G21, INCH/METRIC, UNITS/): leave --units out",
             field="units",
         )
-    moves = readers[fmt]()
+    feed = POINT_LIST_FEED if opt.feed is None else opt.feed
+    moves: CamMoves = cam.reader(path, opt.read_options(), units=opt.units, feed=feed)
     moves.meta["format"] = fmt
     return moves
 
@@ -554,7 +525,8 @@ def moves_to_toolpath(
 def import_toolpath(
     path: str | Path, part: Part, tool_radius: float, options: ImportOptions | None = None
 ) -> Toolpath:
-    """Read a CAM program (any of :data:`CAM_FORMATS`) and rebuild its toolpath against ``part``.
+    """Read a CAM program (any of :func:`cam_format_names`) and rebuild its toolpath against
+    ``part``.
 
     Parameters
     ----------

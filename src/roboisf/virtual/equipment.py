@@ -62,9 +62,10 @@ class Equipment:
     force_offset : own clock: force-log time at the controller log's start (real time 0)
     force_clock_scale : own clock: force-log seconds per real second
     lead_out : s logged after the program ends
-    cnc_force_profile, robot_force_profile : file layout of the force logs (``roboisf``, ``ati``,
-        ``kistler``; :mod:`roboisf.virtual.logformats`)
-    joint_profile : file layout of the joint log (``roboisf``, ``abb``, ``kuka``)
+    cnc_force_profile, robot_force_profile : file layout of the force logs, a registered
+        force-log format with a writer (``roboisf``, ``ati``, ``kistler``, …;
+        :mod:`roboisf.virtual.logformats`)
+    joint_profile : file layout of the joint log (``roboisf``, ``abb``, ``kuka``, …)
     """
 
     clock_scale: float = 1.0
@@ -93,12 +94,12 @@ class Equipment:
             raise InputError(
                 f"expected 'joint' or 'own', got {self.force_clock!r}", field="force_clock"
             )
-        from roboisf.virtual.logformats import FORCE_PROFILES, JOINT_PROFILES
+        from roboisf.virtual.logformats import force_profiles, joint_profiles
 
         for name, options in (
-            ("cnc_force_profile", FORCE_PROFILES),
-            ("robot_force_profile", FORCE_PROFILES),
-            ("joint_profile", JOINT_PROFILES),
+            ("cnc_force_profile", force_profiles()),
+            ("robot_force_profile", force_profiles()),
+            ("joint_profile", joint_profiles()),
         ):
             if getattr(self, name) not in options:
                 raise InputError(
@@ -270,6 +271,7 @@ def apply_equipment(
     joint layout, whose header declares no units, gets ``joints = {file, units}``."""
     if eq.is_clean:
         return
+    from roboisf.io.jointlog import unstated_units
     from roboisf.sync.force import expected_azimuth
     from roboisf.virtual.logformats import write_force_profile, write_joint_profile
 
@@ -312,12 +314,9 @@ def apply_equipment(
     write_joint_profile(folder / "robot_joints.csv", tau, q, eq.joint_profile)
     study = folder / "study.toml"
     data = tomllib.loads(study.read_text(encoding="utf-8"))
-    if eq.joint_profile == "abb":
-        # an ABB export's header declares no units: the study says them, as its user would
-        data["runs"]["robot"]["joints"] = {
-            "file": "robot_joints.csv",
-            "units": {"time": "s", "angle": "deg"},
-        }
+    units = unstated_units(eq.joint_profile)
+    if units:  # a layout whose header declares no units (ABB): the study says them, as its user
+        data["runs"]["robot"]["joints"] = {"file": "robot_joints.csv", "units": units}
     if eq.clock_is_nominal:
         with atomic_write(study, "wb") as fh:
             fh.write(tomli_w.dumps(data).encode())
