@@ -123,3 +123,11 @@ def test_a_geometry_only_this_process_knows_is_meshed_here(monkeypatch):
     monkeypatch.delenv("PYTHONPATH", raising=False)
     for geometry in (_Wrapped(), Local()):
         assert _same(mesh_geometry(geometry, H), _mesh_here(TOOL, H))
+
+
+def test_a_module_in_the_current_folder_does_not_stand_in_for_gmsh(tmp_path, monkeypatch):
+    """The meshing process starts with ``-P``: a ``gmsh.py`` in the caller's folder is not
+    imported in place of gmsh."""
+    (tmp_path / "gmsh.py").write_text("raise SystemExit('not gmsh')\n")
+    monkeypatch.chdir(tmp_path)
+    assert _same(mesh_geometry(TOOL, H), _mesh_here(TOOL, H))

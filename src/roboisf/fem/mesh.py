@@ -156,9 +156,10 @@ _CHILD_CODE = "from roboisf.fem.mesh import _child_main; _child_main()"
 
 
 def _mesh_in_child(geometry: Geometry, mesh_size: float) -> TetMesh:
-    """:func:`_mesh_here` in a fresh interpreter (``sys.executable``), the same roboisf first on
-    its path. Its answer: the mesh, an :class:`InputError` raised again here, a
-    ``MemoryError``, or a bug's traceback (``RuntimeError``)."""
+    """:func:`_mesh_here` in a fresh interpreter (``sys.executable -P``: the current folder is
+    not on its path, so a file there cannot stand in for a module; this roboisf first). Its
+    answer: the mesh, an :class:`InputError` raised again here, a ``MemoryError``, or a bug's
+    traceback (``RuntimeError``)."""
     try:
         payload = pickle.dumps((geometry, mesh_size), protocol=pickle.HIGHEST_PROTOCOL)
     except (pickle.PicklingError, AttributeError, TypeError):
@@ -167,7 +168,7 @@ def _mesh_in_child(geometry: Geometry, mesh_size: float) -> TetMesh:
     root = str(Path(__file__).resolve().parents[2])  # the folder holding this roboisf
     env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH")) if p)
     proc = subprocess.run(
-        [sys.executable, "-c", _CHILD_CODE], input=payload, capture_output=True, env=env
+        [sys.executable, "-P", "-c", _CHILD_CODE], input=payload, capture_output=True, env=env
     )
     if proc.returncode < 0:
         try:
