@@ -133,8 +133,8 @@ def mesh_geometry(
     """Mesh ``geometry`` with curved 10-node tetrahedra of target size ``mesh_size`` [m].
 
     gmsh runs in a fresh Python process of its own (:func:`_mesh_in_child`), never in the
-    caller's: the mesh is the same to the bit, and the caller keeps its signal handlers, its
-    stack limit and its threads' state (docs/fem.md, "gmsh in a process of its own"). A geometry
+    caller's: the same mesh as in-process, and the caller keeps its signal handlers, its stack
+    limit and its threads' state (docs/fem.md, "gmsh in a process of its own"). A geometry
     that cannot be pickled (a class only the calling script knows) is meshed here instead.
 
     Raises :class:`InputError` when gmsh cannot mesh it, a face role is empty, or gmsh's process
