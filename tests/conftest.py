@@ -155,6 +155,28 @@ def small_cone_analysis(small_cone_study: Path) -> Any:
     return analyze(small_cone_study)
 
 
+@pytest.fixture(scope="session")
+def online_cone() -> Callable[..., Any]:
+    """``online_cone(depth, **kw)``: the virtual cell the online loop's tests form — a cone
+    ``depth`` [m] deep, named ``cone-<depth in mm>``, at the paper cell's placement, 1 mm
+    step-down, 2 mm spacing; ``kw`` go to :func:`roboisf.virtual.cell.virtual_cell`
+    (``scan_points``, ``force_rate``, ``joint_rate``). Each call builds a new cell."""
+    from roboisf.parts import Cone
+    from roboisf.virtual.cell import PAPER_CELL_PLACEMENT, virtual_cell
+
+    def make(depth: float, **kw: Any) -> Any:
+        return virtual_cell(
+            f"cone-{round(depth * 1e3)}",
+            Cone(depth=depth),
+            T_base_work=PAPER_CELL_PLACEMENT,
+            step_down=1e-3,
+            spacing=2e-3,
+            **kw,
+        )
+
+    return make
+
+
 # -- distribution over pytest-xdist workers ----------------------------------------------------
 # pyproject's addopts run `--dist loadfile --no-loadscope-reorder`: with -n, each test module goes
 # to one worker whole, so its module-scoped fixtures (often a whole virtual study) are built once,

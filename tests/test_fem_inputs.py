@@ -15,7 +15,7 @@ from roboisf.fem import (
     solve_six_cases,
     step_faces,
 )
-from roboisf.fem.mesh import gmsh_session
+from roboisf.fem.mesh import _mesh_here, gmsh_session
 
 
 @pytest.mark.parametrize(
@@ -92,7 +92,9 @@ def test_bad_mesh_sizes():
 
 
 def test_a_mesh_that_fails_is_an_input_error(monkeypatch):
-    """gmsh failing (here: forced) surfaces as InputError, not a gmsh traceback."""
+    """gmsh failing (here: forced) surfaces as InputError, not a gmsh traceback. Forced in this
+    process, so through the work the meshing process runs (tests/test_fem_mesh_isolation.py:
+    its InputError arrives here whole)."""
     import gmsh
 
     def boom(dim=3):
@@ -100,7 +102,7 @@ def test_a_mesh_that_fails_is_an_input_error(monkeypatch):
 
     monkeypatch.setattr(gmsh.model.mesh, "generate", boom)
     with pytest.raises(InputError, match="could not mesh") as e:
-        mesh_geometry(BallEndTool(10e-3, 30e-3), 3e-3)
+        _mesh_here(BallEndTool(10e-3, 30e-3), 3e-3)
     assert e.value.field == "geometry"
 
 

@@ -2,13 +2,33 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 import pytest
 
 from roboisf.cli.main import main
-from roboisf.parts import Cone
-from roboisf.virtual.cell import PAPER_CELL_PLACEMENT, build_study, virtual_cell
+from roboisf.virtual.cell import build_study
+
+
+def _online_rsi_process(args: list[str]) -> subprocess.Popen[str]:
+    """``roboisf online -c rsi --virtual cone --listen 127.0.0.1:0 ARGS`` in a process of its
+    own (this checkout's src first on its path), stdout and stderr piped as text."""
+    src = str(Path(__file__).parents[1] / "src")
+    argv = ["online", "-c", "rsi", "--virtual", "cone", "--listen", "127.0.0.1:0", *args]
+    code = f"from roboisf.cli.main import main; raise SystemExit(main({argv!r}))"
+    env = {**os.environ, "PYTHONPATH": src + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    return subprocess.Popen(
+        [sys.executable, "-c", code],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env=env,
+        text=True,
+    )
 
 
 @pytest.mark.parametrize(
@@ -42,16 +62,8 @@ def test_log_must_be_parquet(tmp_path, capsys):
     assert code == 2 and ".parquet" in capsys.readouterr().err
 
 
-def test_replay_controller_writes_the_log_of_a_study(tmp_path):
-    vc = virtual_cell(
-        "cone-12",
-        Cone(depth=12e-3),
-        T_base_work=PAPER_CELL_PLACEMENT,
-        step_down=1e-3,
-        spacing=2e-3,
-        scan_points=5000,
-    )
-    build_study(vc, tmp_path / "study")
+def test_replay_controller_writes_the_log_of_a_study(tmp_path, online_cone):
+    build_study(online_cone(12e-3, scan_points=5000), tmp_path / "study")
     out = tmp_path / "replay.parquet"
     code = main(
         ["-q", "online", "-c", "replay", "-s", f"replay:{tmp_path / 'study'}", "-o", str(out)]
@@ -97,27 +109,11 @@ def test_simulated_run_from_the_command_line(tmp_path):
 
 def test_ctrl_c_ends_the_loop_and_writes_the_log(tmp_path):
     """SIGINT while serving: exit 0, the log (here of zero cycles) is written, one line says so."""
-    import os
     import signal
-    import subprocess
-    import sys
     import time
-    from pathlib import Path
 
     out = tmp_path / "int.parquet"
-    src = str(Path(__file__).parents[1] / "src")
-    code = (
-        "from roboisf.cli.main import main; raise SystemExit(main(['online', '-c', 'rsi', "
-        f"'--virtual', 'cone', '--listen', '127.0.0.1:0', '-o', {str(out)!r}]))"
-    )
-    env = {**os.environ, "PYTHONPATH": src + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    p = subprocess.Popen(
-        [sys.executable, "-c", code],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        env=env,
-        text=True,
-    )
+    p = _online_rsi_process(["-o", str(out)])
     assert p.stdout is not None
     line = p.stdout.readline()  # "online: rsi on 127.0.0.1:PORT …" once it serves
     assert line.startswith("online: rsi"), line
@@ -195,14 +191,10 @@ def test_sigterm_ramps_the_correction_to_zero_and_says_so(tmp_path):
     """`roboisf online -c rsi` serving a fake KUKA controller and a fake Net F/T (written from
     the public definitions): SIGTERM → the replies the controller takes ramp to zero, the
     summary says "terminated (SIGTERM)" and "ramped to zero", the log is written, exit 0."""
-    import os
     import signal
     import socket
-    import subprocess
-    import sys
     import threading
     import time
-    from pathlib import Path
 
     from online_fakes import FakeKuka, FakeNetFT, RsiConfig, RsiReplyError
     from roboisf.online import rsi
@@ -217,20 +209,10 @@ def test_sigterm_ramps_the_correction_to_zero_and_says_so(tmp_path):
     reading = setup.reading[k] - setup.sensor.tare
     ft = FakeNetFT(wrench=list(reading))
     out = tmp_path / "term.parquet"
-    src = str(Path(__file__).parents[1] / "src")
-    code = (
-        "from roboisf.cli.main import main; raise SystemExit(main(['online', '-c', 'rsi', "
-        f"'--virtual', 'cone', '--listen', '127.0.0.1:0', '-s', 'netft:127.0.0.1:{ft.port}', "
-        f"'--tool-mass', '3', '--tool-cog', '0,2,90', '-o', {str(out)!r}]))"
-    )
-    env = {**os.environ, "PYTHONPATH": src + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    p = subprocess.Popen(
-        [sys.executable, "-c", code],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        env=env,
-        text=True,
-    )
+    p = _online_rsi_process(
+        ["-s", f"netft:127.0.0.1:{ft.port}", "--tool-mass", "3", "--tool-cog", "0,2,90",
+         "-o", str(out)]
+    )  # fmt: skip
     try:
         assert p.stdout is not None
         line = p.stdout.readline()

@@ -13,24 +13,13 @@ from roboisf.decompose.pipeline import analyze
 from roboisf.errors import InputError
 from roboisf.online import Limits
 from roboisf.online.sim import applied_per_point, form_online, form_study, virtual_setup
-from roboisf.parts import Cone
-from roboisf.virtual.cell import PAPER_CELL_PLACEMENT, build_study, virtual_cell
+from roboisf.virtual.cell import build_study
 from roboisf.virtual.truth import load_truth
 
 
 @pytest.fixture(scope="module")
-def setup():
-    vc = virtual_cell(
-        "cone-20",
-        Cone(depth=20e-3),
-        T_base_work=PAPER_CELL_PLACEMENT,
-        step_down=1e-3,
-        spacing=2e-3,
-        scan_points=20_000,
-        force_rate=100.0,
-        joint_rate=50.0,
-    )
-    return virtual_setup(vc)
+def setup(online_cone):
+    return virtual_setup(online_cone(20e-3, scan_points=20_000, force_rate=100.0, joint_rate=50.0))
 
 
 @pytest.fixture(scope="module")
@@ -182,19 +171,11 @@ def test_online_form_of_the_paper_cone_is_analysed_and_its_robot_term_is_the_loo
 
 
 @pytest.fixture(scope="module")
-def setup_logged():
+def setup_logged(online_cone):
     """The cone at the virtual cell's own log rates (1 kHz forces, joints at their default):
     the study `online --simulate --form` writes, whose joint log places the path's end to a
     few ms."""
-    vc = virtual_cell(
-        "cone-20",
-        Cone(depth=20e-3),
-        T_base_work=PAPER_CELL_PLACEMENT,
-        step_down=1e-3,
-        spacing=2e-3,
-        scan_points=20_000,
-    )
-    return virtual_setup(vc)
+    return virtual_setup(online_cone(20e-3, scan_points=20_000))
 
 
 def test_the_online_part_analyses_and_its_robot_term_is_the_loops_correction(

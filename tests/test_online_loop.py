@@ -23,21 +23,12 @@ from roboisf.online.sim import (
     missed_causes,
     virtual_setup,
 )
-from roboisf.parts import Cone
-from roboisf.virtual.cell import PAPER_CELL_PLACEMENT, build_study, virtual_cell
+from roboisf.virtual.cell import build_study
 
 
 @pytest.fixture(scope="module")
-def setup():
-    vc = virtual_cell(
-        "cone-20",
-        Cone(depth=20e-3),
-        T_base_work=PAPER_CELL_PLACEMENT,
-        step_down=1e-3,
-        spacing=2e-3,
-        scan_points=20_000,
-    )
-    return virtual_setup(vc)
+def setup(online_cone):
+    return virtual_setup(online_cone(20e-3, scan_points=20_000))
 
 
 @pytest.mark.parametrize("controller", ["egm", "rsi"])
@@ -247,19 +238,12 @@ def test_replay_sensor_releases_each_sample_once_on_the_clock():
 
 
 @pytest.mark.slow
-def test_at_the_real_feed_the_loop_follows_the_true_forces():
+def test_at_the_real_feed_the_loop_follows_the_true_forces(online_cone):
     """At the toolpath's own feed (40 cycles of 4 ms per 2 mm point at 12.5 mm/s) the lag of the
     filter and of the one-cycle delay spans little path: the correction is within a few µm of
     offline pre-deflection on the virtual cell's *true* wrench (the fast test above walks one
     point per cycle, 20–40× faster, where that lag reaches tens of µm)."""
-    vc = virtual_cell(
-        "cone-6",
-        Cone(depth=6e-3),
-        T_base_work=PAPER_CELL_PLACEMENT,
-        step_down=1e-3,
-        spacing=2e-3,
-    )
-    s = virtual_setup(vc)
+    s = virtual_setup(online_cone(6e-3))
     cpp = round(2e-3 / (s.toolpath.feed * 4e-3))
     assert cpp == 40
     ev = evaluate(s, form_online(s, "rsi", cycles_per_point=cpp))

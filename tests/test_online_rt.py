@@ -21,21 +21,11 @@ from roboisf.online import Limits, OnlineCompensator, egm, netft, rt
 from roboisf.online.loop import RULES_OFF, CycleLog, Loop
 from roboisf.online.rt import GcQuiet, Realtime, apply
 from roboisf.online.sim import _recv_stamped, _stamping, virtual_setup
-from roboisf.parts import Cone
-from roboisf.virtual.cell import PAPER_CELL_PLACEMENT, virtual_cell
 
 
 @pytest.fixture(scope="module")
-def setup():
-    vc = virtual_cell(
-        "cone-8",
-        Cone(depth=8e-3),
-        T_base_work=PAPER_CELL_PLACEMENT,
-        step_down=1e-3,
-        spacing=2e-3,
-        scan_points=2_000,
-    )
-    return virtual_setup(vc)
+def setup(online_cone):
+    return virtual_setup(online_cone(8e-3, scan_points=2_000))
 
 
 def _in_thread(fn):

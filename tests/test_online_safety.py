@@ -355,6 +355,17 @@ class _Controller(threading.Thread):
             time.sleep(max(0.0, 0.004 - (time.perf_counter() - sent)))
         self.sock.close()
 
+    def stop(self) -> None:
+        """Stop sending and wait for this thread (≤ 5 s)."""
+        self.halt.set()
+        self.join(5)
+
+
+def _wait_for_the_loop(th: threading.Thread, loop: Loop) -> None:
+    """The loop's thread ``th`` ends within 20 s (else: its counters)."""
+    th.join(20)
+    assert not th.is_alive(), loop.counters
+
 
 @pytest.mark.parametrize("how", ["stop", "error"])
 def test_every_stop_ramps_the_correction_to_zero_first(cell, q0, how, monkeypatch):
@@ -386,10 +397,8 @@ def test_every_stop_ramps_the_correction_to_zero_first(cell, q0, how, monkeypatc
     held = np.linalg.norm(loop.oc.correction)
     if how == "stop":
         loop.stop()
-    th.join(20)
-    assert not th.is_alive(), loop.counters
-    ctl.halt.set()
-    ctl.join(5)
+    _wait_for_the_loop(th, loop)
+    ctl.stop()
     c = loop.counters
     assert held > 0.2e-3  # a real correction was being sent
     assert c.ramped and c.left_mm == 0.0, c
@@ -436,10 +445,8 @@ def test_too_many_late_replies_stop_the_loop(cell, q0, monkeypatch):
     th = threading.Thread(target=lambda: loop.run(duration=30), daemon=True)
     th.start()
     ctl.start()
-    th.join(20)
-    assert not th.is_alive(), loop.counters
-    ctl.halt.set()
-    ctl.join(5)
+    _wait_for_the_loop(th, loop)
+    ctl.stop()
     c = loop.counters
     assert "10 late replies within 1 s" in c.stop_reason, c.stop_reason
     assert c.late_replies >= 10
@@ -527,11 +534,9 @@ def test_a_lost_sensor_ramps_by_the_watchdog_and_stops_the_loop(cell, q0):
         assert ft.requests[0] == (2, 0)  # start high-speed real-time streaming, no count
         t_dead = time.perf_counter()
         ft.close()  # the sensor dies
-        th.join(20)
-        assert not th.is_alive(), loop.counters
+        _wait_for_the_loop(th, loop)
     finally:
-        ctl.halt.set()
-        ctl.join(5)
+        ctl.stop()
     c = loop.counters
     assert "sensor silent for 1 s" in c.stop_reason and c.ramped
     tt = np.array([g[0] for g in ctl.got])

@@ -9,10 +9,16 @@ from __future__ import annotations
 import contextlib
 import itertools
 import math
+import os
+import pickle
 import signal
+import subprocess
+import sys
 import threading
+import traceback
 from collections.abc import Iterator
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -126,14 +132,100 @@ def mesh_geometry(
 ) -> TetMesh:
     """Mesh ``geometry`` with curved 10-node tetrahedra of target size ``mesh_size`` [m].
 
-    Raises :class:`InputError` when gmsh cannot mesh it or a face role is empty.
+    gmsh runs in a fresh Python process of its own (:func:`_mesh_in_child`), never in the
+    caller's: the same mesh as in-process, and the caller keeps its signal handlers, its stack
+    limit and its threads' state (docs/fem.md, "gmsh in a process of its own"). A geometry
+    that cannot be pickled (a class only the calling script knows) is meshed here instead.
+
+    Raises :class:`InputError` when gmsh cannot mesh it, a face role is empty, or gmsh's process
+    ends by a signal (the caller's process is unharmed).
     """
     if not (math.isfinite(mesh_size) and mesh_size > 0):
         raise InputError(
             f"mesh size must be a positive length in m, got {mesh_size!r}", field="mesh_size"
         )
+    with task(progress, "mesh", 1) as advance:
+        mesh = _mesh_in_child(geometry, float(mesh_size))
+        advance(1)
+    return mesh
+
+
+#: What the meshing process runs: read ``(geometry, mesh_size)`` pickled on stdin, answer one
+#: pickled ``(kind, value)`` on stdout (:func:`_child_main`).
+_CHILD_CODE = "from roboisf.fem.mesh import _child_main; _child_main()"
+
+
+def _mesh_in_child(geometry: Geometry, mesh_size: float) -> TetMesh:
+    """:func:`_mesh_here` in a fresh interpreter (``sys.executable -P``: the current folder is
+    not on its path, so a file there cannot stand in for a module; this roboisf first). Its
+    answer: the mesh, an :class:`InputError` raised again here, a ``MemoryError``, or a bug's
+    traceback (``RuntimeError``)."""
+    try:
+        payload = pickle.dumps((geometry, mesh_size), protocol=pickle.HIGHEST_PROTOCOL)
+    except (pickle.PicklingError, AttributeError, TypeError):
+        return _mesh_here(geometry, mesh_size)
+    env = dict(os.environ)
+    root = str(Path(__file__).resolve().parents[2])  # the folder holding this roboisf
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH")) if p)
+    proc = subprocess.run(
+        [sys.executable, "-P", "-c", _CHILD_CODE], input=payload, capture_output=True, env=env
+    )
+    if proc.returncode < 0:
+        try:
+            name = signal.Signals(-proc.returncode).name
+        except ValueError:
+            name = f"signal {-proc.returncode}"
+        raise InputError(
+            f"gmsh's meshing process ended by {name} (this process is unharmed); try another "
+            "mesh size, or report it with the geometry",
+            field="geometry",
+        )
+    try:
+        kind, value = pickle.loads(proc.stdout)
+    except Exception:
+        raise RuntimeError(
+            "the meshing process gave no answer (exit code "
+            f"{proc.returncode}):\n{proc.stderr.decode(errors='replace')}"
+        ) from None
+    if kind == "mesh":
+        return value
+    if kind == "input":
+        message, file, line, field = value
+        raise InputError(message, file=file, line=line, field=field)
+    if kind == "memory":
+        raise MemoryError(value)
+    if kind == "unpicklable":  # a class the fresh interpreter cannot import
+        return _mesh_here(geometry, mesh_size)
+    raise RuntimeError(f"meshing failed in its own process:\n{value}")
+
+
+def _child_main() -> None:
+    """The meshing process (:data:`_CHILD_CODE`). Whatever gmsh or OpenCASCADE print goes to
+    stderr: stdout carries only the pickled answer."""
+    answer = os.fdopen(os.dup(1), "wb")
+    os.dup2(2, 1)
+    reply: tuple[str, Any]
+    try:
+        geometry, mesh_size = pickle.load(sys.stdin.buffer)
+    except Exception:
+        reply = ("unpicklable", traceback.format_exc())
+    else:
+        try:
+            reply = ("mesh", _mesh_here(geometry, mesh_size))
+        except InputError as e:
+            reply = ("input", (e.message, e.file, e.line, e.field))
+        except MemoryError as e:
+            reply = ("memory", str(e))
+        except Exception:
+            reply = ("error", traceback.format_exc())
+    with answer:
+        pickle.dump(reply, answer, protocol=pickle.HIGHEST_PROTOCOL)
+
+
+def _mesh_here(geometry: Geometry, mesh_size: float) -> TetMesh:
+    """:func:`mesh_geometry`'s work in this process (the meshing process runs it)."""
     h = mesh_size * 1e3
-    with task(progress, "mesh", 1) as advance, gmsh_session() as (gmsh, _):
+    with gmsh_session() as (gmsh, _):
         model = gmsh.model
         built = geometry.build(model.occ, model)
         for role, faces_of_role in (("clamped", built.clamped), ("coupling", built.coupling)):
@@ -183,7 +275,6 @@ def mesh_geometry(
             role: np.concatenate([_elements(model, 2, s, 9, 6) for s in surf])
             for role, surf in (("clamped", built.clamped), ("coupling", built.coupling))
         }
-        advance(1)
     # compress to the nodes the tets use, numbered 0..N-1
     used = np.unique(tet_tags)
     lookup = np.full(int(max(tags.max(), used.max())) + 1, -1, dtype=np.int64)
