@@ -32,8 +32,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from roboisf.jit import HAVE_NUMBA, njit
 from roboisf.robot.vjm_chain import chain_jacobian
-from roboisf.robot.vjm_kernel import HAVE_NUMBA
 
 __all__ = [
     "COMPILED",
@@ -96,18 +96,7 @@ STATUS_NAMES = {
 }
 
 
-def _identity(f: Callable[..., Any]) -> Callable[..., Any]:
-    return f
-
-
-if HAVE_NUMBA:
-    import numba
-
-    _jit: Callable[[Callable[..., Any]], Callable[..., Any]] = numba.njit(
-        cache=True, nogil=True, fastmath=False
-    )
-else:  # pragma: no cover - numba is a test dependency
-    _jit = _identity
+_jit: Callable[[Callable[..., Any]], Callable[..., Any]] = njit(fastmath=False)
 
 #: the kernels are compiled (numba installed); else they run as (slow) Python
 COMPILED = HAVE_NUMBA
