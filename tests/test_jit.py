@@ -385,3 +385,34 @@ def test_first_process_serves_numpy_builds_in_background_next_runs_compiled(tmp_
     assert not lock.exists(), "background build did not finish in 10 min"
     assert not Path(first["failed"]).exists()
     assert all(probe()["ready"].values())  # the cache the builder left is used
+
+
+@needs_numba
+def test_cold_online_runs_as_python_all_the_way_down_with_the_model_numbers(tmp_path):
+    """On a cold cache the online kernels are plain Python, the chain walk too (a private copy
+    of roboisf.robot.vjm_chain: calling its numba functions would compile them), and give the
+    model's deflection as the compiled kernels do (tests/test_online_core.py)."""
+    root = Path(__file__).resolve().parents[1]
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), **{bg.ENV: "1"})
+    env["PYTHONPATH"] = os.pathsep.join([str(SRC.parent), str(root)])
+    code = (
+        "from roboisf.jit import background as bg\n"
+        "bg._start = lambda: None  # no builder from a test\n"
+        "from roboisf.online import kernel as kn\n"
+        "from roboisf.robot import vjm_chain\n"
+        "assert not kn.COMPILED\n"
+        "assert kn.chain_jacobian is not vjm_chain.chain_jacobian\n"
+        "assert not hasattr(kn.chain_jacobian, 'py_func') and not hasattr(kn.fk_deflection, "
+        "'py_func')\n"
+        "assert hasattr(vjm_chain.chain_jacobian, 'py_func')  # the module itself untouched\n"
+        "import tests.test_online_core as t\n"
+        "c23, e, r = t._fk_deflection_vs_model('r2000ic-210f', kn.fk_deflection, n=4)\n"
+        "assert e < 1e-12 and r < 1e-13, (e, r)\n"
+        "print('ok')\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300
+    )
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
+    cache = sorted(p.name for p in (tmp_path / "cache").rglob("*.nbi"))
+    assert cache == []  # nothing was compiled (numba writes no cache)

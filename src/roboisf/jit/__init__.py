@@ -33,6 +33,7 @@ from roboisf.jit.shim import (
     njit,
     numba_module,
     prange,
+    python_copy,
 )
 
 __all__ = [
@@ -51,5 +52,6 @@ __all__ = [
     "njit",
     "numba_module",
     "prange",
+    "python_copy",
     "ready",
 ]

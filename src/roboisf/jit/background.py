@@ -97,6 +97,7 @@ GROUPS: dict[str, Group] = {
         ("roboisf.robot.vjm_numba", "roboisf.robot.fk_numba", "roboisf.robot.ik_numba"),
         "roboisf.robot.vjm_numba:build",
     ),
+    "online": Group(("roboisf.online.kernel",), "roboisf.online.kernel:build"),
 }
 
 _decided: dict[str, bool] = {}

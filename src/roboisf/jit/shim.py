@@ -26,6 +26,7 @@ __all__ = [
     "njit",
     "numba_module",
     "prange",
+    "python_copy",
 ]
 
 
@@ -58,10 +59,14 @@ def _identity(f: Callable[..., Any]) -> Callable[..., Any]:
     return f
 
 
+_plain = 0  # > 0 while python_copy executes a module: njit is the identity
+_copies: dict[str, ModuleType] = {}
+
+
 def njit(**options: Any) -> Callable[[Callable[..., Any]], Any]:
     """The decorator of every roboisf kernel: ``numba.njit(cache=True, nogil=True, **options)``
     (cached on disk, releases the GIL), or the identity without numba."""
-    nb = numba_module()
+    nb = None if _plain else numba_module()
     if nb is None:
         return _identity
     return nb.njit(**{"cache": True, "nogil": True, **options})  # type: ignore[no-any-return]
@@ -72,6 +77,32 @@ def prange() -> Any:
     (``_PRANGE = prange()``) and loop ``for i in _PRANGE(n)`` in a ``parallel=True`` kernel."""
     nb = numba_module()
     return range if nb is None else nb.prange
+
+
+def python_copy(module_name: str) -> ModuleType:
+    """A private second copy of the kernel module ``module_name`` whose kernels are plain Python
+    (:func:`njit` is the identity while it executes; cached per process).
+
+    For a kernel that calls kernels of another module and runs as Python on a cold kernel cache
+    (:func:`roboisf.jit.ready` False): calling the other module's numba functions from Python
+    would compile them, the wait the cold path is there to avoid. The module itself (and so
+    every compiled caller of it) is untouched.
+    """
+    global _plain
+    if module_name not in _copies:
+        spec = importlib.util.find_spec(module_name)
+        if spec is None or spec.origin is None:
+            raise ImportError(f"no module {module_name!r}")
+        copy = importlib.util.spec_from_file_location(f"{module_name}__python", spec.origin)
+        assert copy is not None and copy.loader is not None
+        module = importlib.util.module_from_spec(copy)
+        _plain += 1
+        try:
+            copy.loader.exec_module(module)
+        finally:
+            _plain -= 1
+        _copies[module_name] = module
+    return _copies[module_name]
 
 
 def _cache_dirs(source: Path) -> list[Path]:
