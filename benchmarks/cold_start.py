@@ -1,6 +1,7 @@
 """First call vs second call of every heavy command from a fresh kernel cache (issue #31).
 
 Run by hand:  PYTHONPATH=src python benchmarks/cold_start.py [--only demo,analyze] [--wait 600]
+              [--no-numba]
 
 For each command — ``demo``, ``analyze`` of a small virtual study, ``robot show``, ``plan``,
 ``online --simulate`` — a fresh, empty ``NUMBA_CACHE_DIR`` (what a new install has), then:
@@ -10,7 +11,9 @@ the **first** call (timed), a wait until any background kernel builder it starte
 side: first, second, first/second (the issue's target: ≤ 1.5), the builder wait, and the load
 average before the pair. The inputs (a cone part, the small virtual study) are made once up
 front with their own cache and are not timed. ``ROBOISF_BACKGROUND_COMPILE=0`` in the
-environment measures the old behaviour (compile in the foreground on first use).
+environment measures the old behaviour (compile in the foreground on first use); ``--no-numba``
+hides numba from the timed commands (``sys.modules["numba"] = None``: what the plain install,
+without the ``fast`` extra, runs — the numpy engines throughout).
 
 The machine is usually shared: ratios from back-to-back pairs hold up under load, absolute
 times need a quiet machine.
@@ -30,6 +33,8 @@ import time
 RUN = (
     "import sys; from roboisf.cli.main import entry; sys.argv = ['roboisf', *sys.argv[1:]]; entry()"
 )
+#: The same with numba hidden: roboisf then sees a plain install (roboisf.jit.HAVE_NUMBA False).
+RUN_NO_NUMBA = "import sys; sys.modules['numba'] = None; " + RUN
 
 
 def cases(d: str) -> dict[str, list[str]]:
@@ -54,10 +59,10 @@ def cases(d: str) -> dict[str, list[str]]:
     }
 
 
-def _run(args: list[str], env: dict[str, str], cwd: str) -> tuple[float, int]:
+def _run(args: list[str], env: dict[str, str], cwd: str, run: str = RUN) -> tuple[float, int]:
     t = time.perf_counter()
     r = subprocess.run(
-        [sys.executable, "-c", RUN, "-q", *args],
+        [sys.executable, "-c", run, "-q", *args],
         env=env,
         cwd=cwd,
         stdout=subprocess.DEVNULL,
@@ -84,6 +89,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--only", help="comma-separated case names (prefixes) to run")
     ap.add_argument("--wait", type=float, default=600.0, help="longest wait for a builder [s]")
+    ap.add_argument(
+        "--no-numba", action="store_true", help="hide numba from the timed commands (plain install)"
+    )
     a = ap.parse_args()
 
     base = dict(os.environ)
@@ -116,7 +124,10 @@ def main() -> None:
             if _run(args, setup, d)[1] != 0:
                 sys.exit("could not make the inputs")
         _wait_builders(a.wait)
-        print(f"background build: {os.environ.get('ROBOISF_BACKGROUND_COMPILE', '1') != '0'}")
+        print(
+            f"background build: {os.environ.get('ROBOISF_BACKGROUND_COMPILE', '1') != '0'}; "
+            f"numba: {'hidden (plain install)' if a.no_numba else 'installed'}"
+        )
         print(
             f"{'command':32s} {'first s':>8s} {'second s':>9s} {'ratio':>6s} "
             f"{'builder s':>9s}  load (1/5/15 min)"
@@ -130,7 +141,12 @@ def main() -> None:
             waited = 0.0
             for call in range(2):
                 out = os.path.join(d, f"out-{k}-{call}")
-                t, _ = _run([x.replace("{o}", out) for x in args], env, d)
+                t, _ = _run(
+                    [x.replace("{o}", out) for x in args],
+                    env,
+                    d,
+                    RUN_NO_NUMBA if a.no_numba else RUN,
+                )
                 times.append(t)
                 shutil.rmtree(out, ignore_errors=True)
                 if call == 0:
