@@ -69,7 +69,7 @@ def njit(**options: Any) -> Callable[[Callable[..., Any]], Any]:
     nb = None if _plain else numba_module()
     if nb is None:
         return _identity
-    return nb.njit(**{"cache": True, "nogil": True, **options})  # type: ignore[no-any-return]
+    return nb.njit(**{"cache": True, "nogil": True, **options})
 
 
 def prange() -> Any:
