@@ -35,6 +35,7 @@ import os
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -102,6 +103,7 @@ GROUPS: dict[str, Group] = {
 
 _decided: dict[str, bool] = {}
 _started = False
+_decide = threading.Lock()  # the scan's worker threads ask too
 
 
 def background_enabled() -> bool:
@@ -183,12 +185,13 @@ def ready(group: str) -> bool:
         raise KeyError(f"unknown kernel group {group!r}; known: {', '.join(GROUPS)}")
     if not HAVE_NUMBA:
         return False
-    if group not in _decided:
-        ok = not background_enabled() or group_cached(group)
-        if not ok:
-            _start()
-        _decided[group] = ok
-    return _decided[group]
+    with _decide:
+        if group not in _decided:
+            ok = not background_enabled() or group_cached(group)
+            if not ok:
+                _start()
+            _decided[group] = ok
+        return _decided[group]
 
 
 def _start() -> None:
