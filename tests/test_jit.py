@@ -416,3 +416,12 @@ def test_cold_online_runs_as_python_all_the_way_down_with_the_model_numbers(tmp_
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
     cache = sorted(p.name for p in (tmp_path / "cache").rglob("*.nbi"))
     assert cache == []  # nothing was compiled (numba writes no cache)
+
+
+def test_builder_runs_at_a_lower_priority(monkeypatch, tmp_path):
+    """Background work: the user's command gets the CPU first."""
+    niced: list[int] = []
+    monkeypatch.setattr(bg.os, "nice", lambda n: niced.append(n) or n)
+    monkeypatch.setattr(bg, "build_missing", lambda: [])
+    assert bg.main([str(tmp_path / "n.lock")]) == 0
+    assert niced == [bg.NICE] and bg.NICE > 0

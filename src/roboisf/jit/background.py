@@ -14,7 +14,8 @@ Safe by construction:
   file in the temp folder, stale after :data:`STALE_S`): concurrent commands, pytest-xdist
   workers and the demo's worker processes start at most one;
 * the builder runs in its own session (a Ctrl-C of the user's command does not reach it), with
-  its stdio on ``/dev/null`` (never writes to the user's terminal); numba writes its cache files
+  its stdio on ``/dev/null`` (never writes to the user's terminal) and at a lower priority
+  (:data:`NICE`: the user's command gets the CPU first); numba writes its cache files
   by rename, so a concurrent reader sees a whole file or none;
 * a builder that fails — or builds without leaving a cache (a read-only cache folder) — leaves
   a failure marker (:func:`failure_path`, keyed by the cache folder, the kernel sources' versions
@@ -251,12 +252,25 @@ def build_missing() -> list[str]:
     return failures
 
 
+#: The builder's niceness: background work, it gives the CPU to the user's command first (on 2
+#: cores the first run and the builder otherwise share them evenly).
+NICE = 10
+
+
+def _lower_priority() -> None:
+    try:
+        os.nice(NICE)
+    except (AttributeError, OSError):  # pragma: no cover - not on this platform / not allowed
+        pass
+
+
 def main(argv: list[str]) -> int:
     """The builder: ``LOCK [FAILURE_MARKER]``. Builds the missing groups, writes the marker
     (atomically) if any failed, and removes the lock in every case."""
     lock = Path(argv[0]) if argv else None
     marker = Path(argv[1]) if len(argv) > 1 else None
     try:
+        _lower_priority()
         failures = build_missing()
         if failures and marker is not None:
             tmp = marker.with_name(marker.name + f".{os.getpid()}.tmp")
