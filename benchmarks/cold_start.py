@@ -12,8 +12,8 @@ side: first, second, first/second (the issue's target: ≤ 1.5), the builder wai
 average before the pair. The inputs (a cone part, the small virtual study) are made once up
 front with their own cache and are not timed. ``ROBOISF_BACKGROUND_COMPILE=0`` in the
 environment measures the old behaviour (compile in the foreground on first use); ``--no-numba``
-hides numba from the timed commands (``sys.modules["numba"] = None``: what the plain install,
-without the ``fast`` extra, runs — the numpy engines throughout).
+runs the timed commands as the plain install, without the ``fast`` extra, does: the numpy engines
+throughout (``ROBOISF_NUMBA=0``, inherited by the demo's worker processes).
 
 The machine is usually shared: ratios from back-to-back pairs hold up under load, absolute
 times need a quiet machine.
@@ -32,8 +32,6 @@ import time
 RUN = (
     "import sys; from roboisf.cli.main import entry; sys.argv = ['roboisf', *sys.argv[1:]]; entry()"
 )
-#: The same with numba hidden: roboisf then sees a plain install (roboisf.jit.HAVE_NUMBA False).
-RUN_NO_NUMBA = "import sys; sys.modules['numba'] = None; " + RUN
 
 
 def cases(d: str) -> dict[str, list[str]]:
@@ -58,10 +56,10 @@ def cases(d: str) -> dict[str, list[str]]:
     }
 
 
-def _run(args: list[str], env: dict[str, str], cwd: str, run: str = RUN) -> tuple[float, int]:
+def _run(args: list[str], env: dict[str, str], cwd: str) -> tuple[float, int]:
     t = time.perf_counter()
     r = subprocess.run(
-        [sys.executable, "-c", run, "-q", *args],
+        [sys.executable, "-c", RUN, "-q", *args],
         env=env,
         cwd=cwd,
         stdout=subprocess.DEVNULL,
@@ -102,7 +100,9 @@ def main() -> None:
     ap.add_argument("--only", help="comma-separated case names (prefixes) to run")
     ap.add_argument("--wait", type=float, default=600.0, help="longest wait for a builder [s]")
     ap.add_argument(
-        "--no-numba", action="store_true", help="hide numba from the timed commands (plain install)"
+        "--no-numba",
+        action="store_true",
+        help="run the timed commands without numba (plain install)",
     )
     a = ap.parse_args()
 
@@ -137,7 +137,7 @@ def main() -> None:
         _wait_builder(setup["NUMBA_CACHE_DIR"], a.wait)
         print(
             f"background build: {os.environ.get('ROBOISF_BACKGROUND_COMPILE', '1') != '0'}; "
-            f"numba: {'hidden (plain install)' if a.no_numba else 'installed'}"
+            f"numba: {'off, ROBOISF_NUMBA=0 (plain install)' if a.no_numba else 'installed'}"
         )
         print(
             f"{'command':32s} {'first s':>8s} {'second s':>9s} {'ratio':>6s} "
@@ -147,17 +147,14 @@ def main() -> None:
             if a.only and not any(name.startswith(p) for p in a.only.split(",")):
                 continue
             env = dict(base, NUMBA_CACHE_DIR=os.path.join(d, f"cache-{k}"))
+            if a.no_numba:
+                env["ROBOISF_NUMBA"] = "0"
             load = " ".join(f"{x:.2f}" for x in os.getloadavg())
             times = []
             waited = 0.0
             for call in range(2):
                 out = os.path.join(d, f"out-{k}-{call}")
-                t, _ = _run(
-                    [x.replace("{o}", out) for x in args],
-                    env,
-                    d,
-                    RUN_NO_NUMBA if a.no_numba else RUN,
-                )
+                t, _ = _run([x.replace("{o}", out) for x in args], env, d)
                 times.append(t)
                 shutil.rmtree(out, ignore_errors=True)
                 if call == 0:

@@ -425,3 +425,26 @@ def test_builder_runs_at_a_lower_priority(monkeypatch, tmp_path):
     monkeypatch.setattr(bg, "build_missing", lambda: [])
     assert bg.main([str(tmp_path / "n.lock")]) == 0
     assert niced == [bg.NICE] and bg.NICE > 0
+
+
+def test_numba_switched_off_runs_as_the_plain_install(tmp_path):
+    """ROBOISF_NUMBA=0: no numba (not even imported), the numpy engines, no builder — what the
+    plain install runs, and what benchmarks/cold_start.py --no-numba times."""
+    env = dict(os.environ, ROBOISF_NUMBA="0", **{bg.ENV: "1"})
+    env["PYTHONPATH"] = str(SRC.parent)
+    code = (
+        "import sys\n"
+        "from roboisf import jit\n"
+        "from roboisf.jit import background as bg\n"
+        "bg._start = lambda: sys.exit('a builder was started')\n"
+        "import roboisf.scan.deviation, roboisf.online.kernel as kn\n"
+        "from roboisf.robot import vjm_kernel\n"
+        "assert not jit.HAVE_NUMBA and not any(jit.ready(g) for g in bg.GROUPS)\n"
+        "assert not kn.COMPILED and not vjm_kernel.use_numba('auto')\n"
+        "assert 'numba' not in sys.modules\n"
+        "print('ok')\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300
+    )
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]

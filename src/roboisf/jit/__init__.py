@@ -28,6 +28,7 @@ from roboisf.jit.background import (
 from roboisf.jit.shim import (
     COMPILE_WAIT,
     HAVE_NUMBA,
+    NUMBA_ENV,
     compile_notice,
     kernel_cached,
     njit,
@@ -42,6 +43,7 @@ __all__ = [
     "ENV",
     "GROUPS",
     "HAVE_NUMBA",
+    "NUMBA_ENV",
     "Group",
     "background_enabled",
     "compile_notice",

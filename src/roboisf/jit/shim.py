@@ -21,6 +21,7 @@ from roboisf.progress import notice_once
 __all__ = [
     "COMPILE_WAIT",
     "HAVE_NUMBA",
+    "NUMBA_ENV",
     "compile_notice",
     "kernel_cached",
     "njit",
@@ -30,14 +31,22 @@ __all__ = [
 ]
 
 
+#: Environment switch: "0" runs roboisf as if numba were not installed (the numpy engines
+#: throughout, as the plain install does; inherited by the processes roboisf starts).
+NUMBA_ENV = "ROBOISF_NUMBA"
+
+
 def _installed() -> bool:
+    if os.environ.get(NUMBA_ENV, "1").strip() == "0":
+        return False
     try:
         return importlib.util.find_spec("numba") is not None
     except (ImportError, ValueError):  # pragma: no cover - a broken install
         return False
 
 
-#: numba is installed (imported only when a kernel module is first imported).
+#: numba is installed (imported only when a kernel module is first imported) and not switched
+#: off (:data:`NUMBA_ENV`).
 HAVE_NUMBA = _installed()
 
 #: What a build of the compiled kernels in the foreground costs, as :func:`compile_notice` says
