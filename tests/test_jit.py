@@ -387,6 +387,14 @@ def test_first_process_serves_numpy_builds_in_background_next_runs_compiled(tmp_
     assert all(probe()["ready"].values())  # the cache the builder left is used
 
 
+def _prints_ok(code: str, env: dict[str, str]) -> None:
+    """Run ``code`` in a fresh interpreter; it must exit 0 having printed "ok"."""
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300
+    )
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
+
+
 @needs_numba
 def test_cold_online_runs_as_python_all_the_way_down_with_the_model_numbers(tmp_path):
     """On a cold cache the online kernels are plain Python, the chain walk too (a private copy
@@ -410,10 +418,7 @@ def test_cold_online_runs_as_python_all_the_way_down_with_the_model_numbers(tmp_
         "assert e < 1e-12 and r < 1e-13, (e, r)\n"
         "print('ok')\n"
     )
-    out = subprocess.run(
-        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300
-    )
-    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
+    _prints_ok(code, env)
     cache = sorted(p.name for p in (tmp_path / "cache").rglob("*.nbi"))
     assert cache == []  # nothing was compiled (numba writes no cache)
 
@@ -444,7 +449,4 @@ def test_numba_switched_off_runs_as_the_plain_install(tmp_path):
         "assert 'numba' not in sys.modules\n"
         "print('ok')\n"
     )
-    out = subprocess.run(
-        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300
-    )
-    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
+    _prints_ok(code, env)
