@@ -51,7 +51,7 @@ HAVE_NUMBA = _installed()
 
 #: What a build of the compiled kernels in the foreground costs, as :func:`compile_notice` says
 #: it (``ROBOISF_BACKGROUND_COMPILE=0`` or an explicit ``backend="numba"``; measured:
-#: docs/speed.md).
+#: docs/report.md, "The terminal").
 COMPILE_WAIT = "about 30 s to 2 minutes, once (longer on a busy machine)"
 
 
