@@ -1,6 +1,7 @@
 """First call vs second call of every heavy command from a fresh kernel cache (issue #31).
 
 Run by hand:  PYTHONPATH=src python benchmarks/cold_start.py [--only demo,analyze] [--wait 600]
+              [--no-numba]
 
 For each command — ``demo``, ``analyze`` of a small virtual study, ``robot show``, ``plan``,
 ``online --simulate`` — a fresh, empty ``NUMBA_CACHE_DIR`` (what a new install has), then:
@@ -10,7 +11,9 @@ the **first** call (timed), a wait until any background kernel builder it starte
 side: first, second, first/second (the issue's target: ≤ 1.5), the builder wait, and the load
 average before the pair. The inputs (a cone part, the small virtual study) are made once up
 front with their own cache and are not timed. ``ROBOISF_BACKGROUND_COMPILE=0`` in the
-environment measures the old behaviour (compile in the foreground on first use).
+environment measures the old behaviour (compile in the foreground on first use); ``--no-numba``
+runs the timed commands as the plain install, without the ``fast`` extra, does: the numpy engines
+throughout (``ROBOISF_NUMBA=0``, inherited by the demo's worker processes).
 
 The machine is usually shared: ratios from back-to-back pairs hold up under load, absolute
 times need a quiet machine.
@@ -19,7 +22,6 @@ times need a quiet machine.
 from __future__ import annotations
 
 import argparse
-import glob
 import os
 import shutil
 import subprocess
@@ -69,13 +71,26 @@ def _run(args: list[str], env: dict[str, str], cwd: str) -> tuple[float, int]:
     return time.perf_counter() - t, r.returncode
 
 
-def _builders() -> list[str]:
-    return glob.glob(os.path.join(tempfile.gettempdir(), "roboisf-kernel-build-*.lock"))
+def _lock(cache: str) -> str:
+    """The lock file of the background builder for kernel cache ``cache`` (it exists while that
+    builder runs): only this benchmark's builders are waited for, not other users'."""
+    from roboisf.jit.background import lock_path
+
+    old = os.environ.get("NUMBA_CACHE_DIR")
+    os.environ["NUMBA_CACHE_DIR"] = cache
+    try:
+        return str(lock_path())
+    finally:
+        if old is None:
+            del os.environ["NUMBA_CACHE_DIR"]
+        else:
+            os.environ["NUMBA_CACHE_DIR"] = old
 
 
-def _wait_builders(timeout: float) -> float:
+def _wait_builder(cache: str, timeout: float) -> float:
     t = time.perf_counter()
-    while _builders() and time.perf_counter() - t < timeout:
+    lock = _lock(cache)
+    while os.path.exists(lock) and time.perf_counter() - t < timeout:
         time.sleep(0.5)
     return time.perf_counter() - t
 
@@ -84,13 +99,17 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--only", help="comma-separated case names (prefixes) to run")
     ap.add_argument("--wait", type=float, default=600.0, help="longest wait for a builder [s]")
+    ap.add_argument(
+        "--no-numba",
+        action="store_true",
+        help="run the timed commands without numba (plain install)",
+    )
     a = ap.parse_args()
 
     base = dict(os.environ)
     here = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir, "src"))
     base["PYTHONPATH"] = here + os.pathsep + base.get("PYTHONPATH", "")
-    if _builders():
-        sys.exit(f"kernel builders already running ({_builders()}); wait for them first")
+    sys.path.insert(0, here)  # roboisf.jit of this tree, for the builders' lock files
     with tempfile.TemporaryDirectory(prefix="roboisf-cold-") as d:
         setup = dict(base, NUMBA_CACHE_DIR=os.path.join(d, "setup-cache"))
         print("inputs (not timed) …", flush=True)
@@ -115,8 +134,11 @@ def main() -> None:
         ):
             if _run(args, setup, d)[1] != 0:
                 sys.exit("could not make the inputs")
-        _wait_builders(a.wait)
-        print(f"background build: {os.environ.get('ROBOISF_BACKGROUND_COMPILE', '1') != '0'}")
+        _wait_builder(setup["NUMBA_CACHE_DIR"], a.wait)
+        print(
+            f"background build: {os.environ.get('ROBOISF_BACKGROUND_COMPILE', '1') != '0'}; "
+            f"numba: {'off, ROBOISF_NUMBA=0 (plain install)' if a.no_numba else 'installed'}"
+        )
         print(
             f"{'command':32s} {'first s':>8s} {'second s':>9s} {'ratio':>6s} "
             f"{'builder s':>9s}  load (1/5/15 min)"
@@ -125,6 +147,8 @@ def main() -> None:
             if a.only and not any(name.startswith(p) for p in a.only.split(",")):
                 continue
             env = dict(base, NUMBA_CACHE_DIR=os.path.join(d, f"cache-{k}"))
+            if a.no_numba:
+                env["ROBOISF_NUMBA"] = "0"
             load = " ".join(f"{x:.2f}" for x in os.getloadavg())
             times = []
             waited = 0.0
@@ -134,7 +158,7 @@ def main() -> None:
                 times.append(t)
                 shutil.rmtree(out, ignore_errors=True)
                 if call == 0:
-                    waited = _wait_builders(a.wait)
+                    waited = _wait_builder(env["NUMBA_CACHE_DIR"], a.wait)
             print(
                 f"{name:32s} {times[0]:8.1f} {times[1]:9.1f} {times[0] / times[1]:6.2f} "
                 f"{waited:9.1f}  {load}",

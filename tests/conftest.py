@@ -24,7 +24,7 @@ from typing import Any
 import pytest
 
 # The suite runs both engines explicitly and must not leave background kernel builders behind:
-# "auto" compiles in the foreground here, as before. tests/test_robot_warm.py tests the builder.
+# "auto" compiles in the foreground here, as before. tests/test_jit.py tests the builder.
 os.environ.setdefault("ROBOISF_BACKGROUND_COMPILE", "0")
 
 #: The small paper cone: 2 mm step-down, 4 mm spacing (≈ 3 k toolpath points), 150 k scan

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from roboisf import progress
+from roboisf import jit, progress
 from roboisf.cli.analyze import _print_verdicts, next_command
 from roboisf.cli.console import state
 from roboisf.cli.main import hoist_verbosity, main
@@ -60,14 +60,14 @@ def test_kernel_cached_reads_the_numba_index_beside_the_module(tmp_path, monkeyp
     monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
     monkeypatch.setenv("HOME", str(tmp_path / "home"))
     src = _module(tmp_path)
-    assert not progress.kernel_cached(src)
+    assert not jit.kernel_cached(src)
     index = src.parent / "__pycache__" / "kern._rows-33.py311.nbi"
     index.parent.mkdir()
     index.write_text("")
-    assert progress.kernel_cached(src)
+    assert jit.kernel_cached(src)
     old = time.time() - 100
     os.utime(index, (old, old))  # older than the source: numba recompiles
-    assert not progress.kernel_cached(src)
+    assert not jit.kernel_cached(src)
 
 
 def test_kernel_cached_reads_numba_cache_dir(tmp_path, monkeypatch):
@@ -80,10 +80,10 @@ def test_kernel_cached_reads_numba_cache_dir(tmp_path, monkeypatch):
     src.write_text("import numba\n\n@numba.njit(cache=True)\ndef f(x):\n    return x + 1\n")
     cache = tmp_path / "nbcache"
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(cache))
-    assert not progress.kernel_cached(src)
+    assert not jit.kernel_cached(src)
     env = dict(os.environ, PYTHONPATH=str(src.parent))
     subprocess.run([sys.executable, "-c", "import kern; kern.f(1)"], env=env, check=True)
-    assert progress.kernel_cached(src)
+    assert jit.kernel_cached(src)
 
 
 def test_compile_notice_once_and_only_when_not_cached(tmp_path, monkeypatch):
@@ -93,17 +93,17 @@ def test_compile_notice_once_and_only_when_not_cached(tmp_path, monkeypatch):
     said: list[str] = []
     progress.set_notice(said.append)
     try:
-        progress.compile_notice(src)
-        progress.compile_notice(src)
+        jit.compile_notice(src)
+        jit.compile_notice(src)
         assert len(said) == 1 and "first time" in said[0] and "minutes" in said[0]
         progress.set_notice(said.append)  # a new run
         (src.parent / "__pycache__").mkdir()
         (src.parent / "__pycache__" / "kern.f-1.py311.nbi").write_text("")
-        progress.compile_notice(src)
+        jit.compile_notice(src)
         assert len(said) == 1
     finally:
         progress.set_notice(None)
-    progress.compile_notice(tmp_path / "other.py")  # no hook: silent, no error
+    jit.compile_notice(tmp_path / "other.py")  # no hook: silent, no error
 
 
 def _summary(**extra):

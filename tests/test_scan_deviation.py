@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from roboisf.errors import InputError
+from roboisf.jit import background as jit_background
 from roboisf.parts import Cone
 from roboisf.scan import (
     CompareOptions,
@@ -187,7 +188,7 @@ def knn_engine(request, monkeypatch):
     if request.param == "numba" and not knn_kernel.HAVE_NUMBA:
         pytest.skip("numba not installed")
     if request.param == "cKDTree":
-        monkeypatch.setattr(knn_kernel, "HAVE_NUMBA", False)
+        monkeypatch.setitem(jit_background._decided, "scan", False)  # cold cache
     return request.param
 
 

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from roboisf.errors import InputError
+from roboisf.jit import background as jit_background
 from roboisf.parts import Cone
 from roboisf.scan import (
     PointDeviations,
@@ -29,7 +30,7 @@ def _both(monkeypatch, dev, P, N, **kw):
     """The toolpath deviations by the compiled kernel and by the k-d tree reference."""
     a = toolpath_deviations(dev, P, N, **kw)
     with monkeypatch.context() as m:
-        m.setattr(toolpath_kernel, "HAVE_NUMBA", False)
+        m.setitem(jit_background._decided, "scan", False)  # a cold kernel cache
         b = toolpath_deviations(dev, P, N, **kw)
     return a, b
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from roboisf.jit import background as jit_background
 from roboisf.sync import position, position_kernel
 
 pytestmark = pytest.mark.skipif(not position_kernel.HAVE_NUMBA, reason="numba not installed")
@@ -40,7 +41,7 @@ def test_track_compiled_equals_numpy(monkeypatch: pytest.MonkeyPatch) -> None:
     P[:50] += [0, 0, 0.05]  # approach, off the path
     P[1000:1100] += [0, 0, 0.02]  # retract during the pause
     s_k = position._track(P, tip, S, position.OFF_PATH)
-    monkeypatch.setattr(position_kernel, "HAVE_NUMBA", False)
+    monkeypatch.setitem(jit_background._decided, "sync", False)  # a cold kernel cache
     s_n = position._track(P, tip, S, position.OFF_PATH)
     assert np.isnan(s_n).any() and np.isfinite(s_n).sum() > 2000
     np.testing.assert_array_equal(np.isnan(s_k), np.isnan(s_n))
@@ -80,7 +81,7 @@ def test_track_loop_compiled_same_bits(monkeypatch: pytest.MonkeyPatch, seed: in
     assert np.isnan(s_p[:50]).all() and np.isnan(s_p[6500:6800]).all()
     assert np.nanmax(s_p[6800:]) > S[2900] and np.isfinite(s_p).sum() > 7000
     np.testing.assert_array_equal(s_k, s_p)  # NaN where off the path, the same bits elsewhere
-    monkeypatch.setattr(position_kernel, "HAVE_NUMBA", False)
+    monkeypatch.setitem(jit_background._decided, "sync", False)  # a cold kernel cache
     s_n = position._track(P, tip, S, position.OFF_PATH)
     np.testing.assert_array_equal(np.isnan(s_k), np.isnan(s_n))
     ok = np.isfinite(s_n)

@@ -25,6 +25,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from roboisf import jit
 from roboisf.errors import InputError
 from roboisf.formats import FileFormat, file_formats, get_file_format
 from roboisf.io.atomic import atomic_write
@@ -669,9 +670,11 @@ def _integral_at(t: F64, y: F64, cum: F64, x: F64) -> F64:
 
 
 def log_kernel() -> Any:
-    """:mod:`roboisf.io.forcelog_kernel` when numba is installed (imported on first use), else
-    None (the numpy forms run)."""
+    """:mod:`roboisf.io.forcelog_kernel` when its compiled kernels are ready
+    (:func:`roboisf.jit.ready`; imported on first use), else None (the numpy forms run)."""
     global _KERNEL
+    if _KERNEL is None and not jit.ready("forcelog"):  # not built yet: a background build
+        _KERNEL = False
     if _KERNEL is None:
         try:
             from roboisf.io import forcelog_kernel

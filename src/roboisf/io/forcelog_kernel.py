@@ -20,21 +20,20 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from roboisf.progress import compile_notice
+from roboisf.jit import compile_notice, njit
 
 compile_notice(__file__)  # numba compiles these on first call: say so once
 
-__all__ = ["row_norms", "running_integral_at"]
+__all__ = ["build", "row_norms", "running_integral_at"]
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
 
 
-@numba.njit(cache=True, nogil=True)
+@njit()
 def _row_norms(X: Any, j: int, c: Any, out: Any) -> None:  # pragma: no cover - compiled
     for i in range(X.shape[0]):
         d0 = X[i, j] - c[0]
@@ -51,7 +50,7 @@ def row_norms(X: F64, j: int = 0, centre: F64 | None = None) -> F64:
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@njit()
 def _running_at(t: Any, y: Any, ks: Any, out: Any) -> None:  # pragma: no cover - compiled
     m = ks.shape[0]
     K = y.shape[1]
@@ -78,3 +77,16 @@ def running_integral_at(t: F64, y: F64, ks: I64) -> F64:
     out = np.empty((ks.shape[0], y.shape[1]))
     _running_at(t, y, np.ascontiguousarray(ks, dtype=np.int64), out)
     return out
+
+
+def build() -> None:
+    """Compile (and so cache) these kernels through their callers, on a small log: the
+    background builder of :mod:`roboisf.jit.background` (group "forcelog")."""
+    from roboisf.io.forcelog import window_average
+
+    t = np.linspace(0.0, 1.0, 50)
+    W = np.cos(np.outer(t, np.arange(1.0, 7.0)))
+    row_norms(W, 0)
+    row_norms(W, 3, np.ones(3))
+    window_average(t, W, np.array([0.1, 0.5]), np.array([0.3, 0.9]))
+    window_average(t, W[:, :3], np.array([0.1]), np.array([0.3]))

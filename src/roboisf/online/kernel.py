@@ -32,8 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from roboisf.robot.vjm_chain import chain_jacobian
-from roboisf.robot.vjm_kernel import HAVE_NUMBA
+from roboisf import jit
 
 __all__ = [
     "COMPILED",
@@ -96,21 +95,21 @@ STATUS_NAMES = {
 }
 
 
-def _identity(f: Callable[..., Any]) -> Callable[..., Any]:
-    return f
+#: the kernels are compiled (numba installed and built, :func:`roboisf.jit.ready`); else —
+#: without numba, or on a cold kernel cache while they build in the background — they run as
+#: (slower) plain Python, the chain walk too
+COMPILED = jit.ready("online")
 
+if COMPILED:
+    from roboisf.robot.vjm_chain import chain_jacobian
 
-if HAVE_NUMBA:
-    import numba
+    _jit: Callable[[Callable[..., Any]], Callable[..., Any]] = jit.njit(fastmath=False)
+    jit.compile_notice(__file__)  # numba compiles these on first call: say so once
+else:  # the chain walk as Python too: calling its numba functions would compile them
+    chain_jacobian = jit.python_copy("roboisf.robot.vjm_chain").chain_jacobian
 
-    _jit: Callable[[Callable[..., Any]], Callable[..., Any]] = numba.njit(
-        cache=True, nogil=True, fastmath=False
-    )
-else:  # pragma: no cover - numba is a test dependency
-    _jit = _identity
-
-#: the kernels are compiled (numba installed); else they run as (slow) Python
-COMPILED = HAVE_NUMBA
+    def _jit(f: Callable[..., Any]) -> Callable[..., Any]:
+        return f
 
 
 @_jit
@@ -390,3 +389,15 @@ def cycle_kernel(
     st[S_STATUS] = status
     st[S_CYCLES] += 1
     return status
+
+
+def build() -> None:
+    """Compile (and so cache) these kernels through their caller, one sample and one cycle of a
+    compensator on a preset robot: the background builder of :mod:`roboisf.jit.background`
+    (group "online")."""
+    from roboisf.online.core import OnlineCompensator
+    from roboisf.robot.presets import list_robots, load_robot
+
+    robot = next(m for m in map(load_robot, list_robots()) if m.stiffness is not None)
+    T = robot.default_placement if robot.default_placement is not None else np.eye(4)
+    OnlineCompensator(robot, T, np.eye(6) * 1e-7).warm_up()

@@ -50,6 +50,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
+from roboisf import jit
 from roboisf.errors import InputError
 from roboisf.io.units import to_si
 from roboisf.parts import mesh_kernel
@@ -78,13 +79,13 @@ def spatial_order(points: ArrayLike, bits: int = 16) -> NDArray[np.int64]:
 
     Neighbouring queries then touch neighbouring tree nodes and triangles: the mesh query runs
     1.5–3× faster than on a scan in random order. Pure reordering, results are unchanged.
-    With numba the sort is stable (points sharing a code keep their input order); without it
-    numpy's introsort orders such ties arbitrarily.
+    Stable (points sharing a code keep their input order) on both engines, so the compiled
+    and the numpy path (a cold kernel cache, :func:`roboisf.jit.ready`) give the same order.
     """
     X = np.asarray(points, dtype=float)
     if X.shape[0] == 0:
         return np.zeros(0, dtype=np.int64)
-    if mesh_kernel.HAVE_NUMBA and 3 * bits <= 64 and X.ndim == 2 and X.shape[1] == 3:
+    if jit.ready("mesh") and 3 * bits <= 64 and X.ndim == 2 and X.shape[1] == 3:
         # compiled passes for the bounds and the codes, and a stable radix sort (the same
         # codes; ties keep their input order): ~5x the numpy codes + argsort on 2 M points
         X = np.ascontiguousarray(X)
@@ -96,7 +97,7 @@ def spatial_order(points: ArrayLike, bits: int = 16) -> NDArray[np.int64]:
     q = ((X - lo) * ((2**bits - 1) / span)).astype(np.uint64)
     code = mesh_kernel.part1by2(q[:, 0]) | (mesh_kernel.part1by2(q[:, 1]) << np.uint64(1))
     code |= mesh_kernel.part1by2(q[:, 2]) << np.uint64(2)
-    return np.argsort(code)  # introsort: 1.6x faster than stable; ties share a 16-bit cell
+    return np.argsort(code, kind="stable")  # ties (a shared 16-bit cell) as the kernel's
 
 
 def _dot3(u: F64, v: F64) -> F64:
@@ -192,6 +193,12 @@ def read_mesh(path: str | Path, *, unit: str = "mm") -> tuple[F64, NDArray[np.in
     if V.shape[0] == 0 or F.ndim != 2 or F.shape[0] == 0:
         raise InputError("mesh has no triangles (empty or truncated file?)", file=path)
     return V * scale, F
+
+
+def _compiled(backend: str) -> bool:
+    """Whether ``backend`` ("auto" or "numba", checked) runs the compiled query in this process:
+    "numba" always, "auto" once the kernels are built (:func:`roboisf.jit.ready`)."""
+    return mesh_kernel.HAVE_NUMBA and (backend == "numba" or jit.ready("mesh"))
 
 
 def _check_backend(backend: str) -> str:
@@ -364,7 +371,7 @@ class MeshPart:
         idx["bnd"] = np.ascontiguousarray(
             np.column_stack([centroid, rho, unit_n, rho * rho]), dtype=np.float64
         )
-        if self.backend != "numpy" and mesh_kernel.HAVE_NUMBA:
+        if self.backend != "numpy" and _compiled(self.backend):
             idx["grid"] = mesh_kernel.build_grid(a, b, c, spatial_order(centroid))
         object.__setattr__(self, "_index", idx)
 
@@ -474,7 +481,7 @@ class MeshPart:
         if not np.all(np.isfinite(X)):
             raise InputError("points contain NaN or inf coordinates")
         backend = self.backend if backend is None else _check_backend(backend)
-        if backend != "numpy" and mesh_kernel.HAVE_NUMBA:
+        if backend != "numpy" and _compiled(backend):
             return self._closest_numba(X)
         n = X.shape[0]
         face = np.empty(n, dtype=np.int64)

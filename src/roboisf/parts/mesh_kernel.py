@@ -48,15 +48,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["HAVE_NUMBA", "bounds", "build_grid", "closest_grid", "morton_order"]
+from roboisf.jit import HAVE_NUMBA, compile_notice, njit
 
-try:  # pragma: no cover - exercised by whichever path the environment has
-    import numba
+__all__ = ["HAVE_NUMBA", "bounds", "build", "build_grid", "closest_grid", "morton_order"]
 
-    HAVE_NUMBA = True
-except ImportError:  # pragma: no cover
-    numba = None  # type: ignore[assignment]
-    HAVE_NUMBA = False
+if HAVE_NUMBA:
+    compile_notice(__file__)  # numba compiles these on first call: say so once
 
 #: Digit width of the Morton codes' radix sort (4 passes for 48-bit codes).
 RADIX_BITS = 12
@@ -68,10 +65,7 @@ CELL_EDGES = 3.0
 MAX_CELLS = 16_000_000
 
 
-def _njit(**kw: Any) -> Any:
-    if HAVE_NUMBA:
-        return numba.njit(cache=True, nogil=True, **kw)
-    return lambda f: f
+_njit = njit
 
 
 @_njit()
@@ -546,3 +540,20 @@ def morton_order(
             order, tmp_o = tmp_o, order
         shift += RADIX_BITS
     return order
+
+
+def build() -> None:
+    """Compile (and so cache) these kernels through their callers, on a small mesh: the
+    background builder of :mod:`roboisf.jit.background` (group "mesh")."""
+    from roboisf.parts.mesh import MeshPart, spatial_order
+
+    g = np.linspace(-0.05, 0.05, 4)
+    x, y = np.meshgrid(g, g)
+    V = np.column_stack([x.ravel(), y.ravel(), -0.1 * (x.ravel() ** 2 + y.ravel() ** 2)])
+    i = np.arange(3)[:, None] * 4 + np.arange(3)[None, :]
+    a = i.ravel()
+    F = np.concatenate([np.column_stack([a, a + 1, a + 5]), np.column_stack([a, a + 5, a + 4])])
+    P = np.random.default_rng(0).uniform(-0.05, 0.05, (64, 3))
+    MeshPart(V, F, backend="numba").closest_point(P)
+    spatial_order(P)
+    bounds(P, np.arange(8, dtype=np.int64))

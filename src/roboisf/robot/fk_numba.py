@@ -16,11 +16,10 @@ from __future__ import annotations
 import threading
 from typing import Any
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from roboisf.progress import compile_notice
+from roboisf.jit import compile_notice, njit, prange
 from roboisf.robot.vjm_chain import chain_walk
 
 compile_notice(__file__)  # numba compiles these on first call: say so once
@@ -33,8 +32,8 @@ F64 = NDArray[np.float64]
 BLOCK = 4096
 
 
-def _njit(**kw: Any) -> Any:
-    return numba.njit(cache=True, nogil=True, **kw)
+_njit = njit
+_PRANGE: Any = prange()
 
 
 @_njit()
@@ -54,7 +53,7 @@ def _parallel(
 ) -> None:  # pragma: no cover - compiled
     n = q.shape[0]
     nb = (n + BLOCK - 1) // BLOCK
-    for b in numba.prange(nb):
+    for b in _PRANGE(nb):
         s = b * BLOCK
         _rows(F, sign, offset, c23, T, q, out, s, min(n, s + BLOCK))
 

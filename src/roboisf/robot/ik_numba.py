@@ -22,11 +22,10 @@ import math
 import threading
 from typing import Any, NamedTuple
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from roboisf.progress import compile_notice
+from roboisf.jit import compile_notice, njit, prange
 from roboisf.robot.vjm_numba import BLOCK, _c64, sincos
 from roboisf.robot.vjm_numba import _rows as _vjm_kernel_rows
 
@@ -36,13 +35,12 @@ __all__ = ["PathVJM", "flange_ik", "path_ik", "path_vjm"]
 
 F64 = NDArray[np.float64]
 
-_PRANGE: Any = numba.prange
+_PRANGE: Any = prange()
 _TWO_PI = 2.0 * np.pi
 _PI = np.pi
 
 
-def _njit(**kw: Any) -> Any:
-    return numba.njit(cache=True, nogil=True, **kw)
+_njit = njit
 
 
 # atan / atan2 after fdlibm's ``s_atan.c`` / ``e_atan2.c`` (reduction to |x| < 7/16 with the

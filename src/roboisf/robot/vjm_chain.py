@@ -27,25 +27,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from roboisf.robot.vjm_kernel import HAVE_NUMBA
+from roboisf.jit import njit
 
 __all__ = ["chain_jacobian", "chain_walk", "sincos", "tip_jacobian"]
 
 F64 = NDArray[np.float64]
 
 
-def _identity(f: Callable[..., Any]) -> Callable[..., Any]:
-    return f
-
-
-if HAVE_NUMBA:
-    import numba
-
-    _inline: Callable[[Callable[..., Any]], Callable[..., Any]] = numba.njit(
-        cache=True, nogil=True, inline="always"
-    )
-else:  # pragma: no cover - numba is a test dependency
-    _inline = _identity
+_inline: Callable[[Callable[..., Any]], Callable[..., Any]] = njit(inline="always")
 
 
 # sin/cos of one argument with a shared argument reduction (fdlibm's ``__kernel_sin`` /

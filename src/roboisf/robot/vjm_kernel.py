@@ -25,7 +25,6 @@ already parallel (the plan's placements).
 
 from __future__ import annotations
 
-import importlib.util
 import math
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -34,6 +33,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from roboisf import jit
 from roboisf.errors import InputError
 from roboisf.progress import Progress, task
 
@@ -51,15 +51,8 @@ __all__ = [
 F64 = NDArray[np.float64]
 
 
-def _numba_installed() -> bool:
-    try:
-        return importlib.util.find_spec("numba") is not None
-    except (ImportError, ValueError):  # pragma: no cover - a broken or blocked install
-        return False
-
-
 #: numba is installed (imported only when the compiled engine is first used).
-HAVE_NUMBA = _numba_installed()
+HAVE_NUMBA = jit.HAVE_NUMBA
 
 #: Engines accepted by ``backend=``.
 BACKENDS = ("auto", "numba", "numpy")
@@ -86,15 +79,14 @@ def use_numba(backend: str) -> bool:
     The first time, imports :mod:`roboisf.robot.vjm_numba`; if numba is installed but fails to
     import, "auto" falls back to numpy and "numba" is an :class:`InputError` saying why. While
     the compiled kernels are not cached yet, "auto" resolves to numpy and starts their build in
-    a background process (:mod:`roboisf.robot.warm`): no first run waits for the compiler.
+    a background process (:func:`roboisf.jit.ready`, group "robot"): no first run waits for the
+    compiler.
     """
     global HAVE_NUMBA
     if check_backend(backend) == "numpy" or not HAVE_NUMBA:
         return False
     if backend == "auto":
-        from roboisf.robot.warm import compiled_ready
-
-        if not compiled_ready():  # not built yet: numpy serves, a background process builds
+        if not jit.ready("robot"):  # not built yet: numpy serves, a background process builds
             return False
     try:
         import roboisf.robot.vjm_numba  # noqa: F401

@@ -9,11 +9,10 @@ from __future__ import annotations
 import threading
 from typing import Any
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from roboisf.progress import compile_notice
+from roboisf.jit import compile_notice, njit, prange
 from roboisf.robot.vjm_chain import chain_walk, sincos, tip_jacobian
 
 compile_notice(__file__)  # numba compiles these on first call: say so once
@@ -26,11 +25,8 @@ F64 = NDArray[np.float64]
 BLOCK = 1024
 
 
-def _njit(**kw: Any) -> Any:
-    return numba.njit(cache=True, nogil=True, **kw)
-
-
-_PRANGE: Any = numba.prange
+_njit = njit
+_PRANGE: Any = prange()
 
 
 @_njit()
@@ -214,3 +210,23 @@ def kernel() -> Any:
     if threading.current_thread() is threading.main_thread():
         return _kernel_parallel
     return _kernel_serial
+
+
+def build() -> None:
+    """Compile (and so cache) the robot kernels — this module's, :mod:`roboisf.robot.fk_numba`'s
+    and :mod:`roboisf.robot.ik_numba`'s — by running them once on a few poses of a preset (the
+    background builder of :mod:`roboisf.jit.background`, group "robot")."""
+    from roboisf.robot.ik import ik_toolpath
+    from roboisf.robot.maps import stiffness_map
+    from roboisf.robot.presets import list_robots, load_robot
+
+    models = [load_robot(n) for n in list_robots()]
+    model = next(m for m in models if m.stiffness is not None).with_backend("numba")
+    mid = 0.5 * (model.q_min + model.q_max)
+    q = mid + np.linspace(-0.2, 0.2, 4)[:, None] * (model.q_max - model.q_min) / 2
+    model.vjm(q, np.ones(6), want_compliance=True, want_jacobian=True)
+    model.tip_positions(q)
+    stiffness_map(model, n=3, half_width=0.1)
+    pts = np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0], [0.02, 0.0, 0.0]])
+    if model.default_placement is not None:
+        ik_toolpath(model, pts, backend="numba")

@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
+from roboisf import jit
 from roboisf.errors import InputError
 from roboisf.parts.base import Part
 from roboisf.parts.mesh import MeshPart, spatial_order
@@ -162,7 +163,7 @@ def statistical_outliers(
     n = X.shape[0] if R is None else R.size
     if n <= k:
         return np.ones(n, dtype=bool)
-    if knn_kernel.HAVE_NUMBA:
+    if jit.ready("scan"):
         # compiled uniform-grid k-NN (exact; 1.5-2x the k-d tree below on a 2 M-point scan)
         m = knn_kernel.mean_knn_distance(X, k, rows=R)
         return m <= m.mean() + std_ratio * m.std()
@@ -320,7 +321,7 @@ def toolpath_deviations(
             "no scan points left on the wall to compare with the toolpath", file=source
         )
     k = min(max_points, dev.n_points)
-    if toolpath_kernel.HAVE_NUMBA:
+    if jit.ready("scan"):
         # compiled: the feet bucketed in a grid of radius-sized cells, the neighbourhoods and
         # their statistics in one pass (the same numbers as the k-d tree path below, tested)
         cnt, med, est_t, mad = toolpath_kernel.contact_statistics(

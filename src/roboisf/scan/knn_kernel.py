@@ -33,18 +33,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from roboisf.jit import HAVE_NUMBA, compile_notice, njit
 from roboisf.parts.mesh_kernel import bounds as _bounds
-from roboisf.progress import compile_notice
 
 __all__ = ["HAVE_NUMBA", "mean_knn_distance"]
-
-try:  # pragma: no cover - exercised by whichever path the environment has
-    import numba
-
-    HAVE_NUMBA = True
-except ImportError:  # pragma: no cover
-    numba = None  # type: ignore[assignment]
-    HAVE_NUMBA = False
 
 if HAVE_NUMBA:
     compile_notice(__file__)  # numba compiles these on first call: say so once
@@ -62,16 +54,11 @@ F64 = NDArray[np.float64]
 _NO_ROWS = np.zeros(0, dtype=np.int64)
 
 
-def _njit(**kw: Any) -> Any:
-    if HAVE_NUMBA:
-        return numba.njit(cache=True, nogil=True, **kw)
-    return lambda f: f  # pragma: no cover
+_njit = njit
 
 
 def _inline() -> Any:
-    if HAVE_NUMBA:
-        return numba.njit(cache=True, nogil=True, inline="always")
-    return lambda f: f  # pragma: no cover
+    return njit(inline="always")
 
 
 @_inline()

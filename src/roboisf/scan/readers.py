@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from roboisf import jit
 from roboisf.errors import InputError
 from roboisf.formats import file_formats, find_file_format
 from roboisf.io.text import read_text
@@ -668,9 +669,7 @@ def _extent(points: F64) -> tuple[F64, F64]:
     installed (``min(axis=0)`` reduces along a strided axis: ~10x slower on a 2 M-point scan),
     the same numbers."""
     X = np.asarray(points, dtype=float)
-    from roboisf.scan.knn_kernel import HAVE_NUMBA
-
-    if HAVE_NUMBA and X.ndim == 2 and X.shape[0] > 0 and X.shape[1] == 3:
+    if jit.ready("mesh") and X.ndim == 2 and X.shape[0] > 0 and X.shape[1] == 3:
         from roboisf.parts.mesh_kernel import bounds
 
         lo, hi = bounds(X, np.zeros(0, dtype=np.int64))

@@ -29,10 +29,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from roboisf.jit import HAVE_NUMBA, compile_notice
 from roboisf.parts.mesh_kernel import bounds as _bounds
-from roboisf.progress import compile_notice
 from roboisf.scan.knn_kernel import (
-    HAVE_NUMBA,
     MAX_CELLS,
     _cell_keys,
     _counting_sort,
@@ -43,7 +42,7 @@ from roboisf.scan.knn_kernel import (
 if HAVE_NUMBA:
     compile_notice(__file__)  # numba compiles these on first call: say so once
 
-__all__ = ["HAVE_NUMBA", "contact_statistics"]
+__all__ = ["HAVE_NUMBA", "build", "contact_statistics"]
 
 F64 = NDArray[np.float64]
 
@@ -262,3 +261,19 @@ def contact_statistics(
         with ThreadPoolExecutor(max_workers=nw) as pool:
             list(pool.map(run, starts))
     return cnt, med, trimmed, mad
+
+
+def build() -> None:
+    """Compile (and so cache) the scan kernels — this module's and
+    :mod:`roboisf.scan.knn_kernel`'s — through their callers, on a small synthetic scan: the
+    background builder of :mod:`roboisf.jit.background` (group "scan")."""
+    from roboisf.scan.deviation import statistical_outliers
+    from roboisf.scan.knn_kernel import mean_knn_distance
+
+    rng = np.random.default_rng(0)
+    X = rng.uniform(-0.05, 0.05, (500, 3))
+    statistical_outliers(X)
+    statistical_outliers(X, rows=np.arange(0, 500, 2))
+    mean_knn_distance(X, 8)
+    dn = rng.normal(0.0, 1e-4, 500)
+    contact_statistics(X, dn, X[:40], radius=0.01, k=16, trim=0.1)

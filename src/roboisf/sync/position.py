@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from roboisf import jit
 from roboisf.errors import InputError
 from roboisf.sync import position_kernel as _kernel
 from roboisf.sync.alignment import Alignment, clock_fit, point_windows
@@ -55,7 +56,7 @@ _COMPILED_LOOP = True
 
 def _project(P: F64, A: F64, D: F64, L2: F64, S0: F64, seglen: F64) -> tuple[F64, F64]:
     """Nearest point of segments (A + u D) to each of P: (progress s, distance) per sample."""
-    if _kernel.HAVE_NUMBA and len(A) > 0:
+    if jit.ready("sync") and len(A) > 0:
         return _kernel.project_segments(np.ascontiguousarray(P, dtype=float), A, D, L2, S0, seglen)
     return _project_numpy(P, A, D, L2, S0, seglen)
 
@@ -87,7 +88,7 @@ def _track(P: F64, tip: F64, S: F64, tol: float) -> F64:
     s_prev = -np.inf  # not yet on the path
     last_on = 0
     k = 0
-    compiled = _COMPILED_LOOP and _kernel.HAVE_NUMBA and len(A) > 0
+    compiled = _COMPILED_LOOP and jit.ready("sync") and len(A) > 0
     if compiled:
         P = np.ascontiguousarray(P, dtype=float)
     while k < M:

@@ -23,28 +23,15 @@ from typing import Any
 
 import numpy as np
 
-from roboisf.progress import compile_notice
+from roboisf.jit import HAVE_NUMBA, compile_notice, njit
 
-__all__ = ["HAVE_NUMBA", "project_segments", "track_blocks"]
-
-try:
-    import numba
-
-    HAVE_NUMBA = True
-except ImportError:  # pragma: no cover - numba is a test dependency
-    HAVE_NUMBA = False
+__all__ = ["HAVE_NUMBA", "build", "project_segments", "track_blocks"]
 
 if HAVE_NUMBA:
     compile_notice(__file__)  # numba compiles these on first call: say so once
 
 
-def _identity(f: Callable[..., Any]) -> Callable[..., Any]:
-    return f
-
-
-_inline: Callable[[Callable[..., Any]], Callable[..., Any]] = (
-    numba.njit(cache=True, nogil=True, inline="always") if HAVE_NUMBA else _identity
-)
+_inline: Callable[[Callable[..., Any]], Callable[..., Any]] = njit(inline="always")
 
 
 @_inline
@@ -136,7 +123,20 @@ def _track_py(
     return k, s_prev, last_on
 
 
-project_segments: Any = (
-    numba.njit(nogil=True, cache=True)(_project_py) if HAVE_NUMBA else _project_py
-)
-track_blocks: Any = numba.njit(nogil=True, cache=True)(_track_py) if HAVE_NUMBA else _track_py
+project_segments: Any = njit()(_project_py)
+track_blocks: Any = njit()(_track_py)
+
+
+def build() -> None:
+    """Compile (and so cache) these kernels through their caller, on a short synthetic path
+    and log: the background builder of :mod:`roboisf.jit.background` (group "sync")."""
+    from roboisf.sync.position import _project, _track
+
+    s = np.linspace(0.0, 0.1, 200)
+    tip = np.column_stack([0.05 * np.cos(20 * s), 0.05 * np.sin(20 * s), -0.1 * s])
+    S = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(tip, axis=0), axis=1))])
+    P = tip[::3] + 1e-5
+    _track(P, tip, S, 1e-3)
+    A, D = tip[:-1], np.diff(tip, axis=0)
+    seglen = np.linalg.norm(D, axis=1)
+    _project(P, A, D, seglen**2, S[:-1], seglen)

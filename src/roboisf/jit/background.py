@@ -1,0 +1,286 @@
+"""Compiled kernels built in the background on a fresh install: no first run waits for numba.
+
+numba builds a kernel on its first call (seconds to minutes per module, more on a loaded
+machine) and caches it on disk. Every ``"auto"`` dispatch asks :func:`ready` with its kernel
+group (:data:`GROUPS`): when the group's cache is there it runs compiled; when not, it answers
+False — the numpy path serves this run (the same numbers to the tolerance each group's tests
+state) — and starts **one** detached process (``python -m roboisf.jit.background``) that builds
+*every* missing group. A later process finds the cache and runs compiled. The answer is taken
+once per group and process, so one run never mixes engines for a group.
+
+Safe by construction:
+
+* one builder at a time per cache folder and version of the kernel sources (an exclusive lock
+  file in the temp folder, stale after :data:`STALE_S`): concurrent commands, pytest-xdist
+  workers and the demo's worker processes start at most one;
+* the builder runs in its own session (a Ctrl-C of the user's command does not reach it), with
+  its stdio on ``/dev/null`` (never writes to the user's terminal) and at a lower priority
+  (:data:`NICE`: the user's command gets the CPU first); numba writes its cache files
+  by rename, so a concurrent reader sees a whole file or none;
+* a builder that fails — or builds without leaving a cache (a read-only cache folder) — leaves
+  a failure marker (:func:`failure_path`, keyed by the cache folder, the kernel sources' versions
+  and numba's version) holding the reason; while it is there no builder is started again and the
+  notice says so. To retry, delete the marker, or run once with ``ROBOISF_BACKGROUND_COMPILE=0``
+  (the kernels then compile in the foreground and any error shows);
+* no writable temp folder: no lock, no builder, the numpy path serves every run.
+
+``ROBOISF_BACKGROUND_COMPILE=0`` (:data:`ENV`) switches this off: :func:`ready` is then True
+whenever numba is installed and the first call compiles in the foreground, as before.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from roboisf.jit.shim import HAVE_NUMBA, kernel_cached
+from roboisf.progress import notice_once
+
+__all__ = [
+    "BUILD_WAIT",
+    "ENV",
+    "GROUPS",
+    "STALE_S",
+    "Group",
+    "background_enabled",
+    "build_missing",
+    "failure_path",
+    "group_cached",
+    "lock_path",
+    "main",
+    "ready",
+]
+
+#: Environment switch: "0" compiles in the foreground on first use (no background builder).
+ENV = "ROBOISF_BACKGROUND_COMPILE"
+#: How long the background build of all groups takes, as the notice says it (measured:
+#: docs/speed.md).
+BUILD_WAIT = "about 1 to 3 minutes, once"
+#: A builder's lock older than this [s] is taken as left by a killed builder.
+STALE_S = 900.0
+
+_ROOT = Path(__file__).resolve().parents[1]  # the roboisf package folder
+
+
+@dataclass(frozen=True)
+class Group:
+    """A kernel group: the modules whose ``cache=True`` kernels it needs (dotted names, found
+    by path without importing them) and ``build`` ("module:function"), a function that compiles
+    them by running them once on a small input."""
+
+    modules: tuple[str, ...]
+    build: str
+
+    def files(self) -> tuple[Path, ...]:
+        """The modules' source files."""
+        return tuple(_ROOT.joinpath(*m.split(".")[1:]).with_suffix(".py") for m in self.modules)
+
+
+#: Every compiled kernel of roboisf, by group, in build order. A kernel module (one that
+#: decorates with :func:`roboisf.jit.njit`) belongs to a group here and has its ``build()``
+#: (tests/test_jit.py checks both).
+GROUPS: dict[str, Group] = {
+    "forcelog": Group(("roboisf.io.forcelog_kernel",), "roboisf.io.forcelog_kernel:build"),
+    "mesh": Group(("roboisf.parts.mesh_kernel",), "roboisf.parts.mesh_kernel:build"),
+    "scan": Group(
+        ("roboisf.parts.mesh_kernel", "roboisf.scan.knn_kernel", "roboisf.scan.toolpath_kernel"),
+        "roboisf.scan.toolpath_kernel:build",
+    ),
+    "sync": Group(("roboisf.sync.position_kernel",), "roboisf.sync.position_kernel:build"),
+    "robot": Group(
+        ("roboisf.robot.vjm_numba", "roboisf.robot.fk_numba", "roboisf.robot.ik_numba"),
+        "roboisf.robot.vjm_numba:build",
+    ),
+    "online": Group(("roboisf.online.kernel",), "roboisf.online.kernel:build"),
+}
+
+_decided: dict[str, bool] = {}
+_started = False
+_decide = threading.Lock()  # the scan's worker threads ask too
+
+
+def background_enabled() -> bool:
+    """False when :data:`ENV` is "0" (compile in the foreground)."""
+    return os.environ.get(ENV, "1").strip() != "0"
+
+
+def group_cached(name: str) -> bool:
+    """True when numba holds a cache of every module of group ``name``."""
+    return all(kernel_cached(p) for p in GROUPS[name].files())
+
+
+def _key() -> str:
+    files = sorted({p for g in GROUPS.values() for p in g.files()})
+    return (
+        os.environ.get("NUMBA_CACHE_DIR", "")
+        + "|"
+        + "|".join(f"{p}:{p.stat().st_mtime_ns}" for p in files if p.exists())
+    )
+
+
+def _digest(key: str) -> str:
+    return hashlib.sha1(key.encode()).hexdigest()[:16]
+
+
+def lock_path() -> Path:
+    """The builder's lock file: one per cache folder and version of the kernel sources."""
+    return Path(tempfile.gettempdir()) / f"roboisf-kernel-build-{_digest(_key())}.lock"
+
+
+def _numba_version() -> str:
+    try:
+        from importlib.metadata import version
+
+        return version("numba")
+    except Exception:  # pragma: no cover - metadata missing
+        return "?"
+
+
+def failure_path() -> Path:
+    """The failure marker a builder leaves: keyed by the cache folder, the kernel sources'
+    versions and numba's version (a new numba or an edited kernel tries again)."""
+    key = _key() + "|numba " + _numba_version()
+    return Path(tempfile.gettempdir()) / f"roboisf-kernel-build-{_digest(key)}.failed"
+
+
+def _take_lock(path: Path) -> bool:
+    """Create ``path`` exclusively (a stale one is replaced); False while another builder has it."""
+    for _ in range(2):
+        try:
+            fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+        except FileExistsError:
+            try:
+                if time.time() - path.stat().st_mtime < STALE_S:
+                    return False
+                path.unlink()
+            except OSError:
+                return False
+            continue
+        except OSError:
+            return False  # no writable temp folder: no builder
+        os.write(fd, str(os.getpid()).encode())
+        os.close(fd)
+        return True
+    return False
+
+
+def ready(group: str) -> bool:
+    """Whether an ``"auto"`` dispatch of kernel ``group`` (a key of :data:`GROUPS`) runs
+    compiled in this process.
+
+    False without numba. True when the group is cached, or when background building is off
+    (:data:`ENV`: the first call compiles in the foreground). Else False — the numpy path
+    serves this run — after starting the background builder of every missing group (at most
+    once per process, not while another builder holds the lock, not after a failed build:
+    :func:`failure_path`). The answer is kept for the rest of the process.
+    """
+    if group not in GROUPS:
+        raise KeyError(f"unknown kernel group {group!r}; known: {', '.join(GROUPS)}")
+    if not HAVE_NUMBA:
+        return False
+    with _decide:
+        if group not in _decided:
+            ok = not background_enabled() or group_cached(group)
+            if not ok:
+                _start()
+            _decided[group] = ok
+        return _decided[group]
+
+
+def _start() -> None:
+    global _started
+    if _started:
+        return
+    _started = True
+    failed = failure_path()
+    if failed.exists():
+        notice_once(
+            "roboisf's compiled kernels (numba) failed to build in the background before "
+            f"(the reason is in {failed}); this run uses the numpy engine. To retry, delete "
+            f"that file, or run once with {ENV}=0 to build them in the foreground"
+        )
+        return
+    lock = lock_path()
+    if not _take_lock(lock):
+        return  # another process is building them (or no temp folder): numpy serves this run
+    env = dict(os.environ)
+    env[ENV] = "0"  # the builder compiles; it must not spawn builders itself
+    try:
+        subprocess.Popen(
+            [sys.executable, "-m", "roboisf.jit.background", str(lock), str(failed)],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            start_new_session=True,  # a Ctrl-C of the user's command does not stop the build
+            close_fds=True,
+            env=env,
+        )
+    except OSError:
+        lock.unlink(missing_ok=True)
+        return
+    notice_once(
+        f"building roboisf's compiled kernels (numba) in the background ({BUILD_WAIT}); "
+        "this run uses the numpy engine, later runs the compiled one"
+    )
+
+
+def build_missing() -> list[str]:
+    """Build every group of :data:`GROUPS` not cached yet; the failures, one line per group."""
+    failures = []
+    for name, group in GROUPS.items():
+        if group_cached(name):
+            continue
+        module, function = group.build.split(":")
+        try:
+            getattr(importlib.import_module(module), function)()
+        except Exception as e:
+            failures.append(f"{name}: {type(e).__name__}: {e}")
+            continue
+        if not group_cached(name):
+            failures.append(
+                f"{name}: built, but numba left no cache (is the cache folder writable? "
+                "NUMBA_CACHE_DIR)"
+            )
+    return failures
+
+
+#: The builder's niceness: background work, it gives the CPU to the user's command first (on 2
+#: cores the first run and the builder otherwise share them evenly).
+NICE = 10
+
+
+def _lower_priority() -> None:
+    try:
+        os.nice(NICE)
+    except (AttributeError, OSError):  # pragma: no cover - not on this platform / not allowed
+        pass
+
+
+def main(argv: list[str]) -> int:
+    """The builder: ``LOCK [FAILURE_MARKER]``. Builds the missing groups, writes the marker
+    (atomically) if any failed, and removes the lock in every case."""
+    lock = Path(argv[0]) if argv else None
+    marker = Path(argv[1]) if len(argv) > 1 else None
+    try:
+        _lower_priority()
+        failures = build_missing()
+        if failures and marker is not None:
+            tmp = marker.with_name(marker.name + f".{os.getpid()}.tmp")
+            tmp.write_text("\n".join(failures) + "\n", encoding="utf-8")
+            os.replace(tmp, marker)
+        return 1 if failures else 0
+    finally:
+        if lock is not None:
+            lock.unlink(missing_ok=True)
+
+
+if __name__ == "__main__":  # pragma: no cover - the background builder
+    raise SystemExit(main(sys.argv[1:]))

@@ -1,0 +1,452 @@
+"""Compiled kernels and their build (issue #31): the numba shim, and the background build — on an
+empty kernel cache the numpy path serves the run while one detached process builds every
+missing kernel group; a later process finds the cache and runs compiled; a failed build leaves a
+marker and is not retried."""
+
+from __future__ import annotations
+
+import ast
+import importlib
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from roboisf import jit, progress
+from roboisf.jit import background as bg
+
+needs_numba = pytest.mark.skipif(not jit.HAVE_NUMBA, reason="numba not installed")
+SRC = Path(__file__).resolve().parents[1] / "src" / "roboisf"
+
+
+@pytest.fixture
+def fresh(monkeypatch):
+    """Background building on, nothing decided or started yet in this process."""
+    monkeypatch.setenv(bg.ENV, "1")
+    monkeypatch.setattr(bg, "_decided", {})
+    monkeypatch.setattr(bg, "_started", False)
+    return monkeypatch
+
+
+# -- the shim -------------------------------------------------------------------------------------
+def test_no_module_imports_numba_itself():
+    """One shim (#25): numba is imported only in roboisf.jit; every kernel decorates with
+    ``jit.njit`` (no try/except import of numba, no own fallback)."""
+    offenders = []
+    for path in SRC.rglob("*.py"):
+        if path.parent.name == "jit":
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            names = (
+                [a.name for a in node.names]
+                if isinstance(node, ast.Import)
+                else [node.module or ""]
+                if isinstance(node, ast.ImportFrom)
+                else []
+            )
+            if any(n == "numba" or n.startswith("numba.") for n in names):
+                offenders.append(f"{path.relative_to(SRC)}:{node.lineno}")
+    assert offenders == []
+
+
+def test_every_kernel_module_is_in_a_group_with_a_build():
+    """A module decorating with ``jit.njit`` at module level is built by the background builder
+    (else its first use compiles in the foreground); every group's build function exists."""
+    kernel_modules = set()
+    for path in SRC.rglob("*.py"):
+        text = path.read_text(encoding="utf-8")
+        if "from roboisf.jit import" in text and "njit" in text and path.parent.name != "jit":
+            kernel_modules.add(".".join(("roboisf", *path.relative_to(SRC).with_suffix("").parts)))
+    grouped = {m for g in bg.GROUPS.values() for m in g.modules}
+    # vjm_chain: inline-only helpers compiled into their callers (robot, online groups)
+    assert kernel_modules - grouped == {"roboisf.robot.vjm_chain"}
+    for name, group in bg.GROUPS.items():
+        assert all(p.is_file() for p in group.files()), name
+        module, function = group.build.split(":")
+        assert callable(getattr(importlib.import_module(module), function)), name
+
+
+def test_njit_without_numba_is_the_identity(monkeypatch):
+    from roboisf.jit import shim
+
+    monkeypatch.setattr(shim, "HAVE_NUMBA", False)
+
+    def f(x):
+        return x + 1
+
+    assert shim.njit(parallel=True)(f) is f
+    assert shim.prange() is range
+    assert shim.numba_module() is None
+
+
+def test_no_numba_means_numpy_and_no_builder(fresh):
+    fresh.setattr(bg, "HAVE_NUMBA", False)
+    fresh.setattr(bg, "_start", lambda: pytest.fail("no builder without numba"))
+    assert not jit.ready("scan")
+
+
+def test_unknown_group_is_an_error(fresh):
+    with pytest.raises(KeyError, match="known: "):
+        jit.ready("nope")
+
+
+# -- the readiness answer -------------------------------------------------------------------------
+@needs_numba
+def test_switched_off_means_ready(fresh):
+    fresh.setenv(bg.ENV, "0")
+    fresh.setattr(bg, "group_cached", lambda g: False)
+    fresh.setattr(bg, "_start", lambda: pytest.fail("no builder when switched off"))
+    assert all(jit.ready(g) for g in bg.GROUPS)
+
+
+@needs_numba
+def test_cold_cache_starts_one_builder_per_process_for_every_group(fresh):
+    fresh.setattr(bg, "group_cached", lambda g: False)
+    spawned: list[int] = []
+    fresh.setattr(bg, "_take_lock", lambda p: True)
+    fresh.setattr(bg.subprocess, "Popen", lambda *a, **k: spawned.append(1))
+    assert not jit.ready("scan")
+    assert not jit.ready("sync")
+    assert not jit.ready("scan")
+    assert spawned == [1]  # one builder, for all missing groups
+    fresh.setattr(bg, "group_cached", lambda g: True)
+    assert not jit.ready("scan")  # decided once per process: a run never mixes engines
+    assert jit.ready("robot")  # a group first asked once it is cached runs compiled
+
+
+@needs_numba
+def test_a_group_is_ready_when_all_its_modules_are_cached(fresh, tmp_path):
+    fresh.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    fresh.setattr(bg, "_start", lambda: None)
+    assert not bg.group_cached("sync")
+    # the index numba writes for a module, newer than its source (tests/test_cli_verbosity.py
+    # checks the layout against a real numba cache)
+    for p in bg.GROUPS["sync"].files():
+        sub = jit.shim._cache_dirs(p)[0]
+        sub.mkdir(parents=True, exist_ok=True)
+        (sub / f"{p.stem}.f-1.py311.nbi").write_text("")
+    assert bg.group_cached("sync")
+    assert jit.ready("sync")
+    assert not bg.group_cached("scan")
+
+
+def test_lock_is_exclusive_and_a_stale_one_is_taken_over(tmp_path):
+    lock = tmp_path / "b.lock"
+    assert bg._take_lock(lock)
+    assert not bg._take_lock(lock)  # a second builder (another process, an xdist worker)
+    old = time.time() - bg.STALE_S - 10
+    os.utime(lock, (old, old))  # left by a killed builder
+    assert bg._take_lock(lock)
+
+
+def test_no_writable_temp_folder_means_no_builder_and_no_error(fresh, tmp_path):
+    fresh.setattr(bg.tempfile, "gettempdir", lambda: str(tmp_path / "missing"))
+    fresh.setattr(bg.subprocess, "Popen", lambda *a, **k: pytest.fail("no builder without a lock"))
+    bg._start()
+
+
+def test_lock_and_marker_depend_on_the_cache_folder_and_numba(monkeypatch, tmp_path):
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "a"))
+    a, fa = bg.lock_path(), bg.failure_path()
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "b"))
+    assert bg.lock_path() != a and bg.failure_path() != fa
+    fb = bg.failure_path()
+    monkeypatch.setattr(bg, "_numba_version", lambda: "99.0")  # a new numba tries again
+    assert bg.failure_path() != fb
+    assert bg.lock_path().name.startswith("roboisf-kernel-build-")  # benchmarks/cold_start.py
+
+
+# -- spawning -------------------------------------------------------------------------------------
+def test_spawning_a_builder_says_so_once(fresh, tmp_path):
+    said: list[str] = []
+    progress.set_notice(said.append)
+    try:
+        fresh.setattr(bg, "lock_path", lambda: tmp_path / "x.lock")
+        fresh.setattr(bg, "failure_path", lambda: tmp_path / "x.failed")
+        fresh.setattr(bg.subprocess, "Popen", lambda *a, **k: None)
+        bg._start()
+        (tmp_path / "x.lock").unlink()
+        fresh.setattr(bg, "_started", False)
+        bg._start()
+    finally:
+        progress.set_notice(None)
+    assert len(said) == 1 and "background" in said[0] and bg.BUILD_WAIT in said[0]
+
+
+def test_builder_is_detached_silent_and_does_not_spawn_builders(fresh, tmp_path):
+    """Its own session (a Ctrl-C of the user's command does not reach it), stdio on /dev/null
+    (never writes to the user's terminal), background building off in its environment."""
+    seen: dict = {}
+    fresh.setattr(bg, "lock_path", lambda: tmp_path / "y.lock")
+    fresh.setattr(bg, "failure_path", lambda: tmp_path / "y.failed")
+    fresh.setattr(bg.subprocess, "Popen", lambda cmd, **k: seen.update(cmd=cmd, **k))
+    bg._start()
+    assert seen["start_new_session"] is True
+    assert all(seen[s] is subprocess.DEVNULL for s in ("stdin", "stdout", "stderr"))
+    assert seen["env"][bg.ENV] == "0"
+    assert seen["cmd"][1:3] == ["-m", "roboisf.jit.background"]
+    # the builder removes the lock when done and writes the marker if it fails
+    assert seen["cmd"][3:] == [str(tmp_path / "y.lock"), str(tmp_path / "y.failed")]
+
+
+# -- a failing builder ----------------------------------------------------------------------------
+def _failing_group(monkeypatch) -> None:
+    mod = type(sys)("roboisf_fake_kernels")
+    mod.build = lambda: 1 / 0  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "roboisf_fake_kernels", mod)
+    monkeypatch.setattr(
+        bg, "GROUPS", {"fake": bg.Group(("roboisf.fake_kernel",), "roboisf_fake_kernels:build")}
+    )
+    monkeypatch.setattr(bg, "group_cached", lambda g: False)
+
+
+def test_failing_builder_leaves_a_marker_and_removes_its_lock(monkeypatch, tmp_path):
+    _failing_group(monkeypatch)
+    lock, marker = tmp_path / "z.lock", tmp_path / "z.failed"
+    lock.write_text("1")
+    assert bg.main([str(lock), str(marker)]) == 1
+    assert not lock.exists()
+    assert marker.read_text() == "fake: ZeroDivisionError: division by zero\n"
+
+
+def test_a_build_that_leaves_no_cache_is_a_failure(monkeypatch, tmp_path):
+    """A read-only cache folder: numba compiles but cannot save; retrying every run would only
+    cost every run a builder."""
+    _failing_group(monkeypatch)
+    sys.modules["roboisf_fake_kernels"].build = lambda: None  # type: ignore[attr-defined]
+    marker = tmp_path / "m.failed"
+    assert bg.main([str(tmp_path / "m.lock"), str(marker)]) == 1
+    assert "left no cache" in marker.read_text() and "NUMBA_CACHE_DIR" in marker.read_text()
+
+
+@needs_numba
+def test_after_a_failed_build_no_builder_is_started_and_the_notice_says_how_to_retry(
+    fresh, tmp_path
+):
+    marker = tmp_path / "f.failed"
+    marker.write_text("robot: RuntimeError: boom\n")
+    fresh.setattr(bg, "failure_path", lambda: marker)
+    fresh.setattr(bg, "group_cached", lambda g: False)
+    fresh.setattr(bg.subprocess, "Popen", lambda *a, **k: pytest.fail("failed build retried"))
+    said: list[str] = []
+    progress.set_notice(said.append)
+    try:
+        assert not jit.ready("robot")  # the numpy path serves
+    finally:
+        progress.set_notice(None)
+    assert len(said) == 1
+    assert "failed" in said[0] and str(marker) in said[0]
+    assert "delete" in said[0] and f"{bg.ENV}=0" in said[0]
+
+
+def test_builder_removes_its_lock_when_interrupted(monkeypatch, tmp_path):
+    def interrupted() -> list[str]:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(bg, "build_missing", interrupted)
+    lock, marker = tmp_path / "i.lock", tmp_path / "i.failed"
+    lock.write_text("1")
+    with pytest.raises(KeyboardInterrupt):
+        bg.main([str(lock), str(marker)])
+    assert not lock.exists() and not marker.exists()  # not a failure: the next run retries
+
+
+# -- the cold path gives the compiled path's numbers, group by group ------------------------------
+def _both(monkeypatch, group, fn):
+    """``fn()`` with ``group`` compiled, then as on a cold kernel cache (numpy)."""
+    monkeypatch.setitem(bg._decided, group, True)
+    a = fn()
+    monkeypatch.setitem(bg._decided, group, False)
+    return a, fn()
+
+
+@needs_numba
+def test_cold_forcelog_is_the_compiled_bits(monkeypatch):
+    from roboisf.io import forcelog
+
+    t = np.cumsum(np.random.default_rng(1).uniform(5e-4, 1.5e-3, 3000))
+    W = np.random.default_rng(2).normal(0, 300, (3000, 6))
+    lo = np.sort(np.random.default_rng(3).uniform(t[0], t[-1], 50))
+    hi = np.minimum(lo + 0.2, t[-1])
+
+    def run():
+        monkeypatch.setattr(forcelog, "_KERNEL", None)  # not yet chosen in this "process"
+        k = forcelog._log_kernel()
+        return (k is not None), forcelog.window_average(t, W, lo, hi)
+
+    (ka, a), (kb, b) = _both(monkeypatch, "forcelog", run)
+    assert ka and not kb
+    # the same arithmetic in the same order (roboisf.io.forcelog_kernel): a relative 1e-13 for
+    # the difference of two running sums of 3000 terms
+    np.testing.assert_allclose(a, b, rtol=1e-13, atol=1e-12)
+
+
+@needs_numba
+def test_cold_mesh_is_the_compiled_result(monkeypatch):
+    from roboisf.parts import Cone
+    from roboisf.parts.mesh import spatial_order, tessellate
+    from roboisf.scan.readers import _extent
+
+    X = np.random.default_rng(4).uniform(-0.05, 0.05, (4000, 3)) * [1, 1, 0.5] - [0, 0, 0.03]
+    X[100:200] = X[100]  # ties: points sharing a Morton cell keep their input order on both paths
+    a, b = _both(monkeypatch, "mesh", lambda: spatial_order(X))
+    np.testing.assert_array_equal(a, b)
+    a, b = _both(monkeypatch, "mesh", lambda: _extent(X))
+    np.testing.assert_array_equal(a, b)
+
+    def query():
+        mesh = tessellate(Cone(), chordal_error=0.3e-3, edge=6e-3)
+        return "grid" in mesh._index, mesh.closest_point(X).distance
+
+    (ga, a), (gb, b) = _both(monkeypatch, "mesh", query)
+    assert ga and not gb
+    # both exact with the same point-triangle arithmetic; a tie may name another face at the
+    # same distance (roboisf.parts.MeshPart)
+    np.testing.assert_allclose(a, b, rtol=0, atol=1e-15)
+
+
+@needs_numba
+def test_cold_scan_is_the_compiled_result(monkeypatch):
+    from roboisf.scan.deviation import statistical_outliers
+
+    rng = np.random.default_rng(5)
+    X = rng.uniform(-0.05, 0.05, (20000, 3)) * [1, 1, 0.02]
+    X[:30] += rng.normal(0, 0.01, (30, 3))  # strays
+    a, b = _both(monkeypatch, "scan", lambda: statistical_outliers(X))
+    assert 0 < int((~a).sum()) < 100
+    np.testing.assert_array_equal(a, b)  # exact neighbours on both paths: the same mask
+
+
+@needs_numba
+def test_cold_sync_is_the_compiled_result(monkeypatch):
+    from roboisf.sync import position
+
+    s = np.linspace(0.0, 0.3, 3000)
+    tip = np.column_stack([0.05 * np.cos(40 * s), 0.05 * np.sin(40 * s), -0.1 * s])
+    S = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(tip, axis=0), axis=1))])
+    P = tip[::2] + np.random.default_rng(6).normal(0, 2e-5, (1500, 3))
+    P[:40] += [0, 0, 0.05]  # approach, off the path
+    a, b = _both(monkeypatch, "sync", lambda: position._track(P, tip, S, position.OFF_PATH))
+    np.testing.assert_array_equal(np.isnan(a), np.isnan(b))
+    ok = np.isfinite(a)
+    assert ok.sum() > 1400
+    # tests/test_sync_kernel.py: the compiled projection and numpy's einsum sum in another order
+    np.testing.assert_allclose(a[ok], b[ok], rtol=0, atol=1e-12)
+
+
+@needs_numba
+def test_cold_robot_is_the_compiled_result(monkeypatch):
+    from roboisf.robot.presets import list_robots, load_robot
+
+    m = next(m for m in map(load_robot, list_robots()) if m.stiffness is not None)
+    rng = np.random.default_rng(3)
+    q = 0.5 * (m.q_min + m.q_max) + rng.uniform(-0.3, 0.3, (500, 6)) * (m.q_max - m.q_min) / 2
+    W = rng.normal(0, 300, (500, 6))
+    a, b = _both(monkeypatch, "robot", lambda: m.deflection(q, W))
+    # numpy vs numba engine: the same arithmetic up to rounding (tests/test_robot_vjm.py: ≤ 1e-14
+    # relative on compliances); deflections here are ≤ 1e-3 m, so 1e-15 m absolute ≈ 1e-12 rel.
+    np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-15)
+
+
+# -- end to end: a real cold cache ----------------------------------------------------------------
+_PROBE = """
+import json, sys
+from roboisf.jit import background as bg
+ready = {g: bg.ready(g) for g in bg.GROUPS}
+print(json.dumps({"ready": ready, "lock": str(bg.lock_path()), "failed": str(bg.failure_path())}))
+"""
+
+
+@needs_numba
+@pytest.mark.slow
+def test_first_process_serves_numpy_builds_in_background_next_runs_compiled(tmp_path):
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), **{bg.ENV: "1"})
+    env["PYTHONPATH"] = os.pathsep.join(p for p in sys.path if p)
+    run = [sys.executable, "-c", _PROBE]
+
+    def probe() -> dict:
+        out = subprocess.run(run, env=env, check=True, capture_output=True, text=True).stdout
+        return json.loads(out)
+
+    first = probe()
+    assert not any(first["ready"].values())  # empty cache: numpy serves the first run
+    lock = Path(first["lock"])
+    assert lock.exists()  # one builder for all groups
+    second = probe()  # while it builds: still numpy, and no second builder (the same lock)
+    assert not any(second["ready"].values())
+    deadline = time.time() + 600
+    while lock.exists() and time.time() < deadline:  # the builder removes its lock when done
+        time.sleep(1.0)
+    assert not lock.exists(), "background build did not finish in 10 min"
+    assert not Path(first["failed"]).exists()
+    assert all(probe()["ready"].values())  # the cache the builder left is used
+
+
+def _prints_ok(code: str, env: dict[str, str]) -> None:
+    """Run ``code`` in a fresh interpreter; it must exit 0 having printed "ok"."""
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300
+    )
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
+
+
+@needs_numba
+def test_cold_online_runs_as_python_all_the_way_down_with_the_model_numbers(tmp_path):
+    """On a cold cache the online kernels are plain Python, the chain walk too (a private copy
+    of roboisf.robot.vjm_chain: calling its numba functions would compile them), and give the
+    model's deflection as the compiled kernels do (tests/test_online_core.py)."""
+    root = Path(__file__).resolve().parents[1]
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), **{bg.ENV: "1"})
+    env["PYTHONPATH"] = os.pathsep.join([str(SRC.parent), str(root)])
+    code = (
+        "from roboisf.jit import background as bg\n"
+        "bg._start = lambda: None  # no builder from a test\n"
+        "from roboisf.online import kernel as kn\n"
+        "from roboisf.robot import vjm_chain\n"
+        "assert not kn.COMPILED\n"
+        "assert kn.chain_jacobian is not vjm_chain.chain_jacobian\n"
+        "assert not hasattr(kn.chain_jacobian, 'py_func') and not hasattr(kn.fk_deflection, "
+        "'py_func')\n"
+        "assert hasattr(vjm_chain.chain_jacobian, 'py_func')  # the module itself untouched\n"
+        "import tests.test_online_core as t\n"
+        "c23, e, r = t._fk_deflection_vs_model('r2000ic-210f', kn.fk_deflection, n=4)\n"
+        "assert e < 1e-12 and r < 1e-13, (e, r)\n"
+        "print('ok')\n"
+    )
+    _prints_ok(code, env)
+    cache = sorted(p.name for p in (tmp_path / "cache").rglob("*.nbi"))
+    assert cache == []  # nothing was compiled (numba writes no cache)
+
+
+def test_builder_runs_at_a_lower_priority(monkeypatch, tmp_path):
+    """Background work: the user's command gets the CPU first."""
+    niced: list[int] = []
+    monkeypatch.setattr(bg.os, "nice", lambda n: niced.append(n) or n)
+    monkeypatch.setattr(bg, "build_missing", lambda: [])
+    assert bg.main([str(tmp_path / "n.lock")]) == 0
+    assert niced == [bg.NICE] and bg.NICE > 0
+
+
+def test_numba_switched_off_runs_as_the_plain_install(tmp_path):
+    """ROBOISF_NUMBA=0: no numba (not even imported), the numpy engines, no builder — what the
+    plain install runs, and what benchmarks/cold_start.py --no-numba times."""
+    env = dict(os.environ, ROBOISF_NUMBA="0", **{bg.ENV: "1"})
+    env["PYTHONPATH"] = str(SRC.parent)
+    code = (
+        "import sys\n"
+        "from roboisf import jit\n"
+        "from roboisf.jit import background as bg\n"
+        "bg._start = lambda: sys.exit('a builder was started')\n"
+        "import roboisf.scan.deviation, roboisf.online.kernel as kn\n"
+        "from roboisf.robot import vjm_kernel\n"
+        "assert not jit.HAVE_NUMBA and not any(jit.ready(g) for g in bg.GROUPS)\n"
+        "assert not kn.COMPILED and not vjm_kernel.use_numba('auto')\n"
+        "assert 'numba' not in sys.modules\n"
+        "print('ok')\n"
+    )
+    _prints_ok(code, env)
