@@ -99,6 +99,6 @@ def test_shallow_part_through_virtual_cell_and_analyze(tmp_path):
     assert "rim_band = 9.0\n" in (tmp_path / "study" / "study.toml").read_text()
     result = analyze(tmp_path / "study")
     s = result.summary
-    assert s["rim_band_mm"] == pytest.approx(9.0) and s["part_symmetry"] == 0
-    assert 0 < s["n_points_used"] < s["n_points"]
-    assert max(s["truth"]["rms_error_dn_mm"].values()) < 0.020
+    assert s.rim_band_mm == pytest.approx(9.0) and s.part_symmetry == 0
+    assert 0 < s.n_points_used < s.n_points
+    assert s.truth is not None and max(s.truth["rms_error_dn_mm"].values()) < 0.020
