@@ -43,15 +43,19 @@ from roboisf.compensate import CompensationOptions
 from roboisf.compensate.study import compensate_study
 from roboisf.decompose.diagnose import DETECTION_LIMITS, SUSPECTS
 from roboisf.decompose.pipeline import analyze, write_results
+from roboisf.frames import vertical_tool
 from roboisf.parts import Cone
 from roboisf.parts.mesh import tessellate
+from roboisf.study.spec import load_study
 from roboisf.virtual.cell import (
     PAPER_CELL_PLACEMENT,
     build_study,
     paper_cone_cell,
     paper_vwacf_cell,
     pyramid_cell,
+    sensor_reading,
     simulate,
+    tool_weight_at_sensor,
     virtual_cell,
 )
 from roboisf.virtual.truth import truth_from_table
@@ -102,17 +106,19 @@ def draw(rng: np.random.Generator, faults: tuple[str, ...]) -> dict:
     return t
 
 
-def truth_values(cell, t, u) -> dict[str, float]:
+def truth_values(cell, t, u, study: Path) -> dict[str, float]:
     """The true value of each suspect in the diagnosis's units (nan: not defined)."""
     tr = cell.truth
     k_c = cell.cell.robot.compliance(t.q, T_base_work=cell.cell.T_base_work)
     vjm = at_ball_centre(np.einsum("nij,nj->ni", k_c, t.wrench_robot), cell.cell.tool.radius)
     x = np.einsum("ij,ij->i", vjm, t.toolpath.normal)[u]
     y = np.einsum("ij,ij->i", t.robot, t.toolpath.normal)[u]
-    # what the flange sensor reads at rest: the tool's weight through its gain and crosstalk,
-    # plus its bias (the diagnosis's static offset)
-    weight = np.array([0, 0, -tr.tool_mass * 9.80665])
-    bias = np.linalg.norm(tr.sensor_matrix()[:3, :3] @ weight + tr.sensor_bias[:3])
+    # what the flange sensor reads at rest (the diagnosis's static offset): the tool's weight in
+    # the sensor's axes through its gain and crosstalk, plus its bias — as the cell makes it
+    spec = load_study(study).robot_run.forces
+    tip, R = t.toolpath.tip[:1], vertical_tool(cell.tool_rotation)
+    rest = sensor_reading(tr, np.zeros((1, 6)), tool_weight_at_sensor(cell, tr, spec, tip, R))
+    bias = np.linalg.norm(rest[0, :3])
     return {
         "robot_stiffness": float(x @ y / (x @ x)),
         "force_gain": float(np.mean(tr.sensor_gain)),
@@ -194,7 +200,7 @@ def main(n: int = 40, seed: int = 2026) -> None:
             s = json.loads((root / "results" / "summary.json").read_text(encoding="utf-8"))
             t = simulate(cell)
             u = r.per_point["used"].to_numpy()
-            tv = truth_values(cell, t, u)
+            tv = truth_values(cell, t, u, root / "study")
             diag = {d["suspect"]: d for d in s["diagnosis"]}
             marks = []
             for name in SUSPECTS:
