@@ -13,7 +13,7 @@ import pytest
 
 from roboisf.cli.main import main
 from roboisf.errors import InputError
-from roboisf.io.forcelog import ForceLog, read_force_log, write_force_log
+from roboisf.logs.forcelog import ForceLog, read_force_log, write_force_log
 from roboisf.io.text import decode_utf8
 from roboisf.parts import Cone
 from roboisf.parts.io import load_part, read_profile_csv

@@ -13,7 +13,7 @@ from roboisf.compensate import (
 )
 from roboisf.compensate.virtual import cell_deflection_model
 from roboisf.errors import InputError
-from roboisf.io.program import RobotTool
+from roboisf.cam.program import RobotTool
 from roboisf.virtual.cell import paper_cone_cell, simulate
 
 

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from roboisf.errors import InputError
-from roboisf.io.forcelog import read_force_log
-from roboisf.io.jointlog import read_joint_log
+from roboisf.logs.forcelog import read_force_log
+from roboisf.logs.jointlog import read_joint_log
 from roboisf.io.timestamps import repair_time
 
 

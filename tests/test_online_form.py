@@ -136,7 +136,7 @@ def test_online_form_of_the_paper_cone_is_analysed_and_its_robot_term_is_the_loo
     where the joint log places the end by a few ms). analyze's robot term less its VJM model,
     n · (command), is the correction the loop logged, point by point."""
     from roboisf.cli.main import main
-    from roboisf.io.toolpath_csv import read_toolpath_csv
+    from roboisf.cam.toolpath_csv import read_toolpath_csv
 
     log, formed = tmp_path / "log.parquet", tmp_path / "formed"
     # a 12 ms EGM cycle: the simulated controller keeps its cycle on a loaded machine, so

@@ -316,7 +316,7 @@ def _virtual(
 
     from roboisf.compensate import CompensationOptions, write_compensation
     from roboisf.compensate.virtual import iterate_virtual
-    from roboisf.io.program import RobotTool
+    from roboisf.cam.program import RobotTool
     from roboisf.virtual.builtin import BUILTIN_CELLS
 
     if iterations < 1:
@@ -375,7 +375,7 @@ def _predicted(
 
     from roboisf.compensate import CompensationOptions, compensate, write_compensation
     from roboisf.compensate.cell import cell_deflection_model
-    from roboisf.io.program import RobotTool
+    from roboisf.cam.program import RobotTool
     from roboisf.learn.predict import PredictionSetup
 
     assert isinstance(opts, CompensationOptions)

@@ -39,7 +39,7 @@ from roboisf.compensate.compliance import (
 from roboisf.compensate.gouge import GougeReport, gouge_check
 from roboisf.errors import InputError
 from roboisf.io.atomic import atomic_write, staged_directory
-from roboisf.io.program import RobotTool
+from roboisf.cam.program import RobotTool
 from roboisf.parts.base import Part
 from roboisf.path.toolpath import Toolpath
 from roboisf.programs.export import write_toolpath

@@ -36,7 +36,7 @@ from roboisf.compensate.pipeline import (
 )
 from roboisf.decompose.pipeline import analyze
 from roboisf.errors import InputError
-from roboisf.io.program import RobotTool
+from roboisf.cam.program import RobotTool
 from roboisf.progress import Progress, task
 from roboisf.robot.model import RobotModel
 from roboisf.study.fingerprint import check_results

@@ -62,7 +62,7 @@ from roboisf import __version__
 from roboisf.errors import InputError
 from roboisf.frames.rotations import abc_to_matrix, matrix_to_abc
 from roboisf.io.atomic import atomic_write
-from roboisf.io.program import (
+from roboisf.cam.program import (
     MAX_MODULE_MOVES,
     NUMBER_RE,
     ProgramPath,
