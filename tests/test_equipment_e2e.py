@@ -133,8 +133,8 @@ def test_scan_compare_and_robot_deflect_take_a_cam_program(tmp_path, capsys):
     and in ``robot deflect`` (no part), a one-line error points to ``roboisf toolpath import``."""
     import json
 
-    from roboisf.cli.main import main
     from roboisf.cam.toolpath_csv import write_toolpath_csv
+    from roboisf.cli.main import main
     from roboisf.parts import Cone
     from roboisf.scan import synthetic_scan, write_ply
     from roboisf.toolpath import step_down

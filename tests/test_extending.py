@@ -20,11 +20,11 @@ from typing import Any
 import numpy as np
 import pytest
 
+from roboisf.cam.toolpath_csv import read_toolpath_csv
 from roboisf.cli.main import main
 from roboisf.errors import InputError
 from roboisf.formats import get_file_format, unregister_format
 from roboisf.logs.forcelog import ForceLog, detect_force_format, read_force_log
-from roboisf.cam.toolpath_csv import read_toolpath_csv
 from roboisf.programs.registry import find_format, get_format, program_formats, unregister
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "extending.md"

@@ -24,11 +24,11 @@ import tomli_w
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from roboisf.cam.toolpath_csv import read_toolpath_csv, write_toolpath_csv
 from roboisf.errors import RoboisfError
 from roboisf.logs.forcelog import ForceLog, read_force_log, write_force_log
 from roboisf.logs.jointlog import read_joint_log, write_joint_log
 from roboisf.logs.thickness import read_thickness_csv, write_thickness_csv
-from roboisf.cam.toolpath_csv import read_toolpath_csv, write_toolpath_csv
 from roboisf.parts import Cone
 from roboisf.parts.io import load_part, read_profile_csv
 from roboisf.scan import read_scan, write_ply

@@ -83,8 +83,8 @@ def test_analysis_does_not_see_the_force_resolution(studies):
 def test_demo_programs_default_to_the_cells_machines(tmp_path):
     """RAPID for the ABB robot, G-code for the CNC; every dialect on request; each read back
     to the toolpath's tips (the readers are independent of the writers' layouts)."""
-    from roboisf.cli.demo import DEMO_FORMATS, write_demo_programs
     from roboisf.cam.gcode import read_gcode
+    from roboisf.cli.demo import DEMO_FORMATS, write_demo_programs
     from roboisf.programs.rapid import read_rapid
     from roboisf.virtual.cell import cell_toolpath
 

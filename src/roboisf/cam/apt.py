@@ -30,10 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
-from roboisf.errors import InputError
 from roboisf.cam.cam import FEED, RAPID, CamMoves, MoveList, ReadOptions, arc_points
 from roboisf.cam.gcode import MAX_NUMBER
 from roboisf.cam.program import read_program_text
+from roboisf.errors import InputError
 
 __all__ = ["read_apt_moves"]
 

@@ -50,8 +50,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roboisf import __version__
-from roboisf.errors import InputError
-from roboisf.io.atomic import atomic_write
 from roboisf.cam.cam import (
     FEED,
     RAPID,
@@ -68,6 +66,8 @@ from roboisf.cam.program import (
     read_program_text,
     tip_mm,
 )
+from roboisf.errors import InputError
+from roboisf.io.atomic import atomic_write
 from roboisf.path.toolpath import Toolpath
 
 __all__ = [

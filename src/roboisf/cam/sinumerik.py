@@ -23,10 +23,10 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from roboisf.errors import InputError
 from roboisf.cam.cam import CamMoves, ReadOptions
 from roboisf.cam.gcode import ISO, Dialect, Interpreter, Word, program_number
 from roboisf.cam.program import NUMBER_RE, read_program_text
+from roboisf.errors import InputError
 
 __all__ = ["SINUMERIK", "read_sinumerik_moves", "tokenize_sinumerik"]
 

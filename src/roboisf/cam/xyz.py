@@ -21,9 +21,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from roboisf.errors import InputError
 from roboisf.cam.cam import FEED, CamMoves
 from roboisf.cam.gcode import MAX_NUMBER
+from roboisf.errors import InputError
 from roboisf.io.text import read_text
 
 __all__ = ["XYZ_UNITS", "read_xyz_moves"]

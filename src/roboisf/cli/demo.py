@@ -131,8 +131,8 @@ def _build_part(
     """One paper study into ``folder / <cell name>``: virtual cell → analyze → report →
     programs. Returns (report path, the lines to print, warnings); prints nothing itself, so it
     runs as well in a worker process."""
-    from roboisf.decompose.pipeline import analyze, write_results
     from roboisf.cam.toolpath_csv import read_toolpath_csv
+    from roboisf.decompose.pipeline import analyze, write_results
     from roboisf.virtual.cell import PAPER_TABLE5, build_study, paper_scenario_cell
 
     cell = paper_scenario_cell(part, scan_points=scan_points, force_rate=force_rate)

@@ -29,7 +29,6 @@ from roboisf import jit
 from roboisf.errors import InputError
 from roboisf.formats import FileFormat, file_formats, get_file_format
 from roboisf.io.atomic import atomic_write
-from roboisf.logs.logprofile import FORCES, MOMENTS, ForceLogSpec
 from roboisf.io.table import (
     LogTable,
     format_rows,
@@ -39,6 +38,7 @@ from roboisf.io.table import (
 )
 from roboisf.io.timestamps import repair_time
 from roboisf.io.units import log_unit_to_si, to_si
+from roboisf.logs.logprofile import FORCES, MOMENTS, ForceLogSpec
 from roboisf.path.toolpath import Toolpath
 
 __all__ = [

@@ -32,10 +32,10 @@ from numpy.typing import ArrayLike, NDArray
 from roboisf.errors import InputError
 from roboisf.formats import FileFormat, file_formats, get_file_format
 from roboisf.io.atomic import atomic_write
-from roboisf.logs.logprofile import JointLogSpec
 from roboisf.io.table import LogTable, format_rows, read_log_table, read_table, split_name_unit
 from roboisf.io.timestamps import repair_time
 from roboisf.io.units import log_unit_to_si, to_si
+from roboisf.logs.logprofile import JointLogSpec
 
 __all__ = [
     "JOINT_COLUMNS",

@@ -58,9 +58,6 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from roboisf import __version__
-from roboisf.errors import InputError
-from roboisf.frames.rotations import abc_to_matrix, matrix_to_abc
-from roboisf.io.atomic import atomic_write
 from roboisf.cam.program import (
     NUMBER_RE,
     ProgramPath,
@@ -70,6 +67,9 @@ from roboisf.cam.program import (
     program_identifier,
     read_program_text,
 )
+from roboisf.errors import InputError
+from roboisf.frames.rotations import abc_to_matrix, matrix_to_abc
+from roboisf.io.atomic import atomic_write
 from roboisf.path.toolpath import Toolpath
 from roboisf.robot.armconfig import ArmConfig, kuka_status_turn
 

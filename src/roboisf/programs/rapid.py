@@ -55,9 +55,6 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from roboisf import __version__
-from roboisf.errors import InputError
-from roboisf.frames.rotations import matrix_to_quat, quat_to_matrix
-from roboisf.io.atomic import atomic_write
 from roboisf.cam.program import (
     MAX_MODULE_MOVES,
     NUMBER_RE,
@@ -71,6 +68,9 @@ from roboisf.cam.program import (
     split_chunks,
     split_modules,
 )
+from roboisf.errors import InputError
+from roboisf.frames.rotations import matrix_to_quat, quat_to_matrix
+from roboisf.io.atomic import atomic_write
 from roboisf.path.toolpath import Toolpath
 from roboisf.robot.armconfig import ArmConfig, abb_confdata
 

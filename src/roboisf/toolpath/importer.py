@@ -45,10 +45,10 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from roboisf.errors import InputError
-from roboisf.formats import FileFormat, file_formats
 from roboisf.cam.cam import DEFAULT_CHORD_TOL, FEED, CamMoves, ReadOptions
 from roboisf.cam.camformat import CamSpec, head_lines
+from roboisf.errors import InputError
+from roboisf.formats import FileFormat, file_formats
 from roboisf.parts.base import Part
 from roboisf.path.toolpath import Toolpath
 from roboisf.toolpath.laps import detect_laps

@@ -52,6 +52,7 @@ import pandas as pd
 import tomli_w
 from numpy.typing import NDArray
 
+from roboisf.cam.toolpath_csv import write_toolpath_csv
 from roboisf.cell import (
     DEFAULT_HOLDER,
     PAPER_CELL_PLACEMENT,
@@ -77,7 +78,6 @@ from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
 from roboisf.logs.forcelog import ForceLog, write_force_log
 from roboisf.logs.jointlog import write_joint_log
 from roboisf.logs.thickness import write_thickness_csv
-from roboisf.cam.toolpath_csv import write_toolpath_csv
 from roboisf.parts import (
     VWACF,
     AxisymmetricPart,

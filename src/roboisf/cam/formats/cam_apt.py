@@ -7,8 +7,8 @@ import re
 from pathlib import Path
 from typing import Any
 
-from roboisf.formats import FileFormat, register_format
 from roboisf.cam.camformat import CamSpec, head_lines
+from roboisf.formats import FileFormat, register_format
 
 _HINT = re.compile(r"^\s*(GOTO|FEDRAT|TLAXIS|MULTAX|PARTNO|FROM|RAPID|UNITS)\s*(/|$)", re.I)
 

@@ -7,8 +7,8 @@ import re
 from pathlib import Path
 from typing import Any
 
-from roboisf.formats import FileFormat, register_format
 from roboisf.cam.camformat import CamSpec, code_lines, head_lines
+from roboisf.formats import FileFormat, register_format
 
 _HINT = re.compile(r"^\s*(%|O\d|N\d|[GM]\d|[XYZF][-+.\d])", re.I)
 

@@ -8,8 +8,8 @@ import re
 from pathlib import Path
 from typing import Any
 
-from roboisf.formats import FileFormat, register_format
 from roboisf.cam.camformat import CamSpec, code_lines, head_lines
+from roboisf.formats import FileFormat, register_format
 
 _NUMERIC_ROW = re.compile(r"^\s*[-+.\d]")
 

@@ -18,8 +18,8 @@ from roboisf.formats import FileFormat, lazy, register_format
 from roboisf.logs.logprofile import FORCE_MATCH, FORCES, MOMENTS, TORQUE_MATCH, ForceLogSpec
 
 if TYPE_CHECKING:
-    from roboisf.logs.forcelog import ForceLog
     from roboisf.io.table import LogTable
+    from roboisf.logs.forcelog import ForceLog
 
 
 def _time(t: LogTable) -> Any:

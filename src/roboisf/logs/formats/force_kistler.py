@@ -13,7 +13,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from roboisf.formats import FileFormat, lazy, register_format
-from roboisf.logs.logprofile import FORCE_MATCH, FORCE_TIME_MATCH, FORCES, MOMENT_MATCH, ForceLogSpec
+from roboisf.logs.logprofile import (
+    FORCE_MATCH,
+    FORCE_TIME_MATCH,
+    FORCES,
+    MOMENT_MATCH,
+    ForceLogSpec,
+)
 
 if TYPE_CHECKING:
     from roboisf.logs.forcelog import ForceLog

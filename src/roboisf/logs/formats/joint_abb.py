@@ -16,8 +16,8 @@ def write_abb(path: str | Path, time: Any, q: Any) -> None:
     import numpy as np
 
     from roboisf.io.atomic import atomic_write
-    from roboisf.logs.jointlog import joint_rows
     from roboisf.io.table import format_rows
+    from roboisf.logs.jointlog import joint_rows
 
     t, deg = joint_rows(time, q)
     body = format_rows(np.column_stack([t, deg]), ["%.6f"] + ["%.9f"] * 6)

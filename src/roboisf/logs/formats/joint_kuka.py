@@ -16,8 +16,8 @@ def write_kuka(path: str | Path, time: Any, q: Any) -> None:
     import numpy as np
 
     from roboisf.io.atomic import atomic_write
-    from roboisf.logs.jointlog import joint_rows
     from roboisf.io.table import format_rows
+    from roboisf.logs.jointlog import joint_rows
 
     t, deg = joint_rows(time, q)
     head = "Time [s];" + ";".join(f"A{i} [deg]" for i in range(1, 7)) + "\n"
