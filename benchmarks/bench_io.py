@@ -19,7 +19,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from roboisf.logs.forcelog import ForceLog, attach_to_toolpath
 from roboisf.cam.gcode import write_gcode
 from roboisf.cam.toolpath_csv import (
     TOOLPATH_COLUMNS,
@@ -27,6 +26,7 @@ from roboisf.cam.toolpath_csv import (
     toolpath_table,
     write_toolpath_csv,
 )
+from roboisf.logs.forcelog import ForceLog, attach_to_toolpath
 from roboisf.parts import Cone
 from roboisf.programs.fanuc import write_fanuc
 from roboisf.programs.krl import write_krl
