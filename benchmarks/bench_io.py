@@ -19,14 +19,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from roboisf.io.forcelog import ForceLog, attach_to_toolpath
-from roboisf.io.gcode import write_gcode
-from roboisf.io.toolpath_csv import (
+from roboisf.cam.gcode import write_gcode
+from roboisf.cam.toolpath_csv import (
     TOOLPATH_COLUMNS,
     read_toolpath_csv,
     toolpath_table,
     write_toolpath_csv,
 )
+from roboisf.logs.forcelog import ForceLog, attach_to_toolpath
 from roboisf.parts import Cone
 from roboisf.programs.fanuc import write_fanuc
 from roboisf.programs.krl import write_krl

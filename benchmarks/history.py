@@ -192,7 +192,7 @@ def stage2(root: Path) -> None:
             "--overwrite", "--no-png")  # fmt: skip
     print(f"compensate --predicted: {t:.1f} s")
     comp = pd.read_csv(root / "C_dome" / "compensated.csv", comment="#")
-    from roboisf.io.toolpath_csv import read_toolpath_csv
+    from roboisf.cam.toolpath_csv import read_toolpath_csv
 
     commanded = read_toolpath_csv(root / "C_dome" / "compensated.csv")
     reformed = simulate(vc, commanded=commanded)

@@ -5,7 +5,7 @@ Run by hand:  PYTHONPATH=src python benchmarks/log_read.py [--rows 2294068] [--r
 A 1 kHz force log over the paper cone's forming time (2.3 M rows, ~160 MB) is written in four
 layouts: the roboisf CSV (``# units:`` line), a generic export (``Fx [N]`` header, comma), a
 blank-separated export with a units row, and a semicolon / decimal-comma export in cp1252 with
-a status column. Each is read by ``roboisf.io.forcelog.read_force_log`` (every check: units,
+a status column. Each is read by ``roboisf.logs.forcelog.read_force_log`` (every check: units,
 finiteness, monotonic time, the named line of a bad cell) and by the peer, ``pandas.read_csv``
 of the same file whole into float64 (no checks), each in a fresh interpreter so that the peak
 RSS is the reader's own. Prints wall time, peak RSS and the ratios. Issue #16: the analysis of
@@ -51,7 +51,7 @@ _ROBOISF = (
     _HWM
     + """
 import sys, time
-from roboisf.io.forcelog import read_force_log
+from roboisf.logs.forcelog import read_force_log
 t = time.perf_counter()
 log = read_force_log(sys.argv[1])
 dt = time.perf_counter() - t

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from roboisf.frames import vertical_tool
-from roboisf.io.forcelog import write_force_log
+from roboisf.logs.forcelog import write_force_log
 from roboisf.study.sensors import tip_to_sensor
 from roboisf.study.spec import ForceSensorSpec
 from roboisf.virtual.cell import (

@@ -13,8 +13,8 @@ import pytest
 
 from roboisf.cli.main import main
 from roboisf.errors import InputError
-from roboisf.io.forcelog import ForceLog, read_force_log, write_force_log
 from roboisf.io.text import decode_utf8
+from roboisf.logs.forcelog import ForceLog, read_force_log, write_force_log
 from roboisf.parts import Cone
 from roboisf.parts.io import load_part, read_profile_csv
 from roboisf.robot.presets import _preset_dir

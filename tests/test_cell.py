@@ -233,8 +233,8 @@ def test_virtual_cell_cli_coarse_path_and_joint_rate(tmp_path, capsys):
     """--step-down/--spacing [mm] and --joint-rate [Hz] reach the virtual cell: the study's
     toolpath is the paper cone's on that coarse path, its joint log at that rate (the small demo
     cell of docs/study.md's worked example); a step that is not > 0 is refused, exit 2."""
+    from roboisf.cam.toolpath_csv import read_toolpath_csv
     from roboisf.decompose.pipeline import read_run_joint_log
-    from roboisf.io.toolpath_csv import read_toolpath_csv
     from roboisf.virtual.cell import cell_toolpath
 
     out = tmp_path / "study"

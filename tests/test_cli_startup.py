@@ -121,7 +121,15 @@ def test_a_command_that_runs_still_loads_what_it_needs(tmp_path):
 
 
 @pytest.mark.parametrize(
-    "package", ["roboisf.parts", "roboisf.toolpath", "roboisf.io", "roboisf.study"]
+    "package",
+    [
+        "roboisf.parts",
+        "roboisf.toolpath",
+        "roboisf.io",
+        "roboisf.cam",
+        "roboisf.logs",
+        "roboisf.study",
+    ],
 )
 def test_lazy_packages_export_the_objects_of_their_modules(package):
     pkg = importlib.import_module(package)

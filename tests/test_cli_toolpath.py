@@ -9,9 +9,9 @@ import stat
 import numpy as np
 import pytest
 
+from roboisf.cam.gcode import read_gcode
+from roboisf.cam.toolpath_csv import read_toolpath_csv
 from roboisf.cli.main import main
-from roboisf.io.gcode import read_gcode
-from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.parts import Cone, load_part
 from roboisf.programs.fanuc import read_fanuc
 from roboisf.programs.krl import read_krl

@@ -10,9 +10,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from roboisf.cam.program import MAX_MODULE_MOVES
+from roboisf.cam.toolpath_csv import read_toolpath_csv
 from roboisf.cli.main import main
-from roboisf.io.program import MAX_MODULE_MOVES
-from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.programs.rapid import read_rapid
 
 COARSE = ["--step-down", "2", "--spacing", "3"]
@@ -243,9 +243,9 @@ def test_compensated_programs_are_a_loadable_set(analyzed, tmp_path):
     """The compensate output as a controller would load it: frames = the study's, confdata /
     S-T / CONFIG = the IK of the commanded path, names = files, the CNC program without the
     robot's pre-deflection, continuity, and a byte-identical report on a second run."""
+    from roboisf.cam.gcode import read_gcode
     from roboisf.cell import cell_from_study
     from roboisf.compensate.pipeline import nominal_of
-    from roboisf.io.gcode import read_gcode
     from roboisf.programs.fanuc import read_fanuc
     from roboisf.programs.krl import read_krl
     from roboisf.robot.ik import ik_toolpath
@@ -300,7 +300,7 @@ def test_confdata_from_the_joint_log_agrees_with_ik(analyzed, tmp_path):
     interpolated at the toolpath points) equals the IK branch's, q6 around ±180° included:
     they differ only where q6 sits within the interpolation error of the 180° boundary."""
     from roboisf.cell import cell_from_study
-    from roboisf.io.jointlog import read_joint_log
+    from roboisf.logs.jointlog import read_joint_log
     from roboisf.programs.rapid import read_rapid, write_rapid
     from roboisf.robot.armconfig import abb_confdata, arm_config, program_config
     from roboisf.study.spec import load_study

@@ -92,9 +92,9 @@ def test_not_converged_raises_naming_indices(cone):
 
 
 def test_partial_compensation_is_not_written_unless_asked(cone, tmp_path):
+    from roboisf.cam.program import RobotTool
     from roboisf.compensate import write_compensation
     from roboisf.errors import InputError
-    from roboisf.io.program import RobotTool
 
     cell, truth = cone
     m = cell_deflection_model(cell.cell)
@@ -139,8 +139,8 @@ def test_every_registered_format_is_a_compensation_output(cone, tmp_path):
     # place is written too, a robot format with the pre-deflected command, a CNC one without it
     from pathlib import Path
 
+    from roboisf.cam.program import RobotTool
     from roboisf.compensate import write_compensation
-    from roboisf.io.program import RobotTool
     from roboisf.programs.registry import ProgramFormat, WriteOptions, register, unregister
 
     def write(tp, path: Path, o: WriteOptions) -> list[Path]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from roboisf.cam.program import RobotTool
 from roboisf.compensate import (
     CompensationOptions,
     compensate,
@@ -13,7 +14,6 @@ from roboisf.compensate import (
 )
 from roboisf.compensate.virtual import cell_deflection_model
 from roboisf.errors import InputError
-from roboisf.io.program import RobotTool
 from roboisf.virtual.cell import paper_cone_cell, simulate
 
 

@@ -4,9 +4,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from roboisf.cam.program import MAX_MODULE_MOVES
+from roboisf.cam.toolpath_csv import read_toolpath_csv
 from roboisf.cli.main import main
-from roboisf.io.program import MAX_MODULE_MOVES
-from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.programs.fanuc import read_fanuc
 from roboisf.programs.krl import read_krl
 from roboisf.programs.rapid import read_rapid

@@ -24,8 +24,8 @@ import tomli_w
 
 from roboisf.decompose import FACTORS
 from roboisf.decompose.pipeline import analyze
-from roboisf.io.forcelog import detect_force_format, read_force_log
-from roboisf.io.jointlog import detect_joint_format
+from roboisf.logs.forcelog import detect_force_format, read_force_log
+from roboisf.logs.jointlog import detect_joint_format
 from roboisf.virtual.cell import build_study, paper_cone_cell
 from roboisf.virtual.equipment import Equipment
 from roboisf.virtual.truth import TruthSpec
@@ -109,7 +109,7 @@ def test_logged_positions_are_checked_at_the_aligned_times():
     import math
 
     from roboisf.errors import InputError
-    from roboisf.io.forcelog import ForceLog
+    from roboisf.logs.forcelog import ForceLog
     from roboisf.parts import Cone
     from roboisf.study.checks import check_force_log
     from roboisf.toolpath import step_down
@@ -133,8 +133,8 @@ def test_scan_compare_and_robot_deflect_take_a_cam_program(tmp_path, capsys):
     and in ``robot deflect`` (no part), a one-line error points to ``roboisf toolpath import``."""
     import json
 
+    from roboisf.cam.toolpath_csv import write_toolpath_csv
     from roboisf.cli.main import main
-    from roboisf.io.toolpath_csv import write_toolpath_csv
     from roboisf.parts import Cone
     from roboisf.scan import synthetic_scan, write_ply
     from roboisf.toolpath import step_down
@@ -276,7 +276,7 @@ def test_abb_joint_layout_gets_its_units_in_the_study(tmp_path):
     would), so the study reads; the file alone is refused (units never guessed)."""
     from roboisf.decompose.pipeline import read_run_joint_log
     from roboisf.errors import InputError
-    from roboisf.io.jointlog import read_joint_log
+    from roboisf.logs.jointlog import read_joint_log
     from roboisf.study import load_study
 
     kw = {"scan_points": 20_000, "force_rate": 50.0, "joint_rate": 20.0}

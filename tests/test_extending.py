@@ -20,11 +20,11 @@ from typing import Any
 import numpy as np
 import pytest
 
+from roboisf.cam.toolpath_csv import read_toolpath_csv
 from roboisf.cli.main import main
 from roboisf.errors import InputError
 from roboisf.formats import get_file_format, unregister_format
-from roboisf.io.forcelog import ForceLog, detect_force_format, read_force_log
-from roboisf.io.toolpath_csv import read_toolpath_csv
+from roboisf.logs.forcelog import ForceLog, detect_force_format, read_force_log
 from roboisf.programs.registry import find_format, get_format, program_formats, unregister
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "extending.md"
@@ -136,7 +136,7 @@ def test_the_profile_example_round_trips_through_auto_detection(labview, tmp_pat
 
 
 def test_the_profile_example_is_offered_everywhere_then_gone(labview, tmp_path):
-    from roboisf.io.forcelog import force_formats, write_force_log
+    from roboisf.logs.forcelog import force_formats, write_force_log
     from roboisf.virtual.equipment import Equipment
 
     assert "labview" in force_formats()  # a study's [runs.X.forces] format

@@ -373,7 +373,7 @@ def _results_for(study: Path, folder: Path, *, fingerprint_of: Path, nan_rows: i
     import numpy as np
     import pandas as pd
 
-    from roboisf.io.toolpath_csv import read_toolpath_csv
+    from roboisf.cam.toolpath_csv import read_toolpath_csv
     from roboisf.study import load_study
     from roboisf.study.fingerprint import study_fingerprint
     from roboisf.summary import dumps
@@ -660,7 +660,7 @@ def test_mesh_files_that_cannot_be_a_formed_sheet_are_refused(
 def test_a_force_log_in_ms_read_as_s_is_named_not_blamed_on_a_longer_path():
     import numpy as np
 
-    from roboisf.io.forcelog import ForceLog
+    from roboisf.logs.forcelog import ForceLog
     from roboisf.parts import Cone
     from roboisf.study.checks import check_force_log
     from roboisf.toolpath.generate import step_down

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from roboisf.errors import InputError
-from roboisf.io.forcelog import (
+from roboisf.logs.forcelog import (
     ForceLog,
     attach_to_toolpath,
     read_force_log,
@@ -205,7 +205,7 @@ def test_attach_by_position(small_path):
 def test_cumulative_integral_in_place_same_bits_as_the_textbook_formula():
     # issue #16: the running trapezoid sum is built in one buffer; it must give the same bits
     # as the formula it replaced (0.5 scales exactly, so no rounding differs)
-    from roboisf.io.forcelog import _cumulative_integral
+    from roboisf.logs.forcelog import _cumulative_integral
 
     rng = np.random.default_rng(7)
     t = np.cumsum(rng.uniform(0.5e-3, 1.5e-3, 50_001))
@@ -225,7 +225,7 @@ def test_cumulative_integral_in_place_same_bits_as_the_textbook_formula():
 def test_parquet_force_log_read_unchanged_by_in_place_scaling(tmp_path):
     # the reader scales columns in place and fills one (N, 6) wrench: same values as the log
     # written, in SI, with and without moment channels
-    from roboisf.io.logparquet import read_force_parquet, write_force_parquet
+    from roboisf.logs.logparquet import read_force_parquet, write_force_parquet
 
     rng = np.random.default_rng(3)
     t = np.arange(1000) * 1e-3

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from roboisf.io import forcelog
+from roboisf.logs import forcelog
 from roboisf.sensor import conditioning
 
-kernel = pytest.importorskip("roboisf.io.forcelog_kernel")
+kernel = pytest.importorskip("roboisf.logs.forcelog_kernel")
 
 
 def _log(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:

@@ -27,8 +27,8 @@ from roboisf.formats import (
     register_format,
     unregister_format,
 )
-from roboisf.io.forcelog import ForceLog, detect_force_format, force_formats
-from roboisf.io.jointlog import detect_joint_format, joint_formats, unstated_units
+from roboisf.logs.forcelog import ForceLog, detect_force_format, force_formats
+from roboisf.logs.jointlog import detect_joint_format, joint_formats, unstated_units
 
 FORCE_WRITERS = [f.name for f in file_formats("force_log") if f.writer is not None]
 JOINT_WRITERS = [f.name for f in file_formats("joint_log") if f.writer is not None]
@@ -116,7 +116,7 @@ def test_kinds_and_names():
 def test_a_registered_profile_is_offered_everywhere(tmp_path):
     """A toy force-log profile registered from outside is a study format, a virtual-cell
     profile and the writer behind ``write_force_log(profile=...)``; unregistered, it is gone."""
-    from roboisf.io.forcelog import write_force_log
+    from roboisf.logs.forcelog import write_force_log
     from roboisf.virtual.logformats import force_profiles
 
     written = []
@@ -180,7 +180,7 @@ def test_study_formats_lists_the_registry(capsys):
 def test_cam_import_detects_and_reads_through_the_registry(tmp_path):
     """A CAM format registered from outside is detected by its own test (before the suffix
     fallback), accepted by ImportOptions and read by its registered reader."""
-    from roboisf.io.camformat import CamSpec, head_lines
+    from roboisf.cam.camformat import CamSpec, head_lines
     from roboisf.toolpath.importer import (
         ImportOptions,
         cam_format_names,

@@ -324,7 +324,7 @@ def test_every_transform_input_uses_the_one_check(where):
 
             _rigid_transform(E, "T_base_work")
         elif where == "program":
-            from roboisf.io.program import check_placement
+            from roboisf.cam.program import check_placement
 
             check_placement(E)
         elif where == "chain":

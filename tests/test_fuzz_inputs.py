@@ -24,11 +24,11 @@ import tomli_w
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from roboisf.cam.toolpath_csv import read_toolpath_csv, write_toolpath_csv
 from roboisf.errors import RoboisfError
-from roboisf.io.forcelog import ForceLog, read_force_log, write_force_log
-from roboisf.io.jointlog import read_joint_log, write_joint_log
-from roboisf.io.thickness import read_thickness_csv, write_thickness_csv
-from roboisf.io.toolpath_csv import read_toolpath_csv, write_toolpath_csv
+from roboisf.logs.forcelog import ForceLog, read_force_log, write_force_log
+from roboisf.logs.jointlog import read_joint_log, write_joint_log
+from roboisf.logs.thickness import read_thickness_csv, write_thickness_csv
 from roboisf.parts import Cone
 from roboisf.parts.io import load_part, read_profile_csv
 from roboisf.scan import read_scan, write_ply
@@ -253,7 +253,7 @@ def _run(
 
 
 def _profile_log(name: str, profile: str) -> bytes:
-    """A force log written the way an instrument writes it (roboisf.io.forcelog profiles)."""
+    """A force log written the way an instrument writes it (roboisf.logs.forcelog profiles)."""
     t = np.arange(40) / 500.0
     w = np.column_stack([np.sin(t * 50) * 100, t * 0, -300 + t, t, t, t])
     with tempfile.TemporaryDirectory() as d:

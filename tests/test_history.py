@@ -224,7 +224,7 @@ def test_unreachable_postgres_is_one_line(capsys):
 def test_predict_and_the_first_part_program_on_a_new_part(analysed, tmp_path, capsys):
     """``predict`` a pyramid of another size from the two-part history, compare each term with
     the virtual cell's truth for that part, then ``compensate --predicted`` and re-form it."""
-    from roboisf.io.toolpath_csv import read_toolpath_csv
+    from roboisf.cam.toolpath_csv import read_toolpath_csv
     from roboisf.parts.io import load_part
     from roboisf.virtual.cell import PAPER_CELL_PLACEMENT, simulate, virtual_cell
     from roboisf.virtual.truth import load_truth

@@ -23,8 +23,8 @@ from roboisf.cli.main import main
 from roboisf.compensate import CompensationOptions
 from roboisf.compensate.study import compensate_study
 from roboisf.decompose.pipeline import IDENTIFIED_STIFFNESS, analyze, write_results
-from roboisf.io.forcelog import ForceLog, write_force_log
 from roboisf.io.table import read_table
+from roboisf.logs.forcelog import ForceLog, write_force_log
 from roboisf.report import read_headline, write_index
 from roboisf.report.model_check import check_card
 from roboisf.robot import load_robot, load_stiffness

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from roboisf.errors import InputError
-from roboisf.io.thickness import read_thickness_csv, write_thickness_csv
+from roboisf.logs.thickness import read_thickness_csv, write_thickness_csv
 
 
 def test_round_trip_and_interpolation(tmp_path):

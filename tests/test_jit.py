@@ -267,7 +267,7 @@ def _both(monkeypatch, group, fn):
 
 @needs_numba
 def test_cold_forcelog_is_the_compiled_bits(monkeypatch):
-    from roboisf.io import forcelog
+    from roboisf.logs import forcelog
 
     t = np.cumsum(np.random.default_rng(1).uniform(5e-4, 1.5e-3, 3000))
     W = np.random.default_rng(2).normal(0, 300, (3000, 6))
@@ -281,7 +281,7 @@ def test_cold_forcelog_is_the_compiled_bits(monkeypatch):
 
     (ka, a), (kb, b) = _both(monkeypatch, "forcelog", run)
     assert ka and not kb
-    # the same arithmetic in the same order (roboisf.io.forcelog_kernel): a relative 1e-13 for
+    # the same arithmetic in the same order (roboisf.logs.forcelog_kernel): a relative 1e-13 for
     # the difference of two running sums of 3000 terms
     np.testing.assert_allclose(a, b, rtol=1e-13, atol=1e-12)
 

@@ -157,7 +157,8 @@ LAYERS: list[tuple[str, set[str]]] = [
     # and the numba shim (its builder imports the kernel modules by name, in its own process)
     ("registries", {"formats", "jit"}),
     ("value objects", {"frames", "path", "plausible"}),  # transforms, Toolpath
-    ("io base and file formats", {"io"}),  # the Toolpath value object is below every format
+    ("io base", {"io"}),  # tables, text, units, atomic writes, output folders
+    ("file formats", {"cam", "logs"}),  # the Toolpath value object is below every format
     # the robot reads tables and units, not formats; summary.json's typed layout is a value
     # written by decompose and read by compensate and history
     ("models", {"robot", "fem", "sensor", "summary"}),

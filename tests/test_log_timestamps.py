@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from roboisf.errors import InputError
-from roboisf.io.forcelog import read_force_log
-from roboisf.io.jointlog import read_joint_log
 from roboisf.io.timestamps import repair_time
+from roboisf.logs.forcelog import read_force_log
+from roboisf.logs.jointlog import read_joint_log
 
 
 def _force_csv(tmp_path: Path, rows: list[tuple[float, ...]], name="f.csv") -> Path:

@@ -9,8 +9,8 @@ import pyarrow.parquet as pq
 import pytest
 
 from roboisf.errors import InputError
-from roboisf.io.forcelog import ForceLog
-from roboisf.io.logparquet import (
+from roboisf.logs.forcelog import ForceLog
+from roboisf.logs.logparquet import (
     read_force_parquet,
     read_joint_parquet,
     write_force_parquet,

@@ -12,7 +12,7 @@ import pytest
 
 from roboisf.cell import cell_from_study
 from roboisf.decompose import pipeline
-from roboisf.io import forcelog
+from roboisf.logs import forcelog
 from roboisf.robot import vjm_kernel
 from roboisf.study.spec import load_study
 from roboisf.sync import position, position_kernel

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from roboisf.errors import InputError
-from roboisf.io.forcelog import ForceLog, detect_force_format, read_force_log, write_force_log
-from roboisf.io.jointlog import detect_joint_format, read_joint_log, write_joint_log
+from roboisf.logs.forcelog import ForceLog, detect_force_format, read_force_log, write_force_log
+from roboisf.logs.jointlog import detect_joint_format, read_joint_log, write_joint_log
 
 LBF = 4.4482216152605
 

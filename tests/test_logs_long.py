@@ -10,8 +10,8 @@ import pytest
 
 from roboisf.errors import InputError
 from roboisf.io import table
-from roboisf.io.forcelog import read_force_log
-from roboisf.io.jointlog import read_joint_log
+from roboisf.logs.forcelog import read_force_log
+from roboisf.logs.jointlog import read_joint_log
 
 N = 400  # rows: the file is ~20 kB, far above the 4 kB head of the block reader below
 

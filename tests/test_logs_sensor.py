@@ -167,7 +167,7 @@ def test_study_conditioning_takes_the_sensor_orientation_from_the_joints():
     from types import SimpleNamespace
 
     from roboisf.frames import make_transform, vertical_tool
-    from roboisf.io.forcelog import ForceLog
+    from roboisf.logs.forcelog import ForceLog
     from roboisf.study.sensors import condition_study_log
 
     rate, offset = 100.0, 2.0

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from roboisf.errors import InputError
-from roboisf.io.forcelog import detect_force_format, read_force_log
-from roboisf.io.jointlog import detect_joint_format, read_joint_log
+from roboisf.logs.forcelog import detect_force_format, read_force_log
+from roboisf.logs.jointlog import detect_joint_format, read_joint_log
 
 
 def _rtde(tmp_path, n=40, extra_units=False):

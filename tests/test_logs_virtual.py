@@ -11,7 +11,7 @@ import pytest
 
 from roboisf.decompose.pipeline import analyze
 from roboisf.frames import vertical_tool
-from roboisf.io.forcelog import read_force_log
+from roboisf.logs.forcelog import read_force_log
 from roboisf.sensor import gravity_wrench
 from roboisf.study import load_study
 

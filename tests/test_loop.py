@@ -12,11 +12,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from roboisf.cam.toolpath_csv import read_toolpath_csv
 from roboisf.cli.main import main
 from roboisf.compensate.study import STALL_RATIO, stopping_rule
 from roboisf.decompose.core import decompose
 from roboisf.errors import InputError
-from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.programs.fanuc import read_fanuc
 from roboisf.programs.krl import read_krl
 from roboisf.programs.rapid import read_rapid

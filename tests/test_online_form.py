@@ -135,8 +135,8 @@ def test_online_form_of_the_paper_cone_is_analysed_and_its_robot_term_is_the_loo
     … but the joint log puts the toolpath at …", the correction held at the path's end moving
     where the joint log places the end by a few ms). analyze's robot term less its VJM model,
     n · (command), is the correction the loop logged, point by point."""
+    from roboisf.cam.toolpath_csv import read_toolpath_csv
     from roboisf.cli.main import main
-    from roboisf.io.toolpath_csv import read_toolpath_csv
 
     log, formed = tmp_path / "log.parquet", tmp_path / "formed"
     # a 12 ms EGM cycle: the simulated controller keeps its cycle on a loaded machine, so

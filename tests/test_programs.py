@@ -23,12 +23,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from roboisf.cam.gcode import read_gcode, write_gcode
+from roboisf.cam.program import RobotTool
 from roboisf.errors import InputError
 from roboisf.frames import invert
 from roboisf.frames.rotations import rot_z
 from roboisf.frames.se3 import make_transform
-from roboisf.io.gcode import read_gcode, write_gcode
-from roboisf.io.program import RobotTool
 from roboisf.parts import Cone
 from roboisf.programs.export import write_toolpath
 from roboisf.programs.fanuc import read_fanuc, write_fanuc

@@ -18,13 +18,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from roboisf.cam.toolpath_csv import read_toolpath_csv
 from roboisf.cell import ForceModel, tip_wrench
 from roboisf.cli.main import main
 from roboisf.compensate import precompensate
 from roboisf.compensate.virtual import cell_deflection_model
 from roboisf.decompose import FACTORS
 from roboisf.errors import InputError
-from roboisf.io.toolpath_csv import read_toolpath_csv
 from roboisf.parts import Pyramid
 from roboisf.parts.io import save_part
 from roboisf.programs.rapid import read_rapid

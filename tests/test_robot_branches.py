@@ -9,12 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from roboisf.cam.toolpath_csv import write_toolpath_csv
 from roboisf.cli.main import main
 from roboisf.errors import InputError
 from roboisf.frames import make_transform
-from roboisf.io.forcelog import ForceLog, write_force_log
 from roboisf.io.table import read_table
-from roboisf.io.toolpath_csv import write_toolpath_csv
+from roboisf.logs.forcelog import ForceLog, write_force_log
 from roboisf.parts import Cone
 from roboisf.robot import SingularityWarning, ik_toolpath, load_robot, load_urdf
 from roboisf.robot.armconfig import abb_confdata, arm_config, kuka_status_turn, program_config
@@ -198,8 +198,8 @@ def test_deflect_branch_options(cell, tmp_path, capsys):
 def test_toolpath_program_follows_the_chosen_configuration(tmp_path):
     """`roboisf toolpath … --robot R --arm-config …`: the RAPID confdata / KRL S,T written in the
     program are those of the chosen branch (first point as requested, the rest from its joints)."""
+    from roboisf.cam.toolpath_csv import read_toolpath_csv
     from roboisf.frames.rotations import rpy_to_matrix
-    from roboisf.io.toolpath_csv import read_toolpath_csv
     from roboisf.programs.krl import read_krl
     from roboisf.programs.rapid import read_rapid
     from roboisf.robot.armconfig import abb_confdata, parse_arm_config

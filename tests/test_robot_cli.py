@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from roboisf.cam.toolpath_csv import write_toolpath_csv
 from roboisf.cli.main import main
 from roboisf.frames import make_transform
-from roboisf.io.forcelog import ForceLog, write_force_log
-from roboisf.io.jointlog import read_joint_log, write_joint_log
 from roboisf.io.table import read_table
-from roboisf.io.toolpath_csv import write_toolpath_csv
+from roboisf.logs.forcelog import ForceLog, write_force_log
+from roboisf.logs.jointlog import read_joint_log, write_joint_log
 from roboisf.parts import Cone
 from roboisf.robot import ik_toolpath, load_robot, rotate_6
 from roboisf.toolpath import step_down

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from roboisf.errors import InputError
-from roboisf.io.jointlog import read_joint_log, write_joint_log
+from roboisf.logs.jointlog import read_joint_log, write_joint_log
 
 
 def test_round_trip(tmp_path):

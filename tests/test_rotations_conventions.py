@@ -18,8 +18,8 @@ import math
 import numpy as np
 import pytest
 
+from roboisf.cam.program import tool_down_orientation
 from roboisf.frames.rotations import abc_to_matrix, matrix_to_abc, matrix_to_quat, quat_to_matrix
-from roboisf.io.program import tool_down_orientation
 
 DOWN = np.array([0.0, 0.0, -1.0])
 

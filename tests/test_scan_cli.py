@@ -10,8 +10,8 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
+from roboisf.cam.toolpath_csv import write_toolpath_csv
 from roboisf.cli.main import main
-from roboisf.io.toolpath_csv import write_toolpath_csv
 from roboisf.parts import Cone
 from roboisf.scan import synthetic_scan, write_ply
 from roboisf.toolpath import step_down

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from roboisf.errors import InputError
-from roboisf.io.jointlog import JointLog
+from roboisf.logs.jointlog import JointLog
 from roboisf.parts import Cone
 from roboisf.sync.run import align_run
 from roboisf.toolpath import step_down

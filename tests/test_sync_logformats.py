@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 
 from roboisf.errors import InputError
-from roboisf.io.forcelog import ForceLog
+from roboisf.logs.forcelog import ForceLog
 from roboisf.virtual.equipment import Equipment
 from roboisf.virtual.logformats import write_force_profile, write_joint_profile
 
@@ -89,8 +89,8 @@ def test_unknown_profiles_are_refused(log, tmp_path):
 
 def test_virtual_cell_writes_the_profiles(tmp_path):
     """The study's log files in the chosen layouts, same content as the roboisf ones."""
-    from roboisf.io.forcelog import read_force_log
-    from roboisf.io.jointlog import read_joint_log
+    from roboisf.logs.forcelog import read_force_log
+    from roboisf.logs.jointlog import read_joint_log
     from roboisf.virtual.cell import build_study, paper_cone_cell
 
     kw = {"scan_points": 20_000, "force_rate": 50.0, "joint_rate": 20.0}

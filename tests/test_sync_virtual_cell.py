@@ -103,8 +103,8 @@ def test_nominal_time_would_put_the_forces_on_the_wrong_points(pair, tmp_path):
     text = text.replace('sync = "force"', 'sync = "time"').replace('sync = "position"', "")
     text = text.replace('clock = "own"', 'clock = "joint"')
     (s / "study.toml").write_text(text.replace("[runs.robot]", '[runs.robot]\nsync = "time"'))
+    from roboisf.cam.toolpath_csv import read_toolpath_csv
     from roboisf.decompose.pipeline import run_tip_wrench
-    from roboisf.io.toolpath_csv import read_toolpath_csv
     from roboisf.study.spec import load_study
 
     st = load_study(s)

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from roboisf.cam.toolpath_csv import TOOLPATH_COLUMNS, read_toolpath_csv, write_toolpath_csv
 from roboisf.errors import InputError
-from roboisf.io.toolpath_csv import TOOLPATH_COLUMNS, read_toolpath_csv, write_toolpath_csv
 from roboisf.parts import VWACF, Cone
 from roboisf.toolpath import spiral, step_down
 

@@ -10,13 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from roboisf.cam.apt import read_apt_moves
+from roboisf.cam.cam import FEED, RAPID, ReadOptions, arc_points
+from roboisf.cam.gcode import read_gcode, read_iso_moves, write_gcode
+from roboisf.cam.sinumerik import read_sinumerik_moves
+from roboisf.cam.toolpath_csv import read_toolpath_csv, write_toolpath_csv
+from roboisf.cam.xyz import read_xyz_moves
 from roboisf.errors import InputError
-from roboisf.io.apt import read_apt_moves
-from roboisf.io.cam import FEED, RAPID, ReadOptions, arc_points
-from roboisf.io.gcode import read_gcode, read_iso_moves, write_gcode
-from roboisf.io.sinumerik import read_sinumerik_moves
-from roboisf.io.toolpath_csv import read_toolpath_csv, write_toolpath_csv
-from roboisf.io.xyz import read_xyz_moves
 from roboisf.parts import Cone
 from roboisf.toolpath import spiral, step_down
 from roboisf.toolpath.importer import (

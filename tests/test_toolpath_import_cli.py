@@ -12,14 +12,14 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from roboisf.cam.apt import read_apt_moves
+from roboisf.cam.gcode import read_iso_moves, write_gcode
+from roboisf.cam.sinumerik import read_sinumerik_moves
+from roboisf.cam.toolpath_csv import read_toolpath_csv
+from roboisf.cam.xyz import read_xyz_moves
 from roboisf.cli.main import main
 from roboisf.decompose.pipeline import analyze
 from roboisf.errors import InputError, RoboisfError
-from roboisf.io.apt import read_apt_moves
-from roboisf.io.gcode import read_iso_moves, write_gcode
-from roboisf.io.sinumerik import read_sinumerik_moves
-from roboisf.io.toolpath_csv import read_toolpath_csv
-from roboisf.io.xyz import read_xyz_moves
 from roboisf.parts import Cone, save_part
 from roboisf.study import load_study
 from roboisf.study.toolpaths import study_toolpath

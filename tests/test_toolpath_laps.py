@@ -212,8 +212,8 @@ def test_bad_block_names_the_token_as_written(tmp_path, block, token, macro):
     """issue #28: the refusal quotes the first token that is not an address word, as written
     (it quoted what was left once the words were removed: 'IF [#1 G] GOT'), and says a macro is
     one."""
+    from roboisf.cam.gcode import read_iso_moves
     from roboisf.errors import InputError
-    from roboisf.io.gcode import read_iso_moves
 
     p = tmp_path / "m.nc"
     p.write_text(f"G90 G21\nG0 X0 Y0 Z5\n{block}\nG1 X1 F100\n")

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from roboisf.io.cam import FEED
+from roboisf.cam.cam import FEED
 from roboisf.toolpath.importer import ImportOptions, import_toolpath, read_cam_moves
 from roboisf.toolpath.laps import detect_laps
 

@@ -232,8 +232,8 @@ def test_bad_options():
 
 def test_cli_toolpath_on_pyramid_and_mesh_part_files(tmp_path, dome):
     """`roboisf toolpath --part` takes any part file; the CSV keeps the toolpath contract."""
+    from roboisf.cam.toolpath_csv import read_toolpath_csv
     from roboisf.cli.main import main
-    from roboisf.io.toolpath_csv import read_toolpath_csv
     from roboisf.parts import save_part
 
     p = Pyramid(100e-3, 80e-3, math.radians(60.0), 12e-3, corner_radius=6e-3)

@@ -10,7 +10,7 @@ import pytest
 
 from roboisf.decompose.pipeline import analyze
 from roboisf.errors import InputError
-from roboisf.io.forcelog import read_force_log
+from roboisf.logs.forcelog import read_force_log
 from roboisf.virtual.cell import build_study, paper_cone_cell, quantize_wrench
 
 F_STEP, M_STEP = 2.0**-4, 2.0**-10
@@ -83,8 +83,8 @@ def test_analysis_does_not_see_the_force_resolution(studies):
 def test_demo_programs_default_to_the_cells_machines(tmp_path):
     """RAPID for the ABB robot, G-code for the CNC; every dialect on request; each read back
     to the toolpath's tips (the readers are independent of the writers' layouts)."""
+    from roboisf.cam.gcode import read_gcode
     from roboisf.cli.demo import DEMO_FORMATS, write_demo_programs
-    from roboisf.io.gcode import read_gcode
     from roboisf.programs.rapid import read_rapid
     from roboisf.virtual.cell import cell_toolpath
 

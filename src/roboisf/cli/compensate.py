@@ -314,9 +314,9 @@ def _virtual(
 ) -> None:
     from dataclasses import replace
 
+    from roboisf.cam.program import RobotTool
     from roboisf.compensate import CompensationOptions, write_compensation
     from roboisf.compensate.virtual import iterate_virtual
-    from roboisf.io.program import RobotTool
     from roboisf.virtual.builtin import BUILTIN_CELLS
 
     if iterations < 1:
@@ -373,9 +373,9 @@ def _predicted(
     import numpy as np
     import pandas as pd
 
+    from roboisf.cam.program import RobotTool
     from roboisf.compensate import CompensationOptions, compensate, write_compensation
     from roboisf.compensate.cell import cell_deflection_model
-    from roboisf.io.program import RobotTool
     from roboisf.learn.predict import PredictionSetup
 
     assert isinstance(opts, CompensationOptions)

@@ -131,8 +131,8 @@ def _build_part(
     """One paper study into ``folder / <cell name>``: virtual cell → analyze → report →
     programs. Returns (report path, the lines to print, warnings); prints nothing itself, so it
     runs as well in a worker process."""
+    from roboisf.cam.toolpath_csv import read_toolpath_csv
     from roboisf.decompose.pipeline import analyze, write_results
-    from roboisf.io.toolpath_csv import read_toolpath_csv
     from roboisf.virtual.cell import PAPER_TABLE5, build_study, paper_scenario_cell
 
     cell = paper_scenario_cell(part, scan_points=scan_points, force_rate=force_rate)
@@ -193,7 +193,7 @@ def write_demo_programs(
     cell's tool (flange to ball tip, 2 kg) and the configuration data of the cell's IK branch.
     Returns the written paths (a RAPID program too long for one module is a set of files next to
     its main module)."""
-    from roboisf.io.program import RobotTool
+    from roboisf.cam.program import RobotTool
     from roboisf.programs.export import write_toolpath
     from roboisf.programs.registry import program_formats
     from roboisf.robot.armconfig import program_config

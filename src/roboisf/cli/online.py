@@ -681,7 +681,7 @@ def _expected_peak(setup: Any, study: Path | None) -> float:
         return expected_peak_force(np.asarray(setup.wrench))
     if study is None:
         return math.nan
-    from roboisf.io.forcelog import read_force_log
+    from roboisf.logs.forcelog import read_force_log
     from roboisf.study import load_study
 
     spec = load_study(study).robot_run.forces

@@ -438,9 +438,9 @@ def deflect_cmd(
     import numpy as np
 
     from roboisf.io.atomic import atomic_write, check_not_input
-    from roboisf.io.forcelog import attach_to_toolpath, read_force_log
-    from roboisf.io.jointlog import read_joint_log
     from roboisf.io.table import format_rows
+    from roboisf.logs.forcelog import attach_to_toolpath, read_force_log
+    from roboisf.logs.jointlog import read_joint_log
     from roboisf.robot import ik_toolpath, rotate_6
     from roboisf.robot.ik import NumericalIKWarning
     from roboisf.toolpath.importer import read_toolpath_file

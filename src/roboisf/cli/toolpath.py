@@ -50,7 +50,7 @@ from roboisf.toolpath.limits import MAX_POINTS
 if typing.TYPE_CHECKING:
     import numpy as np
 
-    from roboisf.io.program import RobotTool
+    from roboisf.cam.program import RobotTool
     from roboisf.parts import AxisymmetricPart, Part
     from roboisf.path.toolpath import Toolpath
     from roboisf.robot.model import RobotModel
@@ -242,7 +242,7 @@ class PathOptions:
         """The tool from ``--tool`` / ``--tool-length`` (None: not given)."""
         import numpy as np
 
-        from roboisf.io.program import RobotTool
+        from roboisf.cam.program import RobotTool
 
         if self.tool is not None and self.tool_length is not None:
             raise InputError("give --tool or --tool-length, not both", field="--tool")
@@ -382,7 +382,7 @@ def program_frames(
 ) -> tuple[np.ndarray | None, RobotTool | None, RobotModel | None]:
     """Placement, tool and robot of a program; a robot program must have the first two and a
     file name that is a valid program name."""
-    from roboisf.io.gcode import WORK_OFFSETS
+    from roboisf.cam.gcode import WORK_OFFSETS
     from roboisf.programs.export import check_program_name
     from roboisf.programs.registry import get_format
 

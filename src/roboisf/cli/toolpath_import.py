@@ -161,7 +161,7 @@ def import_command(
 
     Example: roboisf toolpath import cone.nc --part cone.toml --tool-diameter 10 -o cone.csv
     """
-    from roboisf.io.toolpath_csv import write_toolpath_csv
+    from roboisf.cam.toolpath_csv import write_toolpath_csv
     from roboisf.parts import load_part
     from roboisf.parts.io import part_files
     from roboisf.toolpath.importer import ImportOptions, import_toolpath

@@ -30,6 +30,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 
+from roboisf.cam.program import RobotTool
 from roboisf.compensate.adjust import Adjustment, displacement_adjustment
 from roboisf.compensate.compliance import (
     ComplianceCompensation,
@@ -39,7 +40,6 @@ from roboisf.compensate.compliance import (
 from roboisf.compensate.gouge import GougeReport, gouge_check
 from roboisf.errors import InputError
 from roboisf.io.atomic import atomic_write, staged_directory
-from roboisf.io.program import RobotTool
 from roboisf.parts.base import Part
 from roboisf.path.toolpath import Toolpath
 from roboisf.programs.export import write_toolpath

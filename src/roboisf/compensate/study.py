@@ -24,6 +24,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
+from roboisf.cam.program import RobotTool
 from roboisf.cell import Cell, cell_from_study
 from roboisf.compensate.cell import cell_deflection_model
 from roboisf.compensate.compliance import DeflectionModel
@@ -36,7 +37,6 @@ from roboisf.compensate.pipeline import (
 )
 from roboisf.decompose.pipeline import analyze
 from roboisf.errors import InputError
-from roboisf.io.program import RobotTool
 from roboisf.progress import Progress, task
 from roboisf.robot.model import RobotModel
 from roboisf.study.fingerprint import check_results

@@ -56,9 +56,9 @@ from roboisf.errors import InputError
 from roboisf.fem import ComplianceResult
 from roboisf.frames import vertical_tool
 from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
-from roboisf.io.forcelog import ForceLog, attach_to_toolpath
-from roboisf.io.jointlog import JointLog, read_joint_log
-from roboisf.io.thickness import read_thickness_csv
+from roboisf.logs.forcelog import ForceLog, attach_to_toolpath
+from roboisf.logs.jointlog import JointLog, read_joint_log
+from roboisf.logs.thickness import read_thickness_csv
 from roboisf.parts import sine_law_thickness
 from roboisf.progress import Cancelled, Progress, cancellable, task
 from roboisf.robot import compliance_stats, deflection_contributions, ik_toolpath

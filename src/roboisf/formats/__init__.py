@@ -4,8 +4,9 @@ one :class:`~roboisf.formats.registry.FileFormat` per format, registered by one 
 meshio registers its mesh formats.
 
 This package is the lowest but one: it imports nothing of roboisf but :mod:`roboisf.errors`; the
-formats themselves live with what they read (``roboisf.io.formats``, ``roboisf.programs.formats``)
-and are found by module name (plugin packages), never by an import arrow up the layers.
+formats themselves live with what they read (``roboisf.cam.formats``, ``roboisf.logs.formats``,
+``roboisf.programs.formats``) and are found by module name (plugin packages), never by an import
+arrow up the layers.
 """
 
 from __future__ import annotations

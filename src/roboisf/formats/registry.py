@@ -45,7 +45,8 @@ Kind = Literal["toolpath", "cnc", "robot", "force_log", "joint_log", "scan", "pa
 
 #: The packages whose every module registers built-in formats (imported on first use, by name).
 PLUGIN_PACKAGES = (
-    "roboisf.io.formats",
+    "roboisf.cam.formats",
+    "roboisf.logs.formats",
     "roboisf.parts.formats",
     "roboisf.programs.formats",
     "roboisf.scan.formats",

@@ -9,7 +9,7 @@ wrench acting at the tool tip *t* (forces in *t*'s axes, moments about *t*'s ori
 where ``p_s − p_t`` is the vector from the tip to the sensor origin in sensor coordinates. This
 equals ``Ad(T_s_t)ᵀ W_s`` — the inverse-transpose of the twist adjoint — so power ``Vᵀ W`` is the
 same in both frames. Which wrench is it? The one the *environment exerts on the tool*; the one the
-tool exerts on the sheet is its negative (documented per file format in ``roboisf.io``).
+tool exerts on the sheet is its negative (documented per file format in ``roboisf.logs``).
 """
 
 from __future__ import annotations

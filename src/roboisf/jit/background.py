@@ -88,7 +88,7 @@ class Group:
 #: decorates with :func:`roboisf.jit.njit`) belongs to a group here and has its ``build()``
 #: (tests/test_jit.py checks both).
 GROUPS: dict[str, Group] = {
-    "forcelog": Group(("roboisf.io.forcelog_kernel",), "roboisf.io.forcelog_kernel:build"),
+    "forcelog": Group(("roboisf.logs.forcelog_kernel",), "roboisf.logs.forcelog_kernel:build"),
     "mesh": Group(("roboisf.parts.mesh_kernel",), "roboisf.parts.mesh_kernel:build"),
     "scan": Group(
         ("roboisf.parts.mesh_kernel", "roboisf.scan.knn_kernel", "roboisf.scan.toolpath_kernel"),

@@ -21,8 +21,8 @@ from numpy.typing import NDArray
 
 from roboisf.cell import Cell, cell_from_study
 from roboisf.errors import InputError
-from roboisf.io.forcelog import read_force_log
-from roboisf.io.jointlog import read_joint_log
+from roboisf.logs.forcelog import read_force_log
+from roboisf.logs.jointlog import read_joint_log
 from roboisf.online.core import Limits, OnlineCompensator, SensorSetup
 from roboisf.study import load_study
 

@@ -3,7 +3,8 @@ toolpath to any program format (:func:`roboisf.programs.export.write_program`).
 
 This package sits above :mod:`roboisf.robot` (the arm configuration each controller writes —
 confdata, S/T, CONFIG — comes from :mod:`roboisf.robot.armconfig`) and above :mod:`roboisf.io`
-(tables, text, units, atomic output, the CNC formats), so neither imports it.
+(tables, text, units, atomic output) and :mod:`roboisf.cam` (the CNC formats, what every program
+writer shares), so neither imports it.
 
 The names below load their module on first use (PEP 562).
 """

@@ -6,8 +6,8 @@ The formats are those of :mod:`roboisf.programs.registry` (built in: ``csv``, ``
 ================  ==========================  ===========================================
 format            suffixes                    writer
 ================  ==========================  ===========================================
-``csv``           ``.csv``                    :func:`roboisf.io.toolpath_csv.write_toolpath_csv`
-``gcode``         ``.nc .gcode .ngc .tap``    :func:`roboisf.io.gcode.write_gcode`
+``csv``           ``.csv``                    :func:`roboisf.cam.toolpath_csv.write_toolpath_csv`
+``gcode``         ``.nc .gcode .ngc .tap``    :func:`roboisf.cam.gcode.write_gcode`
 ``rapid``         ``.mod``                    :func:`roboisf.programs.rapid.write_rapid`
 ``krl``           ``.src`` (+ ``.dat``)       :func:`roboisf.programs.krl.write_krl`
 ``fanuc``         ``.ls``                     :func:`roboisf.programs.fanuc.write_fanuc`
@@ -30,7 +30,7 @@ from roboisf.programs.registry import WriteOptions, get_format, program_formats
 if TYPE_CHECKING:  # the writers (numpy, pandas) load on the first write: checks stay fast
     from numpy.typing import ArrayLike
 
-    from roboisf.io.program import RobotTool
+    from roboisf.cam.program import RobotTool
     from roboisf.path.toolpath import Toolpath
     from roboisf.robot.armconfig import ArmConfig
 

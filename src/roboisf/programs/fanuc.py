@@ -59,10 +59,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from roboisf import __version__
-from roboisf.errors import InputError
-from roboisf.frames.rotations import abc_to_matrix, matrix_to_abc
-from roboisf.io.atomic import atomic_write
-from roboisf.io.program import (
+from roboisf.cam.program import (
     MAX_MODULE_MOVES,
     NUMBER_RE,
     ProgramPath,
@@ -72,6 +69,9 @@ from roboisf.io.program import (
     read_program_text,
     split_modules,
 )
+from roboisf.errors import InputError
+from roboisf.frames.rotations import abc_to_matrix, matrix_to_abc
+from roboisf.io.atomic import atomic_write
 from roboisf.path.toolpath import Toolpath
 from roboisf.robot.armconfig import ArmConfig, fanuc_config
 

@@ -36,7 +36,7 @@ Layout written (``cone.src``; the ``.dat`` next to it holds the frames)::
   Any other stem is refused with the name to use; nothing is cut silently.
 * Positions: the toolpath tip in $BASE (= the work frame), mm at 1 µm.
 * Orientation: ``R = Rz(A) Ry(B) Rx(C)`` (degrees) of the tool frame, whose z axis runs along the
-  tool (see :mod:`roboisf.io.program`); tool pointing down is ``A, B, C = 0, 0, 180``, a rotation
+  tool (see :mod:`roboisf.cam.program`); tool pointing down is ``A, B, C = 0, 0, 180``, a rotation
   γ about the tool axis gives ``A = −γ`` (``Rx(180°) Rz(γ) = Rz(−γ) Rx(180°)``).
 * ``S``/``T`` of the first PTP from the joint angles of the IK branch
   (:func:`~roboisf.robot.armconfig.kuka_status_turn`); LIN moves keep the status of their start
@@ -58,10 +58,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from roboisf import __version__
-from roboisf.errors import InputError
-from roboisf.frames.rotations import abc_to_matrix, matrix_to_abc
-from roboisf.io.atomic import atomic_write
-from roboisf.io.program import (
+from roboisf.cam.program import (
     NUMBER_RE,
     ProgramPath,
     RobotTool,
@@ -70,6 +67,9 @@ from roboisf.io.program import (
     program_identifier,
     read_program_text,
 )
+from roboisf.errors import InputError
+from roboisf.frames.rotations import abc_to_matrix, matrix_to_abc
+from roboisf.io.atomic import atomic_write
 from roboisf.path.toolpath import Toolpath
 from roboisf.robot.armconfig import ArmConfig, kuka_status_turn
 

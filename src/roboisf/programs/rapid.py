@@ -1,7 +1,7 @@
 r"""ABB RAPID program (``.mod``) for a forming toolpath.
 
 Layout written — a path of at most ``max_module_moves`` moves (default
-:data:`~roboisf.io.program.MAX_MODULE_MOVES`) is one module::
+:data:`~roboisf.cam.program.MAX_MODULE_MOVES`) is one module::
 
     MODULE cone
       ! roboisf 0.1.0: 52000 points, ...
@@ -55,10 +55,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from roboisf import __version__
-from roboisf.errors import InputError
-from roboisf.frames.rotations import matrix_to_quat, quat_to_matrix
-from roboisf.io.atomic import atomic_write
-from roboisf.io.program import (
+from roboisf.cam.program import (
     MAX_MODULE_MOVES,
     NUMBER_RE,
     ProgramPath,
@@ -71,6 +68,9 @@ from roboisf.io.program import (
     split_chunks,
     split_modules,
 )
+from roboisf.errors import InputError
+from roboisf.frames.rotations import matrix_to_quat, quat_to_matrix
+from roboisf.io.atomic import atomic_write
 from roboisf.path.toolpath import Toolpath
 from roboisf.robot.armconfig import ArmConfig, abb_confdata
 

@@ -34,7 +34,7 @@ from roboisf.formats.registry import (
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
 
-    from roboisf.io.program import RobotTool
+    from roboisf.cam.program import RobotTool
     from roboisf.path.toolpath import Toolpath
     from roboisf.robot.armconfig import ArmConfig
 

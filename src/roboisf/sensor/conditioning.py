@@ -167,7 +167,7 @@ class Conditioning:
 def _distances(W: F64, level: F64) -> F64:
     """``|F − level|`` per sample (N,) for the force columns of ``W`` (N, ≥3): one compiled pass
     with numba (the same bits as ``np.linalg.norm(F − level, axis=1)``, tested), else numpy."""
-    from roboisf.io.forcelog import log_kernel
+    from roboisf.logs.forcelog import log_kernel
 
     kern = log_kernel()
     if kern is None:

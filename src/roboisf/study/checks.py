@@ -15,8 +15,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
-from roboisf.io.forcelog import ForceLog
-from roboisf.io.jointlog import JointLog
+from roboisf.logs.forcelog import ForceLog
+from roboisf.logs.jointlog import JointLog
 from roboisf.toolpath import Toolpath
 
 __all__ = [
@@ -71,7 +71,7 @@ def check_tool_radius(ball_diameter: float, tp: Toolpath, *, study_file: Path) -
 def _magnitudes(log: ForceLog) -> tuple[F64, F64]:
     """|F| and |M| per sample (N,) each: compiled with numba (the same bits as
     ``np.linalg.norm(log.force, axis=1)``, without its (N, 3) temporaries), else numpy."""
-    from roboisf.io.forcelog import log_kernel
+    from roboisf.logs.forcelog import log_kernel
 
     kern = log_kernel()
     if kern is None:

@@ -63,7 +63,7 @@ _Result = tuple[str, dict[str, str]] | tuple[str, dict[str, str], dict[str, Any]
 
 
 def _toolpath(p: Path) -> tuple[str, dict[str, str]]:
-    from roboisf.io.toolpath_csv import read_toolpath_csv
+    from roboisf.cam.toolpath_csv import read_toolpath_csv
 
     tp = read_toolpath_csv(p)
     return "roboisf toolpath CSV", {
@@ -95,7 +95,7 @@ _FORCE_TODO = {
 
 
 def _force_log(p: Path) -> _Result:
-    from roboisf.io.forcelog import detect_force_format, read_force_log
+    from roboisf.logs.forcelog import detect_force_format, read_force_log
 
     profile, cols, declared = detect_force_format(p)
     has_m = all(m in cols for m in ("Mx", "My", "Mz"))
@@ -175,7 +175,7 @@ _JOINT_TODO = {
 
 
 def _joint_log(p: Path) -> _Result:
-    from roboisf.io.jointlog import detect_joint_format, read_joint_log
+    from roboisf.logs.jointlog import detect_joint_format, read_joint_log
 
     profile, cols, declared = detect_joint_format(p)
     if profile == "roboisf" and "angle" not in declared:
@@ -251,7 +251,7 @@ def _cam_toolpath(p: Path) -> _Result:
 
 
 def _thickness(p: Path) -> tuple[str, dict[str, str]]:
-    from roboisf.io.thickness import read_thickness_csv
+    from roboisf.logs.thickness import read_thickness_csv
 
     read_thickness_csv(p)
     return "thickness CSV (depth, thickness)", {"units": "declared in the file"}
@@ -446,7 +446,7 @@ def draft_study(
     tool: dict[str, Any] = {}
     csv_tps = [f for f in tps if "toolpath_format" not in f.keys]
     if csv_tps:
-        from roboisf.io.toolpath_csv import read_toolpath_csv
+        from roboisf.cam.toolpath_csv import read_toolpath_csv
 
         tool["ball_diameter"] = round(2 * read_toolpath_csv(csv_tps[0].path).tool_radius * 1e3, 6)
         notes.append(f"ball diameter {tool['ball_diameter']:g} mm from {csv_tps[0].path.name}")

@@ -26,7 +26,7 @@ from roboisf.frames.se3 import make_transform
 from roboisf.study.spec import ForceSensorSpec, RunSpec, Study
 
 if TYPE_CHECKING:
-    from roboisf.io.forcelog import ForceLog
+    from roboisf.logs.forcelog import ForceLog
     from roboisf.toolpath import Toolpath
 
 __all__ = ["condition_study_log", "read_study_force_log", "sensor_to_tip", "tip_to_sensor"]
@@ -86,7 +86,7 @@ def read_study_force_log(study: Study, run: RunSpec) -> ForceLog:
     ``[units]`` (as before). Other formats take units from the file or the table only — the
     study-wide defaults are never applied to an instrument's export (no guess).
     """
-    from roboisf.io.forcelog import is_roboisf_force_log, read_force_log
+    from roboisf.logs.forcelog import is_roboisf_force_log, read_force_log
 
     f = run.forces
     u = dict(f.units or {})

@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.errors import InputError
-from roboisf.io.forcelog import window_average
+from roboisf.logs.forcelog import window_average
 
 __all__ = ["PAUSE_MIN", "Alignment", "first_passage", "point_windows"]
 

@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
-from roboisf.io.forcelog import window_average
+from roboisf.logs.forcelog import window_average
 from roboisf.sync.alignment import Alignment, clock_fit, first_passage
 from roboisf.toolpath import Toolpath
 

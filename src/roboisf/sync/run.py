@@ -24,8 +24,8 @@ from numpy.typing import NDArray
 from roboisf.cell import Cell
 from roboisf.errors import InputError
 from roboisf.frames import vertical_tool
-from roboisf.io.forcelog import ForceLog
-from roboisf.io.jointlog import JointLog
+from roboisf.logs.forcelog import ForceLog
+from roboisf.logs.jointlog import JointLog
 from roboisf.study.sensors import sensor_to_tip
 from roboisf.study.spec import RunSpec
 from roboisf.sync.alignment import Alignment, clock_fit

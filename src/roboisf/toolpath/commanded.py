@@ -61,7 +61,7 @@ def _program_tips(
         from roboisf.toolpath.importer import detect_toolpath_format
 
         if detect_toolpath_format(path) == "csv":
-            from roboisf.io.toolpath_csv import read_toolpath_csv
+            from roboisf.cam.toolpath_csv import read_toolpath_csv
 
             return read_toolpath_csv(path).tip
     robot_format = robot_program_format(path)
@@ -90,10 +90,10 @@ def _program_tips(
 
     fmt = detect_toolpath_format(path)
     if fmt == "csv":
-        from roboisf.io.toolpath_csv import read_toolpath_csv
+        from roboisf.cam.toolpath_csv import read_toolpath_csv
 
         return read_toolpath_csv(path).tip
-    from roboisf.io.cam import FEED
+    from roboisf.cam.cam import FEED
 
     moves = read_cam_moves(path, ImportOptions(fmt=fmt))
     keep = (moves.kind == FEED) & (moves.point[:, 2] <= part_z_top + 1e-6)

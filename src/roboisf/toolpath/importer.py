@@ -1,7 +1,7 @@
 """A CAM program (ISO G-code, Sinumerik, APT/CL, a bare point list) → a roboisf toolpath.
 
-The readers (:mod:`roboisf.io.gcode`, :mod:`roboisf.io.sinumerik`, :mod:`roboisf.io.apt`,
-:mod:`roboisf.io.xyz`) give the program's moves; this module rebuilds what roboisf needs per
+The readers (:mod:`roboisf.cam.gcode`, :mod:`roboisf.cam.sinumerik`, :mod:`roboisf.cam.apt`,
+:mod:`roboisf.cam.xyz`) give the program's moves; this module rebuilds what roboisf needs per
 point against the nominal part (docs/toolpaths.md, "Importing a CAM program"):
 
 1. **Which point the program names** (``point``): ``"tip"`` (default) — the lowest point of the
@@ -45,10 +45,10 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from roboisf.cam.cam import DEFAULT_CHORD_TOL, FEED, CamMoves, ReadOptions
+from roboisf.cam.camformat import CamSpec, head_lines
 from roboisf.errors import InputError
 from roboisf.formats import FileFormat, file_formats
-from roboisf.io.cam import DEFAULT_CHORD_TOL, FEED, CamMoves, ReadOptions
-from roboisf.io.camformat import CamSpec, head_lines
 from roboisf.parts.base import Part
 from roboisf.path.toolpath import Toolpath
 from roboisf.toolpath.laps import detect_laps
@@ -72,7 +72,7 @@ F64 = NDArray[np.float64]
 def cam_formats() -> tuple[FileFormat, ...]:
     """The CAM formats ``import`` reads: the registered ``cnc`` formats with a :class:`CamSpec`
     (:mod:`roboisf.formats`; built in: ``sinumerik``, ``apt``, ``xyz``, ``iso``, one module each in
-    :mod:`roboisf.io.formats`), in detection order."""
+    :mod:`roboisf.cam.formats`), in detection order."""
     return tuple(f for f in file_formats("cnc") if isinstance(f.spec, CamSpec))
 
 
@@ -142,7 +142,7 @@ class ImportOptions:
             raise InputError(f"must be > 0, got {self.feed * 60e3:g} mm/min", field="feed")
         if len(self.origin) != 3 or not all(math.isfinite(v) for v in self.origin):
             raise InputError(f"expected 3 finite numbers, got {self.origin!r}", field="origin")
-        from roboisf.io.xyz import XYZ_UNITS
+        from roboisf.cam.xyz import XYZ_UNITS
 
         if self.units is not None and self.units not in XYZ_UNITS:
             raise InputError(
@@ -558,7 +558,7 @@ def load_toolpath(
     through this, with the nominal of ``[part]``, the ball radius of ``[tool]`` and the run's
     ``toolpath_format`` / ``toolpath_point`` (``fmt`` ``"csv"`` | ``"auto"`` | a CAM format).
     """
-    from roboisf.io.toolpath_csv import read_toolpath_csv
+    from roboisf.cam.toolpath_csv import read_toolpath_csv
 
     path = Path(path)
     if fmt == "auto":
@@ -584,7 +584,7 @@ def read_toolpath_file(
         a CAM program without a part or a ball diameter (pointing to ``roboisf toolpath
         import``), or any error of the readers.
     """
-    from roboisf.io.toolpath_csv import read_toolpath_csv
+    from roboisf.cam.toolpath_csv import read_toolpath_csv
 
     path = Path(path)
     fmt = detect_toolpath_format(path)

@@ -52,6 +52,7 @@ import pandas as pd
 import tomli_w
 from numpy.typing import NDArray
 
+from roboisf.cam.toolpath_csv import write_toolpath_csv
 from roboisf.cell import (
     DEFAULT_HOLDER,
     PAPER_CELL_PLACEMENT,
@@ -74,10 +75,9 @@ from roboisf.frames import (
 )
 from roboisf.frames.pose import format_pose
 from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
-from roboisf.io.forcelog import ForceLog, write_force_log
-from roboisf.io.jointlog import write_joint_log
-from roboisf.io.thickness import write_thickness_csv
-from roboisf.io.toolpath_csv import write_toolpath_csv
+from roboisf.logs.forcelog import ForceLog, write_force_log
+from roboisf.logs.jointlog import write_joint_log
+from roboisf.logs.thickness import write_thickness_csv
 from roboisf.parts import (
     VWACF,
     AxisymmetricPart,
@@ -731,7 +731,7 @@ def build_study(
     ``compensation`` (:mod:`roboisf.virtual.reform`).
 
     ``log_format``: the force and joint logs as Parquet (default: SI, exact, ~4× smaller than
-    the CSV; ``roboisf.io.logparquet``) or as the roboisf CSV (``"csv"``).
+    the CSV; ``roboisf.logs.logparquet``) or as the roboisf CSV (``"csv"``).
     ``equipment`` (:mod:`roboisf.virtual.equipment`) rewrites the logs as real loggers keep
     time (clock drift, offset, pauses) and in their file layouts, and sets the runs' ``sync``;
     equipment logs are text files as the instruments write them, so they are CSV whatever

@@ -38,7 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 from roboisf.errors import InputError
 from roboisf.frames import vertical_tool
 from roboisf.io.atomic import atomic_write
-from roboisf.io.forcelog import ForceLog
+from roboisf.logs.forcelog import ForceLog
 from roboisf.study.sensors import tip_to_sensor
 from roboisf.study.spec import ForceSensorSpec
 from roboisf.toolpath import Toolpath
@@ -271,7 +271,7 @@ def apply_equipment(
     joint layout, whose header declares no units, gets ``joints = {file, units}``."""
     if eq.is_clean:
         return
-    from roboisf.io.jointlog import unstated_units
+    from roboisf.logs.jointlog import unstated_units
     from roboisf.sync.force import expected_azimuth
     from roboisf.virtual.logformats import write_force_profile, write_joint_profile
 

@@ -1,7 +1,7 @@
 """The virtual cell's force and joint logs in the layouts real equipment exports.
 
 Every layout is a force-log or joint-log format of the registry (:mod:`roboisf.formats`; one
-module each in :mod:`roboisf.io.formats`, which states the layout, units and rounding), written
+module each in :mod:`roboisf.logs.formats`, which states the layout, units and rounding), written
 with that format's registered writer — the very layout its registered reader detects and reads.
 The profiles offered are the registered ones with a text writer: ``roboisf`` (roboisf's CSV),
 ``ati`` (ATI Net F/T demo CSV), ``kistler`` (DynoWare text of a 3-component dynamometer, decimal
@@ -16,11 +16,11 @@ from typing import TYPE_CHECKING
 
 from numpy.typing import ArrayLike
 
-from roboisf.io.forcelog import force_profiles_written, write_force_log
-from roboisf.io.jointlog import joint_profiles_written, write_joint_log
+from roboisf.logs.forcelog import force_profiles_written, write_force_log
+from roboisf.logs.jointlog import joint_profiles_written, write_joint_log
 
 if TYPE_CHECKING:
-    from roboisf.io.forcelog import ForceLog
+    from roboisf.logs.forcelog import ForceLog
 
 __all__ = ["force_profiles", "joint_profiles", "write_force_profile", "write_joint_profile"]
 

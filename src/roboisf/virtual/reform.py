@@ -30,13 +30,13 @@ from typing import Any
 import numpy as np
 import tomli_w
 
+from roboisf.cam.toolpath_csv import read_toolpath_csv, write_toolpath_csv
 from roboisf.errors import InputError
 from roboisf.frames.pose import format_pose
 from roboisf.io.atomic import atomic_write, staged_directory
-from roboisf.io.forcelog import write_force_log
-from roboisf.io.jointlog import write_joint_log
 from roboisf.io.outdir import MARKER
-from roboisf.io.toolpath_csv import read_toolpath_csv, write_toolpath_csv
+from roboisf.logs.forcelog import write_force_log
+from roboisf.logs.jointlog import write_joint_log
 from roboisf.path.toolpath import Toolpath
 from roboisf.progress import Progress, task
 from roboisf.study.spec import ForceSensorSpec

@@ -1,4 +1,4 @@
-"""roboisf's toolpath CSV (``.csv``): :mod:`roboisf.io.toolpath_csv`, read back exactly."""
+"""roboisf's toolpath CSV (``.csv``): :mod:`roboisf.cam.toolpath_csv`, read back exactly."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ if TYPE_CHECKING:
 
 
 def _write(tp: Toolpath, path: Path, o: WriteOptions) -> list[Path]:
-    from roboisf.io.toolpath_csv import write_toolpath_csv
+    from roboisf.cam.toolpath_csv import write_toolpath_csv
 
     write_toolpath_csv(tp, path)
     return [path]

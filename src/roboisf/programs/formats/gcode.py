@@ -1,4 +1,4 @@
-"""ISO G-code for a CNC machine (``.nc .gcode .ngc .tap``): :mod:`roboisf.io.gcode`."""
+"""ISO G-code for a CNC machine (``.nc .gcode .ngc .tap``): :mod:`roboisf.cam.gcode`."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ if TYPE_CHECKING:
 
 
 def _write(tp: Toolpath, path: Path, o: WriteOptions) -> list[Path]:
-    from roboisf.io.gcode import write_gcode
+    from roboisf.cam.gcode import write_gcode
 
     return write_gcode(
         tp, path, safe_height=o.safe_height, notes=o.gcode_notes, work_offset=o.work_offset
@@ -26,7 +26,7 @@ register(
         kind="cnc",
         label="G-code",
         write=_write,
-        read=lazy("roboisf.io.gcode", "read_gcode"),
+        read=lazy("roboisf.cam.gcode", "read_gcode"),
         rank=10,
     )
 )

@@ -1,0 +1,92 @@
+"""Compiled (numba) passes over a force log: row norms, and the running trapezoid integral read
+at chosen samples; imported on first use (``pip install roboisf[fast]``).
+
+A 1 kHz log of a paper-scale part has 2.3 M samples (110 MB per (N, 6) float64 array). The numpy
+forms of these steps allocate several arrays of the log's size each (``norm`` squares all
+components before summing; the window averages keep an (N, 6) running sum): every such array is
+memory the analysis touches once and page faults it pays for. These kernels stream over the log
+once and allocate only their results. Same arithmetic in the same order as the numpy forms, so
+the same bits (tests/test_forcelog_kernel.py):
+
+* :func:`row_norms` — ``sqrt((x0 − c0)² + (x1 − c1)² + (x2 − c2)²)`` of three columns, as
+  ``np.linalg.norm(X[:, j:j+3] − c, axis=1)`` (numpy sums three terms left to right);
+* :func:`running_integral_at` — rows ``ks`` of ``concatenate([0, cumsum((y[1:] + y[:-1]) ·
+  (0.5 Δt))])``, the running sum of :func:`roboisf.logs.forcelog.window_average`, without the
+  (N, K) array.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from roboisf.jit import compile_notice, njit
+
+compile_notice(__file__)  # numba compiles these on first call: say so once
+
+__all__ = ["build", "row_norms", "running_integral_at"]
+
+F64 = NDArray[np.float64]
+I64 = NDArray[np.int64]
+
+
+@njit()
+def _row_norms(X: Any, j: int, c: Any, out: Any) -> None:  # pragma: no cover - compiled
+    for i in range(X.shape[0]):
+        d0 = X[i, j] - c[0]
+        d1 = X[i, j + 1] - c[1]
+        d2 = X[i, j + 2] - c[2]
+        out[i] = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+
+
+def row_norms(X: F64, j: int = 0, centre: F64 | None = None) -> F64:
+    """``|X[:, j:j+3] − centre|`` per row (N,), one pass; ``centre`` (3,) defaults to 0."""
+    c = np.zeros(3) if centre is None else np.ascontiguousarray(centre, dtype=np.float64)
+    out = np.empty(X.shape[0])
+    _row_norms(X, int(j), c, out)
+    return out
+
+
+@njit()
+def _running_at(t: Any, y: Any, ks: Any, out: Any) -> None:  # pragma: no cover - compiled
+    m = ks.shape[0]
+    K = y.shape[1]
+    acc = np.zeros(K)
+    r = 0
+    while r < m and ks[r] == 0:
+        out[r, :] = 0.0
+        r += 1
+    i = 1
+    while r < m:
+        h = 0.5 * (t[i] - t[i - 1])
+        for c in range(K):
+            acc[c] += (y[i, c] + y[i - 1, c]) * h
+        while r < m and ks[r] == i:
+            for c in range(K):
+                out[r, c] = acc[c]
+            r += 1
+        i += 1
+
+
+def running_integral_at(t: F64, y: F64, ks: I64) -> F64:
+    """Rows ``ks`` (sorted, unique sample indices) of the running trapezoid integral of ``y``
+    (N, K) over ``t`` (N,): (len(ks), K); the pass stops at the last index asked for."""
+    out = np.empty((ks.shape[0], y.shape[1]))
+    _running_at(t, y, np.ascontiguousarray(ks, dtype=np.int64), out)
+    return out
+
+
+def build() -> None:
+    """Compile (and so cache) these kernels through their callers, on a small log: the
+    background builder of :mod:`roboisf.jit.background` (group "forcelog")."""
+    from roboisf.logs.forcelog import window_average
+
+    t = np.linspace(0.0, 1.0, 50)
+    W = np.cos(np.outer(t, np.arange(1.0, 7.0)))
+    row_norms(W, 0)
+    row_norms(W, 3, np.ones(3))
+    window_average(t, W, np.array([0.1, 0.5]), np.array([0.3, 0.9]))
+    window_average(t, W[:, :3], np.array([0.1]), np.array([0.3]))
