@@ -160,8 +160,9 @@ def step_floors(spec: Any, steps: StepTimes) -> None:
     * a scan's reading (``scan <run>`` minus its sub-steps): reading the file's bytes (from the
       page cache, as the analysis did) plus one numpy pass over its points;
     * a step over the scan's points (register, spatial order, closest points, outlier removal,
-      toolpath deviations): one numpy pass over all the scan's points (the norm of each point:
-      reads N×3, writes N float64); the outlier and toolpath steps see only the wall (fewer);
+      wall deviations, toolpath deviations): one numpy pass over all the scan's points (the
+      norm of each point: reads N×3, writes N float64); the outlier and later steps see only
+      the wall (fewer);
     * a run's log step (``<run> logs: alignment``): reading the bytes of its force and joint logs.
 
     and, where a library does the same work, that library on the same data (``peer``): scipy's
@@ -190,6 +191,7 @@ def step_floors(spec: Any, steps: StepTimes) -> None:
             "spatial order",
             "closest points",
             "outlier removal",
+            "wall deviations",
             "toolpath deviations",
         ):
             floor[name, step] = t_pass

@@ -58,7 +58,7 @@ def child(path: str) -> None:
     tp = step_down(cone, 5e-3, 0.5e-3)
     cloud = read_scan(path, unit="mm")
     t_read = time.perf_counter() - t
-    res = compare_scan(cloud, cone, toolpath=tp, options=CompareOptions())
+    res = compare_scan(cloud, cone, toolpath=tp, options=CompareOptions(), consume=True)
     assert res.toolpath is not None
     out = {
         "wall_s": time.perf_counter() - t,

@@ -388,3 +388,72 @@ def test_compare_scan_equals_the_steps_composed_in_file_order():
     np.testing.assert_array_equal(t.n_points, ref.n_points)
     np.testing.assert_allclose(t.dn, ref.dn, rtol=0, atol=1e-15)
     np.testing.assert_allclose(t.spread, ref.spread, rtol=0, atol=1e-15)
+
+
+def test_classified_masks_are_the_deviations_masks():
+    """``classify_points`` (the whole-scan pass of ``compare_scan``: four masks, no feet) gives
+    exactly the masks the full deviations give, on a scan with flange, bottom, rim and far
+    points, past one 65 536-point chunk and in file order (not spatially sorted)."""
+    from roboisf.scan.deviation import classify_points
+
+    s = synthetic_scan(CONE, 90_000, offset=OFFSET, noise=25e-6, outlier_fraction=0.02, seed=4)
+    X = s.points
+    dev = point_deviations(X, CONE)
+    c = classify_points(X, CONE, max_distance=1e-3, z_below=-RIM, z_band=-11e-3, band=0.25e-3)
+    z = dev.foot[:, 2]
+    np.testing.assert_array_equal(c.near, np.abs(dev.dn) <= 1e-3)
+    np.testing.assert_array_equal(c.wall, (dev.region == 1) & (z < 0))
+    np.testing.assert_array_equal(c.below, z < -RIM)
+    np.testing.assert_array_equal(c.band, np.abs(z + 11e-3) <= 0.25e-3)
+    for m in (c.near, c.wall, c.below, c.band):  # every mask splits this scan
+        assert 0 < m.sum() < m.size
+    assert not c.near.all() and (c.wall & ~c.near).any()
+
+
+@pytest.mark.parametrize("register", ["none", "axisymmetric"])
+def test_consumed_cloud_gives_the_same_comparison_and_is_emptied(register):
+    """``compare_scan(consume=True)`` (the raw points freed once sorted) gives the comparison
+    of the cloud left intact, number for number; the cloud is left without its points but with
+    its count, and cannot hand them over twice."""
+    s = synthetic_scan(CONE, 80_000, offset=OFFSET, noise=25e-6, outlier_fraction=0.01, seed=5)
+    X = s.points[np.random.default_rng(1).permutation(len(s.points))] + [0.4e-3, -0.3e-3, 0.0]
+    tp = step_down(CONE, 5e-3, 1e-3, spacing=2e-3)
+    opts = CompareOptions(register=register)
+    keep = ScanCloud(X.copy(), None, "a.ply")
+    ref = compare_scan(keep, CONE, toolpath=tp, options=opts)
+    np.testing.assert_array_equal(keep.points, X)  # not consumed: untouched
+    cloud = ScanCloud(X.copy(), None, "a.ply")
+    res = compare_scan(cloud, CONE, toolpath=tp, options=opts, consume=True)
+    assert cloud.points.shape == (0, 3) and cloud.n_points == len(X)
+    with pytest.raises(InputError, match="already taken"):
+        cloud.take_points()
+    assert res.counts == ref.counts and res.counts["read"] == len(X)
+    for name in ("points", "foot", "normal", "dn", "region"):
+        np.testing.assert_array_equal(getattr(res.points, name), getattr(ref.points, name))
+    np.testing.assert_array_equal(res.toolpath.dn, ref.toolpath.dn)
+    assert res.by_angle.equals(ref.by_angle) and res.by_depth.equals(ref.by_depth)
+    if register != "none":
+        assert res.registration.dof > 0
+
+
+def test_compare_scan_on_a_mesh_part_equals_the_steps_composed():
+    """The selected points' deviations computed again after the whole-scan classification are
+    the numbers of the whole scan's deviations on a *mesh* part too (its closest point is a
+    tree search: a subset queried alone must find the same faces)."""
+    from roboisf.parts import tessellate
+    from roboisf.scan import select_wall
+
+    mesh = tessellate(CONE, chordal_error=0.3e-3, edge=6e-3)
+    s = synthetic_scan(CONE, 70_000, offset=OFFSET, noise=25e-6, outlier_fraction=0.01, seed=2)
+    X = s.points
+    res = compare_scan(ScanCloud(X.copy(), None, "m.ply"), mesh)
+    dev = point_deviations(X, mesh)
+    full = select_wall(dev, rim_band=0.0, max_distance=3e-3)
+    sel = np.flatnonzero(full)
+    full[sel[~statistical_outliers(X[sel])]] = False
+    wall = dev.subset(full & (dev.foot[:, 2] < -RIM))
+    ring = dev.subset(full & (np.abs(dev.foot[:, 2] + 11e-3) <= 0.25e-3))
+    assert res.points.n_points == wall.n_points > 0 and res.counts["contour"] == ring.n_points > 0
+    a, b = np.lexsort(res.points.points.T), np.lexsort(wall.points.T)
+    for name in ("points", "foot", "normal", "dn", "region"):
+        np.testing.assert_array_equal(getattr(res.points, name)[a], getattr(wall, name)[b])

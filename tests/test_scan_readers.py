@@ -194,3 +194,22 @@ def test_unit_plausibility_names_the_right_unit():
     assert "s.ply" in str(ei.value)
     with pytest.raises(InputError, match="--unit m"):
         check_units(pts * 1e-6, size, unit="mm", source="s.ply")  # m numbers read as mm
+
+
+def test_read_scan_checks_the_points_once(tmp_path, monkeypatch):
+    """The NaN/inf check runs once per read (in ``ScanCloud``), after the unit scaling: a
+    second pass over the points was read_scan's own check before."""
+    import roboisf.scan.readers as readers
+
+    calls: list[int] = []
+    real = readers.check_finite
+    monkeypatch.setattr(readers, "check_finite", lambda p, s: (calls.append(len(p)), real(p, s))[1])
+    f = tmp_path / "a.xyz"
+    np.savetxt(f, np.random.default_rng(0).random((50, 3)))
+    assert readers.read_scan(f).n_points == 50
+    assert calls == [50]
+    bad = np.random.default_rng(0).random((50, 3))
+    bad[7, 2] = np.inf
+    np.savetxt(f, bad)
+    with pytest.raises(InputError, match=r"1 point\(s\) have NaN or inf.*point 7"):
+        readers.read_scan(f)

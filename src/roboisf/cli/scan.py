@@ -152,7 +152,13 @@ def compare(
     state.debug(f"read {cloud.n_points} points from {scan}")
     tp_src = str(toolpath) if toolpath else None
     res = compare_scan(
-        cloud, nominal, toolpath=tp, toolpath_source=tp_src, options=opts, progress=progress
+        cloud,
+        nominal,
+        toolpath=tp,
+        toolpath_source=tp_src,
+        options=opts,
+        progress=progress,
+        consume=True,  # the raw points freed once sorted: cloud.points is not used below
     )
     reg = res.registration
     if reg.dof:

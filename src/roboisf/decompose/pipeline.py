@@ -275,6 +275,7 @@ def _compare(
         toolpath_source=str(run.toolpath),
         options=scan_options(study),
         progress=progress,
+        consume=True,  # the raw points freed once sorted (the cloud is dropped here anyway)
     )
 
 

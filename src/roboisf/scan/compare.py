@@ -20,9 +20,9 @@ from roboisf.progress import Progress, task
 from roboisf.scan.deviation import (
     PointDeviations,
     ToolpathDeviations,
+    classify_points,
     default_rim_band,
     point_deviations,
-    select_wall,
     statistical_outliers,
     toolpath_deviations,
 )
@@ -191,6 +191,7 @@ def compare_scan(
     toolpath_source: str | None = None,
     options: CompareOptions | None = None,
     progress: Progress | None = None,
+    consume: bool = False,
 ) -> ScanComparison:
     """Compare a scan with the nominal ``part`` (and a toolpath's contact points).
 
@@ -199,23 +200,46 @@ def compare_scan(
     lies within ``max_distance`` of the nominal → keep the wall below the rim band
     (:func:`select_wall`) → statistical outlier removal → per toolpath point deviations →
     summaries.
+
+    Memory: the scan's points twice at most (a float64 copy in the work frame, in spatial order)
+    plus a few bytes per point; the selected points' deviations (13 numbers each) come after
+    the whole scan's copy is freed. ``consume=True`` takes the points out of ``cloud``
+    (:meth:`ScanCloud.take_points`: the cloud is left empty) so that its copy is freed too, as
+    soon as the sorted one exists — the readers' callers that drop the cloud anyway
+    (``roboisf analyze``, ``roboisf scan compare``) pass it.
     """
     o = options or CompareOptions()
     rim_band = default_rim_band(part.depth) if o.rim_band is None else o.rim_band
     o = replace(o, rim_band=rim_band)
     src = cloud.source
+    n_read = cloud.n_points
     check_units(cloud.points, part_size(part), unit=cloud.unit, source=src)
     with task(progress, f"register ({o.register})", total=None):
         reg = register(cloud.points, part, o.register, source=src, **o.register_kwargs)
-    pts = cloud.points if o.register == "none" else transform_points(reg.T_work_scan, cloud.points)
+    pts = cloud.take_points() if consume else cloud.points
+    if o.register != "none":
+        pts = transform_points(reg.T_work_scan, pts)  # the raw points freed here if consumed
     # the whole comparison runs in spatial (Morton) order, sorted once here: every later query
     # (nominal closest point, outlier k-NN, toolpath neighbourhoods) then walks neighbouring
     # tree nodes and stays in cache; the per-point results come out in that order
     with task(progress, "spatial order", total=None):
         pts = np.take(pts, spatial_order(pts), axis=0)  # the same rows; 3x pts[order]
-    dev = point_deviations(pts, part, ordered=True, progress=progress)
-    near = np.abs(dev.dn) <= o.max_distance
-    frac = float(near.mean())
+    # the whole scan is classified in one pass that keeps four masks (a byte per point each);
+    # the feet, normals and deviations are computed again for the selected points only (the
+    # same numbers: the query is per point), after the outlier filter, so the whole scan's
+    # 13 numbers per point never exist (at 10 M points: 0.64 GB)
+    cls = classify_points(
+        pts,
+        part,
+        max_distance=o.max_distance,
+        z_below=-rim_band,
+        z_band=o.contour_z,
+        band=o.band,
+        ordered=True,
+        progress=progress,
+    )
+    n_near = int(np.count_nonzero(cls.near))
+    frac = n_near / cls.near.size
     if frac < o.min_overlap:
         raise InputError(
             f"the scan does not overlap the part: only {frac:.1%} of its points lie within "
@@ -223,41 +247,42 @@ def compare_scan(
             "part file, the unit and the frame (try --register)",
             file=src,
         )
-    # the whole wall (rim band included: the polar summary sits at z = −11 mm, in the band)
-    full = select_wall(dev, rim_band=0.0, max_distance=o.max_distance)
-    n_out = 0
-    if o.outlier_k > 0:
-        with task(progress, "outlier removal", total=None):
-            sel = np.flatnonzero(full)
-            # rows=sel: the filter gathers the selected points itself (no pts[sel] copy)
-            inl = statistical_outliers(pts, o.outlier_k, o.outlier_std, ordered=True, rows=sel)
-            del sel
-            n_out = int((~inl).sum())
-            full[np.flatnonzero(full)[~inl]] = False
-    mask = full & (dev.foot[:, 2] < -rim_band)
-    n_wall = int(mask.sum())
     # wall points (below the rim band) that the max_distance cut drops: a part that deviates
     # more than the cut loses its largest errors silently (the analysis warns on the count)
-    on_wall = (dev.region == 1) & (dev.foot[:, 2] < -rim_band)
-    n_beyond = int(np.sum(on_wall & (np.abs(dev.dn) > o.max_distance)))
+    on_wall = cls.wall & cls.below
+    n_beyond = int(np.count_nonzero(on_wall & ~cls.near))
+    n_on_wall = int(np.count_nonzero(on_wall))
+    del on_wall
+    # the whole wall (rim band included: the polar summary sits at z = −11 mm, in the band):
+    # only its points are kept from here on, the rest of the scan freed before the outlier
+    # filter's grid exists; every later row is a subsequence (still in spatial order)
+    full = np.flatnonzero(cls.wall & cls.near)
+    below, in_band = cls.below[full], cls.band[full]
+    del cls
+    pts = np.take(pts, full, axis=0)
+    del full
+    n_out = 0
+    keep = np.ones(pts.shape[0], dtype=bool)
+    if o.outlier_k > 0:
+        with task(progress, "outlier removal", total=None):
+            keep = statistical_outliers(pts, o.outlier_k, o.outlier_std, ordered=True)
+            n_out = int(np.count_nonzero(~keep))
+    wall_rows = np.flatnonzero(keep & below)
+    n_wall = int(wall_rows.size)
     if n_wall == 0:
         raise InputError(
             f"no scan point on the wall below the {rim_band * 1e3:g} mm rim band", file=src
         )
-    ring = dev.subset(full & (np.abs(dev.foot[:, 2] - o.contour_z) <= o.band))
-    # the wall subset (what is used from here on), each whole-scan array freed as soon as its
-    # subset exists: the peak is the whole scan's deviations plus one subset array, not plus
-    # the whole subset (at 10 M points: 0.14 GB instead of 0.5 GB)
-    cols: list[Any] = [dev.points, dev.foot, dev.normal, dev.dn, dev.region]
-    del dev, pts
-    rows = np.flatnonzero(mask)  # one index for the five gathers (np.take: 2-3x col[mask])
-    for i, col in enumerate(cols):
-        cols[i] = None
-        cols[i] = np.take(col, rows, axis=0)
-        del col
-    del rows
-    wall = PointDeviations(*cols)
-    del cols
+    ring_rows = np.flatnonzero(keep & in_band)
+    del keep, below, in_band
+    # the selected points, the whole wall's copy freed before their deviations exist
+    ring_pts, wall_pts = np.take(pts, ring_rows, axis=0), np.take(pts, wall_rows, axis=0)
+    del pts, ring_rows, wall_rows
+    wall = point_deviations(
+        wall_pts, part, ordered=True, progress=progress, label="wall deviations"
+    )
+    ring = point_deviations(ring_pts, part, ordered=True)
+    del wall_pts, ring_pts
     tdev = None
     if toolpath is not None:
         with task(progress, "toolpath deviations", total=None):
@@ -289,13 +314,13 @@ def compare_scan(
         bin_width=o.angle_bin,
     )
     counts = {
-        "read": cloud.n_points,
-        "near_nominal": int(near.sum()),
+        "read": n_read,
+        "near_nominal": n_near,
         "wall_below_rim_band": n_wall,
         "contour": ring.n_points,
         "outliers_removed": n_out,
         "used": wall.n_points,
         "wall_beyond_max_distance": n_beyond,
-        "wall_total": int(on_wall.sum()),
+        "wall_total": n_on_wall,
     }
     return ScanComparison(wall, tdev, reg, counts, depth_tab, angle_tab, o)
