@@ -922,7 +922,7 @@ def sensor_findings(
             bias_ci,
             "N",
             bias_text,
-            BIAS_TODO,
+            BIAS_ACTION,
             force=bias_force,
         )
         xt_finding = _axial_crosstalk_unseen(sf, v_b)
@@ -949,8 +949,10 @@ def sensor_findings(
     ]
 
 
-BIAS_TODO = "tare the sensor with the tool mounted, or declare tool_mass (the analysis removed it)"
-XT_TODO = "check the sensor's calibration matrix (the analysis removed the axial force's share)"
+BIAS_ACTION = (
+    "tare the sensor with the tool mounted, or declare tool_mass (the analysis removed it)"
+)
+XT_ACTION = "check the sensor's calibration matrix (the analysis removed the axial force's share)"
 
 
 def _vec(v: F64) -> str:
@@ -983,7 +985,7 @@ def _static_bias_finding(u: UnloadedEvidence, gain: float, sf: SensorFit | None)
             f"; while forming, the fitted constant is {_vec(sf.b)}, the static offset and what "
             "the load adds (force_crosstalk)"
         )
-    return _finding("force_bias", float(np.linalg.norm(b_s)), ci, "N", text, BIAS_TODO)
+    return _finding("force_bias", float(np.linalg.norm(b_s)), ci, "N", text, BIAS_ACTION)
 
 
 #: A start–end difference of the flange sensor at rest above this [N] is said as a drift.
@@ -1000,7 +1002,7 @@ def _axial_crosstalk_finding(sf: SensorFit) -> Finding:
         "axial force): crosstalk of the axial force into the lateral channels — along a wall it "
         "is a near-constant lateral force that only the logs at rest tell from a bias"
     )
-    return _finding("force_crosstalk", math.hypot(cx, cy), sf.axial_fixed_ci, "1", text, XT_TODO)
+    return _finding("force_crosstalk", math.hypot(cx, cy), sf.axial_fixed_ci, "1", text, XT_ACTION)
 
 
 def _axial_crosstalk_unseen(sf: SensorFit, v_b: str) -> Finding:
@@ -1014,7 +1016,7 @@ def _axial_crosstalk_unseen(sf: SensorFit, v_b: str) -> Finding:
             f"so the axial force's crosstalk into the lateral channels is at most {hi:.4f} N "
             f"per N ({sf.axial_force:.0f} N RMS axial force)"
         )
-        return _finding("force_crosstalk", sf.bias / Fz, (0.0, hi), "1", text, XT_TODO)
+        return _finding("force_crosstalk", sf.bias / Fz, (0.0, hi), "1", text, XT_ACTION)
     cx, cy = sf.axial_crosstalk
     text = (
         f"a constant of {sf.bias:.1f} N between the sensors on this path may be the axial "
@@ -1028,7 +1030,7 @@ def _axial_crosstalk_unseen(sf: SensorFit, v_b: str) -> Finding:
         (0.0, sf.bias_ci[1] / Fz),
         "1",
         text,
-        XT_TODO,
+        XT_ACTION,
         force="cannot_tell",
     )
 
