@@ -194,6 +194,8 @@ def test_axial_crosstalk_is_told_from_a_bias_by_the_logs_at_rest():
     Wr = _noisy(_axial_crosstalk(p["W"], c))
     blind = _findings(fit_sensor(p["W"], Wr, p["arm"], valid, p["lap"], p["depth"]))
     assert blind["force_crosstalk"].verdict == "cannot_tell"
+    bx = blind["force_crosstalk"]  # its estimate inside its own interval (it once was not)
+    assert bx.ci_low <= bx.estimate <= bx.ci_high
     assert blind["force_bias"].verdict != "ok"  # the path alone cannot clear the bias
     ev = UnloadedEvidence.from_stretches(**_at_rest((0.0, 0.0, 0.0)))
     sf = fit_sensor(p["W"], Wr, p["arm"], valid, p["lap"], p["depth"], unloaded=ev)

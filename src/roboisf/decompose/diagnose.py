@@ -1017,16 +1017,17 @@ def _axial_crosstalk_unseen(sf: SensorFit, v_b: str) -> Finding:
             f"per N ({sf.axial_force:.0f} N RMS axial force)"
         )
         return _finding("force_crosstalk", sf.bias / Fz, (0.0, hi), "1", text, XT_ACTION)
-    cx, cy = sf.axial_crosstalk
     text = (
         f"a constant of {sf.bias:.1f} N between the sensors on this path may be the axial "
         f"force's crosstalk into the lateral channels (up to {sf.bias / Fz:.4f} N per N) or a "
         "bias: the path's axial force varies too little to tell, and the logs have no unloaded "
         "stretch to read the sensor at rest (either way the analysis removed the constant)"
     )
+    # the estimate: all of the constant read as crosstalk (the free fit of both is degenerate
+    # along a wall: its crosstalk could fall outside this interval)
     return _finding(
         "force_crosstalk",
-        math.hypot(cx, cy),
+        sf.bias / Fz,
         (0.0, sf.bias_ci[1] / Fz),
         "1",
         text,
