@@ -448,9 +448,14 @@ def test_the_simulated_controller_counts_by_arrival_and_drops_late_replies():
         data, addr = loop_side.recvfrom(4096)
         st = adapter.decode(data)
         loop_side.sendto(adapter.encode(st, np.array([1e-4, 0, 0])), addr)  # in time …
+        # … by construction: the cycle's end put 0.1 s after the reply was sent (a stall of
+        # this process between the send of cycle 0 and its reply missed a 0.2 s cycle once,
+        # under a loaded test run)
+        ctl.t0 = time.perf_counter() + 0.1 - 0.2
         time.sleep(max(0.0, ctl.t0 + 0.2 - time.perf_counter()) + 0.01)
         ctl.step(0.0)  # … read only now, after its cycle: counts. Cycle 1 out
-        assert ctl.missed == 0 and np.isfinite(ctl.rtt[0]) and ctl.read_late[0] > 0
+        seen = (ctl.missed, ctl.rtt[0], ctl.rtt_late[0], ctl.read_late[0], ctl.stamped)
+        assert ctl.missed == 0 and np.isfinite(ctl.rtt[0]) and ctl.read_late[0] > 0, seen
         np.testing.assert_allclose(ctl.rx, [1e-4, 0, 0])
         data, addr = loop_side.recvfrom(4096)
         st = adapter.decode(data)
