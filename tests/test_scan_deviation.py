@@ -261,6 +261,45 @@ def test_grid_knn_equals_a_tree_query_on_awkward_clouds(cloud):
     np.testing.assert_allclose(knn_kernel.mean_knn_distance(X, 8), expect, rtol=1e-14, atol=0)
 
 
+def test_strays_a_few_dozen_cells_away_are_finished_by_more_rings_not_a_tree(monkeypatch):
+    """Points beyond the first search's rings but within :func:`_far_rings` of the cloud (a
+    scanner's strays a few mm off a sheet of ~0.4 mm cells) are resolved by a second, wider
+    ring search — the k-d tree over every point (0.25–0.5 s for a 1.7 M-point scan, to finish a
+    hundred strays) is not built — and give the tree's distances."""
+    import scipy.spatial
+    from scipy.spatial import cKDTree
+
+    from roboisf.scan import knn_kernel
+
+    if not knn_kernel.HAVE_NUMBA:
+        pytest.skip("numba not installed")
+    rng = np.random.default_rng(5)
+    sheet = np.column_stack([rng.random((20_000, 2)) * 0.05, rng.normal(0, 1e-5, 20_000)])
+    strays = np.column_stack([rng.random((30, 2)) * 0.05, rng.uniform(15e-3, 40e-3, 30)])
+    X = np.vstack([sheet, strays])
+    d, _ = cKDTree(X).query(X, k=9)
+    expect = d[:, 1:].mean(axis=1)
+    h = knn_kernel._grid(X, 8, knn_kernel.MAX_CELLS)[1]  # the cell side
+    assert 15e-3 / h > knn_kernel.MAX_RINGS + 1  # the strays are beyond the first search
+    assert 40e-3 / h < knn_kernel._far_rings(30) - 1  # … and within the second
+
+    def no_tree(*a, **kw):
+        raise AssertionError("the k-d tree was built")
+
+    monkeypatch.setattr(scipy.spatial, "cKDTree", no_tree)
+    np.testing.assert_allclose(knn_kernel.mean_knn_distance(X, 8), expect, rtol=1e-14, atol=0)
+
+
+def test_the_second_ring_search_is_bounded_in_cells():
+    from roboisf.scan import knn_kernel
+
+    for n in (1, 30, 1000, 10**5, 10**7):
+        r = knn_kernel._far_rings(n)
+        assert 0 <= r <= 128
+        assert n * (2 * r + 1) ** 3 <= knn_kernel.FAR_CELLS or r == 0
+    assert knn_kernel._far_rings(10**7) <= knn_kernel.MAX_RINGS  # many: straight to the tree
+
+
 def test_outliers_chunked_and_presorted_equal_one_plain_tree_query(knn_engine):
     """Over several query chunks (> 65 536 points), with or without the caller's spatial sort,
     the mask is the one of a single whole-cloud cKDTree query (an independent code path)."""
