@@ -11,6 +11,7 @@ import json
 import os
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -191,7 +192,45 @@ def test_builder_is_detached_silent_and_does_not_spawn_builders(fresh, tmp_path)
     assert seen["env"][bg.ENV] == "0"
     assert seen["cmd"][1:3] == ["-m", "roboisf.jit.background"]
     # the builder removes the lock when done and writes the marker if it fails
-    assert seen["cmd"][3:] == [str(tmp_path / "y.lock"), str(tmp_path / "y.failed")]
+    assert seen["cmd"][3:5] == [str(tmp_path / "y.lock"), str(tmp_path / "y.failed")]
+    # … and builds once this process has ended
+    assert seen["cmd"][5:] == [str(os.getpid())]
+
+
+def test_builder_waits_for_the_command_that_started_it(monkeypatch, tmp_path):
+    """The build starts only once the starting process has ended (beside the first run it
+    slowed the run by half), and the lock stays fresh while it waits."""
+    cmd = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(1.0)"])
+    started: list[float] = []
+    monkeypatch.setattr(bg, "build_missing", lambda: started.append(time.monotonic()) or [])
+    lock = tmp_path / "w.lock"
+    lock.write_text("1")
+    try:
+        waited = threading.Thread(target=lambda: bg.main([str(lock), "", str(cmd.pid)]))
+        waited.start()
+        time.sleep(0.3)
+        assert not started  # the command still runs: nothing built yet
+        assert cmd.wait(30) == 0
+    finally:
+        cmd.kill()
+    waited.join(30)
+    assert len(started) == 1 and not lock.exists()
+
+
+def test_a_builder_waits_for_a_long_command_only_so_long_and_keeps_its_lock_fresh(tmp_path):
+    cmd = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])
+    lock = tmp_path / "l.lock"
+    lock.write_text("1")
+    os.utime(lock, (1.0, 1.0))  # as old as can be
+    try:
+        t = time.monotonic()
+        assert not bg.wait_for(cmd.pid, lock, limit=0.6, poll=0.05, touch_every=0.2)
+        assert 0.6 <= time.monotonic() - t < 10  # gave up at the limit
+        assert time.time() - lock.stat().st_mtime < 60  # refreshed: not taken for stale
+    finally:
+        cmd.kill()
+        cmd.wait()
+    assert bg.wait_for(cmd.pid, lock, limit=5)  # ended: at once
 
 
 # -- a failing builder ----------------------------------------------------------------------------
