@@ -60,8 +60,11 @@ def test_plan_default_scheduler_is_named(cone_toml, tmp_path):
     grid = ["--x-range", "1400,2200", "--y-range", "0", "--z-range", "200", "--workers", "2"]
     assert main(["plan", "--part", str(cone_toml), *grid, "-o", str(out)]) == 0
     doc = json.loads((out / "plan.json").read_text())
-    # what ran is named, not "auto": threads with the compiled engine, Dask processes without
-    want = "threads" if vjm_kernel.use_numba("auto") else "local"
+    # what ran is named, not "auto": threads with the compiled engine or on ≤ 2 CPUs, Dask
+    # processes otherwise
+    from roboisf.plan.sweep import _cpus
+
+    want = "threads" if vjm_kernel.use_numba("auto") or _cpus() <= 2 else "local"
     assert doc["summary"]["scheduler"] == want
     assert doc["summary"]["feasible"] == 2
 

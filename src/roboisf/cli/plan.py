@@ -128,8 +128,8 @@ def plan_cmd(
         None,
         "--scheduler",
         help="Where the placements run: 'threads' (threads of this process, the default with "
-        "numba installed), 'local' (a Dask cluster of worker processes, the default without "
-        "numba) or a Dask scheduler address tcp://host:8786.",
+        "the compiled kernels or on ≤ 2 CPUs), 'local' (a Dask cluster of worker processes, the "
+        "default otherwise) or a Dask scheduler address tcp://host:8786.",
     ),
     serial: bool = typer.Option(False, "--serial", help="One placement at a time, this process."),
     workers: int = typer.Option(

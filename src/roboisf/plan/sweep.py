@@ -138,13 +138,29 @@ class PlanResult:
         return rows
 
 
-def default_scheduler(problem: PlanProblem) -> str:
-    """ "threads" when the placements run on the compiled engine (GIL-free), else "local" (Dask
-    processes: the numpy engine holds the GIL for much of a placement)."""
+def _cpus() -> int:
+    """The CPUs this process may run on (a container's or taskset's share)."""
+    import os
+
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1  # pragma: no cover - not on Linux
+
+
+def default_scheduler(problem: PlanProblem, cpus: int | None = None) -> str:
+    """ "threads" when the placements run on the compiled engine (GIL-free) or on at most two
+    CPUs, else "local" (Dask processes: the numpy engine holds the GIL for much of a
+    placement). ``cpus``: the CPUs this process may use (default: its affinity).
+
+    Two CPUs, the numpy engine (a new install's first `plan`, its kernels not built yet): the
+    cone's default grid took 10.5–13.2 s on two threads against 11.9–15.8 s on a Dask cluster
+    of two processes, whose start and second import of roboisf cost more than the GIL does
+    (2 vCPUs, 2026-11-28, two runs each, alternated)."""
     from roboisf.robot import vjm_kernel
 
     compiled = vjm_kernel.use_numba(problem.model.backend) and problem.model.stiffness is not None
-    return "threads" if compiled else "local"
+    n = _cpus() if cpus is None else cpus
+    return "threads" if compiled or n <= 2 else "local"
 
 
 def _thread_map(
