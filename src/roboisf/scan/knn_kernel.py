@@ -17,9 +17,9 @@ Algorithm (exact, the same idea as :mod:`roboisf.parts.mesh_kernel`):
    (k+1)-th distance is not larger;
 4. a point not resolved within :data:`MAX_RINGS` rings (far from the rest: a stray point, a
    sparse line) gets a second ring search, as wide as :data:`FAR_CELLS` allows for all such
-   points together (:func:`_far_rings`: 49 rings for 30 of them); what is still unresolved is
-   finished by scipy's k-d tree over all points (built only then: 0.25–0.5 s on the paper
-   cone's 1.7 M points, which the ~120 strays of each of its scans used to cost).
+   points together (:func:`_far_rings`: 34 rings for 30 of them, 21 for 120); what is still
+   unresolved is finished by scipy's k-d tree over all points (built only then: 0.25–0.5 s on
+   the paper cone's 1.7 M points, which the ~120 strays of each of its scans used to cost).
 
 Squared distances are summed x, y, z as scipy does, so the neighbour distances are the same
 numbers; their mean may differ from numpy's pairwise sum in the last bit. The kernel is serial
@@ -381,9 +381,11 @@ def _grid(
 
 
 #: Grid cells the second ring search may visit in all, over every point the first left
-#: unresolved (:func:`_far_rings`): ~0.1 s at worst, against 0.5 s for the k-d tree of 1.7 M
-#: points that would otherwise finish a hundred stray points.
-FAR_CELLS = 30_000_000
+#: unresolved (:func:`_far_rings`): when it resolves none of them (strays farther than its
+#: rings), the k-d tree is built after it all the same — at 3e7 cells that cost up to 0.2 s on
+#: 1.5 M points with 1000 strays, at 1e7 within the run-to-run noise (±0.1 s); when it does
+#: (the paper cone's ~120 strays per scan), it saves the tree's 0.25–0.5 s.
+FAR_CELLS = 10_000_000
 
 
 def _far_rings(n_far: int) -> int:
