@@ -118,7 +118,7 @@ app = typer.Typer(
         "roboisf compensate ...\n\nLengths on the command line are mm, angles degrees; files "
         "declare their own units. -q/-v may come before or after the command.\n\n"
         "On a new install roboisf's compiled kernels (numba) are built once in the background "
-        "while the first run uses numpy; ROBOISF_BACKGROUND_COMPILE=0 builds them in the "
+        "after the first run, which uses numpy; ROBOISF_BACKGROUND_COMPILE=0 builds them in the "
         "foreground (and shows why a failed background build failed)."
     ),
     no_args_is_help=True,
