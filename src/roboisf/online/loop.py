@@ -45,6 +45,7 @@ import math
 import socket
 import struct
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -311,8 +312,10 @@ class Loop:
         self._last_record_at = math.nan  # perf_counter of the last sensor packet (none yet)
         self.late_limit = int(late_limit)
         self.late_window = float(late_window)
-        self._late_times = np.full(self.late_limit, -math.inf)  # ring: the last late replies
-        self._late_i = 0
+        # the last late_limit late replies' times — a deque, grown as they come: a preallocated
+        # ring of late_limit floats was 8 GB for RULES_OFF's 2**30 (filled in seconds to
+        # minutes on a loaded host before the first cycle, then held for the whole run)
+        self._late_times: deque[float] = deque(maxlen=self.late_limit)
         self._last_msg = math.nan  # perf_counter of the last controller message answered
         self.seq = netft.SequenceTracker()
         self.realtime = realtime or Realtime()
@@ -486,7 +489,8 @@ class Loop:
             self._drain_sensor(t0)  # every sample since the last cycle, at its arrival
             if self._on_controller(data, addr, arrived - t0, arrived, started=now):
                 self._last_msg = now
-                if self._late_times[self._late_i] >= now - self.late_window:  # the oldest of them
+                late = self._late_times
+                if len(late) == self.late_limit and late[0] >= now - self.late_window:  # oldest
                     return (
                         f"{self.late_limit} late replies within {self.late_window:g} s "
                         "(the host cannot keep the cycle: docs/online.md, --selftest)"
@@ -617,7 +621,6 @@ class Loop:
         self.counters.max_latency = max(self.counters.max_latency, latency)
         if latency > self.oc.limits.cycle:  # the controller had its next message due
             self.counters.late_replies += 1
-            self._late_times[self._late_i] = done
-            self._late_i = (self._late_i + 1) % self.late_limit
+            self._late_times.append(done)
         self.log.add(t, state, self.oc, compute, latency)
         return True
