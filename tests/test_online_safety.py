@@ -460,6 +460,28 @@ def test_a_silent_controller_stops_the_loop_and_says_the_ramp_could_not_run(cell
     assert not c.ramped and c.left_mm > 0.2
 
 
+def test_the_stop_rules_switched_off_cost_no_memory(cell):
+    """``RULES_OFF`` sets late_limit to 2³⁰: the loop kept its late replies' times in a ring
+    preallocated to late_limit floats — 8 GB, filled before the first cycle, in every
+    ``online --simulate`` run. Now they are kept as they come."""
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        loop = _loop(cell, sensor=ReplaySensor(np.arange(10) * 1e-3, np.zeros((10, 6))))
+        base = tracemalloc.get_traced_memory()[1]
+        loop.close()
+        tracemalloc.reset_peak()
+        loop = _loop(
+            cell, sensor=ReplaySensor(np.arange(10) * 1e-3, np.zeros((10, 6))), **RULES_OFF
+        )
+        peak = tracemalloc.get_traced_memory()[1]
+        loop.close()
+    finally:
+        tracemalloc.stop()
+    assert peak < base + 10e6, (base, peak)  # as without the rules off, within 10 MB
+
+
 def test_too_many_late_replies_stop_the_loop(cell, q0, monkeypatch):
     """A host that cannot keep the cycle (every reply 5 ms after its message): after
     late_limit late replies within late_window the loop ramps down and stops."""
