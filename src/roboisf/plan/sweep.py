@@ -173,12 +173,9 @@ def _thread_map(
 ) -> list[PlacementScore]:
     """:func:`evaluate_batch` over batches of placements on ``n_workers`` threads (default: the
     CPUs this process may use), the results in placement order."""
-    import os
     from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
-    # the CPUs this process may run on (a container's or taskset's share), not the machine's
-    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    nw = n_workers or cpus or 1
+    nw = n_workers or _cpus()
     m = Ts.shape[0]
     # small batches: threads cost nothing to feed, and the last batches finish together
     size = batch_size or max(1, min(8, math.ceil(m / (4 * nw))))
