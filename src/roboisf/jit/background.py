@@ -276,8 +276,8 @@ def wait_for(
         if lock is not None and now - touched >= touch_every:
             try:
                 os.utime(lock)
-            except OSError:
-                pass
+            except OSError:  # the lock is gone (removed by hand): wait on; main() unlinks it
+                pass  # with missing_ok, and at worst a second builder builds beside this one
             touched = now
         time.sleep(poll)
     return True
