@@ -81,6 +81,10 @@ def test_unreachable_scheduler_is_a_clear_error(problem):
 
     with pytest.raises(InputError, match="cannot reach the Dask scheduler"):
         plan_placements(problem, [[1.6, 0.0, 0.6, 0.0]], scheduler="tcp://127.0.0.1:1")
+    # a misspelt scheduler (Dask's parser: "missing port number"), not a traceback
+    with pytest.raises(InputError, match="expected 'threads', 'local' or a Dask") as e:
+        plan_placements(problem, [[1.6, 0.0, 0.6, 0.0]], scheduler="thread")
+    assert e.value.field == "--scheduler"
 
 
 def test_threads_equal_serial(problem):

@@ -353,6 +353,12 @@ def _dask_map(
                 raise InputError(
                     f"cannot reach the Dask scheduler at {scheduler!r}: {e}", field="--scheduler"
                 ) from None
+            except ValueError as e:  # Dask's address parser: no port, an unknown protocol
+                raise InputError(
+                    f"expected 'threads', 'local' or a Dask scheduler address such as "
+                    f"tcp://host:8786, got {scheduler!r} ({e})",
+                    field="--scheduler",
+                ) from None
             own.append(client)
         else:
             raise InputError(
