@@ -342,6 +342,18 @@ def test_cold_mesh_is_the_compiled_result(monkeypatch):
         mesh = tessellate(Cone(), chordal_error=0.3e-3, edge=6e-3)
         return "grid" in mesh._index, mesh.closest_point(X).distance
 
+    # the axisymmetric parts' query (roboisf.parts.axisym_kernel): the same numbers to rounding
+    from roboisf.parts import axisym_kernel
+
+    calls = []
+    kernel = axisym_kernel.closest
+    monkeypatch.setattr(axisym_kernel, "closest", lambda *a: calls.append(1) or kernel(*a))
+    qa, qb = _both(monkeypatch, "mesh", lambda: Cone().closest_point(X))
+    assert calls == [1]  # the compiled query served the first call only
+    np.testing.assert_allclose(qa.point, qb.point, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(qa.distance, qb.distance, rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(qa.region, qb.region)
+
     (ga, a), (gb, b) = _both(monkeypatch, "mesh", query)
     assert ga and not gb
     # both exact with the same point-triangle arithmetic; a tie may name another face at the

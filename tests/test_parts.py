@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from roboisf import jit
 from roboisf.errors import InputError
 from roboisf.parts import (
     VWACF,
@@ -29,14 +30,15 @@ def dense_generatrix(part, n=200_001):
     return np.concatenate(pts)
 
 
-@pytest.mark.parametrize(
-    "part",
-    [Cone(), VWACF(), ProfilePart(r=(0.04, 0.03, 0.02, 0.015), z=(0.0, -0.01, -0.03, -0.05))],
-    ids=["cone", "vwacf", "profile"],
-)
+PARTS = [Cone(), VWACF(), ProfilePart(r=(0.04, 0.03, 0.02, 0.015), z=(0.0, -0.01, -0.03, -0.05))]
+
+
+@pytest.mark.parametrize("part", PARTS, ids=["cone", "vwacf", "profile"])
 def test_closest_point_matches_brute_force(part):
+    """The numpy query against a dense sample (the compiled one against the numpy one:
+    test_compiled_closest_point_is_the_numpy_query)."""
     X = np.c_[rng.uniform(-0.06, 0.06, (400, 2)), rng.uniform(-0.12, 0.01, 400)]
-    q = part.closest_point(X)
+    q = part.closest_point(X, backend="numpy")
     ref = dense_generatrix(part)
     r = np.hypot(X[:, 0], X[:, 1])
     d_ref = np.min(np.hypot(r[:, None] - ref[None, :, 0], X[:, 2:3] - ref[None, :, 1]), axis=1)
@@ -46,6 +48,41 @@ def test_closest_point_matches_brute_force(part):
     # the returned point is on the surface and in the query's meridian plane
     np.testing.assert_allclose(np.linalg.norm(q.point - X, axis=1), np.abs(q.distance), atol=1e-12)
     np.testing.assert_allclose(np.linalg.norm(q.normal, axis=1), 1.0, atol=1e-14)
+
+
+@pytest.mark.skipif(not jit.HAVE_NUMBA, reason="numba not installed")
+@pytest.mark.parametrize("part", PARTS, ids=["cone", "vwacf", "profile"])
+def test_compiled_closest_point_is_the_numpy_query(part):
+    """roboisf.parts.axisym_kernel against the numpy query, field by field, at the awkward
+    places too: on the axis (r = 0), exactly at the primitives' joints (corner ties go to the
+    wall), at an arc's centre, on the surface, and far away."""
+    g = part.generatrix
+    joints = []
+    for p in g.primitives:
+        r, z, _ = p.at(np.array([0.0, p.length]))
+        joints += [(r[0], 0.0, z[0]), (r[1], 0.0, z[1]), (0.0, r[1], z[1])]
+    arcs = [(p.rc, 0.0, p.zc) for p in g.primitives if hasattr(p, "rc")]
+    on_surface = part.surface_grid(20, 12)[0]
+    X = np.concatenate(
+        [
+            np.c_[rng.uniform(-0.08, 0.08, (5000, 2)), rng.uniform(-0.15, 0.05, 5000)],
+            np.c_[np.zeros((50, 2)), np.linspace(-0.2, 0.1, 50)],  # the axis
+            np.asarray(joints + arcs, dtype=float).reshape(-1, 3),
+            on_surface,
+            [[5.0, -3.0, 2.0], [-1e3, 1e3, -1e3]],
+        ]
+    )
+    a = part.closest_point(X, backend="numba")
+    b = part.closest_point(X, backend="numpy")
+    np.testing.assert_array_equal(a.region, b.region)
+    for f in ("point", "normal", "distance", "wall_angle", "depth", "s"):
+        np.testing.assert_allclose(getattr(a, f), getattr(b, f), rtol=1e-12, atol=1e-12, err_msg=f)
+
+
+def test_closest_point_backend_is_checked():
+    with pytest.raises(InputError, match="backend") as e:
+        Cone().closest_point(np.zeros((1, 3)), backend="fast")
+    assert e.value.field == "backend"
 
 
 def interior_grid(part, n_s, n_phi):

@@ -96,7 +96,10 @@ class Group:
 #: (tests/test_jit.py checks both).
 GROUPS: dict[str, Group] = {
     "forcelog": Group(("roboisf.logs.forcelog_kernel",), "roboisf.logs.forcelog_kernel:build"),
-    "mesh": Group(("roboisf.parts.mesh_kernel",), "roboisf.parts.mesh_kernel:build"),
+    "mesh": Group(
+        ("roboisf.parts.mesh_kernel", "roboisf.parts.axisym_kernel"),
+        "roboisf.parts.mesh_kernel:build",
+    ),
     "scan": Group(
         ("roboisf.parts.mesh_kernel", "roboisf.scan.knn_kernel", "roboisf.scan.toolpath_kernel"),
         "roboisf.scan.toolpath_kernel:build",

@@ -543,8 +543,9 @@ def morton_order(
 
 
 def build() -> None:
-    """Compile (and so cache) these kernels through their callers, on a small mesh: the
-    background builder of :mod:`roboisf.jit.background` (group "mesh")."""
+    """Compile (and so cache) these kernels through their callers, on a small mesh, and the
+    axisymmetric parts' (:mod:`roboisf.parts.axisym_kernel`): the background builder of
+    :mod:`roboisf.jit.background` (group "mesh")."""
     from roboisf.parts.mesh import MeshPart, spatial_order
 
     g = np.linspace(-0.05, 0.05, 4)
@@ -557,3 +558,6 @@ def build() -> None:
     MeshPart(V, F, backend="numba").closest_point(P)
     spatial_order(P)
     bounds(P, np.arange(8, dtype=np.int64))
+    from roboisf.parts import axisym_kernel  # the axisymmetric parts' query: same group
+
+    axisym_kernel.build()
