@@ -151,6 +151,19 @@ def test_resultant_mean_deviation_matches_the_paper():
     st = deviation_stats(d, d[:, 0])
     np.testing.assert_allclose(st.mean_abs, [0.72e-3, 0.72e-3, 0.49e-3])
     assert st.R_m == pytest.approx(resultant_mean_deviation(d))
+    # every field, axis by axis, on data with a different mean, spread and extreme per axis
+    v = rng.normal([1e-4, -2e-4, 3e-4], [1e-4, 5e-4, 2e-4], (5000, 3))
+    dn = rng.normal(-1e-4, 3e-4, 5000)
+    st = deviation_stats(v, dn)
+    assert st.n == 5000
+    for j in range(3):
+        assert st.mean[j] == pytest.approx(v[:, j].mean(), rel=1e-12)
+        assert st.mean_abs[j] == pytest.approx(np.abs(v[:, j]).mean(), rel=1e-12)
+        assert st.max_abs[j] == np.abs(v[:, j]).max()
+    assert (st.mean_dn, st.mean_abs_dn, st.max_abs_dn) == pytest.approx(
+        (dn.mean(), np.abs(dn).mean(), np.abs(dn).max()), rel=1e-12
+    )
+    assert st.R_m == pytest.approx(resultant_mean_deviation(v), rel=1e-12)
     with pytest.raises(InputError):
         resultant_mean_deviation(np.empty((0, 3)))
 
