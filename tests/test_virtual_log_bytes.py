@@ -11,7 +11,7 @@ import pytest
 from roboisf.decompose.pipeline import analyze
 from roboisf.errors import InputError
 from roboisf.logs.forcelog import read_force_log
-from roboisf.virtual.cell import build_study, paper_cone_cell, quantize_wrench
+from roboisf.virtual.cell import _interp_columns, build_study, paper_cone_cell, quantize_wrench
 
 F_STEP, M_STEP = 2.0**-4, 2.0**-10
 
@@ -33,6 +33,20 @@ def studies(tmp_path_factory):
     counts = build_study(_cell(), root / "counts")
     cont = build_study(_cell(force_resolution=(0.0, 0.0)), root / "continuous")
     return counts, cont
+
+
+def test_log_columns_are_np_interp_bit_for_bit():
+    """The virtual logs' interpolation (one interval search for all columns) gives np.interp's
+    numbers exactly: inside, on the knots, before the first and after the last time."""
+    rng = np.random.default_rng(7)
+    time = np.cumsum(rng.uniform(1e-3, 5e-2, 3000))
+    values = rng.normal(size=(3000, 6)) * [1, 10, 100, 1e-3, 1e-2, 1]
+    t = np.concatenate([np.arange(-0.1, time[-1] + 0.1, 7e-4), time[::7], [time[0], time[-1]]])
+    got = _interp_columns(t, time, values)
+    want = np.column_stack([np.interp(t, time, values[:, c]) for c in range(6)])
+    np.testing.assert_array_equal(got, want)
+    one = _interp_columns(t[:5], time[:1], values[:1])  # a single knot: constant
+    np.testing.assert_array_equal(one, np.repeat(values[:1], 5, axis=0))
 
 
 def test_quantize_wrench_rounds_to_the_nearest_count():

@@ -585,11 +585,29 @@ def _force_log(
 
 
 def _interp_columns(t: F64, time: F64, values: F64) -> F64:
-    """Each column of ``values`` (N, k) at the times ``t`` (M,) → (M, k), linear in ``time``;
-    column-major (each channel contiguous, as the log's columns are written)."""
+    """Each column of ``values`` (N, k) at the times ``t`` (M,) → (M, k), linear in ``time``
+    (increasing), constant beyond its ends; column-major (each channel contiguous, as the log's
+    columns are written). ``np.interp``'s numbers (its formula ``slope·(t − tⱼ) + vⱼ``, the
+    same operations in the same order) with the interval of each time searched once for all
+    columns instead of once per column (9 binary searches of 1.5 M log times on the paper cone)."""
+    n = time.size
+    j = np.searchsorted(time, t, side="right") - 1
+    before, after = j < 0, j >= n - 1
+    np.clip(j, 0, max(n - 2, 0), out=j)
+    dt = t - time[j]
+    dtime = np.diff(time)
     out = np.empty((values.shape[1], t.size))
-    for j in range(values.shape[1]):
-        out[j] = np.interp(t, time, values[:, j])
+    for c in range(values.shape[1]):
+        v = np.ascontiguousarray(values[:, c])
+        if n == 1:
+            out[c] = v[0]
+            continue
+        slope = np.diff(v) / dtime
+        o = out[c]
+        np.multiply(slope[j], dt, out=o)
+        o += v[j]
+        o[before] = v[0]
+        o[after] = v[-1]
     return out.T
 
 
