@@ -295,6 +295,21 @@ def test_forces_1000_times_too_large_are_refused():
         check_force_log(_log(tp, 1000.0), tp)
 
 
+def test_force_limits_are_on_the_99th_percentile_not_on_spikes():
+    """A few samples above the limits (a spike, under 1 % of the log) pass; a log above them
+    throughout is refused, forces and moments alike."""
+    from roboisf.study.checks import FORCE_MAX, MOMENT_MAX
+
+    tp = _tp()
+    log = _log(tp)
+    log.wrench[:1, 2] = 2 * FORCE_MAX  # 1 sample in 200
+    log.wrench[1:2, 3] = 2 * MOMENT_MAX
+    assert check_force_log(log, tp) == []
+    log.wrench[:, 3] = 2 * MOMENT_MAX
+    with pytest.raises(InputError, match=r"kN·m \(99th percentile of \|M\|\)"):
+        check_force_log(log, tp)
+
+
 def test_forces_1000_times_too_small_are_refused():
     tp = _tp()
     with pytest.raises(InputError, match=r"f\.csv.*no forming force"):
