@@ -62,6 +62,7 @@ from roboisf.logs.thickness import read_thickness_csv
 from roboisf.parts import sine_law_thickness
 from roboisf.progress import Cancelled, Progress, cancellable, task
 from roboisf.robot import compliance_stats, deflection_contributions, ik_toolpath
+from roboisf.robot.vjm_kernel import single_blas_thread
 from roboisf.scan import CompareOptions, ScanComparison, compare_scan, read_scan
 from roboisf.sensor import UnloadedStretch, unloaded_stretches
 from roboisf.study.checks import (
@@ -432,7 +433,22 @@ def analyze(
     same results; False runs every step in turn, in the calling thread). ``keep_points``: keep
     each scan's per-point arrays in ``result.scans`` (:meth:`ScanComparison.without_points`:
     by default only their statistics, so that the first scan's 0.18 GB per 2 M points does not
-    sit under the second scan's peak; the results use the per-toolpath-point deviations)."""
+    sit under the second scan's peak; the results use the per-toolpath-point deviations).
+
+    BLAS runs on one thread inside (:func:`~roboisf.robot.vjm_kernel.single_blas_thread`): the
+    work is already parallel (the scans beside the logs, their chunks on every core), and
+    OpenBLAS's own threads, spinning between small products, took the cores from it."""
+    with single_blas_thread():
+        return _analyze(study, progress=progress, overlap=overlap, keep_points=keep_points)
+
+
+def _analyze(
+    study: Study | str | Path,
+    *,
+    progress: Progress | None,
+    overlap: bool,
+    keep_points: bool,
+) -> AnalysisResult:
     if not isinstance(study, Study):
         study = load_study(study)
     cell = cell_from_study(study)
