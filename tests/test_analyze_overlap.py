@@ -21,8 +21,25 @@ def _scan_threads() -> list[threading.Thread]:
     return [t for t in threading.enumerate() if t.name == "roboisf-scans"]
 
 
-def test_overlapped_and_sequential_analyses_are_equal(small_cone_study, small_cone_analysis):
+def _blas_threads() -> set[int]:
+    from threadpoolctl import threadpool_info
+
+    return {i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}
+
+
+def test_overlapped_and_sequential_analyses_are_equal(
+    small_cone_study, small_cone_analysis, monkeypatch
+):
+    # BLAS on one thread inside the analysis (its own threads fill the cores), restored after
+    seen: list[set[int]] = []
+    compare = pipeline._compare
+    monkeypatch.setattr(
+        pipeline, "_compare", lambda *a: seen.append(_blas_threads()) or compare(*a)
+    )
+    before = _blas_threads()
     seq = analyze(small_cone_study, overlap=False)
+    assert seen == [{1}, {1}]
+    assert _blas_threads() == before
     ovl = small_cone_analysis  # analyze()'s default: overlapped
     pd.testing.assert_frame_equal(seq.per_point, ovl.per_point, check_exact=True)
     pd.testing.assert_frame_equal(seq.contributions, ovl.contributions, check_exact=True)

@@ -130,7 +130,27 @@ def _build_part(
 ) -> tuple[Path, list[str], list[str]]:
     """One paper study into ``folder / <cell name>``: virtual cell → analyze → report →
     programs. Returns (report path, the lines to print, warnings); prints nothing itself, so it
-    runs as well in a worker process."""
+    runs as well in a worker process. BLAS on one thread throughout
+    (:func:`~roboisf.robot.vjm_kernel.single_blas_thread`): the two studies' processes and
+    their own threads already fill the cores."""
+    from roboisf.robot.vjm_kernel import single_blas_thread
+
+    with single_blas_thread():
+        return _build_one(
+            part, folder, scan_points=scan_points, force_rate=force_rate, formats=formats,
+            progress=progress,
+        )  # fmt: skip
+
+
+def _build_one(
+    part: str,
+    folder: Path,
+    *,
+    scan_points: int,
+    force_rate: float,
+    formats: tuple[str, ...],
+    progress: Progress | None,
+) -> tuple[Path, list[str], list[str]]:
     from roboisf.cam.toolpath_csv import read_toolpath_csv
     from roboisf.decompose.pipeline import analyze, write_results
     from roboisf.virtual.cell import PAPER_TABLE5, build_study, paper_scenario_cell
