@@ -1,5 +1,9 @@
 """``roboisf demo``: both paper studies end to end, built atomically."""
 
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -23,7 +27,15 @@ def test_demo_builds_both_studies_atomically(tmp_path):
     (out / "stale.txt").write_text("old")
     argv = ["-q", "demo", "-o", str(out), "--scan-points", "150000", "--force-rate", "50"]
     assert main(argv) == 2  # not a demo result: refused before computing (docs/conventions.md)
-    assert main([*argv, "--overwrite", "--all-dialects"]) == 0
+    # the command as a user runs it, in its own interpreter: the VWACF's process is forked from
+    # it there (in this pytest worker, which runs other threads, it would be spawned)
+    run = subprocess.run(
+        [sys.executable, "-m", "roboisf", *argv, "--overwrite", "--all-dialects"],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
+    )
+    assert run.returncode == 0, run.stderr
     assert (out / "stale.txt").read_text() == "old"  # never touch a file roboisf did not write
     assert (out / "index.html").is_file()
     for name in ("cone-71", "vwacf"):
@@ -79,3 +91,31 @@ def test_demo_builds_both_studies_atomically(tmp_path):
     np.testing.assert_array_equal(rapid.meta["confdata"], ik)
     assert set(rapid.meta["confdata"][:, 2].tolist()) == {1}
     assert [p.name for p in tmp_path.iterdir()] == ["demo"]  # no staging leftovers
+
+
+def test_the_second_study_is_forked_only_from_a_single_thread():
+    """Forking copies no thread but their locks: the VWACF's process is forked (modules loaded)
+    only while the demo runs no other thread, else spawned."""
+    import threading
+
+    from roboisf.cli.demo import _second_process_context
+
+    code = (
+        "from roboisf.cli.demo import _second_process_context as c; print(c().get_start_method())"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
+        check=True,
+    ).stdout.strip()
+    assert out == ("fork" if sys.platform.startswith("linux") else "spawn")
+    stop = threading.Event()
+    other = threading.Thread(target=stop.wait)
+    other.start()
+    try:
+        assert _second_process_context().get_start_method() == "spawn"
+    finally:
+        stop.set()
+        other.join()

@@ -158,3 +158,33 @@ def test_demo_error_stops_the_second_process(tmp_path):
     assert time.perf_counter() - t0 < 60
     with pytest.raises(InputError, match="jobs"):
         build_demo(tmp_path, jobs=0)
+
+
+def test_demo_error_stops_the_forked_second_process(tmp_path):
+    """The same from a process that runs no other thread, where the VWACF's process is forked
+    (roboisf.cli.demo._second_process_context), as the command line does."""
+    import os
+    import subprocess
+    import sys
+
+    (tmp_path / "cone-71").mkdir()
+    code = (
+        "import multiprocessing, sys, time\n"
+        "from pathlib import Path\n"
+        "from roboisf.cli.demo import _second_process_context, build_demo\n"
+        "assert _second_process_context().get_start_method() == 'fork'\n"
+        "t0 = time.perf_counter()\n"
+        "try:\n"
+        "    build_demo(Path(sys.argv[1]), scan_points=150_000, force_rate=50.0, jobs=2)\n"
+        "except FileExistsError:\n"
+        "    print('refused', multiprocessing.active_children(), time.perf_counter() - t0 < 60)\n"
+    )
+    run = subprocess.run(
+        [sys.executable, "-c", code, str(tmp_path)],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
+        timeout=120,
+    )
+    assert run.stdout.strip() == "refused [] True", run.stderr
+    assert not (tmp_path / "vwacf" / "results").exists()

@@ -70,12 +70,9 @@ def build_demo(
     }
     outcomes: dict[str, tuple[Path, list[str], list[str]]] = {}
     if jobs > 1:
-        import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
 
-        # spawn, not fork: this process may hold the progress display's and BLAS's threads
-        ctx = multiprocessing.get_context("spawn")
-        pool = ProcessPoolExecutor(max_workers=1, mp_context=ctx)
+        pool = ProcessPoolExecutor(max_workers=1, mp_context=_second_process_context())
         try:
             later = {part: pool.submit(_build_part, part, folder, **args) for part in _PARTS[1:]}
             outcomes[_PARTS[0]] = _build_part(_PARTS[0], folder, progress=progress, **args)
@@ -110,6 +107,32 @@ def build_demo(
     reports = [outcomes[part][0] for part in _PARTS]
     write_index(reports, folder / "index.html")
     return reports
+
+
+def _second_process_context() -> Any:
+    """The second study's process: forked where that is safe — on Linux, while this process
+    runs no other thread (before the progress display's refresh thread or a BLAS pool exists:
+    a fork copies no thread, only their locks) — after importing what both studies run, so the
+    child starts with it loaded (spawning re-imported numpy, pandas, scipy, numba and roboisf:
+    ~2 CPU-s, which on two cores the cone's process paid for too). Else spawned."""
+    import multiprocessing
+    import sys
+    import threading
+
+    fork = (
+        sys.platform.startswith("linux")
+        and "fork" in multiprocessing.get_all_start_methods()
+        and threading.active_count() == 1
+    )
+    if not fork:
+        return multiprocessing.get_context("spawn")
+    import roboisf.decompose.pipeline
+    import roboisf.report.document
+    import roboisf.virtual.cell  # noqa: F401
+
+    if threading.active_count() != 1:  # an import started a thread: not safe to fork after all
+        return multiprocessing.get_context("spawn")
+    return multiprocessing.get_context("fork")
 
 
 def _say(infos: list[str], warnings: list[str]) -> None:
