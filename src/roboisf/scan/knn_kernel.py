@@ -48,8 +48,8 @@ if HAVE_NUMBA:
 #: the cloud: a stray point 0.5 m from a scan with 0.4 mm cells would need 10⁹ cells).
 MAX_RINGS = 6
 
-#: Largest number of grid cells (int32 row starts, transient: ≤ 64 MB, and the
-#: int64 cell counts they are summed from: ≤ 128 MB).
+#: Largest number of grid cells (int32 row starts, transient: ≤ 64 MB, summed in place from
+#: the cell counts).
 MAX_CELLS = 16_000_000
 
 F64 = NDArray[np.float64]
@@ -368,15 +368,16 @@ def _grid(
     for it in range(3):
         shape = _shape(span, h, max_cells)
         h = max(h, float(np.max(span / np.array(shape))))
-        counts = np.zeros(shape[0] * shape[1] * shape[2], dtype=cdt)
-        occupied = _cell_keys(X, R, lo, h, shape[0], shape[1], shape[2], key, counts)
+        # the cells' counts from index 1, summed in place into their row starts below (no
+        # second array of the grid's size: 33 MB on the paper cone, beside the scan's peak)
+        cells = np.zeros(shape[0] * shape[1] * shape[2] + 1, dtype=cdt)
+        occupied = _cell_keys(X, R, lo, h, shape[0], shape[1], shape[2], key, cells[1:])
         per_cell = n / max(occupied, 1)
         h_new = max(h_min, h * math.sqrt(target / per_cell))
         if it == 2 or 0.5 * target <= per_cell <= 2 * target or abs(h_new - h) <= 1e-3 * h:
             break
         h = h_new
-    start = np.zeros(counts.size + 1, dtype=cdt)
-    np.cumsum(counts, out=start[1:])
+    start = np.cumsum(cells, out=cells)  # in place: numpy's accumulate makes no copy
     return lo, h, (shape[0], shape[1], shape[2]), key, start
 
 

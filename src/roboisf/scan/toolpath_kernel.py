@@ -235,11 +235,9 @@ def contact_statistics(
     h = max(CELL * radius, float(np.max(span / np.array((nx, ny, nz)))))
     cdt = np.int32 if n < 2**31 else np.int64
     key = np.empty(n, dtype=cdt)
-    counts = np.zeros(nx * ny * nz, dtype=cdt)
-    _cell_keys(F, _NO_ROWS, lo, h, nx, ny, nz, key, counts)
-    start = np.zeros(counts.size + 1, dtype=cdt)
-    np.cumsum(counts, out=start[1:])
-    del counts
+    start = np.zeros(nx * ny * nz + 1, dtype=cdt)  # counts from index 1, summed in place
+    _cell_keys(F, _NO_ROWS, lo, h, nx, ny, nz, key, start[1:])
+    np.cumsum(start, out=start)
     order = _counting_sort(key, start)
     del key
     cnt = np.empty(M, dtype=np.int64)
