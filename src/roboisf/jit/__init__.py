@@ -3,6 +3,7 @@
 * :func:`njit`, :data:`HAVE_NUMBA`, :func:`prange`, :func:`numba_module` — the optional numba
   import with its fallback (:mod:`roboisf.jit.shim`): a kernel module decorates with
   ``@njit()`` and runs as plain Python (or is not used) without numba.
+* :func:`check_backend` — a ``backend=`` argument checked ("auto", "numba", "numpy").
 * :func:`ready` — what every ``"auto"`` dispatch asks before running compiled: on an empty
   kernel cache the numpy path serves this run while **one** detached process builds every
   missing kernel group in the background (:mod:`roboisf.jit.background`, :data:`GROUPS`).
@@ -15,11 +16,13 @@ Importing this package does not import numba.
 from __future__ import annotations
 
 from roboisf.jit.background import (
+    BACKENDS,
     BUILD_WAIT,
     ENV,
     GROUPS,
     Group,
     background_enabled,
+    check_backend,
     failure_path,
     group_cached,
     lock_path,
@@ -38,6 +41,7 @@ from roboisf.jit.shim import (
 )
 
 __all__ = [
+    "BACKENDS",
     "BUILD_WAIT",
     "COMPILE_WAIT",
     "ENV",
@@ -46,6 +50,7 @@ __all__ = [
     "NUMBA_ENV",
     "Group",
     "background_enabled",
+    "check_backend",
     "compile_notice",
     "failure_path",
     "group_cached",

@@ -117,6 +117,26 @@ _started = False
 _decide = threading.Lock()  # the scan's worker threads ask too
 
 
+#: The engines a ``backend=`` argument accepts.
+BACKENDS = ("auto", "numba", "numpy")
+
+
+def check_backend(backend: str, *, field: str = "backend", have_numba: bool | None = None) -> str:
+    """``backend`` checked: one of :data:`BACKENDS`, and "numba" only with numba installed
+    (``have_numba``: the caller's own flag, default :data:`~roboisf.jit.HAVE_NUMBA`)."""
+    if backend not in BACKENDS:
+        from roboisf.errors import InputError
+
+        raise InputError(
+            f"backend must be 'auto', 'numba' or 'numpy', got {backend!r}", field=field
+        )
+    if backend == "numba" and not (HAVE_NUMBA if have_numba is None else have_numba):
+        from roboisf.errors import InputError
+
+        raise InputError("backend 'numba' needs numba: pip install 'roboisf[fast]'", field=field)
+    return backend
+
+
 def background_enabled() -> bool:
     """False when :data:`ENV` is "0" (compile in the foreground)."""
     return os.environ.get(ENV, "1").strip() != "0"

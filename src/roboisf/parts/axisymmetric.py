@@ -41,18 +41,9 @@ REGION_CODES = {"flange": 0, "wall": 1, "bottom": 2}
 
 
 def _compiled(backend: str) -> bool:
-    """Whether a closest-point query with ``backend`` runs the compiled kernel in this process."""
-    if backend not in ("auto", "numba", "numpy"):
-        raise InputError(
-            f"backend must be 'auto', 'numba' or 'numpy', got {backend!r}", field="backend"
-        )
-    if backend == "numpy":
-        return False
-    if not jit.HAVE_NUMBA:
-        if backend == "numba":
-            raise InputError(
-                "backend 'numba' needs numba: pip install 'roboisf[fast]'", field="backend"
-            )
+    """Whether a closest-point query with ``backend`` (checked) runs the compiled kernel in
+    this process: "numba" always, "auto" once the kernels are built (:func:`roboisf.jit.ready`)."""
+    if jit.check_backend(backend) == "numpy" or not jit.HAVE_NUMBA:
         return False
     return backend == "numba" or jit.ready("mesh")
 

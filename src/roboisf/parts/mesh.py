@@ -202,15 +202,7 @@ def _compiled(backend: str) -> bool:
 
 
 def _check_backend(backend: str) -> str:
-    if backend not in ("auto", "numba", "numpy"):
-        raise InputError(
-            f"backend must be 'auto', 'numba' or 'numpy', got {backend!r}", field="backend"
-        )
-    if backend == "numba" and not mesh_kernel.HAVE_NUMBA:
-        raise InputError(
-            "backend 'numba' needs numba: pip install 'roboisf[fast]'", field="backend"
-        )
-    return backend
+    return jit.check_backend(backend, have_numba=mesh_kernel.HAVE_NUMBA)
 
 
 def check_sheet_mesh(V: F64, F: NDArray[np.int64], orient: str, where: str | Path) -> None:

@@ -55,7 +55,7 @@ F64 = NDArray[np.float64]
 HAVE_NUMBA = jit.HAVE_NUMBA
 
 #: Engines accepted by ``backend=``.
-BACKENDS = ("auto", "numba", "numpy")
+BACKENDS = jit.BACKENDS
 #: Poses per chunk of the numpy engine (its temporaries stay in cache).
 CHUNK = 4096
 #: Poses per kernel call (progress is reported between calls).
@@ -64,13 +64,7 @@ _CALL = 1 << 20
 
 def check_backend(backend: str, field: str = "backend") -> str:
     """Validate a ``backend`` name; ``"numba"`` needs numba installed."""
-    if backend not in BACKENDS:
-        raise InputError(
-            f"backend must be 'auto', 'numba' or 'numpy', got {backend!r}", field=field
-        )
-    if backend == "numba" and not HAVE_NUMBA:
-        raise InputError("backend 'numba' needs numba: pip install 'roboisf[fast]'", field=field)
-    return backend
+    return jit.check_backend(backend, field=field, have_numba=HAVE_NUMBA)
 
 
 def use_numba(backend: str) -> bool:
