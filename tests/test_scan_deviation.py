@@ -164,6 +164,25 @@ def test_resultant_mean_deviation_matches_the_paper():
         (dn.mean(), np.abs(dn).mean(), np.abs(dn).max()), rel=1e-12
     )
     assert st.R_m == pytest.approx(resultant_mean_deviation(v), rel=1e-12)
+    # from dn and the normals without their (N, 3) product: the same statistics, over blocks
+    from roboisf.scan.summary import _BLOCK, normal_deviation_stats
+
+    m = 2 * _BLOCK + 123
+    nrm = rng.normal(size=(m, 3))
+    nrm /= np.linalg.norm(nrm, axis=1)[:, None]
+    dn = rng.normal(2e-5, 3e-4, m)
+    dn[m - 7] = 5e-3  # the largest |δ| in the last, partial block
+    a, b = normal_deviation_stats(dn, nrm), deviation_stats(dn[:, None] * nrm, dn)
+    assert a.n == b.n == m
+    np.testing.assert_allclose(a.mean, b.mean, rtol=1e-10, atol=1e-18)
+    np.testing.assert_allclose(a.mean_abs, b.mean_abs, rtol=1e-12)
+    np.testing.assert_array_equal(a.max_abs, b.max_abs)
+    assert (a.mean_dn, a.mean_abs_dn, a.max_abs_dn, a.R_m) == pytest.approx(
+        (b.mean_dn, b.mean_abs_dn, b.max_abs_dn, b.R_m), rel=1e-12
+    )
+    assert a.max_abs.max() == pytest.approx(5e-3 * np.abs(nrm[m - 7]).max())
+    with pytest.raises(InputError):
+        normal_deviation_stats(np.empty(0), np.empty((0, 3)))
     with pytest.raises(InputError):
         resultant_mean_deviation(np.empty((0, 3)))
 

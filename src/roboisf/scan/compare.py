@@ -28,7 +28,7 @@ from roboisf.scan.deviation import (
 )
 from roboisf.scan.readers import ScanCloud, check_units
 from roboisf.scan.registration import METHODS, Registration, register
-from roboisf.scan.summary import by_angle, by_depth, deviation_stats
+from roboisf.scan.summary import by_angle, by_depth, deviation_stats, normal_deviation_stats
 
 __all__ = ["CompareOptions", "ScanComparison", "compare_scan", "part_size"]
 
@@ -125,7 +125,7 @@ class ScanComparison:
         under the second scan's peak."""
         if self.points is None:
             return self
-        stats = deviation_stats(self.points.delta, self.points.dn).to_dict()
+        stats = normal_deviation_stats(self.points.dn, self.points.normal).to_dict()
         return replace(self, points=None, point_stats=stats)
 
     def summary(self) -> dict[str, Any]:
@@ -144,7 +144,7 @@ class ScanComparison:
                 "outlier_std": o.outlier_std,
             },
             "points": (
-                deviation_stats(self.points.delta, self.points.dn).to_dict()
+                normal_deviation_stats(self.points.dn, self.points.normal).to_dict()
                 if self.points is not None
                 else self.point_stats
             ),

@@ -13,6 +13,7 @@ i.e. the norm of the per-axis *mean absolute* deviations — the paper's springb
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -79,18 +80,46 @@ def deviation_stats(delta: ArrayLike, dn: ArrayLike) -> DeviationStats:
     n_ = np.asarray(dn, dtype=float)
     if d.shape[0] == 0:
         raise InputError("no deviations to summarise (no valid points)")
-    # by component, each a contiguous row: numpy's reductions along axis 0 of an (N, 3) array
-    # stride through memory (0.32 CPU-s on a 1.7 M-point scan against 0.04 s by rows)
-    cols = np.ascontiguousarray(d.T)
-    a = np.abs(cols)
-    abs_dn = np.abs(n_)
-    mean_abs = a.mean(axis=1)
+    return _stats(n_, lambda rows: d[rows])
+
+
+def normal_deviation_stats(dn: ArrayLike, normal: ArrayLike) -> DeviationStats:
+    """:func:`deviation_stats` of the deviations ``dn · normal`` — ``dn`` (N,) m along the unit
+    normals ``normal`` (N, 3) — without their (N, 3) array: a scan's 1.7 M wall points made it
+    and its absolute values, 120 MB on top of the points, the comparison's memory peak."""
+    n_ = np.asarray(dn, dtype=float)
+    nrm = np.atleast_2d(np.asarray(normal, dtype=float))
+    if n_.shape[0] == 0:
+        raise InputError("no deviations to summarise (no valid points)")
+    return _stats(n_, lambda rows: n_[rows, None] * nrm[rows])
+
+
+#: Rows per block of :func:`_stats` (its temporaries stay in cache and small).
+_BLOCK = 65_536
+
+
+def _stats(dn: F64, delta_rows: Callable[[slice], F64]) -> DeviationStats:
+    """The statistics block by block: ``delta_rows(rows)`` gives the rows' (M, 3) vectors.
+    Sums by component over each block (numpy's reductions along the rows of a block), then
+    over the blocks in order."""
+    n = dn.shape[0]
+    total = np.zeros(3)
+    total_abs = np.zeros(3)
+    max_abs = np.zeros(3)
+    for lo in range(0, n, _BLOCK):
+        a = delta_rows(slice(lo, lo + _BLOCK))
+        total += a.sum(axis=0)
+        a = np.abs(a)
+        total_abs += a.sum(axis=0)
+        np.maximum(max_abs, a.max(axis=0), out=max_abs)
+    abs_dn = np.abs(dn)
+    mean_abs = total_abs / n
     return DeviationStats(
-        int(d.shape[0]),
-        cols.mean(axis=1),
+        int(n),
+        total / n,
         mean_abs,
-        a.max(axis=1),
-        float(n_.mean()),
+        max_abs,
+        float(dn.mean()),
         float(abs_dn.mean()),
         float(abs_dn.max()),
         float(np.sqrt(np.sum(mean_abs**2))),  # resultant_mean_deviation, its mean|δ| reused
