@@ -206,13 +206,13 @@ def pyramid():
 
 def test_pyramid_figures_build(pyramid):
     pp = pyramid[0]
-    fig = ia.deviation_map_figure(pp)
+    fig = ia.deviation_map_figure(pp).to_go()  # validated by plotly
     assert [t.type for t in fig.data] == ["heatmap", "heatmap"]
     assert np.asarray(fig.data[0].x).max() < 100.0
-    top = ia.deviation_top_figure(pp)
+    top = ia.deviation_top_figure(pp).to_go()
     assert [t.type for t in top.data] == ["scatter", "scatter"]
     contour, caption = ia.vjm_contour_figure(pp, -11.0)
-    assert len(contour.data) == 4 and "long" in caption
+    assert len(contour.to_go().data) == 4 and "long" in caption
     for png in (st.deviation_map_png(pp), st.deviation_top_png(pp), st.vjm_contour_png(pp, -11)):
         assert len(png.axes) >= 2
 

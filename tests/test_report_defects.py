@@ -46,7 +46,7 @@ def test_static_bar_labels_do_not_run_into_each_other(small):
 def test_plotly_axis_titles_have_no_literal_underscore(small):
     _, contrib, _, _ = small
     c = check_contributions(contrib, name="c")
-    fig = ia.contributions_figure(c, c)
+    fig = ia.contributions_figure(c, c).to_go()
     titles = [fig.layout[k].title.text for k in fig.layout if k.startswith("yaxis")]
     assert "R<sub>m</sub> (mm)" in titles and not any("R_m" in (t or "") for t in titles)
 

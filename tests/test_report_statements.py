@@ -220,7 +220,7 @@ def test_part_view_keeps_whole_laps_breaks_between_them_and_masks_holes(small):
 
 def test_part_figure_lines_break_at_holes_and_toggle(small):
     pp = small[0]
-    fig = ia.part_figure(pp)
+    fig = ia.part_figure(pp).to_go()  # validated by plotly
     assert len(fig.data) == len(agg.PART_VIEW_TERMS)
     assert [t.visible for t in fig.data] == [True] + [False] * (len(fig.data) - 1)
     assert all(t.type == "scatter3d" and t.mode == "lines" for t in fig.data)

@@ -13,7 +13,6 @@ from pathlib import Path
 from typing import Any
 
 import pandas as pd
-import plotly.graph_objects as go
 import plotly.io as pio
 
 from roboisf.errors import InputError
@@ -22,6 +21,7 @@ from roboisf.progress import Progress, task
 from roboisf.report import aggregate as agg
 from roboisf.report import interactive as ia
 from roboisf.report import page as pg
+from roboisf.report import plotfig as pf
 from roboisf.report import static as st
 from roboisf.report.alignment import alignment_html
 from roboisf.report.model_check import check_card, check_tables
@@ -81,7 +81,7 @@ class _Figure:
     id: str
     title: str
     caption: str
-    plotly: Callable[[], go.Figure]
+    plotly: Callable[[], pf.Figure]
     png: Callable[[], Any]
 
 
@@ -279,15 +279,16 @@ def _truth_reason(summary: Mapping[str, Any]) -> str:
     )
 
 
-def _figure_html(spec: _Figure, fig: go.Figure, first: bool) -> str:
+def _figure_html(spec: _Figure, fig: pf.Figure, first: bool) -> str:
     div = pio.to_html(
-        fig,
+        fig.to_plotly_json(),
+        validate=False,  # plain JSON (roboisf.report.plotfig); tests validate every figure
         full_html=False,
         include_plotlyjs=True if first else False,
         include_mathjax=False,
         div_id=f"fig-{spec.id}",
         config=_PLOTLY_CONFIG,
-        default_height=f"{int(fig.layout.height or 420)}px",
+        default_height=f"{int(fig.layout.get('height') or 420)}px",
         default_width="100%",
     )
     return (

@@ -1,5 +1,6 @@
 """Interactive figures (plotly) of the HTML report. One function per figure, each taking the checked
-per-point table (and what else it needs) and returning a ``plotly.graph_objects.Figure``.
+per-point table (and what else it needs) and returning a :class:`roboisf.report.plotfig.Figure`
+(plotly's JSON without its figure objects: ``.to_go()`` gives the validated plotly figure).
 
 Every x-axis that can be is the depth below the sheet (mm), so the figures read together; lap
 means are drawn as lines with a 5–95 % band showing the spread around the lap.
@@ -11,10 +12,9 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-import plotly.graph_objects as go
-from plotly.subplots import make_subplots
 
 from roboisf.report import aggregate as agg
+from roboisf.report import plotfig as pf
 from roboisf.report.schema import FACTORS, RUNS
 from roboisf.report.style import (
     AXIS_LABELS,
@@ -54,7 +54,7 @@ def _f(values: Any) -> np.ndarray:
 
 
 def _line_with_band(
-    fig: go.Figure,
+    fig: pf.Figure,
     prof: pd.DataFrame,
     col: str,
     *,
@@ -72,7 +72,8 @@ def _line_with_band(
     if band:
         for edge, fill in (("hi", None), ("lo", "tonexty")):
             fig.add_trace(
-                go.Scatter(
+                pf.trace(
+                    "scatter",
                     x=x,
                     y=_f(prof[f"{col}_{edge}"]),
                     mode="lines",
@@ -86,7 +87,8 @@ def _line_with_band(
                 **kw,
             )
     fig.add_trace(
-        go.Scatter(
+        pf.trace(
+            "scatter",
             x=x,
             y=_f(prof[col]),
             mode="lines",
@@ -100,20 +102,20 @@ def _line_with_band(
     )
 
 
-def _style_axes(fig: go.Figure, layout: dict[str, Any]) -> None:
+def _style_axes(fig: pf.Figure, layout: dict[str, Any]) -> None:
     fig.update_xaxes(**{k: v for k, v in layout["xaxis"].items() if k != "title"})
     fig.update_yaxes(**{k: v for k, v in layout["yaxis"].items() if k != "title"})
 
 
 def _subplots(
     rows: int, cols: int, titles: list[str], height: int, hspace: float = 0.09, **kw: Any
-) -> go.Figure:
+) -> pf.Figure:
     """Subplots in the report style, legend above the subplot titles, x titles on the bottom row."""
     top, bottom = 96, 56
-    fig = make_subplots(
-        rows=rows,
-        cols=cols,
-        subplot_titles=titles,
+    fig = pf.subplots(
+        rows,
+        cols,
+        titles,
         horizontal_spacing=hspace,
         vertical_spacing=min(0.34, 80.0 / (height - top - bottom)) if rows > 1 else 0.0,
         **kw,
@@ -127,12 +129,12 @@ def _subplots(
     return fig
 
 
-def _xtitle_bottom(fig: go.Figure, rows: int, cols: int, text: str) -> None:
+def _xtitle_bottom(fig: pf.Figure, rows: int, cols: int, text: str) -> None:
     for c in range(1, cols + 1):
         fig.update_xaxes(title_text=text, row=rows, col=c)
 
 
-def forces_figure(per_point: pd.DataFrame) -> go.Figure:
+def forces_figure(per_point: pd.DataFrame) -> pf.Figure:
     """Axial force Fz and in-plane resultant √(Fx²+Fy²) vs depth, CNC vs robot (lap means, N)."""
     prof = agg.force_profile(per_point)
     fig = _subplots(
@@ -155,7 +157,7 @@ def forces_figure(per_point: pd.DataFrame) -> go.Figure:
     return fig
 
 
-def deviation_depth_figure(per_point: pd.DataFrame) -> go.Figure:
+def deviation_depth_figure(per_point: pd.DataFrame) -> pf.Figure:
     """Measured deviation per axis vs depth, CNC vs robot part (lap mean and 5–95 % band, mm)."""
     cols = [f"{r}_{a}" for r in RUNS for a in ("dx", "dy", "dz", "dn")]
     prof = agg.lap_profile(per_point, cols)
@@ -185,7 +187,7 @@ def _vmax(*arrays: np.ndarray) -> float:
     return float(np.percentile(np.abs(finite), 99)) if finite.size else 1.0
 
 
-def deviation_map_figure(per_point: pd.DataFrame) -> go.Figure:
+def deviation_map_figure(per_point: pd.DataFrame) -> pf.Figure:
     """Normal deviation of the CNC and robot parts unrolled: position along each lap × depth.
 
     Any part: x is the fraction of the lap's length from its point nearest the +x axis, in
@@ -198,7 +200,8 @@ def deviation_map_figure(per_point: pd.DataFrame) -> go.Figure:
         m = maps[run]
         arc = np.outer(m.length, m.position)
         fig.add_trace(
-            go.Heatmap(
+            pf.trace(
+                "heatmap",
                 x=_f(100.0 * m.position),
                 y=_f(m.depth),
                 z=_f(m.values),
@@ -206,7 +209,7 @@ def deviation_map_figure(per_point: pd.DataFrame) -> go.Figure:
                 zmin=-vmax,
                 zmax=vmax,
                 zmid=0.0,
-                colorscale="RdBu_r",
+                colorscale=pf.colorscale("RdBu_r"),
                 showscale=j == 2,
                 coloraxis=None,
                 colorbar={"title": {"text": "δn (mm)", "side": "right"}, "thickness": 14},
@@ -232,7 +235,7 @@ def deviation_map_figure(per_point: pd.DataFrame) -> go.Figure:
     return fig
 
 
-def deviation_top_figure(per_point: pd.DataFrame) -> go.Figure:
+def deviation_top_figure(per_point: pd.DataFrame) -> pf.Figure:
     """Normal deviation of the CNC and robot parts seen from above: the toolpath points (x, y),
     at most 12 000 per part, coloured by δn (mm); scan holes are left blank."""
     views = {run: agg.top_view(per_point, f"{run}_dn") for run in RUNS}
@@ -241,13 +244,14 @@ def deviation_top_figure(per_point: pd.DataFrame) -> go.Figure:
     for j, run in enumerate(RUNS, start=1):
         v = views[run]
         fig.add_trace(
-            go.Scatter(
+            pf.trace(
+                "scatter",
                 x=_f(v.x),
                 y=_f(v.y),
                 mode="markers",
                 marker={
                     "color": _f(v.values),
-                    "colorscale": "RdBu_r",
+                    "colorscale": pf.colorscale("RdBu_r"),
                     "cmin": -vmax,
                     "cmax": vmax,
                     "cmid": 0.0,
@@ -270,7 +274,7 @@ def deviation_top_figure(per_point: pd.DataFrame) -> go.Figure:
     return fig
 
 
-def factors_depth_figure(per_point: pd.DataFrame) -> go.Figure:
+def factors_depth_figure(per_point: pd.DataFrame) -> pf.Figure:
     """Each contribution's normal component vs depth (lap mean, band), truth dashed when known."""
     cols = [f"{f}_dn" for f in FACTORS]
     truth = [f"truth_{f}_dn" for f in FACTORS if f"truth_{f}_dn" in per_point.columns]
@@ -305,7 +309,7 @@ def factors_depth_figure(per_point: pd.DataFrame) -> go.Figure:
     return fig
 
 
-def vjm_path_figure(per_point: pd.DataFrame) -> go.Figure:
+def vjm_path_figure(per_point: pd.DataFrame) -> pf.Figure:
     """Robot compliance error along the path, per work axis: experiment δc_exp vs VJM prediction
     and their difference Δ (lap means vs depth; bands: the variation around each lap)."""
     axes = ("dx", "dy", "dz")
@@ -349,13 +353,13 @@ def vjm_path_figure(per_point: pd.DataFrame) -> go.Figure:
     return fig
 
 
-def vjm_polar_figure(per_point: pd.DataFrame, contour_z: float) -> tuple[go.Figure, str]:
+def vjm_polar_figure(per_point: pd.DataFrame, contour_z: float) -> tuple[pf.Figure, str]:
     """Resultant robot deflection |δc| around the contour nearest ``contour_z``: experiment vs VJM.
 
     Returns the figure and its caption (which lap, its height, and any substitution).
     """
     c = agg.contour(per_point, contour_z)
-    fig = go.Figure(layout=plotly_layout(height=480, hovermode="closest"))
+    fig = pf.Figure(layout=plotly_layout(height=480, hovermode="closest"))
     series = (
         (
             "experiment |δc<sub>exp</sub>|",
@@ -373,7 +377,8 @@ def vjm_polar_figure(per_point: pd.DataFrame, contour_z: float) -> tuple[go.Figu
     )
     for name, r, color, width in series:
         fig.add_trace(
-            go.Scatterpolar(
+            pf.trace(
+                "scatterpolar",
                 r=_f(r),
                 theta=_f(c.angle_deg),
                 mode="lines",
@@ -403,7 +408,7 @@ def vjm_polar_figure(per_point: pd.DataFrame, contour_z: float) -> tuple[go.Figu
     return fig, caption
 
 
-def vjm_contour_figure(per_point: pd.DataFrame, contour_z: float) -> tuple[go.Figure, str]:
+def vjm_contour_figure(per_point: pd.DataFrame, contour_z: float) -> tuple[pf.Figure, str]:
     """Resultant robot deflection along the contour nearest ``contour_z`` on a part that is not
     round: the lap's outline seen from above coloured by |δc_exp| (left) and |δc_exp|, |δc_VJM|,
     |Δ| against the arc length along the lap (right), in mm.
@@ -413,14 +418,15 @@ def vjm_contour_figure(per_point: pd.DataFrame, contour_z: float) -> tuple[go.Fi
     c = agg.contour_along(per_point, contour_z)
     fig = _subplots(1, 2, ["Outline, colour |δc<sub>exp</sub>|", "Along the lap"], 480, hspace=0.2)
     fig.add_trace(
-        go.Scatter(
+        pf.trace(
+            "scatter",
             x=_f(c.x),
             y=_f(c.y),
             mode="lines+markers",
             line={"color": "#CBD2D9", "width": 1},
             marker={
                 "color": _f(c.experiment),
-                "colorscale": "Viridis",
+                "colorscale": pf.colorscale("Viridis"),
                 "size": 6,
                 "showscale": True,
                 "colorbar": {
@@ -446,7 +452,8 @@ def vjm_contour_figure(per_point: pd.DataFrame, contour_z: float) -> tuple[go.Fi
         ("|Δ| = |δc<sub>exp</sub> − δc<sub>VJM</sub>|", c.delta, SERIES_COLORS["delta"], 1.6),
     ):
         fig.add_trace(
-            go.Scatter(
+            pf.trace(
+                "scatter",
                 x=_f(c.s),
                 y=_f(r),
                 mode="lines",
@@ -473,7 +480,7 @@ def vjm_contour_figure(per_point: pd.DataFrame, contour_z: float) -> tuple[go.Fi
 
 def contributions_figure(
     contributions: pd.DataFrame, contributions_normal: pd.DataFrame
-) -> go.Figure:
+) -> pf.Figure:
     """Share (%) and R_m (mm) of each factor, both ways: per-axis vectors and normal projection."""
     fig = _subplots(1, 2, ["Share of the resultant mean deviation (%)", "R<sub>m</sub> (mm)"], 420)
     labels = [FACTOR_LABELS[f] for f in FACTORS]
@@ -486,7 +493,8 @@ def contributions_figure(
         for name, table, pattern in versions:
             values = table.loc[list(FACTORS), col].to_numpy(dtype=float)
             fig.add_trace(
-                go.Bar(
+                pf.trace(
+                    "bar",
                     x=labels,
                     y=values,
                     name=name,
@@ -511,14 +519,14 @@ def contributions_figure(
     return fig
 
 
-def thickness_figure(per_point: pd.DataFrame) -> go.Figure:
+def thickness_figure(per_point: pd.DataFrame) -> pf.Figure:
     """Wall thickness vs depth: sine law t₀·cos α, and the measured thickness when given (mm)."""
     cols = ["thickness_predicted"]
     has_measured = "thickness_measured" in per_point.columns
     if has_measured:
         cols.append("thickness_measured")
     prof = agg.lap_profile(per_point, cols)
-    fig = go.Figure(layout=plotly_layout(height=380))
+    fig = pf.Figure(layout=plotly_layout(height=380))
     _line_with_band(
         fig,
         prof,
@@ -537,7 +545,7 @@ def thickness_figure(per_point: pd.DataFrame) -> go.Figure:
     return fig
 
 
-def part_figure(per_point: pd.DataFrame) -> go.Figure:
+def part_figure(per_point: pd.DataFrame) -> pf.Figure:
     """The formed part in 3D: whole laps of the toolpath (contact points in the work frame, mm)
     drawn as lines coloured by the normal value of one term at a time — total, springback, tool,
     holder, robot compliance, residual Δ — with buttons to switch; at most
@@ -546,7 +554,7 @@ def part_figure(per_point: pd.DataFrame) -> go.Figure:
     breaks the line."""
     view = agg.part_view(per_point)
     terms = [(c, label) for c, label in agg.PART_VIEW_TERMS if c in view.values]
-    fig = go.Figure()
+    fig = pf.Figure()
     for k, (col, label) in enumerate(terms):
         v = view.values[col]
         hole = ~np.isfinite(v)
@@ -556,7 +564,8 @@ def part_figure(per_point: pd.DataFrame) -> go.Figure:
             return _f(np.where(hole, np.nan, a))
 
         fig.add_trace(
-            go.Scatter3d(
+            pf.trace(
+                "scatter3d",
                 x=cut(view.x),
                 y=cut(view.y),
                 z=cut(view.z),
@@ -566,7 +575,7 @@ def part_figure(per_point: pd.DataFrame) -> go.Figure:
                 connectgaps=False,
                 line={
                     "color": _f(np.where(hole, 0.0, v)),
-                    "colorscale": "RdBu_r",
+                    "colorscale": pf.colorscale("RdBu_r"),
                     "cmin": -vmax,
                     "cmax": vmax,
                     "width": 5,
