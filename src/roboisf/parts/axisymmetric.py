@@ -156,9 +156,13 @@ class AxisymmetricPart:
             )
             return SurfaceQuery(P, N, signed, alpha, -P[:, 2], s, region)
         r = np.hypot(X[:, 0], X[:, 1])
-        phi = np.arctan2(X[:, 1], X[:, 0])
         rp, zp, alpha, s, idx = g.closest(r, X[:, 2])
-        c, sn = np.cos(phi), np.sin(phi)
+        # the meridian's direction (cos φ, sin φ) = (x, y)/r; (1, 0) on the axis, as arctan2
+        # gives φ = 0 there (two divisions instead of an arctan2, a cos and a sin a point)
+        on_axis = r == 0.0
+        rr = np.where(on_axis, 1.0, r)
+        c = np.where(on_axis, 1.0, X[:, 0] / rr)
+        sn = X[:, 1] / rr
         P = np.stack([rp * c, rp * sn, zp], axis=1)
         nr, nz = -np.sin(alpha), np.cos(alpha)
         N = np.stack([nr * c, nr * sn, nz], axis=1)

@@ -54,11 +54,13 @@ class Segment:
         return (z - self.z0) / (self.z1 - self.z0) * self.length
 
     def closest(self, r: F64, z: F64) -> tuple[F64, F64, F64, F64]:
-        """Closest point (rp, zp), its wall angle and arc length, for query points (r, z)."""
+        """Closest point (rp, zp), its wall angle (the segment's one, a 0-d array) and arc
+        length, for query points (r, z)."""
         dr, dz = self.r1 - self.r0, self.z1 - self.z0
         L2 = dr * dr + dz * dz
         u = np.clip(((r - self.r0) * dr + (z - self.z0) * dz) / L2, 0.0, 1.0)
-        return self.r0 + u * dr, self.z0 + u * dz, np.full_like(r, self.wall_angle), u * self.length
+        # the wall angle is the segment's own: one value, broadcast by the caller
+        return self.r0 + u * dr, self.z0 + u * dz, np.asarray(self.wall_angle), u * self.length
 
 
 @dataclass(frozen=True)
@@ -196,14 +198,18 @@ class Generatrix:
         ss = np.zeros_like(r)
         idx = np.zeros(r.shape, dtype=np.int64)
         wall_first = sorted(range(len(self.primitives)), key=lambda i: self.regions[i] != "wall")
+        d = np.empty_like(r)
+        better = np.empty(r.shape, dtype=bool)
         for i in wall_first:
             cr, cz, ca, cs = self.primitives[i].closest(r, z)
-            d = np.hypot(cr - r, cz - z)
-            better = d < best - 1e-12
-            best = np.where(better, d, best)
-            rp = np.where(better, cr, rp)
-            zp = np.where(better, cz, zp)
-            al = np.where(better, ca, al)
-            ss = np.where(better, cs + self._s0[i], ss)
-            idx = np.where(better, i, idx)
+            np.hypot(cr - r, cz - z, out=d)
+            np.less(d, best - 1e-12, out=better)
+            # in place where nearer (the first primitive: everywhere, as best starts at inf)
+            np.copyto(best, d, where=better)
+            np.copyto(rp, cr, where=better)
+            np.copyto(zp, cz, where=better)
+            np.copyto(al, ca, where=better)
+            cs += self._s0[i]
+            np.copyto(ss, cs, where=better)
+            np.copyto(idx, i, where=better)
         return rp, zp, al, ss, idx
