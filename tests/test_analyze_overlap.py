@@ -21,8 +21,16 @@ def _scan_threads() -> list[threading.Thread]:
     return [t for t in threading.enumerate() if t.name == "roboisf-scans"]
 
 
-def test_overlapped_and_sequential_analyses_are_equal(small_cone_study, small_cone_analysis):
-    seq = analyze(small_cone_study, overlap=False)
+@pytest.fixture(scope="module")
+def sequential_kept(small_cone_study):
+    """``analyze(overlap=False, keep_points=True)`` of the shared small cone, once: the other
+    corner from conftest's ``small_cone_analysis`` (overlapped, points dropped) in both options,
+    so the two tests below compare against one analysis instead of running one each. Read-only."""
+    return analyze(small_cone_study, overlap=False, keep_points=True)
+
+
+def test_overlapped_and_sequential_analyses_are_equal(sequential_kept, small_cone_analysis):
+    seq = sequential_kept
     ovl = small_cone_analysis  # analyze()'s default: overlapped
     pd.testing.assert_frame_equal(seq.per_point, ovl.per_point, check_exact=True)
     pd.testing.assert_frame_equal(seq.contributions, ovl.contributions, check_exact=True)
@@ -71,11 +79,12 @@ def test_an_error_in_the_scan_thread_reaches_the_caller(small_cone_study, tmp_pa
 
 
 def test_the_analysis_keeps_each_scans_statistics_not_its_points(
-    small_cone_study, small_cone_analysis
+    sequential_kept, small_cone_analysis
 ):
     # the per-point arrays are dropped (memory: the first scan's sat under the second's peak);
-    # the summary is what it was with them, and keep_points=True keeps them
-    kept = analyze(small_cone_study, keep_points=True)
+    # the summary is what it was with them, and keep_points=True keeps them (kept sequentially
+    # here: the test above has the sequential analysis give the overlapped one's results)
+    kept = sequential_kept
     for name, sc in small_cone_analysis.scans.items():
         assert sc.points is None
         full = kept.scans[name]
