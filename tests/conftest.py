@@ -27,6 +27,21 @@ import pytest
 # "auto" compiles in the foreground here, as before. tests/test_jit.py tests the builder.
 os.environ.setdefault("ROBOISF_BACKGROUND_COMPILE", "0")
 
+# Under pytest-xdist (`-n 2` on CI's and the developers' 2-CPU machines) each worker's OpenBLAS
+# would start a thread per CPU: two workers' BLAS threads then spin against each other and the
+# other worker's numba threads (in one 5-module sample, 80 s → 62 s with one BLAS thread each).
+# One BLAS thread per worker, in the worker (numpy is loaded by now: threadpoolctl) and in the
+# processes the tests start (the environment); numba's threads are left as they are (the suite
+# checks its parallel kernels against the serial ones). An explicit OPENBLAS_NUM_THREADS wins.
+if int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")) > 1 and (
+    "OPENBLAS_NUM_THREADS" not in os.environ
+):
+    os.environ["OPENBLAS_NUM_THREADS"] = "1"
+    with contextlib.suppress(ImportError):
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(limits=1, user_api="blas")
+
 #: The small paper cone: 2 mm step-down, 4 mm spacing (≈ 3 k toolpath points), 150 k scan
 #: points, forces at 50 Hz, joints at 20 Hz (the same cell as docs/study.md's worked example).
 SMALL_CONE: dict[str, float] = {

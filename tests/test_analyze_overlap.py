@@ -27,19 +27,33 @@ def _blas_threads() -> set[int]:
     return {i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}
 
 
-def test_overlapped_and_sequential_analyses_are_equal(
-    small_cone_study, small_cone_analysis, monkeypatch
-):
-    # BLAS on one thread inside the analysis (its own threads fill the cores), restored after
+@pytest.fixture(scope="module")
+def sequential_kept(small_cone_study):
+    """``analyze(overlap=False, keep_points=True)`` of the shared small cone, once: the other
+    corner from conftest's ``small_cone_analysis`` (overlapped, points dropped) in both options,
+    so the two tests below compare against one analysis instead of running one each. Read-only.
+    Also returns the BLAS threads seen inside it (at each scan comparison), started from 2 (the
+    suite's workers run one), and after it."""
+    from threadpoolctl import threadpool_limits
+
     seen: list[set[int]] = []
     compare = pipeline._compare
-    monkeypatch.setattr(
-        pipeline, "_compare", lambda *a: seen.append(_blas_threads()) or compare(*a)
-    )
-    before = _blas_threads()
-    seq = analyze(small_cone_study, overlap=False)
-    assert seen == [{1}, {1}]
-    assert _blas_threads() == before
+    with pytest.MonkeyPatch.context() as mp, threadpool_limits(2, user_api="blas"):
+        mp.setattr(pipeline, "_compare", lambda *a: seen.append(_blas_threads()) or compare(*a))
+        before = _blas_threads()
+        result = analyze(small_cone_study, overlap=False, keep_points=True)
+        after = _blas_threads()
+    return result, (before, seen, after)
+
+
+def test_analysis_runs_blas_on_one_thread_and_restores_it(sequential_kept):
+    # its own threads fill the cores; BLAS threads spinning beside them took CPU from them
+    before, seen, after = sequential_kept[1]
+    assert before == {2} and seen == [{1}, {1}] and after == {2}
+
+
+def test_overlapped_and_sequential_analyses_are_equal(sequential_kept, small_cone_analysis):
+    seq = sequential_kept[0]
     ovl = small_cone_analysis  # analyze()'s default: overlapped
     pd.testing.assert_frame_equal(seq.per_point, ovl.per_point, check_exact=True)
     pd.testing.assert_frame_equal(seq.contributions, ovl.contributions, check_exact=True)
@@ -88,11 +102,12 @@ def test_an_error_in_the_scan_thread_reaches_the_caller(small_cone_study, tmp_pa
 
 
 def test_the_analysis_keeps_each_scans_statistics_not_its_points(
-    small_cone_study, small_cone_analysis
+    sequential_kept, small_cone_analysis
 ):
     # the per-point arrays are dropped (memory: the first scan's sat under the second's peak);
-    # the summary is what it was with them, and keep_points=True keeps them
-    kept = analyze(small_cone_study, keep_points=True)
+    # the summary is what it was with them, and keep_points=True keeps them (kept sequentially
+    # here: the test above has the sequential analysis give the overlapped one's results)
+    kept = sequential_kept[0]
     for name, sc in small_cone_analysis.scans.items():
         assert sc.points is None
         full = kept.scans[name]

@@ -451,7 +451,7 @@ def test_first_process_serves_numpy_builds_in_background_next_runs_compiled(tmp_
     assert all(cached[g] for g in done), (done, cached)
     deadline = time.time() + 600
     while lock.exists() and time.time() < deadline:  # the builder removes its lock when done
-        time.sleep(1.0)
+        time.sleep(0.2)
     assert not lock.exists(), "background build did not finish in 10 min"
     assert not Path(first["failed"]).exists()
     assert all(probe()["ready"].values())  # the cache the builder left is used

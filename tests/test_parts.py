@@ -41,7 +41,18 @@ def test_closest_point_matches_brute_force(part):
     q = part.closest_point(X, backend="numpy")
     ref = dense_generatrix(part)
     r = np.hypot(X[:, 0], X[:, 1])
-    d_ref = np.min(np.hypot(r[:, None] - ref[None, :, 0], X[:, 2:3] - ref[None, :, 1]), axis=1)
+    # 16 queries at a time: the minima of one 400 × 200 k array, without its 0.6 GB temporaries
+    d_ref = np.concatenate(
+        [
+            np.min(
+                np.hypot(
+                    r[i : i + 16, None] - ref[None, :, 0], X[i : i + 16, 2:3] - ref[None, :, 1]
+                ),
+                axis=1,
+            )
+            for i in range(0, len(X), 16)
+        ]
+    )
     # the dense sample is an upper bound, within half its spacing (≤ ~1 µm here) of the exact
     assert np.all(np.abs(q.distance) <= d_ref + 1e-12)
     np.testing.assert_allclose(np.abs(q.distance), d_ref, atol=2e-6)

@@ -358,11 +358,13 @@ def test_single_blas_thread_pins_and_restores():
             i["num_threads"] for i in threadpoolctl.threadpool_info() if i["user_api"] == "blas"
         ]
 
-    before = blas()
-    assert before  # numpy's wheels bring OpenBLAS
-    with single_blas_thread():
-        assert all(n == 1 for n in blas())
-    assert blas() == before
+    # from 2 threads, whatever the session runs with (tests/conftest.py pins 1 under xdist)
+    with threadpoolctl.threadpool_limits(limits=2, user_api="blas"):
+        before = blas()
+        assert before and all(n == 2 for n in before)  # numpy's wheels bring OpenBLAS
+        with single_blas_thread():
+            assert all(n == 1 for n in blas())
+        assert blas() == before
 
 
 @pytest.mark.parametrize("engine", ENGINES)

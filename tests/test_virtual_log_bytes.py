@@ -16,23 +16,28 @@ from roboisf.virtual.cell import _interp_columns, build_study, paper_cone_cell, 
 F_STEP, M_STEP = 2.0**-4, 2.0**-10
 
 
+#: The small paper cone (tests/conftest.py's SMALL_CONE, checked in :func:`studies`).
+SETTINGS = {
+    "scan_points": 150_000,
+    "force_rate": 50.0,
+    "joint_rate": 20.0,
+    "step_down": 2e-3,
+    "spacing": 4e-3,
+}
+
+
 def _cell(**kw):
-    return paper_cone_cell(
-        scan_points=150_000,
-        force_rate=50.0,
-        joint_rate=20.0,
-        step_down=2e-3,
-        spacing=4e-3,
-        **kw,
-    )
+    return paper_cone_cell(**SETTINGS, **kw)
 
 
 @pytest.fixture(scope="module")
-def studies(tmp_path_factory):
+def studies(tmp_path_factory, small_cone_settings, small_cone_study):
+    """The cell's study at its default force resolution — the session's shared small cone,
+    read-only (the same cell: built once for the session, not again here) — and at none."""
+    assert small_cone_settings == SETTINGS
     root = tmp_path_factory.mktemp("bytes")
-    counts = build_study(_cell(), root / "counts")
     cont = build_study(_cell(force_resolution=(0.0, 0.0)), root / "continuous")
-    return counts, cont
+    return small_cone_study, cont
 
 
 def test_log_columns_are_np_interp_bit_for_bit():
@@ -85,9 +90,9 @@ def test_force_logs_are_sensor_counts_read_back_exactly(studies):
         assert np.any(q.wrench != c.wrench)  # the resolution did act
 
 
-def test_analysis_does_not_see_the_force_resolution(studies):
-    counts, cont = studies
-    a, b = analyze(counts), analyze(cont)
+def test_analysis_does_not_see_the_force_resolution(studies, small_cone_analysis):
+    _, cont = studies
+    a, b = small_cone_analysis, analyze(cont)  # a: analyze() of the counts' study, shared
     sa = a.contributions_normal.set_index("factor")["share_percent"]
     sb = b.contributions_normal.set_index("factor")["share_percent"]
     # 1/16 N against 2 N of noise: shares agree to far below the demo's 0.1-point budget
