@@ -183,6 +183,10 @@ def test_resultant_mean_deviation_matches_the_paper():
     assert a.max_abs.max() == pytest.approx(5e-3 * np.abs(nrm[m - 7]).max())
     with pytest.raises(InputError):
         normal_deviation_stats(np.empty(0), np.empty((0, 3)))
+    with pytest.raises(InputError, match=r"\(N, 3\) vectors for the N = 5"):
+        normal_deviation_stats(dn[:5], nrm[:4])
+    with pytest.raises(InputError, match="N = 4"):
+        deviation_stats(v[:5], dn[:4])
     with pytest.raises(InputError):
         resultant_mean_deviation(np.empty((0, 3)))
 

@@ -111,10 +111,12 @@ def build_demo(
 
 def _second_process_context() -> Any:
     """The second study's process: forked where that is safe — on Linux, while this process
-    runs no other thread (before the progress display's refresh thread or a BLAS pool exists:
-    a fork copies no thread, only their locks) — after importing what both studies run, so the
-    child starts with it loaded (spawning re-imported numpy, pandas, scipy, numba and roboisf:
-    ~2 CPU-s, which on two cores the cone's process paid for too). Else spawned."""
+    runs no other Python thread (before the progress display's refresh thread starts: a fork
+    copies no thread, only the locks they may hold; OpenBLAS's own pool is stopped and restarted
+    across a fork by its fork handlers, as for the report's PNG workers) — after importing what
+    both studies run, so the child starts with it loaded (spawning re-imported numpy, pandas,
+    scipy, numba and roboisf: ~2 CPU-s, which on two cores the cone's process paid for too).
+    Else spawned."""
     import multiprocessing
     import sys
     import threading

@@ -80,7 +80,16 @@ def deviation_stats(delta: ArrayLike, dn: ArrayLike) -> DeviationStats:
     n_ = np.asarray(dn, dtype=float)
     if d.shape[0] == 0:
         raise InputError("no deviations to summarise (no valid points)")
+    _same_length(d, n_)
     return _stats(n_, lambda rows: d[rows])
+
+
+def _same_length(vectors: F64, dn: F64) -> None:
+    if vectors.shape != (dn.shape[0], 3):
+        raise InputError(
+            f"expected (N, 3) vectors for the N = {dn.shape[0]} normal deviations, "
+            f"got {vectors.shape}"
+        )
 
 
 def normal_deviation_stats(dn: ArrayLike, normal: ArrayLike) -> DeviationStats:
@@ -91,6 +100,7 @@ def normal_deviation_stats(dn: ArrayLike, normal: ArrayLike) -> DeviationStats:
     nrm = np.atleast_2d(np.asarray(normal, dtype=float))
     if n_.shape[0] == 0:
         raise InputError("no deviations to summarise (no valid points)")
+    _same_length(nrm, n_)
     return _stats(n_, lambda rows: n_[rows, None] * nrm[rows])
 
 
