@@ -698,8 +698,11 @@ def test_a_second_ctrl_c_after_the_outcome_keeps_exit_130():
     # main() decides 130 and returns; a second SIGINT then arrives with the default handler
     # back (in the return path) and another during the interpreter's shutdown (atexit): before,
     # the process died by SIGINT (returncode -2) instead of exiting 130
+    # (Python's own SIGINT handler first: a process started with SIGINT ignored — pytest run as
+    # a shell's background job — inherits that, and the scenario would not happen at all)
     code = """
 import atexit, os, signal
+signal.signal(signal.SIGINT, signal.default_int_handler)
 import roboisf.cli.main as m
 
 def fake_main():
