@@ -13,6 +13,7 @@ from plotly.subplots import make_subplots
 from report_fixtures import make_study
 from roboisf.report import interactive as ia
 from roboisf.report import plotfig as pf
+from roboisf.report.document import FIGURES
 from roboisf.report.schema import check_contributions
 
 
@@ -93,22 +94,7 @@ def figures():
     }
 
 
-@pytest.mark.parametrize(
-    "name",
-    [
-        "contributions",
-        "forces",
-        "deviation_depth",
-        "deviation_map",
-        "deviation_top",
-        "factors_depth",
-        "vjm_path",
-        "vjm_polar",
-        "vjm_contour",
-        "thickness",
-        "part_3d",
-    ],
-)
+@pytest.mark.parametrize("name", [*FIGURES, "vjm_contour", "part_3d"])
 def test_every_report_figure_is_valid_and_unchanged_by_plotly(figures, name):
     fig = figures[name]
     ours = fig.to_plotly_json()
