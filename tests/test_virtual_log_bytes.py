@@ -50,6 +50,11 @@ def test_log_columns_are_np_interp_bit_for_bit():
     got = _interp_columns(t, time, values)
     want = np.column_stack([np.interp(t, time, values[:, c]) for c in range(6)])
     np.testing.assert_array_equal(got, want)
+    # a repeated time (a toolpath point held): no warning, np.interp's jump
+    rep = np.array([0.0, 1.0, 1.0, 2.0])
+    tt = np.array([-1.0, 0.5, 1.0, 1.5, 2.0, 3.0])
+    vv = np.array([[0.0], [1.0], [3.0], [4.0]])
+    np.testing.assert_array_equal(_interp_columns(tt, rep, vv)[:, 0], np.interp(tt, rep, vv[:, 0]))
     one = _interp_columns(t[:5], time[:1], values[:1])  # a single knot: constant
     np.testing.assert_array_equal(one, np.repeat(values[:1], 5, axis=0))
 

@@ -602,7 +602,8 @@ def _interp_columns(t: F64, time: F64, values: F64) -> F64:
         if n == 1:
             out[c] = v[0]
             continue
-        slope = np.diff(v) / dtime
+        with np.errstate(divide="ignore", invalid="ignore"):  # a repeated time: an interval
+            slope = np.diff(v) / dtime  # no query falls in (searchsorted skips it)
         o = out[c]
         np.multiply(slope[j], dt, out=o)
         o += v[j]
