@@ -124,15 +124,13 @@ BACKENDS = ("auto", "numba", "numpy")
 def check_backend(backend: str, *, field: str = "backend", have_numba: bool | None = None) -> str:
     """``backend`` checked: one of :data:`BACKENDS`, and "numba" only with numba installed
     (``have_numba``: the caller's own flag, default :data:`~roboisf.jit.HAVE_NUMBA`)."""
-    if backend not in BACKENDS:
-        from roboisf.errors import InputError
+    from roboisf.errors import InputError
 
+    if backend not in BACKENDS:
         raise InputError(
             f"backend must be 'auto', 'numba' or 'numpy', got {backend!r}", field=field
         )
     if backend == "numba" and not (HAVE_NUMBA if have_numba is None else have_numba):
-        from roboisf.errors import InputError
-
         raise InputError("backend 'numba' needs numba: pip install 'roboisf[fast]'", field=field)
     return backend
 
