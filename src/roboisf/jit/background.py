@@ -67,7 +67,7 @@ __all__ = [
 ENV = "ROBOISF_BACKGROUND_COMPILE"
 #: How long the background build of all groups takes, as the notice says it (measured:
 #: docs/speed.md).
-BUILD_WAIT = "about 1 to 3 minutes, once, after this run"
+BUILD_WAIT = "about 30 s to 2 minutes, once, after this run"
 #: Longest wait [s] of a builder for the command that started it to end: a long-running one
 #: (a notebook, ``roboisf online`` over a whole part) does not defer the build forever.
 DEFER_S = 600.0
