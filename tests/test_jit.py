@@ -26,11 +26,15 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "roboisf"
 
 
 @pytest.fixture
-def fresh(monkeypatch):
-    """Background building on, nothing decided or started yet in this process."""
+def fresh(monkeypatch, tmp_path):
+    """Background building on, nothing decided or started yet in this process, and no failure
+    marker: a real builder that failed on this machine (its marker sits in the temp folder,
+    keyed by the sources' mtimes, e.g. a kernel edited while it built) does not decide the
+    test (it made the one-builder test see no builder at all)."""
     monkeypatch.setenv(bg.ENV, "1")
     monkeypatch.setattr(bg, "_decided", {})
     monkeypatch.setattr(bg, "_started", False)
+    monkeypatch.setattr(bg, "failure_path", lambda: tmp_path / "no-earlier-failure.failed")
     return monkeypatch
 
 
