@@ -161,7 +161,7 @@ def test_lock_and_marker_depend_on_the_cache_folder_and_numba(monkeypatch, tmp_p
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "b"))
     assert bg.lock_path() != a and bg.failure_path() != fa
     fb = bg.failure_path()
-    monkeypatch.setattr(bg, "_numba_version", lambda: "99.0")  # a new numba tries again
+    monkeypatch.setattr(bg, "numba_version_installed", lambda: "99.0")  # a new numba tries again
     assert bg.failure_path() != fb
     assert bg.lock_path().name.startswith("roboisf-kernel-build-")  # benchmarks/cold_start.py
 
@@ -524,3 +524,94 @@ def test_numba_switched_off_runs_as_the_plain_install(tmp_path):
         "print('ok')\n"
     )
     _prints_ok(code, env)
+
+
+# -- is a module's cache fresh? numba's own judgement ---------------------------------------------
+_KERNEL_SRC = """
+import numba
+
+@numba.njit(cache=True)
+def twice(x):
+    return 2.0 * x
+"""
+
+
+def _numba_call(folder: Path, cache: Path) -> None:
+    """Import ``kmod`` from ``folder`` in a fresh interpreter and call its kernel (numba loads
+    the cache or compiles and writes it)."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONPATH=str(folder))
+    subprocess.run(
+        [sys.executable, "-c", "import kmod; assert kmod.twice(2.0) == 4.0"], env=env, check=True
+    )
+
+
+def _indexes(cache: Path) -> dict[str, int]:
+    return {p.name: p.stat().st_mtime_ns for p in cache.rglob("kmod.*.nbi")}
+
+
+@needs_numba
+def test_kernel_cached_agrees_with_numba_when_only_the_mtime_changes(tmp_path, monkeypatch):
+    """numba ≥ 0.61 keys its cache by the source's bytes: a source touched (a checkout and back,
+    a reinstall) keeps its cache. kernel_cached said "not cached" by file times, so every run
+    took the numpy path and a builder "left no cache" and marked the build failed (seen
+    2026-11-28 after a kernel was edited and restored)."""
+    src_dir, cache = tmp_path / "src", tmp_path / "cache"
+    src_dir.mkdir()
+    source = src_dir / "kmod.py"
+    source.write_text(_KERNEL_SRC)
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(cache))
+    assert not jit.kernel_cached(source)  # nothing compiled yet
+    _numba_call(src_dir, cache)
+    written = _indexes(cache)
+    assert written and jit.kernel_cached(source)
+    later = time.time() + 5
+    os.utime(source, (later, later))  # the same bytes, a newer mtime than the index
+    assert jit.kernel_cached(source)
+    _numba_call(src_dir, cache)
+    assert _indexes(cache) == written  # numba took the index as fresh too: nothing rewritten
+    source.write_text(_KERNEL_SRC + "\n# edited\n")  # new bytes: numba compiles again
+    assert not jit.kernel_cached(source)
+    _numba_call(src_dir, cache)
+    assert jit.kernel_cached(source)
+
+
+def _fake_index(path: Path, version: str, stamp: object) -> None:
+    import pickle
+
+    with open(path, "wb") as f:
+        pickle.dump(version, f, protocol=-1)
+        f.write(pickle.dumps((stamp, {}), protocol=-1))
+
+
+@needs_numba
+def test_kernel_cached_reads_the_version_and_both_stamp_formats(tmp_path, monkeypatch):
+    import hashlib
+
+    from roboisf.jit import shim
+
+    source = tmp_path / "kmod.py"
+    source.write_text(_KERNEL_SRC)
+    cache = tmp_path / "cache"
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(cache))
+    (folder,) = shim._cache_dirs(source)
+    folder.mkdir(parents=True)
+    index = folder / "kmod.twice-5.py311.nbi"
+    st = source.stat()
+    ours = shim.numba_version_installed()
+    assert ours and ours[0].isdigit()
+    digest = hashlib.sha256(source.read_bytes()).digest()
+    _fake_index(index, ours, digest)
+    assert jit.kernel_cached(source)
+    _fake_index(index, "0.1.0", digest)  # another numba's index: it would compile
+    assert not jit.kernel_cached(source)
+    _fake_index(index, ours, hashlib.sha256(b"other").digest())
+    assert not jit.kernel_cached(source)
+    _fake_index(index, ours, (st.st_mtime, st.st_size))  # numba < 0.61: (mtime, size)
+    assert jit.kernel_cached(source)
+    _fake_index(index, ours, (st.st_mtime + 1.0, st.st_size))
+    assert not jit.kernel_cached(source)
+    index.write_bytes(b"not a pickle")  # unknown format: its time against the source's
+    os.utime(index, (st.st_mtime + 10, st.st_mtime + 10))
+    assert jit.kernel_cached(source)
+    os.utime(index, (st.st_mtime - 10, st.st_mtime - 10))
+    assert not jit.kernel_cached(source)

@@ -43,7 +43,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from roboisf.jit.shim import HAVE_NUMBA, kernel_cached
+from roboisf.jit.shim import HAVE_NUMBA, kernel_cached, numba_version_installed
 from roboisf.progress import notice_once
 
 __all__ = [
@@ -163,19 +163,10 @@ def lock_path() -> Path:
     return Path(tempfile.gettempdir()) / f"roboisf-kernel-build-{_digest(_key())}.lock"
 
 
-def _numba_version() -> str:
-    try:
-        from importlib.metadata import version
-
-        return version("numba")
-    except Exception:  # pragma: no cover - metadata missing
-        return "?"
-
-
 def failure_path() -> Path:
     """The failure marker a builder leaves: keyed by the cache folder, the kernel sources'
     versions and numba's version (a new numba or an edited kernel tries again)."""
-    key = _key() + "|numba " + _numba_version()
+    key = _key() + "|numba " + (numba_version_installed() or "?")
     return Path(tempfile.gettempdir()) / f"roboisf-kernel-build-{_digest(key)}.failed"
 
 

@@ -8,9 +8,14 @@ function unchanged and :func:`prange` gives :func:`range`.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib.util
+import io
 import os
+import pickletools
+import re
+import sys
 from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
@@ -128,21 +133,121 @@ def _cache_dirs(source: Path) -> list[Path]:
 
 
 def kernel_cached(module_file: str | os.PathLike[str]) -> bool:
-    """True when numba holds a cache index of the module's kernels at least as new as the module
-    (else its first call compiles them). Reads file names and times only; imports nothing."""
+    """True when numba holds a cache index of the module's kernels that numba itself will take
+    as fresh (else its first call compiles them). Imports nothing (numba's import alone is
+    ≈ 0.3 s): reads the head of each index file, and the source when its content is the key.
+
+    Fresh is judged as numba judges it (:func:`_index_fresh`): the index's numba version is the
+    installed one, and its source stamp is the source's — a SHA-256 of the source's bytes in
+    numba ≥ 0.61, (mtime, size) before. Comparing file times instead (what this did until
+    2026-11) was wrong both ways: a source whose mtime changed but not its content (a checkout
+    and back, a reinstall, a copy) kept its cache in numba's eyes but looked stale here — every
+    run took the numpy path and started a builder that then "left no cache" (numba had nothing
+    to write) and marked the build failed. An index of unknown format falls back to the times.
+    """
     source = Path(module_file)
     try:
-        stamp = source.stat().st_mtime
+        st = source.stat()
     except OSError:
         return True  # nothing to compare: say nothing
     for folder in _cache_dirs(source):
         try:
-            for index in folder.glob(f"{source.stem}.*.nbi"):
-                if index.stat().st_mtime >= stamp:
-                    return True
+            indexes = list(folder.glob(f"{source.stem}.*.nbi"))
         except OSError:
             continue
+        for index in indexes:
+            fresh = _index_fresh(index, source, st)
+            if fresh is None:  # an index format this does not know: its time against the source's
+                try:
+                    fresh = index.stat().st_mtime >= st.st_mtime
+                except OSError:
+                    fresh = False
+            if fresh:
+                return True
     return False
+
+
+@functools.cache
+def numba_version_installed() -> str | None:
+    """The installed numba's version without importing it, None if unknown: numba's own
+    ``numba/_version.py`` (versioneer's JSON; ~0.1 ms, where the package metadata took 30 ms
+    of every command's start), else the metadata."""
+    mod = sys.modules.get("numba")
+    if mod is not None:
+        return str(getattr(mod, "__version__", "")) or None
+    try:
+        spec = importlib.util.find_spec("numba")
+        if spec is not None and spec.origin:
+            text = Path(spec.origin).with_name("_version.py").read_text(encoding="utf-8")
+            found = re.search(r'"version":\s*"([^"]+)"', text)
+            if found:
+                return found.group(1)
+    except (OSError, ValueError, ImportError):
+        pass
+    try:
+        from importlib.metadata import version
+
+        return version("numba")
+    except Exception:  # pragma: no cover - metadata missing
+        return None
+
+
+@functools.cache
+def _source_sha256(path: str, mtime_ns: int, size: int) -> bytes:
+    """SHA-256 of a source's bytes (numba's stamp since 0.61), per (path, mtime, size)."""
+    with open(path, "rb") as f:
+        return hashlib.sha256(f.read()).digest()
+
+
+#: pickle opcodes of a bytes value / of an int value
+_BYTES_OPS = ("SHORT_BINBYTES", "BINBYTES", "BINBYTES8")
+_INT_OPS = ("BININT", "BININT1", "BININT2", "LONG1", "LONG4", "INT", "LONG")
+
+
+def _index_fresh(index: Path, source: Path, st: os.stat_result) -> bool | None:
+    """Whether numba takes the cache index ``index`` as fresh for ``source`` (stat ``st``); None
+    when its format is not the one this reads.
+
+    numba writes an index as two pickles: its version string, then ``(stamp, overloads)``
+    (``numba.core.caching.IndexDataCacheFile``). Only the opcodes up to the stamp are read
+    (:func:`pickletools.genops` parses without executing; the overloads' numba types would
+    import numba): the version must be the installed numba's, and the stamp the SHA-256 of the
+    source's bytes (numba ≥ 0.61) or its (mtime, size) (numba < 0.61)."""
+    try:
+        with open(index, "rb") as f:
+            head = f.read(512)
+    except OSError:
+        return False
+    try:
+        stream = io.BytesIO(head)
+        version = None
+        for op, arg, _ in pickletools.genops(stream):
+            if op.name in ("SHORT_BINUNICODE", "BINUNICODE", "BINUNICODE8"):
+                version = arg
+            if op.name == "STOP":
+                break
+        values: list[Any] = []
+        for op, arg, _ in pickletools.genops(stream):
+            if op.name in ("PROTO", "FRAME", "MEMOIZE", "MARK"):
+                continue
+            if op.name in _BYTES_OPS or op.name == "BINFLOAT" or op.name in _INT_OPS:
+                values.append(arg)
+                if isinstance(arg, bytes) or len(values) == 2:
+                    break
+                continue
+            return None
+    except (ValueError, EOFError):  # not a pickle this can read (or a truncated head)
+        return None
+    if not isinstance(version, str) or not values:
+        return None
+    installed = numba_version_installed()
+    if installed is not None and version != installed:
+        return False  # numba ignores an index of another version: it would compile
+    if isinstance(values[0], bytes):
+        return values[0] == _source_sha256(str(source), st.st_mtime_ns, st.st_size)
+    if len(values) == 2 and isinstance(values[0], float) and isinstance(values[1], int):
+        return values[0] == st.st_mtime and values[1] == st.st_size
+    return None
 
 
 def compile_notice(module_file: str | os.PathLike[str]) -> None:
