@@ -615,3 +615,48 @@ def test_kernel_cached_reads_the_version_and_both_stamp_formats(tmp_path, monkey
     assert jit.kernel_cached(source)
     os.utime(index, (st.st_mtime - 10, st.st_mtime - 10))
     assert not jit.kernel_cached(source)
+
+
+# -- a kernel's rows on every core ----------------------------------------------------------------
+def test_run_chunks_covers_every_row_once_in_chunks_on_threads():
+    seen: list[tuple[int, int, str]] = []
+    lock = threading.Lock()
+
+    def rows(s: int, e: int) -> None:
+        time.sleep(0.01)  # both workers get a share
+        with lock:
+            seen.append((s, e, threading.current_thread().name))
+
+    jit.run_chunks(rows, 10, 3, workers=2)
+    assert sorted((s, e) for s, e, _ in seen) == [(0, 3), (3, 6), (6, 9), (9, 10)]
+    assert {t for *_, t in seen} == {"roboisf-rows_0", "roboisf-rows_1"}  # a pool, 2 threads
+    seen.clear()
+    jit.run_chunks(rows, 3, 3, workers=2)  # one chunk: this thread
+    assert seen == [(0, 3, threading.current_thread().name)]
+    seen.clear()
+    jit.run_chunks(rows, 0, 3)
+    assert seen == []
+
+
+def test_run_chunks_stays_in_a_worker_thread_when_asked_and_raises_the_rows_error():
+    names: list[str] = []
+
+    def rows(s: int, e: int) -> None:
+        names.append(threading.current_thread().name)
+
+    def from_a_thread() -> None:
+        jit.run_chunks(rows, 10, 2, workers=2, any_thread=False)
+
+    t = threading.Thread(target=from_a_thread, name="caller")
+    t.start()
+    t.join()
+    assert names == ["caller"] * 5  # a caller's own thread is not given a second pool
+
+    def bad(s: int, e: int) -> None:
+        if s == 4:
+            raise RuntimeError("row 4")
+
+    with pytest.raises(RuntimeError, match="row 4"):
+        jit.run_chunks(bad, 10, 2, workers=2)
+    with pytest.raises(ValueError, match="chunk"):
+        jit.run_chunks(rows, 10, 0)

@@ -1,8 +1,10 @@
 """Compiled kernels and their build: the one place roboisf touches numba.
 
-* :func:`njit`, :data:`HAVE_NUMBA`, :func:`prange`, :func:`numba_module` — the optional numba
+* :func:`njit`, :data:`HAVE_NUMBA`, :func:`numba_module` — the optional numba
   import with its fallback (:mod:`roboisf.jit.shim`): a kernel module decorates with
   ``@njit()`` and runs as plain Python (or is not used) without numba.
+* :func:`run_chunks`, :func:`cores` — a kernel's rows on every core from Python threads
+  (:mod:`roboisf.jit.threads`; the kernels release the GIL).
 * :func:`check_backend` — a ``backend=`` argument checked ("auto", "numba", "numpy").
 * :func:`ready` — what every ``"auto"`` dispatch asks before running compiled: on an empty
   kernel cache the numpy path serves this run while **one** detached process builds every
@@ -36,9 +38,9 @@ from roboisf.jit.shim import (
     kernel_cached,
     njit,
     numba_module,
-    prange,
     python_copy,
 )
+from roboisf.jit.threads import cores, run_chunks
 
 __all__ = [
     "BACKENDS",
@@ -52,13 +54,14 @@ __all__ = [
     "background_enabled",
     "check_backend",
     "compile_notice",
+    "cores",
     "failure_path",
     "group_cached",
     "kernel_cached",
     "lock_path",
     "njit",
     "numba_module",
-    "prange",
     "python_copy",
     "ready",
+    "run_chunks",
 ]

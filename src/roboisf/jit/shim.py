@@ -3,7 +3,7 @@
 numba is an extra (``pip install 'roboisf[fast]'``). :data:`HAVE_NUMBA` says whether it is
 installed without importing it (≈ 0.5 s); :func:`njit` imports it on first use, so a kernel
 module pays the import only when it is itself imported. Without numba :func:`njit` returns the
-function unchanged and :func:`prange` gives :func:`range`.
+function unchanged.
 """
 
 from __future__ import annotations
@@ -31,7 +31,6 @@ __all__ = [
     "kernel_cached",
     "njit",
     "numba_module",
-    "prange",
     "python_copy",
 ]
 
@@ -84,13 +83,6 @@ def njit(**options: Any) -> Callable[[Callable[..., Any]], Any]:
     if nb is None:
         return _identity
     return nb.njit(**{"cache": True, "nogil": True, **options})
-
-
-def prange() -> Any:
-    """``numba.prange`` (imports numba), or :func:`range` without numba: bind it at module level
-    (``_PRANGE = prange()``) and loop ``for i in _PRANGE(n)`` in a ``parallel=True`` kernel."""
-    nb = numba_module()
-    return range if nb is None else nb.prange
 
 
 def python_copy(module_name: str) -> ModuleType:

@@ -13,14 +13,12 @@ on every preset).
 
 from __future__ import annotations
 
-import threading
-from typing import Any
-
 import numpy as np
 from numpy.typing import NDArray
 
-from roboisf.jit import compile_notice, njit, prange
+from roboisf.jit import compile_notice, njit, run_chunks
 from roboisf.robot.vjm_chain import chain_walk
+from roboisf.robot.vjm_numba import chunk
 
 compile_notice(__file__)  # numba compiles these on first call: say so once
 
@@ -28,12 +26,11 @@ __all__ = ["BLOCK", "tip_positions"]
 
 F64 = NDArray[np.float64]
 
-#: Poses per parallel work item.
+#: Poses per thread's work item at least.
 BLOCK = 4096
 
 
 _njit = njit
-_PRANGE: Any = prange()
 
 
 @_njit()
@@ -47,29 +44,21 @@ def _rows(
             out[n, i] = T[i, 0] * px + T[i, 1] * py + T[i, 2] * pz + T[i, 3]
 
 
-@_njit(parallel=True)
-def _parallel(
-    F: F64, sign: F64, offset: F64, c23: float, T: F64, q: F64, out: F64
-) -> None:  # pragma: no cover - compiled
-    n = q.shape[0]
-    nb = (n + BLOCK - 1) // BLOCK
-    for b in _PRANGE(nb):
-        s = b * BLOCK
-        _rows(F, sign, offset, c23, T, q, out, s, min(n, s + BLOCK))
-
-
 def tip_positions(
     F_tip: F64, sign: F64, offset: F64, couple23: float, T_out_base: F64, q: F64
 ) -> F64:
     """Tip positions (N, 3) [m] in the frame of ``T_out_base`` (4, 4) for ``q`` (N, 6) rad.
 
     ``F_tip`` (7, 4, 4): the chain's fixed transforms with the tool folded into ``F_tip[6]``.
-    Parallel (``prange``) from the main thread, serial without the GIL from any other.
+    On every core from the main thread (chunks on a thread pool), in the calling thread (no
+    GIL) from any other: :func:`roboisf.jit.run_chunks`.
     """
     c = [np.ascontiguousarray(a, dtype=np.float64) for a in (F_tip, sign, offset, T_out_base, q)]
     out = np.empty((c[4].shape[0], 3))
-    if threading.current_thread() is threading.main_thread():
-        _parallel(c[0], c[1], c[2], float(couple23), c[3], c[4], out)
-    else:
-        _rows(c[0], c[1], c[2], float(couple23), c[3], c[4], out, 0, c[4].shape[0])
+    n = c[4].shape[0]
+
+    def rows(s: int, e: int) -> None:
+        _rows(c[0], c[1], c[2], float(couple23), c[3], c[4], out, s, e)
+
+    run_chunks(rows, n, chunk(n, BLOCK), any_thread=False)
     return out

@@ -6,8 +6,8 @@ path of :func:`roboisf.robot.ik.opw_ik` / :func:`roboisf.robot.ik.ik_toolpath` (
 per pose, with no temporary arrays:
 
 * :func:`path_ik` — tool-tip points in the work frame → ``T_base_tip`` → ``T_base_flange`` → the
-  chosen OPW branch → controller angles wrapped to (−π, π] (``prange`` over blocks of poses from
-  the main thread, the same loop serially without the GIL from any other thread: bit-identical);
+  chosen OPW branch → controller angles wrapped to (−π, π] (chunks of poses on a thread pool
+  from the main thread, the same loop in the calling thread from any other: bit-identical);
   then, serially along the path, ``np.unwrap`` and the whole-turn shift into the joint limits of
   :func:`roboisf.robot.ik._continuous`, and the limit check.
 * :func:`flange_ik` — the same OPW branch for given flange poses (what ``opw_ik`` returns).
@@ -19,14 +19,13 @@ per pose, with no temporary arrays:
 from __future__ import annotations
 
 import math
-import threading
 from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
-from roboisf.jit import compile_notice, njit, prange
-from roboisf.robot.vjm_numba import BLOCK, _c64, sincos
+from roboisf.jit import compile_notice, njit, run_chunks
+from roboisf.robot.vjm_numba import _c64, chunk, sincos
 from roboisf.robot.vjm_numba import _rows as _vjm_kernel_rows
 
 compile_notice(__file__)  # numba compiles these on first call: say so once
@@ -35,7 +34,6 @@ __all__ = ["PathVJM", "flange_ik", "path_ik", "path_vjm"]
 
 F64 = NDArray[np.float64]
 
-_PRANGE: Any = prange()
 _TWO_PI = 2.0 * np.pi
 _PI = np.pi
 
@@ -265,23 +263,6 @@ def _flange_rows(
         )
 
 
-@_njit(parallel=True)
-def _flange_parallel(
-    T: F64,
-    geo: F64,
-    flags: F64,
-    sign: F64,
-    offset: F64,
-    c23: float,
-    q: F64,
-    ok: NDArray[np.bool_],
-) -> None:  # pragma: no cover - compiled
-    n = T.shape[0]
-    nb = (n + BLOCK - 1) // BLOCK
-    for b in _PRANGE(nb):
-        _flange_rows(T, geo, flags, sign, offset, c23, q, ok, b * BLOCK, min(n, (b + 1) * BLOCK))
-
-
 @_njit()
 def _tip_rows(
     A: F64,
@@ -348,28 +329,6 @@ def _tip_rows(
             q,
             n,
         )
-
-
-@_njit(parallel=True)
-def _tip_parallel(
-    A: F64,
-    B: F64,
-    tip: F64,
-    gam: F64,
-    geo: F64,
-    flags: F64,
-    sign: F64,
-    offset: F64,
-    c23: float,
-    q: F64,
-    ok: NDArray[np.bool_],
-    T_tip: F64,
-) -> None:  # pragma: no cover - compiled
-    n = tip.shape[0]
-    nb = (n + BLOCK - 1) // BLOCK
-    for b in _PRANGE(nb):
-        s = b * BLOCK
-        _tip_rows(A, B, tip, gam, geo, flags, sign, offset, c23, q, ok, T_tip, s, min(n, s + BLOCK))
 
 
 @_njit()
@@ -456,10 +415,6 @@ def _args(model: Any, shoulder: str, elbow: str, wrist: str) -> tuple[F64, F64, 
     return geo, flags, _c64(model.chain.sign), _c64(model.chain.offset), model.chain.couple23
 
 
-def _main() -> bool:
-    return threading.current_thread() is threading.main_thread()
-
-
 def flange_ik(
     model: Any, T_base_flange: F64, shoulder: str, elbow: str, wrist: str
 ) -> tuple[F64, NDArray[np.bool_]]:
@@ -469,10 +424,12 @@ def flange_ik(
     q = np.empty((n, 6))
     ok = np.empty(n, dtype=np.bool_)
     geo, flags, sign, offset, c23 = _args(model, shoulder, elbow, wrist)
-    if _main():
-        _flange_parallel(T, geo, flags, sign, offset, c23, q, ok)
-    else:
-        _flange_rows(T, geo, flags, sign, offset, c23, q, ok, 0, n)
+    run_chunks(
+        lambda s, e: _flange_rows(T, geo, flags, sign, offset, c23, q, ok, s, e),
+        n,
+        chunk(n),
+        any_thread=False,
+    )
     return q, ok
 
 
@@ -514,10 +471,7 @@ def path_ik(
         offset,
         c23,
     )
-    if _main():
-        _tip_parallel(*args, q, ok, T_tip)
-    else:
-        _tip_rows(*args, q, ok, T_tip, 0, n)
+    run_chunks(lambda s, e: _tip_rows(*args, q, ok, T_tip, s, e), n, chunk(n), any_thread=False)
     within = False
     if bool(ok.all()):
         within = bool(_continuous(q, _c64(model.q_min), _c64(model.q_max)))
@@ -626,63 +580,6 @@ def _vjm_rows(
         steps[n] = st
 
 
-@_njit(parallel=True)
-def _vjm_parallel(
-    F: F64,
-    sign: F64,
-    offset: F64,
-    c23: float,
-    kinv: F64,
-    q: F64,
-    W_work: F64,
-    A: F64,
-    C_tool: F64,
-    gam: F64,
-    mg: F64,
-    rb: float,
-    W_base: F64,
-    d: F64,
-    margin_ok: NDArray[np.bool_],
-    d_robot: F64,
-    d_total: F64,
-    abs_total: F64,
-    steps: F64,
-    nrm: F64,
-    abs_robot: F64,
-    abs_normal: F64,
-) -> None:  # pragma: no cover - compiled
-    n = q.shape[0]
-    nb = (n + BLOCK - 1) // BLOCK
-    for b in _PRANGE(nb):
-        s = b * BLOCK
-        _vjm_rows(
-            F,
-            sign,
-            offset,
-            c23,
-            kinv,
-            q,
-            W_work,
-            A,
-            C_tool,
-            gam,
-            mg,
-            rb,
-            W_base,
-            d,
-            margin_ok,
-            d_robot,
-            d_total,
-            abs_total,
-            steps,
-            nrm,
-            abs_robot,
-            abs_normal,
-            s,
-            min(n, s + BLOCK),
-        )
-
-
 class PathVJM(NamedTuple):
     """What :func:`path_vjm` computed for one placement (work axes).
 
@@ -775,10 +672,7 @@ def path_vjm(
         np.empty(n),  # |δ_robot|
         np.empty(n if normal is not None else 0),  # |δ·n|
     )
-    if _main():
-        _vjm_parallel(*args, *out)
-    else:
-        _vjm_rows(*args, *out, 0, n)
+    run_chunks(lambda s, e: _vjm_rows(*args, *out, s, e), n, chunk(n), any_thread=False)
     abs_normal = None if normal is None else out[9]
     return PathVJM(q, ok, 0, out[2], out[3], out[4], out[5], out[6], out[8], abs_normal)
 

@@ -8,11 +8,11 @@ give the same numbers (≤ 1e-14 relative, tested on every preset):
     one compiled loop over the poses that walks the chain of
     :mod:`roboisf.robot.kinematics` (seven fixed transforms ``F_0 .. F_6``, the tool folded into
     ``F_6``; ``θ = sign·q + offset``) in scalar registers and writes only the results: no
-    temporary arrays. Called from the main thread it runs ``parallel=True`` with ``prange``
-    over blocks of 1,024 poses (numba's threads, ``NUMBA_NUM_THREADS``); called from
-    any other thread (a Dask worker, a thread pool) the same loop runs serially without the GIL,
-    so the caller's own parallelism is not oversubscribed and no numba threading layer is ever
-    entered from two threads at once. The kernels live in :mod:`roboisf.robot.vjm_numba`,
+    temporary arrays. Called from the main thread it runs on every core: chunks of whole
+    blocks of 1,024 poses (about four per core) on a thread pool
+    (:func:`roboisf.jit.run_chunks`; the kernel releases the GIL); called from any other thread
+    (a Dask worker, a thread pool) the same loop runs serially without the GIL, so the caller's
+    own parallelism is not oversubscribed. The kernels live in :mod:`roboisf.robot.vjm_numba`,
     imported (so numba too) only on first use, compiled then and cached on disk (``cache=True``).
 ``"numpy"``
     the vectorised closed-form / chain-walk Jacobian of :mod:`roboisf.robot.kinematics` on

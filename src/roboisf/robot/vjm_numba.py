@@ -12,21 +12,28 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from roboisf.jit import compile_notice, njit, prange
+from roboisf.jit import compile_notice, cores, njit, run_chunks
 from roboisf.robot.vjm_chain import chain_walk, sincos, tip_jacobian
 
 compile_notice(__file__)  # numba compiles these on first call: say so once
 
-__all__ = ["BLOCK", "kernel", "margin_numba", "margin_pivots_ok", "sincos"]
+__all__ = ["BLOCK", "chunk", "kernel", "margin_numba", "margin_pivots_ok", "sincos"]
 
 F64 = NDArray[np.float64]
 
-#: Poses per parallel work item.
+#: Poses per work item at least (:func:`chunk`).
 BLOCK = 1024
 
 
+def chunk(n: int, block: int = BLOCK) -> int:
+    """Poses per thread's work item for ``n`` poses: about four items per core (uneven cores
+    even out), whole ``block`` s. The rows are independent: the chunks do not change the
+    numbers."""
+    per = -(-n // (4 * cores()))
+    return max(block, -(-per // block) * block)
+
+
 _njit = njit
-_PRANGE: Any = prange()
 
 
 @_njit()
@@ -134,29 +141,18 @@ def _margin_rows(
         ok[n] = margin_pivots_ok(Js[n], lin_scale, c, M)
 
 
-@_njit(parallel=True)
-def _margin_parallel(
-    Js: F64, lin_scale: float, c: float, ok: NDArray[np.bool_]
-) -> None:  # pragma: no cover - compiled
-    n = Js.shape[0]
-    nb = (n + BLOCK - 1) // BLOCK
-    for b in _PRANGE(nb):
-        _margin_rows(Js, lin_scale, c, ok, b * BLOCK, min(n, (b + 1) * BLOCK))
-
-
 def margin_numba(Js: F64, lin_scale: float, c: float) -> NDArray[np.bool_]:
-    """:func:`margin_pivots_ok` over Jacobians (N, 6, 6) (parallel from the main thread)."""
-    ok = np.empty(Js.shape[0], dtype=np.bool_)
+    """:func:`margin_pivots_ok` over Jacobians (N, 6, 6) (on every core from the main thread,
+    in the calling thread from any other: :func:`roboisf.jit.run_chunks`)."""
+    n = Js.shape[0]
+    ok = np.empty(n, dtype=np.bool_)
     Jc = _c64(Js)
-    if threading.current_thread() is threading.main_thread():
-        _margin_parallel(Jc, float(lin_scale), float(c), ok)
-    else:
-        _margin_rows(Jc, float(lin_scale), float(c), ok, 0, Jc.shape[0])
+    ls, cc = float(lin_scale), float(c)
+    run_chunks(lambda s, e: _margin_rows(Jc, ls, cc, ok, s, e), n, chunk(n), any_thread=False)
     return ok
 
 
-@_njit(parallel=True)
-def _kernel_parallel(
+def _kernel_threads(
     F: F64,
     sign: F64,
     offset: F64,
@@ -169,12 +165,14 @@ def _kernel_parallel(
     J: F64,
     margin: F64,
     ok: NDArray[np.bool_],
-) -> None:  # pragma: no cover - compiled
+) -> None:
+    """:func:`_rows` of every pose, in chunks on every core (the kernel releases the GIL)."""
     n = q.shape[0]
-    nb = (n + BLOCK - 1) // BLOCK
-    for b in _PRANGE(nb):
-        s = b * BLOCK
-        _rows(F, sign, offset, c23, kinv, q, W, s, min(n, s + BLOCK), d, k, J, margin, ok)
+
+    def rows(s: int, e: int) -> None:
+        _rows(F, sign, offset, c23, kinv, q, W, s, e, d, k, J, margin, ok)
+
+    run_chunks(rows, n, chunk(n))
 
 
 @_njit()
@@ -204,11 +202,11 @@ def _c64(a: Any) -> F64:
 
 
 def kernel() -> Any:
-    """The VJM kernel for this thread: parallel (``prange``) from the main thread, serial (no
-    GIL) from any other, so that a caller's own threads are not oversubscribed and numba's
-    threading layer is never entered from two threads at once."""
+    """The VJM kernel for this thread: on every core from the main thread (chunks on a thread
+    pool), serial (no GIL) from any other, so that a caller's own threads are not
+    oversubscribed. The same numbers either way."""
     if threading.current_thread() is threading.main_thread():
-        return _kernel_parallel
+        return _kernel_threads
     return _kernel_serial
 
 
