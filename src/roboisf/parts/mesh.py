@@ -40,8 +40,6 @@ from the material, which for a sheet's tool-side surface must then be the tool s
 from __future__ import annotations
 
 import math
-import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
@@ -503,21 +501,13 @@ class MeshPart:
         # to ~1e-16 of the squared cell/triangle size): every triangle at the minimum is seen
         tol2 = 1e-12 * (h * h + 4.0 * ix["rho_max"] ** 2)
 
-        def run(lo: int) -> None:
-            hi = min(lo + NUMBA_CHUNK, n)
+        def rows(lo: int, hi: int) -> None:
             mesh_kernel.closest_grid(
                 X[lo:hi], origin, h, dims, start, items, *tri, ix["bnd"], *bvh,
                 tol2, True, face[lo:hi], d2[lo:hi], P[lo:hi],
             )  # fmt: skip
 
-        starts = range(0, n, NUMBA_CHUNK)
-        nw = min(os.cpu_count() or 1, len(starts))
-        if nw <= 1:
-            for lo in starts:
-                run(lo)
-        else:  # the kernel releases the GIL
-            with ThreadPoolExecutor(max_workers=nw) as pool:
-                list(pool.map(run, starts))
+        jit.run_chunks(rows, n, NUMBA_CHUNK)  # on every core: the kernel releases the GIL
         return face, d2, P
 
     def _closest_on(self, X: F64, face: NDArray[np.int64]) -> tuple[F64, F64]:

@@ -22,14 +22,12 @@ the k-d tree (both are then "the k nearest").
 from __future__ import annotations
 
 import math
-import os
-from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from roboisf.jit import HAVE_NUMBA, compile_notice
+from roboisf.jit import HAVE_NUMBA, compile_notice, run_chunks
 from roboisf.parts.mesh_kernel import bounds as _bounds
 from roboisf.scan.knn_kernel import (
     MAX_CELLS,
@@ -244,20 +242,11 @@ def contact_statistics(
     med, trimmed, mad = np.empty(M), np.empty(M), np.empty(M)
     r2 = radius * radius
 
-    def run(a: int) -> None:
-        b = min(a + chunk, M)
+    def rows(a: int, b: int) -> None:
         _contacts(F, d, order, start, lo, h, nx, ny, nz, P, radius, r2, k, trim, a, b,
                   cnt, med, trimmed, mad)  # fmt: skip
 
-    chunk = 4096
-    starts = range(0, M, chunk)
-    nw = max(1, min(os.cpu_count() or 1, len(starts)))
-    if nw == 1:
-        for a in starts:
-            run(a)
-    else:
-        with ThreadPoolExecutor(max_workers=nw) as pool:
-            list(pool.map(run, starts))
+    run_chunks(rows, M, 4096)  # on every core: the kernel releases the GIL
     return cnt, med, trimmed, mad
 
 
