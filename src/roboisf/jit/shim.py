@@ -175,7 +175,7 @@ def numba_version_installed() -> str | None:
             if found:
                 return found.group(1)
     except (OSError, ValueError, ImportError):
-        pass
+        found = None  # unreadable: numba's metadata below
     try:
         from importlib.metadata import version
 
