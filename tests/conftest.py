@@ -31,12 +31,14 @@ os.environ.setdefault("ROBOISF_BACKGROUND_COMPILE", "0")
 # would start a thread per CPU: two workers' BLAS threads then spin against each other and the
 # other worker's numba threads (in one 5-module sample, 80 s → 62 s with one BLAS thread each).
 # One BLAS thread per worker, in the worker (numpy is loaded by now: threadpoolctl) and in the
-# processes the tests start (the environment); numba's threads are left as they are (the suite
-# checks its parallel kernels against the serial ones). An explicit OPENBLAS_NUM_THREADS wins.
+# processes the tests start (the environment); roboisf's own kernel threads (jit.run_chunks) are
+# left as they are (the suite checks the threaded kernels against the serial ones). MKL too (the
+# FE tests' PARDISO; read when MKL loads). An explicit OPENBLAS_NUM_THREADS wins.
 if int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")) > 1 and (
     "OPENBLAS_NUM_THREADS" not in os.environ
 ):
     os.environ["OPENBLAS_NUM_THREADS"] = "1"
+    os.environ.setdefault("MKL_NUM_THREADS", "1")
     with contextlib.suppress(ImportError):
         from threadpoolctl import threadpool_limits
 

@@ -56,6 +56,22 @@ def test_paper_tool_length_reproduces_table2():
     assert abs(lateral / PAPER_TOOL_LATERAL - 1) < 0.005
 
 
+def test_superlu_and_pardiso_give_the_same_compliance():
+    """The two direct solvers of ``solver=``: the suite runs PARDISO where the test extra
+    installs it (x86-64), so SuperLU — the plain install's — is checked against it here; "auto"
+    takes PARDISO when it is there."""
+    pytest.importorskip("pypardiso", reason="pypardiso (the pardiso extra) not installed")
+    tool = BallEndTool(10e-3, PAPER_TOOL_LENGTH)
+    slu = solve_six_cases(tool, 2.5e-3, solver="superlu")
+    par = solve_six_cases(tool, 2.5e-3, solver="pardiso")
+    auto = solve_six_cases(tool, 2.5e-3)
+    assert (slu.quality["solver"], par.quality["solver"]) == ("superlu", "pardiso")
+    assert auto.quality["solver"] == "pardiso"
+    scale = np.abs(slu.U).max()
+    np.testing.assert_allclose(par.U, slu.U, rtol=0, atol=1e-9 * scale)
+    np.testing.assert_allclose(par.compliance, slu.compliance, rtol=1e-9, atol=1e-9 * scale)
+
+
 @pytest.mark.slow
 def test_mesh_convergence_paper_tool():
     """Paper tool at R/2 within 0.3 % of a twice-finer mesh (R/4). The R/3-vs-R/6 pair is run by
