@@ -149,7 +149,12 @@ def test_every_writer_on_a_disk_that_refuses_exits_2_and_leaves_nothing(cmd, tmp
         timeout=600,
     )
     assert r.returncode == 2, r.stderr
-    err = r.stderr.strip().splitlines()
+    # With the pardiso extra (MKL) the FE commands start Intel's OpenMP runtime, which under a
+    # file-size limit cannot size its registration file and says so on the process's stderr
+    # itself ("OMP: Warning #179: Function Can't set size of SHM/of /tmp file failed:", before
+    # its environment settings are read: KMP_WARNINGS does not silence it). roboisf's own output
+    # is still the one line; a named wart, docs/fem.md.
+    err = [ln for ln in r.stderr.strip().splitlines() if not ln.startswith("OMP: Warning #179:")]
     assert len(err) == 1 and err[0].startswith("error:"), r.stderr
     assert "larger than the file system or a size limit" in err[0]
     assert "nothing written to" in err[0]

@@ -413,3 +413,30 @@ def test_bad_margin_is_an_input_error():
     for bad in ((0.0, 0.02), (2.0, -1.0), (np.nan, 0.02)):
         with pytest.raises(InputError, match="margin"):
             m.vjm(q, W, margin=bad)
+
+
+def test_single_blas_thread_pins_a_blas_loaded_after_its_first_use():
+    """MKL comes in with pypardiso (the FE) after an analysis may have pinned BLAS once: the
+    controller made then did not know MKL, which kept all its threads (seen in the suite once the
+    test extra brought pypardiso). In a fresh interpreter, so that MKL really loads second."""
+    pytest.importorskip("threadpoolctl")
+    pytest.importorskip("pypardiso", reason="pypardiso (the pardiso extra) not installed")
+    import subprocess
+    import sys
+
+    code = (
+        "import threadpoolctl\n"
+        "from roboisf.robot.vjm_kernel import single_blas_thread\n"
+        "with single_blas_thread():\n"
+        "    pass\n"
+        "import pypardiso  # loads MKL\n"
+        "assert any(i['internal_api'] == 'mkl' for i in threadpoolctl.threadpool_info())\n"
+        "with threadpoolctl.threadpool_limits(limits=2, user_api='blas'):\n"
+        "    with single_blas_thread():\n"
+        "        got = [i['num_threads'] for i in threadpoolctl.threadpool_info()\n"
+        "               if i['user_api'] == 'blas']\n"
+        "assert got and all(n == 1 for n in got), got\n"
+        "print('ok')\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]

@@ -26,6 +26,7 @@ already parallel (the plan's placements).
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any, NamedTuple
@@ -239,7 +240,7 @@ def _numpy_chunk(J: F64, W: F64, kinv: F64, d: F64, k: F64 | None) -> None:
         k[:] = kt.transpose(2, 0, 1)
 
 
-_CONTROLLER: list[Any] = []
+_CONTROLLER: list[tuple[int, Any]] = []  # (modules imported then, the controller)
 
 
 @contextmanager
@@ -248,13 +249,17 @@ def single_blas_thread() -> Iterator[None]:
 
     For batched numpy work that is already parallel (Dask workers, the plan's placements): idle
     BLAS threads spin and steal the cores. Uses ``threadpoolctl``; a no-op when it is missing.
+    The controller (1–8 ms to make: it lists the process's libraries) is kept until modules
+    were imported since: a BLAS loaded later — MKL, with ``pypardiso`` for the FE — is pinned
+    too (a controller made before it left MKL on all its threads).
     """
     try:
         from threadpoolctl import ThreadpoolController
     except ImportError:  # pragma: no cover - threadpoolctl is a dependency
         yield
         return
-    if not _CONTROLLER:
-        _CONTROLLER.append(ThreadpoolController())
-    with _CONTROLLER[0].limit(limits=1, user_api="blas"):
+    n_modules = len(sys.modules)
+    if not _CONTROLLER or _CONTROLLER[0][0] != n_modules:
+        _CONTROLLER[:] = [(n_modules, ThreadpoolController())]
+    with _CONTROLLER[0][1].limit(limits=1, user_api="blas"):
         yield
