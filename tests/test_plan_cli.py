@@ -62,9 +62,9 @@ def test_plan_default_scheduler_is_named(cone_toml, tmp_path):
     doc = json.loads((out / "plan.json").read_text())
     # what ran is named, not "auto": threads with the compiled engine or on ≤ 2 CPUs, Dask
     # processes otherwise
-    from roboisf.plan.sweep import _cpus
+    from roboisf.jit import cores
 
-    want = "threads" if vjm_kernel.use_numba("auto") or _cpus() <= 2 else "local"
+    want = "threads" if vjm_kernel.use_numba("auto") or cores() <= 2 else "local"
     assert doc["summary"]["scheduler"] == want
     assert doc["summary"]["feasible"] == 2
 

@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError, UnreachableError
+from roboisf.jit import cores
 from roboisf.plan.evaluate import (
     PlacementScore,
     _evaluate_many,
@@ -138,15 +139,6 @@ class PlanResult:
         return rows
 
 
-def _cpus() -> int:
-    """The CPUs this process may run on (a container's or taskset's share)."""
-    import os
-
-    if hasattr(os, "sched_getaffinity"):
-        return len(os.sched_getaffinity(0))
-    return os.cpu_count() or 1  # pragma: no cover - not on Linux
-
-
 def default_scheduler(problem: PlanProblem, cpus: int | None = None) -> str:
     """ "threads" when the placements run on the compiled engine (GIL-free) or on at most two
     CPUs, else "local" (Dask processes: the numpy engine holds the GIL for much of a
@@ -159,7 +151,7 @@ def default_scheduler(problem: PlanProblem, cpus: int | None = None) -> str:
     from roboisf.robot import vjm_kernel
 
     compiled = vjm_kernel.use_numba(problem.model.backend) and problem.model.stiffness is not None
-    n = _cpus() if cpus is None else cpus
+    n = cores() if cpus is None else cpus
     return "threads" if compiled or n <= 2 else "local"
 
 
@@ -175,7 +167,7 @@ def _thread_map(
     CPUs this process may use), the results in placement order."""
     from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
-    nw = n_workers or _cpus()
+    nw = n_workers or cores()
     m = Ts.shape[0]
     # small batches: threads cost nothing to feed, and the last batches finish together
     size = batch_size or max(1, min(8, math.ceil(m / (4 * nw))))

@@ -79,11 +79,9 @@ def default_processes() -> int:
         return n
     if _context().get_start_method() != "fork":
         return 0
-    try:
-        cpus = len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        cpus = os.cpu_count() or 1
-    return max(0, min(cpus - 1, 3))
+    from roboisf.jit import cores
+
+    return max(0, min(cores() - 1, 3))
 
 
 def _context() -> Any:
