@@ -28,7 +28,7 @@ from roboisf.errors import InputError
 from roboisf.parts import Pyramid
 from roboisf.parts.io import save_part
 from roboisf.programs.rapid import read_rapid
-from roboisf.scan.synthetic import height_field_mesh, synthetic_scan
+from roboisf.scan.synthetic import height_field_mesh, surface_heights, synthetic_scan
 from roboisf.study import load_study
 from roboisf.virtual.cell import PYRAMID, paper_cone_cell, pyramid_cell, simulate
 from roboisf.virtual.formed import PointField
@@ -243,6 +243,39 @@ def test_scan_sampling_is_uniform_by_area_on_a_pyramid():
     assert abs(got - expected) < 4 * sigma + 1e-3, (got, expected)
     V, F = height_field_mesh(p, 1e-3)
     assert np.max(np.abs(p.signed_distance(V[np.unique(F)]))) < 1e-6
+
+
+def test_surface_heights_meet_bisection_in_a_few_evaluations():
+    """The height field's safeguarded Newton: the crossing of each vertical line where 60
+    bisections of the signed distance put it (to the tolerance), on planar walls, the rounded
+    corners' cones, the bottom, the flange and lines that miss the surface (beyond the rounded
+    flange's corners: left with |d| > tolerance); a handful of evaluations, not bisection's 21."""
+    p = Pyramid(120e-3, 90e-3, math.radians(55.0), 35e-3, corner_radius=12e-3)
+    lo, hi = p.bounds
+    rng = np.random.default_rng(2)
+    X, Y = (rng.uniform(lo[i], hi[i], 4000) for i in (0, 1))
+    X, Y = np.r_[X, hi[0] - 1e-6], np.r_[Y, hi[1] - 1e-6]  # a flange corner: no surface
+    calls = []
+
+    class Counted:
+        def closest_point(self, pts):
+            calls.append(len(pts))
+            return p.closest_point(pts)
+
+    z_lo, z_hi = lo[2] - 1e-3, hi[2] + 1e-3
+    Z, d = surface_heights(Counted(), X, Y, z_lo, z_hi, 1e-7)
+    a, b = np.full(X.size, z_lo), np.full(X.size, z_hi)
+    for _ in range(60):
+        m = 0.5 * (a + b)
+        above = p.signed_distance(np.c_[X, Y, m]) > 0
+        a, b = np.where(above, a, m), np.where(above, m, b)
+    ref = 0.5 * (a + b)
+    hit = np.abs(p.signed_distance(np.c_[X, Y, ref])) < 1e-9
+    assert hit.sum() > 3800 and not hit[-1]  # ≈ 2.7 % of the box lies beyond the flange
+    np.testing.assert_allclose(Z[hit], ref[hit], rtol=0, atol=1e-7)
+    assert np.all(np.abs(d[hit]) <= 0.5e-7) and abs(d[-1]) > 1e-6
+    np.testing.assert_array_equal(d, p.signed_distance(np.c_[X, Y, Z]))  # d is where Z is
+    assert len(calls) <= 25 and sum(calls) < 6 * X.size, (len(calls), sum(calls) / X.size)
 
 
 def test_point_field_known_answers():

@@ -205,6 +205,16 @@ def _solve(G: F64, h: F64) -> F64:
     return np.asarray(x, dtype=float)
 
 
+def _solve_many(G: F64, h: F64) -> F64:
+    """:func:`_solve` of each system of a stack: ``G`` (B, k, k), ``h`` (B, k) → (B, k). The
+    same minimum-norm solutions (the pseudo-inverse with ``lstsq``'s default cut-off, singular
+    values ≤ k·eps of the largest dropped), equal to rounding; one batched SVD instead of B
+    ``lstsq`` calls (≈ 35 µs each in Python: 400 replicates × 7 fits per analysis)."""
+    k = G.shape[-1]
+    P = np.linalg.pinv(G, rcond=np.finfo(float).eps * k)
+    return np.asarray(np.einsum("bij,bj->bi", P, h), dtype=float)
+
+
 def _boot_weights(L: int, n_boot: int, seed: int) -> F64:
     rng = np.random.default_rng(seed)
     draws = lap_blocks(L, rng, n_boot)
@@ -240,7 +250,11 @@ def _lap_ls(
     beta = solve(G.sum(axis=0), h.sum(axis=0)) / scale
     Gb = np.einsum("bl,lij->bij", weights, G)
     hb = np.einsum("bl,li->bi", weights, h)
-    boot = np.array([solve(Gb[i], hb[i]) for i in range(len(weights))]) / scale
+    # each replicate as solve() above, all at once (the penalty's terms in the same order)
+    tb = np.trace(Gb, axis1=1, axis2=2) / k
+    pt = pen[None, :] * tb[:, None]  # (n_boot, k): pen · t of each replicate
+    Gb[:, np.arange(k), np.arange(k)] += pt
+    boot = _solve_many(Gb, hb + pt * p0) / scale
     return beta, boot
 
 

@@ -9,10 +9,11 @@ nominal points instead.
 
 Sampling: an axisymmetric part analytically (area-weighted on its generatrix), a mesh on its
 triangles; any other part (a :class:`~roboisf.parts.Pyramid`, a CAD part …) through its
-:meth:`~roboisf.parts.Part.signed_distance` only: a height-field tessellation (the surface met by
-vertical lines on a grid over ``part.bounds``, found by bisection — ISF parts are seen whole from
-above), points drawn by area on its triangles, then moved onto the exact surface by
-:meth:`~roboisf.parts.Part.closest_point` (normal and region from there).
+:meth:`~roboisf.parts.Part.closest_point` only: a height-field tessellation (the surface met by
+vertical lines on a grid over ``part.bounds``, found by a safeguarded Newton iteration on the
+signed distance — ISF parts are seen whole from above), points drawn by area on its triangles,
+then moved onto the exact surface by :meth:`~roboisf.parts.Part.closest_point` (normal and
+region from there).
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ __all__ = [
     "SyntheticScan",
     "height_field_mesh",
     "radial_offset",
+    "surface_heights",
     "synthetic_scan",
 ]
 
@@ -128,8 +130,8 @@ def height_field_mesh(
     """Triangulate ``part``'s surface as a height field z(x, y) on a square grid (m).
 
     Every grid vertex over ``part.bounds`` is placed where the vertical line through it crosses
-    the surface (bisection on the signed distance, + above, to ``tolerance``); vertices where the
-    line misses the surface (beyond a rounded flange's corners) are dropped with their
+    the surface (:func:`surface_heights`: |signed distance| ≤ ``tolerance`` / 2); vertices where
+    the line misses the surface (beyond a rounded flange's corners) are dropped with their
     triangles. Holds for any part whose surface is met once by every vertical line (every ISF
     part formed from above with wall angles < 90°).
 
@@ -147,21 +149,64 @@ def height_field_mesh(
     x = np.linspace(lo[0] + inset, hi[0] - inset, nx)
     y = np.linspace(lo[1] + inset, hi[1] - inset, ny)
     X, Y = (a.ravel() for a in np.meshgrid(x, y, indexing="xy"))
-    z_lo = np.full(X.size, lo[2] - 1e-3)
-    z_hi = np.full(X.size, hi[2] + 1e-3)
-    for _ in range(math.ceil(math.log2((z_hi[0] - z_lo[0]) / tolerance))):
-        zm = 0.5 * (z_lo + z_hi)
-        above = part.signed_distance(np.column_stack([X, Y, zm])) > 0
-        z_hi = np.where(above, zm, z_hi)
-        z_lo = np.where(above, z_lo, zm)
-    V = np.column_stack([X, Y, 0.5 * (z_lo + z_hi)])
-    on = np.abs(part.signed_distance(V)) <= 10 * tolerance
+    Z, d = surface_heights(part, X, Y, lo[2] - 1e-3, hi[2] + 1e-3, tolerance)
+    V = np.column_stack([X, Y, Z])
+    on = np.abs(d) <= 10 * tolerance
     i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1), indexing="xy")
     a = (j * nx + i).ravel()
     b, c, d = a + 1, a + nx, a + nx + 1
     F = np.concatenate([np.column_stack([a, b, d]), np.column_stack([a, d, c])])
     F = F[np.all(on[F], axis=1)]
     return V, F.astype(np.int64)
+
+
+#: Newton steps :func:`surface_heights` tries per line before it only bisects.
+_NEWTON_STEPS = 12
+
+
+def surface_heights(
+    part: Part, X: F64, Y: F64, z_below: float, z_above: float, tolerance: float = 1e-7
+) -> tuple[F64, F64]:
+    """Where the vertical lines through (``X``, ``Y``) (N,) m cross ``part``'s surface between
+    ``z_below`` and ``z_above`` [m] (below and above it): heights (N,) m and the signed
+    distance (N,) m there.
+
+    A safeguarded Newton iteration on the signed distance along each line, f(z) = d(x, y, z),
+    whose derivative is the closest point's normal's z: ``z − d / n_z``, taken when it falls
+    inside the line's bracket [below, above] (which every evaluation narrows), else the
+    bracket's midpoint — on a plane one step lands on the surface, where bisection alone took
+    ⌈log₂(range / tolerance)⌉ (21 for a 100 mm part at 0.1 µm) evaluations of every line. A line
+    stops once |d| ≤ ``tolerance`` / 2 or its bracket is ``tolerance`` wide (after
+    :data:`_NEWTON_STEPS` Newton steps it only bisects, so every line stops); its height is the
+    last point evaluated. A line that misses the surface (d of one sign all along) ends at a
+    bracket end with |d| > ``tolerance``."""
+    n = X.size
+    z_lo = np.full(n, float(z_below))
+    z_hi = np.full(n, float(z_above))
+    z = 0.5 * (z_lo + z_hi)
+    d_out = np.full(n, np.inf)
+    rows = np.arange(n)
+    step = 0
+    while rows.size:
+        zr = z[rows]
+        q = part.closest_point(np.column_stack([X[rows], Y[rows], zr]))
+        d, nz = q.distance, q.normal[:, 2]
+        d_out[rows] = d
+        above = d > 0
+        lo = np.where(above, z_lo[rows], zr)
+        hi = np.where(above, zr, z_hi[rows])
+        z_lo[rows], z_hi[rows] = lo, hi
+        go = (np.abs(d) > 0.5 * tolerance) & (hi - lo > tolerance)
+        rows, d, nz, zr, lo, hi = rows[go], d[go], nz[go], zr[go], lo[go], hi[go]
+        mid = 0.5 * (lo + hi)
+        if step < _NEWTON_STEPS:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                zn = zr - d / nz
+            z[rows] = np.where((zn > lo) & (zn < hi), zn, mid)  # NaN, inf: outside
+        else:
+            z[rows] = mid
+        step += 1
+    return z, d_out
 
 
 def _sample_any(part: Part, n: int, seed: int) -> tuple[F64, F64, NDArray[np.int64]]:
