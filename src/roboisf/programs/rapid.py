@@ -304,6 +304,8 @@ _Item = tuple[str, object]
 
 def _strip_comment(line: str) -> str:
     """The line without its ``!`` comment (a ``!`` inside a string is text)."""
+    if "!" not in line:  # most lines of a program (its moves): no scan character by character
+        return line
     quoted = False
     for i, ch in enumerate(line):
         if ch == '"':
