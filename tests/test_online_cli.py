@@ -14,6 +14,10 @@ import pytest
 from roboisf.cli.main import main
 from roboisf.virtual.cell import build_study
 
+#: loops at their real cycle: this module waits on the clock more than it computes (the
+#: collection puts it beside a CPU-bound module, tests/conftest.py)
+pytestmark = pytest.mark.realtime
+
 
 def _online_rsi_process(args: list[str]) -> subprocess.Popen[str]:
     """``roboisf online -c rsi --virtual cone --listen 127.0.0.1:0 ARGS`` in a process of its

@@ -16,6 +16,10 @@ from roboisf.online.sim import applied_per_point, form_online, form_study, virtu
 from roboisf.virtual.cell import build_study
 from roboisf.virtual.truth import load_truth
 
+#: loops at their real cycle: this module waits on the clock more than it computes (the
+#: collection puts it beside a CPU-bound module, tests/conftest.py)
+pytestmark = pytest.mark.realtime
+
 
 @pytest.fixture(scope="module")
 def setup(online_cone):

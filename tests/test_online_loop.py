@@ -25,6 +25,10 @@ from roboisf.online.sim import (
 )
 from roboisf.virtual.cell import build_study
 
+#: loops at their real cycle: this module waits on the clock more than it computes (the
+#: collection puts it beside a CPU-bound module, tests/conftest.py)
+pytestmark = pytest.mark.realtime
+
 
 @pytest.fixture(scope="module")
 def setup(online_cone):

@@ -22,6 +22,10 @@ from roboisf.online.loop import RULES_OFF, CycleLog, Loop
 from roboisf.online.rt import GcQuiet, Realtime, apply
 from roboisf.online.sim import _recv_stamped, _stamping, virtual_setup
 
+#: loops at their real cycle: this module waits on the clock more than it computes (the
+#: collection puts it beside a CPU-bound module, tests/conftest.py)
+pytestmark = pytest.mark.realtime
+
 
 @pytest.fixture(scope="module")
 def setup(online_cone):

@@ -23,6 +23,11 @@ from roboisf.online.replay import ReplaySensor
 from roboisf.parts import Cone
 from roboisf.robot import ik_toolpath
 
+#: loops at their real cycle: this module waits on the clock more than it computes (the
+#: collection puts it beside a CPU-bound module, tests/conftest.py)
+pytestmark = pytest.mark.realtime
+
+
 CFG = rsi.config_files()
 Q_DEG = [10.0, -80.0, 95.0, 5.0, 70.0, -20.0]
 
