@@ -278,6 +278,42 @@ def test_surface_heights_meet_bisection_in_a_few_evaluations():
     assert len(calls) <= 25 and sum(calls) < 6 * X.size, (len(calls), sum(calls) / X.size)
 
 
+def test_two_scans_of_one_part_share_its_tessellation(monkeypatch):
+    """A study's CNC and robot scans sample one nominal surface: tessellated once (kept for the
+    last two parts), the same points as without the cache; a part that cannot be hashed is
+    tessellated every time and still sampled."""
+    import roboisf.scan.synthetic as syn
+
+    calls = []
+    real = syn.height_field_mesh
+
+    def counted(part, *a, **k):
+        calls.append(part)
+        return real(part, *a, **k)
+
+    monkeypatch.setattr(syn, "height_field_mesh", counted)
+    syn._cached_tessellation.cache_clear()
+    p = Pyramid(80e-3, 60e-3, math.radians(55.0), 25e-3, corner_radius=8e-3)
+    a = synthetic_scan(p, 5000, noise=0.0, seed=1)
+    b = synthetic_scan(p, 5000, noise=0.0, seed=1)
+    assert len(calls) == 1
+    np.testing.assert_array_equal(a.points, b.points)
+    V, F = syn._cached_tessellation(p)
+    assert not V.flags.writeable and not F.flags.writeable
+
+    class Unhashable:  # a user's part class with eq but no hash
+        __hash__ = None
+
+        def __getattr__(self, name):
+            return getattr(p, name)
+
+    syn._cached_tessellation.cache_clear()
+    c = synthetic_scan(Unhashable(), 5000, noise=0.0, seed=1)
+    synthetic_scan(Unhashable(), 5000, noise=0.0, seed=1)
+    assert len(calls) == 3
+    np.testing.assert_array_equal(c.points, a.points)
+
+
 def test_point_field_known_answers():
     cell = pyramid_cell(step_down=2e-3, spacing=3e-3)
     tp = simulate(cell).toolpath

@@ -18,9 +18,11 @@ region from there).
 
 from __future__ import annotations
 
+import functools
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -209,14 +211,33 @@ def surface_heights(
     return z, d_out
 
 
+def _tessellation(part: Part) -> tuple[F64, NDArray[np.int64]]:
+    """:func:`height_field_mesh` of ``part`` at the sampling's spacing (its bounds' larger side
+    / 400, ≥ 0.25 mm), read-only."""
+    lo, hi = part.bounds
+    V, F = height_field_mesh(part, max(0.25e-3, float(np.max(hi[:2] - lo[:2])) / 400))
+    V.setflags(write=False)
+    F.setflags(write=False)
+    return V, F
+
+
+#: :func:`_tessellation` of the last two (hashable) parts, ~12 MB each: the CNC and robot scans
+#: of one study sample the same nominal surface.
+_cached_tessellation = functools.lru_cache(maxsize=2)(_tessellation)
+
+
 def _sample_any(part: Part, n: int, seed: int) -> tuple[F64, F64, NDArray[np.int64]]:
     from roboisf.scan.readers import sample_faces
 
     if isinstance(part, MeshPart):
         V, F = part.vertices, part.faces
     else:
-        lo, hi = part.bounds
-        V, F = height_field_mesh(part, max(0.25e-3, float(np.max(hi[:2] - lo[:2])) / 400))
+        try:
+            hash(part)
+        except TypeError:  # a part that cannot be hashed: not cached
+            V, F = _tessellation(part)
+        else:  # a study's two scans: one tessellation
+            V, F = _cached_tessellation(cast(Hashable, part))
     nom, _ = sample_faces(V, F, n, seed)
     q = part.closest_point(nom)
     return q.point, q.normal, np.asarray(q.region, dtype=np.int64)
