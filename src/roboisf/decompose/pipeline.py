@@ -318,6 +318,7 @@ def _logs_part(
         if r is rob:
             with task(progress, "robot joint angles"):
                 q, q_source = _joint_angles(cell, rob, tp_run, aligned[rob.name].joints, joints)
+            joints = None  # the log's angles are q now: not beside the force log's conditioning
             if rob.forces.tool_mass is not None:
                 # the sensor's orientation for its tool-weight model
                 R_fk = cell.robot.fk(q, check_limits=False)[:, :3, :3]
