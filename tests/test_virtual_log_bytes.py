@@ -59,6 +59,44 @@ def test_log_columns_are_np_interp_bit_for_bit():
     np.testing.assert_array_equal(one, np.repeat(values[:1], 5, axis=0))
 
 
+@pytest.mark.parametrize("part", ["cone", "vwacf"])
+def test_force_logs_in_blocks_are_the_whole_arrays(part, monkeypatch):
+    """The synthesised logs computed in row blocks (ragged last block, the noise drawn block by
+    block: force noise of every sample, then the moments') are the numbers of one block of the
+    whole log — a flange sensor with calibration errors, a bias and the tool's weight included."""
+    from dataclasses import replace
+
+    import roboisf.virtual.cell as vc
+
+    cell = vc.paper_scenario_cell(part, scan_points=20_000, force_rate=200.0)
+    # a flange sensor with a bias, a gain, cross-talk and the tool's weight: the whole path
+    sensor = replace(
+        cell.truth,
+        sensor_bias=np.array([3.0, -2.0, 5.0, 0.1, -0.05, 0.02]),
+        sensor_gain=np.array([1.02, 0.98, 1.01, 1.0, 1.0, 0.99]),
+        sensor_crosstalk=0.002 * (1 - np.eye(6)),
+        tool_mass=2.5,
+        tool_cog=np.array([0.01, 0.0, 0.15]),
+    )
+    cell = replace(cell, truth=sensor)
+    truth = vc.simulate(cell)
+    # the two sensors as build_study places them
+    cnc = vc.ForceSensorSpec(Path("c.parquet"), "fixture", cell.fixture_sensor_pose, "workpiece")
+    rob = vc.ForceSensorSpec(Path("r.parquet"), "flange", cell.T_tip_sensor, "tool")
+    logs = {}
+    for block in (977, 1 << 40):
+        monkeypatch.setattr(vc, "_LOG_BLOCK", block)
+        rng = np.random.default_rng(11)
+        logs[block] = [
+            vc._force_log(cell, truth.toolpath, truth.wrench_cnc, cnc, rng),
+            vc._force_log(cell, truth.toolpath, truth.wrench_robot, rob, rng, cell.truth),
+        ]
+    for a, b in zip(logs[977], logs[1 << 40], strict=True):
+        assert len(a) > 10 * 977
+        np.testing.assert_array_equal(a.time, b.time)
+        np.testing.assert_array_equal(a.wrench, b.wrench)
+
+
 def test_quantize_wrench_rounds_to_the_nearest_count():
     W = np.array(
         [[0.03, -0.04, 1.0 / 32 + 1e-9, 0.0004, -0.0006, 0.00049], [500.1, 0, 0, 3.3, 0, 0]]

@@ -561,6 +561,13 @@ def _log_times(tp: Toolpath, rate: float) -> F64:
     return np.arange(n) / rate
 
 
+#: Samples of a synthesised force log computed at a time (:func:`_force_log`): the interpolated
+#: wrench and tips, the sensor's frame change and the noise are a few MB per block instead of
+#: ≈ 0.5 GB of temporaries for a 1 kHz paper log — fresh memory, which on a virtual machine costs
+#: about as much as the arithmetic (docs/analyze.md).
+_LOG_BLOCK = 1 << 17
+
+
 def _force_log(
     cell: VirtualCell,
     tp: Toolpath,
@@ -569,18 +576,36 @@ def _force_log(
     rng: np.random.Generator,
     truth: TruthSpec | None = None,
 ) -> ForceLog:
+    """The log ``sensor`` writes along ``tp``: the tip wrenches ``W_tip`` (N_tp, 6) interpolated
+    at the log's rate, in the sensor's frame, with noise (the force noise of every sample drawn
+    first, then the moments': the generator's stream as one draw of each), through the truth's
+    calibration and the tool's weight, rounded to the sensor's counts. Row blocks of
+    :data:`_LOG_BLOCK` samples, the same numbers as whole arrays."""
     t = _log_times(tp, cell.force_rate)
-    W = _interp_columns(t, tp.time, W_tip)
-    tip = _interp_columns(t, tp.time, tp.tip)
+    n = t.size
     R = vertical_tool(cell.tool_rotation)
-    W_s = sensor_wrench(W, sensor, tip, R)
+    W_s = np.empty((6, n)).T  # each channel contiguous, as the log's columns are written
+    blocks = [(a, min(a + _LOG_BLOCK, n)) for a in range(0, n, _LOG_BLOCK)]
+
+    def tips(a: int, b: int) -> F64:
+        return _interp_columns(t[a:b], tp.time, tp.tip)
+
+    for a, b in blocks:
+        W_s[a:b] = sensor_wrench(_interp_columns(t[a:b], tp.time, W_tip), sensor, tips(a, b), R)
     noise = cell.force.noise
-    W_s[:, :3] += rng.normal(scale=noise, size=(t.size, 3))
-    W_s[:, 3:] += rng.normal(scale=noise * 5e-3, size=(t.size, 3))  # ~5 mm lever of noise
+    for a, b in blocks:
+        W_s[a:b, :3] += rng.normal(scale=noise, size=(b - a, 3))
+    for a, b in blocks:
+        W_s[a:b, 3:] += rng.normal(scale=noise * 5e-3, size=(b - a, 3))  # ~5 mm lever of noise
     if truth is not None and not truth.sensor_ideal:
         # the transducer's noise passes through the same calibration as the load
-        weight = tool_weight_at_sensor(cell, truth, sensor, tip, R) if truth.tool_mass else None
-        W_s = sensor_reading(truth, W_s, weight)
+        for a, b in blocks:
+            weight = (
+                tool_weight_at_sensor(cell, truth, sensor, tips(a, b), R)
+                if truth.tool_mass
+                else None
+            )
+            W_s[a:b] = sensor_reading(truth, W_s[a:b], weight)
     return ForceLog(t, quantize_wrench(W_s, cell.force_resolution), "sensor")
 
 
