@@ -151,9 +151,9 @@ def height_field_mesh(
     x = np.linspace(lo[0] + inset, hi[0] - inset, nx)
     y = np.linspace(lo[1] + inset, hi[1] - inset, ny)
     X, Y = (a.ravel() for a in np.meshgrid(x, y, indexing="xy"))
-    Z, d = surface_heights(part, X, Y, lo[2] - 1e-3, hi[2] + 1e-3, tolerance)
+    Z, sd = surface_heights(part, X, Y, lo[2] - 1e-3, hi[2] + 1e-3, tolerance)
     V = np.column_stack([X, Y, Z])
-    on = np.abs(d) <= 10 * tolerance
+    on = np.abs(sd) <= 10 * tolerance
     i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1), indexing="xy")
     a = (j * nx + i).ravel()
     b, c, d = a + 1, a + nx, a + nx + 1
