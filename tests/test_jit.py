@@ -76,6 +76,64 @@ def test_every_kernel_module_is_in_a_group_with_a_build():
         assert callable(getattr(importlib.import_module(module), function)), name
 
 
+def test_groups_sharing_a_module_share_a_lane():
+    """A lane builds in one process, so a module two groups compile is compiled once (a group
+    that calls another's kernels is placed after it by hand: GROUPS' comment)."""
+    lane_of: dict[str, int] = {}
+    for name, group in bg.GROUPS.items():
+        for m in group.modules:
+            assert lane_of.setdefault(m, group.lane) == group.lane, (name, m)
+    assert len({g.lane for g in bg.GROUPS.values()}) > 1  # lanes to build side by side
+
+
+def test_lanes_are_dealt_to_the_processes_in_order():
+    a, b, c = ["mesh", "scan"], ["robot", "online"], ["forcelog"]
+    assert bg.lane_shares([a, b], 2) == [a, b]
+    assert bg.lane_shares([a, b], 1) == [a + b]
+    assert bg.lane_shares([a, b, c], 2) == [a + c, b]
+    assert bg.lane_shares([a], 8) == [a]
+    assert bg.lane_shares([], 2) == [[]]
+
+
+def test_one_job_builds_every_missing_group_here_in_order(monkeypatch):
+    built: list[list[str]] = []
+    monkeypatch.setattr(bg, "group_cached", lambda g: g == "sync")
+    monkeypatch.setattr(bg, "build_groups", lambda names: built.append(names) or [])
+    assert bg.build_missing(jobs=1) == []
+    assert built == [[g for g in bg.GROUPS if g != "sync"]]
+
+
+def test_a_build_process_that_dies_fails_each_of_its_groups(monkeypatch):
+    import concurrent.futures as cf
+    from concurrent.futures.process import BrokenProcessPool
+
+    class DeadPool:  # its process killed before it could answer
+        def __init__(self, *a, **k):
+            pass
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *a):
+            return False
+
+        def submit(self, fn, names):
+            f: cf.Future = cf.Future()
+            f.set_exception(BrokenProcessPool("killed"))
+            return f
+
+    monkeypatch.setattr(cf, "ProcessPoolExecutor", DeadPool)
+    monkeypatch.setattr(bg, "group_cached", lambda g: False)
+    here: list[list[str]] = []
+    monkeypatch.setattr(bg, "build_groups", lambda names: here.append(names) or [])
+    failures = bg.build_missing(jobs=2)
+    lanes = sorted({g.lane for g in bg.GROUPS.values()})
+    first = [n for n, g in bg.GROUPS.items() if g.lane == lanes[0]]
+    assert here == [first]  # this process built the first lane
+    assert [f.split(":")[0] for f in failures] == [n for n in bg.GROUPS if n not in first]
+    assert all("its build process failed" in f and "killed" in f for f in failures)
+
+
 def test_njit_without_numba_is_the_identity(monkeypatch):
     from roboisf.jit import shim
 
