@@ -86,7 +86,34 @@ def test_kernel_cached_reads_numba_cache_dir(tmp_path, monkeypatch):
     assert jit.kernel_cached(src)
 
 
+def test_with_background_building_the_first_notice_is_the_builders(tmp_path, monkeypatch):
+    """Importing an uncached kernel module compiles nothing when the builder builds: no "first
+    time, minutes" notice then (it was the run's one notice, claiming a wait that did not come
+    and keeping the builder's from being said); the builder's notice is the one said."""
+    from roboisf.jit import background as bg
+
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    monkeypatch.setenv(bg.ENV, "1")
+    monkeypatch.setattr(bg, "_started", False)
+    monkeypatch.setattr(bg, "failure_path", lambda: tmp_path / "none.failed")
+    monkeypatch.setattr(bg, "lock_path", lambda: tmp_path / "b.lock")
+    monkeypatch.setattr(bg.subprocess, "Popen", lambda *a, **k: None)  # no real builder
+    said: list[str] = []
+    progress.set_notice(said.append)
+    try:
+        jit.compile_notice(_module(tmp_path))
+        assert said == []
+        bg._start()
+        assert len(said) == 1 and "in the background" in said[0] and "numpy" in said[0]
+    finally:
+        progress.set_notice(None)
+
+
 def test_compile_notice_once_and_only_when_not_cached(tmp_path, monkeypatch):
+    from roboisf.jit import background as bg
+
+    monkeypatch.setenv(bg.ENV, "0")  # compiling in the foreground: the notice's case
     monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
     monkeypatch.setenv("HOME", str(tmp_path / "home"))
     src = _module(tmp_path)

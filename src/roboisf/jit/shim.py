@@ -244,10 +244,17 @@ def _index_fresh(index: Path, source: Path, st: os.stat_result) -> bool | None:
 
 def compile_notice(module_file: str | os.PathLike[str]) -> None:
     """Called by a kernel module as it is imported (its numba functions compile on first call):
-    when they are not cached yet, say once per process that the kernels are being built and how
-    long that takes (:data:`COMPILE_WAIT`) — through :func:`roboisf.progress.set_notice`'s hook,
-    silent without one."""
-    if kernel_cached(module_file):
+    when they are not cached yet and they would compile here — background building off
+    (``ROBOISF_BACKGROUND_COMPILE=0``) — say once per process that the kernels are being built
+    and how long that takes (:data:`COMPILE_WAIT`), through :func:`roboisf.progress.set_notice`'s
+    hook, silent without one. With background building on, importing a kernel module compiles
+    nothing: the dispatch (:func:`roboisf.jit.ready`) runs numpy and says so when it starts the
+    builder; said here, the notice claimed a wait that did not come and, being the run's one
+    notice, kept the builder's from being said. (An explicit ``backend="numba"`` on an uncached
+    kernel then compiles without a notice.)"""
+    from roboisf.jit.background import background_enabled
+
+    if background_enabled() or kernel_cached(module_file):
         return
     notice_once(
         "building roboisf's compiled kernels (numba) for the first time — "
