@@ -271,3 +271,41 @@ def test_fixture_is_a_cone_of_the_paper(study):
     assert np.allclose(np.linalg.norm(n, axis=1), 1.0)
     assert per_point["thickness_predicted"].iloc[0] == pytest.approx(1.22 * np.cos(np.radians(71)))
     assert isinstance(per_point, pd.DataFrame)
+
+
+def test_light_report_modules_do_not_import_the_plotting_libraries():
+    """``roboisf analyze`` imports the history rows (:mod:`roboisf.report.iterations`) before
+    the analysis; the package's names load on first use, so matplotlib and plotly are not
+    imported then (0.4–0.5 s on the critical path: the pipeline loads them beside the scans).
+    The public names still resolve, and a submodule still imports by ``from … import``."""
+    import os
+    import pathlib
+    import subprocess
+    import sys
+
+    import roboisf
+
+    src = str(pathlib.Path(roboisf.__file__).resolve().parents[1])
+    code = (
+        "import sys\n"
+        "import roboisf.report.iterations, roboisf.report.page, roboisf.report.schema\n"
+        "import roboisf.report.style\n"
+        "heavy = [m for m in ('matplotlib', 'plotly', 'roboisf.report.document') "
+        "if m in sys.modules]\n"
+        "assert not heavy, heavy\n"
+        "import roboisf.report as r\n"
+        "from roboisf.report import render\n"
+        "assert callable(r.write_report) and r.FIGURES and r.REQUIRED_COLUMNS\n"
+        "assert 'matplotlib' in sys.modules and 'write_report' in dir(r)\n"
+        "try:\n"
+        "    r.no_such_name\n"
+        "except AttributeError as e:\n"
+        "    assert 'no_such_name' in str(e)\n"
+        "else:\n"
+        "    raise AssertionError('no AttributeError')\n"
+    )
+    env = {**os.environ, "PYTHONPATH": src}
+    res = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120
+    )
+    assert res.returncode == 0, res.stderr
