@@ -69,18 +69,21 @@ def _offer(
     X: F64, j0: int, j1: int, px: float, py: float, pz: float, best: F64, k1: int
 ) -> None:  # pragma: no cover - compiled
     """Rows ``j0 … j1 − 1`` of ``X`` offered to ``best``, the ``k1`` smallest squared
-    distances to ``p`` so far (ascending; x, y, z summed as scipy does)."""
+    distances to ``p`` so far (ascending; x, y, z summed as scipy does).
+
+    A distance below the largest is merged in without a data-dependent branch: from the top,
+    ``best[t] = min(best[t], max(best[t − 1], d²))`` shifts the larger ones up by one and puts
+    ``d²`` in its place — the array an insertion sort gives, without the mispredicted exit of
+    its shifting loop (1.15× on the paper cone's scan)."""
     for j in range(j0, j1):
         dx = X[j, 0] - px
         dy = X[j, 1] - py
         dz = X[j, 2] - pz
         d2 = dx * dx + dy * dy + dz * dz
         if d2 < best[k1 - 1]:
-            t = k1 - 1
-            while t > 0 and best[t - 1] > d2:
-                best[t] = best[t - 1]
-                t -= 1
-            best[t] = d2
+            for t in range(k1 - 1, 0, -1):
+                best[t] = min(best[t], max(best[t - 1], d2))
+            best[0] = min(best[0], d2)
 
 
 @_inline()
@@ -280,6 +283,84 @@ def _knn_mean_cells(
 
 
 @_njit()
+def _knn_mean_cells9(
+    X: F64,
+    start: NDArray[Any],
+    lo: F64,
+    h: float,
+    nx: int,
+    ny: int,
+    nz: int,
+    max_rings: int,
+    block: NDArray[np.int64],
+    ca: int,
+    cb: int,
+    out: F64,
+) -> None:  # pragma: no cover - compiled
+    """:func:`_knn_mean_cells` for ``k1 = 9`` (the filter's default k = 8, what the analysis
+    runs): the nine smallest squared distances are held in nine scalars (registers) instead
+    of an array, merged in by the branch-free min/max of :func:`_offer`. The same nine values
+    in the same order, so the same bits; 1.4–1.5× the array kernel on the paper cone's scan
+    (0.75–0.90 s against 1.13–1.23 s on one core, 1.68 M points)."""
+    k1 = 9
+    c0 = np.empty(27, dtype=np.int64)
+    c1 = np.empty(27, dtype=np.int64)
+    box = np.empty((27, 6))
+    best = np.empty(k1)
+    for c in range(ca, cb):
+        a0, a1 = start[c], start[c + 1]
+        if a0 == a1:
+            continue
+        ci = c // (ny * nz)
+        cj = (c // nz) % ny
+        ck = c % nz
+        m = 0
+        for q in range(27):
+            ii, jj, kk = ci + block[q, 0], cj + block[q, 1], ck + block[q, 2]
+            if ii < 0 or ii >= nx or jj < 0 or jj >= ny or kk < 0 or kk >= nz:
+                continue
+            e = (ii * ny + jj) * nz + kk
+            if start[e] == start[e + 1]:
+                continue
+            c0[m], c1[m] = start[e], start[e + 1]
+            box[m, 0], box[m, 1] = lo[0] + ii * h, lo[0] + (ii + 1) * h
+            box[m, 2], box[m, 3] = lo[1] + jj * h, lo[1] + (jj + 1) * h
+            box[m, 4], box[m, 5] = lo[2] + kk * h, lo[2] + (kk + 1) * h
+            m += 1
+        for i in range(a0, a1):
+            px, py, pz = X[i, 0], X[i, 1], X[i, 2]
+            b0 = b1 = b2 = b3 = b4 = b5 = b6 = b7 = b8 = np.inf
+            for q in range(m):
+                if q > 0:  # the own cell (q = 0) is always searched
+                    ex = max(box[q, 0] - px, 0.0, px - box[q, 1])
+                    ey = max(box[q, 2] - py, 0.0, py - box[q, 3])
+                    ez = max(box[q, 4] - pz, 0.0, pz - box[q, 5])
+                    if ex * ex + ey * ey + ez * ez > b8:
+                        continue
+                for j in range(c0[q], c1[q]):
+                    dx = X[j, 0] - px
+                    dy = X[j, 1] - py
+                    dz = X[j, 2] - pz
+                    d = dx * dx + dy * dy + dz * dz
+                    if d < b8:
+                        b8 = min(b8, max(b7, d))
+                        b7 = min(b7, max(b6, d))
+                        b6 = min(b6, max(b5, d))
+                        b5 = min(b5, max(b4, d))
+                        b4 = min(b4, max(b3, d))
+                        b3 = min(b3, max(b2, d))
+                        b2 = min(b2, max(b1, d))
+                        b1 = min(b1, max(b0, d))
+                        b0 = min(b0, d)
+            best[0], best[1], best[2], best[3], best[4] = b0, b1, b2, b3, b4
+            best[5], best[6], best[7], best[8] = b5, b6, b7, b8
+            if not _resolved(
+                best, k1, _unseen(px, py, pz, ci, cj, ck, 1, lo, h, nx, ny, nz), out, i
+            ):
+                _knn_mean(X, start, lo, h, nx, ny, nz, k1, max_rings, i, i + 1, out)
+
+
+@_njit()
 def _counting_sort(
     key: NDArray[Any], start: NDArray[Any]
 ) -> NDArray[Any]:  # pragma: no cover - compiled
@@ -419,9 +500,12 @@ def _sorted_mean(
     nw = max(1, min(workers or os.cpu_count() or 1, len(spans)))
 
     def run(span: tuple[int, int]) -> None:
-        _knn_mean_cells(
-            Xs, start, lo, h, nx, ny, nz, k + 1, MAX_RINGS, _BLOCK, span[0], span[1], ms
-        )
+        if k == 8:  # the default: the nine nearest in registers (the same bits)
+            _knn_mean_cells9(Xs, start, lo, h, nx, ny, nz, MAX_RINGS, _BLOCK, span[0], span[1], ms)
+        else:
+            _knn_mean_cells(
+                Xs, start, lo, h, nx, ny, nz, k + 1, MAX_RINGS, _BLOCK, span[0], span[1], ms
+            )
 
     if nw == 1:
         for sp in spans:

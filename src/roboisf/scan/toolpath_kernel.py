@@ -261,6 +261,7 @@ def build() -> None:
     X = rng.uniform(-0.05, 0.05, (500, 3))
     statistical_outliers(X)
     statistical_outliers(X, rows=np.arange(0, 500, 2))
-    mean_knn_distance(X, 8)
+    mean_knn_distance(X, 8)  # the default k: its own kernel (k + 1 = 9 in registers)
+    mean_knn_distance(X, 5)  # any other k
     dn = rng.normal(0.0, 1e-4, 500)
     contact_statistics(X, dn, X[:40], radius=0.01, k=16, trim=0.1)
