@@ -21,10 +21,14 @@ __all__ = ["RichProgress", "state"]
 
 
 class _State:
-    """Process-wide CLI verbosity (set by the root callback; -q → 0, default 1, -v → 2)."""
+    """Process-wide CLI verbosity (set by the root callback; -q → 0, default 1, -v → 2), and
+    whether the process is the command's own (``own_process``: set by the console script,
+    :func:`roboisf.cli.main.entry`; False when :func:`~roboisf.cli.main.main` is called inside
+    another program, whose process settings a command must then leave alone)."""
 
     def __init__(self) -> None:
         self.verbosity = 1
+        self.own_process = False
         self._out: Console | None = None
         self._err: Console | None = None
 

@@ -239,6 +239,7 @@ def entry() -> None:
     is ignored from then on; one escaping :func:`main` as KeyboardInterrupt gives 130."""
     import signal
 
+    state.own_process = True  # a command may set process-wide policies (plan: the C heap's)
     try:
         code = main()
     except KeyboardInterrupt:

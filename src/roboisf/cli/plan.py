@@ -156,6 +156,12 @@ def plan_cmd(
         raise InputError(f"must be ≥ 0, got {sigma_min}", field="--sigma-min")
     inputs = [p for p in (part, study, stiffness) if p is not None]
     output_dir(output, "plan", overwrite, [*inputs, *study_inputs(study)])
+    if state.own_process:
+        # each placement makes and drops the same temporaries: keep freed memory for the next
+        # one instead of faulting fresh pages in (numpy engine 9.0 → 7.8 s, docs/plan.md)
+        from roboisf.jit.heap import hold_freed_memory
+
+        hold_freed_memory()
     # the numeric stack only now: a bad option or a mistyped STUDY is reported at once
     import numpy as np
 

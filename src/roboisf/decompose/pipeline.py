@@ -15,7 +15,6 @@ compliance is not axisymmetric is assumed to have its FE x-axis along work x).
 
 from __future__ import annotations
 
-import functools
 import json
 import threading
 from dataclasses import dataclass, replace
@@ -56,6 +55,7 @@ from roboisf.errors import InputError
 from roboisf.fem import ComplianceResult
 from roboisf.frames import vertical_tool
 from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
+from roboisf.jit import heap
 from roboisf.logs.forcelog import ForceLog, attach_to_toolpath
 from roboisf.logs.jointlog import JointLog, read_joint_log
 from roboisf.logs.thickness import read_thickness_csv
@@ -347,25 +347,13 @@ def _logs_part(
     )
 
 
-@functools.cache
-def _malloc_trim() -> Any:
-    try:
-        import ctypes
-
-        return ctypes.CDLL("libc.so.6").malloc_trim  # glibc
-    except (OSError, AttributeError):
-        return None
-
-
 def _trim() -> None:
     """Give the heap's freed pages back to the system (glibc's ``malloc_trim``; a no-op
     elsewhere). After the logs and after each scan: numpy's large temporaries come from the
     heap once glibc's mmap threshold has grown, and their freed pages stayed resident under
     the next scan's peak (the command's peak RSS 1.04 → 0.86–1.0 GB on the paper cone, same
     time; a fixed mmap threshold instead cost 4 s of page faults)."""
-    trim = _malloc_trim()
-    if trim is not None:
-        trim(0)
+    heap.trim()
 
 
 class _ScansBeside:
