@@ -137,3 +137,41 @@ def test_parse_range():
         parse_range("0:5:1", "f")
     with pytest.raises(InputError, match="finite"):
         parse_range("1,inf", "f")
+
+
+@pytest.mark.parametrize("own_process", [True, False])
+def test_only_the_console_script_sets_the_heap_policy(
+    cone_toml, tmp_path, monkeypatch, own_process
+):
+    """``roboisf plan`` keeps freed memory for its next placement (a process-wide allocator
+    setting): in its own process only — ``main()`` called inside another program (as here)
+    leaves that program's allocator alone."""
+    from roboisf.cli.console import state
+    from roboisf.jit import heap
+
+    calls: list[int] = []
+    monkeypatch.setattr(heap, "hold_freed_memory", lambda: calls.append(1) or True)
+    monkeypatch.setattr(state, "own_process", own_process)
+    small = ["--x-range", "1800", "--y-range", "0", "--z-range", "200", "--serial"]
+    assert main(["plan", "--part", str(cone_toml), *small, "-o", str(tmp_path / "p")]) == 0
+    assert calls == ([1] if own_process else [])
+    assert state.own_process is own_process  # main() does not set it; entry() does
+
+
+def test_the_console_script_marks_its_process_as_the_commands(monkeypatch):
+    import signal
+
+    import roboisf.cli.main as cli_main
+    from roboisf.cli.console import state
+
+    seen: list[bool] = []
+    monkeypatch.setattr(cli_main, "main", lambda: seen.append(state.own_process) or 0)
+    monkeypatch.setattr(state, "own_process", False)
+    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        with pytest.raises(SystemExit) as e:
+            cli_main.entry()
+    finally:
+        for s, h in handlers.items():  # entry() ignores both signals once it has decided
+            signal.signal(s, h)
+    assert e.value.code == 0 and seen == [True]
