@@ -128,8 +128,14 @@ def main() -> None:
     args_ = (Xs, start, lo, h, *shape, k + 1, knn_kernel.MAX_RINGS)
     mc, mr = np.empty(n), np.empty(n)
 
-    def by_cell() -> None:
-        knn_kernel._knn_mean_cells(*args_, knn_kernel._BLOCK, 0, start.size - 1, mc)
+    def by_cell() -> None:  # the default k's kernel (k = 8); any other k: the ring search
+        if k == 8:
+            knn_kernel._knn_mean_cells9(
+                Xs, start, lo, h, *shape, knn_kernel.MAX_RINGS, knn_kernel._BLOCK, 0,
+                start.size - 1, mc,
+            )  # fmt: skip
+        else:
+            knn_kernel._knn_mean(*args_, 0, n, mc)
 
     def by_ring() -> None:
         knn_kernel._knn_mean(*args_, 0, n, mr)

@@ -534,11 +534,12 @@ def test_compare_scan_on_a_mesh_part_equals_the_steps_composed():
         np.testing.assert_array_equal(getattr(res.points, name)[a], getattr(wall, name)[b])
 
 
-def test_the_default_k_kernel_equals_the_general_one_bit_for_bit():
+def test_the_default_k_kernel_equals_the_ring_search_bit_for_bit():
     """k = 8 (the filter's default) runs its own kernel, the nine nearest held in registers;
-    the general kernel (any k, an array) on the same grid gives the same bits — on a scan with
-    stray points, so the ring search after the block is taken too — and both equal scipy's
-    k-d tree to the last bits of their mean."""
+    the ring search (any k, an array: what other k run) on the same grid gives the same bits —
+    on a scan with stray points, so the rings after the block are taken too — and both equal
+    scipy's k-d tree to the last bits of their mean; another k through the public function
+    equals the tree too."""
     from scipy.spatial import cKDTree
 
     from roboisf.scan import knn_kernel
@@ -549,15 +550,18 @@ def test_the_default_k_kernel_equals_the_general_one_bit_for_bit():
     X = np.vstack([s.points, [[0.3, 0.3, 0.2], [0.3, 0.3, 0.2005]]])  # two strays far off
     lo, h, shape, key, start = knn_kernel._grid(X, 8, knn_kernel.MAX_CELLS)
     Xs = np.ascontiguousarray(X[knn_kernel._counting_sort(key, start)])
-    n_cells = start.size - 1
-    general, nine = np.empty(len(X)), np.empty(len(X))
+    ring, nine = np.empty(len(X)), np.empty(len(X))
     args = (Xs, start, lo, h, *shape)
-    knn_kernel._knn_mean_cells(
-        *args, 9, knn_kernel.MAX_RINGS, knn_kernel._BLOCK, 0, n_cells, general
+    knn_kernel._knn_mean(*args, 9, knn_kernel.MAX_RINGS, 0, len(X), ring)
+    knn_kernel._knn_mean_cells9(
+        *args, knn_kernel.MAX_RINGS, knn_kernel._BLOCK, 0, start.size - 1, nine
     )
-    knn_kernel._knn_mean_cells9(*args, knn_kernel.MAX_RINGS, knn_kernel._BLOCK, 0, n_cells, nine)
-    assert np.isnan(nine).sum() == np.isnan(general).sum() >= 2  # the strays: left to the tree
-    np.testing.assert_array_equal(nine, general)
+    assert np.isnan(nine).sum() == np.isnan(ring).sum() >= 2  # the strays: left to the tree
+    np.testing.assert_array_equal(nine, ring)
     d, _ = cKDTree(Xs).query(Xs, k=9)
     ok = ~np.isnan(nine)
     np.testing.assert_allclose(nine[ok], d[ok, 1:].mean(axis=1), rtol=1e-14, atol=0)
+    d5, _ = cKDTree(X).query(X, k=6)
+    np.testing.assert_allclose(
+        knn_kernel.mean_knn_distance(X, 5), d5[:, 1:].mean(axis=1), rtol=1e-14, atol=0
+    )

@@ -103,9 +103,10 @@ def test_kernels_are_the_optional_numba_ones():
 
 @needs_numba
 def test_outlier_knn_by_query_cell_equals_the_ring_search():
-    """The cell-by-cell k-NN (one neighbour-cell list per query cell) gives the ring search's
-    bits for every point: a dense scan patch, a sparse line (points resolved only in rings
-    beyond the 3 × 3 × 3 block), duplicates and strays (left to the k-d tree: NaN in both)."""
+    """The cell-by-cell k-NN of the default k (one neighbour-cell list per query cell, the nine
+    nearest in registers) gives the ring search's bits for every point: a dense scan patch, a
+    sparse line (points resolved only in rings beyond the 3 × 3 × 3 block), duplicates and
+    strays (left to the k-d tree: NaN in both)."""
     rng = np.random.default_rng(7)
     patch = np.column_stack([rng.uniform(0, 0.02, (60_000, 2)), rng.normal(0, 2e-5, 60_000)])
     x = np.arange(0, 0.02, 0.5e-3)
@@ -120,7 +121,9 @@ def test_outlier_knn_by_query_cell_equals_the_ring_search():
     ring, cells = np.empty(n), np.empty(n)
     args = (Xs, start, lo, h, *shape, k + 1, knn_kernel.MAX_RINGS)
     knn_kernel._knn_mean(*args, 0, n, ring)
-    knn_kernel._knn_mean_cells(*args, knn_kernel._BLOCK, 0, start.size - 1, cells)
+    knn_kernel._knn_mean_cells9(
+        Xs, start, lo, h, *shape, knn_kernel.MAX_RINGS, knn_kernel._BLOCK, 0, start.size - 1, cells
+    )
     np.testing.assert_array_equal(cells, ring)  # NaN where both leave it to the tree
     assert 2 <= np.isnan(ring).sum() <= 20  # the strays and the line's ends
     # on the line (0.5 mm spacing, ~0.4 mm cells) the neighbours lie beyond the block

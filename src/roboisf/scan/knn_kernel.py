@@ -214,75 +214,6 @@ _BLOCK = np.array(
 
 
 @_njit()
-def _knn_mean_cells(
-    X: F64,
-    start: NDArray[Any],
-    lo: F64,
-    h: float,
-    nx: int,
-    ny: int,
-    nz: int,
-    k1: int,
-    max_rings: int,
-    block: NDArray[np.int64],
-    ca: int,
-    cb: int,
-    out: F64,
-) -> None:  # pragma: no cover - compiled
-    """:func:`_knn_mean` of the points of cells ``ca … cb − 1``, query cell by query cell.
-
-    The non-empty cells of the 3 × 3 × 3 block around a query cell (their row ranges and
-    boxes) are listed once for all its points, so a point visits only those (pruned by their
-    box distance, as the ring search does) instead of walking 27 cells; the stop test after
-    the block is the ring search's after ring 1. A point not resolved by the block (its k-th
-    distance beyond the block's faces) is finished by :func:`_knn_mean` itself — the same
-    k + 1 smallest squared distances, summed in the same order, so the same bits.
-    """
-    c0 = np.empty(27, dtype=np.int64)
-    c1 = np.empty(27, dtype=np.int64)
-    box = np.empty((27, 6))
-    best = np.empty(k1)
-    for c in range(ca, cb):
-        a0, a1 = start[c], start[c + 1]
-        if a0 == a1:
-            continue
-        ci = c // (ny * nz)
-        cj = (c // nz) % ny
-        ck = c % nz
-        m = 0
-        for q in range(27):
-            ii, jj, kk = ci + block[q, 0], cj + block[q, 1], ck + block[q, 2]
-            if ii < 0 or ii >= nx or jj < 0 or jj >= ny or kk < 0 or kk >= nz:
-                continue
-            e = (ii * ny + jj) * nz + kk
-            if start[e] == start[e + 1]:
-                continue
-            c0[m], c1[m] = start[e], start[e + 1]
-            box[m, 0], box[m, 1] = lo[0] + ii * h, lo[0] + (ii + 1) * h
-            box[m, 2], box[m, 3] = lo[1] + jj * h, lo[1] + (jj + 1) * h
-            box[m, 4], box[m, 5] = lo[2] + kk * h, lo[2] + (kk + 1) * h
-            m += 1
-        for i in range(a0, a1):
-            px, py, pz = X[i, 0], X[i, 1], X[i, 2]
-            for t in range(k1):
-                best[t] = np.inf
-            for q in range(m):
-                if q > 0:  # the own cell (q = 0) is always searched
-                    ex = max(box[q, 0] - px, 0.0, px - box[q, 1])
-                    ey = max(box[q, 2] - py, 0.0, py - box[q, 3])
-                    ez = max(box[q, 4] - pz, 0.0, pz - box[q, 5])
-                    if ex * ex + ey * ey + ez * ez > best[k1 - 1]:
-                        continue
-                _offer(X, c0[q], c1[q], px, py, pz, best, k1)
-            # every point not seen is outside the block (its faces inside the grid)
-            if not _resolved(
-                best, k1, _unseen(px, py, pz, ci, cj, ck, 1, lo, h, nx, ny, nz), out, i
-            ):
-                # rings beyond the block (or the caller's k-d tree)
-                _knn_mean(X, start, lo, h, nx, ny, nz, k1, max_rings, i, i + 1, out)
-
-
-@_njit()
 def _knn_mean_cells9(
     X: F64,
     start: NDArray[Any],
@@ -297,11 +228,21 @@ def _knn_mean_cells9(
     cb: int,
     out: F64,
 ) -> None:  # pragma: no cover - compiled
-    """:func:`_knn_mean_cells` for ``k1 = 9`` (the filter's default k = 8, what the analysis
-    runs): the nine smallest squared distances are held in nine scalars (registers) instead
-    of an array, merged in by the branch-free min/max of :func:`_offer`. The same nine values
-    in the same order, so the same bits; 1.4–1.5× the array kernel on the paper cone's scan
-    (0.75–0.90 s against 1.13–1.23 s on one core, 1.68 M points)."""
+    """:func:`_knn_mean` (``k1 = 9``: the filter's default k = 8, what the analysis runs) of
+    the points of cells ``ca … cb − 1``, query cell by query cell.
+
+    The non-empty cells of the 3 × 3 × 3 block around a query cell (their row ranges and
+    boxes) are listed once for all its points, so a point visits only those (pruned by their
+    box distance, as the ring search does) instead of walking 27 cells; the stop test after
+    the block is the ring search's after ring 1. A point not resolved by the block (its k-th
+    distance beyond the block's faces) is finished by :func:`_knn_mean` itself. The nine
+    smallest squared distances are held in nine scalars (registers), merged in by the
+    branch-free min/max of :func:`_offer`: the same nine values in the same order as the ring
+    search, so the same bits. On the paper cone's 1.68 M wall points, one core: 0.75–0.77 s
+    against 1.13–1.23 s for this block search with an array and an insertion sort (the kernel
+    it replaced) and 0.97 s for the ring search; any other k runs the ring search (0.73 s at
+    k = 5, 1.37 s at k = 12), which the default kernel compiles anyway as its fallback —
+    a second block kernel for them cost the background build 2.5 s."""
     k1 = 9
     c0 = np.empty(27, dtype=np.int64)
     c1 = np.empty(27, dtype=np.int64)
@@ -500,12 +441,11 @@ def _sorted_mean(
     nw = max(1, min(workers or os.cpu_count() or 1, len(spans)))
 
     def run(span: tuple[int, int]) -> None:
-        if k == 8:  # the default: the nine nearest in registers (the same bits)
+        if k == 8:  # the default: the nine nearest in registers, query cell by query cell
             _knn_mean_cells9(Xs, start, lo, h, nx, ny, nz, MAX_RINGS, _BLOCK, span[0], span[1], ms)
-        else:
-            _knn_mean_cells(
-                Xs, start, lo, h, nx, ny, nz, k + 1, MAX_RINGS, _BLOCK, span[0], span[1], ms
-            )
+        else:  # any other k: the ring search over the cells' rows (the same neighbours)
+            a, b = int(start[span[0]]), int(start[span[1]])
+            _knn_mean(Xs, start, lo, h, nx, ny, nz, k + 1, MAX_RINGS, a, b, ms)
 
     if nw == 1:
         for sp in spans:
