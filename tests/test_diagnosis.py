@@ -562,3 +562,19 @@ def test_bootstrap_solves_all_at_once_as_lstsq_one_by_one():
     np.testing.assert_allclose(_solve_many(G, h), one_by_one, rtol=1e-12, atol=1e-12)
     x = _solve_many(G[-1:], h[-1:])[0]
     assert x[3] == 0.0 and abs(x[0] - x[2]) < 1e-12  # the minimum norm splits equal columns
+
+
+def test_bootstrap_rms_through_the_gram_matrix_equals_the_direct_sum():
+    """The moment-crosstalk interval's replicates: sqrt(mean |X Bᵀ|²) per coefficient set,
+    through XᵀX once, equal the per-replicate product to rounding — with forces of a forming
+    run's size, a constant column, a zero column, and a coefficient set that nearly cancels."""
+    from roboisf.decompose.diagnose import _rms_fitted
+
+    rng = np.random.default_rng(3)
+    M = 5000
+    F = rng.normal(0.0, 400.0, (M, 2)) + np.array([900.0, -300.0])
+    for X in (np.column_stack([F, np.ones(M)]), np.column_stack([F, np.zeros(M)])):
+        B = rng.normal(0.0, 1e-3, (50, 3, 3))
+        B[0] = [[1e-3, 1e-3, -1e-3 * (900.0 - 300.0)]] * 3  # small residual, large terms
+        direct = np.array([np.sqrt(np.mean(np.sum((X @ b.T) ** 2, 1))) for b in B])
+        np.testing.assert_allclose(_rms_fitted(X, B), direct, rtol=1e-9)
