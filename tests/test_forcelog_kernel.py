@@ -27,6 +27,27 @@ def test_row_norms_same_bits() -> None:
     np.testing.assert_array_equal(kernel.row_norms(W, 0, c), np.linalg.norm(W[:, :3] - c, axis=1))
 
 
+def test_numpy_row_norms_same_bits() -> None:
+    """The numpy form (a first run, the plain install): the same bits as ``np.linalg.norm``
+    and the compiled kernel, with and without a centre, on the force and the moment columns,
+    and on a non-contiguous (strided) wrench."""
+    _, W = _log(50_000, 6)
+    c = np.array([0.3, -1.7, 2.9])
+    for X in (W, np.asfortranarray(W), W[::2]):
+        np.testing.assert_array_equal(
+            forcelog.row_norms_numpy(X, 0), np.linalg.norm(X[:, :3], axis=1)
+        )
+        np.testing.assert_array_equal(
+            forcelog.row_norms_numpy(X, 3), np.linalg.norm(X[:, 3:], axis=1)
+        )
+        np.testing.assert_array_equal(
+            forcelog.row_norms_numpy(X, 0, c), np.linalg.norm(X[:, :3] - c, axis=1)
+        )
+        np.testing.assert_array_equal(
+            forcelog.row_norms_numpy(X, 0, c), kernel.row_norms(np.ascontiguousarray(X), 0, c)
+        )
+
+
 def test_running_integral_at_same_bits() -> None:
     t, W = _log(20_000, 2)
     full = forcelog._cumulative_integral(t, W)

@@ -42,6 +42,9 @@ __all__ = ["RobotModel"]
 
 F64 = NDArray[np.float64]
 
+#: Rows per block of :meth:`RobotModel.tip_positions`' numpy path.
+_FK_BLOCK = 32_768
+
 
 def _ro(a: ArrayLike, shape: tuple[int, ...], name: str) -> F64:
     arr = np.array(a, dtype=float)
@@ -220,7 +223,14 @@ class RobotModel:
         qv = self.check_q(q, limits=check_limits)
         b = self.backend if backend is None else vjm_kernel.check_backend(backend)
         if not vjm_kernel.use_numba(b):
-            return self.fk(qv, check_limits=False, T_base_work=T_base_work)[:, :3, 3].copy()
+            # in blocks: each row's FK is elementwise, so the same numbers as one call, but the
+            # ~40 temporaries of a block stay in cache and are reused instead of faulting fresh
+            # pages in (a 573 k-sample joint log: 0.30–0.79 → 0.15–0.17 s)
+            out = np.empty((qv.shape[0], 3))
+            for i in range(0, qv.shape[0], _FK_BLOCK):
+                Tb = self.fk(qv[i : i + _FK_BLOCK], check_limits=False, T_base_work=T_base_work)
+                out[i : i + _FK_BLOCK] = Tb[:, :3, 3]
+            return out
         from roboisf.robot import fk_numba
 
         F = self.chain.F.copy()

@@ -166,12 +166,13 @@ class Conditioning:
 
 def _distances(W: F64, level: F64) -> F64:
     """``|F − level|`` per sample (N,) for the force columns of ``W`` (N, ≥3): one compiled pass
-    with numba (the same bits as ``np.linalg.norm(F − level, axis=1)``, tested), else numpy."""
-    from roboisf.logs.forcelog import log_kernel
+    with numba (the same bits as ``np.linalg.norm(F − level, axis=1)``, tested), else numpy's
+    column-wise form (the same bits)."""
+    from roboisf.logs.forcelog import log_kernel, row_norms_numpy
 
     kern = log_kernel()
     if kern is None:
-        return np.asarray(np.linalg.norm(W[:, :3] - level, axis=1))
+        return row_norms_numpy(W, 0, level)
     return np.asarray(kern.row_norms(W, 0, level))
 
 

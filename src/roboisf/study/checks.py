@@ -72,11 +72,11 @@ def _magnitude(log: ForceLog, first: int) -> F64:
     """|F| (``first`` = 0) or |M| (3) per sample (N,): compiled with numba (the same bits as
     ``np.linalg.norm(log.force, axis=1)``, without its (N, 3) temporaries), else numpy. One at
     a time: the two (N,) arrays of a 1 kHz paper log were 37 MB at the analysis's peak."""
-    from roboisf.logs.forcelog import log_kernel
+    from roboisf.logs.forcelog import log_kernel, row_norms_numpy
 
     kern = log_kernel()
     if kern is None:
-        return np.asarray(np.linalg.norm(log.wrench[:, first : first + 3], axis=1))
+        return row_norms_numpy(log.wrench, first)
     return np.asarray(kern.row_norms(log.wrench, first))
 
 
