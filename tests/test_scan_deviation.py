@@ -565,3 +565,22 @@ def test_the_default_k_kernel_equals_the_ring_search_bit_for_bit():
     np.testing.assert_allclose(
         knn_kernel.mean_knn_distance(X, 5), d5[:, 1:].mean(axis=1), rtol=1e-14, atol=0
     )
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "field"),
+    [
+        ({"outlier_k": -3}, "outlier_k"),  # once taken as 0: the filter silently off
+        ({"outlier_std": math.nan}, "outlier_std"),
+        ({"outlier_std": 0.0}, "outlier_std"),
+        ({"radius": -1e-3}, "radius"),
+    ],
+)
+def test_compare_options_refuse_bad_filter_settings(kwargs, field):
+    with pytest.raises(InputError) as e:
+        CompareOptions(**kwargs)
+    assert e.value.field == field
+
+
+def test_compare_options_ignore_the_threshold_of_a_filter_that_is_off():
+    assert CompareOptions(outlier_k=0, outlier_std=math.nan).outlier_k == 0

@@ -91,6 +91,15 @@ class CompareOptions:
                 raise InputError(f"must be > 0 mm, got {v * 1e3:g}", field=name)
         if self.min_points < 1 or self.max_points < self.min_points:
             raise InputError("need 1 ≤ min_points ≤ max_points", field="min_points")
+        if self.outlier_k < 0:  # a negative k was taken as 0: the filter silently off
+            raise InputError(
+                f"must be ≥ 0 neighbours (0: no outlier filter), got {self.outlier_k}",
+                field="outlier_k",
+            )
+        if self.outlier_k > 0 and not (math.isfinite(self.outlier_std) and self.outlier_std > 0):
+            raise InputError(
+                f"must be > 0 standard deviations, got {self.outlier_std:g}", field="outlier_std"
+            )
 
 
 @dataclass(frozen=True)
