@@ -91,3 +91,17 @@ def test_unloaded_samples_and_condition_unchanged(monkeypatch: pytest.MonkeyPatc
     np.testing.assert_array_equal(
         conditioning.condition_wrench(t, W, conditioning.Conditioning("auto", None))[0], tared
     )
+
+
+def test_row_norms_takes_the_numpy_form_on_a_cold_cache(monkeypatch: pytest.MonkeyPatch) -> None:
+    """One entry for both engines (the conditioning's distances, the log check's |F| and |M|):
+    kernels not built yet → the numpy form, with the compiled pass's bits."""
+    _, W = _log(20_000, 7)
+    c = np.array([1.0, 2.0, -3.0])
+    warm = forcelog.row_norms(W, 0, c)
+    calls: list[int] = []
+    numpy_form = forcelog.row_norms_numpy
+    monkeypatch.setattr(forcelog, "_KERNEL", False)  # as log_kernel() decides on a cold cache
+    monkeypatch.setattr(forcelog, "row_norms_numpy", lambda *a: calls.append(1) or numpy_form(*a))
+    np.testing.assert_array_equal(conditioning._distances(W, c), warm)
+    assert calls == [1]

@@ -158,7 +158,7 @@ def plan_cmd(
     output_dir(output, "plan", overwrite, [*inputs, *study_inputs(study)])
     if state.own_process:
         # each placement makes and drops the same temporaries: keep freed memory for the next
-        # one instead of faulting fresh pages in (numpy engine 9.0 → 7.8 s, docs/plan.md)
+        # one instead of faulting fresh pages in (numpy engine 9.0 → 7.6 s, docs/plan.md)
         from roboisf.jit.heap import hold_freed_memory
 
         hold_freed_memory()

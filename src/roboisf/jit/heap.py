@@ -12,8 +12,8 @@ over and over touches fresh pages each time; on this project's 2-core VM a fresh
   times (``roboisf plan``: an IK and VJM pass over the whole toolpath per placement, a few
   hundred 0.3–3 MB temporaries each): freed memory stays in the heap for the next placement.
   On the cone's default grid (175 placements, 34 825 points) it took the numpy engine (a new
-  install's first ``plan``) from 0.92 M to 0.05 M page faults and 9.0 → 7.8 s, the compiled
-  one 4.4 → 4.1 s, for a peak RSS 0.23 → 0.27 GB (2 vCPUs, 2026-11-28).
+  install's first ``plan``) from 0.92 M to 0.05 M page faults and 9.0 → 7.6 s, the compiled
+  one 4.4 → 4.2–4.4 s, for a peak RSS 0.23 → 0.27 GB (2 vCPUs, 2026-11-28).
 """
 
 from __future__ import annotations

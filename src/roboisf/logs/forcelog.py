@@ -688,12 +688,23 @@ def log_kernel() -> Any:
 _KERNEL: Any = None
 
 
+def row_norms(X: F64, j: int = 0, centre: ArrayLike | None = None) -> F64:
+    """``|X[:, j:j+3] − centre|`` per row (N,) of a log's wrench X (N, ≥ j + 3); ``centre``
+    (3,) defaults to 0 — |F| (j = 0) or |M| (j = 3), or the distance from a force level. The
+    compiled pass of :func:`roboisf.logs.forcelog_kernel.row_norms` when its kernels are ready,
+    else :func:`row_norms_numpy`; both give the bits of ``np.linalg.norm(…, axis=1)`` without
+    its (N, 3) temporaries (tests/test_forcelog_kernel.py)."""
+    kern = log_kernel()
+    if kern is None:
+        return row_norms_numpy(X, j, centre)
+    return np.asarray(kern.row_norms(X, j, centre))
+
+
 def row_norms_numpy(X: F64, j: int = 0, centre: ArrayLike | None = None) -> F64:
-    """``|X[:, j:j+3] − centre|`` per row (N,) with numpy, column by column: the numpy form of
-    :func:`roboisf.logs.forcelog_kernel.row_norms` (a new install's first run, the plain
-    install) — the same bits as ``np.linalg.norm(X[:, j:j+3] − centre, axis=1)`` (squares
-    summed x, y, z in that order) without its (N, 3) temporaries and strided reduction: 3–4×
-    faster on a 2.3 M-sample log. ``centre`` (3,) defaults to 0."""
+    """:func:`row_norms` with numpy, column by column (a new install's first run, the plain
+    install): squares summed x, y, z in that order, as ``np.linalg.norm(X[:, j:j+3] − centre,
+    axis=1)`` does, without its (N, 3) temporaries and strided reduction — 3–4× faster on a
+    2.3 M-sample log."""
     c = np.zeros(3) if centre is None else np.asarray(centre, dtype=float)
     out = np.subtract(X[:, j], c[0])
     out *= out

@@ -165,15 +165,12 @@ class Conditioning:
 
 
 def _distances(W: F64, level: F64) -> F64:
-    """``|F − level|`` per sample (N,) for the force columns of ``W`` (N, ≥3): one compiled pass
-    with numba (the same bits as ``np.linalg.norm(F − level, axis=1)``, tested), else numpy's
-    column-wise form (the same bits)."""
-    from roboisf.logs.forcelog import log_kernel, row_norms_numpy
+    """``|F − level|`` per sample (N,) for the force columns of ``W`` (N, ≥3)
+    (:func:`roboisf.logs.forcelog.row_norms`: the bits of ``np.linalg.norm(F − level,
+    axis=1)``)."""
+    from roboisf.logs.forcelog import row_norms
 
-    kern = log_kernel()
-    if kern is None:
-        return row_norms_numpy(W, 0, level)
-    return np.asarray(kern.row_norms(W, 0, level))
+    return row_norms(W, 0, level)
 
 
 def unloaded_samples(time: F64, W: F64, *, min_samples: int = 25) -> slice | None:

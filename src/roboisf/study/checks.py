@@ -69,15 +69,12 @@ def check_tool_radius(ball_diameter: float, tp: Toolpath, *, study_file: Path) -
 
 
 def _magnitude(log: ForceLog, first: int) -> F64:
-    """|F| (``first`` = 0) or |M| (3) per sample (N,): compiled with numba (the same bits as
-    ``np.linalg.norm(log.force, axis=1)``, without its (N, 3) temporaries), else numpy. One at
+    """|F| (``first`` = 0) or |M| (3) per sample (N,) (:func:`roboisf.logs.forcelog.row_norms`:
+    the bits of ``np.linalg.norm(log.force, axis=1)`` without its (N, 3) temporaries). One at
     a time: the two (N,) arrays of a 1 kHz paper log were 37 MB at the analysis's peak."""
-    from roboisf.logs.forcelog import log_kernel, row_norms_numpy
+    from roboisf.logs.forcelog import row_norms
 
-    kern = log_kernel()
-    if kern is None:
-        return row_norms_numpy(log.wrench, first)
-    return np.asarray(kern.row_norms(log.wrench, first))
+    return row_norms(log.wrench, first)
 
 
 def check_force_log(
