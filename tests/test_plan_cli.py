@@ -167,6 +167,9 @@ def test_the_console_script_marks_its_process_as_the_commands(monkeypatch):
     seen: list[bool] = []
     monkeypatch.setattr(cli_main, "main", lambda: seen.append(state.own_process) or 0)
     monkeypatch.setattr(state, "own_process", False)
+    # the console script freezes the garbage collector's objects once the command is done
+    # (its shutdown skips them); not this test process's
+    monkeypatch.setattr(cli_main.gc, "freeze", lambda: seen.append("frozen"))
     handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         with pytest.raises(SystemExit) as e:
@@ -174,4 +177,20 @@ def test_the_console_script_marks_its_process_as_the_commands(monkeypatch):
     finally:
         for s, h in handlers.items():  # entry() ignores both signals once it has decided
             signal.signal(s, h)
-    assert e.value.code == 0 and seen == [True]
+    assert e.value.code == 0 and seen == [True, "frozen"]
+
+
+def test_the_console_script_exits_with_the_objects_frozen(tmp_path):
+    import subprocess
+    import sys
+
+    code = (
+        "import atexit, gc, sys\n"
+        "atexit.register(lambda: print('frozen at exit:', gc.get_freeze_count() > 0))\n"
+        "from roboisf.cli.main import entry\n"
+        "sys.argv = ['roboisf', '--version']\n"
+        "entry()\n"
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "frozen at exit: True" in r.stdout
