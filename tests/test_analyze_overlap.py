@@ -93,6 +93,31 @@ def test_a_refused_log_stops_the_scans_and_is_reported(small_cone_study, tmp_pat
     assert compared == ["cnc"]  # stopped at its next step: the second scan never started
 
 
+def test_an_error_after_the_logs_stops_the_scans_too(small_cone_study, tmp_path, monkeypatch):
+    # the tool's compliance (an FE model that may fail) and the fingerprint run after the logs
+    # while the scans may still run: an error there must not leave the scans' thread behind
+    study = _copy(small_cone_study, tmp_path)
+    started = threading.Event()
+    compared: list[str] = []
+    real = pipeline._compare
+
+    def slow_compare(study, cell, run, tp, progress):
+        started.set()
+        compared.append(run.name)
+        return real(study, cell, run, tp, progress)
+
+    def bad_fingerprint(s):
+        assert started.wait(10)
+        raise InputError("the tool file vanished", file=study / "tool_compliance.json")
+
+    monkeypatch.setattr(pipeline, "_compare", slow_compare)
+    monkeypatch.setattr(pipeline, "study_fingerprint", bad_fingerprint)
+    with pytest.raises(InputError, match="vanished"):
+        analyze(study)
+    assert _scan_threads() == []
+    assert compared == ["cnc"]
+
+
 def test_an_error_in_the_scan_thread_reaches_the_caller(small_cone_study, tmp_path):
     study = _copy(small_cone_study, tmp_path)
     (study / "robot_scan.ply").write_bytes(b"ply\nformat ascii 1.0\nelement vertex 2\nend_header\n")

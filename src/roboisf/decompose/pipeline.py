@@ -472,22 +472,31 @@ def _analyze(
     truth_file = truth_dir / "per_point.parquet"
     truth = _read_truth(truth_file) if truth_file.is_file() else None  # before the long work
     beside = _ScansBeside(study, cell, (cnc, rob), tp, progress, keep_points) if overlap else None
+    # everything before the scans' results inside: an error here (a refused log, a tool's FE
+    # model, Ctrl-C) stops the scans' thread at its next step, none outlives the analysis
     try:
         aligned, q, q_source, input_warnings, W_cnc, W_rob, unloaded = _logs_part(
             study, cell, tp, progress, tp_r if has_command else None
         )
         _trim()
+        with task(progress, "tool and holder compliance"):
+            k_tool, k_holder, k_t, k_th = tip_compliances(cell, progress=progress)
+        # deflections of the ball centre (the paper's reference: its normal motion forms the part)
+        R_ball = cell.tool.radius
+        tool_cnc = at_ball_centre(W_cnc @ k_t.T, R_ball)
+        tool_rob = at_ball_centre(W_rob @ k_t.T, R_ball)
+        holder_rob = at_ball_centre(W_rob @ k_th.T, R_ball)
+        # what needs only the logs, done while the scans may still run (≈ 0.1 s off the serial
+        # tail): the robot's joint compliance along the path and the inputs' fingerprint (which
+        # study and files these results came from: compensate --results checks it)
+        with task(progress, "robot VJM"):
+            k_c = cell.robot.compliance(q, T_base_work=cell.T_base_work)
+            vjm = at_ball_centre(np.einsum("nij,nj->ni", k_c, W_rob), R_ball)
+        fingerprint = study_fingerprint(study)
     except BaseException:
         if beside is not None:
             beside.cancel()
         raise
-    with task(progress, "tool and holder compliance"):
-        k_tool, k_holder, k_t, k_th = tip_compliances(cell, progress=progress)
-    # deflections of the ball centre (the paper's reference: its normal motion forms the part)
-    R_ball = cell.tool.radius
-    tool_cnc = at_ball_centre(W_cnc @ k_t.T, R_ball)
-    tool_rob = at_ball_centre(W_rob @ k_t.T, R_ball)
-    holder_rob = at_ball_centre(W_rob @ k_th.T, R_ball)
 
     if beside is not None:
         if beside.running():
@@ -507,10 +516,6 @@ def _analyze(
                 _trim()
     dev_c, dev_r = scans[cnc.name].toolpath, scans[rob.name].toolpath
     assert dev_c is not None and dev_r is not None
-
-    with task(progress, "robot VJM"):
-        k_c = cell.robot.compliance(q, T_base_work=cell.T_base_work)
-        vjm = at_ball_centre(np.einsum("nij,nj->ni", k_c, W_rob), R_ball)
 
     valid = dev_c.valid & dev_r.valid & (tp.depth > study.analysis.rim_band)
     cmd = command if has_command else None
@@ -540,8 +545,7 @@ def _analyze(
     # the summary's fields, in the file's order, as the steps below find them; built into the
     # typed AnalysisSummary once they are all known
     summary = _summary(study, cell, tp, d, k_c, W_used, valid, k_tool, k_holder, q_source, scans)
-    # which study and input files these results came from: compensate --results checks it
-    summary["fingerprint"] = study_fingerprint(study)
+    summary["fingerprint"] = fingerprint
     summary["warnings"].extend(input_warnings)
     summary["alignment"] = {name: a.to_dict() for name, a in aligned.items()}
     for entry in summary["alignment"].values():
