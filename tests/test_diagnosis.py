@@ -549,7 +549,7 @@ def test_unloaded_stretch_stays_off_the_path():
 def test_bootstrap_solves_all_at_once_as_lstsq_one_by_one():
     """The replicates' systems solved as a stack (one pseudo-inverse) give ``lstsq``'s
     minimum-norm solutions, a rank-deficient system (two equal columns, a zero one) included."""
-    from roboisf.decompose.diagnose import _solve, _solve_many
+    from roboisf.decompose.check import min_norm_solve, min_norm_solve_many
 
     rng = np.random.default_rng(5)
     X = rng.normal(size=(60, 4))
@@ -558,9 +558,9 @@ def test_bootstrap_solves_all_at_once_as_lstsq_one_by_one():
     X2 = np.c_[X[:, :2], X[:, :1], np.zeros(60)]  # rank 2
     G = np.concatenate([G, (X2.T @ X2)[None]])
     h = np.concatenate([h, rng.normal(size=(1, 4))])
-    one_by_one = np.array([_solve(g, v) for g, v in zip(G, h, strict=True)])
-    np.testing.assert_allclose(_solve_many(G, h), one_by_one, rtol=1e-12, atol=1e-12)
-    x = _solve_many(G[-1:], h[-1:])[0]
+    one_by_one = np.array([min_norm_solve(g, v) for g, v in zip(G, h, strict=True)])
+    np.testing.assert_allclose(min_norm_solve_many(G, h), one_by_one, rtol=1e-12, atol=1e-12)
+    x = min_norm_solve_many(G[-1:], h[-1:])[0]
     assert x[3] == 0.0 and abs(x[0] - x[2]) < 1e-12  # the minimum norm splits equal columns
 
 

@@ -265,3 +265,32 @@ def test_stiff_robot_is_not_observable(tmp_path):
     assert any("not identified" in w for w in s["warnings"])
     card = check_card(s)
     assert card is not None and card[2] == "not observable"
+
+
+def test_bootstrap_replicates_solved_as_one_stack_equal_the_point_level_fits():
+    """The identification's 2 × N_BOOT replicate fits are solved as a stack of per-lap normal
+    equations (one pseudo-inverse); the oracle refits each replicate on the points themselves,
+    each point weighted by how often its lap was drawn (numpy's lstsq on √w-scaled rows)."""
+    from roboisf.decompose.check import boot_weights
+    from roboisf.decompose.identify import identify_from_forming
+
+    rng = np.random.default_rng(11)
+    n_laps, per_lap, n_boot = 30, 40, 200
+    lap = np.repeat(np.arange(n_laps), per_lap)
+    A = rng.uniform(0.2, 1.0, (lap.size, 6)) * 1e3  # N·m of each joint's torque per unit
+    A[:, 2] += 0.5 * A[:, 1]  # correlated joints, as along a real path
+    K = np.array([3.0, 2.0, 2.5, 0.6, 0.5, 0.3]) * 1e6
+    c_true = (1 / K) * np.array([2.0, 0.5, 1.0, 3.0, 1.0, 0.7])  # not one scale of the nominal
+    y = A @ c_true + rng.normal(scale=2e-6, size=lap.size)
+    ident = identify_from_forming(A, y, np.ones(lap.size, bool), lap, K, n_boot=n_boot, seed=4)
+    assert ident.mode == "joints" and ident.identified.all()
+
+    W = boot_weights(n_laps, n_boot, 4)[:, lap]  # (n_boot, M): each point's lap's draw count
+    c_all = np.linalg.lstsq(A, y, rcond=None)[0]
+    boot = np.array(
+        [np.linalg.lstsq(A * np.sqrt(w)[:, None], y * np.sqrt(w), rcond=None)[0] for w in W]
+    )
+    np.testing.assert_allclose(ident.rel_se, boot.std(axis=0) / np.abs(c_all), rtol=1e-8)
+    lo, hi = np.percentile(boot, [2.5, 97.5], axis=0)
+    np.testing.assert_allclose(ident.K_ci, np.stack([1 / hi, 1 / lo], 1), rtol=1e-8)
+    np.testing.assert_allclose(ident.K, 1 / c_all, rtol=1e-9)

@@ -55,7 +55,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from roboisf.decompose.check import RATIO_TOLERANCE, lap_blocks, lap_index
+from roboisf.decompose.check import (
+    RATIO_TOLERANCE,
+    boot_weights,
+    lap_index,
+    lap_normal_equations,
+    min_norm_solve,
+    min_norm_solve_many,
+)
 
 if TYPE_CHECKING:
     from roboisf.sensor import UnloadedStretch
@@ -190,37 +197,6 @@ class Finding:
 # lap-block least squares
 
 
-def _lap_normal_equations(X: F64, y: F64, inv: NDArray[np.intp], L: int) -> tuple[F64, F64]:
-    """Per-lap ``XᵀX`` (L, k, k) and ``Xᵀy`` (L, k): a fit on any multiset of laps sums them."""
-    k = X.shape[1]
-    G = np.zeros((L, k, k))
-    np.add.at(G, inv, X[:, :, None] * X[:, None, :])
-    h = np.zeros((L, k))
-    np.add.at(h, inv, X * y[:, None])
-    return G, h
-
-
-def _solve(G: F64, h: F64) -> F64:
-    x, *_ = np.linalg.lstsq(G, h, rcond=None)
-    return np.asarray(x, dtype=float)
-
-
-def _solve_many(G: F64, h: F64) -> F64:
-    """:func:`_solve` of each system of a stack: ``G`` (B, k, k), ``h`` (B, k) → (B, k). The
-    same minimum-norm solutions (the pseudo-inverse with ``lstsq``'s default cut-off, singular
-    values ≤ k·eps of the largest dropped), equal to rounding; one batched SVD instead of B
-    ``lstsq`` calls (≈ 35 µs each in Python: 400 replicates × 7 fits per analysis)."""
-    k = G.shape[-1]
-    P = np.linalg.pinv(G, rcond=np.finfo(float).eps * k)
-    return np.asarray(np.einsum("bij,bj->bi", P, h), dtype=float)
-
-
-def _boot_weights(L: int, n_boot: int, seed: int) -> F64:
-    rng = np.random.default_rng(seed)
-    draws = lap_blocks(L, rng, n_boot)
-    return np.stack([np.bincount(d, minlength=L) for d in draws]).astype(float)
-
-
 def _lap_ls(
     X: F64,
     y: F64,
@@ -238,14 +214,14 @@ def _lap_ls(
     scale = np.linalg.norm(X, axis=0)
     scale[scale == 0] = 1.0
     Xs = X / scale
-    G, h = _lap_normal_equations(Xs, y, inv, L)
+    G, h = lap_normal_equations(Xs, y, inv, L)
     k = X.shape[1]
     pen = np.zeros(k) if penalty is None else np.asarray(penalty, dtype=float)
     p0 = np.zeros(k) if prior is None else np.asarray(prior, dtype=float) * scale
 
     def solve(M: F64, v: F64) -> F64:
         t = float(np.trace(M)) / k
-        return _solve(M + np.diag(pen * t), v + pen * t * p0)
+        return min_norm_solve(M + np.diag(pen * t), v + pen * t * p0)
 
     beta = solve(G.sum(axis=0), h.sum(axis=0)) / scale
     Gb = np.einsum("bl,lij->bij", weights, G)
@@ -254,7 +230,7 @@ def _lap_ls(
     tb = np.trace(Gb, axis1=1, axis2=2) / k
     pt = pen[None, :] * tb[:, None]  # (n_boot, k): pen · t of each replicate
     Gb[:, np.arange(k), np.arange(k)] += pt
-    boot = _solve_many(Gb, hb + pt * p0) / scale
+    boot = min_norm_solve_many(Gb, hb + pt * p0) / scale
     return beta, boot
 
 
@@ -499,15 +475,15 @@ def fit_sensor(
     Fc, Fr = W_cnc[sel, :3], W_rob[sel, :3]
     # deep half: the reference fit
     inv, L = lap_index(lp[deep])
-    weights = _boot_weights(L, n_boot, seed)
+    weights = boot_weights(L, n_boot, seed)
     beta, boot = _gain_fit(Fc[deep], Fr[deep], inv, L, weights)
     gain, b = float(beta[0]), beta[1:4]
     # shallow half: how much the processes themselves differ there
     inv_s, L_s = lap_index(lp[~deep])
-    G_s, h_s = _lap_normal_equations(
+    G_s, h_s = lap_normal_equations(
         _gain_design(Fc[~deep]), Fr[~deep].T.ravel(), np.tile(inv_s, 3), L_s
     )
-    g_sh = float(_solve(G_s.sum(0), h_s.sum(0))[0])
+    g_sh = float(min_norm_solve(G_s.sum(0), h_s.sum(0))[0])
     gap = g_sh / gain - 1 if gain else math.nan
     lo, hi = _pct(boot[:, 0])
     # the processes' difference fades with depth, so the deep half keeps some of it, on the
@@ -708,7 +684,7 @@ def fit_robot_term(
     # a rotation is seen when its column is not ~0 nor ~ a combination of the others
     rot_seen = bool(np.sqrt(np.mean(rot_col**2)) > 0.02 * rho)
     shift_cols = n[:, :2]
-    weights = _boot_weights(L, n_boot, seed)
+    weights = boot_weights(L, n_boot, seed)
 
     def model(cols: F64) -> tuple[F64, F64]:
         X = np.column_stack([cols, shift_cols] + ([rot_col] if rot_seen else []))
