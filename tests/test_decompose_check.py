@@ -221,3 +221,23 @@ def test_identification_fits_the_joints_it_can_and_holds_the_rest(robot_path):
     np.testing.assert_allclose(r.K[1:3], K_true[1:3], rtol=0.1)
     assert r.K[3] == K0[3]  # held at nominal
     assert "joints [4] carry" in r.observability() and "held at their nominal" in r.observability()
+
+
+def test_lap_normal_equations_are_np_add_at_bit_for_bit():
+    """Per-lap XᵀX and Xᵀy by bincount: the same additions in the same order as ``np.add.at``
+    (the reference), so the same bits — laps out of order, a lap without points, one column."""
+    from roboisf.decompose.check import lap_normal_equations
+
+    rng = np.random.default_rng(2)
+    for k in (6, 1):
+        X = rng.normal(size=(3000, k)) * 10.0 ** rng.integers(-6, 4, k)
+        y = rng.normal(size=3000)
+        inv = rng.integers(0, 40, 3000)
+        inv[inv == 7] = 8  # lap 7 has no point
+        G, h = lap_normal_equations(X, y, inv, 41)
+        G0 = np.zeros((41, k, k))
+        np.add.at(G0, inv, X[:, :, None] * X[:, None, :])
+        h0 = np.zeros((41, k))
+        np.add.at(h0, inv, X * y[:, None])
+        assert np.array_equal(G, G0) and np.array_equal(h, h0)
+        assert not G[7].any() and not G[40].any()

@@ -95,11 +95,15 @@ def lap_normal_equations(X: F64, y: F64, inv: NDArray[np.intp], L: int) -> tuple
     """Per-lap ``XᵀX`` (L, k, k) and ``Xᵀy`` (L, k) of ``X`` (M, k), ``y`` (M,) with each point's
     lap ``inv`` (M,) in ``0 … L − 1``: a fit on any multiset of laps sums them (the bootstrap,
     the held-out-lap checks) — the same least squares as on the points, at the cost of the laps."""
+    # per-lap sums by bincount: the same additions in the same (point) order as np.add.at, so
+    # the same bits, 2-3x faster; XᵀX's upper triangle only, mirrored (xᵢxⱼ = xⱼxᵢ exactly)
     k = X.shape[1]
-    G = np.zeros((L, k, k))
-    np.add.at(G, inv, X[:, :, None] * X[:, None, :])
-    h = np.zeros((L, k))
-    np.add.at(h, inv, X * y[:, None])
+    G = np.empty((L, k, k))
+    for i in range(k):
+        for j in range(i, k):
+            G[:, i, j] = np.bincount(inv, weights=X[:, i] * X[:, j], minlength=L)
+            G[:, j, i] = G[:, i, j]
+    h = np.stack([np.bincount(inv, weights=X[:, i] * y, minlength=L) for i in range(k)], axis=1)
     return G, h
 
 

@@ -276,8 +276,7 @@ def identify_from_forming(
     idx_id = np.flatnonzero(identified)
     cols_id = np.searchsorted(live_idx, idx_id)  # their columns in As
     y_fixed = y - _mv(Au[:, ~identified], c_nom[~identified])
-    h_fix = np.zeros((L, k))
-    np.add.at(h_fix, inv, As * y_fixed[:, None])
+    h_fix = lap_normal_equations(As, y_fixed, inv, L)[1]
     bb = np.bincount(inv, weights=b_nom * b_nom, minlength=L)
     by = np.bincount(inv, weights=b_nom * y, minlength=L)
 
