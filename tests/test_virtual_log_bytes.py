@@ -11,7 +11,13 @@ import pytest
 from roboisf.decompose.pipeline import analyze
 from roboisf.errors import InputError
 from roboisf.logs.forcelog import read_force_log
-from roboisf.virtual.cell import _interp_columns, build_study, paper_cone_cell, quantize_wrench
+from roboisf.virtual.cell import (
+    _interp_columns,
+    _intervals,
+    build_study,
+    paper_cone_cell,
+    quantize_wrench,
+)
 
 F_STEP, M_STEP = 2.0**-4, 2.0**-10
 
@@ -57,6 +63,16 @@ def test_log_columns_are_np_interp_bit_for_bit():
     np.testing.assert_array_equal(_interp_columns(tt, rep, vv)[:, 0], np.interp(tt, rep, vv[:, 0]))
     one = _interp_columns(t[:5], time[:1], values[:1])  # a single knot: constant
     np.testing.assert_array_equal(one, np.repeat(values[:1], 5, axis=0))
+    # a log's increasing clock (the intervals counted, not searched): knots held, times on the
+    # knots, before the first and after the last
+    clock = np.arange(-0.1, time[-1] + 0.1, 7e-4)
+    knots = np.sort(np.concatenate([time, time[::50], clock[100:110]]))  # repeats, shared times
+    vk = rng.normal(size=(knots.size, 2))
+    want = np.column_stack([np.interp(clock, knots, vk[:, c]) for c in range(2)])
+    np.testing.assert_array_equal(_interp_columns(clock, knots, vk), want)
+    j_counted = _intervals(clock, knots)[0]
+    j_searched = np.clip(np.searchsorted(knots, clock, side="right") - 1, 0, knots.size - 2)
+    np.testing.assert_array_equal(j_counted, j_searched)
 
 
 @pytest.mark.parametrize("part", ["cone", "vwacf"])
