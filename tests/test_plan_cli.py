@@ -194,3 +194,35 @@ def test_the_console_script_exits_with_the_objects_frozen(tmp_path):
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert "frozen at exit: True" in r.stdout
+
+
+@pytest.mark.parametrize("own_process", [True, False])
+def test_a_command_freezes_its_imports_only_in_its_own_process(monkeypatch, own_process):
+    import gc
+
+    from roboisf.cli.console import state
+
+    calls: list[int] = []
+    monkeypatch.setattr(gc, "freeze", lambda: calls.append(1))
+    monkeypatch.setattr(state, "own_process", own_process)
+    state.imports_done()
+    assert calls == ([1] if own_process else [])
+
+
+def test_analyze_freezes_its_imports_before_the_analysis(monkeypatch, tmp_path, small_cone_study):
+    # the console script's analyze: the libraries' objects frozen once imported, before the
+    # analysis allocates (its full collections then skip them)
+    import roboisf.cli.analyze as cli_analyze
+    from roboisf.cli.console import state
+    from roboisf.cli.main import main
+
+    order: list[str] = []
+    monkeypatch.setattr(state, "imports_done", lambda: order.append("frozen"))
+
+    def fake_analyze(*a, **k):
+        order.append("analysis")
+        raise KeyboardInterrupt  # stop here: main() reports it as exit 130
+
+    monkeypatch.setattr(cli_analyze, "_analyze_runs", fake_analyze)
+    code = main(["-q", "analyze", str(small_cone_study), "-o", str(tmp_path / "out")])
+    assert code == 130 and order == ["frozen", "analysis"]

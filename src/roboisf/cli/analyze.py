@@ -67,6 +67,7 @@ def analyze_command(
     output_dir(output, "analyze", overwrite, study_inputs(study))
     from roboisf.decompose.pipeline import write_results
 
+    state.imports_done()
     progress = state.progress()
     if _robot_only(study, run, output, progress):
         return

@@ -32,6 +32,16 @@ class _State:
         self._out: Console | None = None
         self._err: Console | None = None
 
+    def imports_done(self) -> None:
+        """A command's libraries are loaded: in the command's own process, move every object
+        alive now (modules, classes, functions: ~250 k with numba and pandas) to the garbage
+        collector's permanent generation, so its full collections during the run no longer
+        walk them (0.1 s of `roboisf analyze`'s GIL time). Nothing inside another program."""
+        if self.own_process:
+            import gc
+
+            gc.freeze()
+
     @property
     def out(self) -> Console:
         """The stdout console (created on first use)."""

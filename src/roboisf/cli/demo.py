@@ -134,6 +134,7 @@ def _second_process_context() -> Any:
 
     if threading.active_count() != 1:  # an import started a thread: not safe to fork after all
         return multiprocessing.get_context("spawn")
+    state.imports_done()  # the console script's: both processes' collections skip the modules
     return multiprocessing.get_context("fork")
 
 
