@@ -236,3 +236,44 @@ def test_force_sync_refuses_a_path_that_turns_back():
     t = np.arange(100) * 0.01
     with pytest.raises(InputError, match="turns back"):
         align_by_force(t, np.ones((100, 3)), tp)
+
+
+def test_force_anchors_keep_clear_of_the_flat_sides():
+    """Only turning points at least the margin away from every plateau's azimuth (a flat side
+    before and after a rounded corner) anchor the force map: a corner's first and last points
+    lie a hair off the sides' azimuths, where the measured direction's scatter reaches them
+    anywhere along a side."""
+    from roboisf.sync.force import _anchors
+
+    side = np.zeros(5)
+    corner = np.linspace(0.0, np.pi / 2, 12)[1:-1]  # a rounded corner's turning points
+    phi = np.concatenate([side, corner, side + np.pi / 2, np.pi / 2 + corner, side + np.pi])
+    a = _anchors(phi, 0.2)
+    assert not a[:5].any() and not a[15:20].any() and not a[-5:].any()  # sides: never
+    inside = (phi > 0.2) & (phi < np.pi / 2 - 0.2) | (phi > np.pi / 2 + 0.2) & (phi < np.pi - 0.2)
+    np.testing.assert_array_equal(a, inside)
+    # a path that turns everywhere (a cone) anchors every inner point
+    cone = np.linspace(0.0, 4 * np.pi, 200)
+    assert _anchors(cone, 0.2)[1:-1].all()
+
+
+def test_the_force_bias_is_read_mid_side_or_at_the_last_wall_stretch():
+    """Where the path has flat sides, the bias window is the middle half of the last one (the
+    clock's drift cannot move it off the side); a path that turns everywhere is read at the end
+    of its last stretch on a wall — not along a floor it ends on."""
+    from types import SimpleNamespace
+
+    from roboisf.sync.force import _bias_window
+
+    t = np.arange(40.0)
+    phi = np.concatenate([np.zeros(10), np.linspace(0, 1, 12)[1:-1], np.ones(20)])
+    wall = np.tile([1.0, 0.0, 0.0], (40, 1))
+    tp = SimpleNamespace(time=t, normal=wall)
+    lo, hi = _bias_window(tp, phi, 0.5)
+    assert (lo, hi) == (20 + 0.25 * 19, 39 - 0.25 * 19)  # the last side: points 20-39
+    # turning everywhere, ending with 6 floor points: the last wall point, 33
+    cone = np.linspace(0, 2 * np.pi, 40)
+    floor = wall.copy()
+    floor[34:] = [0.0, 0.0, 1.0]
+    tp = SimpleNamespace(time=t, normal=floor)
+    assert _bias_window(tp, cone, 0.5) == (33 - 0.5, 33.0)

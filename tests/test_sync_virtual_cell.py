@@ -142,3 +142,29 @@ def test_summary_names_files_relative_to_the_study(tmp_path):
     outside = tmp_path.parent / "elsewhere.csv"
     assert _in_study(outside, tmp_path) == str(outside.resolve())
     assert _in_study("", tmp_path) == ""
+
+
+@pytest.mark.slow
+def test_a_pyramid_run_is_timed_by_its_corners_from_a_drifting_clock(tmp_path):
+    """A pyramid's force direction stands still along each side and turns at the corners, its
+    first laps press too lightly to read and its last lap runs along the flat floor. The CNC
+    run's force alignment must time it (1 % fast clock, 5 s offset: scale and offset found, no
+    pause invented) and the diagnosis must blame nothing. It slipped early laps by quarter
+    turns and blamed the force sensor, the scan and the robot (robot/VJM 0.14-0.29) until the
+    bias was read off the floor and the anchors kept clear of the flat sides."""
+    from roboisf.virtual.cell import pyramid_cell
+
+    cell = pyramid_cell(
+        scan_points=60_000, force_rate=200.0, joint_rate=50.0, step_down=1e-3, spacing=1e-3
+    )
+    equipment = Equipment(clock_scale=1.01, offset=5.0)
+    study = build_study(cell, tmp_path / "pyramid", equipment=equipment)
+    result = analyze(study)
+    summary = result.summary.to_dict()
+    cnc = summary["alignment"]["cnc"]
+    assert cnc["method"] == "force"
+    assert abs(cnc["clock_scale"] - 1.01) < 2e-4 and abs(cnc["offset"] - 5.0) < 0.1, cnc
+    assert cnc["pauses"] == []
+    verdicts = {d["suspect"]: d["verdict"] for d in summary["diagnosis"]}
+    assert set(verdicts.values()) == {"ok"}, verdicts
+    assert abs(summary["vjm_check"]["ratio"] - 1.0) < 0.05

@@ -8,12 +8,15 @@ expected one, ``Φ_i`` (unwrapped azimuth of the horizontal normal). The map is
 
 1. contact: |F| (smoothed over half a toolpath point) above a quarter of its 90th percentile;
    onset = the toolpath's first point, release = its last;
-2. ``ψ(τ) = φ(τ) − b``, the constant ``b`` (which side the load is on, the friction share) from
-   the first point's worth of contact after the onset;
+2. ``ψ(τ) = φ(τ) − b``, the constant ``b`` (which side the load is on, the friction share)
+   where the expected direction is surest (:func:`_bias_window`: the middle of the last flat
+   side, else the end of the last stretch on a wall — not a flat floor the path ends on);
 3. ``ψ`` made monotone (mean of its running maximum and its reversed running minimum);
-4. each toolpath point's passage = the first time ``ψ`` reaches ``Φ_i``, at points where the
-   azimuth turns (both neighbours differ by more than :data:`TURN_MIN`); points on a flat wall
-   or a straight step-down (no turn) are interpolated in nominal time between such anchors.
+4. each toolpath point's passage = the first time ``ψ`` reaches ``Φ_i``, at anchors: points
+   where the azimuth turns (both neighbours differ by more than :data:`TURN_MIN`), at least a
+   margin (four times the direction's scatter) from every flat side's azimuth and passed in
+   contact (:func:`_anchors`); the other points are interpolated in nominal time between
+   anchors, and those before the first anchor extrapolated on the first anchors' clock line.
 
 Pauses show as a standing azimuth and are recovered wherever the path turns; a pause on a flat
 wall of a pyramid is not observable (it is spread over the wall). The residual per point is the
@@ -38,7 +41,9 @@ from roboisf.sync.alignment import Alignment, clock_fit, first_passage
 from roboisf.toolpath import Toolpath
 
 __all__ = [
+    "ANCHOR_MARGIN_MIN",
     "BACKWARD_MAX",
+    "BIAS_RUN",
     "FORCE_RESIDUAL_MAX",
     "TURN_MIN",
     "align_by_force",
@@ -50,6 +55,11 @@ F64 = NDArray[np.float64]
 #: Azimuth change [rad] between neighbouring toolpath points below which a point does not
 #: anchor the map (flat wall, vertical step-down).
 TURN_MIN = 1e-3
+#: Smallest distance [rad] from a plateau's azimuth (flat wall, step-down) at which a turning
+#: point anchors the map (:func:`_anchors`; the measured scatter raises it).
+ANCHOR_MARGIN_MIN = 0.01
+#: Consecutive wall points that make the stretch the force direction's bias is read at.
+BIAS_RUN = 5
 #: Largest backward swing of the force azimuth [rad] accepted as noise.
 BACKWARD_MAX = 0.3
 #: Largest accepted RMS residual [equivalent toolpath points] of a force alignment.
@@ -64,18 +74,95 @@ def _smooth(x: F64, w: int) -> F64:
     return np.asarray(uniform_filter1d(x, size=w, axis=0, mode="nearest"), dtype=float)
 
 
-def _passages(tau: F64, psi: F64, t_nom: F64, phi: F64) -> F64:
-    """Passage time of each entry of ``phi`` (non-decreasing), anchors where it turns."""
+def _anchors(phi: F64, margin: float) -> NDArray[np.bool_]:
+    """The entries of ``phi`` (non-decreasing expected azimuth) whose passage the force's own
+    azimuth can time: where the path turns (both neighbours differ by more than
+    :data:`TURN_MIN`) and at least ``margin`` [rad] away from the azimuth of every point where
+    it does not (a flat wall, a step-down: a plateau of ``phi``).
+
+    Near a plateau the first passage is ill-posed: along a flat wall the measured azimuth
+    scatters about the wall's, and a corner's first points lie a hair above it — noise reaches
+    them anywhere along the wall, up to a side of the part early (a pyramid's laps slipped by
+    quarter turns so, and the clock fit turned them into dozens of pauses). Inside a turn the
+    azimuth sweeps through at the tool's speed and the passage is sharp."""
     n = len(phi)
     d = np.diff(phi)
     turn = np.zeros(n, dtype=bool)
     turn[1:-1] = (d[:-1] > TURN_MIN) & (d[1:] > TURN_MIN)
+    flat = d <= TURN_MIN  # segments that do not turn: both their ends lie on a plateau
+    plateau = np.zeros(n, dtype=bool)
+    plateau[:-1] |= flat
+    plateau[1:] |= flat
+    idx = np.arange(n)
+    before = np.maximum.accumulate(np.where(plateau, idx, -1))  # last plateau point ≤ i
+    after = np.minimum.accumulate(np.where(plateau, idx, n)[::-1])[::-1]  # first ≥ i
+    low = np.where(before >= 0, phi[np.maximum(before, 0)], -np.inf)
+    high = np.where(after < n, phi[np.minimum(after, n - 1)], np.inf)
+    return turn & (phi - low > margin) & (high - phi > margin)
+
+
+def _passages(
+    tau: F64, psi: F64, t_nom: F64, phi: F64, margin: float, gap: float
+) -> tuple[F64, NDArray[np.bool_]]:
+    """Passage time of each entry of ``phi`` (non-decreasing), anchors inside its turns
+    (:func:`_anchors`), the rest interpolated in nominal time between them (and the first and
+    last entries at the first and last samples); and which entries are such anchors."""
+    n = len(phi)
+    anchor = _anchors(phi, margin)
+    anchor[0] = anchor[-1] = False  # the onset and the release: timed, but not by a turn
+    # a turn passed while the tool was off the sheet (a gap in the contact samples longer
+    # than ``gap``: along a flat bottom the force drops to nothing) is not timed by it
+    k = np.clip(np.searchsorted(psi, phi[anchor], side="left"), 1, len(psi) - 1)
+    anchor[np.flatnonzero(anchor)[tau[k] - tau[k - 1] > gap]] = False
+    turn = anchor.copy()
     turn[0] = turn[-1] = True
     out = np.empty(n)
     out[turn] = first_passage(tau, psi, np.clip(phi[turn], psi[0], psi[-1]))
     out[0], out[-1] = tau[0], tau[-1]
     out[~turn] = np.interp(t_nom[~turn], t_nom[turn], out[turn])
-    return np.maximum.accumulate(out)
+    return np.maximum.accumulate(out), anchor
+
+
+def _margin(psi: F64, w: int) -> float:
+    """How far [rad] from a plateau's azimuth a passage can be timed: four times the measured
+    azimuth's scatter (robust, from its changes over one smoothing window ``w`` samples, the
+    turning itself taken out by the median), at least :data:`ANCHOR_MARGIN_MIN`."""
+    lag = max(1, w)
+    if psi.size <= lag + 1:
+        return ANCHOR_MARGIN_MIN
+    dpsi = psi[lag:] - psi[:-lag]
+    sigma = 1.4826 * float(np.median(np.abs(dpsi - np.median(dpsi)))) / math.sqrt(2)
+    return max(ANCHOR_MARGIN_MIN, 4.0 * sigma)
+
+
+def _bias_window(toolpath: Toolpath, Phi: F64, span: float) -> tuple[float, float]:
+    """Nominal toolpath times [s] between which the force direction's bias is read.
+
+    Where the path has a flat wall (a plateau of ``Phi``: a pyramid's side), the middle half of
+    its last stretch of at least ``2 BIAS_RUN`` points on a wall: the expected direction is
+    constant there, so the log's clock rate, unknown yet, cannot move the window off it (read
+    from the release backwards, a 1 % clock over the last lap is a quarter second — across a
+    corner, a wrong bias). Else (a cone turns everywhere) ``span`` before the end of the last
+    run of :data:`BIAS_RUN` wall points (horizontal normal ≥ 0.5: the forming force's
+    horizontal direction is the wall's): the release itself when the path ends on a wall, as
+    a cone's does — not the floor of a path that ends along a flat bottom."""
+    t = toolpath.time
+    n = t.size
+    wall = np.linalg.norm(toolpath.normal[:, :2], axis=1) >= 0.5
+    still = (np.abs(np.diff(Phi)) <= TURN_MIN) & wall[1:] & wall[:-1]  # (n − 1,) segments
+    # runs of still segments: [start, stop) in segment indices
+    edges = np.diff(np.concatenate([[0], still.astype(np.int8), [0]]))
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    long = np.flatnonzero(stops - starts >= 2 * BIAS_RUN - 1)  # ≥ 2 BIAS_RUN points
+    if long.size:
+        a, b = float(t[starts[long[-1]]]), float(t[stops[long[-1]]])
+        return a + 0.25 * (b - a), b - 0.25 * (b - a)
+    if n >= BIAS_RUN:
+        full = np.convolve(wall.astype(np.int64), np.ones(BIAS_RUN, dtype=np.int64), "valid")
+        ends = np.flatnonzero(full == BIAS_RUN) + BIAS_RUN - 1
+        if ends.size:
+            return float(t[ends[-1]]) - span, float(t[ends[-1]])
+    return float(t[-1]) - span, float(t[-1])
 
 
 def expected_azimuth(toolpath: Toolpath, *, file: Path | None = None) -> tuple[F64, float]:
@@ -199,16 +286,26 @@ def align_by_force(
     sel = sel[contact[sel] & (tau[i0 : i1 + 1] <= t_rel)]
     tc = tau[sel]
     phi = sign * np.unwrap(np.arctan2(Fs[sel, 1], Fs[sel, 0]))
-    # the bias, from the last toolpath point's worth of contact before the release, on the raw
-    # forces (a smoothed direction lags where the tool turns fastest): the tool presses hardest
-    # at the end, while the first laps may carry too little force to read
-    win = tau[: r1 + 1] >= t_rel - max(dt_pt, 3 * dt_log)
+    # the bias, from the contact where the expected direction is surest (_bias_window: a flat
+    # wall's middle, else the end of the last stretch on a wall — the release on a cone),
+    # on the raw forces (a smoothed direction lags where the tool turns fastest): the tool
+    # presses hardest at the end, while the first laps may carry too little force to read. A
+    # path that ends along a flat bottom (a pyramid's last lap at its floor) has no wall
+    # direction there: the bias taken there was off by ~0.4 rad and slipped the early laps'
+    # corners by quarter turns.
+    t_end = float(toolpath.time[-1])
+    span = max(dt_pt, 3 * dt_log)
+    b_lo, b_hi = (t_rel - (t_end - v) for v in _bias_window(toolpath, Phi, span))  # log time
+    win = (tau[: r1 + 1] >= b_lo) & (tau[: r1 + 1] <= b_hi)
+    if not np.any(win):  # no sample that close (a log slower than the toolpath)
+        win = tau[: r1 + 1] >= t_rel - span
     t_win = tau[: r1 + 1][win]
     az = sign * np.arctan2(F[: r1 + 1][win, 1], F[: r1 + 1][win, 0])
-    t_end = float(toolpath.time[-1])
     expect = np.interp(t_win - t_rel + t_end, toolpath.time, Phi)
     b = float(np.angle(np.mean(np.exp(1j * (az - expect)))))
-    last = tc >= t_rel - max(dt_pt, 3 * dt_log)
+    last = (tc >= t_win[0]) & (tc <= t_win[-1])
+    if not np.any(last):
+        last = tc >= t_rel - span
     ref_b = float(np.mean(phi[last] - np.interp(tc[last] - t_rel + t_end, toolpath.time, Phi)))
     b += 2 * math.pi * round((ref_b - b) / (2 * math.pi))
     psi = phi - b
@@ -242,19 +339,30 @@ def align_by_force(
     P2[1::2] = 0.5 * (Phi[1:] + Phi[:-1])
     seen = P2 >= mono[0]  # before the force onset the direction is not readable
     tau2 = np.empty(2 * n - 1)
-    tau2[seen] = _passages(tc, mono, t2[seen], P2[seen])
-    ts = t2[seen]
-    fit = min(int(np.sum(seen)), 200)
-    # before the first readable point: the clock line through the first readable ones (the
-    # very first, at the force onset, is the least certain)
-    first = int(np.argmax(seen))
-    if fit >= 2:
-        scale, icpt = (float(v) for v in np.polyfit(ts[:fit], tau2[seen][:fit], 1))
-        if first + 1 < len(tau2):  # the onset anchor itself sits on the first contact sample
-            tau2[first] = min(icpt + scale * t2[first], tau2[first + 1])
-        tau2[~seen] = np.minimum(icpt + scale * t2[~seen], tau2[first])
+    anchored = np.zeros(2 * n - 1, dtype=bool)
+    tau2[seen], anchored[seen] = _passages(
+        tc, mono, t2[seen], P2[seen], _margin(psi, w), max(dt_pt, 3 * dt_log)
+    )
+    anchors = np.flatnonzero(anchored)
+    if anchors.size == 0:
+        raise InputError(
+            "the force direction turns nowhere the map can time (every turn of the path is "
+            "within the force direction's scatter of a flat wall): use a joint log "
+            '(sync = "position") or sync = "time"',
+            file=file,
+        )
+    # before the first anchor — the points before the force is readable, and those between the
+    # onset and the first turn (on a flat wall they were all put at the onset's time): the
+    # clock line through the first anchors (up to 100 points on, at least 10 anchors)
+    first = int(anchors[0])
+    near = anchors[anchors <= first + 200]
+    fit = near if near.size >= 10 else anchors[:10]
+    if fit.size >= 2 and float(np.ptp(t2[fit])) > 0:
+        scale, icpt = (float(v) for v in np.polyfit(t2[fit], tau2[fit], 1))
+        tau2[:first] = np.minimum(icpt + scale * t2[:first], tau2[first])
     else:
-        tau2[~seen] = tau2[first] - (t2[first] - t2[~seen])
+        tau2[:first] = tau2[first] - (t2[first] - t2[:first])
+    seen[:first] = False
     t_pt, mid = tau2[0::2], tau2[1::2]
     lo = np.concatenate([t_pt[:1], mid])
     hi = np.concatenate([mid, t_pt[-1:]])
