@@ -277,3 +277,21 @@ def test_the_force_bias_is_read_mid_side_or_at_the_last_wall_stretch():
     floor[34:] = [0.0, 0.0, 1.0]
     tp = SimpleNamespace(time=t, normal=floor)
     assert _bias_window(tp, cone, 0.5) == (33 - 0.5, 33.0)
+
+
+def test_points_timed_back_before_the_log_say_why_in_a_force_alignment():
+    """A force alignment's first points, too light to read, are timed back on the first readable
+    ones' clock line; when that lands before the log (a pause among them) the refusal says so
+    and names the keys that would time them, not just "the log must cover the toolpath"."""
+    from roboisf.sync.alignment import Alignment
+
+    t = np.array([-3.0, -1.0, 2.0, 4.0])
+    res = np.array([np.nan, np.nan, 0.1, 0.1])
+    tau = np.linspace(0.0, 10.0, 101)
+    a = Alignment("force", t, t - 0.5, t + 0.5, res, "points", 1.0, -3.0)
+    with pytest.raises(InputError, match=r"too little force.*sync = \"position\"") as e:
+        a.average(tau, np.ones((101, 1)))
+    assert "indices 0..1" in str(e.value)
+    b = Alignment("position", t, t - 0.5, t + 0.5, res, "mm", 1.0, -3.0)
+    with pytest.raises(InputError, match="must cover the whole toolpath"):
+        b.average(tau, np.ones((101, 1)))

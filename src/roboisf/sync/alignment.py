@@ -116,11 +116,20 @@ class Alignment:
         out = (self.lo < t0 - tol) | (self.hi > t1 + tol)
         if np.any(out):
             bad = np.flatnonzero(out)
+            why = "the log must cover the whole toolpath"
+            if self.method == "force" and not np.any(np.isfinite(self.residual[bad])):
+                # points before the force direction was readable, timed by extrapolation
+                why = (
+                    "they carry too little force to read its direction and were timed back "
+                    "from the first readable points at their clock rate — a pause or a clock "
+                    "change among them cannot be seen that way (the log itself may well cover "
+                    'them): give this run a joint log (sync = "position"), or its logs\' time '
+                    'offset (sync = "time")'
+                )
             raise InputError(
                 f"{bad.size} toolpath point(s) (indices {bad[0]}..{bad[-1]}) were passed at log "
                 f"time {self.lo[bad[0]]:.3f}..{self.hi[bad[-1]]:.3f} s, outside the log's span "
-                f"{t0:.3f}..{t1:.3f} s ({self.method} alignment): the log must cover the whole "
-                "toolpath",
+                f"{t0:.3f}..{t1:.3f} s ({self.method} alignment): {why}",
                 file=file,
                 field="time",
             )
