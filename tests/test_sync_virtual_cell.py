@@ -168,3 +168,22 @@ def test_a_pyramid_run_is_timed_by_its_corners_from_a_drifting_clock(tmp_path):
     verdicts = {d["suspect"]: d["verdict"] for d in summary["diagnosis"]}
     assert set(verdicts.values()) == {"ok"}, verdicts
     assert abs(summary["vjm_check"]["ratio"] - 1.0) < 0.05
+
+
+@pytest.mark.slow
+def test_a_vwacf_run_whose_last_laps_press_lighter_is_released_at_their_end(tmp_path):
+    """The VWACF's last laps are small circles turned twice a second while its force steps
+    down (500 → 30 N): released at a quarter of the run's force, 0.8 s early, its map slipped
+    two turns and its first points were timed before the log began (refused). The release is
+    carried on while the force stands clear of the log's rest."""
+    from roboisf.virtual.cell import paper_vwacf_cell
+
+    cell = paper_vwacf_cell(scan_points=60_000, force_rate=500.0, joint_rate=50.0)
+    study = build_study(cell, tmp_path / "vwacf", equipment=Equipment(clock_scale=1.02, offset=7))
+    summary = analyze(study).summary.to_dict()
+    cnc = summary["alignment"]["cnc"]
+    assert cnc["method"] == "force"
+    assert abs(cnc["clock_scale"] - 1.02) < 5e-4 and abs(cnc["offset"] - 7.0) < 0.3, cnc
+    assert cnc["pauses"] == []
+    assert abs(summary["vjm_check"]["ratio"] - 1.0) < 0.05
+    assert {d["verdict"] for d in summary["diagnosis"]} <= {"ok", "cannot_tell"}

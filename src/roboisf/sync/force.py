@@ -45,6 +45,7 @@ __all__ = [
     "BACKWARD_MAX",
     "BIAS_RUN",
     "FORCE_RESIDUAL_MAX",
+    "RELEASE_FRACTION",
     "TURN_MIN",
     "align_by_force",
     "expected_azimuth",
@@ -58,6 +59,9 @@ TURN_MIN = 1e-3
 #: Smallest distance [rad] from a plateau's azimuth (flat wall, step-down) at which a turning
 #: point anchors the map (:func:`_anchors`; the measured scatter raises it).
 ANCHOR_MARGIN_MIN = 0.01
+#: Contact ends where the force falls below this fraction of its 90th percentile (and five
+#: times the log's rest), after its last sample above a quarter of it (:func:`_lighter_end`).
+RELEASE_FRACTION = 0.05
 #: Consecutive wall points that make the stretch the force direction's bias is read at.
 BIAS_RUN = 5
 #: Largest backward swing of the force azimuth [rad] accepted as noise.
@@ -163,6 +167,25 @@ def _bias_window(toolpath: Toolpath, Phi: F64, span: float) -> tuple[float, floa
         if ends.size:
             return float(t[ends[-1]]) - span, float(t[ends[-1]])
     return float(t[-1]) - span, float(t[-1])
+
+
+def _lighter_end(mag: F64, raw_mag: F64, r1: int, ref: float) -> tuple[int, float]:
+    """The last sample of contact and the force level it ends at [N], from ``r1`` (the last
+    raw sample above a quarter of the run's force): carried on while the smoothed force
+    ``mag`` stays above :data:`RELEASE_FRACTION` of ``ref`` and five times the log's rest (the
+    median magnitude of the last half of what follows ``r1``), to the last raw sample above
+    that level. A path whose last laps press lighter (the VWACF's small bottom circles: 500 →
+    200 → 80 → 30 N over its last 1.4 s) was released at the quarter, 0.8 s — one and a half
+    of those laps — early, and its whole map slipped by two turns."""
+    n = mag.size
+    tail = raw_mag[r1 + 1 + (n - r1 - 1) // 2 :]
+    if tail.size < 10:
+        return r1, 0.25 * ref
+    low = max(RELEASE_FRACTION * ref, 5.0 * float(np.median(tail)))
+    below = np.flatnonzero(mag[r1 + 1 :] <= low)
+    stop = r1 + 1 + int(below[0]) if below.size else n  # the smoothed force's end of contact
+    above = np.flatnonzero(raw_mag[r1:stop] > low)
+    return (r1 + int(above[-1]) if above.size else r1), low
 
 
 def expected_azimuth(toolpath: Toolpath, *, file: Path | None = None) -> tuple[F64, float]:
@@ -279,8 +302,15 @@ def align_by_force(
             field="time",
         )
     # the release from the raw magnitude (smoothing spreads the lift-off over its window)
-    raw = np.linalg.norm(F, axis=1) > 0.25 * ref
+    raw_mag = np.linalg.norm(F, axis=1)
+    raw = raw_mag > 0.25 * ref
     r1 = int(len(raw) - 1 - np.argmax(raw[::-1]))
+    r_strict = r1
+    r1, low = _lighter_end(mag, raw_mag, r1, ref)
+    if r1 > r_strict:  # the lighter last laps are contact too (their direction is read)
+        contact = contact.copy()
+        contact[r_strict : r1 + 1] |= mag[r_strict : r1 + 1] > low
+        i1 = max(i1, r1)
     t_rel = float(tau[r1]) + 0.5 * dt_log
     sel = np.arange(i0, i1 + 1)
     sel = sel[contact[sel] & (tau[i0 : i1 + 1] <= t_rel)]
