@@ -103,7 +103,9 @@ def lap_normal_equations(X: F64, y: F64, inv: NDArray[np.intp], L: int) -> tuple
         for j in range(i, k):
             G[:, i, j] = np.bincount(inv, weights=X[:, i] * X[:, j], minlength=L)
             G[:, j, i] = G[:, i, j]
-    h = np.stack([np.bincount(inv, weights=X[:, i] * y, minlength=L) for i in range(k)], axis=1)
+    h = np.empty((L, k))
+    for i in range(k):
+        h[:, i] = np.bincount(inv, weights=X[:, i] * y, minlength=L)
     return G, h
 
 
