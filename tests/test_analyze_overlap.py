@@ -70,7 +70,18 @@ def _copy(study: Path, tmp_path: Path) -> Path:
     return dst
 
 
-def test_a_refused_log_stops_the_scans_and_is_reported(small_cone_study, tmp_path, monkeypatch):
+@pytest.mark.parametrize(
+    ("target", "message"),
+    [
+        ("_logs_part", "bad force log"),
+        # the tool's compliance (an FE model that may fail) and the fingerprint run after the
+        # logs while the scans may still run: an error there must not leave their thread behind
+        ("study_fingerprint", "the tool file vanished"),
+    ],
+)
+def test_an_error_beside_the_scans_stops_them_and_is_reported(
+    small_cone_study, tmp_path, monkeypatch, target, message
+):
     study = _copy(small_cone_study, tmp_path)
     started = threading.Event()
     compared: list[str] = []
@@ -81,41 +92,16 @@ def test_a_refused_log_stops_the_scans_and_is_reported(small_cone_study, tmp_pat
         compared.append(run.name)
         return real(study, cell, run, tp, progress)
 
-    def bad_logs(*a, **k):
+    def fails(*a, **k):
         assert started.wait(10)
-        raise InputError("bad force log", file=study / "cnc_forces.parquet")
+        raise InputError(message, file=study / "cnc_forces.parquet")
 
     monkeypatch.setattr(pipeline, "_compare", slow_compare)
-    monkeypatch.setattr(pipeline, "_logs_part", bad_logs)
-    with pytest.raises(InputError, match="bad force log"):
+    monkeypatch.setattr(pipeline, target, fails)
+    with pytest.raises(InputError, match=message):
         analyze(study)
     assert _scan_threads() == []  # cancelled and joined before the error left analyze()
     assert compared == ["cnc"]  # stopped at its next step: the second scan never started
-
-
-def test_an_error_after_the_logs_stops_the_scans_too(small_cone_study, tmp_path, monkeypatch):
-    # the tool's compliance (an FE model that may fail) and the fingerprint run after the logs
-    # while the scans may still run: an error there must not leave the scans' thread behind
-    study = _copy(small_cone_study, tmp_path)
-    started = threading.Event()
-    compared: list[str] = []
-    real = pipeline._compare
-
-    def slow_compare(study, cell, run, tp, progress):
-        started.set()
-        compared.append(run.name)
-        return real(study, cell, run, tp, progress)
-
-    def bad_fingerprint(s):
-        assert started.wait(10)
-        raise InputError("the tool file vanished", file=study / "tool_compliance.json")
-
-    monkeypatch.setattr(pipeline, "_compare", slow_compare)
-    monkeypatch.setattr(pipeline, "study_fingerprint", bad_fingerprint)
-    with pytest.raises(InputError, match="vanished"):
-        analyze(study)
-    assert _scan_threads() == []
-    assert compared == ["cnc"]
 
 
 def test_an_error_in_the_scan_thread_reaches_the_caller(small_cone_study, tmp_path):
