@@ -92,10 +92,23 @@ def test_plan_study(tmp_path):
         ]
     )
     assert code == 0
-    s = json.loads((out / "plan.json").read_text())["summary"]
-    assert "robot-run forces" in s["input"]
+    doc = json.loads((out / "plan.json").read_text())
+    s = doc["summary"]
+    assert "robot-run forces, robot, tool and holder" in s["input"]
     assert s["best placement x,y,z [mm], yaw [deg]"][0] == 1600.0
     assert s["mean robot |δ| reduction vs baseline [%]"] > 0
+    # the study's tool and holder compliance is in the total (it was left out: "robot only"
+    # whatever --no-tool-compliance said); with that flag, the total is the robot's
+    grid = ["--x-range", "1600,2200", "--y-range", "0", "--z-range", "200", "--serial"]
+    out2 = tmp_path / "plan-robot"
+    args = ["plan", "--study", str(study), *grid, "--no-tool-compliance", "-o", str(out2)]
+    assert main(args) == 0
+    doc2 = json.loads((out2 / "plan.json").read_text())
+    assert "robot only" in doc2["summary"]["input"]
+    with_tool, robot_only = doc["candidates"][0], doc2["candidates"][0]
+    assert with_tool["mean_robot_mm"] == pytest.approx(robot_only["mean_robot_mm"], rel=1e-12)
+    assert robot_only["mean_abs_mm"] == pytest.approx(robot_only["mean_robot_mm"], rel=1e-12)
+    assert with_tool["mean_abs_mm"] > 1.05 * with_tool["mean_robot_mm"]
 
 
 @pytest.mark.parametrize(

@@ -258,7 +258,7 @@ def plan_cmd(
             f"yaw {math.degrees(b[3]):.0f}°": plot_stiffness_map(smap, d / "stiffness_map.png"),
         }
         write_plan_html(res, d / "plan.html", images, summary=summary, top=top)
-    _print(res, summary, top)
+    _print(res, summary, top, with_tool=not no_tool_compliance)
     state.info(f"wrote {output}/ (placements.csv, plan.json, plan.html, *.png)")
 
 
@@ -309,8 +309,17 @@ def _problem(
     rob = s.robot_run
     tp = study_toolpath(s, rob, c.part)  # a toolpath CSV or a CAM program
     W = run_tip_wrench(s, rob, tp)
-    prob = PlanProblem(m, tp.tip, tp.normal, tp.lap, W, ball_radius=c.tool.radius, **opts)
-    return prob, m, c.T_base_work, f"study {s.name}, robot-run forces, robot only"
+    k = None
+    if with_tool:  # the study's tool and holder compliance, as analyze takes them (γ = 0 axes)
+        from roboisf.cell import tip_compliances
+
+        _, _, k_t, k_th = tip_compliances(c)
+        k = k_t + k_th
+    prob = PlanProblem(
+        m, tp.tip, tp.normal, tp.lap, W, tool_compliance=k, ball_radius=c.tool.radius, **opts
+    )
+    what = "robot, tool and holder" if with_tool else "robot only"
+    return prob, m, c.T_base_work, f"study {s.name}, robot-run forces, {what}"
 
 
 def _baseline(text: str | None, study_T: np.ndarray | None, model: Any) -> np.ndarray:
@@ -409,7 +418,7 @@ def _json_default(o: Any) -> Any:
     raise TypeError(type(o).__name__)
 
 
-def _print(res: Any, summary: dict[str, Any], top: int) -> None:
+def _print(res: Any, summary: dict[str, Any], top: int, *, with_tool: bool = True) -> None:
     from roboisf.report.page import fmt
 
     rows = [r for r in res.table() if r["status"] == "ok"][:top]
@@ -426,11 +435,16 @@ def _print(res: Any, summary: dict[str, Any], top: int) -> None:
     if rej:
         state.info("rejected: " + ", ".join(f"{v} {k}" for k, v in rej.items()))
     if res.baseline is not None and res.baseline.ok:
+        tool = (
+            f"; mean |δ| with the tool {res.baseline.mean_abs * 1e3:.4f} → "
+            f"{res.best.mean_abs * 1e3:.4f} mm"
+            if with_tool
+            else ""
+        )
         state.info(
             f"baseline {summary['baseline placement x,y,z [mm], yaw [deg]']}: mean robot |δ| "
             f"{res.baseline.mean_robot * 1e3:.4f} mm → best {res.best.mean_robot * 1e3:.4f} mm "
-            f"({100 * res.improvement('mean_robot'):.1f} % lower; mean |δ| with the tool "
-            f"{res.baseline.mean_abs * 1e3:.4f} → {res.best.mean_abs * 1e3:.4f} mm)"
+            f"({100 * res.improvement('mean_robot'):.1f} % lower{tool})"
         )
     elif "baseline status" in summary:
         state.warn(f"baseline not feasible: {summary['baseline status']}")
