@@ -255,3 +255,29 @@ def test_virtual_cell_cli_coarse_path_and_joint_rate(tmp_path, capsys):
         err = capsys.readouterr().err
         assert opt in err and "> 0 mm" in err and len(err.strip().splitlines()) == 1
         assert not bad.exists()
+
+
+def test_virtual_cell_of_a_robot_without_published_stiffness_takes_the_users(tmp_path, capsys):
+    """A preset without a published joint stiffness (KUKA, FANUC) is refused naming --stiffness,
+    exit 2, nothing written; with --stiffness its file's K is the cell's, written into the
+    study's [robot] joint_stiffness (analyze then uses it); a file identified on another robot
+    is refused."""
+    from roboisf.study import load_study
+
+    small = ["--scan-points", "20000", "--step-down", "3", "--spacing", "6", "--force-rate", "50"]
+    out = tmp_path / "kuka"
+    args = ["-q", "virtual-cell", "cone", "--robot", "kr210-r2700-2", *small, "-o", str(out)]
+    assert main(args) == 2
+    assert "--stiffness" in capsys.readouterr().err and not out.exists()
+    K = [3.0e6, 2.5e6, 2.0e6, 4.0e5, 3.5e5, 2.0e5]
+    f = tmp_path / "k.toml"
+    f.write_text(f"[stiffness]\nK = {K}\n")
+    assert main([*args, "--stiffness", str(f)]) == 0
+    s = load_study(out)
+    assert s.robot is not None and s.robot.model == "kr210-r2700-2"
+    np.testing.assert_array_equal(cell_from_study(s).robot.joint_stiffness, K)
+    other = tmp_path / "other.toml"
+    other.write_text(f'[stiffness]\nrobot = "irb7600-500-2.55"\nK = {K}\n')
+    again = tmp_path / "again"
+    assert main([*args[:-1], str(again), "--stiffness", str(other)]) == 2
+    assert "irb7600-500-2.55" in capsys.readouterr().err and not again.exists()

@@ -104,6 +104,15 @@ _StepDownOpt = Annotated[
 ]
 _SpacingOpt = Annotated[float | None, typer.Option(help="Toolpath point spacing [mm] (default 1).")]
 _RobotOpt = Annotated[str, typer.Option(help="Robot preset (roboisf robot list).")]
+_StiffnessOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--stiffness",
+        help="Joint stiffness TOML ([stiffness] K = 6 values, N·m/rad, as `roboisf robot "
+        "identify` writes): the robot's, for a preset without a published one (the KUKA and "
+        "FANUC presets); written into the study's [robot] joint_stiffness.",
+    ),
+]
 _ToolRotationOpt = Annotated[float, typer.Option(help="Tool rotation about its axis [deg].")]
 _FeOpt = Annotated[
     bool, typer.Option("--fe/--beam", help="Tool/holder compliance by FE or beam model.")
@@ -252,6 +261,7 @@ def virtual_cell_command(
     step_down: _StepDownOpt = None,
     spacing: _SpacingOpt = None,
     robot: _RobotOpt = "irb7600-500-2.55",
+    stiffness: _StiffnessOpt = None,
     tool_rotation: _ToolRotationOpt = 0.0,
     fe: _FeOpt = False,
     seed: _SeedOpt = 0,
@@ -291,6 +301,7 @@ def virtual_cell_command(
     roboisf virtual-cell pyramid --truth T.toml -o S1 && roboisf compensate S1 -o C1 &&
     roboisf virtual-cell pyramid --truth T.toml --toolpath C1/compensated.mod --from S1 -o S2
     """
+    from roboisf.robot import load_stiffness
     from roboisf.virtual.cell import build_study
 
     if from_study is not None and toolpath is None:
@@ -299,7 +310,7 @@ def virtual_cell_command(
         output,
         "virtual-cell",
         overwrite,
-        [p for p in (toolpath, from_study, truth_file, part_file) if p is not None],
+        [p for p in (toolpath, from_study, truth_file, part_file, stiffness) if p is not None],
     )
     shape = {
         "top_length": top_length,
@@ -317,6 +328,7 @@ def virtual_cell_command(
         **path_kw,
         force_rate=force_rate,
         robot=robot,
+        joint_stiffness=None if stiffness is None else load_stiffness(stiffness, robot=robot),
         tool_rotation=math.radians(tool_rotation),
         compliance_method="fe" if fe else "beam",
         seed=seed,
