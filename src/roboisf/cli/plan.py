@@ -276,6 +276,7 @@ def _problem(
     from roboisf.frames.pose import XYZ_MM, parse_pose
     from roboisf.parts import load_part
     from roboisf.plan import PlanProblem, problem_from_cell
+    from roboisf.plan.setup import tool_and_holder_compliance
     from roboisf.robot import load_stiffness
 
     def _override(m: Any) -> Any:
@@ -309,12 +310,8 @@ def _problem(
     rob = s.robot_run
     tp = study_toolpath(s, rob, c.part)  # a toolpath CSV or a CAM program
     W = run_tip_wrench(s, rob, tp)
-    k = None
-    if with_tool:  # the study's tool and holder compliance, as analyze takes them (γ = 0 axes)
-        from roboisf.cell import tip_compliances
-
-        _, _, k_t, k_th = tip_compliances(c)
-        k = k_t + k_th
+    # the study's tool and holder compliance, as analyze takes them
+    k = tool_and_holder_compliance(c) if with_tool else None
     prob = PlanProblem(
         m, tp.tip, tp.normal, tp.lap, W, tool_compliance=k, ball_radius=c.tool.radius, **opts
     )

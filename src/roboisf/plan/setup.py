@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from roboisf.cell import Cell, ForceModel, nominal_toolpath, tip_compliances, tip_wrench
 from roboisf.parts import Part
@@ -12,7 +13,7 @@ from roboisf.plan.problem import PlanProblem
 from roboisf.robot.model import RobotModel
 from roboisf.toolpath import Toolpath
 
-__all__ = ["problem_from_cell", "problem_from_part"]
+__all__ = ["problem_from_cell", "problem_from_part", "tool_and_holder_compliance"]
 
 
 def problem_from_part(
@@ -56,10 +57,6 @@ def problem_from_cell(
     (default :class:`ForceModel` when the cell has none), robot (with its tool) and — with
     ``with_tool`` — the tool + holder compliance at the tip (:func:`roboisf.cell.tip_compliances`,
     γ = 0: the same axes). ``model`` replaces the cell's robot (e.g. another tool mounting)."""
-    k = None
-    if with_tool:
-        _, _, k_t, k_th = tip_compliances(cell)
-        k = k_t + k_th
     return problem_from_part(
         cell.part,
         cell.robot if model is None else model,
@@ -68,6 +65,14 @@ def problem_from_cell(
         spacing=spacing,
         max_wall_step=max_wall_step,
         force=cell.force,
-        tool_compliance=k,
+        tool_compliance=tool_and_holder_compliance(cell) if with_tool else None,
         **options,
     )
+
+
+def tool_and_holder_compliance(cell: Cell) -> NDArray[np.float64]:
+    """The cell's tool + holder compliance at the tip (6, 6) [m/N, rad/(N·m)], as
+    :class:`PlanProblem` takes it (the tool's own axes at γ = 0 are the work axes: the tool
+    vertical) — :func:`roboisf.cell.tip_compliances`, summed."""
+    _, _, k_t, k_th = tip_compliances(cell)
+    return k_t + k_th
