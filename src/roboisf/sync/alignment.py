@@ -120,8 +120,9 @@ class Alignment:
             if self.method == "force" and not np.any(np.isfinite(self.residual[bad])):
                 # points before the force direction was readable, timed by extrapolation
                 why = (
-                    "they carry too little force to read its direction and were timed back "
-                    "from the first readable points at their clock rate — a pause or a clock "
+                    "they come before the first turn the force direction times (too little "
+                    "force to read it) and were timed back from the first timed points at their "
+                    "clock rate — a pause or a clock "
                     "change among them cannot be seen that way (the log itself may well cover "
                     'them): give this run a joint log (sync = "position"), or its logs\' time '
                     'offset (sync = "time")'

@@ -308,7 +308,6 @@ def align_by_force(
     r_strict = r1
     r1, low = _lighter_end(mag, raw_mag, r1, ref)
     if r1 > r_strict:  # the lighter last laps are contact too (their direction is read)
-        contact = contact.copy()
         contact[r_strict : r1 + 1] |= mag[r_strict : r1 + 1] > low
         i1 = max(i1, r1)
     t_rel = float(tau[r1]) + 0.5 * dt_log
@@ -370,9 +369,7 @@ def align_by_force(
     seen = P2 >= mono[0]  # before the force onset the direction is not readable
     tau2 = np.empty(2 * n - 1)
     anchored = np.zeros(2 * n - 1, dtype=bool)
-    tau2[seen], anchored[seen] = _passages(
-        tc, mono, t2[seen], P2[seen], _margin(psi, w), max(dt_pt, 3 * dt_log)
-    )
+    tau2[seen], anchored[seen] = _passages(tc, mono, t2[seen], P2[seen], _margin(psi, w), span)
     anchors = np.flatnonzero(anchored)
     if anchors.size == 0:
         raise InputError(
@@ -428,8 +425,10 @@ def align_by_force(
     notes = []
     if n_unseen:
         notes.append(
-            f"the first {n_unseen} toolpath points carry too little force to read its direction: "
-            "timed from the first readable one at the fitted clock rate"
+            f"the first {n_unseen} toolpath points come before the first turn the force "
+            "direction times (too little force to read it, or a flat side before the first "
+            "corner): timed back from the first timed ones at their clock rate; a pause among "
+            "them is not seen"
         )
     flat = int(np.sum(np.abs(np.diff(Phi)) <= TURN_MIN))
     if flat:
