@@ -87,10 +87,10 @@ def test_an_error_beside_the_scans_stops_them_and_is_reported(
     compared: list[str] = []
     real = pipeline._compare
 
-    def slow_compare(study, cell, run, tp, progress):  # the scans outlast the logs
+    def slow_compare(study, cell, run, tp, progress, keep_points=False):  # outlast the logs
         started.set()
         compared.append(run.name)
-        return real(study, cell, run, tp, progress)
+        return real(study, cell, run, tp, progress, keep_points)
 
     def fails(*a, **k):
         assert started.wait(10)

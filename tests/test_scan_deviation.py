@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from roboisf.errors import InputError
@@ -63,6 +64,44 @@ def test_toolpath_deviation_recovers_truth_within_10um_rms(acceptance):
     # deviation vector = dn · n, in the work frame
     np.testing.assert_allclose(t.delta[v], t.dn[v, None] * tp.normal[v])
     assert np.all(np.isfinite(t.dn)) and np.all(t.dn[~v] == 0.0)
+
+
+def _same_comparison(a, b):
+    assert a.points is None and b.points is None
+    assert a.summary() == b.summary()
+    assert a.counts == b.counts
+    pd.testing.assert_frame_equal(a.by_depth, b.by_depth)
+    pd.testing.assert_frame_equal(a.by_angle, b.by_angle)
+    if a.toolpath is None:
+        assert b.toolpath is None
+        return
+    for name in ("dn", "delta", "valid", "n_points", "spread"):
+        np.testing.assert_array_equal(getattr(a.toolpath, name), getattr(b.toolpath, name))
+
+
+@pytest.mark.parametrize("with_toolpath", [True, False])
+def test_without_the_points_the_same_comparison_from_the_feet(acceptance, with_toolpath):
+    # keep_points=False frees the points, normals and regions before the toolpath deviations
+    # (the analysis's memory peak): the same numbers as dropping them after, bit for bit
+    s, tp, res = acceptance
+    if not with_toolpath:
+        res = compare_scan(ScanCloud(s.points, None, "synthetic.ply"), CONE)
+    kw = {"toolpath": tp, "toolpath_source": "path.csv"} if with_toolpath else {}
+    lean = compare_scan(ScanCloud(s.points, None, "synthetic.ply"), CONE, keep_points=False, **kw)
+    assert res.points is not None and res.points.n_points > 100_000
+    _same_comparison(lean, res.without_points())
+
+
+def test_toolpath_deviations_from_the_feet_alone():
+    s = synthetic_scan(CONE, 100_000, offset=OFFSET, noise=25e-6, seed=5)
+    dev = point_deviations(s.points, CONE)
+    tp = step_down(CONE, 5e-3, 0.5e-3, spacing=3e-3)
+    feet = dev.feet_only()
+    assert feet.n_points == dev.n_points and not hasattr(feet, "points")
+    a = toolpath_deviations(dev, tp.contact, tp.normal)
+    b = toolpath_deviations(feet, tp.contact, tp.normal)
+    np.testing.assert_array_equal(a.dn, b.dn)
+    np.testing.assert_array_equal(a.valid, b.valid)
 
 
 def test_rim_band_and_flange_are_excluded(acceptance):

@@ -266,7 +266,12 @@ def scan_options(study: Study) -> CompareOptions:
 
 
 def _compare(
-    study: Study, cell: Cell, run: RunSpec, tp: Toolpath, progress: Progress | None
+    study: Study,
+    cell: Cell,
+    run: RunSpec,
+    tp: Toolpath,
+    progress: Progress | None,
+    keep_points: bool = False,
 ) -> ScanComparison:
     cloud = read_scan(run.scan, unit=run.scan_unit)
     return compare_scan(
@@ -277,6 +282,7 @@ def _compare(
         options=scan_options(study),
         progress=progress,
         consume=True,  # the raw points freed once sorted (the cloud is dropped here anyway)
+        keep_points=keep_points,
     )
 
 
@@ -383,9 +389,7 @@ class _ScansBeside:
             try:
                 for run in runs:
                     with task(prog, f"scan {run.name}"):
-                        sc = _compare(study, cell, run, tp, prog)
-                        self._scans[run.name] = sc if keep_points else sc.without_points()
-                        del sc
+                        self._scans[run.name] = _compare(study, cell, run, tp, prog, keep_points)
                         _trim()
             except Cancelled:
                 pass
@@ -510,9 +514,7 @@ def _analyze(
         scans = {}
         for run in (cnc, rob):
             with task(progress, f"scan {run.name}"):
-                sc = _compare(study, cell, run, tp, progress)
-                scans[run.name] = sc if keep_points else sc.without_points()
-                del sc
+                scans[run.name] = _compare(study, cell, run, tp, progress, keep_points)
                 _trim()
     dev_c, dev_r = scans[cnc.name].toolpath, scans[rob.name].toolpath
     assert dev_c is not None and dev_r is not None

@@ -35,6 +35,7 @@ from roboisf.scan import knn_kernel, toolpath_kernel
 __all__ = [
     "RIM_BAND",
     "RIM_BAND_DEPTH_FRACTION",
+    "FootDeviations",
     "PointClasses",
     "PointDeviations",
     "ToolpathDeviations",
@@ -91,6 +92,24 @@ class PointDeviations:
         return PointDeviations(
             self.points[mask], self.foot[mask], self.normal[mask], self.dn[mask], self.region[mask]
         )
+
+    def feet_only(self) -> FootDeviations:
+        """The feet and normal deviations (what :func:`toolpath_deviations` reads), without
+        the points, normals and regions: 4 of 11 numbers per point."""
+        return FootDeviations(self.foot, self.dn)
+
+
+@dataclass(frozen=True)
+class FootDeviations:
+    """Closest nominal points ``foot`` (N, 3) m and signed normal deviations ``dn`` (N,) m of
+    scan points: the part of :class:`PointDeviations` a toolpath comparison needs."""
+
+    foot: F64
+    dn: F64
+
+    @property
+    def n_points(self) -> int:
+        return int(self.dn.shape[0])
 
 
 def _closest_in_chunks(
@@ -361,7 +380,7 @@ def _sorted_padded(values: F64, idx: NDArray[np.int64], ok: NDArray[np.bool_]) -
 
 
 def toolpath_deviations(
-    dev: PointDeviations,
+    dev: PointDeviations | FootDeviations,
     contact: ArrayLike,
     normal: ArrayLike,
     *,
