@@ -10,7 +10,8 @@ import pytest
 
 from roboisf.errors import InputError
 from roboisf.jit import background as jit_background
-from roboisf.parts import Cone
+from roboisf.parts import Cone, tessellate
+from roboisf.parts.mesh import spatial_order
 from roboisf.scan import (
     CompareOptions,
     ScanCloud,
@@ -18,6 +19,8 @@ from roboisf.scan import (
     by_depth,
     compare_scan,
     deviation_stats,
+    foot_deviations,
+    normal_deviation_stats,
     point_deviations,
     radial_offset,
     resultant_mean_deviation,
@@ -92,16 +95,33 @@ def test_without_the_points_the_same_comparison_from_the_feet(acceptance, with_t
     _same_comparison(lean, res.without_points())
 
 
-def test_toolpath_deviations_from_the_feet_alone():
-    s = synthetic_scan(CONE, 100_000, offset=OFFSET, noise=25e-6, seed=5)
-    dev = point_deviations(s.points, CONE)
+@pytest.mark.parametrize("part", ["cone", "mesh"])
+def test_foot_deviations_are_point_deviations_without_the_normals(part):
+    # the feet, dn and the statistics of dn · n as point_deviations + normal_deviation_stats
+    # give them, bit for bit (the statistics summed as the chunks' queries end, in threads)
+    s = synthetic_scan(CONE, 150_000, offset=OFFSET, noise=25e-6, seed=5)
+    nominal = CONE if part == "cone" else tessellate(CONE, chordal_error=0.05e-3, edge=3e-3)
+    X = s.points[spatial_order(s.points)]
+    dev = point_deviations(X, nominal, ordered=True)
+    feet, stats = foot_deviations(X, nominal, workers=2)
+    assert not hasattr(feet, "normal") and feet.n_points == dev.n_points
+    np.testing.assert_array_equal(feet.foot, dev.foot)
+    np.testing.assert_array_equal(feet.dn, dev.dn)
+    assert stats.to_dict() == normal_deviation_stats(dev.dn, dev.normal).to_dict()
     tp = step_down(CONE, 5e-3, 0.5e-3, spacing=3e-3)
-    feet = dev.feet_only()
-    assert feet.n_points == dev.n_points and not hasattr(feet, "points")
     a = toolpath_deviations(dev, tp.contact, tp.normal)
     b = toolpath_deviations(feet, tp.contact, tp.normal)
     np.testing.assert_array_equal(a.dn, b.dn)
     np.testing.assert_array_equal(a.valid, b.valid)
+
+
+def test_deviation_stats_leave_their_input_alone():
+    delta = np.array([[-1.0, 2.0, -3.0], [4.0, -5.0, 6.0]]) * 1e-3
+    before = delta.copy()
+    st = deviation_stats(delta, np.array([1e-3, -2e-3]))
+    np.testing.assert_array_equal(delta, before)  # block_sums overwrites its block: a copy
+    np.testing.assert_allclose(st.mean_abs, [2.5e-3, 3.5e-3, 4.5e-3])
+    np.testing.assert_allclose(st.max_abs, [4e-3, 5e-3, 6e-3])
 
 
 def test_rim_band_and_flange_are_excluded(acceptance):
@@ -204,9 +224,9 @@ def test_resultant_mean_deviation_matches_the_paper():
     )
     assert st.R_m == pytest.approx(resultant_mean_deviation(v), rel=1e-12)
     # from dn and the normals without their (N, 3) product: the same statistics, over blocks
-    from roboisf.scan.summary import _BLOCK, normal_deviation_stats
+    from roboisf.scan.summary import STATS_BLOCK, normal_deviation_stats
 
-    m = 2 * _BLOCK + 123
+    m = 2 * STATS_BLOCK + 123
     nrm = rng.normal(size=(m, 3))
     nrm /= np.linalg.norm(nrm, axis=1)[:, None]
     dn = rng.normal(2e-5, 3e-4, m)

@@ -16,9 +16,11 @@ from roboisf._lazy import attach
 if TYPE_CHECKING:
     from roboisf.scan.compare import CompareOptions, ScanComparison, compare_scan, part_size
     from roboisf.scan.deviation import (
+        FootDeviations,
         PointDeviations,
         ToolpathDeviations,
         default_rim_band,
+        foot_deviations,
         point_deviations,
         select_wall,
         statistical_outliers,
@@ -48,6 +50,7 @@ if TYPE_CHECKING:
         by_depth,
         deviation_stats,
         lap_arc_length,
+        normal_deviation_stats,
         resultant_mean_deviation,
     )
     from roboisf.scan.symmetry import SymmetryEstimate, detect_symmetry, part_symmetry
@@ -62,9 +65,11 @@ _WHERE = {
         "part_size",
     ),
     "deviation": (
+        "FootDeviations",
         "PointDeviations",
         "ToolpathDeviations",
         "default_rim_band",
+        "foot_deviations",
         "point_deviations",
         "select_wall",
         "statistical_outliers",
@@ -98,6 +103,7 @@ _WHERE = {
         "by_depth",
         "deviation_stats",
         "lap_arc_length",
+        "normal_deviation_stats",
         "resultant_mean_deviation",
     ),
     "symmetry": (
@@ -119,6 +125,7 @@ __all__ = [
     "TOOLPATH_COLUMNS",
     "CompareOptions",
     "DeviationStats",
+    "FootDeviations",
     "OffsetField",
     "PointDeviations",
     "Registration",
@@ -135,7 +142,9 @@ __all__ = [
     "default_rim_band",
     "detect_symmetry",
     "deviation_stats",
+    "foot_deviations",
     "lap_arc_length",
+    "normal_deviation_stats",
     "part_size",
     "part_symmetry",
     "point_deviations",

@@ -18,10 +18,12 @@ from roboisf.parts.mesh import spatial_order
 from roboisf.path.toolpath import Toolpath
 from roboisf.progress import Progress, task
 from roboisf.scan.deviation import (
+    FootDeviations,
     PointDeviations,
     ToolpathDeviations,
     classify_points,
     default_rim_band,
+    foot_deviations,
     point_deviations,
     statistical_outliers,
     toolpath_deviations,
@@ -292,18 +294,21 @@ def compare_scan(
     # the selected points, the whole wall's copy freed before their deviations exist
     ring_pts, wall_pts = np.take(pts, ring_rows, axis=0), np.take(pts, wall_rows, axis=0)
     del pts, ring_rows, wall_rows
-    wall = point_deviations(
-        wall_pts, part, ordered=True, progress=progress, label="wall deviations"
-    )
+    point_stats = None
+    wall: PointDeviations | FootDeviations
+    if keep_points or toolpath is None:  # (by_depth without a toolpath needs dn · normal)
+        wall = point_deviations(
+            wall_pts, part, ordered=True, progress=progress, label="wall deviations"
+        )
+        if not keep_points:
+            point_stats = normal_deviation_stats(wall.dn, wall.normal).to_dict()
+    else:
+        # what without_points() keeps, taken as the query goes: the toolpath deviations read
+        # the feet and the normal deviations only, the normals are never stored
+        wall, stats = foot_deviations(wall_pts, part, progress=progress, label="wall deviations")
+        point_stats = stats.to_dict()
     ring = point_deviations(ring_pts, part, ordered=True)
     del wall_pts, ring_pts
-    point_stats = None
-    if not keep_points:
-        # what without_points() keeps, taken now; the toolpath deviations need the feet and
-        # the normal deviations only (and by_depth below, without a toolpath, dn · normal)
-        point_stats = normal_deviation_stats(wall.dn, wall.normal).to_dict()
-        if toolpath is not None:
-            wall = wall.feet_only()
     tdev = None
     if toolpath is not None:
         with task(progress, "toolpath deviations", total=None):
@@ -323,6 +328,7 @@ def compare_scan(
         v = tdev.valid
         z, delta, dn = tdev.contact[v, 2], tdev.delta[v], tdev.dn[v]
     else:
+        assert isinstance(wall, PointDeviations)
         z, delta, dn = wall.foot[:, 2], wall.delta, wall.dn
     depth_tab = by_depth(z, delta, dn, bin_width=o.bin_width)
     angle_tab = by_angle(
@@ -346,4 +352,5 @@ def compare_scan(
     }
     if not keep_points:
         return ScanComparison(None, tdev, reg, counts, depth_tab, angle_tab, o, point_stats)
+    assert isinstance(wall, PointDeviations)
     return ScanComparison(wall, tdev, reg, counts, depth_tab, angle_tab, o)

@@ -31,6 +31,7 @@ from roboisf.parts.base import Part
 from roboisf.parts.mesh import MeshPart, spatial_order
 from roboisf.progress import Progress, task
 from roboisf.scan import knn_kernel, toolpath_kernel
+from roboisf.scan.summary import STATS_BLOCK, DeviationStats, block_sums, stats_from_blocks
 
 __all__ = [
     "RIM_BAND",
@@ -41,6 +42,7 @@ __all__ = [
     "ToolpathDeviations",
     "classify_points",
     "default_rim_band",
+    "foot_deviations",
     "point_deviations",
     "select_wall",
     "statistical_outliers",
@@ -93,10 +95,6 @@ class PointDeviations:
             self.points[mask], self.foot[mask], self.normal[mask], self.dn[mask], self.region[mask]
         )
 
-    def feet_only(self) -> FootDeviations:
-        """The feet and normal deviations (what :func:`toolpath_deviations` reads), without
-        the points, normals and regions: 4 of 11 numbers per point."""
-        return FootDeviations(self.foot, self.dn)
 
 
 @dataclass(frozen=True)
@@ -183,6 +181,43 @@ def point_deviations(
         label=label,
     )  # fmt: skip
     return PointDeviations(X, foot, normal, dn, region)
+
+
+def foot_deviations(
+    points: ArrayLike,
+    part: Part,
+    *,
+    workers: int | None = None,
+    progress: Progress | None = None,
+    label: str = "closest points",
+) -> tuple[FootDeviations, DeviationStats]:
+    """:func:`point_deviations` of the points (N, 3) [m, work] without storing their normals:
+    the feet and normal deviations, and the statistics of the deviation vectors ``dn · n``
+    (:func:`~roboisf.scan.normal_deviation_stats`, the same bits: summed block by block as
+    each chunk's query ends). 4 of the 11 numbers per point of :class:`PointDeviations` —
+    what :func:`~roboisf.scan.compare_scan` keeps when its caller drops the points anyway
+    (the analysis). The points are queried in their order: give a mesh part spatially
+    ordered points (:func:`~roboisf.parts.mesh.spatial_order`) for speed.
+    """
+    X = np.atleast_2d(np.asarray(points, dtype=float))
+    n = X.shape[0]
+    if n == 0:
+        raise InputError("no deviations to summarise (no valid points)")
+    foot = np.empty((n, 3))
+    dn = np.empty(n)
+    chunk = STATS_BLOCK  # the statistics' blocks: one query chunk each
+    sums = np.empty(((n + chunk - 1) // chunk, 3, 3))
+
+    def store(rows: slice | NDArray[np.int64], q: SurfaceQuery) -> None:
+        assert isinstance(rows, slice)  # ordered=True below: chunks are row ranges
+        foot[rows], dn[rows] = q.point, q.distance
+        sums[rows.start // chunk] = block_sums(q.distance[:, None] * q.normal)
+
+    _closest_in_chunks(
+        X, part, store, chunk=chunk, workers=workers, ordered=True, progress=progress,
+        label=label,
+    )  # fmt: skip
+    return FootDeviations(foot, dn), stats_from_blocks(dn, sums)
 
 
 @dataclass(frozen=True)

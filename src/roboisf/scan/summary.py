@@ -81,7 +81,7 @@ def deviation_stats(delta: ArrayLike, dn: ArrayLike) -> DeviationStats:
     if d.shape[0] == 0:
         raise InputError("no deviations to summarise (no valid points)")
     _same_length(d, n_)
-    return _stats(n_, lambda rows: d[rows])
+    return _stats(n_, lambda rows: d[rows].copy())
 
 
 def _same_length(vectors: F64, dn: F64) -> None:
@@ -105,23 +105,34 @@ def normal_deviation_stats(dn: ArrayLike, normal: ArrayLike) -> DeviationStats:
 
 
 #: Rows per block of :func:`_stats` (its temporaries stay in cache and small).
-_BLOCK = 65_536
+STATS_BLOCK = 65_536
 
 
-def _stats(dn: F64, delta_rows: Callable[[slice], F64]) -> DeviationStats:
-    """The statistics block by block: ``delta_rows(rows)`` gives the rows' (M, 3) vectors.
-    Sums by component over each block (numpy's reductions along the rows of a block), then
-    over the blocks in order."""
+def block_sums(delta: F64) -> F64:
+    """(3, 3): the sum, the sum of absolute values and the largest absolute value per axis of
+    one block's deviation vectors ``delta`` (M, 3) [m] (overwritten by their absolute values).
+    The statistics of :func:`deviation_stats` are these, block by block of :data:`STATS_BLOCK`
+    rows, combined in order (:func:`stats_from_blocks`): a caller that has the blocks one at a
+    time (:func:`roboisf.scan.deviation.foot_deviations`) gets the same bits."""
+    out = np.empty((3, 3))
+    out[0] = delta.sum(axis=0)
+    np.abs(delta, out=delta)
+    out[1] = delta.sum(axis=0)
+    out[2] = delta.max(axis=0)
+    return out
+
+
+def stats_from_blocks(dn: F64, sums: F64) -> DeviationStats:
+    """:class:`DeviationStats` of the normal deviations ``dn`` (N,) m and the :func:`block_sums`
+    ``sums`` (B, 3, 3) of their vectors' blocks of :data:`STATS_BLOCK` rows, in row order."""
     n = dn.shape[0]
     total = np.zeros(3)
     total_abs = np.zeros(3)
     max_abs = np.zeros(3)
-    for lo in range(0, n, _BLOCK):
-        a = delta_rows(slice(lo, lo + _BLOCK))
-        total += a.sum(axis=0)
-        a = np.abs(a)
-        total_abs += a.sum(axis=0)
-        np.maximum(max_abs, a.max(axis=0), out=max_abs)
+    for b in sums:
+        total += b[0]
+        total_abs += b[1]
+        np.maximum(max_abs, b[2], out=max_abs)
     abs_dn = np.abs(dn)
     mean_abs = total_abs / n
     return DeviationStats(
@@ -134,6 +145,14 @@ def _stats(dn: F64, delta_rows: Callable[[slice], F64]) -> DeviationStats:
         float(abs_dn.max()),
         float(np.sqrt(np.sum(mean_abs**2))),  # resultant_mean_deviation, its mean|δ| reused
     )
+
+
+def _stats(dn: F64, delta_rows: Callable[[slice], F64]) -> DeviationStats:
+    """The statistics block by block: ``delta_rows(rows)`` gives the rows' (M, 3) vectors (a
+    new array: it is overwritten)."""
+    n = dn.shape[0]
+    sums = [block_sums(delta_rows(slice(lo, lo + STATS_BLOCK))) for lo in range(0, n, STATS_BLOCK)]
+    return stats_from_blocks(dn, np.array(sums).reshape(-1, 3, 3))
 
 
 def _binned(key: NDArray[np.int64], delta: F64, dn: F64) -> pd.DataFrame:
