@@ -134,3 +134,43 @@ def test_freed_heap_pages_are_given_back_on_glibc():
 
     pipeline._trim()  # never raises, whatever the C library
     assert heap.trim() == (platform.libc_ver()[0] == "glibc")
+
+
+def test_a_position_aligned_runs_joint_log_is_freed_before_its_force_log_is_read(
+    small_cone_study, monkeypatch
+):
+    # the robot run (sync = "position"): joint log read, aligned, turned into joint angles and
+    # dropped, then the force log — the two 1 kHz logs never side by side beside the scans
+    import gc
+    import weakref
+
+    from roboisf.study import load_study
+
+    study = load_study(small_cone_study)
+    rob = study.robot_run
+    assert rob.sync == "position" and rob.joints is not None
+    joint_refs: dict[str, weakref.ref] = {}
+    seen: list[str] = []
+    read_joints, read_forces = pipeline.read_run_joint_log, pipeline.read_run_force_log
+
+    def joints(run):
+        log = read_joints(run)
+        joint_refs[run.name] = weakref.ref(log)
+        return log
+
+    def forces(study_, run):
+        gc.collect()
+        if run.name == rob.name:
+            ref = joint_refs.get(run.name)
+            assert ref is not None, "the force log was read before the joint log"
+            assert ref() is None, "the joint log is still alive when the force log is read"
+        seen.append(run.name)
+        return read_forces(study_, run)
+
+    monkeypatch.setattr(pipeline, "read_run_joint_log", joints)
+    monkeypatch.setattr(pipeline, "read_run_force_log", forces)
+    cell = pipeline.cell_from_study(study)
+    tp = pipeline.study_toolpath(study, study.cnc, cell.part)
+    aligned, q, *_ = pipeline._logs_part(study, cell, tp, None)
+    assert seen == [study.cnc.name, rob.name]
+    assert aligned[rob.name].method == "position" and q.shape == (len(tp), 6)
