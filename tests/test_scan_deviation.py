@@ -124,6 +124,18 @@ def test_deviation_stats_leave_their_input_alone():
     np.testing.assert_allclose(st.max_abs, [4e-3, 5e-3, 6e-3])
 
 
+@pytest.mark.parametrize("register", ["none", "fixture"])
+def test_the_comparison_never_writes_the_callers_points(register):
+    # the registered points are sorted in place (its own array); the caller's never are
+    s = synthetic_scan(CONE, 60_000, offset=OFFSET, noise=25e-6, outlier_fraction=0.01, seed=9)
+    pts = s.points.copy()
+    res = compare_scan(
+        ScanCloud(pts, None, "s.ply"), CONE, options=CompareOptions(register=register)
+    )
+    np.testing.assert_array_equal(pts, s.points)
+    assert res.points is not None and res.points.n_points > 10_000
+
+
 def test_rim_band_and_flange_are_excluded(acceptance):
     s, tp, res = acceptance
     p = res.points
