@@ -14,7 +14,6 @@ from roboisf.scan import (
     knn_kernel,
     point_deviations,
     radial_offset,
-    statistical_outliers,
     synthetic_scan,
     toolpath_deviations,
     toolpath_kernel,
@@ -129,48 +128,6 @@ def test_outlier_knn_by_query_cell_equals_the_ring_search():
     assert 2 <= np.isnan(ring).sum() <= 20  # the strays and the line's ends
     # on the line (0.5 mm spacing, ~0.4 mm cells) the neighbours lie beyond the block
     assert (ring[np.isfinite(ring)] > 2 * h).sum() > 20
-
-
-@needs_numba
-@pytest.mark.parametrize("k", [8, 5])
-def test_knn_in_place_gives_the_copys_distances_and_restores_the_rows(k):
-    # in_place: the rows sorted by cell where they are and put back (the analysis's outlier
-    # filter, without its largest array): the same numbers as the copying search, bit for bit,
-    # and the caller's rows as they were — duplicates and a stray (the k-d tree's) included
-    rng = np.random.default_rng(3)
-    patch = np.column_stack([rng.uniform(0, 0.02, (40_000, 2)), rng.normal(0, 2e-5, 40_000)])
-    X = np.vstack([patch, patch[:30], [[0.5, 0.5, 0.5]]])
-    X = X[rng.permutation(len(X))]
-    before = X.copy()
-    copied = knn_kernel.mean_knn_distance(X, k)
-    np.testing.assert_array_equal(X, before)
-    inplace = knn_kernel.mean_knn_distance(X, k, in_place=True)
-    np.testing.assert_array_equal(inplace, copied)
-    np.testing.assert_array_equal(X, before)
-    with pytest.raises(ValueError, match="in_place"):
-        knn_kernel.mean_knn_distance(X[:, :2].copy(), k, in_place=True)
-    with pytest.raises(ValueError, match="in_place"):
-        knn_kernel.mean_knn_distance(X, k, rows=np.arange(10), in_place=True)
-    # the filter passes its own array only: a read-only or strided one is searched on a copy
-    ro = X.copy()
-    ro.setflags(write=False)
-    assert np.array_equal(statistical_outliers(ro, in_place=True), statistical_outliers(X))
-
-
-@needs_numba
-def test_rows_sorted_in_place_equal_the_gathered_copy():
-    rng = np.random.default_rng(4)
-    X = rng.normal(size=(50_001, 3))
-    for order in (rng.permutation(len(X)), np.arange(len(X))[::-1].copy(), np.arange(len(X))):
-        Y = X.copy()
-        knn_kernel.sort_rows_in_place(Y, order)
-        np.testing.assert_array_equal(Y, X[order])
-        knn_kernel._permute_rows(Y, order, True)  # and back
-        np.testing.assert_array_equal(Y, X)
-    with pytest.raises(ValueError, match="permutation"):
-        knn_kernel.sort_rows_in_place(X.copy(), np.arange(5))
-    with pytest.raises(ValueError, match="C-contiguous"):
-        knn_kernel.sort_rows_in_place(np.asfortranarray(X), rng.permutation(len(X)))
 
 
 @pytest.mark.parametrize("kind", ["cone", "vwacf", "pyramid"])

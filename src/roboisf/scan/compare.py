@@ -11,14 +11,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from roboisf import jit
 from roboisf.errors import InputError
 from roboisf.frames.se3 import transform_points
 from roboisf.parts.base import Part
 from roboisf.parts.mesh import spatial_order
 from roboisf.path.toolpath import Toolpath
 from roboisf.progress import Progress, task
-from roboisf.scan import knn_kernel
 from roboisf.scan.deviation import (
     FootDeviations,
     PointDeviations,
@@ -241,15 +239,7 @@ def compare_scan(
     # (nominal closest point, outlier k-NN, toolpath neighbourhoods) then walks neighbouring
     # tree nodes and stays in cache; the per-point results come out in that order
     with task(progress, "spatial order", total=None):
-        order = spatial_order(pts)
-        # the registered points are this function's own array (transform_points' result):
-        # sorted where they are; the caller's array (no registration) is never written
-        own = o.register != "none"
-        if own and jit.ready("scan") and knn_kernel.can_sort_in_place(pts):
-            knn_kernel.sort_rows_in_place(pts, order)
-        else:
-            pts = np.take(pts, order, axis=0)  # the same rows; 3x pts[order]
-        del order
+        pts = np.take(pts, spatial_order(pts), axis=0)  # the same rows; 3x pts[order]
     # the whole scan is classified in one pass that keeps four masks (a byte per point each);
     # the feet, normals and deviations are computed again for the selected points only (the
     # same numbers: the query is per point), after the outlier filter, so the whole scan's
@@ -291,10 +281,7 @@ def compare_scan(
     keep = np.ones(pts.shape[0], dtype=bool)
     if o.outlier_k > 0:
         with task(progress, "outlier removal", total=None):
-            # pts is this function's own copy: its rows are sorted for the search in place
-            keep = statistical_outliers(
-                pts, o.outlier_k, o.outlier_std, ordered=True, in_place=True
-            )
+            keep = statistical_outliers(pts, o.outlier_k, o.outlier_std, ordered=True)
             n_out = int(np.count_nonzero(~keep))
     wall_rows = np.flatnonzero(keep & below)
     n_wall = int(wall_rows.size)

@@ -96,6 +96,7 @@ class PointDeviations:
         )
 
 
+
 @dataclass(frozen=True)
 class FootDeviations:
     """Closest nominal points ``foot`` (N, 3) m and signed normal deviations ``dn`` (N,) m of
@@ -280,7 +281,6 @@ def statistical_outliers(
     *,
     ordered: bool = False,
     rows: ArrayLike | None = None,
-    in_place: bool = False,
 ) -> NDArray[np.bool_]:
     """Statistical outlier removal: ``True`` for *inliers*.
 
@@ -292,10 +292,7 @@ def statistical_outliers(
     (:func:`~roboisf.parts.mesh.spatial_order`), the sort is skipped; the mask is the same.
     ``rows`` (M,) int: filter the points ``points[rows]`` only, mask (M,) in the order of
     ``rows`` — the same mask as ``statistical_outliers(points[rows])``, without that copy
-    (with numba; the k-d tree path makes it). ``in_place=True`` (``points`` a writable
-    C-contiguous float64 array, no ``rows``): the compiled search sorts the points' rows in
-    place and puts them back instead of copying them (the copy was the filter's largest
-    array); the mask is the same.
+    (with numba; the k-d tree path makes it).
     """
     X = np.asarray(points, dtype=float)
     R = None if rows is None else np.asarray(rows, dtype=np.int64)
@@ -304,8 +301,7 @@ def statistical_outliers(
         return np.ones(n, dtype=bool)
     if jit.ready("scan"):
         # compiled uniform-grid k-NN (exact; 1.5-2x the k-d tree below on a 2 M-point scan)
-        own = in_place and R is None and X is points and X.flags.c_contiguous and X.flags.writeable
-        m = knn_kernel.mean_knn_distance(X, k, rows=R, in_place=own)
+        m = knn_kernel.mean_knn_distance(X, k, rows=R)
         return m <= m.mean() + std_ratio * m.std()
     if R is not None:
         X = X[R]

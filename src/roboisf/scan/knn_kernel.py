@@ -39,7 +39,7 @@ from numpy.typing import NDArray
 from roboisf.jit import HAVE_NUMBA, compile_notice, njit
 from roboisf.parts.mesh_kernel import bounds as _bounds
 
-__all__ = ["HAVE_NUMBA", "mean_knn_distance", "sort_rows_in_place"]
+__all__ = ["HAVE_NUMBA", "mean_knn_distance"]
 
 if HAVE_NUMBA:
     compile_notice(__file__)  # numba compiles these on first call: say so once
@@ -370,42 +370,6 @@ def _gather(
     return out
 
 
-@_njit()
-def _permute_rows(X: F64, order: NDArray[Any], back: bool) -> None:  # pragma: no cover - compiled
-    """Reorder the rows of ``X`` (N, 3) in place: ``X[i] ← X[order[i]]`` (``back=False``, the
-    rows sorted by cell as :func:`_gather` copies them) or its inverse ``X[order[i]] ← X[i]``
-    (``back=True``: the caller's order again), cycle by cycle with one byte of bookkeeping per
-    row instead of a second array of the points."""
-    n = order.size
-    seen = np.zeros(n, dtype=np.bool_)
-    for s in range(n):
-        if seen[s]:
-            continue
-        seen[s] = True
-        i = s
-        if back:  # carry X[s] to order[s], the row it displaces onward, until s is written
-            v0, v1, v2 = X[s, 0], X[s, 1], X[s, 2]
-            while True:
-                j = order[i]
-                w0, w1, w2 = X[j, 0], X[j, 1], X[j, 2]
-                X[j, 0], X[j, 1], X[j, 2] = v0, v1, v2
-                seen[j] = True
-                v0, v1, v2 = w0, w1, w2
-                i = j
-                if j == s:
-                    break
-        else:  # pull each row's new value from order[i], the hole moving back to s
-            t0, t1, t2 = X[s, 0], X[s, 1], X[s, 2]
-            while True:
-                j = order[i]
-                if j == s:
-                    X[i, 0], X[i, 1], X[i, 2] = t0, t1, t2
-                    break
-                X[i, 0], X[i, 1], X[i, 2] = X[j, 0], X[j, 1], X[j, 2]
-                seen[j] = True
-                i = j
-
-
 def _grid(
     X: F64, k: int, max_cells: int, rows: NDArray[np.int64] | None = None
 ) -> tuple[F64, float, tuple[int, int, int], NDArray[Any], NDArray[Any]]:
@@ -504,38 +468,8 @@ def _sorted_mean(
     return ms
 
 
-def can_sort_in_place(points: Any) -> bool:
-    """Whether ``points`` is an array :func:`sort_rows_in_place` (and ``in_place`` of
-    :func:`mean_knn_distance`) can reorder: writable, C-contiguous, (N, 3) float64."""
-    return bool(
-        isinstance(points, np.ndarray)
-        and points.dtype == np.float64
-        and points.ndim == 2
-        and points.shape[1] == 3
-        and points.flags.c_contiguous
-        and points.flags.writeable
-    )
-
-
-def sort_rows_in_place(points: F64, order: NDArray[Any]) -> None:
-    """``points[:] = points[order]`` without the second array of the points (``order`` a
-    permutation of the rows, e.g. :func:`~roboisf.parts.mesh.spatial_order`; ``points`` as
-    :func:`can_sort_in_place` asks): the scan comparison's spatial sort, whose copy was its
-    memory peak (48 MB more on a 2 M-point scan). Needs numba."""
-    if not can_sort_in_place(points):
-        raise ValueError("expected a writable C-contiguous (N, 3) float64 array")
-    if order.shape != (points.shape[0],):
-        raise ValueError(f"expected a permutation of {points.shape[0]} rows, got {order.shape}")
-    _permute_rows(points, order, False)
-
-
 def mean_knn_distance(
-    points: F64,
-    k: int,
-    *,
-    workers: int | None = None,
-    rows: NDArray[np.int64] | None = None,
-    in_place: bool = False,
+    points: F64, k: int, *, workers: int | None = None, rows: NDArray[np.int64] | None = None
 ) -> F64:
     """(N,) m — mean distance of each point (N, 3) [m] to its ``k`` nearest other points (a
     duplicate counts, at 0), in the caller's order. ``rows``: of the points ``points[rows]``
@@ -543,16 +477,8 @@ def mean_knn_distance(
     (:data:`HAVE_NUMBA`) and more than ``k`` points.
 
     Memory: the points once more, sorted by cell (the only copy), plus ~4 int64/float64 per
-    point and the grid's row starts (≤ 64 MB). ``in_place=True`` (``points`` a writable
-    C-contiguous float64 array, no ``rows``): no copy — the rows of ``points`` are sorted by
-    cell in place for the search and put back in their order before it returns (the same
-    numbers; an error on the way, e.g. Ctrl-C, may leave them reordered).
+    point and the grid's row starts (≤ 64 MB).
     """
-    if in_place:
-        if rows is not None:
-            raise ValueError("in_place needs the points themselves, not rows of them")
-        if not can_sort_in_place(points):
-            raise ValueError("in_place needs a writable C-contiguous (N, 3) float64 array")
     if rows is None:
         X = np.ascontiguousarray(points, dtype=float)
         R = _NO_ROWS
@@ -563,13 +489,8 @@ def mean_knn_distance(
     lo, h, (nx, ny, nz), key, start = _grid(X, k, MAX_CELLS, None if rows is None else R)
     order = _counting_sort(key, start)
     del key
-    if in_place:
-        _permute_rows(X, order, False)  # X is now what _gather would have copied
-        ms = _sorted_mean(X, start, lo, h, (nx, ny, nz), k, workers)
-        _permute_rows(X, order, True)
-    else:
-        # the points sorted by cell, the only copy; freed when _sorted_mean returns
-        ms = _sorted_mean(_gather(X, R, order), start, lo, h, (nx, ny, nz), k, workers)
+    # the points sorted by cell, the only copy; freed when _sorted_mean returns
+    ms = _sorted_mean(_gather(X, R, order), start, lo, h, (nx, ny, nz), k, workers)
     m = np.empty(n)
     m[order] = ms
     return m
