@@ -96,7 +96,6 @@ class PointDeviations:
         )
 
 
-
 @dataclass(frozen=True)
 class FootDeviations:
     """Closest nominal points ``foot`` (N, 3) m and signed normal deviations ``dn`` (N,) m of
