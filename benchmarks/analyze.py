@@ -48,6 +48,9 @@ class StepTimes:
         self.rows: list[tuple[int, str, float, float, float]] = []
         #: the run ("cnc", "robot") of each row inside a ``scan <run>`` task (its thread's)
         self.scan_of: dict[int, str] = {}
+        #: the ``scan <run>`` row each row ran inside (its thread's: the analysis prepares the
+        #: last scan in the calling thread, then finishes it in the worker — two such rows)
+        self.inside: dict[int, int] = {}
         self._depth = 0
         self._lock = threading.Lock()
         self._scan = threading.local()
@@ -62,15 +65,19 @@ class StepTimes:
                 self._depth += 1
             if description.startswith("scan "):
                 self._scan.run = description[5:]
+                self._scan.row = row
             run = getattr(self._scan, "run", None)
             if run is not None:
                 self.scan_of[row] = run
+                if self._scan.row != row:
+                    self.inside[row] = self._scan.row
         t, c = time.perf_counter(), time.process_time()
         try:
             yield noop_advance
         finally:
             if description.startswith("scan "):
                 self._scan.run = None
+                self._scan.row = None
             with self._lock:
                 if threading.current_thread() is threading.main_thread():
                     self._depth -= 1
@@ -227,11 +234,7 @@ def step_floors(spec: Any, steps: StepTimes) -> None:
         if kk is None or kk not in floor:
             continue
         if kk[1] == "read":  # the scan's own work: reading, without its sub-steps
-            dt -= sum(
-                steps.rows[j][2]
-                for j in range(len(steps.rows))
-                if j != i and steps.scan_of.get(j) == kk[0]
-            )
+            dt -= sum(steps.rows[j][2] for j, p in steps.inside.items() if p == i)
         run = steps.scan_of.get(i)
         label = f"{step} ({run})" if run and kk[1] != "read" else step
         label = label + ": reading, rest" if kk[1] == "read" else label

@@ -87,10 +87,10 @@ def test_an_error_beside_the_scans_stops_them_and_is_reported(
     compared: list[str] = []
     real = pipeline._compare
 
-    def slow_compare(study, cell, run, tp, progress, keep_points=False):  # outlast the logs
-        started.set()
+    def slow_compare(study, cell, run, tp, progress, keep_points=False, prepared=None):
+        started.set()  # the scans outlast the logs
         compared.append(run.name)
-        return real(study, cell, run, tp, progress, keep_points)
+        return real(study, cell, run, tp, progress, keep_points, prepared)
 
     def fails(*a, **k):
         assert started.wait(10)
@@ -174,3 +174,81 @@ def test_a_position_aligned_runs_joint_log_is_freed_before_its_force_log_is_read
     aligned, q, *_ = pipeline._logs_part(study, cell, tp, None)
     assert seen == [study.cnc.name, rob.name]
     assert aligned[rob.name].method == "position" and q.shape == (len(tp), 6)
+
+
+def _hold_first_scan(monkeypatch, until: threading.Event) -> None:
+    """The worker's first (cnc) comparison waits for ``until``: the calling thread then reaches
+    the last scan before the worker does, whatever the machine's speed."""
+    real = pipeline._compare
+
+    def compare(study, cell, run, tp, progress, keep_points=False, prepared=None):
+        if run.name == "cnc":
+            assert until.wait(20)
+        return real(study, cell, run, tp, progress, keep_points, prepared)
+
+    monkeypatch.setattr(pipeline, "_compare", compare)
+
+
+def _record_prepares(monkeypatch, tried: threading.Event, fail=None) -> list[tuple[str, str]]:
+    real = pipeline._prepare
+    seen: list[tuple[str, str]] = []
+
+    def prepare(study, cell, run, progress):
+        seen.append((run.name, threading.current_thread().name))
+        try:
+            if fail is not None and threading.current_thread() is threading.main_thread():
+                raise fail
+            return real(study, cell, run, progress)
+        finally:
+            if run.name == "robot":
+                tried.set()
+
+    monkeypatch.setattr(pipeline, "_prepare", prepare)
+    return seen
+
+
+def test_the_calling_thread_prepares_the_last_scan_beside_the_first(
+    small_cone_study, sequential_kept, monkeypatch
+):
+    # done with the logs, the calling thread reads, registers and sorts the robot scan while
+    # the worker still compares the CNC scan; the worker finishes it: the same results
+    tried = threading.Event()
+    seen = _record_prepares(monkeypatch, tried)
+    _hold_first_scan(monkeypatch, tried)
+    ovl = analyze(small_cone_study)
+    assert ("robot", "MainThread") in seen and ("cnc", "roboisf-scans") in seen
+    assert len(seen) == 2
+    seq = sequential_kept[0]
+    pd.testing.assert_frame_equal(seq.per_point, ovl.per_point, check_exact=True)
+    assert ovl.scans["robot"].summary() == seq.scans["robot"].without_points().summary()
+    assert _scan_threads() == []
+
+
+def test_scan_errors_come_in_the_runs_order_whichever_thread_met_them(
+    small_cone_study, tmp_path, monkeypatch
+):
+    # the robot scan's error, met by the calling thread, waits for the CNC scan: the CNC's
+    # error is the one reported, as when one thread compared both
+    study = _copy(small_cone_study, tmp_path)
+    bad = b"ply\nformat ascii 1.0\nelement vertex 2\nend_header\n"
+    (study / "robot_scan.ply").write_bytes(bad)
+    tried = threading.Event()
+    seen = _record_prepares(monkeypatch, tried)
+    _hold_first_scan(monkeypatch, tried)
+    with pytest.raises(InputError, match=r"robot_scan\.ply"):
+        analyze(study)  # the CNC scan is fine: the robot's error reaches the caller
+    assert ("robot", "MainThread") in seen
+    (study / "cnc_scan.ply").write_bytes(bad)
+    tried.clear()
+    with pytest.raises(InputError, match=r"cnc_scan\.ply"):
+        analyze(study)
+    assert _scan_threads() == []
+
+
+def test_ctrl_c_while_preparing_the_last_scan_stops_the_worker(small_cone_study, monkeypatch):
+    tried = threading.Event()
+    _record_prepares(monkeypatch, tried, fail=KeyboardInterrupt())
+    _hold_first_scan(monkeypatch, tried)
+    with pytest.raises(KeyboardInterrupt):
+        analyze(small_cone_study)
+    assert _scan_threads() == []

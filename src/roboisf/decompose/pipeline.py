@@ -63,7 +63,14 @@ from roboisf.parts import sine_law_thickness
 from roboisf.progress import Cancelled, Progress, cancellable, task
 from roboisf.robot import compliance_stats, deflection_contributions, ik_toolpath
 from roboisf.robot.vjm_kernel import single_blas_thread
-from roboisf.scan import CompareOptions, ScanComparison, compare_scan, read_scan
+from roboisf.scan import (
+    CompareOptions,
+    PreparedScan,
+    ScanComparison,
+    finish_scan,
+    prepare_scan,
+    read_scan,
+)
 from roboisf.sensor import UnloadedStretch, unloaded_stretches
 from roboisf.study.checks import (
     check_distinct_runs,
@@ -278,17 +285,30 @@ def _compare(
     tp: Toolpath,
     progress: Progress | None,
     keep_points: bool = False,
+    prepared: PreparedScan | None = None,
 ) -> ScanComparison:
-    cloud = read_scan(run.scan, unit=run.scan_unit)
-    return compare_scan(
-        cloud,
+    """``run``'s scan compared with the part and ``tp`` (its first half done already if
+    ``prepared``: :func:`_prepare`)."""
+    prep = _prepare(study, cell, run, progress) if prepared is None else prepared
+    return finish_scan(
+        prep,
         cell.part,
         toolpath=tp,
         toolpath_source=str(run.toolpath),
+        progress=progress,
+        keep_points=keep_points,
+    )
+
+
+def _prepare(study: Study, cell: Cell, run: RunSpec, progress: Progress | None) -> PreparedScan:
+    """``run``'s scan read, registered, sorted and cut to the wall (:func:`prepare_scan`)."""
+    cloud = read_scan(run.scan, unit=run.scan_unit)
+    return prepare_scan(
+        cloud,
+        cell.part,
         options=scan_options(study),
         progress=progress,
         consume=True,  # the raw points freed once sorted (the cloud is dropped here anyway)
-        keep_points=keep_points,
     )
 
 
@@ -394,9 +414,12 @@ class _ScansBeside:
 
     The scans need only the part and the toolpath; the logs' reading, alignment and conditioning
     run in the calling thread meanwhile (mostly pandas/numpy holding the GIL, while the scan
-    kernels release it), so the two cores are both busy (issue #16). :meth:`result` waits for
-    them and re-raises their error; :meth:`cancel` stops them at their next step (the logs were
-    refused, or Ctrl-C) and waits, so no thread outlives the analysis."""
+    kernels release it), so the two cores are both busy (issue #16). When the calling thread is
+    done with the logs it prepares the last scan (:meth:`prepare_last`: read, registered,
+    sorted — serial steps) while the worker's first scan is in its parallel outlier filter, if
+    the worker has not begun it. :meth:`result` waits for them and re-raises their error (the
+    runs' in order, whichever thread met it); :meth:`cancel` stops them at their next step (the
+    logs were refused, or Ctrl-C) and waits, so no thread outlives the analysis."""
 
     def __init__(
         self,
@@ -407,16 +430,33 @@ class _ScansBeside:
         progress: Progress | None,
         keep_points: bool = False,
     ) -> None:
+        self._study, self._cell, self._runs = study, cell, runs
         self._cancel = threading.Event()
         self._scans: dict[str, ScanComparison] = {}
         self._error: BaseException | None = None
+        self._claim_lock = threading.Lock()
+        self._claimed: set[str] = set()
+        # a scan the calling thread prepared (or the error it met doing so), and when
+        self._prepared: dict[str, PreparedScan | BaseException] = {}
+        self._ready = {run.name: threading.Event() for run in runs}
         prog = cancellable(progress, self._cancel)
 
         def work() -> None:
             try:
                 for run in runs:
                     with task(prog, f"scan {run.name}"):
-                        self._scans[run.name] = _compare(study, cell, run, tp, prog, keep_points)
+                        prep = None
+                        if not self._claim(run.name):  # the calling thread prepares it
+                            while not self._ready[run.name].wait(0.05):
+                                if self._cancel.is_set():
+                                    raise Cancelled(run.name)
+                            got = self._prepared.pop(run.name)
+                            if isinstance(got, BaseException):
+                                raise got
+                            prep = got
+                        self._scans[run.name] = _compare(
+                            study, cell, run, tp, prog, keep_points, prep
+                        )
                         _trim()
             except Cancelled:
                 pass
@@ -425,6 +465,31 @@ class _ScansBeside:
 
         self._thread = threading.Thread(target=work, name="roboisf-scans")
         self._thread.start()
+
+    def _claim(self, name: str) -> bool:
+        with self._claim_lock:
+            if name in self._claimed:
+                return False
+            self._claimed.add(name)
+            return True
+
+    def prepare_last(self, progress: Progress | None) -> None:
+        """In the calling thread: the last run's scan read, registered and sorted, unless the
+        worker has begun it. An error there is the worker's to raise, in the runs' order (a
+        first scan's error first); Ctrl-C is raised here."""
+        run = self._runs[-1]
+        if len(self._runs) < 2 or not self._thread.is_alive() or not self._claim(run.name):
+            return
+        try:
+            with task(progress, f"scan {run.name}"):
+                self._prepared[run.name] = _prepare(self._study, self._cell, run, progress)
+        except Exception as e:
+            self._prepared[run.name] = e
+        except BaseException:
+            self._prepared[run.name] = Cancelled(run.name)
+            raise
+        finally:
+            self._ready[run.name].set()
 
     def result(self) -> dict[str, ScanComparison]:
         self._thread.join()
@@ -524,6 +589,10 @@ def _analyze(
             k_c = cell.robot.compliance(q, T_base_work=cell.T_base_work)
             vjm = at_ball_centre(np.einsum("nij,nj->ni", k_c, W_rob), R_ball)
         fingerprint = study_fingerprint(study)
+        if beside is not None:
+            # this thread would only wait: the last scan's serial first half here, beside the
+            # first scan's parallel outlier filter in the worker
+            beside.prepare_last(progress)
     except BaseException:
         if beside is not None:
             beside.cancel()

@@ -14,7 +14,15 @@ from typing import TYPE_CHECKING
 from roboisf._lazy import attach
 
 if TYPE_CHECKING:
-    from roboisf.scan.compare import CompareOptions, ScanComparison, compare_scan, part_size
+    from roboisf.scan.compare import (
+        CompareOptions,
+        PreparedScan,
+        ScanComparison,
+        compare_scan,
+        finish_scan,
+        part_size,
+        prepare_scan,
+    )
     from roboisf.scan.deviation import (
         FootDeviations,
         PointDeviations,
@@ -60,9 +68,12 @@ if TYPE_CHECKING:
 _WHERE = {
     "compare": (
         "CompareOptions",
+        "PreparedScan",
         "ScanComparison",
         "compare_scan",
+        "finish_scan",
         "part_size",
+        "prepare_scan",
     ),
     "deviation": (
         "FootDeviations",
@@ -128,6 +139,7 @@ __all__ = [
     "FootDeviations",
     "OffsetField",
     "PointDeviations",
+    "PreparedScan",
     "Registration",
     "ScanCloud",
     "ScanComparison",
@@ -142,6 +154,7 @@ __all__ = [
     "default_rim_band",
     "detect_symmetry",
     "deviation_stats",
+    "finish_scan",
     "foot_deviations",
     "lap_arc_length",
     "normal_deviation_stats",
@@ -149,6 +162,7 @@ __all__ = [
     "part_symmetry",
     "point_deviations",
     "point_table",
+    "prepare_scan",
     "radial_offset",
     "read_mesh",
     "read_scan",

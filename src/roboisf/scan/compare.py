@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from numpy.typing import NDArray
 
 from roboisf.errors import InputError
 from roboisf.frames.se3 import transform_points
@@ -32,7 +33,17 @@ from roboisf.scan.readers import ScanCloud, check_units
 from roboisf.scan.registration import METHODS, Registration, register
 from roboisf.scan.summary import by_angle, by_depth, deviation_stats, normal_deviation_stats
 
-__all__ = ["CompareOptions", "ScanComparison", "compare_scan", "part_size"]
+__all__ = [
+    "CompareOptions",
+    "PreparedScan",
+    "ScanComparison",
+    "compare_scan",
+    "finish_scan",
+    "part_size",
+    "prepare_scan",
+]
+
+F64 = NDArray[np.float64]
 
 
 def part_size(part: Part) -> float:
@@ -224,6 +235,64 @@ def compare_scan(
     taken, before the toolpath deviations run on the feet and normal deviations: 7 of the 11
     numbers per point gone from that step's peak (≈ 95 MB on a 1.7 M-point wall).
     """
+    prep = prepare_scan(cloud, part, options=options, progress=progress, consume=consume)
+    return finish_scan(
+        prep,
+        part,
+        toolpath=toolpath,
+        toolpath_source=toolpath_source,
+        progress=progress,
+        keep_points=keep_points,
+    )
+
+
+class PreparedScan:
+    """A scan registered to the part, in spatial order and cut to its wall: the first half of
+    :func:`compare_scan` (:func:`prepare_scan`), which :func:`finish_scan` completes once.
+
+    The analysis prepares its second scan in the thread that read the logs while the first
+    scan's outlier filter still runs in the other (:mod:`roboisf.decompose.pipeline`): the
+    serial steps (reading, registration, sorting) beside a parallel one instead of after it.
+    """
+
+    def __init__(
+        self,
+        points: F64,
+        below: NDArray[np.bool_],
+        in_band: NDArray[np.bool_],
+        registration: Registration,
+        options: CompareOptions,
+        source: str | None,
+        counts: dict[str, int],
+    ) -> None:
+        self._points: F64 | None = points
+        self.below = below
+        self.in_band = in_band
+        self.registration = registration
+        self.options = options
+        self.source = source
+        self.counts = counts
+
+    def take_points(self) -> F64:
+        """(N, 3) m — the wall's points (registered, work frame, spatial order), handed over
+        once: :func:`finish_scan` frees them as soon as the selected ones are copied out."""
+        if self._points is None:
+            raise InputError("this prepared scan was already finished", file=self.source)
+        pts, self._points = self._points, None
+        return pts
+
+
+def prepare_scan(
+    cloud: ScanCloud,
+    part: Part,
+    *,
+    options: CompareOptions | None = None,
+    progress: Progress | None = None,
+    consume: bool = False,
+) -> PreparedScan:
+    """The first half of :func:`compare_scan` (the same arguments): unit plausibility,
+    registration, the spatial sort, the classification of every point and the overlap check;
+    the whole scan's copy is freed, the wall's points kept (:class:`PreparedScan`)."""
     o = options or CompareOptions()
     rim_band = default_rim_band(part.depth) if o.rim_band is None else o.rim_band
     o = replace(o, rim_band=rim_band)
@@ -277,6 +346,33 @@ def compare_scan(
     del cls
     pts = np.take(pts, full, axis=0)
     del full
+    counts = {
+        "read": n_read,
+        "near_nominal": n_near,
+        "wall_beyond_max_distance": n_beyond,
+        "wall_total": n_on_wall,
+    }
+    return PreparedScan(pts, below, in_band, reg, o, None if src is None else str(src), counts)
+
+
+def finish_scan(
+    prep: PreparedScan,
+    part: Part,
+    *,
+    toolpath: Toolpath | None = None,
+    toolpath_source: str | None = None,
+    progress: Progress | None = None,
+    keep_points: bool = True,
+) -> ScanComparison:
+    """The second half of :func:`compare_scan`: the outlier filter, the deviations of the
+    wall, the contour band and the toolpath points, and their tables."""
+    o = prep.options
+    rim_band = o.rim_band
+    assert rim_band is not None  # resolved by prepare_scan
+    src = prep.source
+    reg = prep.registration
+    below, in_band = prep.below, prep.in_band
+    pts = prep.take_points()
     n_out = 0
     keep = np.ones(pts.shape[0], dtype=bool)
     if o.outlier_k > 0:
@@ -291,6 +387,7 @@ def compare_scan(
         )
     ring_rows = np.flatnonzero(keep & in_band)
     del keep, below, in_band
+    prep.below = prep.in_band = np.zeros(0, dtype=bool)
     # the selected points, the whole wall's copy freed before their deviations exist
     ring_pts, wall_pts = np.take(pts, ring_rows, axis=0), np.take(pts, wall_rows, axis=0)
     del pts, ring_rows, wall_rows
@@ -340,15 +437,16 @@ def compare_scan(
         band=o.band,
         bin_width=o.angle_bin,
     )
+    c = prep.counts
     counts = {
-        "read": n_read,
-        "near_nominal": n_near,
+        "read": c["read"],
+        "near_nominal": c["near_nominal"],
         "wall_below_rim_band": n_wall,
         "contour": ring.n_points,
         "outliers_removed": n_out,
         "used": wall.n_points,
-        "wall_beyond_max_distance": n_beyond,
-        "wall_total": n_on_wall,
+        "wall_beyond_max_distance": c["wall_beyond_max_distance"],
+        "wall_total": c["wall_total"],
     }
     if not keep_points:
         return ScanComparison(None, tdev, reg, counts, depth_tab, angle_tab, o, point_stats)
