@@ -588,11 +588,12 @@ def _analyze(
         with task(progress, "robot VJM"):
             k_c = cell.robot.compliance(q, T_base_work=cell.T_base_work)
             vjm = at_ball_centre(np.einsum("nij,nj->ni", k_c, W_rob), R_ball)
-        fingerprint = study_fingerprint(study)
         if beside is not None:
             # this thread would only wait: the last scan's serial first half here, beside the
-            # first scan's parallel outlier filter in the worker
+            # first scan's parallel outlier filter in the worker (before the fingerprint: the
+            # worker may be done with the first scan and wait for it)
             beside.prepare_last(progress)
+        fingerprint = study_fingerprint(study)
     except BaseException:
         if beside is not None:
             beside.cancel()
