@@ -87,13 +87,17 @@ def test_an_error_beside_the_scans_stops_them_and_is_reported(
     compared: list[str] = []
     real = pipeline._compare
 
+    errored = threading.Event()
+
     def slow_compare(study, cell, run, tp, progress, keep_points=False, prepared=None):
-        started.set()  # the scans outlast the logs
+        started.set()
         compared.append(run.name)
+        errored.wait(10)  # the first scan outlasts the logs: it is mid-way when they fail
         return real(study, cell, run, tp, progress, keep_points, prepared)
 
     def fails(*a, **k):
         assert started.wait(10)
+        errored.set()
         raise InputError(message, file=study / "cnc_forces.parquet")
 
     monkeypatch.setattr(pipeline, "_compare", slow_compare)
@@ -250,5 +254,26 @@ def test_ctrl_c_while_preparing_the_last_scan_stops_the_worker(small_cone_study,
     _record_prepares(monkeypatch, tried, fail=KeyboardInterrupt())
     _hold_first_scan(monkeypatch, tried)
     with pytest.raises(KeyboardInterrupt):
+        analyze(small_cone_study)
+    assert _scan_threads() == []
+
+
+def test_a_refused_toolpath_stops_the_scan_already_begun(small_cone_study, monkeypatch):
+    # the first scan is read and registered while the toolpath is read: a toolpath refused
+    # there stops it at its next step, and the toolpath's error is the one reported
+    begun = threading.Event()
+    real = pipeline._prepare
+
+    def prepare(study, cell, run, progress):
+        begun.set()
+        return real(study, cell, run, progress)
+
+    def refused(study, run, part):
+        assert begun.wait(10)
+        raise InputError("not a toolpath of this part", file=run.toolpath)
+
+    monkeypatch.setattr(pipeline, "_prepare", prepare)
+    monkeypatch.setattr(pipeline, "study_toolpath", refused)
+    with pytest.raises(InputError, match="not a toolpath of this part"):
         analyze(small_cone_study)
     assert _scan_threads() == []

@@ -414,7 +414,9 @@ class _ScansBeside:
 
     The scans need only the part and the toolpath; the logs' reading, alignment and conditioning
     run in the calling thread meanwhile (mostly pandas/numpy holding the GIL, while the scan
-    kernels release it), so the two cores are both busy (issue #16). When the calling thread is
+    kernels release it), so the two cores are both busy (issue #16). The first scan is read
+    and registered while the calling thread reads the toolpath (:meth:`set_toolpath`). When
+    the calling thread is
     done with the logs it prepares the last scan (:meth:`prepare_last`: read, registered,
     sorted — serial steps) while the worker's first scan is in its parallel outlier filter, if
     the worker has not begun it. :meth:`result` waits for them and re-raises their error (the
@@ -426,11 +428,14 @@ class _ScansBeside:
         study: Study,
         cell: Cell,
         runs: tuple[RunSpec, ...],
-        tp: Toolpath,
         progress: Progress | None,
         keep_points: bool = False,
     ) -> None:
         self._study, self._cell, self._runs = study, cell, runs
+        # the toolpath, once the calling thread has read it (the first scan's first half needs
+        # only the part: it runs beside the toolpath's reading)
+        self._tp: Toolpath | None = None
+        self._tp_ready = threading.Event()
         self._cancel = threading.Event()
         self._scans: dict[str, ScanComparison] = {}
         self._error: BaseException | None = None
@@ -454,8 +459,14 @@ class _ScansBeside:
                             if isinstance(got, BaseException):
                                 raise got
                             prep = got
+                        else:
+                            prep = _prepare(study, cell, run, prog)
+                        while not self._tp_ready.wait(0.05):
+                            if self._cancel.is_set():
+                                raise Cancelled(run.name)
+                        assert self._tp is not None
                         self._scans[run.name] = _compare(
-                            study, cell, run, tp, prog, keep_points, prep
+                            study, cell, run, self._tp, prog, keep_points, prep
                         )
                         _trim()
             except Cancelled:
@@ -465,6 +476,11 @@ class _ScansBeside:
 
         self._thread = threading.Thread(target=work, name="roboisf-scans")
         self._thread.start()
+
+    def set_toolpath(self, tp: Toolpath) -> None:
+        """The toolpath the scans are compared along (read by the calling thread)."""
+        self._tp = tp
+        self._tp_ready.set()
 
     def _claim(self, name: str) -> bool:
         with self._claim_lock:
@@ -527,21 +543,10 @@ def analyze(
         return _analyze(study, progress=progress, overlap=overlap, keep_points=keep_points)
 
 
-def _analyze(
-    study: Study | str | Path,
-    *,
-    progress: Progress | None,
-    overlap: bool,
-    keep_points: bool,
-) -> AnalysisResult:
-    if not isinstance(study, Study):
-        study = load_study(study)
-    cell = cell_from_study(study)
+def _toolpaths(study: Study, cell: Cell, progress: Progress | None) -> tuple[Toolpath, Toolpath]:
+    """The CNC run's toolpath and the robot run's (the same path, or a commanded version of
+    it: a compensated run), checked against the tool and the part."""
     cnc, rob = study.cnc, study.robot_run
-    check_distinct_runs(  # the robot part measured on its own, not the CNC's files copied
-        {"scan": cnc.scan, "forces.file": cnc.forces.file},
-        {"scan": rob.scan, "forces.file": rob.forces.file},
-    )
     with task(progress, "toolpath"):
         tp = study_toolpath(study, cnc, cell.part)  # a toolpath CSV or a CAM program
         tp_r = tp if rob.toolpath == cnc.toolpath else study_toolpath(study, rob, cell.part)
@@ -561,16 +566,41 @@ def _analyze(
                 "not on the nominal surface of [part] (a toolpath of another part?)",
                 file=cnc.toolpath,
             )
-    # a compensated robot run: its commanded tips minus the nominal (the ball centre moves alike)
-    command = tp_r.tip - tp.tip
-    has_command = bool(np.max(np.abs(command)) > 1e-9)
-    truth_dir = run_truth_dir(study)
-    truth_file = truth_dir / "per_point.parquet"
-    truth = _read_truth(truth_file) if truth_file.is_file() else None  # before the long work
-    beside = _ScansBeside(study, cell, (cnc, rob), tp, progress, keep_points) if overlap else None
-    # everything before the scans' results inside: an error here (a refused log, a tool's FE
-    # model, Ctrl-C) stops the scans' thread at its next step, none outlives the analysis
+    return tp, tp_r
+
+
+def _analyze(
+    study: Study | str | Path,
+    *,
+    progress: Progress | None,
+    overlap: bool,
+    keep_points: bool,
+) -> AnalysisResult:
+    if not isinstance(study, Study):
+        study = load_study(study)
+    cell = cell_from_study(study)
+    cnc, rob = study.cnc, study.robot_run
+    check_distinct_runs(  # the robot part measured on its own, not the CNC's files copied
+        {"scan": cnc.scan, "forces.file": cnc.forces.file},
+        {"scan": rob.scan, "forces.file": rob.forces.file},
+    )
+    # the scans' thread starts first: the first scan's reading, registration and sort need only
+    # the part (the toolpath, read meanwhile, is handed over after it)
+    beside = _ScansBeside(study, cell, (cnc, rob), progress, keep_points) if overlap else None
+    # everything before the scans' results inside: an error here (a refused toolpath or log, a
+    # tool's FE model, Ctrl-C) stops the scans' thread at its next step, none outlives the
+    # analysis
     try:
+        tp, tp_r = _toolpaths(study, cell, progress)
+        # a compensated robot run: its commanded tips minus the nominal (the ball centre
+        # moves alike)
+        command = tp_r.tip - tp.tip
+        has_command = bool(np.max(np.abs(command)) > 1e-9)
+        truth_dir = run_truth_dir(study)
+        truth_file = truth_dir / "per_point.parquet"
+        truth = _read_truth(truth_file) if truth_file.is_file() else None  # before the long work
+        if beside is not None:
+            beside.set_toolpath(tp)
         aligned, q, q_source, input_warnings, W_cnc, W_rob, unloaded = _logs_part(
             study, cell, tp, progress, tp_r if has_command else None
         )
