@@ -271,6 +271,10 @@ def test_flange_on_a_pyramid_keeps_a_uniform_wall_offset():
     # the fixture method: z and tilts only, on the same flange
     fix = register(s.points, SQUARE, "fixture")
     assert fix.fitted == ("z", "rx", "ry") and set(fix.locked) == {"x", "y", "rz"}
+    # the three locked for one reason, said once (the log line repeated it three times)
+    said = fix.describe()
+    assert said.count("fixture registration") == 1, said
+    assert "x shift, y shift and rotation about z locked: fixture registration" in said, said
     assert abs(fix.T_work_scan[2, 3] - T_true[2, 3]) < 20e-6
 
 

@@ -158,8 +158,13 @@ class Registration:
     def describe(self) -> str:
         """One line for a log: what was fitted, what was locked and why, the ambiguity."""
         parts = [f"{self.method}: {self.dof} DOF fitted ({', '.join(self.fitted) or '-'})"]
+        # the locked ones grouped by their reason: a fixture registration's three said once
+        by_reason: dict[str, list[str]] = {}
         for k, why in self.locked.items():
-            parts.append(f"{DOF_NAMES[k]} locked: {why}")
+            by_reason.setdefault(why, []).append(DOF_NAMES[k])
+        for why, names in by_reason.items():
+            what = names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
+            parts.append(f"{what} locked: {why}")
         if self.ambiguity is not None:
             parts.append(
                 f"rotation about z {math.degrees(self.rotation_about_z):.4f}°, defined only "
@@ -368,7 +373,7 @@ def _free_coordinates(
     if method == "fixture":
         free[[0, 1, 5]] = False
         for name in ("x", "y", "rz"):
-            locked[name] = "fixture registration: kept where the fixture puts it"
+            locked[name] = "fixture registration: kept where the fixture puts the part"
     if sym.order == 0 and free[5]:
         free[5] = False
         locked["rz"] = f"continuous symmetry about z ({sym.how}): changes no distance"
