@@ -127,3 +127,23 @@ def test_default_registration_is_fixture_as_analyze(files, tmp_path):
     assert main(argv) == 0
     summary = json.loads((tmp_path / "d.summary.json").read_text())
     assert summary["registration"]["method"] == AnalysisSpec().registration == "fixture"
+
+
+def test_a_registrations_shift_reads_without_negative_zero():
+    # x and y locked by the fixture registration: a tilt about the flange leaves them at
+    # ±1e-13 m, which printed as "-0.0000 mm"
+    from roboisf.cli.scan import shift_mm
+
+    assert shift_mm([-1e-13, 2e-17, -0.3995e-3]) == "0.0000, 0.0000, -0.3995"
+    assert shift_mm([-0.00004e-3, 0.00006e-3, 1.23456e-3]) == "0.0000, 0.0001, 1.2346"
+
+
+def test_the_fixture_registration_is_said_in_two_lines(files, tmp_path, capsys):
+    out = tmp_path / "dev.csv"
+    argv = ["scan", "compare", str(files / "scan.ply"), "--part", str(files / "cone.toml"),
+            "--toolpath", str(files / "path.csv"), "-o", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    said = capsys.readouterr()
+    lines = [ln for ln in (said.out + said.err).splitlines() if "registration fixture" in ln]
+    assert len(lines) == 2 and "-0.0000" not in lines[0], lines
+    assert lines[1].count("fixture registration") == 1, lines

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import typer
 
@@ -163,8 +164,7 @@ def compare(
     reg = res.registration
     if reg.dof:
         state.info(
-            f"registration {reg.method}: shift "
-            f"{', '.join(f'{v * 1e3:.4f}' for v in reg.translation)} mm, "
+            f"registration {reg.method}: shift {shift_mm(reg.translation)} mm, "
             f"tilt {math.degrees(reg.tilt):.4f}°, rms {reg.rms * 1e3:.4f} mm, "
             f"overlap {reg.overlap:.1%}"
         )
@@ -195,3 +195,9 @@ def compare(
 def register(app: typer.Typer) -> None:
     """Add the ``scan`` command group to the root app."""
     app.add_typer(scan_app, name="scan")
+
+
+def shift_mm(translation: Any) -> str:
+    """ "x, y, z" of a registration's translation (3,) m in mm to 0.1 µm — a locked shift left
+    at ±1e-13 m by a tilt about the flange reads 0.0000, not -0.0000."""
+    return ", ".join(f"{round(float(v) * 1e3, 4) + 0.0:.4f}" for v in translation)
