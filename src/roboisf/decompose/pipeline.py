@@ -340,7 +340,7 @@ def _logs_part(
         tp_run = tp_robot if (r is rob and tp_robot is not None) else tp
         # aligned by position: the joint log is read, aligned, turned into the robot's joint
         # angles and freed before the force log is read — each 1 kHz log alone beside the
-        # scan comparison in the other thread (the command's memory peak: −57 MB)
+        # scan comparison in the other thread (the two side by side were the command's peak)
         by_joints = r.sync == "position" and r.joints is not None
         joint_notes: list[str] = []
         j_map: Alignment | None = None
@@ -415,13 +415,12 @@ class _ScansBeside:
     The scans need only the part and the toolpath; the logs' reading, alignment and conditioning
     run in the calling thread meanwhile (mostly pandas/numpy holding the GIL, while the scan
     kernels release it), so the two cores are both busy (issue #16). The first scan is read
-    and registered while the calling thread reads the toolpath (:meth:`set_toolpath`). When
-    the calling thread is
-    done with the logs it prepares the last scan (:meth:`prepare_last`: read, registered,
-    sorted — serial steps) while the worker's first scan is in its parallel outlier filter, if
-    the worker has not begun it. :meth:`result` waits for them and re-raises their error (the
-    runs' in order, whichever thread met it); :meth:`cancel` stops them at their next step (the
-    logs were refused, or Ctrl-C) and waits, so no thread outlives the analysis."""
+    and registered while the calling thread reads the toolpath (:meth:`set_toolpath`). Done
+    with the logs, the calling thread prepares the last scan (:meth:`prepare_last`: read,
+    registered, sorted — serial steps) while the worker's first scan is in its parallel outlier
+    filter, unless the worker has begun it. :meth:`result` waits for them and re-raises their
+    error (in the runs' order, whichever thread met it); :meth:`cancel` stops them at their next
+    step (the logs were refused, or Ctrl-C) and waits, so no thread outlives the analysis."""
 
     def __init__(
         self,
@@ -450,20 +449,15 @@ class _ScansBeside:
             try:
                 for run in runs:
                     with task(prog, f"scan {run.name}"):
-                        prep = None
-                        if not self._claim(run.name):  # the calling thread prepares it
-                            while not self._ready[run.name].wait(0.05):
-                                if self._cancel.is_set():
-                                    raise Cancelled(run.name)
+                        if self._claim(run.name):
+                            prep = _prepare(study, cell, run, prog)
+                        else:  # the calling thread prepares it
+                            self._wait(self._ready[run.name], run.name)
                             got = self._prepared.pop(run.name)
                             if isinstance(got, BaseException):
                                 raise got
                             prep = got
-                        else:
-                            prep = _prepare(study, cell, run, prog)
-                        while not self._tp_ready.wait(0.05):
-                            if self._cancel.is_set():
-                                raise Cancelled(run.name)
+                        self._wait(self._tp_ready, run.name)
                         assert self._tp is not None
                         self._scans[run.name] = _compare(
                             study, cell, run, self._tp, prog, keep_points, prep
@@ -481,6 +475,12 @@ class _ScansBeside:
         """The toolpath the scans are compared along (read by the calling thread)."""
         self._tp = tp
         self._tp_ready.set()
+
+    def _wait(self, event: threading.Event, name: str) -> None:
+        """In the worker: wait for ``event``, or stop (:class:`Cancelled`) once cancelled."""
+        while not event.wait(0.05):
+            if self._cancel.is_set():
+                raise Cancelled(name)
 
     def _claim(self, name: str) -> bool:
         with self._claim_lock:
