@@ -226,7 +226,7 @@ def test_identification_fits_the_joints_it_can_and_holds_the_rest(robot_path):
 def test_lap_normal_equations_are_np_add_at_bit_for_bit():
     """Per-lap XᵀX and Xᵀy by bincount: the same additions in the same order as ``np.add.at``
     (the reference), so the same bits — laps out of order, a lap without points, one column."""
-    from roboisf.decompose.check import lap_normal_equations
+    from roboisf.decompose.check import lap_cross_sums, lap_normal_equations
 
     rng = np.random.default_rng(2)
     for k in (6, 1):
@@ -241,3 +241,4 @@ def test_lap_normal_equations_are_np_add_at_bit_for_bit():
         np.add.at(h0, inv, X * y[:, None])
         assert np.array_equal(G, G0) and np.array_equal(h, h0)
         assert not G[7].any() and not G[40].any()
+        assert np.array_equal(lap_cross_sums(X, 2.0 * y, inv, 41), 2.0 * h0)  # another y

@@ -50,6 +50,7 @@ __all__ = [
     "VjmCheck",
     "boot_weights",
     "lap_blocks",
+    "lap_cross_sums",
     "lap_index",
     "lap_normal_equations",
     "lateral_offset",
@@ -103,10 +104,16 @@ def lap_normal_equations(X: F64, y: F64, inv: NDArray[np.intp], L: int) -> tuple
         for j in range(i, k):
             G[:, i, j] = np.bincount(inv, weights=X[:, i] * X[:, j], minlength=L)
             G[:, j, i] = G[:, i, j]
-    h = np.empty((L, k))
-    for i in range(k):
+    return G, lap_cross_sums(X, y, inv, L)
+
+
+def lap_cross_sums(X: F64, y: F64, inv: NDArray[np.intp], L: int) -> F64:
+    """Per-lap ``Xᵀy`` (L, k) of :func:`lap_normal_equations` alone (another right-hand side
+    for the same laps' ``XᵀX``)."""
+    h = np.empty((L, X.shape[1]))
+    for i in range(X.shape[1]):
         h[:, i] = np.bincount(inv, weights=X[:, i] * y, minlength=L)
-    return G, h
+    return h
 
 
 def min_norm_solve(G: F64, h: F64) -> F64:

@@ -41,6 +41,7 @@ from numpy.typing import NDArray
 from roboisf.decompose.check import (
     N_BOOT,
     boot_weights,
+    lap_cross_sums,
     lap_index,
     lap_normal_equations,
     min_norm_solve,
@@ -276,7 +277,7 @@ def identify_from_forming(
     idx_id = np.flatnonzero(identified)
     cols_id = np.searchsorted(live_idx, idx_id)  # their columns in As
     y_fixed = y - _mv(Au[:, ~identified], c_nom[~identified])
-    h_fix = lap_normal_equations(As, y_fixed, inv, L)[1]
+    h_fix = lap_cross_sums(As, y_fixed, inv, L)  # the same laps' XᵀX: G above
     bb = np.bincount(inv, weights=b_nom * b_nom, minlength=L)
     by = np.bincount(inv, weights=b_nom * y, minlength=L)
 
