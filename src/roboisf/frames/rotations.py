@@ -10,9 +10,10 @@ All angles in radians here; degrees are converted at the file boundary (``robois
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
 
 __all__ = [
     "abc_to_matrix",
@@ -31,6 +32,15 @@ __all__ = [
 ]
 
 F64 = NDArray[np.float64]
+
+
+def _rotation() -> Any:
+    """scipy's ``Rotation``, imported on first use: ``roboisf.frames`` is imported by every
+    command, and scipy.spatial (with scipy.sparse and scipy.linalg) costs ~0.2 s that
+    ``analyze`` spends before its scans' thread can start (docs/speed.md)."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation
 
 
 def _elementary(angle: ArrayLike, axis: int) -> F64:
@@ -70,7 +80,7 @@ def rpy_to_matrix(rpy: ArrayLike) -> F64:
 def matrix_to_rpy(R: ArrayLike) -> F64:
     """Inverse of :func:`rpy_to_matrix`; pitch in [-π/2, π/2]. (..., 3, 3) → (..., 3)."""
     R = np.asarray(R, dtype=float)
-    ypr = Rotation.from_matrix(R.reshape(-1, 3, 3)).as_euler("ZYX")
+    ypr = _rotation().from_matrix(R.reshape(-1, 3, 3)).as_euler("ZYX")
     return ypr[:, ::-1].reshape(*R.shape[:-2], 3)
 
 
@@ -92,13 +102,13 @@ def quat_to_matrix(q: ArrayLike) -> F64:
     norm = np.linalg.norm(flat, axis=1)
     if np.any(norm < 1e-12) or not np.all(np.isfinite(flat)):
         raise ValueError("quaternion must be finite and non-zero")
-    return Rotation.from_quat(flat[:, [1, 2, 3, 0]]).as_matrix().reshape(*q.shape[:-1], 3, 3)
+    return _rotation().from_quat(flat[:, [1, 2, 3, 0]]).as_matrix().reshape(*q.shape[:-1], 3, 3)
 
 
 def matrix_to_quat(R: ArrayLike) -> F64:
     """Rotation matrix (..., 3, 3) → unit quaternion ``(w, x, y, z)`` with ``w ≥ 0``."""
     R = np.asarray(R, dtype=float)
-    xyzw = Rotation.from_matrix(R.reshape(-1, 3, 3)).as_quat()
+    xyzw = _rotation().from_matrix(R.reshape(-1, 3, 3)).as_quat()
     wxyz = xyzw[:, [3, 0, 1, 2]]
     wxyz *= np.where(wxyz[:, :1] < 0, -1.0, 1.0)
     return wxyz.reshape(*R.shape[:-2], 4)
@@ -107,13 +117,13 @@ def matrix_to_quat(R: ArrayLike) -> F64:
 def rotvec_to_matrix(phi: ArrayLike) -> F64:
     """Rotation vector (axis·angle) [rad], (..., 3) → (..., 3, 3)."""
     phi = np.asarray(phi, dtype=float)
-    return Rotation.from_rotvec(phi.reshape(-1, 3)).as_matrix().reshape(*phi.shape[:-1], 3, 3)
+    return _rotation().from_rotvec(phi.reshape(-1, 3)).as_matrix().reshape(*phi.shape[:-1], 3, 3)
 
 
 def matrix_to_rotvec(R: ArrayLike) -> F64:
     """Rotation matrix (..., 3, 3) → rotation vector [rad] (..., 3)."""
     R = np.asarray(R, dtype=float)
-    return Rotation.from_matrix(R.reshape(-1, 3, 3)).as_rotvec().reshape(*R.shape[:-2], 3)
+    return _rotation().from_matrix(R.reshape(-1, 3, 3)).as_rotvec().reshape(*R.shape[:-2], 3)
 
 
 def vertical_tool(tool_rotation: ArrayLike = 0.0) -> F64:

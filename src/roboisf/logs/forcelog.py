@@ -38,7 +38,7 @@ from roboisf.io.table import (
 )
 from roboisf.io.timestamps import repair_time
 from roboisf.io.units import log_unit_to_si, to_si
-from roboisf.logs.logprofile import FORCES, MOMENTS, ForceLogSpec
+from roboisf.logs.logprofile import FORCES, MOMENTS, ForceLogSpec, study_formats
 from roboisf.path.toolpath import Toolpath
 
 __all__ = [
@@ -276,8 +276,7 @@ def _spec(profile: str) -> ForceLogSpec | None:
 def force_formats() -> tuple[str, ...]:
     """``format`` values of a force log (study ``[runs.X.forces] format``): ``auto``, every
     registered text profile, and ``columns`` (header names given in the study)."""
-    names = [f.name for f in file_formats("force_log") if not f.binary]
-    return ("auto", *names, "columns")
+    return study_formats("force_log")
 
 
 def force_profiles_written() -> tuple[str, ...]:

@@ -35,7 +35,7 @@ from roboisf.io.atomic import atomic_write
 from roboisf.io.table import LogTable, format_rows, read_log_table, read_table, split_name_unit
 from roboisf.io.timestamps import repair_time
 from roboisf.io.units import log_unit_to_si, to_si
-from roboisf.logs.logprofile import JointLogSpec
+from roboisf.logs.logprofile import JointLogSpec, study_formats
 
 __all__ = [
     "JOINT_COLUMNS",
@@ -59,7 +59,7 @@ def _profiles() -> tuple[FileFormat, ...]:
 def joint_formats() -> tuple[str, ...]:
     """``format`` values of a joint log (study ``[runs.X.joints] format``): ``auto``, every
     registered text profile, and ``columns`` (header names given in the study)."""
-    return ("auto", *(f.name for f in file_formats("joint_log") if not f.binary), "columns")
+    return study_formats("joint_log")
 
 
 def joint_profiles_written() -> tuple[str, ...]:

@@ -27,6 +27,7 @@ __all__ = [
     "ForceLogSpec",
     "JointLogSpec",
     "joint_match",
+    "study_formats",
 ]
 
 Match = dict[str, re.Pattern[str]]
@@ -101,3 +102,13 @@ class JointLogSpec:
     units: dict[str, str] | None = None
     auto: bool = True
     unstated_units: dict[str, str] | None = None
+
+
+def study_formats(kind: str) -> tuple[str, ...]:
+    """``format`` values a study accepts for a log of ``kind`` ("force_log", "joint_log"):
+    ``auto``, every registered text profile, and ``columns`` (header names given in the
+    study). Here, not in the log readers' modules: reading a study imports no table library
+    (pandas, pyarrow: ~0.2 s of ``analyze`` before its scans' thread starts)."""
+    from roboisf.formats import file_formats
+
+    return ("auto", *(f.name for f in file_formats(kind) if not f.binary), "columns")

@@ -46,7 +46,6 @@ from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial import cKDTree
 
 from roboisf import jit
 from roboisf.errors import InputError
@@ -96,6 +95,14 @@ def spatial_order(points: ArrayLike, bits: int = 16) -> NDArray[np.int64]:
     code = mesh_kernel.part1by2(q[:, 0]) | (mesh_kernel.part1by2(q[:, 1]) << np.uint64(1))
     code |= mesh_kernel.part1by2(q[:, 2]) << np.uint64(2)
     return np.argsort(code, kind="stable")  # ties (a shared 16-bit cell) as the kernel's
+
+
+def _kdtree(points: F64) -> Any:
+    """scipy's ``cKDTree`` over ``points``, scipy.spatial imported on first use (not when a
+    study is read: it is ~0.2 s of every command's start-up, docs/speed.md)."""
+    from scipy.spatial import cKDTree
+
+    return cKDTree(points)
 
 
 def _dot3(u: F64, v: F64) -> F64:
@@ -345,7 +352,7 @@ class MeshPart:
         object.__setattr__(self, "vertices", V)
         object.__setattr__(self, "faces", Fc)
         idx: dict[str, Any] = {
-            "tree": cKDTree(centroid),
+            "tree": _kdtree(centroid),
             "centroid": centroid,
             "a": a,
             "ab": ab,
@@ -532,7 +539,7 @@ class MeshPart:
 
     def _closest_chunk(self, X: F64, k: int) -> tuple[NDArray[np.int64], F64]:
         ix = self._index
-        tree: cKDTree = ix["tree"]
+        tree = ix["tree"]
         n = X.shape[0]
         n_tri = self.n_faces
         best_f = np.zeros(n, dtype=np.int64)

@@ -6,10 +6,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 from numpy.typing import NDArray
 
 from roboisf.errors import InputError
@@ -32,6 +31,9 @@ from roboisf.scan.deviation import (
 from roboisf.scan.readers import ScanCloud, check_units
 from roboisf.scan.registration import METHODS, Registration, register
 from roboisf.scan.summary import by_angle, by_depth, deviation_stats, normal_deviation_stats
+
+if TYPE_CHECKING:  # tables only; pandas is imported where they are built
+    import pandas as pd
 
 __all__ = [
     "CompareOptions",

@@ -22,7 +22,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial import cKDTree
 
 from roboisf import jit
 from roboisf.errors import InputError
@@ -309,6 +308,8 @@ def statistical_outliers(
     # the statistics are taken back in the caller's order, so the mask is identical bit for bit.
     order = None if ordered else spatial_order(X)
     Xs = X if order is None else X[order]
+    from scipy.spatial import cKDTree
+
     tree = cKDTree(Xs)
     ms = np.empty(X.shape[0])
     # queried in chunks on every core: the (N, k+1) distance and index arrays never exist whole
@@ -472,6 +473,8 @@ def toolpath_deviations(
         feet, dn_sorted = dev.foot[order], dev.dn[order]
     # an unbalanced, non-compacted tree builds 2.5x faster (0.5 -> 0.2 s on 1.2 M feet) and its
     # k nearest are the same (an exact query; only equal distances could order differently)
+    from scipy.spatial import cKDTree
+
     tree = cKDTree(feet, balanced_tree=False, compact_nodes=False)
     d, idx = tree.query(P, k=k, distance_upper_bound=radius, workers=-1)
     d = d.reshape(M, k)

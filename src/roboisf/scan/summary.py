@@ -15,12 +15,15 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = [
     "DeviationStats",
@@ -156,6 +159,8 @@ def _stats(dn: F64, delta_rows: Callable[[slice], F64]) -> DeviationStats:
 
 
 def _binned(key: NDArray[np.int64], delta: F64, dn: F64) -> pd.DataFrame:
+    import pandas as pd  # on first use: not when a scan's thread starts (docs/speed.md)
+
     df = pd.DataFrame(
         {"bin": key, "dx": delta[:, 0], "dy": delta[:, 1], "dz": delta[:, 2], "dn": dn}
     )

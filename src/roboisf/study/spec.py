@@ -140,7 +140,7 @@ class ForceSensorSpec:
     pose: F64
     load_on: Literal["tool", "workpiece"]
     time_offset: float = 0.0
-    #: the log's format (``roboisf.logs.forcelog.force_formats()``), header names for "columns",
+    #: the log's format (``roboisf.logs.logprofile.study_formats``), header names for "columns",
     #: and its units (quantity → unit) when the file does not declare them
     format: str = "auto"
     columns: dict[str, str] | None = None
@@ -445,9 +445,11 @@ def _forces(c: _Collector, root: Path, t: Any, key: str, machine: str) -> ForceS
         except InputError as e:
             c.catch(e, f"{key}.pose")
     off = c.number(t, key, "time_offset", default=0.0, bound="time_offset")
-    from roboisf.logs.forcelog import force_formats
+    from roboisf.logs.logprofile import study_formats
 
-    fmt, cols, units = _log_keys(c, t, key, force_formats(), ("time", "force", "moment", "length"))
+    fmt, cols, units = _log_keys(
+        c, t, key, study_formats("force_log"), ("time", "force", "moment", "length")
+    )
     tare, mass, cog = _conditioning(c, t, key, mount)
     clock = c.choice(t, key, "clock", ("joint", "own"), default="joint")
     ts = _timestamps(c, t, key)
@@ -829,10 +831,12 @@ def _load_run(
                 f"{jkey}.{k}",
             )
         j_ts = _timestamps(c, jt, jkey)
-        from roboisf.logs.jointlog import joint_formats
+        from roboisf.logs.logprofile import study_formats
 
         joints = c.path(root, jt, jkey, "file")
-        j_fmt, j_cols, j_units = _log_keys(c, jt, jkey, joint_formats(), ("time", "angle"))
+        j_fmt, j_cols, j_units = _log_keys(
+            c, jt, jkey, study_formats("joint_log"), ("time", "angle")
+        )
     else:
         joints = c.path(root, r, key, "joints", required=False)
     thick = c.path(root, r, key, "thickness", required=False)

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 __all__ = ["contour_curvature", "meridian_curvature", "rim_distance"]
 
@@ -84,6 +83,8 @@ def meridian_curvature(contact: F64, wall_angle: F64, lap: NDArray[np.int64]) ->
     contact = np.asarray(contact, dtype=float)
     alpha = np.asarray(wall_angle, dtype=float)
     laps = _laps(lap)
+    from scipy.spatial import cKDTree
+
     trees = [cKDTree(contact[idx]) for idx in laps]
     out = np.zeros(len(contact))
     for j, idx in enumerate(laps):
@@ -111,5 +112,7 @@ def rim_distance(contact: F64, lap: NDArray[np.int64]) -> F64:
     """Distance (N,) m from each contact to the nearest contact of the first lap."""
     contact = np.asarray(contact, dtype=float)
     first = _laps(lap)[0]
+    from scipy.spatial import cKDTree
+
     d, _ = cKDTree(contact[first]).query(contact)
     return np.asarray(d, dtype=float)
