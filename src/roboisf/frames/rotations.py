@@ -35,9 +35,10 @@ F64 = NDArray[np.float64]
 
 
 def _rotation() -> Any:
-    """scipy's ``Rotation``, imported on first use: ``roboisf.frames`` is imported by every
-    command, and scipy.spatial (with scipy.sparse and scipy.linalg) costs ~0.2 s that
-    ``analyze`` spends before its scans' thread can start (docs/speed.md)."""
+    """scipy's ``Rotation``, imported on first use: ``roboisf.frames`` is imported by almost
+    every command, and scipy.spatial (with scipy.sparse and scipy.linalg) is ~0.2 s and ~60 MB
+    of start-up that one converting no rotation need not pay (``robot show``, reading a study:
+    docs/speed.md)."""
     from scipy.spatial.transform import Rotation
 
     return Rotation

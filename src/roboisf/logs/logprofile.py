@@ -108,7 +108,7 @@ def study_formats(kind: str) -> tuple[str, ...]:
     """``format`` values a study accepts for a log of ``kind`` ("force_log", "joint_log"):
     ``auto``, every registered text profile, and ``columns`` (header names given in the
     study). Here, not in the log readers' modules: reading a study imports no table library
-    (pandas, pyarrow: ~0.2 s of ``analyze`` before its scans' thread starts)."""
+    (pandas, pyarrow: ~0.2 s of start-up, docs/speed.md)."""
     from roboisf.formats import file_formats
 
     return ("auto", *(f.name for f in file_formats(kind) if not f.binary), "columns")

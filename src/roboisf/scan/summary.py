@@ -159,7 +159,7 @@ def _stats(dn: F64, delta_rows: Callable[[slice], F64]) -> DeviationStats:
 
 
 def _binned(key: NDArray[np.int64], delta: F64, dn: F64) -> pd.DataFrame:
-    import pandas as pd  # on first use: not when a scan's thread starts (docs/speed.md)
+    import pandas as pd  # on first use: reading a study or a scan imports no table library
 
     df = pd.DataFrame(
         {"bin": key, "dx": delta[:, 0], "dy": delta[:, 1], "dz": delta[:, 2], "dn": dn}
