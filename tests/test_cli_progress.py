@@ -51,3 +51,35 @@ def test_an_error_inside_a_task_closes_the_display():
     with pytest.raises(ValueError, match="bad log"), p.task("alignment"):
         raise ValueError("bad log")
     assert p._bar is None and p._open == 0
+
+
+def test_a_nested_step_names_the_step_it_runs_in_in_its_own_thread(monkeypatch):
+    # piped (a CI log): one line per stage; the two scans' steps, one scan in a worker thread
+    # and one in the calling thread, are told apart by the step each runs in
+    buf = io.StringIO()
+    monkeypatch.setattr("sys.stderr", io.StringIO())  # not a terminal
+    p = RichProgress(Console(file=buf, force_terminal=False, width=200))
+    inside = threading.Event()
+
+    def worker() -> None:
+        with p.task("scan cnc"), p.task("outlier removal"):
+            inside.set()
+
+    with p.task("analyze"):
+        t = threading.Thread(target=worker)
+        t.start()
+        assert inside.wait(5)
+        t.join(5)
+        with p.task("scan robot"), p.task("register (fixture)"):
+            pass
+        with p.task("report", total=3) as advance:
+            advance(1.0)
+    lines = buf.getvalue().splitlines()
+    assert lines == [
+        "analyze …",
+        "scan cnc …",  # the worker's own outermost step
+        "scan cnc › outlier removal …",
+        "analyze › scan robot …",
+        "scan robot › register (fixture) …",
+        "analyze › report …",
+    ]

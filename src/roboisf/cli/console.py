@@ -96,19 +96,34 @@ class RichProgress:
 
     One live display for all open tasks: nested tasks and tasks opened from worker threads (the
     analysis compares the scans while it reads the logs) are lines of the same display, added
-    and removed under a lock; the display stops when the last task ends."""
+    and removed under a lock; the display stops when the last task ends. A nested task is
+    labelled with the task it runs in, in its own thread ("scan robot › outlier removal"): the
+    two scans' steps, run in two threads, are told apart — also in the one line per stage
+    written when stderr is not a terminal (a CI log)."""
 
     def __init__(self, console: Console) -> None:
         self.console = console
         self._lock = threading.Lock()
         self._bar: Any = None
         self._open = 0
+        self._local = threading.local()  # each thread's open tasks, outermost first
 
     @contextlib.contextmanager
     def task(self, description: str, total: float | None = None) -> Iterator[Advance]:
+        stack: list[str] = self._local.__dict__.setdefault("stack", [])
+        label = f"{stack[-1]} › {description}" if stack else description
+        stack.append(description)
+        try:
+            with self._show(label, total) as advance:
+                yield advance
+        finally:
+            stack.pop()
+
+    @contextlib.contextmanager
+    def _show(self, label: str, total: float | None) -> Iterator[Advance]:
         if not self.console.is_terminal and not sys.stderr.isatty():
             # keep logs readable when piped: one line per stage
-            self.console.print(f"{description} …", markup=False)
+            self.console.print(f"{label} …", markup=False)
             yield noop_advance
             return
         from rich.markup import escape
@@ -119,7 +134,7 @@ class RichProgress:
                 self._bar.start()
             bar = self._bar
             self._open += 1
-            tid = bar.add_task(escape(description), total=total)
+            tid = bar.add_task(escape(label), total=total)
 
         def advance(amount: float = 1.0) -> None:
             bar.advance(tid, amount)

@@ -1279,16 +1279,15 @@ def write_results(
                     df.to_csv(fh, index=False, float_format="%.6g")
             with atomic_write(stage / "summary.json") as fh:
                 fh.write(dumps(result.summary))
-        with task(progress, "report"):
-            write_report(
-                result.per_point,
-                result.contributions,
-                result.contributions_normal,
-                result.summary.to_dict(),
-                stage,
-                png=png,
-                progress=progress,
-            )
+        write_report(  # its own "report" task (one per figure drawn)
+            result.per_point,
+            result.contributions,
+            result.contributions_normal,
+            result.summary.to_dict(),
+            stage,
+            png=png,
+            progress=progress,
+        )
     return out_dir
 
 
