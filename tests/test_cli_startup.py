@@ -128,6 +128,14 @@ def test_robot_list_and_show_load_numpy_only(tmp_path):
     assert out == [{"code": 0, "heavy": ["numpy"]}] * 2
 
 
+def test_a_robot_stiffness_map_does_not_start_numba(tmp_path):
+    # a 41 × 41 map on numpy: 6 ms, where loading numba for it took 0.48 s and 120 MB
+    runs = [["-q", "robot", "show", "--robot", "irb7600-500-2.55", "-o", "map.png"]]
+    out = _child(_CHILD, json.dumps(runs), json.dumps(HEAVY), cwd=tmp_path)
+    assert out[0]["code"] == 0 and "numba" not in out[0]["heavy"], out
+    assert (tmp_path / "map.png").is_file()
+
+
 def test_reading_a_study_loads_no_table_or_plotting_library(small_cone_study):
     # a study's check (log formats, robot preset, part) needs the file-format registry, not the
     # readers: no pandas, pyarrow, scipy.spatial/sparse or plotting library until the analysis

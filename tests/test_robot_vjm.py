@@ -161,6 +161,26 @@ def test_stiffness_map_values(setup):
     np.testing.assert_allclose(smap.compliance[2, 2], np.diag(k0)[:3], rtol=1e-12)
 
 
+def test_a_small_map_runs_on_numpy_with_the_compiled_numbers(setup, monkeypatch):
+    # an "auto" model's map of ≤ MAP_NUMPY_POSES poses is computed with numpy (starting numba
+    # for it cost 0.48 s against 6 ms); an explicit backend, or a bigger grid, is left alone
+    import roboisf.robot.maps as maps
+    from roboisf.robot import stiffness_map
+
+    m, _ = setup
+    seen: list[str | None] = []
+    real = maps.opw_ik
+    monkeypatch.setattr(maps, "opw_ik", lambda *a, **k: seen.append(k["backend"]) or real(*a, **k))
+    small = stiffness_map(m, half_width=0.3, n=7)
+    explicit = stiffness_map(m, half_width=0.3, n=7, backend="auto")
+    monkeypatch.setattr(maps, "MAP_NUMPY_POSES", 48)
+    stiffness_map(m, half_width=0.3, n=7)  # 49 poses: above the (lowered) limit
+    assert seen == ["numpy", "auto", "auto"]
+    np.testing.assert_array_equal(small.reachable, explicit.reachable)
+    # the two engines: the same arithmetic to rounding (test_robot_vjm's fused-path tests)
+    np.testing.assert_allclose(small.compliance, explicit.compliance, rtol=1e-12, atol=0)
+
+
 def test_docs_example_runs(capsys):
     """The first python example of docs/robot.md runs as written."""
     from pathlib import Path
