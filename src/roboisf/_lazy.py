@@ -1,7 +1,8 @@
 """Lazy package exports (PEP 562): a package's public names import their module on first use.
 
-``roboisf.parts``, ``roboisf.toolpath``, ``roboisf.io``, ``roboisf.cam`` and ``roboisf.logs``
-re-export names from modules that import numpy, scipy or pandas; loading those only when a name is
+``roboisf.parts``, ``roboisf.toolpath``, ``roboisf.io``, ``roboisf.cam``, ``roboisf.logs``,
+``roboisf.programs``, ``roboisf.robot``, ``roboisf.scan`` and ``roboisf.study`` re-export names
+from modules that import numpy, scipy or pandas; loading those only when a name is
 used keeps ``roboisf --help`` and the argument checks free of them (docs/conventions.md, Command
 start-up). The same pattern
 as Scientific Python's SPEC 1 (``lazy_loader.attach``), in a dozen lines instead of a dependency.
