@@ -10,10 +10,13 @@ All angles in radians here; degrees are converted at the file boundary (``robois
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+if TYPE_CHECKING:
+    from scipy.spatial.transform import Rotation
 
 __all__ = [
     "abc_to_matrix",
@@ -34,14 +37,14 @@ __all__ = [
 F64 = NDArray[np.float64]
 
 
-def _rotation() -> Any:
+def _rotation() -> type[Rotation]:
     """scipy's ``Rotation``, imported on first use: ``roboisf.frames`` is imported by almost
     every command, and scipy.spatial (with scipy.sparse and scipy.linalg) is ~0.2 s and ~60 MB
     of start-up that one converting no rotation need not pay (``robot show``, reading a study:
     docs/speed.md)."""
-    from scipy.spatial.transform import Rotation
+    from scipy.spatial.transform import Rotation as R
 
-    return Rotation
+    return R
 
 
 def _elementary(angle: ArrayLike, axis: int) -> F64:

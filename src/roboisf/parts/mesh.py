@@ -42,7 +42,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -53,6 +53,9 @@ from roboisf.io.units import to_si
 from roboisf.parts import mesh_kernel
 from roboisf.parts.axisymmetric import PAPER_SHEET_THICKNESS, SurfaceQuery
 from roboisf.parts.base import Symmetry
+
+if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
 
 __all__ = [
     "MeshPart",
@@ -97,12 +100,12 @@ def spatial_order(points: ArrayLike, bits: int = 16) -> NDArray[np.int64]:
     return np.argsort(code, kind="stable")  # ties (a shared 16-bit cell) as the kernel's
 
 
-def _kdtree(points: F64) -> Any:
+def _kdtree(points: F64) -> cKDTree:
     """scipy's ``cKDTree`` over ``points``, scipy.spatial imported on first use (not when a
     study is read: it is ~0.2 s of every command's start-up, docs/speed.md)."""
-    from scipy.spatial import cKDTree
+    from scipy.spatial import cKDTree as KDTree
 
-    return cKDTree(points)
+    return KDTree(points)
 
 
 def _dot3(u: F64, v: F64) -> F64:
@@ -539,7 +542,7 @@ class MeshPart:
 
     def _closest_chunk(self, X: F64, k: int) -> tuple[NDArray[np.int64], F64]:
         ix = self._index
-        tree = ix["tree"]
+        tree: cKDTree = ix["tree"]
         n = X.shape[0]
         n_tri = self.n_faces
         best_f = np.zeros(n, dtype=np.int64)
