@@ -500,6 +500,74 @@ def test_outliers_of_rows_equal_the_filter_of_the_copied_rows(knn_engine):
     np.testing.assert_array_equal(statistical_outliers(X, rows=rows[:5]), np.ones(5, bool))
 
 
+def test_outliers_of_held_points_equal_the_filter_and_give_the_points_back(knn_engine):
+    """``statistical_outliers_held``: the same mask as the filter of the points, which come back
+    in the box with the same values (in spatial order, as the comparison hands them over)."""
+    from roboisf.parts.mesh import in_spatial_order
+    from roboisf.scan.deviation import statistical_outliers_held
+
+    s = synthetic_scan(CONE, 90_000, offset=OFFSET, noise=25e-6, outlier_fraction=0.01, seed=8)
+    X = in_spatial_order(s.points)
+    expect = statistical_outliers(X, ordered=True)
+    assert 0 < (~expect).sum() < 2000
+    box = [X.copy()]
+    np.testing.assert_array_equal(statistical_outliers_held(box, 8, 3.0), expect)
+    assert len(box) == 1
+    np.testing.assert_array_equal(box[0], X)
+    assert box[0].flags.c_contiguous
+    few = [X[:5].copy()]  # no more points than neighbours: all kept, the points given back
+    np.testing.assert_array_equal(statistical_outliers_held(few, 8), np.ones(5, bool))
+    np.testing.assert_array_equal(few[0], X[:5])
+
+
+def test_held_knn_never_holds_the_points_twice_beside_the_grid():
+    """The held k-NN's peak (numpy's and the kernels' allocations, traced) is below the plain
+    one's by the smaller of the points and the grid: the caller's array is freed while the
+    sorted copy exists, and the grid is not kept beside both copies."""
+    import tracemalloc
+
+    from roboisf.scan import knn_kernel
+
+    if not knn_kernel.HAVE_NUMBA:
+        pytest.skip("numba not installed")
+    X = synthetic_scan(CONE, 200_000, offset=OFFSET, noise=25e-6, seed=2).points
+    expect = knn_kernel.mean_knn_distance(X, 8)  # compiled before the peaks are traced
+    peaks = {}
+    for name in ("plain", "held"):
+        tracemalloc.start()
+        box = [X.copy()]  # traced: its freeing counts
+        tracemalloc.reset_peak()
+        base = tracemalloc.get_traced_memory()[0]
+        if name == "plain":
+            m = knn_kernel.mean_knn_distance(box[0], 8)
+        else:
+            m = knn_kernel.mean_knn_distance_held(box, 8)
+        peaks[name] = tracemalloc.get_traced_memory()[1] - base
+        tracemalloc.stop()
+        np.testing.assert_array_equal(m, expect)
+        np.testing.assert_array_equal(box[0], X)
+    # plain: the points' sorted copy, the grid's row starts S, the means and the permutation at
+    # once; held: never both the points (or their copy) and S beside each other, so the peak is
+    # max(points, S) instead of points + S over the same rest
+    grid = knn_kernel._grid(X, 8, knn_kernel.MAX_CELLS)[4].nbytes
+    assert peaks["held"] <= peaks["plain"] - 0.9 * min(X.nbytes, grid), (peaks, grid)
+
+
+def test_counting_sort_restores_the_row_starts():
+    """The grid's counting sort uses the row starts as its cursors and leaves them as they were:
+    the stable sort of the cell keys, ``start`` unchanged."""
+    from roboisf.scan import knn_kernel
+
+    if not knn_kernel.HAVE_NUMBA:
+        pytest.skip("numba not installed")
+    X = synthetic_scan(CONE, 30_000, offset=OFFSET, noise=25e-6, seed=3).points
+    *_, key, start = knn_kernel._grid(X, 8, knn_kernel.MAX_CELLS)
+    before = start.copy()
+    order = knn_kernel._counting_sort(key, start)
+    np.testing.assert_array_equal(start, before)
+    np.testing.assert_array_equal(order, np.argsort(key, kind="stable"))
+
+
 def test_compare_scan_equals_the_steps_composed_in_file_order():
     """The spatially ordered, copy-free ``compare_scan`` (one Morton sort, outlier filter on
     ``rows``, whole-scan arrays freed early) gives what the public steps give composed plainly

@@ -9,6 +9,7 @@ import pytest
 from roboisf.errors import InputError
 from roboisf.jit import background as jit_background
 from roboisf.parts import Cone
+from roboisf.parts.mesh_kernel import gather_rows
 from roboisf.scan import (
     PointDeviations,
     knn_kernel,
@@ -116,7 +117,7 @@ def test_outlier_knn_by_query_cell_equals_the_ring_search():
     k = 8
     lo, h, shape, key, start = knn_kernel._grid(X, k, knn_kernel.MAX_CELLS)
     order = knn_kernel._counting_sort(key, start)
-    Xs = knn_kernel._gather(X, knn_kernel._NO_ROWS, order)
+    Xs = gather_rows(X, knn_kernel._NO_ROWS, order)
     n = len(X)
     ring, cells = np.empty(n), np.empty(n)
     args = (Xs, start, lo, h, *shape, k + 1, knn_kernel.MAX_RINGS)

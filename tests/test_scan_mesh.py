@@ -224,7 +224,7 @@ def _numpy_morton_codes(X, bits=16):
 def test_compiled_spatial_order_is_the_stable_sort_of_the_numpy_codes(kind):
     """The fused numba codes + radix sort give exactly ``argsort(codes, kind="stable")`` of the
     numpy codes: the same order as before wherever codes differ; ties keep the input order."""
-    from roboisf.parts.mesh import spatial_order
+    from roboisf.parts.mesh import in_spatial_order, spatial_order
 
     rng = np.random.default_rng(3)
     X = rng.normal(size=(30_000, 3)) * [0.2, 0.1, 0.05] + [0.5, -1.0, -0.02]
@@ -237,8 +237,23 @@ def test_compiled_spatial_order_is_the_stable_sort_of_the_numpy_codes(kind):
     elif kind == "two":
         X = np.repeat(X[:1], 2, axis=0)
     o = spatial_order(X)
-    assert o.dtype == np.int64
+    assert o.dtype == np.int32  # below 2³¹ points: half the sort's index memory
     np.testing.assert_array_equal(o, np.argsort(_numpy_morton_codes(X), kind="stable"))
     # non-contiguous input (a column slice of a wider table) gives the same order
     W = np.hstack([X, X[:, :1]])[:, :3]
     np.testing.assert_array_equal(spatial_order(W), o)
+    # the points themselves in that order: the int32 gather is numpy's take, bit for bit
+    np.testing.assert_array_equal(in_spatial_order(W), X[o.astype(np.int64)])
+
+
+def test_points_in_spatial_order_on_the_numpy_path(monkeypatch):
+    """A cold kernel cache: numpy's codes and argsort (int64), the same rows as compiled."""
+    from roboisf.jit import background as jit_background
+    from roboisf.parts.mesh import in_spatial_order, spatial_order
+
+    X = np.random.default_rng(4).normal(size=(5000, 3))
+    monkeypatch.setitem(jit_background._decided, "mesh", False)
+    o = spatial_order(X)
+    assert o.dtype == np.int64
+    np.testing.assert_array_equal(o, np.argsort(_numpy_morton_codes(X), kind="stable"))
+    np.testing.assert_array_equal(in_spatial_order(X), X[o])

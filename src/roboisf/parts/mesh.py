@@ -60,6 +60,7 @@ if TYPE_CHECKING:
 __all__ = [
     "MeshPart",
     "check_sheet_mesh",
+    "in_spatial_order",
     "point_triangle_distance2",
     "read_mesh",
     "spatial_order",
@@ -74,8 +75,9 @@ CHUNK = 200_000
 NUMBA_CHUNK = 131_072
 
 
-def spatial_order(points: ArrayLike, bits: int = 16) -> NDArray[np.int64]:
-    """Permutation that sorts ``points`` (N, 3) along a Morton (Z-order) curve.
+def spatial_order(points: ArrayLike, bits: int = 16) -> NDArray[np.integer[Any]]:
+    """Permutation (N,) that sorts ``points`` (N, 3) along a Morton (Z-order) curve: int32 below
+    2³¹ points on the compiled path (int64 on numpy's, the same values).
 
     Neighbouring queries then touch neighbouring tree nodes and triangles: the mesh query runs
     1.5–3× faster than on a scan in random order. Pure reordering, results are unchanged.
@@ -91,13 +93,30 @@ def spatial_order(points: ArrayLike, bits: int = 16) -> NDArray[np.int64]:
         X = np.ascontiguousarray(X)
         lo, hi = mesh_kernel.bounds(X, np.empty(0, np.int64))
         span = float(np.max(hi - lo)) or 1.0
-        return mesh_kernel.morton_order(X, lo, (2**bits - 1) / span, bits)
+        idx = np.int32 if X.shape[0] < 2**31 else np.int64
+        return mesh_kernel.morton_order(
+            X, lo, (2**bits - 1) / span, bits, np.arange(X.shape[0], dtype=idx),
+            np.empty(X.shape[0], dtype=idx),
+        )  # fmt: skip
     lo = X.min(axis=0)
     span = float(np.max(X.max(axis=0) - lo)) or 1.0
     q = ((X - lo) * ((2**bits - 1) / span)).astype(np.uint64)
     code = mesh_kernel.part1by2(q[:, 0]) | (mesh_kernel.part1by2(q[:, 1]) << np.uint64(1))
     code |= mesh_kernel.part1by2(q[:, 2]) << np.uint64(2)
     return np.argsort(code, kind="stable")  # ties (a shared 16-bit cell) as the kernel's
+
+
+def in_spatial_order(points: ArrayLike, bits: int = 16) -> F64:
+    """``points`` (N, 3) [m] as a new array in :func:`spatial_order` (the same rows, sorted).
+
+    Compiled: the rows gathered by the int32 permutation itself (``np.take`` first copies it to
+    int64); the sort's and the gather's peak beside a 2 M-point scan is 96 MB instead of 112.
+    """
+    X = np.asarray(points, dtype=float)
+    order = spatial_order(X, bits)
+    if order.dtype == np.int64 or X.ndim != 2 or X.shape[1] != 3:
+        return np.take(X, order, axis=0)
+    return mesh_kernel.gather_rows(np.ascontiguousarray(X), np.empty(0, np.int64), order)
 
 
 def _kdtree(points: F64) -> cKDTree:

@@ -50,7 +50,15 @@ from numpy.typing import NDArray
 
 from roboisf.jit import HAVE_NUMBA, compile_notice, njit
 
-__all__ = ["HAVE_NUMBA", "bounds", "build", "build_grid", "closest_grid", "morton_order"]
+__all__ = [
+    "HAVE_NUMBA",
+    "bounds",
+    "build",
+    "build_grid",
+    "closest_grid",
+    "gather_rows",
+    "morton_order",
+]
 
 if HAVE_NUMBA:
     compile_notice(__file__)  # numba compiles these on first call: say so once
@@ -462,6 +470,22 @@ def closest_grid(
 
 
 @_njit()
+def gather_rows(
+    P: NDArray[np.float64], rows: NDArray[np.int64], order: NDArray[Any]
+) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """``P[rows[order]]`` (``P[order]`` when ``rows`` is empty) of points (N, 3) as a new
+    C-contiguous array, without the ``rows[order]`` index temporary, for ``order`` of any integer
+    type (``np.take`` first copies int32 indices to int64: 16 MB and ~30 ms on 2 M points)."""
+    out = np.empty((order.size, 3))
+    for i in range(order.size):
+        r = rows[order[i]] if rows.size else order[i]
+        out[i, 0] = P[r, 0]
+        out[i, 1] = P[r, 1]
+        out[i, 2] = P[r, 2]
+    return out
+
+
+@_njit()
 def bounds(X: NDArray[np.float64], rows: NDArray[np.int64]) -> tuple[Any, Any]:  # pragma: no cover
     """Per-axis minimum and maximum of ``X[rows]`` (all of ``X`` (N ≥ 1, 3) when ``rows`` is
     empty) in one pass (``X.min(axis=0)`` reduces along a strided axis: ~10x slower)."""
@@ -497,9 +521,18 @@ _spread3 = _njit()(part1by2)
 
 @_njit()
 def morton_order(
-    X: NDArray[np.float64], lo: NDArray[np.float64], scale: float, bits: int
-) -> NDArray[np.int64]:  # pragma: no cover - compiled
+    X: NDArray[np.float64],
+    lo: NDArray[np.float64],
+    scale: float,
+    bits: int,
+    order: NDArray[Any],
+    tmp_o: NDArray[Any],
+) -> NDArray[Any]:  # pragma: no cover - compiled
     """Stable permutation sorting the points (N, 3) by Morton code, in one fused pass.
+
+    ``order`` (N,) holds ``0 … N−1`` on entry and ``tmp_o`` (N,) is scratch, of one integer
+    type (int32 below 2³¹ points: 16 MB less beside a 2 M-point scan than int64 indices); the
+    result is one of the two.
 
     The code of a point is that of :func:`roboisf.parts.mesh.spatial_order` (the same float
     operations: ``uint64((x − lo) · scale)`` per axis, interleaved x, y, z from the lowest
@@ -514,8 +547,6 @@ def morton_order(
         q1 = np.uint64((X[i, 1] - lo[1]) * scale)
         q2 = np.uint64((X[i, 2] - lo[2]) * scale)
         code[i] = _spread3(q0) | (_spread3(q1) << np.uint64(1)) | (_spread3(q2) << np.uint64(2))
-    order = np.arange(n)
-    tmp_o = np.empty(n, dtype=np.int64)
     tmp_c = np.empty(n, dtype=np.uint64)
     nbits = 3 * bits
     mask = np.uint64((1 << RADIX_BITS) - 1)
@@ -546,7 +577,7 @@ def build() -> None:
     """Compile (and so cache) these kernels through their callers, on a small mesh, and the
     axisymmetric parts' (:mod:`roboisf.parts.axisym_kernel`): the background builder of
     :mod:`roboisf.jit.background` (group "mesh")."""
-    from roboisf.parts.mesh import MeshPart, spatial_order
+    from roboisf.parts.mesh import MeshPart, in_spatial_order
 
     g = np.linspace(-0.05, 0.05, 4)
     x, y = np.meshgrid(g, g)
@@ -556,7 +587,7 @@ def build() -> None:
     F = np.concatenate([np.column_stack([a, a + 1, a + 5]), np.column_stack([a, a + 5, a + 4])])
     P = np.random.default_rng(0).uniform(-0.05, 0.05, (64, 3))
     MeshPart(V, F, backend="numba").closest_point(P)
-    spatial_order(P)
+    in_spatial_order(P)  # the sort and the int32 gather (also the k-NN grid's)
     bounds(P, np.arange(8, dtype=np.int64))
     from roboisf.parts import axisym_kernel  # the axisymmetric parts' query: same group
 

@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 from roboisf.errors import InputError
 from roboisf.frames.se3 import transform_points
 from roboisf.parts.base import Part
-from roboisf.parts.mesh import spatial_order
+from roboisf.parts.mesh import in_spatial_order
 from roboisf.path.toolpath import Toolpath
 from roboisf.progress import Progress, task
 from roboisf.scan.deviation import (
@@ -25,7 +25,7 @@ from roboisf.scan.deviation import (
     default_rim_band,
     foot_deviations,
     point_deviations,
-    statistical_outliers,
+    statistical_outliers_held,
     toolpath_deviations,
 )
 from roboisf.scan.readers import ScanCloud, check_units
@@ -310,7 +310,7 @@ def prepare_scan(
     # (nominal closest point, outlier k-NN, toolpath neighbourhoods) then walks neighbouring
     # tree nodes and stays in cache; the per-point results come out in that order
     with task(progress, "spatial order", total=None):
-        pts = np.take(pts, spatial_order(pts), axis=0)  # the same rows; 3x pts[order]
+        pts = in_spatial_order(pts)  # the same rows
     # the whole scan is classified in one pass that keeps four masks (a byte per point each);
     # the feet, normals and deviations are computed again for the selected points only (the
     # same numbers: the query is per point), after the outlier filter, so the whole scan's
@@ -379,7 +379,11 @@ def finish_scan(
     keep = np.ones(pts.shape[0], dtype=bool)
     if o.outlier_k > 0:
         with task(progress, "outlier removal", total=None):
-            keep = statistical_outliers(pts, o.outlier_k, o.outlier_std, ordered=True)
+            # the points handed to the filter (not held here beside its sorted copy of them)
+            box = [pts]
+            del pts
+            keep = statistical_outliers_held(box, o.outlier_k, o.outlier_std)
+            pts = box.pop()
             n_out = int(np.count_nonzero(~keep))
     wall_rows = np.flatnonzero(keep & below)
     n_wall = int(wall_rows.size)

@@ -19,6 +19,7 @@ import os
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -45,6 +46,7 @@ __all__ = [
     "point_deviations",
     "select_wall",
     "statistical_outliers",
+    "statistical_outliers_held",
     "toolpath_deviations",
 ]
 
@@ -111,7 +113,7 @@ class FootDeviations:
 def _closest_in_chunks(
     X: F64,
     part: Part,
-    store: Callable[[slice | NDArray[np.int64], SurfaceQuery], None],
+    store: Callable[[slice | NDArray[np.integer[Any]], SurfaceQuery], None],
     *,
     chunk: int | None,
     workers: int | None,
@@ -171,7 +173,7 @@ def point_deviations(
     dn = np.empty(n)
     region = np.empty(n, dtype=np.int64)
 
-    def store(rows: slice | NDArray[np.int64], q: SurfaceQuery) -> None:
+    def store(rows: slice | NDArray[np.integer[Any]], q: SurfaceQuery) -> None:
         foot[rows], normal[rows], dn[rows], region[rows] = q.point, q.normal, q.distance, q.region
 
     _closest_in_chunks(
@@ -206,7 +208,7 @@ def foot_deviations(
     chunk = STATS_BLOCK  # the statistics' blocks: one query chunk each
     sums = np.empty(((n + chunk - 1) // chunk, 3, 3))
 
-    def store(rows: slice | NDArray[np.int64], q: SurfaceQuery) -> None:
+    def store(rows: slice | NDArray[np.integer[Any]], q: SurfaceQuery) -> None:
         assert isinstance(rows, slice)  # ordered=True below: chunks are row ranges
         foot[rows], dn[rows] = q.point, q.distance
         sums[rows.start // chunk] = block_sums(q.distance[:, None] * q.normal)
@@ -258,7 +260,7 @@ def classify_points(
     below = np.empty(n, dtype=bool)
     in_band = np.empty(n, dtype=bool)
 
-    def store(rows: slice | NDArray[np.int64], q: SurfaceQuery) -> None:
+    def store(rows: slice | NDArray[np.integer[Any]], q: SurfaceQuery) -> None:
         z = q.point[:, 2]
         near[rows] = np.abs(q.distance) <= max_distance
         wall[rows] = (q.region == 1) & (z < 0.0)
@@ -330,6 +332,23 @@ def statistical_outliers(
     else:
         m = np.empty(X.shape[0])
         m[order] = ms
+    return m <= m.mean() + std_ratio * m.std()
+
+
+def statistical_outliers_held(
+    box: list[NDArray[np.float64]], k: int = 8, std_ratio: float = 3.0
+) -> NDArray[np.bool_]:
+    """:func:`statistical_outliers` of the points (N, 3) [m] in ``box`` (already in spatial
+    order, ``ordered=True``), a one-element list to which the caller keeps no other reference.
+    With numba they are taken out while the filter's sorted copy exists and put back (a new
+    array, the same values) before this returns (:func:`~roboisf.scan.knn_kernel.
+    mean_knn_distance_held`: ~33 MB less at the filter's peak on a 1.7 M-point scan); the
+    same mask."""
+    X = box[0]
+    if X.shape[0] <= k or not jit.ready("scan"):
+        return statistical_outliers(X, k, std_ratio, ordered=True)
+    del X
+    m = knn_kernel.mean_knn_distance_held(box, k)
     return m <= m.mean() + std_ratio * m.std()
 
 

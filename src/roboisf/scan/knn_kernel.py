@@ -38,8 +38,9 @@ from numpy.typing import NDArray
 
 from roboisf.jit import HAVE_NUMBA, compile_notice, njit
 from roboisf.parts.mesh_kernel import bounds as _bounds
+from roboisf.parts.mesh_kernel import gather_rows as _gather
 
-__all__ = ["HAVE_NUMBA", "mean_knn_distance"]
+__all__ = ["HAVE_NUMBA", "mean_knn_distance", "mean_knn_distance_held"]
 
 if HAVE_NUMBA:
     compile_notice(__file__)  # numba compiles these on first call: say so once
@@ -306,13 +307,18 @@ def _counting_sort(
     key: NDArray[Any], start: NDArray[Any]
 ) -> NDArray[Any]:  # pragma: no cover - compiled
     """Stable permutation sorting ``key`` by cell, given the cells' row starts (of the keys'
-    integer type: int32 below 2³¹ points)."""
-    nxt = start[:-1].copy()
+    integer type: int32 below 2³¹ points). ``start`` itself holds each cell's next row during
+    the pass and is restored before this returns: no copy of the grid's size (33 MB beside the
+    paper cone's scan, at the filter's and the toolpath statistics' peak)."""
     order = np.empty_like(key)
     for i in range(key.size):
         c = key[i]
-        order[nxt[c]] = i
-        nxt[c] += 1
+        order[start[c]] = i
+        start[c] += 1
+    # start[c] is now the end of cell c, the start of cell c + 1: shifted back by one cell
+    for c in range(start.size - 2, 0, -1):
+        start[c] = start[c - 1]
+    start[0] = 0
     return order
 
 
@@ -353,21 +359,6 @@ def _cell_keys(
             occupied += 1
         counts[c] += 1
     return occupied
-
-
-@_njit()
-def _gather(
-    P: F64, rows: NDArray[np.int64], order: NDArray[Any]
-) -> F64:  # pragma: no cover - compiled
-    """``P[rows[order]]`` (``P[order]`` when ``rows`` is empty) as a new C-contiguous array,
-    without the ``rows[order]`` index temporary."""
-    out = np.empty((order.size, 3))
-    for i in range(order.size):
-        r = rows[order[i]] if rows.size else order[i]
-        out[i, 0] = P[r, 0]
-        out[i, 1] = P[r, 1]
-        out[i, 2] = P[r, 2]
-    return out
 
 
 def _grid(
@@ -491,6 +482,44 @@ def mean_knn_distance(
     del key
     # the points sorted by cell, the only copy; freed when _sorted_mean returns
     ms = _sorted_mean(_gather(X, R, order), start, lo, h, (nx, ny, nz), k, workers)
+    m = np.empty(n)
+    m[order] = ms
+    return m
+
+
+def _row_starts(Xs: F64, lo: F64, h: float, shape: tuple[int, int, int]) -> NDArray[Any]:
+    """The grid's row starts (of :func:`_grid`, for its ``lo``, ``h``, ``shape``) counted again
+    from the points ``Xs``: the same cells, so the same array."""
+    n = Xs.shape[0]
+    cdt = np.int32 if n < 2**31 else np.int64
+    cells = np.zeros(shape[0] * shape[1] * shape[2] + 1, dtype=cdt)
+    _cell_keys(Xs, _NO_ROWS, lo, h, shape[0], shape[1], shape[2], np.empty(n, cdt), cells[1:])
+    return np.cumsum(cells, out=cells)
+
+
+def mean_knn_distance_held(box: list[F64], k: int, *, workers: int | None = None) -> F64:
+    """:func:`mean_knn_distance` of the points (N, 3) [m] in ``box``, a one-element list to
+    which the caller keeps no other reference: they are taken out while their copy sorted by
+    cell exists, and put back (a new array of the same values) before this returns.
+
+    The points are then never held twice beside the grid: the filter's peak over the points is
+    about 100 MB on a 1.7 M-point scan instead of 133 (the grid's row starts are counted again
+    from the sorted copy, ~10 ms, and the points scattered back, ~30 ms). The same numbers.
+    """
+    X = np.ascontiguousarray(box.pop(), dtype=float)
+    n = X.shape[0]
+    lo, h, shape, key, start = _grid(X, k, MAX_CELLS)
+    order = _counting_sort(key, start)
+    del key, start  # not beside both copies of the points: counted again below
+    Xs = _gather(X, _NO_ROWS, order)
+    del X  # the caller's points: freed here
+    start = _row_starts(Xs, lo, h, shape)
+    ms = _sorted_mean(Xs, start, lo, h, shape, k, workers)
+    del start
+    X = np.empty_like(Xs)
+    X[order] = Xs
+    del Xs
+    box.append(X)
     m = np.empty(n)
     m[order] = ms
     return m

@@ -255,13 +255,14 @@ def build() -> None:
     :mod:`roboisf.scan.knn_kernel`'s — through their callers, on a small synthetic scan: the
     background builder of :mod:`roboisf.jit.background` (group "scan")."""
     from roboisf.scan.deviation import statistical_outliers
-    from roboisf.scan.knn_kernel import mean_knn_distance
+    from roboisf.scan.knn_kernel import mean_knn_distance, mean_knn_distance_held
 
     rng = np.random.default_rng(0)
     X = rng.uniform(-0.05, 0.05, (500, 3))
     statistical_outliers(X)
     statistical_outliers(X, rows=np.arange(0, 500, 2))
     mean_knn_distance(X, 8)  # the default k: its own kernel (k + 1 = 9 in registers)
+    mean_knn_distance_held([X.copy()], 8)  # the grid counted again from the sorted points
     mean_knn_distance(X, 5)  # any other k
     dn = rng.normal(0.0, 1e-4, 500)
     contact_statistics(X, dn, X[:40], radius=0.01, k=16, trim=0.1)
