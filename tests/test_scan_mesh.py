@@ -244,6 +244,8 @@ def test_compiled_spatial_order_is_the_stable_sort_of_the_numpy_codes(kind):
     np.testing.assert_array_equal(spatial_order(W), o)
     # the points themselves in that order: the int32 gather is numpy's take, bit for bit
     np.testing.assert_array_equal(in_spatial_order(W), X[o.astype(np.int64)])
+    # and put back: the compiled scatter is the inverse of the gather
+    np.testing.assert_array_equal(mesh_kernel.scatter_rows(in_spatial_order(X), o), X)
 
 
 def test_points_in_spatial_order_on_the_numpy_path(monkeypatch):

@@ -58,6 +58,7 @@ __all__ = [
     "closest_grid",
     "gather_rows",
     "morton_order",
+    "scatter_rows",
 ]
 
 if HAVE_NUMBA:
@@ -486,6 +487,21 @@ def gather_rows(
 
 
 @_njit()
+def scatter_rows(
+    Xs: NDArray[np.float64], order: NDArray[Any]
+) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """The points (N, 3) put back where ``order`` took them from: ``out[order[i]] = Xs[i]``,
+    the inverse of :func:`gather_rows` (numpy's ``out[order] = Xs`` of rows: ~3x slower)."""
+    out = np.empty_like(Xs)
+    for i in range(order.size):
+        r = order[i]
+        out[r, 0] = Xs[i, 0]
+        out[r, 1] = Xs[i, 1]
+        out[r, 2] = Xs[i, 2]
+    return out
+
+
+@_njit()
 def bounds(X: NDArray[np.float64], rows: NDArray[np.int64]) -> tuple[Any, Any]:  # pragma: no cover
     """Per-axis minimum and maximum of ``X[rows]`` (all of ``X`` (N ≥ 1, 3) when ``rows`` is
     empty) in one pass (``X.min(axis=0)`` reduces along a strided axis: ~10x slower)."""
@@ -588,6 +604,7 @@ def build() -> None:
     P = np.random.default_rng(0).uniform(-0.05, 0.05, (64, 3))
     MeshPart(V, F, backend="numba").closest_point(P)
     in_spatial_order(P)  # the sort and the int32 gather (also the k-NN grid's)
+    scatter_rows(P, np.arange(P.shape[0], dtype=np.int32))  # the k-NN filter's points put back
     bounds(P, np.arange(8, dtype=np.int64))
     from roboisf.parts import axisym_kernel  # the axisymmetric parts' query: same group
 
