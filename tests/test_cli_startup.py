@@ -150,6 +150,27 @@ def test_reading_a_study_loads_no_table_or_plotting_library(small_cone_study):
     assert _child(code, str(small_cone_study)) == []
 
 
+def test_reading_a_study_s_files_loads_no_pandas(small_cone_study):
+    """The files an analysis reads before and beside its scans — the toolpath CSV, the Parquet
+    force and joint logs, a virtual cell's truth — are read without pandas (Arrow, numpy): its
+    ~47 MB come after the scans' peak, with the tables (issue #31)."""
+    code = (
+        "import json, sys\n"
+        "from pathlib import Path\n"
+        "from roboisf.decompose import pipeline as pl\n"
+        "from roboisf.study import load_study\n"
+        "s = load_study(sys.argv[1])\n"
+        "cell = pl.cell_from_study(s)\n"
+        "tp = pl.study_toolpath(s, s.cnc, cell.part)\n"
+        "log = pl.read_run_force_log(s, s.robot_run)\n"
+        "joints = pl.read_run_joint_log(s.robot_run)\n"
+        "truth = pl._read_truth(Path(sys.argv[1]) / 'truth' / 'per_point.parquet')\n"
+        "assert len(tp) > 100 and len(log) > 1000 and joints.q.shape[0] > 100 and truth.num_rows\n"
+        "print(json.dumps(sorted(m for m in ('pandas',) if m in sys.modules)))\n"
+    )
+    assert _child(code, str(small_cone_study)) == []
+
+
 @pytest.mark.parametrize(
     "package",
     [

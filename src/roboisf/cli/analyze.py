@@ -510,7 +510,6 @@ def _analyze_runs(study_path: Path, run: str | None, progress: object) -> Analys
     import dataclasses
 
     from roboisf.decompose.pipeline import analyze
-    from roboisf.report.iterations import history_row
     from roboisf.study import load_study
 
     study = load_study(study_path)
@@ -521,6 +520,9 @@ def _analyze_runs(study_path: Path, run: str | None, progress: object) -> Analys
     for name in names:
         sub = study.for_run(name)
         result = analyze(sub, progress=progress)  # type: ignore[arg-type]
+        # the report's tables (pandas) after the analysis: not loaded under the scans' peak
+        from roboisf.report.iterations import history_row
+
         row = history_row(
             name,
             sub.robot_run.toolpath.name,

@@ -19,10 +19,9 @@ import json
 import threading
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 from numpy.typing import NDArray
 
 from roboisf.cell import Cell, at_ball_centre, cell_from_study, tip_compliances
@@ -54,6 +53,7 @@ from roboisf.decompose.identify import (
 from roboisf.errors import InputError
 from roboisf.fem import ComplianceResult
 from roboisf.frames import vertical_tool
+from roboisf.io.arrow import float_column
 from roboisf.io.atomic import atomic_path, atomic_write, staged_directory
 from roboisf.jit import heap
 from roboisf.logs.forcelog import ForceLog, attach_to_toolpath
@@ -92,6 +92,10 @@ from roboisf.sync.run import (
     joint_step,
 )
 from roboisf.toolpath import Toolpath
+
+if TYPE_CHECKING:  # the tables' libraries are imported where the tables are made
+    import pandas as pd
+    import pyarrow as pa
 
 __all__ = [
     "AnalysisResult",
@@ -669,6 +673,8 @@ def _analyze(
     thick = rob.thickness or cnc.thickness
     if thick is not None:
         per_point["thickness_measured"] = read_thickness_csv(thick).at(tp.depth) * 1e3
+    import pandas as pd  # the tables: after the scans, not under their peak (docs/analyze.md)
+
     contributions = pd.DataFrame(_mm_rows(contribution_rows(d, projected=False)))
     contributions_normal = pd.DataFrame(_mm_rows(contribution_rows(d, projected=True)))
     # the summary's fields, in the file's order, as the steps below find them; built into the
@@ -1007,6 +1013,8 @@ def _per_point(
         cols[f"{col}_dn"] = d.normal[key] * 1e3
     cols["thickness_predicted"] = sine_law_thickness(tp.wall_angle, cell.part.sheet_thickness) * 1e3
     cols["used"] = d.valid
+    import pandas as pd
+
     return pd.DataFrame(cols)
 
 
@@ -1146,19 +1154,23 @@ def _in_study(path: str | Path, root: Path) -> str:
         return str(p)
 
 
-def _read_truth(path: Path) -> pd.DataFrame:
+def _read_truth(path: Path) -> pa.Table:
     """A virtual cell's ground truth, validated: readable Parquet, the columns ``analyze`` uses
     (:data:`TRUTH_COLUMNS`), finite numbers. Read before the analysis so that a corrupt file
-    fails in a second, not after the scans."""
+    fails in a second, not after the scans; an Arrow table (its frame is made when attached:
+    pandas is not loaded under the scans' peak)."""
+    import pyarrow.parquet as pq
+
     try:
-        df = pd.read_parquet(path)
+        # ParquetFile.read: pq.read_table imports pandas for the file's pandas metadata
+        df = pq.ParquetFile(path).read(use_pandas_metadata=False)
     except Exception as e:  # pyarrow raises many types for a damaged file
         raise InputError(
             f"not a readable Parquet file ({type(e).__name__}: {e}); delete the truth/ folder "
             "to analyze without ground truth, or regenerate the study (roboisf virtual-cell)",
             file=path,
         ) from None
-    missing = [c for c in TRUTH_COLUMNS if c not in df.columns]
+    missing = [c for c in TRUTH_COLUMNS if c not in df.column_names]
     if missing:
         raise InputError(
             f"missing column(s) {', '.join(missing)} (not a virtual-cell truth file?)",
@@ -1166,10 +1178,12 @@ def _read_truth(path: Path) -> pd.DataFrame:
             field=missing[0],
         )
     for c in TRUTH_COLUMNS:
-        try:
-            v = df[c].to_numpy(dtype=float)
-        except (TypeError, ValueError):
-            raise InputError("expected numbers (mm)", file=path, field=c) from None
+        v = float_column(df.column(c))  # without pandas (Arrow's to_numpy imports it)
+        if v is None:  # another type, or nulls (NaN below)
+            try:
+                v = np.asarray(df.column(c).to_numpy(), dtype=float)
+            except (TypeError, ValueError, ArithmeticError):
+                raise InputError("expected numbers (mm)", file=path, field=c) from None
         if not np.all(np.isfinite(v)):
             raise InputError(
                 f"NaN or inf in row {int(np.argmax(~np.isfinite(v)))}", file=path, field=c
@@ -1182,7 +1196,7 @@ def _attach_truth(
     per_point: pd.DataFrame,
     summary: dict[str, Any],
     d: Decomposition,
-    truth: pd.DataFrame | None = None,
+    truth: pa.Table | pd.DataFrame | None = None,
 ) -> None:
     """Virtual-cell studies ship their ground truth: put it beside the recovered values.
 
@@ -1192,7 +1206,8 @@ def _attach_truth(
     term lacks the VJM's tangential part on any data, so only the recipe's own truth isolates
     the estimation error. ``R_m_physical`` gives the full-vector truth for the record.
     """
-    truth = _read_truth(path) if truth is None else truth
+    got = _read_truth(path) if truth is None else truth
+    truth = got.to_pandas() if hasattr(got, "column_names") else got
     if len(truth) != len(per_point):
         summary["warnings"].append(f"truth file {path} does not match the toolpath; ignored")
         return

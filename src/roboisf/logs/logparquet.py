@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
+from roboisf.io.arrow import float_values
 from roboisf.io.atomic import atomic_path
 from roboisf.io.units import log_unit_to_si
 
@@ -123,12 +124,14 @@ def _column(arr: Any, name: str, path: Path, row0: int) -> NDArray[np.floating[A
     other numeric type becomes float64. ``row0``: the batch's first row in the file."""
     import pyarrow as pa
 
-    try:
-        v = arr.to_numpy(zero_copy_only=False)
-        if v.dtype.kind != "f":
-            v = v.astype(np.float64)
-    except (TypeError, ValueError, pa.ArrowException):
-        raise InputError("column is not numeric", file=path, field=name) from None
+    v = float_values(arr)  # without pandas, which Arrow's to_numpy imports
+    if v is None:  # another type, or nulls (NaN below)
+        try:
+            v = arr.to_numpy(zero_copy_only=False)
+            if v.dtype.kind != "f":
+                v = v.astype(np.float64)
+        except (TypeError, ValueError, pa.ArrowException):
+            raise InputError("column is not numeric", file=path, field=name) from None
     if not np.isfinite(v).all():
         bad = ~np.isfinite(v)
         raise InputError(
