@@ -30,6 +30,13 @@ def tool60():
     return fe_compliance(BallEndTool(10e-3, 60e-3), solver="superlu")
 
 
+@pytest.fixture(scope="module")
+def paper_tool_coarse():
+    """The paper tool at R/2 with the default solver ("auto"): the convergence test's coarse
+    mesh and the solver test's "auto" run are the same solve (≈ 1 s), done once. Read-only."""
+    return solve_six_cases(BallEndTool(10e-3, PAPER_TOOL_LENGTH), 2.5e-3)
+
+
 def test_tool_60mm_lateral_compliance(tool60):
     k = tool60.compliance
     assert 6.5e-7 < k[0, 0] < 7.5e-7 and np.isclose(k[0, 0], k[1, 1], rtol=5e-3)
@@ -56,7 +63,7 @@ def test_paper_tool_length_reproduces_table2():
     assert abs(lateral / PAPER_TOOL_LATERAL - 1) < 0.005
 
 
-def test_superlu_and_pardiso_give_the_same_compliance():
+def test_superlu_and_pardiso_give_the_same_compliance(request):
     """The two direct solvers of ``solver=``: the suite runs PARDISO where the test extra
     installs it (x86-64), so SuperLU — the plain install's — is checked against it here; "auto"
     takes PARDISO when it is there."""
@@ -64,7 +71,7 @@ def test_superlu_and_pardiso_give_the_same_compliance():
     tool = BallEndTool(10e-3, PAPER_TOOL_LENGTH)
     slu = solve_six_cases(tool, 2.5e-3, solver="superlu")
     par = solve_six_cases(tool, 2.5e-3, solver="pardiso")
-    auto = solve_six_cases(tool, 2.5e-3)
+    auto = request.getfixturevalue("paper_tool_coarse")  # solve_six_cases(tool, 2.5e-3)
     assert (slu.quality["solver"], par.quality["solver"]) == ("superlu", "pardiso")
     assert auto.quality["solver"] == "pardiso"
     scale = np.abs(slu.U).max()
@@ -73,11 +80,11 @@ def test_superlu_and_pardiso_give_the_same_compliance():
 
 
 @pytest.mark.slow
-def test_mesh_convergence_paper_tool():
+def test_mesh_convergence_paper_tool(paper_tool_coarse):
     """Paper tool at R/2 within 0.3 % of a twice-finer mesh (R/4). The R/3-vs-R/6 pair is run by
     ``benchmarks/fem_tool.py --convergence`` (188k DOFs, too big for a unit test): 0.07 %."""
     tool = BallEndTool(10e-3, PAPER_TOOL_LENGTH)
-    coarse = solve_six_cases(tool, 2.5e-3).compliance
+    coarse = paper_tool_coarse.compliance  # solve_six_cases(tool, 2.5e-3)
     fine = solve_six_cases(tool, 1.25e-3).compliance
     for i in (0, 1, 2, 5):
         assert abs(coarse[i, i] / fine[i, i] - 1) < 3e-3

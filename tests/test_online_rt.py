@@ -390,7 +390,10 @@ def test_the_loop_times_each_sensor_sample_by_its_arrival_not_its_read(setup, mo
     enters the filter at the time it arrived (kernel stamp), not the time it was read."""
     from roboisf.online import loop as loop_mod
 
-    monkeypatch.setattr(loop_mod, "IDLE", 5.0)  # no idle drain: read only with the message
+    # no idle drain within the test's ≈ 0.1 s of sends: read only with the message. 1 s, not
+    # more: after its one cycle the loop ramps down and ends on the first idle timeout (past
+    # its 0.5 s ramp_timeout) — each second here is a second of the test (5 s: 5.4 s a run)
+    monkeypatch.setattr(loop_mod, "IDLE", 1.0)
     oc = OnlineCompensator.from_cell(setup.vc.cell, setup.sensor, Limits(watchdog=2.0))
     ft = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     ft.bind(("127.0.0.1", 0))
