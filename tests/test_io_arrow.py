@@ -36,3 +36,49 @@ def test_a_chunked_column_is_joined_in_order():
     assert float_column(pa.chunked_array([pa.array([1.0, None])])) is None
     empty = float_column(pa.chunked_array([], type=pa.float64()))
     assert empty is not None and empty.size == 0
+
+
+_TABLE_CASES = {
+    "plain": "# units: x=mm\nx,y,z\n1.5,2,-3e-4\n0.1,0.2,0.30000000000000004\n",
+    "semicolon, decimal comma": "x;y;z\n1,5;2;-0,0003\n0,1;0,2;0,3\n",
+    "quoted, CRLF, trailing blank lines": 'x,y,z\r\n"1.5",2,3\r\n4,5,6\r\n\r\n\r\n',
+    "tab, BOM": "\ufeffx\ty\tz\n1\t2\t3\n",
+}
+
+
+@pytest.mark.parametrize("case", list(_TABLE_CASES))
+def test_a_table_reads_the_same_bits_through_arrow_and_through_pandas(case, tmp_path, monkeypatch):
+    """``read_table``'s two fast paths — Arrow whole (small files) and pandas' C parser in
+    blocks (large ones) — give the same rows and the same line numbers; a small table is read
+    by Arrow alone (pandas' parser made to fail meanwhile)."""
+    import pandas as pd
+
+    from roboisf.io import table as T
+
+    p = tmp_path / "t.csv"
+    p.write_bytes(_TABLE_CASES[case].encode("utf-8"))
+
+    def no_pandas(*a, **k):
+        raise AssertionError("a small valid table must be read by Arrow")
+
+    with monkeypatch.context() as m:  # neither pandas' blocks nor the careful reader's parse
+        m.setattr(pd, "read_csv", no_pandas)
+        a = T.read_table(p, ("x", "y", "z"))
+    monkeypatch.setattr(T, "ARROW_MAX_BYTES", 0)  # every file is "large": pandas in blocks
+    b = T.read_table(p, ("x", "y", "z"))
+    np.testing.assert_array_equal(a.data.view(np.int64), b.data.view(np.int64))
+    np.testing.assert_array_equal(a.lines, b.lines)
+    assert a.data.shape == (1 if "tab" in case else 2, 3)
+
+
+def test_a_bad_row_is_named_whichever_path_read_it(tmp_path, monkeypatch):
+    from roboisf.errors import InputError
+    from roboisf.io import table as T
+
+    p = tmp_path / "t.csv"
+    p.write_text("x,y,z\n1,2,3\n4,oops,6\n7,8,9\n")
+    for limit in (T.ARROW_MAX_BYTES, 0):
+        monkeypatch.setattr(T, "ARROW_MAX_BYTES", limit)
+        with pytest.raises(InputError, match="not a number") as e:
+            T.read_table(p, ("x", "y", "z"))
+        assert e.value.line == 3 and e.value.field == "y"

@@ -8,10 +8,11 @@ Layout of every roboisf table::
     col_a,col_b,col_c     ← header (column names in any case, any order)
     1.0,2.0,3.0           ← numeric rows; blank lines are skipped
 
-Read with Arrow's CSV reader, in blocks (:func:`_fast_body`). Also accepted, as
-spreadsheets and instruments write them: a semicolon or tab separator (taken from the header
-line), a decimal comma (with a separator other than the comma), a UTF-8 byte-order mark, and
-lines of free text before the header (the header is the first line naming a known column).
+Read with Arrow's CSV reader (a large file with pandas' C parser in blocks: :func:`_fast_body`).
+Also accepted, as spreadsheets and instruments write them: a semicolon or tab separator (taken
+from the header line), a decimal comma (with a separator other than the comma), a UTF-8
+byte-order mark, and lines of free text before the header (the header is the first line naming
+a known column).
 
 :func:`read_table` parses it once, vectorised, and reports the first bad row with its **file line
 number** (1-based, counting every physical line of the file): rows with a wrong number of
@@ -35,7 +36,7 @@ import pyarrow.csv as pacsv
 from numpy.typing import NDArray
 
 from roboisf.errors import InputError
-from roboisf.io.arrow import float_values
+from roboisf.io.arrow import float_column
 from roboisf.io.text import read_text
 
 __all__ = [
@@ -206,7 +207,7 @@ def read_table(
             file=path,
             line=int(lines[r]),
         )
-    import pandas as pd  # here only: the fast path (every valid file) needs no pandas
+    import pandas as pd  # here only: a valid table of ≤ ARROW_MAX_BYTES needs no pandas
 
     try:
         # C parser, exact (round-trip) float conversion; the slow path below only runs to name
@@ -341,29 +342,48 @@ def _body_lines(path: Path, header_line: int) -> int | None:
 def _fast_body(
     path: Path, header_line: int, k: int, sep: str = ",", decimal: str = "."
 ) -> F64 | None:
-    """All rows after the header through Arrow's CSV reader, or None when anything is off (a
-    blank or comment line inside, a wrong cell count, a non-number, NaN/inf): the careful reader
-    then finds the line to name.
+    """All rows after the header, or None when anything is off (a blank or comment line inside,
+    a wrong cell count, a non-number, NaN/inf): the careful reader then finds the line to name.
 
-    Streamed in blocks of :data:`ARROW_BLOCK` bytes of text into one array sized by the file's
-    line count: the peak is the data and one block, never the file's table whole. Arrow parses
-    without the GIL, so a thread beside it (the analysis compares the scans meanwhile) is not
-    held up, and its float conversion is correctly rounded, as pandas' C parser was on every
-    file tested (the same bits; the paper cone's 35 k-row toolpath 51–138 → 25–35 ms). pandas
-    (~47 MB of the process) is then not loaded by a study's tables: only by the careful reader
-    and instrument logs."""
+    A file of up to :data:`ARROW_MAX_BYTES` (a toolpath, a thickness table) is parsed whole by
+    Arrow's CSV reader: correctly rounded floats, the same bits as pandas' C parser on every file
+    tested (the paper cone's 35 k-row toolpath; 200 k random 17-digit and 6-decimal values), in
+    25–35 ms instead of 51–138, and without importing pandas (~47 MB of the process, which an
+    analysis then loads only after its scans' peak). A larger one (a 1 kHz force log) goes
+    through pandas' C parser in blocks of 2¹⁷ rows into one array sized by the file's line
+    count: the peak is the data and one block (a 159 MB force log: +0.40 GB read whole,
+    +0.15 GB in blocks, the same bits), and the parser lets go of the GIL between blocks, so a
+    thread beside it (the scans) is not held up. Arrow's streaming reader was tried for those:
+    +0.15 GB more at the peak on that log (its freed blocks stayed resident), and no faster."""
     n = _body_lines(path, header_line)
     if n is None or n <= 0:
         return None
+    if path.stat().st_size <= ARROW_MAX_BYTES:
+        return _arrow_body(path, header_line, n, k, sep, decimal)
+    return _blocks(
+        path,
+        n,
+        k,
+        skiprows=header_line,
+        sep=sep,
+        decimal=decimal,
+        encoding="utf-8-sig",
+        **_NUMERIC_ROWS,
+    )
+
+
+#: Largest table [bytes] :func:`_fast_body` parses with Arrow (whole); above it, pandas in blocks.
+ARROW_MAX_BYTES = 32 * 1024 * 1024
+
+
+def _arrow_body(path: Path, header_line: int, n: int, k: int, sep: str, decimal: str) -> F64 | None:
+    """The ``n`` rows of ``k`` numbers after line ``header_line`` through ``pyarrow.csv``, or
+    None unless there are exactly ``n`` rows of ``k`` finite numbers."""
     names = [f"c{j}" for j in range(k)]
-    data = np.empty((n, k))
-    o = 0
     try:
-        reader = pacsv.open_csv(
+        table = pacsv.read_csv(
             path,
-            read_options=pacsv.ReadOptions(
-                skip_rows=header_line, column_names=names, block_size=ARROW_BLOCK
-            ),
+            read_options=pacsv.ReadOptions(skip_rows=header_line, column_names=names),
             parse_options=pacsv.ParseOptions(delimiter=sep, ignore_empty_lines=True),
             convert_options=pacsv.ConvertOptions(
                 column_types=dict.fromkeys(names, pa.float64()),
@@ -373,33 +393,26 @@ def _fast_body(
                 quoted_strings_can_be_null=False,
             ),
         )
-        with reader:
-            for batch in reader:
-                m = batch.num_rows
-                if o + m > n:
-                    return None
-                for j in range(k):
-                    v = float_values(batch.column(j))
-                    if v is None:
-                        return None
-                    data[o : o + m, j] = v
-                o += m
     except (pa.ArrowException, OSError, ValueError):
         return None
-    if o != n or not np.all(np.isfinite(data)):
+    if table.num_rows != n:
+        return None
+    data = np.empty((n, k))
+    for j in range(k):
+        v = float_column(table.column(j))
+        if v is None:
+            return None
+        data[:, j] = v
+    if not np.all(np.isfinite(data)):
         return None
     return data
-
-
-#: Bytes of text per block of :func:`_fast_body` (Arrow's reader; ~20 k rows of a force log).
-ARROW_BLOCK = 1 << 22
 
 
 def _blocks(path: Path, n: int, k: int, **read_csv: Any) -> F64 | None:
     """``n`` rows of ``k`` numbers through ``pandas.read_csv(path, **read_csv)`` in blocks of
     2¹⁷ rows into one (n, k) array; None unless there are exactly ``n`` rows of ``k`` finite
     numbers (or when pandas refuses the text)."""
-    import pandas as pd  # instrument logs only (their layouts: usecols, quoting, spaces)
+    import pandas as pd  # large tables and instrument logs only
 
     data = np.empty((n, k))
     o = 0
