@@ -95,3 +95,30 @@ def test_valid_mask_and_shapes():
     )
     with pytest.raises(InputError, match="no toolpath point"):
         contribution_rows(d, projected=False)
+
+
+def test_a_command_is_booked_by_what_a_scan_sees_of_it():
+    """A compensated run's command: its normal part comes out of the robot term in both books
+    (the part then deviates by it by design); its tangential part, which moves the contact along
+    the surface and which no scan observes, changes nothing — else the per-axis robot term of a
+    compensated run would carry the command's own tangential deflection, and its share would
+    jump against the first run's for the same robot."""
+    n, truth, tool_cnc, dn_cnc, dn_robot = synthetic()
+    N = len(n)
+    args = (tool_cnc, truth["tool"], truth["tool_holder"], truth["robot_compliance"])
+    base = decompose(n, dn_cnc, dn_robot, *args, np.ones(N, bool))
+    c_n = rng.normal(scale=1e-3, size=N)
+    t = rng.normal(scale=1e-3, size=(N, 3))
+    tangential = t - np.einsum("ij,ij->i", t, n)[:, None] * n
+    command = c_n[:, None] * n + tangential
+    d = decompose(n, dn_cnc, dn_robot + c_n, *args, np.ones(N, bool), command)
+    for f in (*FACTORS, "vjm", "delta"):
+        np.testing.assert_allclose(d.vectors[f], base.vectors[f], rtol=0, atol=1e-15)
+        np.testing.assert_allclose(d.normal[f], base.normal[f], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(d.normal["command"], c_n, rtol=0, atol=1e-15)
+    # the per-axis book adds up: the measured part = the four factors + the command seen
+    parts = sum(d.vectors[f] for f in FACTORS) + d.vectors["command"]
+    np.testing.assert_allclose(parts, d.vectors["robot"], rtol=0, atol=1e-15)
+    shares = {r["factor"]: r["share_percent"] for r in contribution_rows(d, projected=False)}
+    expect = {r["factor"]: r["share_percent"] for r in contribution_rows(base, projected=False)}
+    assert shares == pytest.approx(expect, abs=1e-9)

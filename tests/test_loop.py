@@ -212,7 +212,8 @@ def test_stopping_rule():
 
 def test_decompose_books_the_command_apart():
     """The robot compliance of a compensated run is the measured deviation minus the command
-    offset (and the other terms); the command is kept as its own vector."""
+    offset (and the other terms); the command as a scan sees it — its normal part — is kept as
+    its own vector (the tangential part is no scan's: tests/test_decompose_core.py)."""
     rng = np.random.default_rng(1)
     n = rng.normal(size=(5, 3))
     n /= np.linalg.norm(n, axis=1)[:, None]
@@ -221,7 +222,7 @@ def test_decompose_books_the_command_apart():
     dn_r = np.einsum("ij,ij->i", cmd, n) + 0.2e-3
     d = decompose(n, np.zeros(5), dn_r, z, z, z, z, np.ones(5, bool), cmd)
     np.testing.assert_allclose(d.normal["robot_compliance"], 0.2e-3, atol=1e-15)
-    np.testing.assert_allclose(d.vectors["command"], cmd)
+    np.testing.assert_allclose(d.vectors["command"], np.einsum("ij,ij->i", cmd, n)[:, None] * n)
     d0 = decompose(n, np.zeros(5), dn_r, z, z, z, z, np.ones(5, bool))
     assert np.all(d0.vectors["command"] == 0)
     np.testing.assert_allclose(d0.normal["robot_compliance"], dn_r)

@@ -81,8 +81,13 @@ def decompose(
     vjm : (N, 3) m — robot deflection predicted by the VJM
     valid : (N,) bool — points to use
     command : (N, 3) m, optional — the robot run's commanded tip minus the nominal tip (a
-        compensated command): what the robot part deviates by design, taken out of the robot
-        compliance term and kept as ``vectors["command"]`` (zeros when None)
+        compensated command): what the robot part deviates by design. What a scan sees of it,
+        its normal part ``(command · n) n``, is taken out of the robot compliance term in both
+        books and kept as ``vectors["command"]`` (zeros when None). Its tangential part moves
+        the contact along the surface, which no scan observes: taken out of the per-axis book
+        it would put the command's own (the model's) tangential deflection into the measured
+        robot term, and a compensated run's per-axis robot share would jump against the first
+        run's for the same robot (20 → 32 % on a virtual cone; docs/compensate.md §6).
     """
     n = np.asarray(normal, dtype=float)
     N = n.shape[0]
@@ -101,7 +106,9 @@ def decompose(
     cnc = dn_cnc[:, None] * n
     rob = dn_robot[:, None] * n
     springback = cnc - tool_cnc
-    cmd = np.zeros_like(rob) if command is None else np.asarray(command, dtype=float)
+    cmd = np.zeros_like(rob)
+    if command is not None:  # what the scans can see of the command: its normal part
+        cmd = np.einsum("ij,ij->i", np.asarray(command, dtype=float), n)[:, None] * n
     robot_c = rob - springback - tool_robot - holder_robot - cmd
     vectors = {
         "tool": tool_robot,
