@@ -273,8 +273,10 @@ def test_parquet_joint_log_round_trip(tmp_path):
 def test_roboisf_joint_log_units_from_study_or_conflict(tmp_path):
     body = "time,q1,q2,q3,q4,q5,q6\n0,0.1,0.2,0.3,0.4,0.5,0.6\n1,0.1,0.2,0.3,0.4,0.5,0.6\n"
     f = _w(tmp_path, "j.csv", body)
-    with pytest.raises(InputError, match="missing '# units"):
+    with pytest.raises(InputError, match="missing '# units") as e:
         read_joint_log(f)
+    # the message says how to declare them in the study, with this file's name
+    assert 'joints = {file = "j.csv", units = {time = "s", angle = "deg"}}' in e.value.message
     assert math.isclose(read_joint_log(f, angle_unit="rad").q[0, 0], 0.1)
     g = _w(tmp_path, "g.csv", "# units: time=s angle=deg\n" + body)
     with pytest.raises(InputError, match="declared as 'deg' in the file but 'rad'"):

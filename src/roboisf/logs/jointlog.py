@@ -246,7 +246,10 @@ def read_joint_log(
     units = {"time": "s", "angle": "deg"}
     if "units" not in t.meta and angle_unit is None:
         raise InputError(
-            "missing '# units: time=s angle=deg' line (angles must declare deg or rad)",
+            "missing '# units: time=s angle=deg' line (angles must declare deg or rad; the "
+            "study's [units] are not taken for a joint log's angles): add the line, or give "
+            f'them in study.toml: joints = {{file = "{p.name}", units = {{time = "s", '
+            'angle = "deg"}}',
             file=p,
             field="units",
         )
