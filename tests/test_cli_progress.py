@@ -81,3 +81,36 @@ def test_a_nested_step_names_the_step_it_runs_in_in_its_own_thread(monkeypatch):
         "scan robot › register (fixture) …",
         "analyze › report …",
     ]
+
+
+@pytest.mark.parametrize("terminal", [True, False])
+def test_verbose_writes_each_step_s_time_when_it_ends(terminal, monkeypatch):
+    """``-v``: every step leaves its label (nested ones with their parent) and wall time, on a
+    terminal and in a piped log; without it, no timing line."""
+    import re
+
+    if not terminal:
+        monkeypatch.setattr("sys.stderr", io.StringIO())
+    for timings in (True, False):
+        buf = io.StringIO()
+        console = Console(file=buf, force_terminal=terminal, width=100)
+        p = RichProgress(console, timings=timings)
+        with p.task("scan cnc"), p.task("outlier removal"):
+            pass
+        lines = re.findall(r"(scan cnc(?: › outlier removal)?): (\d+\.\d\d) s", buf.getvalue())
+        if timings:
+            assert [name for name, _ in lines] == ["scan cnc › outlier removal", "scan cnc"]
+        else:
+            assert lines == []
+
+
+def test_the_cli_state_gives_timings_with_v_only():
+    from roboisf.cli.console import _State
+
+    s = _State()
+    s.verbosity = 1
+    assert s.progress() is not None and not s.progress().timings
+    s.verbosity = 2
+    assert s.progress().timings
+    s.verbosity = 0
+    assert s.progress() is None

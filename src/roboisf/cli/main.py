@@ -142,7 +142,9 @@ def _version(value: bool) -> None:
 @app.callback()
 def _root(
     quiet: bool = typer.Option(False, "--quiet", "-q", help="Print only errors."),
-    verbose: bool = typer.Option(False, "--verbose", "-v", help="Print more detail."),
+    verbose: bool = typer.Option(
+        False, "--verbose", "-v", help="Print more detail: each step's time as it ends."
+    ),
     version: bool = typer.Option(
         False, "--version", callback=_version, is_eager=True, help="Show the version and exit."
     ),
