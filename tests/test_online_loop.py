@@ -95,6 +95,44 @@ def test_udp_end_to_end_with_the_simulated_processes(setup, tmp_path):
     assert c.stop_reason
 
 
+@pytest.mark.parametrize(("controller", "end"), [("egm", "stop"), ("rsi", "cycles")])
+def test_the_end_of_the_simulated_run_ramps_the_correction_to_zero(setup, controller, end):
+    """The simulated controller's path ending (what ends ``online --simulate --duration``:
+    ``sim.result()`` then ``loop.stop()``) or the loop's own cycle count (``--cycles``, the same
+    count as the controller's path): the controller still answers after its path, holding its
+    last point, so the stop ramps the correction to zero and the log ends at zero. Before, it
+    fell silent after its last path cycle and every such stop said "NOT ramped"."""
+    n = 100
+    lim = Limits(ramp_rate=5e-3)
+    oc = OnlineCompensator.from_cell(setup.vc.cell, setup.sensor, lim)
+    adapter = egm.EgmAdapter() if controller == "egm" else rsi.RsiAdapter()
+    loop = Loop(oc, adapter, ("127.0.0.1", 0), ("127.0.0.1", 9), **RULES_OFF)
+    step = max(1, len(setup.q) // n)
+    with Simulation(  # one process: half the start-up of two (the test's time)
+        setup, controller, loop.listen[1], n_cycles=n, point_step=step, processes=1
+    ) as sim:
+        assert loop.ft is not None
+        loop.ft.connect(("127.0.0.1", sim.sensor_port))
+        if end == "stop":
+            th, _ = _serve(loop, duration=60)
+            res = sim.result(timeout=60)
+            loop.stop()
+        else:
+            th, _ = _serve(loop, duration=60, cycles=n)
+            res = sim.result(timeout=60)
+        th.join(30)
+        assert not th.is_alive()
+    c = loop.counters
+    assert res["ran"] == n
+    assert c.stop_reason == ("stop requested" if end == "stop" else f"{n} cycles run")
+    d = loop.log.data[: loop.log.n]
+    corr = np.linalg.norm(d[:, 17:20], axis=1) * 1e-3  # mm → m
+    assert corr.max() > 0.05e-3, corr.max()  # there was a correction to ramp out
+    assert c.ramped, (c.stop_reason, c.left_mm)
+    assert c.left_mm == 0.0 and corr[-1] == 0.0
+    assert int(d[-1, 20]) & kn.STATUS_STOP  # the log ends in the stop's ramp
+
+
 def _recv(s: socket.socket, timeout: float = 2.0) -> bytes | None:
     s.settimeout(timeout)
     try:

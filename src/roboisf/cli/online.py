@@ -621,9 +621,15 @@ def _run_simulated(
         assert loop.ft is not None
         loop.ft.connect(("127.0.0.1", sim.sensor_port))
 
+        why = f"the simulated controller's path of {n} cycles ended"
+        if cycles is not None and n == cycles:
+            why = f"{cycles} cycles run ({why})"
+        elif math.isfinite(duration) and n == int(duration / limits.cycle):
+            why = f"--duration {duration:g} s reached ({why})"
+
         def _finish() -> None:
-            sim.result()
-            loop.stop()
+            sim.result()  # its path has ended; it streams on, holding the last point, so the
+            loop.stop(why)  # loop's stop ramps the correction to zero through its messages
 
         done = threading.Thread(target=_finish, daemon=True)
         done.start()
@@ -633,7 +639,7 @@ def _run_simulated(
         # --form's part needs the whole path)
         wait = duration + 60.0
         _run(loop, wait, cycles, status_text, banner)
-        sim.stop.set()  # the loop has ended: the controller reports what it saw
+        sim.stop.set()  # the loop has ended: the controller's hold ends (it has reported)
         done.join(30)
         result: dict[str, Any] | None = sim.result(timeout=0.1) if not done.is_alive() else None
         return result

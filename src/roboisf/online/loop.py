@@ -369,6 +369,7 @@ class Loop:
             self.replay = sensor
         self._last_sample_at = -math.inf
         self._stop = False
+        self._stop_reason = ""
         self.t0 = math.nan
         self._status: Callable[[Loop], None] | None = None
         self._status_every = 0.25
@@ -380,8 +381,10 @@ class Loop:
             gc.collect()  # run()'s own (GcQuiet) then only walks what was made since
             gc.freeze()
 
-    def stop(self) -> None:
-        """End :meth:`run` after the current packet (e.g. from a signal handler)."""
+    def stop(self, reason: str = "") -> None:
+        """End :meth:`run` after the current packet (e.g. from a signal handler); ``reason``
+        is the stop reason it reports (default "stop requested")."""
+        self._stop_reason = reason
         self._stop = True
 
     def close(self) -> None:
@@ -510,7 +513,7 @@ class Loop:
                         "(the host cannot keep the cycle: docs/online.md, --selftest)"
                     )
                 self._housekeeping(time.perf_counter())
-        return "stop requested"
+        return self._stop_reason or "stop requested"
 
     def _ramp_down(self, t0: float, reason: str) -> None:
         """Ramp the correction to zero at ``ramp_rate``, answering the controller, then end."""

@@ -423,7 +423,14 @@ class _SensorSim:
 class _ControllerSim:
     """The simulated controller (see :func:`controller_process`): cycle ``c``'s message is due
     at ``t0 + c·cycle``; at that time the previous cycle is settled first (replies in the
-    socket read, judged by their kernel arrival stamps), then the message is sent."""
+    socket read, judged by their kernel arrival stamps), then the message is sent.
+
+    After its ``n_cycles`` (``path_done``: the report is due) it goes on streaming, holding the
+    path's last point and applying the replies, as a real controller streams while its program
+    waits at the end of the motion: the loop's stop then ramps the correction to zero through
+    these messages. The hold ends (``done``) when no reply came for ``hold_quiet`` s (the loop
+    has ended) or after ``hold_max`` s; :func:`devices_process` also ends it on ``stop``. Its
+    cycles are not part of the report (neither counted nor timed)."""
 
     def __init__(
         self,
@@ -436,6 +443,8 @@ class _ControllerSim:
         n_cycles: int,
         point_step: int,
         relative: bool = False,
+        hold_quiet: float = 1.0,
+        hold_max: float = 10.0,
     ) -> None:
         self.q_nom, self.dq_dp, self.planned = setup_arrays
         self.relative = relative and protocol == "rsi"
@@ -465,7 +474,13 @@ class _ControllerSim:
         self.c = 0  # the next cycle to send
         self.t0 = math.inf
         self.awaiting = False  # the last message sent has no in-time reply yet
-        self.done = False
+        self.path_done = False  # the n cycles run and settled: the report is due
+        self.done = False  # the hold after the path ended too: nothing more to send
+        self.hold_quiet = hold_quiet
+        self.hold_max = hold_max
+        self.hold_start = math.inf  # when the hold began (perf_counter s)
+        self.hold_reply = math.inf  # when the hold's last reply was read
+        self.k_last = 0  # the point of the last path message
 
     def next_time(self) -> float:
         """When the next event (settle the last cycle, send the next) is due (inf: done)."""
@@ -494,15 +509,26 @@ class _ControllerSim:
             if rseq % self.ipoc_step:
                 return
             rseq //= self.ipoc_step
-        if not 1 <= rseq <= self.c:
+        if self.path_done:  # the hold: the reply to its latest message, else nothing
+            if rseq != self.c or not self.awaiting:
+                return
+            j, k = -1, self.k_last  # its point: the path's last
+        elif not 1 <= rseq <= self.c:
             return
-        j = rseq - 1
+        else:
+            j = rseq - 1
+            k = int(self.ks[j])
         if self.protocol == "egm":
-            pl = self.planned[int(self.ks[j])]
+            pl = self.planned[k]
             if np.isnan(pose[3]):  # path correction: in the TCP frame of the planned pose
                 corr = quat_to_matrix(pl[3:]) @ pose[:3]
             else:  # position guidance: the pose sent, less the program's path
                 corr = pose[:3] - pl[:3]
+        if self.path_done:  # taken (settled when the next is due), neither counted nor timed
+            self.rx = self.rx + corr if self.relative else corr
+            self.awaiting = False
+            self.hold_reply = read_at
+            return
         # the arrival on this process's perf_counter clock: kernel stamp, else the read
         if arrival_ns is not None:
             arrived = float(self.sent[j] + (arrival_ns - self.sent_ns[j]) * 1e-9)
@@ -519,8 +545,12 @@ class _ControllerSim:
             self.rtt_late[j] = arrived - self.sent[j]  # after its next cycle was due: dropped
 
     def step(self, wake_late: float) -> None:
-        """The event due now: settle the cycle before, then send the next (or finish)."""
+        """The event due now: settle the cycle before, then send the next (after the path:
+        the hold's next, or finish)."""
         c = self.c
+        if self.path_done:
+            self._hold_step()
+            return
         if c > 0:
             self.drain()
             if self.awaiting:
@@ -528,29 +558,52 @@ class _ControllerSim:
                 self.awaiting = False
             self.ran = c
         if c >= self.n:
-            self.done = True
+            self.path_done = True
+            self.hold_start = self.hold_reply = time.perf_counter()
+            self._hold_step()
             return
         k = min(c * self.point_step, len(self.q_nom) - 1)
         self.index.value = k
         self.ks[c] = k
+        self.k_last = k
         self.applied[c] = self.rx
-        q = self.q_nom[k] + self.dq_dp[k] @ self.rx
-        seq = c + 1
-        if self.protocol == "egm":
-            msg = egm.encode_robot(seq, int((c * self.cycle) * 1e3), q, self.planned[k])
-        else:  # Delay: the replies that missed their cycle so far (DEF_Delay)
-            msg = rsi.encode_robot(seq * self.ipoc_step, q, delay=self.missed)
+        msg = self._message(c, k)
         self.wake_late[c] = wake_late
         self.sent[c] = time.perf_counter()  # the round trip from before the send (an upper
         self.sent_ns[c] = time.time_ns()  # bound) …
-        try:
-            self.sock.sendto(msg, self.dest)  # (on loopback, in the loop's socket on return)
-        except OSError:
-            pass  # nothing listens (ICMP): the cycle is missed
+        self._send(msg)
         # … the lateness from after it: a stall inside the send is this process's own
         self.send_late[c] = time.perf_counter() - (self.t0 + c * self.cycle)
         self.awaiting = True
         self.c = c + 1
+
+    def _hold_step(self) -> None:
+        """After the path: settle the hold's last message, then send the next one at the
+        path's last point — until the loop no longer answers or ``hold_max``."""
+        self.drain()
+        self.awaiting = False  # a reply that did not come: not counted (the report is out)
+        now = time.perf_counter()
+        if now - self.hold_reply > self.hold_quiet or now - self.hold_start > self.hold_max:
+            self.done = True
+            return
+        self._send(self._message(self.c, self.k_last))
+        self.awaiting = True
+        self.c += 1
+
+    def _message(self, c: int, k: int) -> bytes:
+        """Cycle ``c``'s message: the joints of point ``k`` moved by the correction taken."""
+        q = self.q_nom[k] + self.dq_dp[k] @ self.rx
+        seq = c + 1
+        if self.protocol == "egm":
+            return egm.encode_robot(seq, int((c * self.cycle) * 1e3), q, self.planned[k])
+        # Delay: the replies that missed their cycle so far (DEF_Delay)
+        return rsi.encode_robot(seq * self.ipoc_step, q, delay=self.missed)
+
+    def _send(self, msg: bytes) -> None:
+        try:
+            self.sock.sendto(msg, self.dest)  # (on loopback, in the loop's socket on return)
+        except OSError:
+            pass  # nothing listens (ICMP): the cycle is missed
 
     def report(self, warnings: list[str], processes: int, spin: float) -> dict[str, Any]:
         return {
@@ -598,7 +651,9 @@ def devices_process(
     fewer runnable process beside the loop (:class:`Simulation` ``processes=1``).
 
     The controller's report goes on ``result`` (:func:`controller_process`) when it has run its
-    cycles or ``stop`` is set; the sensor streams on until ``stop``.
+    cycles or ``stop`` is set; it then streams on holding the path's last point until ``stop``
+    or the loop falls silent (so the loop's stop can ramp the correction to zero:
+    :class:`_ControllerSim`); the sensor streams on until ``stop``.
     """
     warnings = apply(realtime, "the simulated devices").warnings if realtime is not None else []
     set_timer_slack(1000)  # 1 µs instead of 50: the absolute sleeps end when asked
@@ -612,7 +667,7 @@ def devices_process(
     ready.set()
     reported = ctl is None
     try:
-        while not stop.is_set() and (sen is not None or not reported):
+        while not stop.is_set() and (sen is not None or (ctl is not None and not ctl.done)):
             now = clock()
             if sen is not None:
                 sen.requests(now)
@@ -636,7 +691,7 @@ def devices_process(
             late = pacer.wait(t, margin)
             if ctl is not None and t == t_c:
                 ctl.step(late)
-                if ctl.done and not reported:
+                if ctl.path_done and not reported:
                     result.put(ctl.report(warnings, processes, spin))
                     reported = True
                 gcq.slack()
@@ -702,7 +757,11 @@ def controller_process(
     Every ``cycle`` s, at the absolute time ``t0 + c·cycle`` (:class:`~roboisf.online.rt.Pacer`:
     no drift, a late cycle does not shift the next), it sends its state (joints of toolpath
     point ``k·point_step`` moved by the last correction it received; ``index`` tells the sensor
-    the point) and waits for the reply. **Missed cycle**, as EGM and RSI define it: the reply
+    the point) and waits for the reply. After its ``n_cycles`` it reports and goes on
+    streaming, holding the last point and applying the replies, until ``stop`` or the loop falls
+    silent for 1 s (at most 10 s): the loop's stop ramps the correction to zero through these
+    messages, as through a real controller's while its program waits at the end of the
+    motion. **Missed cycle**, as EGM and RSI define it: the reply
     carrying the cycle's sequence number (EGM ``seqno``, RSI ``IPOC``) has not arrived when the
     next cycle's message is due, ``t0 + (c + 1)·cycle``. Arrival is the kernel's receive stamp
     (``SO_TIMESTAMPNS``), not the moment this process got round to reading it: a reply that
