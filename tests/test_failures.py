@@ -227,6 +227,10 @@ def _edited(study: Path, dst: Path, old: str, new: str) -> Path:
         # a µm/mm slip: the 66 000 gave holder and robot R_m of 4 670 mm
         ("offset = 66.0", "offset = 66000", "tool_holder.offset", "66 mm if it was written in µm"),
         ("offset = 66.0", "offset = 1e30", "tool_holder.offset", "no usual unit slip"),
+        # an m/mm slip: 0.066 is no holder (a nose 66 µm from the tip); 0 is the documented none
+        ("offset = 66.0", "offset = 0.066", "tool_holder.offset", "66 mm if it was written in m"),
+        ("offset = 66.0", "offset = 0.066", "tool_holder.offset", "1 to 1000 mm, or 0"),
+        ("offset = 66.0", "offset = 0.0", "tool_holder.offset", None),
         ("sheet_thickness = 1.22", "sheet_thickness = 1e29", "part.sheet_thickness", "0.02 to 20"),
         # a plausible sheet, but thicker than the part is wide / 10
         (
