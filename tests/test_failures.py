@@ -273,6 +273,17 @@ def test_absurd_study_values_are_refused_with_the_unit_slip(
     assert f"[{field}]" in str(e.value) and words in str(e.value), str(e.value)
 
 
+def test_a_study_scan_in_the_wrong_unit_names_the_study_key(tiny_study, tmp_path, capsys):
+    """analyze has no --unit: the fix is the study's runs.NAME.scan_unit, and the error says so
+    (``roboisf scan compare`` keeps 'pass --unit', tests/test_scan_readers.py)."""
+    s = _edited(tiny_study, tmp_path / "s", 'scan_unit = "mm"', 'scan_unit = "m"')
+    assert main(["-q", "analyze", str(s), "-o", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    assert "study.toml [runs.cnc.scan_unit]" in err, err
+    assert 'set scan_unit = "mm" in [runs.cnc]' in err and "--unit" not in err, err
+
+
 def test_the_cli_names_the_key_and_writes_nothing(tiny_study, tmp_path, capsys):
     s = _edited(tiny_study, tmp_path / "s", "offset = 66.0", "offset = 66000")
     assert main(["analyze", str(s), "-o", str(tmp_path / "r")]) == 2
