@@ -147,6 +147,7 @@ def test_scan_gap_where_compensation_is_asked(analyzed, tmp_path, capsys):
     assert main(args) == 2
     err = capsys.readouterr().err
     assert "no valid measurement" in err and "indices" in err
+    assert "--hold-gaps" in err, err  # the command's option, not only the Python argument
     assert not out.exists()
     assert main(["-q", *args, "--hold-gaps"]) == 0
     got = pd.read_csv(out / "per_point.csv")

@@ -73,8 +73,9 @@ def test_holes_are_filled_from_neighbours_and_flagged_not_fed_back_as_zero(tp):
 def test_gap_out_of_reach_raises_or_is_held(tp):
     D = np.full(len(tp), 1e-3)
     valid = tp.lap < tp.n_laps - 6  # the last six laps (12 mm of depth) unmeasured
-    with pytest.raises(InputError, match=r"no valid measurement.*indices"):
+    with pytest.raises(InputError, match=r"no valid measurement.*indices") as e:
         displacement_adjustment(tp, D, valid=valid, along=3e-3, across=1e-3)
+    assert "--hold-gaps" in str(e.value) and "on_gap='hold'" in str(e.value)  # CLI and API
     c0 = np.full(len(tp), -0.3e-3)
     adj = displacement_adjustment(tp, D, valid=valid, offset=c0, on_gap="hold")
     assert adj.held.any() and np.all(adj.held <= ~valid)

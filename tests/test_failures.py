@@ -227,6 +227,10 @@ def _edited(study: Path, dst: Path, old: str, new: str) -> Path:
         # a µm/mm slip: the issue's 66 000 gave holder and robot R_m of 4 670 mm
         ("offset = 66.0", "offset = 66000", "tool_holder.offset", "66 mm if it was written in µm"),
         ("offset = 66.0", "offset = 1e30", "tool_holder.offset", "no usual unit slip"),
+        # an m/mm slip: 0.066 is no holder (a nose 66 µm from the tip); 0 is the documented none
+        ("offset = 66.0", "offset = 0.066", "tool_holder.offset", "66 mm if it was written in m"),
+        ("offset = 66.0", "offset = 0.066", "tool_holder.offset", "1 to 1000 mm, or 0"),
+        ("offset = 66.0", "offset = 0.0", "tool_holder.offset", None),
         ("sheet_thickness = 1.22", "sheet_thickness = 1e29", "part.sheet_thickness", "0.02 to 20"),
         # a plausible sheet, but thicker than the part is wide / 10
         (
@@ -267,6 +271,17 @@ def test_absurd_study_values_are_refused_with_the_unit_slip(
     with pytest.raises(StudyError) as e:
         load_study(s)
     assert f"[{field}]" in str(e.value) and words in str(e.value), str(e.value)
+
+
+def test_a_study_scan_in_the_wrong_unit_names_the_study_key(tiny_study, tmp_path, capsys):
+    """analyze has no --unit: the fix is the study's runs.NAME.scan_unit, and the error says so
+    (``roboisf scan compare`` keeps 'pass --unit', tests/test_scan_readers.py)."""
+    s = _edited(tiny_study, tmp_path / "s", 'scan_unit = "mm"', 'scan_unit = "m"')
+    assert main(["-q", "analyze", str(s), "-o", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    assert "study.toml [runs.cnc.scan_unit]" in err, err
+    assert 'set scan_unit = "mm" in [runs.cnc]' in err and "--unit" not in err, err
 
 
 def test_the_cli_names_the_key_and_writes_nothing(tiny_study, tmp_path, capsys):

@@ -56,6 +56,16 @@ def test_list_and_show(tmp_path, capsys):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+@pytest.mark.parametrize("name", ["map.jpg", "map.pdf", "map"])
+def test_show_refuses_a_map_name_that_is_not_png(tmp_path, capsys, name):
+    """The map is PNG data: a .jpg name would hold a PNG (``file`` says PNG)."""
+    out = tmp_path / name
+    assert main(["-q", "robot", "show", "--robot", "irb7600-500-2.55", "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "[--output]" in err and "expected a .png" in err, err
+    assert name in err and not out.exists()
+
+
 def test_deflect_by_ik_matches_library(cell, tmp_path):
     d, tp, n = cell
     out = tmp_path / "defl.csv"

@@ -27,12 +27,17 @@ __all__ = ["BOUNDS", "Bound", "check_part", "check_plausible", "unit_slip"]
 
 @dataclass(frozen=True)
 class Bound:
-    """``lo ≤ value ≤ hi`` in ``unit``; ``what`` names the quantity in messages."""
+    """``lo ≤ value ≤ hi`` in ``unit``; ``what`` names the quantity in messages.
+
+    ``zero``: 0 itself is also accepted, as the documented "none" (a holder offset of 0: the
+    nose at the tip), while a small non-zero value below ``lo`` is refused as a unit slip.
+    """
 
     lo: float
     hi: float
     unit: str
     what: str
+    zero: bool = False
 
 
 #: unit → the slips that happen with it: (the unit the number was really written in, the factor
@@ -55,7 +60,11 @@ BOUNDS: dict[str, Bound] = {
     "ball_diameter": Bound(0.5, 100.0, "mm", "a forming tool's ball diameter"),
     "free_length": Bound(1.0, 1000.0, "mm", "a tool's free length"),
     "shank_diameter": Bound(0.5, 200.0, "mm", "a tool's shank diameter"),
-    "holder_offset": Bound(0.0, 1000.0, "mm", "a holder's offset from its nose to the tool tip"),
+    # 0 is the "not given" default (the nose at the tip); a real holder's nose is a millimetre or
+    # more from the tip, so 0.066 is the 66 mm of a holder written in m
+    "holder_offset": Bound(
+        1.0, 1000.0, "mm", "a holder's offset from its nose to the tool tip", zero=True
+    ),
     "holder_length": Bound(0.1, 2000.0, "mm", "a holder section's length"),
     "holder_diameter": Bound(0.5, 1000.0, "mm", "a holder's diameter"),
     "placement": Bound(-6000.0, 6000.0, "mm", "a work object's position from the robot base"),
@@ -120,13 +129,14 @@ def check_plausible(
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
         raise InputError(f"expected a finite number{unit}, got {value!r}", file=file, field=field)
     v = float(value)
-    if b.lo <= v <= b.hi:
+    if b.lo <= v <= b.hi or (b.zero and v == 0):
         return v
     slip = unit_slip(v, b)
     why = slip or "no usual unit slip explains it: check the value"
+    zero = ", or 0" if b.zero else ""
     raise InputError(
         f"{v:.6g}{unit} is outside what a real cell has for {b.what} "
-        f"({b.lo:g} to {b.hi:g}{unit}); {why}",
+        f"({b.lo:g} to {b.hi:g}{unit}{zero}); {why}",
         file=file,
         field=field,
         line=line,

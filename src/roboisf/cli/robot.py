@@ -161,6 +161,13 @@ def show_cmd(
     from rich.markup import escape
 
     if output is not None:
+        if output.suffix.lower() != ".png":  # the map is PNG data whatever the name says
+            raise InputError(
+                f"the stiffness map is written as PNG; expected a .png file, got the suffix "
+                f"{output.suffix or '(none)'!r}",
+                file=output,
+                field="--output",
+            )
         output_file(output, "robot show", overwrite, [stiffness, *_files(robot, tool)])
     m = _model(robot, stiffness, tool, tip_link)
     state.out.print(f"[bold]{escape(m.name)}[/bold]")

@@ -235,8 +235,8 @@ def displacement_adjustment(
         raise InputError(
             f"{idx.size} toolpath points to compensate have no valid measurement within the "
             f"smoothing reach (support < {min_support:g}) at indices {short_indices(idx)}: "
-            "widen the "
-            "smoothing, rescan, leave them out of the region, or hold them (on_gap='hold')",
+            "widen the smoothing, rescan, leave them out of the region, or hold them "
+            "(roboisf compensate --hold-gaps; on_gap='hold' in Python)",
             field="deviation",
         )
     update = todo & ~gap

@@ -313,6 +313,8 @@ def _prepare(study: Study, cell: Cell, run: RunSpec, progress: Progress | None) 
         options=scan_options(study),
         progress=progress,
         consume=True,  # the raw points freed once sorted (the cloud is dropped here anyway)
+        # a wrong unit is fixed in study.toml, not with the scan command's --unit
+        unit_setting=(study.root / "study.toml", f"runs.{run.name}.scan_unit"),
     )
 
 

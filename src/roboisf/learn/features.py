@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 from roboisf.errors import InputError
 from roboisf.toolpath.geometry import contour_curvature, meridian_curvature, rim_distance
 
-__all__ = ["FEATURES", "point_features"]
+__all__ = ["FEATURES", "FEATURE_TOLERANCE", "point_features"]
 
 FEATURES = (
     "wall_angle",
@@ -41,6 +41,21 @@ FEATURES = (
     "tool_radius",
     "sheet_thickness",
 )
+
+#: name → the absolute difference (in the feature's unit, SI) below which two values are the
+#: same: floating-point noise (a cone's meridian curvature is ±1e-12 rad/m, not 0) must not read
+#: as a value outside the history's range. Each is far below any difference that matters: 1e-4
+#: rad (0.006°), a curvature of 1e-3 /m (a radius of 1 km), 1 µm.
+FEATURE_TOLERANCE: dict[str, float] = {
+    "wall_angle": 1e-4,
+    "contour_curvature": 1e-3,
+    "meridian_curvature": 1e-3,
+    "depth": 1e-6,
+    "rim_distance": 1e-6,
+    "step_down": 1e-6,
+    "tool_radius": 1e-6,
+    "sheet_thickness": 1e-6,
+}
 
 F64 = NDArray[np.float64]
 

@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.errors import InputError
-from roboisf.learn.features import FEATURES, point_features
+from roboisf.learn.features import FEATURE_TOLERANCE, FEATURES, point_features
 
 __all__ = ["SpringbackLearner", "fit_springback", "history_features", "require_sklearn"]
 
@@ -152,10 +152,15 @@ class SpringbackLearner:
 
     def outside(self, X: F64, margin: float = 0.05) -> dict[str, float]:
         """Features for which more than ``margin`` of the points of ``X`` leave the training
-        range: name → that share (the model extrapolates there: trees predict the edge)."""
+        range: name → that share (the model extrapolates there: trees predict the edge).
+
+        A point is outside beyond 2 % of the range or the feature's absolute tolerance
+        (:data:`~roboisf.learn.features.FEATURE_TOLERANCE`), whichever is wider: a feature the
+        history holds at one value (a cone's meridian curvature, 0) is not left by noise."""
         lo, hi = self.feature_range[:, 0], self.feature_range[:, 1]
-        span = np.maximum(hi - lo, 1e-12)
-        out = (X < lo - 0.02 * span) | (X > hi + 0.02 * span)
+        atol = np.array([FEATURE_TOLERANCE[f] for f in FEATURES])
+        reach = np.maximum(0.02 * (hi - lo), atol)
+        out = (X < lo - reach) | (X > hi + reach)
         share = out.mean(axis=0)
         return {f: float(s) for f, s in zip(FEATURES, share, strict=True) if s > margin}
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -291,16 +292,19 @@ def prepare_scan(
     options: CompareOptions | None = None,
     progress: Progress | None = None,
     consume: bool = False,
+    unit_setting: tuple[str | Path, str] | None = None,
 ) -> PreparedScan:
     """The first half of :func:`compare_scan` (the same arguments): unit plausibility,
     registration, the spatial sort, the classification of every point and the overlap check;
-    the whole scan's copy is freed, the wall's points kept (:class:`PreparedScan`)."""
+    the whole scan's copy is freed, the wall's points kept (:class:`PreparedScan`).
+    ``unit_setting``: the (file, key) that set ``cloud.unit`` when it is not ``--unit`` (a
+    study's ``runs.NAME.scan_unit``), for the unit error (:func:`check_units`)."""
     o = options or CompareOptions()
     rim_band = default_rim_band(part.depth) if o.rim_band is None else o.rim_band
     o = replace(o, rim_band=rim_band)
     src = cloud.source
     n_read = cloud.n_points
-    check_units(cloud.points, part_size(part), unit=cloud.unit, source=src)
+    check_units(cloud.points, part_size(part), unit=cloud.unit, source=src, setting=unit_setting)
     with task(progress, f"register ({o.register})", total=None):
         reg = register(cloud.points, part, o.register, source=src, **o.register_kwargs)
     pts = cloud.take_points() if consume else cloud.points

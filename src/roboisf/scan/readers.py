@@ -29,6 +29,7 @@ Units: the file's numbers are in ``unit`` (default mm) and converted to m here, 
 from __future__ import annotations
 
 import math
+import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -691,11 +692,20 @@ def _extent(points: F64) -> tuple[F64, F64]:
     return X.min(axis=0), X.max(axis=0)
 
 
-def check_units(points: F64, part_size: float, *, unit: str, source: str | Path | None) -> None:
+def check_units(
+    points: F64,
+    part_size: float,
+    *,
+    unit: str,
+    source: str | Path | None,
+    setting: tuple[str | Path, str] | None = None,
+) -> None:
     """Refuse a scan whose extent is implausible for a part of ``part_size`` [m].
 
     The scan's largest bounding-box extent must lie within 1/20 .. 20 × the part's size; else
     the declared ``unit`` is almost surely wrong, and the error names the unit that would fit.
+    ``setting``: the (file, key) where ``unit`` was set when that is not the ``--unit`` option
+    (a study's ``runs.NAME.scan_unit``): the error names that file and key and how to set it.
     """
     lo, hi = _extent(points)
     extent = float(np.max(hi - lo))
@@ -714,21 +724,34 @@ def check_units(points: F64, part_size: float, *, unit: str, source: str | Path 
     factor = LENGTH_UNITS[unit.strip()]
     # the unit that brings the extent closest to the part size
     best = min(LENGTH_UNITS, key=lambda u: abs(math.log(ratio * LENGTH_UNITS[u] / factor)))
+    # where the unit is set: the --unit option, or a study's key (file and field name that)
+    option, file, field, what = "--unit", source, "unit", "scan"
+    if setting is not None:
+        file, field = setting
+        option = field.rsplit(".", 1)[-1]
+        if source is not None:  # named from the study's folder, as study.toml names it
+            rel = os.path.relpath(source, Path(file).parent)
+            what = f"scan {Path(source) if rel.startswith('..') else Path(rel)}"
     fmt = find_file_format(source, "scan") if source is not None else None
     if fmt is not None and isinstance(fmt.spec, ScanSpec):
         # a format that fixes its unit (E57: metres by the standard): --unit is not applied
         u = fmt.spec
         raise InputError(
-            f"scan extent is {extent * 1e3:.6g} mm, {ratio:.3g}× the part's size "
+            f"{what} extent is {extent * 1e3:.6g} mm, {ratio:.3g}× the part's size "
             f"({part_size * 1e3:.4g} mm); {fmt.label} coordinates are {u.unit_name} {u.why} "
-            f"(--unit does not apply), so the file's numbers look like {best!r}: re-export the "
+            f"({option} does not apply), so the file's numbers look like {best!r}: re-export the "
             f"scan in {u.unit_name}, or check that the part and the scan are the same object",
-            file=source,
-            field="unit",
+            file=file,
+            field=field,
         )
+    if setting is not None:
+        table = field.rsplit(".", 1)[0]
+        fix = f'set {option} = "{best}" in [{table}]'
+    else:
+        fix = f"pass --unit {best}"
     raise InputError(
-        f"scan extent is {extent * 1e3:.6g} mm read as {unit!r}, {ratio:.3g}× the part's size "
-        f"({part_size * 1e3:.4g} mm); the file is probably in {best!r} — pass --unit {best}",
-        file=source,
-        field="unit",
+        f"{what} extent is {extent * 1e3:.6g} mm read as {unit!r}, {ratio:.3g}× the part's size "
+        f"({part_size * 1e3:.4g} mm); the file is probably in {best!r} — {fix}",
+        file=file,
+        field=field,
     )
