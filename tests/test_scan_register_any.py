@@ -278,6 +278,31 @@ def test_flange_on_a_pyramid_keeps_a_uniform_wall_offset():
     assert abs(fix.T_work_scan[2, 3] - T_true[2, 3]) < 20e-6
 
 
+@pytest.mark.parametrize("seed", [56, 58])
+def test_icp_on_a_pyramid_converges_from_a_few_degrees_off(seed):
+    """ICP of a square pyramid 0.8 mm and 3° about z off, its wall 0.3 mm off: the Newton steps
+    are kept within a trust region (1 mm, 1°) — these seeds diverged before ("did not converge",
+    "0 points within 5 mm": the rz search starts 2° off and an unguarded step flew off). ICP fits
+    the wall, so it absorbs the wall offset — 0.17 mm of z and up to 0.07 mm of x, y here (the
+    reason the flange method exists: test above) — and finds the rotation about z."""
+    T_true = _pose((0.3, -0.2, 0.8), 0.5, rz_deg=3.0)
+    s = synthetic_scan(
+        SQUARE,
+        150_000,
+        offset=lambda z, phi: np.where(z < -1e-9, -0.3e-3, 0.0),
+        noise=25e-6,
+        outlier_fraction=0.01,
+        T_scan_work=invert(T_true),
+        seed=seed,
+    )
+    reg = register(s.points, SQUARE, "icp")
+    assert reg.dof == 6 and reg.iterations < 50
+    T = reg.T_work_scan
+    assert abs(twist_about_z(T) - twist_about_z(T_true)) < math.radians(0.2)
+    np.testing.assert_allclose(T[:2, 3], T_true[:2, 3], atol=0.1e-3)
+    assert abs(T[2, 3] - T_true[2, 3]) < 0.3e-3  # the wall offset absorbed (0.3 mm along n)
+
+
 def test_axisymmetric_method_needs_a_continuous_symmetry():
     from roboisf.errors import InputError
 
