@@ -1198,7 +1198,7 @@ def _attach_truth(
     per_point: pd.DataFrame,
     summary: dict[str, Any],
     d: Decomposition,
-    truth: pa.Table | pd.DataFrame | None = None,
+    table: pa.Table | None = None,
 ) -> None:
     """Virtual-cell studies ship their ground truth: put it beside the recovered values.
 
@@ -1208,8 +1208,7 @@ def _attach_truth(
     term lacks the VJM's tangential part on any data, so only the recipe's own truth isolates
     the estimation error. ``R_m_physical`` gives the full-vector truth for the record.
     """
-    got = _read_truth(path) if truth is None else truth
-    truth = got.to_pandas() if hasattr(got, "column_names") else got
+    truth = (_read_truth(path) if table is None else table).to_pandas()
     if len(truth) != len(per_point):
         summary["warnings"].append(f"truth file {path} does not match the toolpath; ignored")
         return

@@ -29,7 +29,6 @@ Units: the file's numbers are in ``unit`` (default mm) and converted to m here, 
 from __future__ import annotations
 
 import math
-import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -730,8 +729,8 @@ def check_units(
         file, field = setting
         option = field.rsplit(".", 1)[-1]
         if source is not None:  # named from the study's folder, as study.toml names it
-            rel = os.path.relpath(source, Path(file).parent)
-            what = f"scan {Path(source) if rel.startswith('..') else Path(rel)}"
+            src, root = Path(source), Path(file).parent
+            what = f"scan {src.relative_to(root) if src.is_relative_to(root) else src}"
     fmt = find_file_format(source, "scan") if source is not None else None
     if fmt is not None and isinstance(fmt.spec, ScanSpec):
         # a format that fixes its unit (E57: metres by the standard): --unit is not applied
