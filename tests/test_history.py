@@ -289,6 +289,29 @@ def test_predict_and_the_first_part_program_on_a_new_part(analysed, tmp_path, ca
     assert not (tmp_path / "C2").exists()
 
 
+def test_predicting_a_history_part_finds_it_inside_the_history(analysed, tmp_path, capsys):
+    """The history's own cone, predicted: no feature outside the history's range. The rim band
+    (the history's analyses leave it out) is said once, not counted as 'outside' — it was:
+    depth and rim distance 69 % of the points, meridian curvature 20 %."""
+    pytest.importorskip("sklearn")
+    db = tmp_path / "h.db"
+    assert _run(["history", "add", *(str(p) for p in analysed.values()), "--db", str(db)]) == 0
+    part = tmp_path / "cone.toml"
+    assert _run(["part", *PARTS["cone"], "-o", str(part)]) == 0
+    pred = tmp_path / "P"
+    code, out = _run(["predict", "--part", str(part), "--history", str(db), "-o", str(pred),
+                      "--step-down", "2", "--spacing", "4", "--no-png"], capsys)  # fmt: skip
+    assert code == 0, out.err
+    summary = json.loads((pred / "prediction.json").read_text())
+    assert summary["extrapolated_features"] == {}
+    pp = pd.read_parquet(pred / "prediction.parquet")
+    n_rim = int((~pp["below_rim_band"]).sum())
+    assert summary["rim_band_points"] == n_rim > 0
+    # -q prints nothing; the report says it
+    page = (pred / "report.html").read_text()
+    assert f"{n_rim} of {len(pp)} points" in page and "Outside the history" not in page
+
+
 def test_predict_refuses_a_history_it_cannot_validate(analysed, tmp_path, capsys):
     pytest.importorskip("sklearn")
     db = tmp_path / "h.db"

@@ -145,13 +145,16 @@ def register(app: typer.Typer) -> None:
         pp = pred.per_point()
         rim = default_rim_band(cell.part.depth)
         # where the history measured springback (below the rim band); above it the learned
-        # springback is an extrapolation (docs/history.md, Limits)
-        pp["below_rim_band"] = tp.depth > rim
+        # springback is an extrapolation for every part (docs/history.md, Limits), so only the
+        # points below it are checked against the history's range
+        below = tp.depth > rim
+        pp["below_rim_band"] = below
         summary = {
             "part": str(part),
             "robot": robot,
             "rim_band_mm": rim * 1e3,
-            **pred.summary(),
+            "rim_band_points": int(np.count_nonzero(~below)),
+            **pred.summary(scope=below),
             "setup": setup.to_json(),
         }
         with staged_directory(output) as d:
@@ -167,9 +170,15 @@ def register(app: typer.Typer) -> None:
             f"tool {t['tool']['rms_mm']:.3f}, total {t['total']['rms_mm']:.3f} mm; "
             f"report: {output / 'report.html'}"
         )
+        if summary["rim_band_points"]:
+            state.info(
+                f"the rim band (the first {rim * 1e3:g} mm of depth, "
+                f"{summary['rim_band_points']} of {len(tp)} points) is predicted by "
+                "extrapolation: the history measures springback below it"
+            )
         if summary["extrapolated_features"]:
             state.info(
-                "outside the history's range: "
+                "outside the history's range below the rim band: "
                 + ", ".join(
                     f"{k} ({100 * s:.0f} % of points)"
                     for k, s in summary["extrapolated_features"].items()

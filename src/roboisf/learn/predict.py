@@ -94,8 +94,15 @@ class Prediction:
             cols[f"feature_{f}"] = self.features[:, j]
         return pd.DataFrame(cols)
 
-    def summary(self) -> dict[str, Any]:
-        """Per term the RMS and mean |dn| (mm), the model's figures, the inputs."""
+    def summary(self, scope: NDArray[np.bool_] | None = None) -> dict[str, Any]:
+        """Per term the RMS and mean |dn| (mm), the model's figures, the inputs.
+
+        ``scope`` (N,) bool: the points whose features are checked against the history's
+        range (``extrapolated_features``) — ``roboisf predict`` passes the points below the rim
+        band, where the history's analyses measured; above it every part's springback is
+        extrapolated, which is said once instead (docs/history.md, Limits). None: every point.
+        """
+        X = self.features if scope is None else self.features[np.asarray(scope, dtype=bool)]
         terms = {
             t: {
                 "rms_mm": float(np.sqrt(np.mean(v**2))) * 1e3,
@@ -108,7 +115,7 @@ class Prediction:
             "terms_normal": terms,
             "springback_model": self.learner.summary(),
             "joint_stiffness_from": self.stiffness_source,
-            "extrapolated_features": self.learner.outside(self.features),
+            "extrapolated_features": self.learner.outside(X) if len(X) else {},
             "units": {"length": "mm", "angle": "deg", "force": "N", "moment": "N*m"},
             **self.meta,
         }

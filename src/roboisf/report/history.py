@@ -151,12 +151,19 @@ def write_prediction_report(
     ]
     extra = summary.get("extrapolated_features") or {}
     warn = (
-        "<p class='warn'>Outside the history's range (share of points): "
+        "<p class='warn'>Outside the history's range below the rim band (share of points): "
         + html.escape(", ".join(f"{k} {100 * s:.0f} %" for k, s in extra.items()))
         + " — the model extrapolates there.</p>"
         if extra
         else ""
     )
+    n_rim, rim_mm = summary.get("rim_band_points"), summary.get("rim_band_mm")
+    if n_rim and rim_mm is not None:
+        warn += (
+            f"<p>The rim band (the first {rim_mm:g} mm of depth, {n_rim} of "
+            f"{summary['n_points']} points, shaded in the plot) is predicted by extrapolation: "
+            "the history's analyses measure springback below it.</p>"
+        )
     img = base64.b64encode(buf.getvalue()).decode()
     page = f"""<!doctype html><html lang="en"><head><meta charset="utf-8">
 <title>roboisf predict — {html.escape(str(summary.get("part", "")))}</title>
