@@ -561,3 +561,17 @@ def test_non_utf8_program_is_an_input_error(tmp_path, name):
     reader = {"p.nc": read_gcode, "p.src": read_krl, "p.mod": read_rapid}[name]
     with pytest.raises(InputError, match="UTF-8"):
         reader(f)
+
+
+def test_fmt_num_is_the_shortest_fixed_point_text():
+    """Controllers read these numbers: trailing zeros go, the integer part's never (``nd=0``
+    wrote 10 as "1" and -0.4 as "-"), no "-0"."""
+    from roboisf.cam.program import fmt_num
+    from roboisf.programs.krl import frame_to_krl
+
+    assert [fmt_num(v) for v in (12.5, 12.0, 100.0, -0.0004, 0.0, 1e-9, -2.25)] == [
+        "12.5", "12", "100", "0", "0", "0", "-2.25"
+    ]  # fmt: skip
+    assert [fmt_num(v, 0) for v in (10.0, 100.0, -0.4, 2.6, 0.0)] == ["10", "100", "0", "3", "0"]
+    assert fmt_num(90.00000004, 6) == "90"
+    assert frame_to_krl([10, 200, 0], [0, 90, 180], nd_angle=0) == "{X 10,Y 200,Z 0,A 0,B 90,C 180}"

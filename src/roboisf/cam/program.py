@@ -77,7 +77,9 @@ class RobotTool:
 
 def fmt_num(v: float, nd: int = 3) -> str:
     """Shortest fixed-point text of ``v`` at ``nd`` decimals (``12.500`` → ``12.5``, no ``-0``)."""
-    s = f"{v:.{nd}f}".rstrip("0").rstrip(".")
+    s = f"{v:.{nd}f}"
+    if "." in s:  # nd = 0 has no decimals to strip (10 stays 10)
+        s = s.rstrip("0").rstrip(".")
     return "0" if s in ("-0", "") else s
 
 
