@@ -157,6 +157,22 @@ def test_diagnosis_in_the_terminal_headline_or_one_line_per_fault():
     assert not any("force sensor bias" in ln for ln in lines)
 
 
+def test_dimensionless_estimates_read_as_ratios_not_as_a_lone_1():
+    """summary.json's unit "1" (SI for a pure number) shows as "×" for a ratio, "N/N" for a
+    crosstalk and nothing for a fraction; it printed "3.105 [2.859, 4.252] 1"."""
+    from roboisf.report.statements import _estimate
+
+    def row(suspect):
+        return {"suspect": suspect, "estimate": 3.105, "ci_low": 2.859, "ci_high": 4.252,
+                "unit": "1"}  # fmt: skip
+
+    assert _estimate(row("robot_stiffness")) == "3.105 [2.859, 4.252] ×"
+    assert _estimate(row("force_gain")).endswith("] ×")
+    assert _estimate(row("force_crosstalk")).endswith("] N/N")
+    assert _estimate(row("springback_coupling")) == "3.105 [2.859, 4.252]"
+    assert _estimate({**row("scan_shift"), "unit": "mm"}).endswith("] mm")
+
+
 def test_report_shows_the_headline_without_its_terminal_prefix(small, tmp_path):
     _, text = _write(small, tmp_path, diagnosis=DIAG, diagnosis_headline="diagnosis: robot soft")
     assert '<p class="verdict" id="diagnosis-headline">robot soft</p>' in text

@@ -181,8 +181,16 @@ def _diagnosis_headline(summary: Mapping[str, Any]) -> str | None:
     return text[len("diagnosis:") :].strip() if text.lower().startswith("diagnosis:") else text
 
 
+#: How a dimensionless estimate (``"unit": "1"`` in summary.json) reads in the report: a ratio
+#: as "×", a crosstalk as newtons per newton; a fraction (springback coupling) bare. A lone "1"
+#: after the interval read as a typo.
+_RATIO_UNITS = {"robot_stiffness": "×", "force_gain": "×", "force_crosstalk": "N/N"}
+
+
 def _estimate(e: Mapping[str, Any]) -> str:
     unit = str(e.get("unit") or "")
+    if unit == "1":
+        unit = _RATIO_UNITS.get(str(e.get("suspect")), "")
     est = fmt(e.get("estimate"), 3)
     if e.get("ci_low") is None and e.get("ci_high") is None:
         return f"{est} {unit}".strip()
