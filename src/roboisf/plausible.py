@@ -73,6 +73,8 @@ BOUNDS: dict[str, Bound] = {
     "angle": Bound(-720.0, 720.0, "deg", "a rotation angle"),
     "joint_stiffness": Bound(1e2, 1e10, "N·m/rad", "a robot joint's stiffness"),
     "tool_mass": Bound(0.0, 500.0, "kg", "the mass below a force sensor"),
+    # robot identify --design: a load a laser-tracker experiment hangs on or presses into a robot
+    "identification_load": Bound(1.0, 1e5, "N", "a load of a stiffness experiment"),
     "tool_cog": Bound(-2000.0, 2000.0, "mm", "a centre of gravity's position"),
     "time_offset": Bound(-7 * 86400.0, 7 * 86400.0, "s", "a log's time offset"),
     "sheet_thickness": Bound(0.02, 20.0, "mm", "a formed sheet's thickness"),
