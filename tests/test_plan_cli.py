@@ -264,3 +264,16 @@ def test_analyze_freezes_its_imports_before_the_analysis(monkeypatch, tmp_path, 
     monkeypatch.setattr(cli_analyze, "_analyze_runs", fake_analyze)
     code = main(["-q", "analyze", str(small_cone_study), "-o", str(tmp_path / "out")])
     assert code == 130 and order == ["frozen", "analysis"]
+
+
+@pytest.mark.parametrize("command", ["plan", "predict"])
+def test_help_states_the_default_placement_used(command, capsys):
+    """The help said the default baseline/placement was (2200,0,200,0) while the IRB 7600's is
+    PAPER_CELL_PLACEMENT, 0.5 m to the robot's right: (2200,-500,200,0)."""
+    from roboisf.cell import PAPER_CELL_PLACEMENT
+
+    x, y, z = (round(float(v) * 1e3) for v in PAPER_CELL_PLACEMENT[:3, 3])
+    assert main([command, "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert f"({x},{y},{z},0)" in text
+    assert "(2200,0,200,0)" not in text

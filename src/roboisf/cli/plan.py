@@ -114,7 +114,7 @@ def plan_cmd(
         None,
         "--baseline",
         help="Reference placement x,y,z,yaw (mm, deg); default: the study's, else the paper cell's "
-        "(2200,0,200,0) for the IRB 7600, else the preset's.",
+        "(2200,-500,200,0) for the IRB 7600, else the preset's.",
     ),
     objective: str = typer.Option("mean", "--objective", help="Rank by mean, max or normal."),
     sigma_min: float = typer.Option(0.02, "--sigma-min", help="Singularity margin (σ_min)."),
