@@ -50,6 +50,7 @@ _SLIPS: dict[str, tuple[tuple[str, float], ...]] = {
     "N·m": (("N·mm", 1e-3), ("kN·m", 1e3)),
     "N·m/rad": (("kN·m/rad", 1e3), ("N·mm/rad", 1e-3), ("N·m/deg", 180.0 / math.pi)),
     "mm/N": (("m/N", 1e3), ("µm/N", 1e-3)),
+    "GPa": (("Pa", 1e-9), ("MPa", 1e-3)),
     "s": (("ms", 1e-3), ("µs", 1e-6)),
     "": (("%", 1e-2),),
 }
@@ -65,6 +66,8 @@ BOUNDS: dict[str, Bound] = {
     "holder_offset": Bound(
         1.0, 1000.0, "mm", "a holder's offset from its nose to the tool tip", zero=True
     ),
+    # a tool or holder material, from a polymer tool to tungsten carbide
+    "youngs_modulus": Bound(0.1, 1500.0, "GPa", "a tool or holder material's Young's modulus"),
     "holder_length": Bound(0.1, 2000.0, "mm", "a holder section's length"),
     "holder_diameter": Bound(0.5, 1000.0, "mm", "a holder's diameter"),
     "placement": Bound(-6000.0, 6000.0, "mm", "a work object's position from the robot base"),
