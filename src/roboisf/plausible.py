@@ -71,6 +71,8 @@ BOUNDS: dict[str, Bound] = {
     "holder_length": Bound(0.1, 2000.0, "mm", "a holder section's length"),
     "holder_diameter": Bound(0.5, 1000.0, "mm", "a holder's diameter"),
     "placement": Bound(-6000.0, 6000.0, "mm", "a work object's position from the robot base"),
+    # a robot program's tool: the ball (0.5 mm or more) and its shank stand out of the flange
+    "tool_length": Bound(5.0, 2000.0, "mm", "a tool's length from the flange to the ball tip"),
     "flange_to_tip": Bound(-2000.0, 2000.0, "mm", "a tool tip's position from the flange"),
     "sensor_position": Bound(-2000.0, 2000.0, "mm", "a force sensor's position"),
     "angle": Bound(-720.0, 720.0, "deg", "a rotation angle"),
