@@ -242,6 +242,18 @@ def test_robot_program_needs_placement_and_tool(tmp_path, capsys, suffix):
     assert not list(tmp_path.iterdir())
 
 
+@pytest.mark.parametrize("flag", ["--tool", "--tool-length"])
+def test_robot_program_refuses_a_tool_length_in_m(tmp_path, capsys, flag):
+    """--tool 0.306 (a 306 mm tool typed in m) wrote a RAPID program whose tooldata put the
+    ball tip 0.306 mm below the flange; now one line naming the slip, exit 2, no program."""
+    out = tmp_path / "p.mod"
+    argv = ["toolpath", "cone", *SMALL_CONE, "--placement", "2200,0,200", flag, "0.306"]
+    code, cap = _run([*argv, "-o", str(out)], capsys)
+    assert code == 2 and f"[{flag}]" in cap.err
+    assert "it is 306 mm if it was written in m" in cap.err
+    assert not list(tmp_path.iterdir())
+
+
 def test_placement_tool_and_robot_flags(tmp_path):
     """--placement X,Y,Z,RX,RY,RZ (R = Rz Ry Rx as study.toml), --tool, --robot → confdata of the
     IK branch; --placement base is the identity, said explicitly."""

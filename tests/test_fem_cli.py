@@ -169,3 +169,21 @@ def test_tool_stiffness_from_a_step_file(tmp_path):
     argv[-1] = str(step)
     assert main(argv) == 2
     assert step.read_bytes() == before
+
+
+@pytest.mark.parametrize(
+    ("argv", "hint"),
+    [
+        (["tool-stiffness", "--no-fe", "--E", "210e9"], "it is 210 GPa if it was written in Pa"),
+        (["tool-stiffness", "--no-fe", "--E", "210000"], "it is 210 GPa if it was written in MPa"),
+        (["holder-stiffness", "--no-fe", "--section", "100:50", "--E", "2.1e11"], "in Pa"),
+    ],
+)
+def test_youngs_modulus_in_pa_is_refused(tmp_path, argv, hint, capsys):
+    """--E is in GPa: 210e9 (Pa) was accepted and wrote a compliance 1e9 times too small
+    (7e-16 m/N for the paper's tool); now one line naming --E and the unit slip, exit 2."""
+    out = tmp_path / "out.json"
+    assert main([*argv, "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "[--E]" in err and hint in err
+    assert not out.exists()

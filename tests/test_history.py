@@ -334,3 +334,8 @@ def test_trend_slopes():
     assert _slope(t, v) is None  # one date: no slope (not the rounding noise of the mean)
     assert _slope([20000.0, 20030.0, 20060.0], [1.0, 2.0, 3.0]) == pytest.approx(1.0)
     assert _slope([20000.0, 20030.0], [1.0, None]) is None
+    # parts formed minutes apart: no slope per 30 days (extrapolating 6 minutes to a month gave
+    # +100 mm per 30 days for an R_m of 0.3 mm); a day apart is enough
+    minutes = [20000.0, 20000.002, 20000.004]
+    assert _slope(minutes, [0.3e-3, 0.4e-3, 0.25e-3]) is None
+    assert _slope([20000.0, 20001.0], [1.0, 2.0]) == pytest.approx(30.0)

@@ -134,6 +134,31 @@ def test_plan_bad_input(cone_toml, tmp_path, capsys, args, message):
     assert not out.exists()
 
 
+def test_plan_part_on_a_urdf_robot_takes_the_baseline_as_its_placement(tmp_path, capsys):
+    """A URDF robot has no default placement: ``plan --part`` refused it even with --baseline and
+    every range given (``[T_base_work]: … give T_base_work``, an option plan does not have). The
+    baseline now places the cell; without one, the error names --baseline."""
+    from pathlib import Path
+
+    urdf = Path(__file__).parent / "data" / "urdf" / "m900ia260l.urdf"
+    part = tmp_path / "cone.toml"
+    save_part(Cone(depth=20e-3), part)
+    K = tmp_path / "K.toml"
+    K.write_text("[stiffness]\nK = [3.7e6, 4.8e6, 4.0e6, 6.4e5, 7.6e5, 4.7e5]\n")
+    base = ["plan", "--part", str(part), "--robot", str(urdf), "--stiffness", str(K), "--serial"]
+    grid = ["--x-range", "1800,2200", "--y-range", "0", "--z-range", "300"]
+    out = tmp_path / "plan"
+    assert main([*base, *grid, "--baseline", "2000,0,300,0", "-o", str(out)]) == 0
+    s = json.loads((out / "plan.json").read_text())["summary"]
+    assert s["baseline placement x,y,z [mm], yaw [deg]"] == [2000.0, 0.0, 300.0, 0.0]
+    capsys.readouterr()
+    out2 = tmp_path / "plan2"
+    assert main([*base, *grid, "-o", str(out2)]) == 2
+    err = capsys.readouterr().err
+    assert "[--baseline]" in err and "no default placement" in err and "T_base_work" not in err
+    assert not out2.exists()
+
+
 def test_plan_needs_one_source(cone_toml, tmp_path, capsys):
     out = tmp_path / "plan"
     assert main(["plan", "-o", str(out)]) == 2
@@ -239,3 +264,16 @@ def test_analyze_freezes_its_imports_before_the_analysis(monkeypatch, tmp_path, 
     monkeypatch.setattr(cli_analyze, "_analyze_runs", fake_analyze)
     code = main(["-q", "analyze", str(small_cone_study), "-o", str(tmp_path / "out")])
     assert code == 130 and order == ["frozen", "analysis"]
+
+
+@pytest.mark.parametrize("command", ["plan", "predict"])
+def test_help_states_the_default_placement_used(command, capsys):
+    """The help said the default baseline/placement was (2200,0,200,0) while the IRB 7600's is
+    PAPER_CELL_PLACEMENT, 0.5 m to the robot's right: (2200,-500,200,0)."""
+    from roboisf.cell import PAPER_CELL_PLACEMENT
+
+    x, y, z = (round(float(v) * 1e3) for v in PAPER_CELL_PLACEMENT[:3, 3])
+    assert main([command, "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert f"({x},{y},{z},0)" in text
+    assert "(2200,0,200,0)" not in text

@@ -171,3 +171,36 @@ def test_identify_cli(tmp_path, capsys):
     out2 = tmp_path / "s2.toml"
     assert main(["robot", "identify", str(f), "-o", str(out2)]) == 2
     assert not out2.exists()
+
+
+@pytest.mark.parametrize(
+    ("flag", "value"),
+    [("--sigma", "0"), ("--sigma", "-0.01"), ("--sigma", "nan"), ("--sigma-rot", "0")],
+)
+def test_identify_refuses_a_standard_deviation_not_above_zero(tmp_path, capsys, flag, value):
+    """σ = 0 was a ZeroDivisionError traceback (exit 1) and a negative σ was used as |σ|: both
+    are one line naming the option, exit 2, and no stiffness file."""
+    f = tmp_path / "calib.csv"
+    f.write_text(
+        "# units: angle=deg length=mm force=N moment=N*m\n"
+        "q1,q2,q3,q4,q5,q6,Fx,Fy,Fz,Mx,My,Mz,dx,dy,dz\n"
+        + "\n".join(f"{i},10,20,0,45,0,1000,0,-500,0,0,0,0.01,0.003,-0.05" for i in range(8))
+        + "\n"
+    )
+    out = tmp_path / "K.toml"
+    args = ["robot", "identify", str(f), "--tool", "300,100,400", flag, value, "-o", str(out)]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert f"[{flag}]" in err and "Traceback" not in err
+    assert not out.exists()
+
+
+def test_identify_design_refuses_an_implausible_load(tmp_path, capsys):
+    """A 2 MN design load made the information matrix singular: a LinAlgError traceback
+    (exit 1); now refused as outside what a stiffness experiment applies (exit 2)."""
+    out = tmp_path / "design"
+    args = ["robot", "identify", "--design", "-o", str(out), "--tool", "0,0,306"]
+    assert main([*args, "--force", "2e6"]) == 2
+    err = capsys.readouterr().err
+    assert "[--force]" in err and "Traceback" not in err
+    assert not out.exists()

@@ -50,6 +50,7 @@ _SLIPS: dict[str, tuple[tuple[str, float], ...]] = {
     "N·m": (("N·mm", 1e-3), ("kN·m", 1e3)),
     "N·m/rad": (("kN·m/rad", 1e3), ("N·mm/rad", 1e-3), ("N·m/deg", 180.0 / math.pi)),
     "mm/N": (("m/N", 1e3), ("µm/N", 1e-3)),
+    "GPa": (("Pa", 1e-9), ("MPa", 1e-3)),
     "s": (("ms", 1e-3), ("µs", 1e-6)),
     "": (("%", 1e-2),),
 }
@@ -65,14 +66,20 @@ BOUNDS: dict[str, Bound] = {
     "holder_offset": Bound(
         1.0, 1000.0, "mm", "a holder's offset from its nose to the tool tip", zero=True
     ),
+    # a tool or holder material, from a polymer tool to tungsten carbide
+    "youngs_modulus": Bound(0.1, 1500.0, "GPa", "a tool or holder material's Young's modulus"),
     "holder_length": Bound(0.1, 2000.0, "mm", "a holder section's length"),
     "holder_diameter": Bound(0.5, 1000.0, "mm", "a holder's diameter"),
     "placement": Bound(-6000.0, 6000.0, "mm", "a work object's position from the robot base"),
+    # a robot program's tool: the ball (0.5 mm or more) and its shank stand out of the flange
+    "tool_length": Bound(5.0, 2000.0, "mm", "a tool's length from the flange to the ball tip"),
     "flange_to_tip": Bound(-2000.0, 2000.0, "mm", "a tool tip's position from the flange"),
     "sensor_position": Bound(-2000.0, 2000.0, "mm", "a force sensor's position"),
     "angle": Bound(-720.0, 720.0, "deg", "a rotation angle"),
     "joint_stiffness": Bound(1e2, 1e10, "N·m/rad", "a robot joint's stiffness"),
     "tool_mass": Bound(0.0, 500.0, "kg", "the mass below a force sensor"),
+    # robot identify --design: a load a laser-tracker experiment hangs on or presses into a robot
+    "identification_load": Bound(1.0, 1e5, "N", "a load of a stiffness experiment"),
     "tool_cog": Bound(-2000.0, 2000.0, "mm", "a centre of gravity's position"),
     "time_offset": Bound(-7 * 86400.0, 7 * 86400.0, "s", "a log's time offset"),
     "sheet_thickness": Bound(0.02, 20.0, "mm", "a formed sheet's thickness"),

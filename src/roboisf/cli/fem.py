@@ -35,7 +35,10 @@ _SOLVER = typer.Option("auto", help="auto, pardiso or superlu.")
 
 def _material(E_gpa: float, nu: float, name: str = "steel") -> Material:
     from roboisf.fem.material import Material
+    from roboisf.plausible import check_plausible
 
+    # --E 210e9 (Pa for GPa) gave a tool 1e9 times too stiff, written without a word
+    check_plausible(E_gpa, "youngs_modulus", field="--E")
     return Material(E=E_gpa * 1e9, nu=nu, name=name)
 
 

@@ -149,7 +149,7 @@ def trend_cmd(
         if output.suffix.lower() != ".png":
             raise InputError("expected a .png file", field="--output")
         output_file(output, "history trend", overwrite, [db])
-    from roboisf.history.trend import trend
+    from roboisf.history.trend import MIN_SPAN_DAYS, trend
 
     with _open(db, create=False) as d:
         groups = trend(d, by=by, factor=factor, robot=robot, kind=kind)
@@ -159,9 +159,12 @@ def trend_cmd(
         for g in groups:
             slope = "—" if g.slope is None else f"{g.slope * 1e3:+.4f} mm"
             rs = "—" if g.ratio_slope is None else f"{g.ratio_slope:+.4f}"
+            why = ""
+            if g.slope is None and g.ratio_slope is None and len(g.part_ids) > 1:
+                why = f" (the parts span less than {MIN_SPAN_DAYS:g} day: no slope)"
             typer.echo(
                 f"{g.key}: {len(g.part_ids)} parts, {factor} R_m slope {slope} per 30 days, "
-                f"VJM ratio slope {rs} per 30 days"
+                f"VJM ratio slope {rs} per 30 days{why}"
             )
             for t, pid, v, r in zip(g.formed_at, g.part_ids, g.values, g.vjm_ratio, strict=True):
                 ratio = "—" if r is None else f"{r:.3f}"

@@ -114,7 +114,7 @@ def plan_cmd(
         None,
         "--baseline",
         help="Reference placement x,y,z,yaw (mm, deg); default: the study's, else the paper cell's "
-        "(2200,0,200,0) for the IRB 7600, else the preset's.",
+        "(2200,-500,200,0) for the IRB 7600, else the preset's.",
     ),
     objective: str = typer.Option("mean", "--objective", help="Rank by mean, max or normal."),
     sigma_min: float = typer.Option(0.02, "--sigma-min", help="Singularity margin (σ_min)."),
@@ -199,7 +199,7 @@ def plan_cmd(
         "max_joint_step": math.radians(max_joint_step),
     }
     prob, model, base_T, source = _problem(
-        part, study, robot, stiffness, tool, not no_tool_compliance, opts, tip_link
+        part, study, robot, stiffness, tool, not no_tool_compliance, opts, tip_link, baseline
     )
     base_T = _baseline(baseline, base_T, model)
     c = model.default_placement if model.default_placement is not None else base_T
@@ -271,9 +271,10 @@ def _problem(
     with_tool: bool,
     opts: dict[str, Any],
     tip_link: str | None = None,
+    baseline: str | None = None,
 ) -> tuple[Any, Any, np.ndarray | None, str]:
     from roboisf.cell import ForceModel, build_robot, cell_from_study, make_cell
-    from roboisf.frames.pose import XYZ_MM, parse_pose
+    from roboisf.frames.pose import XYZ_MM, XYZ_YAW_MM_DEG, parse_pose
     from roboisf.parts import load_part
     from roboisf.plan import PlanProblem, problem_from_cell
     from roboisf.plan.setup import tool_and_holder_compliance
@@ -287,7 +288,21 @@ def _problem(
         return m
 
     if part is not None:
-        cell = make_cell(load_part(part), robot=robot, force=ForceModel(), tip_link=tip_link)
+        # the cell needs a placement; plan scores its own candidates, so a robot without a
+        # default one (a URDF) takes --baseline's (make_cell refused it, naming T_base_work)
+        T_bw = (
+            None if baseline is None else parse_pose(baseline, XYZ_YAW_MM_DEG, field="--baseline")
+        )
+        if T_bw is None and build_robot(robot, tip_link=tip_link).default_placement is None:
+            raise InputError(
+                f"robot {robot} has no default placement; give --baseline x,y,z,yaw (mm, deg), "
+                "the placement the candidates are compared with",
+                field="--baseline",
+            )
+        part_ = load_part(part)
+        cell = make_cell(
+            part_, robot=robot, force=ForceModel(), tip_link=tip_link, T_base_work=T_bw
+        )
         m = _override(cell.robot)
         prob, _ = problem_from_cell(cell, with_tool=with_tool, model=m, **opts)
         return prob, m, None, f"part {part.name}, force model"

@@ -49,7 +49,7 @@ def register(app: typer.Typer) -> None:
             str | None,
             typer.Option(
                 help="Work frame in the robot base x,y,z,yaw (mm, deg); default: the paper "
-                "cell's (2200,0,200,0) for the IRB 7600, else the preset's."
+                "cell's (2200,-500,200,0) for the IRB 7600, else the preset's."
             ),
         ] = None,
         step_down: Annotated[float, typer.Option(help="Step-down between laps [mm].")] = 0.5,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -255,6 +256,11 @@ def identify_cmd(
         return
     if calib is None:
         raise InputError("expected a calibration CSV (or --design)", field="CALIB")
+    # a standard deviation weights the residuals by 1/σ: 0 divides by zero, a negative one is
+    # no standard deviation (both used to run: a ZeroDivisionError, or a silently used |σ|)
+    for flag, v, unit in (("--sigma", sigma, "mm"), ("--sigma-rot", sigma_rot, "rad")):
+        if not (math.isfinite(v) and v > 0):
+            raise InputError(f"must be a standard deviation > 0 {unit}, got {v:g}", field=flag)
     import warnings
 
     import numpy as np
@@ -325,6 +331,11 @@ def _design_cmd(
             "estimate)",
             field="--design",
         )
+    from roboisf.plausible import check_plausible
+
+    # a load no robot is tested with (2e6 N) made the design's information matrix singular: a
+    # LinAlgError traceback instead of one line
+    check_plausible(force, "identification_load", field="--force")
     inputs = [p for p in (stiffness,) if p is not None]
     output_dir(output, "robot identify --design", overwrite, [*inputs, *_files(robot, tool)])
     m = _model(robot, stiffness, tool)

@@ -267,6 +267,11 @@ class PathOptions:
                 raise InputError(f"must be > 0 mm, got {length:g}", field="--tool")
         if length is None:
             return None
+        from roboisf.plausible import check_plausible
+
+        # --tool 0.306 (the 306 mm tool in m) wrote a program with a 0.306 mm tool
+        flag = "--tool-length" if self.tool is None else "--tool"
+        check_plausible(length, "tool_length", field=flag)
         return RobotTool(length=length * 1e-3, mass=self.tool_mass)
 
     def robot_model(self) -> RobotModel | None:

@@ -23,6 +23,9 @@ __all__ = ["GROUPS", "TrendGroup", "trend"]
 
 GROUPS = ("robot", "kind", "tool")
 _DAYS = 30.0
+#: the shortest time (days) the dated values of a group must span for a slope per 30 days: parts
+#: formed minutes apart extrapolated to a month gave +100 mm per 30 days for an R_m of 0.3 mm
+MIN_SPAN_DAYS = 1.0
 
 
 @dataclass(frozen=True)
@@ -31,7 +34,8 @@ class TrendGroup:
 
     ``formed_at`` ISO strings, ``part_ids``, ``values`` the factor's R_m (m, None where the
     part has no share row), ``vjm_ratio`` (None where not checked); ``slope`` and
-    ``ratio_slope`` per 30 days (m and 1; None with fewer than two dated values).
+    ``ratio_slope`` per 30 days (m and 1; None with fewer than two dated values, or when they
+    span less than :data:`MIN_SPAN_DAYS`).
     """
 
     key: str
@@ -68,8 +72,8 @@ def _slope(t: list[float], v: list[float | None]) -> float | None:
     # mean would leave a spurious ~1e-20 spread and a slope of rounding noise)
     t0 = pairs[0][0]
     pairs = [(a - t0, b) for a, b in pairs]
-    if max(a for a, _ in pairs) == min(a for a, _ in pairs):
-        return None
+    if max(a for a, _ in pairs) - min(a for a, _ in pairs) < MIN_SPAN_DAYS:
+        return None  # one date, or too short a span to say anything per 30 days
     mt = sum(a for a, _ in pairs) / len(pairs)
     mv = sum(b for _, b in pairs) / len(pairs)
     sxx = sum((a - mt) ** 2 for a, _ in pairs)
