@@ -204,3 +204,32 @@ def test_identify_design_refuses_an_implausible_load(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "[--force]" in err and "Traceback" not in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["robot", "show", "--robot", "irb7600-500-2.55"],
+        ["robot", "identify", "--design", "-o", "{tmp}/design"],
+        ["robot", "identify", "{tmp}/calib.csv", "-o", "{tmp}/K.toml"],
+        ["plan", "--part", "{tmp}/cone.toml", "-o", "{tmp}/plan"],
+    ],
+    ids=["robot-show", "identify-design", "identify", "plan"],
+)
+def test_a_tool_typed_in_m_is_refused_naming_the_slip(tmp_path, capsys, args):
+    """``--tool 0,0,0.306`` (a 306 mm tool in m) ran as a tool 0.3 mm long: a stiffness map, a
+    plan, a designed experiment or an identification of the wrong tool. Refused where the
+    toolpath's --tool is (5–2000 mm from the flange, or the flange itself), nothing written."""
+    (tmp_path / "calib.csv").write_text(
+        "# units: angle=deg length=mm force=N moment=N*m\n"
+        "q1,q2,q3,q4,q5,q6,Fx,Fy,Fz,Mx,My,Mz,dx,dy,dz\n"
+        + "\n".join(f"{i},10,20,0,45,0,1000,0,-500,0,0,0,0.01,0.003,-0.05" for i in range(8))
+        + "\n"
+    )
+    assert main(["part", "cone", "-o", str(tmp_path / "cone.toml")]) == 0
+    capsys.readouterr()
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in args]
+    assert main([*argv, "--tool", "0.25,0,0.306"]) == 2
+    err = capsys.readouterr().err
+    assert "[--tool]" in err and "if it was written in m" in err and "Traceback" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["calib.csv", "cone.toml"]

@@ -74,6 +74,8 @@ BOUNDS: dict[str, Bound] = {
     # a robot program's tool: the ball (0.5 mm or more) and its shank stand out of the flange
     "tool_length": Bound(5.0, 2000.0, "mm", "a tool's length from the flange to the ball tip"),
     "flange_to_tip": Bound(-2000.0, 2000.0, "mm", "a tool tip's position from the flange"),
+    # a --tool x,y,z: its distance from the flange (0: the flange itself, as a tracker target)
+    "tool_offset": Bound(5.0, 2000.0, "mm", "a tool tip's distance from the flange", zero=True),
     "sensor_position": Bound(-2000.0, 2000.0, "mm", "a force sensor's position"),
     "angle": Bound(-720.0, 720.0, "deg", "a rotation angle"),
     "joint_stiffness": Bound(1e2, 1e10, "N·m/rad", "a robot joint's stiffness"),

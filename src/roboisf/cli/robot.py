@@ -57,14 +57,14 @@ def _ints(text: str, n: int, field: str) -> np.ndarray:
 def _model(
     robot: str, stiffness: Path | None, tool: str | None, tip_link: str | None = None
 ) -> RobotModel:
-    from roboisf.frames.pose import XYZ_MM, parse_pose
+    from roboisf.frames.pose import parse_tool
     from roboisf.robot import load_robot, load_stiffness
 
     m = load_robot(robot, tip_link=tip_link)
     if stiffness is not None:
         m = m.with_stiffness(load_stiffness(stiffness, robot=m.name), source=str(stiffness))
     if tool is not None:
-        m = m.with_tool(parse_pose(tool, XYZ_MM, field="--tool"))
+        m = m.with_tool(parse_tool(tool))
     return m
 
 
@@ -321,7 +321,7 @@ def _design_cmd(
 
     from roboisf.cli.outputs import output_dir
     from roboisf.frames import make_transform
-    from roboisf.frames.pose import XYZ_MM, parse_pose
+    from roboisf.frames.pose import parse_tool
     from roboisf.io.atomic import atomic_write, staged_directory
     from roboisf.robot.identify import design_experiment, write_experiment_csv, write_joint_program
 
@@ -339,7 +339,7 @@ def _design_cmd(
     inputs = [p for p in (stiffness,) if p is not None]
     output_dir(output, "robot identify --design", overwrite, [*inputs, *_files(robot, tool)])
     m = _model(robot, stiffness, tool)
-    tip = m.T_flange_tip[:3, 3] if tool is None else parse_pose(tool, XYZ_MM, field="--tool")[:3, 3]
+    tip = m.T_flange_tip[:3, 3] if tool is None else parse_tool(tool)[:3, 3]
     point = tip + np.array([bracket * 1e-3, 0.0, 0.0])
     m = m.with_tool(make_transform(None, point))
     T_bw = _placement(placement, m)
