@@ -312,6 +312,34 @@ def test_predicting_a_history_part_finds_it_inside_the_history(analysed, tmp_pat
     assert f"{n_rim} of {len(pp)} points" in page and "Outside the history" not in page
 
 
+def test_predict_on_a_robot_without_a_published_stiffness_takes_a_stiffness_file(
+    analysed, tmp_path, capsys
+):
+    """A KUKA preset has no published joint stiffness and the history none identified for it:
+    the error pointed to a --stiffness option predict did not have. It has it now; the file's
+    K is the prediction's (recorded for compensate --predicted)."""
+    pytest.importorskip("sklearn")
+    db = tmp_path / "h.db"
+    assert _run(["history", "add", *(str(p) for p in analysed.values()), "--db", str(db)]) == 0
+    part = tmp_path / "cone.toml"
+    assert _run(["part", *PARTS["cone"], "-o", str(part)]) == 0
+    args = ["predict", "--part", str(part), "--history", str(db), "--robot", "kr210-r2700-2",
+            "--step-down", "2", "--spacing", "4", "--no-png"]  # fmt: skip
+    code, out = _run([*args, "-o", str(tmp_path / "P0")], capsys)
+    assert code == 2 and "--stiffness" in out.err and not (tmp_path / "P0").exists()
+    K = [4.0e6, 4.5e6, 2.5e6, 6.0e5, 5.0e5, 3.0e5]
+    (tmp_path / "k.toml").write_text(f"[stiffness]\nK = {K}\n")
+    code, out = _run([*args, "-o", str(tmp_path / "P"), "--stiffness", str(tmp_path / "k.toml")],
+                     capsys)  # fmt: skip
+    assert code == 0, out.err
+    summary = json.loads((tmp_path / "P" / "prediction.json").read_text())
+    assert summary["setup"]["joint_stiffness_N_m_per_rad"] == K
+    assert "--stiffness" in summary["joint_stiffness_from"]
+    code, out = _run([*args, "-o", str(tmp_path / "P2"), "--stiffness", str(tmp_path / "no.toml")],
+                     capsys)  # fmt: skip
+    assert code == 2 and "no such stiffness file" in out.err
+
+
 def test_predict_refuses_a_history_it_cannot_validate(analysed, tmp_path, capsys):
     pytest.importorskip("sklearn")
     db = tmp_path / "h.db"

@@ -71,6 +71,16 @@ def register(app: typer.Typer) -> None:
                 "robot) or the preset's.",
             ),
         ] = True,
+        stiffness: Annotated[
+            Path | None,
+            typer.Option(
+                "--stiffness",
+                help="Joint stiffness TOML ([stiffness] K = 6 values, N·m/rad, as `roboisf robot "
+                "identify` and `analyze` write) for the robot: used instead of the history's "
+                "identified one or the preset's (a robot without a published stiffness needs "
+                "one of the two).",
+            ),
+        ] = None,
         png: Annotated[bool, typer.Option("--png/--no-png", help="Also write the PNG.")] = True,
     ) -> None:
         """Predict the error of a part before it is formed: springback learned from the history,
@@ -89,7 +99,11 @@ def register(app: typer.Typer) -> None:
             raise InputError(f"must be in (0, 1), got {coverage:g}", field="--coverage")
         if not part.is_file():
             raise InputError("no such part file", file=part)
-        output_dir(output, "predict", overwrite, [part, history])
+        if stiffness is not None and not stiffness.is_file():
+            raise InputError("no such stiffness file", file=stiffness, field="--stiffness")
+        output_dir(
+            output, "predict", overwrite, [part, history, *([stiffness] if stiffness else [])]
+        )
         import hashlib
 
         import numpy as np
@@ -116,7 +130,16 @@ def register(app: typer.Typer) -> None:
             T = preset
         progress = state.progress()
         with Database(history, create=False) as db:
-            K, source = identified_stiffness(db, robot) if use_identified else (None, "")
+            if stiffness is not None:  # the user's file wins over the history's and the preset's
+                from roboisf.robot import load_stiffness
+
+                name = build_robot(robot).name
+                K = [float(v) for v in load_stiffness(stiffness, robot=name)]
+                source = f"{stiffness.name} (--stiffness)"
+            elif use_identified:
+                K, source = identified_stiffness(db, robot)
+            else:
+                K, source = None, ""
             if K is None:
                 source = "the robot preset's joint stiffness"
             table = points_table(db)
