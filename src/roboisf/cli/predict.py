@@ -129,6 +129,7 @@ def register(app: typer.Typer) -> None:
                 raise InputError(f"robot {robot} has no default placement", field="--placement")
             T = preset
         progress = state.progress()
+        K: list[float] | None
         with Database(history, create=False) as db:
             if stiffness is not None:  # the user's file wins over the history's and the preset's
                 from roboisf.robot import load_stiffness
