@@ -233,3 +233,41 @@ def test_a_tool_typed_in_m_is_refused_naming_the_slip(tmp_path, capsys, args):
     err = capsys.readouterr().err
     assert "[--tool]" in err and "if it was written in m" in err and "Traceback" not in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["calib.csv", "cone.toml"]
+
+
+def test_identify_design_writes_the_program_of_the_robots_maker(tmp_path, capsys):
+    """A FANUC preset got an ABB RAPID module; it gets a TP program of joint positions (the
+    pendant's angles, the experiment.csv's q1…q6). A URDF robot's angles are the URDF's, not
+    its pendant's (FANUC's J3 is the pendant's J3 + J2): no program, said, the poses in the CSV."""
+    import re
+
+    from roboisf.programs.fanuc import _read_ls
+
+    k = tmp_path / "k.toml"
+    k.write_text("[stiffness]\nK = [4.0e6, 4.5e6, 2.5e6, 6.0e5, 5.0e5, 3.0e5]\n")
+    base = ["robot", "identify", "--design", "--stiffness", str(k), "--tool", "0,0,306",
+            "--placement", "1800,0,300,0"]  # fmt: skip
+    assert main([*base, "--robot", "r2000ic-210f", "-o", str(tmp_path / "F")]) == 0
+    assert sorted(p.name for p in (tmp_path / "F").glob("[!.]*")) == [
+        "design.toml", "experiment.csv", "experiment.ls"
+    ]  # fmt: skip
+    name, body, _ = _read_ls(tmp_path / "F" / "experiment.ls")
+    text = (tmp_path / "F" / "experiment.ls").read_text()
+    J = np.array(
+        [[float(v) for v in re.findall(r"J\d= *(-?[\d.]+) deg", blk)]
+         for blk in re.findall(r"P\[\d+\]\{(.*?)\};", text, re.S)]
+    )  # fmt: skip
+    import csv
+
+    lines = (tmp_path / "F" / "experiment.csv").read_text().splitlines()
+    rows = list(csv.DictReader(ln for ln in lines if not ln.startswith("#")))  # dx… left blank
+    q = np.array([[float(r[f"q{j}"]) for j in range(1, 7)] for r in rows])
+    assert name == "ROBOISF_IDENTIFY" and body.count("PAUSE") == len(q) == len(J)
+    np.testing.assert_allclose(J, q, atol=5e-4)  # deg, as written
+    capsys.readouterr()
+    urdf = "tests/data/urdf/m900ia260l.urdf"
+    assert main([*base, "--robot", urdf, "-o", str(tmp_path / "U")]) == 0
+    assert sorted(p.name for p in (tmp_path / "U").glob("[!.]*")) == [
+        "design.toml", "experiment.csv"
+    ]  # fmt: skip
+    assert "no robot program for m900ia260l" in capsys.readouterr().out

@@ -323,7 +323,12 @@ def _design_cmd(
     from roboisf.frames import make_transform
     from roboisf.frames.pose import parse_tool
     from roboisf.io.atomic import atomic_write, staged_directory
-    from roboisf.robot.identify import design_experiment, write_experiment_csv, write_joint_program
+    from roboisf.robot.identify import (
+        design_experiment,
+        joint_program_suffix,
+        write_experiment_csv,
+        write_joint_program,
+    )
 
     if not (force > 0 and sigma > 0 and experiments >= 7):
         raise InputError(
@@ -344,7 +349,7 @@ def _design_cmd(
     m = m.with_tool(make_transform(None, point))
     T_bw = _placement(placement, m)
     d = design_experiment(m, T_bw, n_experiments=experiments, force=force, sigma=sigma * 1e-3)
-    ext = ".src" if m.name.lower().startswith("kr") else ".mod"
+    ext = joint_program_suffix(m)
     tool_mm = ",".join(f"{v:g}" for v in np.round(point * 1e3, 3))
     command = (
         f"roboisf robot identify experiment.csv --robot {robot} --tool {tool_mm} "
@@ -359,7 +364,8 @@ def _design_cmd(
             "bracket)",
             command,
         )
-        write_joint_program(d, stage / f"experiment{ext}", "roboisf_identify")
+        if ext is not None:
+            write_joint_program(d, stage / f"experiment{ext}", "roboisf_identify")
         doc = {
             "design": {
                 "robot": m.name,
@@ -381,6 +387,15 @@ def _design_cmd(
         state.out.print(
             f"K{i + 1}: expected relative standard error {d.rel_se[i]:.1%} "
             f"(95 % [{d.K_ci[i, 0]:.4g}, {d.K_ci[i, 1]:.4g}] N·m/rad at the prior)"
+        )
+    if ext is None:
+        why = (
+            "a URDF's joint angles are not its pendant's (signs, zeros, FANUC's J2/J3 coupling)"
+            if m.source.startswith("URDF ")
+            else "roboisf writes joint programs for ABB, KUKA and FANUC robots"
+        )
+        state.info(
+            f"no robot program for {m.name}: {why}; the poses are in experiment.csv (q1…q6, deg)"
         )
     state.info(
         f"wrote {output}: {len(d.q)} experiments; measure the point {tool_mm} mm (flange "

@@ -128,6 +128,25 @@ def _program(name: str, body: list[str], positions: list[str]) -> str:
     return _attr(name, len(body)) + mn + pos
 
 
+def joint_positions_program(name: str, q_deg: np.ndarray, comment: str) -> str:
+    """A TP program (``.ls`` text) that moves to each row of ``q_deg`` (N, 6) — joint angles
+    J1…J6 in degrees, the pendant's — with a joint move at 10 % and ``FINE``, and pauses there
+    (``PAUSE``: the operator loads and measures, then resumes). Positions in joint
+    representation (``J1= … deg``), no frames used."""
+    if not re.fullmatch(r"[A-Z][A-Z0-9_]{0,31}", name):
+        raise InputError(f"not a FANUC program name: {name!r}", field="name")
+    body = [f"  ! {comment} "]
+    positions = []
+    for i, q in enumerate(np.asarray(q_deg, dtype=float).tolist(), start=1):
+        body += [f"J P[{i}] 10% FINE    ", "  PAUSE"]
+        positions.append(
+            f"P[{i}]{{\n   GP1:\n\tUF : 0, UT : 0,\n"
+            f"\tJ1= {q[0]:9.3f} deg,\tJ2= {q[1]:9.3f} deg,\tJ3= {q[2]:9.3f} deg,\n"
+            f"\tJ4= {q[3]:9.3f} deg,\tJ5= {q[4]:9.3f} deg,\tJ6= {q[5]:9.3f} deg\n}};\n"
+        )
+    return _program(name, body, positions)
+
+
 def _frame_lines(pr: int, values: np.ndarray, target: str) -> list[str]:
     out = [f"  PR[{pr}]=LPOS    "]
     out += [f"  PR[{pr},{j + 1}]={v:.3f}    " for j, v in enumerate(values)]
