@@ -187,3 +187,23 @@ def test_youngs_modulus_in_pa_is_refused(tmp_path, argv, hint, capsys):
     err = capsys.readouterr().err
     assert "[--E]" in err and hint in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("argv", "said"),
+    [
+        (["tool-stiffness", "--mesh-size", "-1"], "[--mesh-size]: must be > 0 mm, got -1"),
+        (["tool-stiffness", "--neck-length", "-1"], "[--neck-length]: must be ≥ 0 mm, got -1"),
+        (["tool-stiffness", "--neck-diameter", "8"], "[--neck-diameter]: a neck needs its length"),
+        (["tool-stiffness", "--neck-length", "5"], "[--neck-length]: --neck-length needs"),
+        (["holder-stiffness", "--section", "40:30", "--coupling-diameter", "-1"],
+         "[--coupling-diameter]: must be > 0 mm, got -1"),
+    ],
+)  # fmt: skip
+def test_a_length_option_is_refused_in_mm_under_its_flag(tmp_path, argv, said, capsys):
+    """The geometry's own check named its SI key and value in m ("[mesh_size]: … in m, got
+    -0.001", "[neck_length]: … got 0.0" for a neck diameter without a length)."""
+    out = tmp_path / "out.json"
+    assert main([*argv, "--no-fe", "-o", str(out)]) == 2
+    assert said in capsys.readouterr().err
+    assert not out.exists()

@@ -42,6 +42,17 @@ def _material(E_gpa: float, nu: float, name: str = "steel") -> Material:
     return Material(E=E_gpa * 1e9, nu=nu, name=name)
 
 
+def _check_mm(flag: str, value: float | None, *, zero: bool = False) -> None:
+    """A length option (mm) is finite and > 0 (≥ 0 with ``zero``), said in mm under its flag:
+    the geometry's own check named its SI key (``mesh_size``, ``neck_length``) and value in m."""
+    import math
+
+    if value is None:
+        return
+    if not math.isfinite(value) or value < 0 or (value == 0 and not zero):
+        raise InputError(f"must be {'≥' if zero else '>'} 0 mm, got {value:g}", field=flag)
+
+
 def _method(method: str, no_fe: bool) -> str:
     method = "beam" if no_fe else method.lower()
     if method not in ("fe", "beam"):
@@ -178,6 +189,17 @@ def register(app: typer.Typer) -> None:
         ):
             if v is not None:
                 check_plausible(v, bound, field=flag)
+        _check_mm("--mesh-size", mesh_size)
+        _check_mm("--neck-length", neck_length, zero=True)
+        _check_mm("--taper-length", taper_length, zero=True)
+        if neck_diameter is not None and neck_length == 0:
+            raise InputError(
+                "a neck needs its length: give --neck-length (mm, from the ball centre)",
+                field="--neck-diameter",
+            )
+        if neck_diameter is None and (neck_length > 0 or taper_length > 0):
+            flag = "--neck-length" if neck_length > 0 else "--taper-length"
+            raise InputError(f"{flag} needs --neck-diameter (mm)", field=flag)
         mat = _material(youngs_modulus, poisson)
         how = _method(method, no_fe)
         inputs: list[Path] = []
@@ -245,6 +267,8 @@ def register(app: typer.Typer) -> None:
         )
 
         output_file(output, "holder-stiffness", overwrite, [with_tool])
+        _check_mm("--coupling-diameter", coupling_diameter)
+        _check_mm("--mesh-size", mesh_size)
         how = _method(method, no_fe)
         holder = ToolHolder(
             tuple(_parse_section(s) for s in section),
