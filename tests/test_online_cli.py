@@ -51,6 +51,11 @@ def _online_rsi_process(args: list[str]) -> subprocess.Popen[str]:
         (["-c", "egm", "--virtual", "pyramid", "--scenario", "paper"], "--scenario"),
         (["-c", "egm", "--virtual", "cone", "--realtime", "0"], "--realtime"),
         (["-c", "egm", "--virtual", "cone", "--cpu", "4096"], "--cpu"),
+        # the limits in the options' units (they were said in SI: "got -0.001"), and a size
+        # limit that limits nothing (2 m, or µm typed as mm) refused
+        (["-c", "egm", "--virtual", "cone", "--max-rate", "-1"], "[--max-rate]: must be > 0 mm/s"),
+        (["-c", "egm", "--virtual", "cone", "--ramp-rate", "0"], "[--ramp-rate]: must be > 0 mm/s"),
+        (["-c", "egm", "--virtual", "cone", "--max-correction", "2000"], "is no limit"),
     ],
 )
 def test_bad_input_exits_2_with_one_line(tmp_path, capsys, args, needle):

@@ -422,6 +422,11 @@ def _check_sources(
     return kind, arg, study
 
 
+#: The largest --max-correction accepted [mm]: the robot's deflection under forming loads is
+#: a few millimetres (the paper's IRB 7600: ≤ 2 mm), so a larger limit stops nothing.
+MAX_CORRECTION_MM = 20.0
+
+
 def _limits(
     deadband: float,
     max_correction: float,
@@ -434,6 +439,24 @@ def _limits(
     error names the option."""
     from roboisf.online import Limits
 
+    # each option in its own unit (Limits' own check says SI: "--max-rate: … got -0.001")
+    for flag, v, unit, zero in (
+        ("--deadband", deadband, "mm", True),
+        ("--max-correction", max_correction, "mm", False),
+        ("--max-rate", max_rate, "mm/s", False),
+        ("--cycle", cycle, "ms", False),
+        ("--watchdog", watchdog, "ms", False),
+        ("--ramp-rate", ramp_rate, "mm/s", False),
+    ):
+        if not math.isfinite(v) or v < 0 or (v == 0 and not zero):
+            raise InputError(f"must be {'≥' if zero else '>'} 0 {unit}, got {v:g}", field=flag)
+    if max_correction > MAX_CORRECTION_MM:
+        # the size limit is the loop's last guard: 2000 mm (2 m, or µm typed as mm) guards nothing
+        raise InputError(
+            f"a size limit of {max_correction:g} mm is no limit: a forming robot's deflection "
+            f"is a few mm; at most {MAX_CORRECTION_MM:g} mm (the default is 2 mm)",
+            field="--max-correction",
+        )
     try:
         return Limits(
             deadband * 1e-3,
