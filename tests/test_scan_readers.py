@@ -108,6 +108,22 @@ def test_point_lists(tmp_path, cloud, name, sep, header):
     assert (s.normals is not None) == with_n
 
 
+@pytest.mark.parametrize(
+    ("header", "sep", "decimal"),
+    [("x,y,z", ",", "."), ("x;y;z", ";", ","), (None, " ", "."), (None, ";", ",")],
+)
+def test_point_list_with_a_byte_order_mark(tmp_path, cloud, header, sep, decimal):
+    """Excel's "CSV UTF-8" (and many Windows exporters) start the file with a UTF-8 BOM: it used
+    to land in the first header cell ('\\ufeffx,y,z': "has no x, y, z columns"), or make a
+    header-less first row look like a header."""
+    pts, _ = cloud
+    rows = [sep.join(f"{v:.9f}".replace(".", decimal) for v in p) for p in pts * 1e3]
+    text = "\r\n".join(([header] if header else []) + rows) + "\r\n"
+    f = tmp_path / "bom.csv"
+    f.write_bytes(b"\xef\xbb\xbf" + text.encode())
+    np.testing.assert_allclose(read_scan(f).points, pts, atol=1e-12)
+
+
 def test_point_list_with_extra_columns_and_header_order(tmp_path, cloud):
     pts, _ = cloud
     f = tmp_path / "e.csv"

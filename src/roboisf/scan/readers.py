@@ -491,11 +491,14 @@ _NUM = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^[+-]?(nan|inf)$", r
 
 
 def read_xyz_points(path: Path) -> tuple[F64, F64 | None]:
+    """x, y, z [and nx, ny, nz] of a point list, in the file's unit. UTF-8 with or without a
+    byte-order mark (Excel's "CSV UTF-8" and many Windows exporters write one: it was read into
+    the first header cell, and ``x,y,z`` refused as having no x column)."""
     import pandas as pd
 
     first = None
     skip = 0
-    with open(path, encoding="utf-8", errors="replace") as fh:
+    with open(path, encoding="utf-8-sig", errors="replace") as fh:
         for line in fh:
             if line.strip() and not line.lstrip().startswith(("#", "//")):
                 first = line.strip()
@@ -509,7 +512,7 @@ def read_xyz_points(path: Path) -> tuple[F64, F64 | None]:
         count = int(first)
         skip += 1
         first = None
-        with open(path, encoding="utf-8", errors="replace") as fh:
+        with open(path, encoding="utf-8-sig", errors="replace") as fh:
             for i, line in enumerate(fh):
                 if i >= skip and line.strip():
                     first = line.strip()
@@ -543,7 +546,7 @@ def read_xyz_points(path: Path) -> tuple[F64, F64 | None]:
         usecols = list(range(6 if len(tokens) >= 6 and not pts_like else 3))
     if has_header and decimal == ".":
         # the header does not tell the decimal mark: the first data row does
-        with open(path, encoding="utf-8", errors="replace") as fh:
+        with open(path, encoding="utf-8-sig", errors="replace") as fh:
             rows = [ln for i, ln in enumerate(fh) if i > skip and ln.strip()][:1]
         if rows and sep != ",":
             decimal = _sniff_xyz(rows[0].strip())[1]
@@ -559,6 +562,7 @@ def read_xyz_points(path: Path) -> tuple[F64, F64 | None]:
             dtype=np.float64,
             skip_blank_lines=True,
             engine="c",
+            encoding="utf-8-sig",
         )
     except UnicodeDecodeError:
         read_text(path, what="point list")  # raises, naming the line and byte offset
