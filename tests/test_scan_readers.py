@@ -200,6 +200,25 @@ def test_empty_truncated_nan_and_unknown_files(tmp_path, cloud):
         read_scan(txt)
 
 
+def test_ascii_ply_bad_cell_names_its_line_and_a_short_one_its_rows(tmp_path, cloud):
+    """A word in an ascii PLY's vertex rows was "row 3: property 'y': malformed input; the file
+    may be truncated" — no line, and a truncation hint for a file that is whole."""
+    pts, _ = cloud
+    f = tmp_path / "a.ply"
+    write_ply(pts, f, binary=False)
+    lines = f.read_text().splitlines()
+    first = lines.index("end_header") + 1
+    bad = lines.copy()
+    bad[first + 3] = bad[first + 3].split()[0] + " abc " + bad[first + 3].split()[2]
+    f.write_text("\n".join(bad) + "\n")
+    with pytest.raises(InputError, match="vertex row 3, property 'y': malformed") as e:
+        read_scan(f)
+    assert e.value.line == first + 4 and "truncated" not in str(e.value)
+    f.write_text("\n".join(lines[:-10]) + "\n")
+    with pytest.raises(InputError, match=f"ends after {len(pts) - 10} vertex rows of the 500"):
+        read_scan(f)
+
+
 def test_unit_plausibility_names_the_right_unit():
     cone = Cone()
     size = part_size(cone)
