@@ -117,6 +117,21 @@ def test_utf16_force_log_is_refused_with_line(tmp_path):
         read_force_log(f)
 
 
+@pytest.mark.parametrize("content", [b"", b"\r\n\r\n", b"\xef\xbb\xbf\n  \n"])
+def test_empty_log_is_said_to_be_empty(tmp_path, content):
+    """An empty force or joint log (a logger that never wrote, a failed copy) was refused as "no
+    force-log format recognised: expected a header naming time, Fx …" — the user then hunts for
+    a header problem in a file that has nothing."""
+    from roboisf.logs.jointlog import read_joint_log
+
+    f = tmp_path / "log.csv"
+    f.write_bytes(content)
+    for read, what in ((read_force_log, "force log"), (read_joint_log, "joint log")):
+        with pytest.raises(InputError, match=rf"log\.csv: {what} is empty") as e:
+            read(f)
+        assert "recognised" not in str(e.value)
+
+
 def test_bom_csv_is_accepted(tmp_path):
     f = tmp_path / "f.csv"
     log = ForceLog(np.array([0.0, 1.0]), np.ones((2, 6)) * 100, "sensor")

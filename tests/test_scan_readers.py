@@ -108,6 +108,22 @@ def test_point_lists(tmp_path, cloud, name, sep, header):
     assert (s.normals is not None) == with_n
 
 
+@pytest.mark.parametrize(
+    ("header", "sep", "decimal"),
+    [("x,y,z", ",", "."), ("x;y;z", ";", ","), (None, " ", "."), (None, ";", ",")],
+)
+def test_point_list_with_a_byte_order_mark(tmp_path, cloud, header, sep, decimal):
+    """Excel's "CSV UTF-8" (and many Windows exporters) start the file with a UTF-8 BOM: it used
+    to land in the first header cell ('\\ufeffx,y,z': "has no x, y, z columns"), or make a
+    header-less first row look like a header."""
+    pts, _ = cloud
+    rows = [sep.join(f"{v:.9f}".replace(".", decimal) for v in p) for p in pts * 1e3]
+    text = "\r\n".join(([header] if header else []) + rows) + "\r\n"
+    f = tmp_path / "bom.csv"
+    f.write_bytes(b"\xef\xbb\xbf" + text.encode())
+    np.testing.assert_allclose(read_scan(f).points, pts, atol=1e-12)
+
+
 def test_point_list_with_extra_columns_and_header_order(tmp_path, cloud):
     pts, _ = cloud
     f = tmp_path / "e.csv"
@@ -182,6 +198,25 @@ def test_empty_truncated_nan_and_unknown_files(tmp_path, cloud):
     txt.write_text("a,b\n1,2\n")
     with pytest.raises(InputError, match="x, y, z"):
         read_scan(txt)
+
+
+def test_ascii_ply_bad_cell_names_its_line_and_a_short_one_its_rows(tmp_path, cloud):
+    """A word in an ascii PLY's vertex rows was "row 3: property 'y': malformed input; the file
+    may be truncated" — no line, and a truncation hint for a file that is whole."""
+    pts, _ = cloud
+    f = tmp_path / "a.ply"
+    write_ply(pts, f, binary=False)
+    lines = f.read_text().splitlines()
+    first = lines.index("end_header") + 1
+    bad = lines.copy()
+    bad[first + 3] = bad[first + 3].split()[0] + " abc " + bad[first + 3].split()[2]
+    f.write_text("\n".join(bad) + "\n")
+    with pytest.raises(InputError, match="vertex row 3, property 'y': malformed") as e:
+        read_scan(f)
+    assert e.value.line == first + 4 and "truncated" not in str(e.value)
+    f.write_text("\n".join(lines[:-10]) + "\n")
+    with pytest.raises(InputError, match=f"ends after {len(pts) - 10} vertex rows of the 500"):
+        read_scan(f)
 
 
 def test_unit_plausibility_names_the_right_unit():

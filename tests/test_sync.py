@@ -142,6 +142,23 @@ def test_position_sync_refuses_another_path(cone):
         align_by_position(tau, P + np.array([3e-3, 0.0, 0.0]), truth.toolpath, file=Path("j.csv"))
 
 
+@pytest.mark.parametrize(("factor", "said"), [(1e-3, "in s read as ms"), (1e3, "in ms read as s")])
+def test_position_sync_refuses_a_joint_log_whose_time_unit_slipped(cone, factor, said):
+    """A joint log in s declared ms (or the reverse) is still tracked along the whole path — by
+    position, with no clock — but then says the tool passed it 1000× too fast (slow): with the
+    force log on its clock, analyze took every force from the log's first half-second and ended
+    with a robot term of 808 mm, exit 0."""
+    cell, truth = cone
+    tau, P = _tip_log(cell, truth, DRIFT)
+    with pytest.raises(InputError, match=said) as e:
+        align_by_position(tau * factor, P, truth.toolpath, file=Path("j.csv"))
+    assert e.value.field == "time" and "j.csv" in str(e.value)
+    # a clock a few times off (a feed override, a slow controller clock) is no slip
+    for ok in (0.25, 4.0):
+        a = align_by_position(tau * ok, P, truth.toolpath)
+        assert a.clock_scale == pytest.approx(1.02 * ok, rel=1e-3)
+
+
 @pytest.mark.parametrize("mount", ["fixture", "flange"])
 def test_force_sync_puts_every_point_within_one_point(cone, mount):
     """Force sync on the same run: how close it gets (within one point on this cone)."""

@@ -554,6 +554,11 @@ def _decode_log(path: Path, what: str) -> str:
         data = path.read_bytes()
     except OSError as e:
         raise InputError(f"cannot read {what}: {e.strerror}", file=path) from None
+    if not data.removeprefix(b"\xef\xbb\xbf").strip():
+        # said as such: an empty file was "no force-log format recognised: expected a header …"
+        raise InputError(
+            f"{what} is empty (a logger that never wrote, or a copy that failed)", file=path
+        )
     if b"\x00" in data[:4096] and not data.startswith((b"\xff\xfe", b"\xfe\xff")):
         raise InputError(
             f"{what} is a binary file; expected a text export (CSV/TXT) or a .parquet log",

@@ -328,11 +328,45 @@ def read_ply_points(path: Path, sample: int | None, seed: int) -> tuple[F64, F64
     except InputError:
         raise
     except Exception as e:  # plyfile's parse errors, short reads, bad headers
-        raise InputError(
-            f"not a readable PLY file ({type(e).__name__}: {e}); the file may be truncated",
-            file=path,
-        ) from None
+        raise _ply_parse_error(path, e) from None
     return pts, normals
+
+
+def _ply_parse_error(path: Path, e: Exception) -> InputError:
+    """The error for a PLY that ``plyfile`` could not parse. In an ascii PLY a bad row of the
+    first element (the vertices) is named by its line (header lines + row + 1), and a bad cell
+    is not called a truncation: "row 100: property 'x': malformed input; the file may be
+    truncated" sent the user to the end of a file whose line 109 held a word."""
+    from plyfile import PlyElementParseError
+
+    generic = InputError(
+        f"not a readable PLY file ({type(e).__name__}: {e}); the file may be truncated",
+        file=path,
+    )
+    if not isinstance(e, PlyElementParseError) or e.element is None or e.row is None:
+        return generic
+    with open(path, "rb") as fh:
+        head = fh.read(_PLY_MAX_HEADER)
+    end = head.find(b"end_header")
+    if end < 0:
+        return generic
+    header = head[:end].decode("ascii", errors="replace").splitlines()
+    first = next((ln.split()[1] for ln in header if ln.split()[:1] == ["element"]), None)
+    if not any(ln.split()[:2] == ["format", "ascii"] for ln in header) or first != e.element.name:
+        return generic
+    prop = f", property {e.prop.name!r}" if e.prop is not None else ""
+    if "end-of-file" in e.message:
+        return InputError(
+            f"the PLY file ends after {e.row} {first} rows of the {e.element.count} its header "
+            "declares (truncated file or a wrong count)",
+            file=path,
+        )
+    return InputError(
+        f"PLY {first} row {e.row}{prop}: {e.message} (a cell that is not a number, or a row with "
+        "too few or too many values)",
+        file=path,
+        line=len(header) + 1 + e.row + 1,
+    )
 
 
 def _ply_faces(data: np.ndarray, path: Path) -> NDArray[np.int64]:
@@ -491,11 +525,14 @@ _NUM = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^[+-]?(nan|inf)$", r
 
 
 def read_xyz_points(path: Path) -> tuple[F64, F64 | None]:
+    """x, y, z [and nx, ny, nz] of a point list, in the file's unit. UTF-8 with or without a
+    byte-order mark (Excel's "CSV UTF-8" and many Windows exporters write one: it was read into
+    the first header cell, and ``x,y,z`` refused as having no x column)."""
     import pandas as pd
 
     first = None
     skip = 0
-    with open(path, encoding="utf-8", errors="replace") as fh:
+    with open(path, encoding="utf-8-sig", errors="replace") as fh:
         for line in fh:
             if line.strip() and not line.lstrip().startswith(("#", "//")):
                 first = line.strip()
@@ -509,7 +546,7 @@ def read_xyz_points(path: Path) -> tuple[F64, F64 | None]:
         count = int(first)
         skip += 1
         first = None
-        with open(path, encoding="utf-8", errors="replace") as fh:
+        with open(path, encoding="utf-8-sig", errors="replace") as fh:
             for i, line in enumerate(fh):
                 if i >= skip and line.strip():
                     first = line.strip()
@@ -543,7 +580,7 @@ def read_xyz_points(path: Path) -> tuple[F64, F64 | None]:
         usecols = list(range(6 if len(tokens) >= 6 and not pts_like else 3))
     if has_header and decimal == ".":
         # the header does not tell the decimal mark: the first data row does
-        with open(path, encoding="utf-8", errors="replace") as fh:
+        with open(path, encoding="utf-8-sig", errors="replace") as fh:
             rows = [ln for i, ln in enumerate(fh) if i > skip and ln.strip()][:1]
         if rows and sep != ",":
             decimal = _sniff_xyz(rows[0].strip())[1]
@@ -559,6 +596,7 @@ def read_xyz_points(path: Path) -> tuple[F64, F64 | None]:
             dtype=np.float64,
             skip_blank_lines=True,
             engine="c",
+            encoding="utf-8-sig",
         )
     except UnicodeDecodeError:
         read_text(path, what="point list")  # raises, naming the line and byte offset

@@ -44,6 +44,15 @@ OFF_PATH = 5e-3
 #: Largest accepted residual [m] at any toolpath point: the logged tip (commanded joints through
 #: FK) follows the toolpath to interpolation error; 2 mm means another path or a wrong placement.
 POSITION_RESIDUAL_MAX = 2e-3
+#: Clock rates [log s per nominal s] of a time-unit slip (ms read as s: 1000; s read as ms:
+#: 0.001), each with the logged tip speed [m/s] that only the slip explains: a forming tool
+#: faster than 2 m/s, or slower than 0.1 mm/s along the whole path. A joint log whose times were
+#: in s but declared ms was tracked as a tool passing the path 1000× fast; with the force log on
+#: its clock every force then came from the first half-second of the log, and analyze ended
+#: with a robot term of 808 mm and exit 0.
+TIME_SLIP_SCALE = (300.0, 3000.0)
+TIME_SLIP_FAST = 2.0
+TIME_SLIP_SLOW = 1e-4
 #: A tip within this of the first/last point [m] stands there (IK/FK round-off, no motion).
 _END_TOL = 1e-5
 #: Most samples per block (memory of the distance matrix; a long pause is cut into blocks).
@@ -177,6 +186,32 @@ def _sharpen_ends(ts: F64, ss: F64, S: F64) -> tuple[F64, F64]:
     return ts, ss
 
 
+def _check_time_unit(scale: float, toolpath: Toolpath, file: Path | None) -> None:
+    """Refuse a clock ``scale`` (log s per nominal s, :func:`clock_fit`) that is a time unit
+    slip of the log (:data:`TIME_SLIP_SCALE`) at a logged tip speed no forming run has."""
+    span = float(toolpath.time[-1] - toolpath.time[0])
+    length = float(toolpath.path_length[-1] - toolpath.path_length[0])
+    if not (span > 0 and length > 0 and scale > 0):
+        return
+    v = length / (scale * span)  # m/s — the logged tip's mean speed outside pauses
+    lo, hi = TIME_SLIP_SCALE
+    if 1 / hi <= scale <= 1 / lo and v > TIME_SLIP_FAST:
+        unit, fix, how = "s", "s", f"{1 / scale:.0f}× faster than"
+    elif lo <= scale <= hi and v < TIME_SLIP_SLOW:
+        unit, fix, how = "ms", "ms", f"{scale:.0f}× slower than"
+    else:
+        return
+    read = "ms" if unit == "s" else "s"
+    raise InputError(
+        f"the logged tool tip passes the toolpath {how} its programmed feed (the path's "
+        f"{span:.4g} s in {scale * span:.4g} s of log, {v * 1e3:.3g} mm/s): the log's time is "
+        f"likely in {unit} read as {read}; declare time={fix} in its '# units:' line or header "
+        f'(or units = {{time = "{fix}"}} in study.toml)',
+        file=file,
+        field="time",
+    )
+
+
 def align_by_position(
     log_time: ArrayLike,
     tip_log: ArrayLike,
@@ -207,7 +242,9 @@ def align_by_position(
     ------
     InputError
         the logged tip never comes near the toolpath, reaches only part of it (naming the last
-        point reached), or passes a point farther than ``residual_max`` from it.
+        point reached), or passes a point farther than ``residual_max`` from it; a log whose
+        clock runs ~1000× off the toolpath's at a tip speed no forming run has (its time unit
+        slipped: s read as ms, or ms as s).
     """
     tau = np.asarray(log_time, dtype=float)
     P = np.asarray(tip_log, dtype=float)
@@ -277,6 +314,7 @@ def align_by_position(
             file=file,
         )
     scale, offset, pauses = clock_fit(toolpath.time, t_pt)
+    _check_time_unit(scale, toolpath, file)
     return Alignment(
         "position",
         t_pt,
