@@ -41,7 +41,7 @@ def test_joint_log_that_stops_half_way(study, tmp_path):
 
 def test_force_log_in_the_wrong_unit(study, tmp_path):
     s = copy(study, tmp_path)
-    text = (s / "cnc_forces.csv").read_text().replace("force=N", "force=lbf", 1)
+    text = (s / "cnc_forces.csv").read_text().replace("force=N", "force=kgf", 1)
     (s / "cnc_forces.csv").write_text(text)
     with pytest.raises(InputError, match=r"cnc_forces\.csv"):
         analyze(s)

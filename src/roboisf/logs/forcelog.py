@@ -195,9 +195,15 @@ def _read_roboisf_csv(
         raise InputError("position needs all three columns x,y,z", file=path, line=t.header_line)
     needed = ["time", "force", "moment"] + (["length"] if has_pos else [])
     units: dict[str, str] = {}
+    where = f"{path}:{units_line}" if units_line else path
     for q in needed:
         a, b = declared.get(q), given[q]
-        if a is not None and b is not None and a != b:
+        # by what they mean, not how they are spelled ('Nm' in the file, 'N*m' in the study)
+        if (
+            a is not None
+            and b is not None
+            and log_unit_to_si(a, q, file=where, field="units") != log_unit_to_si(b, q)
+        ):
             raise InputError(
                 f"{q} unit declared as {a!r} in the file but {b!r} was given; remove one",
                 file=path,
@@ -214,10 +220,8 @@ def _read_roboisf_csv(
                 field="units",
             )
         units[q] = u
-    scale = {
-        q: to_si(u, q, file=f"{path}:{units_line}" if units_line else path, field="units")
-        for q, u in units.items()
-    }
+    # the spellings instruments write (lbf, lbf-in, Nm …) as in every other log profile
+    scale = {q: log_unit_to_si(u, q, file=where, field="units") for q, u in units.items()}
     file_frame = t.meta.get("frame")
     if file_frame is not None and frame is not None and file_frame != frame:
         raise InputError(

@@ -34,7 +34,7 @@ from roboisf.formats import FileFormat, file_formats, get_file_format
 from roboisf.io.atomic import atomic_write
 from roboisf.io.table import LogTable, format_rows, read_log_table, read_table, split_name_unit
 from roboisf.io.timestamps import repair_time
-from roboisf.io.units import log_unit_to_si, to_si
+from roboisf.io.units import log_unit_to_si
 from roboisf.logs.logprofile import JointLogSpec, study_formats
 
 __all__ = [
@@ -264,7 +264,9 @@ def read_joint_log(
     for k, g_unit in (("time", time_unit), ("angle", angle_unit)):
         if g_unit is None:
             continue
-        if k in file_units and to_si(file_units[k], k) != log_unit_to_si(g_unit, k):
+        if k in file_units and log_unit_to_si(
+            file_units[k], k, file=p, field="units"
+        ) != log_unit_to_si(g_unit, k):
             raise InputError(
                 f"{k} unit declared as {file_units[k]!r} in the file but {g_unit!r} was given "
                 "(study units for this log); remove one",
