@@ -252,3 +252,16 @@ def test_parquet_force_log_read_unchanged_by_in_place_scaling(tmp_path):
     back = read_force_parquet(tmp_path / "f.parquet")
     assert np.array_equal(back.time, t) and np.array_equal(back.wrench, W)
     assert back.wrench.flags.c_contiguous and back.moments_known
+
+
+@pytest.mark.parametrize("sep", [",", ";", "\t"])
+def test_a_header_one_force_column_short_names_the_missing_one(tmp_path, sep):
+    """A log with Fz cut out was 'no force-log format recognised: expected a header naming
+    time, Fx, Fy, Fz …'; the header's line and the missing column are named."""
+    rows = ["# some logger", sep.join(["time [s]", "Fx [N]", "Fy [N]", "Mx", "My", "Mz"]),
+            sep.join(["0.0", "1", "2", "0", "0", "0"])]  # fmt: skip
+    f = _write(tmp_path, "\n".join(rows) + "\n")
+    with pytest.raises(InputError) as ei:
+        read_force_log(f)
+    e = ei.value
+    assert e.line == 2 and e.field == "Fz" and "no Fz" in e.message

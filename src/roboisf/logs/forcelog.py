@@ -385,6 +385,16 @@ def _open(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[str, LogTa
             )
         return name, t
     if fmt == "auto" or last is None:
+        near = _near_force_header(p)
+        if near is not None:
+            line, names, missing = near
+            raise InputError(
+                f"the header has {', '.join(names)} but no {', '.join(missing)}: a force log "
+                "needs time, Fx, Fy and Fz (and Mx, My, Mz, or none of them)",
+                file=p,
+                line=line,
+                field=missing[0],
+            )
         labels = ", ".join(f.label for f in profiles)
         raise InputError(
             "no force-log format recognised: expected a header naming time, Fx, Fy, Fz (and "
@@ -393,6 +403,29 @@ def _open(p: Path, fmt: str, columns: dict[str, str] | None) -> tuple[str, LogTa
             file=p,
         )
     raise last
+
+
+_HEAD_SPLIT = re.compile(r"[,;\t]")
+_UNIT_SUFFIX = re.compile(r"\s*[\[(].*$")
+
+
+def _near_force_header(p: Path) -> tuple[int, list[str], list[str]] | None:
+    """(line, its names, the missing ones) of a line among the file's first 64 kB that names
+    time and two or more of Fx, Fy, Fz but not all: a header one column short (a dropped
+    channel, a cut column), which the generic "no format recognised" would not name."""
+    try:
+        with open(p, "rb") as fh:
+            head = fh.read(65536).decode("utf-8-sig", errors="replace")
+    except OSError:
+        return None
+    want = ("time", "Fx", "Fy", "Fz")
+    for i, ln in enumerate(head.splitlines()[:200], start=1):
+        names = [_UNIT_SUFFIX.sub("", c).strip().strip('"') for c in _HEAD_SPLIT.split(ln)]
+        low = {n.lower() for n in names}
+        have = [w for w in want if w.lower() in low]
+        if "time" in have and 3 <= len(have) < 4:
+            return i, [n for n in names if n], [w for w in want if w not in have]
+    return None
 
 
 def detect_force_format(
