@@ -144,8 +144,12 @@ def test_every_problem_is_reported_at_once(tmp_path):
 
 
 def test_missing_study_file(tmp_path):
-    with pytest.raises(InputError, match=r"study\.toml"):
+    with pytest.raises(InputError, match=r"no study\.toml in this folder"):
         load_study(tmp_path)
+    # a mistyped path is said to be missing, not to lack a study.toml
+    with pytest.raises(InputError, match=r"no such study folder") as ei:
+        load_study(tmp_path / "nope")
+    assert ei.value.file == str(tmp_path / "nope")
 
 
 def test_a_cnc_and_a_robot_run_are_required(tmp_path):

@@ -30,9 +30,15 @@ def study_file(path: str | Path) -> Path:
         when there is no such file.
     """
     path = Path(path)
+    if not path.exists():
+        raise InputError(
+            f"no such study folder (or {STUDY_FILE}): check the path; `roboisf study init` "
+            "drafts a study from a folder of your cell's files",
+            file=path,
+        )
     file = path / STUDY_FILE if path.is_dir() else path
     if not file.is_file():
-        raise InputError(f"no {STUDY_FILE} found", file=file)
+        raise InputError(f"no {STUDY_FILE} in this folder", file=file)
     return file
 
 
