@@ -254,6 +254,20 @@ def test_robot_program_refuses_a_tool_length_in_m(tmp_path, capsys, flag):
     assert not list(tmp_path.iterdir())
 
 
+@pytest.mark.parametrize(
+    ("config", "said"),
+    [("1,2,3", "expected 2 (KUKA S,T), 4 (ABB"), ("0,0,0,0", "--arm-config needs a robot")],
+)
+def test_arm_config_is_never_dropped_without_a_word(tmp_path, capsys, config, said):
+    """Without a robot --arm-config was ignored, even when malformed: a program was written
+    with the default branch's confdata [0,0,0,0] and checks off, as if none had been asked."""
+    out = tmp_path / "p.mod"
+    argv = ["toolpath", "cone", *SMALL_CONE, "--placement", "2200,0,200", "--tool", "306"]
+    code, cap = _run([*argv, "--arm-config", config, "-o", str(out)], capsys)
+    assert code == 2 and "[--arm-config]" in cap.err and said in cap.err
+    assert not list(tmp_path.iterdir())
+
+
 def test_placement_tool_and_robot_flags(tmp_path):
     """--placement X,Y,Z,RX,RY,RZ (R = Rz Ry Rx as study.toml), --tool, --robot → confdata of the
     IK branch; --placement base is the identity, said explicitly."""

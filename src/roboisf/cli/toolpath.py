@@ -363,6 +363,13 @@ def write(tp: Toolpath, output: Path, fmt: str | None, opts: PathOptions) -> tup
     fmt = infer_format(output, fmt)
     T, tool, model = program_frames(fmt, opts, output)
     config = None
+    if opts.arm_config is not None:
+        parse_arm_config(opts.arm_config)  # a malformed one is refused, whatever else is given
+        if model is None:  # it was dropped without a word
+            raise InputError(
+                "--arm-config needs a robot: give --robot (or a study with one)",
+                field="--arm-config",
+            )
     if model is not None and T is not None and tool is not None:
         model = model.with_tool(make_transform(p=[0.0, 0.0, tool.length]))
         config = program_config(
