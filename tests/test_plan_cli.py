@@ -52,6 +52,21 @@ def test_plan_part_writes_ranked_outputs(cone_toml, tmp_path, capsys):
     assert "% lower" in text
 
 
+def test_one_yaw_is_one_candidate_and_a_worse_best_is_said_higher(cone_toml, tmp_path, capsys):
+    """--yaw-range 0:360:3 ranked yaw 0 and 360, one placement, as two candidates; a best
+    placement worse than the baseline read "(-63.9 % lower …)"."""
+    out = tmp_path / "plan"
+    # one placement farther out than the baseline (2200, -500, 200): worse than it
+    args = ["plan", "--part", str(cone_toml), "--x-range", "2200", "--y-range", "-1000",
+            "--z-range", "400", "--yaw-range", "0:360:3", "--serial", "-o", str(out)]  # fmt: skip
+    assert main(args) == 0
+    df = pd.read_csv(out / "placements.csv", comment="#")
+    assert len(df) == 2 and sorted(df["yaw_deg"]) == [0.0, 180.0]
+    text = capsys.readouterr().out
+    assert "1 yaw(s) 360° from another left out" in text
+    assert "% higher" in text and "-" not in text.split("% higher")[0].split("(")[-1]
+
+
 def test_plan_default_scheduler_is_named(cone_toml, tmp_path):
     # (equality of the schedulers' scores: tests/test_plan_dask.py)
     from roboisf.robot import vjm_kernel

@@ -216,7 +216,16 @@ def plan_cmd(
         parse_range(z_range if z_range is not None else _default_range(cz, 400, 5), "--z-range")
         * 1e-3
     )
-    yaws = np.radians(parse_range(yaw_range, "--yaw-range"))
+    yaw_deg = parse_range(yaw_range, "--yaw-range")
+    # 0 and 360 (or -180 and 180) are one placement: ranked twice, they were two candidates
+    _, first = np.unique(np.round(np.mod(yaw_deg, 360.0), 9) % 360.0, return_index=True)
+    if first.size < yaw_deg.size:
+        state.info(
+            f"--yaw-range: {yaw_deg.size - first.size} yaw(s) 360° from another left out (the "
+            "same placement)"
+        )
+        yaw_deg = yaw_deg[np.sort(first)]
+    yaws = np.radians(yaw_deg)
     P = placement_grid(xs, ys, zs, yaws)
     state.info(
         f"{len(P)} placements × {gammas.size} tool rotations, {prob.n_points} toolpath points "
@@ -456,7 +465,8 @@ def _print(res: Any, summary: dict[str, Any], top: int, *, with_tool: bool = Tru
         state.info(
             f"baseline {summary['baseline placement x,y,z [mm], yaw [deg]']}: mean robot |δ| "
             f"{res.baseline.mean_robot * 1e3:.4f} mm → best {res.best.mean_robot * 1e3:.4f} mm "
-            f"({100 * res.improvement('mean_robot'):.1f} % lower{tool})"
+            f"({abs(100 * res.improvement('mean_robot')):.1f} % "
+            f"{'lower' if res.improvement('mean_robot') >= 0 else 'higher'}{tool})"
         )
     elif "baseline status" in summary:
         state.warn(f"baseline not feasible: {summary['baseline status']}")
