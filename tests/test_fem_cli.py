@@ -207,3 +207,11 @@ def test_a_length_option_is_refused_in_mm_under_its_flag(tmp_path, argv, said, c
     assert main([*argv, "--no-fe", "-o", str(out)]) == 2
     assert said in capsys.readouterr().err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("cmd", [["tool-stiffness"], ["holder-stiffness", "--section", "40:30"]])
+def test_the_compliance_file_must_be_named_json(tmp_path, cmd, capsys):
+    """-o t.csv wrote JSON into a .csv; refused, nothing written."""
+    out = tmp_path / "t.csv"
+    assert main([*cmd, "--no-fe", "-o", str(out)]) == 2
+    assert "[--output]" in capsys.readouterr().err and not out.exists()

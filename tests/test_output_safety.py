@@ -285,8 +285,16 @@ _FILES = {
     "toolpath": ["toolpath", "cone", "-o", "{o}.csv"],
     "toolpath --part": ["toolpath", "--part", "{d}/p.toml", "-o", "{o}.csv"],
     "toolpath krl .dat": ["toolpath", "cone", "-o", "{o}.src"],
-    "tool-stiffness": ["tool-stiffness", "--ball-diameter", "10", "--length", "66", "-o", "{o}"],
-    "holder-stiffness": ["holder-stiffness", "--section", "50:40", "-o", "{o}"],
+    "tool-stiffness": [
+        "tool-stiffness",
+        "--ball-diameter",
+        "10",
+        "--length",
+        "66",
+        "-o",
+        "{o}.json",
+    ],
+    "holder-stiffness": ["holder-stiffness", "--section", "50:40", "-o", "{o}.json"],
     "robot show": ["robot", "show", "-o", "{o}.png"],
     "robot identify": ["robot", "identify", "{d}/calib.csv", "-o", "{o}.toml"],
     "robot deflect": [

@@ -271,3 +271,11 @@ def test_identify_design_writes_the_program_of_the_robots_maker(tmp_path, capsys
         "design.toml", "experiment.csv"
     ]  # fmt: skip
     assert "no robot program for m900ia260l" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("hw", ["1e7", "0", "nan"])
+def test_a_stiffness_map_wider_than_any_cell_is_refused(tmp_path, capsys, hw):
+    """--half-width 1e7 drew a 20 km map with one pixel inside the robot's reach."""
+    out = tmp_path / "map.png"
+    assert main(["robot", "show", "--half-width", hw, "-o", str(out)]) == 2
+    assert "[--half-width]" in capsys.readouterr().err and not out.exists()

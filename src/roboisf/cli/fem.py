@@ -53,6 +53,18 @@ def _check_mm(flag: str, value: float | None, *, zero: bool = False) -> None:
         raise InputError(f"must be {'≥' if zero else '>'} 0 mm, got {value:g}", field=flag)
 
 
+def _json_output(output: Path) -> None:
+    """The compliance file is JSON whatever its name says: ``-o t.csv`` wrote JSON into a .csv
+    (and a spreadsheet or another tool then read it as a table); refused."""
+    if output.suffix.lower() != ".json":
+        raise InputError(
+            f"the compliance is written as JSON: name the file .json, not "
+            f"{output.suffix or '(no suffix)'!r}",
+            file=output,
+            field="--output",
+        )
+
+
 def _method(method: str, no_fe: bool) -> str:
     method = "beam" if no_fe else method.lower()
     if method not in ("fe", "beam"):
@@ -178,6 +190,7 @@ def register(app: typer.Typer) -> None:
 
         from roboisf.fem import BallEndTool, StepGeometry
 
+        _json_output(output)
         output_file(output, "tool-stiffness", overwrite, [step])
         from roboisf.plausible import check_plausible
 
@@ -266,6 +279,7 @@ def register(app: typer.Typer) -> None:
             tool_holder_compliance,
         )
 
+        _json_output(output)
         output_file(output, "holder-stiffness", overwrite, [with_tool])
         _check_mm("--coupling-diameter", coupling_diameter)
         _check_mm("--mesh-size", mesh_size)

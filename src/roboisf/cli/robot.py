@@ -144,6 +144,11 @@ def _files(*names: str | None) -> list[Path]:
     return [Path(n) for n in names if n is not None and Path(n).is_file()]
 
 
+#: The widest stiffness map [mm, half width]: 1e7 mm drew a 20 km map with one pixel inside the
+#: robot's reach.
+MAP_HALF_WIDTH_MAX = 5000.0
+
+
 @robot_app.command("show")
 def show_cmd(
     robot: str = ROBOT_OPT,
@@ -168,6 +173,12 @@ def show_cmd(
                 f"{output.suffix or '(none)'!r}",
                 file=output,
                 field="--output",
+            )
+        if not (0 < half_width <= MAP_HALF_WIDTH_MAX):  # NaN too
+            raise InputError(
+                f"must be > 0 and ≤ {MAP_HALF_WIDTH_MAX:g} mm (the map covers the work area "
+                f"around the placement; no robot reaches farther), got {half_width:g}",
+                field="--half-width",
             )
         output_file(output, "robot show", overwrite, [stiffness, *_files(robot, tool)])
     m = _model(robot, stiffness, tool, tip_link)
