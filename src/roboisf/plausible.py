@@ -22,7 +22,7 @@ from typing import Any
 
 from roboisf.errors import InputError
 
-__all__ = ["BOUNDS", "Bound", "check_part", "check_plausible", "unit_slip"]
+__all__ = ["BOUNDS", "Bound", "check_part", "check_plausible", "check_tool_offset", "unit_slip"]
 
 
 @dataclass(frozen=True)
@@ -150,6 +150,17 @@ def check_plausible(
         field=field,
         line=line,
     )
+
+
+def check_tool_offset(
+    xyz_mm: Any, *, field: str = "--tool", file: str | Path | None = None
+) -> None:
+    """Refuse a tool tip ``xyz_mm`` (3 numbers, mm, flange frame) whose distance from the
+    flange is no tool's (``tool_offset``: 5–2000 mm, or 0 for the flange itself): ``0,0,0.306``
+    — a 306 mm tool typed in m — gave a stiffness map, a plan or an identification of a tool
+    0.3 mm long; it is refused naming that slip."""
+    x, y, z = (float(v) for v in xyz_mm)
+    check_plausible(math.sqrt(x * x + y * y + z * z), "tool_offset", field=field, file=file)
 
 
 def check_part(part: Any, *, file: str | Path | None = None) -> None:

@@ -283,7 +283,8 @@ def _problem(
     baseline: str | None = None,
 ) -> tuple[Any, Any, np.ndarray | None, str]:
     from roboisf.cell import ForceModel, build_robot, cell_from_study, make_cell
-    from roboisf.frames.pose import XYZ_YAW_MM_DEG, parse_pose, parse_tool
+    from roboisf.cli.robot import tool_pose
+    from roboisf.frames.pose import XYZ_YAW_MM_DEG, parse_pose
     from roboisf.parts import load_part
     from roboisf.plan import PlanProblem, problem_from_cell
     from roboisf.plan.setup import tool_and_holder_compliance
@@ -293,7 +294,7 @@ def _problem(
         if stiffness is not None:
             m = m.with_stiffness(load_stiffness(stiffness, robot=m.name), source=str(stiffness))
         if tool is not None:
-            m = m.with_tool(parse_tool(tool))
+            m = m.with_tool(tool_pose(tool))
         return m
 
     if part is not None:

@@ -54,17 +54,28 @@ def _ints(text: str, n: int, field: str) -> np.ndarray:
     return v.astype(np.int64)
 
 
+def tool_pose(text: str, field: str = "--tool") -> np.ndarray:
+    """``T_flange_tip`` (4, 4), m, of a ``--tool x,y,z`` (mm, flange frame), refused when the
+    tip's distance from the flange is no tool's (:func:`roboisf.plausible.check_tool_offset`:
+    a tool typed in m)."""
+    from roboisf.frames.pose import XYZ_MM, parse_pose
+    from roboisf.plausible import check_tool_offset
+
+    T = parse_pose(text, XYZ_MM, field=field)
+    check_tool_offset(T[:3, 3] * 1e3, field=field)
+    return T
+
+
 def _model(
     robot: str, stiffness: Path | None, tool: str | None, tip_link: str | None = None
 ) -> RobotModel:
-    from roboisf.frames.pose import parse_tool
     from roboisf.robot import load_robot, load_stiffness
 
     m = load_robot(robot, tip_link=tip_link)
     if stiffness is not None:
         m = m.with_stiffness(load_stiffness(stiffness, robot=m.name), source=str(stiffness))
     if tool is not None:
-        m = m.with_tool(parse_tool(tool))
+        m = m.with_tool(tool_pose(tool))
     return m
 
 
@@ -332,14 +343,9 @@ def _design_cmd(
 
     from roboisf.cli.outputs import output_dir
     from roboisf.frames import make_transform
-    from roboisf.frames.pose import parse_tool
     from roboisf.io.atomic import atomic_write, staged_directory
-    from roboisf.robot.identify import (
-        design_experiment,
-        joint_program_suffix,
-        write_experiment_csv,
-        write_joint_program,
-    )
+    from roboisf.programs.joint_program import joint_program_suffix, write_joint_program
+    from roboisf.robot.identify import design_experiment, write_experiment_csv
 
     if not (force > 0 and sigma > 0 and experiments >= 7):
         raise InputError(
@@ -355,7 +361,7 @@ def _design_cmd(
     inputs = [p for p in (stiffness,) if p is not None]
     output_dir(output, "robot identify --design", overwrite, [*inputs, *_files(robot, tool)])
     m = _model(robot, stiffness, tool)
-    tip = m.T_flange_tip[:3, 3] if tool is None else parse_tool(tool)[:3, 3]
+    tip = m.T_flange_tip[:3, 3] if tool is None else tool_pose(tool)[:3, 3]
     point = tip + np.array([bracket * 1e-3, 0.0, 0.0])
     m = m.with_tool(make_transform(None, point))
     T_bw = _placement(placement, m)

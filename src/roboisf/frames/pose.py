@@ -48,7 +48,6 @@ __all__ = [
     "PoseFormat",
     "format_pose",
     "parse_pose",
-    "parse_tool",
     "pose_numbers",
     "pose_transform",
 ]
@@ -174,19 +173,6 @@ def parse_pose(values: Any, fmt: PoseFormat = XYZ_RPY_MM_DEG, **check: Any) -> F
     comma-separated string, checked by :func:`pose_numbers` (``check``: its ``field``, ``file``,
     ``position_only`` — ``x, y, z`` alone, unrotated —, ``strings``, ``alternatives``)."""
     return pose_transform(pose_numbers(values, fmt, **check), fmt)
-
-
-def parse_tool(values: Any, *, field: str = "--tool", file: Any = None) -> F64:
-    """``T_flange_tip`` (4, 4), translation in m, of a tool tip written as ``x, y, z`` in mm in
-    the flange frame (:data:`XYZ_MM`), refused when its distance from the flange is no tool's
-    (:data:`roboisf.plausible.BOUNDS` ``tool_offset``: 5–2000 mm, or 0 for the flange itself):
-    ``0,0,0.306`` — a 306 mm tool typed in m — is refused naming that slip, where it gave a
-    stiffness map or an identification of a tool 0.3 mm long."""
-    from roboisf.plausible import check_plausible
-
-    T = parse_pose(values, XYZ_MM, field=field, file=file)
-    check_plausible(float(np.linalg.norm(T[:3, 3])) * 1e3, "tool_offset", field=field, file=file)
-    return T
 
 
 def format_pose(
