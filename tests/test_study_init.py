@@ -81,6 +81,22 @@ def test_draft_with_todo_keys_is_refused_by_name(virtual, tmp_path):
         analyze(d)
 
 
+def test_a_file_it_cannot_choose_is_a_todo_naming_the_candidates(virtual, tmp_path):
+    """Two force logs, neither named for its run: the TODO said 'the robot run's force log'
+    without naming either; it lists the candidates to choose from."""
+    _, bare, _ = virtual
+    d = _fresh(bare, tmp_path)
+    cnc = next(d.glob("cnc_forces.*"))
+    rob = next(d.glob("robot_forces.*"))
+    cnc.rename(d / f"log_a{cnc.suffix}")
+    rob.rename(d / f"log_b{rob.suffix}")
+    assert main(["-q", "study", "init", str(d)]) == 0
+    data = tomllib.loads((d / "study.toml").read_text())
+    for run in ("cnc", "robot"):
+        todo = data["runs"][run]["forces"]["file"]
+        assert todo.startswith("TODO:") and f"log_a{cnc.suffix}, log_b{rob.suffix}" in todo
+
+
 def test_never_overwrites_a_study_toml(virtual, tmp_path):
     _, bare, _ = virtual
     d = _fresh(bare, tmp_path)

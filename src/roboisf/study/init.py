@@ -418,6 +418,14 @@ def draft_study(
             return rest[0]
         return None
 
+    def missing(kind: str, run: str, what: str) -> str:
+        """The TODO for a file ``pick`` could not choose: the candidates it had, named."""
+        other = "robot" if run == "cnc" else "cnc"
+        cands = [rel(f.path) for f in by.get(kind, []) if _role(f.path.name) != other]
+        if not cands:
+            return _todo(what)
+        return _todo(f"{what} — one of: {', '.join(cands)}")
+
     data: dict[str, Any] = {"study": {"name": root.name, "description": "drafted by study init"}}
     # part
     part_file = Path(part) if part is not None else None
@@ -524,7 +532,7 @@ def draft_study(
         r: dict[str, Any] = {"machine": run}
         for key, kind in (("toolpath", "toolpath"), ("scan", "scan")):
             got = pick(kind, run)
-            r[key] = rel(got.path) if got else _todo(f"the {run} run's {kind} file")
+            r[key] = rel(got.path) if got else missing(kind, run, f"the {run} run's {kind} file")
             if got is None:
                 todo.append(f"runs.{run}.{key}")
             elif kind == "toolpath" and got.keys:
@@ -548,7 +556,7 @@ def draft_study(
         fl = pick("force_log", run)
         what = "T_work_sensor" if mount == "fixture" else "T_tip_sensor"
         r["forces"] = {
-            "file": rel(fl.path) if fl else _todo(f"the {run} run's force log"),
+            "file": rel(fl.path) if fl else missing("force_log", run, f"the {run} run's force log"),
             "mount": mount,
             "pose": _pose(
                 pose, f"{what} [x, y, z, roll, pitch, yaw] in mm and deg", f"{run}_sensor_pose"
