@@ -283,6 +283,9 @@ class UnloadedEvidence:
     cnc_seen: bool
     drift: float
     where: str
+    #: a robot stretch lies on the toolpath (the log starts or ends forming below the onset):
+    #: both logs read forming force there, and the processes' own difference is in their gap
+    on_path: bool = False
 
     @classmethod
     def from_stretches(
@@ -294,6 +297,11 @@ class UnloadedEvidence:
         if not r:
             return None
         c = [u for u in cnc if not u.tared]
+        on_path = any(u.on_path for u in r)
+        if on_path and not c:
+            # the flange sensor's reading there is forming force, and no dynamometer reading
+            # of the same stretch says how much: no evidence of a static offset
+            return None
 
         from scipy.special import stdtrit  # Student's t quantile, without scipy.stats
 
@@ -325,12 +333,24 @@ class UnloadedEvidence:
             + (", on the path below the onset" if u.on_path else "")
             for u in r
         )
-        return cls(b_r, se_r, b_c, se_c, bool(c), drift, where)
+        return cls(b_r, se_r, b_c, se_c, bool(c), drift, where, on_path)
 
-    def static_offset(self, gain: float) -> tuple[F64, F64]:
+    def static_offset(self, gain: float, spread: float = 0.0) -> tuple[F64, F64]:
         """(3,) N the flange sensor's constant beyond the dynamometer's at rest, in the fit's
-        terms (``b`` of ``F_rob = g F_cnc + b``), and its standard error."""
-        return self.robot - gain * self.cnc, np.sqrt(self.robot_se**2 + (gain * self.cnc_se) ** 2)
+        terms (``b`` of ``F_rob = g F_cnc + b``), and its standard error.
+
+        ``spread``: the relative gain the two processes may differ by (the gain's interval
+        half-width over the gain). On the path — the log's first or last laps, in the rim band
+        the sensor fit leaves out — at least :data:`RIM_PROCESS_GAP`, added to the error as
+        ``spread · g · |cnc|`` per axis (a 95 % half-width): the robot's first laps form with
+        less force than the CNC's (the virtual cell: 6 % at the rim), so two stretches of
+        forming force differ by that much with no offset at all — a clean cell whose first lap
+        formed at 138 N was called a 6.6 N bias FAULT."""
+        se = np.sqrt(self.robot_se**2 + (gain * self.cnc_se) ** 2)
+        if self.on_path:  # at the rim, outside the fit's laps: at least RIM_PROCESS_GAP
+            spread = max(spread, RIM_PROCESS_GAP)
+            se = np.sqrt(se**2 + (spread * gain * np.abs(self.cnc) / 1.96) ** 2)
+        return self.robot - gain * self.cnc, se
 
 
 @dataclass(frozen=True)
@@ -529,7 +549,8 @@ def fit_sensor(
     excess = float(np.sqrt(np.mean(np.sum(Mres**2, 1))) / max(np.sqrt(np.mean(bound**2)), 1e-300))
     Fz = gain * Fc[deep, 2]  # the axial force as the flange sensor should read it
     axial_force = float(np.sqrt(np.mean(Fz**2)))
-    static = _static_fit(unloaded, gain, Fz, Fr[deep], Fc[deep], inv, L, weights)
+    spread = max(gain - gain_ci[0], gain_ci[1] - gain) / gain if gain else 0.0
+    static = _static_fit(unloaded, gain, Fz, Fr[deep], Fc[deep], inv, L, weights, spread)
     return SensorFit(
         gain=gain,
         gain_ci=gain_ci,
@@ -563,6 +584,7 @@ def _static_fit(
     inv: NDArray[np.intp],
     L: int,
     weights: F64,
+    spread: float = 0.0,
 ) -> dict[str, Any]:
     """The static offset from the logs at rest and, with the constant held at it, the axial
     force's crosstalk into the lateral channels: ``F_rob,xy − g F_cnc,xy − b_xy = c g F_cnc,z``
@@ -570,7 +592,7 @@ def _static_fit(
     both ends). {} without an unloaded stretch."""
     if unloaded is None:
         return {}
-    b_s, se = unloaded.static_offset(gain)
+    b_s, se = unloaded.static_offset(gain, spread)
     M = len(Fz)
     X = np.zeros((2 * M, 2))
     X[:M, 0] = Fz
@@ -952,6 +974,11 @@ def sensor_findings(
     ]
 
 
+#: The relative force difference of the two processes allowed for a stretch on the path (the
+#: rim, which the sensor fit's laps leave out): the virtual cell's robot forms its rim with 6 %
+#: less force than the CNC; doubled, as the fit's gain interval widens its own difference.
+RIM_PROCESS_GAP = 0.12
+
 BIAS_ACTION = (
     "tare the sensor with the tool mounted, or declare tool_mass (the analysis removed it)"
 )
@@ -977,6 +1004,11 @@ def _static_bias_finding(u: UnloadedEvidence, gain: float, sf: SensorFit | None)
     )
     text += (
         f", the dynamometer {_vec(u.cnc)}: a static offset of {_vec(b_s)} between them"
+        + (
+            " (both forming there: the processes' own force difference is in its interval)"
+            if u.on_path
+            else ""
+        )
         if u.cnc_seen
         else " (the dynamometer's log has no unloaded stretch: its zero is taken as right)"
     )
