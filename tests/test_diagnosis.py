@@ -605,3 +605,24 @@ def test_bootstrap_rms_through_the_gram_matrix_equals_the_direct_sum():
         B[0] = [[1e-3, 1e-3, -1e-3 * (900.0 - 300.0)]] * 3  # small residual, large terms
         direct = np.array([np.sqrt(np.mean(np.sum((X @ b.T) ** 2, 1))) for b in B])
         np.testing.assert_allclose(_rms_fitted(X, B), direct, rtol=1e-9)
+
+
+def test_a_robot_term_below_the_model_cannot_be_told_from_springback_coupling():
+    """A sheet recovering 30 % of a nominal robot's deflection made its term 0.71× the VJM's:
+    it was called a robot stiffness FAULT ("use identified_stiffness.toml") and the coupling's
+    text said "a softer robot". Below 1 both explain it; above 1 a softer robot is at fault."""
+    from roboisf.decompose.diagnose import RobotTermFit, robot_findings
+
+    def fit(ratio, ci):
+        z = np.zeros(2)
+        return RobotTermFit(ratio, ci, z, (0.0, 0.01e-3), z, (0.0, 0.01e-3), None, None, None,
+                            None, 0.3e-3, 0.0, 0.0, [1, 2, 3])  # fmt: skip
+
+    f = {x.suspect: x for x in robot_findings(fit(0.712, (0.670, 0.745)), axisymmetric=True)}
+    assert f["robot_stiffness"].verdict == "cannot_tell"
+    assert "springback coupling" in f["robot_stiffness"].explanation
+    assert f["springback_coupling"].verdict == "cannot_tell"
+    assert "stiffer robot" in f["springback_coupling"].explanation
+    f = {x.suspect: x for x in robot_findings(fit(1.436, (1.403, 1.519)), axisymmetric=True)}
+    assert f["robot_stiffness"].verdict == "fault"
+    assert "softer robot" in f["springback_coupling"].explanation

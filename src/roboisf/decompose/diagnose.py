@@ -43,7 +43,9 @@ detection limits (``DETECTION_LIMITS``): ``fault`` when the whole interval lies 
 
 ``springback_coupling`` (the sheet recovering part of the machine's deflection) scales the robot
 term exactly as a stiffer robot would: it is ``cannot_tell`` whenever the robot term is off, and
-``ok`` only when the robot term agrees with the model.
+``ok`` only when the robot term agrees with the model; a robot term below the model's makes
+``robot_stiffness`` ``cannot_tell`` too (a stiffer robot or a coupling, which one run cannot
+tell apart).
 """
 
 from __future__ import annotations
@@ -1080,17 +1082,32 @@ def robot_findings(rf: RobotTermFit | None, *, axisymmetric: bool) -> list[Findi
         )
     out = []
     lo, hi = rf.ratio_ci
+    rs_text = (
+        f"the robot gives way {rf.ratio:.3f}× the VJM's prediction at the corrected forces "
+        f"(95 % [{lo:.3f}, {hi:.3f}], spanning the one-scale and per-joint fits, joints "
+        f"{rf.joints_fitted} fitted, the others at nominal); VJM RMS "
+        f"{rf.rms_vjm * 1e3:.3f} mm"
+    )
+    rs_limit = DETECTION_LIMITS["robot_stiffness"]
+    # a robot term smaller than the model's is a stiffer robot, or a sheet recovering part of
+    # the robot's deflection (springback coupling): one run cannot tell them apart — a
+    # coupling of 0.3 on a nominal robot was called a robot stiffness FAULT at 0.71×
+    stiffer = verdict(lo, hi, rs_limit) == "fault" and hi < 1.0
+    if stiffer:
+        rs_text += (
+            "; a stiffer robot than modelled, or the sheet recovering part of the robot's "
+            "deflection (springback coupling): one run cannot tell them apart — either way, "
+            "identified_stiffness.toml compensates this process"
+        )
     out.append(
         _finding(
             "robot_stiffness",
             rf.ratio,
             rf.ratio_ci,
             "1",
-            f"the robot gives way {rf.ratio:.3f}× the VJM's prediction at the corrected forces "
-            f"(95 % [{lo:.3f}, {hi:.3f}], spanning the one-scale and per-joint fits, joints "
-            f"{rf.joints_fitted} fitted, the others at nominal); VJM RMS "
-            f"{rf.rms_vjm * 1e3:.3f} mm",
+            rs_text,
             "use identified_stiffness.toml for compensate and plan",
+            force="cannot_tell" if stiffer else None,
         )
     )
     s1, sj = rf.shift * 1e3, rf.shift_joint * 1e3
@@ -1168,9 +1185,15 @@ def robot_findings(rf: RobotTermFit | None, *, axisymmetric: bool) -> list[Findi
             "a sheet that recovers part of the robot's deflection scales the robot term as a "
             "stiffer robot would: "
             + (
-                "the robot term agrees with the model, so neither is off"
+                "the robot term agrees with the model: neither is off, unless a softer robot "
+                "and a coupling cancel (one run cannot tell)"
                 if in_band
-                else f"the ratio {rf.ratio:.3f} is a softer robot, or a coupling, or both"
+                else (
+                    f"the ratio {rf.ratio:.3f} is a stiffer robot, or a coupling, or both"
+                    if rf.ratio < 1
+                    else f"the ratio {rf.ratio:.3f} is a softer robot, and a coupling may hide "
+                    "more of it"
+                )
             ),
             "",
         )
