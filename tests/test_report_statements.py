@@ -261,6 +261,23 @@ def test_part_view_comes_first_and_carries_plotly_js(small, tmp_path):
     assert text.index("* plotly.js v") < text.index('id="fig-part_3d"')
 
 
+def test_part_view_box_keeps_the_parts_proportions_within_the_camera(small):
+    """plotly's "data" aspect mode scales the box to unit volume: a flat or long part grew past
+    the fixed camera and was cut off (a 160 × 80 × 25 mm pyramid, a 12 mm deep cone). The box
+    is the data's proportions with the longest side 1 (the flattest at least MIN_ASPECT)."""
+    from roboisf.report.interactive import MIN_ASPECT, _aspect, part_figure
+
+    scene = part_figure(small[0]).to_go().layout.scene  # validated by plotly
+    assert scene.aspectmode == "manual"
+    r = scene.aspectratio
+    assert max(r.x, r.y, r.z) == 1.0 and min(r.x, r.y, r.z) >= MIN_ASPECT
+    x = np.array([-80.0, 80.0, np.nan])
+    assert _aspect(x, np.array([-40.0, 40.0]), np.array([-25.0, 0.0])) == {
+        "x": 1.0, "y": 0.5, "z": 0.1562
+    }  # fmt: skip
+    assert _aspect(x, x, np.array([-1.0, 0.0]))["z"] == MIN_ASPECT
+
+
 def test_experiment_vs_vjm_captions_give_the_mismatch(small, tmp_path):
     check = {"ratio": 2.0, "ci_low": 1.98, "ci_high": 2.02, "verdict": "mismatch"}
     _, text = _write(small, tmp_path / "m", vjm_check=check)

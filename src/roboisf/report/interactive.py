@@ -545,6 +545,21 @@ def thickness_figure(per_point: pd.DataFrame) -> pf.Figure:
     return fig
 
 
+#: The flattest side of the 3D view's box, relative to its longest (a 12 mm deep, 120 mm wide
+#: cone keeps a visible depth).
+MIN_ASPECT = 0.15
+
+
+def _aspect(x: np.ndarray, y: np.ndarray, z: np.ndarray) -> dict[str, float]:
+    """``scene.aspectratio`` of coordinates (mm): the ranges over the longest, at least
+    :data:`MIN_ASPECT`."""
+    spans = [
+        float(np.nanmax(a) - np.nanmin(a)) if np.any(np.isfinite(a)) else 0.0 for a in (x, y, z)
+    ]
+    top = max(spans) or 1.0
+    return {k: round(max(v / top, MIN_ASPECT), 4) for k, v in zip("xyz", spans, strict=True)}
+
+
 def part_figure(per_point: pd.DataFrame) -> pf.Figure:
     """The formed part in 3D: whole laps of the toolpath (contact points in the work frame, mm)
     drawn as lines coloured by the normal value of one term at a time — total, springback, tool,
@@ -602,11 +617,15 @@ def part_figure(per_point: pd.DataFrame) -> pf.Figure:
             showlegend=False,
             margin={"l": 0, "r": 0, "t": 56, "b": 0},
             scene={
-                "aspectmode": "data",
+                # the data's proportions with the longest side 1: plotly's "data" mode scales
+                # the box to unit volume, so a flat or long part (a 160 × 80 × 25 mm pyramid,
+                # a 12 mm deep cone) grew past the fixed camera and was cut off
+                "aspectmode": "manual",
+                "aspectratio": _aspect(view.x, view.y, view.z),
                 "xaxis": {"title": {"text": "x (mm)"}},
                 "yaxis": {"title": {"text": "y (mm)"}},
                 "zaxis": {"title": {"text": "z (mm)"}},
-                "camera": {"eye": {"x": 1.3, "y": -1.3, "z": 0.9}},
+                "camera": {"eye": {"x": 1.05, "y": -1.05, "z": 0.75}},
             },
             updatemenus=[
                 {
