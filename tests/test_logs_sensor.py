@@ -187,7 +187,7 @@ def test_study_conditioning_takes_the_sensor_orientation_from_the_joints():
     )
     study = SimpleNamespace(robot=SimpleNamespace(T_base_work=np.eye(4)))
     run = SimpleNamespace(forces=forces)
-    tp = SimpleNamespace(time=t_tp)
+    tp = SimpleNamespace(time=t_tp, depth=np.full_like(t_tp, 1e-3))  # forming from its start
     t_log = np.arange(0.0, offset + 10.0, 1.0 / rate)
     k = np.clip(np.searchsorted(t_tp + offset, t_log, side="right") - 1, 0, len(t_tp) - 1)
     R_sensor = R_base_tip[k] @ T_tip_sensor[:3, :3]
@@ -202,3 +202,28 @@ def test_study_conditioning_takes_the_sensor_orientation_from_the_joints():
     # the toolpath's vertical tool instead of the joints: the tilt's weight change stays
     off, _ = condition_study_log(study, run, log, vertical_tool(0.0))
     assert np.abs(off.wrench[:, :3] - process[:, :3]).max() > 5.0
+
+
+def test_a_log_that_starts_forming_has_no_unloaded_approach():
+    """A log whose first laps form at a steady 100 N (a part starting 0.8 mm below the sheet
+    plane) looked unloaded until the force changed: "not tared … set tare = auto", and tare =
+    "auto" subtracted the forming force. With the log time where the tool starts to form, the
+    approach ends there; a real approach before it is still found and tared."""
+    from roboisf.sensor import Conditioning, condition_wrench
+
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 20.0, 0.01)
+    W = rng.normal(0, 0.2, (t.size, 6))
+    W[:, 2] += 100.0 + np.where(t > 8.0, 400.0, 0.0)  # steady forming, then deeper laps
+    none, auto = Conditioning("none", None), Conditioning("auto", None)
+    _, notes, _ = condition_wrench(t, W, none)
+    assert any("not tared" in n for n in notes)  # without the path: the forming start looks free
+    _, notes, info = condition_wrench(t, W, none, load_start=0.0)
+    assert not notes and info["window"] is None
+    out, notes, _ = condition_wrench(t, W, auto, load_start=0.0)
+    assert out is W and "found no unloaded approach" in notes[0]  # nothing subtracted
+    W[t < 3.0, 2] -= 100.0  # a real approach in the air before the path, with a 0 N zero
+    W[t < 3.0, 0] += 12.0  # … and a 12 N offset on x
+    out, notes, info = condition_wrench(t, W, auto, load_start=3.0)
+    assert not notes and info["window"][1] < 3.0
+    assert np.mean(out[t < 3.0, 0]) == pytest.approx(0.0, abs=0.1)

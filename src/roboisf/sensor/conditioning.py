@@ -173,6 +173,10 @@ def _distances(W: F64, level: F64) -> F64:
     return row_norms(W, 0, level)
 
 
+#: The fewest samples of an unloaded approach used to tare or to judge a zero.
+UNLOADED_MIN_SAMPLES = 25
+
+
 def unloaded_samples(time: F64, W: F64, *, min_samples: int = 25) -> slice | None:
     """The unloaded approach at the start of a log: samples before the force onset.
 
@@ -333,6 +337,7 @@ def condition_wrench(
     R_world_sensor: ArrayLike | None = None,
     R_index: ArrayLike | None = None,
     file: Path | None = None,
+    load_start: float | None = None,
 ) -> tuple[F64, list[str], dict[str, object]]:
     """Remove the tool's weight and the zero offset from a sensor reading.
 
@@ -349,6 +354,10 @@ def condition_wrench(
     R_index : (N,) int, optional — sample i's orientation is ``R_world_sensor[R_index[i]]`` (a
         few orientations shared by many samples: the gravity wrench is computed once for each)
     file : the log, for messages
+    load_start : s, the log time from which the tool forms (its first toolpath point below the
+        sheet plane), when known: the unloaded approach ends there. A log that starts forming,
+        at a force steady enough to look unloaded, has none — its first laps were tared away by
+        ``tare = "auto"`` and reported as an untared bias of 100 N on a clean cell
 
     Returns
     -------
@@ -372,6 +381,9 @@ def condition_wrench(
         win = _window(t, float(cond.tare[0]), float(cond.tare[1]), file)
     else:
         win = unloaded_samples(t, W)
+        if win is not None and load_start is not None:
+            stop = min(int(win.stop), int(np.searchsorted(t, load_start, side="left")))
+            win = slice(0, stop) if stop >= UNLOADED_MIN_SAMPLES else None
     if win is not None:
         b = W[win].mean(axis=0)
         info["window"] = (float(t[win][0]), float(t[win][-1]))
@@ -391,6 +403,6 @@ def condition_wrench(
     elif cond.tare == "auto":
         notes.append(
             f'{name}: tare = "auto" found no unloaded approach at the start of the log (it '
-            "starts loaded); not tared — give tare = [t0, t1] s"
+            "starts loaded, or forming on the toolpath); not tared — give tare = [t0, t1] s"
         )
     return W, notes, info

@@ -110,6 +110,10 @@ def read_study_force_log(study: Study, run: RunSpec) -> ForceLog:
     )
 
 
+#: A toolpath point deeper than this [m] forms the sheet: the tool is loaded from there on.
+FORMING_DEPTH = 20e-6
+
+
 def condition_study_log(
     study: Study,
     run: RunSpec,
@@ -154,8 +158,21 @@ def condition_study_log(
         if isinstance(f.tare, tuple)
         else Conditioning("auto" if f.tare == "auto" else "none", tool)
     )
+    # where the tool begins to form on the log's clock (the first toolpath point below the sheet
+    # plane: a first lap in the plane carries no load): the unloaded approach ends there
+    load_start = None
+    if tp is not None:
+        t_pts = tp.time + f.time_offset if point_time is None else np.asarray(point_time, float)
+        below = np.flatnonzero(tp.depth > FORMING_DEPTH)
+        load_start = float(t_pts[below[0]]) if below.size else None
     W, notes, _ = condition_wrench(
-        log.time, log.wrench, cond, R_world_sensor=R, R_index=R_index, file=f.file
+        log.time,
+        log.wrench,
+        cond,
+        R_world_sensor=R,
+        R_index=R_index,
+        file=f.file,
+        load_start=load_start,
     )
     if not log.moments_known and np.any(W[:, 3:] != 0.0):
         W = W.copy() if W is log.wrench else W
