@@ -626,3 +626,13 @@ def test_a_robot_term_below_the_model_cannot_be_told_from_springback_coupling():
     f = {x.suspect: x for x in robot_findings(fit(1.436, (1.403, 1.519)), axisymmetric=True)}
     assert f["robot_stiffness"].verdict == "fault"
     assert "softer robot" in f["springback_coupling"].explanation
+
+
+def test_the_headline_names_what_it_cannot_tell_in_words():
+    """'no fault found; cannot tell: force_gain, scan_shift' gave the summary's keys where the
+    faults' headlines and the report's table use words."""
+    from roboisf.decompose.diagnose import diagnosis_headline, robot_findings
+
+    head = diagnosis_headline(robot_findings(None, axisymmetric=True))
+    assert head.startswith("diagnosis: no fault found; cannot tell: robot stiffness, scan shift")
+    assert "_" not in head

@@ -1208,7 +1208,10 @@ def diagnosis_headline(findings: list[Finding]) -> str:
         return "diagnosis: " + " | ".join(f.headline for f in faults)
     unsure = [f.suspect for f in findings if f.verdict == "cannot_tell"]
     if unsure:
-        return "diagnosis: no fault found; cannot tell: " + ", ".join(unsure)
+        # in words, as each finding's own headline says its suspect (not the summary's keys)
+        return "diagnosis: no fault found; cannot tell: " + ", ".join(
+            u.replace("_", " ") for u in unsure
+        )
     return "diagnosis: no fault found"
 
 
