@@ -69,6 +69,10 @@ def test_model_check_by_construction_is_marked(small, tmp_path):
     assert 'class="bc"' not in plain and "model holds" in plain
     cards = built[built.index('class="cards"') : built.index('class="verdict"')]
     assert 'Robot model check <span class="bc"' in cards and "holds by construction" in cards
+    # the estimate at the interval's precision: "0.997 (95 % [1.00, 1.00])" put it outside
+    c = {**check, "ratio": 0.99696, "ci_low": 0.99601, "ci_high": 0.99904, "by_construction": True}
+    _, built = _write(small, tmp_path / "c", vjm_check=c)
+    assert "0.997 (95 % [0.996, 0.999])" in built
 
 
 def test_scope_states_rim_band_share_and_points_beyond_the_distance(small, tmp_path):

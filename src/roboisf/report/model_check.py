@@ -35,7 +35,10 @@ def check_card(summary: Mapping[str, Any]) -> tuple[str, str, str, str] | None:
             f"Robot model check {BY_CONSTRUCTION}",
             "holds by construction",
             "virtual cell whose truth is the model: measured/VJM "
-            f"{fmt(ratio, 3)} ({interval}) shows only the measurement's error",
+            # the estimate and its interval at one precision ("0.997 (95 % [1.00, 1.00])"
+            # put the estimate outside its own interval)
+            f"{fmt(ratio, 3)} (95 % [{fmt(lo, 3)}, {fmt(hi, 3)}]) shows only the measurement's "
+            "error",
         )
     verdict = str(vc.get("verdict", ""))
     cls = " warn" if verdict == "mismatch" else ""
