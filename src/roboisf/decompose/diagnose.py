@@ -988,8 +988,9 @@ XT_ACTION = "check the sensor's calibration matrix (the analysis removed the axi
 
 
 def _vec(v: F64) -> str:
-    """A force vector (3,) N as the explanations print it."""
-    return f"({v[0]:+.1f}, {v[1]:+.1f}, {v[2]:+.1f}) N"
+    """A force vector (3,) N as the explanations print it (no "-0.0": rounded, then + 0.0)."""
+    x, y, z = (round(float(c), 1) + 0.0 for c in v[:3])
+    return f"({x:+.1f}, {y:+.1f}, {z:+.1f}) N"
 
 
 def _static_bias_finding(u: UnloadedEvidence, gain: float, sf: SensorFit | None) -> Finding:
