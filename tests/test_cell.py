@@ -229,6 +229,24 @@ def test_virtual_cell_cli_takes_a_part_file(tmp_path, mesh_part_file, capsys):
     assert main(["-q", "virtual-cell", "-o", str(bad)]) == 2
 
 
+def test_virtual_cell_of_a_profile_part_stands_alone(tmp_path):
+    """A profile part names its generatrix CSV relative to the part file: the study kept that
+    name without the file, and analyze refused it ('profile file not found'). The generatrix
+    is written into the study's [part] table."""
+    parts = tmp_path / "parts"
+    parts.mkdir()
+    (parts / "gen.csv").write_text("r,z\n60,0\n40,-20\n25,-50\n")
+    part = parts / "prof.toml"
+    assert main(["-q", "part", "profile", str(parts / "gen.csv"), "-o", str(part)]) == 0
+    out = tmp_path / "study"
+    args = ["--scan-points", "5000", "--force-rate", "50", "--step-down", "4", "--spacing", "8"]
+    assert main(["-q", "virtual-cell", "--part", str(part), "-o", str(out), *args]) == 0
+    assert not (out / "gen.csv").exists()
+    s = load_study(out)  # refused before
+    np.testing.assert_allclose(s.part.r, [0.06, 0.04, 0.025], rtol=1e-12)
+    np.testing.assert_allclose(s.part.z, [0.0, -0.02, -0.05], atol=1e-15)
+
+
 def test_virtual_cell_cli_coarse_path_and_joint_rate(tmp_path, capsys):
     """--step-down/--spacing [mm] and --joint-rate [Hz] reach the virtual cell: the study's
     toolpath is the paper cone's on that coarse path, its joint log at that rate (the small demo

@@ -84,6 +84,7 @@ from roboisf.parts import (
     Cone,
     MeshPart,
     Part,
+    ProfilePart,
     Pyramid,
     sine_law_thickness,
 )
@@ -889,9 +890,15 @@ PART_MESH = "part_mesh.ply"
 
 def _part_table(part: Part, folder: Path) -> dict[str, object]:
     """The study's ``[part]`` table; a mesh part's mesh is written into the study folder
-    (:data:`PART_MESH`, exact float64 vertices in m, faces as oriented) so the study stands
-    alone whatever file the part came from."""
+    (:data:`PART_MESH`, exact float64 vertices in m, faces as oriented) and a profile part's
+    generatrix into the table, so the study stands alone whatever file the part came from."""
     if not isinstance(part, MeshPart):
+        if isinstance(part, ProfilePart) and part.source is not None:
+            # the generatrix written inline (r, z in mm), not the CSV path the part file named:
+            # relative to the part file's folder, it was not in the study, which analyze refused
+            from dataclasses import replace
+
+            return replace(part, source=None).to_dict()
         return part.to_dict()
     V = np.ascontiguousarray(part.vertices, dtype="<f8")
     F = np.ascontiguousarray(part.faces, dtype="<i4")
