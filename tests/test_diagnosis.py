@@ -644,3 +644,25 @@ def test_force_vectors_in_the_text_have_no_negative_zero():
 
     assert _vec(np.array([-0.04, -0.0, 0.0])) == "(+0.0, +0.0, +0.0) N"
     assert _vec(np.array([-36.64, 13.26, 130.5])) == "(-36.6, +13.3, +130.5) N"
+
+
+def test_with_the_forces_unchecked_a_robot_or_shift_fault_cannot_be_told():
+    """Fewer than 6 laps: the sensor cannot be fitted against the dynamometer. A sensor reading
+    0.85× was then a robot stiffness FAULT at 1.21×, and a 25 N bias a scan shift FAULT of
+    0.10 mm; both are cannot_tell, saying why. A shift beside a bias ruled out stays a fault."""
+    from roboisf.decompose.diagnose import RobotTermFit, _unchecked_forces, robot_findings
+
+    rf = RobotTermFit(1.212, (1.199, 1.233), np.array([1e-4, 0.0]), (0.084e-3, 0.111e-3),
+                      np.array([1e-4, 0.0]), (0.084e-3, 0.111e-3), None, None, None, None,
+                      0.3e-3, 0.0, 0.0, [1, 2, 3])  # fmt: skip
+    raw = {f.suspect: f for f in robot_findings(rf, axisymmetric=True)}
+    assert raw["robot_stiffness"].verdict == raw["scan_shift"].verdict == "fault"
+    unsure = {"force_bias": "cannot_tell", "force_gain": "cannot_tell"}
+    got = {s: _unchecked_forces(f, unsure) for s, f in raw.items()}
+    assert got["robot_stiffness"].verdict == "cannot_tell"
+    assert "gain could not be checked" in got["robot_stiffness"].explanation
+    assert got["robot_stiffness"].headline.startswith("robot stiffness: cannot tell")
+    assert (
+        got["scan_shift"].verdict == "cannot_tell" and "force bias" in got["scan_shift"].explanation
+    )
+    assert _unchecked_forces(raw["scan_shift"], {"force_bias": "ok"}).verdict == "fault"

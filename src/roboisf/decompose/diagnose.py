@@ -981,6 +981,10 @@ def sensor_findings(
 #: less force than the CNC; doubled, as the fit's gain interval widens its own difference.
 RIM_PROCESS_GAP = 0.12
 
+BIAS_ACTION_UNFITTED = (
+    "tare the sensor with the tool mounted, or declare tool_mass (not removed: too few laps to "
+    "fit the forces against the dynamometer)"
+)
 BIAS_ACTION = (
     "tare the sensor with the tool mounted, or declare tool_mass (the analysis removed it)"
 )
@@ -1023,7 +1027,9 @@ def _static_bias_finding(u: UnloadedEvidence, gain: float, sf: SensorFit | None)
             f"; while forming, the fitted constant is {_vec(sf.b)}, the static offset and what "
             "the load adds (force_crosstalk)"
         )
-    return _finding("force_bias", float(np.linalg.norm(b_s)), ci, "N", text, BIAS_ACTION)
+    # removed only where a sensor fit corrects the forces (with fewer than 6 laps it cannot)
+    action = BIAS_ACTION if sf is not None else BIAS_ACTION_UNFITTED
+    return _finding("force_bias", float(np.linalg.norm(b_s)), ci, "N", text, action)
 
 
 #: A start–end difference of the flange sensor at rest above this [N] is said as a drift.
@@ -1231,6 +1237,33 @@ class CorrectedRobotTerm:
     A: F64
 
 
+def _unchecked_forces(f: Finding, force_verdicts: dict[str, str]) -> Finding:
+    """``f`` when the forces could not be fitted against the dynamometer (fewer than 6 laps):
+    a robot stiffness fault is a gain error just as well (it scales the robot term alike), and
+    a scan shift fault a force bias left in the forces (a constant lateral force deflects the
+    robot sideways) unless that bias is ruled out — both ``cannot_tell``, saying why. A
+    sensor reading 0.85× on a part of 5 laps was called a robot stiffness FAULT at 1.21×, a
+    25 N bias a scan shift FAULT of 0.10 mm."""
+    if f.verdict != "fault":
+        return f
+    if f.suspect == "robot_stiffness":
+        why = (
+            "the force sensor's gain could not be checked against the dynamometer (fewer than "
+            "6 used laps): a gain error scales the robot term alike"
+        )
+    elif f.suspect == "scan_shift" and force_verdicts.get("force_bias") != "ok":
+        why = (
+            "a force bias could not be ruled out nor removed (fewer than 6 used laps): a constant "
+            "lateral force moves the robot term as a shift does"
+        )
+    else:
+        return f
+    text = f"{f.explanation}; {why}"
+    label = f.suspect.replace("_", " ")
+    head = f"{label}: cannot tell — {_first_clause(text)}"
+    return replace(f, verdict="cannot_tell", explanation=text, headline=head)
+
+
 def diagnose(
     *,
     robot: Any,
@@ -1310,6 +1343,8 @@ def diagnose(
         lo, hi = rf.ratio_ci
         rf = replace(rf, ratio_ci=(lo * min(g_lo, 1.0), hi * max(g_hi, 1.0)))
     findings += robot_findings(rf, axisymmetric=axisymmetric)
+    if sf is None:  # the forces could not be checked against the dynamometer, nor corrected
+        findings = [_unchecked_forces(f, fv) for f in findings]
     order = {s: i for i, s in enumerate(SUSPECTS)}
     findings.sort(key=lambda f: order[f.suspect])
     diag = Diagnosis(findings, sf, rf, correct)
