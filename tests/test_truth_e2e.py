@@ -214,3 +214,23 @@ def test_sideways_scan_shift_is_warned(tmp_path):
     assert fit["size_mm"] == pytest.approx(0.3, abs=0.05)
     assert abs(fit["shift_mm"][1]) > 4 * abs(fit["shift_mm"][0])  # along y, as shifted
     assert not any(w.startswith("cnc scan: its normal deviation") for w in r.summary.warnings)
+
+
+def test_a_shifted_scan_is_not_called_a_robot_model_that_does_not_hold(tmp_path):
+    """On a pyramid a 0.3 mm scan shift makes the robot term 1.13× the VJM's; the diagnosis puts
+    it on the scan (robot stiffness ok), yet the warning said "the robot model does not hold …
+    the VJM's prediction is off — use the identified stiffness". It says what the diagnosis
+    found."""
+    from roboisf.virtual.cell import pyramid_cell
+
+    (tmp_path / "t.toml").write_text(
+        tomli_w.dumps({"scan": {"shift": [0.3, 0.0, 0.0]}}), encoding="utf-8"
+    )
+    build_study(pyramid_cell(truth=load_truth(tmp_path / "t.toml"), **FAST), tmp_path / "s")
+    r = analyze(tmp_path / "s")
+    verdicts = {e["suspect"]: e["verdict"] for e in r.summary.diagnosis}
+    assert r.summary.vjm_check["verdict"] == "mismatch"
+    assert verdicts["robot_stiffness"] == "ok" and verdicts["scan_shift"] == "fault"
+    assert not any("the VJM's prediction is off" in w for w in r.summary.warnings)
+    (w,) = [w for w in r.summary.warnings if "finds the robot's stiffness as modelled" in w]
+    assert w.endswith("puts the difference on scan shift (docs/diagnosis.md)")

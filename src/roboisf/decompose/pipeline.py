@@ -810,15 +810,31 @@ def _model_checks(
             summary["identification"] = ident.to_dict()
     summary["identified_stiffness"] = None  # named by analyze when identified
     if vc.verdict == "mismatch":
-        use = (
-            " — use the identified stiffness (identified_stiffness.toml) for compensate and plan"
-            if ident is not None
-            else ""
-        )
-        summary["warnings"].append(
-            f"the robot model does not hold: {vc.reason}; the robot term is the measured one, "
-            f"the VJM's prediction is off{use}"
-        )
+        if verdicts["robot_stiffness"].verdict == "ok":
+            # the diagnosis puts the difference elsewhere (a scan's misregistration, a sensor):
+            # "the VJM's prediction is off — use the identified stiffness" contradicted it
+            elsewhere = [
+                f.suspect.replace("_", " ")
+                for f in diag.findings
+                if f.verdict == "fault" and f.suspect != "robot_stiffness"
+            ]
+            summary["warnings"].append(
+                f"the robot term differs from the VJM's: {vc.reason}; the diagnosis finds the "
+                "robot's stiffness as modelled and puts the difference on "
+                + (", ".join(elsewhere) if elsewhere else "no single suspect")
+                + " (docs/diagnosis.md)"
+            )
+        else:
+            use = (
+                " — use the identified stiffness (identified_stiffness.toml) for compensate and "
+                "plan"
+                if ident is not None
+                else ""
+            )
+            summary["warnings"].append(
+                f"the robot model does not hold: {vc.reason}; the robot term is the measured "
+                f"one, the VJM's prediction is off{use}"
+            )
     summary["warnings"].extend(_lateral_warnings(tp, d, vc, summary, verdicts["scan_shift"]))
     if verdicts["force_bias"].verdict == "fault":
         summary["warnings"].extend(_force_bias_warnings(tp, W_cnc, W_rob, valid))
