@@ -65,6 +65,20 @@ def test_ratio_and_verdicts(path):
     json.dumps(d)
 
 
+def test_per_depth_bins_of_a_part_with_few_laps_are_never_empty(path):
+    """Quantile edges of few lap depths repeat: a 12 mm cone's table had "7.7–7.7 mm, 0
+    points" twice. Each edge once, no empty or zero-width bin, every used point in one."""
+    rng = np.random.default_rng(4)
+    x = _predicted(path)
+    laps = np.unique(path.lap)[:5]  # five laps: five distinct depths
+    valid = np.isin(path.lap, laps) & (path.depth > 0)
+    y = 1.2 * x + _ar_noise(path.lap, rng, 20e-6)
+    r = vjm_check(y, x, valid, path.lap, path.depth)
+    rows = r.per_depth
+    assert rows and all(row["n"] > 0 and row["depth_hi"] > row["depth_lo"] for row in rows)
+    assert sum(row["n"] for row in rows) == valid.sum()
+
+
 def test_bootstrap_interval_covers_under_correlated_noise(path):
     """The lap-block bootstrap's 95 % interval holds the true ratio in most repetitions where an
     interval for independent points would not (the errors here are correlated along the path)."""

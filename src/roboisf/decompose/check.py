@@ -281,9 +281,14 @@ def vjm_check(
     boot = boot[np.isfinite(boot)]
     lo, hi = (float(v) for v in np.percentile(boot, [2.5, 97.5]))
     per_depth = []
-    edges = np.quantile(z, np.linspace(0, 1, N_DEPTH_BINS + 1))
-    for k in range(N_DEPTH_BINS):
-        m = (z >= edges[k]) & ((z < edges[k + 1]) if k < N_DEPTH_BINS - 1 else (z <= edges[k + 1]))
+    # quantiles of the laps' few depths repeat on a part of few laps (a 12 mm cone: bins
+    # "7.7–7.7 mm, 0 points"): each edge once, and no empty bin
+    edges = np.unique(np.quantile(z, np.linspace(0, 1, N_DEPTH_BINS + 1)))
+    nb = len(edges) - 1
+    for k in range(nb):
+        m = (z >= edges[k]) & ((z < edges[k + 1]) if k < nb - 1 else (z <= edges[k + 1]))
+        if not m.any():
+            continue
         per_depth.append(
             {
                 "depth_lo": float(edges[k]),
