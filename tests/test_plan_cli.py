@@ -50,6 +50,9 @@ def test_plan_part_writes_ranked_outputs(cone_toml, tmp_path, capsys):
     assert "overflow-wrap:anywhere" in html
     text = capsys.readouterr().out
     assert "% lower" in text
+    # ranks whole, the grid's millimetres at 0.1 ("1.000" and "1400.000" before)
+    first = html[html.index("<tbody>") :].split("</tr>")[0]
+    assert first.startswith("<tbody><tr><td>1</td><td>") and ".000</td>" not in first[:60]
 
 
 def test_one_yaw_is_one_candidate_and_a_worse_best_is_said_higher(cone_toml, tmp_path, capsys):

@@ -72,10 +72,23 @@ def _img(path: Path, alt: str) -> str:
     return f'<img alt="{pg.esc(alt)}" style="max-width:100%" src="data:image/png;base64,{data}">'
 
 
+#: Decimals per column of the candidates' table (the rest: :func:`roboisf.report.page.fmt`'s 3):
+#: a rank is a whole number, a placement on a grid of millimetres and degrees ("1.000",
+#: "1200.000" before).
+_DECIMALS = {"rank": 0, "x_mm": 1, "y_mm": 1, "z_mm": 1, "yaw_deg": 1}
+
+
+def _cell(key: str, value: Any) -> str:
+    nd = _DECIMALS.get(key)
+    if nd is None or not isinstance(value, int | float) or isinstance(value, bool):
+        return pg.fmt(value)
+    return pg.fmt(round(float(value), nd) + 0.0, nd)  # + 0.0: no "-0.0"
+
+
 def _rows_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[tuple[str, str]]) -> str:
     head = "".join(f"<th>{pg.esc(label)}</th>" for _, label in columns)
     body = "".join(
-        "<tr>" + "".join(f"<td>{pg.fmt(r[k])}</td>" for k, _ in columns) + "</tr>" for r in rows
+        "<tr>" + "".join(f"<td>{_cell(k, r[k])}</td>" for k, _ in columns) + "</tr>" for r in rows
     )
     return f'<table class="data"><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>'
 
