@@ -171,6 +171,9 @@ def test_end_to_end_study_analyze_compensate_form_again(analyzed, tmp_path):
     assert s["complete"] and s["gouge"]["ok"]
     # the scan has holes: filled from neighbours and flagged, never fed back as zeros
     pp = pd.read_csv(out / "per_point.csv")
+    # "before" says the points it is over (the analysis's tables use another set)
+    assert s["n_points_before"] == int(pp["dn_before"].notna().sum()) > 0
+    assert f"over its {s['n_points_before']} scanned" in (out / "compensation.html").read_text()
     assert s["springback"]["filled_from_neighbours"] == int(pp["filled"].sum())
     cmd = read_toolpath_csv(out / "compensated.csv")
     # the rim band (sheet bending, left out by the method) only gets the pre-deflection

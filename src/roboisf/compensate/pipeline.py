@@ -443,6 +443,9 @@ def write_compensation(
     summary["units"] = "mm"
     if dn_before is not None:
         summary["mean_abs_dn_before_mm"] = float(np.nanmean(series["abs_dn_before"]))
+        # the points it is over (the robot scan's): the analysis's tables use those valid on
+        # both scans, so the two means differ by their point sets (1.651 vs 1.660 mm)
+        summary["n_points_before"] = int(np.count_nonzero(np.isfinite(series["abs_dn_before"])))
     if dn_after is not None:
         key = after_label.replace(" ", "_")
         summary[f"mean_abs_dn_after_{key}_mm"] = float(np.nanmean(series["abs_dn_after"]))

@@ -186,7 +186,13 @@ def _body(laps: pd.DataFrame, summary: dict[str, Any], div: str) -> str:
             _card(
                 "Mean |dn| before",
                 f"{fmt(summary['mean_abs_dn_before_mm'], 3)}<small>mm</small>",
-                "the part formed with the nominal command",
+                "the part formed with the nominal command"
+                + (
+                    f", over its {summary['n_points_before']} scanned toolpath points (the "
+                    "analysis's tables: those on both scans)"
+                    if summary.get("n_points_before") is not None
+                    else ""
+                ),
             )
         )
     if key in summary:
