@@ -102,6 +102,9 @@ def test_says_why_the_curves_start_late(tmp_path):
 def test_legend_under_the_panels():
     fig = compensation_figure(_laps(), _summary())
     assert fig.layout.legend.y < 0 and fig.layout.legend.yanchor == "top"
+    # room above the panels' titles for plotly's tool bar (at 40 px it sat on the right title):
+    # as much as the study report's subplot figures leave above theirs
+    assert fig.layout.margin.t >= 72
 
 
 def test_virtual_cell_iterations_named_and_listed(tmp_path):

@@ -33,6 +33,11 @@ def _after_label(summary: dict[str, Any]) -> str:
     return f"after ({summary.get('after', 'predicted')})"
 
 
+#: Top margin of the before/after figure [px]: the panels' titles and plotly's tool bar above
+#: them, one over the other.
+COMPENSATION_TOP = 72
+
+
 def compensation_figure(laps: pd.DataFrame, summary: dict[str, Any]) -> go.Figure:
     """Two panels: mean |dn| per lap before/after; the commanded offset per lap."""
     fig = make_subplots(
@@ -71,11 +76,12 @@ def compensation_figure(laps: pd.DataFrame, summary: dict[str, Any]) -> go.Figur
         2,
     )
     fig.update_xaxes(title_text="lap")
-    # the legend under the panels: above them it covered the first panel's title
+    # the legend under the panels: above them it covered the first panel's title; the top
+    # margin holds plotly's tool bar above the panels' titles (at 40 px it sat on the right one)
     fig.update_layout(
         **plotly_layout(
-            height=420,
-            margin={"l": 64, "r": 24, "t": 40, "b": 96},
+            height=440,
+            margin={"l": 64, "r": 24, "t": COMPENSATION_TOP, "b": 96},
             legend={"orientation": "h", "yanchor": "top", "y": -0.22, "xanchor": "left", "x": 0},
         )
     )
