@@ -291,3 +291,15 @@ def test_experiment_vs_vjm_captions_give_the_mismatch(small, tmp_path):
         assert "2.00× the VJM" in cap and "does not hold" in cap, fid
     _, ok = _write(small, tmp_path / "o", vjm_check={**check, "verdict": "consistent"})
     assert "does not hold:" not in ok
+
+
+def test_table_numbers_read_floating_point_zeros_as_zero():
+    """A moment of 9.2e-21 N·m and a compliance coupling of -2.9e-24 m/N were printed as such,
+    and -0.0 as "-0.000"; real small values keep their scientific form."""
+    from roboisf.report.page import fmt
+
+    assert [fmt(v) for v in (9.182e-21, -2.923e-24, -0.0, -0.00004)] == [
+        "0.000", "0.000", "0.000", "-4.000e-05"
+    ]  # fmt: skip
+    assert fmt(2.5e-9) == "2.500e-09" and fmt(1.574e-4) == "1.574e-04" and fmt(-0.5) == "-0.500"
+    assert fmt(-0.0001, 2) == "-1.000e-04" and fmt(-0.004, 2) == "-4.000e-03"

@@ -125,6 +125,12 @@ def esc(value: Any) -> str:
     return html.escape(str(value), quote=True)
 
 
+#: Below this magnitude a table number is floating-point noise and reads 0 (a moment of
+#: 9.2e-21 N·m, a compliance coupling of -2.9e-24 m/N showed as such); every physical value
+#: the reports print is far above it in its unit (the smallest: compliances of ~1e-9 m/N).
+FLOAT_NOISE = 1e-15
+
+
 def fmt(value: Any, digits: int = 3) -> str:
     """Table numbers: fixed point for ordinary sizes, scientific for tiny/huge, '—' for none."""
     if value is None:
@@ -134,9 +140,12 @@ def fmt(value: Any, digits: int = 3) -> str:
     x = float(value)
     if not math.isfinite(x):
         return "—"
+    if abs(x) < FLOAT_NOISE:  # a zero computed in floating point (1e-21 N·m), not a value
+        x = 0.0
     if x != 0 and (abs(x) < 10 ** (-digits) or abs(x) >= 1e6):
         return f"{x:.3e}"
-    return f"{x:.{digits}f}"
+    text = f"{x:.{digits}f}"
+    return text[1:] if text.startswith("-") and float(text) == 0 else text  # no "-0.000"
 
 
 def _swatch(factor: str) -> str:
