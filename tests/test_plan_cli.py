@@ -48,8 +48,14 @@ def test_plan_part_writes_ranked_outputs(cone_toml, tmp_path, capsys):
     assert '<div class="scroll"><dl class="kv">' in html
     assert "#plan .scroll{max-width:100%;overflow-x:auto}" in html
     assert "overflow-wrap:anywhere" in html
-    text = capsys.readouterr().out
+    captured = capsys.readouterr()
+    text = captured.out
     assert "% lower" in text
+    # the best (x = 1400, y = 0) is on the grid's x and y edges: said, on the page too
+    for axis, v in (("x", 1400), ("y", 0)):
+        note = f"lies at the low end of the searched {axis} range ({axis} = {v} mm)"
+        assert note in captured.err and note in html
+    assert "searched z range" not in html  # one z value: no edge to speak of
     # ranks whole, the grid's millimetres at 0.1 ("1.000" and "1400.000" before)
     first = html[html.index("<tbody>") :].split("</tr>")[0]
     assert first.startswith("<tbody><tr><td>1</td><td>") and ".000</td>" not in first[:60]

@@ -245,6 +245,11 @@ def plan_cmd(
         n_workers=workers,
         progress=state.progress(),
     )
+    edge = _on_the_edge(res.best_placement, xs, ys, zs) if res.order.size else []
+    if edge:
+        from dataclasses import replace
+
+        res = replace(res, notes=[*res.notes, *edge])
     for n in res.notes:
         state.warn(n)
     summary = _summary(res, model.name, source, sched if isinstance(sched, str) else "client")
@@ -359,6 +364,25 @@ def _baseline(text: str | None, study_T: np.ndarray | None, model: Any) -> np.nd
             f"robot {model.name} has no default placement; give --baseline", field="--baseline"
         )
     return model.default_placement
+
+
+def _on_the_edge(best: Any, xs: Any, ys: Any, zs: Any) -> list[str]:
+    """A note per searched axis (of two values or more) whose end the best placement lies on
+    (m): a better placement may lie beyond it, outside the grid."""
+    out = []
+    for name, v, grid in (("x", best[0], xs), ("y", best[1], ys), ("z", best[2], zs)):
+        lo, hi = float(min(grid)), float(max(grid))
+        if len(grid) < 2 or hi <= lo:
+            continue
+        tol = 1e-6 * max(1.0, hi - lo)
+        end = "low" if abs(v - lo) <= tol else "high" if abs(v - hi) <= tol else None
+        if end is not None:
+            out.append(
+                f"the best placement lies at the {end} end of the searched {name} range "
+                f"({name} = {v * 1e3:.0f} mm): a better one may lie beyond it — widen "
+                f"--{name}-range (placements out of reach are rejected, never chosen)"
+            )
+    return out
 
 
 def _summary(res: Any, robot: str, source: str, scheduler: str) -> dict[str, Any]:
