@@ -1258,10 +1258,9 @@ def _unchecked_forces(f: Finding, force_verdicts: dict[str, str]) -> Finding:
         )
     else:
         return f
+    ci = (f.ci_low, f.ci_high) if f.ci_low is not None and f.ci_high is not None else None
     text = f"{f.explanation}; {why}"
-    label = f.suspect.replace("_", " ")
-    head = f"{label}: cannot tell — {_first_clause(text)}"
-    return replace(f, verdict="cannot_tell", explanation=text, headline=head)
+    return _finding(f.suspect, f.estimate, ci, f.unit, text, "", force="cannot_tell")
 
 
 def diagnose(

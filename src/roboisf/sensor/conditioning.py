@@ -177,7 +177,7 @@ def _distances(W: F64, level: F64) -> F64:
 UNLOADED_MIN_SAMPLES = 25
 
 
-def unloaded_samples(time: F64, W: F64, *, min_samples: int = 25) -> slice | None:
+def unloaded_samples(time: F64, W: F64, *, min_samples: int = UNLOADED_MIN_SAMPLES) -> slice | None:
     """The unloaded approach at the start of a log: samples before the force onset.
 
     σ is the noise of the first ``min_samples`` samples; the onset is the first sample whose
