@@ -314,9 +314,8 @@ def _problem(
                 "the placement the candidates are compared with",
                 field="--baseline",
             )
-        part_ = load_part(part)
         cell = make_cell(
-            part_, robot=robot, force=ForceModel(), tip_link=tip_link, T_base_work=T_bw
+            load_part(part), robot=robot, force=ForceModel(), tip_link=tip_link, T_base_work=T_bw
         )
         m = _override(cell.robot)
         prob, _ = problem_from_cell(cell, with_tool=with_tool, model=m, **opts)
