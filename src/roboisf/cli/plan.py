@@ -342,7 +342,15 @@ def _problem(
     # the study's tool and holder compliance, as analyze takes them
     k = tool_and_holder_compliance(c) if with_tool else None
     prob = PlanProblem(
-        m, tp.tip, tp.normal, tp.lap, W, tool_compliance=k, ball_radius=c.tool.radius, **opts
+        m,
+        tp.tip,
+        tp.normal,
+        tp.lap,
+        W,
+        tool_compliance=k,
+        ball_radius=c.tool.radius,
+        symmetry=c.part.symmetry,
+        **opts,
     )
     what = "robot, tool and holder" if with_tool else "robot only"
     return prob, m, c.T_base_work, f"study {s.name}, robot-run forces, {what}"
