@@ -48,6 +48,15 @@ def test_plan_part_writes_ranked_outputs(cone_toml, tmp_path, capsys):
     assert '<div class="scroll"><dl class="kv">' in html
     assert "#plan .scroll{max-width:100%;overflow-x:auto}" in html
     assert "overflow-wrap:anywhere" in html
+    # each caption names what its figure draws, with units: the second map draws the robot's
+    # compliance in µm/N, and its caption said "robot stiffness"; every δ is the ball centre's
+    caps = [c.split("</figcaption>")[0] for c in html.split("<figcaption>")[1:]]
+    assert len(caps) == 2
+    assert caps[0].startswith("predicted mean robot |δ| [mm] at the ball centre")
+    assert caps[1].startswith("robot translational compliance k_xx, k_yy, k_zz [µm/N]")
+    assert not any("stiffness" in c for c in caps)
+    lead = html.split('<p class="lead">')[-1].split("</p>")[0]
+    assert "|δ| [mm] of the ball centre" in lead and "tool tip" not in lead
     captured = capsys.readouterr()
     text = captured.out
     assert "% lower" in text
