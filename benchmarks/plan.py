@@ -34,10 +34,12 @@ from roboisf.virtual.cell import PAPER_CELL_PLACEMENT, paper_cone_cell
 
 
 def _grid(n: int) -> np.ndarray:
-    # 10 x × 10 y × 10 z (× yaw) kept in the reachable front region; trimmed to n
+    # k x × k y × k z (k³ > n) kept in the reachable front region; trimmed to n. One yaw: the
+    # cone is round, so plan_placements evaluates rows that differ in yaw alone once
+    # (docs/plan.md, "A round part's yaw") — a second yaw would not be timed
     k = max(2, round(n ** (1 / 3)) + 1)
     P = placement_grid(
-        np.linspace(1.1, 2.3, k), np.linspace(-0.6, 0.6, k), np.linspace(0.0, 1.2, k), [0.0, 0.3]
+        np.linspace(1.1, 2.3, k), np.linspace(-0.6, 0.6, k), np.linspace(0.0, 1.2, k), [0.0]
     )
     rng = np.random.default_rng(0)
     return P[rng.permutation(len(P))[:n]]

@@ -48,6 +48,15 @@ def test_plan_part_writes_ranked_outputs(cone_toml, tmp_path, capsys):
     assert '<div class="scroll"><dl class="kv">' in html
     assert "#plan .scroll{max-width:100%;overflow-x:auto}" in html
     assert "overflow-wrap:anywhere" in html
+    # each caption names what its figure draws, with units: the second map draws the robot's
+    # compliance in µm/N, and its caption said "robot stiffness"; every δ is the ball centre's
+    caps = [c.split("</figcaption>")[0] for c in html.split("<figcaption>")[1:]]
+    assert len(caps) == 2
+    assert caps[0].startswith("predicted mean robot |δ| [mm] at the ball centre")
+    assert caps[1].startswith("robot translational compliance k_xx, k_yy, k_zz [µm/N]")
+    assert not any("stiffness" in c for c in caps)
+    lead = html.split('<p class="lead">')[-1].split("</p>")[0]
+    assert "|δ| [mm] of the ball centre" in lead and "tool tip" not in lead
     captured = capsys.readouterr()
     text = captured.out
     assert "% lower" in text
@@ -70,10 +79,37 @@ def test_one_yaw_is_one_candidate_and_a_worse_best_is_said_higher(cone_toml, tmp
             "--z-range", "400", "--yaw-range", "0:360:3", "--serial", "-o", str(out)]  # fmt: skip
     assert main(args) == 0
     df = pd.read_csv(out / "placements.csv", comment="#")
-    assert len(df) == 2 and sorted(df["yaw_deg"]) == [0.0, 180.0]
-    text = capsys.readouterr().out
+    assert len(df) == 1 and df["yaw_deg"].tolist() == [0.0]
+    captured = capsys.readouterr()
+    text = captured.out
     assert "1 yaw(s) 360° from another left out" in text
+    # yaws 0 and 180 left: a round part's yaw is no degree of freedom (the 360° one went first)
+    assert "evaluated yaw 0° only (2 → 1 placements)" in captured.err
     assert "% higher" in text and "-" not in text.split("% higher")[0].split("(")[-1]
+
+
+def test_a_round_parts_top_ten_are_ten_distinct_placements(cone_toml, tmp_path, capsys):
+    """The cone at yaws 0, 45 and 90°: the top 10 listed each x, y, z three times with the same
+    numbers (yaw does not change a round part). Now ten distinct placements, and it is said."""
+    out = tmp_path / "plan"
+    grid = ["--x-range", "1200:1600:5", "--y-range", "0,200", "--z-range", "400"]
+    args = ["plan", "--part", str(cone_toml), *grid, "--yaw-range", "0:90:3", "--serial"]
+    assert main([*args, "-o", str(out)]) == 0
+    xyz = ["x_mm", "y_mm", "z_mm"]
+    df = pd.read_csv(out / "placements.csv", comment="#")
+    assert len(df) == 10 and (df.status == "ok").all() and not df.duplicated(xyz).any()
+    assert (df["yaw_deg"] == 0.0).all()
+    captured = capsys.readouterr()
+    shown = [ln.split()[1:5] for ln in captured.out.splitlines() if ln[:4].strip().isdigit()]
+    assert len(shown) == 10 and len({tuple(r[:3]) for r in shown}) == 10
+    note = "yaw: the part is round"
+    doc = json.loads((out / "plan.json").read_text())
+    assert any(n.startswith(note) and "(30 → 10 placements)" in n for n in doc["notes"])
+    html = (out / "plan.html").read_text()
+    assert note in html and note in captured.err
+    body = html[html.index("<tbody>") : html.index("</tbody>")]
+    rows = [r.split("</td><td>")[1:4] for r in body.split("</tr>")[:-1]]
+    assert len(rows) == 10 and len({tuple(r) for r in rows}) == 10
 
 
 def test_plan_default_scheduler_is_named(cone_toml, tmp_path):

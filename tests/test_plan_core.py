@@ -12,6 +12,7 @@ import pytest
 from roboisf.cell import at_ball_centre
 from roboisf.errors import InputError, UnreachableError
 from roboisf.frames import make_transform, rpy_to_matrix
+from roboisf.parts import Symmetry
 from roboisf.plan import (
     PlanProblem,
     evaluate_placement,
@@ -151,6 +152,56 @@ def test_gamma_matters_for_an_angled_tool_and_the_best_is_kept():
     r = plan_placements(prob, [[1.6, 0.0, 0.6, 0.0]], gs, scheduler="serial")
     assert r.best.mean_abs == best.mean_abs
     assert r.best_gamma0 is not None and r.best_gamma0.mean_abs == each[0].mean_abs
+
+
+def _at(prob, x, yaw_deg, gammas_deg=(0.0,)):
+    T = placement_transforms([[x, 0.0, 0.6, math.radians(yaw_deg)]])[0]
+    return evaluate_placement(prob, T, np.radians(gammas_deg))
+
+
+def test_a_round_parts_yaw_is_evaluated_once(cone):
+    """The cone turned about its axis is the same part: yaws 0, 45 and 90° at one x, y, z were
+    ranked as three placements with the same numbers. Now one row per x, y, z (its first yaw),
+    and a note says why."""
+    prob, _ = cone
+    assert prob.symmetry.continuous and prob.tool_is_coaxial()
+    P = placement_grid([1.4, 1.6], [0.0], [0.6], np.radians([0.0, 45.0, 90.0]))
+    r = plan_placements(prob, P, scheduler="serial")
+    assert r.placements.tolist() == [[1.4, 0.0, 0.6, 0.0], [1.6, 0.0, 0.6, 0.0]]
+    assert len(r.scores) == 2 and len(r.table()) == 2
+    assert "the part is round" in r.notes[-1] and "(6 → 2 placements)" in r.notes[-1]
+    r0 = plan_placements(prob, P[P[:, 3] == 0.0], scheduler="serial")
+    assert [s.mean_abs for s in r.scores] == [s.mean_abs for s in r0.scores]
+    # why it is right: turned, the same points under the same forces, only the laps start
+    # elsewhere — the means agree to round-off (≤ 3e-10 relative measured on this 4 mm path),
+    # the max to the path's sampling (≤ 6e-4)
+    a = r.scores[1]
+    for yaw in (45.0, 90.0, 137.0):
+        b = _at(prob, 1.6, yaw)
+        for f in ("mean_robot", "mean_abs", "mean_abs_normal"):
+            assert getattr(b, f) == pytest.approx(getattr(a, f), rel=1e-8), (yaw, f)
+        assert b.max_abs == pytest.approx(a.max_abs, rel=2e-3)
+    # a part with no declared symmetry keeps every yaw
+    r1 = plan_placements(replace(prob, symmetry=Symmetry(1)), P, scheduler="serial")
+    assert len(r1.scores) == 6 and not any("round" in n for n in r1.notes)
+
+
+def test_a_round_parts_yaw_is_a_tool_rotation_for_an_angled_tool():
+    """With a tool off axis 6, a yaw ψ of a round part turns only the tool, by −ψ about its own
+    axis relative to the robot: the yaws are searched as tool rotations of one placement."""
+    prob, _ = problem_from_cell(CELL.cell, **CELL.path_settings, model=_angled_model())
+    assert prob.symmetry.continuous and not prob.tool_is_coaxial()
+    turned, same = _at(prob, 1.6, 90.0), _at(prob, 1.6, 0.0, (-90.0,))
+    assert turned.ok and same.ok
+    for f in ("mean_robot", "mean_abs", "mean_abs_normal"):
+        assert getattr(turned, f) == pytest.approx(getattr(same, f), rel=1e-8), f
+    assert abs(turned.mean_abs / _at(prob, 1.6, 0.0).mean_abs - 1.0) > 0.01  # γ matters
+    P = placement_grid([1.6], [0.0], [0.6], np.radians([0.0, 90.0]))
+    r = plan_placements(prob, P, scheduler="serial")
+    assert r.placements.tolist() == [[1.6, 0.0, 0.6, 0.0]]
+    np.testing.assert_allclose(r.tool_rotations, np.radians([0.0, -90.0]), atol=1e-15)
+    assert r.best.mean_abs == _at(prob, 1.6, 0.0, (0.0, -90.0)).mean_abs
+    assert "(2 → 1 placements), the other yaws as tool rotations (γ = 0°, -90°)" in r.notes[-1]
 
 
 def test_schedule_known_optimum_rate_limit_and_infeasible():

@@ -263,11 +263,16 @@ def plan_cmd(
     )
     with staged_directory(output) as d:
         _write_tables(res, d, summary)
+        # each caption names what its figure draws, with units: the second map draws the
+        # robot's compliance (µm/N, higher is softer), not a stiffness
         images = {
-            "predicted mean robot deflection per placement": plot_placement_map(
+            "predicted mean robot |δ| [mm] at the ball centre per candidate placement (work "
+            "origin over the base x–y plane, mm, at the best height and yaw)": plot_placement_map(
                 res, d / "placement_map.png"
             ),
-            "robot stiffness over the swept area, tool down, work axes centred at "
+            "robot translational compliance k_xx, k_yy, k_zz [µm/N] (diagonal of the VJM "
+            "compliance at the tool tip, work axes; higher is softer) of tool-down poses over the "
+            "swept area, work axes centred at "
             f"({c_map[0] * 1e3:.0f}, {c_map[1] * 1e3:.0f}, {c_map[2] * 1e3:.0f}) mm in the base, "
             f"yaw {math.degrees(b[3]):.0f}°": plot_stiffness_map(smap, d / "stiffness_map.png"),
         }
@@ -342,7 +347,15 @@ def _problem(
     # the study's tool and holder compliance, as analyze takes them
     k = tool_and_holder_compliance(c) if with_tool else None
     prob = PlanProblem(
-        m, tp.tip, tp.normal, tp.lap, W, tool_compliance=k, ball_radius=c.tool.radius, **opts
+        m,
+        tp.tip,
+        tp.normal,
+        tp.lap,
+        W,
+        tool_compliance=k,
+        ball_radius=c.tool.radius,
+        symmetry=c.part.symmetry,
+        **opts,
     )
     what = "robot, tool and holder" if with_tool else "robot only"
     return prob, m, c.T_base_work, f"study {s.name}, robot-run forces, {what}"

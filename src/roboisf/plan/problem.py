@@ -12,12 +12,14 @@ from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
 from roboisf.frames import make_transform, rot_z
+from roboisf.parts import Symmetry
 from roboisf.robot.model import RobotModel
 
 __all__ = ["PlanProblem", "placement_grid", "placement_transforms"]
 
 F64 = NDArray[np.float64]
 Objective = Literal["mean", "max", "normal"]
+_NO_SYMMETRY = Symmetry(1)
 
 
 def _array(a: ArrayLike, shape: tuple[int | None, ...], name: str) -> F64:
@@ -61,6 +63,10 @@ class PlanProblem:
     ball_radius : float ≥ 0, m — every δ is that of the ball centre, this far above the tip along
         the work z (the tool vertical): ``δ_tip + θ × R ẑ``, as the analysis
         (:func:`roboisf.cell.at_ball_centre`); 0 scores the tip itself
+    symmetry : Symmetry — the part's rotational symmetry about the work z axis
+        (:attr:`roboisf.parts.Part.symmetry`; default: none). A surface of revolution turned
+        about its axis is the same part, so :func:`~roboisf.plan.plan_placements` evaluates
+        candidates that differ in yaw alone once
     """
 
     model: RobotModel
@@ -76,6 +82,7 @@ class PlanProblem:
     smoothness: float = 0.05
     objective: Objective = "mean"
     ball_radius: float = 0.0
+    symmetry: Symmetry = _NO_SYMMETRY
     lap_start: NDArray[np.intp] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -121,6 +128,8 @@ class PlanProblem:
                 raise InputError(f"must be > 0 rad, got {v}", field=name)
         if not (isinstance(self.ramp_points, int | np.integer) and self.ramp_points >= 1):
             raise InputError(f"must be an integer ≥ 1, got {self.ramp_points}", field="ramp_points")
+        if not isinstance(self.symmetry, Symmetry):
+            raise InputError(f"expected a Symmetry, got {self.symmetry!r}", field="symmetry")
         if self.objective not in ("mean", "max", "normal"):
             raise InputError(
                 f"must be 'mean', 'max' or 'normal', got {self.objective!r}", field="objective"

@@ -32,9 +32,11 @@ def problem_from_part(
 
     Lengths in m. ``tool_compliance`` (6, 6) SI at the tip. ``options`` go to
     :class:`PlanProblem` (limits, smoothing, objective); the deflections are scored at the ball
-    centre (``ball_radius`` = ``tool_radius`` unless given), as the analysis.
+    centre (``ball_radius`` = ``tool_radius`` unless given), as the analysis; the part's
+    ``symmetry`` goes with them (a round part's yaw is no degree of freedom).
     """
     options.setdefault("ball_radius", tool_radius)
+    options.setdefault("symmetry", part.symmetry)
     tp = nominal_toolpath(part, tool_radius, step, spacing=spacing, max_wall_step=max_wall_step)
     W = tip_wrench(tp, force or ForceModel(), thickness=part.sheet_thickness, step_down=step)
     prob = PlanProblem(

@@ -219,6 +219,10 @@ def plan_placements(
     ``detail``: for the best ``detail`` candidates and the baseline, the value of σ_min along the
     path is computed (all feasible candidates passed the exact margin test).
 
+    A round part (``problem.symmetry`` continuous) is the same part at any yaw: rows that differ
+    in yaw alone are evaluated once (the first; with a tool off axis 6 the others' yaws become
+    tool rotations), and ``notes`` says so — the result's ``placements`` are those evaluated.
+
     Raises :class:`~roboisf.errors.UnreachableError` when no candidate is feasible (the message
     gives the reasons); infeasible candidates are otherwise kept in ``scores`` with their reason.
     """
@@ -230,13 +234,17 @@ def plan_placements(
             f"expected at least one finite tool rotation, got {g.size}", field="tool rotations"
         )
     notes: list[str] = []
-    if g.size > 1 and problem.tool_is_coaxial():
+    coaxial = problem.tool_is_coaxial()
+    if g.size > 1 and coaxial:
         notes.append(
             "the tool is coaxial with axis 6 and its compliance is axisymmetric: turning it about "
             "its own axis only turns A6 and cannot change the deflection; evaluated γ = "
             f"{math.degrees(g[0]):g}° only"
         )
         g = g[:1]
+    if problem.symmetry.continuous:
+        P, g = _one_yaw_of_a_round_part(P, g, coaxial, notes)
+        Ts = placement_transforms(P)
     if n_workers is not None and n_workers < 1:
         raise InputError(f"must be ≥ 1, got {n_workers}", field="workers")
     if batch_size is not None and batch_size < 1:
@@ -284,6 +292,47 @@ def plan_placements(
     if g.size > 1:
         best0 = evaluate_placement(problem, Ts[int(order[0])], (0.0,))
     return PlanResult(P, scores, order, g, base, base_T, problem.objective, notes, best0)
+
+
+def _one_yaw_of_a_round_part(P: F64, g: F64, coaxial: bool, notes: list[str]) -> tuple[F64, F64]:
+    """Placements (M, 4) and tool rotations (G,) of a part that is a surface of revolution about
+    the work z axis, with the candidates that differ in yaw alone evaluated once.
+
+    Turned about its axis, such a part is the same part: the same toolpath points under the same
+    forces, only the laps start elsewhere (the mean |δ| equal to ≤ 1e-9 relative, the max |δ| to
+    the path's sampling: docs/plan.md). Each x, y, z keeps its first row, with its
+    yaw. With a tool that is not coaxial with axis 6 the yaw still turns the tool relative to the
+    robot: ``Rz(ψ)·Rx(π)·Rz(γ) = Rx(π)·Rz(γ − ψ)``, so a yaw ψ + Δψ left out is searched as the
+    tool rotations γ − Δψ of the row kept. A note says what was done.
+    """
+    _, first, inv = np.unique(P[:, :3], axis=0, return_index=True, return_inverse=True)
+    if first.size == P.shape[0]:
+        return P, g
+    dyaw = P[:, 3] - P[first[inv.reshape(-1)], 3]  # each row's yaw from its kept row's
+    keep = P[np.sort(first)]
+    yaws = ", ".join(f"{math.degrees(v):g}°" for v in np.unique(keep[:, 3]))
+    note = (
+        "yaw: the part is round (turned about its axis it gives the same toolpath points under "
+        "the same forces; only the laps start elsewhere)"
+    )
+    if coaxial:
+        note += (
+            f", so its yaw does not change the deflection: evaluated yaw {yaws} only "
+            f"({P.shape[0]} → {keep.shape[0]} placements)"
+        )
+    else:
+        cand = np.concatenate([g, (g[None, :] - np.unique(dyaw)[:, None]).ravel()])
+        _, idx = np.unique(np.round(np.mod(np.degrees(cand), 360.0), 9) % 360.0, return_index=True)
+        g = cand[np.sort(idx)]
+        note += (
+            "; with this tool (not coaxial with axis 6) a yaw ψ only turns the tool by −ψ about "
+            f"its own axis relative to the robot: evaluated yaw {yaws} only ({P.shape[0]} → "
+            f"{keep.shape[0]} placements), the other yaws as tool rotations (γ = "
+            + ", ".join(f"{math.degrees(v):g}°" for v in g)
+            + ")"
+        )
+    notes.append(note)
+    return keep, g
 
 
 def _refuse_fast(address: str) -> None:

@@ -129,8 +129,9 @@ def plan_section(
     )
     return (
         f'<section id="plan">{style}<h2>Placement and tool rotation</h2>'
-        f'<p class="lead">Predicted deflection of the tool tip (VJM robot + tool) for each '
-        f"candidate placement of the work object; best {len(rows)} shown.</p>"
+        '<p class="lead">Predicted deflection |δ| [mm] of the ball centre (VJM robot; robot + '
+        "tool where a tool compliance is given) for each candidate placement of the work "
+        f"object; best {len(rows)} shown.</p>"
         f'<div class="scroll">{kv}</div>{notes}'
         f'<div class="scroll">{_rows_table(rows, cols)}</div>{figs}</section>'
     )
