@@ -173,20 +173,23 @@ def test_bad_profile_exit_2_no_output(tmp_path, capsys, kind):
 @pytest.mark.parametrize(
     ("args", "expect"),
     [
-        (["cone", "--depth", "-5"], "depth"),
-        (["cone", "--depth", "0"], "depth"),
-        (["cone", "--opening-diameter", "0"], "opening_diameter"),
-        (["cone", "--wall-angle", "90"], "wall_angle"),
-        (["cone", "--wall-angle", "95"], "wall_angle"),
-        (["cone", "--depth", "10", "--step-down", "20"], "step"),
+        (["cone", "--depth", "-5"], "[--depth]"),
+        (["cone", "--depth", "0"], "[--depth]"),
+        (["cone", "--opening-diameter", "0"], "[--opening-diameter]"),
+        (["cone", "--wall-angle", "90"], "[--wall-angle]"),
+        (["cone", "--wall-angle", "95"], "[--wall-angle]"),
+        (["cone", "--depth", "10", "--step-down", "20"], "[--step-down]"),
         (["cone", "--tool-diameter", "0"], "--tool-diameter"),
         (["cone", "--step-down", "-0.5"], "--step-down"),
         (["cone", "--feed", "0"], "--feed"),
         (["cone", "--work-frame", "1,2,3"], "--work-frame"),
         (["cone", "--work-offset", "G92"], "--work-offset"),
         (["cone", "--format", "step"], "format"),
-        (["vwacf", "--arc-radius", "100"], "arc_radius"),
-        (["vwacf", "--final-wall-angle", "120"], "final_wall_angle"),
+        # the generators' own checks name the option typed, not their SI parameter
+        (["cone", "--spacing", "0.0001"], "[--step-down]"),
+        (["cone", "--scallop-height", "9"], "[--scallop-height]"),
+        (["vwacf", "--arc-radius", "100"], "[--arc-radius]"),
+        (["vwacf", "--final-wall-angle", "120"], "[--final-wall-angle]"),
     ],
 )
 def test_bad_dimensions_exit_2_no_output(tmp_path, capsys, args, expect):

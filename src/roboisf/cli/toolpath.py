@@ -326,17 +326,34 @@ def generate(part: Part, opts: PathOptions) -> Toolpath:
     from roboisf.toolpath import toolpath_for_part
 
     opts.check()
-    return toolpath_for_part(
-        part,
-        opts.tool_diameter / 2 * 1e-3,
-        opts.step_down * 1e-3,
-        spacing=opts.spacing * 1e-3,
-        feed=opts.feed / 60e3,
-        spiral=opts.spiral,
-        max_wall_step=None if opts.max_wall_step is None else opts.max_wall_step * 1e-3,
-        scallop_height=None if opts.scallop_height is None else opts.scallop_height * 1e-3,
-        max_points=opts.max_points,
-    )
+    try:
+        return toolpath_for_part(
+            part,
+            opts.tool_diameter / 2 * 1e-3,
+            opts.step_down * 1e-3,
+            spacing=opts.spacing * 1e-3,
+            feed=opts.feed / 60e3,
+            spiral=opts.spiral,
+            max_wall_step=None if opts.max_wall_step is None else opts.max_wall_step * 1e-3,
+            scallop_height=None if opts.scallop_height is None else opts.scallop_height * 1e-3,
+            max_points=opts.max_points,
+        )
+    except InputError as e:
+        # the generators name their SI parameters; the user typed the options (their messages
+        # already give mm)
+        if e.file is None and e.field in _OPTION_OF:
+            raise InputError(e.message, field=_OPTION_OF[e.field], line=e.line) from None
+        raise
+
+
+#: The toolpath generators' parameter names → the command-line options that set them.
+_OPTION_OF = {
+    "step_down": "--step-down",
+    "spacing": "--spacing",
+    "tool_radius": "--tool-diameter",
+    "max_wall_step": "--max-wall-step",
+    "scallop_height": "--scallop-height",
+}
 
 
 def warn_truncated(tp: Toolpath, tool_diameter: float) -> None:
@@ -569,6 +586,22 @@ def _toolpath_from_part_file(
     _run(lambda: parts.load_part(part), output, fmt, opts, part_files(part))
 
 
+def _named_as_options(build: Callable[[], Part], names: tuple[str, ...]) -> Callable[[], Part]:
+    """``build`` whose InputError about one of ``names`` — the part's parameters, which the
+    subcommand takes as options of the same name — names the option the user typed
+    (``--wall-angle``, not the part file's ``wall_angle``)."""
+
+    def make() -> Part:
+        try:
+            return build()
+        except InputError as e:
+            if e.file is None and e.field in names:
+                raise InputError(e.message, field="--" + e.field.replace("_", "-")) from None
+            raise
+
+    return make
+
+
 @toolpath_app.command("cone")
 @_with_path_options
 def _cone(
@@ -582,7 +615,10 @@ def _cone(
 ) -> None:
     """Truncated cone of constant wall angle (defaults: the paper's Ø87 mm, 71°, 102.97 mm)."""
     _run(
-        lambda: parts.Cone(opening_diameter * 1e-3, math.radians(wall_angle), depth * 1e-3),
+        _named_as_options(
+            lambda: parts.Cone(opening_diameter * 1e-3, math.radians(wall_angle), depth * 1e-3),
+            ("opening_diameter", "wall_angle", "depth"),
+        ),
         output,
         fmt,
         opts,
@@ -603,8 +639,11 @@ def _vwacf(
 ) -> None:
     """Variable-wall-angle frustum: arc generatrix tangent to the sheet at the rim (0° → final)."""
     _run(
-        lambda: parts.VWACF(
-            opening_diameter * 1e-3, arc_radius * 1e-3, math.radians(final_wall_angle)
+        _named_as_options(
+            lambda: parts.VWACF(
+                opening_diameter * 1e-3, arc_radius * 1e-3, math.radians(final_wall_angle)
+            ),
+            ("opening_diameter", "arc_radius", "final_wall_angle"),
         ),
         output,
         fmt,
