@@ -202,16 +202,50 @@ def test_robot_panel_caption_gives_the_springback_coupling(small, tmp_path):
     assert cap and "coupling" not in cap.group(1)
 
 
-def test_contour_lap_skips_the_rim_band(small):
-    pp = small[0].copy()
+def test_contour_in_the_rim_band_shows_the_middle_of_the_analysed_wall(small, tmp_path):
+    """The paper's contour height, z = −11 mm, lies inside the 20 mm rim band of a deep part:
+    the figure showed the first lap below the band (a "fallback lap" at z ≈ −20 mm, where the
+    rim's transition still shows). A height in the band, or none asked, gives the lap nearest
+    the middle of the analysed wall, and the page says which height it shows and why."""
+    pp = small[0].copy()  # 30 laps down to 103 mm
     z = pp.groupby("lap")["contact_z"].mean()
     lap, _, note = agg.contour_lap(pp, float(z.iloc[2]))
-    assert lap == int(z.index[2]) and note is None
-    pp["used"] = pp["depth"] > 20.0  # a rim band of 20 mm
-    lap, _, note = agg.contour_lap(pp, float(z.iloc[2]))
-    first_used = pp.loc[pp["used"], "lap"].min()
-    assert lap == first_used and note is not None and "rim band" in note
-    assert pp.loc[pp["lap"] == lap, "used"].any()
+    assert lap == int(z.index[2]) and note is None  # no rim band: the lap asked for
+    pp["used"] = (pp["depth"] > 20.0) & pp["cnc_valid"] & pp["robot_valid"]  # a 20 mm rim band
+    cz = pp.loc[pp["used"], "contact_z"]
+    middle = (cz.max() + cz.min()) / 2
+    laps_used = z[pp.groupby("lap")["used"].any()]
+    best = int((laps_used - middle).abs().idxmin())
+    for asked in (-11.0, float(z.iloc[2]), None):
+        lap, zl, note = agg.contour_lap(pp, asked)
+        assert lap == best and zl == pytest.approx(z.loc[best]), asked
+        assert note is not None and "middle of the analysed wall" in note, asked
+        assert (asked is None) == ("no contour height was asked for" in note)
+    assert "requested z = -11.00 mm" in agg.contour_lap(pp, -11.0)[2]
+    assert "rim band" in agg.contour_lap(pp, -11.0)[2]
+    # a height on the analysed wall is kept, whatever the middle
+    deep = float(z.iloc[25])
+    assert agg.contour_lap(pp, deep) == (int(z.index[25]), pytest.approx(deep), None)
+    # a hole on the wall, not the band: the nearest lap with data, as before
+    holed = pp.copy()
+    holed.loc[holed["lap"] == int(z.index[25]), "robot_valid"] = False
+    lap, _, note = agg.contour_lap(holed, deep)
+    assert lap in (int(z.index[24]), int(z.index[26])) and f"lap {int(z.index[25])}" in note
+
+    # the page: the caption and the study table name the lap shown and why
+    _, c, cn, s = small
+    path = write_report(pp, c, cn, {**s, "contour_z": -11.0}, tmp_path / "a", png=False)
+    text = path.read_text(encoding="utf-8")
+    block = text[text.index('<figure id="figure-vjm_polar">') :]
+    cap = block[block.index("<figcaption>") : block.index("</figcaption>")]
+    assert f"Contour at z = {z.loc[best]:.2f} mm (lap {best})" in cap
+    assert "requested z = -11.00 mm" in cap and "middle of the analysed wall" in cap
+    assert f"lap {best} at z = {z.loc[best]:.2f} mm (asked: z = -11 mm" in text
+    s_none = {k: v for k, v in s.items() if k != "contour_z"}
+    path = write_report(pp, c, cn, s_none, tmp_path / "b", png=False)
+    text = path.read_text(encoding="utf-8")
+    assert "no contour height was asked for" in text
+    assert f"lap {best} at z = {z.loc[best]:.2f} mm (none asked" in text
 
 
 def test_part_view_keeps_whole_laps_breaks_between_them_and_masks_holes(small):

@@ -124,7 +124,7 @@ def _figures(
     pp: pd.DataFrame,
     contrib: pd.DataFrame,
     contrib_n: pd.DataFrame,
-    contour_z: float,
+    contour_z: float | None,
     round_part: bool,
 ) -> dict[str, _Figure]:
     has_truth = any(f"truth_{f}_dn" in pp.columns for f in FACTORS)
@@ -424,7 +424,8 @@ def write_report(
         ``tool, tool_holder, springback, robot_compliance, total`` (mm, %).
     summary : dict
         Must have ``study``; uses ``part, robot, tool, units, compliance_stats,
-        force_contributions, vjm_vs_experiment, contour_z`` (mm, default −11) and ``warnings``.
+        force_contributions, vjm_vs_experiment, contour_z`` (mm; absent or None: the middle of
+        the analysed wall) and ``warnings``.
     out_dir
         Created if missing. Files are written atomically; other files in it are left alone.
     png
@@ -631,10 +632,17 @@ def _write_report(
             )
             it.write_iterations_csv(summ["iterations"], out)
         items = [(k, summ.get(k)) for k in ("study", "part", "robot", "tool", "units")]
+        lap, z, note = agg.contour_lap(pp, summ["contour_z"])
+        asked = summ["contour_z"]
         items.append(
             (
                 "contour for the polar plot" if round_part else "contour plot (part not round)",
-                f"z = {summ['contour_z']:g} mm",
+                f"lap {lap} at z = {z:.2f} mm"
+                + (
+                    " (none asked: the middle of the analysed wall)"
+                    if asked is None
+                    else f" (asked: z = {asked:g} mm{'' if note is None else '; see its caption'})"
+                ),
             )
         )
         items.append(

@@ -268,7 +268,7 @@ def vjm_path_png(per_point: pd.DataFrame) -> Figure:
     return fig
 
 
-def vjm_polar_png(per_point: pd.DataFrame, contour_z: float) -> Figure:
+def vjm_polar_png(per_point: pd.DataFrame, contour_z: float | None = None) -> Figure:
     c = agg.contour(per_point, contour_z)
     th = np.radians(c.angle_deg)
     with _style():
@@ -293,7 +293,7 @@ def vjm_polar_png(per_point: pd.DataFrame, contour_z: float) -> Figure:
     return fig
 
 
-def vjm_contour_png(per_point: pd.DataFrame, contour_z: float) -> Figure:
+def vjm_contour_png(per_point: pd.DataFrame, contour_z: float | None = None) -> Figure:
     c = agg.contour_along(per_point, contour_z)
     with _style():
         fig = _figure(7.0, 3.2, top=0.75, wspace=0.45)
