@@ -23,6 +23,7 @@ __all__ = [
     "ContourPath",
     "Headline",
     "LapMap",
+    "LapSpread",
     "TopView",
     "arc_length",
     "contour",
@@ -37,6 +38,7 @@ __all__ = [
     "masked",
     "part_view",
     "reused",
+    "thickness_spread",
     "top_view",
     "unrolled_map",
 ]
@@ -153,6 +155,59 @@ def lap_profile(per_point: pd.DataFrame, columns: Sequence[str]) -> pd.DataFrame
             out[f"{c}_lo"] = lo[c]
             out[f"{c}_hi"] = hi[c]
     return out
+
+
+#: Least spread of the sine-law thickness within a lap [mm] the thickness figure draws as a
+#: band: a part whose laps keep one wall angle (a cone, a VWACF: the angle changes with depth,
+#: not around a lap) draws its lap mean alone.
+SPREAD_MIN = 1e-3
+
+
+@dataclass(frozen=True)
+class LapSpread:
+    """The thinnest and thickest sine-law thickness of each lap, where the walls of one lap
+    differ in angle (a pyramid with two wall angles, a freeform part).
+
+    ``depth`` (L,) mm, the lap's mean depth; ``low``, ``high`` (L,) mm, the lap's least and
+    greatest ``thickness_predicted``; ``angle_low``, ``angle_high`` deg, the median over the
+    laps that spread of their least and greatest wall angle (the walls' angles, not a rim
+    lap's).
+    """
+
+    depth: np.ndarray
+    low: np.ndarray
+    high: np.ndarray
+    angle_low: float
+    angle_high: float
+
+    @property
+    def label(self) -> str:
+        """The figures' legend entry for the band."""
+        return (
+            "predicted, thinnest–thickest wall of the lap "
+            f"({self.angle_low:.0f}°–{self.angle_high:.0f}° walls)"
+        )
+
+
+@_reusable
+def thickness_spread(per_point: pd.DataFrame) -> LapSpread | None:
+    """:class:`LapSpread` of ``thickness_predicted``, or None when no lap spreads by more than
+    :data:`SPREAD_MIN` (every lap keeps one wall angle). One group-by: cheap."""
+    frame = per_point[["lap", "depth", "thickness_predicted", "wall_angle_deg"]]
+    g = frame.groupby("lap", sort=True)
+    t = g["thickness_predicted"].agg(["min", "max"])
+    spread = (t["max"] - t["min"]).to_numpy()
+    wide = spread > SPREAD_MIN
+    if not wide.any():
+        return None
+    angle = g["wall_angle_deg"].agg(["min", "max"]).to_numpy()[wide]
+    return LapSpread(
+        g["depth"].mean().to_numpy(),
+        t["min"].to_numpy(),
+        t["max"].to_numpy(),
+        float(np.median(angle[:, 0])),
+        float(np.median(angle[:, 1])),
+    )
 
 
 def decimate(n: int, max_points: int) -> np.ndarray:

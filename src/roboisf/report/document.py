@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 import plotly.io as pio
 
@@ -110,6 +111,15 @@ def _thickness_caption(pp: pd.DataFrame, has_meas: bool) -> str:
         )
     else:
         text += "; no measured thickness was given."
+    spread = agg.thickness_spread(pp)
+    if spread is not None:
+        text += (
+            f" The walls of a lap differ in angle ({spread.angle_low:.0f}° to "
+            f"{spread.angle_high:.0f}°), so the sine law differs between them: the shaded band "
+            "spans each lap's thinnest to thickest wall "
+            f"(up to {float(np.max(spread.high - spread.low)):.3f} mm apart), the dashed line "
+            "is the lap mean."
+        )
     pred = prof["thickness_predicted"].dropna()
     if len(pred) > 2 and pred.iloc[0] > 1.05 * pred.median():
         text += (

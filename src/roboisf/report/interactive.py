@@ -533,12 +533,35 @@ def thickness_figure(per_point: pd.DataFrame) -> pf.Figure:
     if has_measured:
         cols.append("thickness_measured")
     prof = agg.lap_profile(per_point, cols)
+    spread = agg.thickness_spread(per_point)
     fig = pf.Figure(layout=plotly_layout(height=380))
+    if spread is not None:  # walls of different angle in one lap: their range, not a mean
+        x = _f(spread.depth)
+        name = spread.label
+        for y, fill, which in (
+            (spread.high, None, "thickest"),
+            (spread.low, "tonexty", "thinnest"),
+        ):
+            fig.add_trace(
+                pf.trace(
+                    "scatter",
+                    x=x,
+                    y=_f(y),
+                    mode="lines",
+                    line={"width": 0, "color": SERIES_COLORS["predicted"]},
+                    fill=fill,
+                    fillcolor=rgba(SERIES_COLORS["predicted"], 0.18) if fill else None,
+                    name=name,
+                    legendgroup="spread",
+                    showlegend=fill is not None,
+                    hovertemplate=f"{which} wall %{{y:.3f}} mm<extra></extra>",
+                )
+            )
     _line_with_band(
         fig,
         prof,
         "thickness_predicted",
-        name="predicted (sine law)",
+        name="predicted (sine law)" if spread is None else "predicted (sine law), lap mean",
         color=SERIES_COLORS["predicted"],
         band=False,
         dash="dash",

@@ -371,15 +371,26 @@ def thickness_png(per_point: pd.DataFrame) -> Figure:
         ["thickness_measured"] if "thickness_measured" in per_point.columns else []
     )
     prof = agg.lap_profile(per_point, cols)
+    spread = agg.thickness_spread(per_point)
     with _style():
         fig = _figure(5.0, 3.0)
         ax = fig.subplots()
+        if spread is not None:  # walls of different angle in one lap: their range, not a mean
+            ax.fill_between(
+                spread.depth,
+                spread.low,
+                spread.high,
+                color=SERIES_COLORS["predicted"],
+                alpha=0.18,
+                linewidth=0,
+                label=spread.label,
+            )
         _line_band(
             ax,
             prof,
             "thickness_predicted",
             SERIES_COLORS["predicted"],
-            "predicted (sine law)",
+            "predicted (sine law)" if spread is None else "predicted (sine law), lap mean",
             band=False,
             linestyle="--",
         )
