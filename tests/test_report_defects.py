@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from report_fixtures import make_study
+from report_fixtures import make_study, with_two_wall_angles
 from roboisf.report import interactive as ia
 from roboisf.report import static as st
 from roboisf.report.document import _thickness_caption
@@ -102,17 +102,6 @@ def test_top_view_caption_names_the_sparse_corners(small, tmp_path):
     assert np.isfinite(pp["thickness_predicted"]).all()
 
 
-def _two_wall_angles(n_laps: int = 30, points_per_lap: int = 40):
-    """The square pyramid of the fixtures with 45° walls facing ±x and 65° walls facing ±y: the
-    sine law gives 1.22·cos 45° = 0.863 mm on one pair of walls, 0.516 mm on the other."""
-    pp, c, cn, s = make_study(n_laps=n_laps, points_per_lap=points_per_lap, shape="pyramid")
-    pp = pp.copy()
-    x_wall = np.abs(pp["normal_x"]) > np.abs(pp["normal_y"])
-    pp["wall_angle_deg"] = np.where(x_wall, 45.0, 65.0)
-    pp["thickness_predicted"] = 1.22 * np.cos(np.radians(pp["wall_angle_deg"]))
-    return pp, c, cn, s
-
-
 def test_thickness_shows_each_laps_spread_when_walls_differ_in_angle():
     """On a part with two wall angles the thickness figure drew the lap mean of the sine law
     alone (0.69 mm, a thickness no wall has): the band from the thinnest to the thickest wall
@@ -122,7 +111,7 @@ def test_thickness_shows_each_laps_spread_when_walls_differ_in_angle():
 
     from roboisf.report import aggregate as agg
 
-    pp = _two_wall_angles()[0]
+    pp = with_two_wall_angles(make_study(n_laps=30, points_per_lap=40, shape="pyramid")[0])
     spread = agg.thickness_spread(pp)
     assert spread is not None
     assert spread.low == pytest.approx(1.22 * np.cos(np.radians(65.0)))

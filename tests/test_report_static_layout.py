@@ -6,6 +6,7 @@ axes' labels, for every figure of the report, round part and not."""
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 from itertools import combinations
 
 import numpy as np
@@ -16,7 +17,7 @@ from matplotlib.figure import Figure
 from matplotlib.text import Text
 from matplotlib.transforms import Bbox
 
-from report_fixtures import make_study
+from report_fixtures import make_study, with_two_wall_angles
 from roboisf.report import document as doc
 from roboisf.report import static as st
 from roboisf.report.schema import check_contributions, check_per_point, check_summary
@@ -30,6 +31,10 @@ def figures():
     s = check_summary(summary)
     figs = doc._figures(pp, c, cn, s["contour_z"], True)
     figs["vjm_contour"] = doc._figures(pp, c, cn, s["contour_z"], False)["vjm_contour"]
+    walls = with_two_wall_angles(make_study(n_laps=40, points_per_lap=60, shape="pyramid")[0])
+    figs["thickness_two_walls"] = dataclasses.replace(
+        figs["thickness"], png=lambda: st.thickness_png(walls)
+    )
     return figs
 
 
@@ -54,7 +59,9 @@ def _extent(t: Text, renderer) -> Bbox:
 
 
 @pytest.mark.parametrize(
-    "fid", [*doc.FIGURES, "vjm_contour"], ids=lambda f: f if isinstance(f, str) else ""
+    "fid",
+    [*doc.FIGURES, "vjm_contour", "thickness_two_walls"],
+    ids=lambda f: f if isinstance(f, str) else "",
 )
 def test_no_text_cut_off_or_overlapping(figures, fid):
     fig = figures[fid].png()
@@ -230,7 +237,9 @@ def test_the_clash_check_sees_touching_labels_and_turned_ones_apart():
 
 
 @pytest.mark.parametrize(
-    "fid", [*doc.FIGURES, "vjm_contour"], ids=lambda f: f if isinstance(f, str) else ""
+    "fid",
+    [*doc.FIGURES, "vjm_contour", "thickness_two_walls"],
+    ids=lambda f: f if isinstance(f, str) else "",
 )
 def test_tick_labels_do_not_collide(figures, fid):
     """No two tick labels touch (the deviation map's "100" ran into the next panel's "0", the
