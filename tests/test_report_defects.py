@@ -67,6 +67,9 @@ def test_thickness_caption_explains_the_rise_at_the_rim(small):
     first = pp["lap"] == pp["lap"].min()
     pp.loc[first, "thickness_predicted"] = 1.0  # the rounding into the rim: wall flatter
     assert "rounding into the rim" in _thickness_caption(pp, True)
+    # a first lap at the sheet plane, a hair above it: "depth 0.0 mm", not "-0.0"
+    pp["depth"] = pp["depth"] - pp.loc[pp["lap"] == pp["lap"].min(), "depth"].mean() - 1e-4
+    assert "(depth 0.0 mm)" in _thickness_caption(pp, True)
 
 
 def _ident(mode):

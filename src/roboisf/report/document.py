@@ -122,8 +122,10 @@ def _thickness_caption(pp: pd.DataFrame, has_meas: bool) -> str:
         )
     pred = prof["thickness_predicted"].dropna()
     if len(pred) > 2 and pred.iloc[0] > 1.05 * pred.median():
+        top = float(prof["depth"].iloc[0])
+        top = 0.0 if abs(top) < 0.05 else top  # a first lap at the sheet read "depth -0.0 mm"
         text += (
-            f" At the top (depth {prof['depth'].iloc[0]:.1f} mm) the tool is still on the "
+            f" At the top (depth {top:.1f} mm) the tool is still on the "
             "rounding into the rim, where the wall is flatter, so the sine law rises towards "
             "the sheet's thickness there."
         )
