@@ -260,3 +260,14 @@ def make_study(
     if shape == "pyramid":
         summary["part_symmetry"] = 4
     return per_point, contributions, contributions_normal, summary
+
+
+def with_two_wall_angles(per_point: pd.DataFrame) -> pd.DataFrame:
+    """A copy of a pyramid's ``per_point`` (``make_study(shape="pyramid")``) with 45° walls
+    facing ±x and 65° walls facing ±y and their sine-law thickness: 1.22·cos 45° = 0.863 mm on
+    one pair of walls, 0.516 mm on the other."""
+    pp = per_point.copy()
+    x_wall = np.abs(pp["normal_x"]) > np.abs(pp["normal_y"])
+    pp["wall_angle_deg"] = np.where(x_wall, 45.0, 65.0)
+    pp["thickness_predicted"] = 1.22 * np.cos(np.radians(pp["wall_angle_deg"]))
+    return pp

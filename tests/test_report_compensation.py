@@ -124,3 +124,49 @@ def test_virtual_cell_iterations_named_and_listed(tmp_path):
     assert "after: formed again on the virtual cell" in text
     assert "Mean |dn| after (virtual cell)" in text
     assert "the cell's robot model" in text  # no stiffness file: the cell's own
+
+
+GOUGE = {  # compensation.json's gouge report of the paper cone (mm)
+    "ok": True,
+    "rule": "distance of the loaded ball centre from the nominal >= R - intended over-bend - tol; "
+    "intended over-bend <= max_overbend",
+    "tool_radius_mm": 5.0,
+    "tol_mm": 0.01,
+    "max_overbend_mm": 2.0,
+    "min_margin_mm": 0.009999858188756289,
+    "max_intended_overbend_mm": 1.0088007028193466,
+    "gouge_indices": [],
+}
+
+
+def _gouge_card(text: str) -> tuple[str, str]:
+    m = re.search(
+        r'<div class="label">Gouge check</div><div class="value">(.*?)</div>'
+        r'<div class="note">(.*?)</div>',
+        text,
+    )
+    assert m, "no gouge card"
+    return m.group(1), html.unescape(m.group(2))
+
+
+def test_gouge_card_gives_its_margin_and_how_close_is_too_close(tmp_path):
+    """The card said "ok" and the rule: not the 0.010 mm margin nor where a gouge begins."""
+    value, note = _gouge_card(_write(tmp_path, gouge=GOUGE))
+    assert value.startswith("ok") and "margin 0.010 mm" in value
+    # margin = tol: the loaded ball is exactly where intended; a gouge is > tol deeper
+    assert "at the intended depth" in note and "more than 0.010 mm deeper than intended" in note
+    assert "over-bend up to 1.009 mm of the 2.000 mm allowed" in note
+    shallow = {**GOUGE, "min_margin_mm": 0.35}
+    value, note = _gouge_card(_write(tmp_path / "s", gouge=shallow))
+    assert "margin 0.350 mm" in value and "0.340 mm shallower than intended" in note
+    bad = {**GOUGE, "ok": False, "min_margin_mm": -0.042, "gouge_indices": [3, 4, 9]}
+    text = _write(tmp_path / "b", gouge=bad)
+    value, note = _gouge_card(text)
+    assert value.startswith("GOUGE") and "margin -0.042 mm" in value
+    assert "0.052 mm deeper than intended" in note and "3 points gouge" in note
+    assert 'class="card warn"' in text
+    # the rule in words stays, in the details
+    assert "gouge rule" in text and "max_overbend" in text.split('id="details"')[1]
+    # an older compensation.json without the margin: the verdict and the rule, as before
+    value, note = _gouge_card(_write(tmp_path / "o", gouge={"ok": True, "rule": "the rule"}))
+    assert value == "ok" and note == "the rule"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from report_fixtures import make_study
+from report_fixtures import make_study, with_two_wall_angles
 from roboisf.report import interactive as ia
 from roboisf.report import static as st
 from roboisf.report.document import _thickness_caption
@@ -67,6 +67,9 @@ def test_thickness_caption_explains_the_rise_at_the_rim(small):
     first = pp["lap"] == pp["lap"].min()
     pp.loc[first, "thickness_predicted"] = 1.0  # the rounding into the rim: wall flatter
     assert "rounding into the rim" in _thickness_caption(pp, True)
+    # a first lap at the sheet plane, a hair above it: "depth 0.0 mm", not "-0.0"
+    pp["depth"] = pp["depth"] - pp.loc[pp["lap"] == pp["lap"].min(), "depth"].mean() - 1e-4
+    assert "(depth 0.0 mm)" in _thickness_caption(pp, True)
 
 
 def _ident(mode):
@@ -100,3 +103,53 @@ def test_top_view_caption_names_the_sparse_corners(small, tmp_path):
     cap = block[block.index("<figcaption>") : block.index("</figcaption>")]
     assert "scan holes" in cap and "corners" in cap and "subset leaves out" in cap
     assert np.isfinite(pp["thickness_predicted"]).all()
+
+
+def test_thickness_shows_each_laps_spread_when_walls_differ_in_angle():
+    """On a part with two wall angles the thickness figure drew the lap mean of the sine law
+    alone (0.69 mm, a thickness no wall has): the band from the thinnest to the thickest wall
+    of each lap is drawn beside it, named in the legend with the walls' angles, in both
+    renderers; a part whose laps keep one angle draws no band."""
+    from matplotlib.collections import PolyCollection
+
+    from roboisf.report import aggregate as agg
+
+    pp = with_two_wall_angles(make_study(n_laps=30, points_per_lap=40, shape="pyramid")[0])
+    spread = agg.thickness_spread(pp)
+    assert spread is not None
+    assert spread.low == pytest.approx(1.22 * np.cos(np.radians(65.0)))
+    assert spread.high == pytest.approx(1.22 * np.cos(np.radians(45.0)))
+    assert (spread.angle_low, spread.angle_high) == (45.0, 65.0)
+    assert "45°–65° walls" in spread.label
+
+    fig = ia.thickness_figure(pp)  # HTML: the band's two edges, its legend entry once
+    band = [t for t in fig.data if t.get("legendgroup") == "spread"]
+    assert len(band) == 2 and sum(bool(t.get("showlegend")) for t in band) == 1
+    assert np.asarray(band[0]["y"]) == pytest.approx(spread.high, abs=1e-6)
+    assert np.asarray(band[1]["y"]) == pytest.approx(spread.low, abs=1e-6)
+    assert band[1]["fill"] == "tonexty" and band[1]["name"] == spread.label
+    names = [t.get("name") for t in fig.data if t.get("showlegend", True)]
+    assert "predicted (sine law), lap mean" in names
+
+    png = st.thickness_png(pp)  # PNG: a filled band with its legend entry
+    ax = png.axes[0]
+    fills = [
+        c
+        for c in ax.collections
+        if isinstance(c, PolyCollection) and not c.get_label().startswith("_")
+    ]  # the measured thickness' 5–95 % band has no legend entry
+    assert [c.get_label() for c in fills] == [spread.label]
+    ys = fills[0].get_paths()[0].vertices[:, 1]
+    assert ys.min() == pytest.approx(spread.low.min()) and ys.max() == pytest.approx(
+        spread.high.max()
+    )
+    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert spread.label in legend and "predicted (sine law), lap mean" in legend
+    assert "differ in angle (45° to 65°)" in _thickness_caption(pp, True)
+
+    cone = make_study(n_laps=30, points_per_lap=40)[0]  # one wall angle per lap
+    assert agg.thickness_spread(cone) is None
+    assert not [t for t in ia.thickness_figure(cone).data if t.get("legendgroup") == "spread"]
+    labels = [c.get_label() for c in st.thickness_png(cone).axes[0].collections]
+    assert not any("thinnest" in label for label in labels)
+    assert "differ in angle" not in _thickness_caption(cone, True)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from plotly.subplots import make_subplots
 
-from report_fixtures import make_study
+from report_fixtures import make_study, with_two_wall_angles
 from roboisf.report import interactive as ia
 from roboisf.report import plotfig as pf
 from roboisf.report.document import FIGURES
@@ -91,10 +91,14 @@ def figures():
         "vjm_contour": ia.vjm_contour_figure(pp, -11.0)[0],
         "thickness": ia.thickness_figure(pp),
         "part_3d": ia.part_figure(pp),
+        # walls of two angles: the thickness' thinnest–thickest band
+        "thickness_two_walls": ia.thickness_figure(
+            with_two_wall_angles(make_study(n_laps=30, points_per_lap=40, shape="pyramid")[0])
+        ),
     }
 
 
-@pytest.mark.parametrize("name", [*FIGURES, "vjm_contour", "part_3d"])
+@pytest.mark.parametrize("name", [*FIGURES, "vjm_contour", "part_3d", "thickness_two_walls"])
 def test_every_report_figure_is_valid_and_unchanged_by_plotly(figures, name):
     fig = figures[name]
     ours = fig.to_plotly_json()

@@ -172,7 +172,10 @@ def test_dimensionless_estimates_read_as_ratios_not_as_a_lone_1():
 
     assert _estimate(row("robot_stiffness")) == "3.105 [2.859, 4.252] ×"
     assert _estimate(row("force_gain")).endswith("] ×")
-    assert _estimate(row("force_crosstalk")).endswith("] N/N")
+    # a crosstalk in newtons per kilonewton: 1.574e-04 N/N printed as such beside "0.000"
+    assert _estimate(row("force_crosstalk")) == "3105.000 [2859.000, 4252.000] N/kN"
+    small = {**row("force_crosstalk"), "estimate": 1.574e-4, "ci_low": 0.0, "ci_high": 5.406e-4}
+    assert _estimate(small) == "0.157 [0.000, 0.541] N/kN"
     assert _estimate(row("springback_coupling")) == "3.105 [2.859, 4.252]"
     assert _estimate({**row("scan_shift"), "unit": "mm"}).endswith("] mm")
 
@@ -202,16 +205,50 @@ def test_robot_panel_caption_gives_the_springback_coupling(small, tmp_path):
     assert cap and "coupling" not in cap.group(1)
 
 
-def test_contour_lap_skips_the_rim_band(small):
-    pp = small[0].copy()
+def test_contour_in_the_rim_band_shows_the_middle_of_the_analysed_wall(small, tmp_path):
+    """The paper's contour height, z = −11 mm, lies inside the 20 mm rim band of a deep part:
+    the figure showed the first lap below the band (a "fallback lap" at z ≈ −20 mm, where the
+    rim's transition still shows). A height in the band, or none asked, gives the lap nearest
+    the middle of the analysed wall, and the page says which height it shows and why."""
+    pp = small[0].copy()  # 30 laps down to 103 mm
     z = pp.groupby("lap")["contact_z"].mean()
     lap, _, note = agg.contour_lap(pp, float(z.iloc[2]))
-    assert lap == int(z.index[2]) and note is None
-    pp["used"] = pp["depth"] > 20.0  # a rim band of 20 mm
-    lap, _, note = agg.contour_lap(pp, float(z.iloc[2]))
-    first_used = pp.loc[pp["used"], "lap"].min()
-    assert lap == first_used and note is not None and "rim band" in note
-    assert pp.loc[pp["lap"] == lap, "used"].any()
+    assert lap == int(z.index[2]) and note is None  # no rim band: the lap asked for
+    pp["used"] = (pp["depth"] > 20.0) & pp["cnc_valid"] & pp["robot_valid"]  # a 20 mm rim band
+    cz = pp.loc[pp["used"], "contact_z"]
+    middle = (cz.max() + cz.min()) / 2
+    laps_used = z[pp.groupby("lap")["used"].any()]
+    best = int((laps_used - middle).abs().idxmin())
+    for asked in (-11.0, float(z.iloc[2]), None):
+        lap, zl, note = agg.contour_lap(pp, asked)
+        assert lap == best and zl == pytest.approx(z.loc[best]), asked
+        assert note is not None and "middle of the analysed wall" in note, asked
+        assert (asked is None) == ("no contour height was asked for" in note)
+    assert "requested z = -11.00 mm" in agg.contour_lap(pp, -11.0)[2]
+    assert "rim band" in agg.contour_lap(pp, -11.0)[2]
+    # a height on the analysed wall is kept, whatever the middle
+    deep = float(z.iloc[25])
+    assert agg.contour_lap(pp, deep) == (int(z.index[25]), pytest.approx(deep), None)
+    # a hole on the wall, not the band: the nearest lap with data, as before
+    holed = pp.copy()
+    holed.loc[holed["lap"] == int(z.index[25]), "robot_valid"] = False
+    lap, _, note = agg.contour_lap(holed, deep)
+    assert lap in (int(z.index[24]), int(z.index[26])) and f"lap {int(z.index[25])}" in note
+
+    # the page: the caption and the study table name the lap shown and why
+    _, c, cn, s = small
+    path = write_report(pp, c, cn, {**s, "contour_z": -11.0}, tmp_path / "a", png=False)
+    text = path.read_text(encoding="utf-8")
+    block = text[text.index('<figure id="figure-vjm_polar">') :]
+    cap = block[block.index("<figcaption>") : block.index("</figcaption>")]
+    assert f"Contour at z = {z.loc[best]:.2f} mm (lap {best})" in cap
+    assert "requested z = -11.00 mm" in cap and "middle of the analysed wall" in cap
+    assert f"lap {best} at z = {z.loc[best]:.2f} mm (asked: z = -11 mm" in text
+    s_none = {k: v for k, v in s.items() if k != "contour_z"}
+    path = write_report(pp, c, cn, s_none, tmp_path / "b", png=False)
+    text = path.read_text(encoding="utf-8")
+    assert "no contour height was asked for" in text
+    assert f"lap {best} at z = {z.loc[best]:.2f} mm (none asked" in text
 
 
 def test_part_view_keeps_whole_laps_breaks_between_them_and_masks_holes(small):
@@ -295,11 +332,76 @@ def test_experiment_vs_vjm_captions_give_the_mismatch(small, tmp_path):
 
 def test_table_numbers_read_floating_point_zeros_as_zero():
     """A moment of 9.2e-21 N·m and a compliance coupling of -2.9e-24 m/N were printed as such,
-    and -0.0 as "-0.000"; real small values keep their scientific form."""
+    and -0.0 as "-0.000"."""
     from roboisf.report.page import fmt
 
-    assert [fmt(v) for v in (9.182e-21, -2.923e-24, -0.0, -0.00004)] == [
-        "0.000", "0.000", "0.000", "-4.000e-05"
-    ]  # fmt: skip
-    assert fmt(2.5e-9) == "2.500e-09" and fmt(1.574e-4) == "1.574e-04" and fmt(-0.5) == "-0.500"
-    assert fmt(-0.0001, 2) == "-1.000e-04" and fmt(-0.004, 2) == "-4.000e-03"
+    assert [fmt(v) for v in (9.182e-21, -2.923e-24, -0.0, 0.0)] == ["0.000"] * 4
+    assert fmt(-0.5) == "-0.500" and fmt(-0.0004999, 3) == "-0.00050"
+
+
+def test_table_numbers_never_switch_to_e_notation():
+    """Real small values printed in e-notation beside fixed-point neighbours (a crosstalk of
+    1.574e-04, a mean Δ of -1.511e-05 mm beside 0.0057, a Table-4 entry 8.817e-06 beside
+    0.0003), large ones likewise (a joint stiffness 3.730e+06 beside 638000). Fixed point
+    throughout: a real value below the column's last decimal keeps two significant digits (it
+    is not a zero, which reads 0.000), large values have their digits grouped by three."""
+    from roboisf.report.page import GROUP_SEPARATOR as G
+    from roboisf.report.page import fmt
+
+    assert fmt(1.574e-4) == "0.00016" and fmt(-1.511e-05, 4) == "-0.000015"
+    assert fmt(8.817e-06, 4) == "0.0000088" and fmt(2.5e-9) == "0.0000000025"
+    assert fmt(-0.0001, 2) == "-0.00010" and fmt(-0.004, 2) == "-0.0040"
+    assert fmt(0.0057, 4) == "0.0057" and fmt(0.001, 3) == "0.001"  # at the column's precision
+    assert fmt(3.73e6, 0) == f"3{G}730{G}000" and fmt(638000, 0) == f"638{G}000"
+    assert fmt(-12345.678, 1) == f"-12{G}345.7" and fmt(9999.5, 0) == "10000"
+    for v in (1.574e-4, -1.511e-05, 3.73e6, 1e12, 2.5e-9, -7e-13):
+        assert "e" not in fmt(v).lower(), v
+
+
+def test_compliance_table_in_millionths_of_si(small, tmp_path):
+    """The compliance statistics (SI, 1e-9 … 1e-6) printed 8.522e-07 beside 0.000: shown in
+    µm/N, µm/(N·m), µrad/N and µrad/(N·m) at four decimals, the unit in its own column."""
+    from roboisf.report.page import compliance_table
+
+    stats = {
+        "k_11": {"mean": 8.522e-07, "std": 1.22e-08, "min": 8.239e-07, "max": 8.771e-07},
+        "k_16": {"mean": 3.812e-08, "std": 1.754e-09, "min": 3.5e-08, "max": 4.222e-08},
+        "k_61": {"mean": 3.812e-08, "std": 1.754e-09, "min": 3.5e-08, "max": 4.222e-08},
+        "k_36": {"mean": 1e-21, "std": 0.0, "min": 0.0, "max": 2e-21},
+        "k_55": {"mean": 1.728e-06, "std": 3.028e-09, "min": 1.723e-06, "max": 1.735e-06},
+    }
+    text = compliance_table(stats)
+    rows = {
+        m.group(1): m.group(2)
+        for m in re.finditer(r"<tr><td>k<sub>(\d\d)</sub></td>(.*?)</tr>", text)
+    }
+    cells = {k: re.findall(r"<td>([^<]*)</td>", v) for k, v in rows.items()}
+    assert cells["11"] == ["µm/N", "0.8522", "0.0122", "0.8239", "0.8771"]
+    assert cells["16"] == ["µm/(N·m)", "0.0381", "0.0018", "0.0350", "0.0422"]
+    assert cells["61"][0] == "µrad/N" and cells["55"][:2] == ["µrad/(N·m)", "1.7280"]
+    assert cells["36"][1:] == ["0.0000"] * 4  # floating-point zeros
+    assert "e-0" not in text
+    # the report's own table
+    _, page = _write(small, tmp_path)
+    table = page[page.index("Cartesian compliance") :]
+    table = table[: table.index("</table>")]
+    assert "µm/N" in table and "e-0" not in table
+
+
+def test_report_tables_have_no_e_notation(small, tmp_path):
+    """Every table of the report, with tiny real values in the summary (Δ, Table 4, the
+    terms' means, a crosstalk): fixed point only."""
+    diag = [{"suspect": "force_crosstalk", "verdict": "ok", "estimate": 2.758e-05,
+             "ci_low": 0.0, "ci_high": 5.406e-04, "unit": "1", "explanation": "x"}]  # fmt: skip
+    fc = {"dx": {"Fx": 0.0789, "Mz": 8.817e-06}, "dz": {"Fx": 0.0448, "Mz": 0.0}}
+    terms = {"delta": {"mean_mm": -1.511e-05, "rms_mm": 0.0057, "mean_abs_mm": 0.0046,
+                       "std_mm": 0.0057}}  # fmt: skip
+    vjm = {"x": 0.0002, "y": 4.3e-05, "z": 6.145e-05, "resultant": 0.0002}
+    _, page = _write(small, tmp_path, diagnosis=diag, force_contributions=fc,
+                     terms_normal=terms, vjm_vs_experiment=vjm)  # fmt: skip
+    tables = re.findall(r"<table>.*?</table>", page, flags=re.S)
+    assert len(tables) >= 5
+    for t in tables:
+        assert not re.search(r"\d\.\d+e[+-]\d", t), t[:200]
+    assert "0.028 [0.000, 0.541] N/kN" in page
+    assert "<td>0.0000088</td>" in page and "<td>-0.000015</td>" in page

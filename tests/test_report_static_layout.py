@@ -6,6 +6,7 @@ axes' labels, for every figure of the report, round part and not."""
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 from itertools import combinations
 
 import numpy as np
@@ -16,7 +17,7 @@ from matplotlib.figure import Figure
 from matplotlib.text import Text
 from matplotlib.transforms import Bbox
 
-from report_fixtures import make_study
+from report_fixtures import make_study, with_two_wall_angles
 from roboisf.report import document as doc
 from roboisf.report import static as st
 from roboisf.report.schema import check_contributions, check_per_point, check_summary
@@ -30,6 +31,10 @@ def figures():
     s = check_summary(summary)
     figs = doc._figures(pp, c, cn, s["contour_z"], True)
     figs["vjm_contour"] = doc._figures(pp, c, cn, s["contour_z"], False)["vjm_contour"]
+    walls = with_two_wall_angles(make_study(n_laps=40, points_per_lap=60, shape="pyramid")[0])
+    figs["thickness_two_walls"] = dataclasses.replace(
+        figs["thickness"], png=lambda: st.thickness_png(walls)
+    )
     return figs
 
 
@@ -54,7 +59,9 @@ def _extent(t: Text, renderer) -> Bbox:
 
 
 @pytest.mark.parametrize(
-    "fid", [*doc.FIGURES, "vjm_contour"], ids=lambda f: f if isinstance(f, str) else ""
+    "fid",
+    [*doc.FIGURES, "vjm_contour", "thickness_two_walls"],
+    ids=lambda f: f if isinstance(f, str) else "",
 )
 def test_no_text_cut_off_or_overlapping(figures, fid):
     fig = figures[fid].png()
@@ -143,3 +150,98 @@ def test_reductions_shared_between_renderers_change_nothing(tmp_path, monkeypatc
 @contextlib.contextmanager
 def _no_reuse():
     yield
+
+
+#: Least clear space between two tick labels [pt]: more than a word space at the figures' tick
+#: size (2.9 pt at 9 pt), so "100" of one axes and "0" of the next do not read as "1000" (they
+#: stood 2.2 pt apart).
+TICK_GAP_PT = 4.0
+
+
+def _tick_labels(fig: Figure) -> list[Text]:
+    out: list[Text] = []
+    for ax in fig.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            for tick in axis._update_ticks():  # the ticks drawn (within the view limits)
+                out += [t for t in (tick.label1, tick.label2) if t.get_visible()]
+    return [t for t in out if t.get_text().strip()]
+
+
+def _corners(t: Text, renderer, pad: float) -> np.ndarray:
+    """The (4, 2) corners in pixels of the rectangle ``t`` covers, rotated with the text and
+    grown by ``pad`` on every side: a rotated label's axis-aligned box covers its neighbour's
+    even when the words stand apart."""
+    bb = t.get_window_extent(renderer)
+    W, H = bb.width, bb.height
+    th = np.radians(t.get_rotation() % 180.0)
+    c, s = abs(np.cos(th)), abs(np.sin(th))
+    if abs(c - s) > 1e-3:  # W = w·c + h·s, H = w·s + h·c: the unrotated w, h
+        w, h = np.linalg.solve([[c, s], [s, c]], [W, H])
+    else:  # 45°: only w + h is known; the box itself is the safe side
+        w, h, th = W, H, 0.0
+    u = np.array([np.cos(th), np.sin(th)])
+    v = np.array([-u[1], u[0]])
+    half_u, half_v = (w / 2 + pad) * u, (h / 2 + pad) * v
+    centre = np.array([(bb.x0 + bb.x1) / 2, (bb.y0 + bb.y1) / 2])
+    return np.array([centre + a + b for a, b in ((-1, -1), (1, -1), (1, 1), (-1, 1))
+                     for a, b in [(a * half_u, b * half_v)]])  # fmt: skip
+
+
+def _polygons_overlap(p: np.ndarray, q: np.ndarray) -> bool:
+    """Separating-axis test of two convex quadrilaterals (4, 2)."""
+    for poly in (p, q):
+        for k in range(4):
+            edge = poly[(k + 1) % 4] - poly[k]
+            axis = np.array([-edge[1], edge[0]])
+            a, b = p @ axis, q @ axis
+            if a.max() <= b.min() or b.max() <= a.min():
+                return False
+    return True
+
+
+def tick_label_clashes(fig: Figure) -> list[tuple[str, str]]:
+    """Pairs of tick labels (of any axes of ``fig``, colorbars and polar axes included) whose
+    rectangles, each grown by half of :data:`TICK_GAP_PT` and turned with the text, overlap once
+    drawn."""
+    renderer = _drawn(fig).get_renderer()
+    pad = TICK_GAP_PT / 2 * st.DPI / 72.0
+    labels = _tick_labels(fig)
+    quads = [_corners(t, renderer, pad) for t in labels]
+    return [
+        (labels[i].get_text(), labels[j].get_text())
+        for i, j in combinations(range(len(labels)), 2)
+        if _polygons_overlap(quads[i], quads[j])
+    ]
+
+
+def test_the_clash_check_sees_touching_labels_and_turned_ones_apart():
+    """The check itself: two labels 1 pt apart clash, 10 pt apart do not; turned labels whose
+    axis-aligned boxes overlap but whose words stand apart do not."""
+    for gap_pt, clash in ((1.0, True), (10.0, False)):
+        fig = Figure(figsize=(4, 2))
+        ax = fig.add_axes((0.1, 0.3, 0.8, 0.6))
+        ax.set_xlim(0, 4)
+        renderer = _drawn(fig).get_renderer()
+        w = ax.text(0, 0, "100").get_window_extent(renderer).width  # px at DPI
+        ax.texts[0].remove()
+        step = (w + gap_pt * st.DPI / 72.0) / ax.get_window_extent(renderer).width * 4
+        ax.set_xticks([1, 1 + step], ["100", "100"])
+        assert bool(tick_label_clashes(fig)) is clash, gap_pt
+    fig = Figure(figsize=(4, 2))
+    ax = fig.add_axes((0.1, 0.4, 0.8, 0.5))
+    ax.set_xlim(0, 4)
+    ax.set_xticks([1, 1.3], ["a long turned label", "a long turned label"], rotation=60)
+    renderer = _drawn(fig).get_renderer()
+    a, b = (t.get_window_extent(renderer) for t in ax.get_xticklabels())
+    assert a.overlaps(b) and tick_label_clashes(fig) == []
+
+
+@pytest.mark.parametrize(
+    "fid",
+    [*doc.FIGURES, "vjm_contour", "thickness_two_walls"],
+    ids=lambda f: f if isinstance(f, str) else "",
+)
+def test_tick_labels_do_not_collide(figures, fid):
+    """No two tick labels touch (the deviation map's "100" ran into the next panel's "0", the
+    polar plot's radial labels 0.4, 0.5, 0.6 into each other)."""
+    assert tick_label_clashes(figures[fid].png()) == [], fid

@@ -23,6 +23,7 @@ __all__ = [
     "ContourPath",
     "Headline",
     "LapMap",
+    "LapSpread",
     "TopView",
     "arc_length",
     "contour",
@@ -37,6 +38,7 @@ __all__ = [
     "masked",
     "part_view",
     "reused",
+    "thickness_spread",
     "top_view",
     "unrolled_map",
 ]
@@ -155,6 +157,59 @@ def lap_profile(per_point: pd.DataFrame, columns: Sequence[str]) -> pd.DataFrame
     return out
 
 
+#: Least spread of the sine-law thickness within a lap [mm] the thickness figure draws as a
+#: band: a part whose laps keep one wall angle (a cone, a VWACF: the angle changes with depth,
+#: not around a lap) draws its lap mean alone.
+SPREAD_MIN = 1e-3
+
+
+@dataclass(frozen=True)
+class LapSpread:
+    """The thinnest and thickest sine-law thickness of each lap, where the walls of one lap
+    differ in angle (a pyramid with two wall angles, a freeform part).
+
+    ``depth`` (L,) mm, the lap's mean depth; ``low``, ``high`` (L,) mm, the lap's least and
+    greatest ``thickness_predicted``; ``angle_low``, ``angle_high`` deg, the median over the
+    laps that spread of their least and greatest wall angle (the walls' angles, not a rim
+    lap's).
+    """
+
+    depth: np.ndarray
+    low: np.ndarray
+    high: np.ndarray
+    angle_low: float
+    angle_high: float
+
+    @property
+    def label(self) -> str:
+        """The figures' legend entry for the band."""
+        return (
+            "predicted, thinnest–thickest wall of the lap "
+            f"({self.angle_low:.0f}°–{self.angle_high:.0f}° walls)"
+        )
+
+
+@_reusable
+def thickness_spread(per_point: pd.DataFrame) -> LapSpread | None:
+    """:class:`LapSpread` of ``thickness_predicted``, or None when no lap spreads by more than
+    :data:`SPREAD_MIN` (every lap keeps one wall angle). One group-by: cheap."""
+    frame = per_point[["lap", "depth", "thickness_predicted", "wall_angle_deg"]]
+    g = frame.groupby("lap", sort=True)
+    t = g["thickness_predicted"].agg(["min", "max"])
+    spread = (t["max"] - t["min"]).to_numpy()
+    wide = spread > SPREAD_MIN
+    if not wide.any():
+        return None
+    angle = g["wall_angle_deg"].agg(["min", "max"]).to_numpy()[wide]
+    return LapSpread(
+        g["depth"].mean().to_numpy(),
+        t["min"].to_numpy(),
+        t["max"].to_numpy(),
+        float(np.median(angle[:, 0])),
+        float(np.median(angle[:, 1])),
+    )
+
+
 def decimate(n: int, max_points: int) -> np.ndarray:
     """Indices of at most ``max_points`` evenly strided samples of ``n`` (first and last kept)."""
     if n <= max_points:
@@ -197,13 +252,21 @@ def unrolled_map(
     return centres, depth, grid.reshape(len(laps), n_angle_bins)
 
 
-def contour_lap(per_point: pd.DataFrame, contour_z: float) -> tuple[int, float, str | None]:
-    """The lap whose mean contact height is nearest ``contour_z`` (mm) and has valid scan data
-    the analysis used (the ``used`` column when present: below the rim band, no scan hole).
+def contour_lap(
+    per_point: pd.DataFrame, contour_z: float | None = None
+) -> tuple[int, float, str | None]:
+    """The lap the contour figure shows: the lap whose mean contact height is nearest
+    ``contour_z`` (mm) among those with valid scan data the analysis used (the ``used`` column
+    when present: below the rim band, no scan hole).
 
-    Returns ``(lap, z, note)``: the lap number, its mean contact z (mm) and a note for the reader
-    when the nearest lap had to be skipped because it lies in the rim band or both scans were
-    holes there (else None).
+    With no ``contour_z``, or one that lies in the rim band the analysis leaves out (above the
+    analysed wall: the paper's z = −11 mm under a 20 mm band), the lap nearest the **middle of
+    the analysed wall** — halfway between the highest and the lowest analysed point — is shown
+    instead: the first lap below the band still carries the rim's transition.
+
+    Returns ``(lap, z, note)``: the lap number, its mean contact z (mm) and, when the lap is not
+    the one nearest the requested height, a note for the reader saying which lap was skipped
+    and why (else None).
     """
     z = per_point.groupby("lap", sort=True)["contact_z"].mean()
     ok = np.isfinite(masked(per_point, "robot_compliance_dn"))
@@ -211,25 +274,50 @@ def contour_lap(per_point: pd.DataFrame, contour_z: float) -> tuple[int, float, 
     if rim:
         ok &= per_point["used"].to_numpy(dtype=bool)
     usable = pd.Series(ok, index=per_point.index).groupby(per_point["lap"]).any()
-    order = np.argsort(np.abs(z.to_numpy() - contour_z), kind="stable")
-    first = int(z.index[order[0]])
-    for k in order:
-        lap = int(z.index[k])
-        if usable.loc[lap]:
-            note = None
-            if lap != first:
-                why = (
-                    "lies in the rim band the analysis leaves out or has no valid scan data"
-                    if rim
-                    else "has no valid scan data"
-                )
-                note = f"lap {first} (z = {z.loc[first]:.2f} mm) {why}; showing lap {lap} instead"
-            return lap, float(z.loc[lap]), note
-    return (
-        first,
-        float(z.loc[first]),
-        "no lap has valid scan data; the contour shows the models only",
+    zs = z.to_numpy()
+    if not usable.any():
+        target = float(np.mean(zs)) if contour_z is None else float(contour_z)
+        first = int(z.index[np.argmin(np.abs(zs - target))])
+        return (
+            first,
+            float(z.loc[first]),
+            "no lap has valid scan data; the contour shows the models only",
+        )
+    cz = per_point["contact_z"].to_numpy(dtype=float)[ok]
+    top, bottom = float(cz.max()), float(cz.min())
+    middle = (top + bottom) / 2.0
+    wall = f"z {top:.1f} to {bottom:.1f} mm"
+    free = np.where(usable.reindex(z.index).to_numpy(dtype=bool), zs, np.nan)
+
+    def nearest(target: float) -> int:
+        return int(z.index[np.nanargmin(np.abs(free - target))])
+
+    if contour_z is None:
+        lap = nearest(middle)
+        note = (
+            f"the lap nearest the middle of the analysed wall ({wall}); no contour height was "
+            "asked for"
+        )
+        return lap, float(z.loc[lap]), note
+    first = int(z.index[np.argmin(np.abs(zs - contour_z))])
+    if usable.loc[first]:
+        return first, float(z.loc[first]), None
+    if rim and contour_z > top and not per_point.loc[per_point["lap"] == first, "used"].any():
+        lap = nearest(middle)
+        note = (
+            f"the requested z = {contour_z:.2f} mm (lap {first}) lies in the rim band the "
+            f"analysis leaves out; showing the lap nearest the middle of the analysed wall "
+            f"({wall}) instead"
+        )
+        return lap, float(z.loc[lap]), note
+    lap = nearest(float(contour_z))
+    why = (
+        "lies in the rim band the analysis leaves out or has no valid scan data"
+        if rim
+        else "has no valid scan data"
     )
+    note = f"lap {first} (z = {z.loc[first]:.2f} mm) {why}; showing lap {lap} instead"
+    return lap, float(z.loc[lap]), note
 
 
 @dataclass(frozen=True)
@@ -250,7 +338,7 @@ class Contour:
 
 
 @_reusable
-def contour(per_point: pd.DataFrame, contour_z: float) -> Contour:
+def contour(per_point: pd.DataFrame, contour_z: float | None = None) -> Contour:
     """Resultant robot deflections around the lap chosen by :func:`contour_lap`."""
     lap, z, note = contour_lap(per_point, contour_z)
     sel = per_point["lap"].to_numpy() == lap
@@ -491,7 +579,7 @@ class ContourPath:
 
 
 @_reusable
-def contour_along(per_point: pd.DataFrame, contour_z: float) -> ContourPath:
+def contour_along(per_point: pd.DataFrame, contour_z: float | None = None) -> ContourPath:
     """Resultant robot deflections along the lap chosen by :func:`contour_lap`, by arc length —
     the contour plot of a part that is not round."""
     lap, z, note = contour_lap(per_point, contour_z)

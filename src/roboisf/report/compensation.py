@@ -9,6 +9,7 @@ inline) and ``compensation.png`` (matplotlib), both atomically.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any, cast
 
@@ -175,6 +176,44 @@ def _start(laps: pd.DataFrame, summary: dict[str, Any]) -> str | None:
     return f"The before/after curves start at lap {first}: {where}{ramp}."
 
 
+def _number(value: Any) -> float | None:
+    ok = isinstance(value, int | float) and not isinstance(value, bool)
+    return float(value) if ok and math.isfinite(value) else None
+
+
+def _gouge(g: dict[str, Any]) -> tuple[str, str]:
+    """The gouge card's value and note: the verdict *with its margin* — how close the loaded ball
+    comes to the gouge limit — and where that limit is (the rule's tolerance: a gouge is the
+    ball centre deeper than intended by more than ``tol``), plus the over-bend against its
+    limit. ``ok`` alone said nothing of a 0.010 mm margin."""
+    verdict = "ok" if g.get("ok") else "GOUGE"
+    margin, tol = _number(g.get("min_margin_mm")), _number(g.get("tol_mm"))
+    if margin is None:  # an older compensation.json: the rule as it was
+        return verdict, esc(g.get("rule", ""))
+    value = f"{verdict}<small> · margin {margin:.3f} mm</small>"
+    notes = []
+    if tol is not None:
+        past = tol - margin  # how far the loaded ball centre goes past the intended depth
+        where = (
+            "at the intended depth"
+            if abs(past) < 5e-4
+            else f"{abs(past):.3f} mm {'deeper' if past > 0 else 'shallower'} than intended"
+        )
+        notes.append(
+            f"closest point: the loaded ball centre {where}; a gouge is more than {tol:.3f} mm "
+            "deeper than intended (margin below 0)"
+        )
+    else:
+        notes.append("smallest margin to the gouge limit (a gouge: margin below 0)")
+    bend, limit = _number(g.get("max_intended_overbend_mm")), _number(g.get("max_overbend_mm"))
+    if bend is not None and limit is not None:
+        notes.append(f"intended over-bend up to {bend:.3f} mm of the {limit:.3f} mm allowed")
+    bad = g.get("gouge_indices")
+    if not g.get("ok") and isinstance(bad, list) and bad:
+        notes.append(f"{len(bad)} points gouge")
+    return value, esc("; ".join(notes))
+
+
 def _card(label: str, value: str, note: str = "", cls: str = "") -> str:
     return (
         f'<div class="card{cls}"><div class="label">{label}</div><div class="value">{value}</div>'
@@ -220,14 +259,8 @@ def _body(laps: pd.DataFrame, summary: dict[str, Any], div: str) -> str:
                 f"mean {fmt(summary.get('mean_command_offset_mm'), 3)} mm",
             )
         )
-    cards.append(
-        _card(
-            "Gouge check",
-            "ok" if g.get("ok") else "GOUGE",
-            esc(g.get("rule", "")),
-            "" if g.get("ok") else " warn",
-        )
-    )
+    value, note = _gouge(g)
+    cards.append(_card("Gouge check", value, note, "" if g.get("ok") else " warn"))
     lines = [f"<p><b>Compensated:</b> {esc(_terms(summary))}.</p>"]
     stiff = _stiffness(summary)
     if stiff:
@@ -272,6 +305,7 @@ def _body(laps: pd.DataFrame, summary: dict[str, Any], div: str) -> str:
             f"{fmt(summary.get('max_lap_step_command_dn_mm'), 3)} mm",
         ),
         ("G-code", summary.get("gcode")),
+        ("gouge rule", g.get("rule")),
     ]
     return (
         f'<div class="cards">{"".join(cards)}</div>'

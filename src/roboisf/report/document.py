@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 import plotly.io as pio
 
@@ -110,10 +111,21 @@ def _thickness_caption(pp: pd.DataFrame, has_meas: bool) -> str:
         )
     else:
         text += "; no measured thickness was given."
+    spread = agg.thickness_spread(pp)
+    if spread is not None:
+        text += (
+            f" The walls of a lap differ in angle ({spread.angle_low:.0f}° to "
+            f"{spread.angle_high:.0f}°), so the sine law differs between them: the shaded band "
+            "spans each lap's thinnest to thickest wall "
+            f"(up to {float(np.max(spread.high - spread.low)):.3f} mm apart), the dashed line "
+            "is the lap mean."
+        )
     pred = prof["thickness_predicted"].dropna()
     if len(pred) > 2 and pred.iloc[0] > 1.05 * pred.median():
+        top = float(prof["depth"].iloc[0])
+        top = 0.0 if abs(top) < 0.05 else top  # a first lap at the sheet read "depth -0.0 mm"
         text += (
-            f" At the top (depth {prof['depth'].iloc[0]:.1f} mm) the tool is still on the "
+            f" At the top (depth {top:.1f} mm) the tool is still on the "
             "rounding into the rim, where the wall is flatter, so the sine law rises towards "
             "the sheet's thickness there."
         )
@@ -124,7 +136,7 @@ def _figures(
     pp: pd.DataFrame,
     contrib: pd.DataFrame,
     contrib_n: pd.DataFrame,
-    contour_z: float,
+    contour_z: float | None,
     round_part: bool,
 ) -> dict[str, _Figure]:
     has_truth = any(f"truth_{f}_dn" in pp.columns for f in FACTORS)
@@ -424,7 +436,8 @@ def write_report(
         ``tool, tool_holder, springback, robot_compliance, total`` (mm, %).
     summary : dict
         Must have ``study``; uses ``part, robot, tool, units, compliance_stats,
-        force_contributions, vjm_vs_experiment, contour_z`` (mm, default −11) and ``warnings``.
+        force_contributions, vjm_vs_experiment, contour_z`` (mm; absent or None: the middle of
+        the analysed wall) and ``warnings``.
     out_dir
         Created if missing. Files are written atomically; other files in it are left alone.
     png
@@ -631,10 +644,17 @@ def _write_report(
             )
             it.write_iterations_csv(summ["iterations"], out)
         items = [(k, summ.get(k)) for k in ("study", "part", "robot", "tool", "units")]
+        lap, z, note = agg.contour_lap(pp, summ["contour_z"])
+        asked = summ["contour_z"]
         items.append(
             (
                 "contour for the polar plot" if round_part else "contour plot (part not round)",
-                f"z = {summ['contour_z']:g} mm",
+                f"lap {lap} at z = {z:.2f} mm"
+                + (
+                    " (none asked: the middle of the analysed wall)"
+                    if asked is None
+                    else f" (asked: z = {asked:g} mm{'' if note is None else '; see its caption'})"
+                ),
             )
         )
         items.append(

@@ -353,8 +353,24 @@ def vjm_path_figure(per_point: pd.DataFrame) -> pf.Figure:
     return fig
 
 
-def vjm_polar_figure(per_point: pd.DataFrame, contour_z: float) -> tuple[pf.Figure, str]:
-    """Resultant robot deflection |δc| around the contour nearest ``contour_z``: experiment vs VJM.
+def contour_caption(
+    lap: int, z: float, note: str | None, contour_z: float | None, length: float | None = None
+) -> str:
+    """Which contour the figure shows and why (:func:`roboisf.report.aggregate.contour_lap`);
+    ``length`` (mm) of the lap when given."""
+    long = "" if length is None else f", {length:.1f} mm long"
+    text = f"Contour at z = {z:.2f} mm (lap {lap}{long})"
+    if note is None:
+        return f"{text}, the lap nearest the requested z = {contour_z:.2f} mm."
+    return f"{text}: {note}."
+
+
+def vjm_polar_figure(
+    per_point: pd.DataFrame, contour_z: float | None = None
+) -> tuple[pf.Figure, str]:
+    """Resultant robot deflection |δc| around the contour nearest ``contour_z`` (mm; None: the
+    middle of the analysed wall, :func:`roboisf.report.aggregate.contour_lap`): experiment vs
+    VJM.
 
     Returns the figure and its caption (which lap, its height, and any substitution).
     """
@@ -400,15 +416,12 @@ def vjm_polar_figure(per_point: pd.DataFrame, contour_z: float) -> tuple[pf.Figu
         },
         margin={"l": 40, "r": 40, "t": 60, "b": 40},
     )
-    caption = (
-        f"Contour at z = {c.z:.2f} mm (lap {c.lap}), nearest the requested z = {contour_z:.2f} mm."
-    )
-    if c.note:
-        caption += " " + c.note + "."
-    return fig, caption
+    return fig, contour_caption(c.lap, c.z, c.note, contour_z)
 
 
-def vjm_contour_figure(per_point: pd.DataFrame, contour_z: float) -> tuple[pf.Figure, str]:
+def vjm_contour_figure(
+    per_point: pd.DataFrame, contour_z: float | None = None
+) -> tuple[pf.Figure, str]:
     """Resultant robot deflection along the contour nearest ``contour_z`` on a part that is not
     round: the lap's outline seen from above coloured by |δc_exp| (left) and |δc_exp|, |δc_VJM|,
     |Δ| against the arc length along the lap (right), in mm.
@@ -469,13 +482,7 @@ def vjm_contour_figure(per_point: pd.DataFrame, contour_z: float) -> tuple[pf.Fi
     )
     fig.update_yaxes(title_text="|δc| (mm)", rangemode="tozero", row=1, col=2)
     fig.update_layout(hovermode="closest")
-    caption = (
-        f"Contour at z = {c.z:.2f} mm (lap {c.lap}, {c.length:.1f} mm long), nearest the "
-        f"requested z = {contour_z:.2f} mm."
-    )
-    if c.note:
-        caption += " " + c.note + "."
-    return fig, caption
+    return fig, contour_caption(c.lap, c.z, c.note, contour_z, c.length)
 
 
 def contributions_figure(
@@ -526,12 +533,35 @@ def thickness_figure(per_point: pd.DataFrame) -> pf.Figure:
     if has_measured:
         cols.append("thickness_measured")
     prof = agg.lap_profile(per_point, cols)
+    spread = agg.thickness_spread(per_point)
     fig = pf.Figure(layout=plotly_layout(height=380))
+    if spread is not None:  # walls of different angle in one lap: their range, not a mean
+        x = _f(spread.depth)
+        name = spread.label
+        for y, fill, which in (
+            (spread.high, None, "thickest"),
+            (spread.low, "tonexty", "thinnest"),
+        ):
+            fig.add_trace(
+                pf.trace(
+                    "scatter",
+                    x=x,
+                    y=_f(y),
+                    mode="lines",
+                    line={"width": 0, "color": SERIES_COLORS["predicted"]},
+                    fill=fill,
+                    fillcolor=rgba(SERIES_COLORS["predicted"], 0.18) if fill else None,
+                    name=name,
+                    legendgroup="spread",
+                    showlegend=fill is not None,
+                    hovertemplate=f"{which} wall %{{y:.3f}} mm<extra></extra>",
+                )
+            )
     _line_with_band(
         fig,
         prof,
         "thickness_predicted",
-        name="predicted (sine law)",
+        name="predicted (sine law)" if spread is None else "predicted (sine law), lap mean",
         color=SERIES_COLORS["predicted"],
         band=False,
         dash="dash",

@@ -22,6 +22,7 @@ __all__ = [
     "contribution_table",
     "esc",
     "fmt",
+    "fmt_scaled",
     "force_contribution_table",
     "kv_table",
     "page",
@@ -131,8 +132,25 @@ def esc(value: Any) -> str:
 FLOAT_NOISE = 1e-15
 
 
+#: Digit group separator of large table numbers (U+202F, narrow no-break space, as SI writes
+#: 3 730 000): never a line break inside a number.
+GROUP_SEPARATOR = "\u202f"
+#: From this magnitude on a table number has its digits grouped by three.
+GROUP_FROM = 1e4
+#: Significant digits a real value smaller than a column's last decimal keeps.
+SMALL_DIGITS = 2
+
+
 def fmt(value: Any, digits: int = 3) -> str:
-    """Table numbers: fixed point for ordinary sizes, scientific for tiny/huge, '—' for none."""
+    """A table number, always in fixed point (no e-notation beside fixed-point neighbours).
+
+    ``digits`` decimals for ordinary sizes; a real value too small for them keeps
+    :data:`SMALL_DIGITS` significant digits (1.574e-4 at 3 decimals reads 0.00016, not
+    1.574e-04 nor 0.000), while a floating-point zero (below :data:`FLOAT_NOISE`) reads 0.000;
+    from :data:`GROUP_FROM` on the digits are grouped by three (3 730 000, not 3.730e+06
+    beside 638000). '—' for none, NaN or inf. Where a whole column is small, give it a scaled
+    unit instead (µm/N, N/kN) so that it reads at the column's precision.
+    """
     if value is None:
         return "—"
     if isinstance(value, bool) or not isinstance(value, int | float):
@@ -142,10 +160,22 @@ def fmt(value: Any, digits: int = 3) -> str:
         return "—"
     if abs(x) < FLOAT_NOISE:  # a zero computed in floating point (1e-21 N·m), not a value
         x = 0.0
-    if x != 0 and (abs(x) < 10 ** (-digits) or abs(x) >= 1e6):
-        return f"{x:.3e}"
-    text = f"{x:.{digits}f}"
+    decimals = digits
+    if x != 0 and abs(x) < 10.0 ** (-digits):
+        decimals = SMALL_DIGITS - 1 - math.floor(math.log10(abs(x)))
+    if abs(x) >= GROUP_FROM:
+        return f"{x:,.{decimals}f}".replace(",", GROUP_SEPARATOR)
+    text = f"{x:.{decimals}f}"
     return text[1:] if text.startswith("-") and float(text) == 0 else text  # no "-0.000"
+
+
+def fmt_scaled(value: Any, scale: float, digits: int = 3) -> str:
+    """:func:`fmt` of ``value × scale`` — a number shown in a scaled unit (µm/N for m/N, N/kN
+    for N/N); a floating-point zero of the *unscaled* value still reads 0.000."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return fmt(value, digits)
+    x = float(value)
+    return fmt(0.0 if abs(x) < FLOAT_NOISE else x * scale, digits)
 
 
 def _swatch(factor: str) -> str:
@@ -176,15 +206,22 @@ _K_KEY = re.compile(r"^k_?([1-6])([1-6])$")
 
 
 def _k_unit(i: int, j: int) -> str:
+    """The unit of ``k_ij`` in the table, scaled by 10⁶ (SI: m/N, rad/(N·m), 1/N)."""
     if i <= 3 and j <= 3:
-        return "m/N"
+        return "µm/N"
     if i >= 4 and j >= 4:
-        return "rad/(N·m)"
-    return "1/N"  # m/(N·m) = rad/N
+        return "µrad/(N·m)"
+    return "µm/(N·m)" if i <= 3 else "µrad/N"  # 1/N: a moment's displacement, a force's turn
+
+
+#: The compliance table's scale: SI × 10⁶ (µm/N …), so a robot's 1e-9 … 1e-5 m/N read as
+#: 0.0010 … 10.0000 at four decimals instead of 8.522e-07 beside 0.000.
+K_SCALE = 1e6
 
 
 def compliance_table(stats: Mapping[str, Any]) -> str:
-    """Cartesian compliance along the path: ``{"k_11": {mean, std, min, max}, ...}`` (SI)."""
+    """Cartesian compliance along the path: ``{"k_11": {mean, std, min, max}, ...}`` (SI in,
+    shown × :data:`K_SCALE` in µm/N, µm/(N·m), µrad/N and µrad/(N·m) at four decimals)."""
 
     def order(key: str) -> tuple[int, int, str]:
         m = _K_KEY.match(key)
@@ -196,12 +233,14 @@ def compliance_table(stats: Mapping[str, Any]) -> str:
         m = _K_KEY.match(key)
         unit = _k_unit(int(m.group(1)), int(m.group(2))) if m else ""
         label = f"k<sub>{m.group(1)}{m.group(2)}</sub>" if m else esc(key)
+        scale = K_SCALE if m else 1.0  # a key that is no k_ij: as given, its unit unknown
         if isinstance(entry, Mapping):
             cells = "".join(
-                f"<td>{fmt(entry.get(s), 3)}</td>" for s in ("mean", "std", "min", "max")
+                f"<td>{fmt_scaled(entry.get(s), scale, 4)}</td>"
+                for s in ("mean", "std", "min", "max")
             )
         else:
-            cells = f"<td>{fmt(entry, 3)}</td>" + "<td>—</td>" * 3
+            cells = f"<td>{fmt_scaled(entry, scale, 4)}</td>" + "<td>—</td>" * 3
         rows.append(f"<tr><td>{label}</td><td>{esc(unit)}</td>{cells}</tr>")
     head = (
         "<thead><tr><th>entry</th><th>unit</th><th>mean</th><th>std</th><th>min</th><th>max</th>"
@@ -209,7 +248,7 @@ def compliance_table(stats: Mapping[str, Any]) -> str:
     )
     return (
         "<table><caption>Cartesian compliance at the tool tip along the path "
-        "<span>— robot, work frame, SI</span></caption>"
+        "<span>— robot, work frame, in millionths of the SI unit (µm/N …)</span></caption>"
         f"{head}<tbody>{''.join(rows)}</tbody></table>"
     )
 

@@ -165,7 +165,8 @@ def check_contributions(table: Any, *, name: str) -> pd.DataFrame:
 
 
 def check_summary(summary: Any) -> dict[str, Any]:
-    """Check the summary dict and fill the defaults (``contour_z`` −11 mm, empty ``warnings``,
+    """Check the summary dict and fill the defaults (``contour_z`` None: the middle of the
+    analysed wall, see :func:`roboisf.report.aggregate.contour_lap`; empty ``warnings``,
     ``part_symmetry`` None: decided from the part kind or the data, see
     :func:`roboisf.report.aggregate.is_round`)."""
     if not isinstance(summary, Mapping):
@@ -173,12 +174,14 @@ def check_summary(summary: Any) -> dict[str, Any]:
     if "study" not in summary:
         raise InputError("summary must name the study (key 'study')", field="study")
     out = dict(summary)
-    out.setdefault("contour_z", -11.0)
+    cz = out.get("contour_z")
     try:
-        out["contour_z"] = float(out["contour_z"])
+        out["contour_z"] = None if cz is None else float(cz)
+        if out["contour_z"] is not None and not np.isfinite(out["contour_z"]):
+            raise ValueError
     except (TypeError, ValueError):
         raise InputError(
-            f"contour_z must be a number in mm, got {out['contour_z']!r}", field="contour_z"
+            f"contour_z must be a number in mm (or absent), got {cz!r}", field="contour_z"
         ) from None
     sym = out.get("part_symmetry")
     if sym is not None and (

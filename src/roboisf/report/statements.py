@@ -10,7 +10,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from roboisf.report.page import esc, fmt
+from roboisf.report.page import esc, fmt, fmt_scaled
 
 __all__ = [
     "DIAGNOSIS_VERDICTS",
@@ -182,19 +182,25 @@ def _diagnosis_headline(summary: Mapping[str, Any]) -> str | None:
 
 
 #: How a dimensionless estimate (``"unit": "1"`` in summary.json) reads in the report: a ratio
-#: as "×", a crosstalk as newtons per newton; a fraction (springback coupling) bare. A lone "1"
-#: after the interval read as a typo.
-_RATIO_UNITS = {"robot_stiffness": "×", "force_gain": "×", "force_crosstalk": "N/N"}
+#: as "×", a crosstalk as newtons per kilonewton (× 1000: a real sensor's 1e-5 … 1e-2 N/N read
+#: 0.010 … 10.000 at three decimals, not 1.574e-04 beside 0.000); a fraction (springback
+#: coupling) bare. A lone "1" after the interval read as a typo.
+_RATIO_UNITS = {
+    "robot_stiffness": ("×", 1.0),
+    "force_gain": ("×", 1.0),
+    "force_crosstalk": ("N/kN", 1e3),
+}
 
 
 def _estimate(e: Mapping[str, Any]) -> str:
-    unit = str(e.get("unit") or "")
+    unit, scale = str(e.get("unit") or ""), 1.0
     if unit == "1":
-        unit = _RATIO_UNITS.get(str(e.get("suspect")), "")
-    est = fmt(e.get("estimate"), 3)
+        unit, scale = _RATIO_UNITS.get(str(e.get("suspect")), ("", 1.0))
+    est = fmt_scaled(e.get("estimate"), scale, 3)
     if e.get("ci_low") is None and e.get("ci_high") is None:
         return f"{est} {unit}".strip()
-    return f"{est} [{fmt(e.get('ci_low'), 3)}, {fmt(e.get('ci_high'), 3)}] {unit}".strip()
+    lo, hi = fmt_scaled(e.get("ci_low"), scale, 3), fmt_scaled(e.get("ci_high"), scale, 3)
+    return f"{est} [{lo}, {hi}] {unit}".strip()
 
 
 def diagnosis_html(summary: Mapping[str, Any]) -> str:

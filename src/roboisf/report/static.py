@@ -14,6 +14,8 @@ import numpy as np
 import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.patheffects import withStroke
+from matplotlib.ticker import MaxNLocator
 
 from roboisf.io.atomic import atomic_path
 from roboisf.report import aggregate as agg
@@ -155,7 +157,8 @@ def deviation_map_png(per_point: pd.DataFrame) -> Figure:
     maps = {run: agg.lap_map(per_point, f"{run}_dn") for run in RUNS}
     vmax = _vmax(*(m.values for m in maps.values()))
     with _style():
-        fig = _figure(7.0, 3.6, right=0.05, wspace=0.08)
+        # wspace: the left map's "100" stood 2 pt from the right one's "0" and read "1000"
+        fig = _figure(7.0, 3.6, right=0.05, wspace=0.16)
         axes = fig.subplots(1, 2, sharey=True)
         mesh = None
         for ax, run in zip(axes, RUNS, strict=True):
@@ -265,7 +268,7 @@ def vjm_path_png(per_point: pd.DataFrame) -> Figure:
     return fig
 
 
-def vjm_polar_png(per_point: pd.DataFrame, contour_z: float) -> Figure:
+def vjm_polar_png(per_point: pd.DataFrame, contour_z: float | None = None) -> Figure:
     c = agg.contour(per_point, contour_z)
     th = np.radians(c.angle_deg)
     with _style():
@@ -279,12 +282,18 @@ def vjm_polar_png(per_point: pd.DataFrame, contour_z: float) -> Figure:
         )
         ax.plot(th, c.vjm, color=SERIES_COLORS["vjm"], label="VJM $|\\delta c_{VJM}|$")
         ax.plot(th, c.delta, color=SERIES_COLORS["delta"], label="$|\\Delta|$")
+        # at most 4 rings: at 0.1 mm steps the radial labels ran into each other along their ray
+        ax.yaxis.set_major_locator(MaxNLocator(nbins=4))
+        # the radial labels above the curves, with a white halo where a curve crosses them
+        ax.yaxis.set_zorder(2.5)
+        for label in ax.get_yticklabels():
+            label.set_path_effects([withStroke(linewidth=3, foreground="white")])
         ax.set_title(f"Robot deflection at z = {c.z:.1f} mm (lap {c.lap}), mm")
         ax.legend(loc="lower center", bbox_to_anchor=(0.5, -0.28), ncols=3)
     return fig
 
 
-def vjm_contour_png(per_point: pd.DataFrame, contour_z: float) -> Figure:
+def vjm_contour_png(per_point: pd.DataFrame, contour_z: float | None = None) -> Figure:
     c = agg.contour_along(per_point, contour_z)
     with _style():
         fig = _figure(7.0, 3.2, top=0.75, wspace=0.45)
@@ -311,7 +320,7 @@ def contributions_png(contributions: pd.DataFrame, contributions_normal: pd.Data
     x = np.arange(len(FACTORS))
     colors = [FACTOR_COLORS[f] for f in FACTORS]
     with _style():
-        fig = _figure(7.0, 3.0, right=0.35, bottom=0.65, top=0.45, wspace=0.3)
+        fig = _figure(7.0, 3.2, right=0.35, bottom=0.85, top=0.45, wspace=0.3)
         axes = fig.subplots(1, 2)
         for ax, col, ylabel in zip(
             axes, ("share_percent", "R_m"), ("share of $R_m$ (%)", "$R_m$ (mm)"), strict=True
@@ -341,7 +350,15 @@ def contributions_png(contributions: pd.DataFrame, contributions_normal: pd.Data
                     padding=2,
                     rotation=90,
                 )
-            ax.set_xticks(x, [FACTOR_LABELS[f] for f in FACTORS], rotation=15)
+            # turned 30° and ending at their bar: centred at 15° "Springback" stood within a
+            # word space of "Tool holder" and "Robot compliance"
+            ax.set_xticks(
+                x,
+                [FACTOR_LABELS[f] for f in FACTORS],
+                rotation=30,
+                ha="right",
+                rotation_mode="anchor",
+            )
             ax.set_ylabel(ylabel)
             ax.grid(axis="x", visible=False)
             ax.margins(y=0.3)
@@ -354,15 +371,26 @@ def thickness_png(per_point: pd.DataFrame) -> Figure:
         ["thickness_measured"] if "thickness_measured" in per_point.columns else []
     )
     prof = agg.lap_profile(per_point, cols)
+    spread = agg.thickness_spread(per_point)
     with _style():
         fig = _figure(5.0, 3.0)
         ax = fig.subplots()
+        if spread is not None:  # walls of different angle in one lap: their range, not a mean
+            ax.fill_between(
+                spread.depth,
+                spread.low,
+                spread.high,
+                color=SERIES_COLORS["predicted"],
+                alpha=0.18,
+                linewidth=0,
+                label=spread.label,
+            )
         _line_band(
             ax,
             prof,
             "thickness_predicted",
             SERIES_COLORS["predicted"],
-            "predicted (sine law)",
+            "predicted (sine law)" if spread is None else "predicted (sine law), lap mean",
             band=False,
             linestyle="--",
         )
