@@ -221,6 +221,10 @@ def _edited(study: Path, dst: Path, old: str, new: str) -> Path:
     return dst
 
 
+#: The [analysis] table's registration line of the virtual study, after which a test adds a key.
+_REG = 'registration = "fixture"'
+
+
 @pytest.mark.parametrize(
     ("old", "new", "field", "words"),
     [
@@ -247,9 +251,9 @@ def _edited(study: Path, dst: Path, old: str, new: str) -> Path:
         ),
         ("    -286.0,", "    1e29,", "runs.robot.forces.pose[z]", "force sensor's position"),
         ("    2200.0,", "    2200000.0,", "robot.placement[x]", "2200 mm if it was written in µm"),
-        ("contour_z = -11.0", "contour_z = 5", "analysis.contour_z", "not on the part's wall"),
-        ("contour_z = -11.0", "contour_z = 1e308", "analysis.contour_z", "not on the part's wall"),
-        ("contour_z = -11.0", "contour_z = -0.011", "analysis.contour_z", None),  # shallow: fine
+        (_REG, _REG + "\ncontour_z = 5", "analysis.contour_z", "not on the part's wall"),
+        (_REG, _REG + "\ncontour_z = 1e308", "analysis.contour_z", "not on the part's wall"),
+        (_REG, _REG + "\ncontour_z = -0.011", "analysis.contour_z", None),  # shallow: fine
         (
             "rim_band = 20.0",
             "rim_band = 20000.0",

@@ -153,3 +153,23 @@ def test_thickness_shows_each_laps_spread_when_walls_differ_in_angle():
     labels = [c.get_label() for c in st.thickness_png(cone).axes[0].collections]
     assert not any("thinnest" in label for label in labels)
     assert "differ in angle" not in _thickness_caption(cone, True)
+
+
+def test_a_study_without_a_contour_height_reports_the_middle_of_the_analysed_wall(
+    small_cone_study, small_cone_analysis
+):
+    # the virtual study no longer writes the paper's z = -11 mm, which lies in the rim band the
+    # analysis leaves out: the report then said "the requested z = -11.00 mm" of a height nobody
+    # had asked for. With none asked, summary.json gives the middle of the analysed wall — the
+    # lap the report shows, without a note
+    from roboisf.report import aggregate as agg
+
+    assert "contour_z" not in (small_cone_study / "study.toml").read_text()
+    assert small_cone_analysis.study.analysis.contour_z is None
+    pp = small_cone_analysis.per_point
+    used = pp.loc[pp["used"].to_numpy(dtype=bool), "contact_z"].to_numpy(dtype=float)
+    cz = small_cone_analysis.summary.contour_z
+    assert cz == pytest.approx((used.max() + used.min()) / 2, abs=1e-9)
+    assert -small_cone_analysis.study.analysis.rim_band * 1e3 > cz
+    lap, z, note = agg.contour_lap(pp, cz)
+    assert note is None and abs(z - cz) < 1.0

@@ -277,7 +277,8 @@ def scan_options(study: Study) -> CompareOptions:
         register=a.registration,
         rim_band=0.0,
         radius=a.point_radius,
-        contour_z=a.contour_z,
+        # the scan's polar summary: the paper's contour (z = −11 mm) unless the study asks another
+        contour_z=CompareOptions.contour_z if a.contour_z is None else a.contour_z,
         max_distance=a.max_distance,
     )
 
@@ -1036,6 +1037,18 @@ def _per_point(
     return pd.DataFrame(cols)
 
 
+def _contour_height(study: Study, tp: Toolpath, valid: NDArray[np.bool_]) -> float:
+    """The report's contour height (m, work z): the study's ``[analysis] contour_z``, else the
+    middle of the analysed wall — half way between its highest and lowest analysed contact (the
+    rim band left out), or between the band and the part's depth when no point was analysed."""
+    if study.analysis.contour_z is not None:
+        return study.analysis.contour_z
+    z = tp.contact[np.asarray(valid, bool), 2]
+    if z.size:
+        return float(z.max() + z.min()) / 2.0
+    return -(study.analysis.rim_band + float(np.max(tp.depth))) / 2.0
+
+
 def _summary(
     study: Study,
     cell: Cell,
@@ -1108,7 +1121,7 @@ def _summary(
             }
             for name, sc in scans.items()
         },
-        "contour_z": study.analysis.contour_z * 1e3,
+        "contour_z": _contour_height(study, tp, valid) * 1e3,
         "compliance_stats": stats,
         "force_contributions": table4,
         "vjm_vs_experiment": vjm_cmp["normal"],

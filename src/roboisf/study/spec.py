@@ -189,11 +189,12 @@ class RunSpec:
 
 @dataclass(frozen=True)
 class AnalysisSpec:
-    """``[analysis]``: rim band excluded (m), contour of the polar plot (m), scan registration,
-    radius around a toolpath point's normal line within which scan points are averaged (m)."""
+    """``[analysis]``: rim band excluded (m), contour of the polar plot (m; None, the default:
+    the report shows the lap nearest the middle of the analysed wall), scan registration, radius
+    around a toolpath point's normal line within which scan points are averaged (m)."""
 
     rim_band: float = 20e-3
-    contour_z: float = -11e-3
+    contour_z: float | None = None
     registration: Literal["fixture", "flange", "axisymmetric", "icp", "none"] = "fixture"
     point_radius: float = 1.0e-3
     #: scan points farther than this from the nominal (m) are not the part (fixture, clamps)
@@ -946,7 +947,7 @@ def _load_analysis(c: _Collector, data: dict[str, Any], part: Part | None) -> An
         required=False,
     )
     rim = c.number(at, "analysis", "rim_band", required=False, bound="rim_band")
-    cz = c.number(at, "analysis", "contour_z", default=-11.0)
+    cz = c.number(at, "analysis", "contour_z", required=False)
     if part is not None and cz is not None and "contour_z" in at:
         depth_mm = part.depth * 1e3
         if not -depth_mm <= cz < 0:  # the polar plot's contour cuts the formed wall
@@ -979,7 +980,7 @@ def _load_analysis(c: _Collector, data: dict[str, Any], part: Part | None) -> An
         rim_band = rim * 1e-3
     return AnalysisSpec(
         rim_band,
-        (cz or -11.0) * 1e-3,
+        None if cz is None else cz * 1e-3,
         cast(Literal["fixture", "flange", "axisymmetric", "icp", "none"], reg or "fixture"),
         (prad or 1.0) * 1e-3,
         (maxd or 3.0) * 1e-3,

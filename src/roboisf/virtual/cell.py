@@ -960,7 +960,6 @@ def _write_study_toml(
         "robot": robot,
         "analysis": {
             "rim_band": default_rim_band(c.part.depth) * 1e3,  # 20 mm unless the part is shallow
-            "contour_z": -11.0,
             "registration": "fixture",  # z and tilts from the clamped flange, any part
             **_max_distance(truth),
         },
