@@ -649,14 +649,16 @@ def test_force_vectors_in_the_text_have_no_negative_zero():
 def test_with_the_forces_unchecked_a_robot_or_shift_fault_cannot_be_told():
     """Fewer than 6 laps: the sensor cannot be fitted against the dynamometer. A sensor reading
     0.85× was then a robot stiffness FAULT at 1.21×, and a 25 N bias a scan shift FAULT of
-    0.10 mm; both are cannot_tell, saying why. A shift beside a bias ruled out stays a fault."""
+    0.10 mm; both are cannot_tell, saying why. An offset beside a bias ruled out stays the
+    scan's or the work object's (cannot tell apart), without the bias."""
     from roboisf.decompose.diagnose import RobotTermFit, _unchecked_forces, robot_findings
 
     rf = RobotTermFit(1.212, (1.199, 1.233), np.array([1e-4, 0.0]), (0.084e-3, 0.111e-3),
                       np.array([1e-4, 0.0]), (0.084e-3, 0.111e-3), None, None, None, None,
                       0.3e-3, 0.0, 0.0, [1, 2, 3])  # fmt: skip
     raw = {f.suspect: f for f in robot_findings(rf, axisymmetric=True)}
-    assert raw["robot_stiffness"].verdict == raw["scan_shift"].verdict == "fault"
+    assert raw["robot_stiffness"].verdict == "fault"
+    assert raw["scan_shift"].verdict == raw["work_object"].verdict == "cannot_tell"
     unsure = {"force_bias": "cannot_tell", "force_gain": "cannot_tell"}
     got = {s: _unchecked_forces(f, unsure) for s, f in raw.items()}
     assert got["robot_stiffness"].verdict == "cannot_tell"
@@ -665,4 +667,6 @@ def test_with_the_forces_unchecked_a_robot_or_shift_fault_cannot_be_told():
     assert (
         got["scan_shift"].verdict == "cannot_tell" and "force bias" in got["scan_shift"].explanation
     )
-    assert _unchecked_forces(raw["scan_shift"], {"force_bias": "ok"}).verdict == "fault"
+    assert "force bias" in got["work_object"].explanation
+    kept = _unchecked_forces(raw["scan_shift"], {"force_bias": "ok"})
+    assert kept == raw["scan_shift"] and "force bias" not in kept.explanation
