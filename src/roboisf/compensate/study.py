@@ -126,7 +126,7 @@ def unattributed_offset_message(pp: pd.DataFrame, diagnosis: list[dict] | None) 
     for name, unit, words in (
         ("scan_shift", "mm", "a sideways offset"),
         ("scan_rotation", "°", "a turn about the part axis"),
-        ("work_object_tilt", "°", "a tilt"),
+        ("work_object_tilt", "mm", "a tilt (sideways at the deepest analysed point)"),
     ):
         e = f.get(name) or {}
         lo, hi, est = e.get("ci_low"), e.get("ci_high"), e.get("estimate")
