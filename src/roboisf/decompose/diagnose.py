@@ -46,6 +46,13 @@ term exactly as a stiffer robot would: it is ``cannot_tell`` whenever the robot 
 ``ok`` only when the robot term agrees with the model; a robot term below the model's makes
 ``robot_stiffness`` ``cannot_tell`` too (a stiffer robot or a coupling, which one run cannot
 tell apart).
+
+A robot that forms the part displaced leaves the scan's patterns too (docs/diagnosis.md, "What
+separates what"): a constant offset or a turn about the part axis is the robot scan's
+registration or the robot's work object, which the study's files cannot tell apart
+(``cannot_tell`` for both, never a scan ``fault``); an offset growing with the points' forming
+time is a thermal drift (a scan is one rigid snapshot), told from a tilt of the formed part
+(which grows with depth) by fitting both.
 """
 
 from __future__ import annotations
