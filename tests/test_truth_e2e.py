@@ -201,15 +201,18 @@ def test_bias_seen_in_the_unloaded_start_and_tared(case, tmp_path):
 
 def test_sideways_scan_shift_is_warned(tmp_path):
     """A truth file that shifts the robot scan 0.3 mm sideways (``[scan] shift``, which the 3-DOF
-    fixture registration cannot see): analyze names the shift's size and direction."""
+    fixture registration cannot see): analyze names the shift's size and direction, and that it
+    is the robot scan's registration or the robot's work object, which the study's files cannot
+    tell apart (docs/diagnosis.md)."""
     (tmp_path / "t.toml").write_text(
         tomli_w.dumps({"scan": {"shift": [0.0, 0.3, 0.0]}}), encoding="utf-8"
     )
     cell = paper_cone_cell(truth=load_truth(tmp_path / "t.toml"), **FAST)
     build_study(cell, tmp_path / "study")
     r = analyze(tmp_path / "study")
-    (w,) = [w for w in r.summary.warnings if w.startswith("robot scan: its normal deviation")]
-    assert "lateral registration is ambiguous" in w
+    (w,) = [w for w in r.summary.warnings if w.startswith("robot scan: a sideways offset")]
+    assert "the robot scan's registration or the robot's work object — cannot tell apart" in w
+    assert "reference marks" in w
     fit = r.summary.lateral_offset["robot"]
     assert fit["size_mm"] == pytest.approx(0.3, abs=0.05)
     assert abs(fit["shift_mm"][1]) > 4 * abs(fit["shift_mm"][0])  # along y, as shifted
@@ -220,7 +223,7 @@ def test_a_shifted_scan_is_not_called_a_robot_model_that_does_not_hold(tmp_path)
     """On a pyramid a 0.3 mm scan shift makes the robot term 1.13× the VJM's; the diagnosis puts
     it on the scan (robot stiffness ok), yet the warning said "the robot model does not hold …
     the VJM's prediction is off — use the identified stiffness". It says what the diagnosis
-    found."""
+    found: an offset of the robot part, the scan's or the work object's."""
     from roboisf.virtual.cell import pyramid_cell
 
     (tmp_path / "t.toml").write_text(
@@ -230,7 +233,10 @@ def test_a_shifted_scan_is_not_called_a_robot_model_that_does_not_hold(tmp_path)
     r = analyze(tmp_path / "s")
     verdicts = {e["suspect"]: e["verdict"] for e in r.summary.diagnosis}
     assert r.summary.vjm_check["verdict"] == "mismatch"
-    assert verdicts["robot_stiffness"] == "ok" and verdicts["scan_shift"] == "fault"
+    assert verdicts["robot_stiffness"] == "ok" and verdicts["scan_shift"] == "cannot_tell"
     assert not any("the VJM's prediction is off" in w for w in r.summary.warnings)
     (w,) = [w for w in r.summary.warnings if "finds the robot's stiffness as modelled" in w]
-    assert w.endswith("puts the difference on scan shift (docs/diagnosis.md)")
+    assert w.endswith(
+        "puts the difference on an offset of the robot part (the robot scan's registration or "
+        "the robot's work object: cannot tell apart) (docs/diagnosis.md)"
+    )

@@ -608,8 +608,27 @@ def next_command(summary: dict, study: Path, output: Path) -> str:
     vc = summary.get("vjm_check") or {}
     if vc.get("verdict") == "mismatch" and summary.get("identified_stiffness"):
         args += ["--stiffness", str(output / "identified_stiffness.toml")]
-    args += ["-o", "compensated"]
-    return " ".join(shlex.quote(a) for a in args)
+    cmd = " ".join(shlex.quote(a) for a in args)
+    if unattributed_offset(summary):  # compensate refuses to guess whose it is: the user says
+        cmd += " --offset SCAN_OR_PART"
+    return cmd + " -o compensated"
+
+
+def unattributed_offset(summary: dict) -> bool:
+    """The diagnosis found an offset of the robot part beyond its limit that it cannot
+    attribute (the robot scan's registration or the robot's work object): ``compensate`` then
+    needs ``--offset scan|part``."""
+    for e in summary.get("diagnosis") or []:
+        if not isinstance(e, dict) or e.get("suspect") not in (
+            "scan_shift",
+            "scan_rotation",
+            "work_object_tilt",
+        ):
+            continue
+        lo, lim = e.get("ci_low"), (e.get("detection_limits") or [None, None])[1]
+        if e.get("verdict") == "cannot_tell" and lo is not None and lim is not None and lo > lim:
+            return True
+    return False
 
 
 def _print_verdicts(summary: dict, study: Path, output: Path) -> None:
@@ -636,5 +655,11 @@ def _print_verdicts(summary: dict, study: Path, output: Path) -> None:
 
         names = ", ".join(suspect_name(str(e["suspect"])) for e in faults)
         state.info(f"next: check the {names} the diagnosis names (report.html), then: {cmd}")
+    elif unattributed_offset(summary):
+        state.info(
+            "next: check the robot scan's reference marks, or measure the robot's work object "
+            "(whose is the offset the diagnosis cannot attribute), then, with --offset scan or "
+            "--offset part: " + cmd
+        )
     else:
         state.info(f"next: {cmd}")

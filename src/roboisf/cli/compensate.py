@@ -156,6 +156,18 @@ def register(app: typer.Typer) -> None:
                 "(identified from the forming run).",
             ),
         ] = None,
+        offset: Annotated[
+            str | None,
+            typer.Option(
+                "--offset",
+                help="scan or part: whose is an offset of the robot part (sideways, or turned "
+                "about the part axis) that the analysis cannot attribute — the robot scan's "
+                "registration (scan: the part is right, left out of the correction) or the "
+                "robot's work object (part: the robot formed it displaced, corrected). Without "
+                "it such an offset is refused (exit 2); check the scan's reference marks or "
+                "measure the work object to tell (docs/compensate.md).",
+            ),
+        ] = None,
         png: Annotated[bool, typer.Option("--png/--no-png", help="Also write the PNG.")] = True,
     ) -> None:
         """Compensate the toolpath: robot/tool/holder pre-deflection and springback adjustment.
@@ -192,6 +204,14 @@ def register(app: typer.Typer) -> None:
                 raise InputError(
                     f"{v:g} mm is longer than any forming part; check the unit (mm)", field=flag
                 )
+        if offset is not None and offset not in ("scan", "part"):  # before anything is computed
+            raise InputError(
+                f"expected scan (the robot scan's registration) or part (the robot's work "
+                f"object), got {offset!r}",
+                field="--offset",
+            )
+        if offset is not None and study is None:
+            raise InputError("applies to a STUDY", field="--offset")
         if not (math.isfinite(gain) and 0 < gain < 2):  # before anything is computed
             raise InputError(
                 f"must be in (0, 2) for the iteration to contract, got {gain:g}", field="--gain"
@@ -261,6 +281,7 @@ def register(app: typer.Typer) -> None:
             run=run,
             target=target * 1e-3,
             progress=progress,
+            offset=offset,
         )
         write_compensation(
             sc.compensation,
@@ -283,6 +304,10 @@ def register(app: typer.Typer) -> None:
             f"offset {s['max_command_offset_mm']:.3f} mm; report: {output / 'compensation.html'}"
         )
         state.info(_stopping_line(sc.compensation.meta["stopping"]))
+        for key in ("unattributed_offset", "thermal_drift"):  # what the diagnosis left open
+            note = (sc.compensation.meta.get(key) or {}).get("note")
+            if note:
+                state.warn(str(note))
 
 
 def _stopping_line(rec: dict) -> str:

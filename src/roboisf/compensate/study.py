@@ -46,6 +46,7 @@ from roboisf.summary import AnalysisSummary, read_summary
 
 __all__ = [
     "DEFAULT_TARGET",
+    "OFFSET_READINGS",
     "STALL_RATIO",
     "StudyCompensation",
     "compensate_study",
@@ -82,13 +83,25 @@ class StudyCompensation:
     robot: RobotModel | None = None
 
 
-def diagnosed_inputs(pp: pd.DataFrame) -> tuple[F64, F64]:
+#: ``--offset``'s readings of an offset the diagnosis cannot attribute (docs/compensate.md).
+OFFSET_READINGS = ("scan", "part")
+
+
+def diagnosed_inputs(
+    pp: pd.DataFrame, offset: str | None = None, diagnosis: list[dict] | None = None
+) -> tuple[F64, F64]:
     """The robot run's tip wrench (N, 6) [N, N·m] and normal deviation (N,) m to compensate, as
     the analysis's diagnosis left them (docs/diagnosis.md): the wrench its force correction gave
     (``robot_corrected_*``: a flange sensor at fault against the CNC dynamometer) when present,
     else the measured one; the deviation less the pattern the diagnosis put on the scan
     (``scan_pattern_dn``, mm: a sideways shift or a rotation of the scan, which no command can
-    correct) when present."""
+    correct) when present.
+
+    ``offset_pattern_dn`` (mm) is an offset of the robot part the diagnosis cannot attribute:
+    the robot scan's registration (the part is right there) or the robot's work object (the
+    part formed so). ``offset`` says which: ``"scan"`` leaves it out of the deviation (as a
+    scan's fault), ``"part"`` keeps it (corrected); without it the offset is refused
+    (:class:`InputError`, naming its size from ``diagnosis``, the summary's entries)."""
     cols = [f"robot_corrected_{w}" for w in _WRENCH]
     if not all(c in pp for c in cols):
         cols = [f"robot_{w}" for w in _WRENCH]
@@ -96,16 +109,60 @@ def diagnosed_inputs(pp: pd.DataFrame) -> tuple[F64, F64]:
     dn = pp["robot_dn"].to_numpy(dtype=float) * 1e-3
     if "scan_pattern_dn" in pp:
         dn = dn - np.nan_to_num(pp["scan_pattern_dn"].to_numpy(dtype=float)) * 1e-3
+    if offset is not None and offset not in OFFSET_READINGS:
+        raise InputError(f"expected scan or part, got {offset!r}", field="--offset")
+    if "offset_pattern_dn" in pp:
+        if offset is None:
+            raise InputError(unattributed_offset_message(pp, diagnosis), field="--offset")
+        if offset == "scan":
+            dn = dn - np.nan_to_num(pp["offset_pattern_dn"].to_numpy(dtype=float)) * 1e-3
     return W, dn
 
 
-def _per_point(study: Study, results: Path | None, progress: Progress | None) -> pd.DataFrame:
+def unattributed_offset_message(pp: pd.DataFrame, diagnosis: list[dict] | None) -> str:
+    """Why compensate refuses to guess: the offset's size and its two readings."""
+    f = {str(e.get("suspect")): e for e in diagnosis or [] if isinstance(e, dict)}
+    what = []
+    for name, unit, words in (
+        ("scan_shift", "mm", "a sideways offset"),
+        ("scan_rotation", "°", "a turn about the part axis"),
+        ("work_object_tilt", "mm", "a tilt (sideways at the deepest analysed point)"),
+    ):
+        e = f.get(name) or {}
+        lo, hi, est = e.get("ci_low"), e.get("ci_high"), e.get("estimate")
+        lim = (e.get("detection_limits") or [None, None])[1]
+        if None not in (lo, hi, est, lim) and lo > lim and e.get("verdict") != "fault":
+            what.append(f"{words} of {est:.3f} {unit} [{lo:.3f}, {hi:.3f}]")
+    if not what:  # results without the diagnosis's entries: the pattern's size
+        v = np.abs(pp["offset_pattern_dn"].to_numpy(dtype=float))
+        what.append(f"an offset of up to {np.nanmax(v):.3f} mm of normal deviation")
+    return (
+        f"the robot part carries {' and '.join(what)} that the analysis cannot attribute: the "
+        "robot scan's registration (the part is right there, only its measurement is misplaced) "
+        "or the robot's work object (the robot formed the part displaced); compensate will not "
+        "guess — check the scan's reference marks or measure the work object, then give "
+        "--offset scan (leave it out of the correction) or --offset part (correct it as the "
+        "part's)"
+    )
+
+
+def _diagnosis(summary: object) -> list[dict] | None:
+    """The diagnosis's entries of an analysis summary (None when it has none)."""
+    d = getattr(summary, "diagnosis", None)
+    return d if isinstance(d, list) else None
+
+
+def _per_point(
+    study: Study, results: Path | None, progress: Progress | None
+) -> tuple[pd.DataFrame, list[dict] | None]:
+    """The analysis's per-point table and its diagnosis's entries (None without them)."""
     if results is None:
         if not study.has_cnc:  # springback model-based (robot_only): its per-point columns
             from roboisf.decompose.robot_only import analyze_robot_only
 
-            return analyze_robot_only(study, progress=progress).per_point
-        return analyze(study, progress=progress).per_point
+            return analyze_robot_only(study, progress=progress).per_point, None
+        r = analyze(study, progress=progress)
+        return r.per_point, _diagnosis(r.summary)
     f = Path(results) / "per_point.parquet"
     if not f.is_file():
         raise InputError(
@@ -143,7 +200,10 @@ def _per_point(study: Study, results: Path | None, progress: Progress | None) ->
             file=f,
             field="robot_dn",
         )
-    return df
+    diagnosis = None
+    if (Path(results) / "summary.json").is_file():
+        diagnosis = _diagnosis(read_summary(Path(results) / "summary.json"))
+    return df, diagnosis
 
 
 def compensate_study(
@@ -157,6 +217,7 @@ def compensate_study(
     run: str | None = None,
     target: float = DEFAULT_TARGET,
     progress: Progress | None = None,
+    offset: str | None = None,
 ) -> StudyCompensation:
     """Compensate the robot part of ``study`` (a folder, ``study.toml`` or :class:`Study`).
 
@@ -173,6 +234,10 @@ def compensate_study(
     ``stiffness`` — a joint-stiffness TOML (``[stiffness] K``, N·m/rad: ``roboisf robot
     identify`` or the ``identified_stiffness.toml`` of ``roboisf analyze``) that replaces the
     study's robot stiffness in the pre-deflection.
+    ``offset`` — ``"scan"`` or ``"part"``: whose an offset of the robot part is that the
+    analysis could not attribute (the robot scan's registration: left out of the correction;
+    the robot's work object: corrected). Refused when such an offset is found and ``offset``
+    is None (:func:`diagnosed_inputs`).
     """
     if not isinstance(study, Study):
         study = load_study(study)
@@ -192,7 +257,9 @@ def compensate_study(
     formed = study_toolpath(study, rspec, cell.part)  # a toolpath CSV or a CAM program
     if results is not None:
         _check_results_run(Path(results), rspec.name)
-    pp = _per_point(study, None if results is None else Path(results), progress)
+    if offset is not None and offset not in OFFSET_READINGS:  # before the analysis
+        raise InputError(f"expected scan or part, got {offset!r}", field="--offset")
+    pp, diagnosis = _per_point(study, None if results is None else Path(results), progress)
     if results is not None:  # results of this study as its files are now (summary.json)
         check_results(study, results)
     if len(pp) != len(formed):
@@ -201,7 +268,7 @@ def compensate_study(
             "of another study?)",
             file=results,
         )
-    W, dn = diagnosed_inputs(pp)
+    W, dn = diagnosed_inputs(pp, offset, diagnosis)
     valid = pp["robot_valid"].to_numpy(dtype=bool)
     region = formed.depth > study.analysis.rim_band
     blend = rim_blend(formed.depth, study.analysis.rim_band, o.rim_blend)
@@ -250,6 +317,7 @@ def compensate_study(
         target,
     )
     meta["gain"] = o.gain
+    meta.update(_attribution_notes(pp, offset))
     comp = replace(comp, meta=meta)
     return StudyCompensation(
         study,
@@ -263,6 +331,44 @@ def compensate_study(
         inputs,
         model.robot,
     )
+
+
+def _attribution_notes(pp: pd.DataFrame, offset: str | None) -> dict[str, object]:
+    """compensation.json's record of what the diagnosis left to the user (``offset``: the
+    reading given for an offset it could not attribute) or that changes between runs (a
+    thermal drift, corrected as the part's), each with one sentence to print."""
+    out: dict[str, object] = {}
+    if "offset_pattern_dn" in pp:
+        v = np.nanmax(np.abs(pp["offset_pattern_dn"].to_numpy(dtype=float)))
+        out["unattributed_offset"] = {
+            "reading": offset,
+            "max_normal_mm": float(v),
+            "note": (
+                "the robot part's offset the analysis could not attribute was read as the "
+                + (
+                    "robot scan's registration (--offset scan): left out of the correction"
+                    if offset == "scan"
+                    else "robot's work object (--offset part): corrected as the part's"
+                )
+            ),
+        }
+    elif offset is not None:
+        out["unattributed_offset"] = {
+            "reading": offset,
+            "note": f"--offset {offset} ignored: the analysis found no offset it could not "
+            "attribute",
+        }
+    if "drift_pattern_dn" in pp:
+        v = np.nanmax(np.abs(pp["drift_pattern_dn"].to_numpy(dtype=float)))
+        out["thermal_drift"] = {
+            "max_normal_mm": float(v),
+            "note": (
+                f"a thermal drift of the robot (up to {v:.3f} mm of normal deviation) is "
+                "corrected as the part's: a drift changes from run to run, so the correction "
+                "holds only if the next run drifts alike (form after the same warm-up)"
+            ),
+        }
+    return out
 
 
 def stopping_rule(dn: F64, dn_previous: F64 | None, target: float = DEFAULT_TARGET) -> dict:

@@ -46,6 +46,13 @@ term exactly as a stiffer robot would: it is ``cannot_tell`` whenever the robot 
 ``ok`` only when the robot term agrees with the model; a robot term below the model's makes
 ``robot_stiffness`` ``cannot_tell`` too (a stiffer robot or a coupling, which one run cannot
 tell apart).
+
+A robot that forms the part displaced leaves the scan's patterns too (docs/diagnosis.md, "What
+separates what"): a constant offset or a turn about the part axis is the robot scan's
+registration or the robot's work object, which the study's files cannot tell apart
+(``cannot_tell`` for both, never a scan ``fault``); an offset growing with the points' forming
+time is a thermal drift (a scan is one rigid snapshot), told from a tilt of the formed part
+(which grows with depth) by fitting both.
 """
 
 from __future__ import annotations
@@ -74,12 +81,15 @@ __all__ = [
     "SUSPECTS",
     "Diagnosis",
     "Finding",
+    "PatternFit",
     "RobotTermFit",
     "SensorFit",
     "UnloadedEvidence",
     "diagnosis_headline",
     "fit_robot_term",
     "fit_sensor",
+    "forming_time",
+    "offset_seen",
     "size_interval",
     "verdict",
 ]
@@ -94,7 +104,10 @@ SUSPECTS = (
     "force_bias",
     "force_crosstalk",
     "scan_shift",
+    "work_object",
     "scan_rotation",
+    "thermal_drift",
+    "work_object_tilt",
     "springback_coupling",
 )
 
@@ -114,8 +127,18 @@ DETECTION_LIMITS: dict[str, tuple[float, float]] = {
     "force_crosstalk": (0.0, 0.01),
     # sideways shift of the robot scan, mm
     "scan_shift": (0.0, 0.05),
+    # sideways offset of the robot's work object, mm: the same offset as the scan's shift (the
+    # study's files cannot tell the two apart), read as the part's
+    "work_object": (0.0, 0.05),
     # rotation of the robot scan about the part axis, deg
     "scan_rotation": (0.0, 0.05),
+    # sideways tip drift reached at the end of the run, mm: growing from 0, it leaves a mean
+    # offset of half that over the part — the shift's 0.05 mm
+    "thermal_drift": (0.0, 0.1),
+    # tilt of the formed part against the clamped flange about a horizontal work axis, as the
+    # sideways offset it makes at the deepest analysed point, mm: growing from 0 at the flange
+    # as a drift does over the run, the drift's limit
+    "work_object_tilt": (0.0, 0.1),
     # fraction of the machine's deflection the sheet recovers
     "springback_coupling": (0.0, 0.1),
 }
@@ -128,7 +151,10 @@ UNITS = {
     "force_bias": "N",
     "force_crosstalk": "1",
     "scan_shift": "mm",
+    "work_object": "mm",
     "scan_rotation": "deg",
+    "thermal_drift": "mm",
+    "work_object_tilt": "mm",
     "springback_coupling": "1",
 }
 
@@ -148,6 +174,16 @@ RATIO_MODEL_ERROR = 0.01
 #: harmonic of ~0.01 mm in the robot term of a cell whose scan is right (calibrated by coverage,
 #: benchmarks/diagnosis.py).
 SHIFT_MODEL_ERROR = 0.01e-3
+
+#: Model error added to each end of a tilt's interval, rad: beside a drift on a cone the other
+#: terms leave 0.01–0.03° of tilt where there is none (calibrated by coverage,
+#: benchmarks/diagnosis.py).
+TILT_MODEL_ERROR = math.radians(0.025)
+#: Below this share of its columns beyond the offset's and the VJM's (equilibrated), a drift is
+#: not told from a constant offset: the analysed laps are formed in too short a part of the run
+#: (the VWACF's deep laps, small circles, take the last 4 % of its run: 0.012). The cone's
+#: 0.27 and the pyramid's 0.12 (2 mm step-down) separate a 0.3 mm drift by 10 times its error.
+DRIFT_SEPARABLE = 0.08
 
 
 def verdict(lo: float, hi: float, limits: tuple[float, float]) -> str:
@@ -618,6 +654,32 @@ def _static_fit(
 
 
 @dataclass(frozen=True)
+class PatternFit:
+    """A sideways pattern's vector (2,) fitted beside one stiffness scale (``one``) and beside
+    the per-joint fit (``joint``), in m (an offset) or rad (a tilt about work x, y), each with
+    the 95 % interval of its size (model error included)."""
+
+    one: F64
+    one_ci: tuple[float, float]
+    joint: F64
+    joint_ci: tuple[float, float]
+
+    def verdict(self, limits: tuple[float, float], scale: float = 1e3) -> str:
+        """``fault`` or ``ok`` when both fits say so (sizes times ``scale``: mm, deg), else
+        ``cannot_tell``."""
+        v1 = verdict(self.one_ci[0] * scale, self.one_ci[1] * scale, limits)
+        vj = verdict(self.joint_ci[0] * scale, self.joint_ci[1] * scale, limits)
+        return v1 if v1 == vj else "cannot_tell"
+
+    def ci(self, scale: float = 1e3) -> tuple[float, float]:
+        """The interval spanning both fits', times ``scale``."""
+        return (
+            min(self.one_ci[0], self.joint_ci[0]) * scale,
+            max(self.one_ci[1], self.joint_ci[1]) * scale,
+        )
+
+
+@dataclass(frozen=True)
 class RobotTermFit:
     """The robot term fitted by the competing explanations (module docstring).
 
@@ -627,7 +689,24 @@ class RobotTermFit:
     rad, the same for a rotation about work z (None when the part's symmetry hides it); rms_vjm,
     rms_shift_pattern, rms_rotation_pattern : m, RMS of the VJM's normal deflection and of the
     fitted patterns ``n · s`` and ``θ n · (ẑ × p)``; joints_fitted : 1-based joints of the
-    per-joint fit; n_laps."""
+    per-joint fit; n_laps.
+
+    With the points' forming time ``τ`` (0 at the run's first point, 1 at its last): drift : the
+    sideways offset growing as ``d τ`` (m, ``d`` reached at the end of the run) fitted beside
+    the shift; drift_beside_tilt : the same with a tilt of the formed part about work x and y
+    fitted too; tilt : that tilt (rad); tilt_alone : the tilt fitted beside the shift without a
+    drift (what rules a tilt out: both grow with depth on a step-down path); drift_separable :
+    the share of the drift's columns the offset's and the VJM's do not explain (equilibrated;
+    below :data:`DRIFT_SEPARABLE` the analysed laps are formed in too short a part of the run to
+    tell a drift from a constant offset, and drift, drift_beside_tilt are None); drift_kappa :
+    per axis, the share of a drift a constant offset fitted alone takes (the analysed laps'
+    forming time, weighted); depth_max : m, the deepest analysed point (a tilt θ sits θ·depth_max
+    sideways there); model : which patterns the shift, the rotation and the
+    ratio above were fitted beside — ``"shift"`` (the scan's shift and rotation only),
+    ``"drift"`` (and a drift: one is seen), ``"tilt"`` (and a drift and a tilt: a tilt is
+    seen) or ``"tilt_only"`` (and a tilt, where a drift cannot be told from the offset);
+    tilt_registered : the robot scan's registration fitted its tilts (from the flange), so a
+    tilt left in the robot term is the formed part's, not the scan's; rms_drift_pattern : m."""
 
     ratio: float
     ratio_ci: tuple[float, float]
@@ -644,6 +723,30 @@ class RobotTermFit:
     rms_rotation_pattern: float
     joints_fitted: list[int] = field(default_factory=list)
     n_laps: int = 0
+    drift: PatternFit | None = None
+    drift_beside_tilt: PatternFit | None = None
+    tilt: PatternFit | None = None
+    tilt_alone: PatternFit | None = None
+    drift_separable: float = 0.0
+    drift_kappa: tuple[float, float] = (math.nan, math.nan)
+    depth_max: float = 0.0
+    model: str = "shift"
+    tilt_registered: bool = True
+    rms_drift_pattern: float = 0.0
+
+    @property
+    def shift_fit(self) -> PatternFit:
+        """The shift as a :class:`PatternFit`."""
+        return PatternFit(self.shift, self.shift_ci, self.shift_joint, self.shift_joint_ci)
+
+    def drift_used(self) -> PatternFit | None:
+        """The drift of the model the other estimates are beside (with the tilt when seen)."""
+        return self.drift_beside_tilt if self.model == "tilt" else self.drift
+
+    @property
+    def tilted(self) -> bool:
+        """A tilt of the formed part is seen (the other estimates are beside it)."""
+        return self.model in ("tilt", "tilt_only")
 
 
 def _widen(ci: tuple[float, float], e: float) -> tuple[float, float]:
@@ -668,6 +771,32 @@ def _size_ci(boot: F64, est: F64) -> tuple[float, float]:
     return min(lo, s), max(hi, s)
 
 
+def _separable(cols: F64, others: F64) -> float:
+    """The smallest share (0–1) of the equilibrated ``cols`` (N, k) that the equilibrated
+    ``others`` (N, m) do not explain: 0 when a column is a combination of the others."""
+
+    def unit(a: F64) -> F64:
+        nrm = np.linalg.norm(a, axis=0)
+        return a / np.where(nrm > 0, nrm, 1.0)
+
+    q, _ = np.linalg.qr(unit(others))
+    c = unit(cols)
+    return float(np.min(np.linalg.norm(c - q @ (q.T @ c), axis=0)))
+
+
+def forming_time(point_time: F64 | None, n: int) -> F64:
+    """(n,) each toolpath point's forming time normalised to [0, 1] over the run (0 at its
+    first point, 1 at its last): from the log time at which the tool passed it (the alignment,
+    pauses included — a drift keeps growing while the robot stands) when that is finite and
+    non-decreasing, else the points' order along the path."""
+    if point_time is not None and len(point_time) == n and n > 1:
+        t = np.asarray(point_time, dtype=float)
+        span = float(t[-1] - t[0]) if np.all(np.isfinite(t)) else math.nan
+        if span > 0 and np.all(np.diff(t) >= 0):
+            return (t - t[0]) / span
+    return np.linspace(0.0, 1.0, n) if n > 1 else np.zeros(n)
+
+
 def fit_robot_term(
     measured: F64,
     vjm: F64,
@@ -679,13 +808,23 @@ def fit_robot_term(
     *,
     n_boot: int = N_BOOT_DIAG,
     seed: int = 1,
+    tau: F64 | None = None,
+    tilt_registered: bool = True,
 ) -> RobotTermFit | None:
     """Fit the measured normal robot term by one scale on the VJM and by one column per joint,
     each with a sideways shift and (where the geometry shows it) a rotation about work z.
 
     measured, vjm : (N,) m normal robot term and the VJM's (corrected forces); per_joint : (N, 6)
     m each joint's nominal share of ``vjm``; normal : (N, 3); contact : (N, 3) m work frame;
-    valid : (N,) bool; lap : (N,). None with fewer than 20 points or 3 laps."""
+    valid : (N,) bool; lap : (N,). None with fewer than 20 points or 3 laps.
+
+    ``tau`` (N,): each point's forming time over the run in [0, 1] (:func:`forming_time`). With
+    it the fits are repeated with a sideways offset growing linearly in time, ``n_xy · d τ``
+    (a thermal drift of the robot: a scan is one rigid snapshot, so an offset that grows with
+    forming time is not the scan's), and once more with a tilt of the formed part about work x
+    and y, ``n · (θ × p)``: on a step-down path forming time follows depth, and a tilt leaves
+    a sideways offset growing with depth too. ``tilt_registered``: the robot scan's
+    registration fitted its tilts (the flange), so such a tilt is not the scan's."""
     sel = (
         np.asarray(valid, bool)
         & np.isfinite(measured)
@@ -709,13 +848,9 @@ def fit_robot_term(
     rot_seen = bool(np.sqrt(np.mean(rot_col**2)) > 0.02 * rho)
     shift_cols = n[:, :2]
     weights = boot_weights(L, n_boot, seed)
+    ns = 2 + int(rot_seen)  # the scan's columns: the shift and, when seen, the rotation
 
-    def model(cols: F64) -> tuple[F64, F64]:
-        X = np.column_stack([cols, shift_cols] + ([rot_col] if rot_seen else []))
-        return _lap_ls(X, y, inv, L, weights)
-
-    # one scale on the VJM, with the scan's patterns and without (the scan taken as right)
-    b1, B1 = model(x[:, None])
+    # one scale on the VJM without the scan's patterns (the scan taken as right)
     b0, B0 = _lap_ls(x[:, None], y, inv, L, weights)
     r0 = float(b0[0])
     # one column per joint that carries a share, the others at nominal; the joints' scales are
@@ -728,20 +863,81 @@ def fit_robot_term(
     held = np.setdiff1d(np.arange(6), live)
     k = live.size
     yj = y - Aj[:, held].sum(axis=1)  # the others at nominal
-    Xj = np.column_stack([Aj[:, live], shift_cols] + ([rot_col] if rot_seen else []))
-    prior = np.zeros(Xj.shape[1])
-    prior[:k] = r0
-    pen = np.zeros(Xj.shape[1])
-    pen[:k] = JOINT_RIDGE**2
-    bj, Bj = _lap_ls(Xj, yj, inv, L, weights, prior=prior, penalty=pen)
     # the per-joint model's scale on the nominal prediction (linear in its joint scales)
     xx = float(x @ x)
     v = np.einsum("i,ij->j", x, Aj[:, live]) / xx
     c_held = float(x @ Aj[:, held].sum(axis=1)) / xx
+
+    def fits(extra: list[F64]) -> tuple[F64, F64, F64, F64]:
+        """Both fits with the scan's patterns and ``extra`` columns: (β, replicates) of the
+        one scale's and of the per-joint fit."""
+        S = np.column_stack([shift_cols] + ([rot_col] if rot_seen else []) + extra)
+        b1, B1 = _lap_ls(np.column_stack([x, S]), y, inv, L, weights)
+        Xj = np.column_stack([Aj[:, live], S])
+        prior = np.zeros(Xj.shape[1])
+        prior[:k] = r0
+        pen = np.zeros(Xj.shape[1])
+        pen[:k] = JOINT_RIDGE**2
+        bj, Bj = _lap_ls(Xj, yj, inv, L, weights, prior=prior, penalty=pen)
+        return b1, B1, bj, Bj
+
+    def pattern(f: tuple[F64, F64, F64, F64], i: int, err: float) -> PatternFit:
+        """The two columns from the ``i``-th past the scan's of both fits in ``f``."""
+        b1, B1, bj, Bj = f
+        a, c = 1 + i, k + i
+        return PatternFit(
+            b1[a : a + 2],
+            _widen(_size_ci(B1[:, a : a + 2], b1[a : a + 2]), err),
+            bj[c : c + 2],
+            _widen(_size_ci(Bj[:, c : c + 2], bj[c : c + 2]), err),
+        )
+
+    m1 = fits([])
+    chosen, model = m1, "shift"
+    drift = drift_t = tilt = tilt_alone = None
+    separable, kappa = 0.0, (math.nan, math.nan)
+    depth_max = float(max(-np.min(p[:, 2]), 0.0))  # the deepest analysed point below the flange
+    t = None if tau is None else np.asarray(tau, dtype=float)[sel]
+    if t is not None:
+        drift_cols = n[:, :2] * t[:, None]
+        tilt_cols = np.column_stack(
+            [np.einsum("ij,ij->i", n, np.cross(e, p)) for e in ([1.0, 0, 0], [0, 1.0, 0])]
+        )
+        separable = _separable(drift_cols, np.column_stack([x, shift_cols]))
+        # a drift d seen as a constant offset over the analysed laps: κ d (κ the forming time
+        # the offset's columns weigh, per axis)
+        kappa = (
+            float(np.sum(shift_cols[:, 0] ** 2 * t) / max(np.sum(shift_cols[:, 0] ** 2), 1e-300)),
+            float(np.sum(shift_cols[:, 1] ** 2 * t) / max(np.sum(shift_cols[:, 1] ** 2), 1e-300)),
+        )
+        m4 = fits([tilt_cols])  # a tilt beside the offset, no drift
+        tilt_alone = pattern(m4, ns, TILT_MODEL_ERROR)
+        # a tilt is seen beyond its limit, as the sideways offset it makes at the deepest point
+        lim_t, lever = DETECTION_LIMITS["work_object_tilt"], depth_max * 1e3
+        tilt_seen = tilt_alone.verdict(lim_t, lever) == "fault"
+        if separable >= DRIFT_SEPARABLE:
+            m2 = fits([drift_cols])
+            m3 = fits([drift_cols, tilt_cols])
+            drift = pattern(m2, ns, SHIFT_MODEL_ERROR)
+            drift_t = pattern(m3, ns, SHIFT_MODEL_ERROR)
+            tilt = pattern(m3, ns + 2, TILT_MODEL_ERROR)
+            # the shift, the rotation and the ratio are taken beside the patterns the data
+            # hold: a tilt when one is seen beside a drift, a drift when one is (a drift's
+            # column widens the shift's interval: on a clean cell the shift is fitted without
+            # it, as before)
+            if tilt.verdict(lim_t, lever) == "fault":
+                chosen, model = m3, "tilt"
+            elif drift.verdict(DETECTION_LIMITS["thermal_drift"]) == "fault":
+                chosen, model = m2, "drift"
+        elif tilt_seen:
+            # forming time varies too little over the analysed laps to tell a drift from a
+            # constant offset (it is one there), but depth does: a tilt beside the offset
+            tilt = tilt_alone
+            chosen, model = m4, "tilt_only"
+    b1, B1, bj, Bj = chosen
+    r1 = float(b1[0])
     r_joint = float(v @ bj[:k]) + c_held
     rj_boot = Bj[:, :k] @ v + c_held
-
-    r1 = float(b1[0])
     s1, sj = b1[1:3], bj[k : k + 2]
     s1_ci = _widen(_size_ci(B1[:, 1:3], s1), SHIFT_MODEL_ERROR)
     sj_ci = _widen(_size_ci(Bj[:, k : k + 2], sj), SHIFT_MODEL_ERROR)
@@ -749,10 +945,11 @@ def fit_robot_term(
     shifted = verdict(s1_ci[0] * 1e3, s1_ci[1] * 1e3, lim) == "fault" and (
         verdict(sj_ci[0] * 1e3, sj_ci[1] * 1e3, lim) == "fault"
     )
+    seen = shifted or model != "shift"  # a drift or a tilt is chosen only when seen
     # model error: the interval spans the competing fits — the per-joint fit, and the one scale
-    # with the scan's patterns when both fits see a shift, else without them
-    cands = [(r_joint, _pct(rj_boot)), (r1, _pct(B1[:, 0])) if shifted else (r0, _pct(B0[:, 0]))]
-    est = r1 if shifted else r0
+    # with the patterns when both fits see one, else without them
+    cands = [(r_joint, _pct(rj_boot)), (r1, _pct(B1[:, 0])) if seen else (r0, _pct(B0[:, 0]))]
+    est = r1 if seen else r0
     lo = min(min(c[0], c[1][0]) for c in cands)
     hi = max(max(c[0], c[1][1]) for c in cands)
     ratio_ci = (lo - RATIO_MODEL_ERROR * est, hi + RATIO_MODEL_ERROR * est)
@@ -762,6 +959,10 @@ def fit_robot_term(
         rot_ci = _pct(B1[:, 3])
         rotj = float(bj[k + 2])
         rotj_ci = _pct(Bj[:, k + 2])
+    d_used = drift_t if model == "tilt" else drift
+    rms_drift = 0.0
+    if d_used is not None and t is not None:
+        rms_drift = float(np.sqrt(np.mean((shift_cols @ d_used.one * t) ** 2)))
     return RobotTermFit(
         ratio=est,
         ratio_ci=ratio_ci,
@@ -778,6 +979,16 @@ def fit_robot_term(
         rms_rotation_pattern=float(np.sqrt(np.mean((rot_col * (rot or 0.0)) ** 2))),
         joints_fitted=[int(i) + 1 for i in live],
         n_laps=L,
+        drift=drift,
+        drift_beside_tilt=drift_t,
+        tilt=tilt,
+        tilt_alone=tilt_alone,
+        drift_separable=separable,
+        drift_kappa=kappa,
+        depth_max=depth_max,
+        model=model,
+        tilt_registered=tilt_registered,
+        rms_drift_pattern=rms_drift,
     )
 
 
@@ -819,6 +1030,66 @@ class Diagnosis:
             out += rf.rotation * rot_col
             hit = True
         return out if hit else None
+
+    def offset_pattern(self, normal: F64, contact: F64) -> F64 | None:
+        """(N,) m — the normal deviation of the sideways offset ``n · s`` and of the turn about
+        the part axis ``θ n · (ẑ × p)`` the robot term holds beyond their limits but the study
+        cannot attribute (:func:`offset_seen`): the robot scan's registration (the part is right
+        there) or the robot's work object (the part formed so). None when neither is seen (or
+        the scan's verdict is a ``fault``: then it is in :meth:`scan_pattern`)."""
+        rf = self.robot
+        if rf is None:
+            return None
+        f = self.by_suspect()
+        shift, turned = offset_seen(rf)
+        shift = shift and f["scan_shift"].verdict != "fault"
+        turned = turned and f["scan_rotation"].verdict != "fault" and rf.rotation is not None
+        # a tilt seen where the scan's registration did not fit the tilts: the scan's or the
+        # work object's as well
+        tilted = rf.tilted and not rf.tilt_registered
+        if not (shift or turned or tilted):
+            return None
+        out = normal[:, :2] @ rf.shift if shift else np.zeros(len(normal))
+        if turned:
+            assert rf.rotation is not None
+            out = out + rf.rotation * np.einsum(
+                "ij,ij->i", normal, np.cross([0.0, 0.0, 1.0], contact)
+            )
+        if tilted:
+            out = out + self._tilt_pattern(normal, contact)
+        return out
+
+    def _tilt_pattern(self, normal: F64, contact: F64) -> F64:
+        """(N,) m — ``n · (θ × p)`` of the tilt the fit found (zero when none)."""
+        rf = self.robot
+        out = np.zeros(len(normal))
+        if rf is not None and rf.tilted and rf.tilt is not None:
+            for a, e in zip(rf.tilt.one, ([1.0, 0, 0], [0, 1.0, 0]), strict=True):
+                out += a * np.einsum("ij,ij->i", normal, np.cross(e, contact))
+        return out
+
+    def drift_pattern(self, normal: F64, tau: F64) -> F64 | None:
+        """(N,) m — the normal deviation of the thermal drift ``n_xy · d τ`` when its verdict is
+        ``fault`` (the formed part's: compensate corrects it), else None. ``tau`` (N,) the
+        points' forming time in [0, 1] (:func:`forming_time`)."""
+        rf = self.robot
+        d = None if rf is None else rf.drift_used()
+        if d is None or self.by_suspect()["thermal_drift"].verdict != "fault":
+            return None
+        return (normal[:, :2] @ d.one) * np.asarray(tau, dtype=float)
+
+    def beside_stiffness(self, normal: F64, contact: F64, tau: F64 | None) -> F64 | None:
+        """(N,) m — every pattern the robot term's fit found beside the robot's compliance (a
+        scan's fault, the unattributed offset, a drift at fault, a tilt seen): what the
+        identification of the robot's stiffness leaves out. None when there is none."""
+        parts = [self.scan_pattern(normal, contact), self.offset_pattern(normal, contact)]
+        rf = self.robot
+        if tau is not None:
+            parts.append(self.drift_pattern(normal, tau))
+        if rf is not None and rf.tilted and rf.tilt_registered:  # else in the offset
+            parts.append(self._tilt_pattern(normal, contact))
+        got = [p for p in parts if p is not None]
+        return sum(got[1:], got[0]) if got else None
 
 
 def _finding(
@@ -1080,13 +1351,369 @@ def _axial_crosstalk_unseen(sf: SensorFit, v_b: str) -> Finding:
     )
 
 
+#: The suspects the robot term's pattern gives a verdict on (:func:`robot_findings`).
+ROBOT_TERM_SUSPECTS = (
+    "robot_stiffness",
+    "scan_shift",
+    "work_object",
+    "scan_rotation",
+    "thermal_drift",
+    "work_object_tilt",
+    "springback_coupling",
+)
+#: Why the study's files cannot tell the robot scan's registration from the robot's work object
+#: (docs/diagnosis.md, "What separates what").
+OFFSET_WHY = (
+    "the fixture registration fits z and the tilts from the flange only, the joint logs follow "
+    "the controller's work object (a wrong one too), and the CNC part's scan is another "
+    "placement of the scanner"
+)
+#: What tells them apart, in a few words (the headline's).
+OFFSET_SHORT = "check the scan's reference marks, or measure the work object"
+#: What tells them apart, and what to do meanwhile.
+OFFSET_CHECK = (
+    "check the robot scan's reference marks (a lateral registration on the fixture) or measure "
+    "the robot's work object, then compensate with --offset scan (only the scan is misplaced: "
+    "left out of the correction) or --offset part (the robot formed it so: corrected)"
+)
+
+
+def _rotation_sizes(
+    rf: RobotTermFit,
+) -> tuple[float, tuple[float, float], float, tuple[float, float]] | None:
+    """The rotation about the part axis in degrees: the one-scale fit's estimate and interval,
+    the per-joint fit's estimate and the size's interval over both (None when not seen)."""
+    if rf.rotation is None or rf.rotation_ci is None:
+        return None
+    r1 = math.degrees(rf.rotation)
+    ci1 = (math.degrees(rf.rotation_ci[0]), math.degrees(rf.rotation_ci[1]))
+    rj = math.degrees(rf.rotation_joint or 0.0)
+    cij = tuple(math.degrees(v) for v in (rf.rotation_joint_ci or (math.nan, math.nan)))
+    ci = (min(ci1[0], cij[0]), max(ci1[1], cij[1]))
+    # the size's interval (a signed angle: |θ| within [0, max |end|] when it spans 0)
+    lo_abs = 0.0 if ci[0] <= 0 <= ci[1] else min(abs(ci[0]), abs(ci[1]))
+    hi_abs = max(abs(ci[0]), abs(ci[1]))
+    return r1, ci1, rj, (lo_abs, hi_abs)
+
+
+def offset_seen(rf: RobotTermFit) -> tuple[bool, bool]:
+    """Whether the robot term holds a sideways offset and a rotation about the part axis beyond
+    their detection limits (both fits agree): the robot scan's registration or the robot's work
+    object, which the study's files cannot tell apart."""
+    shift = rf.shift_fit.verdict(DETECTION_LIMITS["scan_shift"]) == "fault"
+    rot = _rotation_sizes(rf)
+    turned = rot is not None and (
+        verdict(rot[3][0], rot[3][1], DETECTION_LIMITS["scan_rotation"]) == "fault"
+    )
+    return shift, turned
+
+
+def _offset_findings(rf: RobotTermFit, *, axisymmetric: bool) -> list[Finding]:
+    """scan_shift, work_object and scan_rotation: a sideways offset (or a turn about the part
+    axis) of the robot part is the robot scan's registration — the part is right, its
+    measurement misplaced — or the robot's work object — the part formed displaced. Seen beyond
+    its limit it is ``cannot_tell`` for both, never a ``fault`` of one."""
+    sf = rf.shift_fit
+    s1, sj = sf.one * 1e3, sf.joint * 1e3
+    c1 = (sf.one_ci[0] * 1e3, sf.one_ci[1] * 1e3)
+    cj = (sf.joint_ci[0] * 1e3, sf.joint_ci[1] * 1e3)
+    lim = DETECTION_LIMITS["scan_shift"]
+    v1, vj = verdict(c1[0], c1[1], lim), verdict(cj[0], cj[1], lim)
+    ci = sf.ci()
+    beside = {
+        "shift": "",
+        "drift": " (a drift over the run fitted beside it)",
+        "tilt": " (a drift and a tilt of the formed part fitted beside it)",
+        "tilt_only": " (a tilt of the formed part fitted beside it)",
+    }[rf.model]
+    fitted = (
+        f"the robot term carries the pattern of a sideways offset of "
+        f"{np.linalg.norm(s1):.3f} mm (x {s1[0]:+.3f}, y {s1[1]:+.3f}; 95 % of its size "
+        f"[{c1[0]:.3f}, {c1[1]:.3f}] mm) beside one stiffness scale, and "
+        f"{np.linalg.norm(sj):.3f} mm ([{cj[0]:.3f}, {cj[1]:.3f}]) beside a per-joint fit" + beside
+    )
+    est = float(np.linalg.norm(s1 if v1 == vj else sj))
+    shift_seen, turned = offset_seen(rf)
+    if shift_seen:
+        shift_text = (
+            f"a sideways offset of the robot part of {est:.3f} mm [{ci[0]:.3f}, {ci[1]:.3f}]: "
+            "the robot scan's registration or the robot's work object — cannot tell apart from "
+            f"these files ({OFFSET_SHORT}); {fitted}; {OFFSET_WHY}; {OFFSET_CHECK}"
+        )
+    elif v1 == vj:
+        shift_text = fitted
+    else:
+        shift_text = (
+            f"{fitted}; the two explanations disagree: an offset of {np.linalg.norm(s1):.3f} mm "
+            f"(RMS {rf.rms_shift_pattern * 1e3:.3f} mm of normal deviation) with one stiffness "
+            "scale, or joint stiffness errors that differ joint by joint with an offset of "
+            f"{np.linalg.norm(sj):.3f} mm; an offset would be the robot scan's registration or "
+            "the robot's work object alike"
+        )
+    if shift_seen and rf.tilt_alone is not None and rf.drift is None:
+        shift_text += (
+            "; on this path a thermal drift of the robot reads as a constant offset too "
+            "(thermal_drift)"
+        )
+    v_shift = "cannot_tell" if shift_seen or v1 != vj else v1
+    out = [
+        _finding("scan_shift", est, ci, "mm", shift_text, "", force=v_shift),
+    ]
+    rot = _rotation_sizes(rf)
+    if rot is None:
+        why = (
+            "the part is a surface of revolution: a rotation of the scan about its axis moves no "
+            "point off the surface, so it can be neither seen nor matter"
+            if axisymmetric
+            else "the geometry does not show a rotation about the part axis apart from the "
+            "other patterns"
+        )
+        rot_finding = _finding("scan_rotation", None, None, "deg", why, "")
+    else:
+        r1, ci1, rj, size_ci = rot
+        rot_fitted = (
+            f"the robot term carries the pattern of a rotation about the part axis of "
+            f"{r1:+.3f}° (95 % [{ci1[0]:+.3f}, {ci1[1]:+.3f}]°; {rj:+.3f}° beside a per-joint "
+            f"fit), RMS {rf.rms_rotation_pattern * 1e3:.3f} mm of normal deviation"
+        )
+        rot_text = rot_fitted
+        if turned:
+            rot_text = (
+                f"the robot part is turned about the part axis by {r1:+.3f}° "
+                f"[{size_ci[0]:.3f}, {size_ci[1]:.3f}]° in size: the robot scan's registration "
+                f"or the robot's work object turned — cannot tell apart from these files "
+                f"({OFFSET_SHORT}); {rot_fitted}; {OFFSET_WHY}; {OFFSET_CHECK}"
+            )
+        rot_finding = _finding(
+            "scan_rotation",
+            abs(r1),
+            size_ci,
+            "deg",
+            rot_text,
+            "",
+            force="cannot_tell" if turned else None,
+        )
+    # the work object: the same offset (and turn), read as the part's
+    if shift_seen or turned:
+        seen = []
+        if shift_seen:
+            seen.append(f"a sideways offset of {est:.3f} mm [{ci[0]:.3f}, {ci[1]:.3f}]")
+        if turned and rot is not None:
+            seen.append(
+                f"a turn about the part axis of {rot[0]:+.3f}° "
+                f"[{rot[3][0]:.3f}, {rot[3][1]:.3f}]° in size"
+            )
+        wo_text = (
+            f"the robot part carries {' and '.join(seen)}: the robot's work object (the part "
+            "formed so) or the robot scan's registration (only its measurement misplaced) — "
+            f"cannot tell apart from these files ({OFFSET_SHORT}); {OFFSET_WHY}; {OFFSET_CHECK}"
+        )
+        v_wo = "cannot_tell"
+    else:
+        wo_text = (
+            "the robot's work object would displace the formed part as a scan's shift "
+            f"(or turn) misplaces its measurement: {shift_text}"
+        )
+        # the offset's own verdict: a turn that is only not ruled out is scan_rotation's to say
+        v_wo = v_shift
+    out.append(_finding("work_object", est, ci, "mm", wo_text, "", force=v_wo))
+    out.append(rot_finding)
+    return out
+
+
+def _drift_finding(rf: RobotTermFit) -> Finding:
+    """thermal_drift: a sideways offset growing over the run (linear in forming time) is the
+    formed part's — a scan is one rigid snapshot —, told from a tilt of the formed part (which
+    grows with depth, and forming time follows depth) when the data can, and from a constant
+    offset where the analysed laps span enough of the run."""
+    lim = DETECTION_LIMITS["thermal_drift"]
+    todo = (
+        "compensate corrects it as the part's, but a drift changes from run to run: the "
+        "correction holds only if the next run drifts alike (form after the same warm-up)"
+    )
+    if rf.tilt_alone is None:
+        return _finding(
+            "thermal_drift",
+            None,
+            None,
+            "mm",
+            "the points' forming time is not known: an offset growing over the run cannot be "
+            "told from a constant one",
+            "",
+        )
+    owner = (
+        "the robot's work object tilted (the robot scan's tilts are registered from the flange)"
+        if rf.tilt_registered
+        else "the robot's work object tilted, or the robot scan tilted (its registration did "
+        "not fit the tilts)"
+    )
+    d2, d3, tl = rf.drift, rf.drift_beside_tilt, rf.tilt
+    if d2 is None or d3 is None:
+        # the analysed laps are formed in too short a part of the run: a drift is a constant
+        # offset there, of κ times its size
+        k = max(min(rf.drift_kappa), 1e-9)
+        sf = rf.shift_fit
+        lo, hi = sf.ci()
+        where = (
+            f"the analysed laps are formed within a short part of the run (a drift's pattern is "
+            f"{rf.drift_separable:.0%} beyond a constant offset's), where a drift reads as a "
+            f"constant offset of {k:.2f}× its size"
+        )
+        if sf.verdict(DETECTION_LIMITS["scan_shift"]) == "ok":
+            text = (
+                f"{where}: none is seen — the offset is at most {hi:.3f} mm, a drift at most "
+                f"{hi / k:.3f} mm (unless a constant offset the other way hid it)"
+            )
+            return _finding(
+                "thermal_drift", float(np.linalg.norm(sf.one)) * 1e3 / k, (0.0, hi / k), "mm",
+                text, todo, force="ok",
+            )  # fmt: skip
+        text = (
+            f"{where}: the robot part's offset ([{lo:.3f}, {hi:.3f}] mm) may be a thermal drift "
+            "of the robot as well as the robot scan's registration or the robot's work object — "
+            "cannot tell apart on this path"
+        )
+        return _finding(
+            "thermal_drift", float(np.linalg.norm(sf.one)) * 1e3 / k, (0.0, hi / k), "mm", text,
+            todo, force="cannot_tell",
+        )  # fmt: skip
+    assert tl is not None
+    deg = math.degrees(1.0)
+
+    def grows(d: PatternFit, beside: str) -> str:
+        e, ej = d.one * 1e3, d.joint * 1e3
+        return (
+            f"the robot term carries a sideways offset growing over the run to "
+            f"{np.linalg.norm(e):.3f} mm at its end (x {e[0]:+.3f}, y {e[1]:+.3f}; 95 % of its "
+            f"size [{d.one_ci[0] * 1e3:.3f}, {d.one_ci[1] * 1e3:.3f}] mm) beside one stiffness "
+            f"scale{beside}, and {np.linalg.norm(ej):.3f} mm ([{d.joint_ci[0] * 1e3:.3f}, "
+            f"{d.joint_ci[1] * 1e3:.3f}]) beside a per-joint fit"
+        )
+
+    t = tl.one * deg
+    tilt_text = (
+        f"a tilt of the formed part of {np.linalg.norm(t):.3f}° about work x, y (x {t[0]:+.3f}°, "
+        f"y {t[1]:+.3f}°; 95 % of its size [{tl.one_ci[0] * deg:.3f}, "
+        f"{tl.one_ci[1] * deg:.3f}]°)"
+    )
+    v2, v3 = d2.verdict(lim), d3.verdict(lim)
+    if rf.model == "tilt":
+        d, v, ci = d3, v3, d3.ci()
+        text = f"{grows(d3, ' and ' + tilt_text)}"
+        if v == "ok":
+            text += f"; the offset that grows with depth is that tilt, not a drift: {owner}"
+        elif v == "cannot_tell":
+            text += f"; a drift or that tilt ({owner}) — cannot tell apart on this path"
+    elif v2 == "fault" and v3 != "fault":
+        d, v = d2, "cannot_tell"
+        ci = (min(d2.ci()[0], d3.ci()[0]), max(d2.ci()[1], d3.ci()[1]))
+        text = (
+            f"a sideways offset growing over the run to {np.linalg.norm(d2.one) * 1e3:.3f} mm "
+            f"[{ci[0]:.3f}, {ci[1]:.3f}]: a thermal drift of the robot, or a tilt of the formed "
+            f"part about a horizontal axis ({owner}) — cannot tell apart on this path (forming "
+            f"time follows depth); {grows(d2, '')}; with a tilt fitted too, "
+            f"{grows(d3, ' and ' + tilt_text)}"
+        )
+    elif v2 == "fault":
+        d, v = d2, "fault"
+        ci = (min(d2.ci()[0], d3.ci()[0]), max(d2.ci()[1], d3.ci()[1]))
+        text = (
+            f"the robot's tip drifted sideways over the run, {np.linalg.norm(d2.one) * 1e3:.3f} "
+            f"mm at its end [{ci[0]:.3f}, {ci[1]:.3f}]: a thermal drift — a scan is one rigid "
+            "snapshot, so an offset that grows with forming time is the formed part's, not the "
+            f"scan's; {grows(d2, '')}; with a tilt of the formed part fitted too (not seen), "
+            f"{grows(d3, '')}"
+        )
+    else:
+        d, v, ci = d2, v2, d2.ci()
+        text = grows(d2, "")
+    return _finding(
+        "thermal_drift", float(np.linalg.norm(d.one)) * 1e3, ci, "mm", text, todo, force=v
+    )
+
+
+def _tilt_finding(rf: RobotTermFit) -> Finding:
+    """work_object_tilt: the formed part tilted against the clamped flange about a horizontal
+    axis — the robot's work object (or its kinematics) when the robot scan's registration fitted
+    its tilts from the flange; the scan's tilt just as well when it did not. Seen beside a drift
+    (when the path tells a drift from a constant offset), ruled out beside the offset alone."""
+    alone = rf.tilt_alone
+    if alone is None:
+        return _finding(
+            "work_object_tilt",
+            None,
+            None,
+            "mm",
+            "the points' forming time is not known: a tilt is fitted only beside a drift, "
+            "which it passes for on a step-down path",
+            "",
+        )
+    deg = math.degrees(1.0)
+    lever = rf.depth_max * 1e3  # rad → mm sideways at the deepest analysed point
+    lim = DETECTION_LIMITS["work_object_tilt"]
+    beside_drift = rf.drift is not None and rf.tilt is not None
+    tl = rf.tilt if beside_drift and rf.tilt is not None else alone
+    v = tl.verdict(lim, lever)
+    either = False
+    if beside_drift and v != "fault":
+        va = alone.verdict(lim, lever)
+        if va == "ok":  # no offset growing with depth at all: no tilt
+            tl, v = alone, "ok"
+        elif va == "fault":  # a tilt without a drift, a drift beside no tilt: either
+            either = True
+    t, tj = tl.one * deg, tl.joint * deg
+    ci = tl.ci(lever)
+    est = float(np.linalg.norm(tl.one)) * lever
+    at = f"{est:.3f} mm sideways at the deepest analysed point ({lever:.0f} mm)"
+    text = (
+        f"the formed part is tilted against the clamped flange by {np.linalg.norm(t):.3f}°, {at} "
+        f"(about work x {t[0]:+.3f}°, y {t[1]:+.3f}°; 95 % of its size [{tl.one_ci[0] * deg:.3f}"
+        f", {tl.one_ci[1] * deg:.3f}]°) beside one stiffness scale, "
+        + ("a drift and an offset" if tl is rf.tilt and beside_drift else "an offset")
+        + f", and {np.linalg.norm(tj):.3f}° ([{tl.joint_ci[0] * deg:.3f}, "
+        f"{tl.joint_ci[1] * deg:.3f}]) beside a per-joint fit"
+    )
+    if either:
+        a = alone.one * deg
+        text += (
+            f"; fitted without a drift the tilt is {np.linalg.norm(a):.3f}° "
+            f"([{alone.one_ci[0] * deg:.3f}, {alone.one_ci[1] * deg:.3f}]): a tilt, or a drift "
+            "over the run — cannot tell apart on this path (forming time follows depth)"
+        )
+    if v == "fault" and rf.tilt_registered:
+        text = (
+            f"the formed part is tilted {np.linalg.norm(t):.3f}° against the clamped flange, "
+            f"{est:.3f} mm [{ci[0]:.3f}, {ci[1]:.3f}] sideways at {lever:.0f} mm depth: the "
+            "robot's work object tilted about a horizontal axis "
+            "(or the robot's kinematics) — the robot scan's tilts are registered from the "
+            f"flange, so it is not the scan's; {text}"
+        )
+    elif v == "fault":
+        text = (
+            f"the formed part is tilted {np.linalg.norm(t):.3f}°, {est:.3f} mm [{ci[0]:.3f}, "
+            f"{ci[1]:.3f}] sideways at {lever:.0f} mm depth: the robot's work object tilted, or "
+            "the robot scan tilted (its registration did not fit "
+            f"the tilts) — cannot tell apart from these files ({OFFSET_SHORT}); {text}; "
+            f"{OFFSET_CHECK}"
+        )
+        v = "cannot_tell"
+    return _finding(
+        "work_object_tilt",
+        est,
+        ci,
+        "mm",
+        text,
+        "measure the robot's work object (its tilt); compensate corrects it as the part's",
+        force=v,
+    )
+
+
 def robot_findings(rf: RobotTermFit | None, *, axisymmetric: bool) -> list[Finding]:
-    """robot_stiffness, scan_shift, scan_rotation, springback_coupling from the robot term."""
+    """robot_stiffness, scan_shift, work_object, scan_rotation, thermal_drift,
+    work_object_tilt, springback_coupling from the robot term."""
     if rf is None:
         why = "too few used points or laps to fit the robot term"
-        return _unknown(
-            ("robot_stiffness", "scan_shift", "scan_rotation", "springback_coupling"), why
-        )
+        return _unknown(ROBOT_TERM_SUSPECTS, why)
     out = []
     lo, hi = rf.ratio_ci
     rs_text = (
@@ -1117,71 +1744,9 @@ def robot_findings(rf: RobotTermFit | None, *, axisymmetric: bool) -> list[Findi
             force="cannot_tell" if stiffer else None,
         )
     )
-    s1, sj = rf.shift * 1e3, rf.shift_joint * 1e3
-    c1 = tuple(v * 1e3 for v in rf.shift_ci)
-    cj = tuple(v * 1e3 for v in rf.shift_joint_ci)
-    lim = DETECTION_LIMITS["scan_shift"]
-    v1, vj = verdict(c1[0], c1[1], lim), verdict(cj[0], cj[1], lim)
-    text = (
-        f"the robot term carries the pattern of a sideways scan shift of "
-        f"{np.linalg.norm(s1):.3f} mm (x {s1[0]:+.3f}, y {s1[1]:+.3f}; 95 % of its size "
-        f"[{c1[0]:.3f}, {c1[1]:.3f}] mm) beside one stiffness scale, and "
-        f"{np.linalg.norm(sj):.3f} mm ([{cj[0]:.3f}, {cj[1]:.3f}]) beside a per-joint fit"
-    )
-    if v1 == vj:
-        force = v1
-        est, ci = float(np.linalg.norm(s1)), (min(c1[0], cj[0]), max(c1[1], cj[1]))
-    else:
-        force = "cannot_tell"
-        est, ci = float(np.linalg.norm(sj)), (min(c1[0], cj[0]), max(c1[1], cj[1]))
-        text += (
-            f"; the two explanations disagree: a shift of {np.linalg.norm(s1):.3f} mm "
-            f"(RMS {rf.rms_shift_pattern * 1e3:.3f} mm of normal deviation) with one stiffness "
-            "scale, or joint stiffness errors that differ joint by joint with a shift of "
-            f"{np.linalg.norm(sj):.3f} mm"
-        )
-    out.append(
-        _finding(
-            "scan_shift",
-            est,
-            ci,
-            "mm",
-            text,
-            "re-register the robot scan laterally (reference marks); the robot term holds it",
-            force=force,
-        )
-    )
-    if rf.rotation is None or rf.rotation_ci is None:
-        why = (
-            "the part is a surface of revolution: a rotation of the scan about its axis moves no "
-            "point off the surface, so it can be neither seen nor matter"
-            if axisymmetric
-            else "the geometry does not show a rotation about the part axis apart from the "
-            "other patterns"
-        )
-        out.append(_finding("scan_rotation", None, None, "deg", why, ""))
-    else:
-        r1 = math.degrees(rf.rotation)
-        ci1 = tuple(math.degrees(v) for v in rf.rotation_ci)
-        rj = math.degrees(rf.rotation_joint or 0.0)
-        cij = tuple(math.degrees(v) for v in (rf.rotation_joint_ci or (math.nan, math.nan)))
-        ci = (min(ci1[0], cij[0]), max(ci1[1], cij[1]))
-        # the size's interval (a signed angle: |θ| within [0, max |end|] when it spans 0)
-        lo_abs = 0.0 if ci[0] <= 0 <= ci[1] else min(abs(ci[0]), abs(ci[1]))
-        hi_abs = max(abs(ci[0]), abs(ci[1]))
-        out.append(
-            _finding(
-                "scan_rotation",
-                abs(r1),
-                (lo_abs, hi_abs),
-                "deg",
-                f"the robot term carries the pattern of a rotation of the scan about the part "
-                f"axis of {r1:+.3f}° (95 % [{ci1[0]:+.3f}, {ci1[1]:+.3f}]°; {rj:+.3f}° beside "
-                f"a per-joint fit), RMS {rf.rms_rotation_pattern * 1e3:.3f} mm of normal "
-                "deviation",
-                "re-register the robot scan about the part axis (reference marks)",
-            )
-        )
+    out += _offset_findings(rf, axisymmetric=axisymmetric)
+    out.append(_drift_finding(rf))
+    out.append(_tilt_finding(rf))
     in_band = verdict(lo, hi, DETECTION_LIMITS["robot_stiffness"]) == "ok"
     out.append(
         _finding(
@@ -1208,11 +1773,36 @@ def robot_findings(rf: RobotTermFit | None, *, axisymmetric: bool) -> list[Findi
     return out
 
 
+#: Suspects whose ``cannot_tell`` may be an error of the part beyond its limit that the study's
+#: files cannot attribute (the headline says it).
+UNATTRIBUTED = (
+    "scan_shift",
+    "work_object",
+    "scan_rotation",
+    "thermal_drift",
+    "work_object_tilt",
+)
+
+
+def _beyond(f: Finding) -> bool:
+    """A ``cannot_tell`` whose whole interval lies beyond the ``ok`` band: something is off,
+    and which part cannot be told."""
+    if f.verdict != "cannot_tell" or f.ci_low is None or f.ci_high is None:
+        return False
+    return verdict(f.ci_low, f.ci_high, f.limits) == "fault"
+
+
 def diagnosis_headline(findings: list[Finding]) -> str:
     """One line: the faults (or that nothing is off, or what cannot be told)."""
     faults = [f for f in findings if f.verdict == "fault"]
-    if faults:
-        return "diagnosis: " + " | ".join(f.headline for f in faults)
+    # an offset of the robot part beyond its limit whose owner cannot be told (the scan's
+    # registration or the robot's work object; a drift or a tilt): said, not hidden among the
+    # names; the work object's restates the scan's
+    off = [f for f in findings if f.suspect in UNATTRIBUTED and _beyond(f)]
+    if any(f.suspect in ("scan_shift", "scan_rotation") for f in off):
+        off = [f for f in off if f.suspect != "work_object"]
+    if faults or off:
+        return "diagnosis: " + " | ".join(f.headline for f in faults + off)
     unsure = [f.suspect for f in findings if f.verdict == "cannot_tell"]
     if unsure:
         # in words, as each finding's own headline says its suspect (not the summary's keys)
@@ -1243,15 +1833,17 @@ def _unchecked_forces(f: Finding, force_verdicts: dict[str, str]) -> Finding:
     a scan shift fault a force bias left in the forces (a constant lateral force deflects the
     robot sideways) unless that bias is ruled out — both ``cannot_tell``, saying why. A
     sensor reading 0.85× on a part of 5 laps was called a robot stiffness FAULT at 1.21×, a
-    25 N bias a scan shift FAULT of 0.10 mm."""
-    if f.verdict != "fault":
+    25 N bias a scan shift FAULT of 0.10 mm. An offset of the robot part the diagnosis cannot
+    attribute (the scan's registration or the robot's work object) may be that bias too."""
+    offset = f.suspect in ("scan_shift", "work_object") and _beyond(f)
+    if f.verdict != "fault" and not offset:
         return f
     if f.suspect == "robot_stiffness":
         why = (
             "the force sensor's gain could not be checked against the dynamometer (fewer than "
             "6 used laps): a gain error scales the robot term alike"
         )
-    elif f.suspect == "scan_shift" and force_verdicts.get("force_bias") != "ok":
+    elif f.suspect in ("scan_shift", "work_object") and force_verdicts.get("force_bias") != "ok":
         why = (
             "a force bias could not be ruled out nor removed (fewer than 6 used laps): a constant "
             "lateral force moves the robot term as a shift does"
@@ -1283,6 +1875,8 @@ def diagnose(
     valid: NDArray[np.bool_],
     axisymmetric: bool,
     unloaded: dict[str, list[UnloadedStretch]] | None = None,
+    tau: F64 | None = None,
+    tilt_registered: bool = True,
 ) -> tuple[Diagnosis, CorrectedRobotTerm]:
     """Every suspect's verdict for one study (module docstring) and the corrected robot term.
 
@@ -1292,7 +1886,9 @@ def diagnose(
     W_cnc, W_rob : (N, 6) tip wrenches [N, N·m]; measured : (N,) m the analysis's normal robot
     term (at the measured robot forces); valid : (N,) bool; unloaded : each run's stretches
     with the tool off the sheet at the tip, work axes (keys "cnc", "robot"; the static offset
-    and the axial crosstalk, docs/diagnosis.md)."""
+    and the axial crosstalk, docs/diagnosis.md); tau : (N,) each point's forming time over
+    the robot run in [0, 1] (:func:`forming_time`; a thermal drift grows with it), None when
+    unknown; tilt_registered : the robot scan's registration fitted its tilts."""
     from roboisf.cell import at_ball_centre
     from roboisf.decompose.identify import forming_design
 
@@ -1331,7 +1927,9 @@ def diagnose(
     )
     A = forming_design(robot, q, W, T_base_work, normal, ball_radius)
     per_joint = A / robot.joint_stiffness[None, :]
-    rf = fit_robot_term(y, vjm, per_joint, normal, contact, valid, lap)
+    rf = fit_robot_term(
+        y, vjm, per_joint, normal, contact, valid, lap, tau=tau, tilt_registered=tilt_registered
+    )
     if rf is not None and sf is not None:
         # the VJM runs on the forces as measured, or divided by the fitted gain: the ratio
         # carries the gain's uncertainty (a gain inside the ok band is not corrected, but a
@@ -1347,7 +1945,7 @@ def diagnose(
     order = {s: i for i, s in enumerate(SUSPECTS)}
     findings.sort(key=lambda f: order[f.suspect])
     diag = Diagnosis(findings, sf, rf, correct)
-    pattern = diag.scan_pattern(normal, contact)
-    if pattern is not None:  # the identification sees the robot, not the scan's misregistration
-        y = y - pattern
+    pattern = diag.beside_stiffness(normal, contact, tau)
+    if pattern is not None:  # the identification sees the robot's compliance alone: not the
+        y = y - pattern  # scan's misregistration, an offset, a drift or a tilt of the part
     return diag, CorrectedRobotTerm(W, y, vjm, A)

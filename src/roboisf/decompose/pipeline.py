@@ -44,6 +44,8 @@ from roboisf.decompose.diagnose import (
     Finding,
     diagnose,
     diagnosis_headline,
+    forming_time,
+    offset_seen,
 )
 from roboisf.decompose.identify import (
     FormingIdentification,
@@ -656,8 +658,14 @@ def _analyze(
     valid = dev_c.valid & dev_r.valid & (tp.depth > study.analysis.rim_band)
     cmd = command if has_command else None
     d = decompose(tp.normal, dev_c.dn, dev_r.dn, tool_cnc, tool_rob, holder_rob, vjm, valid, cmd)
+    # each point's forming time over the robot run (a thermal drift grows with it; a scan is
+    # one snapshot), and whether the robot scan's registration fitted its tilts (the flange)
+    tau = forming_time(aligned[rob.name].primary.point_time, len(tp))
+    tilt_registered = {"rx", "ry"} <= set(scans[rob.name].registration.fitted)
     with task(progress, "diagnosis"):
-        diag, corr = _diagnose(cell, tp, q, W_cnc, W_rob, d, k_t, k_th, k_c, unloaded)
+        diag, corr = _diagnose(
+            cell, tp, q, W_cnc, W_rob, d, k_t, k_th, k_c, unloaded, tau, tilt_registered
+        )
     W_used = W_rob
     if diag.forces_corrected:
         # the terms a force drives, at the forces the diagnosis corrected (a flange sensor at
@@ -698,6 +706,12 @@ def _analyze(
     pattern = diag.scan_pattern(tp.normal, tp.contact)
     if pattern is not None:  # what the diagnosis put on the scan: never pre-deflected for
         per_point["scan_pattern_dn"] = pattern * 1e3
+    offset = diag.offset_pattern(tp.normal, tp.contact)
+    if offset is not None:  # the scan's or the part's: compensate asks which (--offset)
+        per_point["offset_pattern_dn"] = offset * 1e3
+    drift = diag.drift_pattern(tp.normal, tau)
+    if drift is not None:  # the formed part's: compensate corrects it, and says it may change
+        per_point["drift_pattern_dn"] = drift * 1e3
     if ident is not None:
         per_point["identified_dn"] = ident.predicted * 1e3
     if truth is not None:
@@ -739,9 +753,13 @@ def _diagnose(
     k_th: F64,
     k_c: F64,
     unloaded: dict[str, list[UnloadedStretch]] | None = None,
+    tau: F64 | None = None,
+    tilt_registered: bool = True,
 ) -> tuple[Diagnosis, CorrectedRobotTerm]:
     """The diagnosis of the decomposition ``d`` at the measured forces (docs/diagnosis.md);
-    ``unloaded``: each run's stretches with the tool off the sheet (keys "cnc", "robot")."""
+    ``unloaded``: each run's stretches with the tool off the sheet (keys "cnc", "robot");
+    ``tau``: each point's forming time over the robot run in [0, 1]; ``tilt_registered``: the
+    robot scan's registration fitted its tilts."""
     return diagnose(
         robot=cell.robot,
         q=q,
@@ -761,6 +779,8 @@ def _diagnose(
         valid=d.valid,
         axisymmetric=cell.part.symmetry.order == 0,
         unloaded=unloaded,
+        tau=tau,
+        tilt_registered=tilt_registered,
     )
 
 
@@ -819,6 +839,11 @@ def _model_checks(
                 for f in diag.findings
                 if f.verdict == "fault" and f.suspect != "robot_stiffness"
             ]
+            if diag.robot is not None and any(offset_seen(diag.robot)):
+                elsewhere.append(
+                    "an offset of the robot part (the robot scan's registration or the robot's "
+                    "work object: cannot tell apart)"
+                )
             summary["warnings"].append(
                 f"the robot term differs from the VJM's: {vc.reason}; the diagnosis finds the "
                 "robot's stiffness as modelled and puts the difference on "
@@ -836,10 +861,18 @@ def _model_checks(
                 f"the robot model does not hold: {vc.reason}; the robot term is the measured "
                 f"one, the VJM's prediction is off{use}"
             )
-    summary["warnings"].extend(_lateral_warnings(tp, d, vc, summary, verdicts["scan_shift"]))
+    summary["warnings"].extend(
+        _lateral_warnings(tp, d, vc, summary, verdicts["scan_shift"], verdicts["thermal_drift"])
+    )
     if verdicts["force_bias"].verdict == "fault":
         summary["warnings"].extend(_force_bias_warnings(tp, W_cnc, W_rob, valid))
-    for name in ("force_gain", "force_moment_crosstalk", "force_crosstalk", "scan_rotation"):
+    for name in (
+        "force_gain",
+        "force_moment_crosstalk",
+        "force_crosstalk",
+        "scan_rotation",
+        "thermal_drift",
+    ):
         if verdicts[name].verdict == "fault":
             summary["warnings"].append(verdicts[name].headline)
     return ident
@@ -851,11 +884,13 @@ def _lateral_warnings(
     vc: VjmCheck,
     summary: dict[str, Any],
     shift: Finding | None = None,
+    drift: Finding | None = None,
 ) -> list[str]:
     """A sideways scan shift the fixture registration cannot see (z and tilts only). The robot
     scan's is warned only when the diagnosis's ``shift`` finding calls it a fault (a joint-by-joint
     stiffness error or a sensor fault leaves a similar pattern beside one scale); a
-    ``cannot_tell`` is said as such."""
+    ``cannot_tell`` is said as such, unless a ``drift`` at fault explains the pattern (an offset
+    growing over the run, which a fit of a constant shift takes for one: its own warning)."""
     reg = summary.get("registration") or {}
     out = []
     fits = {}
@@ -880,7 +915,8 @@ def _lateral_warnings(
         if not (lo.size > LATERAL_WARN and lo.size > 4 * lo.se):
             continue
         if run == "robot" and shift is not None and shift.verdict != "fault":
-            if shift.verdict == "cannot_tell":
+            drifted = drift is not None and drift.verdict == "fault"
+            if shift.verdict == "cannot_tell" and not drifted:
                 out.append(f"robot scan: {shift.explanation}")
             continue
         # the registrations are in run order (CNC, robot)

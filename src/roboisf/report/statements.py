@@ -34,6 +34,9 @@ _SUSPECTS = {
     "force_bias": "force sensor bias",
     "force_crosstalk": "axial force crosstalk",
     "scan_shift": "scan shift",
+    "work_object": "robot work object",
+    "thermal_drift": "robot thermal drift",
+    "work_object_tilt": "robot work object tilt",
     "scan_rotation": "scan rotation",
     "springback_coupling": "springback coupling",
 }
