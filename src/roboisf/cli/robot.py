@@ -218,6 +218,90 @@ def show_cmd(
         state.info(f"wrote {output}")
 
 
+#: ``--sigma-rot``'s default: 1e-5 rad (0.00057°), with its unit
+SIGMA_ROT_DEFAULT = "1e-5rad"
+#: the units ``--sigma-rot`` accepts → rad
+ROTATION_STD_UNITS = {
+    "rad": 1.0,
+    "mrad": 1e-3,
+    "urad": 1e-6,
+    "µrad": 1e-6,
+    "μrad": 1e-6,
+    "deg": math.pi / 180.0,
+    "°": math.pi / 180.0,
+    "arcsec": math.pi / 180.0 / 3600.0,
+}
+#: the largest rotation measurement std accepted [rad] (2.9°): an inclinometer or a laser
+#: tracker's 6-DoF probe reads to 1e-5–1e-3 rad; a bare number above this is degrees meant
+MAX_ROTATION_STD = 0.05
+#: the largest displacement measurement std accepted [mm]: a dial gauge or a laser tracker reads
+#: to 0.001–0.05 mm; 10 (µm meant) widened a design's expected intervals 1000×
+MAX_DISPLACEMENT_STD_MM = 1.0
+
+
+def rotation_std(text: str) -> tuple[float, bool]:
+    """``--sigma-rot`` → (rad, whether the number came without a unit). A bare number is read
+    in rad (the option's unit before the command line's angles became degrees) and refused
+    above :data:`MAX_ROTATION_STD`, where it can only be degrees; a number with a unit is taken
+    in it. Refusals name the option, the unit and what was expected."""
+    s = text.strip()
+    i = len(s)
+    while i > 0 and not (s[i - 1].isdigit() or s[i - 1] == "."):
+        i -= 1
+    num, unit = s[:i].strip(), s[i:].strip()
+    accepted = "rad, mrad, urad, deg, arcsec"
+    try:
+        v = float(num)
+    except ValueError:
+        raise InputError(
+            f"expected a standard deviation with its unit ({accepted}), e.g. 0.0006deg or "
+            f"1e-5rad, got {text!r}",
+            field="--sigma-rot",
+        ) from None
+    if unit and unit.lower() not in ROTATION_STD_UNITS and unit not in ROTATION_STD_UNITS:
+        raise InputError(
+            f"unknown unit {unit!r} in {text!r}; expected one of {accepted} (e.g. 0.0006deg)",
+            field="--sigma-rot",
+        )
+    if not (math.isfinite(v) and v > 0):
+        raise InputError(
+            f"must be a standard deviation > 0 (with its unit: {accepted}), got {text!r}",
+            field="--sigma-rot",
+        )
+    if not unit:
+        if v > MAX_ROTATION_STD:
+            raise InputError(
+                f"a bare {num} is read in rad, and {v:g} rad ({math.degrees(v):.3g}°) is no "
+                f"rotation measurement's standard deviation (at most {MAX_ROTATION_STD:g} rad); "
+                f"if you meant {num}° ({math.radians(v):.3g} rad), write {num}deg; give the "
+                f"unit either way ({accepted})",
+                field="--sigma-rot",
+            )
+        return v, True
+    rad = v * ROTATION_STD_UNITS.get(unit, ROTATION_STD_UNITS.get(unit.lower(), 1.0))
+    if rad > MAX_ROTATION_STD:
+        raise InputError(
+            f"{text.strip()} ({rad:.3g} rad) is no rotation measurement's standard deviation "
+            f"(at most {MAX_ROTATION_STD:g} rad, {math.degrees(MAX_ROTATION_STD):.2g}°); leave "
+            "the rx,ry,rz columns out to identify from displacements only",
+            field="--sigma-rot",
+        )
+    return rad, False
+
+
+def _check_sigma(sigma: float) -> None:
+    """``--sigma`` (mm): a standard deviation > 0 that a displacement measurement has."""
+    if not (math.isfinite(sigma) and sigma > 0):
+        raise InputError(f"must be a standard deviation > 0 mm, got {sigma:g}", field="--sigma")
+    if sigma > MAX_DISPLACEMENT_STD_MM:
+        raise InputError(
+            f"{sigma:g} mm is no displacement measurement's standard deviation (a dial gauge or "
+            f"a laser tracker: 0.001–0.05 mm; at most {MAX_DISPLACEMENT_STD_MM:g} mm); it is "
+            f"{sigma * 1e-3:g} mm if it was written in µm",
+            field="--sigma",
+        )
+
+
 @robot_app.command("identify")
 def identify_cmd(
     calib: Path | None = typer.Argument(
@@ -234,8 +318,13 @@ def identify_cmd(
     tool: str | None = TOOL_OPT,
     tip_link: str | None = TIP_LINK_OPT,
     sigma: float = typer.Option(0.01, "--sigma", help="Measurement std of displacements (mm)."),
-    sigma_rot: float = typer.Option(
-        1e-5, "--sigma-rot", help="Measurement std of rotations (rad)."
+    sigma_rot: str = typer.Option(
+        SIGMA_ROT_DEFAULT,
+        "--sigma-rot",
+        help="Measurement std of rotations (the rx,ry,rz columns), with its unit: e.g. "
+        "0.0006deg, 1e-5rad, 2arcsec (deg, rad, mrad, urad, arcsec). A bare number is read in "
+        "rad, this option's unit before angles on the command line became degrees, with a "
+        "warning; a bare number above 0.05 (rad: 2.9°) is refused as degrees meant.",
     ),
     design: bool = typer.Option(
         False,
@@ -280,9 +369,8 @@ def identify_cmd(
         raise InputError("expected a calibration CSV (or --design)", field="CALIB")
     # a standard deviation weights the residuals by 1/σ: 0 divides by zero, a negative one is
     # no standard deviation (both used to run: a ZeroDivisionError, or a silently used |σ|)
-    for flag, v, unit in (("--sigma", sigma, "mm"), ("--sigma-rot", sigma_rot, "rad")):
-        if not (math.isfinite(v) and v > 0):
-            raise InputError(f"must be a standard deviation > 0 {unit}, got {v:g}", field=flag)
+    _check_sigma(sigma)
+    sigma_rot_rad, bare = rotation_std(sigma_rot)
     import warnings
 
     import numpy as np
@@ -295,9 +383,22 @@ def identify_cmd(
     output_file(output, "robot identify", overwrite, [calib, *_files(robot, tool)])
     m = _model(robot, None, tool, tip_link)
     data = read_calibration_csv(calib, m)
+    rotations = data.displacement.shape[1] == 6
+    if bare and rotations:
+        state.warn(
+            f"--sigma-rot {sigma_rot.strip()} has no unit: read as {sigma_rot_rad:g} rad "
+            f"({math.degrees(sigma_rot_rad):.3g}°), its unit so far; angles on the command line "
+            f"are degrees, so {sigma_rot.strip()} deg would be "
+            f"{math.radians(sigma_rot_rad):.3g} rad: write {sigma_rot.strip()}rad (or "
+            f"{math.degrees(sigma_rot_rad):.3g}deg) to say which"
+        )
+    elif sigma_rot != SIGMA_ROT_DEFAULT and not rotations:
+        state.warn(f"--sigma-rot is not used: {calib} has no rotation columns (rx, ry, rz)")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", PoorExcitationWarning)
-        r = identify_stiffness(m, data, sigma_translation=sigma * 1e-3, sigma_rotation=sigma_rot)
+        r = identify_stiffness(
+            m, data, sigma_translation=sigma * 1e-3, sigma_rotation=sigma_rot_rad
+        )
     for w in caught:
         state.warn(str(w.message))
     for i in range(6):
@@ -353,6 +454,7 @@ def _design_cmd(
             "estimate)",
             field="--design",
         )
+    _check_sigma(sigma)
     from roboisf.plausible import check_plausible
 
     # a load no robot is tested with (2e6 N) made the design's information matrix singular: a
