@@ -751,7 +751,13 @@ def summary_lines(c: Any, status: Any, t: Any) -> list[str]:
         f"{c.sensor_resyncs} stream restarts followed, {c.implausible} implausible samples held, "
         f"{c.sensor_status} with a fault status"
         + (f" ({netft.status_text(c.sensor_status_bits)})" if c.sensor_status_bits else "")
-        + (f", unreachable {c.sensor_unreachable}×" if c.sensor_unreachable else ""),
+        + (f", unreachable {c.sensor_unreachable}×" if c.sensor_unreachable else "")
+        + (
+            f", {c.unoriented} before the controller's first joint angles not used (the tool's "
+            "weight needs them)"
+            if c.unoriented
+            else ""
+        ),
     ]
     ep = episodes(status, t)
     shown = {k: v for k, v in ep.items() if k != "deadband"}
