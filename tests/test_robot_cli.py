@@ -393,3 +393,61 @@ def test_sigma_in_um_typed_as_mm_is_refused(tmp_path, capsys, design):
     err = capsys.readouterr().err
     assert "[--sigma]" in err and "0.01 mm if it was written in µm" in err
     assert not out.exists()
+
+
+def test_show_checks_the_maps_options_before_printing(tmp_path, capsys):
+    """A bad --placement passed unread without -o (exit 0), and with -o was refused only after
+    the robot's table was printed; a robot without stiffness printed its table before the map
+    refused it. Now: the placement is checked first, the map's options without -o are said to
+    be unused, and a refusal comes before any output."""
+    assert main(["robot", "show", "--placement", "1,2"]) == 2
+    cap = capsys.readouterr()
+    assert "[--placement]" in cap.err and cap.out == ""
+    assert main(["robot", "show", "--placement", "1600,0,800,0"]) == 0
+    cap = capsys.readouterr()
+    assert "--placement set the stiffness map (-o map.png): unused without -o" in cap.err
+    assert "A1: limits" in cap.out
+    png = tmp_path / "m.png"
+    assert main(["robot", "show", "-o", str(png), "--placement", "1600,0,800"]) == 2
+    cap = capsys.readouterr()
+    assert "[--placement]" in cap.err and cap.out == "" and not png.exists()
+    assert main(["robot", "show", "--robot", "kr210-r2700-2", "-o", str(png)]) == 2
+    cap = capsys.readouterr()
+    assert "no joint stiffness" in cap.err and cap.out == "" and not png.exists()
+
+
+@pytest.mark.parametrize(
+    ("extra", "needle"),
+    [
+        (["--tool-rotation", "1e9"], "[--tool-rotation]: 1e+09 deg is outside"),
+        (["--tool-rotation", "nan"], "[--tool-rotation]: expected a finite number"),
+        (["--kuka-st", "2,10"], "[--kuka-st]: no IK solution"),
+    ],
+)
+def test_deflect_names_the_option_it_refuses(cell, tmp_path, capsys, extra, needle):
+    """--tool-rotation nan was '[tool_rotation]: tool_rotation contains NaN or inf' (the
+    function's parameter, not the option) and 1e9° ran; --kuka-st's refusal named 'kuka_st'."""
+    d, _, _ = cell
+    out = tmp_path / "d.csv"
+    assert main(_deflect(d, out, *extra)) == 2
+    err = capsys.readouterr().err
+    assert needle in err and "Traceback" not in err
+    assert not out.exists()
+
+
+def test_design_says_what_it_cannot_do(tmp_path, capsys):
+    """--experiments 100000 was refused as 'only 740 of 40000 random poses put the tip within
+    1000 mm: place the robot closer' — the robot was fine, the count was the slip. And a design
+    with joint 6 all but unloaded (a 5 mm bracket: K6 expected ± 3447 %) was written without a
+    word beyond the table."""
+    out = tmp_path / "D"
+    base = ["robot", "identify", "--design", "--tool", "0,0,300", "-o", str(out)]
+    assert main([*base, "--experiments", "100000"]) == 2
+    err = capsys.readouterr().err
+    assert "[--experiments]" in err and "ask for fewer experiments" in err
+    assert not out.exists()
+    assert main([*base, "--bracket", "-5"]) == 0
+    err = capsys.readouterr().err
+    assert "identifies K6" in err and "only weakly" in err and "--bracket" in err
+    assert main([*base, "--overwrite"]) == 0  # the default 250 mm bracket: no warning
+    assert "only weakly" not in capsys.readouterr().err

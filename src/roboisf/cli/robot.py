@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -177,6 +179,10 @@ def show_cmd(
     import numpy as np
     from rich.markup import escape
 
+    if placement is not None:  # checked first, map or not (it used to pass unread without -o)
+        from roboisf.frames.pose import XYZ_YAW_MM_DEG, parse_pose
+
+        parse_pose(placement, XYZ_YAW_MM_DEG, field="--placement")
     if output is not None:
         if output.suffix.lower() != ".png":  # the map is PNG data whatever the name says
             raise InputError(
@@ -192,7 +198,14 @@ def show_cmd(
                 field="--half-width",
             )
         output_file(output, "robot show", overwrite, [stiffness, *_files(robot, tool)])
+    elif placement is not None or half_width != 500.0:
+        given = [
+            f for f, v in (("--placement", placement), ("--half-width", half_width != 500.0)) if v
+        ]
+        state.warn(f"{' and '.join(given)} set the stiffness map (-o map.png): unused without -o")
     m = _model(robot, stiffness, tool, tip_link)
+    if output is not None:  # the map needs the joint stiffness: refused before the table
+        _ = m.joint_stiffness
     state.out.print(f"[bold]{escape(m.name)}[/bold]")
     if m.source:
         state.out.print(m.source, markup=False)
@@ -427,6 +440,11 @@ def identify_cmd(
     state.info(f"wrote {output}")
 
 
+#: a design's expected relative standard error above which a joint is said to be weakly
+#: identified (identify_stiffness's weak_threshold)
+WEAK_DESIGN = 0.3
+
+
 def _design_cmd(
     output: Path,
     overwrite: bool,
@@ -507,6 +525,15 @@ def _design_cmd(
             f"K{i + 1}: expected relative standard error {d.rel_se[i]:.1%} "
             f"(95 % [{d.K_ci[i, 0]:.4g}, {d.K_ci[i, 1]:.4g}] N·m/rad at the prior)"
         )
+    weak = [i for i in range(6) if d.rel_se[i] > WEAK_DESIGN]
+    if weak:
+        names = ", ".join(f"K{i + 1} ({d.rel_se[i]:.0%})" for i in weak)
+        state.warn(
+            f"this design identifies {names} only weakly (expected relative standard error "
+            f"above {WEAK_DESIGN:.0%}, where identify calls a joint weakly excited): a longer "
+            "--bracket (joint 6 is twisted by the load's arm off its axis), more --experiments "
+            "or a more precise measurement (--sigma)"
+        )
     if ext is None:
         why = (
             "a URDF's joint angles are not its pendant's (signs, zeros, FANUC's J2/J3 coupling)"
@@ -521,6 +548,27 @@ def _design_cmd(
         f"frame), then: roboisf robot identify {output / 'experiment.csv'} --tool {tool_mm} "
         f"--sigma {sigma:g} -o K.toml"
     )
+
+
+#: the IK's parameters → the ``deflect`` options that give them (errors name the option)
+IK_OPTIONS = {
+    "tool_rotation": "--tool-rotation",
+    "match_q": "--start-joints",
+    "confdata": "--confdata",
+    "kuka_st": "--kuka-st",
+    "placement": "--placement",
+}
+
+
+@contextmanager
+def _options_named(names: dict[str, str]) -> Iterator[None]:
+    """An :class:`InputError` raised inside about a parameter of ``names`` names its option."""
+    try:
+        yield
+    except InputError as e:
+        if e.field in names:
+            raise InputError(e.message, file=e.file, line=e.line, field=names[e.field]) from None
+        raise
 
 
 DEFLECT_HELP = (
@@ -585,6 +633,9 @@ def deflect_cmd(
     ),
 ) -> None:
     """VJM deflection of the tool tip along a toolpath under the logged forming wrench."""
+    from roboisf.plausible import check_plausible
+
+    check_plausible(tool_rotation, "angle", field="--tool-rotation")  # before numpy is loaded
     import warnings
 
     import numpy as np
@@ -628,7 +679,7 @@ def deflect_cmd(
             )
         if m.ik_note:
             state.warn(m.ik_note)  # one line, before the (slower) numerical solve
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), _options_named(IK_OPTIONS):
             warnings.simplefilter("ignore", NumericalIKWarning)  # said just above
             q = ik_toolpath(
                 m,
