@@ -66,27 +66,86 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys, args, needle):
     assert not (tmp_path / "log.parquet").exists()
 
 
+@pytest.mark.parametrize(
+    ("args", "needles"),
+    [
+        # 5 µm meant: every correction under 5 mm sent as 0, a run that never corrects
+        (["--deadband", "5"], ["[--deadband]", "never correct", "5 µm"]),
+        # a rate at which the whole 2 mm size limit is one cycle's step limits nothing
+        (["--max-rate", "20000"], ["[--max-rate]", "no rate limit is left", "at most 500 mm/s"]),
+        (["--cycle", "12", "-c", "rsi", "--max-rate", "200"], ["at most 166.667 mm/s"]),
+        # the sensor's tool, its CoG, its pose and its tare at magnitudes no cell has
+        (["--tool-mass", "3200"], ["[--tool-mass]", "3.2 kg if it was written in g"]),
+        (["--tool-cog", "0,0,85000"], ["[--tool-cog]", "85 mm if it was written in µm"]),
+        (["--sensor-pose", "0,0,100000,0,0,0"], ["[--sensor-pose]", "100 mm if it was"]),
+        (["--sensor-pose", "0,0,100,0,0,7200"], ["[--sensor-pose]", "a rotation angle"]),
+        (["--tare", "1,2,3e9,0,0,0"], ["[--tare]", "a force sensor's bias"]),
+    ],
+)
+def test_settings_that_defeat_the_loop_are_refused(tmp_path, capsys, args, needles):
+    """Each of these ran: a dead band above the size limit (the loop corrected nothing, its
+    summary said 'every cycle ok or in the dead band'), a rate limit that no longer limits,
+    a 3200 kg tool (3.2 kg in g: 31 kN of weight removed from every sample), a sensor 100 m
+    from the flange. Now one line naming the option (and the slip that explains the number),
+    exit 2, before anything starts."""
+    log = str(tmp_path / "l.parquet")
+    # --duration: were it accepted, the loop would wait for a controller for 1 s, not for ever
+    argv = ["online", "-c", "egm", "--virtual", "cone", "--duration", "1", *args, "-o", log]
+    if "rsi" in args:
+        argv.remove("egm"), argv.remove("-c")
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    for n in needles:
+        assert n in err, err
+    assert not (tmp_path / "l.parquet").exists()
+
+
 def test_log_must_be_parquet(tmp_path, capsys):
     code = main(["online", "-c", "egm", "--virtual", "cone", "-o", str(tmp_path / "l.csv")])
     assert code == 2 and ".parquet" in capsys.readouterr().err
 
 
-def test_replay_controller_writes_the_log_of_a_study(tmp_path, online_cone):
-    build_study(online_cone(12e-3, scan_points=5000), tmp_path / "study")
+@pytest.fixture(scope="module")
+def replay_study_dir(tmp_path_factory, online_cone):
+    d = tmp_path_factory.mktemp("replay") / "study"
+    build_study(online_cone(12e-3, scan_points=5000), d)
+    return d
+
+
+def test_replay_controller_writes_the_log_of_a_study(tmp_path, replay_study_dir):
     out = tmp_path / "replay.parquet"
-    code = main(
-        ["-q", "online", "-c", "replay", "-s", f"replay:{tmp_path / 'study'}", "-o", str(out)]
-    )
-    assert code == 0
+    argv = ["-q", "online", "-c", "replay", "-s", f"replay:{replay_study_dir}", "-o", str(out)]
+    assert main(argv) == 0
     df = pd.read_parquet(out)
     corr = df[["corr_x_mm", "corr_y_mm", "corr_z_mm"]].to_numpy()
     assert len(df) > 100
     assert 0.05 < np.linalg.norm(corr, axis=1).max() <= 2.0  # a real, limited correction
     # a second run into the same file needs --overwrite
-    assert (
-        main(["-q", "online", "-c", "replay", "-s", f"replay:{tmp_path / 'study'}", "-o", str(out)])
-        == 2
-    )
+    assert main(argv) == 2
+
+
+def test_replay_holds_what_the_live_loop_would_hold(tmp_path, capsys, replay_study_dir):
+    """'What the loop would have sent' ignored the plausibility bounds: with --max-force 1 N
+    the live loop holds every sample and sends nothing, the replay sent 0.8 mm corrections. It
+    now runs with the same bounds (from the options, else the study's expected peak) and
+    counts what it held; the study's sensor options it does not use are said."""
+    out = tmp_path / "replay.parquet"
+    base = ["online", "-c", "replay", "-s", f"replay:{replay_study_dir}", "-o", str(out)]
+    assert main([*base, "--max-force", "1", "--tare", "1,2,3,0,0,0"]) == 0
+    df = pd.read_parquet(out)
+    corr = df[["corr_x_mm", "corr_y_mm", "corr_z_mm"]].to_numpy()
+    assert np.abs(corr).max() == 0.0
+    held = (df["status"].to_numpy() & (4 | 64)) != 0  # hold, implausible-force (then ramp)
+    assert held[10:].all()
+    cap = capsys.readouterr()
+    assert "implausible-force" in cap.out and "--tare not" in cap.err
+    # the default bounds, from the study's own forces, hold nothing of its own forming
+    assert main([*base, "--overwrite"]) == 0
+    df = pd.read_parquet(out)
+    assert not np.any(df["status"].to_numpy() & 64)
+    corr = df[["corr_x_mm", "corr_y_mm", "corr_z_mm"]].to_numpy()
+    assert np.linalg.norm(corr, axis=1).max() > 0.05
 
 
 @pytest.mark.slow

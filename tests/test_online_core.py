@@ -94,6 +94,40 @@ def test_weight_and_tare_removed_in_any_orientation(cell, poses):
         np.testing.assert_allclose(oc.filtered, 0.0, atol=1e-10)
 
 
+def test_a_weighed_tool_waits_for_the_first_joint_angles(cell, poses):
+    """Before the controller's first message the joint angles were zeros — the robot's zero
+    pose, not where it is — and the tool's weight was removed in that orientation: at rest, in
+    the air, the loop filtered a force the tool never felt (41.5 N in the first cycle of a
+    simulated pyramid run, a 76 µm correction). Such samples are not used until joint angles
+    come; then the same reading is force-free."""
+    sensor = SensorSetup(
+        SENSOR_POSE, tare=np.array([4.0, -2.5, 12.0, 0.15, -0.08, 0.02]), tool_mass=3.0,
+        tool_cog=np.array([0.0, 0.002, 0.09]),
+    )  # fmt: skip
+    oc = OnlineCompensator.from_cell(cell, sensor, Limits(deadband=0.0))
+    q = poses[2]
+    at_rest = _sensor_reading(cell, q, np.zeros(6), sensor)
+    for i in range(4):
+        assert not oc.sample(i * 1e-3, at_rest)
+    assert oc.unoriented == 4 and oc.implausible == 0
+    np.testing.assert_array_equal(oc.filtered, 0.0)
+    c = oc.cycle(4e-3, q)  # the first message: no sample yet, nothing sent
+    assert oc.status & kn.STATUS_NO_SAMPLE and np.all(c == 0.0)
+    for i in range(4):
+        assert oc.sample(5e-3 + i * 1e-3, at_rest)
+    c = oc.cycle(8e-3, q)
+    np.testing.assert_allclose(oc.filtered[:3], 0.0, atol=1e-9)
+    assert oc.status == kn.STATUS_OK and np.linalg.norm(c) < 1e-9
+    # the weight at the zero pose is what the samples used to lose: a phantom of tens of N
+    oc.reset()
+    oc.set_joints(np.zeros(6))
+    oc.sample(0.0, at_rest)
+    assert np.linalg.norm(oc.filtered[:3]) > 10.0
+    # a tool without mass needs no orientation: its samples count at once
+    bare = OnlineCompensator.from_cell(cell, SensorSetup(SENSOR_POSE), Limits())
+    assert bare.sample(0.0, np.zeros(6)) and bare.unoriented == 0
+
+
 def test_low_pass_step_response_is_exact(cell, poses):
     fc = 15.0
     oc = OnlineCompensator.from_cell(cell, SensorSetup(cutoff=fc))

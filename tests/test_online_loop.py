@@ -239,6 +239,63 @@ def test_cycle_log_grows_and_keeps_units():
     assert len(log.COLUMNS) == log.data.shape[1]
 
 
+def _at_rest(setup, q):
+    """What the simulated flange sensor reads at joints ``q`` with no forming load: the tool's
+    weight (3 kg at its CoG, sensor axes) and the tare (as :func:`virtual_setup` adds them)."""
+    from roboisf.online.sim import SIM_TARE, SIM_TOOL_COG, SIM_TOOL_MASS
+
+    R_bs = setup.vc.cell.robot.fk(q[None])[0][:3, :3] @ setup.vc.T_tip_sensor[:3, :3]
+    f = SIM_TOOL_MASS * R_bs.T @ np.array([0.0, 0.0, -9.80665])
+    return np.concatenate([f, np.cross(SIM_TOOL_COG, f)]) + np.array(SIM_TARE)
+
+
+def test_the_tool_at_rest_gets_no_correction_before_or_after_the_first_message(setup):
+    """The sensor streams from the loop's start; the controller's first message comes later.
+    The records read meanwhile had the tool's weight removed at joints 0 — the robot's zero
+    pose — and the first replies corrected for a force the tool never felt (0.076 mm in the
+    first cycle of a simulated pyramid run, in the air). Now they wait for the joint angles:
+    at rest every reply is zero and the filtered force is the tool's nothing."""
+    q = setup.q[len(setup.q) // 3]
+    rest = _at_rest(setup, q)
+    oc = OnlineCompensator.from_cell(setup.vc.cell, setup.sensor, Limits(watchdog=2.0))
+    # the negative control: the weight removed at the zero pose leaves tens of newtons
+    oc.set_joints(np.zeros(6))
+    oc.sample(0.0, rest)
+    assert np.linalg.norm(oc.filtered[:3]) > 10.0
+    oc.reset()
+    ft = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    ft.bind(("127.0.0.1", 0))
+    loop = Loop(oc, egm.EgmAdapter(), ("127.0.0.1", 0), ft.getsockname(), **RULES_OFF)
+    assert loop.ft is not None
+    robot = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    robot.bind(("127.0.0.1", 0))
+    th, _ = _serve(loop, duration=30)
+    seq = 0
+    replies = []
+    try:
+        assert netft.decode_request(ft.recv(64))[0] == netft.CMD_START_REALTIME
+        dest = loop.ft.getsockname()
+        planned = setup.planned[len(setup.q) // 3]
+        for burst in range(6):  # 0.15 s before the first message (idle drains), then cycles
+            for _ in range(150 if burst == 0 else 4):
+                ft.sendto(netft.encode_record(seq, seq, 0, rest), dest)
+                seq += 1
+                time.sleep(1e-3 if burst == 0 else 0.0)
+            robot.sendto(egm.encode_robot(burst + 1, 0, q, planned), loop.listen)
+            reply = _recv(robot)
+            assert reply is not None
+            replies.append(egm.decode_sensor(reply)[1][:3] - planned[:3])
+    finally:
+        loop.stop()
+        th.join()
+        robot.close()
+        ft.close()
+    assert np.abs(np.asarray(replies)).max() < 1e-9, replies  # m (the wire's rounding)
+    d = loop.log.data[: loop.log.n]
+    assert np.abs(d[:6, 8:11]).max() < 1.0  # N: the tip wrench of the first cycles
+    assert loop.counters.samples >= 4 * 5
+
+
 def test_an_unreachable_sensor_does_not_stop_the_loop(setup):
     """Nothing listens on the sensor's port: the loop keeps answering, with zero correction."""
     oc = OnlineCompensator.from_cell(setup.vc.cell, setup.sensor, Limits())

@@ -279,3 +279,175 @@ def test_a_stiffness_map_wider_than_any_cell_is_refused(tmp_path, capsys, hw):
     out = tmp_path / "map.png"
     assert main(["robot", "show", "--half-width", hw, "-o", str(out)]) == 2
     assert "[--half-width]" in capsys.readouterr().err and not out.exists()
+
+
+def _calib_with_rotations(path, noise_rot=2e-6):
+    """A calibration CSV of 30 virtual experiments with measured rotations (rx, ry, rz, rad)
+    whose noise is ``noise_rot`` rad; the tool 300,100,400 mm."""
+    m = load_robot("irb7600-500-2.55").with_tool(make_transform(None, [0.3, 0.1, 0.4]))
+    rng = np.random.default_rng(1)
+    q = rng.uniform(m.q_min * 0.7, m.q_max * 0.7, (30, 6))
+    W = rng.normal(size=(30, 6)) * [1500, 1500, 1500, 150, 150, 150]
+    d = m.deflection(q, W)
+    d[:, :3] += rng.normal(size=(30, 3)) * 2e-6
+    d[:, 3:] += rng.normal(size=(30, 3)) * noise_rot
+    rows = np.column_stack([np.degrees(q), W, d[:, :3] * 1e3, d[:, 3:]])
+    path.write_text(
+        "# units: angle=deg length=mm force=N moment=N*m rotation=rad\n"
+        "q1,q2,q3,q4,q5,q6,Fx,Fy,Fz,Mx,My,Mz,dx,dy,dz,rx,ry,rz\n"
+        + "\n".join(",".join(f"{v:.17g}" for v in r) for r in rows)
+        + "\n"
+    )
+    return m
+
+
+def _identify(tmp_path, calib, out, *extra):
+    args = ["robot", "identify", str(calib), "--tool", "300,100,400", "-o", str(out), *extra]
+    return main(args)
+
+
+def test_sigma_rot_takes_its_unit_and_a_bare_number_keeps_its_old_reading(tmp_path, capsys):
+    """--sigma-rot was in rad while every other angle on the command line is in degrees. A
+    silent switch to degrees would change what existing scripts identify, so: a number with
+    its unit is read in it (0.00114592deg = 2e-5rad, the same stiffness), a bare number is read
+    in rad as before, with a warning naming both readings."""
+    from roboisf.robot import load_stiffness
+
+    calib = tmp_path / "calib.csv"
+    _calib_with_rotations(calib)
+    K = {}
+    for name, value in (("rad", "2e-5rad"), ("deg", "0.0011459156deg"), ("bare", "2e-5")):
+        out = tmp_path / f"{name}.toml"
+        assert _identify(tmp_path, calib, out, "--sigma-rot", value) == 0, name
+        K[name] = load_stiffness(out)
+        err = capsys.readouterr().err
+        assert ("has no unit" in err) == (name == "bare"), err
+    np.testing.assert_allclose(K["deg"], K["rad"], rtol=1e-6)
+    np.testing.assert_array_equal(K["bare"], K["rad"])
+    # the weight is used: a rotation std a thousand times larger gives other numbers
+    out = tmp_path / "loose.toml"
+    assert _identify(tmp_path, calib, out, "--sigma-rot", "2e-2rad") == 0
+    assert np.max(np.abs(load_stiffness(out) / K["rad"] - 1)) > 1e-4
+
+
+@pytest.mark.parametrize(
+    ("value", "expect"),
+    [
+        ("0.1", ["a bare 0.1 is read in rad", "0.1 rad (5.73°)", "write 0.1deg"]),
+        ("2", ["a bare 2 is read in rad", "2 rad (115°)", "write 2deg"]),
+        ("5deg", ["5deg (0.0873 rad)", "at most 0.05 rad"]),
+        ("1e-5furlong", ["unknown unit 'furlong'", "rad, mrad, urad, deg, arcsec"]),
+        ("0", ["must be a standard deviation > 0"]),
+    ],
+)
+def test_sigma_rot_refuses_a_bare_number_that_can_only_be_degrees(tmp_path, capsys, value, expect):
+    """A bare --sigma-rot 0.1 (0.1°, as the command line's convention says) ran as 0.1 rad —
+    5.7°, no measurement's standard deviation — and weighted the rotations 57× too little.
+    Refused: exit 2, one line naming the option, the unit read and what was expected; nothing
+    written."""
+    calib = tmp_path / "calib.csv"
+    _calib_with_rotations(calib)
+    out = tmp_path / "K.toml"
+    assert _identify(tmp_path, calib, out, "--sigma-rot", value) == 2
+    err = capsys.readouterr().err
+    assert "[--sigma-rot]" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    for e in expect:
+        assert e in err
+    assert not out.exists()
+
+
+def test_sigma_rot_without_rotation_columns_is_said_unused(tmp_path, capsys):
+    """--sigma-rot weights only the rx,ry,rz columns: on a sheet without them it changes
+    nothing, and the command says so rather than let the user think it was applied."""
+    m = load_robot("irb7600-500-2.55").with_tool(make_transform(None, [0.3, 0.1, 0.4]))
+    rng = np.random.default_rng(0)
+    q = rng.uniform(m.q_min * 0.7, m.q_max * 0.7, (30, 6))
+    W = rng.normal(size=(30, 6)) * [1500, 1500, 1500, 150, 150, 150]
+    dd = m.deflection(q, W)[:, :3] + rng.normal(size=(30, 3)) * 2e-6
+    f = tmp_path / "calib.csv"
+    rows = np.column_stack([np.degrees(q), W, dd * 1e3])
+    f.write_text(
+        "# units: angle=deg length=mm force=N moment=N*m\n"
+        "q1,q2,q3,q4,q5,q6,Fx,Fy,Fz,Mx,My,Mz,dx,dy,dz\n"
+        + "\n".join(",".join(f"{v:.17g}" for v in r) for r in rows)
+        + "\n"
+    )
+    assert _identify(tmp_path, f, tmp_path / "K.toml", "--sigma-rot", "0.001deg") == 0
+    assert "--sigma-rot is not used" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("design", [False, True])
+def test_sigma_in_um_typed_as_mm_is_refused(tmp_path, capsys, design):
+    """--sigma 10 (10 µm meant, the option is mm) ran: an identification weighted as if the
+    gauges read to 10 mm, and a design whose expected intervals were 1000× too wide
+    (K6 ± 1331 %). Refused naming the slip."""
+    calib = tmp_path / "calib.csv"
+    _calib_with_rotations(calib)
+    if design:
+        out = tmp_path / "D"
+        args = ["robot", "identify", "--design", "--tool", "0,0,306", "-o", str(out)]
+    else:
+        out = tmp_path / "K.toml"
+        args = ["robot", "identify", str(calib), "--tool", "300,100,400", "-o", str(out)]
+    assert main([*args, "--sigma", "10"]) == 2
+    err = capsys.readouterr().err
+    assert "[--sigma]" in err and "0.01 mm if it was written in µm" in err
+    assert not out.exists()
+
+
+def test_show_checks_the_maps_options_before_printing(tmp_path, capsys):
+    """A bad --placement passed unread without -o (exit 0), and with -o was refused only after
+    the robot's table was printed; a robot without stiffness printed its table before the map
+    refused it. Now: the placement is checked first, the map's options without -o are said to
+    be unused, and a refusal comes before any output."""
+    assert main(["robot", "show", "--placement", "1,2"]) == 2
+    cap = capsys.readouterr()
+    assert "[--placement]" in cap.err and cap.out == ""
+    assert main(["robot", "show", "--placement", "1600,0,800,0"]) == 0
+    cap = capsys.readouterr()
+    assert "--placement set the stiffness map (-o map.png): unused without -o" in cap.err
+    assert "A1: limits" in cap.out
+    png = tmp_path / "m.png"
+    assert main(["robot", "show", "-o", str(png), "--placement", "1600,0,800"]) == 2
+    cap = capsys.readouterr()
+    assert "[--placement]" in cap.err and cap.out == "" and not png.exists()
+    assert main(["robot", "show", "--robot", "kr210-r2700-2", "-o", str(png)]) == 2
+    cap = capsys.readouterr()
+    assert "no joint stiffness" in cap.err and cap.out == "" and not png.exists()
+
+
+@pytest.mark.parametrize(
+    ("extra", "needle"),
+    [
+        (["--tool-rotation", "1e9"], "[--tool-rotation]: 1e+09 deg is outside"),
+        (["--tool-rotation", "nan"], "[--tool-rotation]: expected a finite number"),
+        (["--kuka-st", "2,10"], "[--kuka-st]: no IK solution"),
+    ],
+)
+def test_deflect_names_the_option_it_refuses(cell, tmp_path, capsys, extra, needle):
+    """--tool-rotation nan was '[tool_rotation]: tool_rotation contains NaN or inf' (the
+    function's parameter, not the option) and 1e9° ran; --kuka-st's refusal named 'kuka_st'."""
+    d, _, _ = cell
+    out = tmp_path / "d.csv"
+    assert main(_deflect(d, out, *extra)) == 2
+    err = capsys.readouterr().err
+    assert needle in err and "Traceback" not in err
+    assert not out.exists()
+
+
+def test_design_says_what_it_cannot_do(tmp_path, capsys):
+    """--experiments 100000 was refused as 'only 740 of 40000 random poses put the tip within
+    1000 mm: place the robot closer' — the robot was fine, the count was the slip. And a design
+    with joint 6 all but unloaded (a 5 mm bracket: K6 expected ± 3447 %) was written without a
+    word beyond the table."""
+    out = tmp_path / "D"
+    base = ["robot", "identify", "--design", "--tool", "0,0,300", "-o", str(out)]
+    assert main([*base, "--experiments", "100000"]) == 2
+    err = capsys.readouterr().err
+    assert "[--experiments]" in err and "ask for fewer experiments" in err
+    assert not out.exists()
+    assert main([*base, "--bracket", "-5"]) == 0
+    err = capsys.readouterr().err
+    assert "identifies K6" in err and "only weakly" in err and "--bracket" in err
+    assert main([*base, "--overwrite"]) == 0  # the default 250 mm bracket: no warning
+    assert "only weakly" not in capsys.readouterr().err

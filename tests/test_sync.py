@@ -243,16 +243,31 @@ def test_sync_defaults_and_keys(tmp_path):
 
 
 def test_force_sync_refuses_a_path_that_turns_back():
-    """The built-in pyramid ends with a bottom pass that meets the walls in another order."""
+    """A last lap run the other way round turns the force's direction back. (The built-in
+    pyramid was the example: its last lap, at the full depth, had its contacts on the flat
+    bottom, whose fallback azimuth — radial from the part's axis — ran back and forth. The
+    ball there forms the wall, which is now its contact: the pyramid can be timed by force.)"""
+    from roboisf.parts import Cone
+    from roboisf.path.toolpath import Toolpath
     from roboisf.sync.force import expected_azimuth
+    from roboisf.toolpath import step_down
     from roboisf.virtual.cell import cell_toolpath, pyramid_cell
 
-    tp = cell_toolpath(pyramid_cell(step_down=2e-3, spacing=3e-3))
-    with pytest.raises(InputError, match=r"turns back at point \d+, lap 19"):
-        expected_azimuth(tp, file=Path("f.csv"))
+    tp = step_down(Cone(), step_down=5e-3)
+    last = tp.lap == tp.n_laps - 1
+    order = np.r_[np.flatnonzero(~last), np.flatnonzero(last)[::-1]]
+    back = Toolpath.from_contact(
+        tp.contact[order], tp.normal[order], tp.wall_angle[order], tp.lap[order],
+        tp.tool_radius, tp.feed, tp.meta,
+    )  # fmt: skip
+    with pytest.raises(InputError, match=rf"turns back at point \d+, lap {tp.n_laps - 1}"):
+        expected_azimuth(back, file=Path("f.csv"))
     t = np.arange(100) * 0.01
     with pytest.raises(InputError, match="turns back"):
-        align_by_force(t, np.ones((100, 3)), tp)
+        align_by_force(t, np.ones((100, 3)), back)
+    pyr = cell_toolpath(pyramid_cell(step_down=2e-3, spacing=3e-3))
+    phi, sense = expected_azimuth(pyr)
+    assert np.all(np.diff(phi) * sense >= 0)
 
 
 def test_force_anchors_keep_clear_of_the_flat_sides():

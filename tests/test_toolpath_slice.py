@@ -155,6 +155,25 @@ def test_pyramid_spiral_and_clockwise():
     assert math.atan2(xy[0, 1], xy[0, 0]) == pytest.approx(0.3, abs=1e-9)
 
 
+@pytest.mark.parametrize("name", [*PYRAMIDS, "dome"])
+def test_the_last_lap_touches_the_wall_it_forms_not_the_flat_bottom(name, dome):
+    """At the full depth the ball touches the flat bottom and the wall at once, and the contact
+    fell on the bottom (normal ẑ, wall angle 0): the virtual cell's forming force there was 0 N
+    between 662 N laps, which `online --simulate --virtual pyramid` held as an implausible
+    drop, and force alignment read the lap's direction as turning back. The wall stops the ray
+    and is formed: it is the contact, on the nominal, with C = P + R n exactly."""
+    p = dome if name == "dome" else PYRAMIDS[name]
+    tp = sliced_step_down(p, R, 1e-3, spacing=SPACING)
+    last = np.abs(tp.tip[:, 2] + p.depth) < 1e-12  # the lap at the full depth
+    assert last.sum() >= 8 and np.all(tp.lap[last] == tp.n_laps - 1)
+    assert np.degrees(tp.wall_angle[last]).min() > 20.0, np.degrees(tp.wall_angle[last]).min()
+    np.testing.assert_allclose(tp.center[last], (tp.contact + R * tp.normal)[last], atol=1e-12)
+    np.testing.assert_allclose(p.closest_point(tp.contact[last]).distance, 0.0, atol=1e-9)
+    # the wall's contact lies above the bottom by the ball's reach up that wall, R (1 − cos α)
+    z = tp.contact[last, 2]
+    np.testing.assert_allclose(z, -p.depth + R * (1 - np.cos(tp.wall_angle[last])), atol=1e-6)
+
+
 def test_freeform_elliptic_dome_from_stl(dome):
     tp = sliced_step_down(dome, R, 1e-3, spacing=SPACING)
     check_path(dome, tp)

@@ -239,7 +239,6 @@ def online(
     """
     import numpy as np
 
-    from roboisf.frames.pose import XYZ_RPY_MM_DEG, parse_pose
     from roboisf.online import OnlineCompensator, SensorSetup, status_text
     from roboisf.online.loop import Loop, parse_address
     from roboisf.online.rt import Realtime
@@ -273,12 +272,15 @@ def online(
     parse_address(listen, 6510, "--listen", resolve=True)
     # the sensor's settings are checked whether or not --simulate then replaces them
     user_sensor = _user_sensor(load_on, tare, tool_mass, tool_cog, cutoff)
+    T_user = None if sensor_pose is None else _sensor_pose(sensor_pose)
     if simulate:
         _warn_simulated_sensor(tare, tool_mass, load_on, tool_cog, sensor_pose)
+    elif controller == "replay":
+        _warn_replay_sensor(tare, tool_mass, load_on, tool_cog, sensor_pose)
     _claim_outputs(selftest, selftest_seconds, controller, simulate, form, output, overwrite, study)
     cell, setup, spec_pose = _load_cell(virtual, study, scenario, scan_points, form, cutoff)
-    if sensor_pose is not None:
-        T_fs = parse_pose(sensor_pose, XYZ_RPY_MM_DEG, field="--sensor-pose")
+    if T_user is not None:
+        T_fs = T_user
     else:
         T_fs = spec_pose if spec_pose is not None else np.eye(4)
     if simulate:
@@ -288,7 +290,10 @@ def online(
 
     if controller == "replay":
         assert output is not None
-        _replay(study, limits, cutoff, output)
+        plaus = _plausibility(
+            _expected_peak(setup, study), max_force, max_force_rate, max_tip_moment
+        )
+        _replay(study, limits, plaus, cutoff, output)
         return
 
     adapter = _adapter(
@@ -450,6 +455,23 @@ def _limits(
     ):
         if not math.isfinite(v) or v < 0 or (v == 0 and not zero):
             raise InputError(f"must be {'≥' if zero else '>'} 0 {unit}, got {v:g}", field=flag)
+    if deadband >= max_correction:
+        # every correction below the dead band is sent as 0: at or above the size limit, all are
+        raise InputError(
+            f"a dead band of {deadband:g} mm at or above the size limit ({max_correction:g} mm) "
+            "sends every correction as 0: the loop would never correct; the dead band is in mm "
+            "(the default 0.005 mm is 5 µm)",
+            field="--deadband",
+        )
+    if max_rate * cycle * 1e-3 > max_correction:
+        # faster than the whole size limit within one cycle, a rate limit limits nothing
+        raise InputError(
+            f"{max_rate:g} mm/s lets the correction jump its whole size limit "
+            f"({max_correction:g} mm) within one {cycle:g} ms cycle: no rate limit is left; at "
+            f"most {max_correction / (cycle * 1e-3):g} mm/s with these settings (the default "
+            "is 20 mm/s)",
+            field="--max-rate",
+        )
     if max_correction > MAX_CORRECTION_MM:
         # the size limit is the loop's last guard: 2000 mm (2 m, or µm typed as mm) guards nothing
         raise InputError(
@@ -478,12 +500,21 @@ def _user_sensor(
     import numpy as np
 
     from roboisf.online import SensorSetup
+    from roboisf.plausible import check_plausible
 
     cog = _floats(tool_cog, 3, "--tool-cog")
     assert cog is not None
+    tare_v = _floats(tare, 6, "--tare") or [0.0] * 6
+    # magnitudes a cell has, the slip named (3200 kg: the tool in g; a sensor 100 m away)
+    if math.isfinite(tool_mass) and tool_mass >= 0:
+        check_plausible(tool_mass, "tool_mass", field="--tool-mass")
+    for x in cog:
+        check_plausible(x, "tool_cog", field="--tool-cog")
+    for f in tare_v[:3]:
+        check_plausible(f, "sensor_bias", field="--tare")
     user_sensor = dict(
         load_on=load_on,
-        tare=np.array(_floats(tare, 6, "--tare") or [0.0] * 6),
+        tare=np.array(tare_v),
         tool_mass=tool_mass,
         tool_cog=np.array(cog) * 1e-3,
         cutoff=cutoff,
@@ -496,11 +527,26 @@ def _user_sensor(
     return user_sensor
 
 
-def _warn_simulated_sensor(
+def _sensor_pose(text: str) -> Any:
+    """``--sensor-pose`` (mm, deg) → ``T_flange_sensor`` (m), its magnitudes checked: a sensor
+    within 2 m of the flange, angles within ±720°."""
+    from roboisf.frames.pose import XYZ_RPY_MM_DEG, parse_pose
+    from roboisf.plausible import check_plausible
+
+    T = parse_pose(text, XYZ_RPY_MM_DEG, field="--sensor-pose")
+    v = _floats(text, 6, "--sensor-pose")
+    assert v is not None
+    for x in v[:3]:
+        check_plausible(x, "sensor_position", field="--sensor-pose")
+    for a in v[3:]:
+        check_plausible(a, "angle", field="--sensor-pose")
+    return T
+
+
+def _given_sensor_options(
     tare: str | None, tool_mass: float, load_on: str, tool_cog: str, sensor_pose: str | None
-) -> None:
-    """--simulate uses the simulated sensor's settings: say which given options it ignores."""
-    given = [
+) -> list[str]:
+    return [
         f
         for f, v in (
             ("--tare", tare),
@@ -511,6 +557,26 @@ def _warn_simulated_sensor(
         )
         if v is not None
     ]
+
+
+def _warn_replay_sensor(
+    tare: str | None, tool_mass: float, load_on: str, tool_cog: str, sensor_pose: str | None
+) -> None:
+    """-c replay reads the study's sensor and its logs as tared and weight-compensated: say
+    which given sensor options it does not use."""
+    given = _given_sensor_options(tare, tool_mass, load_on, tool_cog, sensor_pose)
+    if given:
+        state.warn(
+            "-c replay: the study's force sensor (pose, sign) is used and its log is taken as "
+            f"tared and weight-compensated; {', '.join(given)} not"
+        )
+
+
+def _warn_simulated_sensor(
+    tare: str | None, tool_mass: float, load_on: str, tool_cog: str, sensor_pose: str | None
+) -> None:
+    """--simulate uses the simulated sensor's settings: say which given options it ignores."""
+    given = _given_sensor_options(tare, tool_mass, load_on, tool_cog, sensor_pose)
     if given:
         state.warn(
             f"--simulate: the simulated sensor's own tool, weight and tare are used; "
@@ -734,7 +800,6 @@ def summary_lines(c: Any, status: Any, t: Any) -> list[str]:
     """The run's summary: why it stopped and how the correction ended, what was dropped, and
     every episode of each status bit (count, longest)."""
     from roboisf.online import netft
-    from roboisf.online.core import episodes
 
     ended = (
         f"ramped to zero in {c.ramp_time:.2f} s"
@@ -751,19 +816,28 @@ def summary_lines(c: Any, status: Any, t: Any) -> list[str]:
         f"{c.sensor_resyncs} stream restarts followed, {c.implausible} implausible samples held, "
         f"{c.sensor_status} with a fault status"
         + (f" ({netft.status_text(c.sensor_status_bits)})" if c.sensor_status_bits else "")
-        + (f", unreachable {c.sensor_unreachable}×" if c.sensor_unreachable else ""),
-    ]
-    ep = episodes(status, t)
-    shown = {k: v for k, v in ep.items() if k != "deadband"}
-    lines.append(
-        "episodes: "
+        + (f", unreachable {c.sensor_unreachable}×" if c.sensor_unreachable else "")
         + (
-            ", ".join(f"{k} {n}× (longest {dt * 1e3:.0f} ms)" for k, (n, dt) in shown.items())
-            if shown
-            else "none (every cycle ok or in the dead band)"
-        )
-    )
+            f", {c.unoriented} before the controller's first joint angles not used (the tool's "
+            "weight needs them)"
+            if c.unoriented
+            else ""
+        ),
+    ]
+    lines.append(_episodes_line(status, t))
     return lines
+
+
+def _episodes_line(status: Any, t: Any) -> str:
+    """Every episode of each status bit but the dead band's (count, longest)."""
+    from roboisf.online.core import episodes
+
+    shown = {k: v for k, v in episodes(status, t).items() if k != "deadband"}
+    return "episodes: " + (
+        ", ".join(f"{k} {n}× (longest {dt * 1e3:.0f} ms)" for k, (n, dt) in shown.items())
+        if shown
+        else "none (every cycle ok or in the dead band)"
+    )
 
 
 def _form(setup: Any, sim_result: dict[str, Any] | None, folder: Path) -> None:
@@ -854,7 +928,7 @@ def _run(loop: Any, duration: float, cycles: int | None, status_text: Any, banne
         state.info("stopped (Ctrl-C); writing the log")
 
 
-def _replay(study: Path | None, limits: Any, cutoff: float, output: Path) -> None:
+def _replay(study: Path | None, limits: Any, plaus: Any, cutoff: float, output: Path) -> None:
     import numpy as np
     import pandas as pd
 
@@ -863,7 +937,7 @@ def _replay(study: Path | None, limits: Any, cutoff: float, output: Path) -> Non
 
     assert study is not None
     rep = load_replay(study, cutoff=cutoff)
-    _, out = replay_study(rep, limits)
+    oc, out = replay_study(rep, limits, plaus)
     df = pd.DataFrame(
         {
             "t_s": out[:, 0],
@@ -882,8 +956,10 @@ def _replay(study: Path | None, limits: Any, cutoff: float, output: Path) -> Non
         df.to_parquet(tmp, index=False)
     state.info(
         f"replayed {len(df)} joint samples of {study}: correction up to "
-        f"{np.linalg.norm(out[:, 1:4], axis=1).max() * 1e3:.3f} mm; log → {output}"
+        f"{np.linalg.norm(out[:, 1:4], axis=1).max() * 1e3:.3f} mm; {oc.implausible} implausible "
+        f"force samples held; log → {output}"
     )
+    state.info(_episodes_line(out[:, 7].astype(np.int64), out[:, 0]))
 
 
 def register(app: typer.Typer) -> None:

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -177,6 +179,10 @@ def show_cmd(
     import numpy as np
     from rich.markup import escape
 
+    if placement is not None:  # checked first, map or not (it used to pass unread without -o)
+        from roboisf.frames.pose import XYZ_YAW_MM_DEG, parse_pose
+
+        parse_pose(placement, XYZ_YAW_MM_DEG, field="--placement")
     if output is not None:
         if output.suffix.lower() != ".png":  # the map is PNG data whatever the name says
             raise InputError(
@@ -192,7 +198,14 @@ def show_cmd(
                 field="--half-width",
             )
         output_file(output, "robot show", overwrite, [stiffness, *_files(robot, tool)])
+    elif placement is not None or half_width != 500.0:
+        given = [
+            f for f, v in (("--placement", placement), ("--half-width", half_width != 500.0)) if v
+        ]
+        state.warn(f"{' and '.join(given)} set the stiffness map (-o map.png): unused without -o")
     m = _model(robot, stiffness, tool, tip_link)
+    if output is not None:  # the map needs the joint stiffness: refused before the table
+        _ = m.joint_stiffness
     state.out.print(f"[bold]{escape(m.name)}[/bold]")
     if m.source:
         state.out.print(m.source, markup=False)
@@ -218,6 +231,90 @@ def show_cmd(
         state.info(f"wrote {output}")
 
 
+#: ``--sigma-rot``'s default: 1e-5 rad (0.00057°), with its unit
+SIGMA_ROT_DEFAULT = "1e-5rad"
+#: the units ``--sigma-rot`` accepts → rad
+ROTATION_STD_UNITS = {
+    "rad": 1.0,
+    "mrad": 1e-3,
+    "urad": 1e-6,
+    "µrad": 1e-6,
+    "μrad": 1e-6,
+    "deg": math.pi / 180.0,
+    "°": math.pi / 180.0,
+    "arcsec": math.pi / 180.0 / 3600.0,
+}
+#: the largest rotation measurement std accepted [rad] (2.9°): an inclinometer or a laser
+#: tracker's 6-DoF probe reads to 1e-5–1e-3 rad; a bare number above this is degrees meant
+MAX_ROTATION_STD = 0.05
+#: the largest displacement measurement std accepted [mm]: a dial gauge or a laser tracker reads
+#: to 0.001–0.05 mm; 10 (µm meant) widened a design's expected intervals 1000×
+MAX_DISPLACEMENT_STD_MM = 1.0
+
+
+def rotation_std(text: str) -> tuple[float, bool]:
+    """``--sigma-rot`` → (rad, whether the number came without a unit). A bare number is read
+    in rad (the option's unit before the command line's angles became degrees) and refused
+    above :data:`MAX_ROTATION_STD`, where it can only be degrees; a number with a unit is taken
+    in it. Refusals name the option, the unit and what was expected."""
+    s = text.strip()
+    i = len(s)
+    while i > 0 and not (s[i - 1].isdigit() or s[i - 1] == "."):
+        i -= 1
+    num, unit = s[:i].strip(), s[i:].strip()
+    accepted = "rad, mrad, urad, deg, arcsec"
+    try:
+        v = float(num)
+    except ValueError:
+        raise InputError(
+            f"expected a standard deviation with its unit ({accepted}), e.g. 0.0006deg or "
+            f"1e-5rad, got {text!r}",
+            field="--sigma-rot",
+        ) from None
+    if unit and unit.lower() not in ROTATION_STD_UNITS and unit not in ROTATION_STD_UNITS:
+        raise InputError(
+            f"unknown unit {unit!r} in {text!r}; expected one of {accepted} (e.g. 0.0006deg)",
+            field="--sigma-rot",
+        )
+    if not (math.isfinite(v) and v > 0):
+        raise InputError(
+            f"must be a standard deviation > 0 (with its unit: {accepted}), got {text!r}",
+            field="--sigma-rot",
+        )
+    if not unit:
+        if v > MAX_ROTATION_STD:
+            raise InputError(
+                f"a bare {num} is read in rad, and {v:g} rad ({math.degrees(v):.3g}°) is no "
+                f"rotation measurement's standard deviation (at most {MAX_ROTATION_STD:g} rad); "
+                f"if you meant {num}° ({math.radians(v):.3g} rad), write {num}deg; give the "
+                f"unit either way ({accepted})",
+                field="--sigma-rot",
+            )
+        return v, True
+    rad = v * ROTATION_STD_UNITS.get(unit, ROTATION_STD_UNITS.get(unit.lower(), 1.0))
+    if rad > MAX_ROTATION_STD:
+        raise InputError(
+            f"{text.strip()} ({rad:.3g} rad) is no rotation measurement's standard deviation "
+            f"(at most {MAX_ROTATION_STD:g} rad, {math.degrees(MAX_ROTATION_STD):.2g}°); leave "
+            "the rx,ry,rz columns out to identify from displacements only",
+            field="--sigma-rot",
+        )
+    return rad, False
+
+
+def _check_sigma(sigma: float) -> None:
+    """``--sigma`` (mm): a standard deviation > 0 that a displacement measurement has."""
+    if not (math.isfinite(sigma) and sigma > 0):
+        raise InputError(f"must be a standard deviation > 0 mm, got {sigma:g}", field="--sigma")
+    if sigma > MAX_DISPLACEMENT_STD_MM:
+        raise InputError(
+            f"{sigma:g} mm is no displacement measurement's standard deviation (a dial gauge or "
+            f"a laser tracker: 0.001–0.05 mm; at most {MAX_DISPLACEMENT_STD_MM:g} mm); it is "
+            f"{sigma * 1e-3:g} mm if it was written in µm",
+            field="--sigma",
+        )
+
+
 @robot_app.command("identify")
 def identify_cmd(
     calib: Path | None = typer.Argument(
@@ -234,8 +331,13 @@ def identify_cmd(
     tool: str | None = TOOL_OPT,
     tip_link: str | None = TIP_LINK_OPT,
     sigma: float = typer.Option(0.01, "--sigma", help="Measurement std of displacements (mm)."),
-    sigma_rot: float = typer.Option(
-        1e-5, "--sigma-rot", help="Measurement std of rotations (rad)."
+    sigma_rot: str = typer.Option(
+        SIGMA_ROT_DEFAULT,
+        "--sigma-rot",
+        help="Measurement std of rotations (the rx,ry,rz columns), with its unit: e.g. "
+        "0.0006deg, 1e-5rad, 2arcsec (deg, rad, mrad, urad, arcsec). A bare number is read in "
+        "rad, this option's unit before angles on the command line became degrees, with a "
+        "warning; a bare number above 0.05 (rad: 2.9°) is refused as degrees meant.",
     ),
     design: bool = typer.Option(
         False,
@@ -280,9 +382,8 @@ def identify_cmd(
         raise InputError("expected a calibration CSV (or --design)", field="CALIB")
     # a standard deviation weights the residuals by 1/σ: 0 divides by zero, a negative one is
     # no standard deviation (both used to run: a ZeroDivisionError, or a silently used |σ|)
-    for flag, v, unit in (("--sigma", sigma, "mm"), ("--sigma-rot", sigma_rot, "rad")):
-        if not (math.isfinite(v) and v > 0):
-            raise InputError(f"must be a standard deviation > 0 {unit}, got {v:g}", field=flag)
+    _check_sigma(sigma)
+    sigma_rot_rad, bare = rotation_std(sigma_rot)
     import warnings
 
     import numpy as np
@@ -295,9 +396,22 @@ def identify_cmd(
     output_file(output, "robot identify", overwrite, [calib, *_files(robot, tool)])
     m = _model(robot, None, tool, tip_link)
     data = read_calibration_csv(calib, m)
+    rotations = data.displacement.shape[1] == 6
+    if bare and rotations:
+        state.warn(
+            f"--sigma-rot {sigma_rot.strip()} has no unit: read as {sigma_rot_rad:g} rad "
+            f"({math.degrees(sigma_rot_rad):.3g}°), its unit so far; angles on the command line "
+            f"are degrees, so {sigma_rot.strip()} deg would be "
+            f"{math.radians(sigma_rot_rad):.3g} rad: write {sigma_rot.strip()}rad (or "
+            f"{math.degrees(sigma_rot_rad):.3g}deg) to say which"
+        )
+    elif sigma_rot != SIGMA_ROT_DEFAULT and not rotations:
+        state.warn(f"--sigma-rot is not used: {calib} has no rotation columns (rx, ry, rz)")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", PoorExcitationWarning)
-        r = identify_stiffness(m, data, sigma_translation=sigma * 1e-3, sigma_rotation=sigma_rot)
+        r = identify_stiffness(
+            m, data, sigma_translation=sigma * 1e-3, sigma_rotation=sigma_rot_rad
+        )
     for w in caught:
         state.warn(str(w.message))
     for i in range(6):
@@ -324,6 +438,11 @@ def identify_cmd(
         f.write(b"# joint stiffness K in N*m/rad, 95 % confidence interval [ci_low, ci_high]\n")
         tomli_w.dump(doc, f)
     state.info(f"wrote {output}")
+
+
+#: a design's expected relative standard error above which a joint is said to be weakly
+#: identified (identify_stiffness's weak_threshold)
+WEAK_DESIGN = 0.3
 
 
 def _design_cmd(
@@ -353,6 +472,7 @@ def _design_cmd(
             "estimate)",
             field="--design",
         )
+    _check_sigma(sigma)
     from roboisf.plausible import check_plausible
 
     # a load no robot is tested with (2e6 N) made the design's information matrix singular: a
@@ -405,6 +525,15 @@ def _design_cmd(
             f"K{i + 1}: expected relative standard error {d.rel_se[i]:.1%} "
             f"(95 % [{d.K_ci[i, 0]:.4g}, {d.K_ci[i, 1]:.4g}] N·m/rad at the prior)"
         )
+    weak = [i for i in range(6) if d.rel_se[i] > WEAK_DESIGN]
+    if weak:
+        names = ", ".join(f"K{i + 1} ({d.rel_se[i]:.0%})" for i in weak)
+        state.warn(
+            f"this design identifies {names} only weakly (expected relative standard error "
+            f"above {WEAK_DESIGN:.0%}, where identify calls a joint weakly excited): a longer "
+            "--bracket (joint 6 is twisted by the load's arm off its axis), more --experiments "
+            "or a more precise measurement (--sigma)"
+        )
     if ext is None:
         why = (
             "a URDF's joint angles are not its pendant's (signs, zeros, FANUC's J2/J3 coupling)"
@@ -419,6 +548,27 @@ def _design_cmd(
         f"frame), then: roboisf robot identify {output / 'experiment.csv'} --tool {tool_mm} "
         f"--sigma {sigma:g} -o K.toml"
     )
+
+
+#: the IK's parameters → the ``deflect`` options that give them (errors name the option)
+IK_OPTIONS = {
+    "tool_rotation": "--tool-rotation",
+    "match_q": "--start-joints",
+    "confdata": "--confdata",
+    "kuka_st": "--kuka-st",
+    "placement": "--placement",
+}
+
+
+@contextmanager
+def _options_named(names: dict[str, str]) -> Iterator[None]:
+    """An :class:`InputError` raised inside about a parameter of ``names`` names its option."""
+    try:
+        yield
+    except InputError as e:
+        if e.field in names:
+            raise InputError(e.message, file=e.file, line=e.line, field=names[e.field]) from None
+        raise
 
 
 DEFLECT_HELP = (
@@ -483,6 +633,9 @@ def deflect_cmd(
     ),
 ) -> None:
     """VJM deflection of the tool tip along a toolpath under the logged forming wrench."""
+    from roboisf.plausible import check_plausible
+
+    check_plausible(tool_rotation, "angle", field="--tool-rotation")  # before numpy is loaded
     import warnings
 
     import numpy as np
@@ -526,7 +679,7 @@ def deflect_cmd(
             )
         if m.ik_note:
             state.warn(m.ik_note)  # one line, before the (slower) numerical solve
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), _options_named(IK_OPTIONS):
             warnings.simplefilter("ignore", NumericalIKWarning)  # said just above
             q = ik_toolpath(
                 m,

@@ -247,6 +247,10 @@ class OnlineCompensator:
         self._R_bw = np.ascontiguousarray(T_bw[:3, :3])
         self._lim = self.limits.array()
         self._q = np.zeros(6)
+        # no joint angles yet: the tool's weight cannot be oriented (q = 0 is the robot's zero
+        # pose, not where it is), so a weighed tool's samples wait for the first ones
+        self._q_known = False
+        self._unoriented = np.zeros(1)
         self._Ws = np.zeros(6)
         self.st = np.zeros(kn.N_STATE)
         self._clear_clocks()
@@ -281,6 +285,18 @@ class OnlineCompensator:
         return int(self.st[kn.S_BAD])
 
     @property
+    def joints_known(self) -> bool:
+        """Joint angles have been given (:meth:`set_joints`, :meth:`cycle`) since construction
+        or :meth:`reset`."""
+        return self._q_known
+
+    @property
+    def unoriented(self) -> int:
+        """Force samples not used because no joint angles had come yet (a tool with a mass: its
+        weight cannot be removed without the sensor's orientation)."""
+        return int(self._unoriented[0])
+
+    @property
     def stopping(self) -> bool:
         """:meth:`begin_stop` was called: every cycle ramps the correction towards zero."""
         return bool(self.st[kn.S_STOP] > 0)
@@ -294,13 +310,20 @@ class OnlineCompensator:
         """The latest joint angles (6,) rad (controller convention), used to orient the tool's
         weight for the samples that follow."""
         self._q[:] = q
+        self._q_known = True
 
     def sample(self, t: float, W_s: F64) -> bool:
         """One sensor sample ``W_s`` (6,) [N; N·m] (sensor axes) at time ``t`` [s].
 
         Returns False when it was dropped (non-finite, not later than the previous one, or
-        implausible: :attr:`implausible` counts those).
+        implausible: :attr:`implausible` counts those), and for a tool with a mass before the
+        first joint angles (:meth:`set_joints` or :meth:`cycle`; :attr:`unoriented` counts
+        those): its weight would be removed at the robot's zero pose, a force the tool never
+        felt (up to twice the weight), filtered into the first cycles' corrections.
         """
+        if not self._q_known and self._grav[0] != 0.0:
+            self._unoriented[0] += 1.0
+            return False
         self._Ws[:] = W_s
         return bool(
             kn.sample_kernel(
@@ -328,6 +351,7 @@ class OnlineCompensator:
         """One controller cycle at time ``t`` [s], joints ``q`` (6,) rad → ``correction`` (3,) m,
         work axes (the object's buffer)."""
         self._q[:] = q
+        self._q_known = True
         self.status = int(
             kn.cycle_kernel(
                 self._F,
@@ -352,7 +376,10 @@ class OnlineCompensator:
         return self.correction
 
     def reset(self) -> None:
-        """Forget the filter, the last correction, the watchdog's clock and a stop."""
+        """Forget the filter, the last correction, the watchdog's clock, a stop and the joint
+        angles: it starts as a new one."""
+        self._q_known = False
+        self._unoriented[0] = 0.0
         self.st[:] = 0.0
         self._clear_clocks()
         self.filtered[:] = 0.0
@@ -361,10 +388,12 @@ class OnlineCompensator:
 
     def warm_up(self) -> None:
         """Compile the kernels (first call) without touching the state."""
-        saved = (self.st.copy(), self.filtered.copy(), self.correction.copy())
+        saved = (self.st.copy(), self.filtered.copy(), self.correction.copy(), self._q.copy())
+        known, self._q_known = self._q_known, True  # the sample kernel is compiled too
         self.sample(0.0, np.zeros(6))
         self.cycle(0.0, np.zeros(6))
-        self.st[:], self.filtered[:], self.correction[:] = saved
+        self.st[:], self.filtered[:], self.correction[:], self._q[:] = saved
+        self._q_known = known
         self.status = kn.STATUS_NO_SAMPLE
 
 

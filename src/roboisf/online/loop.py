@@ -150,6 +150,7 @@ class Counters:
     sensor_status: int = 0  # records with a non-zero RDT status (saturation, fault)
     sensor_status_bits: int = 0  # every status bit seen (netft.status_text names them)
     implausible: int = 0  # force samples rejected as implausible (core.Plausibility)
+    unoriented: int = 0  # samples before the first joint angles, not used (a weighed tool)
     late_replies: int = 0  # replies the loop sent more than a cycle after the message arrived
     stop_reason: str = ""  # why the loop stopped
     ramped: bool = False  # the correction was ramped to zero before the loop ended
@@ -448,6 +449,7 @@ class Loop:
         finally:
             self.counters.left_mm = float(np.linalg.norm(self.oc.correction)) * 1e3
             self.counters.implausible = self.oc.implausible
+            self.counters.unoriented = self.oc.unoriented
             if gcq is not None:
                 gcq.__exit__(None, None, None)
                 self.counters.gc_collections = gcq.collections
@@ -503,6 +505,7 @@ class Loop:
             if got is None:
                 continue
             data, addr, now, arrived = got
+            self._orient(data)  # the first message's joints orient the records before it
             self._drain_sensor(t0)  # every sample since the last cycle, at its arrival
             if self._on_controller(data, addr, arrived - t0, arrived, started=now):
                 self._last_msg = now
@@ -534,11 +537,24 @@ class Loop:
                     break  # nobody to send the ramp to
                 continue
             data, addr, now, arrived = got
+            self._orient(data)
             self._drain_sensor(t0)
             if self._on_controller(data, addr, arrived - t0, arrived, started=now):
                 last = now
         c.ramped = not np.any(self.oc.correction != 0.0)
         c.ramp_time = time.perf_counter() - start
+
+    def _orient(self, data: bytes) -> None:
+        """Before the first joint angles a weighed tool's samples are not used (the core cannot
+        remove its weight): the first controller message gives them, before the records that
+        arrived ahead of it are drained (a few ms of them; those drained while no controller
+        spoke are not used)."""
+        if self.oc.joints_known:
+            return
+        try:
+            self.oc.set_joints(self.adapter.decode(data).q)
+        except ProtocolError:
+            pass  # a malformed message: dropped and counted by _on_controller
 
     def _drain_sensor(self, t0: float) -> None:
         """Every record queued in the sensor socket through :meth:`_on_sensor`, each timed by

@@ -23,7 +23,7 @@ from roboisf.cell import Cell, cell_from_study
 from roboisf.errors import InputError
 from roboisf.logs.forcelog import read_force_log
 from roboisf.logs.jointlog import read_joint_log
-from roboisf.online.core import Limits, OnlineCompensator, SensorSetup
+from roboisf.online.core import Limits, OnlineCompensator, Plausibility, SensorSetup
 from roboisf.study import load_study
 
 __all__ = ["ReplaySensor", "StudyReplay", "expected_peak_force", "load_replay", "replay_study"]
@@ -101,14 +101,17 @@ def expected_peak_force(force: F64) -> float:
     return float(np.percentile(n, 99.9)) if len(n) else math.nan
 
 
-def replay_study(rep: StudyReplay, limits: Limits | None = None) -> tuple[OnlineCompensator, F64]:
-    """Run the core through the logs: one cycle per joint sample. Returns the compensator and
-    a (M, 10) array per cycle: time s, correction (3,) m (work axes), tip wrench force (3,) N
-    (base axes), status, ‖δ‖ m, compute s."""
+def replay_study(
+    rep: StudyReplay, limits: Limits | None = None, plausibility: Plausibility | None = None
+) -> tuple[OnlineCompensator, F64]:
+    """Run the core through the logs: one cycle per joint sample, with the live loop's
+    ``limits`` and ``plausibility`` bounds (what it would have held). Returns the compensator
+    and a (M, 10) array per cycle: time s, correction (3,) m (work axes), tip wrench force (3,)
+    N (base axes), status, ‖δ‖ m, compute s."""
     import time as _time
 
     lim = limits or Limits()
-    oc = OnlineCompensator.from_cell(rep.cell, rep.sensor, lim)
+    oc = OnlineCompensator.from_cell(rep.cell, rep.sensor, lim, plausibility)
     oc.warm_up()
     out = np.zeros((len(rep.joint_time), 10))
     j = 0

@@ -124,6 +124,7 @@ def selftest(
     applied = apply(realtime) if realtime is not None else None
     oc.reset()
     oc.warm_up()
+    oc.set_joints(adapter.decode(message).q)  # as the loop, once the controller has spoken
     gcq = GcQuiet().__enter__()
     try:
         t0 = clock() + cycle

@@ -341,11 +341,17 @@ def design_experiment(
     keep = (np.linalg.norm(p_work, axis=1) <= reach) & (p_work[:, 2] >= 0.05)
     q = q[keep]
     if len(q) < 2 * n_experiments:
-        raise InputError(
+        few = (
             f"only {len(q)} of {n_candidates} random poses of {model.name} put the tip within "
-            f"{reach * 1e3:.0f} mm of the work origin: place the robot closer or raise the reach",
-            field="--design",
+            f"{reach * 1e3:.0f} mm of the work origin"
         )
+        if n_experiments > len(q):  # plenty of poses for a sane design: the count is the slip
+            raise InputError(
+                f"{n_experiments} experiments need {2 * n_experiments} candidate poses at least; "
+                f"{few}: ask for fewer experiments (24 identify the six joints to a few %)",
+                field="--experiments",
+            )
+        raise InputError(f"{few}: place the robot closer or raise the reach", field="--design")
     J = model.jacobian(q, check_limits=False)
     sv = np.linalg.svd(J, compute_uv=False)
     q = q[sv[:, -1] / sv[:, 0] > 1e-2]  # away from singularities

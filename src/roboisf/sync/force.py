@@ -196,7 +196,7 @@ def expected_azimuth(toolpath: Toolpath, *, file: Path | None = None) -> tuple[F
     ------
     InputError
         when force alignment cannot work on this toolpath: nearly flat, turning less than half a
-        turn, turning back (a bottom pass), ending on a flat bottom.
+        turn, turning back, ending on a flat bottom.
     """
     n = len(toolpath)
     hn = toolpath.normal[:, :2]
@@ -237,8 +237,8 @@ def expected_azimuth(toolpath: Toolpath, *, file: Path | None = None) -> tuple[F
         i = int(np.argmax(back_tp > BACKWARD_MAX))
         raise InputError(
             "alignment by force needs a toolpath that turns one way around the part (this one "
-            f"turns back at point {i}, lap {int(toolpath.lap[i])}, e.g. a bottom pass): use "
-            'sync = "position" (a joint log) or "time"',
+            f"turns back at point {i}, lap {int(toolpath.lap[i])}, e.g. a lap run the other way): "
+            'use sync = "position" (a joint log) or "time"',
             file=file,
             field="sync",
         )

@@ -78,6 +78,9 @@ TOUCH_TOL = 1e-11
 _MARCH = 32
 #: Coarse rays per lap for the arc-length estimate.
 _N_COARSE = 128
+#: How far a centre on a flat face is moved out along its ray to find the wall it also
+#: touches [m].
+_TIE_NUDGE = 1e-7
 _MAX_ITER = 80
 
 
@@ -406,8 +409,29 @@ def _assemble(
     q = slicer.part.closest_point(C)
     d = np.linalg.norm(C - q.point, axis=1)
     normal = (C - q.point) / d[:, None]
+    # a ball that touches a flat face below the sheet (a flat bottom) and a wall at once — the
+    # last lap, at the full depth — forms the wall: the ray stopped there because of it. The
+    # closest point of the two is a tie that fell on the flat face (wall angle 0, so no forming
+    # force: a pyramid's last lap read 662 N → 0 N → 662 N between neighbouring points). The
+    # wall's contact is the closest point of the centre moved a hair outward along its ray,
+    # moved back along the wall by the same hair (exact on a plane, O(nudge²/radius) on a curve)
+    P = q.point.copy()
+    flat = (normal[:, 2] > math.cos(math.radians(1.0))) & (q.point[:, 2] < -1e-6)
+    if flat.any():
+        u = np.zeros((int(flat.sum()), 3))
+        u[:, :2] = C[flat, :2] - slicer.c
+        u /= np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-300)
+        Pn = slicer.part.closest_point(C[flat] + _TIE_NUDGE * u).point
+        g = C[flat] + _TIE_NUDGE * u - Pn
+        nw = g / np.maximum(np.linalg.norm(g, axis=1), 1e-300)[:, None]
+        Pw = Pn - _TIE_NUDGE * (u - np.einsum("ij,ij->i", u, nw)[:, None] * nw)
+        dw = np.linalg.norm(C[flat] - Pw, axis=1)
+        wall = (nw[:, 2] < math.cos(math.radians(1.0))) & (np.abs(dw - slicer.R) < 10 * _TIE_NUDGE)
+        idx = np.flatnonzero(flat)[wall]
+        P[idx] = Pw[wall]
+        normal[idx] = (C[idx] - Pw[wall]) / dw[wall][:, None]
     wall_angle = np.arccos(np.clip(normal[:, 2], -1.0, 1.0))
-    return Toolpath.from_contact(q.point, normal, wall_angle, lap, slicer.R, feed, meta)
+    return Toolpath.from_contact(P, normal, wall_angle, lap, slicer.R, feed, meta)
 
 
 def _meta(

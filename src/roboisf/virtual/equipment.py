@@ -264,7 +264,7 @@ def apply_equipment(
     run by ``sync = "position"`` (its joint log), its force log on the controller's clock or its
     own (``forces.clock``); the CNC run, which has no joint log, by ``sync = "force"`` unless the
     clock is nominal — or its path cannot be timed by the force direction
-    (:func:`roboisf.sync.force.expected_azimuth`: a pyramid's bottom pass), when its log keeps
+    (:func:`roboisf.sync.force.expected_azimuth`: a path that turns back), when its log keeps
     the nominal clock (``sync = "time"``). Both runs share the clock model (same drift, offset,
     pauses). The file names stay those of the clean study; a layout other than roboisf's is
     read by the readers' automatic format detection (no ``format`` key is written); the ABB
@@ -281,7 +281,7 @@ def apply_equipment(
     try:  # the CNC run can be aligned only by its force signature
         expected_azimuth(tp)
         cnc_eq = eq
-    except InputError:  # a path force alignment cannot time (pyramid bottom pass): nominal clock
+    except InputError:  # a path force alignment cannot time (turns back, ...): nominal clock
         cnc_eq = Equipment(lead_out=eq.lead_out)
     from roboisf.virtual.cell import sensor_reading, tool_weight_at_sensor
 
