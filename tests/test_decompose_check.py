@@ -186,9 +186,12 @@ def test_shifted_scan_is_warned(tmp_path, fast_cone_study):
     meta = json.loads((st / "truth" / "truth.json").read_text())
     (st / "truth" / "truth.json").write_text(json.dumps({**meta, "model_equals_truth": False}))
     r = analyze(st)
-    warn = [w for w in r.summary.warnings if "sideways shift" in w]
+    # a constant sideways offset is the scan's registration or the robot's work object: the
+    # study's files cannot tell them apart (docs/diagnosis.md, "What separates what")
+    warn = [w for w in r.summary.warnings if "sideways offset" in w]
     assert len(warn) == 1 and warn[0].startswith("robot scan"), r.summary.warnings
-    assert "lateral registration is ambiguous" in warn[0] and "fits rx, ry, z" in warn[0]
+    assert "cannot tell apart" in warn[0] and "tilts from the flange only" in warn[0]
+    assert "--offset scan" in warn[0] and "--offset part" in warn[0]
     lo = r.summary.lateral_offset["robot"]
     assert abs(lo["size_mm"] - 0.3) < 0.05 and abs(lo["direction_deg"] - 90) < 10
     assert r.summary.lateral_offset["cnc"]["size_mm"] < 0.05

@@ -171,5 +171,5 @@ def test_a_study_without_a_contour_height_reports_the_middle_of_the_analysed_wal
     cz = small_cone_analysis.summary.contour_z
     assert cz == pytest.approx((used.max() + used.min()) / 2, abs=1e-9)
     assert -small_cone_analysis.study.analysis.rim_band * 1e3 > cz
-    lap, z, note = agg.contour_lap(pp, cz)
+    _, z, note = agg.contour_lap(pp, cz)
     assert note is None and abs(z - cz) < 1.0
