@@ -80,6 +80,12 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys, args, needle):
         (["--sensor-pose", "0,0,100000,0,0,0"], ["[--sensor-pose]", "100 mm if it was"]),
         (["--sensor-pose", "0,0,100,0,0,7200"], ["[--sensor-pose]", "a rotation angle"]),
         (["--tare", "1,2,3e9,0,0,0"], ["[--tare]", "a force sensor's bias"]),
+        # a low-pass corner at or above half the samples' rate filters nothing (a 1 s cone run
+        # at --cutoff 1e6 held the correction for the raw sensor noise): the rate named, a
+        # Net F/T's fastest (its own is set on the sensor), the simulated one's
+        (["--cutoff", "1e6"], ["[--cutoff]", "1e+06 Hz", "7000 Hz", "below 3500 Hz"]),
+        (["--cutoff", "3500"], ["[--cutoff]", "at or above half", "7000 Hz"]),
+        (["--simulate", "--cutoff", "500"], ["[--cutoff]", "simulated Net F/T streams 1000 Hz"]),
     ],
 )
 def test_settings_that_defeat_the_loop_are_refused(tmp_path, capsys, args, needles):
@@ -146,6 +152,22 @@ def test_replay_holds_what_the_live_loop_would_hold(tmp_path, capsys, replay_stu
     assert not np.any(df["status"].to_numpy() & 64)
     corr = df[["corr_x_mm", "corr_y_mm", "corr_z_mm"]].to_numpy()
     assert np.linalg.norm(corr, axis=1).max() > 0.05
+
+
+def test_replay_refuses_a_cutoff_its_force_log_cannot_carry(tmp_path, capsys, replay_study_dir):
+    """A replayed force log at 1 kHz carries nothing above 500 Hz: a corner there was accepted
+    and filtered nothing. Refused naming the log's rate, live (-c egm) and offline (-c replay)."""
+    out = tmp_path / "replay.parquet"
+    for c in ("replay", "egm"):
+        argv = ["online", "-c", c, "-s", f"replay:{replay_study_dir}", "--cutoff", "500"]
+        assert main([*argv, "--listen", "127.0.0.1:0", "-o", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+        assert "[--cutoff]" in err and "sampled at 1000 Hz" in err and "below 500 Hz" in err
+        assert not out.exists()
+    # below half the rate it runs
+    assert main(["-q", "online", "-c", "replay", "-s", f"replay:{replay_study_dir}",
+                 "--cutoff", "499", "-o", str(out)]) == 0  # fmt: skip
 
 
 @pytest.mark.slow

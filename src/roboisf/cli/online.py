@@ -121,7 +121,13 @@ def online(
     ),
     cycles: int | None = typer.Option(None, "--cycles", help="Stop after this many cycles."),
     cycle: float = typer.Option(4.0, "--cycle", help="Controller cycle, ms (RSI: 4 or 12)."),
-    cutoff: float = typer.Option(20.0, "--cutoff", help="Low-pass corner on the wrench, Hz."),
+    cutoff: float = typer.Option(
+        20.0,
+        "--cutoff",
+        help="Low-pass corner on the wrench, Hz; below half the sensor's sample rate (a "
+        "replayed log's own, the simulated sensor's 1000 Hz; a Net F/T's is set on it, at most "
+        "7000 Hz).",
+    ),
     deadband: float = typer.Option(0.005, "--deadband", help="Corrections below are 0, mm."),
     max_correction: float = typer.Option(2.0, "--max-correction", help="Size limit, mm."),
     max_rate: float = typer.Option(20.0, "--max-rate", help="Rate limit, mm/s."),
@@ -272,6 +278,14 @@ def online(
     parse_address(listen, 6510, "--listen", resolve=True)
     # the sensor's settings are checked whether or not --simulate then replaces them
     user_sensor = _user_sensor(load_on, tare, tool_mass, tool_cog, cutoff)
+    if simulate:
+        from roboisf.online.sim import SENSOR_RATE
+
+        _check_cutoff(cutoff, SENSOR_RATE, "the simulated Net F/T streams")
+    elif kind == "netft":  # its rate is set on the sensor: refused above what any can stream
+        from roboisf.online.netft import MAX_RATE
+
+        _check_cutoff(cutoff, MAX_RATE, "a Net F/T streams at most")
     T_user = None if sensor_pose is None else _sensor_pose(sensor_pose)
     if simulate:
         _warn_simulated_sensor(tare, tool_mass, load_on, tool_cog, sensor_pose)
@@ -307,9 +321,9 @@ def online(
         shost, sport = parse_address(arg, 49152, "--sensor")
         src = (shost, 0 if simulate else sport)
     else:
-        from roboisf.online.replay import ReplaySensor, load_replay
+        from roboisf.online.replay import ReplaySensor
 
-        rep = load_replay(arg, cutoff=cutoff)
+        rep = _load_replay(Path(arg), cutoff)
         src = ReplaySensor(rep.force_time, rep.force)
         if sensor_pose is None:  # the study's sensor (pose, sign); the log is tared and compensated
             sensor_setup = rep.sensor
@@ -490,6 +504,29 @@ def _limits(
         )
     except InputError as e:
         raise InputError(e.message, field=f"--{str(e.field).replace('_', '-')}") from None
+
+
+def _check_cutoff(cutoff: float, rate: float, source: str) -> None:
+    """``--cutoff`` below half the force samples' rate (``source`` says whose)."""
+    from roboisf.online.core import check_cutoff
+
+    try:
+        check_cutoff(cutoff, rate, source)
+    except InputError as e:
+        raise InputError(e.message, field="--cutoff") from None
+
+
+def _load_replay(study: Path, cutoff: float) -> Any:
+    """:func:`~roboisf.online.replay.load_replay`, a cutoff its force log's rate refuses named
+    as ``--cutoff``."""
+    from roboisf.online.replay import load_replay
+
+    try:
+        return load_replay(study, cutoff=cutoff)
+    except InputError as e:
+        if e.field != "cutoff":
+            raise
+        raise InputError(e.message, field="--cutoff") from None
 
 
 def _user_sensor(
@@ -933,10 +970,10 @@ def _replay(study: Path | None, limits: Any, plaus: Any, cutoff: float, output: 
     import pandas as pd
 
     from roboisf.io.atomic import atomic_path
-    from roboisf.online.replay import load_replay, replay_study
+    from roboisf.online.replay import replay_study
 
     assert study is not None
-    rep = load_replay(study, cutoff=cutoff)
+    rep = _load_replay(study, cutoff)
     oc, out = replay_study(rep, limits, plaus)
     df = pd.DataFrame(
         {
