@@ -86,6 +86,9 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys, args, needle):
         (["--cutoff", "1e6"], ["[--cutoff]", "1e+06 Hz", "7000 Hz", "below 3500 Hz"]),
         (["--cutoff", "3500"], ["[--cutoff]", "at or above half", "7000 Hz"]),
         (["--simulate", "--cutoff", "500"], ["[--cutoff]", "simulated Net F/T streams 1000 Hz"]),
+        # a ramp faster than the rate limit was quietly run at the rate limit
+        (["--ramp-rate", "50"], ["[--ramp-rate]", "(--max-rate 20 mm/s)", "at most 20 mm/s"]),
+        (["--ramp-rate", "5000"], ["[--ramp-rate]", "it is 5 mm/s if it was written in µm/s"]),
     ],
 )
 def test_settings_that_defeat_the_loop_are_refused(tmp_path, capsys, args, needles):
@@ -105,6 +108,16 @@ def test_settings_that_defeat_the_loop_are_refused(tmp_path, capsys, args, needl
     for n in needles:
         assert n in err, err
     assert not (tmp_path / "l.parquet").exists()
+
+
+def test_the_default_ramp_keeps_a_lower_rate_limit():
+    """Without --ramp-rate the ramp is 5 mm/s, or --max-rate when that is lower (a --max-rate
+    of 2 mm/s is no reason to refuse a ramp the user did not give); one given is kept."""
+    from roboisf.cli.online import _limits
+
+    assert _limits(0.005, 2.0, 2.0, 4.0, 50.0, None).ramp_rate == pytest.approx(2e-3)
+    assert _limits(0.005, 2.0, 20.0, 4.0, 50.0, None).ramp_rate == pytest.approx(5e-3)
+    assert _limits(0.005, 2.0, 20.0, 4.0, 50.0, 20.0).ramp_rate == pytest.approx(20e-3)
 
 
 def test_log_must_be_parquet(tmp_path, capsys):

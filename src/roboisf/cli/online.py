@@ -134,7 +134,12 @@ def online(
     watchdog: float = typer.Option(
         50.0, "--watchdog", help="No sample for this long: hold; twice as long: ramp to 0, ms."
     ),
-    ramp_rate: float = typer.Option(5.0, "--ramp-rate", help="Watchdog ramp to zero, mm/s."),
+    ramp_rate: float | None = typer.Option(
+        None,
+        "--ramp-rate",
+        help="Ramp to zero of the watchdog and of every stop, mm/s; at most --max-rate, which "
+        "every step keeps. Default: 5 mm/s, or --max-rate if that is lower.",
+    ),
     sensor_pose: str | None = typer.Option(
         None,
         "--sensor-pose",
@@ -444,6 +449,8 @@ def _check_sources(
 #: The largest --max-correction accepted [mm]: the robot's deflection under forming loads is
 #: a few millimetres (the paper's IRB 7600: ≤ 2 mm), so a larger limit stops nothing.
 MAX_CORRECTION_MM = 20.0
+#: The default --ramp-rate [mm/s] (or --max-rate, when that is lower)
+RAMP_RATE_MM_S = 5.0
 
 
 def _limits(
@@ -452,12 +459,16 @@ def _limits(
     max_rate: float,
     cycle: float,
     watchdog: float,
-    ramp_rate: float,
+    ramp_rate: float | None,
 ) -> Any:
     """The loop's :class:`~roboisf.online.Limits` from the options (mm, mm/s, ms → SI); an
-    error names the option."""
+    error names the option. ``ramp_rate`` None: :data:`RAMP_RATE_MM_S`, or ``max_rate`` if
+    lower."""
     from roboisf.online import Limits
 
+    ramp_given = ramp_rate is not None
+    if ramp_rate is None:
+        ramp_rate = min(RAMP_RATE_MM_S, max_rate) if max_rate > 0 else RAMP_RATE_MM_S
     # each option in its own unit (Limits' own check says SI: "--max-rate: … got -0.001")
     for flag, v, unit, zero in (
         ("--deadband", deadband, "mm", True),
@@ -485,6 +496,21 @@ def _limits(
             f"most {max_correction / (cycle * 1e-3):g} mm/s with these settings (the default "
             "is 20 mm/s)",
             field="--max-rate",
+        )
+    if ramp_given and ramp_rate > max_rate:
+        # every step of the correction, a ramp's too, keeps the rate limit: the ramp would run
+        # at --max-rate, not at the rate asked for
+        slip = (
+            f"; it is {ramp_rate * 1e-3:g} mm/s if it was written in µm/s"
+            if ramp_rate >= 1000 and ramp_rate * 1e-3 <= max_rate
+            else ""
+        )
+        raise InputError(
+            f"{ramp_rate:g} mm/s is faster than the rate limit (--max-rate {max_rate:g} mm/s), "
+            f"which every step of the correction keeps: the ramp to zero would run at "
+            f"{max_rate:g} mm/s, not {ramp_rate:g}; give at most {max_rate:g} mm/s or raise "
+            f"--max-rate (the default ramp is {RAMP_RATE_MM_S:g} mm/s){slip}",
+            field="--ramp-rate",
         )
     if max_correction > MAX_CORRECTION_MM:
         # the size limit is the loop's last guard: 2000 mm (2 m, or µm typed as mm) guards nothing
