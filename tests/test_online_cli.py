@@ -89,6 +89,13 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys, args, needle):
         # a ramp faster than the rate limit was quietly run at the rate limit
         (["--ramp-rate", "50"], ["[--ramp-rate]", "(--max-rate 20 mm/s)", "at most 20 mm/s"]),
         (["--ramp-rate", "5000"], ["[--ramp-rate]", "it is 5 mm/s if it was written in µm/s"]),
+        # a watchdog whose ramp (at twice it) cannot begin before the 2 s sensor stop
+        (
+            ["--watchdog", "50000"],
+            ["[--watchdog]", "after 100 s", "silent for 2 s", "below 1000 ms", "50 ms if it was"],
+        ),
+        (["--watchdog", "1000"], ["[--watchdog]", "below 1000 ms"]),
+        (["--simulate", "--watchdog", "1000"], ["[--watchdog]", "below 1000 ms"]),
     ],
 )
 def test_settings_that_defeat_the_loop_are_refused(tmp_path, capsys, args, needles):

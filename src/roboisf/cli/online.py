@@ -132,7 +132,10 @@ def online(
     max_correction: float = typer.Option(2.0, "--max-correction", help="Size limit, mm."),
     max_rate: float = typer.Option(20.0, "--max-rate", help="Rate limit, mm/s."),
     watchdog: float = typer.Option(
-        50.0, "--watchdog", help="No sample for this long: hold; twice as long: ramp to 0, ms."
+        50.0,
+        "--watchdog",
+        help="No usable force sample for this long: hold; twice as long: ramp to 0, ms; below "
+        "1000 (the ramp begins before a Net F/T silent for 2 s stops the loop).",
     ),
     ramp_rate: float | None = typer.Option(
         None,
@@ -465,6 +468,7 @@ def _limits(
     error names the option. ``ramp_rate`` None: :data:`RAMP_RATE_MM_S`, or ``max_rate`` if
     lower."""
     from roboisf.online import Limits
+    from roboisf.online.loop import SENSOR_TIMEOUT
 
     ramp_given = ramp_rate is not None
     if ramp_rate is None:
@@ -496,6 +500,19 @@ def _limits(
             f"most {max_correction / (cycle * 1e-3):g} mm/s with these settings (the default "
             "is 20 mm/s)",
             field="--max-rate",
+        )
+    if 2.0 * watchdog * 1e-3 >= SENSOR_TIMEOUT:
+        # the watchdog ramps after twice its time: from a second on, a silent Net F/T stops the
+        # loop first, and a sensor streaming records the loop cannot use (faulty, implausible:
+        # no stop for those) keeps the correction as long — no limit is loosened this way
+        slip = f"; it is {watchdog * 1e-3:g} ms if it was written in µs" if watchdog >= 1e4 else ""
+        raise InputError(
+            f"{watchdog:g} ms: the watchdog would ramp the correction to zero only after "
+            f"{2 * watchdog * 1e-3:g} s without a usable force sample, but a Net F/T silent for "
+            f"{SENSOR_TIMEOUT:g} s stops the loop first (and one streaming faulty or implausible "
+            f"records would keep the correction that long); below {SENSOR_TIMEOUT * 1e3 / 2:g} "
+            f"ms, so that the ramp begins before that stop (the default is 50 ms){slip}",
+            field="--watchdog",
         )
     if ramp_given and ramp_rate > max_rate:
         # every step of the correction, a ramp's too, keeps the rate limit: the ramp would run
