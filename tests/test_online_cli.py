@@ -190,6 +190,44 @@ def test_replay_refuses_a_cutoff_its_force_log_cannot_carry(tmp_path, capsys, re
                  "--cutoff", "499", "-o", str(out)]) == 0  # fmt: skip
 
 
+def test_a_live_replay_does_not_compensate_the_study_log_twice(
+    tmp_path, capsys, replay_study_dir, monkeypatch
+):
+    """``-c egm --sensor replay:STUDY --sensor-pose …`` built its sensor from the options:
+    --tare and the tool's weight were removed from a log already tared and weight-compensated
+    (and the pose was not the one it was logged in). The study's sensor is used, as by
+    ``-c replay``, and one line says which options are not (the loop's sensor is captured
+    where the loop is built: no network, no clock)."""
+    import roboisf.online.loop as loop_mod
+    from roboisf.errors import InputError
+    from roboisf.online.replay import load_replay
+
+    seen = {}
+
+    class Captured(InputError):
+        pass
+
+    def capture(oc, *args, **kw):
+        seen["sensor"] = oc.sensor
+        raise Captured("captured", field="test")
+
+    monkeypatch.setattr(loop_mod, "Loop", capture)
+    argv = ["online", "-c", "egm", "-s", f"replay:{replay_study_dir}", "--listen", "127.0.0.1:0",
+            "--sensor-pose", "0,0,50,0,0,0", "--tare", "10,0,0,0,0,0", "--tool-mass", "3",
+            "--tool-cog", "0,0,80", "-o", str(tmp_path / "l.parquet")]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "captured" in err
+    s, ref = seen["sensor"], load_replay(replay_study_dir).sensor
+    assert s.tool_mass == 0.0 and not np.any(s.tare)
+    np.testing.assert_array_equal(s.T_flange_sensor, ref.T_flange_sensor)
+    assert s.load_on == ref.load_on
+    warn = [x for x in err.splitlines() if "replay:STUDY" in x]
+    assert len(warn) == 1 and "tared and weight-compensated" in warn[0], err
+    for opt in ("--sensor-pose", "--tare", "--tool-mass", "--tool-cog"):
+        assert opt in warn[0], warn
+
+
 @pytest.mark.slow
 def test_simulated_run_from_the_command_line(tmp_path):
     out = tmp_path / "log.parquet"

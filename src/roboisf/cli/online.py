@@ -297,7 +297,7 @@ def online(
     T_user = None if sensor_pose is None else _sensor_pose(sensor_pose)
     if simulate:
         _warn_simulated_sensor(tare, tool_mass, load_on, tool_cog, sensor_pose)
-    elif controller == "replay":
+    elif kind == "replay":  # -c replay, and a live loop fed the study's logs
         _warn_replay_sensor(tare, tool_mass, load_on, tool_cog, sensor_pose)
     _claim_outputs(selftest, selftest_seconds, controller, simulate, form, output, overwrite, study)
     cell, setup, spec_pose = _load_cell(virtual, study, scenario, scan_points, form, cutoff)
@@ -333,8 +333,10 @@ def online(
 
         rep = _load_replay(Path(arg), cutoff)
         src = ReplaySensor(rep.force_time, rep.force)
-        if sensor_pose is None:  # the study's sensor (pose, sign); the log is tared and compensated
-            sensor_setup = rep.sensor
+        # the study's sensor (pose, sign), no tare, no weight: its log is tared and compensated
+        # and was logged in that frame (--sensor-pose used to bring --tare and the tool's
+        # weight along, removed a second time from every sample)
+        sensor_setup = rep.sensor
     peak = _expected_peak(setup, study)
     plaus = _plausibility(peak, max_force, max_force_rate, max_tip_moment)
     oc = OnlineCompensator(cell.robot, cell.T_base_work, _k_tip(cell), sensor_setup, limits, plaus)
@@ -642,13 +644,13 @@ def _given_sensor_options(
 def _warn_replay_sensor(
     tare: str | None, tool_mass: float, load_on: str, tool_cog: str, sensor_pose: str | None
 ) -> None:
-    """-c replay reads the study's sensor and its logs as tared and weight-compensated: say
-    which given sensor options it does not use."""
+    """A replayed study (``-c replay``, ``--sensor replay:STUDY``) reads the study's sensor and
+    its logs as tared and weight-compensated: say which given sensor options it does not use."""
     given = _given_sensor_options(tare, tool_mass, load_on, tool_cog, sensor_pose)
     if given:
         state.warn(
-            "-c replay: the study's force sensor (pose, sign) is used and its log is taken as "
-            f"tared and weight-compensated; {', '.join(given)} not"
+            "--sensor replay:STUDY: the study's force sensor (pose, sign) is used and its log is "
+            f"taken as tared and weight-compensated; {', '.join(given)} not"
         )
 
 
