@@ -670,8 +670,9 @@ def deflect_cmd(
     start_joints: str | None = typer.Option(
         None,
         "--start-joints",
-        help="IK: start at the solution nearest these joints q1..q6 (deg, controller), e.g. the "
-        "robot's pose at the first point; branch and turns then follow continuously.",
+        help="IK: start at the solution nearest these joints q1..q6 (degrees, not rad; the "
+        "controller's), e.g. the robot's pose at the first point; branch and turns then follow "
+        "continuously. Said back in degrees with the first point's joints.",
     ),
     confdata: str | None = typer.Option(
         None,
@@ -746,6 +747,13 @@ def deflect_cmd(
                 confdata=None if confdata is None else _ints(confdata, 4, "--confdata"),
                 kuka_st=None if kuka_st is None else _ints(kuka_st, 2, "--kuka-st"),
             ).q
+        if start_joints is not None:  # said back in degrees: radians typed show at once
+            given_deg = _floats(start_joints, 6, "--start-joints")
+            state.info(
+                f"IK from --start-joints {', '.join(f'{v:g}' for v in given_deg)} deg (degrees, "
+                "the controller's angles): the first point at "
+                f"{', '.join(f'{v:.2f}' for v in np.degrees(q[0]))} deg"
+            )
     frame = log.frame.strip().lower()
     R_base_work = T_base_work[:3, :3]
     T_tip = m.fk(q)
