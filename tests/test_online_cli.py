@@ -80,6 +80,22 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys, args, needle):
         (["--sensor-pose", "0,0,100000,0,0,0"], ["[--sensor-pose]", "100 mm if it was"]),
         (["--sensor-pose", "0,0,100,0,0,7200"], ["[--sensor-pose]", "a rotation angle"]),
         (["--tare", "1,2,3e9,0,0,0"], ["[--tare]", "a force sensor's bias"]),
+        # a low-pass corner at or above half the samples' rate filters nothing (a 1 s cone run
+        # at --cutoff 1e6 held the correction for the raw sensor noise): the rate named, a
+        # Net F/T's fastest (its own is set on the sensor), the simulated one's
+        (["--cutoff", "1e6"], ["[--cutoff]", "1e+06 Hz", "7000 Hz", "below 3500 Hz"]),
+        (["--cutoff", "3500"], ["[--cutoff]", "at or above half", "7000 Hz"]),
+        (["--simulate", "--cutoff", "500"], ["[--cutoff]", "simulated Net F/T streams 1000 Hz"]),
+        # a ramp faster than the rate limit was quietly run at the rate limit
+        (["--ramp-rate", "50"], ["[--ramp-rate]", "(--max-rate 20 mm/s)", "at most 20 mm/s"]),
+        (["--ramp-rate", "5000"], ["[--ramp-rate]", "it is 5 mm/s if it was written in µm/s"]),
+        # a watchdog whose ramp (at twice it) cannot begin before the 2 s sensor stop
+        (
+            ["--watchdog", "50000"],
+            ["[--watchdog]", "after 100 s", "silent for 2 s", "below 1000 ms", "50 ms if it was"],
+        ),
+        (["--watchdog", "1000"], ["[--watchdog]", "below 1000 ms"]),
+        (["--simulate", "--watchdog", "1000"], ["[--watchdog]", "below 1000 ms"]),
     ],
 )
 def test_settings_that_defeat_the_loop_are_refused(tmp_path, capsys, args, needles):
@@ -99,6 +115,16 @@ def test_settings_that_defeat_the_loop_are_refused(tmp_path, capsys, args, needl
     for n in needles:
         assert n in err, err
     assert not (tmp_path / "l.parquet").exists()
+
+
+def test_the_default_ramp_keeps_a_lower_rate_limit():
+    """Without --ramp-rate the ramp is 5 mm/s, or --max-rate when that is lower (a --max-rate
+    of 2 mm/s is no reason to refuse a ramp the user did not give); one given is kept."""
+    from roboisf.cli.online import _limits
+
+    assert _limits(0.005, 2.0, 2.0, 4.0, 50.0, None).ramp_rate == pytest.approx(2e-3)
+    assert _limits(0.005, 2.0, 20.0, 4.0, 50.0, None).ramp_rate == pytest.approx(5e-3)
+    assert _limits(0.005, 2.0, 20.0, 4.0, 50.0, 20.0).ramp_rate == pytest.approx(20e-3)
 
 
 def test_log_must_be_parquet(tmp_path, capsys):
@@ -146,6 +172,60 @@ def test_replay_holds_what_the_live_loop_would_hold(tmp_path, capsys, replay_stu
     assert not np.any(df["status"].to_numpy() & 64)
     corr = df[["corr_x_mm", "corr_y_mm", "corr_z_mm"]].to_numpy()
     assert np.linalg.norm(corr, axis=1).max() > 0.05
+
+
+def test_replay_refuses_a_cutoff_its_force_log_cannot_carry(tmp_path, capsys, replay_study_dir):
+    """A replayed force log at 1 kHz carries nothing above 500 Hz: a corner there was accepted
+    and filtered nothing. Refused naming the log's rate, live (-c egm) and offline (-c replay)."""
+    out = tmp_path / "replay.parquet"
+    for c in ("replay", "egm"):
+        argv = ["online", "-c", c, "-s", f"replay:{replay_study_dir}", "--cutoff", "500"]
+        assert main([*argv, "--listen", "127.0.0.1:0", "-o", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+        assert "[--cutoff]" in err and "sampled at 1000 Hz" in err and "below 500 Hz" in err
+        assert not out.exists()
+    # below half the rate it runs
+    assert main(["-q", "online", "-c", "replay", "-s", f"replay:{replay_study_dir}",
+                 "--cutoff", "499", "-o", str(out)]) == 0  # fmt: skip
+
+
+def test_a_live_replay_does_not_compensate_the_study_log_twice(
+    tmp_path, capsys, replay_study_dir, monkeypatch
+):
+    """``-c egm --sensor replay:STUDY --sensor-pose …`` built its sensor from the options:
+    --tare and the tool's weight were removed from a log already tared and weight-compensated
+    (and the pose was not the one it was logged in). The study's sensor is used, as by
+    ``-c replay``, and one line says which options are not (the loop's sensor is captured
+    where the loop is built: no network, no clock)."""
+    import roboisf.online.loop as loop_mod
+    from roboisf.errors import InputError
+    from roboisf.online.replay import load_replay
+
+    seen = {}
+
+    class Captured(InputError):
+        pass
+
+    def capture(oc, *args, **kw):
+        seen["sensor"] = oc.sensor
+        raise Captured("captured", field="test")
+
+    monkeypatch.setattr(loop_mod, "Loop", capture)
+    argv = ["online", "-c", "egm", "-s", f"replay:{replay_study_dir}", "--listen", "127.0.0.1:0",
+            "--sensor-pose", "0,0,50,0,0,0", "--tare", "10,0,0,0,0,0", "--tool-mass", "3",
+            "--tool-cog", "0,0,80", "-o", str(tmp_path / "l.parquet")]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "captured" in err
+    s, ref = seen["sensor"], load_replay(replay_study_dir).sensor
+    assert s.tool_mass == 0.0 and not np.any(s.tare)
+    np.testing.assert_array_equal(s.T_flange_sensor, ref.T_flange_sensor)
+    assert s.load_on == ref.load_on
+    warn = [x for x in err.splitlines() if "replay:STUDY" in x]
+    assert len(warn) == 1 and "tared and weight-compensated" in warn[0], err
+    for opt in ("--sensor-pose", "--tare", "--tool-mass", "--tool-cog"):
+        assert opt in warn[0], warn
 
 
 @pytest.mark.slow

@@ -124,6 +124,50 @@ def test_deflect_bad_input(cell, tmp_path, capsys):
     assert not out.exists()
 
 
+def test_a_placement_typed_in_m_names_the_slip(cell, tmp_path, capsys):
+    """``--placement 2.2,0,0.5,0`` (2200,0,500 in m) put the part 2.3 mm from the robot base and
+    was refused only as 'beyond the joint limits'; the error now names --placement, the value
+    and the m-for-mm slip (deflect, and show's stiffness map). A placement at a real cell's
+    distance that the robot cannot reach keeps its own reason, no slip guessed."""
+    d, _tp, _n = cell
+    out = tmp_path / "x.csv"
+    base = _deflect(d, out, "--tool", "0,0,300")
+    assert main([*base, "--placement", "2.2,0,0.5,0"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    for needle in ("[--placement]", "beyond the limits", "--placement 2.2,0,0.5,0",
+                   "if it was written in m", "2200,0,500 mm"):  # fmt: skip
+        assert needle in err, err
+    assert main([*base, "--placement", "5000,0,800,0"]) == 2
+    err = capsys.readouterr().err
+    assert "out of reach" in err and "written in" not in err, err
+    png = tmp_path / "map.png"
+    assert main(["robot", "show", "--placement", "1.6,0,0.8,0", "-o", str(png)]) == 2
+    err = capsys.readouterr().err
+    assert "[--placement]" in err and "1600,0,800 mm" in err, err
+    assert not out.exists() and not png.exists()
+
+
+def test_deflect_says_the_start_joints_back_in_degrees(cell, tmp_path, capsys):
+    """--start-joints is degrees; typed in radians (0.26 for 15°) it was taken without a word
+    as a pose near the zero pose. It cannot be told from one, so the run says the start back in
+    degrees with the first point's joints: a slip shows as a start far from where the path
+    begins."""
+    d, tp, _n = cell
+    m = load_robot("irb7600-500-2.55").with_tool(make_transform(None, [0, 0, 0.3]))
+    q0 = np.degrees(ik_toolpath(m, tp, make_transform(None, [1.6, 0, 0.8])).q[0])
+    start = ",".join(f"{v:.1f}" for v in q0)
+    out = tmp_path / "s.csv"
+    args = _deflect(d, out, "--placement", "1600,0,800,0", "--tool", "0,0,300")
+    assert main([*args, "--start-joints", start]) == 0
+    said = capsys.readouterr().out
+    line = next(x for x in said.splitlines() if "--start-joints" in x)
+    given = line.split("--start-joints ")[1].split(" deg (degrees")[0]
+    first = line.split("the first point at ")[1].removesuffix(" deg")
+    np.testing.assert_allclose([float(v) for v in given.split(", ")], np.round(q0, 1))
+    np.testing.assert_allclose([float(v) for v in first.split(", ")], q0, atol=0.006)
+
+
 def test_identify_cli(tmp_path, capsys):
     m = load_robot("irb7600-500-2.55").with_tool(make_transform(None, [0.3, 0.1, 0.4]))
     rng = np.random.default_rng(0)

@@ -121,14 +121,28 @@ def online(
     ),
     cycles: int | None = typer.Option(None, "--cycles", help="Stop after this many cycles."),
     cycle: float = typer.Option(4.0, "--cycle", help="Controller cycle, ms (RSI: 4 or 12)."),
-    cutoff: float = typer.Option(20.0, "--cutoff", help="Low-pass corner on the wrench, Hz."),
+    cutoff: float = typer.Option(
+        20.0,
+        "--cutoff",
+        help="Low-pass corner on the wrench, Hz; below half the sensor's sample rate (a "
+        "replayed log's own, the simulated sensor's 1000 Hz; a Net F/T's is set on it, at most "
+        "7000 Hz).",
+    ),
     deadband: float = typer.Option(0.005, "--deadband", help="Corrections below are 0, mm."),
     max_correction: float = typer.Option(2.0, "--max-correction", help="Size limit, mm."),
     max_rate: float = typer.Option(20.0, "--max-rate", help="Rate limit, mm/s."),
     watchdog: float = typer.Option(
-        50.0, "--watchdog", help="No sample for this long: hold; twice as long: ramp to 0, ms."
+        50.0,
+        "--watchdog",
+        help="No usable force sample for this long: hold; twice as long: ramp to 0, ms; below "
+        "1000 (the ramp begins before a Net F/T silent for 2 s stops the loop).",
     ),
-    ramp_rate: float = typer.Option(5.0, "--ramp-rate", help="Watchdog ramp to zero, mm/s."),
+    ramp_rate: float | None = typer.Option(
+        None,
+        "--ramp-rate",
+        help="Ramp to zero of the watchdog and of every stop, mm/s; at most --max-rate, which "
+        "every step keeps. Default: 5 mm/s, or --max-rate if that is lower.",
+    ),
     sensor_pose: str | None = typer.Option(
         None,
         "--sensor-pose",
@@ -272,10 +286,18 @@ def online(
     parse_address(listen, 6510, "--listen", resolve=True)
     # the sensor's settings are checked whether or not --simulate then replaces them
     user_sensor = _user_sensor(load_on, tare, tool_mass, tool_cog, cutoff)
+    if simulate:
+        from roboisf.online.sim import SENSOR_RATE
+
+        _check_cutoff(cutoff, SENSOR_RATE, "the simulated Net F/T streams")
+    elif kind == "netft":  # its rate is set on the sensor: refused above what any can stream
+        from roboisf.online.netft import MAX_RATE
+
+        _check_cutoff(cutoff, MAX_RATE, "a Net F/T streams at most")
     T_user = None if sensor_pose is None else _sensor_pose(sensor_pose)
     if simulate:
         _warn_simulated_sensor(tare, tool_mass, load_on, tool_cog, sensor_pose)
-    elif controller == "replay":
+    elif kind == "replay":  # -c replay, and a live loop fed the study's logs
         _warn_replay_sensor(tare, tool_mass, load_on, tool_cog, sensor_pose)
     _claim_outputs(selftest, selftest_seconds, controller, simulate, form, output, overwrite, study)
     cell, setup, spec_pose = _load_cell(virtual, study, scenario, scan_points, form, cutoff)
@@ -307,12 +329,14 @@ def online(
         shost, sport = parse_address(arg, 49152, "--sensor")
         src = (shost, 0 if simulate else sport)
     else:
-        from roboisf.online.replay import ReplaySensor, load_replay
+        from roboisf.online.replay import ReplaySensor
 
-        rep = load_replay(arg, cutoff=cutoff)
+        rep = _load_replay(Path(arg), cutoff)
         src = ReplaySensor(rep.force_time, rep.force)
-        if sensor_pose is None:  # the study's sensor (pose, sign); the log is tared and compensated
-            sensor_setup = rep.sensor
+        # the study's sensor (pose, sign), no tare, no weight: its log is tared and compensated
+        # and was logged in that frame (--sensor-pose used to bring --tare and the tool's
+        # weight along, removed a second time from every sample)
+        sensor_setup = rep.sensor
     peak = _expected_peak(setup, study)
     plaus = _plausibility(peak, max_force, max_force_rate, max_tip_moment)
     oc = OnlineCompensator(cell.robot, cell.T_base_work, _k_tip(cell), sensor_setup, limits, plaus)
@@ -430,6 +454,8 @@ def _check_sources(
 #: The largest --max-correction accepted [mm]: the robot's deflection under forming loads is
 #: a few millimetres (the paper's IRB 7600: ≤ 2 mm), so a larger limit stops nothing.
 MAX_CORRECTION_MM = 20.0
+#: The default --ramp-rate [mm/s] (or --max-rate, when that is lower)
+RAMP_RATE_MM_S = 5.0
 
 
 def _limits(
@@ -438,12 +464,17 @@ def _limits(
     max_rate: float,
     cycle: float,
     watchdog: float,
-    ramp_rate: float,
+    ramp_rate: float | None,
 ) -> Any:
     """The loop's :class:`~roboisf.online.Limits` from the options (mm, mm/s, ms → SI); an
-    error names the option."""
+    error names the option. ``ramp_rate`` None: :data:`RAMP_RATE_MM_S`, or ``max_rate`` if
+    lower."""
     from roboisf.online import Limits
+    from roboisf.online.loop import SENSOR_TIMEOUT
 
+    ramp_given = ramp_rate is not None
+    if ramp_rate is None:
+        ramp_rate = min(RAMP_RATE_MM_S, max_rate) if max_rate > 0 else RAMP_RATE_MM_S
     # each option in its own unit (Limits' own check says SI: "--max-rate: … got -0.001")
     for flag, v, unit, zero in (
         ("--deadband", deadband, "mm", True),
@@ -472,6 +503,34 @@ def _limits(
             "is 20 mm/s)",
             field="--max-rate",
         )
+    if 2.0 * watchdog * 1e-3 >= SENSOR_TIMEOUT:
+        # the watchdog ramps after twice its time: from a second on, a silent Net F/T stops the
+        # loop first, and a sensor streaming records the loop cannot use (faulty, implausible:
+        # no stop for those) keeps the correction as long — no limit is loosened this way
+        slip = f"; it is {watchdog * 1e-3:g} ms if it was written in µs" if watchdog >= 1e4 else ""
+        raise InputError(
+            f"{watchdog:g} ms: the watchdog would ramp the correction to zero only after "
+            f"{2 * watchdog * 1e-3:g} s without a usable force sample, but a Net F/T silent for "
+            f"{SENSOR_TIMEOUT:g} s stops the loop first (and one streaming faulty or implausible "
+            f"records would keep the correction that long); below {SENSOR_TIMEOUT * 1e3 / 2:g} "
+            f"ms, so that the ramp begins before that stop (the default is 50 ms){slip}",
+            field="--watchdog",
+        )
+    if ramp_given and ramp_rate > max_rate:
+        # every step of the correction, a ramp's too, keeps the rate limit: the ramp would run
+        # at --max-rate, not at the rate asked for
+        slip = (
+            f"; it is {ramp_rate * 1e-3:g} mm/s if it was written in µm/s"
+            if ramp_rate >= 1000 and ramp_rate * 1e-3 <= max_rate
+            else ""
+        )
+        raise InputError(
+            f"{ramp_rate:g} mm/s is faster than the rate limit (--max-rate {max_rate:g} mm/s), "
+            f"which every step of the correction keeps: the ramp to zero would run at "
+            f"{max_rate:g} mm/s, not {ramp_rate:g}; give at most {max_rate:g} mm/s or raise "
+            f"--max-rate (the default ramp is {RAMP_RATE_MM_S:g} mm/s){slip}",
+            field="--ramp-rate",
+        )
     if max_correction > MAX_CORRECTION_MM:
         # the size limit is the loop's last guard: 2000 mm (2 m, or µm typed as mm) guards nothing
         raise InputError(
@@ -490,6 +549,29 @@ def _limits(
         )
     except InputError as e:
         raise InputError(e.message, field=f"--{str(e.field).replace('_', '-')}") from None
+
+
+def _check_cutoff(cutoff: float, rate: float, source: str) -> None:
+    """``--cutoff`` below half the force samples' rate (``source`` says whose)."""
+    from roboisf.online.core import check_cutoff
+
+    try:
+        check_cutoff(cutoff, rate, source)
+    except InputError as e:
+        raise InputError(e.message, field="--cutoff") from None
+
+
+def _load_replay(study: Path, cutoff: float) -> Any:
+    """:func:`~roboisf.online.replay.load_replay`, a cutoff its force log's rate refuses named
+    as ``--cutoff``."""
+    from roboisf.online.replay import load_replay
+
+    try:
+        return load_replay(study, cutoff=cutoff)
+    except InputError as e:
+        if e.field != "cutoff":
+            raise
+        raise InputError(e.message, field="--cutoff") from None
 
 
 def _user_sensor(
@@ -562,13 +644,13 @@ def _given_sensor_options(
 def _warn_replay_sensor(
     tare: str | None, tool_mass: float, load_on: str, tool_cog: str, sensor_pose: str | None
 ) -> None:
-    """-c replay reads the study's sensor and its logs as tared and weight-compensated: say
-    which given sensor options it does not use."""
+    """A replayed study (``-c replay``, ``--sensor replay:STUDY``) reads the study's sensor and
+    its logs as tared and weight-compensated: say which given sensor options it does not use."""
     given = _given_sensor_options(tare, tool_mass, load_on, tool_cog, sensor_pose)
     if given:
         state.warn(
-            "-c replay: the study's force sensor (pose, sign) is used and its log is taken as "
-            f"tared and weight-compensated; {', '.join(given)} not"
+            "--sensor replay:STUDY: the study's force sensor (pose, sign) is used and its log is "
+            f"taken as tared and weight-compensated; {', '.join(given)} not"
         )
 
 
@@ -933,10 +1015,10 @@ def _replay(study: Path | None, limits: Any, plaus: Any, cutoff: float, output: 
     import pandas as pd
 
     from roboisf.io.atomic import atomic_path
-    from roboisf.online.replay import load_replay, replay_study
+    from roboisf.online.replay import replay_study
 
     assert study is not None
-    rep = load_replay(study, cutoff=cutoff)
+    rep = _load_replay(study, cutoff)
     oc, out = replay_study(rep, limits, plaus)
     df = pd.DataFrame(
         {

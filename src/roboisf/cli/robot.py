@@ -95,6 +95,55 @@ def _placement(text: str | None, model: RobotModel) -> np.ndarray:
     return parse_pose(text, XYZ_YAW_MM_DEG, field="--placement")
 
 
+#: How far a work object's origin lies from the robot base in a real cell [mm]: nearer than
+#: 100 mm the part would sit inside the robot's own base; a placement typed in m (2.2,0,0.5 for
+#: 2200,0,500) lands there, and the IK then said only "beyond the joint limits".
+WORK_DISTANCE_MIN_MM = 100.0
+
+
+def _placement_slip(text: str | None) -> str:
+    """What a ``--placement`` no pose could reach says of its unit: ``"--placement 2.2,0,0.5,0
+    puts the work origin 2.247 mm from the robot base (…); it is 2247 mm if it was written in
+    m"`` for a work origin nearer the base than any cell's, ``""`` otherwise (the preset's, or
+    a placement at a real cell's distance: then the reach or the limits are the reason)."""
+    from roboisf.plausible import Bound, unit_slip
+
+    if text is None:
+        return ""
+    try:
+        x, y, z = (float(v) for v in text.split(",")[:3])
+    except ValueError:
+        return ""
+    d = math.sqrt(x * x + y * y + z * z)
+    if not 0 < d < WORK_DISTANCE_MIN_MM:
+        return ""
+    slip = unit_slip(d, Bound(WORK_DISTANCE_MIN_MM, 1e4, "mm", "a work object's distance"))
+    if slip.endswith("written in m"):  # the one a metre-minded user makes: show it in mm
+        slip += f" (x,y,z = {x * 1e3:g},{y * 1e3:g},{z * 1e3:g} mm)"
+    return (
+        f"--placement {text} puts the work origin {d:.4g} mm from the robot base (a real cell's "
+        f"is {WORK_DISTANCE_MIN_MM:g} mm or more away; x,y,z are in mm, yaw in deg)"
+        + (f"; {slip}" if slip else "")
+    )
+
+
+@contextmanager
+def _unreachable_placement(text: str | None) -> Iterator[None]:
+    """A pose out of reach or beyond the limits, with the placement's unit slip when one
+    explains it (:func:`_placement_slip`): then the error names ``--placement``."""
+    from roboisf.errors import UnreachableError
+
+    try:
+        yield
+    except UnreachableError as e:
+        hint = _placement_slip(text)
+        if not hint:
+            raise
+        raise UnreachableError(
+            f"{e.message}; {hint}", e.indices, file=e.file, line=e.line, field="--placement"
+        ) from None
+
+
 ROBOT_OPT = typer.Option(
     "irb7600-500-2.55", "--robot", "-r", help="Preset name, robot .toml or .urdf."
 )
@@ -226,7 +275,8 @@ def show_cmd(
         from roboisf.report.robot_maps import plot_stiffness_map
         from roboisf.robot import stiffness_map
 
-        smap = stiffness_map(m, _placement(placement, m), half_width=half_width * 1e-3)
+        with _unreachable_placement(placement):
+            smap = stiffness_map(m, _placement(placement, m), half_width=half_width * 1e-3)
         plot_stiffness_map(smap, output)
         state.info(f"wrote {output}")
 
@@ -620,8 +670,9 @@ def deflect_cmd(
     start_joints: str | None = typer.Option(
         None,
         "--start-joints",
-        help="IK: start at the solution nearest these joints q1..q6 (deg, controller), e.g. the "
-        "robot's pose at the first point; branch and turns then follow continuously.",
+        help="IK: start at the solution nearest these joints q1..q6 (degrees, not rad; the "
+        "controller's), e.g. the robot's pose at the first point; branch and turns then follow "
+        "continuously. Said back in degrees with the first point's joints.",
     ),
     confdata: str | None = typer.Option(
         None,
@@ -679,7 +730,11 @@ def deflect_cmd(
             )
         if m.ik_note:
             state.warn(m.ik_note)  # one line, before the (slower) numerical solve
-        with warnings.catch_warnings(), _options_named(IK_OPTIONS):
+        with (
+            warnings.catch_warnings(),
+            _options_named(IK_OPTIONS),
+            _unreachable_placement(placement),
+        ):
             warnings.simplefilter("ignore", NumericalIKWarning)  # said just above
             q = ik_toolpath(
                 m,
@@ -692,6 +747,13 @@ def deflect_cmd(
                 confdata=None if confdata is None else _ints(confdata, 4, "--confdata"),
                 kuka_st=None if kuka_st is None else _ints(kuka_st, 2, "--kuka-st"),
             ).q
+        if start_joints is not None:  # said back in degrees: radians typed show at once
+            given_deg = _floats(start_joints, 6, "--start-joints")
+            state.info(
+                f"IK from --start-joints {', '.join(f'{v:g}' for v in given_deg)} deg (degrees, "
+                "the controller's angles): the first point at "
+                f"{', '.join(f'{v:.2f}' for v in np.degrees(q[0]))} deg"
+            )
     frame = log.frame.strip().lower()
     R_base_work = T_base_work[:3, :3]
     T_tip = m.fk(q)

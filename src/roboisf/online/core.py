@@ -48,7 +48,15 @@ from roboisf.online import kernel as kn
 from roboisf.robot import RobotModel
 from roboisf.robot.kinematics import rotate_6x6
 
-__all__ = ["Limits", "OnlineCompensator", "Plausibility", "SensorSetup", "episodes", "status_text"]
+__all__ = [
+    "Limits",
+    "OnlineCompensator",
+    "Plausibility",
+    "SensorSetup",
+    "check_cutoff",
+    "episodes",
+    "status_text",
+]
 
 F64 = NDArray[np.float64]
 
@@ -61,6 +69,25 @@ def _pos(v: float, name: str, *, zero: bool = False) -> float:
     if not math.isfinite(v) or v < 0 or (v == 0 and not zero):
         raise InputError(f"must be {'≥' if zero else '>'} 0, got {v}", field=name)
     return v
+
+
+def check_cutoff(cutoff: float, rate: float, source: str) -> None:
+    """Refuse a low-pass corner ``cutoff`` [Hz] at or above half the force samples' ``rate``
+    [Hz] (``source`` says whose rate, for the message; the error's field is ``cutoff``).
+
+    The filter's step ``α = 1 − exp(−2π f_c Δt)`` is ≥ 1 − e^−π ≈ 0.96 there: each sample
+    passes almost whole and nothing is filtered (a sampled signal holds no frequency above half
+    its rate for a corner there to cut). ``--cutoff 1e6`` ran a cone with the raw sensor noise
+    in every correction.
+    """
+    if cutoff >= rate / 2:
+        raise InputError(
+            f"{cutoff:g} Hz is at or above half the rate of the force samples ({source} "
+            f"{rate:g} Hz): there the low-pass passes each sample almost whole "
+            f"(α ≥ {1.0 - math.exp(-math.pi):.2f}) and filters nothing; give a corner below "
+            f"{rate / 2:g} Hz (the default is 20 Hz)",
+            field="cutoff",
+        )
 
 
 @dataclass(frozen=True)

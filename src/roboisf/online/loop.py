@@ -61,7 +61,7 @@ from roboisf.online.base import ProtocolError, RobotState
 from roboisf.online.core import OnlineCompensator
 from roboisf.online.rt import STAMP_SPACE, GcQuiet, Realtime, apply, enable_stamps, kernel_stamp
 
-__all__ = ["IDLE", "RULES_OFF", "Counters", "CycleLog", "Loop", "parse_address"]
+__all__ = ["IDLE", "RULES_OFF", "SENSOR_TIMEOUT", "Counters", "CycleLog", "Loop", "parse_address"]
 
 F64 = NDArray[np.float64]
 
@@ -69,6 +69,11 @@ F64 = NDArray[np.float64]
 #: duration, status, a silent sensor) and drains the sensor socket
 IDLE = 0.05
 
+
+#: s — a Net F/T that streamed and then sent nothing for this long stops the loop (the default
+#: ``sensor_timeout``); the watchdog's ramp to zero, at twice ``Limits.watchdog``, must begin
+#: before it (``roboisf online`` refuses a ``--watchdog`` of half this or more)
+SENSOR_TIMEOUT = 2.0
 
 #: :class:`Loop` keywords that switch its runtime stop rules off (a silent controller or sensor,
 #: late replies) — for simulated devices that share the loop's CPUs (``--simulate``, the tests,
@@ -277,7 +282,8 @@ class Loop:
         the controller is lost; the loop stops (default 0.5 s)
     sensor_timeout : float, s — a Net F/T that streamed and then sent nothing for this long
         (the loop asks it to start again after 1 s: a restart within this time is followed)
-        is lost; the loop stops (default 2 s; the watchdog has ramped the correction by then)
+        is lost; the loop stops (default :data:`SENSOR_TIMEOUT`, 2 s; the watchdog's ramp has
+        begun by then: ``roboisf online`` refuses a watchdog of half this or more)
     ramp_timeout : float, s — while a stop ramps the correction down, no controller message
         for this long ends the ramp unfinished (nothing to send it to; default 0.5 s)
     late_limit, late_window : int, float s — this many replies later than a cycle after their
@@ -305,7 +311,7 @@ class Loop:
         realtime: Realtime | None = None,
         quiet_gc: bool = True,
         controller_timeout: float = 0.5,
-        sensor_timeout: float = 2.0,
+        sensor_timeout: float = SENSOR_TIMEOUT,
         ramp_timeout: float = 0.5,
         late_limit: int = 25,
         late_window: float = 1.0,

@@ -45,6 +45,7 @@ __all__ = [
     "CMD_START_REALTIME",
     "CMD_STOP",
     "DEFAULT_COUNTS",
+    "MAX_RATE",
     "PORT",
     "RECORD_SIZE",
     "STATUS_BITS",
@@ -68,6 +69,9 @@ CMD_BIAS = 0x0042
 COMMANDS = (CMD_STOP, CMD_START_REALTIME, CMD_START_BUFFERED, CMD_BIAS)
 #: counts per N and per N·m of a Net F/T in its default configuration
 DEFAULT_COUNTS = 1_000_000.0
+#: Hz — the fastest a Net F/T streams RDT records (the manual: "up to 7000 Hz"); the rate a
+#: sensor streams at is set on it (its web page), so the loop knows no closer bound at start
+MAX_RATE = 7000.0
 _REQ = struct.Struct(">HHI")
 _REC = struct.Struct(">IIIiiiiii")
 RECORD_SIZE = _REC.size  # 36

@@ -23,10 +23,23 @@ from roboisf.cell import Cell, cell_from_study
 from roboisf.errors import InputError
 from roboisf.logs.forcelog import read_force_log
 from roboisf.logs.jointlog import read_joint_log
-from roboisf.online.core import Limits, OnlineCompensator, Plausibility, SensorSetup
+from roboisf.online.core import (
+    Limits,
+    OnlineCompensator,
+    Plausibility,
+    SensorSetup,
+    check_cutoff,
+)
 from roboisf.study import load_study
 
-__all__ = ["ReplaySensor", "StudyReplay", "expected_peak_force", "load_replay", "replay_study"]
+__all__ = [
+    "ReplaySensor",
+    "StudyReplay",
+    "expected_peak_force",
+    "load_replay",
+    "replay_study",
+    "sample_rate",
+]
 
 F64 = NDArray[np.float64]
 
@@ -66,8 +79,19 @@ class StudyReplay:
     q: F64
 
 
+def sample_rate(time: F64) -> float:
+    """The rate [Hz] of samples at ``time`` (N,) s: one over their median spacing (NaN for
+    fewer than two samples or no spacing)."""
+    dt = np.diff(np.asarray(time, dtype=float))
+    dt = dt[np.isfinite(dt) & (dt > 0)]
+    return 1.0 / float(np.median(dt)) if len(dt) else math.nan
+
+
 def load_replay(study_dir: str | Path, *, cutoff: float = 20.0) -> StudyReplay:
-    """Read ``study_dir``'s cell, robot force log and joint log (errors name the file)."""
+    """Read ``study_dir``'s cell, robot force log and joint log (errors name the file).
+
+    A ``cutoff`` [Hz] at or above half the force log's rate filters nothing and is refused
+    (:func:`~roboisf.online.core.check_cutoff`, field ``cutoff``)."""
     study = load_study(study_dir)
     cell = cell_from_study(study)
     run = study.robot_run
@@ -85,6 +109,9 @@ def load_replay(study_dir: str | Path, *, cutoff: float = 20.0) -> StudyReplay:
             field=f"runs.{run.name}.joints",
         )
     fl = read_force_log(spec.file)
+    rate = sample_rate(fl.time)
+    if math.isfinite(rate):
+        check_cutoff(cutoff, rate, f"the force log {Path(spec.file).name}, sampled at")
     jl = read_joint_log(run.joints)
     sensor = SensorSetup(cell.T_flange_tip @ spec.pose, load_on=spec.load_on, cutoff=cutoff)
     return StudyReplay(cell, sensor, fl.time + spec.time_offset, fl.wrench, jl.time, jl.q)

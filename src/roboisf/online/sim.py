@@ -81,6 +81,8 @@ F64 = NDArray[np.float64]
 SIM_TOOL_MASS = 3.0
 SIM_TOOL_COG = (0.0, 0.002, 0.09)
 SIM_TARE = (4.0, -2.5, 12.0, 0.15, -0.08, 0.02)
+#: Hz — the simulated Net F/T's record rate
+SENSOR_RATE = 1000.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -713,7 +715,7 @@ def sensor_process(
     stop: Any,
     ready: Any,
     *,
-    rate: float = 1000.0,
+    rate: float = SENSOR_RATE,
     noise: float = 2.0,
     seed: int = 1,
     silent_after: float = math.inf,
@@ -877,7 +879,7 @@ class Simulation:
         *,
         n_cycles: int = 1000,
         cycle: float = 0.004,
-        sensor_rate: float = 1000.0,
+        sensor_rate: float = SENSOR_RATE,
         point_step: int = 1,
         sensor_silent_after: float = math.inf,
         start_delay: float = 0.3,
