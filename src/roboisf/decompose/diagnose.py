@@ -58,6 +58,7 @@ time is a thermal drift (a scan is one rigid snapshot), told from a tilt of the 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
@@ -199,10 +200,62 @@ def verdict(lo: float, hi: float, limits: tuple[float, float]) -> str:
     return "cannot_tell"
 
 
+#: Decimals each suspect's numbers are printed with in its explanation and headline. The text's
+#: estimates and intervals are formatted from the summary's own values (:func:`_finding`), so
+#: what the terminal and the report print is what summary.json holds, at this precision.
+PRECISION = {
+    "robot_stiffness": 3,
+    "force_gain": 3,
+    "force_moment_crosstalk": 2,
+    "force_moment_bias": 2,
+    "force_bias": 1,
+    "force_crosstalk": 4,
+    "scan_shift": 3,
+    "work_object": 3,
+    "scan_rotation": 3,
+    "thermal_drift": 3,
+    "work_object_tilt": 3,
+    "springback_coupling": 3,
+}
+
+
+def _json_number(v: float | None) -> float | None:
+    """A number as summary.json holds it (None for a missing or non-finite one)."""
+    return float(v) if v is not None and math.isfinite(v) else None
+
+
+@dataclass(frozen=True)
+class Part:
+    """A named estimate behind a finding (the one-scale and the per-joint fit's shift, the false
+    moment's part that follows the force …), in the finding's unit; ``signed`` when it has a
+    direction (a rotation's sign) and is printed with it."""
+
+    name: str
+    estimate: float | None
+    ci_low: float | None
+    ci_high: float | None
+    signed: bool = False
+    #: its unit when it is not the finding's (a tilt in degrees beside an offset in mm)
+    unit: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "name": self.name,
+            "estimate": _json_number(self.estimate),
+            "ci_low": _json_number(self.ci_low),
+            "ci_high": _json_number(self.ci_high),
+            "signed": self.signed,
+        }
+        if self.unit is not None:
+            out["unit"] = self.unit
+        return out
+
+
 @dataclass(frozen=True)
 class Finding:
     """One suspect's verdict. ``estimate``, ``ci_low``, ``ci_high`` in ``unit`` (None when the
-    data hold no estimate); ``headline`` one short line for the terminal and the report."""
+    data hold no estimate); ``headline`` one short line for the terminal and the report;
+    ``parts`` the named estimates the explanation also quotes (summary.json's ``parts``)."""
 
     suspect: str
     verdict: str
@@ -213,12 +266,11 @@ class Finding:
     explanation: str
     headline: str
     limits: tuple[float, float] = (math.nan, math.nan)
+    parts: tuple[Part, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
-        def f(v: float | None) -> float | None:
-            return float(v) if v is not None and math.isfinite(v) else None
-
-        return {
+        f = _json_number
+        out = {
             "suspect": self.suspect,
             "verdict": self.verdict,
             "estimate": f(self.estimate),
@@ -229,6 +281,9 @@ class Finding:
             "headline": self.headline,
             "detection_limits": [f(self.limits[0]), f(self.limits[1])],
         }
+        if self.parts:
+            out["parts"] = [p.to_dict() for p in self.parts]
+        return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -1101,7 +1156,12 @@ def _finding(
     todo: str,
     *,
     force: str | None = None,
+    parts: tuple[Part, ...] = (),
 ) -> Finding:
+    """A suspect's finding. ``text`` may quote the finding's numbers by placeholder — ``{est}``,
+    ``{ci}`` (``[lo, hi]``) and ``{est:NAME}``, ``{ci:NAME}`` for the part ``NAME`` — which are
+    formatted here from the values summary.json holds (:data:`PRECISION`): the text cannot say
+    another number than the JSON."""
     limits = DETECTION_LIMITS[suspect]
     if est is None or ci is None:
         v = "cannot_tell"
@@ -1109,6 +1169,8 @@ def _finding(
     else:
         lo, hi = ci
         v = force or verdict(lo, hi, limits)
+    f = Finding(suspect, v, est, lo, hi, unit, "", "", limits, tuple(parts))
+    text = _fill(text, f.to_dict())
     label = suspect.replace("_", " ")
     if v == "fault":
         head = f"{label}: FAULT — {_first_clause(text)}; {todo}"
@@ -1116,7 +1178,37 @@ def _finding(
         head = f"{label}: ok"
     else:
         head = f"{label}: cannot tell — {_first_clause(text)}"
-    return Finding(suspect, v, est, lo, hi, unit, text, head, limits)
+    return replace(f, explanation=text, headline=head)
+
+
+def _num(v: float | None, decimals: int, *, signed: bool = False) -> str:
+    """``v`` at ``decimals`` (with its sign when ``signed``; never "-0.00")."""
+    if v is None:
+        return "n/a"
+    s = f"{v:+.{decimals}f}" if signed else f"{v:.{decimals}f}"
+    if float(s) == 0.0:
+        s = s.replace("-", "+" if signed else "")
+    return s
+
+
+_PLACEHOLDER = re.compile(r"\{(est|ci)(?::([a-z_]+))?\}")
+
+
+def _fill(text: str, d: dict[str, Any]) -> str:
+    """``text`` with its placeholders (:func:`_finding`) replaced by the numbers of ``d`` (a
+    finding's summary.json entry) at the suspect's precision."""
+    dec = PRECISION[d["suspect"]]
+    parts = {p["name"]: p for p in d.get("parts", [])}
+
+    def one(m: re.Match[str]) -> str:
+        what, name = m.group(1), m.group(2)
+        src = d if name is None else parts[name]
+        sg = bool(src.get("signed", False))
+        if what == "est":
+            return _num(src["estimate"], dec, signed=sg)
+        return f"[{_num(src['ci_low'], dec, signed=sg)}, {_num(src['ci_high'], dec, signed=sg)}]"
+
+    return _PLACEHOLDER.sub(one, text)
 
 
 def _first_clause(text: str) -> str:
@@ -1153,18 +1245,20 @@ def sensor_findings(
             _static_bias_finding(unloaded, 1.0, None),
             *_unknown(("force_crosstalk",), why),
         ]
-    g, (glo, ghi) = sf.gain, sf.gain_ci
+    g = sf.gain
     gain_text = (
-        f"the flange sensor reads {g:.3f}× the CNC dynamometer's force on the same path (95 % "
-        f"[{glo:.3f}, {ghi:.3f}], deeper half of the laps; the shallow half differs by "
+        "the flange sensor reads {est}× the CNC dynamometer's force on the same path (95 % "
+        "{ci}, deeper half of the laps; the shallow half differs by "
         f"{sf.process_gap:+.1%}, the processes' own difference, added to the interval); "
         f"largest force crosstalk {sf.force_crosstalk:.3f}"
     )
     cm = sf.moment_crosstalk * 1e3
     clo, chi = (v * 1e3 for v in sf.moment_crosstalk_ci)
+    ct_parts = [Part("whole", cm, clo, chi)]
     ct_text = (
-        f"the moment channels carry {cm:.2f} mm (N·m per kN) of false tip moment per unit force "
-        f"beyond the point-contact moment (contact − tip) × F, whose size is at most R·|F| "
+        "the moment channels carry {est:whole} mm (N·m per kN) of false tip moment per unit force "
+        "(95 % {ci:whole}) beyond the point-contact moment (contact − tip) × F, whose size is at "
+        f"most R·|F| "
         f"(R = {R * 1e3:.1f} mm); the excess is {sf.moment_excess:.0%} of that bound"
     )
     b = sf.b
@@ -1177,12 +1271,12 @@ def sensor_findings(
         plo, phi = (v * 1e3 for v in sf.moment_proportional_ci)
         lim = DETECTION_LIMITS["force_moment_crosstalk"]
         vp = verdict(plo, phi, lim)
+        ct_parts.append(Part("follows_force", sf.moment_proportional * 1e3, plo, phi))
         ct_text += (
-            f"; with a constant force between the sensors at fault (a bias, or the axial force's "
-            f"crosstalk: force_bias, force_crosstalk), a constant false moment is also what it "
-            f"makes carried up the arm from the flange to the tip: the part that follows the "
-            f"force is "
-            f"{sf.moment_proportional * 1e3:.2f} mm ([{plo:.2f}, {phi:.2f}])"
+            "; with a constant force between the sensors at fault (a bias, or the axial force's "
+            "crosstalk: force_bias, force_crosstalk), a constant false moment is also what it "
+            "makes carried up the arm from the flange to the tip: the part that follows the "
+            "force is {est:follows_force} mm ({ci:follows_force})"
         )
         if vp != "fault" and verdict(clo, chi, lim) == "fault":
             ct_force = "cannot_tell"
@@ -1193,7 +1287,7 @@ def sensor_findings(
         elif vp == "fault":
             ct_est, ct_ci = sf.moment_proportional * 1e3, (plo, phi)
     bias_text = (
-        f"a constant ({b[0]:+.1f}, {b[1]:+.1f}, {b[2]:+.1f}) N (work axes) between the flange "
+        f"a constant {_vec(b)} (work axes; its size {{est}} N, 95 % {{ci}}) between the flange "
         "sensor's and the dynamometer's tip forces, the gain fitted beside it; an untared sensor "
         "or the tool's weight below the sensor"
     )
@@ -1241,6 +1335,7 @@ def sensor_findings(
             ct_text,
             "check the sensor's calibration matrix (the analysis used the point-contact moment)",
             force=ct_force,
+            parts=tuple(ct_parts),
         ),
         bias_finding,
         xt_finding,
@@ -1281,14 +1376,16 @@ def _static_bias_finding(u: UnloadedEvidence, gain: float, sf: SensorFit | None)
         f"{_vec(u.robot)} at the tip (work axes)"
     )
     text += (
-        f", the dynamometer {_vec(u.cnc)}: a static offset of {_vec(b_s)} between them"
+        f", the dynamometer {_vec(u.cnc)}: a static offset of {_vec(b_s)} between them (its "
+        "size {est} N, 95 % {ci})"
         + (
             " (both forming there: the processes' own force difference is in its interval)"
             if u.on_path
             else ""
         )
         if u.cnc_seen
-        else " (the dynamometer's log has no unloaded stretch: its zero is taken as right)"
+        else " (its size {est} N, 95 % {ci}; the dynamometer's log has no unloaded stretch: its "
+        "zero is taken as right)"
     )
     text += "; an untared sensor or the tool's weight below the sensor"
     if math.isfinite(u.drift) and u.drift > BIAS_DRIFT:
@@ -1312,7 +1409,7 @@ def _axial_crosstalk_finding(sf: SensorFit) -> Finding:
     assert sf.axial_fixed is not None and sf.axial_fixed_ci is not None
     cx, cy = sf.axial_fixed
     text = (
-        f"beyond the static offset, the lateral channels read {math.hypot(cx, cy):.4f} N per N "
+        "beyond the static offset, the lateral channels read {est} N per N (95 % {ci}) "
         f"of the axial force (x {cx:+.4f}, y {cy:+.4f}, work axes; {sf.axial_force:.0f} N RMS "
         "axial force): crosstalk of the axial force into the lateral channels — along a wall it "
         "is a near-constant lateral force that only the logs at rest tell from a bias"
@@ -1328,13 +1425,13 @@ def _axial_crosstalk_unseen(sf: SensorFit, v_b: str) -> Finding:
         hi = sf.bias_ci[1] / Fz
         text = (
             f"no constant between the two sensors on this path (|b| ≤ {sf.bias_ci[1]:.1f} N), "
-            f"so the axial force's crosstalk into the lateral channels is at most {hi:.4f} N "
-            f"per N ({sf.axial_force:.0f} N RMS axial force)"
+            "so the axial force's crosstalk into the lateral channels lies in {ci} N per N "
+            f"({sf.axial_force:.0f} N RMS axial force)"
         )
         return _finding("force_crosstalk", sf.bias / Fz, (0.0, hi), "1", text, XT_ACTION)
     text = (
         f"a constant of {sf.bias:.1f} N between the sensors on this path may be the axial "
-        f"force's crosstalk into the lateral channels (up to {sf.bias / Fz:.4f} N per N) or a "
+        "force's crosstalk into the lateral channels ({est} N per N, 95 % {ci}) or a "
         "bias: the path's axial force varies too little to tell, and the logs have no unloaded "
         "stretch to read the sensor at rest (either way the analysis removed the constant)"
     )
@@ -1396,6 +1493,12 @@ def _rotation_sizes(
     return r1, ci1, rj, (lo_abs, hi_abs)
 
 
+def _rotation_joint_ci(rf: RobotTermFit) -> tuple[float, float]:
+    """The per-joint fit's signed rotation interval in degrees (nan when not seen)."""
+    c = rf.rotation_joint_ci or (math.nan, math.nan)
+    return math.degrees(c[0]), math.degrees(c[1])
+
+
 def offset_seen(rf: RobotTermFit) -> tuple[bool, bool]:
     """Whether the robot term holds a sideways offset and a rotation about the part axis beyond
     their detection limits (both fits agree): the robot scan's registration or the robot's work
@@ -1426,17 +1529,20 @@ def _offset_findings(rf: RobotTermFit, *, axisymmetric: bool) -> list[Finding]:
         "tilt": " (a drift and a tilt of the formed part fitted beside it)",
         "tilt_only": " (a tilt of the formed part fitted beside it)",
     }[rf.model]
+    shift_parts = [
+        Part("one_scale", float(np.linalg.norm(s1)), c1[0], c1[1]),
+        Part("per_joint", float(np.linalg.norm(sj)), cj[0], cj[1]),
+    ]
     fitted = (
-        f"the robot term carries the pattern of a sideways offset of "
-        f"{np.linalg.norm(s1):.3f} mm (x {s1[0]:+.3f}, y {s1[1]:+.3f}; 95 % of its size "
-        f"[{c1[0]:.3f}, {c1[1]:.3f}] mm) beside one stiffness scale, and "
-        f"{np.linalg.norm(sj):.3f} mm ([{cj[0]:.3f}, {cj[1]:.3f}]) beside a per-joint fit" + beside
+        "the robot term carries the pattern of a sideways offset of {est:one_scale} mm "
+        f"(x {s1[0]:+.3f}, y {s1[1]:+.3f}; 95 % of its size {{ci:one_scale}} mm) beside one "
+        "stiffness scale, and {est:per_joint} mm ({ci:per_joint}) beside a per-joint fit" + beside
     )
     est = float(np.linalg.norm(s1 if v1 == vj else sj))
     shift_seen, turned = offset_seen(rf)
     if shift_seen:
         shift_text = (
-            f"a sideways offset of the robot part of {est:.3f} mm [{ci[0]:.3f}, {ci[1]:.3f}]: "
+            "a sideways offset of the robot part of {est} mm {ci}: "
             "the robot scan's registration or the robot's work object — cannot tell apart from "
             f"these files ({OFFSET_SHORT}); {fitted}; {OFFSET_WHY}; {OFFSET_CHECK}"
         )
@@ -1444,10 +1550,10 @@ def _offset_findings(rf: RobotTermFit, *, axisymmetric: bool) -> list[Finding]:
         shift_text = fitted
     else:
         shift_text = (
-            f"{fitted}; the two explanations disagree: an offset of {np.linalg.norm(s1):.3f} mm "
+            f"{fitted}; the two explanations disagree: an offset of {{est:one_scale}} mm "
             f"(RMS {rf.rms_shift_pattern * 1e3:.3f} mm of normal deviation) with one stiffness "
             "scale, or joint stiffness errors that differ joint by joint with an offset of "
-            f"{np.linalg.norm(sj):.3f} mm; an offset would be the robot scan's registration or "
+            "{est:per_joint} mm; an offset would be the robot scan's registration or "
             "the robot's work object alike"
         )
     if shift_seen and rf.tilt_alone is not None and rf.drift is None:
@@ -1457,7 +1563,9 @@ def _offset_findings(rf: RobotTermFit, *, axisymmetric: bool) -> list[Finding]:
         )
     v_shift = "cannot_tell" if shift_seen or v1 != vj else v1
     out = [
-        _finding("scan_shift", est, ci, "mm", shift_text, "", force=v_shift),
+        _finding(
+            "scan_shift", est, ci, "mm", shift_text, "", force=v_shift, parts=tuple(shift_parts)
+        ),
     ]
     rot = _rotation_sizes(rf)
     if rot is None:
@@ -1471,16 +1579,21 @@ def _offset_findings(rf: RobotTermFit, *, axisymmetric: bool) -> list[Finding]:
         rot_finding = _finding("scan_rotation", None, None, "deg", why, "")
     else:
         r1, ci1, rj, size_ci = rot
+        cij = _rotation_joint_ci(rf)
+        rot_parts = (
+            Part("one_scale", r1, ci1[0], ci1[1], signed=True),
+            Part("per_joint", rj, cij[0], cij[1], signed=True),
+        )
         rot_fitted = (
-            f"the robot term carries the pattern of a rotation about the part axis of "
-            f"{r1:+.3f}° (95 % [{ci1[0]:+.3f}, {ci1[1]:+.3f}]°; {rj:+.3f}° beside a per-joint "
-            f"fit), RMS {rf.rms_rotation_pattern * 1e3:.3f} mm of normal deviation"
+            "the robot term carries the pattern of a rotation about the part axis of "
+            "{est:one_scale}° (95 % {ci:one_scale}°; {est:per_joint}° ({ci:per_joint}°) beside a "
+            f"per-joint fit), RMS {rf.rms_rotation_pattern * 1e3:.3f} mm of normal deviation"
         )
         rot_text = rot_fitted
         if turned:
             rot_text = (
-                f"the robot part is turned about the part axis by {r1:+.3f}° "
-                f"[{size_ci[0]:.3f}, {size_ci[1]:.3f}]° in size: the robot scan's registration "
+                "the robot part is turned about the part axis by {est:one_scale}° ({est}° in "
+                "size, 95 % {ci}°): the robot scan's registration "
                 f"or the robot's work object turned — cannot tell apart from these files "
                 f"({OFFSET_SHORT}); {rot_fitted}; {OFFSET_WHY}; {OFFSET_CHECK}"
             )
@@ -1492,16 +1605,18 @@ def _offset_findings(rf: RobotTermFit, *, axisymmetric: bool) -> list[Finding]:
             rot_text,
             "",
             force="cannot_tell" if turned else None,
+            parts=rot_parts,
         )
     # the work object: the same offset (and turn), read as the part's
     if shift_seen or turned:
         seen = []
         if shift_seen:
-            seen.append(f"a sideways offset of {est:.3f} mm [{ci[0]:.3f}, {ci[1]:.3f}]")
+            seen.append("a sideways offset of {est} mm {ci}")
         if turned and rot is not None:
+            shift_parts.append(Part("turn", abs(rot[0]), rot[3][0], rot[3][1], unit="deg"))
             seen.append(
-                f"a turn about the part axis of {rot[0]:+.3f}° "
-                f"[{rot[3][0]:.3f}, {rot[3][1]:.3f}]° in size"
+                f"a turn about the part axis of {{est:turn}}° in size ({rot[0]:+.3f}°; 95 % "
+                "{ci:turn}°)"
             )
         wo_text = (
             f"the robot part carries {' and '.join(seen)}: the robot's work object (the part "
@@ -1516,7 +1631,9 @@ def _offset_findings(rf: RobotTermFit, *, axisymmetric: bool) -> list[Finding]:
         )
         # the offset's own verdict: a turn that is only not ruled out is scan_rotation's to say
         v_wo = v_shift
-    out.append(_finding("work_object", est, ci, "mm", wo_text, "", force=v_wo))
+    out.append(
+        _finding("work_object", est, ci, "mm", wo_text, "", force=v_wo, parts=tuple(shift_parts))
+    )
     out.append(rot_finding)
     return out
 
@@ -1569,37 +1686,47 @@ def _drift_finding(rf: RobotTermFit) -> Finding:
                 text, todo, force="ok",
             )  # fmt: skip
         text = (
-            f"{where}: the robot part's offset ([{lo:.3f}, {hi:.3f}] mm) may be a thermal drift "
-            "of the robot as well as the robot scan's registration or the robot's work object — "
-            "cannot tell apart on this path"
+            f"{where}: the robot part's offset ({{est:offset}} mm, 95 % {{ci:offset}}) may be a "
+            "thermal drift of the robot as well as the robot scan's registration or the robot's "
+            "work object — cannot tell apart on this path"
         )
+        offset = Part("offset", float(np.linalg.norm(sf.one)) * 1e3, lo, hi)
         return _finding(
             "thermal_drift", float(np.linalg.norm(sf.one)) * 1e3 / k, (0.0, hi / k), "mm", text,
-            todo, force="cannot_tell",
+            todo, force="cannot_tell", parts=(offset,),
         )  # fmt: skip
     assert tl is not None
     deg = math.degrees(1.0)
+    parts: list[Part] = []
 
-    def grows(d: PatternFit, beside: str) -> str:
-        e, ej = d.one * 1e3, d.joint * 1e3
+    def grows(d: PatternFit, beside: str, name: str = "") -> str:
+        """The drift ``d`` of both fits, its numbers as the parts ``one_scale{name}`` and
+        ``per_joint{name}``."""
+        e = d.one * 1e3
+        for fit, v, c in (("one_scale", d.one, d.one_ci), ("per_joint", d.joint, d.joint_ci)):
+            if fit + name not in {q.name for q in parts}:
+                parts.append(
+                    Part(fit + name, float(np.linalg.norm(v)) * 1e3, c[0] * 1e3, c[1] * 1e3)
+                )
         return (
             f"the robot term carries a sideways offset growing over the run to "
-            f"{np.linalg.norm(e):.3f} mm at its end (x {e[0]:+.3f}, y {e[1]:+.3f}; 95 % of its "
-            f"size [{d.one_ci[0] * 1e3:.3f}, {d.one_ci[1] * 1e3:.3f}] mm) beside one stiffness "
-            f"scale{beside}, and {np.linalg.norm(ej):.3f} mm ([{d.joint_ci[0] * 1e3:.3f}, "
-            f"{d.joint_ci[1] * 1e3:.3f}]) beside a per-joint fit"
+            f"{{est:one_scale{name}}} mm at its end (x {e[0]:+.3f}, y {e[1]:+.3f}; 95 % of its "
+            f"size {{ci:one_scale{name}}} mm) beside one stiffness scale{beside}, and "
+            f"{{est:per_joint{name}}} mm ({{ci:per_joint{name}}}) beside a per-joint fit"
         )
 
     t = tl.one * deg
+    parts.append(
+        Part("tilt", float(np.linalg.norm(t)), tl.one_ci[0] * deg, tl.one_ci[1] * deg, unit="deg")
+    )
     tilt_text = (
-        f"a tilt of the formed part of {np.linalg.norm(t):.3f}° about work x, y (x {t[0]:+.3f}°, "
-        f"y {t[1]:+.3f}°; 95 % of its size [{tl.one_ci[0] * deg:.3f}, "
-        f"{tl.one_ci[1] * deg:.3f}]°)"
+        f"a tilt of the formed part of {{est:tilt}}° about work x, y (x {t[0]:+.3f}°, "
+        f"y {t[1]:+.3f}°; 95 % of its size {{ci:tilt}}°)"
     )
     v2, v3 = d2.verdict(lim), d3.verdict(lim)
     if rf.model == "tilt":
         d, v, ci = d3, v3, d3.ci()
-        text = f"{grows(d3, ' and ' + tilt_text)}"
+        text = f"{grows(d3, ' and ' + tilt_text, '_with_tilt')}"
         if v == "ok":
             text += f"; the offset that grows with depth is that tilt, not a drift: {owner}"
         elif v == "cannot_tell":
@@ -1608,27 +1735,34 @@ def _drift_finding(rf: RobotTermFit) -> Finding:
         d, v = d2, "cannot_tell"
         ci = (min(d2.ci()[0], d3.ci()[0]), max(d2.ci()[1], d3.ci()[1]))
         text = (
-            f"a sideways offset growing over the run to {np.linalg.norm(d2.one) * 1e3:.3f} mm "
-            f"[{ci[0]:.3f}, {ci[1]:.3f}]: a thermal drift of the robot, or a tilt of the formed "
-            f"part about a horizontal axis ({owner}) — cannot tell apart on this path (forming "
-            f"time follows depth); {grows(d2, '')}; with a tilt fitted too, "
-            f"{grows(d3, ' and ' + tilt_text)}"
+            "a sideways offset growing over the run to {est} mm {ci}: a thermal drift of the "
+            f"robot, or a tilt of the formed part about a horizontal axis ({owner}) — cannot "
+            f"tell apart on this path (forming time follows depth); {grows(d2, '')}; with a "
+            f"tilt fitted too, {grows(d3, ' and ' + tilt_text, '_with_tilt')}"
         )
     elif v2 == "fault":
         d, v = d2, "fault"
         ci = (min(d2.ci()[0], d3.ci()[0]), max(d2.ci()[1], d3.ci()[1]))
         text = (
-            f"the robot's tip drifted sideways over the run, {np.linalg.norm(d2.one) * 1e3:.3f} "
-            f"mm at its end [{ci[0]:.3f}, {ci[1]:.3f}]: a thermal drift — a scan is one rigid "
-            "snapshot, so an offset that grows with forming time is the formed part's, not the "
-            f"scan's; {grows(d2, '')}; with a tilt of the formed part fitted too (not seen), "
-            f"{grows(d3, '')}"
+            "the robot's tip drifted sideways over the run, {est} mm at its end {ci}: a thermal "
+            "drift — a scan is one rigid snapshot, so an offset that grows with forming time is "
+            f"the formed part's, not the scan's; {grows(d2, '')}; with a tilt of the formed part "
+            f"fitted too (not seen), {grows(d3, '', '_with_tilt')}"
         )
     else:
         d, v, ci = d2, v2, d2.ci()
         text = grows(d2, "")
+    if "{est:tilt}" not in text:
+        parts = [q for q in parts if q.name != "tilt"]
     return _finding(
-        "thermal_drift", float(np.linalg.norm(d.one)) * 1e3, ci, "mm", text, todo, force=v
+        "thermal_drift",
+        float(np.linalg.norm(d.one)) * 1e3,
+        ci,
+        "mm",
+        text,
+        todo,
+        force=v,
+        parts=tuple(parts),
     )
 
 
@@ -1661,37 +1795,41 @@ def _tilt_finding(rf: RobotTermFit) -> Finding:
             tl, v = alone, "ok"
         elif va == "fault":  # a tilt without a drift, a drift beside no tilt: either
             either = True
-    t, tj = tl.one * deg, tl.joint * deg
+    t = tl.one * deg
     ci = tl.ci(lever)
     est = float(np.linalg.norm(tl.one)) * lever
-    at = f"{est:.3f} mm sideways at the deepest analysed point ({lever:.0f} mm)"
+
+    def in_deg(name: str, f: F64, c: tuple[float, float]) -> Part:
+        return Part(name, float(np.linalg.norm(f)) * deg, c[0] * deg, c[1] * deg, unit="deg")
+
+    parts = [in_deg("one_scale", tl.one, tl.one_ci), in_deg("per_joint", tl.joint, tl.joint_ci)]
+    at = f"{{est}} mm sideways at the deepest analysed point ({lever:.0f} mm)"
     text = (
-        f"the formed part is tilted against the clamped flange by {np.linalg.norm(t):.3f}°, {at} "
-        f"(about work x {t[0]:+.3f}°, y {t[1]:+.3f}°; 95 % of its size [{tl.one_ci[0] * deg:.3f}"
-        f", {tl.one_ci[1] * deg:.3f}]°) beside one stiffness scale, "
+        f"the formed part is tilted against the clamped flange by {{est:one_scale}}°, {at} "
+        f"(about work x {t[0]:+.3f}°, y {t[1]:+.3f}°; 95 % of its size {{ci:one_scale}}°) "
+        "beside one stiffness scale, "
         + ("a drift and an offset" if tl is rf.tilt and beside_drift else "an offset")
-        + f", and {np.linalg.norm(tj):.3f}° ([{tl.joint_ci[0] * deg:.3f}, "
-        f"{tl.joint_ci[1] * deg:.3f}]) beside a per-joint fit"
+        + ", and {est:per_joint}° ({ci:per_joint}) beside a per-joint fit"
     )
     if either:
-        a = alone.one * deg
+        parts.append(in_deg("without_drift", alone.one, alone.one_ci))
         text += (
-            f"; fitted without a drift the tilt is {np.linalg.norm(a):.3f}° "
-            f"([{alone.one_ci[0] * deg:.3f}, {alone.one_ci[1] * deg:.3f}]): a tilt, or a drift "
+            "; fitted without a drift the tilt is {est:without_drift}° "
+            "({ci:without_drift}): a tilt, or a drift "
             "over the run — cannot tell apart on this path (forming time follows depth)"
         )
     if v == "fault" and rf.tilt_registered:
         text = (
-            f"the formed part is tilted {np.linalg.norm(t):.3f}° against the clamped flange, "
-            f"{est:.3f} mm [{ci[0]:.3f}, {ci[1]:.3f}] sideways at {lever:.0f} mm depth: the "
+            "the formed part is tilted {est:one_scale}° against the clamped flange, "
+            f"{{est}} mm {{ci}} sideways at {lever:.0f} mm depth: the "
             "robot's work object tilted about a horizontal axis "
             "(or the robot's kinematics) — the robot scan's tilts are registered from the "
             f"flange, so it is not the scan's; {text}"
         )
     elif v == "fault":
         text = (
-            f"the formed part is tilted {np.linalg.norm(t):.3f}°, {est:.3f} mm [{ci[0]:.3f}, "
-            f"{ci[1]:.3f}] sideways at {lever:.0f} mm depth: the robot's work object tilted, or "
+            f"the formed part is tilted {{est:one_scale}}°, {{est}} mm {{ci}} sideways at "
+            f"{lever:.0f} mm depth: the robot's work object tilted, or "
             "the robot scan tilted (its registration did not fit "
             f"the tilts) — cannot tell apart from these files ({OFFSET_SHORT}); {text}; "
             f"{OFFSET_CHECK}"
@@ -1705,6 +1843,7 @@ def _tilt_finding(rf: RobotTermFit) -> Finding:
         text,
         "measure the robot's work object (its tilt); compensate corrects it as the part's",
         force=v,
+        parts=tuple(parts),
     )
 
 
@@ -1717,8 +1856,8 @@ def robot_findings(rf: RobotTermFit | None, *, axisymmetric: bool) -> list[Findi
     out = []
     lo, hi = rf.ratio_ci
     rs_text = (
-        f"the robot gives way {rf.ratio:.3f}× the VJM's prediction at the corrected forces "
-        f"(95 % [{lo:.3f}, {hi:.3f}], spanning the one-scale and per-joint fits, joints "
+        "the robot gives way {est}× the VJM's prediction at the corrected forces "
+        "(95 % {ci}, spanning the one-scale and per-joint fits, joints "
         f"{rf.joints_fitted} fitted, the others at nominal); VJM RMS "
         f"{rf.rms_vjm * 1e3:.3f} mm"
     )
@@ -1852,7 +1991,7 @@ def _unchecked_forces(f: Finding, force_verdicts: dict[str, str]) -> Finding:
         return f
     ci = (f.ci_low, f.ci_high) if f.ci_low is not None and f.ci_high is not None else None
     text = f"{f.explanation}; {why}"
-    return _finding(f.suspect, f.estimate, ci, f.unit, text, "", force="cannot_tell")
+    return _finding(f.suspect, f.estimate, ci, f.unit, text, "", force="cannot_tell", parts=f.parts)
 
 
 def diagnose(
