@@ -161,11 +161,29 @@ def test_every_interval_in_the_text_is_the_jsons_on_each_branch():
     assert not bad, "\n".join(bad)
 
 
+def test_the_texts_estimate_is_the_jsons():
+    """The first number of each finding's first clause that is followed by the finding's unit
+    is its JSON estimate (the headline says what the JSON holds)."""
+    found = 0
+    for _name, findings in _sensor_cases():
+        for f in findings:
+            e = f.to_dict()
+            if e["suspect"] != "force_moment_crosstalk" or e["estimate"] is None:
+                continue
+            m = re.search(r"(\d+\.\d+) mm", e["headline"] if e["verdict"] != "ok" else
+                          e["explanation"])  # fmt: skip
+            assert m, e["explanation"]
+            assert _same(m.group(1), e["estimate"]), (m.group(1), e["estimate"], e["explanation"])
+            found += 1
+    assert found >= 5
+
+
 @pytest.mark.slow
 def test_a_faulted_studys_text_and_json_agree(tmp_path):
     """A pyramid (its rotation is seen) with a misregistered scan and a flange sensor reading
     low with a bias and crosstalk into its moment channels: every interval the explanations,
-    headlines and the terminal's lines print is the JSON's."""
+    headlines and the terminal's lines print is the JSON's, and the moment crosstalk's text
+    says its JSON estimate first."""
     from roboisf.decompose.pipeline import analyze, write_results
     from roboisf.report.statements import verdict_lines
     from roboisf.virtual.cell import build_study, pyramid_cell
@@ -204,3 +222,6 @@ def test_a_faulted_studys_text_and_json_agree(tmp_path):
             rest = rest.replace(h, "")
         bad += [f"terminal line {line!r}: {m.group(0)}" for m in INTERVAL.finditer(rest)]
     assert not bad, "\n".join(bad)
+    ct = {e["suspect"]: e for e in entries}["force_moment_crosstalk"]
+    m = re.search(r"(\d+\.\d+) mm", ct["explanation"])
+    assert m and _same(m.group(1), ct["estimate"]), (ct["estimate"], ct["explanation"])

@@ -19,9 +19,13 @@ end up. This module tells them apart, suspect by suspect, with what the study ho
   The CNC dynamometer is the reference.
 * **A physical bound on the tip moment.** The ball touches the sheet at one point, so the tip
   moment is ``(contact − tip) × F`` (friction acts at the contact and is in ``F``): at most
-  ``R · |F|``. What the moment channels add beyond it, fitted as ``C F + m₀`` (``C`` in
-  N·m per N = m, quoted in mm), is crosstalk into the moment channels (or, through the arm
-  from the flange to the tip, a force crosstalk).
+  ``R · |F|``. What the moment channels add beyond it, fitted as ``C F_xy + m₀`` (``C`` in
+  N·m per N = m, quoted in mm), is crosstalk into the moment channels (through the arm from
+  the sensor to the tip, a force crosstalk makes one too) — or, for the constant ``m₀``, a
+  bias of the moment channels or a force offset carried up that arm. The logs at rest tell
+  them apart: a bias reads there without load, crosstalk does not; without them a constant
+  that matters is ``cannot_tell`` for both ``force_moment_crosstalk`` and
+  ``force_moment_bias``.
 * **The robot term's pattern along the path.** With the forces corrected (``G⁻¹ (F − b)``, the
   moments replaced by the point-contact moment when the moment channels fail their bound) the
   measured robot term ``y`` is fitted as ``r · x + n_x s_x + n_y s_y + θ n · (ẑ × p)``: a
@@ -102,6 +106,7 @@ SUSPECTS = (
     "robot_stiffness",
     "force_gain",
     "force_moment_crosstalk",
+    "force_moment_bias",
     "force_bias",
     "force_crosstalk",
     "scan_shift",
@@ -121,6 +126,10 @@ DETECTION_LIMITS: dict[str, tuple[float, float]] = {
     "force_gain": (0.97, 1.03),
     # false tip moment per newton of force, mm (1 mm: 0.6 N·m at 600 N, ~0.01 mm of tool term)
     "force_moment_crosstalk": (0.0, 1.0),
+    # what the moment channels read of their own at rest, N·m: the false moment of the
+    # crosstalk's limit at 500 N, a sixth of the point-contact moment's bound R·|F| (3 N·m on a
+    # Ø10 mm ball at 600 N)
+    "force_moment_bias": (0.0, 0.5),
     # a constant force, N (the old warning's 5 N on the lateral channels)
     "force_bias": (0.0, 5.0),
     # the axial force's crosstalk into the lateral channels, N per N (1 % of a 600 N axial force
@@ -149,6 +158,7 @@ UNITS = {
     "robot_stiffness": "1",
     "force_gain": "1",
     "force_moment_crosstalk": "mm",
+    "force_moment_bias": "N·m",
     "force_bias": "N",
     "force_crosstalk": "1",
     "scan_shift": "mm",
@@ -270,7 +280,7 @@ class Finding:
 
     def to_dict(self) -> dict[str, Any]:
         f = _json_number
-        out = {
+        out: dict[str, Any] = {
             "suspect": self.suspect,
             "verdict": self.verdict,
             "estimate": f(self.estimate),
@@ -367,7 +377,13 @@ class UnloadedEvidence:
     half the start–end difference when the two disagree (a drifting zero); cnc, cnc_se : (3,)
     the dynamometer's, zero when its log has no untared unloaded stretch (``cnc_seen`` False:
     its zero is then taken as right, and said); drift : N, the flange sensor's |start − end|
-    (nan with one stretch); where : the stretches, in words."""
+    (nan with one stretch); where : the stretches, in words.
+
+    The moment channels at rest (N·m, work axes): robot_m, robot_m_se the flange sensor's tip
+    moment; robot_ms, robot_ms_se its moment about the sensor's own origin, ``M − lever × F``
+    block by block (what its moment channels read: a force offset makes none there); lever :
+    (3,) m the sensor's origin relative to the tip (the path's first tip, work axes; zero for a
+    sensor at the tip)."""
 
     robot: F64
     robot_se: F64
@@ -379,13 +395,24 @@ class UnloadedEvidence:
     #: a robot stretch lies on the toolpath (the log starts or ends forming below the onset):
     #: both logs read forming force there, and the processes' own difference is in their gap
     on_path: bool = False
+    robot_m: F64 = field(default_factory=lambda: np.zeros(3))
+    robot_m_se: F64 = field(default_factory=lambda: np.zeros(3))
+    robot_ms: F64 = field(default_factory=lambda: np.zeros(3))
+    robot_ms_se: F64 = field(default_factory=lambda: np.zeros(3))
+    lever: F64 = field(default_factory=lambda: np.zeros(3))
 
     @classmethod
     def from_stretches(
-        cls, robot: list[UnloadedStretch], cnc: list[UnloadedStretch]
+        cls,
+        robot: list[UnloadedStretch],
+        cnc: list[UnloadedStretch],
+        *,
+        lever: F64 | None = None,
     ) -> UnloadedEvidence | None:
         """None when the robot's log has no untared unloaded stretch (it starts loaded, or was
-        tared on the one it has: that reads zero by construction)."""
+        tared on the one it has: that reads zero by construction). ``lever`` (3,) m: the flange
+        sensor's origin relative to the tip, work axes (None: at the tip)."""
+        L = np.zeros(3) if lever is None else np.asarray(lever, dtype=float)
         r = [u for u in robot if not u.tared]
         if not r:
             return None
@@ -398,35 +425,49 @@ class UnloadedEvidence:
 
         from scipy.special import stdtrit  # Student's t quantile, without scipy.stats
 
-        def pooled(us: list[UnloadedStretch]) -> tuple[F64, F64]:
+        def forces(B: F64) -> F64:
+            return B[:, :3]
+
+        def moments(B: F64) -> F64:
+            return B[:, 3:6]
+
+        def at_sensor(B: F64) -> F64:  # the moment about the sensor's origin
+            return B[:, 3:6] - np.cross(L, B[:, :3])
+
+        def pooled(
+            us: list[UnloadedStretch], ch: Any = forces, drifts: bool = True
+        ) -> tuple[F64, F64]:
             # each stretch about its own mean (a drift is added below), the standard error
             # stretched by Student's t over the normal's 1.96: few blocks estimate it
-            B = np.vstack([u.blocks[:, :3] - u.blocks[:, :3].mean(axis=0) for u in us])
+            B = np.vstack([ch(u.blocks) - ch(u.blocks).mean(axis=0) for u in us])
             dof = len(B) - len(us)
             sd = np.sqrt(np.sum(B**2, axis=0) / max(dof, 1))
             t = float(stdtrit(max(dof, 1), 0.975)) / 1.96
-            mean = np.vstack([u.blocks[:, :3] for u in us]).mean(axis=0)
+            mean = np.vstack([ch(u.blocks) for u in us]).mean(axis=0)
             se = t * sd / np.sqrt(len(B))
             for u in us:
                 if u.on_path:  # forming below the threshold: its creep is in the error
                     q = max(1, len(u.blocks) // 4)
-                    creep = u.blocks[-q:, :3].mean(axis=0) - u.blocks[:q, :3].mean(axis=0)
+                    creep = ch(u.blocks[-q:]).mean(axis=0) - ch(u.blocks[:q]).mean(axis=0)
                     se = np.sqrt(se**2 + creep**2)
+            if drifts and len(us) == 2:  # a drifting zero: half the start–end difference
+                d = ch(us[0].blocks).mean(axis=0) - ch(us[1].blocks).mean(axis=0)
+                se = np.sqrt(se**2 + (0.5 * d) ** 2)
             return mean, se
 
         b_r, se_r = pooled(r)
         drift = math.nan
         if len(r) == 2:
-            d = r[0].mean[:3] - r[1].mean[:3]
-            drift = float(np.linalg.norm(d))
-            se_r = np.sqrt(se_r**2 + (0.5 * d) ** 2)
-        b_c, se_c = pooled(c) if c else (np.zeros(3), np.zeros(3))
+            drift = float(np.linalg.norm(r[0].mean[:3] - r[1].mean[:3]))
+        b_c, se_c = pooled(c, drifts=False) if c else (np.zeros(3), np.zeros(3))
+        m_r, m_se = pooled(r, moments)
+        ms_r, ms_se = pooled(r, at_sensor)
         where = " and ".join(
             f"{u.where} {u.t0:.2f}–{u.t1:.2f} s"
             + (", on the path below the onset" if u.on_path else "")
             for u in r
         )
-        return cls(b_r, se_r, b_c, se_c, bool(c), drift, where, on_path)
+        return cls(b_r, se_r, b_c, se_c, bool(c), drift, where, on_path, m_r, m_se, ms_r, ms_se, L)
 
     def static_offset(self, gain: float, spread: float = 0.0) -> tuple[F64, F64]:
         """(3,) N the flange sensor's constant beyond the dynamometer's at rest, in the fit's
@@ -445,6 +486,47 @@ class UnloadedEvidence:
             se = np.sqrt(se**2 + (spread * gain * np.abs(self.cnc) / 1.96) ** 2)
         return self.robot - gain * self.cnc, se
 
+    def _forming_moment_se(self, gain: float, reach: float) -> F64:
+        """On the path, the forming force's own tip moment at the stretch, ``(a₀ − ā) × g F``
+        with ``|a₀ − ā| ≤ reach`` (m): a 95 % half-width per axis (zero off the path)."""
+        if not self.on_path:
+            return np.zeros(3)
+        return np.full(3, reach * gain * float(np.linalg.norm(self.cnc)) / 1.96)
+
+    def static_moment(self, gain: float, arm: F64, reach: float) -> tuple[F64, F64]:
+        """(3,) N·m the flange sensor's tip moment at rest beyond the point-contact moment of
+        its reading, ``M − ā × F`` (``arm`` ā (3,) m the mean contact − tip of the sensor
+        fit's points), and its standard error: the constant ``m₀`` the forming fit of the false
+        moment (``C F_xy + m₀``) finds when the load adds nothing to it (a moment bias, a force
+        offset carried up the arm). ``reach``: see :meth:`_forming_moment_se`."""
+        m = self.robot_m - np.cross(arm, self.robot)
+        se = np.sqrt(
+            self.robot_m_se**2 + _cross_se(arm, self.robot_se) ** 2
+            + self._forming_moment_se(gain, reach) ** 2
+        )  # fmt: skip
+        return m, se
+
+    def moment_offset(self, gain: float, arm: F64, reach: float) -> tuple[F64, F64]:
+        """(3,) N·m what the moment channels read at rest of their own — the moment about the
+        sensor's origin, where a force offset makes none, less what the dynamometer's force
+        there (on the path) makes about it, ``M_s + (lever − ā) × g F_cnc`` — and its standard
+        error: a bias of the moment channels, or the tool's weight acting off the sensor's
+        axis (its moment about the sensor)."""
+        c = self.lever - arm
+        mu = self.robot_ms + np.cross(c, gain * self.cnc)
+        se = np.sqrt(
+            self.robot_ms_se**2 + _cross_se(c, gain * self.cnc_se) ** 2
+            + self._forming_moment_se(gain, reach) ** 2
+        )  # fmt: skip
+        return mu, se
+
+
+def _cross_se(c: F64, se: F64) -> F64:
+    """(3,) standard error of ``c × b`` for ``b`` with independent errors ``se`` (3,)."""
+    cx, cy, cz = (float(v) for v in c)
+    sx, sy, sz = (float(v) ** 2 for v in se)
+    return np.sqrt([cy**2 * sz + cz**2 * sy, cz**2 * sx + cx**2 * sz, cx**2 * sy + cy**2 * sx])
+
 
 @dataclass(frozen=True)
 class SensorFit:
@@ -461,7 +543,22 @@ class SensorFit:
     moment_proportional_ci : the same for the part that follows the lateral force (not a
     constant); moment_excess : RMS of
     the moment beyond the point-contact moment / RMS of ``R|F|``; process_gap : shallow-half over
-    deep-half gain − 1."""
+    deep-half gain − 1.
+
+    The moment channels' constant ``m₀``: moment_constant, moment_constant_ci the size (N·m) of
+    ``m₀ − (lever − ā) × b`` — the constant beyond what the force constant makes up the arm
+    from the sensor (``lever``, m) to the tip (``ā`` the mean contact − tip, m), fitted on the
+    path: a moment bias, or the axial force's crosstalk into the moment channels (nearly
+    constant along a wall); moment_upper, moment_upper_ci the false moment per RMS newton (m)
+    were all of that constant crosstalk (the most the path alone allows). With the logs at
+    rest: moment_load, moment_load_ci the false moment per RMS newton (m) less the static
+    moment at rest (``static_moment`` (3,) N·m, the tip moment at rest beyond the
+    point-contact moment): what the load adds, crosstalk;
+    moment_bias, moment_bias_se (3,) N·m what the moment channels read at rest of their own
+    (:meth:`UnloadedEvidence.moment_offset`); mean_arm ā (3,) m; moment_reach m, how far the
+    contact − tip of a stretch on the path may lie from ā; lever (3,) m; moment_carried the
+    false moment per RMS newton (m) that the axial force's crosstalk into the lateral force
+    channels makes carried up the lever (left out of moment_load: force_crosstalk's)."""
 
     gain: float
     gain_ci: tuple[float, float]
@@ -489,6 +586,19 @@ class SensorFit:
     axial_fixed_ci: tuple[float, float] | None = None
     #: Set by the diagnosis when the crosstalk is at fault: :meth:`corrected` removes it.
     correct_axial: bool = False
+    moment_constant: float = math.nan
+    moment_constant_ci: tuple[float, float] = (math.nan, math.nan)
+    moment_upper: float = math.nan
+    moment_upper_ci: tuple[float, float] = (math.nan, math.nan)
+    mean_arm: F64 | None = None
+    moment_reach: float = 0.0
+    lever: F64 | None = None
+    moment_carried: float = 0.0
+    moment_load: float | None = None
+    moment_load_ci: tuple[float, float] | None = None
+    static_moment: F64 | None = None
+    moment_bias: F64 | None = None
+    moment_bias_se: F64 | None = None
 
     def corrected(self, W_rob: F64, arm: F64, *, moments: bool) -> F64:
         """The robot's tip wrench (N, 6) corrected: forces ``(F − b) / g`` and the lateral
@@ -570,13 +680,16 @@ def fit_sensor(
     n_boot: int = N_BOOT_DIAG,
     seed: int = 0,
     unloaded: UnloadedEvidence | None = None,
+    lever: F64 | None = None,
 ) -> SensorFit | None:
     """The flange sensor against the CNC dynamometer on the same path (module docstring).
 
     W_cnc, W_rob : (N, 6) [N, N·m] tip wrenches of the two runs, work axes; arm : (N, 3) m
     contact − tip; valid : (N,) bool; lap : (N,); depth : (N,) m; unloaded : the logs at rest,
     when they have an untared unloaded stretch: the static offset, and the axial force's
-    crosstalk fitted with the constant held at it. None with fewer than 6 laps."""
+    crosstalk fitted with the constant held at it; the static moment, and the false moment the
+    load adds beyond it. lever : (3,) m the flange sensor's origin relative to the tip, work
+    axes (None: ``unloaded``'s, else at the tip). None with fewer than 6 laps."""
     sel = np.asarray(valid, bool) & np.all(np.isfinite(W_cnc), 1) & np.all(np.isfinite(W_rob), 1)
     lp = np.asarray(lap)[sel]
     laps = np.unique(lp)
@@ -644,6 +757,22 @@ def fit_sensor(
     axial_force = float(np.sqrt(np.mean(Fz**2)))
     spread = max(gain - gain_ci[0], gain_ci[1] - gain) / gain if gain else 0.0
     static = _static_fit(unloaded, gain, Fz, Fr[deep], Fc[deep], inv, L, weights, spread)
+    moments = _moment_constant(
+        arm[sel][deep], b, boot[:, 1:4], Xd, _B, bootM, Fn, gain, unloaded, lever, seed
+    )
+    if unloaded is not None and static.get("axial_fixed") is not None:
+        # what the axial force's crosstalk into the lateral force channels (force_crosstalk)
+        # makes about the tip, carried up the arm from the sensor: that suspect's, not the
+        # moment channels' (a 3.6 % crosstalk made 9.7 mm of false moment per newton)
+        c = np.array([*static["axial_fixed"], 0.0])
+        f = np.outer(Fz, c)  # the false lateral force the sensor reads, N
+        lev = np.asarray(moments["lever"], dtype=float)
+        carried = np.cross(lev[None, :] - arm[sel][deep], f)
+        _f, B_adj, boot_adj = _false_moment(Fc[deep], Mres[deep] - carried, inv, L, weights)
+        moments.update(
+            _moment_load(Xd, B_adj, boot_adj, Fn, gain, unloaded, arm[sel][deep], seed),
+            moment_carried=float(np.sqrt(np.mean(np.sum(carried**2, 1)))) / Fn,
+        )
     return SensorFit(
         gain=gain,
         gain_ci=gain_ci,
@@ -665,7 +794,88 @@ def fit_sensor(
         n_laps=int(laps.size),
         axial_force=axial_force,
         **static,
+        **moments,
     )
+
+
+def _moment_constant(
+    arm: F64,
+    b: F64,
+    b_boot: F64,
+    X: F64,
+    B: F64,
+    B_boot: F64,
+    Fn: float,
+    gain: float,
+    unloaded: UnloadedEvidence | None,
+    lever: F64 | None,
+    seed: int,
+) -> dict[str, Any]:
+    """The false moment's constant ``m₀`` (``B[:, 2]`` of ``C F_xy + m₀``, bootstrap
+    ``B_boot`` (n_boot, 3, 3); X (M, 3) ``[F_xy, 1]`` of the deep points, ``arm`` (M, 3) m their
+    contact − tip, ``b`` (3,) N the force constant and its replicates ``b_boot``, ``Fn`` the
+    RMS force): beyond what the force constant makes up the arm from the sensor, and — with the
+    logs at rest — beyond the static moment there (:class:`SensorFit`'s fields)."""
+    a_bar = arm.mean(axis=0)
+    if lever is None:
+        lever = unloaded.lever if unloaded is not None else np.zeros(3)
+    c = np.asarray(lever, dtype=float) - a_bar
+    mc = B[:, 2] - np.cross(c, b)
+    mc_boot = B_boot[:, :, 2] - np.cross(c, b_boot)
+    Bu = B.copy()
+    Bu[:, 2] = mc
+    Bu_boot = B_boot.copy()
+    Bu_boot[:, :, 2] = mc_boot
+    mu_ = float(np.sqrt(np.mean(np.sum((X @ Bu.T) ** 2, 1)))) / Fn
+    ulo, uhi = _pct(_rms_fitted(X, Bu_boot) / Fn)
+    # the forming force's own tip moment at a stretch on the path: its arm is within this of ā
+    reach = float(np.max(np.linalg.norm(arm, axis=1)) + np.linalg.norm(a_bar))
+    out: dict[str, Any] = {
+        "lever": np.asarray(lever, dtype=float),
+        "mean_arm": a_bar,
+        "moment_reach": reach,
+        "moment_constant": float(np.linalg.norm(mc)),
+        "moment_constant_ci": _size_ci(mc_boot, mc),
+        "moment_upper": mu_,
+        "moment_upper_ci": (min(ulo, mu_), max(uhi, mu_)),
+    }
+    if unloaded is None:
+        return out
+    out.update(_moment_load(X, B, B_boot, Fn, gain, unloaded, arm, seed))
+    return out
+
+
+def _moment_load(
+    X: F64,
+    B: F64,
+    B_boot: F64,
+    Fn: float,
+    gain: float,
+    unloaded: UnloadedEvidence,
+    arm: F64,
+    seed: int,
+) -> dict[str, Any]:
+    """The false moment the load brings: ``C F_xy + m₀`` (``B``, replicates ``B_boot``) less
+    the static moment the sensor reads at rest, per RMS newton ``Fn`` (m); the static moment
+    drawn with its standard error in each replicate."""
+    a_bar = arm.mean(axis=0)
+    reach = float(np.max(np.linalg.norm(arm, axis=1)) + np.linalg.norm(a_bar))
+    m_rest, se_m = unloaded.static_moment(gain, a_bar, reach)
+    Bl = B.copy()
+    Bl[:, 2] -= m_rest
+    z = np.random.default_rng(seed + 17).standard_normal((len(B_boot), 3))
+    Bl_boot = B_boot.copy()
+    Bl_boot[:, :, 2] -= m_rest[None, :] + z * se_m[None, :]
+    ml = float(np.sqrt(np.mean(np.sum((X @ Bl.T) ** 2, 1)))) / Fn
+    lo, hi = _pct(_rms_fitted(X, Bl_boot) / Fn)
+    mu, se_mu = unloaded.moment_offset(gain, a_bar, reach)
+    return {
+        "moment_load": ml,
+        "moment_load_ci": (min(lo, ml), max(hi, ml)),
+        "static_moment": m_rest,
+        "moment_bias": mu,
+        "moment_bias_se": se_mu,
+    }
 
 
 def _static_fit(
@@ -1239,9 +1449,12 @@ def sensor_findings(
         why = "fewer than 6 used laps to compare the flange sensor with the CNC dynamometer"
         out = _unknown(("force_gain", "force_moment_crosstalk"), why)
         if unloaded is None:
-            return out + _unknown(("force_bias", "force_crosstalk"), why)
+            return out + _unknown(("force_moment_bias", "force_bias", "force_crosstalk"), why)
+        # no contact arm without the fit: the forming force's moment at a stretch on the path
+        # is within the ball's diameter of the tip
         return [
             *out,
+            _moment_bias_at_rest(unloaded, 1.0, np.zeros(3), 2 * R),
             _static_bias_finding(unloaded, 1.0, None),
             *_unknown(("force_crosstalk",), why),
         ]
@@ -1252,40 +1465,11 @@ def sensor_findings(
         f"{sf.process_gap:+.1%}, the processes' own difference, added to the interval); "
         f"largest force crosstalk {sf.force_crosstalk:.3f}"
     )
-    cm = sf.moment_crosstalk * 1e3
-    clo, chi = (v * 1e3 for v in sf.moment_crosstalk_ci)
-    ct_parts = [Part("whole", cm, clo, chi)]
-    ct_text = (
-        "the moment channels carry {est:whole} mm (N·m per kN) of false tip moment per unit force "
-        "(95 % {ci:whole}) beyond the point-contact moment (contact − tip) × F, whose size is at "
-        f"most R·|F| "
-        f"(R = {R * 1e3:.1f} mm); the excess is {sf.moment_excess:.0%} of that bound"
-    )
+    ct_finding, mb_finding = _moment_findings(sf, R)
     b = sf.b
     bias_limits = DETECTION_LIMITS["force_bias"]
     v_b = verdict(sf.bias_ci[0], sf.bias_ci[1], bias_limits)
     v_ba = verdict(sf.bias_axial_ci[0], sf.bias_axial_ci[1], bias_limits)
-    bias_fault = v_b == "fault"
-    ct_est, ct_ci, ct_force = cm, (clo, chi), None
-    if bias_fault:
-        plo, phi = (v * 1e3 for v in sf.moment_proportional_ci)
-        lim = DETECTION_LIMITS["force_moment_crosstalk"]
-        vp = verdict(plo, phi, lim)
-        ct_parts.append(Part("follows_force", sf.moment_proportional * 1e3, plo, phi))
-        ct_text += (
-            "; with a constant force between the sensors at fault (a bias, or the axial force's "
-            "crosstalk: force_bias, force_crosstalk), a constant false moment is also what it "
-            "makes carried up the arm from the flange to the tip: the part that follows the "
-            "force is {est:follows_force} mm ({ci:follows_force})"
-        )
-        if vp != "fault" and verdict(clo, chi, lim) == "fault":
-            ct_force = "cannot_tell"
-            ct_text += (
-                "; crosstalk from the axial force into the moment channels, or the constant "
-                "force, cannot be told apart"
-            )
-        elif vp == "fault":
-            ct_est, ct_ci = sf.moment_proportional * 1e3, (plo, phi)
     bias_text = (
         f"a constant {_vec(b)} (work axes; its size {{est}} N, 95 % {{ci}}) between the flange "
         "sensor's and the dynamometer's tip forces, the gain fitted beside it; an untared sensor "
@@ -1327,19 +1511,136 @@ def sensor_findings(
             gain_text,
             "recalibrate the flange sensor (the analysis used forces divided by the gain)",
         ),
-        _finding(
-            "force_moment_crosstalk",
-            ct_est,
-            ct_ci,
-            "mm",
-            ct_text,
-            "check the sensor's calibration matrix (the analysis used the point-contact moment)",
-            force=ct_force,
-            parts=tuple(ct_parts),
-        ),
+        ct_finding,
+        mb_finding,
         bias_finding,
         xt_finding,
     ]
+
+
+CT_ACTION = "check the sensor's calibration matrix (the analysis used the point-contact moment)"
+MB_ACTION = "tare the sensor with the tool mounted (the analysis used the point-contact moment)"
+
+
+def _moment_findings(sf: SensorFit, R: float) -> tuple[Finding, Finding]:
+    """force_moment_crosstalk and force_moment_bias from the false tip moment ``C F_xy + m₀``:
+    what follows the force is crosstalk; the constant ``m₀`` needs the logs at rest — there a
+    bias reads without load, crosstalk does not (it scales with the force). Without them the
+    constant (beyond what the force constant makes up the arm) is crosstalk of the nearly
+    constant axial force or a moment bias: both ``cannot_tell`` when it matters, naming each
+    other. A moment bias was called crosstalk FAULT 6.05 mm (a clean cone, 3.6 N·m of bias)."""
+    cm = sf.moment_crosstalk * 1e3
+    clo, chi = (v * 1e3 for v in sf.moment_crosstalk_ci)
+    cp = sf.moment_proportional * 1e3
+    plo, phi = (v * 1e3 for v in sf.moment_proportional_ci)
+    bound = (
+        "beyond the point-contact moment (contact − tip) × F, whose size is at most R·|F| "
+        f"(R = {R * 1e3:.1f} mm)"
+    )
+    whole_text = (
+        "the whole false moment, {est:whole} mm ({ci:whole}; "
+        f"{sf.moment_excess:.0%} of that bound)"
+    )
+    whole = Part("whole", cm, clo, chi)
+    lim_ct = DETECTION_LIMITS["force_moment_crosstalk"]
+    if sf.moment_load is not None and sf.moment_load_ci is not None:
+        assert sf.unloaded is not None and sf.static_moment is not None
+        ml = sf.moment_load * 1e3
+        mlo, mhi = (v * 1e3 for v in sf.moment_load_ci)
+        ct = _finding(
+            "force_moment_crosstalk",
+            ml,
+            (mlo, mhi),
+            "mm",
+            "the moment channels carry {est} mm (N·m per kN) of false tip moment per unit force "
+            "that the load brings (95 % {ci}) " + bound + f"; {whole_text}, also holds what the "
+            f"sensor reads with the tool off the sheet ({_mvec(sf.static_moment)} at the tip "
+            "beyond its reading's point-contact moment), which needs no load and is no crosstalk "
+            "(force_moment_bias, force_bias)"
+            + (
+                f"; nor is the {sf.moment_carried * 1e3:.2f} mm that the axial force's crosstalk "
+                "into the lateral force channels (force_crosstalk) makes carried up the "
+                f"{float(np.linalg.norm(sf.lever)) * 1e3:.0f} mm arm from the sensor to the tip"
+                if sf.moment_carried > 0 and sf.lever is not None
+                else ""
+            ),
+            CT_ACTION,
+            parts=(whole,),
+        )
+        arm = sf.mean_arm if sf.mean_arm is not None else np.zeros(3)
+        return ct, _moment_bias_at_rest(sf.unloaded, sf.gain, arm, sf.moment_reach)
+    # the path alone: what follows the force is crosstalk for sure; the constant beyond what
+    # the force constant makes up the arm may be crosstalk of the axial force or a moment bias
+    ulo, uhi = (v * 1e3 for v in sf.moment_upper_ci)
+    follows = Part("follows_force", cp, plo, phi)
+    upper = Part("with_constant", sf.moment_upper * 1e3, ulo, uhi)
+    ci = (plo, max(phi, uhi))
+    v_ct = verdict(ci[0], ci[1], lim_ct)
+    text = (
+        "the moment channels carry {est} mm (N·m per kN) of false tip moment per unit force "
+        "that follows the lateral force, at least (95 % {ci}, up to {est:with_constant} mm "
+        "with the constant false moment) " + bound + f"; {whole_text}"
+    )
+    mc = sf.moment_constant
+    mc_ci = sf.moment_constant_ci
+    v_mb = verdict(mc_ci[0], mc_ci[1], DETECTION_LIMITS["force_moment_bias"])
+    apart = (
+        "; the constant false moment, {mc} N·m beyond what the force constant makes up the arm "
+        "from the sensor, is crosstalk of the axial force into the moment channels (it barely "
+        "varies along a wall) or a bias of the moment channels: without a stretch of the log "
+        "at rest (the tool off the sheet, untared) the two cannot be told apart "
+        "(force_moment_crosstalk, force_moment_bias)"
+    )
+    ct_force = None
+    if v_ct == "cannot_tell" and verdict(plo, phi, lim_ct) != "cannot_tell":
+        text += apart.replace("{mc}", _num(mc, PRECISION["force_moment_bias"]))
+        ct_force = "cannot_tell"
+    ct = _finding(
+        "force_moment_crosstalk",
+        cp,
+        ci,
+        "mm",
+        text,
+        CT_ACTION,
+        force=ct_force,
+        parts=(follows, upper, whole),
+    )
+    mb_text = (
+        "a constant false tip moment of {est} N·m (95 % {ci}) beyond what the force constant "
+        "makes up the arm from the sensor to the tip"
+    )
+    mb_force = None
+    if v_mb != "ok":
+        mb_force = "cannot_tell"
+        mb_text += (
+            ": a bias of the moment channels, or crosstalk of the axial force into them (it "
+            "barely varies along a wall): without a stretch of the log at rest (the tool off "
+            "the sheet, untared) the two cannot be told apart (force_moment_bias, "
+            "force_moment_crosstalk)"
+        )
+    mb = _finding("force_moment_bias", mc, mc_ci, "N·m", mb_text, MB_ACTION, force=mb_force)
+    return ct, mb
+
+
+def _moment_bias_at_rest(u: UnloadedEvidence, gain: float, arm: F64, reach: float) -> Finding:
+    """force_moment_bias from the logs at rest: what the moment channels read of their own with
+    the tool off the sheet (:meth:`UnloadedEvidence.moment_offset`)."""
+    mu, se = u.moment_offset(gain, arm, reach)
+    ci = size_interval(mu, se)
+    text = (
+        f"with the tool off the sheet ({u.where} of the log) the moment channels read "
+        f"{_mvec(mu)} of their own (about the sensor's origin, work axes, beyond what the "
+        "force there makes; its size {est} N·m, 95 % {ci}): a moment that needs no load is no "
+        "crosstalk (that scales with the force) — a bias of the moment channels, or the "
+        "tool's weight acting off the sensor's axis"
+    )
+    return _finding("force_moment_bias", float(np.linalg.norm(mu)), ci, "N·m", text, MB_ACTION)
+
+
+def _mvec(v: F64) -> str:
+    """A moment vector (3,) N·m as the explanations print it (no "-0.00")."""
+    x, y, z = (round(float(c), 2) + 0.0 for c in v[:3])
+    return f"({x:+.2f}, {y:+.2f}, {z:+.2f}) N·m"
 
 
 #: The relative force difference of the two processes allowed for a stretch on the path (the
@@ -2016,6 +2317,7 @@ def diagnose(
     unloaded: dict[str, list[UnloadedStretch]] | None = None,
     tau: F64 | None = None,
     tilt_registered: bool = True,
+    sensor_lever: F64 | None = None,
 ) -> tuple[Diagnosis, CorrectedRobotTerm]:
     """Every suspect's verdict for one study (module docstring) and the corrected robot term.
 
@@ -2027,22 +2329,33 @@ def diagnose(
     with the tool off the sheet at the tip, work axes (keys "cnc", "robot"; the static offset
     and the axial crosstalk, docs/diagnosis.md); tau : (N,) each point's forming time over
     the robot run in [0, 1] (:func:`forming_time`; a thermal drift grows with it), None when
-    unknown; tilt_registered : the robot scan's registration fitted its tilts."""
+    unknown; tilt_registered : the robot scan's registration fitted its tilts; sensor_lever :
+    (3,) m the flange sensor's origin relative to the tip at the path's first point, work axes
+    (None: at the tip) — a force offset makes a moment about the tip on that arm, none about
+    the sensor."""
     from roboisf.cell import at_ball_centre
     from roboisf.decompose.identify import forming_design
 
     arm = contact - tip
     ev = (
-        UnloadedEvidence.from_stretches(unloaded.get("robot", []), unloaded.get("cnc", []))
+        UnloadedEvidence.from_stretches(
+            unloaded.get("robot", []), unloaded.get("cnc", []), lever=sensor_lever
+        )
         if unloaded
         else None
     )
-    sf = fit_sensor(W_cnc, W_rob, arm, valid, lap, depth, unloaded=ev)
+    sf = fit_sensor(W_cnc, W_rob, arm, valid, lap, depth, unloaded=ev, lever=sensor_lever)
     findings = sensor_findings(sf, ball_radius, ev)
     fv = {f.suspect: f.verdict for f in findings}
     correct = sf is not None and any(
         fv[s] == "fault"
-        for s in ("force_gain", "force_moment_crosstalk", "force_bias", "force_crosstalk")
+        for s in (
+            "force_gain",
+            "force_moment_crosstalk",
+            "force_moment_bias",
+            "force_bias",
+            "force_crosstalk",
+        )
     )
     if sf is not None and fv["force_crosstalk"] == "fault" and sf.axial_fixed is not None:
         sf = replace(sf, correct_axial=True)
@@ -2050,8 +2363,13 @@ def diagnose(
     y = measured
     if correct:
         assert sf is not None
-        # the tip moment is replaced by the point-contact moment whenever it is in doubt
-        W = sf.corrected(W_rob, arm, moments=fv["force_moment_crosstalk"] != "ok")
+        # the tip moment is replaced by the point-contact moment whenever it is in doubt: the
+        # moment channels not ok, or a force offset or axial crosstalk removed from the forces
+        # (carried up the arm from the sensor, it is in the measured tip moment too: a 3.6 %
+        # crosstalk put 6 N·m there, which the tool terms turned into a 0.12 mm "scan shift")
+        moments_ok = fv["force_moment_crosstalk"] == fv["force_moment_bias"] == "ok"
+        offsets = "fault" in (fv["force_bias"], fv["force_crosstalk"])
+        W = sf.corrected(W_rob, arm, moments=offsets or not moments_ok)
 
         def tool_terms(Wx: F64) -> F64:
             d = at_ball_centre(Wx @ k_t.T, ball_radius)

@@ -663,8 +663,9 @@ def _analyze(
     tau = forming_time(aligned[rob.name].primary.point_time, len(tp))
     tilt_registered = {"rx", "ry"} <= set(scans[rob.name].registration.fitted)
     with task(progress, "diagnosis"):
+        lever = sensor_lever(rob.forces, tp.tip[0], vertical_tool(cell.tool_rotation))
         diag, corr = _diagnose(
-            cell, tp, q, W_cnc, W_rob, d, k_t, k_th, k_c, unloaded, tau, tilt_registered
+            cell, tp, q, W_cnc, W_rob, d, k_t, k_th, k_c, unloaded, tau, tilt_registered, lever
         )
     W_used = W_rob
     if diag.forces_corrected:
@@ -755,11 +756,13 @@ def _diagnose(
     unloaded: dict[str, list[UnloadedStretch]] | None = None,
     tau: F64 | None = None,
     tilt_registered: bool = True,
+    lever: F64 | None = None,
 ) -> tuple[Diagnosis, CorrectedRobotTerm]:
     """The diagnosis of the decomposition ``d`` at the measured forces (docs/diagnosis.md);
     ``unloaded``: each run's stretches with the tool off the sheet (keys "cnc", "robot");
     ``tau``: each point's forming time over the robot run in [0, 1]; ``tilt_registered``: the
-    robot scan's registration fitted its tilts."""
+    robot scan's registration fitted its tilts; ``lever``: the robot's force sensor's origin
+    relative to the tip (:func:`sensor_lever`)."""
     return diagnose(
         robot=cell.robot,
         q=q,
@@ -781,7 +784,21 @@ def _diagnose(
         unloaded=unloaded,
         tau=tau,
         tilt_registered=tilt_registered,
+        sensor_lever=lever,
     )
+
+
+def sensor_lever(spec: ForceSensorSpec, tip: F64, R_work_tip: F64) -> F64:
+    """(3,) m — a force sensor's origin relative to the tool tip ``tip`` (3,), work axes: the arm
+    on which a force the sensor reads makes a moment about the tip (a force offset of the
+    sensor makes one there and none about the sensor). Read off :func:`sensor_to_tip` — the
+    same transform as the log's — for three unit forces: ``M = lever × F``."""
+    W = np.zeros((3, 6))
+    W[:, :3] = np.eye(3)
+    T = sensor_to_tip(W, spec, np.repeat(np.asarray(tip, dtype=float)[None, :], 3, 0), R_work_tip)
+    # rows F_i, M_i = [lever]× F_i: [lever]× = Mᵀ (Fᵀ)⁻¹
+    S = T[:, 3:].T @ np.linalg.inv(T[:, :3].T)
+    return np.array([S[2, 1], S[0, 2], S[1, 0]])
 
 
 def _model_checks(
@@ -869,6 +886,7 @@ def _model_checks(
     for name in (
         "force_gain",
         "force_moment_crosstalk",
+        "force_moment_bias",
         "force_crosstalk",
         "scan_rotation",
         "thermal_drift",
