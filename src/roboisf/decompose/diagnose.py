@@ -185,6 +185,15 @@ RATIO_MODEL_ERROR = 0.01
 #: harmonic of ~0.01 mm in the robot term of a cell whose scan is right (calibrated by coverage,
 #: benchmarks/diagnosis.py).
 SHIFT_MODEL_ERROR = 0.01e-3
+#: Model error of the rotation's pattern, m of RMS normal deviation, added to each end of the
+#: rotation's interval as ``ROTATION_MODEL_ERROR / RMS(n · (ẑ × p))``. A part whose walls are
+#: all passed in the same rotational sense (a pyramid) turns whatever differs between a wall's
+#: entry and its exit into this pattern, which is odd along each wall: the per-point force
+#: averages read the lateral force low at the wall ends and where the path steps down, and the
+#: other terms' errors. Clean pyramids left 0.4–2.2 µm of it (+0.001° … +0.007°, the same sign
+#: for true rotations of −0.2°, 0 and +0.2° and over seeds: no linearisation, no noise), which
+#: the bootstrap's ±0.003° did not cover (calibrated by coverage, benchmarks/diagnosis.py).
+ROTATION_MODEL_ERROR = 3e-6
 
 #: Model error added to each end of a tilt's interval, rad: beside a drift on a cone the other
 #: terms leave 0.01–0.03° of tilt where there is none (calibrated by coverage,
@@ -971,7 +980,9 @@ class RobotTermFit:
     ``"drift"`` (and a drift: one is seen), ``"tilt"`` (and a drift and a tilt: a tilt is
     seen) or ``"tilt_only"`` (and a tilt, where a drift cannot be told from the offset);
     tilt_registered : the robot scan's registration fitted its tilts (from the flange), so a
-    tilt left in the robot term is the formed part's, not the scan's; rms_drift_pattern : m."""
+    tilt left in the robot term is the formed part's, not the scan's; rms_drift_pattern : m;
+    rotation_model_error : rad, added to each end of both rotation intervals
+    (:data:`ROTATION_MODEL_ERROR` over the pattern's RMS per radian)."""
 
     ratio: float
     ratio_ci: tuple[float, float]
@@ -998,6 +1009,7 @@ class RobotTermFit:
     model: str = "shift"
     tilt_registered: bool = True
     rms_drift_pattern: float = 0.0
+    rotation_model_error: float = 0.0
 
     @property
     def shift_fit(self) -> PatternFit:
@@ -1219,11 +1231,16 @@ def fit_robot_term(
     hi = max(max(c[0], c[1][1]) for c in cands)
     ratio_ci = (lo - RATIO_MODEL_ERROR * est, hi + RATIO_MODEL_ERROR * est)
     rot = rot_ci = rotj = rotj_ci = None
+    rot_err = 0.0
     if rot_seen:
+        # the direction of travel's pattern (ROTATION_MODEL_ERROR), per radian of rotation
+        rot_err = ROTATION_MODEL_ERROR / float(np.sqrt(np.mean(rot_col**2)))
         rot = float(b1[3])
-        rot_ci = _pct(B1[:, 3])
+        lo_r, hi_r = _pct(B1[:, 3])
+        rot_ci = (min(lo_r, rot) - rot_err, max(hi_r, rot) + rot_err)
         rotj = float(bj[k + 2])
-        rotj_ci = _pct(Bj[:, k + 2])
+        lo_r, hi_r = _pct(Bj[:, k + 2])
+        rotj_ci = (min(lo_r, rotj) - rot_err, max(hi_r, rotj) + rot_err)
     d_used = drift_t if model == "tilt" else drift
     rms_drift = 0.0
     if d_used is not None and t is not None:
@@ -1254,6 +1271,7 @@ def fit_robot_term(
         model=model,
         tilt_registered=tilt_registered,
         rms_drift_pattern=rms_drift,
+        rotation_model_error=rot_err,
     )
 
 
@@ -1888,7 +1906,10 @@ def _offset_findings(rf: RobotTermFit, *, axisymmetric: bool) -> list[Finding]:
         rot_fitted = (
             "the robot term carries the pattern of a rotation about the part axis of "
             "{est:one_scale}° (95 % {ci:one_scale}°; {est:per_joint}° ({ci:per_joint}°) beside a "
-            f"per-joint fit), RMS {rf.rms_rotation_pattern * 1e3:.3f} mm of normal deviation"
+            "per-joint fit; each interval widened by "
+            f"±{math.degrees(rf.rotation_model_error):.3f}° for the pattern the direction of "
+            "travel leaves, the walls passed in one rotational sense), RMS "
+            f"{rf.rms_rotation_pattern * 1e3:.3f} mm of normal deviation"
         )
         rot_text = rot_fitted
         if turned:
