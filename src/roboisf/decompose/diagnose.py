@@ -189,10 +189,11 @@ SHIFT_MODEL_ERROR = 0.01e-3
 #: rotation's interval as ``ROTATION_MODEL_ERROR / RMS(n · (ẑ × p))``. A part whose walls are
 #: all passed in the same rotational sense (a pyramid) turns whatever differs between a wall's
 #: entry and its exit into this pattern, which is odd along each wall: the per-point force
-#: averages read the lateral force low at the wall ends and where the path steps down, and the
-#: other terms' errors. Clean pyramids left 0.4–2.2 µm of it (+0.001° … +0.007°, the same sign
-#: for true rotations of −0.2°, 0 and +0.2° and over seeds: no linearisation, no noise), which
-#: the bootstrap's ±0.003° did not cover (calibrated by coverage, benchmarks/diagnosis.py).
+#: averages read the force along the wall's normal 6–12 N low at the wall ends (unevenly
+#: between entry and exit) and where the path steps down, and the other terms' errors. Clean
+#: pyramids left 0.4–2.2 µm of it (+0.001° … +0.007°, the same sign for true rotations of
+#: −0.2°, 0 and +0.2° and over seeds: no linearisation, no noise), which the bootstrap's
+#: ±0.003° did not cover (calibrated by coverage, benchmarks/diagnosis.py).
 ROTATION_MODEL_ERROR = 3e-6
 
 #: Model error added to each end of a tilt's interval, rad: beside a drift on a cone the other
@@ -515,17 +516,25 @@ class UnloadedEvidence:
         )  # fmt: skip
         return m, se
 
-    def moment_offset(self, gain: float, arm: F64, reach: float) -> tuple[F64, F64]:
+    def moment_offset(
+        self, gain: float, arm: F64, reach: float, spread: float = 0.0
+    ) -> tuple[F64, F64]:
         """(3,) N·m what the moment channels read at rest of their own — the moment about the
         sensor's origin, where a force offset makes none, less what the dynamometer's force
         there (on the path) makes about it, ``M_s + (lever − ā) × g F_cnc`` — and its standard
         error: a bias of the moment channels, or the tool's weight acting off the sensor's
-        axis (its moment about the sensor)."""
+        axis (its moment about the sensor). On the path the two processes' forces differ by
+        ``spread`` (at least :data:`RIM_PROCESS_GAP`, as :meth:`static_offset`), and that
+        difference acts on the lever: ``|lever − ā| · spread · g · |F_cnc|`` per axis (95 %)."""
         c = self.lever - arm
         mu = self.robot_ms + np.cross(c, gain * self.cnc)
+        gap = 0.0
+        if self.on_path:
+            gap = float(np.linalg.norm(c)) * max(spread, RIM_PROCESS_GAP) * gain
+            gap *= float(np.linalg.norm(self.cnc)) / 1.96
         se = np.sqrt(
             self.robot_ms_se**2 + _cross_se(c, gain * self.cnc_se) ** 2
-            + self._forming_moment_se(gain, reach) ** 2
+            + self._forming_moment_se(gain, reach) ** 2 + gap**2
         )  # fmt: skip
         return mu, se
 
@@ -564,8 +573,7 @@ class SensorFit:
     moment at rest (``static_moment`` (3,) N·m, the tip moment at rest beyond the
     point-contact moment): what the load adds, crosstalk;
     moment_bias, moment_bias_se (3,) N·m what the moment channels read at rest of their own
-    (:meth:`UnloadedEvidence.moment_offset`); mean_arm ā (3,) m; moment_reach m, how far the
-    contact − tip of a stretch on the path may lie from ā; lever (3,) m; moment_carried the
+    (:meth:`UnloadedEvidence.moment_offset`); lever (3,) m; moment_carried the
     false moment per RMS newton (m) that the axial force's crosstalk into the lateral force
     channels makes carried up the lever (left out of moment_load: force_crosstalk's)."""
 
@@ -599,8 +607,6 @@ class SensorFit:
     moment_constant_ci: tuple[float, float] = (math.nan, math.nan)
     moment_upper: float = math.nan
     moment_upper_ci: tuple[float, float] = (math.nan, math.nan)
-    mean_arm: F64 | None = None
-    moment_reach: float = 0.0
     lever: F64 | None = None
     moment_carried: float = 0.0
     moment_load: float | None = None
@@ -767,7 +773,7 @@ def fit_sensor(
     spread = max(gain - gain_ci[0], gain_ci[1] - gain) / gain if gain else 0.0
     static = _static_fit(unloaded, gain, Fz, Fr[deep], Fc[deep], inv, L, weights, spread)
     moments = _moment_constant(
-        arm[sel][deep], b, boot[:, 1:4], Xd, _B, bootM, Fn, gain, unloaded, lever, seed
+        arm[sel][deep], b, boot[:, 1:4], Xd, _B, bootM, Fn, gain, unloaded, lever, seed, spread
     )
     if unloaded is not None and static.get("axial_fixed") is not None:
         # what the axial force's crosstalk into the lateral force channels (force_crosstalk)
@@ -779,7 +785,7 @@ def fit_sensor(
         carried = np.cross(lev[None, :] - arm[sel][deep], f)
         _f, B_adj, boot_adj = _false_moment(Fc[deep], Mres[deep] - carried, inv, L, weights)
         moments.update(
-            _moment_load(Xd, B_adj, boot_adj, Fn, gain, unloaded, arm[sel][deep], seed),
+            _moment_load(Xd, B_adj, boot_adj, Fn, gain, unloaded, arm[sel][deep], seed, spread),
             moment_carried=float(np.sqrt(np.mean(np.sum(carried**2, 1)))) / Fn,
         )
     return SensorFit(
@@ -819,6 +825,7 @@ def _moment_constant(
     unloaded: UnloadedEvidence | None,
     lever: F64 | None,
     seed: int,
+    spread: float = 0.0,
 ) -> dict[str, Any]:
     """The false moment's constant ``m₀`` (``B[:, 2]`` of ``C F_xy + m₀``, bootstrap
     ``B_boot`` (n_boot, 3, 3); X (M, 3) ``[F_xy, 1]`` of the deep points, ``arm`` (M, 3) m their
@@ -837,12 +844,8 @@ def _moment_constant(
     Bu_boot[:, :, 2] = mc_boot
     mu_ = float(np.sqrt(np.mean(np.sum((X @ Bu.T) ** 2, 1)))) / Fn
     ulo, uhi = _pct(_rms_fitted(X, Bu_boot) / Fn)
-    # the forming force's own tip moment at a stretch on the path: its arm is within this of ā
-    reach = float(np.max(np.linalg.norm(arm, axis=1)) + np.linalg.norm(a_bar))
     out: dict[str, Any] = {
         "lever": np.asarray(lever, dtype=float),
-        "mean_arm": a_bar,
-        "moment_reach": reach,
         "moment_constant": float(np.linalg.norm(mc)),
         "moment_constant_ci": _size_ci(mc_boot, mc),
         "moment_upper": mu_,
@@ -850,7 +853,7 @@ def _moment_constant(
     }
     if unloaded is None:
         return out
-    out.update(_moment_load(X, B, B_boot, Fn, gain, unloaded, arm, seed))
+    out.update(_moment_load(X, B, B_boot, Fn, gain, unloaded, arm, seed, spread))
     return out
 
 
@@ -863,6 +866,7 @@ def _moment_load(
     unloaded: UnloadedEvidence,
     arm: F64,
     seed: int,
+    spread: float = 0.0,
 ) -> dict[str, Any]:
     """The false moment the load brings: ``C F_xy + m₀`` (``B``, replicates ``B_boot``) less
     the static moment the sensor reads at rest, per RMS newton ``Fn`` (m); the static moment
@@ -877,7 +881,7 @@ def _moment_load(
     Bl_boot[:, :, 2] -= m_rest[None, :] + z * se_m[None, :]
     ml = float(np.sqrt(np.mean(np.sum((X @ Bl.T) ** 2, 1)))) / Fn
     lo, hi = _pct(_rms_fitted(X, Bl_boot) / Fn)
-    mu, se_mu = unloaded.moment_offset(gain, a_bar, reach)
+    mu, se_mu = unloaded.moment_offset(gain, a_bar, reach, spread)
     return {
         "moment_load": ml,
         "moment_load_ci": (min(lo, ml), max(hi, ml)),
@@ -1472,7 +1476,7 @@ def sensor_findings(
         # is within the ball's diameter of the tip
         return [
             *out,
-            _moment_bias_at_rest(unloaded, 1.0, np.zeros(3), 2 * R),
+            _moment_bias_at_rest(unloaded, *unloaded.moment_offset(1.0, np.zeros(3), 2 * R)),
             _static_bias_finding(unloaded, 1.0, None),
             *_unknown(("force_crosstalk",), why),
         ]
@@ -1585,8 +1589,8 @@ def _moment_findings(sf: SensorFit, R: float) -> tuple[Finding, Finding]:
             CT_ACTION,
             parts=(whole,),
         )
-        arm = sf.mean_arm if sf.mean_arm is not None else np.zeros(3)
-        return ct, _moment_bias_at_rest(sf.unloaded, sf.gain, arm, sf.moment_reach)
+        assert sf.moment_bias is not None and sf.moment_bias_se is not None
+        return ct, _moment_bias_at_rest(sf.unloaded, sf.moment_bias, sf.moment_bias_se)
     # the path alone: what follows the force is crosstalk for sure; the constant beyond what
     # the force constant makes up the arm may be crosstalk of the axial force or a moment bias
     ulo, uhi = (v * 1e3 for v in sf.moment_upper_ci)
@@ -1640,10 +1644,10 @@ def _moment_findings(sf: SensorFit, R: float) -> tuple[Finding, Finding]:
     return ct, mb
 
 
-def _moment_bias_at_rest(u: UnloadedEvidence, gain: float, arm: F64, reach: float) -> Finding:
+def _moment_bias_at_rest(u: UnloadedEvidence, mu: F64, se: F64) -> Finding:
     """force_moment_bias from the logs at rest: what the moment channels read of their own with
-    the tool off the sheet (:meth:`UnloadedEvidence.moment_offset`)."""
-    mu, se = u.moment_offset(gain, arm, reach)
+    the tool off the sheet, ``mu`` (3,) N·m and its standard error ``se``
+    (:meth:`UnloadedEvidence.moment_offset`)."""
     ci = size_interval(mu, se)
     text = (
         f"with the tool off the sheet ({u.where} of the log) the moment channels read "
