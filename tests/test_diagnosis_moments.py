@@ -192,3 +192,32 @@ def test_a_log_that_starts_forming_is_no_proof_of_a_moment_bias():
     ev = UnloadedEvidence.from_stretches([B], [stretch(F_cnc)], lever=lever)
     f = {x.suspect: x for x in sensor_findings(None, R, ev)}
     assert f["force_moment_bias"].verdict == "fault", f["force_moment_bias"].explanation
+
+
+@pytest.mark.slow
+def test_a_log_without_moment_channels_has_no_moment_fault(tmp_path):
+    """A 3-component flange sensor (DynoWare text) with a 22 N force bias: its tip moments are
+    the point-contact moment the analysis puts there, its reading at rest no moment at all —
+    compared with a lever's worth of force offset they made a 10.6 mm moment crosstalk FAULT.
+    The moment suspects are ok by construction and say why; the bias is the force's."""
+    from roboisf.decompose.pipeline import analyze
+    from roboisf.virtual.cell import build_study, paper_cone_cell
+    from roboisf.virtual.equipment import Equipment
+    from roboisf.virtual.truth import truth_from_table
+
+    truth = truth_from_table({"force_sensor": {"bias": [20.0, -10.0, 5.0, 0, 0, 0]}})
+    cell = paper_cone_cell(
+        truth=truth,
+        step_down=3e-3,
+        spacing=3e-3,
+        scan_points=60_000,
+        force_rate=100.0,
+        joint_rate=50.0,
+    )
+    build_study(cell, tmp_path / "study", equipment=Equipment(robot_force_profile="kistler"))
+    r = analyze(tmp_path / "study")
+    f = {d["suspect"]: d for d in r.summary.diagnosis}
+    assert f["force_bias"]["verdict"] == "fault"
+    for s in ("force_moment_crosstalk", "force_moment_bias"):
+        assert f[s]["verdict"] == "ok", f[s]["explanation"]
+        assert "no moment channels" in f[s]["explanation"]

@@ -1659,6 +1659,21 @@ def _moment_bias_at_rest(u: UnloadedEvidence, mu: F64, se: F64) -> Finding:
     return _finding("force_moment_bias", float(np.linalg.norm(mu)), ci, "N·m", text, MB_ACTION)
 
 
+#: The suspects of the flange sensor's moment channels.
+MOMENT_SUSPECTS = ("force_moment_crosstalk", "force_moment_bias")
+
+
+def _no_moment_channels(suspect: str) -> Finding:
+    """A moment suspect of a force log without moment channels: nothing to be off. (Its tip
+    moments are the point-contact moment; compared with a reading at rest they made a force
+    bias carried up the arm look like 10.6 mm of moment crosstalk.)"""
+    text = (
+        "the flange sensor's log has no moment channels: the analysis takes the point-contact "
+        "moment (contact − tip) × F for the tip moment, so no moment channel can be off"
+    )
+    return _finding(suspect, 0.0, (0.0, 0.0), UNITS[suspect], text, "")
+
+
 def _mvec(v: F64) -> str:
     """A moment vector (3,) N·m as the explanations print it (no "-0.00")."""
     x, y, z = (round(float(c), 2) + 0.0 for c in v[:3])
@@ -2343,6 +2358,7 @@ def diagnose(
     tau: F64 | None = None,
     tilt_registered: bool = True,
     sensor_lever: F64 | None = None,
+    moments_measured: bool = True,
 ) -> tuple[Diagnosis, CorrectedRobotTerm]:
     """Every suspect's verdict for one study (module docstring) and the corrected robot term.
 
@@ -2357,7 +2373,9 @@ def diagnose(
     unknown; tilt_registered : the robot scan's registration fitted its tilts; sensor_lever :
     (3,) m the flange sensor's origin relative to the tip at the path's first point, work axes
     (None: at the tip) — a force offset makes a moment about the tip on that arm, none about
-    the sensor."""
+    the sensor; moments_measured : False when the robot's force log has no moment channels
+    (its tip moments are the point-contact moment the analysis puts there): the moment suspects
+    are then ok by construction, and said so."""
     from roboisf.cell import at_ball_centre
     from roboisf.decompose.identify import forming_design
 
@@ -2371,6 +2389,10 @@ def diagnose(
     )
     sf = fit_sensor(W_cnc, W_rob, arm, valid, lap, depth, unloaded=ev, lever=sensor_lever)
     findings = sensor_findings(sf, ball_radius, ev)
+    if not moments_measured:
+        findings = [
+            _no_moment_channels(f.suspect) if f.suspect in MOMENT_SUSPECTS else f for f in findings
+        ]
     fv = {f.suspect: f.verdict for f in findings}
     correct = sf is not None and any(
         fv[s] == "fault"
