@@ -1,11 +1,14 @@
 """The diagnosis over random hidden truths: verdict accuracy, interval coverage, compensation.
 
 Run by hand:  PYTHONPATH=src python benchmarks/diagnosis.py [N_TRUTHS] [SEED] [N_EXTRA]
+              [moment-bias]
 
 Draws ``N_TRUTHS`` (default 40) truths — faults alone and in pairs among: joint stiffness
 (each joint 0.4–1.6×), flange-sensor gain (0.85–1.15), crosstalk (force channels ≤ 0.03, force
 into moment ≤ 30 mm = N·m per kN), a force bias (10–40 N), an unmodelled tool mass (1–5 kg),
-a sideways scan shift (≤ 0.3 mm) and a rotation about the part axis (≤ 0.3°) — on the cone, the
+a sideways scan shift (≤ 0.3 mm) and a rotation about the part axis (≤ 0.3°) — and, with
+``moment-bias``, every second truth also a bias of the moment channels (0.2–3 N·m, drawn from
+its own generator: the other draws stay those of the seed) — on the cone, the
 VWACF, the pyramid and a mesh part (the cone tessellated), builds each as a small virtual study
 (2–3 mm step-down, 40–60 k scan points), runs ``analyze`` and compares the diagnosis with the
 truth. Then ``N_EXTRA`` (default 12) truths drawn from another stream (the first ``N_TRUTHS``
@@ -17,11 +20,14 @@ them also tilted ≤ 0.3°), alone or beside one of the faults above:
   for none), honest (``cannot_tell``), or wrong; "missed" counts ``ok`` for a fault beyond the
   limit. A sideways offset of the scan and one of the work object are the same pattern: both
   suspects are scored against their sum (``ok`` is right only when the sum is within the limit,
-  ``fault`` only when the suspect's own truth is beyond it). A suspect whose truth is ambiguous
-  on the path is not scored (a force bias when the
-  axial force's crosstalk makes a constant too, force-moment crosstalk beside a force bias,
-  which carried up the arm makes a constant false tip moment). The moment crosstalk's truth is
-  the larger of ``crosstalk_moment`` (mm) and the force crosstalk times the ~250 mm arm.
+  ``fault`` only when the suspect's own truth is beyond it). The moment bias's truth is what the
+  moment channels read at rest (the bias, and the tool's weight through the sensor's matrix).
+  Every suspect is scored: what is ambiguous on the path alone — a force bias beside the axial
+  force's crosstalk (both a constant along a wall), force-moment crosstalk beside a force bias
+  (carried up the arm it makes a constant false tip moment) — the logs' unloaded start tells
+  apart, and every virtual log has one (the second was left out before 2026-11-30). The moment
+  crosstalk's truth is the larger of ``crosstalk_moment`` (mm) and the force crosstalk times the
+  ~250 mm arm.
 * **coverage** — the 95 % intervals against the truth: the robot's measured-over-modelled
   compliance (the true deflection against the VJM at the true forces), the gain, the shift's
   size, the rotation's size (when seen).
@@ -149,6 +155,9 @@ def truth_values(cell, t, u, study: Path) -> dict[str, float]:
     rest = sensor_reading(tr, np.zeros((1, 6)), tool_weight_at_sensor(cell, tr, spec, tip, R))
     bias = np.linalg.norm(rest[0, :3])
     return {
+        # what the moment channels read of their own at rest (sensor axes: the size is the same
+        # in any)
+        "force_moment_bias": float(np.linalg.norm(rest[0, 3:])),
         "robot_stiffness": float(x @ y / (x @ x)),
         "force_gain": float(np.mean(tr.sensor_gain)),
         "force_bias": float(bias),
@@ -182,13 +191,10 @@ def is_fault(name: str, v: float) -> bool:
 
 
 def ambiguous(name: str, tr) -> bool:
-    # force_bias beside the axial force's crosstalk (both a constant along a wall) is told apart
-    # by the logs' unloaded start, which every virtual log has: scored
-    if name == "force_moment_crosstalk":
-        # a force bias carried up the arm makes a constant false tip moment too: a fault of the
-        # tip moment that is not crosstalk (the diagnosis says cannot_tell or names the part
-        # that follows the force)
-        return bool(np.any(tr.sensor_bias[:3]))
+    """A suspect whose truth the study cannot tell (not scored): none now. force_bias beside the
+    axial force's crosstalk and force_moment_crosstalk beside a force bias are told apart by
+    the logs' unloaded start, which every virtual log has (the latter was left out before
+    2026-11-30: 7 of seed 2026's 40 truths and 11 of seed 7's, all then cannot_tell)."""
     return False
 
 
@@ -223,14 +229,22 @@ def compliance_removed(cell, root: Path, summary: dict) -> float | None:
     return 1 - rms(after) / rms(before)
 
 
-def main(n: int = 40, seed: int = 2026, n_extra: int = 12) -> None:
+def main(n: int = 40, seed: int = 2026, n_extra: int = 12, moment_bias: bool = False) -> None:
     rng = np.random.default_rng(seed)
+    rng_m = np.random.default_rng([seed, 2])  # the moment biases: the other draws unchanged
     plans = []
     for i in range(n):
         part = PARTS[i % len(PARTS)]
         k = 1 if i % 3 == 0 else 2
         faults = tuple(sorted(rng.choice(FAULTS, size=k, replace=False)))
-        plans.append((part, faults, draw(rng, faults)))
+        table = draw(rng, faults)
+        if moment_bias and i % 2 == 1:
+            m = rng_m.normal(size=3)
+            m = m / np.linalg.norm(m) * rng_m.uniform(0.2, 3.0)
+            fs = table.setdefault("force_sensor", {})
+            fs["bias"] = [*fs.get("bias", [0.0, 0.0, 0.0])[:3], *np.round(m, 3).tolist()]
+            faults = (*faults, "moment_bias")
+        plans.append((part, faults, table))
     # the robot forming the part off, from a stream of their own (the first n stay as before)
     rng_x = np.random.default_rng([seed, 1])
     for i in range(n_extra):
@@ -245,7 +259,13 @@ def main(n: int = 40, seed: int = 2026, n_extra: int = 12) -> None:
         return {s: {"right": 0, "cannot_tell": 0, "wrong": 0, "missed": 0} for s in suspects}
 
     score, score_first = blank(), blank()
-    covered = ("robot_stiffness", "force_gain", "force_bias", "force_crosstalk")
+    covered = (
+        "robot_stiffness",
+        "force_gain",
+        "force_moment_bias",
+        "force_bias",
+        "force_crosstalk",
+    )
     cover = {
         s: [0, 0]
         for s in (*covered, *("scan_shift", "work_object", "scan_rotation"), *NEW_SUSPECTS[1:])
@@ -340,5 +360,5 @@ def main(n: int = 40, seed: int = 2026, n_extra: int = 12) -> None:
 
 
 if __name__ == "__main__":
-    args = [int(a) for a in sys.argv[1:4]]
-    main(*args)
+    args = [int(a) for a in sys.argv[1:] if a != "moment-bias"]
+    main(*args, moment_bias="moment-bias" in sys.argv[1:])

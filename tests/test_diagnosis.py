@@ -332,6 +332,10 @@ CELLS = {
         },
     ),
     "rotation": ("pyramid", {"scan": {"rotation": [0.0, 0.0, 0.25]}}),
+    # a bias of the moment channels (N·m, sensor axes) reads at rest; crosstalk into them does
+    # not (it scales with the force): the bias was called moment crosstalk FAULT 6.05 mm
+    "moment_bias": ("cone", {"force_sensor": {"bias": [0, 0, 0, 3.0, -2.0, 0.5]}}),
+    "moment_crosstalk": ("cone", {"force_sensor": {"crosstalk_moment": 8.0}}),
     "joints_gain": (
         "cone",
         {"robot": {"joint_stiffness_scale": 0.6}, "force_sensor": {"gain": 0.88}},
@@ -351,6 +355,8 @@ FAULTS = {
     "tool_mass": {"force_bias"},
     "axial": {"force_crosstalk"},
     "rotation": set(),
+    "moment_bias": {"force_moment_bias"},
+    "moment_crosstalk": {"force_moment_crosstalk"},
     "joints_gain": {"robot_stiffness", "force_gain"},
 }
 #: what each cell's diagnosis sees beyond its limit but cannot attribute (cannot_tell)
@@ -428,6 +434,9 @@ def test_intervals_cover_the_truth(diagnosed):
     if name == "rotation":
         d = diag["scan_rotation"]
         assert d["ci_low"] <= 0.25 <= d["ci_high"], d
+    d = diag["force_moment_bias"]  # the moment channels' reading at rest (the size, any axes)
+    mu = float(np.linalg.norm(cell.truth.sensor_bias[3:]))
+    assert d["ci_low"] <= mu <= d["ci_high"], (mu, d)
     if name != "rotation":  # a cone: a rotation about its axis can neither be seen nor matter
         assert diag["scan_rotation"]["verdict"] == "cannot_tell"
         assert "surface of revolution" in diag["scan_rotation"]["explanation"]

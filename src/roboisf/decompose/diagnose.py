@@ -19,9 +19,13 @@ end up. This module tells them apart, suspect by suspect, with what the study ho
   The CNC dynamometer is the reference.
 * **A physical bound on the tip moment.** The ball touches the sheet at one point, so the tip
   moment is ``(contact − tip) × F`` (friction acts at the contact and is in ``F``): at most
-  ``R · |F|``. What the moment channels add beyond it, fitted as ``C F + m₀`` (``C`` in
-  N·m per N = m, quoted in mm), is crosstalk into the moment channels (or, through the arm
-  from the flange to the tip, a force crosstalk).
+  ``R · |F|``. What the moment channels add beyond it, fitted as ``C F_xy + m₀`` (``C`` in
+  N·m per N = m, quoted in mm), is crosstalk into the moment channels (through the arm from
+  the sensor to the tip, a force crosstalk makes one too) — or, for the constant ``m₀``, a
+  bias of the moment channels or a force offset carried up that arm. The logs at rest tell
+  them apart: a bias reads there without load, crosstalk does not; without them a constant
+  that matters is ``cannot_tell`` for both ``force_moment_crosstalk`` and
+  ``force_moment_bias``.
 * **The robot term's pattern along the path.** With the forces corrected (``G⁻¹ (F − b)``, the
   moments replaced by the point-contact moment when the moment channels fail their bound) the
   measured robot term ``y`` is fitted as ``r · x + n_x s_x + n_y s_y + θ n · (ẑ × p)``: a
@@ -58,6 +62,7 @@ time is a thermal drift (a scan is one rigid snapshot), told from a tilt of the 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
@@ -101,6 +106,7 @@ SUSPECTS = (
     "robot_stiffness",
     "force_gain",
     "force_moment_crosstalk",
+    "force_moment_bias",
     "force_bias",
     "force_crosstalk",
     "scan_shift",
@@ -120,6 +126,10 @@ DETECTION_LIMITS: dict[str, tuple[float, float]] = {
     "force_gain": (0.97, 1.03),
     # false tip moment per newton of force, mm (1 mm: 0.6 N·m at 600 N, ~0.01 mm of tool term)
     "force_moment_crosstalk": (0.0, 1.0),
+    # what the moment channels read of their own at rest, N·m: the false moment of the
+    # crosstalk's limit at 500 N, a sixth of the point-contact moment's bound R·|F| (3 N·m on a
+    # Ø10 mm ball at 600 N)
+    "force_moment_bias": (0.0, 0.5),
     # a constant force, N (the old warning's 5 N on the lateral channels)
     "force_bias": (0.0, 5.0),
     # the axial force's crosstalk into the lateral channels, N per N (1 % of a 600 N axial force
@@ -148,6 +158,7 @@ UNITS = {
     "robot_stiffness": "1",
     "force_gain": "1",
     "force_moment_crosstalk": "mm",
+    "force_moment_bias": "N·m",
     "force_bias": "N",
     "force_crosstalk": "1",
     "scan_shift": "mm",
@@ -174,6 +185,16 @@ RATIO_MODEL_ERROR = 0.01
 #: harmonic of ~0.01 mm in the robot term of a cell whose scan is right (calibrated by coverage,
 #: benchmarks/diagnosis.py).
 SHIFT_MODEL_ERROR = 0.01e-3
+#: Model error of the rotation's pattern, m of RMS normal deviation, added to each end of the
+#: rotation's interval as ``ROTATION_MODEL_ERROR / RMS(n · (ẑ × p))``. A part whose walls are
+#: all passed in the same rotational sense (a pyramid) turns whatever differs between a wall's
+#: entry and its exit into this pattern, which is odd along each wall: the per-point force
+#: averages read the force along the wall's normal 6–12 N low at the wall ends (unevenly
+#: between entry and exit) and where the path steps down, and the other terms' errors. Clean
+#: pyramids left 0.4–2.2 µm of it (+0.001° … +0.007°, the same sign for true rotations of
+#: −0.2°, 0 and +0.2° and over seeds: no linearisation, no noise), which the bootstrap's
+#: ±0.003° did not cover (calibrated by coverage, benchmarks/diagnosis.py).
+ROTATION_MODEL_ERROR = 3e-6
 
 #: Model error added to each end of a tilt's interval, rad: beside a drift on a cone the other
 #: terms leave 0.01–0.03° of tilt where there is none (calibrated by coverage,
@@ -199,10 +220,62 @@ def verdict(lo: float, hi: float, limits: tuple[float, float]) -> str:
     return "cannot_tell"
 
 
+#: Decimals each suspect's numbers are printed with in its explanation and headline. The text's
+#: estimates and intervals are formatted from the summary's own values (:func:`_finding`), so
+#: what the terminal and the report print is what summary.json holds, at this precision.
+PRECISION = {
+    "robot_stiffness": 3,
+    "force_gain": 3,
+    "force_moment_crosstalk": 2,
+    "force_moment_bias": 2,
+    "force_bias": 1,
+    "force_crosstalk": 4,
+    "scan_shift": 3,
+    "work_object": 3,
+    "scan_rotation": 3,
+    "thermal_drift": 3,
+    "work_object_tilt": 3,
+    "springback_coupling": 3,
+}
+
+
+def _json_number(v: float | None) -> float | None:
+    """A number as summary.json holds it (None for a missing or non-finite one)."""
+    return float(v) if v is not None and math.isfinite(v) else None
+
+
+@dataclass(frozen=True)
+class Part:
+    """A named estimate behind a finding (the one-scale and the per-joint fit's shift, the false
+    moment's part that follows the force …), in the finding's unit; ``signed`` when it has a
+    direction (a rotation's sign) and is printed with it."""
+
+    name: str
+    estimate: float | None
+    ci_low: float | None
+    ci_high: float | None
+    signed: bool = False
+    #: its unit when it is not the finding's (a tilt in degrees beside an offset in mm)
+    unit: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "name": self.name,
+            "estimate": _json_number(self.estimate),
+            "ci_low": _json_number(self.ci_low),
+            "ci_high": _json_number(self.ci_high),
+            "signed": self.signed,
+        }
+        if self.unit is not None:
+            out["unit"] = self.unit
+        return out
+
+
 @dataclass(frozen=True)
 class Finding:
     """One suspect's verdict. ``estimate``, ``ci_low``, ``ci_high`` in ``unit`` (None when the
-    data hold no estimate); ``headline`` one short line for the terminal and the report."""
+    data hold no estimate); ``headline`` one short line for the terminal and the report;
+    ``parts`` the named estimates the explanation also quotes (summary.json's ``parts``)."""
 
     suspect: str
     verdict: str
@@ -213,12 +286,11 @@ class Finding:
     explanation: str
     headline: str
     limits: tuple[float, float] = (math.nan, math.nan)
+    parts: tuple[Part, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
-        def f(v: float | None) -> float | None:
-            return float(v) if v is not None and math.isfinite(v) else None
-
-        return {
+        f = _json_number
+        out: dict[str, Any] = {
             "suspect": self.suspect,
             "verdict": self.verdict,
             "estimate": f(self.estimate),
@@ -229,6 +301,9 @@ class Finding:
             "headline": self.headline,
             "detection_limits": [f(self.limits[0]), f(self.limits[1])],
         }
+        if self.parts:
+            out["parts"] = [p.to_dict() for p in self.parts]
+        return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -312,7 +387,13 @@ class UnloadedEvidence:
     half the start–end difference when the two disagree (a drifting zero); cnc, cnc_se : (3,)
     the dynamometer's, zero when its log has no untared unloaded stretch (``cnc_seen`` False:
     its zero is then taken as right, and said); drift : N, the flange sensor's |start − end|
-    (nan with one stretch); where : the stretches, in words."""
+    (nan with one stretch); where : the stretches, in words.
+
+    The moment channels at rest (N·m, work axes): robot_m, robot_m_se the flange sensor's tip
+    moment; robot_ms, robot_ms_se its moment about the sensor's own origin, ``M − lever × F``
+    block by block (what its moment channels read: a force offset makes none there); lever :
+    (3,) m the sensor's origin relative to the tip (the path's first tip, work axes; zero for a
+    sensor at the tip)."""
 
     robot: F64
     robot_se: F64
@@ -324,13 +405,24 @@ class UnloadedEvidence:
     #: a robot stretch lies on the toolpath (the log starts or ends forming below the onset):
     #: both logs read forming force there, and the processes' own difference is in their gap
     on_path: bool = False
+    robot_m: F64 = field(default_factory=lambda: np.zeros(3))
+    robot_m_se: F64 = field(default_factory=lambda: np.zeros(3))
+    robot_ms: F64 = field(default_factory=lambda: np.zeros(3))
+    robot_ms_se: F64 = field(default_factory=lambda: np.zeros(3))
+    lever: F64 = field(default_factory=lambda: np.zeros(3))
 
     @classmethod
     def from_stretches(
-        cls, robot: list[UnloadedStretch], cnc: list[UnloadedStretch]
+        cls,
+        robot: list[UnloadedStretch],
+        cnc: list[UnloadedStretch],
+        *,
+        lever: F64 | None = None,
     ) -> UnloadedEvidence | None:
         """None when the robot's log has no untared unloaded stretch (it starts loaded, or was
-        tared on the one it has: that reads zero by construction)."""
+        tared on the one it has: that reads zero by construction). ``lever`` (3,) m: the flange
+        sensor's origin relative to the tip, work axes (None: at the tip)."""
+        L = np.zeros(3) if lever is None else np.asarray(lever, dtype=float)
         r = [u for u in robot if not u.tared]
         if not r:
             return None
@@ -343,35 +435,49 @@ class UnloadedEvidence:
 
         from scipy.special import stdtrit  # Student's t quantile, without scipy.stats
 
-        def pooled(us: list[UnloadedStretch]) -> tuple[F64, F64]:
+        def forces(B: F64) -> F64:
+            return B[:, :3]
+
+        def moments(B: F64) -> F64:
+            return B[:, 3:6]
+
+        def at_sensor(B: F64) -> F64:  # the moment about the sensor's origin
+            return B[:, 3:6] - np.cross(L, B[:, :3])
+
+        def pooled(
+            us: list[UnloadedStretch], ch: Any = forces, drifts: bool = True
+        ) -> tuple[F64, F64]:
             # each stretch about its own mean (a drift is added below), the standard error
             # stretched by Student's t over the normal's 1.96: few blocks estimate it
-            B = np.vstack([u.blocks[:, :3] - u.blocks[:, :3].mean(axis=0) for u in us])
+            B = np.vstack([ch(u.blocks) - ch(u.blocks).mean(axis=0) for u in us])
             dof = len(B) - len(us)
             sd = np.sqrt(np.sum(B**2, axis=0) / max(dof, 1))
             t = float(stdtrit(max(dof, 1), 0.975)) / 1.96
-            mean = np.vstack([u.blocks[:, :3] for u in us]).mean(axis=0)
+            mean = np.vstack([ch(u.blocks) for u in us]).mean(axis=0)
             se = t * sd / np.sqrt(len(B))
             for u in us:
                 if u.on_path:  # forming below the threshold: its creep is in the error
                     q = max(1, len(u.blocks) // 4)
-                    creep = u.blocks[-q:, :3].mean(axis=0) - u.blocks[:q, :3].mean(axis=0)
+                    creep = ch(u.blocks[-q:]).mean(axis=0) - ch(u.blocks[:q]).mean(axis=0)
                     se = np.sqrt(se**2 + creep**2)
+            if drifts and len(us) == 2:  # a drifting zero: half the start–end difference
+                d = ch(us[0].blocks).mean(axis=0) - ch(us[1].blocks).mean(axis=0)
+                se = np.sqrt(se**2 + (0.5 * d) ** 2)
             return mean, se
 
         b_r, se_r = pooled(r)
         drift = math.nan
         if len(r) == 2:
-            d = r[0].mean[:3] - r[1].mean[:3]
-            drift = float(np.linalg.norm(d))
-            se_r = np.sqrt(se_r**2 + (0.5 * d) ** 2)
-        b_c, se_c = pooled(c) if c else (np.zeros(3), np.zeros(3))
+            drift = float(np.linalg.norm(r[0].mean[:3] - r[1].mean[:3]))
+        b_c, se_c = pooled(c, drifts=False) if c else (np.zeros(3), np.zeros(3))
+        m_r, m_se = pooled(r, moments)
+        ms_r, ms_se = pooled(r, at_sensor)
         where = " and ".join(
             f"{u.where} {u.t0:.2f}–{u.t1:.2f} s"
             + (", on the path below the onset" if u.on_path else "")
             for u in r
         )
-        return cls(b_r, se_r, b_c, se_c, bool(c), drift, where, on_path)
+        return cls(b_r, se_r, b_c, se_c, bool(c), drift, where, on_path, m_r, m_se, ms_r, ms_se, L)
 
     def static_offset(self, gain: float, spread: float = 0.0) -> tuple[F64, F64]:
         """(3,) N the flange sensor's constant beyond the dynamometer's at rest, in the fit's
@@ -390,6 +496,55 @@ class UnloadedEvidence:
             se = np.sqrt(se**2 + (spread * gain * np.abs(self.cnc) / 1.96) ** 2)
         return self.robot - gain * self.cnc, se
 
+    def _forming_moment_se(self, gain: float, reach: float) -> F64:
+        """On the path, the forming force's own tip moment at the stretch, ``(a₀ − ā) × g F``
+        with ``|a₀ − ā| ≤ reach`` (m): a 95 % half-width per axis (zero off the path)."""
+        if not self.on_path:
+            return np.zeros(3)
+        return np.full(3, reach * gain * float(np.linalg.norm(self.cnc)) / 1.96)
+
+    def static_moment(self, gain: float, arm: F64, reach: float) -> tuple[F64, F64]:
+        """(3,) N·m the flange sensor's tip moment at rest beyond the point-contact moment of
+        its reading, ``M − ā × F`` (``arm`` ā (3,) m the mean contact − tip of the sensor
+        fit's points), and its standard error: the constant ``m₀`` the forming fit of the false
+        moment (``C F_xy + m₀``) finds when the load adds nothing to it (a moment bias, a force
+        offset carried up the arm). ``reach``: see :meth:`_forming_moment_se`."""
+        m = self.robot_m - np.cross(arm, self.robot)
+        se = np.sqrt(
+            self.robot_m_se**2 + _cross_se(arm, self.robot_se) ** 2
+            + self._forming_moment_se(gain, reach) ** 2
+        )  # fmt: skip
+        return m, se
+
+    def moment_offset(
+        self, gain: float, arm: F64, reach: float, spread: float = 0.0
+    ) -> tuple[F64, F64]:
+        """(3,) N·m what the moment channels read at rest of their own — the moment about the
+        sensor's origin, where a force offset makes none, less what the dynamometer's force
+        there (on the path) makes about it, ``M_s + (lever − ā) × g F_cnc`` — and its standard
+        error: a bias of the moment channels, or the tool's weight acting off the sensor's
+        axis (its moment about the sensor). On the path the two processes' forces differ by
+        ``spread`` (at least :data:`RIM_PROCESS_GAP`, as :meth:`static_offset`), and that
+        difference acts on the lever: ``|lever − ā| · spread · g · |F_cnc|`` per axis (95 %)."""
+        c = self.lever - arm
+        mu = self.robot_ms + np.cross(c, gain * self.cnc)
+        gap = 0.0
+        if self.on_path:
+            gap = float(np.linalg.norm(c)) * max(spread, RIM_PROCESS_GAP) * gain
+            gap *= float(np.linalg.norm(self.cnc)) / 1.96
+        se = np.sqrt(
+            self.robot_ms_se**2 + _cross_se(c, gain * self.cnc_se) ** 2
+            + self._forming_moment_se(gain, reach) ** 2 + gap**2
+        )  # fmt: skip
+        return mu, se
+
+
+def _cross_se(c: F64, se: F64) -> F64:
+    """(3,) standard error of ``c × b`` for ``b`` with independent errors ``se`` (3,)."""
+    cx, cy, cz = (float(v) for v in c)
+    sx, sy, sz = (float(v) ** 2 for v in se)
+    return np.sqrt([cy**2 * sz + cz**2 * sy, cz**2 * sx + cx**2 * sz, cx**2 * sy + cy**2 * sx])
+
 
 @dataclass(frozen=True)
 class SensorFit:
@@ -406,7 +561,21 @@ class SensorFit:
     moment_proportional_ci : the same for the part that follows the lateral force (not a
     constant); moment_excess : RMS of
     the moment beyond the point-contact moment / RMS of ``R|F|``; process_gap : shallow-half over
-    deep-half gain − 1."""
+    deep-half gain − 1.
+
+    The moment channels' constant ``m₀``: moment_constant, moment_constant_ci the size (N·m) of
+    ``m₀ − (lever − ā) × b`` — the constant beyond what the force constant makes up the arm
+    from the sensor (``lever``, m) to the tip (``ā`` the mean contact − tip, m), fitted on the
+    path: a moment bias, or the axial force's crosstalk into the moment channels (nearly
+    constant along a wall); moment_upper, moment_upper_ci the false moment per RMS newton (m)
+    were all of that constant crosstalk (the most the path alone allows). With the logs at
+    rest: moment_load, moment_load_ci the false moment per RMS newton (m) less the static
+    moment at rest (``static_moment`` (3,) N·m, the tip moment at rest beyond the
+    point-contact moment): what the load adds, crosstalk;
+    moment_bias, moment_bias_se (3,) N·m what the moment channels read at rest of their own
+    (:meth:`UnloadedEvidence.moment_offset`); lever (3,) m; moment_carried the
+    false moment per RMS newton (m) that the axial force's crosstalk into the lateral force
+    channels makes carried up the lever (left out of moment_load: force_crosstalk's)."""
 
     gain: float
     gain_ci: tuple[float, float]
@@ -434,6 +603,17 @@ class SensorFit:
     axial_fixed_ci: tuple[float, float] | None = None
     #: Set by the diagnosis when the crosstalk is at fault: :meth:`corrected` removes it.
     correct_axial: bool = False
+    moment_constant: float = math.nan
+    moment_constant_ci: tuple[float, float] = (math.nan, math.nan)
+    moment_upper: float = math.nan
+    moment_upper_ci: tuple[float, float] = (math.nan, math.nan)
+    lever: F64 | None = None
+    moment_carried: float = 0.0
+    moment_load: float | None = None
+    moment_load_ci: tuple[float, float] | None = None
+    static_moment: F64 | None = None
+    moment_bias: F64 | None = None
+    moment_bias_se: F64 | None = None
 
     def corrected(self, W_rob: F64, arm: F64, *, moments: bool) -> F64:
         """The robot's tip wrench (N, 6) corrected: forces ``(F − b) / g`` and the lateral
@@ -515,13 +695,16 @@ def fit_sensor(
     n_boot: int = N_BOOT_DIAG,
     seed: int = 0,
     unloaded: UnloadedEvidence | None = None,
+    lever: F64 | None = None,
 ) -> SensorFit | None:
     """The flange sensor against the CNC dynamometer on the same path (module docstring).
 
     W_cnc, W_rob : (N, 6) [N, N·m] tip wrenches of the two runs, work axes; arm : (N, 3) m
     contact − tip; valid : (N,) bool; lap : (N,); depth : (N,) m; unloaded : the logs at rest,
     when they have an untared unloaded stretch: the static offset, and the axial force's
-    crosstalk fitted with the constant held at it. None with fewer than 6 laps."""
+    crosstalk fitted with the constant held at it; the static moment, and the false moment the
+    load adds beyond it. lever : (3,) m the flange sensor's origin relative to the tip, work
+    axes (None: ``unloaded``'s, else at the tip). None with fewer than 6 laps."""
     sel = np.asarray(valid, bool) & np.all(np.isfinite(W_cnc), 1) & np.all(np.isfinite(W_rob), 1)
     lp = np.asarray(lap)[sel]
     laps = np.unique(lp)
@@ -589,6 +772,22 @@ def fit_sensor(
     axial_force = float(np.sqrt(np.mean(Fz**2)))
     spread = max(gain - gain_ci[0], gain_ci[1] - gain) / gain if gain else 0.0
     static = _static_fit(unloaded, gain, Fz, Fr[deep], Fc[deep], inv, L, weights, spread)
+    moments = _moment_constant(
+        arm[sel][deep], b, boot[:, 1:4], Xd, _B, bootM, Fn, gain, unloaded, lever, seed, spread
+    )
+    if unloaded is not None and static.get("axial_fixed") is not None:
+        # what the axial force's crosstalk into the lateral force channels (force_crosstalk)
+        # makes about the tip, carried up the arm from the sensor: that suspect's, not the
+        # moment channels' (a 3.6 % crosstalk made 9.7 mm of false moment per newton)
+        c = np.array([*static["axial_fixed"], 0.0])
+        f = np.outer(Fz, c)  # the false lateral force the sensor reads, N
+        lev = np.asarray(moments["lever"], dtype=float)
+        carried = np.cross(lev[None, :] - arm[sel][deep], f)
+        _f, B_adj, boot_adj = _false_moment(Fc[deep], Mres[deep] - carried, inv, L, weights)
+        moments.update(
+            _moment_load(Xd, B_adj, boot_adj, Fn, gain, unloaded, arm[sel][deep], seed, spread),
+            moment_carried=float(np.sqrt(np.mean(np.sum(carried**2, 1)))) / Fn,
+        )
     return SensorFit(
         gain=gain,
         gain_ci=gain_ci,
@@ -610,7 +809,86 @@ def fit_sensor(
         n_laps=int(laps.size),
         axial_force=axial_force,
         **static,
+        **moments,
     )
+
+
+def _moment_constant(
+    arm: F64,
+    b: F64,
+    b_boot: F64,
+    X: F64,
+    B: F64,
+    B_boot: F64,
+    Fn: float,
+    gain: float,
+    unloaded: UnloadedEvidence | None,
+    lever: F64 | None,
+    seed: int,
+    spread: float = 0.0,
+) -> dict[str, Any]:
+    """The false moment's constant ``m₀`` (``B[:, 2]`` of ``C F_xy + m₀``, bootstrap
+    ``B_boot`` (n_boot, 3, 3); X (M, 3) ``[F_xy, 1]`` of the deep points, ``arm`` (M, 3) m their
+    contact − tip, ``b`` (3,) N the force constant and its replicates ``b_boot``, ``Fn`` the
+    RMS force): beyond what the force constant makes up the arm from the sensor, and — with the
+    logs at rest — beyond the static moment there (:class:`SensorFit`'s fields)."""
+    a_bar = arm.mean(axis=0)
+    if lever is None:
+        lever = unloaded.lever if unloaded is not None else np.zeros(3)
+    c = np.asarray(lever, dtype=float) - a_bar
+    mc = B[:, 2] - np.cross(c, b)
+    mc_boot = B_boot[:, :, 2] - np.cross(c, b_boot)
+    Bu = B.copy()
+    Bu[:, 2] = mc
+    Bu_boot = B_boot.copy()
+    Bu_boot[:, :, 2] = mc_boot
+    mu_ = float(np.sqrt(np.mean(np.sum((X @ Bu.T) ** 2, 1)))) / Fn
+    ulo, uhi = _pct(_rms_fitted(X, Bu_boot) / Fn)
+    out: dict[str, Any] = {
+        "lever": np.asarray(lever, dtype=float),
+        "moment_constant": float(np.linalg.norm(mc)),
+        "moment_constant_ci": _size_ci(mc_boot, mc),
+        "moment_upper": mu_,
+        "moment_upper_ci": (min(ulo, mu_), max(uhi, mu_)),
+    }
+    if unloaded is None:
+        return out
+    out.update(_moment_load(X, B, B_boot, Fn, gain, unloaded, arm, seed, spread))
+    return out
+
+
+def _moment_load(
+    X: F64,
+    B: F64,
+    B_boot: F64,
+    Fn: float,
+    gain: float,
+    unloaded: UnloadedEvidence,
+    arm: F64,
+    seed: int,
+    spread: float = 0.0,
+) -> dict[str, Any]:
+    """The false moment the load brings: ``C F_xy + m₀`` (``B``, replicates ``B_boot``) less
+    the static moment the sensor reads at rest, per RMS newton ``Fn`` (m); the static moment
+    drawn with its standard error in each replicate."""
+    a_bar = arm.mean(axis=0)
+    reach = float(np.max(np.linalg.norm(arm, axis=1)) + np.linalg.norm(a_bar))
+    m_rest, se_m = unloaded.static_moment(gain, a_bar, reach)
+    Bl = B.copy()
+    Bl[:, 2] -= m_rest
+    z = np.random.default_rng(seed + 17).standard_normal((len(B_boot), 3))
+    Bl_boot = B_boot.copy()
+    Bl_boot[:, :, 2] -= m_rest[None, :] + z * se_m[None, :]
+    ml = float(np.sqrt(np.mean(np.sum((X @ Bl.T) ** 2, 1)))) / Fn
+    lo, hi = _pct(_rms_fitted(X, Bl_boot) / Fn)
+    mu, se_mu = unloaded.moment_offset(gain, a_bar, reach, spread)
+    return {
+        "moment_load": ml,
+        "moment_load_ci": (min(lo, ml), max(hi, ml)),
+        "static_moment": m_rest,
+        "moment_bias": mu,
+        "moment_bias_se": se_mu,
+    }
 
 
 def _static_fit(
@@ -706,7 +984,9 @@ class RobotTermFit:
     ``"drift"`` (and a drift: one is seen), ``"tilt"`` (and a drift and a tilt: a tilt is
     seen) or ``"tilt_only"`` (and a tilt, where a drift cannot be told from the offset);
     tilt_registered : the robot scan's registration fitted its tilts (from the flange), so a
-    tilt left in the robot term is the formed part's, not the scan's; rms_drift_pattern : m."""
+    tilt left in the robot term is the formed part's, not the scan's; rms_drift_pattern : m;
+    rotation_model_error : rad, added to each end of both rotation intervals
+    (:data:`ROTATION_MODEL_ERROR` over the pattern's RMS per radian)."""
 
     ratio: float
     ratio_ci: tuple[float, float]
@@ -733,6 +1013,7 @@ class RobotTermFit:
     model: str = "shift"
     tilt_registered: bool = True
     rms_drift_pattern: float = 0.0
+    rotation_model_error: float = 0.0
 
     @property
     def shift_fit(self) -> PatternFit:
@@ -954,11 +1235,16 @@ def fit_robot_term(
     hi = max(max(c[0], c[1][1]) for c in cands)
     ratio_ci = (lo - RATIO_MODEL_ERROR * est, hi + RATIO_MODEL_ERROR * est)
     rot = rot_ci = rotj = rotj_ci = None
+    rot_err = 0.0
     if rot_seen:
+        # the direction of travel's pattern (ROTATION_MODEL_ERROR), per radian of rotation
+        rot_err = ROTATION_MODEL_ERROR / float(np.sqrt(np.mean(rot_col**2)))
         rot = float(b1[3])
-        rot_ci = _pct(B1[:, 3])
+        lo_r, hi_r = _pct(B1[:, 3])
+        rot_ci = (min(lo_r, rot) - rot_err, max(hi_r, rot) + rot_err)
         rotj = float(bj[k + 2])
-        rotj_ci = _pct(Bj[:, k + 2])
+        lo_r, hi_r = _pct(Bj[:, k + 2])
+        rotj_ci = (min(lo_r, rotj) - rot_err, max(hi_r, rotj) + rot_err)
     d_used = drift_t if model == "tilt" else drift
     rms_drift = 0.0
     if d_used is not None and t is not None:
@@ -989,6 +1275,7 @@ def fit_robot_term(
         model=model,
         tilt_registered=tilt_registered,
         rms_drift_pattern=rms_drift,
+        rotation_model_error=rot_err,
     )
 
 
@@ -1101,7 +1388,12 @@ def _finding(
     todo: str,
     *,
     force: str | None = None,
+    parts: tuple[Part, ...] = (),
 ) -> Finding:
+    """A suspect's finding. ``text`` may quote the finding's numbers by placeholder — ``{est}``,
+    ``{ci}`` (``[lo, hi]``) and ``{est:NAME}``, ``{ci:NAME}`` for the part ``NAME`` — which are
+    formatted here from the values summary.json holds (:data:`PRECISION`): the text cannot say
+    another number than the JSON."""
     limits = DETECTION_LIMITS[suspect]
     if est is None or ci is None:
         v = "cannot_tell"
@@ -1109,6 +1401,8 @@ def _finding(
     else:
         lo, hi = ci
         v = force or verdict(lo, hi, limits)
+    f = Finding(suspect, v, est, lo, hi, unit, "", "", limits, tuple(parts))
+    text = _fill(text, f.to_dict())
     label = suspect.replace("_", " ")
     if v == "fault":
         head = f"{label}: FAULT — {_first_clause(text)}; {todo}"
@@ -1116,7 +1410,37 @@ def _finding(
         head = f"{label}: ok"
     else:
         head = f"{label}: cannot tell — {_first_clause(text)}"
-    return Finding(suspect, v, est, lo, hi, unit, text, head, limits)
+    return replace(f, explanation=text, headline=head)
+
+
+def _num(v: float | None, decimals: int, *, signed: bool = False) -> str:
+    """``v`` at ``decimals`` (with its sign when ``signed``; never "-0.00")."""
+    if v is None:
+        return "n/a"
+    s = f"{v:+.{decimals}f}" if signed else f"{v:.{decimals}f}"
+    if float(s) == 0.0:
+        s = s.replace("-", "+" if signed else "")
+    return s
+
+
+_PLACEHOLDER = re.compile(r"\{(est|ci)(?::([a-z_]+))?\}")
+
+
+def _fill(text: str, d: dict[str, Any]) -> str:
+    """``text`` with its placeholders (:func:`_finding`) replaced by the numbers of ``d`` (a
+    finding's summary.json entry) at the suspect's precision."""
+    dec = PRECISION[d["suspect"]]
+    parts = {p["name"]: p for p in d.get("parts", [])}
+
+    def one(m: re.Match[str]) -> str:
+        what, name = m.group(1), m.group(2)
+        src = d if name is None else parts[name]
+        sg = bool(src.get("signed", False))
+        if what == "est":
+            return _num(src["estimate"], dec, signed=sg)
+        return f"[{_num(src['ci_low'], dec, signed=sg)}, {_num(src['ci_high'], dec, signed=sg)}]"
+
+    return _PLACEHOLDER.sub(one, text)
 
 
 def _first_clause(text: str) -> str:
@@ -1147,53 +1471,29 @@ def sensor_findings(
         why = "fewer than 6 used laps to compare the flange sensor with the CNC dynamometer"
         out = _unknown(("force_gain", "force_moment_crosstalk"), why)
         if unloaded is None:
-            return out + _unknown(("force_bias", "force_crosstalk"), why)
+            return out + _unknown(("force_moment_bias", "force_bias", "force_crosstalk"), why)
+        # no contact arm without the fit: the forming force's moment at a stretch on the path
+        # is within the ball's diameter of the tip
         return [
             *out,
+            _moment_bias_at_rest(unloaded, *unloaded.moment_offset(1.0, np.zeros(3), 2 * R)),
             _static_bias_finding(unloaded, 1.0, None),
             *_unknown(("force_crosstalk",), why),
         ]
-    g, (glo, ghi) = sf.gain, sf.gain_ci
+    g = sf.gain
     gain_text = (
-        f"the flange sensor reads {g:.3f}× the CNC dynamometer's force on the same path (95 % "
-        f"[{glo:.3f}, {ghi:.3f}], deeper half of the laps; the shallow half differs by "
+        "the flange sensor reads {est}× the CNC dynamometer's force on the same path (95 % "
+        "{ci}, deeper half of the laps; the shallow half differs by "
         f"{sf.process_gap:+.1%}, the processes' own difference, added to the interval); "
         f"largest force crosstalk {sf.force_crosstalk:.3f}"
     )
-    cm = sf.moment_crosstalk * 1e3
-    clo, chi = (v * 1e3 for v in sf.moment_crosstalk_ci)
-    ct_text = (
-        f"the moment channels carry {cm:.2f} mm (N·m per kN) of false tip moment per unit force "
-        f"beyond the point-contact moment (contact − tip) × F, whose size is at most R·|F| "
-        f"(R = {R * 1e3:.1f} mm); the excess is {sf.moment_excess:.0%} of that bound"
-    )
+    ct_finding, mb_finding = _moment_findings(sf, R)
     b = sf.b
     bias_limits = DETECTION_LIMITS["force_bias"]
     v_b = verdict(sf.bias_ci[0], sf.bias_ci[1], bias_limits)
     v_ba = verdict(sf.bias_axial_ci[0], sf.bias_axial_ci[1], bias_limits)
-    bias_fault = v_b == "fault"
-    ct_est, ct_ci, ct_force = cm, (clo, chi), None
-    if bias_fault:
-        plo, phi = (v * 1e3 for v in sf.moment_proportional_ci)
-        lim = DETECTION_LIMITS["force_moment_crosstalk"]
-        vp = verdict(plo, phi, lim)
-        ct_text += (
-            f"; with a constant force between the sensors at fault (a bias, or the axial force's "
-            f"crosstalk: force_bias, force_crosstalk), a constant false moment is also what it "
-            f"makes carried up the arm from the flange to the tip: the part that follows the "
-            f"force is "
-            f"{sf.moment_proportional * 1e3:.2f} mm ([{plo:.2f}, {phi:.2f}])"
-        )
-        if vp != "fault" and verdict(clo, chi, lim) == "fault":
-            ct_force = "cannot_tell"
-            ct_text += (
-                "; crosstalk from the axial force into the moment channels, or the constant "
-                "force, cannot be told apart"
-            )
-        elif vp == "fault":
-            ct_est, ct_ci = sf.moment_proportional * 1e3, (plo, phi)
     bias_text = (
-        f"a constant ({b[0]:+.1f}, {b[1]:+.1f}, {b[2]:+.1f}) N (work axes) between the flange "
+        f"a constant {_vec(b)} (work axes; its size {{est}} N, 95 % {{ci}}) between the flange "
         "sensor's and the dynamometer's tip forces, the gain fitted beside it; an untared sensor "
         "or the tool's weight below the sensor"
     )
@@ -1233,18 +1533,151 @@ def sensor_findings(
             gain_text,
             "recalibrate the flange sensor (the analysis used forces divided by the gain)",
         ),
-        _finding(
-            "force_moment_crosstalk",
-            ct_est,
-            ct_ci,
-            "mm",
-            ct_text,
-            "check the sensor's calibration matrix (the analysis used the point-contact moment)",
-            force=ct_force,
-        ),
+        ct_finding,
+        mb_finding,
         bias_finding,
         xt_finding,
     ]
+
+
+CT_ACTION = "check the sensor's calibration matrix (the analysis used the point-contact moment)"
+MB_ACTION = "tare the sensor with the tool mounted (the analysis used the point-contact moment)"
+
+
+def _moment_findings(sf: SensorFit, R: float) -> tuple[Finding, Finding]:
+    """force_moment_crosstalk and force_moment_bias from the false tip moment ``C F_xy + m₀``:
+    what follows the force is crosstalk; the constant ``m₀`` needs the logs at rest — there a
+    bias reads without load, crosstalk does not (it scales with the force). Without them the
+    constant (beyond what the force constant makes up the arm) is crosstalk of the nearly
+    constant axial force or a moment bias: both ``cannot_tell`` when it matters, naming each
+    other. A moment bias was called crosstalk FAULT 6.05 mm (a clean cone, 3.6 N·m of bias)."""
+    cm = sf.moment_crosstalk * 1e3
+    clo, chi = (v * 1e3 for v in sf.moment_crosstalk_ci)
+    cp = sf.moment_proportional * 1e3
+    plo, phi = (v * 1e3 for v in sf.moment_proportional_ci)
+    bound = (
+        "beyond the point-contact moment (contact − tip) × F, whose size is at most R·|F| "
+        f"(R = {R * 1e3:.1f} mm)"
+    )
+    whole_text = (
+        "the whole false moment, {est:whole} mm ({ci:whole}; "
+        f"{sf.moment_excess:.0%} of that bound)"
+    )
+    whole = Part("whole", cm, clo, chi)
+    lim_ct = DETECTION_LIMITS["force_moment_crosstalk"]
+    if sf.moment_load is not None and sf.moment_load_ci is not None:
+        assert sf.unloaded is not None and sf.static_moment is not None
+        ml = sf.moment_load * 1e3
+        mlo, mhi = (v * 1e3 for v in sf.moment_load_ci)
+        ct = _finding(
+            "force_moment_crosstalk",
+            ml,
+            (mlo, mhi),
+            "mm",
+            "the moment channels carry {est} mm (N·m per kN) of false tip moment per unit force "
+            "that the load brings (95 % {ci}) " + bound + f"; {whole_text}, also holds what the "
+            f"sensor reads with the tool off the sheet ({_mvec(sf.static_moment)} at the tip "
+            "beyond its reading's point-contact moment), which needs no load and is no crosstalk "
+            "(force_moment_bias, force_bias)"
+            + (
+                f"; nor is the {sf.moment_carried * 1e3:.2f} mm that the axial force's crosstalk "
+                "into the lateral force channels (force_crosstalk) makes carried up the "
+                f"{float(np.linalg.norm(sf.lever)) * 1e3:.0f} mm arm from the sensor to the tip"
+                if sf.moment_carried > 0 and sf.lever is not None
+                else ""
+            ),
+            CT_ACTION,
+            parts=(whole,),
+        )
+        assert sf.moment_bias is not None and sf.moment_bias_se is not None
+        return ct, _moment_bias_at_rest(sf.unloaded, sf.moment_bias, sf.moment_bias_se)
+    # the path alone: what follows the force is crosstalk for sure; the constant beyond what
+    # the force constant makes up the arm may be crosstalk of the axial force or a moment bias
+    ulo, uhi = (v * 1e3 for v in sf.moment_upper_ci)
+    follows = Part("follows_force", cp, plo, phi)
+    upper = Part("with_constant", sf.moment_upper * 1e3, ulo, uhi)
+    ci = (plo, max(phi, uhi))
+    v_ct = verdict(ci[0], ci[1], lim_ct)
+    text = (
+        "the moment channels carry {est} mm (N·m per kN) of false tip moment per unit force "
+        "that follows the lateral force, at least (95 % {ci}, up to {est:with_constant} mm "
+        "with the constant false moment) " + bound + f"; {whole_text}"
+    )
+    mc = sf.moment_constant
+    mc_ci = sf.moment_constant_ci
+    v_mb = verdict(mc_ci[0], mc_ci[1], DETECTION_LIMITS["force_moment_bias"])
+    apart = (
+        "; the constant false moment, {mc} N·m beyond what the force constant makes up the arm "
+        "from the sensor, is crosstalk of the axial force into the moment channels (it barely "
+        "varies along a wall) or a bias of the moment channels: without a stretch of the log "
+        "at rest (the tool off the sheet, untared) the two cannot be told apart "
+        "(force_moment_crosstalk, force_moment_bias)"
+    )
+    ct_force = None
+    if v_ct == "cannot_tell" and verdict(plo, phi, lim_ct) != "cannot_tell":
+        text += apart.replace("{mc}", _num(mc, PRECISION["force_moment_bias"]))
+        ct_force = "cannot_tell"
+    ct = _finding(
+        "force_moment_crosstalk",
+        cp,
+        ci,
+        "mm",
+        text,
+        CT_ACTION,
+        force=ct_force,
+        parts=(follows, upper, whole),
+    )
+    mb_text = (
+        "a constant false tip moment of {est} N·m (95 % {ci}) beyond what the force constant "
+        "makes up the arm from the sensor to the tip"
+    )
+    mb_force = None
+    if v_mb != "ok":
+        mb_force = "cannot_tell"
+        mb_text += (
+            ": a bias of the moment channels, or crosstalk of the axial force into them (it "
+            "barely varies along a wall): without a stretch of the log at rest (the tool off "
+            "the sheet, untared) the two cannot be told apart (force_moment_bias, "
+            "force_moment_crosstalk)"
+        )
+    mb = _finding("force_moment_bias", mc, mc_ci, "N·m", mb_text, MB_ACTION, force=mb_force)
+    return ct, mb
+
+
+def _moment_bias_at_rest(u: UnloadedEvidence, mu: F64, se: F64) -> Finding:
+    """force_moment_bias from the logs at rest: what the moment channels read of their own with
+    the tool off the sheet, ``mu`` (3,) N·m and its standard error ``se``
+    (:meth:`UnloadedEvidence.moment_offset`)."""
+    ci = size_interval(mu, se)
+    text = (
+        f"with the tool off the sheet ({u.where} of the log) the moment channels read "
+        f"{_mvec(mu)} of their own (about the sensor's origin, work axes, beyond what the "
+        "force there makes; its size {est} N·m, 95 % {ci}): a moment that needs no load is no "
+        "crosstalk (that scales with the force) — a bias of the moment channels, or the "
+        "tool's weight acting off the sensor's axis"
+    )
+    return _finding("force_moment_bias", float(np.linalg.norm(mu)), ci, "N·m", text, MB_ACTION)
+
+
+#: The suspects of the flange sensor's moment channels.
+MOMENT_SUSPECTS = ("force_moment_crosstalk", "force_moment_bias")
+
+
+def _no_moment_channels(suspect: str) -> Finding:
+    """A moment suspect of a force log without moment channels: nothing to be off. (Its tip
+    moments are the point-contact moment; compared with a reading at rest they made a force
+    bias carried up the arm look like 10.6 mm of moment crosstalk.)"""
+    text = (
+        "the flange sensor's log has no moment channels: the analysis takes the point-contact "
+        "moment (contact − tip) × F for the tip moment, so no moment channel can be off"
+    )
+    return _finding(suspect, 0.0, (0.0, 0.0), UNITS[suspect], text, "")
+
+
+def _mvec(v: F64) -> str:
+    """A moment vector (3,) N·m as the explanations print it (no "-0.00")."""
+    x, y, z = (round(float(c), 2) + 0.0 for c in v[:3])
+    return f"({x:+.2f}, {y:+.2f}, {z:+.2f}) N·m"
 
 
 #: The relative force difference of the two processes allowed for a stretch on the path (the
@@ -1281,14 +1714,16 @@ def _static_bias_finding(u: UnloadedEvidence, gain: float, sf: SensorFit | None)
         f"{_vec(u.robot)} at the tip (work axes)"
     )
     text += (
-        f", the dynamometer {_vec(u.cnc)}: a static offset of {_vec(b_s)} between them"
+        f", the dynamometer {_vec(u.cnc)}: a static offset of {_vec(b_s)} between them (its "
+        "size {est} N, 95 % {ci})"
         + (
             " (both forming there: the processes' own force difference is in its interval)"
             if u.on_path
             else ""
         )
         if u.cnc_seen
-        else " (the dynamometer's log has no unloaded stretch: its zero is taken as right)"
+        else " (its size {est} N, 95 % {ci}; the dynamometer's log has no unloaded stretch: its "
+        "zero is taken as right)"
     )
     text += "; an untared sensor or the tool's weight below the sensor"
     if math.isfinite(u.drift) and u.drift > BIAS_DRIFT:
@@ -1312,7 +1747,7 @@ def _axial_crosstalk_finding(sf: SensorFit) -> Finding:
     assert sf.axial_fixed is not None and sf.axial_fixed_ci is not None
     cx, cy = sf.axial_fixed
     text = (
-        f"beyond the static offset, the lateral channels read {math.hypot(cx, cy):.4f} N per N "
+        "beyond the static offset, the lateral channels read {est} N per N (95 % {ci}) "
         f"of the axial force (x {cx:+.4f}, y {cy:+.4f}, work axes; {sf.axial_force:.0f} N RMS "
         "axial force): crosstalk of the axial force into the lateral channels — along a wall it "
         "is a near-constant lateral force that only the logs at rest tell from a bias"
@@ -1328,13 +1763,13 @@ def _axial_crosstalk_unseen(sf: SensorFit, v_b: str) -> Finding:
         hi = sf.bias_ci[1] / Fz
         text = (
             f"no constant between the two sensors on this path (|b| ≤ {sf.bias_ci[1]:.1f} N), "
-            f"so the axial force's crosstalk into the lateral channels is at most {hi:.4f} N "
-            f"per N ({sf.axial_force:.0f} N RMS axial force)"
+            "so the axial force's crosstalk into the lateral channels lies in {ci} N per N "
+            f"({sf.axial_force:.0f} N RMS axial force)"
         )
         return _finding("force_crosstalk", sf.bias / Fz, (0.0, hi), "1", text, XT_ACTION)
     text = (
         f"a constant of {sf.bias:.1f} N between the sensors on this path may be the axial "
-        f"force's crosstalk into the lateral channels (up to {sf.bias / Fz:.4f} N per N) or a "
+        "force's crosstalk into the lateral channels ({est} N per N, 95 % {ci}) or a "
         "bias: the path's axial force varies too little to tell, and the logs have no unloaded "
         "stretch to read the sensor at rest (either way the analysis removed the constant)"
     )
@@ -1396,6 +1831,12 @@ def _rotation_sizes(
     return r1, ci1, rj, (lo_abs, hi_abs)
 
 
+def _rotation_joint_ci(rf: RobotTermFit) -> tuple[float, float]:
+    """The per-joint fit's signed rotation interval in degrees (nan when not seen)."""
+    c = rf.rotation_joint_ci or (math.nan, math.nan)
+    return math.degrees(c[0]), math.degrees(c[1])
+
+
 def offset_seen(rf: RobotTermFit) -> tuple[bool, bool]:
     """Whether the robot term holds a sideways offset and a rotation about the part axis beyond
     their detection limits (both fits agree): the robot scan's registration or the robot's work
@@ -1426,17 +1867,20 @@ def _offset_findings(rf: RobotTermFit, *, axisymmetric: bool) -> list[Finding]:
         "tilt": " (a drift and a tilt of the formed part fitted beside it)",
         "tilt_only": " (a tilt of the formed part fitted beside it)",
     }[rf.model]
+    shift_parts = [
+        Part("one_scale", float(np.linalg.norm(s1)), c1[0], c1[1]),
+        Part("per_joint", float(np.linalg.norm(sj)), cj[0], cj[1]),
+    ]
     fitted = (
-        f"the robot term carries the pattern of a sideways offset of "
-        f"{np.linalg.norm(s1):.3f} mm (x {s1[0]:+.3f}, y {s1[1]:+.3f}; 95 % of its size "
-        f"[{c1[0]:.3f}, {c1[1]:.3f}] mm) beside one stiffness scale, and "
-        f"{np.linalg.norm(sj):.3f} mm ([{cj[0]:.3f}, {cj[1]:.3f}]) beside a per-joint fit" + beside
+        "the robot term carries the pattern of a sideways offset of {est:one_scale} mm "
+        f"(x {s1[0]:+.3f}, y {s1[1]:+.3f}; 95 % of its size {{ci:one_scale}} mm) beside one "
+        "stiffness scale, and {est:per_joint} mm ({ci:per_joint}) beside a per-joint fit" + beside
     )
     est = float(np.linalg.norm(s1 if v1 == vj else sj))
     shift_seen, turned = offset_seen(rf)
     if shift_seen:
         shift_text = (
-            f"a sideways offset of the robot part of {est:.3f} mm [{ci[0]:.3f}, {ci[1]:.3f}]: "
+            "a sideways offset of the robot part of {est} mm {ci}: "
             "the robot scan's registration or the robot's work object — cannot tell apart from "
             f"these files ({OFFSET_SHORT}); {fitted}; {OFFSET_WHY}; {OFFSET_CHECK}"
         )
@@ -1444,10 +1888,10 @@ def _offset_findings(rf: RobotTermFit, *, axisymmetric: bool) -> list[Finding]:
         shift_text = fitted
     else:
         shift_text = (
-            f"{fitted}; the two explanations disagree: an offset of {np.linalg.norm(s1):.3f} mm "
+            f"{fitted}; the two explanations disagree: an offset of {{est:one_scale}} mm "
             f"(RMS {rf.rms_shift_pattern * 1e3:.3f} mm of normal deviation) with one stiffness "
             "scale, or joint stiffness errors that differ joint by joint with an offset of "
-            f"{np.linalg.norm(sj):.3f} mm; an offset would be the robot scan's registration or "
+            "{est:per_joint} mm; an offset would be the robot scan's registration or "
             "the robot's work object alike"
         )
     if shift_seen and rf.tilt_alone is not None and rf.drift is None:
@@ -1457,7 +1901,9 @@ def _offset_findings(rf: RobotTermFit, *, axisymmetric: bool) -> list[Finding]:
         )
     v_shift = "cannot_tell" if shift_seen or v1 != vj else v1
     out = [
-        _finding("scan_shift", est, ci, "mm", shift_text, "", force=v_shift),
+        _finding(
+            "scan_shift", est, ci, "mm", shift_text, "", force=v_shift, parts=tuple(shift_parts)
+        ),
     ]
     rot = _rotation_sizes(rf)
     if rot is None:
@@ -1471,16 +1917,24 @@ def _offset_findings(rf: RobotTermFit, *, axisymmetric: bool) -> list[Finding]:
         rot_finding = _finding("scan_rotation", None, None, "deg", why, "")
     else:
         r1, ci1, rj, size_ci = rot
+        cij = _rotation_joint_ci(rf)
+        rot_parts = (
+            Part("one_scale", r1, ci1[0], ci1[1], signed=True),
+            Part("per_joint", rj, cij[0], cij[1], signed=True),
+        )
         rot_fitted = (
-            f"the robot term carries the pattern of a rotation about the part axis of "
-            f"{r1:+.3f}° (95 % [{ci1[0]:+.3f}, {ci1[1]:+.3f}]°; {rj:+.3f}° beside a per-joint "
-            f"fit), RMS {rf.rms_rotation_pattern * 1e3:.3f} mm of normal deviation"
+            "the robot term carries the pattern of a rotation about the part axis of "
+            "{est:one_scale}° (95 % {ci:one_scale}°; {est:per_joint}° ({ci:per_joint}°) beside a "
+            "per-joint fit; each interval widened by "
+            f"±{math.degrees(rf.rotation_model_error):.3f}° for the pattern the direction of "
+            "travel leaves, the walls passed in one rotational sense), RMS "
+            f"{rf.rms_rotation_pattern * 1e3:.3f} mm of normal deviation"
         )
         rot_text = rot_fitted
         if turned:
             rot_text = (
-                f"the robot part is turned about the part axis by {r1:+.3f}° "
-                f"[{size_ci[0]:.3f}, {size_ci[1]:.3f}]° in size: the robot scan's registration "
+                "the robot part is turned about the part axis by {est:one_scale}° ({est}° in "
+                "size, 95 % {ci}°): the robot scan's registration "
                 f"or the robot's work object turned — cannot tell apart from these files "
                 f"({OFFSET_SHORT}); {rot_fitted}; {OFFSET_WHY}; {OFFSET_CHECK}"
             )
@@ -1492,16 +1946,18 @@ def _offset_findings(rf: RobotTermFit, *, axisymmetric: bool) -> list[Finding]:
             rot_text,
             "",
             force="cannot_tell" if turned else None,
+            parts=rot_parts,
         )
     # the work object: the same offset (and turn), read as the part's
     if shift_seen or turned:
         seen = []
         if shift_seen:
-            seen.append(f"a sideways offset of {est:.3f} mm [{ci[0]:.3f}, {ci[1]:.3f}]")
+            seen.append("a sideways offset of {est} mm {ci}")
         if turned and rot is not None:
+            shift_parts.append(Part("turn", abs(rot[0]), rot[3][0], rot[3][1], unit="deg"))
             seen.append(
-                f"a turn about the part axis of {rot[0]:+.3f}° "
-                f"[{rot[3][0]:.3f}, {rot[3][1]:.3f}]° in size"
+                f"a turn about the part axis of {{est:turn}}° in size ({rot[0]:+.3f}°; 95 % "
+                "{ci:turn}°)"
             )
         wo_text = (
             f"the robot part carries {' and '.join(seen)}: the robot's work object (the part "
@@ -1516,7 +1972,9 @@ def _offset_findings(rf: RobotTermFit, *, axisymmetric: bool) -> list[Finding]:
         )
         # the offset's own verdict: a turn that is only not ruled out is scan_rotation's to say
         v_wo = v_shift
-    out.append(_finding("work_object", est, ci, "mm", wo_text, "", force=v_wo))
+    out.append(
+        _finding("work_object", est, ci, "mm", wo_text, "", force=v_wo, parts=tuple(shift_parts))
+    )
     out.append(rot_finding)
     return out
 
@@ -1569,37 +2027,47 @@ def _drift_finding(rf: RobotTermFit) -> Finding:
                 text, todo, force="ok",
             )  # fmt: skip
         text = (
-            f"{where}: the robot part's offset ([{lo:.3f}, {hi:.3f}] mm) may be a thermal drift "
-            "of the robot as well as the robot scan's registration or the robot's work object — "
-            "cannot tell apart on this path"
+            f"{where}: the robot part's offset ({{est:offset}} mm, 95 % {{ci:offset}}) may be a "
+            "thermal drift of the robot as well as the robot scan's registration or the robot's "
+            "work object — cannot tell apart on this path"
         )
+        offset = Part("offset", float(np.linalg.norm(sf.one)) * 1e3, lo, hi)
         return _finding(
             "thermal_drift", float(np.linalg.norm(sf.one)) * 1e3 / k, (0.0, hi / k), "mm", text,
-            todo, force="cannot_tell",
+            todo, force="cannot_tell", parts=(offset,),
         )  # fmt: skip
     assert tl is not None
     deg = math.degrees(1.0)
+    parts: list[Part] = []
 
-    def grows(d: PatternFit, beside: str) -> str:
-        e, ej = d.one * 1e3, d.joint * 1e3
+    def grows(d: PatternFit, beside: str, name: str = "") -> str:
+        """The drift ``d`` of both fits, its numbers as the parts ``one_scale{name}`` and
+        ``per_joint{name}``."""
+        e = d.one * 1e3
+        for fit, v, c in (("one_scale", d.one, d.one_ci), ("per_joint", d.joint, d.joint_ci)):
+            if fit + name not in {q.name for q in parts}:
+                parts.append(
+                    Part(fit + name, float(np.linalg.norm(v)) * 1e3, c[0] * 1e3, c[1] * 1e3)
+                )
         return (
             f"the robot term carries a sideways offset growing over the run to "
-            f"{np.linalg.norm(e):.3f} mm at its end (x {e[0]:+.3f}, y {e[1]:+.3f}; 95 % of its "
-            f"size [{d.one_ci[0] * 1e3:.3f}, {d.one_ci[1] * 1e3:.3f}] mm) beside one stiffness "
-            f"scale{beside}, and {np.linalg.norm(ej):.3f} mm ([{d.joint_ci[0] * 1e3:.3f}, "
-            f"{d.joint_ci[1] * 1e3:.3f}]) beside a per-joint fit"
+            f"{{est:one_scale{name}}} mm at its end (x {e[0]:+.3f}, y {e[1]:+.3f}; 95 % of its "
+            f"size {{ci:one_scale{name}}} mm) beside one stiffness scale{beside}, and "
+            f"{{est:per_joint{name}}} mm ({{ci:per_joint{name}}}) beside a per-joint fit"
         )
 
     t = tl.one * deg
+    parts.append(
+        Part("tilt", float(np.linalg.norm(t)), tl.one_ci[0] * deg, tl.one_ci[1] * deg, unit="deg")
+    )
     tilt_text = (
-        f"a tilt of the formed part of {np.linalg.norm(t):.3f}° about work x, y (x {t[0]:+.3f}°, "
-        f"y {t[1]:+.3f}°; 95 % of its size [{tl.one_ci[0] * deg:.3f}, "
-        f"{tl.one_ci[1] * deg:.3f}]°)"
+        f"a tilt of the formed part of {{est:tilt}}° about work x, y (x {t[0]:+.3f}°, "
+        f"y {t[1]:+.3f}°; 95 % of its size {{ci:tilt}}°)"
     )
     v2, v3 = d2.verdict(lim), d3.verdict(lim)
     if rf.model == "tilt":
         d, v, ci = d3, v3, d3.ci()
-        text = f"{grows(d3, ' and ' + tilt_text)}"
+        text = f"{grows(d3, ' and ' + tilt_text, '_with_tilt')}"
         if v == "ok":
             text += f"; the offset that grows with depth is that tilt, not a drift: {owner}"
         elif v == "cannot_tell":
@@ -1608,27 +2076,34 @@ def _drift_finding(rf: RobotTermFit) -> Finding:
         d, v = d2, "cannot_tell"
         ci = (min(d2.ci()[0], d3.ci()[0]), max(d2.ci()[1], d3.ci()[1]))
         text = (
-            f"a sideways offset growing over the run to {np.linalg.norm(d2.one) * 1e3:.3f} mm "
-            f"[{ci[0]:.3f}, {ci[1]:.3f}]: a thermal drift of the robot, or a tilt of the formed "
-            f"part about a horizontal axis ({owner}) — cannot tell apart on this path (forming "
-            f"time follows depth); {grows(d2, '')}; with a tilt fitted too, "
-            f"{grows(d3, ' and ' + tilt_text)}"
+            "a sideways offset growing over the run to {est} mm {ci}: a thermal drift of the "
+            f"robot, or a tilt of the formed part about a horizontal axis ({owner}) — cannot "
+            f"tell apart on this path (forming time follows depth); {grows(d2, '')}; with a "
+            f"tilt fitted too, {grows(d3, ' and ' + tilt_text, '_with_tilt')}"
         )
     elif v2 == "fault":
         d, v = d2, "fault"
         ci = (min(d2.ci()[0], d3.ci()[0]), max(d2.ci()[1], d3.ci()[1]))
         text = (
-            f"the robot's tip drifted sideways over the run, {np.linalg.norm(d2.one) * 1e3:.3f} "
-            f"mm at its end [{ci[0]:.3f}, {ci[1]:.3f}]: a thermal drift — a scan is one rigid "
-            "snapshot, so an offset that grows with forming time is the formed part's, not the "
-            f"scan's; {grows(d2, '')}; with a tilt of the formed part fitted too (not seen), "
-            f"{grows(d3, '')}"
+            "the robot's tip drifted sideways over the run, {est} mm at its end {ci}: a thermal "
+            "drift — a scan is one rigid snapshot, so an offset that grows with forming time is "
+            f"the formed part's, not the scan's; {grows(d2, '')}; with a tilt of the formed part "
+            f"fitted too (not seen), {grows(d3, '', '_with_tilt')}"
         )
     else:
         d, v, ci = d2, v2, d2.ci()
         text = grows(d2, "")
+    if "{est:tilt}" not in text:
+        parts = [q for q in parts if q.name != "tilt"]
     return _finding(
-        "thermal_drift", float(np.linalg.norm(d.one)) * 1e3, ci, "mm", text, todo, force=v
+        "thermal_drift",
+        float(np.linalg.norm(d.one)) * 1e3,
+        ci,
+        "mm",
+        text,
+        todo,
+        force=v,
+        parts=tuple(parts),
     )
 
 
@@ -1661,37 +2136,41 @@ def _tilt_finding(rf: RobotTermFit) -> Finding:
             tl, v = alone, "ok"
         elif va == "fault":  # a tilt without a drift, a drift beside no tilt: either
             either = True
-    t, tj = tl.one * deg, tl.joint * deg
+    t = tl.one * deg
     ci = tl.ci(lever)
     est = float(np.linalg.norm(tl.one)) * lever
-    at = f"{est:.3f} mm sideways at the deepest analysed point ({lever:.0f} mm)"
+
+    def in_deg(name: str, f: F64, c: tuple[float, float]) -> Part:
+        return Part(name, float(np.linalg.norm(f)) * deg, c[0] * deg, c[1] * deg, unit="deg")
+
+    parts = [in_deg("one_scale", tl.one, tl.one_ci), in_deg("per_joint", tl.joint, tl.joint_ci)]
+    at = f"{{est}} mm sideways at the deepest analysed point ({lever:.0f} mm)"
     text = (
-        f"the formed part is tilted against the clamped flange by {np.linalg.norm(t):.3f}°, {at} "
-        f"(about work x {t[0]:+.3f}°, y {t[1]:+.3f}°; 95 % of its size [{tl.one_ci[0] * deg:.3f}"
-        f", {tl.one_ci[1] * deg:.3f}]°) beside one stiffness scale, "
+        f"the formed part is tilted against the clamped flange by {{est:one_scale}}°, {at} "
+        f"(about work x {t[0]:+.3f}°, y {t[1]:+.3f}°; 95 % of its size {{ci:one_scale}}°) "
+        "beside one stiffness scale, "
         + ("a drift and an offset" if tl is rf.tilt and beside_drift else "an offset")
-        + f", and {np.linalg.norm(tj):.3f}° ([{tl.joint_ci[0] * deg:.3f}, "
-        f"{tl.joint_ci[1] * deg:.3f}]) beside a per-joint fit"
+        + ", and {est:per_joint}° ({ci:per_joint}) beside a per-joint fit"
     )
     if either:
-        a = alone.one * deg
+        parts.append(in_deg("without_drift", alone.one, alone.one_ci))
         text += (
-            f"; fitted without a drift the tilt is {np.linalg.norm(a):.3f}° "
-            f"([{alone.one_ci[0] * deg:.3f}, {alone.one_ci[1] * deg:.3f}]): a tilt, or a drift "
+            "; fitted without a drift the tilt is {est:without_drift}° "
+            "({ci:without_drift}): a tilt, or a drift "
             "over the run — cannot tell apart on this path (forming time follows depth)"
         )
     if v == "fault" and rf.tilt_registered:
         text = (
-            f"the formed part is tilted {np.linalg.norm(t):.3f}° against the clamped flange, "
-            f"{est:.3f} mm [{ci[0]:.3f}, {ci[1]:.3f}] sideways at {lever:.0f} mm depth: the "
+            "the formed part is tilted {est:one_scale}° against the clamped flange, "
+            f"{{est}} mm {{ci}} sideways at {lever:.0f} mm depth: the "
             "robot's work object tilted about a horizontal axis "
             "(or the robot's kinematics) — the robot scan's tilts are registered from the "
             f"flange, so it is not the scan's; {text}"
         )
     elif v == "fault":
         text = (
-            f"the formed part is tilted {np.linalg.norm(t):.3f}°, {est:.3f} mm [{ci[0]:.3f}, "
-            f"{ci[1]:.3f}] sideways at {lever:.0f} mm depth: the robot's work object tilted, or "
+            f"the formed part is tilted {{est:one_scale}}°, {{est}} mm {{ci}} sideways at "
+            f"{lever:.0f} mm depth: the robot's work object tilted, or "
             "the robot scan tilted (its registration did not fit "
             f"the tilts) — cannot tell apart from these files ({OFFSET_SHORT}); {text}; "
             f"{OFFSET_CHECK}"
@@ -1705,6 +2184,7 @@ def _tilt_finding(rf: RobotTermFit) -> Finding:
         text,
         "measure the robot's work object (its tilt); compensate corrects it as the part's",
         force=v,
+        parts=tuple(parts),
     )
 
 
@@ -1717,8 +2197,8 @@ def robot_findings(rf: RobotTermFit | None, *, axisymmetric: bool) -> list[Findi
     out = []
     lo, hi = rf.ratio_ci
     rs_text = (
-        f"the robot gives way {rf.ratio:.3f}× the VJM's prediction at the corrected forces "
-        f"(95 % [{lo:.3f}, {hi:.3f}], spanning the one-scale and per-joint fits, joints "
+        "the robot gives way {est}× the VJM's prediction at the corrected forces "
+        "(95 % {ci}, spanning the one-scale and per-joint fits, joints "
         f"{rf.joints_fitted} fitted, the others at nominal); VJM RMS "
         f"{rf.rms_vjm * 1e3:.3f} mm"
     )
@@ -1852,7 +2332,7 @@ def _unchecked_forces(f: Finding, force_verdicts: dict[str, str]) -> Finding:
         return f
     ci = (f.ci_low, f.ci_high) if f.ci_low is not None and f.ci_high is not None else None
     text = f"{f.explanation}; {why}"
-    return _finding(f.suspect, f.estimate, ci, f.unit, text, "", force="cannot_tell")
+    return _finding(f.suspect, f.estimate, ci, f.unit, text, "", force="cannot_tell", parts=f.parts)
 
 
 def diagnose(
@@ -1877,6 +2357,8 @@ def diagnose(
     unloaded: dict[str, list[UnloadedStretch]] | None = None,
     tau: F64 | None = None,
     tilt_registered: bool = True,
+    sensor_lever: F64 | None = None,
+    moments_measured: bool = True,
 ) -> tuple[Diagnosis, CorrectedRobotTerm]:
     """Every suspect's verdict for one study (module docstring) and the corrected robot term.
 
@@ -1888,22 +2370,39 @@ def diagnose(
     with the tool off the sheet at the tip, work axes (keys "cnc", "robot"; the static offset
     and the axial crosstalk, docs/diagnosis.md); tau : (N,) each point's forming time over
     the robot run in [0, 1] (:func:`forming_time`; a thermal drift grows with it), None when
-    unknown; tilt_registered : the robot scan's registration fitted its tilts."""
+    unknown; tilt_registered : the robot scan's registration fitted its tilts; sensor_lever :
+    (3,) m the flange sensor's origin relative to the tip at the path's first point, work axes
+    (None: at the tip) — a force offset makes a moment about the tip on that arm, none about
+    the sensor; moments_measured : False when the robot's force log has no moment channels
+    (its tip moments are the point-contact moment the analysis puts there): the moment suspects
+    are then ok by construction, and said so."""
     from roboisf.cell import at_ball_centre
     from roboisf.decompose.identify import forming_design
 
     arm = contact - tip
     ev = (
-        UnloadedEvidence.from_stretches(unloaded.get("robot", []), unloaded.get("cnc", []))
+        UnloadedEvidence.from_stretches(
+            unloaded.get("robot", []), unloaded.get("cnc", []), lever=sensor_lever
+        )
         if unloaded
         else None
     )
-    sf = fit_sensor(W_cnc, W_rob, arm, valid, lap, depth, unloaded=ev)
+    sf = fit_sensor(W_cnc, W_rob, arm, valid, lap, depth, unloaded=ev, lever=sensor_lever)
     findings = sensor_findings(sf, ball_radius, ev)
+    if not moments_measured:
+        findings = [
+            _no_moment_channels(f.suspect) if f.suspect in MOMENT_SUSPECTS else f for f in findings
+        ]
     fv = {f.suspect: f.verdict for f in findings}
     correct = sf is not None and any(
         fv[s] == "fault"
-        for s in ("force_gain", "force_moment_crosstalk", "force_bias", "force_crosstalk")
+        for s in (
+            "force_gain",
+            "force_moment_crosstalk",
+            "force_moment_bias",
+            "force_bias",
+            "force_crosstalk",
+        )
     )
     if sf is not None and fv["force_crosstalk"] == "fault" and sf.axial_fixed is not None:
         sf = replace(sf, correct_axial=True)
@@ -1911,8 +2410,13 @@ def diagnose(
     y = measured
     if correct:
         assert sf is not None
-        # the tip moment is replaced by the point-contact moment whenever it is in doubt
-        W = sf.corrected(W_rob, arm, moments=fv["force_moment_crosstalk"] != "ok")
+        # the tip moment is replaced by the point-contact moment whenever it is in doubt: the
+        # moment channels not ok, or a force offset or axial crosstalk removed from the forces
+        # (carried up the arm from the sensor, it is in the measured tip moment too: a 3.6 %
+        # crosstalk put 6 N·m there, which the tool terms turned into a 0.12 mm "scan shift")
+        moments_ok = fv["force_moment_crosstalk"] == fv["force_moment_bias"] == "ok"
+        offsets = "fault" in (fv["force_bias"], fv["force_crosstalk"])
+        W = sf.corrected(W_rob, arm, moments=offsets or not moments_ok)
 
         def tool_terms(Wx: F64) -> F64:
             d = at_ball_centre(Wx @ k_t.T, ball_radius)

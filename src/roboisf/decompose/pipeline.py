@@ -328,10 +328,19 @@ def _logs_part(
     progress: Progress | None,
     tp_robot: Toolpath | None = None,
 ) -> tuple[
-    dict[str, RunAlignment], F64, str, list[str], F64, F64, dict[str, list[UnloadedStretch]]
+    dict[str, RunAlignment],
+    F64,
+    str,
+    list[str],
+    F64,
+    F64,
+    dict[str, list[UnloadedStretch]],
+    bool,
 ]:
     """The logs' part of the analysis: read, align, joint angles, tip wrenches of both runs,
-    and each run's unloaded stretches (at the tip, work axes: :func:`run_tip_wrench`).
+    each run's unloaded stretches (at the tip, work axes: :func:`run_tip_wrench`) and whether
+    the robot's force log has moment channels (a 3-component log's tip moments are the
+    point-contact moment the analysis puts there).
 
     One run at a time: a run's raw logs (2.3 M samples at 1 kHz on the paper cone, ~0.15 GB as
     float64) are freed before the next run's are read, so that only one sits beside the scan
@@ -345,6 +354,7 @@ def _logs_part(
     input_warnings: list[str] = []
     q: F64 | None = None
     q_source = ""
+    rob_moments = True
     for r in (cnc, rob):
         tp_run = tp_robot if (r is rob and tp_robot is not None) else tp
         # aligned by position: the joint log is read, aligned, turned into the robot's joint
@@ -384,6 +394,8 @@ def _logs_part(
                 input_warnings.extend(f"{r.forces.file.name}: {n}" for n in log.notes)
                 input_warnings.extend(joint_notes)
                 aligned[r.name] = align_forces_to_joints(cell, r, tp_run, j_map, log, j_step)
+        if r is rob:
+            rob_moments = log.moments_known
         with task(progress, f"{r.name} logs: forces to the tool tip"):
             wrench[r.name] = run_tip_wrench(
                 study,
@@ -406,6 +418,7 @@ def _logs_part(
         wrench[cnc.name],
         wrench[rob.name],
         {"cnc": unloaded[cnc.name], "robot": unloaded[rob.name]},
+        rob_moments,
     )
 
 
@@ -610,7 +623,7 @@ def _analyze(
         truth = _read_truth(truth_file) if truth_file.is_file() else None  # before the long work
         if beside is not None:
             beside.set_toolpath(tp)
-        aligned, q, q_source, input_warnings, W_cnc, W_rob, unloaded = _logs_part(
+        aligned, q, q_source, input_warnings, W_cnc, W_rob, unloaded, rob_moments = _logs_part(
             study, cell, tp, progress, tp_r if has_command else None
         )
         _trim()
@@ -663,8 +676,22 @@ def _analyze(
     tau = forming_time(aligned[rob.name].primary.point_time, len(tp))
     tilt_registered = {"rx", "ry"} <= set(scans[rob.name].registration.fitted)
     with task(progress, "diagnosis"):
+        lever = sensor_lever(rob.forces, tp.tip[0], vertical_tool(cell.tool_rotation))
         diag, corr = _diagnose(
-            cell, tp, q, W_cnc, W_rob, d, k_t, k_th, k_c, unloaded, tau, tilt_registered
+            cell,
+            tp,
+            q,
+            W_cnc,
+            W_rob,
+            d,
+            k_t,
+            k_th,
+            k_c,
+            unloaded,
+            tau,
+            tilt_registered,
+            lever,
+            rob_moments,
         )
     W_used = W_rob
     if diag.forces_corrected:
@@ -755,11 +782,15 @@ def _diagnose(
     unloaded: dict[str, list[UnloadedStretch]] | None = None,
     tau: F64 | None = None,
     tilt_registered: bool = True,
+    lever: F64 | None = None,
+    moments_measured: bool = True,
 ) -> tuple[Diagnosis, CorrectedRobotTerm]:
     """The diagnosis of the decomposition ``d`` at the measured forces (docs/diagnosis.md);
     ``unloaded``: each run's stretches with the tool off the sheet (keys "cnc", "robot");
     ``tau``: each point's forming time over the robot run in [0, 1]; ``tilt_registered``: the
-    robot scan's registration fitted its tilts."""
+    robot scan's registration fitted its tilts; ``lever``: the robot's force sensor's origin
+    relative to the tip (:func:`sensor_lever`); ``moments_measured``: the robot's force log
+    has moment channels."""
     return diagnose(
         robot=cell.robot,
         q=q,
@@ -781,7 +812,22 @@ def _diagnose(
         unloaded=unloaded,
         tau=tau,
         tilt_registered=tilt_registered,
+        sensor_lever=lever,
+        moments_measured=moments_measured,
     )
+
+
+def sensor_lever(spec: ForceSensorSpec, tip: F64, R_work_tip: F64) -> F64:
+    """(3,) m — a force sensor's origin relative to the tool tip ``tip`` (3,), work axes: the arm
+    on which a force the sensor reads makes a moment about the tip (a force offset of the
+    sensor makes one there and none about the sensor). Read off :func:`sensor_to_tip` — the
+    same transform as the log's — for three unit forces: ``M = lever × F``."""
+    W = np.zeros((3, 6))
+    W[:, :3] = np.eye(3)
+    T = sensor_to_tip(W, spec, np.repeat(np.asarray(tip, dtype=float)[None, :], 3, 0), R_work_tip)
+    # rows F_i, M_i = [lever]× F_i: [lever]× = Mᵀ (Fᵀ)⁻¹
+    S = T[:, 3:].T @ np.linalg.inv(T[:, :3].T)
+    return np.array([S[2, 1], S[0, 2], S[1, 0]])
 
 
 def _model_checks(
@@ -869,6 +915,7 @@ def _model_checks(
     for name in (
         "force_gain",
         "force_moment_crosstalk",
+        "force_moment_bias",
         "force_crosstalk",
         "scan_rotation",
         "thermal_drift",
