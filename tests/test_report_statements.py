@@ -405,3 +405,12 @@ def test_report_tables_have_no_e_notation(small, tmp_path):
         assert not re.search(r"\d\.\d+e[+-]\d", t), t[:200]
     assert "0.028 [0.000, 0.541] N/kN" in page
     assert "<td>0.0000088</td>" in page and "<td>-0.000015</td>" in page
+
+
+def test_every_suspect_of_the_diagnosis_has_a_name_on_the_page():
+    # a suspect added to the diagnosis without a name here read as its key with spaces
+    # ("force moment bias") beside "force sensor bias"
+    from roboisf.decompose.diagnose import SUSPECTS
+    from roboisf.report.statements import _SUSPECTS
+
+    assert set(SUSPECTS) <= set(_SUSPECTS), set(SUSPECTS) - set(_SUSPECTS)

@@ -59,9 +59,10 @@ def analyze_command(
     Writes report.html, contributions.csv (mm, %), contributions_normal.csv, per_point.parquet,
     summary.json (versioned, schema_version; its fields and JSON Schema: docs/summary.md) and
     figures/*.png. summary.json's diagnosis gives each suspect (robot
-    stiffness, force-sensor gain, moment crosstalk and bias, scan shift and rotation,
-    springback coupling) a verdict — fault, ok or cannot_tell — with a 95 % interval
-    (docs/diagnosis.md). Ends with the warnings, the verdicts (study kind, robot model check,
+    stiffness; the force sensor's gain, bias, axial crosstalk, moment crosstalk and moment bias;
+    the robot scan's shift and rotation; the robot's work object, its tilt and a thermal drift;
+    springback coupling) a verdict — fault, ok or cannot_tell, the last also where two suspects
+    leave the same trace — with a 95 % interval (docs/diagnosis.md). Ends with the warnings, the verdicts (study kind, robot model check,
     diagnosis) and the next command to run.
     """
     output_dir(output, "analyze", overwrite, study_inputs(study))

@@ -32,6 +32,7 @@ _SUSPECTS = {
     "force_gain": "force sensor gain",
     "force_moment_crosstalk": "force/moment crosstalk",
     "force_bias": "force sensor bias",
+    "force_moment_bias": "force sensor moment bias",
     "force_crosstalk": "axial force crosstalk",
     "scan_shift": "scan shift",
     "work_object": "robot work object",
