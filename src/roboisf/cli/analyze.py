@@ -62,8 +62,8 @@ def analyze_command(
     stiffness; the force sensor's gain, bias, axial crosstalk, moment crosstalk and moment bias;
     the robot scan's shift and rotation; the robot's work object, its tilt and a thermal drift;
     springback coupling) a verdict — fault, ok or cannot_tell, the last also where two suspects
-    leave the same trace — with a 95 % interval (docs/diagnosis.md). Ends with the warnings, the verdicts (study kind, robot model check,
-    diagnosis) and the next command to run.
+    leave the same trace — with a 95 % interval (docs/diagnosis.md). Ends with the warnings, the
+    verdicts (study kind, robot model check, diagnosis) and the next command to run.
     """
     output_dir(output, "analyze", overwrite, study_inputs(study))
     from roboisf.decompose.pipeline import write_results
