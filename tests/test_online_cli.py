@@ -96,6 +96,16 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys, args, needle):
         ),
         (["--watchdog", "1000"], ["[--watchdog]", "below 1000 ms"]),
         (["--simulate", "--watchdog", "1000"], ["[--watchdog]", "below 1000 ms"]),
+        # 50 ms typed in s: a 1 s simulated cone held or ramped in 236 of its 252 cycles
+        (
+            ["--watchdog", "0.05"],
+            ["[--watchdog]", "0.05 ms", "two controller cycles", "at least 8 ms", "50 ms if it"],
+        ),
+        (
+            ["--simulate", "--watchdog", "0.05"],
+            ["[--watchdog]", "it is 50 ms if it was written in s"],
+        ),
+        (["--cycle", "12", "-c", "rsi", "--watchdog", "20"], ["(2 × 12 ms)", "at least 24 ms"]),
     ],
 )
 def test_settings_that_defeat_the_loop_are_refused(tmp_path, capsys, args, needles):
@@ -125,6 +135,19 @@ def test_the_default_ramp_keeps_a_lower_rate_limit():
     assert _limits(0.005, 2.0, 2.0, 4.0, 50.0, None).ramp_rate == pytest.approx(2e-3)
     assert _limits(0.005, 2.0, 20.0, 4.0, 50.0, None).ramp_rate == pytest.approx(5e-3)
     assert _limits(0.005, 2.0, 20.0, 4.0, 50.0, 20.0).ramp_rate == pytest.approx(20e-3)
+
+
+def test_a_watchdog_of_two_cycles_is_accepted():
+    """The shortest watchdog accepted is two controller cycles (8 ms at EGM's 4 ms, 24 ms at
+    RSI's 12 ms); one below is refused, without a slip named when no unit makes it right."""
+    from roboisf.cli.online import _limits
+    from roboisf.errors import InputError
+
+    assert _limits(0.005, 2.0, 20.0, 4.0, 8.0, None).watchdog == pytest.approx(8e-3)
+    assert _limits(0.005, 2.0, 20.0, 12.0, 24.0, None).watchdog == pytest.approx(24e-3)
+    with pytest.raises(InputError) as e:
+        _limits(0.005, 2.0, 20.0, 4.0, 7.9, None)
+    assert "at least 8 ms" in str(e.value) and "written in s" not in str(e.value)
 
 
 def test_log_must_be_parquet(tmp_path, capsys):

@@ -112,6 +112,39 @@ def test_a_round_parts_top_ten_are_ten_distinct_placements(cone_toml, tmp_path, 
     assert len(rows) == 10 and len({tuple(r) for r in rows}) == 10
 
 
+def test_a_round_parts_yaws_as_tool_rotations_show_on_the_terminal(cone_toml, tmp_path, capsys):
+    """The cone, an off-axis tool, yaws 0, 45 and 90°: the yaws become tool rotations of one
+    placement per x, y, z, but the terminal's table had no γ column (the chosen rotation was
+    only in the CSV and on the page), and its count line said "9 placements × 1 tool rotations"
+    — the grid asked for, not the 3 × 3 evaluated."""
+    out = tmp_path / "plan"
+    grid = ["--x-range", "1200:1600:3", "--y-range", "0", "--z-range", "400"]
+    args = ["plan", "--part", str(cone_toml), *grid, "--yaw-range", "0:90:3", "--serial"]
+    assert main([*args, "--tool", "150,0,350", "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "3 placements × 3 tool rotations evaluated (of 9 × 1 asked for" in text, text
+    assert "9 placements × 1 tool rotations" not in text
+    lines = text.splitlines()
+    head = next(ln for ln in lines if ln.startswith("rank"))
+    assert head.split()[:6] == ["rank", "x", "y", "z", "yaw", "γ"], head
+    shown = [ln.split() for ln in lines if ln[:4].strip().isdigit()]
+    df = pd.read_csv(out / "placements.csv", comment="#")
+    df = df[df.status == "ok"].sort_values("rank")
+    assert len(shown) == len(df) == 3
+    for row, (_, r) in zip(shown, df.iterrows(), strict=True):
+        lo, hi = round(r["gamma_min_deg"]), round(r["gamma_max_deg"])
+        assert row[5] == (f"{lo:g}" if lo == hi else f"{lo:g}..{hi:g}"), (row, r)
+    # one tool rotation evaluated: no γ column, the count line as before
+    assert main([*args, "-o", str(tmp_path / "coaxial")]) == 0
+    text = capsys.readouterr().out
+    assert "3 placements × 1 tool rotations evaluated (of 9 × 1 asked for" in text, text
+    head = next(ln for ln in text.splitlines() if ln.startswith("rank"))
+    assert "γ" not in head
+    grid = ["--x-range", "1400", "--y-range", "0", "--z-range", "400", "--serial"]
+    assert main(["plan", "--part", str(cone_toml), *grid, "-o", str(tmp_path / "one")]) == 0
+    assert "1 placements × 1 tool rotations evaluated, " in capsys.readouterr().out
+
+
 def test_plan_default_scheduler_is_named(cone_toml, tmp_path):
     # (equality of the schedulers' scores: tests/test_plan_dask.py)
     from roboisf.robot import vjm_kernel

@@ -495,3 +495,26 @@ def test_design_says_what_it_cannot_do(tmp_path, capsys):
     assert "identifies K6" in err and "only weakly" in err and "--bracket" in err
     assert main([*base, "--overwrite"]) == 0  # the default 250 mm bracket: no warning
     assert "only weakly" not in capsys.readouterr().err
+
+
+def test_design_refuses_a_placement_typed_in_metres(tmp_path, capsys):
+    """--placement 1.6,0,0.8,0 (metres typed where mm are expected) put the work origin 1.8 mm
+    from the robot base, and the design was written — 24 poses around the robot's own base —
+    with exit 0. A preset's base is the robot's: refused, the slip named, nothing written. A
+    URDF's root may be the cell's origin: the same line as a warning, the design written."""
+    out = tmp_path / "D"
+    base = ["robot", "identify", "--design", "--tool", "0,0,306", "--placement", "1.6,0,0.8,0"]
+    assert main([*base, "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    for needle in ("[--placement]", "1.789 mm from the robot base", "around the robot's base",
+                   "if it was written in m (x,y,z = 1600,0,800 mm)"):  # fmt: skip
+        assert needle in err, err
+    assert not out.exists()
+    urdf = "tests/data/urdf/m900ia260l.urdf"
+    k = tmp_path / "k.toml"
+    k.write_text("[stiffness]\nK = [4.0e6, 4.5e6, 2.5e6, 6.0e5, 5.0e5, 3.0e5]\n")
+    assert main([*base, "--robot", urdf, "--stiffness", str(k), "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "warning:" in err and "unless the URDF's root is not the robot's base" in err, err
+    assert "1600,0,800 mm" in err and (out / "experiment.csv").exists()

@@ -134,8 +134,9 @@ def online(
     watchdog: float = typer.Option(
         50.0,
         "--watchdog",
-        help="No usable force sample for this long: hold; twice as long: ramp to 0, ms; below "
-        "1000 (the ramp begins before a Net F/T silent for 2 s stops the loop).",
+        help="No usable force sample for this long: hold; twice as long: ramp to 0, ms; at "
+        "least two --cycle, below 1000 (the ramp begins before a Net F/T silent for 2 s stops "
+        "the loop).",
     ),
     ramp_rate: float | None = typer.Option(
         None,
@@ -502,6 +503,19 @@ def _limits(
             f"most {max_correction / (cycle * 1e-3):g} mm/s with these settings (the default "
             "is 20 mm/s)",
             field="--max-rate",
+        )
+    if watchdog < 2.0 * cycle:
+        # the controller asks once a cycle: a watchdog shorter than two of them holds or ramps
+        # between samples that are on time, and the loop corrects (almost) never — refusing it
+        # loosens no limit (the hold and the ramp stay in time)
+        ok_in_s = 2.0 * cycle <= watchdog * 1e3 and 2.0 * watchdog < SENSOR_TIMEOUT
+        slip = f"; it is {watchdog * 1e3:g} ms if it was written in s" if ok_in_s else ""
+        raise InputError(
+            f"{watchdog:g} ms is shorter than two controller cycles (2 × {cycle:g} ms): the "
+            "watchdog would hold or ramp the correction between force samples that arrive on "
+            f"time, and the loop would hardly correct; at least {2 * cycle:g} ms (the default "
+            f"is 50 ms){slip}",
+            field="--watchdog",
         )
     if 2.0 * watchdog * 1e-3 >= SENSOR_TIMEOUT:
         # the watchdog ramps after twice its time: from a second on, a silent Net F/T stops the

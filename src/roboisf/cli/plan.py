@@ -167,7 +167,7 @@ def plan_cmd(
 
     from roboisf.frames import make_transform, rot_z
     from roboisf.io.atomic import staged_directory
-    from roboisf.plan import placement_grid, plan_placements
+    from roboisf.plan import evaluated_candidates, placement_grid, plan_placements
     from roboisf.report.plan_maps import plot_placement_map, write_plan_html
     from roboisf.report.robot_maps import plot_stiffness_map
     from roboisf.robot import stiffness_map
@@ -227,9 +227,17 @@ def plan_cmd(
         yaw_deg = yaw_deg[np.sort(first)]
     yaws = np.radians(yaw_deg)
     P = placement_grid(xs, ys, zs, yaws)
+    # what is evaluated, not the grid asked for: a round part's yaws collapse into one (its
+    # others becoming tool rotations with an off-axis tool), a coaxial tool's γ into one
+    P_ev, g_ev, _ = evaluated_candidates(prob, P, gammas)
+    asked = (
+        f" (of {len(P)} × {gammas.size} asked for: see the note below)"
+        if (len(P_ev), g_ev.size) != (len(P), gammas.size)
+        else ""
+    )
     state.info(
-        f"{len(P)} placements × {gammas.size} tool rotations, {prob.n_points} toolpath points "
-        f"({source})"
+        f"{len(P_ev)} placements × {g_ev.size} tool rotations evaluated{asked}, "
+        f"{prob.n_points} toolpath points ({source})"
     )
     sched: Any = "serial" if serial else (scheduler or "auto")
     if sched == "auto":  # named in plan.json as what ran
@@ -476,17 +484,29 @@ def _json_default(o: Any) -> Any:
     raise TypeError(type(o).__name__)
 
 
+def _gamma_text(row: dict[str, Any]) -> str:
+    """A candidate's tool rotation for the terminal, deg: ``-45``, or ``-90..0`` when the best
+    rotation differs from lap to lap (the CSV has the first, the least and the largest)."""
+    lo, hi = round(row["gamma_min_deg"]), round(row["gamma_max_deg"])
+    return f"{lo:g}" if lo == hi else f"{lo:g}..{hi:g}"
+
+
 def _print(res: Any, summary: dict[str, Any], top: int, *, with_tool: bool = True) -> None:
     from roboisf.report.page import fmt
 
     rows = [r for r in res.table() if r["status"] == "ok"][:top]
+    # several tool rotations evaluated: the one chosen (per lap: its range) belongs in the table
+    with_gamma = res.tool_rotations.size > 1
     state.info(
-        "rank      x       y       z   yaw  mean_robot  max_robot  mean|δ|  mean|δ·n|  [mm, deg]"
+        "rank      x       y       z   yaw"
+        + ("          γ" if with_gamma else "")
+        + "  mean_robot  max_robot  mean|δ|  mean|δ·n|  [mm, deg]"
     )
     for r in rows:
         state.info(
             f"{r['rank']:>4} {r['x_mm']:7.0f} {r['y_mm']:7.0f} {r['z_mm']:7.0f} {r['yaw_deg']:5.0f}"
-            f"  {fmt(r['mean_robot_mm'], 4):>10} {fmt(r['max_robot_mm'], 4):>10}"
+            + (f" {_gamma_text(r):>10}" if with_gamma else "")
+            + f"  {fmt(r['mean_robot_mm'], 4):>10} {fmt(r['max_robot_mm'], 4):>10}"
             f" {fmt(r['mean_abs_mm'], 4):>8} {fmt(r['mean_abs_normal_mm'], 4):>10}"
         )
     rej = res.rejected()

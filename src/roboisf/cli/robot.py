@@ -101,11 +101,12 @@ def _placement(text: str | None, model: RobotModel) -> np.ndarray:
 WORK_DISTANCE_MIN_MM = 100.0
 
 
-def _placement_slip(text: str | None) -> str:
+def _placement_slip(text: str | None, what: str = "") -> str:
     """What a ``--placement`` no pose could reach says of its unit: ``"--placement 2.2,0,0.5,0
     puts the work origin 2.247 mm from the robot base (…); it is 2247 mm if it was written in
     m"`` for a work origin nearer the base than any cell's, ``""`` otherwise (the preset's, or
-    a placement at a real cell's distance: then the reach or the limits are the reason)."""
+    a placement at a real cell's distance: then the reach or the limits are the reason).
+    ``what``, when given, says what such a placement does and goes before the slip."""
     from roboisf.plausible import Bound, unit_slip
 
     if text is None:
@@ -123,6 +124,7 @@ def _placement_slip(text: str | None) -> str:
     return (
         f"--placement {text} puts the work origin {d:.4g} mm from the robot base (a real cell's "
         f"is {WORK_DISTANCE_MIN_MM:g} mm or more away; x,y,z are in mm, yaw in deg)"
+        + (f": {what}" if what else "")
         + (f"; {slip}" if slip else "")
     )
 
@@ -535,6 +537,18 @@ def _design_cmd(
     point = tip + np.array([bracket * 1e-3, 0.0, 0.0])
     m = m.with_tool(make_transform(None, point))
     T_bw = _placement(placement, m)
+    # poses are drawn within 1 m of the work origin: one typed in m (1.6,0,0.8) lies inside the
+    # robot's own base, and the design came out around the base without a word. A URDF's root
+    # may be the cell's origin (then a work origin near it can be meant): a warning there
+    urdf = m.source.startswith("URDF ")
+    what = "the designed poses would gather around the robot's base" + (
+        " (unless the URDF's root is not the robot's base)" if urdf else ""
+    )
+    near = _placement_slip(placement, what)
+    if near and urdf:
+        state.warn(near)
+    elif near:
+        raise InputError(near, field="--placement")
     d = design_experiment(m, T_bw, n_experiments=experiments, force=force, sigma=sigma * 1e-3)
     ext = joint_program_suffix(m)
     tool_mm = ",".join(f"{v:g}" for v in np.round(point * 1e3, 3))

@@ -12,7 +12,7 @@ from roboisf.plan.evaluate import (
 )
 from roboisf.plan.problem import PlanProblem, placement_grid, placement_transforms
 from roboisf.plan.setup import problem_from_cell
-from roboisf.plan.sweep import PlanResult, plan_placements
+from roboisf.plan.sweep import PlanResult, evaluated_candidates, plan_placements
 
 __all__ = [
     "PlacementScore",
@@ -20,6 +20,7 @@ __all__ = [
     "PlanResult",
     "evaluate_batch",
     "evaluate_placement",
+    "evaluated_candidates",
     "margin_ok",
     "path_sigma_min",
     "placement_grid",

@@ -226,25 +226,8 @@ def plan_placements(
     Raises :class:`~roboisf.errors.UnreachableError` when no candidate is feasible (the message
     gives the reasons); infeasible candidates are otherwise kept in ``scores`` with their reason.
     """
-    P = np.asarray(placements, dtype=float)
+    P, g, notes = evaluated_candidates(problem, placements, tool_rotations)
     Ts = placement_transforms(P)
-    g = np.atleast_1d(np.asarray(tool_rotations, dtype=float))
-    if g.ndim != 1 or g.size == 0 or not np.all(np.isfinite(g)):
-        raise InputError(
-            f"expected at least one finite tool rotation, got {g.size}", field="tool rotations"
-        )
-    notes: list[str] = []
-    coaxial = problem.tool_is_coaxial()
-    if g.size > 1 and coaxial:
-        notes.append(
-            "the tool is coaxial with axis 6 and its compliance is axisymmetric: turning it about "
-            "its own axis only turns A6 and cannot change the deflection; evaluated γ = "
-            f"{math.degrees(g[0]):g}° only"
-        )
-        g = g[:1]
-    if problem.symmetry.continuous:
-        P, g = _one_yaw_of_a_round_part(P, g, coaxial, notes)
-        Ts = placement_transforms(P)
     if n_workers is not None and n_workers < 1:
         raise InputError(f"must be ≥ 1, got {n_workers}", field="workers")
     if batch_size is not None and batch_size < 1:
@@ -292,6 +275,34 @@ def plan_placements(
     if g.size > 1:
         best0 = evaluate_placement(problem, Ts[int(order[0])], (0.0,))
     return PlanResult(P, scores, order, g, base, base_T, problem.objective, notes, best0)
+
+
+def evaluated_candidates(
+    problem: PlanProblem, placements: ArrayLike, tool_rotations: ArrayLike = (0.0,)
+) -> tuple[F64, F64, list[str]]:
+    """The placements (M, 4) and tool rotations (G,) :func:`plan_placements` evaluates for
+    ``placements`` × ``tool_rotations``, and the notes that say why they differ: one γ for a
+    tool coaxial with axis 6, one yaw per x, y, z for a round part (its other yaws as tool
+    rotations when the tool is off axis 6). Cheap: no pose is evaluated."""
+    P = np.asarray(placements, dtype=float)
+    placement_transforms(P)  # the shape and values checked
+    g = np.atleast_1d(np.asarray(tool_rotations, dtype=float))
+    if g.ndim != 1 or g.size == 0 or not np.all(np.isfinite(g)):
+        raise InputError(
+            f"expected at least one finite tool rotation, got {g.size}", field="tool rotations"
+        )
+    notes: list[str] = []
+    coaxial = problem.tool_is_coaxial()
+    if g.size > 1 and coaxial:
+        notes.append(
+            "the tool is coaxial with axis 6 and its compliance is axisymmetric: turning it about "
+            "its own axis only turns A6 and cannot change the deflection; evaluated γ = "
+            f"{math.degrees(g[0]):g}° only"
+        )
+        g = g[:1]
+    if problem.symmetry.continuous:
+        P, g = _one_yaw_of_a_round_part(P, g, coaxial, notes)
+    return P, g, notes
 
 
 def _one_yaw_of_a_round_part(P: F64, g: F64, coaxial: bool, notes: list[str]) -> tuple[F64, F64]:
