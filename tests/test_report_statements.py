@@ -414,3 +414,20 @@ def test_every_suspect_of_the_diagnosis_has_a_name_on_the_page():
     from roboisf.report.statements import _SUSPECTS
 
     assert set(SUSPECTS) <= set(_SUSPECTS), set(SUSPECTS) - set(_SUSPECTS)
+
+
+def test_study_section_reads_like_the_tables_not_in_e_notation(small, tmp_path):
+    """The "Study" key–value list: a compliance echoed in m/N reads in µm/N as the compliance
+    table does (0.9401, not 9.40099e-07), any other tiny float in fixed point, a float zero in
+    the scaled unit 0.0000."""
+    tool = {"ball_diameter_mm": 10, "method": "beam",
+            "lateral_compliance_m_per_N": 9.40099e-07,
+            "holder_lateral_compliance_m_per_N": 0.0, "gap_m": 1.03274e-07}  # fmt: skip
+    _, page = _write(small, tmp_path, tool=tool)
+    section = page[page.index('id="study"') :]
+    section = section[: section.index("</section>")]
+    assert not re.search(r"\de[+-]\d", section), section
+    assert "lateral_compliance_m_per_N = 0.9401 µm/N" in section
+    assert "holder_lateral_compliance_m_per_N = 0.0000 µm/N" in section
+    assert "gap_m = 0.000000103274" in section
+    assert "ball_diameter_mm = 10," in section
