@@ -351,7 +351,9 @@ def kv_table(items: Iterable[tuple[str, Any]]) -> str:
     e-notation: a value whose key names a tiny SI unit (``…_m_per_N``) in the tables' scaled
     unit (:data:`KV_SCALED_UNITS`), any other float in fixed point (:func:`_kv_float`)."""
     body = "".join(
-        f"<dt>{esc(k)}</dt><dd>{_inline(v, str(k))}</dd>" for k, v in items if v not in (None, {}, [])
+        f"<dt>{esc(k)}</dt><dd>{_inline(v, str(k))}</dd>"
+        for k, v in items
+        if v not in (None, {}, [])
     )
     return f'<dl class="kv">{body}</dl>'
 
