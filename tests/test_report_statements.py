@@ -173,9 +173,9 @@ def test_dimensionless_estimates_read_as_ratios_not_as_a_lone_1():
     assert _estimate(row("robot_stiffness")) == "3.105 [2.859, 4.252] ×"
     assert _estimate(row("force_gain")).endswith("] ×")
     # a crosstalk in newtons per kilonewton: 1.574e-04 N/N printed as such beside "0.000"
-    assert _estimate(row("force_crosstalk")) == "3105.000 [2859.000, 4252.000] N/kN"
+    assert _estimate(row("force_crosstalk")) == "3105.00 [2859.00, 4252.00] N/kN"
     small = {**row("force_crosstalk"), "estimate": 1.574e-4, "ci_low": 0.0, "ci_high": 5.406e-4}
-    assert _estimate(small) == "0.157 [0.000, 0.541] N/kN"
+    assert _estimate(small) == "0.16 [0.00, 0.54] N/kN"
     assert _estimate(row("springback_coupling")) == "3.105 [2.859, 4.252]"
     assert _estimate({**row("scan_shift"), "unit": "mm"}).endswith("] mm")
 
@@ -403,7 +403,7 @@ def test_report_tables_have_no_e_notation(small, tmp_path):
     assert len(tables) >= 5
     for t in tables:
         assert not re.search(r"\d\.\d+e[+-]\d", t), t[:200]
-    assert "0.028 [0.000, 0.541] N/kN" in page
+    assert "0.03 [0.00, 0.54] N/kN" in page
     assert "<td>0.0000088</td>" in page and "<td>-0.000015</td>" in page
 
 
