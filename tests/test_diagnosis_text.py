@@ -26,6 +26,7 @@ from roboisf.decompose.diagnose import (
     robot_findings,
     sensor_findings,
 )
+from roboisf.report.statements import DIAGNOSIS_NUMBERS, _estimate
 
 R = 5e-3
 #: a bracketed interval as the explanations print it: "[0.985, 1.032]", "[-0.197, +0.002]"
@@ -36,18 +37,23 @@ def _decimals(s: str) -> int:
     return len(s.split(".")[1]) if "." in s else 0
 
 
-def _same(printed: str, value: float | None) -> bool:
-    """``printed`` is ``value`` rounded to the printed number of decimals."""
+def _same(printed: str, value: float | None, scale: float = 1.0) -> bool:
+    """``printed`` is ``value × scale`` (its display unit) rounded to the printed decimals."""
     if value is None:
         return False
+    value = value * scale
     d = _decimals(printed)
     return abs(float(printed) - value) <= 0.5 * 10.0**-d + 1e-12 * max(1.0, abs(value))
 
 
-def _json_intervals(e: Mapping[str, Any]) -> list[tuple[str, float | None, float | None]]:
-    out = [("ci", e.get("ci_low"), e.get("ci_high"))]
+def _json_intervals(e: Mapping[str, Any]) -> list[tuple[str, float | None, float | None, float]]:
+    """The entry's intervals with the scale to their display unit (a crosstalk in N/kN; a part
+    in its own unit as it is)."""
+    scale = DIAGNOSIS_NUMBERS[e["suspect"]][1]
+    out = [("ci", e.get("ci_low"), e.get("ci_high"), scale)]
     for p in e.get("parts") or []:
-        out.append((str(p["name"]), p.get("ci_low"), p.get("ci_high")))
+        own = 1.0 if p.get("unit") is not None else scale
+        out.append((str(p["name"]), p.get("ci_low"), p.get("ci_high"), own))
     return out
 
 
@@ -60,7 +66,7 @@ def mismatched_intervals(entries: Iterable[Mapping[str, Any]]) -> list[str]:
         for where in ("explanation", "headline"):
             for m in INTERVAL.finditer(str(e.get(where, ""))):
                 lo, hi = m.group(1), m.group(2)
-                if not any(_same(lo, a) and _same(hi, b) for _, a, b in known):
+                if not any(_same(lo, a, k) and _same(hi, b, k) for _, a, b, k in known):
                     bad.append(f"{e['suspect']} {where}: [{lo}, {hi}] not in {known}")
     return bad
 
@@ -225,3 +231,62 @@ def test_a_faulted_studys_text_and_json_agree(tmp_path):
     ct = {e["suspect"]: e for e in entries}["force_moment_crosstalk"]
     m = re.search(r"(\d+\.\d+) mm", ct["explanation"])
     assert m and _same(m.group(1), ct["estimate"]), (ct["estimate"], ct["explanation"])
+
+
+def _table_vs_text(entries: Iterable[Mapping[str, Any]]) -> tuple[list[str], int]:
+    """Entries whose report estimate column ([lo, hi] and unit) is not printed verbatim in the
+    explanation that quotes the finding's interval; and how many were compared."""
+    bad, seen = [], 0
+    for e in entries:
+        if e.get("ci_low") is None:
+            continue
+        cell = _estimate(e)
+        m = re.search(r"\[[^]]*\]", cell)
+        assert m, cell
+        # the text quotes the finding's own interval, in the display unit, at its precision
+        own = [
+            t.group(0)
+            for t in INTERVAL.finditer(str(e.get("explanation", "")))
+            if _same(t.group(1), e["ci_low"], DIAGNOSIS_NUMBERS[e["suspect"]][1])
+            and _same(t.group(2), e["ci_high"], DIAGNOSIS_NUMBERS[e["suspect"]][1])
+        ]
+        if not own:
+            continue
+        seen += 1
+        unit = {"deg": "°"}.get(cell[m.end() :].strip(), cell[m.end() :].strip())
+        if m.group(0) not in own or (unit not in ("", "×") and unit not in e["explanation"]):
+            bad.append(f"{e['suspect']}: table {cell!r}, text {e['explanation']!r}")
+    return bad, seen
+
+
+def test_the_report_table_and_the_text_print_the_same_numbers():
+    """The report's estimate column and the finding's text print one suspect's interval in one
+    unit at one precision: "36.000 N/kN" stood beside "0.0360 N per N", a bias's 12.345 N beside
+    12.3 N."""
+    bad, seen = [], 0
+    for name, findings in _sensor_cases():
+        b, n = _table_vs_text(f.to_dict() for f in findings)
+        bad += [f"{name}: {x}" for x in b]
+        seen += n
+    for name, rf in _robot_cases():
+        entries = [f.to_dict() for f in robot_findings(rf, axisymmetric=rf.rotation is None)]
+        b, n = _table_vs_text(entries)
+        bad += [f"{name}: {x}" for x in b]
+        seen += n
+    assert seen >= 20 and not bad, "\n".join(bad)
+
+
+def test_a_small_crosstalk_is_not_printed_as_zero():
+    """A clean sensor's crosstalk of a few 1e-6 N/N read "0.0000 N per N" and "largest force
+    crosstalk 0.000": a real small value keeps two significant digits."""
+    texts = []
+    for name, findings in _sensor_cases():
+        if name != "clean":
+            continue
+        for f in findings:
+            if f.suspect in ("force_gain", "force_crosstalk"):
+                texts.append(f.explanation)
+    assert texts
+    for t in texts:
+        assert not re.search(r"(?<![\d.])0\.0+ N(/kN| per N)", t), t
+        assert not re.search(r"largest force crosstalk 0\.0+(?!\d)", t), t

@@ -173,9 +173,9 @@ def test_dimensionless_estimates_read_as_ratios_not_as_a_lone_1():
     assert _estimate(row("robot_stiffness")) == "3.105 [2.859, 4.252] ×"
     assert _estimate(row("force_gain")).endswith("] ×")
     # a crosstalk in newtons per kilonewton: 1.574e-04 N/N printed as such beside "0.000"
-    assert _estimate(row("force_crosstalk")) == "3105.000 [2859.000, 4252.000] N/kN"
+    assert _estimate(row("force_crosstalk")) == "3105.00 [2859.00, 4252.00] N/kN"
     small = {**row("force_crosstalk"), "estimate": 1.574e-4, "ci_low": 0.0, "ci_high": 5.406e-4}
-    assert _estimate(small) == "0.157 [0.000, 0.541] N/kN"
+    assert _estimate(small) == "0.16 [0.00, 0.54] N/kN"
     assert _estimate(row("springback_coupling")) == "3.105 [2.859, 4.252]"
     assert _estimate({**row("scan_shift"), "unit": "mm"}).endswith("] mm")
 
@@ -403,7 +403,7 @@ def test_report_tables_have_no_e_notation(small, tmp_path):
     assert len(tables) >= 5
     for t in tables:
         assert not re.search(r"\d\.\d+e[+-]\d", t), t[:200]
-    assert "0.028 [0.000, 0.541] N/kN" in page
+    assert "0.03 [0.00, 0.54] N/kN" in page
     assert "<td>0.0000088</td>" in page and "<td>-0.000015</td>" in page
 
 
@@ -414,3 +414,20 @@ def test_every_suspect_of_the_diagnosis_has_a_name_on_the_page():
     from roboisf.report.statements import _SUSPECTS
 
     assert set(SUSPECTS) <= set(_SUSPECTS), set(SUSPECTS) - set(_SUSPECTS)
+
+
+def test_study_section_reads_like_the_tables_not_in_e_notation(small, tmp_path):
+    """The "Study" key–value list: a compliance echoed in m/N reads in µm/N as the compliance
+    table does (0.9401, not 9.40099e-07), any other tiny float in fixed point, a float zero in
+    the scaled unit 0.0000."""
+    tool = {"ball_diameter_mm": 10, "method": "beam",
+            "lateral_compliance_m_per_N": 9.40099e-07,
+            "holder_lateral_compliance_m_per_N": 0.0, "gap_m": 1.03274e-07}  # fmt: skip
+    _, page = _write(small, tmp_path, tool=tool)
+    section = page[page.index('id="study"') :]
+    section = section[: section.index("</section>")]
+    assert not re.search(r"\de[+-]\d", section), section
+    assert "lateral_compliance_m_per_N = 0.9401 µm/N" in section
+    assert "holder_lateral_compliance_m_per_N = 0.0000 µm/N" in section
+    assert "gap_m = 0.000000103274" in section
+    assert "ball_diameter_mm = 10," in section

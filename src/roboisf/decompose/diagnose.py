@@ -77,6 +77,7 @@ from roboisf.decompose.check import (
     min_norm_solve,
     min_norm_solve_many,
 )
+from roboisf.report.statements import DIAGNOSIS_NUMBERS, diagnosis_number, diagnosis_unit
 
 if TYPE_CHECKING:
     from roboisf.sensor import UnloadedStretch
@@ -220,23 +221,12 @@ def verdict(lo: float, hi: float, limits: tuple[float, float]) -> str:
     return "cannot_tell"
 
 
-#: Decimals each suspect's numbers are printed with in its explanation and headline. The text's
+#: Decimals each suspect's numbers are printed with in its explanation and headline — the
+#: report's (:data:`roboisf.report.statements.DIAGNOSIS_NUMBERS`, with its unit: a crosstalk
+#: in N/kN), so the text and the report's estimate column print the same numbers. The text's
 #: estimates and intervals are formatted from the summary's own values (:func:`_finding`), so
 #: what the terminal and the report print is what summary.json holds, at this precision.
-PRECISION = {
-    "robot_stiffness": 3,
-    "force_gain": 3,
-    "force_moment_crosstalk": 2,
-    "force_moment_bias": 2,
-    "force_bias": 1,
-    "force_crosstalk": 4,
-    "scan_shift": 3,
-    "work_object": 3,
-    "scan_rotation": 3,
-    "thermal_drift": 3,
-    "work_object_tilt": 3,
-    "springback_coupling": 3,
-}
+PRECISION = {s: d for s, (_, _, d) in DIAGNOSIS_NUMBERS.items()}
 
 
 def _json_number(v: float | None) -> float | None:
@@ -1413,14 +1403,10 @@ def _finding(
     return replace(f, explanation=text, headline=head)
 
 
-def _num(v: float | None, decimals: int, *, signed: bool = False) -> str:
-    """``v`` at ``decimals`` (with its sign when ``signed``; never "-0.00")."""
-    if v is None:
-        return "n/a"
-    s = f"{v:+.{decimals}f}" if signed else f"{v:.{decimals}f}"
-    if float(s) == 0.0:
-        s = s.replace("-", "+" if signed else "")
-    return s
+def _num(suspect: str, v: float | None, *, signed: bool = False, scaled: bool = True) -> str:
+    """``v`` (summary.json's unit) as the report prints it for ``suspect`` (its decimals and
+    display unit; a small real value keeps two significant digits, never "-0.00")."""
+    return diagnosis_number(suspect, v, signed=signed, scaled=scaled, none="n/a")
 
 
 _PLACEHOLDER = re.compile(r"\{(est|ci)(?::([a-z_]+))?\}")
@@ -1429,16 +1415,18 @@ _PLACEHOLDER = re.compile(r"\{(est|ci)(?::([a-z_]+))?\}")
 def _fill(text: str, d: dict[str, Any]) -> str:
     """``text`` with its placeholders (:func:`_finding`) replaced by the numbers of ``d`` (a
     finding's summary.json entry) at the suspect's precision."""
-    dec = PRECISION[d["suspect"]]
+    suspect = d["suspect"]
     parts = {p["name"]: p for p in d.get("parts", [])}
 
     def one(m: re.Match[str]) -> str:
         what, name = m.group(1), m.group(2)
         src = d if name is None else parts[name]
         sg = bool(src.get("signed", False))
+        sc = name is None or src.get("unit") is None  # a part in its own unit: as it is
         if what == "est":
-            return _num(src["estimate"], dec, signed=sg)
-        return f"[{_num(src['ci_low'], dec, signed=sg)}, {_num(src['ci_high'], dec, signed=sg)}]"
+            return _num(suspect, src["estimate"], signed=sg, scaled=sc)
+        lo = _num(suspect, src["ci_low"], signed=sg, scaled=sc)
+        return f"[{lo}, {_num(suspect, src['ci_high'], signed=sg, scaled=sc)}]"
 
     return _PLACEHOLDER.sub(one, text)
 
@@ -1485,7 +1473,8 @@ def sensor_findings(
         "the flange sensor reads {est}× the CNC dynamometer's force on the same path (95 % "
         "{ci}, deeper half of the laps; the shallow half differs by "
         f"{sf.process_gap:+.1%}, the processes' own difference, added to the interval); "
-        f"largest force crosstalk {sf.force_crosstalk:.3f}"
+        "largest force crosstalk "
+        f"{_num('force_crosstalk', sf.force_crosstalk)} {diagnosis_unit('force_crosstalk', '1')}"
     )
     ct_finding, mb_finding = _moment_findings(sf, R)
     b = sf.b
@@ -1615,7 +1604,7 @@ def _moment_findings(sf: SensorFit, R: float) -> tuple[Finding, Finding]:
     )
     ct_force = None
     if v_ct == "cannot_tell" and verdict(plo, phi, lim_ct) != "cannot_tell":
-        text += apart.replace("{mc}", _num(mc, PRECISION["force_moment_bias"]))
+        text += apart.replace("{mc}", _num("force_moment_bias", mc))
         ct_force = "cannot_tell"
     ct = _finding(
         "force_moment_crosstalk",
@@ -1747,8 +1736,9 @@ def _axial_crosstalk_finding(sf: SensorFit) -> Finding:
     assert sf.axial_fixed is not None and sf.axial_fixed_ci is not None
     cx, cy = sf.axial_fixed
     text = (
-        "beyond the static offset, the lateral channels read {est} N per N (95 % {ci}) "
-        f"of the axial force (x {cx:+.4f}, y {cy:+.4f}, work axes; {sf.axial_force:.0f} N RMS "
+        "beyond the static offset, the lateral channels read {est} N/kN (95 % {ci}) "
+        f"of the axial force (x {_num('force_crosstalk', cx, signed=True)}, "
+        f"y {_num('force_crosstalk', cy, signed=True)}, work axes; {sf.axial_force:.0f} N RMS "
         "axial force): crosstalk of the axial force into the lateral channels — along a wall it "
         "is a near-constant lateral force that only the logs at rest tell from a bias"
     )
@@ -1763,13 +1753,13 @@ def _axial_crosstalk_unseen(sf: SensorFit, v_b: str) -> Finding:
         hi = sf.bias_ci[1] / Fz
         text = (
             f"no constant between the two sensors on this path (|b| ≤ {sf.bias_ci[1]:.1f} N), "
-            "so the axial force's crosstalk into the lateral channels lies in {ci} N per N "
+            "so the axial force's crosstalk into the lateral channels lies in {ci} N/kN "
             f"({sf.axial_force:.0f} N RMS axial force)"
         )
         return _finding("force_crosstalk", sf.bias / Fz, (0.0, hi), "1", text, XT_ACTION)
     text = (
         f"a constant of {sf.bias:.1f} N between the sensors on this path may be the axial "
-        "force's crosstalk into the lateral channels ({est} N per N, 95 % {ci}) or a "
+        "force's crosstalk into the lateral channels ({est} N/kN, 95 % {ci}) or a "
         "bias: the path's axial force varies too little to tell, and the logs have no unloaded "
         "stretch to read the sensor at rest (either way the analysis removed the constant)"
     )

@@ -308,20 +308,52 @@ def vjm_table(books: Sequence[tuple[str, Mapping[str, Any]]]) -> str:
     )
 
 
-def _inline(value: Any) -> str:
+#: Key–value entries whose key names an SI unit too small to read, shown in the tables' scaled
+#: unit instead (suffix of the key: unit, scale, decimals): a tool's lateral compliance
+#: 9.40099e-07 m/N reads 0.9401 µm/N, as in the compliance table.
+KV_SCALED_UNITS = {"_m_per_N": ("µm/N", K_SCALE, 4)}
+#: Significant digits of any other float in a key–value list (an echo of the study's inputs).
+KV_DIGITS = 6
+
+
+def _kv_float(x: float) -> str:
+    """A float of a key–value list: as typed (6 significant digits), in fixed point — never
+    e-notation beside the tables' fixed point (1.03274e-07 reads 0.000000103274); a
+    floating-point zero (below :data:`FLOAT_NOISE`) reads 0."""
+    if not math.isfinite(x):
+        return "—"
+    if abs(x) < FLOAT_NOISE:
+        return "0"
+    text = f"{x:.{KV_DIGITS}g}"
+    if "e" not in text:
+        return text
+    decimals = max(0, KV_DIGITS - 1 - math.floor(math.log10(abs(x))))
+    text = f"{x:,.{decimals}f}".replace(",", GROUP_SEPARATOR if abs(x) >= GROUP_FROM else "")
+    return text.rstrip("0").rstrip(".") if "." in text else text
+
+
+def _inline(value: Any, key: str = "") -> str:
     if isinstance(value, Mapping):
-        return ", ".join(f"{esc(k)} = {_inline(v)}" for k, v in value.items())
+        return ", ".join(f"{esc(k)} = {_inline(v, str(k))}" for k, v in value.items())
     if isinstance(value, list | tuple):
-        return "[" + ", ".join(_inline(v) for v in value) + "]"
+        return "[" + ", ".join(_inline(v, key) for v in value) + "]"
+    if isinstance(value, float | int) and not isinstance(value, bool):
+        for suffix, (unit, scale, digits) in KV_SCALED_UNITS.items():
+            if key.endswith(suffix):
+                return f"{fmt_scaled(value, scale, digits)} {esc(unit)}"
     if isinstance(value, float):
-        return esc(f"{value:.6g}")
+        return esc(_kv_float(value))
     return esc(value)
 
 
 def kv_table(items: Iterable[tuple[str, Any]]) -> str:
-    """A definition list of (label, value); nested dicts are flattened inline."""
+    """A definition list of (label, value); nested dicts are flattened inline. Numbers never in
+    e-notation: a value whose key names a tiny SI unit (``…_m_per_N``) in the tables' scaled
+    unit (:data:`KV_SCALED_UNITS`), any other float in fixed point (:func:`_kv_float`)."""
     body = "".join(
-        f"<dt>{esc(k)}</dt><dd>{_inline(v)}</dd>" for k, v in items if v not in (None, {}, [])
+        f"<dt>{esc(k)}</dt><dd>{_inline(v, str(k))}</dd>"
+        for k, v in items
+        if v not in (None, {}, [])
     )
     return f'<dl class="kv">{body}</dl>'
 

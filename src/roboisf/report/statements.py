@@ -13,9 +13,12 @@ from typing import Any
 from roboisf.report.page import esc, fmt, fmt_scaled
 
 __all__ = [
+    "DIAGNOSIS_NUMBERS",
     "DIAGNOSIS_VERDICTS",
     "StudyKind",
     "diagnosis_html",
+    "diagnosis_number",
+    "diagnosis_unit",
     "kind_banner",
     "scope_html",
     "scope_sentence",
@@ -185,25 +188,60 @@ def _diagnosis_headline(summary: Mapping[str, Any]) -> str | None:
     return text[len("diagnosis:") :].strip() if text.lower().startswith("diagnosis:") else text
 
 
-#: How a dimensionless estimate (``"unit": "1"`` in summary.json) reads in the report: a ratio
-#: as "×", a crosstalk as newtons per kilonewton (× 1000: a real sensor's 1e-5 … 1e-2 N/N read
-#: 0.010 … 10.000 at three decimals, not 1.574e-04 beside 0.000); a fraction (springback
-#: coupling) bare. A lone "1" after the interval read as a typo.
-_RATIO_UNITS = {
-    "robot_stiffness": ("×", 1.0),
-    "force_gain": ("×", 1.0),
-    "force_crosstalk": ("N/kN", 1e3),
+#: How each suspect's numbers read — in the report's estimate column and in the finding's own
+#: text alike (``roboisf.decompose.diagnose`` formats its explanations with
+#: :func:`diagnosis_number`), so the two print the same number: (unit, scale from
+#: summary.json's unit, decimals). ``None``: the entry's own unit. A dimensionless ratio reads
+#: "×" (a lone "1" after the interval read as a typo), a crosstalk newtons per kilonewton
+#: (× 1000: a real sensor's 1e-5 … 1e-2 N/N read 0.01 … 10.00, not 1.574e-04 beside 0.000),
+#: a fraction (springback coupling) bare.
+DIAGNOSIS_NUMBERS: dict[str, tuple[str | None, float, int]] = {
+    "robot_stiffness": ("×", 1.0, 3),
+    "force_gain": ("×", 1.0, 3),
+    "force_moment_crosstalk": (None, 1.0, 2),
+    "force_moment_bias": (None, 1.0, 2),
+    "force_bias": (None, 1.0, 1),
+    "force_crosstalk": ("N/kN", 1e3, 2),
+    "scan_shift": (None, 1.0, 3),
+    "work_object": (None, 1.0, 3),
+    "scan_rotation": (None, 1.0, 3),
+    "thermal_drift": (None, 1.0, 3),
+    "work_object_tilt": (None, 1.0, 3),
+    "springback_coupling": ("", 1.0, 3),
 }
+_DEFAULT_NUMBER = (None, 1.0, 3)
+
+
+def diagnosis_unit(suspect: str, unit: str | None) -> str:
+    """The unit a suspect's numbers are printed in (``unit``: summary.json's)."""
+    shown = DIAGNOSIS_NUMBERS.get(suspect, _DEFAULT_NUMBER)[0]
+    return shown if shown is not None and unit in ("1", None) else str(unit or "")
+
+
+def diagnosis_number(
+    suspect: str, value: Any, *, signed: bool = False, scaled: bool = True, none: str = "—"
+) -> str:
+    """A diagnosis number of ``suspect`` (summary.json's unit) as the report and the text print
+    it: :func:`~roboisf.report.page.fmt` at the suspect's decimals in its display unit
+    (:data:`DIAGNOSIS_NUMBERS`) — a real small value keeps two significant digits, a
+    floating-point zero reads 0.00 …, never "-0.00"; with its sign when ``signed``; ``scaled``
+    False for a number already in another unit (a part's own). ``none`` for a missing one."""
+    _, scale, decimals = DIAGNOSIS_NUMBERS.get(suspect, _DEFAULT_NUMBER)
+    if value is None:
+        return none
+    text = fmt_scaled(value, scale if scaled else 1.0, decimals)
+    if signed and text != "—" and not text.startswith("-"):
+        text = "+" + text
+    return text
 
 
 def _estimate(e: Mapping[str, Any]) -> str:
-    unit, scale = str(e.get("unit") or ""), 1.0
-    if unit == "1":
-        unit, scale = _RATIO_UNITS.get(str(e.get("suspect")), ("", 1.0))
-    est = fmt_scaled(e.get("estimate"), scale, 3)
+    suspect = str(e.get("suspect"))
+    unit = diagnosis_unit(suspect, e.get("unit"))
+    est = diagnosis_number(suspect, e.get("estimate"))
     if e.get("ci_low") is None and e.get("ci_high") is None:
         return f"{est} {unit}".strip()
-    lo, hi = fmt_scaled(e.get("ci_low"), scale, 3), fmt_scaled(e.get("ci_high"), scale, 3)
+    lo, hi = diagnosis_number(suspect, e.get("ci_low")), diagnosis_number(suspect, e.get("ci_high"))
     return f"{est} [{lo}, {hi}] {unit}".strip()
 
 
