@@ -7,12 +7,13 @@ import json
 import math
 import re
 from collections.abc import Iterable, Mapping, Sequence
-from typing import Any
-
-import pandas as pd
+from typing import TYPE_CHECKING, Any
 
 from roboisf import __version__
 from roboisf.report.schema import FACTORS
+
+if TYPE_CHECKING:
+    import pandas as pd
 from roboisf.report.style import FACTOR_COLORS, FACTOR_LABELS, FONT_STACK
 
 __all__ = [

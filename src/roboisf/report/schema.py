@@ -10,12 +10,14 @@ moments N·m, time s.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from roboisf.errors import InputError
+
+if TYPE_CHECKING:  # pandas is imported where a table is checked: the diagnosis's numbers
+    import pandas as pd  # (report.statements, via report.page) load without it
 
 __all__ = [
     "AXES",
@@ -103,6 +105,8 @@ def check_per_point(per_point: Any, *, name: str = "per_point") -> pd.DataFrame:
         Not a DataFrame, empty, a required column missing, a column not numeric, or a geometry or
         force column with NaN/inf. The error's ``field`` names the column.
     """
+    import pandas as pd
+
     if not isinstance(per_point, pd.DataFrame):
         raise InputError(f"expected a pandas DataFrame, got {type(per_point).__name__}", field=name)
     if len(per_point) == 0:
@@ -144,6 +148,8 @@ def check_contributions(table: Any, *, name: str) -> pd.DataFrame:
     name
         Which table this is (for the error message), e.g. ``"contributions_normal"``.
     """
+    import pandas as pd
+
     if not isinstance(table, pd.DataFrame):
         raise InputError(f"expected a pandas DataFrame, got {type(table).__name__}", field=name)
     missing = [c for c in CONTRIBUTION_COLUMNS if c not in table.columns]
