@@ -618,7 +618,11 @@ def next_command(summary: dict, study: Path, output: Path) -> str:
 def unattributed_offset(summary: dict) -> bool:
     """The diagnosis found an offset of the robot part beyond its limit that it cannot
     attribute (the robot scan's registration or the robot's work object): ``compensate`` then
-    needs ``--offset scan|part``."""
+    needs ``--offset scan|part``. Not where the robot's own compliance may carry the offset as
+    well (:data:`~roboisf.decompose.diagnose.ROBOT_MISFIT`): compensate corrects it with the
+    robot term (docs/diagnosis.md)."""
+    from roboisf.decompose.diagnose import ROBOT_MISFIT
+
     for e in summary.get("diagnosis") or []:
         if not isinstance(e, dict) or e.get("suspect") not in (
             "scan_shift",
@@ -627,6 +631,8 @@ def unattributed_offset(summary: dict) -> bool:
         ):
             continue
         lo, lim = e.get("ci_low"), (e.get("detection_limits") or [None, None])[1]
+        if ROBOT_MISFIT in str(e.get("explanation", "")):
+            continue
         if e.get("verdict") == "cannot_tell" and lo is not None and lim is not None and lo > lim:
             return True
     return False
