@@ -2346,10 +2346,13 @@ def _beside_a_wrong_robot_model(f: Finding, rf: RobotTermFit) -> Finding:
         f"the robot gives way {rf.ratio:.3f}× the model's prediction (robot_stiffness), and the "
         "part of its compliance the model does not hold (its links bending, a coupling of the "
         "axial force into a sideways give that changes over the path) leaves such a pattern as "
-        f"well — {ROBOT_MISFIT}: identify the robot's stiffness (identified_stiffness.toml) and "
-        "analyse a run formed with it"
+        "well: identify the robot's stiffness (identified_stiffness.toml) and analyse a run "
+        "formed with it"
     )
-    text = f"{f.explanation}; {why}"
+    # the headline is the first clause: it names the third suspect too
+    first = _first_clause(f.explanation)
+    rest = f.explanation[len(first) :]
+    text = f"{first} — or the robot's own compliance ({ROBOT_MISFIT}){rest}; {why}"
     return _finding(f.suspect, f.estimate, ci, f.unit, text, "", force="cannot_tell", parts=f.parts)
 
 
