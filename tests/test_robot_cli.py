@@ -168,7 +168,9 @@ def test_deflect_says_the_start_joints_back_in_degrees(cell, tmp_path, capsys):
     np.testing.assert_allclose([float(v) for v in first.split(", ")], q0, atol=0.006)
 
 
-def test_identify_cli(tmp_path, capsys):
+def _translations_sheet(tmp_path):
+    """(robot, path) of a calibration sheet of 30 poses with translations only (mm, N, N·m,
+    deg), the IRB 7600's deflections under random loads plus 2 µm of gauge noise."""
     m = load_robot("irb7600-500-2.55").with_tool(make_transform(None, [0.3, 0.1, 0.4]))
     rng = np.random.default_rng(0)
     q = rng.uniform(m.q_min * 0.7, m.q_max * 0.7, (30, 6))
@@ -182,6 +184,11 @@ def test_identify_cli(tmp_path, capsys):
         + "\n".join(",".join(f"{v:.17g}" for v in r) for r in rows)
         + "\n"
     )
+    return m, f
+
+
+def test_identify_cli(tmp_path, capsys):
+    m, f = _translations_sheet(tmp_path)
     out = tmp_path / "stiffness.toml"
     assert (
         main(
@@ -403,19 +410,7 @@ def test_sigma_rot_refuses_a_bare_number_that_can_only_be_degrees(tmp_path, caps
 def test_sigma_rot_without_rotation_columns_is_said_unused(tmp_path, capsys):
     """--sigma-rot weights only the rx,ry,rz columns: on a sheet without them it changes
     nothing, and the command says so rather than let the user think it was applied."""
-    m = load_robot("irb7600-500-2.55").with_tool(make_transform(None, [0.3, 0.1, 0.4]))
-    rng = np.random.default_rng(0)
-    q = rng.uniform(m.q_min * 0.7, m.q_max * 0.7, (30, 6))
-    W = rng.normal(size=(30, 6)) * [1500, 1500, 1500, 150, 150, 150]
-    dd = m.deflection(q, W)[:, :3] + rng.normal(size=(30, 3)) * 2e-6
-    f = tmp_path / "calib.csv"
-    rows = np.column_stack([np.degrees(q), W, dd * 1e3])
-    f.write_text(
-        "# units: angle=deg length=mm force=N moment=N*m\n"
-        "q1,q2,q3,q4,q5,q6,Fx,Fy,Fz,Mx,My,Mz,dx,dy,dz\n"
-        + "\n".join(",".join(f"{v:.17g}" for v in r) for r in rows)
-        + "\n"
-    )
+    _, f = _translations_sheet(tmp_path)
     assert _identify(tmp_path, f, tmp_path / "K.toml", "--sigma-rot", "0.001deg") == 0
     assert "--sigma-rot is not used" in capsys.readouterr().err
 

@@ -1776,16 +1776,9 @@ def _axial_crosstalk_unseen(sf: SensorFit, v_b: str) -> Finding:
     )
 
 
-#: The suspects the robot term's pattern gives a verdict on (:func:`robot_findings`).
-ROBOT_TERM_SUSPECTS = (
-    "robot_stiffness",
-    "scan_shift",
-    "work_object",
-    "scan_rotation",
-    "thermal_drift",
-    "work_object_tilt",
-    "springback_coupling",
-)
+#: The suspects the robot term's pattern gives a verdict on (:func:`robot_findings`): the
+#: stiffness and every suspect :data:`SUSPECTS` lists after the force sensor's.
+ROBOT_TERM_SUSPECTS = ("robot_stiffness", *SUSPECTS[SUSPECTS.index("scan_shift") :])
 #: Why the study's files cannot tell the robot scan's registration from the robot's work object
 #: (docs/diagnosis.md, "What separates what").
 OFFSET_WHY = (
