@@ -658,10 +658,11 @@ def test_the_headline_names_what_it_cannot_tell_in_words():
 
 
 def test_force_vectors_in_the_text_have_no_negative_zero():
-    """'(+0.0, -0.0, +0.0) N' in the diagnosis' explanations: a rounded zero is +0.0."""
+    """'(+0.0, -0.0, +0.0) N' in the diagnosis' explanations: a zero is +0.0; a real small
+    component keeps two significant digits (as the report's tables), not a rounded zero."""
     from roboisf.decompose.diagnose import _vec
 
-    assert _vec(np.array([-0.04, -0.0, 0.0])) == "(+0.0, +0.0, +0.0) N"
+    assert _vec(np.array([-0.04, -0.0, 0.0])) == "(-0.040, +0.0, +0.0) N"
     assert _vec(np.array([-36.64, 13.26, 130.5])) == "(-36.6, +13.3, +130.5) N"
 
 

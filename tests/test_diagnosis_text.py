@@ -290,3 +290,14 @@ def test_a_small_crosstalk_is_not_printed_as_zero():
     for t in texts:
         assert not re.search(r"(?<![\d.])0\.0+ N(/kN| per N)", t), t
         assert not re.search(r"largest force crosstalk 0\.0+(?!\d)", t), t
+
+
+def test_vectors_in_the_texts_keep_small_components_and_no_negative_zero():
+    # a moment bias at rest of a few mN·m read "(+0.00, +0.00, +0.00) N·m": a real value shown
+    # as none, beside an estimate column that keeps two significant digits
+    from roboisf.decompose.diagnose import _mvec, _vec
+
+    assert _mvec(np.array([0.0023, -0.001, 0.0])) == "(+0.0023, -0.0010, +0.00) N·m"
+    assert _mvec(np.array([3.6, -1e-20, 0.5])) == "(+3.60, +0.00, +0.50) N·m"
+    assert _vec(np.array([-0.0, 0.0, -3.0])) == "(+0.0, +0.0, -3.0) N"
+    assert "-0.0" not in _vec(np.array([-1e-18, -0.0, 12.34]))

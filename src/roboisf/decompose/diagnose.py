@@ -1664,9 +1664,11 @@ def _no_moment_channels(suspect: str) -> Finding:
 
 
 def _mvec(v: F64) -> str:
-    """A moment vector (3,) N·m as the explanations print it (no "-0.00")."""
-    x, y, z = (round(float(c), 2) + 0.0 for c in v[:3])
-    return f"({x:+.2f}, {y:+.2f}, {z:+.2f}) N·m"
+    """A moment vector (3,) N·m as the explanations print it: the moment bias's numbers
+    (:func:`~roboisf.report.statements.diagnosis_number`: a real small component keeps two
+    significant digits, a floating-point zero reads 0.00, never "-0.00")."""
+    c = ", ".join(diagnosis_number("force_moment_bias", float(x), signed=True) for x in v[:3])
+    return f"({c}) N·m"
 
 
 #: The relative force difference of the two processes allowed for a stretch on the path (the
@@ -1685,9 +1687,10 @@ XT_ACTION = "check the sensor's calibration matrix (the analysis removed the axi
 
 
 def _vec(v: F64) -> str:
-    """A force vector (3,) N as the explanations print it (no "-0.0": rounded, then + 0.0)."""
-    x, y, z = (round(float(c), 1) + 0.0 for c in v[:3])
-    return f"({x:+.1f}, {y:+.1f}, {z:+.1f}) N"
+    """A force vector (3,) N as the explanations print it: the force bias's numbers (a real
+    small component keeps two significant digits, no "-0.0")."""
+    c = ", ".join(diagnosis_number("force_bias", float(x), signed=True) for x in v[:3])
+    return f"({c}) N"
 
 
 def _static_bias_finding(u: UnloadedEvidence, gain: float, sf: SensorFit | None) -> Finding:
