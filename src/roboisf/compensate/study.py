@@ -109,14 +109,19 @@ def diagnosed_inputs(
     dn = pp["robot_dn"].to_numpy(dtype=float) * 1e-3
     if "scan_pattern_dn" in pp:
         dn = dn - np.nan_to_num(pp["scan_pattern_dn"].to_numpy(dtype=float)) * 1e-3
-    if offset is not None and offset not in OFFSET_READINGS:
-        raise InputError(f"expected scan or part, got {offset!r}", field="--offset")
+    _check_offset(offset)
     if "offset_pattern_dn" in pp:
         if offset is None:
             raise InputError(unattributed_offset_message(pp, diagnosis), field="--offset")
         if offset == "scan":
             dn = dn - np.nan_to_num(pp["offset_pattern_dn"].to_numpy(dtype=float)) * 1e-3
     return W, dn
+
+
+def _check_offset(offset: str | None) -> None:
+    """InputError unless ``offset`` is None or one of :data:`OFFSET_READINGS`."""
+    if offset is not None and offset not in OFFSET_READINGS:
+        raise InputError(f"expected scan or part, got {offset!r}", field="--offset")
 
 
 def unattributed_offset_message(pp: pd.DataFrame, diagnosis: list[dict] | None) -> str:
@@ -257,8 +262,7 @@ def compensate_study(
     formed = study_toolpath(study, rspec, cell.part)  # a toolpath CSV or a CAM program
     if results is not None:
         _check_results_run(Path(results), rspec.name)
-    if offset is not None and offset not in OFFSET_READINGS:  # before the analysis
-        raise InputError(f"expected scan or part, got {offset!r}", field="--offset")
+    _check_offset(offset)  # before the analysis
     pp, diagnosis = _per_point(study, None if results is None else Path(results), progress)
     if results is not None:  # results of this study as its files are now (summary.json)
         check_results(study, results)
