@@ -236,7 +236,7 @@ def test_predict_and_the_first_part_program_on_a_new_part(analysed, tmp_path, ca
     spec = ["pyramid", "--top-length", "90", "--top-width", "75", "--wall-angle", "55"]
     assert _run(["part", *spec, "--depth", "24", "-o", str(part)]) == 0
     pred = tmp_path / "P"
-    args = ["predict", "--part", str(part), "--history", str(db), "-o", str(pred),
+    args = ["predict", "--part", str(part), "--history", str(db), "-o", str(pred), "--png",
             "--placement", "2200,-500,200,0", "--step-down", "2", "--spacing", "4"]  # fmt: skip
     assert _run(args) == 0
     pp = pd.read_parquet(pred / "prediction.parquet")

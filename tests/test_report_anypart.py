@@ -222,7 +222,7 @@ def test_pyramid_report_written_with_the_contour_not_the_polar_plot(pyramid, tmp
     pp, contrib, contrib_n, summary = pyramid
     if not stated:  # no part_symmetry: the kind and the data decide
         summary = {k: v for k, v in summary.items() if k != "part_symmetry"}
-    path = write_report(pp, contrib, contrib_n, summary, tmp_path)
+    path = write_report(pp, contrib, contrib_n, summary, tmp_path, png=True)
     text = path.read_text(encoding="utf-8")
     ids = figure_ids(False)
     assert "vjm_contour" in ids and "vjm_polar" not in ids and "deviation_top" in ids

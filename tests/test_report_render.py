@@ -24,7 +24,7 @@ def study():
 
 @pytest.fixture(scope="module")
 def in_process(study, tmp_path_factory):
-    return write_report(*study, tmp_path_factory.mktemp("serial"), processes=0).parent
+    return write_report(*study, tmp_path_factory.mktemp("serial"), png=True, processes=0).parent
 
 
 def _same_report(a: Path, b: Path) -> None:
@@ -38,7 +38,7 @@ def _same_report(a: Path, b: Path) -> None:
 
 @pytest.mark.parametrize("processes", [1, 3])
 def test_workers_write_the_same_bytes(study, in_process, tmp_path, processes):
-    out = write_report(*study, tmp_path, processes=processes).parent
+    out = write_report(*study, tmp_path, png=True, processes=processes).parent
     _same_report(in_process, out)
     assert not mp.active_children()
 
@@ -46,7 +46,7 @@ def test_workers_write_the_same_bytes(study, in_process, tmp_path, processes):
 def test_spawned_workers_write_the_same_bytes(study, in_process, tmp_path, monkeypatch):
     # the fallback where fork is not available: inputs pickled, figures rebuilt in the worker
     monkeypatch.setattr(render, "_context", lambda: mp.get_context("spawn"))
-    out = write_report(*study, tmp_path, processes=1).parent
+    out = write_report(*study, tmp_path, png=True, processes=1).parent
     _same_report(in_process, out)
 
 
@@ -66,7 +66,7 @@ def test_worker_error_reaches_the_caller(study, tmp_path, monkeypatch):
     monkeypatch.setattr(st, "save_png", failing)
     (tmp_path / "report.html").write_text("old", encoding="utf-8")
     with pytest.raises(InputError, match="disk full") as err:
-        write_report(*study, tmp_path, processes=1)
+        write_report(*study, tmp_path, png=True, processes=1)
     assert any("worker process" in n for n in getattr(err.value, "__notes__", []))
     assert (tmp_path / "report.html").read_text(encoding="utf-8") == "old"
     assert not mp.active_children()
@@ -86,7 +86,7 @@ def test_unpicklable_worker_error_is_named(study, tmp_path, monkeypatch):
 
     monkeypatch.setattr(st, "save_png", failing)
     with pytest.raises(RuntimeError, match=r"figures/\w+\.png failed in a worker.*Odd: no luck"):
-        write_report(*study, tmp_path, processes=1)
+        write_report(*study, tmp_path, png=True, processes=1)
 
 
 def test_dead_worker_is_reported(study, tmp_path, monkeypatch):
@@ -99,7 +99,7 @@ def test_dead_worker_is_reported(study, tmp_path, monkeypatch):
 
     monkeypatch.setattr(st, "save_png", dying)
     with pytest.raises(RuntimeError, match=r"PNG worker process stopped \(exit codes 3\)"):
-        write_report(*study, tmp_path, processes=1)
+        write_report(*study, tmp_path, png=True, processes=1)
     assert not (tmp_path / "report.html").exists()
 
 
@@ -115,7 +115,7 @@ def test_ctrl_c_stops_the_workers(study, tmp_path, monkeypatch):
 
     monkeypatch.setattr(doc, "_figure_html", interrupted)
     with pytest.raises(KeyboardInterrupt):
-        write_report(*study, tmp_path, processes=2)
+        write_report(*study, tmp_path, png=True, processes=2)
     assert not mp.active_children()
     assert not (tmp_path / "report.html").exists()
     _no_temporaries(tmp_path)

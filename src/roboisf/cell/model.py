@@ -31,16 +31,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from roboisf.cell.forces import ForceModel
 from roboisf.errors import InputError
-from roboisf.fem import (
-    PAPER_TOOL_LENGTH,
-    BallEndTool,
-    ComplianceResult,
-    HolderSection,
-    ToolHolder,
-    beam_result,
-    holder_compliance,
-    tool_compliance,
-)
+from roboisf.fem.geometry import PAPER_TOOL_LENGTH, BallEndTool, HolderSection, ToolHolder
+from roboisf.fem.result import ComplianceResult
 from roboisf.frames import check_rigid, make_transform, to_tip
 from roboisf.parts import Part
 from roboisf.progress import Progress
@@ -129,6 +121,9 @@ class CellTool:
         if self.compliance is not None:
             return self.compliance
         assert self.geometry is not None
+        # the FE and beam models load scipy.sparse (~0.14 s): not for compliances given as files
+        from roboisf.fem.stiffness import beam_result, tool_compliance
+
         if self.method == "fe":
             return tool_compliance(self.geometry, progress=progress)
         return beam_result(self.geometry)
@@ -167,6 +162,8 @@ class CellHolder:
             return self.compliance
         if self.geometry is None:
             return None
+        from roboisf.fem.stiffness import beam_result, holder_compliance
+
         if self.method == "fe":
             return holder_compliance(self.geometry, progress=progress)
         return beam_result(self.geometry)

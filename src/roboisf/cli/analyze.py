@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from roboisf.cli.console import state
-from roboisf.cli.outputs import DIR_HELP, Overwrite, output_dir, study_inputs
+from roboisf.cli.outputs import DIR_HELP, Overwrite, Png, output_dir, study_inputs
 from roboisf.errors import InputError
 
 if TYPE_CHECKING:
@@ -36,9 +36,7 @@ def analyze_command(
         Path, typer.Option("--output", "-o", help=f"Results folder. {DIR_HELP}")
     ] = Path("results"),
     overwrite: Overwrite = False,
-    png: Annotated[
-        bool, typer.Option("--png/--no-png", help="Also write static PNG figures.")
-    ] = True,
+    png: Png = False,
     run: Annotated[
         str | None,
         typer.Option(
@@ -57,8 +55,8 @@ def analyze_command(
     Reads the study folder (docs/study.md): the part, tool and holder compliance, robot and
     placement, and a CNC and a robot run with their toolpath, force log, joint log and scan.
     Writes report.html, contributions.csv (mm, %), contributions_normal.csv, per_point.parquet,
-    summary.json (versioned, schema_version; its fields and JSON Schema: docs/summary.md) and
-    figures/*.png. summary.json's diagnosis gives each suspect (robot
+    summary.json (versioned, schema_version; its fields and JSON Schema: docs/summary.md) and,
+    with --png, figures/*.png. summary.json's diagnosis gives each suspect (robot
     stiffness; the force sensor's gain, bias, axial crosstalk, moment crosstalk and moment bias;
     the robot scan's shift and rotation; the robot's work object, its tilt and a thermal drift;
     springback coupling) a verdict — fault, ok or cannot_tell, the last also where two suspects

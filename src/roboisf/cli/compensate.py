@@ -20,7 +20,7 @@ from typing import Annotated
 import typer
 
 from roboisf.cli.console import state
-from roboisf.cli.outputs import DIR_HELP, Overwrite, output_dir, study_inputs
+from roboisf.cli.outputs import DIR_HELP, Overwrite, Png, output_dir, study_inputs
 from roboisf.errors import InputError
 
 __all__ = ["register"]
@@ -168,7 +168,7 @@ def register(app: typer.Typer) -> None:
                 "measure the work object to tell (docs/compensate.md).",
             ),
         ] = None,
-        png: Annotated[bool, typer.Option("--png/--no-png", help="Also write the PNG.")] = True,
+        png: Png = False,
     ) -> None:
         """Compensate the toolpath: robot/tool/holder pre-deflection and springback adjustment.
 
@@ -176,8 +176,8 @@ def register(app: typer.Typer) -> None:
         long paths), compensated.src/.dat (KRL), compensated.ls (FANUC) — all in the study's
         frames (placement, tool) with the configuration data of its IK branch —,
         compensated.nc (G-code: nominal + springback adjustment only, no robot pre-deflection),
-        per_point.csv (mm, flags), compensation.json and compensation.html/.png (mean |dn| per
-        lap before/after, commanded offset per lap, the largest lap-to-lap step).
+        per_point.csv (mm, flags), compensation.json and compensation.html (and .png with --png):
+        mean |dn| per lap before/after, commanded offset per lap, the largest lap-to-lap step.
         """
         study_inputs(study)  # a mistyped STUDY reported before the numeric stack is imported
         import numpy as np

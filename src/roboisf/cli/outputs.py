@@ -36,6 +36,18 @@ Overwrite = Annotated[
     ),
 ]
 
+#: ``--png``: static PNG figures beside the HTML page, on request. The page's plotly figures need
+#: none (each has its own PNG download button); matplotlib's import and drawing were ~1 s of the
+#: paper cone's ~6 s ``analyze`` (docs/speed.md), so a command draws them only when asked.
+Png = Annotated[
+    bool,
+    typer.Option(
+        "--png/--no-png",
+        help="Also write static PNG figures (matplotlib, for print and papers). The HTML "
+        "report's own figures each have a PNG download button.",
+    ),
+]
+
 
 def study_inputs(study: Path | None) -> list[Path]:
     """A study argument (folder or its study.toml) as inputs: the study folder either way.

@@ -16,7 +16,7 @@ from typing import Annotated
 import typer
 
 from roboisf.cli.console import state
-from roboisf.cli.outputs import DIR_HELP, Overwrite, output_dir
+from roboisf.cli.outputs import DIR_HELP, Overwrite, Png, output_dir
 from roboisf.errors import InputError
 
 __all__ = ["register"]
@@ -81,7 +81,7 @@ def register(app: typer.Typer) -> None:
                 "one of the two).",
             ),
         ] = None,
-        png: Annotated[bool, typer.Option("--png/--no-png", help="Also write the PNG.")] = True,
+        png: Png = False,
     ) -> None:
         """Predict the error of a part before it is formed: springback learned from the history,
         tool and holder by their compliance, robot by the VJM (identified stiffness).
@@ -90,7 +90,7 @@ def register(app: typer.Typer) -> None:
         across the path, depth, distance to the rim, step-down, tool radius, sheet thickness,
         material) by gradient boosting, validated by leaving each history part out, with a
         split-conformal interval. Writes prediction.parquet (per point, mm), prediction.json,
-        report.html and prediction.png. docs/history.md.
+        report.html and, with --png, prediction.png. docs/history.md.
         """
         for flag, v in (("--step-down", step_down), ("--spacing", spacing)):
             if not (math.isfinite(v) and v > 0):

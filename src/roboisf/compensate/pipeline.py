@@ -387,7 +387,7 @@ def write_compensation(
     dn_after: ArrayLike | None = None,
     after_label: str = "predicted",
     inputs: tuple[Path, ...] = (),
-    png: bool = True,
+    png: bool = False,
     progress: Progress | None = None,
 ) -> Path:
     """Write the compensated command and the before/after comparison into ``out_dir``.

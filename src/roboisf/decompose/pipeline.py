@@ -1367,7 +1367,7 @@ def write_results(
     result: AnalysisResult,
     out_dir: str | Path,
     *,
-    png: bool = True,
+    png: bool = False,
     progress: Progress | None = None,
 ) -> Path:
     """Write ``report.html``, ``contributions.csv``, ``contributions_normal.csv``,

@@ -319,7 +319,7 @@ def _body(laps: pd.DataFrame, summary: dict[str, Any], div: str) -> str:
 
 
 def write_compensation_report(
-    laps: pd.DataFrame, summary: dict[str, Any], out_dir: str | Path, *, png: bool = True
+    laps: pd.DataFrame, summary: dict[str, Any], out_dir: str | Path, *, png: bool = False
 ) -> Path:
     """Write ``compensation.html`` (the study report's look: cards, sections, self-contained)
     and ``compensation.png`` into ``out_dir``; return the HTML.

@@ -23,7 +23,6 @@ from roboisf.report import aggregate as agg
 from roboisf.report import interactive as ia
 from roboisf.report import page as pg
 from roboisf.report import plotfig as pf
-from roboisf.report import static as st
 from roboisf.report.alignment import alignment_html
 from roboisf.report.model_check import check_card, check_tables
 from roboisf.report.render import PngRenderer, default_processes
@@ -39,6 +38,16 @@ __all__ = [
     "write_index",
     "write_report",
 ]
+
+
+def _static() -> Any:
+    """:mod:`roboisf.report.static` (matplotlib: ~0.5 s to import), loaded by the first PNG
+    drawn: a report without PNGs (the default, ``analyze --png`` asks for them) never loads
+    it."""
+    from roboisf.report import static
+
+    return static
+
 
 #: Plot ids of the report of a round part, in page order; each is ``<div id="fig-<id>">`` in
 #: the HTML and ``figures/<id>.png``. A part that is not round has ``vjm_contour`` (the contour
@@ -154,14 +163,14 @@ def _figures(
             "Solid bars: per-axis vectors (the paper's way, eq. 6); hatched bars: the same factors "
             "projected on the surface normal (what a scan can observe).",
             lambda: ia.contributions_figure(contrib, contrib_n),
-            lambda: st.contributions_png(contrib, contrib_n),
+            lambda: _static().contributions_png(contrib, contrib_n),
         ),
         _Figure(
             "forces",
             "Forming force, CNC vs robot",
             f"Forces at the tool tip in work axes. {band}",
             lambda: ia.forces_figure(pp),
-            lambda: st.forces_png(pp),
+            lambda: _static().forces_png(pp),
         ),
         _Figure(
             "deviation_depth",
@@ -171,7 +180,7 @@ def _figures(
             "change sign "
             "around each lap, so their band is wide and their mean near zero.",
             lambda: ia.deviation_depth_figure(pp),
-            lambda: st.deviation_depth_png(pp),
+            lambda: _static().deviation_depth_png(pp),
         ),
         _Figure(
             "deviation_map",
@@ -183,7 +192,7 @@ def _figures(
             "are averaged, a cell no point falls in takes its lap's nearest point; blank cells "
             "are scan holes. Both maps share one colour scale.",
             lambda: ia.deviation_map_figure(pp),
-            lambda: st.deviation_map_png(pp),
+            lambda: _static().deviation_map_png(pp),
         ),
         _Figure(
             "deviation_top",
@@ -193,7 +202,7 @@ def _figures(
             "would alias with the laps into spokes and rings). "
             f"{_SPARSE} Same colour scale rule as the unrolled map.",
             lambda: ia.deviation_top_figure(pp),
-            lambda: st.deviation_top_png(pp),
+            lambda: _static().deviation_top_png(pp),
         ),
         _Figure(
             "factors_depth",
@@ -202,7 +211,7 @@ def _figures(
             + ("Dashed: the ground truth of the virtual cell. " if has_truth else "")
             + band,
             lambda: ia.factors_depth_figure(pp),
-            lambda: st.factors_depth_png(pp),
+            lambda: _static().factors_depth_png(pp),
         ),
         _Figure(
             "vjm_path",
@@ -210,14 +219,14 @@ def _figures(
             "δc_exp = δ_robot − δs − δt − δth from the scans, against the Virtual Joint Model "
             f"prediction k_c·W, per work axis, and their difference Δ. {band}",
             lambda: ia.vjm_path_figure(pp),
-            lambda: st.vjm_path_png(pp),
+            lambda: _static().vjm_path_png(pp),
         ),
         _Figure(
             "vjm_polar",
             "Robot compliance around one contour",
             contour_caption + " Resultant magnitudes; angle measured from the work x axis.",
             lambda: contour_fig,
-            lambda: st.vjm_polar_png(pp, contour_z),
+            lambda: _static().vjm_polar_png(pp, contour_z),
         )
         if round_part
         else _Figure(
@@ -227,14 +236,14 @@ def _figures(
             "from its point nearest the +x axis, in toolpath order (the part is not round, so "
             "no polar plot).",
             lambda: contour_fig,
-            lambda: st.vjm_contour_png(pp, contour_z),
+            lambda: _static().vjm_contour_png(pp, contour_z),
         ),
         _Figure(
             "thickness",
             "Wall thickness",
             _thickness_caption(pp, has_meas),
             lambda: ia.thickness_figure(pp),
-            lambda: st.thickness_png(pp),
+            lambda: _static().thickness_png(pp),
         ),
     ]
     return {s.id: s for s in specs}
@@ -419,7 +428,7 @@ def write_report(
     summary: Mapping[str, Any],
     out_dir: str | Path,
     *,
-    png: bool = True,
+    png: bool = False,
     progress: Progress | None = None,
     processes: int | None = None,
 ) -> Path:

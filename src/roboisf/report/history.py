@@ -122,7 +122,7 @@ def _table(rows: list[list[str]], head: list[str]) -> str:
 
 
 def write_prediction_report(
-    folder: Path, per_point: pd.DataFrame, summary: dict[str, Any], *, png: bool = True
+    folder: Path, per_point: pd.DataFrame, summary: dict[str, Any], *, png: bool = False
 ) -> None:
     """Write ``prediction.png`` (with ``png``) and ``report.html`` (the figure inlined) into
     ``folder`` (a staging folder: the files are written directly)."""
