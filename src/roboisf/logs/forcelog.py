@@ -114,6 +114,49 @@ class ForceLog:
                 )
             object.__setattr__(self, "position", p)
 
+    @classmethod
+    def checked(
+        cls,
+        time: F64,
+        wrench: F64,
+        frame: str,
+        path: Path | None = None,
+        position: F64 | None = None,
+        *,
+        moments_known: bool = True,
+        profile: str = "roboisf",
+        notes: tuple[str, ...] = (),
+    ) -> ForceLog:
+        """A log from arrays its reader has already checked — float64 ``time`` (N,) finite and
+        strictly increasing, ``wrench`` (N, 6) and ``position`` (N, 3) finite — without
+        :meth:`__post_init__`'s passes over them again (its finiteness and order checks: ~20 ms
+        on a 2.3 M-sample paper log). Shapes, dtypes and frame are still checked (cheap)."""
+        n = time.shape[0] if time.ndim == 1 else -1
+        ok = (
+            time.dtype == np.float64
+            and wrench.dtype == np.float64
+            and n >= 1
+            and wrench.shape == (n, 6)
+            and (position is None or (position.dtype == np.float64 and position.shape == (n, 3)))
+            and isinstance(frame, str)
+            and bool(frame)
+        )
+        if not ok:  # not what a reader makes: the full checks, with their messages
+            return cls(time, wrench, frame, path, position, moments_known, profile, notes)
+        log = object.__new__(cls)
+        for k, v in (
+            ("time", time),
+            ("wrench", wrench),
+            ("frame", frame),
+            ("path", path),
+            ("position", position),
+            ("moments_known", moments_known),
+            ("profile", profile),
+            ("notes", notes),
+        ):
+            object.__setattr__(log, k, v)
+        return log
+
     def __len__(self) -> int:
         return int(self.time.shape[0])
 
