@@ -796,6 +796,25 @@ def row_norms_numpy(X: F64, j: int = 0, centre: ArrayLike | None = None) -> F64:
     return np.sqrt(out, out=out)
 
 
+def _integrals(t: F64, y: F64, x: F64) -> F64:
+    """∫ from t[0] to each x (M,) of the piecewise-linear interpolant of ``y`` (N, K): (M, K).
+    With numba the running sum is read at the samples below the x in one pass over the log
+    (:func:`roboisf.logs.forcelog_kernel.running_integral_at`); else the whole running sum."""
+    kern = log_kernel()
+    if kern is None:
+        return _integral_at(t, y, _cumulative_integral(t, y), x)
+    k = _segment(t, x)
+    if k.size > 1 and bool(np.all(k[1:] >= k[:-1])):
+        # ends in order (the windows of a path): np.unique's answer without its sort
+        first = np.empty(k.size, dtype=bool)
+        first[0] = True
+        np.not_equal(k[1:], k[:-1], out=first[1:])
+        ks, inv = k[first], np.cumsum(first) - 1
+    else:
+        ks, inv = np.unique(k, return_inverse=True)
+    return _integral_from(t, y, kern.running_integral_at(t, y, ks)[inv], k, x)
+
+
 def window_average(t: F64, y: F64, lo: F64, hi: F64) -> F64:
     """Mean of the piecewise-linear interpolant of ``y`` over each window [lo_i, hi_i].
 
@@ -813,17 +832,19 @@ def window_average(t: F64, y: F64, lo: F64, hi: F64) -> F64:
     mean = np.empty((len(lo), y.shape[1]))
     nz = ~zero
     if np.any(nz):
-        kern = log_kernel()
-        if kern is not None:
-            x = np.concatenate([hi[nz], lo[nz]])
-            k = _segment(t, x)
-            ks, inv = np.unique(k, return_inverse=True)
-            both = _integral_from(t, y, kern.running_integral_at(t, y, ks)[inv], k, x)
+        # windows that follow each other (each ends where the next begins: the half-way windows
+        # of attach_to_toolpath and of roboisf.sync) share their ends: the integral is taken
+        # once at each (the same numbers: each end's integral is its own row's arithmetic)
+        chained = len(lo) > 1 and np.array_equal(lo[1:], hi[:-1])
+        x = np.concatenate([lo[:1], hi]) if chained else np.concatenate([hi[nz], lo[nz]])
+        both = _integrals(t, y, x)
+        if chained:
+            i_hi, i_lo = both[1:], both[:-1]
+            if not nz.all():
+                i_hi, i_lo = i_hi[nz], i_lo[nz]
+        else:
             m = int(np.count_nonzero(nz))
             i_hi, i_lo = both[:m], both[m:]
-        else:
-            cum = _cumulative_integral(t, y)
-            i_hi, i_lo = _integral_at(t, y, cum, hi[nz]), _integral_at(t, y, cum, lo[nz])
         mean[nz] = (i_hi - i_lo) / width[nz]
     if np.any(zero):
         mean[zero] = np.column_stack([np.interp(lo[zero], t, y[:, j]) for j in range(y.shape[1])])
