@@ -735,11 +735,23 @@ def _segment(t: F64, x: F64) -> NDArray[np.int64]:
 
 
 def _integral_from(t: F64, y: F64, cum_k: F64, k: NDArray[np.int64], x: F64) -> F64:
-    """∫ from t[0] to x given the running integral ``cum_k`` at the samples k below x."""
-    h = (t[k + 1] - t[k])[:, None]
-    u = (x - t[k])[:, None]
-    slope = (y[k + 1] - y[k]) / h
-    return cum_k + u * y[k] + 0.5 * u * u * slope
+    """∫ from t[0] to x given the running integral ``cum_k`` at the samples k below x:
+    ``cum_k + u · y[k] + 0.5 · u · u · slope`` (u = x − t[k], slope = (y[k+1] − y[k]) / h), in
+    that order, in two (M, K) arrays (y[k] gathered once; a product or sum is the same bits
+    with its operands swapped)."""
+    k1 = k + 1
+    tk = t[k]
+    h = t[k1] - tk
+    u = x - tk
+    term = y[k1]
+    yk = y[k]
+    term -= yk
+    term /= h[:, None]  # the slope
+    term *= (0.5 * u * u)[:, None]
+    yk *= u[:, None]
+    yk += cum_k
+    yk += term
+    return yk
 
 
 def _integral_at(t: F64, y: F64, cum: F64, x: F64) -> F64:
