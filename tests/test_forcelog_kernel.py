@@ -75,6 +75,24 @@ def test_window_average_same_bits(monkeypatch: pytest.MonkeyPatch, overlap: bool
     np.testing.assert_array_equal(fast, forcelog.window_average(t, W, lo, hi))
 
 
+@pytest.mark.parametrize("engine", ["numba", "numpy"])
+def test_chained_windows_share_their_ends(monkeypatch: pytest.MonkeyPatch, engine: str) -> None:
+    """Windows that follow each other (each ends where the next begins), with zero-width ones
+    among them, are integrated once per end: the same bits as each window on its own."""
+    if engine == "numpy":
+        monkeypatch.setattr(forcelog, "_KERNEL", False)
+    t, W = _log(30_000, 8)
+    pt = np.sort(np.random.default_rng(9).uniform(t[0], t[-1], 2500))
+    pt[100:104] = pt[100]  # a pause: zero-width windows
+    mid = 0.5 * (pt[1:] + pt[:-1])
+    lo, hi = np.r_[pt[:1], mid], np.r_[mid, pt[-1:]]
+    got = forcelog.window_average(t, W, lo, hi)
+    one = np.vstack(
+        [forcelog.window_average(t, W, lo[i : i + 1], hi[i : i + 1]) for i in range(len(lo))]
+    )
+    assert got.tobytes() == one.tobytes()
+
+
 def test_unloaded_samples_and_condition_unchanged(monkeypatch: pytest.MonkeyPatch) -> None:
     """The onset search (compiled distances) finds the same unloaded stretch, and a log with
     nothing to remove is returned as is (no copy)."""

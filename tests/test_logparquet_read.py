@@ -90,3 +90,37 @@ def test_bad_value_in_a_later_batch_named_by_its_file_row(tmp_path) -> None:
     _foreign(tmp_path / "f.parquet", cols)
     with pytest.raises(InputError, match="row 65541 is not a finite number"):
         read_force_parquet(tmp_path / "f.parquet", given={"time": "s", "force": "N"})
+
+
+def test_time_not_increasing_named_by_its_row(tmp_path) -> None:
+    t = np.arange(20) * 1e-3
+    t[12] = t[11]  # a repeated stamp
+    cols = {"time": t, **{c: np.ones(20, np.float32) for c in ("Fx", "Fy", "Fz")}}
+    _foreign(tmp_path / "f.parquet", cols)
+    with pytest.raises(InputError, match=r"time must strictly increase \(row 12\)") as e:
+        read_force_parquet(tmp_path / "f.parquet", given={"time": "s", "force": "N"})
+    assert e.value.field == "time"
+    write_joint_parquet(tmp_path / "j.parquet", t, np.zeros((20, 6)))
+    from roboisf.logs.jointlog import read_joint_log
+
+    with pytest.raises(InputError, match="time must increase strictly"):
+        read_joint_log(tmp_path / "j.parquet")
+
+
+def test_checked_log_is_the_validated_one(tmp_path) -> None:
+    """The reader's log (ForceLog.checked: not validated twice) equals the one the constructor
+    validates; arrays that are not a reader's get the constructor's checks and messages."""
+    rng = np.random.default_rng(4)
+    t = np.arange(300) * 1e-3
+    W = rng.normal(scale=100, size=(300, 6)).astype(np.float32).astype(np.float64)
+    write_force_parquet(ForceLog(t, W, "sensor"), tmp_path / "f.parquet")
+    back = read_force_parquet(tmp_path / "f.parquet")
+    ref = ForceLog(back.time, back.wrench, "sensor", back.path, None, profile="parquet")
+    for k in ("time", "wrench"):
+        np.testing.assert_array_equal(getattr(back, k), getattr(ref, k))
+    for k in ("frame", "path", "position", "moments_known", "profile", "notes"):
+        assert getattr(back, k) == getattr(ref, k), k
+    with pytest.raises(InputError, match="wrench must have shape"):
+        ForceLog.checked(t, W[:, :3], "sensor")
+    with pytest.raises(InputError, match="frame must be a non-empty name"):
+        ForceLog.checked(t, W, "")

@@ -86,3 +86,15 @@ def test_track_loop_compiled_same_bits(monkeypatch: pytest.MonkeyPatch, seed: in
     np.testing.assert_array_equal(np.isnan(s_k), np.isnan(s_n))
     ok = np.isfinite(s_n)
     np.testing.assert_allclose(s_k[ok], s_n[ok], rtol=0, atol=1e-12)
+
+
+def test_travel_is_the_norm_of_the_differences() -> None:
+    """The logged travel built column by column: the bits of the running sum of
+    ``np.linalg.norm(np.diff(P, axis=0), axis=1)`` (which it replaced), on a C and a strided
+    array and the shortest logs."""
+    rng = np.random.default_rng(11)
+    P = np.cumsum(rng.normal(scale=1e-4, size=(20_000, 3)), axis=0) + np.array([0.4, -0.2, 0.1])
+    for X in (P, P[::3], np.asfortranarray(P), P[:2], P[:1]):
+        ref = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(X, axis=0), axis=1))])
+        assert position._travel(X).tobytes() == ref.tobytes()
+    assert position._travel(P[:0]).shape == (0,)

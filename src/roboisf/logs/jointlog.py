@@ -214,7 +214,7 @@ def read_joint_log(
         from roboisf.logs.logparquet import read_joint_parquet
 
         t_si, q_si = read_joint_parquet(p, {"time": time_unit, "angle": angle_unit})
-        if t_si.size > 1 and np.any(np.diff(t_si) <= 0):
+        if t_si.size > 1 and bool(np.any(t_si[1:] <= t_si[:-1])):  # finite: diff(t) <= 0
             raise InputError("time must increase strictly", file=p, field="time")
         return JointLog(time=t_si, q=q_si, path=p)
     if not (fmt in ("auto", "roboisf") and not columns and is_roboisf_joint_log(p)):
