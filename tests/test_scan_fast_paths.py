@@ -1,11 +1,13 @@
 """The scan comparison's faster numpy paths give the bits of the ones they replace (issue #31):
-the deviation statistics' block sums."""
+the deviation statistics' block sums, the finiteness check."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from roboisf.errors import InputError
+from roboisf.scan.readers import check_finite
 from roboisf.scan.summary import block_sums, dn_block_sums
 
 
@@ -43,3 +45,13 @@ def test_block_sums_of_negative_zeros_are_positive_zeros_as_the_reduction():
     np.testing.assert_array_equal(
         np.signbit(dn_block_sums(-np.zeros(5), np.ones((5, 3)))), np.signbit(b)
     )
+
+
+def test_check_finite_names_the_first_bad_point():
+    X = np.zeros((10, 3))
+    check_finite(X, "a.ply")
+    X[7, 2], X[9, 0] = np.nan, -np.inf
+    with pytest.raises(
+        InputError, match=r"2 point\(s\) have NaN or inf coordinates \(first: point 7\)"
+    ):
+        check_finite(X, "a.ply")

@@ -112,6 +112,10 @@ class ScanCloud:
 
 def check_finite(points: F64, source: str | Path | None) -> None:
     """Raise an :class:`InputError` naming ``source`` if ``points`` (N, 3) has NaN/inf."""
+    # the whole array at once first (contiguous: 2 ms on a 2 M-point scan); the per-row
+    # reduction below, along a strided axis (30 ms), only to name the bad points
+    if np.isfinite(points).all():
+        return
     bad = ~np.isfinite(points).all(axis=1)
     if bad.any():
         i = int(np.argmax(bad))
