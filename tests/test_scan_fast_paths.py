@@ -1,5 +1,6 @@
 """The scan comparison's faster numpy paths give the bits of the ones they replace (issue #31):
-the deviation statistics' block sums, the finiteness check."""
+the deviation statistics' block sums, the transform of a scan into the work frame, the
+finiteness check."""
 
 from __future__ import annotations
 
@@ -7,7 +8,9 @@ import numpy as np
 import pytest
 
 from roboisf.errors import InputError
-from roboisf.scan.readers import check_finite
+from roboisf.frames.se3 import transform_points
+from roboisf.scan.compare import _einsum_order, _to_work
+from roboisf.scan.readers import ScanCloud, check_finite, read_scan
 from roboisf.scan.summary import block_sums, dn_block_sums
 
 
@@ -45,6 +48,44 @@ def test_block_sums_of_negative_zeros_are_positive_zeros_as_the_reduction():
     np.testing.assert_array_equal(
         np.signbit(dn_block_sums(-np.zeros(5), np.ones((5, 3)))), np.signbit(b)
     )
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("n", [1, 5, 40_000, 70_001])
+def test_scan_into_the_work_frame_is_transform_points_bit_for_bit(seed, n):
+    rng = np.random.default_rng(seed)
+    X = rng.normal(0.0, 0.05, (n, 3))
+    X[: min(n, 3)] = 0.0  # zero rows: the sign of a zero as transform_points'
+    Q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = (Q if seed else np.eye(3)), rng.normal(0.0, 1e-3, 3) * (seed > 1)
+    ref = transform_points(T, X)
+    out = _to_work(T, X, own=False)
+    assert out is not X
+    np.testing.assert_array_equal(out, ref)
+    np.testing.assert_array_equal(np.signbit(out), np.signbit(ref))
+    mine = X.copy()
+    got = _to_work(T, mine, own=True)
+    np.testing.assert_array_equal(got, ref)
+    assert (got is mine) == _einsum_order()  # in place where the columns' sums are einsum's
+
+
+def test_the_reader_s_points_are_overwritten_only_when_nobody_else_holds_them(tmp_path):
+    path = tmp_path / "s.xyz"
+    np.savetxt(path, np.random.default_rng(0).normal(0.0, 10.0, (50, 3)))
+    cloud = read_scan(path)
+    pts, own = cloud.take_own_points()
+    assert own and pts.shape == (50, 3) and cloud.points.shape == (0, 3)
+    with pytest.raises(InputError, match="already taken"):
+        cloud.take_own_points()
+    cloud = read_scan(path)
+    kept = cloud.points  # the caller holds them: not ours to overwrite
+    assert not cloud.take_own_points()[1]
+    del kept
+    cloud = read_scan(path)
+    cloud.points = cloud.points * 1.0  # put in by the caller
+    assert not cloud.take_own_points()[1]
+    assert not ScanCloud(np.ones((4, 3)), None, "x.ply").take_own_points()[1]
 
 
 def test_check_finite_names_the_first_bad_point():
