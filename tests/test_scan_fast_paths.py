@@ -1,6 +1,6 @@
 """The scan comparison's faster numpy paths give the bits of the ones they replace (issue #31):
 the deviation statistics' block sums, the transform of a scan into the work frame, the
-finiteness check."""
+finiteness check, the toolpath statistics' small ball first."""
 
 from __future__ import annotations
 
@@ -9,6 +9,8 @@ import pytest
 
 from roboisf.errors import InputError
 from roboisf.frames.se3 import transform_points
+from roboisf.jit import HAVE_NUMBA
+from roboisf.scan import toolpath_kernel
 from roboisf.scan.compare import _einsum_order, _to_work
 from roboisf.scan.readers import ScanCloud, check_finite, read_scan
 from roboisf.scan.summary import block_sums, dn_block_sums
@@ -96,3 +98,40 @@ def test_check_finite_names_the_first_bad_point():
         InputError, match=r"2 point\(s\) have NaN or inf coordinates \(first: point 7\)"
     ):
         check_finite(X, "a.ply")
+
+
+@pytest.mark.skipif(not HAVE_NUMBA, reason="numba not installed")
+@pytest.mark.parametrize("lattice", [False, True])
+def test_toolpath_statistics_small_ball_first_are_the_whole_ball_s_bits(lattice):
+    """The contacts' neighbourhoods searched in the last one's k-th distance first are the
+    whole ball's numbers, bit for bit: on a noisy surface, and on a lattice of feet whose
+    distances tie at every rank with dn that repeat and hold ±0 (the whole ball's search then
+    decides)."""
+    rng = np.random.default_rng(7)
+    if lattice:
+        g = np.arange(-60, 61) * 0.1e-3
+        x, y = np.meshgrid(g, g)
+        feet = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
+        feet = np.vstack([feet, feet + np.array([0.0, 0.0, 0.1e-3])])
+        dn = rng.integers(-3, 4, len(feet)) * 1e-5
+        dn[rng.random(len(feet)) < 0.05] = -0.0
+    else:
+        feet = rng.uniform(-6e-3, 6e-3, (150_000, 3))
+        feet[:, 2] = 1e-3 * np.sin(300 * feet[:, 0]) + rng.normal(0, 20e-6, len(feet))
+        dn = rng.normal(0.0, 1e-4, len(feet))
+    t = np.linspace(0.0, 1.0, 3000)
+    P = np.column_stack([4e-3 * t * np.cos(40 * t), 4e-3 * t * np.sin(40 * t), np.zeros_like(t)])
+    if lattice:
+        P[::7, :2] = np.round(P[::7, :2] / 0.1e-3) * 0.1e-3  # on a lattice point: ties
+    else:
+        P[:, 2] = 1e-3 * np.sin(300 * P[:, 0])
+    for k, radius in [(64, 1e-3), (16, 0.5e-3), (7, 0.3e-3)]:
+        for trim in (0.2, 0.1):
+            a = toolpath_kernel.contact_statistics(feet, dn, P, radius=radius, k=k, trim=trim)
+            b = toolpath_kernel.contact_statistics(
+                feet, dn, P, radius=radius, k=k, trim=trim, widen=0.0
+            )
+            assert (a[0] == k).mean() > 0.5
+            for u, v in zip(a, b, strict=True):
+                np.testing.assert_array_equal(u, v)
+                np.testing.assert_array_equal(np.signbit(u), np.signbit(v))
