@@ -72,6 +72,20 @@ def test_scan_into_the_work_frame_is_transform_points_bit_for_bit(seed, n):
     assert (got is mine) == _einsum_order()  # in place where the columns' sums are einsum's
 
 
+def test_a_numpy_whose_einsum_adds_otherwise_gets_transform_points(monkeypatch):
+    from roboisf.scan import compare
+
+    monkeypatch.setattr(compare, "_EINSUM_ORDER", [False])
+    X = np.random.default_rng(0).normal(0.0, 0.05, (100, 3))
+    T = np.eye(4)
+    T[:3, 3] = 1e-3
+    mine = X.copy()
+    out = _to_work(T, mine, own=True)
+    assert out is not mine
+    np.testing.assert_array_equal(out, transform_points(T, X))
+    np.testing.assert_array_equal(mine, X)
+
+
 def test_the_reader_s_points_are_overwritten_only_when_nobody_else_holds_them(tmp_path):
     path = tmp_path / "s.xyz"
     np.savetxt(path, np.random.default_rng(0).normal(0.0, 10.0, (50, 3)))
