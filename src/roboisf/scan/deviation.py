@@ -31,7 +31,7 @@ from roboisf.parts.base import Part
 from roboisf.parts.mesh import MeshPart, spatial_order
 from roboisf.progress import Progress, task
 from roboisf.scan import knn_kernel, toolpath_kernel
-from roboisf.scan.summary import STATS_BLOCK, DeviationStats, block_sums, stats_from_blocks
+from roboisf.scan.summary import STATS_BLOCK, DeviationStats, dn_block_sums, stats_from_blocks
 
 __all__ = [
     "RIM_BAND",
@@ -211,7 +211,7 @@ def foot_deviations(
     def store(rows: slice | NDArray[np.integer[Any]], q: SurfaceQuery) -> None:
         assert isinstance(rows, slice)  # ordered=True below: chunks are row ranges
         foot[rows], dn[rows] = q.point, q.distance
-        sums[rows.start // chunk] = block_sums(q.distance[:, None] * q.normal)
+        sums[rows.start // chunk] = dn_block_sums(q.distance, q.normal)
 
     _closest_in_chunks(
         X, part, store, chunk=chunk, workers=workers, ordered=True, progress=progress,

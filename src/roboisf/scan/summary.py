@@ -84,7 +84,8 @@ def deviation_stats(delta: ArrayLike, dn: ArrayLike) -> DeviationStats:
     if d.shape[0] == 0:
         raise InputError("no deviations to summarise (no valid points)")
     _same_length(d, n_)
-    return _stats(n_, lambda rows: d[rows].copy())
+    # a C-contiguous block is read, not overwritten (block_sums); any other is copied
+    return _stats(n_, lambda rows: d[rows] if d.flags.c_contiguous else d[rows].copy())
 
 
 def _same_length(vectors: F64, dn: F64) -> None:
@@ -104,7 +105,10 @@ def normal_deviation_stats(dn: ArrayLike, normal: ArrayLike) -> DeviationStats:
     if n_.shape[0] == 0:
         raise InputError("no deviations to summarise (no valid points)")
     _same_length(nrm, n_)
-    return _stats(n_, lambda rows: n_[rows, None] * nrm[rows])
+    n = n_.shape[0]
+    sums = [dn_block_sums(n_[lo : lo + STATS_BLOCK], nrm[lo : lo + STATS_BLOCK])
+            for lo in range(0, n, STATS_BLOCK)]  # fmt: skip
+    return stats_from_blocks(n_, np.array(sums).reshape(-1, 3, 3))
 
 
 #: Rows per block of :func:`_stats` (its temporaries stay in cache and small).
@@ -113,15 +117,56 @@ STATS_BLOCK = 65_536
 
 def block_sums(delta: F64) -> F64:
     """(3, 3): the sum, the sum of absolute values and the largest absolute value per axis of
-    one block's deviation vectors ``delta`` (M, 3) [m] (overwritten by their absolute values).
-    The statistics of :func:`deviation_stats` are these, block by block of :data:`STATS_BLOCK`
-    rows, combined in order (:func:`stats_from_blocks`): a caller that has the blocks one at a
-    time (:func:`roboisf.scan.deviation.foot_deviations`) gets the same bits."""
+    one block's deviation vectors ``delta`` (M, 3) [m] (may be overwritten by their absolute
+    values). The statistics of :func:`deviation_stats` are these, block by block of
+    :data:`STATS_BLOCK` rows, combined in order (:func:`stats_from_blocks`): a caller that has
+    the blocks one at a time (:func:`roboisf.scan.deviation.foot_deviations`) gets the same
+    bits.
+
+    The sums are numpy's ``delta.sum(axis=0)`` of a C-contiguous block: a reduction along the
+    strided axis, which adds each column's values one after the other from 0 (no pairwise
+    summation) — ~1 ms a block of 65 536 rows, one call of numpy's inner loop per row. A
+    column's running sum (``np.cumsum``) adds them in the same order, the same bits (its last
+    value plus 0.0: the reduction starts from +0, so a column of −0 sums to +0), in a tenth
+    of the time (tests/test_scan_deviation.py checks both against the reduction)."""
+    if delta.ndim == 2 and delta.shape[1] == 3 and delta.shape[0] > 0 and delta.flags.c_contiguous:
+        return _column_sums([delta[:, j] for j in range(3)], None)
     out = np.empty((3, 3))
     out[0] = delta.sum(axis=0)
     np.abs(delta, out=delta)
     out[1] = delta.sum(axis=0)
     out[2] = delta.max(axis=0)
+    return out
+
+
+def dn_block_sums(dn: F64, normal: F64) -> F64:
+    """:func:`block_sums` of the deviation vectors ``dn[:, None] * normal`` (``dn`` (M,) m along
+    the unit normals ``normal`` (M, 3)), the same bits, without their (M, 3) array: a column
+    of products at a time."""
+    if (
+        dn.ndim == 1
+        and normal.shape == (dn.shape[0], 3)
+        and dn.shape[0] > 0
+        and normal.flags.c_contiguous
+    ):
+        # their product would be C-contiguous (as normal): block_sums' running sums apply
+        return _column_sums([normal[:, j] for j in range(3)], dn)
+    return block_sums(dn[:, None] * normal)
+
+
+def _column_sums(columns: list[F64], factor: F64 | None) -> F64:
+    """:func:`block_sums` column by column: of ``columns`` (three (M,) arrays), each times
+    ``factor`` (M,) if given (the same products as the (M, 3) array's)."""
+    out = np.empty((3, 3))
+    m = columns[0].shape[0]
+    col, run = np.empty(m), np.empty(m)
+    for j, c in enumerate(columns):
+        if factor is not None:
+            c = np.multiply(factor, c, out=col)
+        out[0, j] = np.cumsum(c, out=run)[-1] + 0.0
+        np.abs(c, out=col)
+        out[1, j] = np.cumsum(col, out=run)[-1] + 0.0
+        out[2, j] = col.max()
     return out
 
 

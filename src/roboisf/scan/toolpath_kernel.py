@@ -17,6 +17,16 @@ prefix sum for the trimmed mean), so the numbers are the same bits.
 
 Only an exact tie in distance at the ``k``-th neighbour could select a different point than
 the k-d tree (both are then "the k nearest").
+
+A smaller ball first: the contacts come in toolpath order, so the last contact's ``k``-th
+neighbour distance, widened by :data:`EST_WIDEN`, is a radius likely to hold ``k`` feet. When
+it does, the ``k`` nearest of the ball are among them, and the same set as the whole ball's
+quickselect picks unless a foot outside them ties with the ``k``-th distance; that, or a
+selected ``dn`` of ±0 (the insertion sort keeps the order of equal values, and the two
+quickselects leave them in different orders), or fewer than ``k`` feet in the small ball, and
+the contact is searched again in the whole ball as before. The numbers are therefore the same
+bits as the whole ball's every time; the small ball has ~85 candidates to select from instead
+of ~200 and ~half the cells (the paper cone's contacts 0.31 → 0.225 CPU-s).
 """
 
 from __future__ import annotations
@@ -50,6 +60,12 @@ _NO_ROWS = np.zeros(0, dtype=np.int64)
 #: hold ~3x the points in the ball instead of ~5x with cells of the radius.
 CELL = 0.5
 
+#: The radius searched first, in the last contact's k-th neighbour distances (see the module
+#: notes): 1.15 holds the k feet for 94 % of the paper cone's contacts (1.05: 71 %, 1.25:
+#: 99 %); its 34 825 contacts took 0.27 s (1.05), 0.225 s (1.1 to 1.25), 0.24 s (1.4), against
+#: 0.31 s searching the whole ball every time (one core, CPU).
+EST_WIDEN = 1.15
+
 
 @_njit()
 def _select(d: F64, v: F64, m: int, k: int) -> None:  # pragma: no cover - compiled
@@ -81,6 +97,84 @@ def _select(d: F64, v: F64, m: int, k: int) -> None:  # pragma: no cover - compi
 
 
 @_njit()
+def _box(
+    px: float, py: float, pz: float, rad: float, lo: F64, h: float, nx: int, ny: int, nz: int
+) -> tuple[int, int, int, int, int, int, float]:  # pragma: no cover - compiled
+    """The cells of the ball of radius ``rad`` about p, widened by a hair (the rounding of
+    p ± r drops no cell), and that widened radius."""
+    rs = rad + 1e-9 * (rad + abs(px) + abs(py) + abs(pz))
+    i0 = max(math.floor((px - rs - lo[0]) / h), 0)
+    i1 = min(math.floor((px + rs - lo[0]) / h), nx - 1)
+    j0 = max(math.floor((py - rs - lo[1]) / h), 0)
+    j1 = min(math.floor((py + rs - lo[1]) / h), ny - 1)
+    k0 = max(math.floor((pz - rs - lo[2]) / h), 0)
+    k1 = min(math.floor((pz + rs - lo[2]) / h), nz - 1)
+    return i0, i1, j0, j1, k0, k1, rs
+
+
+@_njit()
+def _gather(
+    F: F64,
+    dn: F64,
+    order: NDArray[Any],
+    start: NDArray[Any],
+    lo: F64,
+    h: float,
+    ny: int,
+    nz: int,
+    px: float,
+    py: float,
+    pz: float,
+    box: tuple[int, int, int, int, int, int, float],
+    keep2: float,
+    prune2: float,
+    cd: F64,
+    cv: F64,
+) -> int:  # pragma: no cover - compiled
+    """The squared distances to p of the feet in ``box``'s cells whose squared distance is
+    below ``keep2``, in ``cd`` (their dn in ``cv``), in the cells' order; returns how many. A
+    column of cells whose x, y box is farther than ``prune2`` (squared) is skipped."""
+    i0, i1, j0, j1, k0, k1, _ = box
+    m = 0
+    if k0 > k1:
+        return 0
+    for ii in range(i0, i1 + 1):
+        ex = max(lo[0] + ii * h - px, 0.0, px - (lo[0] + (ii + 1) * h))
+        for jj in range(j0, j1 + 1):
+            ey = max(lo[1] + jj * h - py, 0.0, py - (lo[1] + (jj + 1) * h))
+            if ex * ex + ey * ey > prune2:
+                continue
+            base = (ii * ny + jj) * nz
+            t0, t1 = start[base + k0], start[base + k1 + 1]
+            # branch-free: every candidate is written, kept (m advances) if near enough
+            for t in range(t0, t1):
+                r = order[t]
+                dx = F[r, 0] - px
+                dy = F[r, 1] - py
+                dz = F[r, 2] - pz
+                d2 = dx * dx + dy * dy + dz * dz
+                cd[m] = d2
+                cv[m] = dn[r]
+                m += d2 < keep2
+    return m
+
+
+@_njit()
+def _need(
+    start: NDArray[Any], ny: int, nz: int, box: tuple[int, int, int, int, int, int, float]
+) -> int:  # pragma: no cover - compiled
+    """Feet in ``box``'s cells: room for every candidate (no reallocation inside the loop)."""
+    i0, i1, j0, j1, k0, k1, _ = box
+    need = 0
+    if k0 <= k1:
+        for ii in range(i0, i1 + 1):
+            for jj in range(j0, j1 + 1):
+                base = (ii * ny + jj) * nz
+                need += start[base + k1 + 1] - start[base + k0]
+    return need
+
+
+@_njit()
 def _contacts(
     F: F64,
     dn: F64,
@@ -96,6 +190,7 @@ def _contacts(
     r2: float,
     k: int,
     trim: float,
+    widen: float,
     a: int,
     b: int,
     cnt: NDArray[np.int64],
@@ -107,55 +202,63 @@ def _contacts(
     cd = np.empty(cap)
     cv = np.empty(cap)
     vv = np.zeros(k)
+    est = 0.0  # a radius likely to hold k feet (the last contact's k-th distance, widened)
     for i in range(a, b):
         px, py, pz = P[i, 0], P[i, 1], P[i, 2]
         if not (math.isfinite(px) and math.isfinite(py) and math.isfinite(pz)):
             cnt[i], med[i], trimmed[i], mad[i] = 0, 0.0, 0.0, 0.0
+            est = 0.0
             continue
-        # the cell range of the ball, widened by a hair: the rounding of p ± r drops no cell
-        rs = radius + 1e-9 * (radius + abs(px) + abs(py) + abs(pz))
-        i0 = max(math.floor((px - rs - lo[0]) / h), 0)
-        i1 = min(math.floor((px + rs - lo[0]) / h), nx - 1)
-        j0 = max(math.floor((py - rs - lo[1]) / h), 0)
-        j1 = min(math.floor((py + rs - lo[1]) / h), ny - 1)
-        k0 = max(math.floor((pz - rs - lo[2]) / h), 0)
-        k1 = min(math.floor((pz + rs - lo[2]) / h), nz - 1)
-        # room for every candidate (no reallocation, hence no copy, inside the loop)
-        need = 0
-        if k0 <= k1:
-            for ii in range(i0, i1 + 1):
-                for jj in range(j0, j1 + 1):
-                    base = (ii * ny + jj) * nz
-                    need += start[base + k1 + 1] - start[base + k0]
-        if need > cap:
-            cap = need
-            cd = np.empty(cap)
-            cv = np.empty(cap)
-        m = 0
-        for ii in range(i0, i1 + 1):
-            # a column of cells whose x, y box is farther than the radius holds no neighbour
-            ex = max(lo[0] + ii * h - px, 0.0, px - (lo[0] + (ii + 1) * h))
-            for jj in range(j0, j1 + 1):
-                ey = max(lo[1] + jj * h - py, 0.0, py - (lo[1] + (jj + 1) * h))
-                if k0 > k1 or ex * ex + ey * ey > r2:
-                    continue
-                base = (ii * ny + jj) * nz
-                t0, t1 = start[base + k0], start[base + k1 + 1]
-                # branch-free: every candidate is written, kept (m advances) if within radius
-                for t in range(t0, t1):
-                    r = order[t]
-                    dx = F[r, 0] - px
-                    dy = F[r, 1] - py
-                    dz = F[r, 2] - pz
-                    d2 = dx * dx + dy * dy + dz * dz
-                    cd[m] = d2
-                    cv[m] = dn[r]
-                    m += d2 < r2
-        # the k nearest of them (the k-d tree's set, up to the order of exact ties): moved to
-        # the front by a quickselect on the squared distance, their dn alongside
+        m = -1
+        if 0.0 < est < radius:
+            # the feet within est first: when they are k or more, the k nearest are among
+            # them — the same set as from the whole ball when no foot outside it ties with
+            # the k-th distance (a tie, or a dn of ±0 whose order the sort keeps, takes the
+            # whole ball below: the same bits as ever)
+            box = _box(px, py, pz, est, lo, h, nx, ny, nz)
+            need = _need(start, ny, nz, box)
+            if need > cap:
+                cap = need
+                cd = np.empty(cap)
+                cv = np.empty(cap)
+            m = _gather(F, dn, order, start, lo, h, ny, nz, px, py, pz, box, est * est,
+                        box[6] * box[6], cd, cv)  # fmt: skip
+            if m < k:
+                m = -1
+            else:
+                if m > k:
+                    _select(cd, cv, m, k)
+                vk = cd[0]
+                for t in range(1, k):
+                    vk = max(vk, cd[t])
+                for t in range(k, m):
+                    if cd[t] == vk:
+                        m = -1
+                        break
+                for t in range(k):
+                    x = cv[t]
+                    if x == 0.0 or x != x:
+                        m = -1
+                        break
+        if m < 0:
+            box = _box(px, py, pz, radius, lo, h, nx, ny, nz)
+            need = _need(start, ny, nz, box)
+            if need > cap:
+                cap = need
+                cd = np.empty(cap)
+                cv = np.empty(cap)
+            m = _gather(F, dn, order, start, lo, h, ny, nz, px, py, pz, box, r2, r2, cd, cv)
+            # the k nearest of them (the k-d tree's set, up to the order of exact ties):
+            # moved to the front by a quickselect on the squared distance, their dn alongside
+            if m > k:
+                _select(cd, cv, m, k)
         c = min(m, k)
-        if m > k:
-            _select(cd, cv, m, k)
+        est = 0.0
+        if c == k:
+            vk = cd[0]
+            for t in range(1, k):
+                vk = max(vk, cd[t])
+            est = math.sqrt(vk) * widen
         # their dn sorted by value (insertion sort: c ≤ k, a few dozen; np.sort's compiled
         # quicksort would add ~10 s to the first compilation), zero-padded to k as the reference
         for t in range(c):
@@ -213,7 +316,14 @@ def _contacts(
 
 
 def contact_statistics(
-    feet: F64, dn: F64, contact: F64, *, radius: float, k: int, trim: float
+    feet: F64,
+    dn: F64,
+    contact: F64,
+    *,
+    radius: float,
+    k: int,
+    trim: float,
+    widen: float = EST_WIDEN,
 ) -> tuple[NDArray[np.int64], F64, F64, F64]:
     """Per contact (M, 3) [m]: the number of feet (N, 3) [m] used (the ``k`` nearest at a
     distance ``< radius`` [m]), and the median, the ``trim``-trimmed mean and the MAD [m] of
@@ -221,7 +331,8 @@ def contact_statistics(
     (:data:`HAVE_NUMBA`) and N ≥ 1.
 
     Memory: ~3 int32 per foot (cell keys, the permutation) and the grid's row starts; the
-    feet are not copied.
+    feet are not copied. ``widen``: the small ball's radius in the last contact's ``k``-th
+    distances (:data:`EST_WIDEN`; 0: the whole ball for every contact) — the same numbers.
     """
     F = np.ascontiguousarray(feet, dtype=float)
     d = np.ascontiguousarray(dn, dtype=float)
@@ -243,7 +354,7 @@ def contact_statistics(
     r2 = radius * radius
 
     def rows(a: int, b: int) -> None:
-        _contacts(F, d, order, start, lo, h, nx, ny, nz, P, radius, r2, k, trim, a, b,
+        _contacts(F, d, order, start, lo, h, nx, ny, nz, P, radius, r2, k, trim, widen, a, b,
                   cnt, med, trimmed, mad)  # fmt: skip
 
     run_chunks(rows, M, 4096)  # on every core: the kernel releases the GIL
