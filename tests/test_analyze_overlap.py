@@ -74,9 +74,9 @@ def _copy(study: Path, tmp_path: Path) -> Path:
     ("target", "message"),
     [
         ("_logs_part", "bad force log"),
-        # the tool's compliance (an FE model that may fail) and the fingerprint run after the
-        # logs while the scans may still run: an error there must not leave their thread behind
-        ("study_fingerprint", "the tool file vanished"),
+        # the tool's compliance (an FE model that may fail) runs after the logs while the
+        # scans may still run: an error there must not leave their thread behind
+        ("tip_compliances", "the tool's FE model failed"),
     ],
 )
 def test_an_error_beside_the_scans_stops_them_and_is_reported(
@@ -106,6 +106,20 @@ def test_an_error_beside_the_scans_stops_them_and_is_reported(
         analyze(study)
     assert _scan_threads() == []  # cancelled and joined before the error left analyze()
     assert compared == ["cnc"]  # stopped at its next step: the second scan never started
+
+
+def test_the_fingerprints_error_in_the_scan_thread_reaches_the_caller(
+    small_cone_study, monkeypatch
+):
+    # the worker takes the inputs' fingerprint once its scan is done: a file that vanished
+    # meanwhile is reported by analyze(), after the calling thread's scan, no thread left
+    def vanished(study):
+        raise InputError("the tool file vanished", file=study.root / "tool_compliance.json")
+
+    monkeypatch.setattr(pipeline, "study_fingerprint", vanished)
+    with pytest.raises(InputError, match="the tool file vanished"):
+        analyze(small_cone_study)
+    assert _scan_threads() == []
 
 
 def test_an_error_in_the_scan_thread_reaches_the_caller(small_cone_study, tmp_path):
@@ -211,17 +225,36 @@ def _record_prepares(monkeypatch, tried: threading.Event, fail=None) -> list[tup
     return seen
 
 
-def test_the_calling_thread_prepares_the_last_scan_beside_the_first(
+def test_the_calling_thread_compares_the_last_scan_beside_the_first(
     small_cone_study, sequential_kept, monkeypatch
 ):
-    # done with the logs, the calling thread reads, registers and sorts the robot scan while
-    # the worker still compares the CNC scan; the worker finishes it: the same results
+    # done with the logs, the calling thread compares the robot scan (read, registered,
+    # filtered, along the toolpath) while the worker still compares the CNC scan; the worker,
+    # done, takes the fingerprint: the same results
     tried = threading.Event()
     seen = _record_prepares(monkeypatch, tried)
     _hold_first_scan(monkeypatch, tried)
+    compared: list[tuple[str, str]] = []
+    held = pipeline._compare
+    fingerprinted: list[str] = []
+    real_fp = pipeline.study_fingerprint
+
+    def compare(study, cell, run, tp, progress, keep_points=False, prepared=None):
+        compared.append((run.name, threading.current_thread().name))
+        return held(study, cell, run, tp, progress, keep_points, prepared)
+
+    def fingerprint(study):
+        fingerprinted.append(threading.current_thread().name)
+        return real_fp(study)
+
+    monkeypatch.setattr(pipeline, "_compare", compare)
+    monkeypatch.setattr(pipeline, "study_fingerprint", fingerprint)
     ovl = analyze(small_cone_study)
     assert ("robot", "MainThread") in seen and ("cnc", "roboisf-scans") in seen
     assert len(seen) == 2
+    assert sorted(compared) == [("cnc", "roboisf-scans"), ("robot", "MainThread")]
+    assert fingerprinted == ["roboisf-scans"]
+    assert ovl.summary.fingerprint == sequential_kept[0].summary.fingerprint
     seq = sequential_kept[0]
     pd.testing.assert_frame_equal(seq.per_point, ovl.per_point, check_exact=True)
     assert ovl.scans["robot"].summary() == seq.scans["robot"].without_points().summary()

@@ -17,7 +17,9 @@ from __future__ import annotations
 
 import json
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -422,6 +424,18 @@ def _logs_part(
     )
 
 
+def _then(study: Study) -> dict[str, Any]:
+    """What the analysis needs besides the scans, for the scans' thread once its scan is done:
+    the inputs' fingerprint (which study and files these results came from: compensate
+    --results checks it; SHA-256 of ~100 MB on the paper cone) and the report's modules loaded
+    (plotly, pandas: ~0.3 s of write_results otherwise)."""
+    fingerprint = study_fingerprint(study)
+    import roboisf.report.document
+    import roboisf.report.render  # noqa: F401
+
+    return fingerprint
+
+
 def _trim() -> None:
     """Give the heap's freed pages back to the system (glibc's ``malloc_trim``; a no-op
     elsewhere). After the logs and after each scan: numpy's large temporaries come from the
@@ -438,11 +452,14 @@ class _ScansBeside:
     run in the calling thread meanwhile (mostly pandas/numpy holding the GIL, while the scan
     kernels release it), so the two cores are both busy (issue #16). The first scan is read
     and registered while the calling thread reads the toolpath (:meth:`set_toolpath`). Done
-    with the logs, the calling thread prepares the last scan (:meth:`prepare_last`: read,
-    registered, sorted — serial steps) while the worker's first scan is in its parallel outlier
-    filter, unless the worker has begun it. :meth:`result` waits for them and re-raises their
-    error (in the runs' order, whichever thread met it); :meth:`cancel` stops them at their next
-    step (the logs were refused, or Ctrl-C) and waits, so no thread outlives the analysis."""
+    with the logs, the calling thread compares the last scan itself (:meth:`compare_last`),
+    unless the worker has begun it: two lanes, one scan each, whose parallel outlier filters
+    fill each other's idle core (issue #31: the worker finishing both scans while the calling
+    thread only waited left a core idle through the last scan's serial steps, ~0.3 s). The peak
+    RSS stays that of one scan beside the other's filter: the logs are freed by then.
+    :meth:`result` waits for them and re-raises their error (in the runs' order, whichever
+    thread met it); :meth:`cancel` stops them at their next step (the logs were refused, or
+    Ctrl-C) and waits, so no thread outlives the analysis."""
 
     def __init__(
         self,
@@ -451,8 +468,13 @@ class _ScansBeside:
         runs: tuple[RunSpec, ...],
         progress: Progress | None,
         keep_points: bool = False,
+        then: Callable[[], Any] | None = None,
     ) -> None:
         self._study, self._cell, self._runs = study, cell, runs
+        self._keep = keep_points
+        #: what ``then`` returned: the worker calls it after its scans (work that needs none of
+        #: them, done while the calling thread may still compare the last scan)
+        self.then: Any = None
         # the toolpath, once the calling thread has read it (the first scan's first half needs
         # only the part: it runs beside the toolpath's reading)
         self._tp: Toolpath | None = None
@@ -462,29 +484,40 @@ class _ScansBeside:
         self._error: BaseException | None = None
         self._claim_lock = threading.Lock()
         self._claimed: set[str] = set()
-        # a scan the calling thread prepared (or the error it met doing so), and when
-        self._prepared: dict[str, PreparedScan | BaseException] = {}
+        # the error the calling thread met comparing a scan (None: done), and when
+        self._theirs: dict[str, BaseException | None] = {}
         self._ready = {run.name: threading.Event() for run in runs}
         prog = cancellable(progress, self._cancel)
 
         def work() -> None:
+            theirs = []  # the runs the calling thread compares: their errors raised in order
             try:
                 for run in runs:
+                    if not self._claim(run.name):
+                        theirs.append(run.name)
+                        continue
+                    for name in theirs:  # a first scan's error before a later one's
+                        self._raise_theirs(name)
+                    theirs.clear()
                     with task(prog, f"scan {run.name}"):
-                        if self._claim(run.name):
-                            prep = _prepare(study, cell, run, prog)
-                        else:  # the calling thread prepares it
-                            self._wait(self._ready[run.name], run.name)
-                            got = self._prepared.pop(run.name)
-                            if isinstance(got, BaseException):
-                                raise got
-                            prep = got
+                        prep = _prepare(study, cell, run, prog)
                         self._wait(self._tp_ready, run.name)
                         assert self._tp is not None
                         self._scans[run.name] = _compare(
                             study, cell, run, self._tp, prog, keep_points, prep
                         )
+                        del prep
                         _trim()
+                then_error: Exception | None = None
+                if then is not None:
+                    try:
+                        self.then = then()
+                    except Exception as e:  # after the calling thread's scan's error
+                        then_error = e
+                for name in theirs:
+                    self._raise_theirs(name)
+                if then_error is not None:
+                    raise then_error
             except Cancelled:
                 pass
             except BaseException as e:  # re-raised in the caller's thread by result()
@@ -504,6 +537,14 @@ class _ScansBeside:
             if self._cancel.is_set():
                 raise Cancelled(name)
 
+    def _raise_theirs(self, name: str) -> None:
+        """In the worker: wait for the calling thread's comparison of scan ``name``; its error
+        raised here (:meth:`result` re-raises it in the caller's thread)."""
+        self._wait(self._ready[name], name)
+        err = self._theirs.pop(name)
+        if err is not None:
+            raise err
+
     def _claim(self, name: str) -> bool:
         with self._claim_lock:
             if name in self._claimed:
@@ -511,22 +552,30 @@ class _ScansBeside:
             self._claimed.add(name)
             return True
 
-    def prepare_last(self, progress: Progress | None) -> None:
-        """In the calling thread: the last run's scan read, registered and sorted, unless the
-        worker has begun it. An error there is the worker's to raise, in the runs' order (a
-        first scan's error first); Ctrl-C is raised here."""
+    def compare_last(self, progress: Progress | None) -> None:
+        """In the calling thread: the last run's scan compared (read, registered, filtered,
+        along the toolpath), unless the worker has begun it. An error there is the worker's to
+        raise, in the runs' order (a first scan's error first); Ctrl-C is raised here."""
         run = self._runs[-1]
         if len(self._runs) < 2 or not self._thread.is_alive() or not self._claim(run.name):
             return
+        err: BaseException | None = None
         try:
             with task(progress, f"scan {run.name}"):
-                self._prepared[run.name] = _prepare(self._study, self._cell, run, progress)
+                prep = _prepare(self._study, self._cell, run, progress)
+                assert self._tp is not None  # set before the logs (set_toolpath)
+                self._scans[run.name] = _compare(
+                    self._study, self._cell, run, self._tp, progress, self._keep, prep
+                )
+                del prep
+                _trim()
         except Exception as e:
-            self._prepared[run.name] = e
+            err = e
         except BaseException:
-            self._prepared[run.name] = Cancelled(run.name)
+            err = Cancelled(run.name)
             raise
         finally:
+            self._theirs[run.name] = err
             self._ready[run.name].set()
 
     def result(self) -> dict[str, ScanComparison]:
@@ -607,8 +656,13 @@ def _analyze(
         {"scan": rob.scan, "forces.file": rob.forces.file},
     )
     # the scans' thread starts first: the first scan's reading, registration and sort need only
-    # the part (the toolpath, read meanwhile, is handed over after it)
-    beside = _ScansBeside(study, cell, (cnc, rob), progress, keep_points) if overlap else None
+    # the part (the toolpath, read meanwhile, is handed over after it); done with its scan, it
+    # takes the inputs' fingerprint and loads the report's modules, which need no scan
+    beside = (
+        _ScansBeside(study, cell, (cnc, rob), progress, keep_points, then=partial(_then, study))
+        if overlap
+        else None
+    )
     # everything before the scans' results inside: an error here (a refused toolpath or log, a
     # tool's FE model, Ctrl-C) stops the scans' thread at its next step, none outlives the
     # analysis
@@ -641,25 +695,18 @@ def _analyze(
             k_c = cell.robot.compliance(q, T_base_work=cell.T_base_work)
             vjm = at_ball_centre(np.einsum("nij,nj->ni", k_c, W_rob), R_ball)
         if beside is not None:
-            # this thread would only wait: the last scan's serial first half here, beside the
-            # first scan's parallel outlier filter in the worker (before the fingerprint: the
-            # worker may be done with the first scan and wait for it)
-            beside.prepare_last(progress)
-        fingerprint = study_fingerprint(study)
+            # the last scan in this thread, beside the first in the worker
+            beside.compare_last(progress)
     except BaseException:
         if beside is not None:
             beside.cancel()
         raise
 
     if beside is not None:
-        if beside.running():
-            # this thread would only wait for the scans: load the report's plotting libraries
-            # now (matplotlib, plotly: ~0.8 s of write_results otherwise) while their kernels
-            # hold the cores without the GIL
-            import roboisf.report.document
-            import roboisf.report.render  # noqa: F401
         scans = beside.result()
+        fingerprint = beside.then
     else:
+        fingerprint = _then(study)
         scans = {}
         for run in (cnc, rob):
             with task(progress, f"scan {run.name}"):
