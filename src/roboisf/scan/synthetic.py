@@ -31,6 +31,7 @@ from roboisf.errors import InputError
 from roboisf.frames.se3 import transform_points
 from roboisf.parts.axisymmetric import REGION_CODES, AxisymmetricPart
 from roboisf.parts.base import Part
+from roboisf.parts.generatrix import Primitive, Segment
 from roboisf.parts.mesh import MeshPart
 
 __all__ = [
@@ -87,9 +88,25 @@ def radial_offset(dr: Callable[[F64, F64], F64], part: AxisymmetricPart) -> Offs
     return f
 
 
+def _radius_at(p: Primitive, s: F64) -> F64:
+    """``p.at(s)[0]`` — the radius at arc length ``s`` — without the heights and angles: a
+    segment's ``r0 + (s / length)·(r1 − r0)`` (the same operations, in a single new array), any
+    other primitive's through :meth:`at`. ``s`` is kept."""
+    if isinstance(p, Segment):
+        u = s / p.length
+        u *= p.r1 - p.r0
+        u += p.r0
+        return u
+    return p.at(s)[0]
+
+
 def _sample_axisymmetric(
     part: AxisymmetricPart, n: int, regions: Sequence[str], rng: np.random.Generator
 ) -> tuple[F64, F64, NDArray[np.int64]]:
+    """``n`` points by area on ``part``'s primitives of ``regions``, their normals and region
+    codes. The arrays of a million-point scan are computed in place where the numbers allow
+    (fresh memory costs as much as the arithmetic on a virtual machine): the random stream and
+    every value are those of the plain expressions in the comments."""
     g = part.generatrix
     prims = [(i, p) for i, p in enumerate(g.primitives) if g.regions[i] in regions]
     if not prims:
@@ -111,17 +128,35 @@ def _sample_axisymmetric(
         if m == 0:
             continue
         r_max = float(np.max(p.at(np.linspace(0.0, p.length, 201))[0]))
-        s_acc = np.empty(0)
-        while s_acc.size < m:  # rejection sampling of s with density ∝ r(s)
-            s = rng.random(2 * (m - s_acc.size) + 16) * p.length
-            r = p.at(s)[0]
-            s_acc = np.concatenate([s_acc, s[rng.random(s.size) * r_max <= r]])
-        s = s_acc[:m]
+        accepted: list[F64] = []
+        got = 0
+        while got < m:  # rejection sampling of s with density ∝ r(s)
+            s = rng.random(2 * (m - got) + 16)
+            s *= p.length  # rng.random(…) * p.length
+            r = _radius_at(p, s)
+            u = rng.random(s.size)
+            u *= r_max
+            accepted.append(s[u <= r])  # s[rng.random(s.size) * r_max <= r]
+            got += accepted[-1].size
+        s = (accepted[0] if len(accepted) == 1 else np.concatenate(accepted))[:m]
         r, z, a = p.at(s)
-        phi = rng.random(m) * 2 * np.pi
-        c, sn = np.cos(phi), np.sin(phi)
-        pts[sel] = np.stack([r * c, r * sn, z], axis=1)
-        nrm[sel] = np.stack([-np.sin(a) * c, -np.sin(a) * sn, np.cos(a)], axis=1)
+        phi = rng.random(m)
+        phi *= 2  # rng.random(m) * 2 * np.pi
+        phi *= np.pi
+        c = np.cos(phi)
+        sn = np.sin(phi, out=phi)
+        rows = np.empty((m, 3))
+        np.multiply(r, c, out=rows[:, 0])  # np.stack([r * c, r * sn, z], axis=1)
+        np.multiply(r, sn, out=rows[:, 1])
+        rows[:, 2] = z
+        pts[sel] = rows
+        ca = np.cos(a)
+        sa = np.sin(a, out=a if a.shape == (m,) and a.dtype == np.float64 else None)
+        np.negative(sa, out=sa)  # [-sin(a) * c, -sin(a) * sn, cos(a)]
+        np.multiply(sa, c, out=rows[:, 0])
+        np.multiply(sa, sn, out=rows[:, 1])
+        rows[:, 2] = ca
+        nrm[sel] = rows
         reg[sel] = REGION_CODES[g.regions[i]]
     return pts, nrm, reg
 
@@ -243,6 +278,13 @@ def _sample_any(part: Part, n: int, seed: int) -> tuple[F64, F64, NDArray[np.int
     return q.point, q.normal, np.asarray(q.region, dtype=np.int64)
 
 
+def _per_point(values: ArrayLike, n: int) -> F64:
+    """An offset field's values as (n,) float: ``values · ones(n)`` (a constant broadcast), an
+    (n,) float array of its own as it is (× 1 changes no number)."""
+    v = np.asarray(values, dtype=float)
+    return v if v.shape == (n,) and v.flags.owndata else v * np.ones(n)
+
+
 def synthetic_scan(
     part: Part,
     n_points: int,
@@ -294,11 +336,11 @@ def synthetic_scan(
     n = nom.shape[0]
     phi = np.arctan2(nom[:, 1], nom[:, 0])
     if offset_at is not None:
-        dn = np.asarray(offset_at(nom), dtype=float) * np.ones(n)
+        dn = _per_point(offset_at(nom), n)
     elif offset is None:
         dn = np.zeros(n)
     elif callable(offset):
-        dn = np.asarray(offset(nom[:, 2], phi), dtype=float) * np.ones(n)
+        dn = _per_point(offset(nom[:, 2], phi), n)
     else:
         dn = np.full(n, float(offset))
     meas = dn + rng.normal(0.0, noise, n) if noise > 0 else dn.copy()

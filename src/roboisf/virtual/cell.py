@@ -581,25 +581,35 @@ def _force_log(
     at the log's rate, in the sensor's frame, with noise (the force noise of every sample drawn
     first, then the moments': the generator's stream as one draw of each), through the truth's
     calibration and the tool's weight, rounded to the sensor's counts. Row blocks of
-    :data:`_LOG_BLOCK` samples, the same numbers as whole arrays."""
+    :data:`_LOG_BLOCK` samples, the same numbers as whole arrays.
+
+    The knots' slopes are computed once per log (:class:`_Knots`), the frame change writes into
+    the log's columns, and the noise is drawn as standard normals into one reused block, scaled
+    in place and added channel by channel (contiguous columns): ``normal(scale=σ)`` is
+    ``0 + σ·z`` of the same ``z`` stream, the same numbers."""
     t = _log_times(tp, cell.force_rate)
     n = t.size
     R = vertical_tool(cell.tool_rotation)
     W_s = np.empty((6, n)).T  # each channel contiguous, as the log's columns are written
     blocks = [(a, min(a + _LOG_BLOCK, n)) for a in range(0, n, _LOG_BLOCK)]
+    wrench_knots, tip_knots = _Knots(tp.time, W_tip), _Knots(tp.time, tp.tip)
+    frame = _SensorFrame(sensor, R)
 
     def tips(a: int, b: int, where: _Intervals | None = None) -> F64:
-        return _interp_columns(t[a:b], tp.time, tp.tip, where)
+        return tip_knots.at(t[a:b], where)
 
     for a, b in blocks:
         where = _intervals(t[a:b], tp.time)  # searched once for the wrench and the tips
-        W_tip_ab = _interp_columns(t[a:b], tp.time, W_tip, where)
-        W_s[a:b] = sensor_wrench(W_tip_ab, sensor, tips(a, b, where), R)
+        frame.apply(wrench_knots.at(t[a:b], where), tips(a, b, where), out=W_s[a:b])
     noise = cell.force.noise
-    for a, b in blocks:
-        W_s[a:b, :3] += rng.normal(scale=noise, size=(b - a, 3))
-    for a, b in blocks:
-        W_s[a:b, 3:] += rng.normal(scale=noise * 5e-3, size=(b - a, 3))  # ~5 mm lever of noise
+    z = np.empty((min(_LOG_BLOCK, n), 3))
+    for cols, scale in ((range(3), noise), (range(3, 6), noise * 5e-3)):  # ~5 mm lever
+        for a, b in blocks:
+            zb = z[: b - a]
+            rng.standard_normal(out=zb)
+            np.multiply(zb, scale, out=zb)
+            for k, c in enumerate(cols):
+                W_s[a:b, c] += zb[:, k]
     if truth is not None and not truth.sensor_ideal:
         # the transducer's noise passes through the same calibration as the load
         for a, b in blocks:
@@ -637,6 +647,44 @@ def _intervals(t: F64, time: F64) -> _Intervals:
     return j, t - time[j], before, after
 
 
+class _Knots:
+    """Columns of ``values`` (N, k) at the knots ``time`` (N,) (increasing), with each column's
+    interval slopes computed once: :meth:`at` interpolates any number of query blocks."""
+
+    def __init__(self, time: F64, values: F64) -> None:
+        self.n = time.size
+        self.cols = [np.ascontiguousarray(values[:, c]) for c in range(values.shape[1])]
+        self.slopes: list[F64] = []
+        if self.n > 1:
+            dtime = np.diff(time)
+            with np.errstate(divide="ignore", invalid="ignore"):  # a repeated time: an interval
+                # no query falls in (searchsorted skips it)
+                self.slopes = [np.diff(v) / dtime for v in self.cols]
+        self.time = time
+
+    def at(self, t: F64, where: _Intervals | None = None) -> F64:
+        """(M, k) column-major: ``np.interp``'s numbers (its formula ``slope·(t − tⱼ) + vⱼ``,
+        the same operations in the same order), constant beyond the knots' ends."""
+        j, dt, before, after = _intervals(t, self.time) if where is None else where
+        out = np.empty((len(self.cols), t.size))
+        if self.n == 1:
+            for c, v in enumerate(self.cols):
+                out[c] = v[0]
+            return out.T
+        # the few samples beyond the knots (a prefix and a suffix for a log's clock): found
+        # once for every column
+        i_before, i_after = np.flatnonzero(before), np.flatnonzero(after)
+        vj = np.empty(t.size)
+        for c, (v, slope) in enumerate(zip(self.cols, self.slopes, strict=True)):
+            o = out[c]
+            np.take(slope, j, out=o)
+            o *= dt
+            o += np.take(v, j, out=vj)
+            o[i_before] = v[0]
+            o[i_after] = v[-1]
+        return out.T
+
+
 def _interp_columns(t: F64, time: F64, values: F64, where: _Intervals | None = None) -> F64:
     """Each column of ``values`` (N, k) at the times ``t`` (M,) → (M, k), linear in ``time``
     (increasing), constant beyond its ends; column-major (each channel contiguous, as the log's
@@ -644,29 +692,42 @@ def _interp_columns(t: F64, time: F64, values: F64, where: _Intervals | None = N
     same operations in the same order) with the interval of each time found once for all
     columns (:func:`_intervals`; ``where``: found already, for the same ``t`` and ``time``)
     instead of once per column (9 binary searches of 1.5 M log times on the paper cone)."""
-    n = time.size
-    j, dt, before, after = _intervals(t, time) if where is None else where
-    dtime = np.diff(time)
-    out = np.empty((values.shape[1], t.size))
-    for c in range(values.shape[1]):
-        v = np.ascontiguousarray(values[:, c])
-        if n == 1:
-            out[c] = v[0]
-            continue
-        with np.errstate(divide="ignore", invalid="ignore"):  # a repeated time: an interval
-            slope = np.diff(v) / dtime  # no query falls in (searchsorted skips it)
-        o = out[c]
-        np.multiply(slope[j], dt, out=o)
-        o += v[j]
-        o[before] = v[0]
-        o[after] = v[-1]
-    return out.T
+    return _Knots(time, values).at(t, where)
 
 
-def _times_matrix(W: F64, A: F64) -> F64:
+def _times_matrix(W: F64, A: F64, out: F64 | None = None) -> F64:
     """``W @ A`` for a long (M, 6) ``W`` and a (6, 6) ``A``, computed as ``(Aᵀ Wᵀ)ᵀ``: BLAS is
-    several times faster on the wide (6, M) product than on the tall one."""
+    several times faster on the wide (6, M) product than on the tall one. ``out`` (M, 6): written
+    there (a block of a column-major log: the same product, without the copy)."""
+    if out is not None:
+        np.matmul(A.T, W.T, out=out.T)
+        return out
     return np.asarray((A.T @ W.T).T, dtype=float)
+
+
+class _SensorFrame:
+    """:func:`sensor_wrench` for one sensor and tool orientation, its (6, 6) frame change made
+    once for every block of a log."""
+
+    def __init__(self, sensor: ForceSensorSpec, R_work_tip: F64) -> None:
+        sign = -1.0 if sensor.load_on == "workpiece" else 1.0
+        A = transform_wrench(np.eye(6), invert(sensor.pose))  # row i: the image of e_i
+        self.fixture = sensor.mount == "fixture"
+        if not self.fixture:
+            R = np.asarray(R_work_tip, dtype=float)
+            A = transform_wrench(np.eye(6), make_transform(R.T)) @ A
+        self.A = sign * A
+
+    def apply(self, W: F64, tip_work: F64, out: F64 | None = None) -> F64:
+        """What the sensor reads for tip wrenches ``W`` (M, 6) at tips ``tip_work`` (M, 3);
+        overwrites ``W``; into ``out`` (M, 6) when given."""
+        if self.fixture:
+            # moments about the work origin: m += tip × f
+            r, f = tip_work, W[:, :3]
+            W[:, 3] += r[:, 1] * f[:, 2] - r[:, 2] * f[:, 1]
+            W[:, 4] += r[:, 2] * f[:, 0] - r[:, 0] * f[:, 2]
+            W[:, 5] += r[:, 0] * f[:, 1] - r[:, 1] * f[:, 0]
+        return _times_matrix(W, self.A, out)
 
 
 def sensor_wrench(W_tip: F64, sensor: ForceSensorSpec, tip_work: F64, R_work_tip: F64) -> F64:
@@ -675,19 +736,7 @@ def sensor_wrench(W_tip: F64, sensor: ForceSensorSpec, tip_work: F64, R_work_tip
     :func:`roboisf.study.sensors.tip_to_sensor` for a whole log — the frame change is one
     constant (6, 6) product, the fixture sensor's moment about the work origin is added in
     place. Overwrites ``W_tip``; the same numbers as ``tip_to_sensor`` to rounding."""
-    sign = -1.0 if sensor.load_on == "workpiece" else 1.0
-    A = transform_wrench(np.eye(6), invert(sensor.pose))  # row i: the image of e_i
-    W = W_tip
-    if sensor.mount == "fixture":
-        # moments about the work origin: m += tip × f
-        r, f = tip_work, W[:, :3]
-        W[:, 3] += r[:, 1] * f[:, 2] - r[:, 2] * f[:, 1]
-        W[:, 4] += r[:, 2] * f[:, 0] - r[:, 0] * f[:, 2]
-        W[:, 5] += r[:, 0] * f[:, 1] - r[:, 1] * f[:, 0]
-    else:
-        R = np.asarray(R_work_tip, dtype=float)
-        A = transform_wrench(np.eye(6), make_transform(R.T)) @ A
-    return _times_matrix(W, sign * A)
+    return _SensorFrame(sensor, R_work_tip).apply(W_tip, tip_work)
 
 
 def quantize_wrench(W: F64, resolution: tuple[float, float]) -> F64:
