@@ -118,7 +118,7 @@ def test_online_simulate_form_from_the_command_line(tmp_path, monkeypatch, setup
     small = setup.vc
     monkeypatch.setattr(vcell, "paper_cone_cell", lambda **kw: replace(small, **kw))
     log, formed = tmp_path / "log.parquet", tmp_path / "formed"
-    args = ["-q", "online", "-c", "egm", "--virtual", "cone", "--simulate", "--duration", "6"]
+    args = ["-q", "online", "-c", "egm", "--virtual", "cone", "--simulate", "--duration", "3"]
     args += ["--form", str(formed), "--scan-points", "20000", "-o", str(log)]
     assert main(args) == 0
     d0, d1 = uncorrected, analyze(formed).decomposition
