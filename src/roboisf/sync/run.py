@@ -26,7 +26,7 @@ from roboisf.errors import InputError
 from roboisf.frames import vertical_tool
 from roboisf.logs.forcelog import ForceLog
 from roboisf.logs.jointlog import JointLog
-from roboisf.study.sensors import sensor_to_tip
+from roboisf.study.sensors import sensor_forces_to_work
 from roboisf.study.spec import RunSpec
 from roboisf.sync.alignment import Alignment, clock_fit
 from roboisf.sync.force import align_by_force
@@ -106,8 +106,7 @@ class RunAlignment:
 
 def _force_work(log: ForceLog, run: RunSpec, tool_rotation: float) -> F64:
     """The logged force in work axes [N] (moments are not needed: no tip position yet)."""
-    W = sensor_to_tip(log.wrench, run.forces, np.zeros((len(log), 3)), vertical_tool(tool_rotation))
-    return W[:, :3]
+    return sensor_forces_to_work(log.wrench[:, :3], run.forces, vertical_tool(tool_rotation))
 
 
 def _end_shift(tp: Toolpath, residual: F64) -> float:
