@@ -170,3 +170,33 @@ def test_gouge_card_gives_its_margin_and_how_close_is_too_close(tmp_path):
     # an older compensation.json without the margin: the verdict and the rule, as before
     value, note = _gouge_card(_write(tmp_path / "o", gouge={"ok": True, "rule": "the rule"}))
     assert value == "ok" and note == "the rule"
+
+
+def test_compensate_without_png_never_loads_matplotlib():
+    # compensation.png is written only with --png: the compensation's modules load no
+    # matplotlib (~0.5 s of every compensate before), a fresh interpreter shows it
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    src = str(Path(__file__).resolve().parents[1] / "src")
+    code = (
+        "import sys\n"
+        "import roboisf.compensate.pipeline, roboisf.report.compensation\n"
+        "assert 'matplotlib' not in sys.modules, sorted(m for m in sys.modules if 'matplot' in m)\n"
+        "from roboisf.report.compensation import compensation_png\n"
+        "import pandas as pd\n"
+        "laps = pd.DataFrame({'lap': [1, 2], 'command_dn': [0.1, 0.2],\n"
+        "                     'command_norm': [0.1, 0.2]})\n"
+        "compensation_png(laps, {})\n"
+        "assert 'matplotlib' in sys.modules\n"
+    )
+    res = subprocess.run(
+        [sys.executable, "-c", code],
+        env={**os.environ, "PYTHONPATH": src},
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert res.returncode == 0, res.stderr[-2000:]

@@ -11,19 +11,19 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
 
-import matplotlib as mpl
 import pandas as pd
 import plotly.graph_objects as go
 import plotly.io as pio
-from matplotlib.figure import Figure
 from plotly.subplots import make_subplots
 
 from roboisf.io.atomic import atomic_write
 from roboisf.report.page import esc, fmt, kv_table, page
-from roboisf.report.static import save_png
 from roboisf.report.style import mpl_rc, plotly_layout
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = ["compensation_figure", "compensation_png", "write_compensation_report"]
 
@@ -91,7 +91,11 @@ def compensation_figure(laps: pd.DataFrame, summary: dict[str, Any]) -> go.Figur
 
 
 def compensation_png(laps: pd.DataFrame, summary: dict[str, Any]) -> Figure:
-    """The same two panels as a static figure."""
+    """The same two panels as a static figure (matplotlib, imported here: only ``--png`` asks
+    for it)."""
+    import matplotlib as mpl
+    from matplotlib.figure import Figure
+
     with mpl.rc_context(cast(Any, mpl_rc())):
         fig = Figure(figsize=(8.0, 3.0), layout="constrained")
         a1, a2 = fig.subplots(1, 2)
@@ -346,5 +350,7 @@ def write_compensation_report(
     with atomic_write(out / "compensation.html") as fh:
         fh.write(document)
     if png:
+        from roboisf.report.static import save_png
+
         save_png(compensation_png(laps, summary), out / "compensation.png")
     return out / "compensation.html"
