@@ -175,6 +175,46 @@ def _need(
 
 
 @_njit()
+def _ball(
+    F: F64,
+    dn: F64,
+    order: NDArray[Any],
+    start: NDArray[Any],
+    lo: F64,
+    h: float,
+    nx: int,
+    ny: int,
+    nz: int,
+    px: float,
+    py: float,
+    pz: float,
+    rad: float,
+    cd: F64,
+    cv: F64,
+) -> tuple[int, F64, F64]:  # pragma: no cover - compiled
+    """The feet closer to p than ``rad`` (:func:`_gather` over the ball's cells, columns
+    beyond its widened radius skipped): (how many, ``cd``, ``cv``), the two buffers replaced
+    by larger ones when the cells hold more feet than they have room for."""
+    box = _box(px, py, pz, rad, lo, h, nx, ny, nz)
+    need = _need(start, ny, nz, box)
+    if need > cd.size:
+        cd = np.empty(need)
+        cv = np.empty(need)
+    rs = box[6]
+    m = _gather(F, dn, order, start, lo, h, ny, nz, px, py, pz, box, rad * rad, rs * rs, cd, cv)
+    return m, cd, cv
+
+
+@_njit()
+def _kth(cd: F64, k: int) -> float:  # pragma: no cover - compiled
+    """The largest of ``cd[:k]`` (the k-th squared distance once the k nearest are in front)."""
+    vk = cd[0]
+    for t in range(1, k):
+        vk = max(vk, cd[t])
+    return vk
+
+
+@_njit()
 def _contacts(
     F: F64,
     dn: F64,
@@ -187,7 +227,6 @@ def _contacts(
     nz: int,
     P: F64,
     radius: float,
-    r2: float,
     k: int,
     trim: float,
     widen: float,
@@ -198,9 +237,8 @@ def _contacts(
     trimmed: F64,
     mad: F64,
 ) -> None:  # pragma: no cover - compiled
-    cap = 256
-    cd = np.empty(cap)
-    cv = np.empty(cap)
+    cd = np.empty(256)
+    cv = np.empty(256)
     vv = np.zeros(k)
     est = 0.0  # a radius likely to hold k feet (the last contact's k-th distance, widened)
     for i in range(a, b):
@@ -215,22 +253,13 @@ def _contacts(
             # them — the same set as from the whole ball when no foot outside it ties with
             # the k-th distance (a tie, or a dn of ±0 whose order the sort keeps, takes the
             # whole ball below: the same bits as ever)
-            box = _box(px, py, pz, est, lo, h, nx, ny, nz)
-            need = _need(start, ny, nz, box)
-            if need > cap:
-                cap = need
-                cd = np.empty(cap)
-                cv = np.empty(cap)
-            m = _gather(F, dn, order, start, lo, h, ny, nz, px, py, pz, box, est * est,
-                        box[6] * box[6], cd, cv)  # fmt: skip
+            m, cd, cv = _ball(F, dn, order, start, lo, h, nx, ny, nz, px, py, pz, est, cd, cv)
             if m < k:
                 m = -1
             else:
                 if m > k:
                     _select(cd, cv, m, k)
-                vk = cd[0]
-                for t in range(1, k):
-                    vk = max(vk, cd[t])
+                vk = _kth(cd, k)
                 for t in range(k, m):
                     if cd[t] == vk:
                         m = -1
@@ -241,13 +270,9 @@ def _contacts(
                         m = -1
                         break
         if m < 0:
-            box = _box(px, py, pz, radius, lo, h, nx, ny, nz)
-            need = _need(start, ny, nz, box)
-            if need > cap:
-                cap = need
-                cd = np.empty(cap)
-                cv = np.empty(cap)
-            m = _gather(F, dn, order, start, lo, h, ny, nz, px, py, pz, box, r2, r2, cd, cv)
+            # (columns beyond the widened radius skipped rather than beyond the radius: the
+            # same feet kept, in the same order — a skipped column holds none within it)
+            m, cd, cv = _ball(F, dn, order, start, lo, h, nx, ny, nz, px, py, pz, radius, cd, cv)
             # the k nearest of them (the k-d tree's set, up to the order of exact ties):
             # moved to the front by a quickselect on the squared distance, their dn alongside
             if m > k:
@@ -255,10 +280,7 @@ def _contacts(
         c = min(m, k)
         est = 0.0
         if c == k:
-            vk = cd[0]
-            for t in range(1, k):
-                vk = max(vk, cd[t])
-            est = math.sqrt(vk) * widen
+            est = math.sqrt(_kth(cd, k)) * widen
         # their dn sorted by value (insertion sort: c ≤ k, a few dozen; np.sort's compiled
         # quicksort would add ~10 s to the first compilation), zero-padded to k as the reference
         for t in range(c):
@@ -351,10 +373,9 @@ def contact_statistics(
     del key
     cnt = np.empty(M, dtype=np.int64)
     med, trimmed, mad = np.empty(M), np.empty(M), np.empty(M)
-    r2 = radius * radius
 
     def rows(a: int, b: int) -> None:
-        _contacts(F, d, order, start, lo, h, nx, ny, nz, P, radius, r2, k, trim, widen, a, b,
+        _contacts(F, d, order, start, lo, h, nx, ny, nz, P, radius, k, trim, widen, a, b,
                   cnt, med, trimmed, mad)  # fmt: skip
 
     run_chunks(rows, M, 4096)  # on every core: the kernel releases the GIL
