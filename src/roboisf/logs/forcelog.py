@@ -17,6 +17,7 @@ Nmm``; length ``m mm um cm in`` (see :mod:`roboisf.io.units`).
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -143,17 +144,20 @@ class ForceLog:
         )
         if not ok:  # not what a reader makes: the full checks, with their messages
             return cls(time, wrench, frame, path, position, moments_known, profile, notes)
+        values = {
+            "time": time,
+            "wrench": wrench,
+            "frame": frame,
+            "path": path,
+            "position": position,
+            "moments_known": moments_known,
+            "profile": profile,
+            "notes": notes,
+        }
+        # every field set: a field added to the class and not here fails at once, not later
+        assert values.keys() == {f.name for f in dataclasses.fields(cls)}, "ForceLog.checked"
         log = object.__new__(cls)
-        for k, v in (
-            ("time", time),
-            ("wrench", wrench),
-            ("frame", frame),
-            ("path", path),
-            ("position", position),
-            ("moments_known", moments_known),
-            ("profile", profile),
-            ("notes", notes),
-        ):
+        for k, v in values.items():
             object.__setattr__(log, k, v)
         return log
 
