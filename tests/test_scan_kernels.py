@@ -122,9 +122,12 @@ def test_outlier_knn_by_query_cell_equals_the_ring_search():
     ring, cells = np.empty(n), np.empty(n)
     args = (Xs, start, lo, h, *shape, k + 1, knn_kernel.MAX_RINGS)
     knn_kernel._knn_mean(*args, 0, n, ring)
-    knn_kernel._knn_mean_cells9(
+    knn_kernel._knn_mean_block9(
         Xs, start, lo, h, *shape, knn_kernel.MAX_RINGS, knn_kernel._BLOCK, 0, start.size - 1, cells
     )
+    unsettled = np.flatnonzero(np.isnan(cells))  # beyond the block: the ring search after it
+    assert unsettled.size > np.isnan(ring).sum()  # the line's points are among them
+    knn_kernel._knn_mean_rows(*args, unsettled, cells)
     np.testing.assert_array_equal(cells, ring)  # NaN where both leave it to the tree
     assert 2 <= np.isnan(ring).sum() <= 20  # the strays and the line's ends
     # on the line (0.5 mm spacing, ~0.4 mm cells) the neighbours lie beyond the block

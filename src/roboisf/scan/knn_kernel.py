@@ -216,7 +216,7 @@ _BLOCK = np.array(
 
 
 @_njit()
-def _knn_mean_cells9(
+def _knn_mean_block9(
     X: F64,
     start: NDArray[Any],
     lo: F64,
@@ -233,22 +233,32 @@ def _knn_mean_cells9(
     """:func:`_knn_mean` (``k1 = 9``: the filter's default k = 8, what the analysis runs) of
     the points of cells ``ca … cb − 1``, query cell by query cell.
 
-    The non-empty cells of the 3 × 3 × 3 block around a query cell (their row ranges and
-    boxes) are listed once for all its points, so a point visits only those (pruned by their
-    box distance, as the ring search does) instead of walking 27 cells; the stop test after
-    the block is the ring search's after ring 1. A point not resolved by the block (its k-th
-    distance beyond the block's faces) is finished by :func:`_knn_mean` itself. The nine
-    smallest squared distances are held in nine scalars (registers), merged in by the
-    branch-free min/max of :func:`_offer`: the same nine values in the same order as the ring
-    search, so the same bits. On the paper cone's 1.68 M wall points, one core: 0.75–0.77 s
-    against 1.13–1.23 s for this block search with an array and an insertion sort (the kernel
-    it replaced) and 0.97 s for the ring search; any other k runs the ring search (0.73 s at
-    k = 5, 1.37 s at k = 12), which the default kernel compiles anyway as its fallback —
-    a second block kernel for them cost the background build 2.5 s."""
+    The points of the non-empty cells of the 3 × 3 × 3 block around a query cell are copied
+    once, for all its points, into a buffer of three coordinate columns (the point's own cell
+    first, then faces, edges, corners: :data:`_BLOCK`). Each point then takes its squared
+    distances to the whole buffer in one pass without a branch (x, y, z summed as scipy does;
+    the compiler vectorises it) and merges them into the nine smallest, held in nine scalars
+    (registers) by the branch-free ``b[t] = min(b[t], max(b[t − 1], d²))`` — the array an
+    insertion sort gives, value for value. The stop test after the block is the ring search's
+    after ring 1; a point it does not settle (its ninth distance beyond the block's faces) is
+    left NaN here and finished by the ring search after every cell (:func:`_knn_mean_rows`:
+    ~11 k of the paper cone's 1.26 M; calling it from this loop made the loop 1.4× slower).
+    Same bits as the ring search: the nine smallest of a set that holds every point nearer
+    than the block's faces.
+
+    No cell of the block is pruned by its box distance: the ~2× more distances (≈ 120 against
+    ≈ 57 a point visited with pruning on the paper cone) cost less in one vectorised pass over
+    a buffer in L1 than the per-cell tests and short loops did. One core, the paper cone's
+    1.26 M wall points (2026-11-29): this kernel 0.42–0.46 s plus 0.10 s of ring search for the
+    ~12 k points it leaves (the scan's strays), against 0.57–0.59 s for ``_knn_mean_cells9``
+    (pruned, the ring search called inside); :func:`mean_knn_distance` 0.66–0.68 → 0.58–0.59 s.
+    Any other k runs the ring search (the same neighbours)."""
     k1 = 9
-    c0 = np.empty(27, dtype=np.int64)
-    c1 = np.empty(27, dtype=np.int64)
-    box = np.empty((27, 6))
+    cap = 4096
+    bx = np.empty(cap)
+    by = np.empty(cap)
+    bz = np.empty(cap)
+    d2 = np.empty(cap)
     best = np.empty(k1)
     for c in range(ca, cb):
         a0, a1 = start[c], start[c + 1]
@@ -257,50 +267,72 @@ def _knn_mean_cells9(
         ci = c // (ny * nz)
         cj = (c // nz) % ny
         ck = c % nz
-        m = 0
+        n = 0
         for q in range(27):
             ii, jj, kk = ci + block[q, 0], cj + block[q, 1], ck + block[q, 2]
             if ii < 0 or ii >= nx or jj < 0 or jj >= ny or kk < 0 or kk >= nz:
                 continue
             e = (ii * ny + jj) * nz + kk
-            if start[e] == start[e + 1]:
+            s0, s1 = start[e], start[e + 1]
+            if s0 == s1:
                 continue
-            c0[m], c1[m] = start[e], start[e + 1]
-            box[m, 0], box[m, 1] = lo[0] + ii * h, lo[0] + (ii + 1) * h
-            box[m, 2], box[m, 3] = lo[1] + jj * h, lo[1] + (jj + 1) * h
-            box[m, 4], box[m, 5] = lo[2] + kk * h, lo[2] + (kk + 1) * h
-            m += 1
+            if n + (s1 - s0) > cap:  # a dense block: the buffer grows (kept for later cells)
+                cap = 2 * (n + (s1 - s0))
+                gx, gy, gz = np.empty(cap), np.empty(cap), np.empty(cap)
+                gx[:n] = bx[:n]
+                gy[:n] = by[:n]
+                gz[:n] = bz[:n]
+                bx, by, bz, d2 = gx, gy, gz, np.empty(cap)
+            for j in range(s0, s1):
+                bx[n] = X[j, 0]
+                by[n] = X[j, 1]
+                bz[n] = X[j, 2]
+                n += 1
         for i in range(a0, a1):
             px, py, pz = X[i, 0], X[i, 1], X[i, 2]
+            for j in range(n):
+                dx = bx[j] - px
+                dy = by[j] - py
+                dz = bz[j] - pz
+                d2[j] = dx * dx + dy * dy + dz * dz
             b0 = b1 = b2 = b3 = b4 = b5 = b6 = b7 = b8 = np.inf
-            for q in range(m):
-                if q > 0:  # the own cell (q = 0) is always searched
-                    ex = max(box[q, 0] - px, 0.0, px - box[q, 1])
-                    ey = max(box[q, 2] - py, 0.0, py - box[q, 3])
-                    ez = max(box[q, 4] - pz, 0.0, pz - box[q, 5])
-                    if ex * ex + ey * ey + ez * ez > b8:
-                        continue
-                for j in range(c0[q], c1[q]):
-                    dx = X[j, 0] - px
-                    dy = X[j, 1] - py
-                    dz = X[j, 2] - pz
-                    d = dx * dx + dy * dy + dz * dz
-                    if d < b8:
-                        b8 = min(b8, max(b7, d))
-                        b7 = min(b7, max(b6, d))
-                        b6 = min(b6, max(b5, d))
-                        b5 = min(b5, max(b4, d))
-                        b4 = min(b4, max(b3, d))
-                        b3 = min(b3, max(b2, d))
-                        b2 = min(b2, max(b1, d))
-                        b1 = min(b1, max(b0, d))
-                        b0 = min(b0, d)
+            for j in range(n):
+                d = d2[j]
+                if d < b8:
+                    b8 = min(b8, max(b7, d))
+                    b7 = min(b7, max(b6, d))
+                    b6 = min(b6, max(b5, d))
+                    b5 = min(b5, max(b4, d))
+                    b4 = min(b4, max(b3, d))
+                    b3 = min(b3, max(b2, d))
+                    b2 = min(b2, max(b1, d))
+                    b1 = min(b1, max(b0, d))
+                    b0 = min(b0, d)
             best[0], best[1], best[2], best[3], best[4] = b0, b1, b2, b3, b4
             best[5], best[6], best[7], best[8] = b5, b6, b7, b8
             if not _resolved(
                 best, k1, _unseen(px, py, pz, ci, cj, ck, 1, lo, h, nx, ny, nz), out, i
             ):
-                _knn_mean(X, start, lo, h, nx, ny, nz, k1, max_rings, i, i + 1, out)
+                out[i] = np.nan  # for the ring search (_knn_mean_rows), after every cell
+
+
+@_njit()
+def _knn_mean_rows(
+    X: F64,
+    start: NDArray[Any],
+    lo: F64,
+    h: float,
+    nx: int,
+    ny: int,
+    nz: int,
+    k1: int,
+    max_rings: int,
+    rows: NDArray[np.int64],
+    out: F64,
+) -> None:  # pragma: no cover - compiled
+    """:func:`_knn_mean` of the points ``rows`` only (those the block search left NaN)."""
+    for i in rows:
+        _knn_mean(X, start, lo, h, nx, ny, nz, k1, max_rings, i, i + 1, out)
 
 
 @_njit()
@@ -434,7 +466,7 @@ def _sorted_mean(
 
     def run(span: tuple[int, int]) -> None:
         if k == 8:  # the default: the nine nearest in registers, query cell by query cell
-            _knn_mean_cells9(Xs, start, lo, h, nx, ny, nz, MAX_RINGS, _BLOCK, span[0], span[1], ms)
+            _knn_mean_block9(Xs, start, lo, h, nx, ny, nz, MAX_RINGS, _BLOCK, span[0], span[1], ms)
         else:  # any other k: the ring search over the cells' rows (the same neighbours)
             a, b = int(start[span[0]]), int(start[span[1]])
             _knn_mean(Xs, start, lo, h, nx, ny, nz, k + 1, MAX_RINGS, a, b, ms)
@@ -446,6 +478,9 @@ def _sorted_mean(
         with ThreadPoolExecutor(max_workers=nw) as pool:
             list(pool.map(run, spans))
     far = np.flatnonzero(np.isnan(ms))
+    if far.size and k == 8:  # not settled by the block: the ring search, as for any other k
+        _knn_mean_rows(Xs, start, lo, h, nx, ny, nz, k + 1, MAX_RINGS, far, ms)
+        far = far[np.isnan(ms[far])]
     if far.size:  # points far from every other (stray scanner points): more rings first
         rings = _far_rings(far.size)
         if rings > MAX_RINGS:
