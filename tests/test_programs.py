@@ -345,6 +345,30 @@ def test_rapid_program_set_splits_loads_and_reads_back(tmp_path, cell):
     np.testing.assert_array_equal(back.meta["confdata"], abb_confdata(cfg))
 
 
+def test_rapid_targets_in_one_pass_are_the_per_target_text():
+    """The writer's targets (orientation and confdata formatted once per distinct value, the
+    position's rounding inlined) are :func:`_target`'s text for every row: ±0, values that
+    round to 0 or to an integer, halves, several orientations and confdata."""
+    from roboisf.programs.rapid import _target, _targets
+
+    rng = np.random.default_rng(3)
+    n = 3000
+    p = rng.uniform(-1500, 1500, (n, 3))
+    p[:50] = np.round(p[:50])
+    p[50:100] = -4e-4  # rounds to -0.000: written 0
+    p[100:150] = -0.0
+    p[150:200] = 12.5
+    p[200:250] = 1e-3
+    q = np.tile([0.0, 0.70710678, 0.70710678, -0.0], (n, 1))
+    q[::7] = rng.normal(size=q[::7].shape)
+    q[::11, 0] = -1e-12
+    cf = np.zeros((n, 4), dtype=np.int64)
+    cf[::3] = rng.integers(-3, 3, cf[::3].shape)
+    rows = (p.tolist(), q.tolist(), cf.tolist())
+    assert _targets(*rows) == [_target(*r) for r in zip(*rows, strict=True)]
+    assert _targets(*rows)[60].startswith("[[0,0,0],[0,0.70710678,0.70710678,0],")
+
+
 def test_rapid_bad_options(tmp_path, tp):
     with pytest.raises(InputError, match="unknown zone"):
         write_rapid(tp, tmp_path / "a.mod", T_base_work=BASE, zone="z7")

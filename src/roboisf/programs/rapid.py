@@ -92,6 +92,26 @@ def _target(p: Sequence[float], q: Sequence[float], cf: Sequence[int]) -> str:
     return f"{_pose(p, q)[:-1]},[{','.join(str(int(c)) for c in cf)}],{_EXT}]"
 
 
+def _targets(p: list[list[float]], q: list[list[float]], cf: list[list[int]]) -> list[str]:
+    """:func:`_target` of every row, the same text: a target's orientation, confdata and
+    external axes are formatted once per distinct value (an ISF path holds its tool's
+    orientation: one or a few for a whole part) and its position by :func:`fmt_num`'s rule
+    inlined (35 k targets: 0.22–0.37 → ~0.06 s)."""
+    tails: dict[tuple[float | int, ...], str] = {}
+    out = []
+    for (x, y, z), qq, cc in zip(p, q, cf, strict=True):
+        key = (*qq, *cc)  # ±0 share a key: fmt_num writes both as 0
+        tail = tails.get(key)
+        if tail is None:
+            tail = tails[key] = _target((0.0, 0.0, 0.0), qq, cc)[len("[[0,0,0]") :]
+        xyz = []
+        for v in (x, y, z):
+            s = f"{v:.3f}".rstrip("0").rstrip(".")
+            xyz.append("0" if s in ("-0", "") else s)
+        out.append(f"[[{xyz[0]},{xyz[1]},{xyz[2]}]{tail}")
+    return out
+
+
 def _procs(
     name: str, moves: list[str], tail: str, max_moves: int, offset: int
 ) -> tuple[list[str], list[str]]:
@@ -180,9 +200,7 @@ def write_rapid(
     tail = f",vForm,{zone},{tool.name}\\WObj:={wobj_name};\n"
     up = fmt_num(prog.safe_height_mm)
     # Python floats: formatting numpy scalars one by one is several times slower
-    moves = [
-        _target(pp, qq, cc) for pp, qq, cc in zip(p.tolist(), q.tolist(), cf.tolist(), strict=True)
-    ]
+    moves = _targets(p.tolist(), q.tolist(), cf.tolist())
     modules = split_modules(tp.lap, max_module_moves) if len(tp) > max_module_moves else []
     if modules and len(f"{name}_{len(modules)}_run") > 32:
         raise InputError(
