@@ -94,9 +94,10 @@ def spatial_order(points: ArrayLike, bits: int = 16) -> NDArray[np.integer[Any]]
         lo, hi = mesh_kernel.bounds(X, np.empty(0, np.int64))
         span = float(np.max(hi - lo)) or 1.0
         idx = np.int32 if X.shape[0] < 2**31 else np.int64
+        n = X.shape[0]
         return mesh_kernel.morton_order(
-            X, lo, (2**bits - 1) / span, bits, np.arange(X.shape[0], dtype=idx),
-            np.empty(X.shape[0], dtype=idx),
+            X, lo, (2**bits - 1) / span, bits, np.arange(n, dtype=idx), np.empty(n, dtype=idx),
+            np.empty(n, dtype=np.uint64), np.empty(n, dtype=np.uint64),
         )  # fmt: skip
     lo = X.min(axis=0)
     span = float(np.max(X.max(axis=0) - lo)) or 1.0

@@ -56,6 +56,7 @@ __all__ = [
     "build",
     "build_grid",
     "closest_grid",
+    "fresh_rows",
     "gather_rows",
     "morton_order",
     "scatter_rows",
@@ -473,14 +474,31 @@ def closest_grid(
             closest[n, ax] = a[bf, ax] + bv * ab[bf, ax] + bw * ac[bf, ax]
 
 
-@_njit()
 def gather_rows(
     P: NDArray[np.float64], rows: NDArray[np.int64], order: NDArray[Any]
-) -> NDArray[np.float64]:  # pragma: no cover - compiled
+) -> NDArray[np.float64]:
     """``P[rows[order]]`` (``P[order]`` when ``rows`` is empty) of points (N, 3) as a new
     C-contiguous array, without the ``rows[order]`` index temporary, for ``order`` of any integer
-    type (``np.take`` first copies int32 indices to int64: 16 MB and ~30 ms on 2 M points)."""
-    out = np.empty((order.size, 3))
+    type (``np.take`` first copies int32 indices to int64: 16 MB and ~30 ms on 2 M points).
+
+    The output is numpy's (:func:`fresh_rows`), filled by a compiled pass."""
+    return _gather_rows_into(P, rows, order, fresh_rows(order.size))
+
+
+def fresh_rows(n: int) -> NDArray[np.float64]:
+    """An uninitialised (n, 3) float64 array from numpy, for a kernel to fill: numpy asks the
+    kernel for transparent huge pages on large arrays (``madvise``), numba's own allocations
+    (``np.empty`` inside a kernel) get 4 KiB pages — one page fault per 4 KiB written, ~12 k
+    faults for 2 M points against ~0.5 k (2026-11-29: the paper cone's ``analyze`` faulted
+    ~180 k times, ~1 s of its CPU in the kernel)."""
+    return np.empty((n, 3))
+
+
+@_njit()
+def _gather_rows_into(
+    P: NDArray[np.float64], rows: NDArray[np.int64], order: NDArray[Any], out: NDArray[np.float64]
+) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """:func:`gather_rows` into ``out`` (N, 3)."""
     for i in range(order.size):
         r = rows[order[i]] if rows.size else order[i]
         out[i, 0] = P[r, 0]
@@ -489,13 +507,18 @@ def gather_rows(
     return out
 
 
-@_njit()
-def scatter_rows(
-    Xs: NDArray[np.float64], order: NDArray[Any]
-) -> NDArray[np.float64]:  # pragma: no cover - compiled
+def scatter_rows(Xs: NDArray[np.float64], order: NDArray[Any]) -> NDArray[np.float64]:
     """The points (N, 3) put back where ``order`` took them from: ``out[order[i]] = Xs[i]``,
-    the inverse of :func:`gather_rows` (numpy's ``out[order] = Xs`` of rows: ~3x slower)."""
-    out = np.empty_like(Xs)
+    the inverse of :func:`gather_rows` (numpy's ``out[order] = Xs`` of rows: ~3x slower); the
+    output numpy's (:func:`fresh_rows`)."""
+    return _scatter_rows_into(Xs, order, fresh_rows(Xs.shape[0]))
+
+
+@_njit()
+def _scatter_rows_into(
+    Xs: NDArray[np.float64], order: NDArray[Any], out: NDArray[np.float64]
+) -> NDArray[np.float64]:  # pragma: no cover - compiled
+    """:func:`scatter_rows` into ``out`` (N, 3)."""
     for i in range(order.size):
         r = order[i]
         out[r, 0] = Xs[i, 0]
@@ -546,12 +569,15 @@ def morton_order(
     bits: int,
     order: NDArray[Any],
     tmp_o: NDArray[Any],
+    code: NDArray[np.uint64],
+    tmp_c: NDArray[np.uint64],
 ) -> NDArray[Any]:  # pragma: no cover - compiled
     """Stable permutation sorting the points (N, 3) by Morton code, in one fused pass.
 
     ``order`` (N,) holds ``0 … N−1`` on entry and ``tmp_o`` (N,) is scratch, of one integer
     type (int32 below 2³¹ points: 16 MB less beside a 2 M-point scan than int64 indices); the
-    result is one of the two.
+    result is one of the two. ``code``, ``tmp_c`` (N,) uint64: scratch for the codes, from the
+    caller (numpy's pages: :func:`fresh_rows`).
 
     The code of a point is that of :func:`roboisf.parts.mesh.spatial_order` (the same float
     operations: ``uint64((x − lo) · scale)`` per axis, interleaved x, y, z from the lowest
@@ -560,13 +586,11 @@ def morton_order(
     their input order.
     """
     n = X.shape[0]
-    code = np.empty(n, dtype=np.uint64)
     for i in range(n):
         q0 = np.uint64((X[i, 0] - lo[0]) * scale)
         q1 = np.uint64((X[i, 1] - lo[1]) * scale)
         q2 = np.uint64((X[i, 2] - lo[2]) * scale)
         code[i] = _spread3(q0) | (_spread3(q1) << np.uint64(1)) | (_spread3(q2) << np.uint64(2))
-    tmp_c = np.empty(n, dtype=np.uint64)
     nbits = 3 * bits
     mask = np.uint64((1 << RADIX_BITS) - 1)
     nb = 1 << RADIX_BITS

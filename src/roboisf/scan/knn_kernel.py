@@ -335,15 +335,21 @@ def _knn_mean_rows(
         _knn_mean(X, start, lo, h, nx, ny, nz, k1, max_rings, i, i + 1, out)
 
 
-@_njit()
-def _counting_sort(
-    key: NDArray[Any], start: NDArray[Any]
-) -> NDArray[Any]:  # pragma: no cover - compiled
+def _counting_sort(key: NDArray[Any], start: NDArray[Any]) -> NDArray[Any]:
     """Stable permutation sorting ``key`` by cell, given the cells' row starts (of the keys'
     integer type: int32 below 2³¹ points). ``start`` itself holds each cell's next row during
     the pass and is restored before this returns: no copy of the grid's size (33 MB beside the
-    paper cone's scan, at the filter's and the toolpath statistics' peak)."""
-    order = np.empty_like(key)
+    paper cone's scan, at the filter's and the toolpath statistics' peak). The permutation is
+    numpy's (huge pages: :func:`roboisf.parts.mesh_kernel.fresh_rows`), filled by a compiled
+    pass."""
+    return _counting_sort_into(key, start, np.empty_like(key))
+
+
+@_njit()
+def _counting_sort_into(
+    key: NDArray[Any], start: NDArray[Any], order: NDArray[Any]
+) -> NDArray[Any]:  # pragma: no cover - compiled
+    """:func:`_counting_sort` into ``order`` (the keys' shape and type)."""
     for i in range(key.size):
         c = key[i]
         order[start[c]] = i
