@@ -32,6 +32,8 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
+from machine import speed_line  # benchmarks/machine.py (this folder is on sys.path)
+
 from roboisf.progress import Advance, noop_advance
 
 
@@ -278,6 +280,7 @@ def main(argv: list[str] | None = None) -> int:
             f"{t_build:.1f} s"
         )
 
+    print(speed_line(), flush=True)  # the machine's pace now (benchmarks/machine.py)
     t_an = 0.0
     for s in studies:
         steps = StepTimes()

@@ -30,6 +30,8 @@ import sys
 import tempfile
 import time
 
+from machine import speed_line  # benchmarks/machine.py (this folder is on sys.path)
+
 RUN = (
     "import sys; from roboisf.cli.main import entry; sys.argv = ['roboisf', *sys.argv[1:]]; entry()"
 )
@@ -121,6 +123,7 @@ def main() -> None:
     )
     with tempfile.TemporaryDirectory(prefix="roboisf-cold-") as d:
         setup = dict(base, NUMBA_CACHE_DIR=os.path.join(d, "setup-cache"))
+        print(speed_line(), flush=True)  # the machine's pace now (benchmarks/machine.py)
         print("inputs (not timed) …", flush=True)
         for args in (
             ["part", "cone", "-o", f"{d}/cone.toml"],
