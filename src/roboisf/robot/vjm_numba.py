@@ -228,3 +228,10 @@ def build() -> None:
     pts = np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0], [0.02, 0.0, 0.0]])
     if model.default_placement is not None:
         ik_toolpath(model, pts, backend="numba")
+        # roboisf.plan's inner loop (IK, VJM and the tool's deflection in one compiled pass):
+        # without it the first plan after this build compiled it in the foreground (~1.5 s)
+        from roboisf.robot.ik_numba import path_vjm
+
+        W = np.tile([0.0, 0.0, -500.0, 0.0, 0.0, 0.0], (len(pts), 1))
+        up = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
+        path_vjm(model, pts, model.default_placement, np.zeros(1), W, None, (1.0, 0.0), normal=up)
