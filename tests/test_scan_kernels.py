@@ -134,6 +134,42 @@ def test_outlier_knn_by_query_cell_equals_the_ring_search():
     assert (ring[np.isfinite(ring)] > 2 * h).sum() > 20
 
 
+@needs_numba
+def test_outlier_knn_block_buffer_grows_for_a_dense_cell():
+    """A block holding more points than the block kernel's first buffer (4096: a pile of
+    repeated scanner points in one cell) grows the buffer and still gives the ring search's
+    bits — the pile, its neighbours and the points beyond."""
+    rng = np.random.default_rng(11)
+    patch = np.column_stack([rng.uniform(0, 0.01, (20_000, 2)), rng.normal(0, 2e-5, 20_000)])
+    pile = np.repeat(patch[:1], 6000, axis=0) + rng.normal(0, 1e-7, (6000, 3))
+    X = np.vstack([patch, pile])
+    lo, h, shape, key, start = knn_kernel._grid(X, 8, knn_kernel.MAX_CELLS)
+    order = knn_kernel._counting_sort(key, start)
+    Xs = gather_rows(X, knn_kernel._NO_ROWS, order)
+    assert np.diff(start).max() > 4096  # one cell alone overflows the first buffer
+    n = len(X)
+    ring, block = np.empty(n), np.empty(n)
+    args = (Xs, start, lo, h, *shape, 9, knn_kernel.MAX_RINGS)
+    knn_kernel._knn_mean(*args, 0, n, ring)
+    knn_kernel._knn_mean_block9(
+        Xs, start, lo, h, *shape, knn_kernel.MAX_RINGS, knn_kernel._BLOCK, 0, start.size - 1, block
+    )
+    # the points of the cells around the pile: the first of them to be searched grew its
+    # buffer past 4096 with points in it already; the block itself settles them (none is left
+    # to the ring search after it)
+    nx, ny, nz = shape
+    ci, cj, ck = np.unravel_index(int(np.argmax(np.diff(start))), shape)
+    near = [
+        (ci + a) * ny * nz + (cj + b) * nz + (ck + c)
+        for a, b, c in knn_kernel._BLOCK[1:]
+        if 0 <= ci + a < nx and 0 <= cj + b < ny and 0 <= ck + c < nz
+    ]
+    rows = np.concatenate([np.arange(start[e], start[e + 1]) for e in near])
+    assert rows.size > 20 and np.isfinite(block[rows]).all()
+    knn_kernel._knn_mean_rows(*args, np.flatnonzero(np.isnan(block)), block)
+    np.testing.assert_array_equal(block, ring)
+
+
 @pytest.mark.parametrize("kind", ["cone", "vwacf", "pyramid"])
 def test_registration_closest_points_in_threads_equal_one_call(kind, monkeypatch):
     """The registration's chunked, threaded closest-point query gives one call's rows, bit for
