@@ -299,6 +299,29 @@ def knn_engine(request, monkeypatch):
     return request.param
 
 
+@pytest.mark.parametrize(
+    ("points", "k", "field", "says"),
+    [
+        (np.vstack([np.zeros((50, 3)), [[0.0, np.nan, 0.0]]]), 8, "points", "row 50"),
+        (np.vstack([np.zeros((50, 3)), [[np.inf, 0.0, 0.0]]]), 8, "points", "NaN or inf"),
+        (np.zeros((50, 3)), 0, "k", "k ≥ 1"),
+        (np.zeros((50, 2)), 8, "points", "(N, 3)"),
+    ],
+)
+def test_outlier_filter_refuses_what_it_cannot_take(knn_engine, points, k, field, says):
+    """NaN or inf coordinates, no neighbours asked for, points not (N, 3): a clear error naming
+    the field, not numpy's from inside the grid or NaN means — held or not."""
+    from roboisf.scan.deviation import statistical_outliers_held
+
+    for call in (
+        lambda: statistical_outliers(points, k),
+        lambda: statistical_outliers_held([points.copy()], k),
+    ):
+        with pytest.raises(InputError) as e:
+            call()
+        assert e.value.field == field and says in str(e.value)
+
+
 def test_statistical_outliers_match_the_brute_force_definition_in_any_order(knn_engine):
     """Both engines give exactly the PCL/Open3D definition: mean distance to the k nearest
     neighbours (brute force over all pairs here), threshold mean + r·std — whatever order the

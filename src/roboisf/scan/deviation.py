@@ -296,6 +296,7 @@ def statistical_outliers(
     """
     X = np.asarray(points, dtype=float)
     R = None if rows is None else np.asarray(rows, dtype=np.int64)
+    _check_filter_input(X, R, k)
     n = X.shape[0] if R is None else R.size
     if n <= k:
         return np.ones(n, dtype=bool)
@@ -335,6 +336,25 @@ def statistical_outliers(
     return m <= m.mean() + std_ratio * m.std()
 
 
+def _check_filter_input(X: NDArray[np.float64], R: NDArray[np.int64] | None, k: int) -> None:
+    """An :class:`InputError` for what the filter cannot take: k < 1, points not (N, 3), NaN or
+    inf coordinates (of ``X[R]`` when ``R`` is given) — rather than numpy's error from inside
+    the grid, or NaN means."""
+    if k < 1:
+        raise InputError(f"the outlier filter needs k ≥ 1 neighbours, got {k}", field="k")
+    if X.ndim != 2 or X.shape[1] != 3:
+        raise InputError(f"points must be (N, 3), got shape {X.shape}", field="points")
+    if np.isfinite(X).all():  # one pass over the array (2 ms on 2 M points)
+        return
+    bad = ~np.isfinite(X if R is None else X[R]).all(axis=1)
+    if bad.any():
+        raise InputError(
+            f"{int(bad.sum())} point(s) have NaN or inf coordinates (first: row "
+            f"{int(np.argmax(bad))}); the outlier filter needs finite points",
+            field="points",
+        )
+
+
 def statistical_outliers_held(
     box: list[NDArray[np.float64]], k: int = 8, std_ratio: float = 3.0
 ) -> NDArray[np.bool_]:
@@ -345,6 +365,7 @@ def statistical_outliers_held(
     mean_knn_distance_held`: ~33 MB less at the filter's peak on a 1.7 M-point scan); the
     same mask."""
     X = box[0]
+    _check_filter_input(X, None, k)
     if X.shape[0] <= k or not jit.ready("scan"):
         return statistical_outliers(X, k, std_ratio, ordered=True)
     del X
