@@ -111,6 +111,24 @@ def test_unloaded_samples_and_condition_unchanged(monkeypatch: pytest.MonkeyPatc
     )
 
 
+@pytest.mark.parametrize("seed", [3, 4, 5])
+def test_onset_same_numbers_as_the_distances(seed: int) -> None:
+    """The compiled onset search (largest |F − level|, first row above the threshold it sets)
+    gives the numpy form's span and row: a log read forwards and backwards, one never loaded
+    (−1), one loaded from its first sample, a threshold set by the noise (5 σ) or the span."""
+    _, W = _log(30_000, seed)
+    level = np.array([1.0, -2.0, 3.0])
+    flat = np.random.default_rng(seed).normal(scale=0.5, size=(5_000, 6))
+    cases = [(W, level, 0.5), (W[::-1], level, 0.5), (flat, np.zeros(3), 0.5)]
+    cases += [(W, np.zeros(3), 1e-12), (W[5_000:], level, 400.0)]
+    for X, c, noise in cases:
+        d = forcelog.row_norms_numpy(X, 0, c)
+        above = d > max(5.0 * noise, 0.01 * float(d.max()))
+        want = (float(d.max()), int(np.argmax(above)) if above.any() else -1)
+        assert kernel.onset(X, c, noise) == want
+    assert kernel.onset(flat, np.zeros(3), 0.5)[1] == -1
+
+
 def test_row_norms_takes_the_numpy_form_on_a_cold_cache(monkeypatch: pytest.MonkeyPatch) -> None:
     """One entry for both engines (the conditioning's distances, the log check's |F| and |M|):
     kernels not built yet → the numpy form, with the compiled pass's bits."""

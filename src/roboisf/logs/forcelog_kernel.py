@@ -10,6 +10,8 @@ the same bits (tests/test_forcelog_kernel.py):
 
 * :func:`row_norms` — ``sqrt((x0 − c0)² + (x1 − c1)² + (x2 − c2)²)`` of three columns, as
   ``np.linalg.norm(X[:, j:j+3] − c, axis=1)`` (numpy sums three terms left to right);
+* :func:`onset` — the largest ``|F − c|`` of a log and the first row above a threshold set by
+  it, as :func:`roboisf.sensor.unloaded_samples` finds them from :func:`row_norms`;
 * :func:`running_integral_at` — rows ``ks`` of ``concatenate([0, cumsum((y[1:] + y[:-1]) ·
   (0.5 Δt))])``, the running sum of :func:`roboisf.logs.forcelog.window_average`, without the
   (N, K) array.
@@ -27,7 +29,7 @@ from roboisf.jit import compile_notice, njit
 
 compile_notice(__file__)  # numba compiles these on first call: say so once
 
-__all__ = ["build", "row_norms", "running_integral_at"]
+__all__ = ["build", "onset", "row_norms", "running_integral_at"]
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -40,6 +42,39 @@ def _row_norms(X: Any, j: int, c: Any, out: Any) -> None:  # pragma: no cover - 
         d1 = X[i, j + 1] - c[1]
         d2 = X[i, j + 2] - c[2]
         out[i] = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+
+
+@njit()
+def _onset(X: Any, c: Any, noise: float) -> tuple[float, int]:  # pragma: no cover - compiled
+    """(span, onset) of :func:`onset`: the largest ``|F − c|`` (the square root of the largest
+    square: sqrt is monotone and correctly rounded, so the same number), then the first row
+    above ``max(5 noise, 0.01 span)`` (−1: none), its norm computed as :func:`_row_norms`
+    does."""
+    m2 = 0.0
+    for i in range(X.shape[0]):
+        d0 = X[i, 0] - c[0]
+        d1 = X[i, 1] - c[1]
+        d2 = X[i, 2] - c[2]
+        m2 = max(m2, d0 * d0 + d1 * d1 + d2 * d2)
+    span = math.sqrt(m2)
+    thr = max(5.0 * noise, 0.01 * span)
+    for i in range(X.shape[0]):
+        d0 = X[i, 0] - c[0]
+        d1 = X[i, 1] - c[1]
+        d2 = X[i, 2] - c[2]
+        if math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) > thr:
+            return span, i
+    return span, -1
+
+
+def onset(X: F64, centre: F64, noise: float) -> tuple[float, int]:
+    """For a log's wrench X (N, ≥ 3): ``span`` = max over rows of ``|F − centre|`` and the
+    first row whose ``|F − centre|`` exceeds ``max(5 noise, 0.01 span)`` (−1: none) — what
+    :func:`roboisf.sensor.unloaded_samples` asks of the whole log, in two passes without the
+    (N,) distances (the second stops at the onset, near the log's start)."""
+    c = np.ascontiguousarray(centre, dtype=np.float64)
+    span, i = _onset(X, c, float(noise))
+    return float(span), int(i)
 
 
 def row_norms(X: F64, j: int = 0, centre: F64 | None = None) -> F64:
@@ -91,5 +126,8 @@ def build() -> None:
     # a log read backwards (its unloaded end: roboisf.sensor.unloaded_stretches), another array
     # layout: without it the first analyze compiled this in the foreground (0.2 s)
     row_norms(W[::-1], 0, np.ones(3))
+    # the unloaded approach's onset, of a log and of it read backwards (its end)
+    onset(W, np.ones(3), 0.1)
+    onset(W[::-1], np.ones(3), 0.1)
     window_average(t, W, np.array([0.1, 0.5]), np.array([0.3, 0.9]))
     window_average(t, W[:, :3], np.array([0.1]), np.array([0.3]))
