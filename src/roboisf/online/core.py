@@ -403,23 +403,31 @@ class OnlineCompensator:
         return self.correction
 
     def reset(self) -> None:
-        """Forget the filter, the last correction, the watchdog's clock, a stop and the joint
-        angles: it starts as a new one."""
+        """Forget the filter, the last correction, tip wrench and deflection, the watchdog's
+        clock, a stop and the joint angles: it starts as a new one."""
         self._q_known = False
         self._unoriented[0] = 0.0
         self.st[:] = 0.0
         self._clear_clocks()
         self.filtered[:] = 0.0
         self.correction[:] = 0.0
+        self.tip_wrench[:] = 0.0
+        self.deflection[:] = 0.0
         self.status = kn.STATUS_NO_SAMPLE
 
     def warm_up(self) -> None:
-        """Compile the kernels (first call) without touching the state."""
-        saved = (self.st.copy(), self.filtered.copy(), self.correction.copy(), self._q.copy())
+        """Compile the kernels (first call) without touching the state: everything a sample and
+        a cycle write is put back. (The tip wrench and deflection were not, until 2026-11-29:
+        a loop whose first cycle had no sample yet — the controller speaking before the sensor's
+        first oriented record — logged the warm-up's, the tool's weight at the zero pose and the
+        tare, ~35 N, as the first row's tip wrench.)"""
+        state = (self.st, self.filtered, self.correction, self.tip_wrench, self.deflection, self._q)
+        saved = [a.copy() for a in state]
         known, self._q_known = self._q_known, True  # the sample kernel is compiled too
         self.sample(0.0, np.zeros(6))
         self.cycle(0.0, np.zeros(6))
-        self.st[:], self.filtered[:], self.correction[:], self._q[:] = saved
+        for a, b in zip(state, saved, strict=True):
+            a[:] = b
         self._q_known = known
         self.status = kn.STATUS_NO_SAMPLE
 
