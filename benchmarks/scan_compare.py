@@ -131,9 +131,8 @@ def main() -> None:
     def by_cell() -> None:  # the default k's kernel (k = 8); any other k: the ring search
         if k == 8:
             knn_kernel._knn_mean_block9(
-                Xs, start, lo, h, *shape, knn_kernel.MAX_RINGS, knn_kernel._BLOCK, 0,
-                start.size - 1, mc,
-            )  # fmt: skip
+                Xs, start, lo, h, *shape, knn_kernel._BLOCK, 0, start.size - 1, mc
+            )
             knn_kernel._knn_mean_rows(*args_, np.flatnonzero(np.isnan(mc)), mc)
         else:
             knn_kernel._knn_mean(*args_, 0, n, mc)

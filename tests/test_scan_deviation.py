@@ -715,9 +715,7 @@ def test_the_default_k_kernel_equals_the_ring_search_bit_for_bit():
     ring, nine = np.empty(len(X)), np.empty(len(X))
     args = (Xs, start, lo, h, *shape)
     knn_kernel._knn_mean(*args, 9, knn_kernel.MAX_RINGS, 0, len(X), ring)
-    knn_kernel._knn_mean_block9(
-        *args, knn_kernel.MAX_RINGS, knn_kernel._BLOCK, 0, start.size - 1, nine
-    )
+    knn_kernel._knn_mean_block9(*args, knn_kernel._BLOCK, 0, start.size - 1, nine)
     knn_kernel._knn_mean_rows(*args, 9, knn_kernel.MAX_RINGS, np.flatnonzero(np.isnan(nine)), nine)
     assert np.isnan(nine).sum() == np.isnan(ring).sum() >= 2  # the strays: left to the tree
     np.testing.assert_array_equal(nine, ring)

@@ -123,7 +123,7 @@ def test_outlier_knn_by_query_cell_equals_the_ring_search():
     args = (Xs, start, lo, h, *shape, k + 1, knn_kernel.MAX_RINGS)
     knn_kernel._knn_mean(*args, 0, n, ring)
     knn_kernel._knn_mean_block9(
-        Xs, start, lo, h, *shape, knn_kernel.MAX_RINGS, knn_kernel._BLOCK, 0, start.size - 1, cells
+        Xs, start, lo, h, *shape, knn_kernel._BLOCK, 0, start.size - 1, cells
     )
     unsettled = np.flatnonzero(np.isnan(cells))  # beyond the block: the ring search after it
     assert unsettled.size > np.isnan(ring).sum()  # the line's points are among them
@@ -152,7 +152,7 @@ def test_outlier_knn_block_buffer_grows_for_a_dense_cell():
     args = (Xs, start, lo, h, *shape, 9, knn_kernel.MAX_RINGS)
     knn_kernel._knn_mean(*args, 0, n, ring)
     knn_kernel._knn_mean_block9(
-        Xs, start, lo, h, *shape, knn_kernel.MAX_RINGS, knn_kernel._BLOCK, 0, start.size - 1, block
+        Xs, start, lo, h, *shape, knn_kernel._BLOCK, 0, start.size - 1, block
     )
     # the points of the cells around the pile: the first of them to be searched grew its
     # buffer past 4096 with points in it already; the block itself settles them (none is left

@@ -224,7 +224,6 @@ def _knn_mean_block9(
     nx: int,
     ny: int,
     nz: int,
-    max_rings: int,
     block: NDArray[np.int64],
     ca: int,
     cb: int,
@@ -472,7 +471,7 @@ def _sorted_mean(
 
     def run(span: tuple[int, int]) -> None:
         if k == 8:  # the default: the nine nearest in registers, query cell by query cell
-            _knn_mean_block9(Xs, start, lo, h, nx, ny, nz, MAX_RINGS, _BLOCK, span[0], span[1], ms)
+            _knn_mean_block9(Xs, start, lo, h, nx, ny, nz, _BLOCK, span[0], span[1], ms)
         else:  # any other k: the ring search over the cells' rows (the same neighbours)
             a, b = int(start[span[0]]), int(start[span[1]])
             _knn_mean(Xs, start, lo, h, nx, ny, nz, k + 1, MAX_RINGS, a, b, ms)
