@@ -103,7 +103,7 @@ def test_time_not_increasing_named_by_its_row(tmp_path) -> None:
     write_joint_parquet(tmp_path / "j.parquet", t, np.zeros((20, 6)))
     from roboisf.logs.jointlog import read_joint_log
 
-    with pytest.raises(InputError, match="time must increase strictly"):
+    with pytest.raises(InputError, match=r"time must increase strictly \(row 12\)"):
         read_joint_log(tmp_path / "j.parquet")
 
 

@@ -211,11 +211,12 @@ def read_joint_log(
     """
     p = Path(path)
     if p.suffix.lower() == ".parquet":
-        from roboisf.logs.logparquet import read_joint_parquet
+        from roboisf.logs.logparquet import _steps_back, read_joint_parquet
 
         t_si, q_si = read_joint_parquet(p, {"time": time_unit, "angle": angle_unit})
-        if t_si.size > 1 and bool(np.any(t_si[1:] <= t_si[:-1])):  # finite: diff(t) <= 0
-            raise InputError("time must increase strictly", file=p, field="time")
+        back = _steps_back(t_si)
+        if back is not None:
+            raise InputError(f"time must increase strictly (row {back})", file=p, field="time")
         return JointLog(time=t_si, q=q_si, path=p)
     if not (fmt in ("auto", "roboisf") and not columns and is_roboisf_joint_log(p)):
         profile, tab = _read_text_log(p, fmt, columns)
