@@ -486,11 +486,11 @@ def gather_rows(
 
 
 def fresh_rows(n: int) -> NDArray[np.float64]:
-    """An uninitialised (n, 3) float64 array from numpy, for a kernel to fill: numpy asks the
-    kernel for transparent huge pages on large arrays (``madvise``), numba's own allocations
-    (``np.empty`` inside a kernel) get 4 KiB pages — one page fault per 4 KiB written, ~12 k
-    faults for 2 M points against ~0.5 k (2026-11-29: the paper cone's ``analyze`` faulted
-    ~180 k times, ~1 s of its CPU in the kernel)."""
+    """An uninitialised (n, 3) float64 array from numpy, for a compiled pass to fill: numpy asks
+    Linux for transparent huge pages on large arrays (``madvise``), numba's own allocations
+    (``np.empty`` inside a compiled function) get 4 KiB pages — one page fault per 4 KiB
+    written, ~12 k faults for 2 M points against ~0.5 k (2026-11-29: the paper cone's
+    ``analyze`` faulted ~180 k times, ~1 s of its CPU in the operating system)."""
     return np.empty((n, 3))
 
 
