@@ -678,12 +678,72 @@ def test_kernel_cached_agrees_with_numba_when_only_the_mtime_changes(tmp_path, m
     assert jit.kernel_cached(source)
 
 
-def _fake_index(path: Path, version: str, stamp: object) -> None:
+_HOST_CPU = """
+import json, sys
+from roboisf.jit import kernel_cached
+from roboisf.jit.shim import _host_cpu
+print(json.dumps([kernel_cached(sys.argv[1]), _host_cpu()[0].decode()]))
+"""
+
+
+@needs_numba
+def test_kernel_cached_rejects_a_cache_of_another_cpu_as_numba_does(tmp_path, monkeypatch):
+    """A cache compiled for one CPU is no cache on another: numba keys each entry by the CPU's
+    name and features and compiles — in the foreground — when none matches. A wheel built with
+    its kernels at install and carried to another machine (or a home folder shared by machines
+    of several CPUs) must therefore read as "not cached" there, so that the numpy path serves and
+    the background builder adds this CPU's code. ``NUMBA_CPU_NAME=generic`` is numba's own way
+    of being "another CPU"; the oracle is numba's behaviour: does it rewrite the index?"""
+    src_dir, cache = tmp_path / "src", tmp_path / "cache"
+    src_dir.mkdir()
+    source = src_dir / "kmod.py"
+    source.write_text(_KERNEL_SRC)
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(cache))
+    _numba_call(src_dir, cache)  # compiled for this CPU
+    written = _indexes(cache)
+    assert written and jit.kernel_cached(source)
+
+    def probe(env: dict[str, str]) -> tuple[bool, str]:
+        out = subprocess.run(
+            [sys.executable, "-c", _HOST_CPU, str(source)],
+            env=env,
+            check=True,
+            capture_output=True,
+            text=True,
+        ).stdout
+        cached, name = json.loads(out)
+        return cached, name
+
+    generic = dict(os.environ, NUMBA_CACHE_DIR=str(cache), NUMBA_CPU_NAME="generic")
+    assert probe(generic) == (False, "generic")
+    _numba_call_env = dict(generic, PYTHONPATH=str(src_dir))
+    subprocess.run(
+        [sys.executable, "-c", "import kmod; assert kmod.twice(2.0) == 4.0"],
+        env=_numba_call_env,
+        check=True,
+    )
+    assert _indexes(cache) != written  # numba compiled for "generic" and added it
+    assert probe(generic) == (True, "generic")
+    assert jit.kernel_cached(source)  # this CPU's entry is still there
+
+
+def _fake_index(
+    path: Path, version: str, stamp: object, cpu: tuple[str, str] | None = None
+) -> None:
+    """An index as numba writes one: its version, then (stamp, {key: data file}) with one entry
+    keyed (signature, (triple, CPU name, CPU features), hashes) — for this CPU by default."""
     import pickle
 
+    from roboisf.jit import shim
+
+    if cpu is None:
+        host = shim._host_cpu()
+        assert host is not None
+        cpu = (host[0].decode(), host[1].decode())
+    key = ("(float64,)", ("x86_64-unknown-linux-gnu", *cpu), ("h0", "h1"))
     with open(path, "wb") as f:
         pickle.dump(version, f, protocol=-1)
-        f.write(pickle.dumps((stamp, {}), protocol=-1))
+        f.write(pickle.dumps((stamp, {key: "kmod.twice-5.py311.1.nbc"}), protocol=-1))
 
 
 @needs_numba
@@ -713,6 +773,11 @@ def test_kernel_cached_reads_the_version_and_both_stamp_formats(tmp_path, monkey
     assert jit.kernel_cached(source)
     _fake_index(index, ours, (st.st_mtime + 1.0, st.st_size))
     assert not jit.kernel_cached(source)
+    # fresh by version and source, but compiled for another CPU: numba would compile
+    _fake_index(index, ours, digest, cpu=("some-other-cpu", "+sse2,-avx"))
+    assert not jit.kernel_cached(source)
+    _fake_index(index, ours, digest)
+    assert jit.kernel_cached(source)
     index.write_bytes(b"not a pickle")  # unknown format: its time against the source's
     os.utime(index, (st.st_mtime + 10, st.st_mtime + 10))
     assert jit.kernel_cached(source)
@@ -763,3 +828,4 @@ def test_run_chunks_stays_in_a_worker_thread_when_asked_and_raises_the_rows_erro
         jit.run_chunks(bad, 10, 2, workers=2)
     with pytest.raises(ValueError, match="chunk"):
         jit.run_chunks(rows, 10, 0)
+

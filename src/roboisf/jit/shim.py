@@ -1,9 +1,10 @@
 """The optional numba import, its fallback, and whether numba holds a module's cache.
 
-numba is an extra (``pip install 'roboisf[fast]'``). :data:`HAVE_NUMBA` says whether it is
-installed without importing it (≈ 0.5 s); :func:`njit` imports it on first use, so a kernel
-module pays the import only when it is itself imported. Without numba :func:`njit` returns the
-function unchanged.
+numba is a dependency (its kernels are built at install: :mod:`roboisf.jit.prebuild`), but a
+run can do without it: ``ROBOISF_NUMBA=0``, or an install where it does not import.
+:data:`HAVE_NUMBA` says whether it is there without importing it (≈ 0.5 s); :func:`njit`
+imports it on first use, so a kernel module pays the import only when it is itself imported.
+Without numba :func:`njit` returns the function unchanged.
 """
 
 from __future__ import annotations
@@ -124,10 +125,18 @@ def _cache_dirs(source: Path) -> list[Path]:
     return [source.parent / "__pycache__", Path.home() / ".cache" / "numba" / sub]
 
 
-def kernel_cached(module_file: str | os.PathLike[str]) -> bool:
+def kernel_cached(module_file: str | os.PathLike[str], *, dirs: list[Path] | None = None) -> bool:
     """True when numba holds a cache index of the module's kernels that numba itself will take
-    as fresh (else its first call compiles them). Imports nothing (numba's import alone is
-    ≈ 0.3 s): reads the head of each index file, and the source when its content is the key.
+    as fresh (else its first call compiles them). Reads the head of each index file, and the
+    source when its content is the key; ``dirs``: the cache folders to look in (default:
+    numba's, :func:`_cache_dirs`).
+
+    An index that is fresh by version and source must also hold code for *this* CPU
+    (:func:`_host_cpu`: its name and features, numba's key of an entry): a cache built on
+    another machine — a wheel built at install and carried to the cell's PC, a home folder
+    shared by machines of several CPUs — would otherwise be taken as ready and numba would
+    compile in the foreground. Only that last check imports numba (≈ 0.3 s, which the
+    compiled run it allows pays anyway).
 
     Fresh is judged as numba judges it (:func:`_index_fresh`): the index's numba version is the
     installed one, and its source stamp is the source's — a SHA-256 of the source's bytes in
@@ -142,7 +151,7 @@ def kernel_cached(module_file: str | os.PathLike[str]) -> bool:
         st = source.stat()
     except OSError:
         return True  # nothing to compare: say nothing
-    for folder in _cache_dirs(source):
+    for folder in _cache_dirs(source) if dirs is None else dirs:
         try:
             indexes = list(folder.glob(f"{source.stem}.*.nbi"))
         except OSError:
@@ -154,9 +163,45 @@ def kernel_cached(module_file: str | os.PathLike[str]) -> bool:
                     fresh = index.stat().st_mtime >= st.st_mtime
                 except OSError:
                     fresh = False
+            elif fresh:
+                fresh = _for_this_cpu(index)
             if fresh:
                 return True
     return False
+
+
+@functools.cache
+def _host_cpu() -> tuple[bytes, bytes] | None:
+    """This machine's CPU as numba keys its cache entries — its name and feature string
+    (``codegen.magic_tuple()``, with numba's own ``NUMBA_CPU_NAME`` / ``NUMBA_CPU_FEATURES`` /
+    ``NUMBA_ENABLE_AVX`` settings applied) — UTF-8 encoded as pickle stores them; None when
+    numba cannot say (then no entry is rejected for its CPU)."""
+    try:
+        import llvmlite.binding as ll
+        from numba.core import config
+        from numba.core.codegen import get_host_cpu_features
+
+        cpu_name = getattr(config, "CPU_NAME", None)  # set from the environment at import
+        cpu_features = getattr(config, "CPU_FEATURES", None)
+        name = cpu_name or ll.get_host_cpu_name()
+        features = cpu_features if cpu_features is not None else get_host_cpu_features()
+    except Exception:  # pragma: no cover - numba missing or broken: numba will say so itself
+        return None
+    return str(name).encode(), str(features).encode()
+
+
+def _for_this_cpu(index: Path) -> bool:
+    """Whether the cache index ``index`` holds an entry compiled for this CPU: its name and its
+    feature string both appear in the index (they are the two strings of each entry's key
+    after the target triple; an index is a few kB)."""
+    cpu = _host_cpu()
+    if cpu is None:
+        return True
+    try:
+        data = index.read_bytes()
+    except OSError:
+        return False
+    return cpu[0] in data and cpu[1] in data
 
 
 @functools.cache
