@@ -43,7 +43,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from roboisf.jit.shim import HAVE_NUMBA, kernel_cached, numba_version_installed
+from roboisf.jit.shim import HAVE_NUMBA, NUMBA_ENV, kernel_cached, numba_version_installed
 from roboisf.progress import notice_once
 
 __all__ = [
@@ -141,7 +141,11 @@ def check_backend(backend: str, *, field: str = "backend", have_numba: bool | No
             f"backend must be 'auto', 'numba' or 'numpy', got {backend!r}", field=field
         )
     if backend == "numba" and not (HAVE_NUMBA if have_numba is None else have_numba):
-        raise InputError("backend 'numba' needs numba: pip install 'roboisf[fast]'", field=field)
+        raise InputError(
+            f"backend 'numba' needs numba, which is switched off ({NUMBA_ENV}=0) or does not "
+            "import here (pip install numba)",
+            field=field,
+        )
     return backend
 
 

@@ -1,5 +1,5 @@
 """Compiled (numba) passes over a force log: row norms, and the running trapezoid integral read
-at chosen samples; imported on first use (``pip install roboisf[fast]``).
+at chosen samples; imported on first use (built at install: :mod:`roboisf.jit.prebuild`).
 
 A 1 kHz log of a paper-scale part has 2.3 M samples (110 MB per (N, 6) float64 array). The numpy
 forms of these steps allocate several arrays of the log's size each (``norm`` squares all

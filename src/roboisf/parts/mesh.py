@@ -6,7 +6,7 @@ scan code does not care which kind of nominal it compares against.
 
 Two exact closest-point engines (``MeshPart(..., backend=...)``):
 
-- ``"numba"`` (used by default when numba is installed, ``pip install roboisf[fast]``): a
+- ``"numba"`` (the default; numba's kernels are built at install): a
   compiled uniform-grid search seeded by the previous point, see :mod:`roboisf.parts.mesh_kernel`;
   2–2.7× less CPU than Open3D's ``RaycastingScene`` on 3 M points, 1.4–3× faster in wall time
   on a contended machine (docs/scan.md);
@@ -307,8 +307,8 @@ class MeshPart:
     source : the file it came from (for the TOML round trip), or None
     backend : closest-point engine: ``"auto"`` (default: ``"numba"`` when numba is
         installed, else ``"numpy"``), ``"numba"`` (compiled uniform-grid search,
-        :mod:`roboisf.parts.mesh_kernel`, 1.4–3× faster than Open3D on the benchmark; install
-        ``roboisf[fast]``) or ``"numpy"`` (k-d tree over the centroids, see the module doc).
+        :mod:`roboisf.parts.mesh_kernel`, 1.4–3× faster than Open3D on the benchmark) or
+        ``"numpy"`` (k-d tree over the centroids, see the module doc).
         Both are exact and compute the point–triangle distance with the same arithmetic; at
         exact ties (a point equally far from two triangles) they may name different faces.
         Not saved by :meth:`to_dict` (a choice of the run, not of the part).

@@ -1,7 +1,7 @@
 """Compiled (numba) exact closest-triangle query for :class:`~roboisf.parts.MeshPart`.
 
-Optional: used when numba is installed (``pip install roboisf[fast]``); otherwise ``MeshPart``
-falls back to its pure numpy k-d-tree query, which gives the same answers, ~3× slower.
+Used when numba is there (a dependency; ``ROBOISF_NUMBA=0`` switches it off); otherwise
+``MeshPart`` falls back to its pure numpy k-d-tree query, which gives the same answers, ~3× slower.
 
 Algorithm (exact):
 

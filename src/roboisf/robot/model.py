@@ -77,8 +77,8 @@ class RobotModel:
         whenever :func:`~roboisf.robot.ik.ik_toolpath` falls back to numerical IK
     backend : VJM engine of :meth:`compliance`, :meth:`deflection` and
         :func:`~roboisf.robot.vjm_batch`: ``"auto"`` (default: ``"numba"`` when numba is
-        installed, else ``"numpy"``), ``"numba"`` (fused compiled kernel, install
-        ``roboisf[fast]``) or ``"numpy"`` (chunked vectorised numpy); same numbers to ≤ 1e-14
+        installed and not switched off, else ``"numpy"``), ``"numba"`` (fused compiled
+        kernel, built at install) or ``"numpy"`` (chunked vectorised numpy); same numbers to ≤ 1e-14
         relative (:mod:`roboisf.robot.vjm_kernel`). A choice of the run, not saved with the robot.
     """
 

@@ -4,7 +4,7 @@ One entry point, :func:`vjm_eval`, behind :meth:`RobotModel.deflection`,
 :meth:`RobotModel.compliance`, :func:`roboisf.robot.vjm_batch` and ``roboisf.plan``. Two engines
 give the same numbers (≤ 1e-14 relative, tested on every preset):
 
-``"numba"`` (used when numba is installed, ``pip install roboisf[fast]``)
+``"numba"`` (the default: numba is a dependency, its kernels built at install)
     one compiled loop over the poses that walks the chain of
     :mod:`roboisf.robot.kinematics` (seven fixed transforms ``F_0 .. F_6``, the tool folded into
     ``F_6``; ``θ = sign·q + offset``) in scalar registers and writes only the results: no

@@ -1,7 +1,7 @@
 """Compiled (numba) exact mean distance to the k nearest neighbours, for the scan's statistical
 outlier filter (:func:`roboisf.scan.statistical_outliers`).
 
-Optional: used when numba is installed (``pip install roboisf[fast]``); otherwise the filter
+Used when numba is there (a dependency; ``ROBOISF_NUMBA=0`` switches it off); otherwise the filter
 queries scipy's ``cKDTree``, which gives the same neighbours.
 
 Algorithm (exact, the same idea as :mod:`roboisf.parts.mesh_kernel`):

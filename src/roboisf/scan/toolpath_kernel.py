@@ -1,7 +1,7 @@
 """Compiled (numba) neighbourhood statistics of the toolpath contacts, for
 :func:`roboisf.scan.toolpath_deviations`.
 
-Optional: used when numba is installed (``pip install roboisf[fast]``); otherwise
+Used when numba is there (a dependency; ``ROBOISF_NUMBA=0`` switches it off); otherwise
 :func:`~roboisf.scan.toolpath_deviations` queries scipy's ``cKDTree`` (the reference path, whose
 results these equal — tested).
 

@@ -1,0 +1,113 @@
+"""Build step of roboisf's install: its compiled kernels built with the package (pyproject.toml
+holds everything else).
+
+``build_kernels`` runs after ``build_py`` in every build pip makes — a wheel (into the
+package copied to ``build/lib``) and an editable install (into ``src``, editable mode) — and
+compiles every numba kernel of the package into numba's cache beside its sources
+(``python -m roboisf.jit.prebuild``; docs/speed.md, "Kernels built at install"). The build
+environment has numba and what the kernels' modules import (``[build-system] requires``).
+
+Never fatal: a failure prints its reason and the install goes on without the cache; the first
+run then builds it in the background, as an install without this step did.
+``ROBOISF_BUILD_KERNELS=0`` skips it.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+from typing import ClassVar
+
+from setuptools import Command, setup
+from setuptools.command.build import build
+
+#: Longest the kernel build may take [s] before the install goes on without it (it takes
+#: 10-40 s on 2 cores).
+TIMEOUT_S = 900
+
+
+class build_kernels(Command):  # setuptools names its commands in snake case
+    """Compile roboisf's numba kernels into the package's in-tree numba cache."""
+
+    description = "compile roboisf's numba kernels into the package's numba cache"
+    user_options: ClassVar[list[tuple[str, str | None, str]]] = []
+
+    def initialize_options(self) -> None:
+        self.build_lib: str | None = None
+        self.editable_mode = False
+
+    def finalize_options(self) -> None:
+        self.set_undefined_options("build_py", ("build_lib", "build_lib"))
+
+    def _root(self) -> Path:
+        return Path("src").resolve() if self.editable_mode else Path(self.build_lib).resolve()
+
+    def run(self) -> None:
+        if os.environ.get("ROBOISF_BUILD_KERNELS", "1").strip() == "0":
+            self.announce("roboisf kernels: not built (ROBOISF_BUILD_KERNELS=0)", level=2)
+            return
+        root = self._root()
+        env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+        env["PYTHONPATH"] = os.pathsep.join([str(root), *filter(None, [env.get("PYTHONPATH")])])
+        env["ROBOISF_BACKGROUND_COMPILE"] = "0"  # compile here; never start a builder
+        env.pop("ROBOISF_NUMBA", None)
+        try:
+            r = subprocess.run(
+                [sys.executable, "-m", "roboisf.jit.prebuild", str(root)],
+                env=env,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.STDOUT,
+                text=True,
+                timeout=TIMEOUT_S,
+            )
+            out = r.stdout.strip()
+        except (OSError, subprocess.TimeoutExpired) as e:
+            out = f"roboisf kernels: not built ({e}); they will be built after the first run"
+        for line in out.splitlines()[-20:]:
+            print(line, file=sys.stderr)
+
+    def get_outputs(self) -> list[str]:
+        # numba names its files after each kernel; they are found after the build
+        root = self._root() / "roboisf"
+        return [str(p) for p in root.rglob("__pycache__/*.nb[ic]")]
+
+    def get_source_files(self) -> list[str]:
+        return []
+
+    def get_output_mapping(self) -> dict[str, str]:
+        return {}
+
+
+class build_with_kernels(build):
+    """``build`` with :class:`build_kernels` after its own steps (``build_py`` first)."""
+
+    sub_commands: ClassVar[list[tuple[str, object]]] = [
+        *build.sub_commands,
+        ("build_kernels", None),
+    ]
+
+
+cmdclass: dict[str, type] = {"build": build_with_kernels, "build_kernels": build_kernels}
+
+try:  # setuptools ≥ 70.1 has bdist_wheel itself
+    from setuptools.command.bdist_wheel import bdist_wheel
+except ImportError:  # pragma: no cover - older setuptools: the wheel keeps the pure tag
+    pass
+else:
+
+    class bdist_wheel_with_kernels(bdist_wheel):
+        """A wheel that carries compiled kernels is not pure Python: numba's cache is for this
+        Python (``py311`` in its file names) and platform, so the wheel is tagged for them
+        (``cp311-cp311-linux_x86_64``) and pip does not take it for another Python. Pure, as
+        before, when the kernels were not built."""
+
+        def get_tag(self) -> tuple[str, str, str]:
+            if any(Path(self.bdist_dir).rglob("__pycache__/*.nbi")):
+                self.root_is_pure = False
+            return super().get_tag()
+
+    cmdclass["bdist_wheel"] = bdist_wheel_with_kernels
+
+setup(cmdclass=cmdclass)
