@@ -12,8 +12,13 @@ side: first, second, first/second (the issue's target: ≤ 1.5), the builder wai
 average before the pair. The inputs (a cone part, the small virtual study) are made once up
 front with their own cache and are not timed. ``ROBOISF_BACKGROUND_COMPILE=0`` in the
 environment measures the old behaviour (compile in the foreground on first use); ``--no-numba``
-runs the timed commands as the plain install, without the ``fast`` extra, does: the numpy engines
-throughout (``ROBOISF_NUMBA=0``, inherited by the demo's worker processes).
+runs the timed commands with numba switched off: the numpy engines throughout
+(``ROBOISF_NUMBA=0``, inherited by the demo's worker processes).
+
+``--install`` measures what a new user gets: a new venv, ``pip install -e`` of a clean copy of
+this tree (timed: it builds the kernels, setup.py's ``build_kernels``), then every command's
+first and second call with that venv's Python and numba's cache as the install left it (no
+``NUMBA_CACHE_DIR``; a private temp folder, where a background builder's lock would show).
 
 The machine is usually shared: ratios from back-to-back pairs hold up under load, absolute
 times need a quiet machine.
@@ -59,10 +64,12 @@ def cases(d: str) -> dict[str, list[str]]:
     }
 
 
-def _run(args: list[str], env: dict[str, str], cwd: str) -> tuple[float, int]:
+def _run(
+    args: list[str], env: dict[str, str], cwd: str, python: str = sys.executable
+) -> tuple[float, int]:
     t = time.perf_counter()
     r = subprocess.run(
-        [sys.executable, "-c", RUN, "-q", *args],
+        [python, "-c", RUN, "-q", *args],
         env=env,
         cwd=cwd,
         stdout=subprocess.DEVNULL,
@@ -90,12 +97,51 @@ def _lock(cache: str) -> str:
             os.environ["NUMBA_CACHE_DIR"] = old
 
 
-def _wait_builder(cache: str, timeout: float) -> float:
+def _wait_builder(cache: str | None, timeout: float, tmp: str | None = None) -> float:
+    """Wait while the builder for kernel cache ``cache`` runs — or, ``tmp`` given, while any
+    builder's lock is in that temp folder (an installed copy's lock has another key)."""
     t = time.perf_counter()
-    lock = _lock(cache)
-    while os.path.exists(lock) and time.perf_counter() - t < timeout:
+
+    def building() -> bool:
+        if tmp is not None:
+            return any(n.startswith("roboisf-kernel-build-") for n in os.listdir(tmp))
+        assert cache is not None
+        return os.path.exists(_lock(cache))
+
+    while building() and time.perf_counter() - t < timeout:
         time.sleep(0.5)
     return time.perf_counter() - t
+
+
+def _install(d: str) -> tuple[str, float]:
+    """A new venv in ``d`` with a clean copy of this tree installed as the README does
+    (``pip install -e``); its Python and the install's wall time [s]."""
+    root = os.path.abspath(os.path.join(os.path.dirname(__file__), os.pardir))
+    files = subprocess.run(
+        ["git", "ls-files", "-co", "--exclude-standard"],
+        cwd=root,
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout.split()
+    proj = os.path.join(d, "proj")
+    for f in files:
+        if os.path.isfile(os.path.join(root, f)):
+            os.makedirs(os.path.dirname(os.path.join(proj, f)), exist_ok=True)
+            shutil.copy2(os.path.join(root, f), os.path.join(proj, f))
+    venv = os.path.join(d, "venv")
+    subprocess.run([sys.executable, "-m", "venv", venv], check=True)
+    python = os.path.join(venv, "bin", "python")
+    t = time.perf_counter()
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "PYTHONPATH")}
+    subprocess.run(
+        [python, "-m", "pip", "install", "-q", "-e", proj],
+        check=True,
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    return python, time.perf_counter() - t
 
 
 def main() -> None:
@@ -106,6 +152,11 @@ def main() -> None:
         "--no-numba",
         action="store_true",
         help="run the timed commands without numba (plain install)",
+    )
+    ap.add_argument(
+        "--install",
+        action="store_true",
+        help="a new venv and `pip install -e` of this tree first (timed); its cache, as installed",
     )
     a = ap.parse_args()
 
@@ -123,7 +174,18 @@ def main() -> None:
     )
     with tempfile.TemporaryDirectory(prefix="roboisf-cold-") as d:
         setup = dict(base, NUMBA_CACHE_DIR=os.path.join(d, "setup-cache"))
+        python, tmp = sys.executable, None
         print(speed_line(), flush=True)  # the machine's pace now (benchmarks/machine.py)
+        if a.install:
+            python, took = _install(d)
+            tmp = os.path.join(d, "tmp")
+            os.makedirs(tmp)
+            # as a user's shell: bytecode written on first import (pip does not compile an
+            # editable install's sources: the first call pays that, and it is timed)
+            drop = ("NUMBA_CACHE_DIR", "PYTHONPATH", "PYTHONDONTWRITEBYTECODE")
+            base = {k: v for k, v in os.environ.items() if k not in drop}
+            base["TMPDIR"] = tmp
+            print(f"pip install -e (new venv, kernels built at install): {took:.1f} s", flush=True)
         print("inputs (not timed) …", flush=True)
         for args in (
             ["part", "cone", "-o", f"{d}/cone.toml"],
@@ -144,6 +206,7 @@ def main() -> None:
                 f"{d}/small",
             ],
         ):
+            # with this tree (not the new install: its bytecode and kernels stay unused)
             if _run(args, setup, d)[1] != 0:
                 sys.exit("could not make the inputs")
         _wait_builder(setup["NUMBA_CACHE_DIR"], a.wait)
@@ -158,7 +221,9 @@ def main() -> None:
         for k, (name, args) in enumerate(cases(d).items()):
             if a.only and not any(name.startswith(p) for p in a.only.split(",")):
                 continue
-            env = dict(base, NUMBA_CACHE_DIR=os.path.join(d, f"cache-{k}"))
+            env = dict(base)
+            if not a.install:
+                env["NUMBA_CACHE_DIR"] = os.path.join(d, f"cache-{k}")
             if a.no_numba:
                 env["ROBOISF_NUMBA"] = "0"
             load = " ".join(f"{x:.2f}" for x in os.getloadavg())
@@ -166,11 +231,11 @@ def main() -> None:
             waited = 0.0
             for call in range(2):
                 out = os.path.join(d, f"out-{k}-{call}")
-                t, _ = _run([x.replace("{o}", out) for x in args], env, d)
+                t, _ = _run([x.replace("{o}", out) for x in args], env, d, python)
                 times.append(t)
                 shutil.rmtree(out, ignore_errors=True)
                 if call == 0:
-                    waited = _wait_builder(env["NUMBA_CACHE_DIR"], a.wait)
+                    waited = _wait_builder(env.get("NUMBA_CACHE_DIR"), a.wait, tmp)
             print(
                 f"{name:32s} {times[0]:8.1f} {times[1]:9.1f} {times[0] / times[1]:6.2f} "
                 f"{waited:9.1f}  {load}",
