@@ -579,10 +579,14 @@ class _ScansBeside:
             self._ready[run.name].set()
 
     def result(self) -> dict[str, ScanComparison]:
+        """The scans' comparisons, in the study's order of the runs — not the order the two
+        lanes finished in, which the machine's load decides: the summary's warnings and every
+        table built by walking this dict came out in either order (two analyses of one study
+        gave two summary.json, 2026-11-29)."""
         self._thread.join()
         if self._error is not None:
             raise self._error
-        return self._scans
+        return {run.name: self._scans[run.name] for run in self._runs if run.name in self._scans}
 
     def running(self) -> bool:
         return self._thread.is_alive()
