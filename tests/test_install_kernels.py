@@ -1,0 +1,142 @@
+"""Kernels built at install (issue #31): pip builds roboisf's wheel; setup.py's build_kernels step
+compiles every kernel into numba's cache beside the package's sources; the installed package's
+first analyze and plan run compiled (no background builder, nothing compiled on first use). The
+wheel is built as pip builds it (`pip wheel`), without build isolation: the test venv holds what
+[build-system] requires lists, and no package index is needed.
+
+A module of its own: its full build runs on the other pytest-xdist worker than test_jit.py's
+(each compiles every kernel, ~35 s on CI)."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from roboisf import jit
+from roboisf.jit.prebuild import in_tree_missing
+from test_jit import SRC, _signatures
+
+needs_numba = pytest.mark.skipif(not jit.HAVE_NUMBA, reason="numba not installed")
+
+_READY = """
+import json, roboisf
+from roboisf.jit import background as bg
+print(json.dumps({"file": roboisf.__file__, "ready": {g: bg.ready(g) for g in bg.GROUPS}}))
+"""
+
+
+def _project_copy(dest: Path) -> Path:
+    """The project's build inputs copied to ``dest`` (no caches, no build folder)."""
+    dest.mkdir()
+    for name in ("pyproject.toml", "setup.py", "README.md"):
+        shutil.copy2(SRC.parents[1] / name, dest / name)
+    shutil.copytree(
+        SRC,
+        dest / "src" / "roboisf",
+        ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.nbi", "*.nbc"),
+    )
+    return dest
+
+
+@needs_numba
+@pytest.mark.slow
+def test_the_wheel_carries_its_kernels_and_the_first_run_compiles_nothing(
+    tmp_path, fast_cone_study
+):
+    proj = _project_copy(tmp_path / "proj")
+    wheels = tmp_path / "wheels"
+    env = dict(os.environ)
+    # a user's cache folder is not where the package's kernels go: the step must ignore it
+    env["NUMBA_CACHE_DIR"] = str(tmp_path / "users-cache")
+    env.pop("PYTHONPATH", None)
+    r = subprocess.run(
+        [
+            *(sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation"),
+            *("-w", str(wheels), str(proj)),
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    assert r.returncode == 0, r.stderr[-3000:]
+    (whl,) = wheels.glob("roboisf-*.whl")
+    # not pure Python any more: numba's cache is for this Python and platform
+    assert f"-cp{sys.version_info[0]}{sys.version_info[1]}-" in whl.name, whl.name
+    with zipfile.ZipFile(whl) as z:
+        names = z.namelist()
+        record = next(n for n in names if n.endswith(".dist-info/RECORD"))
+        recorded = {line.split(",")[0] for line in z.read(record).decode().splitlines()}
+        kernels = [n for n in names if n.endswith((".nbi", ".nbc"))]
+        # every cache file is in the wheel's RECORD: pip installs and uninstalls it
+        assert kernels and set(kernels) <= recorded
+        site = tmp_path / "site"
+        z.extractall(site)
+    assert not (tmp_path / "users-cache").exists()
+    # every kernel group's modules have a cache numba takes as its own, beside the sources
+    assert in_tree_missing(site) == []
+
+    # the installed package, as a user runs it: background building on, no cache folder of
+    # numba's set, its own temp folder (where a builder's lock would appear)
+    run_env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "PYTHONPATH")}
+    run_env.update(PYTHONPATH=str(site), ROBOISF_BACKGROUND_COMPILE="1", TMPDIR=str(tmp_path))
+    probe = json.loads(
+        subprocess.run(
+            [sys.executable, "-c", _READY], env=run_env, check=True, capture_output=True, text=True
+        ).stdout
+    )
+    assert Path(probe["file"]).resolve().is_relative_to(site.resolve())
+    assert all(probe["ready"].values()), probe["ready"]  # compiled at once: no builder
+    assert not list(tmp_path.glob("roboisf-kernel-build-*"))
+    built = _signatures(site)
+    part = tmp_path / "cone.toml"
+    for args in (
+        ["analyze", str(fast_cone_study), "-o", str(tmp_path / "analysis")],
+        ["part", "cone", "-o", str(part)],
+        [
+            *("plan", "--part", str(part), "--x-range", "2000:2200:2", "--y-range", "-500"),
+            *("--z-range", "200", "--serial", "-o", str(tmp_path / "plan")),
+        ],
+    ):
+        subprocess.run(
+            [sys.executable, "-m", "roboisf", "-q", *args],
+            env=run_env,
+            check=True,
+            capture_output=True,
+            timeout=600,
+        )
+    assert (tmp_path / "analysis" / "summary.json").is_file()
+    assert not list(tmp_path.glob("roboisf-kernel-build-*"))  # no builder was started
+    missed = _signatures(site) - built
+    assert not missed, f"analyze or plan compiled what the install did not: {sorted(missed)}"
+
+
+def test_the_build_step_can_be_switched_off_and_fails_softly(tmp_path):
+    """``ROBOISF_BUILD_KERNELS=0`` skips the step; a wrong root or a set NUMBA_CACHE_DIR is a
+    printed reason and exit 1 (setup.py prints it and the install goes on), never a traceback."""
+    base = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+
+    def run(root: Path, **extra: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(
+            [sys.executable, "-m", "roboisf.jit.prebuild", str(root)],
+            env={**base, **extra},
+            capture_output=True,
+            text=True,
+        )
+
+    off = run(tmp_path, ROBOISF_BUILD_KERNELS="0")
+    assert off.returncode == 0 and "not built (ROBOISF_BUILD_KERNELS=0)" in off.stdout
+    cache_set = run(tmp_path, NUMBA_CACHE_DIR=str(tmp_path / "c"))
+    assert cache_set.returncode == 1 and "NUMBA_CACHE_DIR is set" in cache_set.stdout
+    if jit.HAVE_NUMBA:
+        wrong = run(tmp_path)  # roboisf is imported from the checkout, not from tmp_path
+        assert wrong.returncode == 1 and "not from" in wrong.stdout, wrong.stdout
+        assert "Traceback" not in wrong.stdout + wrong.stderr
+    assert not any(tmp_path.rglob("*.nbi"))
