@@ -727,6 +727,63 @@ def test_kernel_cached_rejects_a_cache_of_another_cpu_as_numba_does(tmp_path, mo
     assert jit.kernel_cached(source)  # this CPU's entry is still there
 
 
+def test_the_cache_folder_is_the_one_numbas_locators_choose(tmp_path, monkeypatch):
+    """NUMBA_CACHE_DIR; else __pycache__ beside the source when numba can write there; else the
+    user's cache folder ($XDG_CACHE_HOME/numba) — one folder, never two: a read-only install's
+    __pycache__ (built at install by another user) is not where numba looks."""
+    import hashlib
+
+    from roboisf.jit import shim
+
+    source = tmp_path / "pkg" / "kmod.py"
+    source.parent.mkdir()
+    source.write_text(_KERNEL_SRC)
+    sub = "pkg_" + hashlib.sha1(str(source.parent).encode()).hexdigest()
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert shim._cache_dirs(source) == [source.parent / "__pycache__"]  # writable (made later)
+    monkeypatch.setattr(shim, "_writable_folder", lambda folder: False)
+    assert shim._cache_dirs(source) == [tmp_path / "xdg" / "numba" / sub]
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "c"))
+    assert shim._cache_dirs(source) == [tmp_path / "c" / sub]
+
+
+@needs_numba
+def test_a_read_only_install_cache_is_not_taken_as_ready(tmp_path, monkeypatch):
+    """A fresh index in __pycache__ that numba cannot write to: numba ignores it (it caches in
+    the user's folder instead), so kernel_cached must say "not cached" — else ready() sends the
+    run to a kernel that compiles in the foreground."""
+    from roboisf.jit import shim
+
+    src_dir = tmp_path / "pkg"
+    src_dir.mkdir()
+    source = src_dir / "kmod.py"
+    source.write_text(_KERNEL_SRC)
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    env.update(PYTHONPATH=str(src_dir), XDG_CACHE_HOME=str(tmp_path / "xdg"))
+    call = [sys.executable, "-c", "import kmod; assert kmod.twice(2.0) == 4.0"]
+    subprocess.run(call, env=env, check=True)  # compiled into __pycache__ (writable)
+    assert list((src_dir / "__pycache__").glob("kmod.*.nbi")) and jit.kernel_cached(source)
+    monkeypatch.setattr(shim, "_writable_folder", lambda folder: False)
+    assert not jit.kernel_cached(source)  # numba would look in the user's folder: empty
+    if os.geteuid() == 0:
+        # root writes anywhere: numba cannot be shown a read-only folder here. Checked by hand
+        # as user nobody (2026-11-29): numba missed the read-only __pycache__ and compiled into
+        # $XDG_CACHE_HOME/numba; kernel_cached said False (the code before this test: True)
+        return
+    (src_dir / "__pycache__").chmod(0o555)
+    src_dir.chmod(0o555)
+    try:
+        subprocess.run(call, env=env, check=True)
+        # numba ignored the read-only cache and compiled into the user's folder
+        assert list((tmp_path / "xdg" / "numba").rglob("kmod.*.nbi"))
+    finally:
+        src_dir.chmod(0o755)
+        (src_dir / "__pycache__").chmod(0o755)
+
+
 def _fake_index(
     path: Path, version: str, stamp: object, cpu: tuple[str, str] | None = None
 ) -> None:

@@ -113,16 +113,48 @@ def python_copy(module_name: str) -> ModuleType:
 
 
 def _cache_dirs(source: Path) -> list[Path]:
-    """Where numba keeps the on-disk cache of ``source``'s ``cache=True`` functions: beside it
-    in ``__pycache__``, or under ``$NUMBA_CACHE_DIR`` / the user's cache folder in a folder
-    named after the source's folder and the SHA-1 of its absolute path (numba's
-    ``_CacheLocator.get_suitable_cache_subpath``)."""
+    """Where numba keeps — and looks for — the on-disk cache of ``source``'s ``cache=True``
+    functions, as its locators choose (``numba.core.caching``, first that applies):
+    ``$NUMBA_CACHE_DIR``; else ``__pycache__`` beside the source **when numba can write
+    there**; else the user's cache folder. Outside ``__pycache__`` the folder is named after the
+    source's folder and the SHA-1 of its absolute path (``get_suitable_cache_subpath``).
+
+    Only the one folder numba uses: an install made by another user (a system-wide or container
+    install run unprivileged) has a read-only ``__pycache__`` holding the kernels built at
+    install, which numba then ignores — it compiles into the user's folder. Counting that
+    cache as ready made such a run compile in the foreground."""
     parent = os.path.dirname(os.path.abspath(source))
     sub = os.path.basename(parent) + "_" + hashlib.sha1(parent.encode()).hexdigest()
     env = os.environ.get("NUMBA_CACHE_DIR")
     if env:  # numba then looks nowhere else
         return [Path(env) / sub]
-    return [source.parent / "__pycache__", Path.home() / ".cache" / "numba" / sub]
+    pycache = source.parent / "__pycache__"
+    if _writable_folder(pycache):
+        return [pycache]
+    return [_user_cache_root() / sub]
+
+
+def _writable_folder(folder: Path) -> bool:
+    """Whether numba's in-tree locator takes ``folder``: it exists and is writable, or can be
+    made (numba creates it and writes a temporary file there to check)."""
+    probe = folder
+    while not probe.exists():
+        if probe.parent == probe:
+            return False
+        probe = probe.parent
+    return probe.is_dir() and os.access(probe, os.W_OK | os.X_OK)
+
+
+def _user_cache_root() -> Path:
+    """numba's user-wide cache folder (``appdirs.user_cache_dir("numba")``): on Linux
+    ``$XDG_CACHE_HOME/numba`` (default ``~/.cache/numba``), on macOS
+    ``~/Library/Caches/numba``, on Windows ``%LOCALAPPDATA%\\numba\\Cache``."""
+    if sys.platform == "darwin":
+        return Path.home() / "Library" / "Caches" / "numba"
+    if sys.platform.startswith("win"):
+        local = os.environ.get("LOCALAPPDATA") or str(Path.home() / "AppData" / "Local")
+        return Path(local) / "numba" / "Cache"
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "numba"
 
 
 def kernel_cached(module_file: str | os.PathLike[str], *, dirs: list[Path] | None = None) -> bool:
