@@ -37,7 +37,7 @@ __all__ = [
 
 
 #: Environment switch: "0" runs roboisf as if numba were not installed (the numpy engines
-#: throughout, as the plain install does; inherited by the processes roboisf starts).
+#: throughout; inherited by the processes roboisf starts).
 NUMBA_ENV = "ROBOISF_NUMBA"
 
 
