@@ -91,11 +91,12 @@ class build_with_kernels(build):
 
 cmdclass: dict[str, type] = {"build": build_with_kernels, "build_kernels": build_kernels}
 
-try:  # setuptools ≥ 70.1 has bdist_wheel itself
+try:  # setuptools ≥ 70.1 has bdist_wheel itself; older: the wheel keeps the pure tag
     from setuptools.command.bdist_wheel import bdist_wheel
-except ImportError:  # pragma: no cover - older setuptools: the wheel keeps the pure tag
-    pass
-else:
+except ImportError:  # pragma: no cover
+    bdist_wheel = None
+
+if bdist_wheel is not None:
 
     class bdist_wheel_with_kernels(bdist_wheel):
         """A wheel that carries compiled kernels is not pure Python: numba's cache is for this
