@@ -118,9 +118,10 @@ app = typer.Typer(
         "Typical session:  roboisf demo   ·   roboisf analyze study/ -o results/   ·   "
         "roboisf compensate ...\n\nLengths on the command line are mm, angles degrees; files "
         "declare their own units. -q/-v may come before or after the command.\n\n"
-        "On a new install roboisf's compiled kernels (numba) are built once in the background "
-        "after the first run, which uses numpy; ROBOISF_BACKGROUND_COMPILE=0 builds them in the "
-        "foreground (and shows why a failed background build failed)."
+        "roboisf's compiled kernels (numba) are built at install. Where that cache cannot serve "
+        "(a kernel edited, numba upgraded, another CPU, a read-only install) they are built once "
+        "in the background after the first run, which uses numpy; ROBOISF_BACKGROUND_COMPILE=0 "
+        "builds them in the foreground (and shows why a failed background build failed)."
     ),
     no_args_is_help=True,
     add_completion=False,
