@@ -140,3 +140,28 @@ def test_the_build_step_can_be_switched_off_and_fails_softly(tmp_path):
         assert wrong.returncode == 1 and "not from" in wrong.stdout, wrong.stdout
         assert "Traceback" not in wrong.stdout + wrong.stderr
     assert not any(tmp_path.rglob("*.nbi"))
+
+
+def test_an_editable_install_gets_its_bytecode_compiled(tmp_path, monkeypatch):
+    """pip compiles an installed package's bytecode but not an editable one's: the build step
+    does it (in editable mode it works on the sources themselves), with or without kernels."""
+    import importlib.util
+
+    from setuptools import Distribution
+
+    spec = importlib.util.spec_from_file_location("roboisf_setup", SRC.parents[1] / "setup.py")
+    assert spec is not None and spec.loader is not None
+    setup_py = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(setup_py)  # defines the commands; setup() runs only as __main__
+    root = _project_copy(tmp_path / "proj") / "src"
+    cmd = setup_py.build_kernels(Distribution({"name": "roboisf"}))
+    cmd.initialize_options()
+    cmd.editable_mode = True
+    monkeypatch.setattr(cmd, "_root", lambda: root)
+    monkeypatch.setenv("ROBOISF_BUILD_KERNELS", "0")  # the bytecode alone
+    cmd.run()
+    sources = list((root / "roboisf").rglob("*.py"))
+    tag = sys.implementation.cache_tag
+    compiled = [p for p in sources if (p.parent / "__pycache__" / f"{p.stem}.{tag}.pyc").is_file()]
+    assert len(compiled) == len(sources) > 100
+    assert not any((root / "roboisf").rglob("*.nbi"))  # no kernels: switched off
