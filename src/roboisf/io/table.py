@@ -31,8 +31,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.csv as pacsv
 from numpy.typing import NDArray
 
 from roboisf.errors import InputError
@@ -379,6 +377,9 @@ ARROW_MAX_BYTES = 32 * 1024 * 1024
 def _arrow_body(path: Path, header_line: int, n: int, k: int, sep: str, decimal: str) -> F64 | None:
     """The ``n`` rows of ``k`` numbers after line ``header_line`` through ``pyarrow.csv``, or
     None unless there are exactly ``n`` rows of ``k`` finite numbers."""
+    import pyarrow as pa  # on first use: the kernels' build needs this module, not Arrow
+    import pyarrow.csv as pacsv
+
     names = [f"c{j}" for j in range(k)]
     try:
         table = pacsv.read_csv(
@@ -441,6 +442,9 @@ def format_rows(data: F64, formats: Sequence[str]) -> str:
     """
     if data.shape[1] != len(formats):
         raise ValueError("one format per column")
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+
     arrays = [
         pa.array(_round_column(np.asarray(data[:, j], dtype=float), f))
         for j, f in enumerate(formats)

@@ -35,7 +35,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import tomli_w
 
 from roboisf.errors import InputError
 from roboisf.formats import FileFormat, file_formats
@@ -257,6 +256,8 @@ def save_part(part: Part, path: str | Path) -> None:
     :data:`PART_DIGITS` significant digits (``opening_diameter = 87.0``, not
     ``87.00000000000001``); a part no forming cell makes is refused first
     (:func:`roboisf.plausible.check_part`)."""
+    import tomli_w  # on first use: reading parts needs only the standard library's tomllib
+
     check_part(part)
     with atomic_write(path, "wb") as fh:
         fh.write(tomli_w.dumps({"part": _tidy(part.to_dict())}).encode())
