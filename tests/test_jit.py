@@ -476,14 +476,11 @@ print(json.dumps({"ready": ready, "lock": str(bg.lock_path()), "failed": str(bg.
 
 @needs_numba
 @pytest.mark.slow
-def test_first_process_serves_numpy_builds_in_background_next_runs_compiled(
-    tmp_path, fast_cone_study
-):
-    """A fresh cache: numpy serves, one builder compiles every group, the next run finds them
-    — and an ``analyze`` and a ``plan`` then compile nothing more: every specialisation they
-    call (array layouts, integer types) is one the builder made. (The builder had missed
-    ``row_norms`` of a log read backwards and plan's whole inner loop, 2026-11-29: the first
-    ``analyze`` after it compiled for 0.2 s, the first ``plan`` for ~1.5 s.)"""
+def test_first_process_serves_numpy_builds_in_background_next_runs_compiled(tmp_path):
+    """A fresh cache: numpy serves, one builder compiles every group, the next run finds them.
+    That ``analyze`` and ``plan`` then compile nothing more is checked on the install's build
+    (tests/test_install_kernels.py), which runs the same ``build_missing``: the builder and the
+    install make the same specialisations."""
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), **{bg.ENV: "1"})
     env["PYTHONPATH"] = os.pathsep.join(p for p in sys.path if p)
     run = [sys.executable, "-c", _PROBE]
@@ -523,30 +520,7 @@ def test_first_process_serves_numpy_builds_in_background_next_runs_compiled(
     assert not lock.exists(), "background build did not finish in 10 min"
     assert not Path(first["failed"]).exists()
     assert all(probe()["ready"].values())  # the cache the builder left is used
-    built = _signatures(tmp_path / "cache")
-    assert built, "no kernel in the cache index"
-    out = tmp_path / "analysis"
-    subprocess.run(
-        [sys.executable, "-m", "roboisf", "-q", "analyze", str(fast_cone_study), "-o", str(out)],
-        env=env,
-        check=True,
-        capture_output=True,
-    )
-    assert (out / "summary.json").is_file()
-    part = tmp_path / "cone.toml"
-    for args in (
-        ["part", "cone", "-o", str(part)],
-        # two placements of the robot's default one, in this process: plan's compiled pass
-        [
-            *("plan", "--part", str(part), "--x-range", "2000:2200:2", "--y-range", "-500"),
-            *("--z-range", "200", "--serial", "-o", str(tmp_path / "plan")),
-        ],
-    ):
-        subprocess.run(
-            [sys.executable, "-m", "roboisf", "-q", *args], env=env, check=True, capture_output=True
-        )
-    missed = _signatures(tmp_path / "cache") - built
-    assert not missed, f"analyze or plan compiled what the builder did not: {sorted(missed)}"
+    assert _signatures(tmp_path / "cache"), "no kernel in the cache index"
 
 
 def _signatures(cache: Path) -> set[tuple[str, str]]:
