@@ -346,8 +346,8 @@ def test_rapid_program_set_splits_loads_and_reads_back(tmp_path, cell):
 
 
 def test_rapid_targets_in_one_pass_are_the_per_target_text():
-    """The writer's targets (orientation and confdata formatted once per distinct value, the
-    position's rounding inlined) are :func:`_target`'s text for every row: ±0, values that
+    """The writer's targets (orientation and confdata formatted once per distinct value) are
+    :func:`_target`'s text for every row: ±0, values that
     round to 0 or to an integer, halves, several orientations and confdata."""
     from roboisf.programs.rapid import _target, _targets
 
