@@ -241,7 +241,7 @@ def _knn_mean_block9(
     insertion sort gives, value for value. The stop test after the block is the ring search's
     after ring 1; a point it does not settle (its ninth distance beyond the block's faces) is
     left NaN here and finished by the ring search after every cell (:func:`_knn_mean_rows`:
-    ~11 k of the paper cone's 1.26 M; calling it from this loop made the loop 1.4× slower).
+    ~11–12 k of the paper cone's 1.26 M; calling it from this loop made the loop 1.4× slower).
     Same bits as the ring search: the nine smallest of a set that holds every point nearer
     than the block's faces.
 
@@ -249,7 +249,7 @@ def _knn_mean_block9(
     ≈ 57 a point visited with pruning on the paper cone) cost less in one vectorised pass over
     a buffer in L1 than the per-cell tests and short loops did. One core, the paper cone's
     1.26 M wall points (2026-11-29): this kernel 0.42–0.46 s plus 0.10 s of ring search for the
-    ~12 k points it leaves (the scan's strays), against 0.57–0.59 s for ``_knn_mean_cells9``
+    ~11–12 k points it leaves (the scan's strays), against 0.57–0.59 s for ``_knn_mean_cells9``
     (pruned, the ring search called inside); :func:`mean_knn_distance` 0.66–0.68 → 0.58–0.59 s.
     Any other k runs the ring search (the same neighbours)."""
     k1 = 9
