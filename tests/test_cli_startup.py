@@ -362,3 +362,32 @@ def test_no_help_text_carries_rich_markup():
 
     found = [(w, t) for name, c in commands.items() for w, t in texts(c, name) if bad.search(t)]
     assert len(commands) > 10 and not found, found[:5]
+
+
+def test_the_console_script_defers_numpys_fortran_wrapper_generator(tmp_path):
+    """scipy's vendored array_api_compat runs ``from numpy import *``, which imported
+    numpy.f2py (~0.1 s) in every command that loads scipy. The console script defers it
+    (cli/lazy.py): the module exists, its code runs only when something reads it — and then
+    whole. A library caller's imports are left as they are."""
+    code = (
+        "import json, sys\n"
+        "from roboisf.cli import main as m\n"
+        "calls = []\n"
+        "m.main = lambda argv=None: calls.append(1) or 0\n"
+        "try:\n"
+        "    m.entry()\n"
+        "except SystemExit as e:\n"
+        "    assert e.code == 0\n"
+        "import scipy.linalg, scipy.spatial, numpy\n"
+        "out = {'calls': len(calls), 'ran': 'numpy.f2py.crackfortran' in sys.modules}\n"
+        "out['usable'] = callable(numpy.f2py.crackfortran.crackfortran)\n"
+        "print(json.dumps(out))\n"
+    )
+    assert _child(code, cwd=tmp_path) == {"calls": 1, "ran": False, "usable": True}
+    plain = (
+        "import json, sys, scipy.linalg\n"
+        "print(json.dumps('numpy.f2py.crackfortran' in sys.modules))\n"
+    )
+    # the reason for it, on the installed scipy and numpy (if a release stops importing it,
+    # this says the deferral can go)
+    assert _child(plain, cwd=tmp_path) is True

@@ -15,7 +15,11 @@ from __future__ import annotations
 
 import difflib
 import importlib
+import importlib.abc
+import importlib.machinery
+import importlib.util
 import inspect
+import sys
 from dataclasses import dataclass
 from typing import Any
 
@@ -23,7 +27,15 @@ import typer
 import typer.main
 from typer.core import MarkupMode, TyperGroup
 
-__all__ = ["FullHelpGroup", "LazyCommand", "LazyGroup", "load_command", "one_line_help"]
+__all__ = [
+    "DEFERRED_MODULES",
+    "FullHelpGroup",
+    "LazyCommand",
+    "LazyGroup",
+    "defer_unused_imports",
+    "load_command",
+    "one_line_help",
+]
 
 
 @dataclass(frozen=True)
@@ -144,3 +156,36 @@ class LazyGroup(FullHelpGroup):
                         f"{', '.join(repr(m) for m in matches)}?"
                     )
             raise
+
+
+#: Modules that the libraries a command imports load without using them, deferred until
+#: first used (:func:`defer_unused_imports`). scipy (≥ 1.15) vendors ``array_api_compat``, whose
+#: ``numpy`` namespace runs ``from numpy import *``: numpy 2's ``__all__`` names ``f2py``, so
+#: every ``import scipy.linalg`` / ``scipy.spatial`` executed numpy's Fortran wrapper
+#: generator (``numpy.f2py.crackfortran``: ~0.1 s of regular-expression compiling, holding the
+#: interpreter while the first scan's thread and the toolpath's reader both wanted it).
+DEFERRED_MODULES = frozenset({"numpy.f2py"})
+
+
+class _DeferredFinder(importlib.abc.MetaPathFinder):
+    """A meta-path finder that hands out :data:`DEFERRED_MODULES` through
+    :class:`importlib.util.LazyLoader` (the standard library's lazy import): the module object
+    exists at once, its code runs on the first attribute read. Any other name: ``None`` (the
+    next finder's)."""
+
+    def find_spec(self, fullname: str, path: Any, target: Any = None) -> Any:
+        if fullname not in DEFERRED_MODULES:
+            return None
+        spec = importlib.machinery.PathFinder.find_spec(fullname, path)
+        if spec is None or spec.loader is None or not hasattr(spec.loader, "exec_module"):
+            return spec
+        spec.loader = importlib.util.LazyLoader(spec.loader)
+        return spec
+
+
+def defer_unused_imports() -> None:
+    """Defer the :data:`DEFERRED_MODULES` in this process (idempotent). For the console script
+    only (:func:`roboisf.cli.main.entry`): a library caller's imports stay as they are.
+    Measured in docs/speed.md ("numpy's Fortran wrapper generator")."""
+    if not any(isinstance(f, _DeferredFinder) for f in sys.meta_path):
+        sys.meta_path.insert(0, _DeferredFinder())

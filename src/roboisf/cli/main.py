@@ -20,7 +20,7 @@ import typer
 
 from roboisf import __version__
 from roboisf.cli.console import state
-from roboisf.cli.lazy import LazyCommand, LazyGroup
+from roboisf.cli.lazy import LazyCommand, LazyGroup, defer_unused_imports
 from roboisf.errors import ConvergenceError, InputError
 from roboisf.io.outdir import (
     Interrupted,
@@ -244,6 +244,7 @@ def entry() -> None:
     import signal
 
     state.own_process = True  # a command may set process-wide policies (plan: the C heap's)
+    defer_unused_imports()  # numpy.f2py, which scipy's import runs for nothing (cli/lazy.py)
     try:
         code = main()
     except KeyboardInterrupt:
