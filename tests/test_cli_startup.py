@@ -369,6 +369,12 @@ def test_the_console_script_defers_numpys_fortran_wrapper_generator(tmp_path):
     numpy.f2py (~0.1 s) in every command that loads scipy. The console script defers it
     (cli/lazy.py): the module exists, its code runs only when something reads it — and then
     whole. A library caller's imports are left as they are."""
+    plain = (
+        "import json, sys, scipy.linalg\n"
+        "print(json.dumps('numpy.f2py.crackfortran' in sys.modules))\n"
+    )
+    if not _child(plain, cwd=tmp_path):  # else the check below would hold without the deferral
+        pytest.skip("this scipy and numpy no longer import numpy.f2py: the deferral can go")
     code = (
         "import json, sys\n"
         "from roboisf.cli import main as m\n"
@@ -384,10 +390,3 @@ def test_the_console_script_defers_numpys_fortran_wrapper_generator(tmp_path):
         "print(json.dumps(out))\n"
     )
     assert _child(code, cwd=tmp_path) == {"calls": 1, "ran": False, "usable": True}
-    plain = (
-        "import json, sys, scipy.linalg\n"
-        "print(json.dumps('numpy.f2py.crackfortran' in sys.modules))\n"
-    )
-    # the reason for it, on the installed scipy and numpy (if a release stops importing it,
-    # this says the deferral can go)
-    assert _child(plain, cwd=tmp_path) is True
