@@ -187,6 +187,10 @@ class _DeferredFinder:
 def defer_unused_imports() -> None:
     """Defer the :data:`DEFERRED_MODULES` in this process (idempotent). For the console script
     only (:func:`roboisf.cli.main.entry`): a library caller's imports stay as they are.
-    Measured in docs/speed.md ("numpy's Fortran wrapper generator")."""
+    Measured in docs/speed.md ("numpy's Fortran wrapper generator").
+
+    Nothing in roboisf reads ``numpy.f2py``; whoever does gets it whole on that first read.
+    (Before Python 3.13, ``LazyLoader`` does not guard two threads making that first read at
+    the same moment — CPython gh-114763 — which no roboisf command does.)"""
     if not any(isinstance(f, _DeferredFinder) for f in sys.meta_path):
         sys.meta_path.insert(0, _DeferredFinder())
