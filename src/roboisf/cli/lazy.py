@@ -190,7 +190,8 @@ def defer_unused_imports() -> None:
     Measured in docs/speed.md ("numpy's Fortran wrapper generator").
 
     Nothing in roboisf reads ``numpy.f2py``; whoever does gets it whole on that first read.
-    (Before Python 3.13, ``LazyLoader`` does not guard two threads making that first read at
-    the same moment — CPython gh-114763 — which no roboisf command does.)"""
+    (Python 3.11's ``LazyLoader`` does not guard two threads making that first read at the
+    same moment — CPython issue gh-114763, fixed in later releases — which no roboisf command
+    does.)"""
     if not any(isinstance(f, _DeferredFinder) for f in sys.meta_path):
         sys.meta_path.insert(0, _DeferredFinder())
