@@ -547,3 +547,64 @@ def test_the_status_redraw_comes_after_the_reply_never_between(setup):
         th.join(15)
         robot.close()
     assert draws[0] >= 6 and not bad, bad
+
+
+_ORPHAN = """
+import multiprocessing as mp, sys, time
+import numpy as np
+from roboisf.online.sim import sensor_process
+
+if __name__ == "__main__":
+    ctx = mp.get_context("spawn")
+    idx, stop, ready = ctx.Value("l", 0), ctx.Event(), ctx.Event()
+    p = ctx.Process(
+        target=sensor_process, args=(0, np.zeros((4, 6)), idx, stop, ready), daemon=True
+    )
+    p.start()
+    assert ready.wait(60)
+    print(p.pid, flush=True)
+    time.sleep(600)  # killed long before
+"""
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="reads /proc")
+def test_the_simulated_devices_end_when_their_parent_is_killed(tmp_path):
+    """A parent killed without cleanup (SIGKILL; a SIGTERM that ran no handler) leaves no
+    simulated sensor streaming for good: it ends once it has been handed to init. One was
+    found half an hour after a killed test run."""
+    import signal
+    import subprocess
+    import sys
+
+    script = tmp_path / "parent.py"
+    script.write_text(_ORPHAN)
+    # stderr to a file: the killed parent's resource tracker reports its semaphores there
+    with (tmp_path / "stderr").open("w") as err:
+        parent = subprocess.Popen(
+            [sys.executable, str(script)], stdout=subprocess.PIPE, stderr=err, text=True
+        )
+    try:
+        assert parent.stdout is not None
+        line = parent.stdout.readline()
+        assert line.strip().isdigit(), (tmp_path / "stderr").read_text()
+        child = int(line)
+        assert _alive(child)
+    finally:
+        parent.send_signal(signal.SIGKILL)
+        parent.wait()
+    deadline = time.monotonic() + 10
+    while _alive(child) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    orphaned = _alive(child)
+    if orphaned:  # not left behind by this test either
+        os.kill(child, signal.SIGKILL)
+    assert not orphaned, "the simulated sensor outlived its parent"
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie — ended, not yet reaped by init — does not)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False

@@ -29,6 +29,7 @@ compares its compliance error with the uncorrected part's and with offline pre-d
 from __future__ import annotations
 
 import math
+import os
 import select
 import socket
 import time
@@ -656,7 +657,13 @@ def devices_process(
     cycles or ``stop`` is set; it then streams on holding the path's last point until ``stop``
     or the loop falls silent (so the loop's stop can ramp the correction to zero:
     :class:`_ControllerSim`); the sensor streams on until ``stop``.
+
+    The devices also end when the process that started them has (``os.getppid`` changes: it
+    was killed — SIGKILL, or a SIGTERM that ran no cleanup — and this one was handed to init):
+    they never outlive it. Before, a simulated sensor streamed on for good (one was found
+    half an hour later, from a killed test run).
     """
+    parent = os.getppid()
     warnings = apply(realtime, "the simulated devices").warnings if realtime is not None else []
     set_timer_slack(1000)  # 1 µs instead of 50: the absolute sleeps end when asked
     sen = _SensorSim(index=index, **sensor) if sensor is not None else None
@@ -670,6 +677,8 @@ def devices_process(
     reported = ctl is None
     try:
         while not stop.is_set() and (sen is not None or (ctl is not None and not ctl.done)):
+            if os.getppid() != parent:  # orphaned (~0.1 µs a call: once a cycle is nothing)
+                break
             now = clock()
             if sen is not None:
                 sen.requests(now)
