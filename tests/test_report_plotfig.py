@@ -104,3 +104,15 @@ def test_every_report_figure_is_valid_and_unchanged_by_plotly(figures, name):
     ours = fig.to_plotly_json()
     validated = fig.to_go().to_plotly_json()  # raises on a property plotly does not know
     assert json.dumps(ours, sort_keys=True) == json.dumps(validated, sort_keys=True)
+
+
+@pytest.mark.parametrize("name", ["none", "plotly_white"])
+def test_a_named_template_is_plotlys(name):
+    """The template "none" is a constant here (plotly.io's 71 modules not imported for it);
+    any template is what plotly.io gives, key order included (the report's bytes)."""
+    import plotly.io as pio
+
+    want = dict(pio.templates[name].to_plotly_json())
+    got = pf._template(name)
+    assert got == want
+    assert json.dumps(got) == json.dumps(want)

@@ -50,8 +50,17 @@ def colorscale(name: str) -> list[list[Any]]:
     return [[a, b] for a, b in _colorscale(name)]
 
 
+#: plotly's template "none" — the report's (``style.py``) — as
+#: ``plotly.io.templates["none"].to_plotly_json()`` gives it (tests/test_report_plotfig.py
+#: compares the two on the installed plotly). Built through ``plotly.io`` it cost every report
+#: 71 imported modules and 30–40 ms (docs/speed.md), in the serial tail of ``roboisf analyze``.
+_TEMPLATE_NONE: dict[str, Any] = {"data": {"scatter": [{"type": "scatter"}]}}
+
+
 @functools.cache
 def _template(name: str) -> dict[str, Any]:
+    if name == "none":
+        return copy.deepcopy(_TEMPLATE_NONE)
     import plotly.io as pio
 
     return dict(pio.templates[name].to_plotly_json())
