@@ -550,19 +550,37 @@ def test_the_status_redraw_comes_after_the_reply_never_between(setup):
 
 
 _ORPHAN = """
-import multiprocessing as mp, sys, time
+import multiprocessing as mp, socket, sys, time
 import numpy as np
-from roboisf.online.sim import sensor_process
+from roboisf.online.sim import controller_process, sensor_process
 
 if __name__ == "__main__":
     ctx = mp.get_context("spawn")
-    idx, stop, ready = ctx.Value("l", 0), ctx.Event(), ctx.Event()
-    p = ctx.Process(
-        target=sensor_process, args=(0, np.zeros((4, 6)), idx, stop, ready), daemon=True
-    )
-    p.start()
-    assert ready.wait(60)
-    print(p.pid, flush=True)
+    idx, stop = ctx.Value("l", 0), ctx.Event()
+    ready = [ctx.Event(), ctx.Event()]
+    result = ctx.Queue()
+    loop = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)  # a loop that never answers
+    loop.bind(("127.0.0.1", 0))
+    n = 8
+    planned = np.zeros((n, 7))
+    planned[:, 3] = 1.0  # the tip pose: position, quaternion (w, x, y, z)
+    arrays = (np.zeros((n, 6)), np.zeros((n, 6, 3)), planned)
+    procs = [
+        ctx.Process(
+            target=sensor_process, args=(0, np.zeros((n, 6)), idx, stop, ready[0]), daemon=True
+        ),
+        # 20 000 cycles: its report (~1 MB) would fill the queue's pipe, unread
+        ctx.Process(
+            target=controller_process,
+            args=(loop.getsockname()[1], "egm", arrays, idx, stop, result),
+            kwargs={"n_cycles": 20_000, "ready": ready[1], "start_delay": 0.05},
+            daemon=True,
+        ),
+    ]
+    for p in procs:
+        p.start()
+    assert all(r.wait(60) for r in ready)
+    print(" ".join(str(p.pid) for p in procs), flush=True)
     time.sleep(600)  # killed long before
 """
 
@@ -570,8 +588,10 @@ if __name__ == "__main__":
 @pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="reads /proc")
 def test_the_simulated_devices_end_when_their_parent_is_killed(tmp_path):
     """A parent killed without cleanup (SIGKILL; a SIGTERM that ran no handler) leaves no
-    simulated sensor streaming for good: it ends once it has been handed to init. One was
-    found half an hour after a killed test run."""
+    simulated device running: the sensor stops streaming and the controller exits without its
+    report (nobody reads it: put in a full pipe, it held the process at exit), once they have
+    been handed to init. A sensor was found half an hour after a killed test run, and a
+    controller after a killed `roboisf online --simulate`."""
     import signal
     import subprocess
     import sys
@@ -586,19 +606,22 @@ def test_the_simulated_devices_end_when_their_parent_is_killed(tmp_path):
     try:
         assert parent.stdout is not None
         line = parent.stdout.readline()
-        assert line.strip().isdigit(), (tmp_path / "stderr").read_text()
-        child = int(line)
-        assert _alive(child)
+        assert line.strip() and line.replace(" ", "").strip().isdigit(), (
+            tmp_path / "stderr"
+        ).read_text()
+        children = [int(p) for p in line.split()]
+        time.sleep(0.3)  # the controller past its start delay, sending
+        assert all(_alive(c) for c in children)
     finally:
         parent.send_signal(signal.SIGKILL)
         parent.wait()
     deadline = time.monotonic() + 10
-    while _alive(child) and time.monotonic() < deadline:
+    while any(_alive(c) for c in children) and time.monotonic() < deadline:
         time.sleep(0.02)
-    orphaned = _alive(child)
-    if orphaned:  # not left behind by this test either
-        os.kill(child, signal.SIGKILL)
-    assert not orphaned, "the simulated sensor outlived its parent"
+    left = [c for c in children if _alive(c)]
+    for c in left:  # not left behind by this test either
+        os.kill(c, signal.SIGKILL)
+    assert not left, f"simulated devices outlived their parent: {left} of {children}"
 
 
 def _alive(pid: int) -> bool:

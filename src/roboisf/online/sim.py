@@ -660,8 +660,9 @@ def devices_process(
 
     The devices also end when the process that started them has (``os.getppid`` changes: it
     was killed — SIGKILL, or a SIGTERM that ran no cleanup — and this one was handed to init):
-    they never outlive it. Before, a simulated sensor streamed on for good (one was found
-    half an hour later, from a killed test run).
+    they never outlive it, and the controller then sends no report (its queue's pipe, full and
+    unread, would hold the process at exit). Before, a simulated sensor streamed on for good
+    (one was found half an hour later, from a killed test run).
     """
     parent = os.getppid()
     warnings = apply(realtime, "the simulated devices").warnings if realtime is not None else []
@@ -678,6 +679,7 @@ def devices_process(
     try:
         while not stop.is_set() and (sen is not None or (ctl is not None and not ctl.done)):
             if os.getppid() != parent:  # orphaned (~0.1 µs a call: once a cycle is nothing)
+                reported = True  # nobody reads it: a report in a full pipe would hold the exit
                 break
             now = clock()
             if sen is not None:
