@@ -3,6 +3,7 @@
 import os
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pandas as pd
@@ -119,3 +120,57 @@ def test_the_second_study_is_forked_only_from_a_single_thread():
     finally:
         stop.set()
         other.join()
+
+
+_KILLED_DEMO = """
+import os, sys, time
+from roboisf.cli.demo import _second_process_pool
+
+if __name__ == "__main__":
+    pool = _second_process_pool()
+    print(pool.submit(os.getpid).result(), flush=True)  # the worker, started and idle
+    time.sleep(600)  # killed long before
+"""
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="reads /proc")
+def test_the_second_studys_process_ends_with_a_killed_demo(tmp_path):
+    """A demo killed without cleanup (SIGKILL, a closed terminal) leaves no second process:
+    forked, it held its own end of the job queue's pipe and waited for a next job for good
+    (0.37 GB, found by killing a demo)."""
+    import signal
+
+    script = tmp_path / "demo_parent.py"
+    script.write_text(_KILLED_DEMO)
+    parent = subprocess.Popen(
+        [sys.executable, str(script)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)},
+    )
+    try:
+        assert parent.stdout is not None
+        line = parent.stdout.readline()
+        assert line.strip().isdigit(), parent.stderr.read() if parent.stderr else ""
+        worker = int(line)
+        assert _running(worker)
+    finally:
+        parent.send_signal(signal.SIGKILL)
+        parent.wait()
+    deadline = time.monotonic() + 10
+    while _running(worker) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    left = _running(worker)
+    if left:  # not left behind by this test either
+        os.kill(worker, signal.SIGKILL)
+    assert not left, "the second study's process outlived the killed demo"
+
+
+def _running(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie, ended but not yet reaped, does not)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
