@@ -358,10 +358,15 @@ def test_rsi_cycles_are_4_or_12_ms_and_egm_multiples_of_4(tmp_path, capsys):
         assert code == 2 and "--cycle" in capsys.readouterr().err
 
 
-def test_sigterm_ramps_the_correction_to_zero_and_says_so(tmp_path):
+@pytest.mark.parametrize(
+    ("signame", "reason"),
+    [("SIGTERM", "terminated (SIGTERM)"), ("SIGHUP", "hung up (SIGHUP: the terminal closed)")],
+)
+def test_sigterm_ramps_the_correction_to_zero_and_says_so(tmp_path, signame, reason):
     """`roboisf online -c rsi` serving a fake KUKA controller and a fake Net F/T (written from
-    the public definitions): SIGTERM → the replies the controller takes ramp to zero, the
-    summary says "terminated (SIGTERM)" and "ramped to zero", the log is written, exit 0."""
+    the public definitions): SIGTERM (or SIGHUP: an ssh session to the cell dropped) → the
+    replies the controller takes ramp to zero, the summary says why and "ramped to zero", the
+    log is written, exit 0. (Before, a SIGHUP ended the process at once: no ramp, no log.)"""
     import signal
     import socket
     import threading
@@ -418,7 +423,7 @@ def test_sigterm_ramps_the_correction_to_zero_and_says_so(tmp_path):
             time.sleep(0.05)
         held = got[-1]
         assert held > 0.1, got[-5:]  # mm: the loop corrects the forming force it reads
-        p.send_signal(signal.SIGTERM)
+        p.send_signal(getattr(signal, signame))
         rest, err = p.communicate(timeout=60)
         halt.set()
         th.join(5)
@@ -427,7 +432,7 @@ def test_sigterm_ramps_the_correction_to_zero_and_says_so(tmp_path):
             p.kill()
         ft.close()
     assert p.returncode == 0, err
-    assert "stopped: terminated (SIGTERM); correction ramped to zero" in rest, rest
+    assert f"stopped: {reason}; correction ramped to zero" in rest, rest
     assert "Traceback" not in err
     assert got[-1] == 0.0  # the controller's last correction taken: zero
     # down, never up again — from the loop's first stopping cycle (its log's status), not from
@@ -446,3 +451,81 @@ def test_sigterm_ramps_the_correction_to_zero_and_says_so(tmp_path):
     assert stopping[first] and np.all(stopping[first:])
     assert mm[first] > 0.0 and mm[-1] == 0.0  # from a correction to exactly zero
     assert np.all(np.diff(mm[first:]) <= 1e-9)
+
+
+@pytest.mark.skipif(not hasattr(os, "forkpty"), reason="needs a pseudo-terminal")
+def test_a_closed_terminal_ramps_the_correction_to_zero_and_writes_the_log(tmp_path):
+    """`roboisf online --simulate` on a terminal (a pseudo-terminal: its status line redrawn
+    there), which then closes — the kernel hangs it up and sends SIGHUP: the loop ramps the
+    correction to zero and writes its log though every write to that terminal now fails, and
+    the command exits 0. Before, the process ended at once: no ramp, no log."""
+    import pty
+    import select
+    import time
+
+    from roboisf.online import kernel as kn
+
+    out = tmp_path / "hup.parquet"
+    argv = ["online", "-c", "egm", "--virtual", "cone", "--simulate", "--duration", "60"]
+    argv += ["-o", str(out)]
+    code = f"from roboisf.cli.main import main; raise SystemExit(main({argv!r}))"
+    src = str(Path(__file__).parents[1] / "src")
+    env = {**os.environ, "PYTHONPATH": src + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    pid, fd = pty.fork()
+    if pid == 0:  # the child, on the terminal: roboisf
+        os.execve(sys.executable, [sys.executable, "-c", code], env)
+    seen = b""
+
+    def correcting() -> bool:  # the status line's last correction, mm, is off zero
+        line = seen.rsplit(b"correction [", 1)
+        if len(line) < 2 or b"]" not in line[1]:
+            return False
+        return any(abs(float(v)) > 0.05 for v in line[1].split(b"]", 1)[0].split())
+
+    try:
+        deadline = time.monotonic() + 90
+        while not correcting() and time.monotonic() < deadline:  # the loop serves, correcting
+            ready, _, _ = select.select([fd], [], [], 0.5)
+            if ready:
+                try:
+                    seen += os.read(fd, 65536)
+                except OSError:  # the child ended: its terminal reads EIO
+                    break
+        assert correcting(), seen[-2000:]
+    finally:
+        os.close(fd)  # the terminal closes: SIGHUP to the child
+    deadline = time.monotonic() + 60
+    while (done := os.waitpid(pid, os.WNOHANG))[0] == 0 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    if done[0] == 0:
+        os.kill(pid, 9)
+        os.waitpid(pid, 0)
+        raise AssertionError("roboisf online did not end after its terminal closed")
+    status = done[1]
+    assert os.WIFEXITED(status) and os.WEXITSTATUS(status) == 0, status
+    df = pd.read_parquet(out)
+    mm = np.linalg.norm(df[["corr_x_mm", "corr_y_mm", "corr_z_mm"]].to_numpy(), axis=1)
+    stopping = (df["status"].to_numpy().astype(int) & kn.STATUS_STOP) != 0
+    assert stopping.any() and mm.max() > 0.0
+    assert mm[-1] == 0.0  # ramped to zero
+
+
+def test_nohup_keeps_a_command_running_when_its_terminal_closes():
+    """A SIGHUP ignored when roboisf starts (``nohup``) stays ignored: the user asked for the
+    command to outlive its terminal. Otherwise roboisf's handler takes it, and the previous
+    disposition comes back after the command."""
+    import signal
+
+    from roboisf.io import outdir
+
+    before = signal.getsignal(signal.SIGHUP)
+    try:
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)
+        with outdir.signal_handlers():
+            assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN
+        signal.signal(signal.SIGHUP, signal.SIG_DFL)
+        with outdir.signal_handlers():
+            assert signal.getsignal(signal.SIGHUP) is outdir._hangup
+        assert signal.getsignal(signal.SIGHUP) is signal.SIG_DFL
+    finally:
+        signal.signal(signal.SIGHUP, before)

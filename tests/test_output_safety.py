@@ -460,8 +460,9 @@ def test_typer_exit_code_is_returned(capsys):
         (KeyboardInterrupt, 130),
         (Interrupted(signal.SIGINT), 130),
         (Interrupted(signal.SIGTERM), 143),
+        (Interrupted(signal.SIGHUP), 129),
     ],
-    ids=["KeyboardInterrupt", "SIGINT", "SIGTERM"],
+    ids=["KeyboardInterrupt", "SIGINT", "SIGTERM", "SIGHUP"],
 )
 def test_interrupt_in_process_exits_non_zero_and_removes_staging(
     tmp_path, study, monkeypatch, capsys, exc, code
@@ -479,13 +480,19 @@ def test_interrupt_in_process_exits_non_zero_and_removes_staging(
     assert main(["-q", *VC, "-o", str(out)]) == code
     err = capsys.readouterr().err.strip()
     assert "\n" not in err, err
-    assert err.startswith("terminated" if code == 143 else "interrupted")
+    assert err.startswith(_SAID[code])
     assert f"nothing written to {out} (its previous contents are intact)" in err
     assert _tree(out) == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s"]
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+#: exit code → how the one line on stderr begins
+_SAID = {130: "interrupted (SIGINT)", 143: "terminated (SIGTERM)", 129: "hung up (SIGHUP"}
+
+
+@pytest.mark.parametrize(
+    "sig", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP], ids=["SIGINT", "SIGTERM", "SIGHUP"]
+)
 def test_signal_exits_128_plus_n_and_leaves_previous_results(tmp_path, study, sig):
     out = _copy(study, tmp_path / "s")
     before = _tree(out)
@@ -512,7 +519,7 @@ def test_signal_exits_128_plus_n_and_leaves_previous_results(tmp_path, study, si
     _, err = p.communicate(timeout=120)
     assert p.returncode == 128 + sig, err
     last = err.strip().splitlines()[-1]
-    assert last.startswith("terminated" if sig == signal.SIGTERM else "interrupted"), err
+    assert last.startswith(_SAID[128 + sig]), err
     assert f"nothing written to {out} (its previous contents are intact)" in last
     assert "Traceback" not in err
     assert sorted(q.name for q in tmp_path.iterdir()) == ["s"]  # no staging, no lock

@@ -4,8 +4,8 @@ Every command: ``--help``; ``-o/--output`` (checked and locked before computing,
 file roboisf did not write: docs/conventions.md, Outputs); exit code 0 on success, 2 on bad input
 (one line on stderr naming the file/field and what was expected) or a refusal of the machine (a
 full disk, a name too long, no permission, an unreachable host: one line naming the path and what
-to do), 1 on an internal error, 130/143 when interrupted by SIGINT/SIGTERM. ``-q`` silences
-progress and info, ``-v`` adds detail. Call :func:`main` with an argv list from tests.
+to do), 1 on an internal error, 130/143/129 when interrupted by SIGINT/SIGTERM/SIGHUP. ``-q``
+silences progress and info, ``-v`` adds detail. Call :func:`main` with an argv list from tests.
 """
 
 from __future__ import annotations
@@ -153,11 +153,20 @@ def _root(
     state.verbosity = 0 if quiet else (2 if verbose else 1)
 
 
+#: Exit code (128 + the signal's number) → how the command ended, for the line it prints.
+_SIGNAL_CODES = {
+    129: "hung up (SIGHUP: the terminal closed)",
+    130: "interrupted (SIGINT)",
+    143: "terminated (SIGTERM)",
+}
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI with ``argv`` (without the program name); return the exit code.
 
-    SIGINT and SIGTERM unwind the stack (outputs in progress are discarded, previous results
-    kept) and give 130 and 143 with one line on stderr saying what happened to the outputs.
+    SIGINT, SIGTERM and SIGHUP (not when ignored, as under ``nohup``) unwind the stack (outputs
+    in progress are discarded, previous results kept) and give 130, 143 and 129 with one line on
+    stderr saying what happened to the outputs (after a hang-up, to ``/dev/null``).
     """
     args = hoist_verbosity(list(sys.argv[1:] if argv is None else argv))
     set_notice(state.notice)  # a first build of the compiled kernels says so
@@ -167,12 +176,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                 code = _run(args)
             except (Interrupted, KeyboardInterrupt, typer.Abort) as e:
                 code = e.exit_code if isinstance(e, Interrupted) else 130
-            if code not in (130, 143):  # typer turns a KeyboardInterrupt into exit code 130
+            if code not in _SIGNAL_CODES:  # typer turns a KeyboardInterrupt into exit code 130
                 return code
             with contextlib.suppress(Interrupted), deferred_signals():
                 what = "; ".join(c.outcome() for c in session.claims) or "nothing written"
-                how = "terminated (SIGTERM)" if code == 143 else "interrupted (SIGINT)"
-                state.err.print(f"{how}; {what}", markup=False, soft_wrap=True)
+                state.err.print(f"{_SIGNAL_CODES[code]}; {what}", markup=False, soft_wrap=True)
             return code
     finally:
         state.verbosity = 1
@@ -249,8 +257,9 @@ def entry() -> None:
         code = main()
     except KeyboardInterrupt:
         code = 130
-    for s in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(s, signal.SIG_IGN)
+    for s in (signal.SIGINT, signal.SIGTERM, getattr(signal, "SIGHUP", None)):
+        if s is not None:
+            signal.signal(s, signal.SIG_IGN)
     # the interpreter's shutdown runs the cyclic garbage collector over every object the
     # command imported (numba, pandas, matplotlib: ~250 k objects) only to free memory the
     # process gives back on exit anyway: 0.4-0.6 s of a 6 s `roboisf analyze` (measured,

@@ -245,7 +245,8 @@ def online(
     whatever its message rate), --deadband; the watchdog holds and then ramps the correction to
     zero when the sensor goes quiet; an implausible force (--max-force, --max-force-rate,
     --max-tip-moment) is dropped and the correction held. Every stop (the end of --duration or
-    --cycles, Ctrl-C, SIGTERM, a controller silent for 0.5 s, a Net F/T silent for 2 s, 25 late
+    --cycles, Ctrl-C, SIGTERM, a closed terminal unless under nohup, a controller silent for
+    0.5 s, a Net F/T silent for 2 s, 25 late
     replies in a second, an error) first ramps the correction to zero at --ramp-rate, and says
     so. Every cycle is logged to -o (Parquet); the summary counts every episode. Lengths mm,
     angles deg.

@@ -17,9 +17,10 @@ The output policy of every command (docs/conventions.md, "Outputs"):
 * A folder is built in a sibling ``.NAME.staging.*`` folder and moved into place only when
   complete; stale ``.NAME.staging.*``/``.NAME.old.*`` folders of dead runs (recognised by the
   :data:`STAGING_MARKER` inside, with the pid) are removed when the next run starts.
-* SIGINT and SIGTERM (handlers installed by :func:`signal_handlers`) raise :class:`Interrupted`,
-  which unwinds the stack so the staging folder is removed and the previous results stay intact;
-  the final moves into place are never cut in half (the signal is held until they are done).
+* SIGINT, SIGTERM and SIGHUP (handlers installed by :func:`signal_handlers`; SIGHUP unless
+  ignored by ``nohup``) raise :class:`Interrupted`, which unwinds the stack so the staging
+  folder is removed and the previous results stay intact; the final moves into place are never
+  cut in half (the signal is held until they are done).
 """
 
 from __future__ import annotations
@@ -71,10 +72,10 @@ _MARKER_FORMAT = "roboisf-output/1"
 
 
 class Interrupted(BaseException):
-    """SIGINT or SIGTERM arrived; raised from the signal handler to unwind the stack.
+    """SIGINT, SIGTERM or SIGHUP arrived; raised from the signal handler to unwind the stack.
 
     A :class:`BaseException` so ``except Exception`` blocks do not swallow it. ``exit_code`` is
-    the shell convention 128 + signal number (130 SIGINT, 143 SIGTERM).
+    the shell convention 128 + signal number (130 SIGINT, 143 SIGTERM, 129 SIGHUP).
     """
 
     def __init__(self, signum: int) -> None:
@@ -95,9 +96,31 @@ def _handler(signum: int, frame: FrameType | None) -> None:
     raise Interrupted(signum)
 
 
+#: The standard streams' descriptors that were terminals when :func:`signal_handlers` began:
+#: after a hang-up they are pointed at ``/dev/null`` (:func:`_hangup`).
+_terminal_fds: list[int] = []
+
+
+def _hangup(signum: int, frame: FrameType | None) -> None:
+    """SIGHUP: the terminal is gone (an ssh session dropped, its window closed). The standard
+    streams that were that terminal now write to ``/dev/null`` — a write to a hung-up terminal
+    fails (EIO), and the unwinding's own lines (the online loop's status during its ramp to
+    zero, the summary) must not stop it — then the command unwinds as for SIGTERM."""
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+    except OSError:  # pragma: no cover - no /dev/null
+        null = -1
+    if null >= 0:
+        for fd in _terminal_fds:
+            with contextlib.suppress(OSError):
+                os.dup2(null, fd)
+        os.close(null)
+    _handler(signum, frame)
+
+
 @contextlib.contextmanager
 def deferred_signals() -> Iterator[None]:
-    """Hold SIGINT/SIGTERM (when :func:`signal_handlers` is active) until the block ends.
+    """Hold SIGINT/SIGTERM/SIGHUP (when :func:`signal_handlers` is active) until the block ends.
 
     For the few renames that put an output into place and for clean-up: they run to the end, then
     the held signal raises :class:`Interrupted`.
@@ -115,18 +138,37 @@ def deferred_signals() -> Iterator[None]:
 
 @contextlib.contextmanager
 def signal_handlers() -> Iterator[None]:
-    """Turn SIGINT and SIGTERM into :class:`Interrupted` for the duration (main thread only)."""
+    """Turn SIGINT, SIGTERM and SIGHUP into :class:`Interrupted` for the duration (main thread
+    only). SIGHUP (POSIX) only where it was not ignored when the process started: a command run
+    under ``nohup`` goes on when its terminal closes, as the user asked; otherwise a hang-up
+    unwinds like SIGTERM (outputs discarded whole, ``roboisf online``'s correction ramped to
+    zero), with the terminal's streams silenced first (:func:`_hangup`)."""
+    global _terminal_fds
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    for s in previous:
-        signal.signal(s, _handler)
+    handlers: dict[int, Any] = {signal.SIGINT: _handler, signal.SIGTERM: _handler}
+    hup = getattr(signal, "SIGHUP", None)
+    if hup is not None and signal.getsignal(hup) is not signal.SIG_IGN:
+        handlers[hup] = _hangup
+    previous = {s: signal.getsignal(s) for s in handlers}
+    terminal_fds = _terminal_fds
+    _terminal_fds = [fd for fd in (1, 2) if _isatty(fd)]
+    for s, h in handlers.items():
+        signal.signal(s, h)
     try:
         yield
     finally:
         for s, h in previous.items():
             signal.signal(s, h)
+        _terminal_fds = terminal_fds
+
+
+def _isatty(fd: int) -> bool:
+    try:
+        return os.isatty(fd)
+    except OSError:
+        return False
 
 
 # --------------------------------------------------------------------------------------------

@@ -446,7 +446,10 @@ class Loop:
             except KeyboardInterrupt:
                 reason = "interrupted (Ctrl-C)"
             except Interrupted as e:
-                reason = "terminated (SIGTERM)" if e.exit_code == 143 else "interrupted (Ctrl-C)"
+                reason = {
+                    143: "terminated (SIGTERM)",
+                    129: "hung up (SIGHUP: the terminal closed)",
+                }.get(e.exit_code, "interrupted (Ctrl-C)")
             except Exception as e:  # an error in the loop: the ramp first, then the error
                 reason, error = f"error ({type(e).__name__}: {e})", e
             self._ramp_down(t0, reason)

@@ -954,8 +954,10 @@ class Simulation:
 
         # the devices never see Ctrl-C (a signal mask survives fork and exec): a Ctrl-C while
         # they start would break the unpickling of their arguments (a child's traceback); this
-        # process stops them (``stop``, then SIGTERM) whatever ends it
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        # process stops them (``stop``, then SIGTERM) whatever ends it. Nor a closed terminal's
+        # SIGHUP: a real controller is not on the operator's terminal, and the loop's ramp to
+        # zero on a hang-up needs the simulated one answering (parent gone: devices_process)
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGHUP})
         try:
             for p in self._procs:
                 p.start()
