@@ -372,3 +372,36 @@ def test_missed_cycles_are_split_into_the_controllers_and_the_loops():
         "loop_late": 1,
         "loop_lost": 1,
     }
+
+
+def test_a_status_display_that_fails_stops_neither_the_loop_nor_its_ramp(setup):
+    """The status callback writes to a terminal or a pipe; once that is gone (a closed pipe:
+    ``roboisf online -v | tee`` whose reader ended, a hung-up terminal) every write raises
+    OSError. It used to end the loop from inside its reply path, the ramp to zero included:
+    the display is now dropped and the run goes on to its stop and its ramp."""
+    n = 100
+    oc = OnlineCompensator.from_cell(setup.vc.cell, setup.sensor, Limits(ramp_rate=5e-3))
+    loop = Loop(oc, egm.EgmAdapter(), ("127.0.0.1", 0), ("127.0.0.1", 9), **RULES_OFF)
+    calls = [0]
+
+    def status(lp: Loop) -> None:
+        calls[0] += 1
+        if calls[0] > 3:
+            raise BrokenPipeError(32, "Broken pipe")
+
+    step = max(1, len(setup.q) // n)
+    with Simulation(setup, "egm", loop.listen[1], n_cycles=n, point_step=step, processes=1) as sim:
+        assert loop.ft is not None
+        loop.ft.connect(("127.0.0.1", sim.sensor_port))
+        th, out = _serve(loop, duration=60, status=status, status_every=0.0)
+        sim.result(timeout=60)
+        loop.stop()
+        th.join(30)
+        assert not th.is_alive()
+    c = out["c"]
+    assert calls[0] == 4  # dropped at its first failure
+    assert c.status_lost.startswith("BrokenPipeError")
+    assert c.stop_reason == "stop requested"
+    d = loop.log.data[: loop.log.n]
+    assert np.linalg.norm(d[:, 17:20], axis=1).max() > 0.05  # mm: a correction to ramp out
+    assert c.ramped and c.left_mm == 0.0

@@ -922,6 +922,8 @@ def summary_lines(c: Any, status: Any, t: Any) -> list[str]:
         ),
     ]
     lines.append(_episodes_line(status, t))
+    if c.status_lost:  # the summary may go where the status could not (stdout, not stderr)
+        lines.append(f"status display dropped after it failed ({c.status_lost}); the loop went on")
     return lines
 
 

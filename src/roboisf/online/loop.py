@@ -167,6 +167,7 @@ class Counters:
     max_latency: float = 0.0  # s, kernel arrival of a message → its reply sent
     gc_collections: int = 0  # garbage collections while the loop ran (quiet_gc: in the slack)
     gc_max_pause: float = 0.0  # s, the longest of them
+    status_lost: str = ""  # the status display's failure, after which it was dropped
 
 
 class CycleLog:
@@ -585,7 +586,13 @@ class Loop:
     def _housekeeping(self, now: float) -> None:
         """After a reply: the status, the collector, the log's next chunk."""
         if self._status is not None and now >= self._next_status:
-            self._status(self)
+            try:
+                self._status(self)
+            except OSError as e:
+                # the display is gone (a closed pipe, a hung-up terminal): the loop, and above
+                # all its ramp to zero, go on without it
+                self._status = None
+                self.counters.status_lost = f"{type(e).__name__}: {e}"
             self._next_status = now + self._status_every
         if self._gc is not None:
             self._gc.slack()
