@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from process_state import running
 from roboisf.cam.program import MAX_MODULE_MOVES
 from roboisf.cam.toolpath_csv import read_toolpath_csv
 from roboisf.cli.main import main
@@ -154,23 +155,14 @@ def test_the_second_studys_process_ends_with_a_killed_demo(tmp_path):
         line = parent.stdout.readline()
         assert line.strip().isdigit(), parent.stderr.read() if parent.stderr else ""
         worker = int(line)
-        assert _running(worker)
+        assert running(worker)
     finally:
         parent.send_signal(signal.SIGKILL)
         parent.wait()
     deadline = time.monotonic() + 10
-    while _running(worker) and time.monotonic() < deadline:
+    while running(worker) and time.monotonic() < deadline:
         time.sleep(0.05)
-    left = _running(worker)
+    left = running(worker)
     if left:  # not left behind by this test either
         os.kill(worker, signal.SIGKILL)
     assert not left, "the second study's process outlived the killed demo"
-
-
-def _running(pid: int) -> bool:
-    """Whether process ``pid`` runs (a zombie, ended but not yet reaped, does not)."""
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
-    except FileNotFoundError:
-        return False

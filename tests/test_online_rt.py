@@ -16,6 +16,7 @@ import tracemalloc
 import numpy as np
 import pytest
 
+from process_state import running
 from roboisf.errors import InputError
 from roboisf.online import Limits, OnlineCompensator, egm, netft, rt
 from roboisf.online.loop import RULES_OFF, CycleLog, Loop
@@ -611,23 +612,14 @@ def test_the_simulated_devices_end_when_their_parent_is_killed(tmp_path):
         ).read_text()
         children = [int(p) for p in line.split()]
         time.sleep(0.3)  # the controller past its start delay, sending
-        assert all(_alive(c) for c in children)
+        assert all(running(c) for c in children)
     finally:
         parent.send_signal(signal.SIGKILL)
         parent.wait()
     deadline = time.monotonic() + 10
-    while any(_alive(c) for c in children) and time.monotonic() < deadline:
+    while any(running(c) for c in children) and time.monotonic() < deadline:
         time.sleep(0.02)
-    left = [c for c in children if _alive(c)]
+    left = [c for c in children if running(c)]
     for c in left:  # not left behind by this test either
         os.kill(c, signal.SIGKILL)
     assert not left, f"simulated devices outlived their parent: {left} of {children}"
-
-
-def _alive(pid: int) -> bool:
-    """Whether process ``pid`` runs (a zombie — ended, not yet reaped by init — does not)."""
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
-    except FileNotFoundError:
-        return False
