@@ -23,6 +23,7 @@ from roboisf.cli.console import state
 from roboisf.cli.lazy import LazyCommand, LazyGroup, defer_unused_imports
 from roboisf.errors import ConvergenceError, InputError
 from roboisf.io.outdir import (
+    SIGNAL_OUTCOMES,
     Interrupted,
     deferred_signals,
     environment_error,
@@ -153,14 +154,6 @@ def _root(
     state.verbosity = 0 if quiet else (2 if verbose else 1)
 
 
-#: Exit code (128 + the signal's number) → how the command ended, for the line it prints.
-_SIGNAL_CODES = {
-    129: "hung up (SIGHUP: the terminal closed)",
-    130: "interrupted (SIGINT)",
-    143: "terminated (SIGTERM)",
-}
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI with ``argv`` (without the program name); return the exit code.
 
@@ -176,11 +169,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                 code = _run(args)
             except (Interrupted, KeyboardInterrupt, typer.Abort) as e:
                 code = e.exit_code if isinstance(e, Interrupted) else 130
-            if code not in _SIGNAL_CODES:  # typer turns a KeyboardInterrupt into exit code 130
+            if code not in SIGNAL_OUTCOMES:  # typer turns a KeyboardInterrupt into exit code 130
                 return code
             with contextlib.suppress(Interrupted), deferred_signals():
                 what = "; ".join(c.outcome() for c in session.claims) or "nothing written"
-                state.err.print(f"{_SIGNAL_CODES[code]}; {what}", markup=False, soft_wrap=True)
+                state.err.print(f"{SIGNAL_OUTCOMES[code]}; {what}", markup=False, soft_wrap=True)
             return code
     finally:
         state.verbosity = 1

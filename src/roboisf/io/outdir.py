@@ -45,6 +45,7 @@ from roboisf.errors import InputError, ResourceError
 
 __all__ = [
     "MARKER",
+    "SIGNAL_OUTCOMES",
     "STAGING_MARKER",
     "Interrupted",
     "OutputClaim",
@@ -86,6 +87,15 @@ class Interrupted(BaseException):
 
 _defer_depth = 0
 _pending: int | None = None
+
+
+#: How a command ended by a signal, by its exit code (128 + the signal's number): the line
+#: every command prints (:func:`roboisf.cli.main.main`) and the online loop's stop reason.
+SIGNAL_OUTCOMES = {
+    129: "hung up (SIGHUP: the terminal closed)",
+    130: "interrupted (SIGINT)",
+    143: "terminated (SIGTERM)",
+}
 
 
 def _handler(signum: int, frame: FrameType | None) -> None:

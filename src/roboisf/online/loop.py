@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import gc
 import math
+import signal
 import socket
 import struct
 import time
@@ -55,7 +56,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.errors import InputError
-from roboisf.io.outdir import Interrupted
+from roboisf.io.outdir import SIGNAL_OUTCOMES, Interrupted
 from roboisf.online import netft
 from roboisf.online.base import ProtocolError, RobotState
 from roboisf.online.core import OnlineCompensator
@@ -446,11 +447,12 @@ class Loop:
                 reason = self._serve(t0, duration, cycles)
             except KeyboardInterrupt:
                 reason = "interrupted (Ctrl-C)"
-            except Interrupted as e:
-                reason = {
-                    143: "terminated (SIGTERM)",
-                    129: "hung up (SIGHUP: the terminal closed)",
-                }.get(e.exit_code, "interrupted (Ctrl-C)")
+            except Interrupted as e:  # the command's handlers (SIGINT, SIGTERM, SIGHUP)
+                reason = (
+                    "interrupted (Ctrl-C)"
+                    if e.signum == signal.SIGINT
+                    else SIGNAL_OUTCOMES.get(e.exit_code, e.args[0])
+                )
             except Exception as e:  # an error in the loop: the ramp first, then the error
                 reason, error = f"error ({type(e).__name__}: {e})", e
             self._ramp_down(t0, reason)
