@@ -246,10 +246,9 @@ def online(
     zero when the sensor goes quiet; an implausible force (--max-force, --max-force-rate,
     --max-tip-moment) is dropped and the correction held. Every stop (the end of --duration or
     --cycles, Ctrl-C, SIGTERM, a closed terminal unless under nohup, a controller silent for
-    0.5 s, a Net F/T silent for 2 s, 25 late
-    replies in a second, an error) first ramps the correction to zero at --ramp-rate, and says
-    so. Every cycle is logged to -o (Parquet); the summary counts every episode. Lengths mm,
-    angles deg.
+    0.5 s, a Net F/T silent for 2 s, 25 late replies in a second, an error) first ramps the
+    correction to zero at --ramp-rate, and says so. Every cycle is logged to -o (Parquet); the
+    summary counts every episode. Lengths mm, angles deg.
     On a PC with a core to spare for the loop: --realtime 50 --cpu N --mlock (a 2-core VM
     cannot show what they give). See docs/online.md.
     """

@@ -1,7 +1,7 @@
 """Compiled (numba) tracking of a logged tool path along the toolpath, for the position alignment.
 
-Optional: used by :func:`roboisf.sync.position._track` when numba is installed
-(a dependency; ``ROBOISF_NUMBA=0`` switches it off); otherwise the numpy path runs. Two kernels:
+Used by :func:`roboisf.sync.position._track` when numba is there (a dependency;
+``ROBOISF_NUMBA=0`` switches it off); otherwise the numpy path runs. Two kernels:
 
 * :func:`project_segments` — the nearest point of a window of toolpath segments to each sample;
 * :func:`track_blocks` — the whole tracking loop of :func:`roboisf.sync.position._track` (blocks
