@@ -1,6 +1,11 @@
 """Build step of roboisf's install: its compiled kernels built with the package (pyproject.toml
 holds everything else).
 
+The C kernels (``src/roboisf/**/*_kernel.c``, :mod:`roboisf.jit.native`) are extension modules,
+built by setuptools' ``build_ext`` with the flags of ``roboisf.jit.native.CFLAGS`` and the
+SHA-256 of their source embedded; ``optional``: without a C compiler the install goes on, and the
+numba kernels serve.
+
 ``build_kernels`` runs after ``build_py`` in every build pip makes — a wheel (into the
 package copied to ``build/lib``) and an editable install (into ``src``, editable mode) — and
 compiles every numba kernel of the package into numba's cache beside its sources
@@ -17,13 +22,14 @@ run then builds it in the background, as an install without this step did.
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import subprocess
 import sys
 from pathlib import Path
-from typing import ClassVar
+from typing import Any, ClassVar
 
-from setuptools import Command, setup
+from setuptools import Command, Extension, setup
 from setuptools.command.build import build
 
 #: Longest the kernel build may take [s] before the install goes on without it (it takes
@@ -120,5 +126,35 @@ if bdist_wheel is not None:
 
     cmdclass["bdist_wheel"] = bdist_wheel_with_kernels
 
+
+def _native() -> Any:
+    """``roboisf.jit.native`` loaded on its own (standard library only; the package's other
+    modules need what the build environment may not have)."""
+    path = Path(__file__).resolve().parent / "src" / "roboisf" / "jit" / "native.py"
+    spec = importlib.util.spec_from_file_location("_roboisf_native_build", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def c_extensions() -> list[Extension]:
+    """Every C kernel as an optional extension module (``roboisf.scan._knn_kernel_c`` from
+    ``src/roboisf/scan/knn_kernel.c``)."""
+    native = _native()
+    root = Path(__file__).resolve().parent
+    return [
+        Extension(
+            name,
+            sources=[str(source.relative_to(root))],
+            extra_compile_args=list(native.CFLAGS),
+            define_macros=[("ROBOISF_SOURCE_SHA256", f'"{sha}"')],
+            libraries=["m"],
+            optional=True,
+        )
+        for name, source, sha in native.extensions(root / "src" / "roboisf")
+    ]
+
+
 if __name__ == "__main__":  # as setuptools runs it (importable by tests/test_install_kernels.py)
-    setup(cmdclass=cmdclass)
+    setup(cmdclass=cmdclass, ext_modules=c_extensions())

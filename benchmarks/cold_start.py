@@ -12,8 +12,8 @@ side: first, second, first/second (the issue's target: ≤ 1.5), the builder wai
 average before the pair. The inputs (a cone part, the small virtual study) are made once up
 front with their own cache and are not timed. ``ROBOISF_BACKGROUND_COMPILE=0`` in the
 environment measures the old behaviour (compile in the foreground on first use); ``--no-numba``
-runs the timed commands with numba switched off: the numpy engines throughout
-(``ROBOISF_NUMBA=0``, inherited by the demo's worker processes).
+runs the timed commands with numba and the C kernels switched off: the numpy engines throughout
+(``ROBOISF_NUMBA=0 ROBOISF_NATIVE=0``, inherited by the demo's worker processes).
 
 ``--install`` measures what a new user gets: a new venv, ``pip install -e`` of a clean copy of
 this tree (timed: it builds the kernels, setup.py's ``build_kernels``), then every command's
@@ -212,7 +212,7 @@ def main() -> None:
         _wait_builder(setup["NUMBA_CACHE_DIR"], a.wait)
         print(
             f"background build: {os.environ.get('ROBOISF_BACKGROUND_COMPILE', '1') != '0'}; "
-            f"numba: {'off, ROBOISF_NUMBA=0 (plain install)' if a.no_numba else 'installed'}"
+            f"numba: {'off, ROBOISF_NUMBA=0 ROBOISF_NATIVE=0 (plain install)' if a.no_numba else 'installed'}"
         )
         print(
             f"{'command':32s} {'first s':>8s} {'second s':>9s} {'ratio':>6s} "
@@ -224,8 +224,9 @@ def main() -> None:
             env = dict(base)
             if not a.install:
                 env["NUMBA_CACHE_DIR"] = os.path.join(d, f"cache-{k}")
-            if a.no_numba:
+            if a.no_numba:  # the plain install: neither numba nor the C forms
                 env["ROBOISF_NUMBA"] = "0"
+                env["ROBOISF_NATIVE"] = "0"
             load = " ".join(f"{x:.2f}" for x in os.getloadavg())
             times = []
             waited = 0.0

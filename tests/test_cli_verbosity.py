@@ -3,11 +3,13 @@ output (verdicts, next command) and the part file's numbers (issue #30)."""
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -110,23 +112,45 @@ def test_with_background_building_the_first_notice_is_the_builders(tmp_path, mon
         progress.set_notice(None)
 
 
-def test_compile_notice_once_and_only_when_not_cached(tmp_path, monkeypatch):
+def _kernel_module(tmp_path: Path, name: str) -> Any:
+    """A kernel module as roboisf writes one (compile_notice at import, two numba kernels),
+    imported from ``tmp_path``."""
+    src = tmp_path / f"{name}.py"
+    src.write_text(
+        "from roboisf.jit import compile_notice, njit\n"
+        "compile_notice(__file__)\n"
+        "@njit()\n"
+        "def f(x):\n"
+        "    return x + 1\n"
+        "@njit()\n"
+        "def g(x):\n"
+        "    return x + 2\n"
+    )
+    spec = importlib.util.spec_from_file_location(name, src)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_compile_notice_once_when_a_kernel_compiles_and_only_when_not_cached(tmp_path, monkeypatch):
     from roboisf.jit import background as bg
 
     monkeypatch.setenv(bg.ENV, "0")  # compiling in the foreground: the notice's case
     monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
     monkeypatch.setenv("HOME", str(tmp_path / "home"))
-    src = _module(tmp_path)
     said: list[str] = []
     progress.set_notice(said.append)
     try:
-        jit.compile_notice(src)
-        jit.compile_notice(src)
+        m = _kernel_module(tmp_path, "kern_notice")
+        assert said == []  # importing compiles nothing: nothing said (its C form may serve)
+        assert m.f(1) == 2
         assert len(said) == 1 and "first time" in said[0] and "minutes" in said[0]
-        progress.set_notice(said.append)  # a new run
-        (src.parent / "__pycache__").mkdir()
-        (src.parent / "__pycache__" / "kern.f-1.py311.nbi").write_text("")
-        jit.compile_notice(src)
+        assert m.g(1) == 3  # the module's second kernel: said once
+        assert len(said) == 1
+        progress.set_notice(said.append)  # a new run: the cache is there now
+        m = _kernel_module(tmp_path, "kern_notice")
+        assert m.f(1) == 2
         assert len(said) == 1
     finally:
         progress.set_notice(None)

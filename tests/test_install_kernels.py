@@ -32,6 +32,17 @@ print(json.dumps({"file": roboisf.__file__, "ready": {g: bg.ready(g) for g in bg
 """
 
 
+#: ``roboisf analyze STUDY -o OUT`` through the console script's entry, then whether numba was
+#: imported.
+_NO_NUMBA = """
+import atexit, sys
+atexit.register(lambda: print("numba imported:", "numba" in sys.modules))
+from roboisf.cli.main import entry
+sys.argv = ["roboisf", "-q", "analyze", sys.argv[1], "-o", sys.argv[2]]
+entry()
+"""
+
+
 def _project_copy(dest: Path) -> Path:
     """The project's build inputs copied to ``dest`` (no caches, no build folder)."""
     dest.mkdir()
@@ -40,7 +51,7 @@ def _project_copy(dest: Path) -> Path:
     shutil.copytree(
         SRC,
         dest / "src" / "roboisf",
-        ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.nbi", "*.nbc"),
+        ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.nbi", "*.nbc", "*.so", "*.tmp"),
     )
     return dest
 
@@ -82,6 +93,12 @@ def test_the_wheel_carries_its_kernels_and_the_first_run_compiles_nothing(
     assert not (tmp_path / "users-cache").exists()
     # every kernel group's modules have a cache numba takes as its own, beside the sources
     assert in_tree_missing(site) == []
+    # and every C kernel is built, with its source (roboisf.jit.native checks one by the other)
+    sources = sorted(p.relative_to(SRC.parent) for p in SRC.rglob("*_kernel.c"))
+    assert sources
+    for c in sources:
+        assert (site / c).is_file()
+        assert list((site / c).parent.glob(f"_{c.stem}_c.*.so")), f"{c}: no library in the wheel"
 
     # the installed package, as a user runs it: background building on, no cache folder of
     # numba's set, its own temp folder (where a builder's lock would appear)
@@ -97,22 +114,43 @@ def test_the_wheel_carries_its_kernels_and_the_first_run_compiles_nothing(
     assert not list(tmp_path.glob("roboisf-kernel-build-*"))
     built = _signatures(site)
     part = tmp_path / "cone.toml"
-    for args in (
-        ["analyze", str(fast_cone_study), "-o", str(tmp_path / "analysis")],
-        ["part", "cone", "-o", str(part)],
-        [
-            *("plan", "--part", str(part), "--x-range", "2000:2200:2", "--y-range", "-500"),
-            *("--z-range", "200", "--serial", "-o", str(tmp_path / "plan")),
-        ],
+    # the analysis runs the C kernels: numba is never imported
+    r = subprocess.run(
+        [sys.executable, "-c", _NO_NUMBA, str(fast_cone_study), str(tmp_path / "analysis")],
+        env=run_env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert r.stdout.strip() == "numba imported: False"
+    for args, extra in (
+        # the numba fallback of the same kernels (no compiler at install): built at install too
+        (["analyze", str(fast_cone_study), "-o", str(tmp_path / "analysis-numba")], "0"),
+        (["part", "cone", "-o", str(part)], "1"),
+        (
+            [
+                *("plan", "--part", str(part), "--x-range", "2000:2200:2", "--y-range", "-500"),
+                *("--z-range", "200", "--serial", "-o", str(tmp_path / "plan")),
+            ],
+            "1",
+        ),
     ):
         subprocess.run(
             [sys.executable, "-m", "roboisf", "-q", *args],
-            env=run_env,
+            env={**run_env, "ROBOISF_NATIVE": extra},
             check=True,
             capture_output=True,
             timeout=600,
         )
-    assert (tmp_path / "analysis" / "summary.json").is_file()
+    for name in ("analysis", "analysis-numba"):
+        assert (tmp_path / name / "summary.json").is_file()
+    # the two compiled forms, the same numbers
+    a, b = (
+        (tmp_path / name / "contributions.csv").read_bytes()
+        for name in ("analysis", "analysis-numba")
+    )
+    assert a == b
     assert not list(tmp_path.glob("roboisf-kernel-build-*"))  # no builder was started
     # every specialisation they call (array layouts, integer types) is one the build made (the
     # builder had missed row_norms of a log read backwards and plan's whole inner loop,

@@ -20,6 +20,7 @@ import pytest
 
 from roboisf import jit, progress
 from roboisf.jit import background as bg
+from roboisf.jit import native
 
 needs_numba = pytest.mark.skipif(not jit.HAVE_NUMBA, reason="numba not installed")
 SRC = Path(__file__).resolve().parents[1] / "src" / "roboisf"
@@ -30,8 +31,11 @@ def fresh(monkeypatch, tmp_path):
     """Background building on, nothing decided or started yet in this process, and no failure
     marker: a real builder that failed on this machine (its marker sits in the temp folder,
     keyed by the sources' mtimes, e.g. a kernel edited while it built) does not decide the
-    test (it made the one-builder test see no builder at all)."""
+    test (it made the one-builder test see no builder at all). The C forms are switched off:
+    these tests are of numba's path (tests/test_native.py has the C forms' part in it)."""
     monkeypatch.setenv(bg.ENV, "1")
+    monkeypatch.setenv(native.ENV, "0")
+    monkeypatch.setattr(native, "_loaded", {})
     monkeypatch.setattr(bg, "_decided", {})
     monkeypatch.setattr(bg, "_started", False)
     monkeypatch.setattr(bg, "failure_path", lambda: tmp_path / "no-earlier-failure.failed")
@@ -358,11 +362,13 @@ def test_builder_removes_its_lock_when_interrupted(monkeypatch, tmp_path):
 
 # -- the cold path gives the compiled path's numbers, group by group ------------------------------
 def _both(monkeypatch, group, fn):
-    """``fn()`` with ``group`` compiled, then as on a cold kernel cache (numpy)."""
-    monkeypatch.setitem(bg._decided, group, True)
-    a = fn()
-    monkeypatch.setitem(bg._decided, group, False)
-    return a, fn()
+    """``fn()`` with ``group`` compiled by numba, then as on a cold kernel cache (numpy); the
+    C forms (roboisf.jit.native, tested against numba in tests/test_native*.py) set aside."""
+    with native.suspended():
+        monkeypatch.setitem(bg._decided, group, True)
+        a = fn()
+        monkeypatch.setitem(bg._decided, group, False)
+        return a, fn()
 
 
 @needs_numba
@@ -516,6 +522,7 @@ def test_first_process_serves_numpy_builds_in_background_next_runs_compiled(tmp_
     (:func:`_seed_from_the_install`)."""
     _seed_from_the_install(tmp_path / "cache")
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), **{bg.ENV: "1"})
+    env[native.ENV] = "0"  # numba's path: the C forms would serve their groups without it
     env["PYTHONPATH"] = os.pathsep.join(p for p in sys.path if p)
     run = [sys.executable, "-c", _PROBE]
     _cached = (
@@ -623,9 +630,10 @@ def test_builder_runs_at_a_lower_priority(monkeypatch, tmp_path):
 
 
 def test_numba_switched_off_runs_as_the_plain_install(tmp_path):
-    """ROBOISF_NUMBA=0: no numba (not even imported), the numpy engines, no builder — what the
-    plain install runs, and what benchmarks/cold_start.py --no-numba times."""
-    env = dict(os.environ, ROBOISF_NUMBA="0", **{bg.ENV: "1"})
+    """ROBOISF_NUMBA=0 and ROBOISF_NATIVE=0: no numba (not even imported), no C form, the
+    numpy engines, no builder — what the plain install runs, and what
+    benchmarks/cold_start.py --no-numba times."""
+    env = dict(os.environ, ROBOISF_NUMBA="0", ROBOISF_NATIVE="0", **{bg.ENV: "1"})
     env["PYTHONPATH"] = str(SRC.parent)
     code = (
         "import sys\n"
@@ -636,6 +644,25 @@ def test_numba_switched_off_runs_as_the_plain_install(tmp_path):
         "from roboisf.robot import vjm_kernel\n"
         "assert not jit.HAVE_NUMBA and not any(jit.ready(g) for g in bg.GROUPS)\n"
         "assert not kn.COMPILED and not vjm_kernel.use_numba('auto')\n"
+        "assert 'numba' not in sys.modules\n"
+        "print('ok')\n"
+    )
+    _prints_ok(code, env)
+
+
+def test_numba_switched_off_the_c_forms_serve_their_groups_and_numba_is_never_imported():
+    """ROBOISF_NUMBA=0 with the C forms built (pip install builds them): the groups they cover
+    run compiled, the others numpy; numba is not imported and no builder starts."""
+    env = dict(os.environ, ROBOISF_NUMBA="0", **{bg.ENV: "1"})
+    env.pop(native.ENV, None)
+    env["PYTHONPATH"] = str(SRC.parent)
+    code = (
+        "import sys\n"
+        "from roboisf import jit\n"
+        "from roboisf.jit import background as bg\n"
+        "bg._start = lambda: sys.exit('a builder was started')\n"
+        "ready = {g: jit.ready(g) for g in bg.GROUPS}\n"
+        "assert ready == {g: bool(bg.GROUPS[g].native) for g in bg.GROUPS}, ready\n"
         "assert 'numba' not in sys.modules\n"
         "print('ok')\n"
     )

@@ -12,6 +12,7 @@ import pytest
 
 from roboisf.cell import cell_from_study
 from roboisf.decompose import pipeline
+from roboisf.jit import native
 from roboisf.logs import forcelog
 from roboisf.robot import vjm_kernel
 from roboisf.study.spec import load_study
@@ -58,6 +59,7 @@ def test_log_steps_equal_previous_path(
     monkeypatch.setattr(position, "_COMPILED_LOOP", False)  # the Python tracking loop
     monkeypatch.setattr(vjm_kernel, "HAVE_NUMBA", False)  # RobotModel.fk for the joint log
     monkeypatch.setattr(forcelog, "_KERNEL", False)  # numpy norms and running sums
+    monkeypatch.setattr(native, "_suspended", 1)  # and no C form (roboisf.jit.native) at all
     ref, W_ref, notes_ref = _log_steps(small_cone_study)
     assert notes_fast == notes_ref
     for name, a in fast.items():

@@ -10,6 +10,7 @@ import pytest
 
 from roboisf.errors import InputError
 from roboisf.jit import background as jit_background
+from roboisf.jit import native
 from roboisf.parts import Cone, tessellate
 from roboisf.parts.mesh import spatial_order
 from roboisf.scan import (
@@ -296,6 +297,7 @@ def knn_engine(request, monkeypatch):
         pytest.skip("numba not installed")
     if request.param == "cKDTree":
         monkeypatch.setitem(jit_background._decided, "scan", False)  # cold cache
+        monkeypatch.setattr(native, "_suspended", 1)  # and no C form: the numpy path
     return request.param
 
 

@@ -8,6 +8,7 @@ import pytest
 
 from roboisf.errors import InputError
 from roboisf.jit import background as jit_background
+from roboisf.jit import native
 from roboisf.parts import Cone
 from roboisf.parts.mesh_kernel import gather_rows
 from roboisf.scan import (
@@ -32,6 +33,7 @@ def _both(monkeypatch, dev, P, N, **kw):
     a = toolpath_deviations(dev, P, N, **kw)
     with monkeypatch.context() as m:
         m.setitem(jit_background._decided, "scan", False)  # a cold kernel cache
+        m.setattr(native, "_suspended", 1)  # and no C form: the numpy path
         b = toolpath_deviations(dev, P, N, **kw)
     return a, b
 

@@ -251,10 +251,12 @@ def test_compiled_spatial_order_is_the_stable_sort_of_the_numpy_codes(kind):
 def test_points_in_spatial_order_on_the_numpy_path(monkeypatch):
     """A cold kernel cache: numpy's codes and argsort (int64), the same rows as compiled."""
     from roboisf.jit import background as jit_background
+    from roboisf.jit import native
     from roboisf.parts.mesh import in_spatial_order, spatial_order
 
     X = np.random.default_rng(4).normal(size=(5000, 3))
     monkeypatch.setitem(jit_background._decided, "mesh", False)
+    monkeypatch.setattr(native, "_suspended", 1)  # and no C form: the numpy path
     o = spatial_order(X)
     assert o.dtype == np.int64
     np.testing.assert_array_equal(o, np.argsort(_numpy_morton_codes(X), kind="stable"))

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from roboisf.jit import background as jit_background
+from roboisf.jit import native
 from roboisf.sync import position, position_kernel
 
 pytestmark = pytest.mark.skipif(not position_kernel.HAVE_NUMBA, reason="numba not installed")
@@ -43,6 +44,7 @@ def test_track_compiled_equals_numpy(monkeypatch: pytest.MonkeyPatch) -> None:
     P[1000:1100] += [0, 0, 0.02]  # retract during the pause
     s_k = position._track(P, tip, S, position.OFF_PATH)
     monkeypatch.setitem(jit_background._decided, "sync", False)  # a cold kernel cache
+    monkeypatch.setattr(native, "_suspended", 1)  # and no C form: the numpy path
     s_n = position._track(P, tip, S, position.OFF_PATH)
     assert np.isnan(s_n).any() and np.isfinite(s_n).sum() > 2000
     np.testing.assert_array_equal(np.isnan(s_k), np.isnan(s_n))
@@ -82,6 +84,7 @@ def test_track_loop_compiled_same_bits(monkeypatch: pytest.MonkeyPatch, seed: in
     assert np.nanmax(s_p[6800:]) > S[2900] and np.isfinite(s_p).sum() > 7000
     np.testing.assert_array_equal(s_k, s_p)  # NaN where off the path, the same bits elsewhere
     monkeypatch.setitem(jit_background._decided, "sync", False)  # a cold kernel cache
+    monkeypatch.setattr(native, "_suspended", 1)  # and no C form: the numpy path
     s_n = position._track(P, tip, S, position.OFF_PATH)
     np.testing.assert_array_equal(np.isnan(s_k), np.isnan(s_n))
     ok = np.isfinite(s_n)

@@ -82,11 +82,14 @@ _ROOT = Path(__file__).resolve().parents[1]  # the roboisf package folder
 class Group:
     """A kernel group: the modules whose ``cache=True`` kernels it needs (dotted names, found
     by path without importing them) and ``build`` ("module:function"), a function that compiles
-    them by running them once on a small input."""
+    them by running them once on a small input; ``native``: the modules whose C forms
+    (:mod:`roboisf.jit.native`), when all are built, serve every call the group's callers make
+    (then the group runs compiled without numba)."""
 
     modules: tuple[str, ...]
     build: str
     lane: int = 0
+    native: tuple[str, ...] = ()
 
     def files(self) -> tuple[Path, ...]:
         """The modules' source files."""
@@ -105,10 +108,16 @@ GROUPS: dict[str, Group] = {
     "mesh": Group(
         ("roboisf.parts.mesh_kernel", "roboisf.parts.axisym_kernel"),
         "roboisf.parts.mesh_kernel:build",
+        native=("roboisf.parts.mesh_kernel", "roboisf.parts.axisym_kernel"),
     ),
     "scan": Group(
         ("roboisf.parts.mesh_kernel", "roboisf.scan.knn_kernel", "roboisf.scan.toolpath_kernel"),
         "roboisf.scan.toolpath_kernel:build",
+        native=(
+            "roboisf.parts.mesh_kernel",
+            "roboisf.scan.knn_kernel",
+            "roboisf.scan.toolpath_kernel",
+        ),
     ),
     "robot": Group(
         ("roboisf.robot.vjm_numba", "roboisf.robot.fk_numba", "roboisf.robot.ik_numba"),
@@ -116,9 +125,17 @@ GROUPS: dict[str, Group] = {
         lane=1,
     ),
     "online": Group(("roboisf.online.kernel",), "roboisf.online.kernel:build", lane=1),
-    "sync": Group(("roboisf.sync.position_kernel",), "roboisf.sync.position_kernel:build", lane=1),
+    "sync": Group(
+        ("roboisf.sync.position_kernel",),
+        "roboisf.sync.position_kernel:build",
+        lane=1,
+        native=("roboisf.sync.position_kernel",),
+    ),
     "forcelog": Group(
-        ("roboisf.logs.forcelog_kernel",), "roboisf.logs.forcelog_kernel:build", lane=1
+        ("roboisf.logs.forcelog_kernel",),
+        "roboisf.logs.forcelog_kernel:build",
+        lane=1,
+        native=("roboisf.logs.forcelog_kernel",),
     ),
 }
 
@@ -209,7 +226,8 @@ def ready(group: str) -> bool:
     """Whether an ``"auto"`` dispatch of kernel ``group`` (a key of :data:`GROUPS`) runs
     compiled in this process.
 
-    False without numba. True when the group is cached, or when background building is off
+    True when the group's C forms are built (:func:`native_ready`: no numba at all). Else
+    False without numba; True when the group is cached, or when background building is off
     (:data:`ENV`: the first call compiles in the foreground). Else False — the numpy path
     serves this run — after starting the background builder of every missing group (at most
     once per process, not while another builder holds the lock, not after a failed build:
@@ -217,6 +235,8 @@ def ready(group: str) -> bool:
     """
     if group not in GROUPS:
         raise KeyError(f"unknown kernel group {group!r}; known: {', '.join(GROUPS)}")
+    if native_ready(group):
+        return True
     if not HAVE_NUMBA:
         return False
     with _decide:
@@ -226,6 +246,17 @@ def ready(group: str) -> bool:
                 _start()
             _decided[group] = ok
         return _decided[group]
+
+
+def native_ready(group: str) -> bool:
+    """Whether the C forms of group ``group`` (:attr:`Group.native`) are all built and fresh:
+    its callers then run compiled, without numba (each module's ``_c()`` loads its library)."""
+    mods = GROUPS[group].native
+    if not mods:
+        return False
+    import importlib
+
+    return all(getattr(importlib.import_module(m), "_c", lambda: None)() is not None for m in mods)
 
 
 def _start() -> None:
@@ -354,11 +385,14 @@ def lane_shares(lanes: list[list[str]], jobs: int) -> list[list[str]]:
 
 def build_groups(names: list[str]) -> list[str]:
     """Build the groups ``names`` in order in this process; the failures, one line per group."""
+    from roboisf.jit import native
+
     failures = []
     for name in names:
         module, function = GROUPS[name].build.split(":")
         try:
-            getattr(importlib.import_module(module), function)()
+            with native.suspended():  # the build runs the numba kernels, not their C forms
+                getattr(importlib.import_module(module), function)()
         except Exception as e:
             failures.append(f"{name}: {type(e).__name__}: {e}")
             continue

@@ -3,8 +3,10 @@
 numba is a dependency (its kernels are built at install: :mod:`roboisf.jit.prebuild`), but a
 run can do without it: ``ROBOISF_NUMBA=0``, or an install where it does not import.
 :data:`HAVE_NUMBA` says whether it is there without importing it (≈ 0.5 s); :func:`njit`
-imports it on first use, so a kernel module pays the import only when it is itself imported.
-Without numba :func:`njit` returns the function unchanged.
+makes each kernel's dispatcher on its first call (:class:`LazyKernel`), so a process pays
+numba's import only when it runs a numba kernel — not when it imports a kernel module whose C
+form (:mod:`roboisf.jit.native`) serves it. Without numba :func:`njit` returns the function
+unchanged.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import os
 import pickletools
 import re
 import sys
+import threading
 from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
@@ -28,6 +31,7 @@ __all__ = [
     "COMPILE_WAIT",
     "HAVE_NUMBA",
     "NUMBA_ENV",
+    "LazyKernel",
     "compile_notice",
     "kernel_cached",
     "njit",
@@ -79,11 +83,82 @@ _copies: dict[str, ModuleType] = {}
 
 def njit(**options: Any) -> Callable[[Callable[..., Any]], Any]:
     """The decorator of every roboisf kernel: ``numba.njit(cache=True, nogil=True, **options)``
-    (cached on disk, releases the GIL), or the identity without numba."""
-    nb = None if _plain else numba_module()
-    if nb is None:
+    (cached on disk, releases the GIL) made on first use (:class:`LazyKernel`), or the identity
+    without numba."""
+    if _plain or not HAVE_NUMBA:
         return _identity
-    return nb.njit(**{"cache": True, "nogil": True, **options})
+    opts = {"cache": True, "nogil": True, **options}
+    return lambda f: LazyKernel(f, opts)
+
+
+_materializing = threading.RLock()
+
+
+class LazyKernel:
+    """A numba kernel whose dispatcher — and so numba's import (≈ 0.15–0.2 s) and its first
+    load (≈ 0.2 s more) — is made on its first call or attribute read, not when its module is
+    imported: a process that runs a kernel's C form (:mod:`roboisf.jit.native`) or its numpy
+    form never imports numba.
+
+    On that first use every kernel named in the module's globals (the kernel's own module's,
+    and those of the kernels it names, in turn) is replaced there by its dispatcher, so the
+    kernels a compiled kernel calls are numba's own objects when numba types it. Pickled by
+    reference to its module and name, as a function is."""
+
+    def __init__(self, func: Callable[..., Any], options: dict[str, Any]) -> None:
+        self.py_func = func
+        self._options = options
+        self._dispatcher: Any = None
+        functools.update_wrapper(self, func)
+
+    def dispatcher(self) -> Any:
+        """numba's dispatcher of this kernel (made, and the globals bound, on first call)."""
+        d = self._dispatcher
+        if d is not None:
+            return d
+        with _materializing:
+            if self._dispatcher is None:
+                _notice(self.py_func.__code__.co_filename)
+                nb = numba_module()
+                assert nb is not None  # LazyKernel is made only with numba installed
+                self._dispatcher = nb.njit(**self._options)(self.py_func)
+                _bind(self.py_func.__globals__, set())
+            return self._dispatcher
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        return self.dispatcher()(*args, **kwargs)
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("__") or name in ("py_func", "_options", "_dispatcher"):
+            raise AttributeError(name)
+        return getattr(self.dispatcher(), name)
+
+    def __reduce__(self) -> tuple[Any, tuple[str, str]]:
+        return (_by_name, (self.py_func.__module__, self.py_func.__qualname__))
+
+    def __repr__(self) -> str:
+        return f"<roboisf kernel {self.py_func.__module__}.{self.py_func.__qualname__}>"
+
+
+def _bind(namespace: dict[str, Any], seen: set[int]) -> None:
+    """Replace every :class:`LazyKernel` in ``namespace`` (a module's globals) by its
+    dispatcher, and do the same in the globals of each (once per namespace)."""
+    if id(namespace) in seen:
+        return
+    seen.add(id(namespace))
+    for name, value in list(namespace.items()):
+        if isinstance(value, LazyKernel):
+            namespace[name] = value.dispatcher()
+            _bind(value.py_func.__globals__, seen)
+
+
+def _by_name(module: str, qualname: str) -> Any:
+    import importlib
+
+    obj: Any = importlib.import_module(module)
+    for part in qualname.split("."):
+        obj = getattr(obj, part)
+    return obj
 
 
 def python_copy(module_name: str) -> ModuleType:
@@ -321,17 +396,33 @@ def _index_fresh(index: Path, source: Path, st: os.stat_result) -> bool | None:
 
 def compile_notice(module_file: str | os.PathLike[str]) -> None:
     """Called by a kernel module as it is imported (its numba functions compile on first call):
-    when they are not cached yet and they would compile here — background building off
+    the module's notice is said, if it is due, when its first numba kernel is about to be made
+    (:class:`LazyKernel`) — not at the import, which may be followed by the module's C form
+    only (:mod:`roboisf.jit.native`) and no numba at all (checking numba's cache here imported
+    numba)."""
+    _notice_due.add(os.path.abspath(module_file))
+
+
+_notice_due: set[str] = set()
+
+
+def _notice(module_file: str) -> None:
+    """The notice of :func:`compile_notice` for ``module_file``, at most once: when its kernels
+    are not cached yet and they would compile here — background building off
     (``ROBOISF_BACKGROUND_COMPILE=0``) — say once per process that the kernels are being built
     and how long that takes (:data:`COMPILE_WAIT`), through :func:`roboisf.progress.set_notice`'s
-    hook, silent without one. With background building on, importing a kernel module compiles
-    nothing: the dispatch (:func:`roboisf.jit.ready`) runs numpy and says so when it starts the
-    builder; said here, the notice claimed a wait that did not come and, being the run's one
-    notice, kept the builder's from being said. (An explicit ``backend="numba"`` on an uncached
-    kernel then compiles without a notice.)"""
+    hook, silent without one. With background building on, nothing compiles unasked: the
+    dispatch (:func:`roboisf.jit.ready`) runs numpy and says so when it starts the builder;
+    said here, the notice claimed a wait that did not come and, being the run's one notice,
+    kept the builder's from being said. (An explicit ``backend="numba"`` on an uncached kernel
+    then compiles without a notice.)"""
+    path = os.path.abspath(module_file)
+    if path not in _notice_due:
+        return
+    _notice_due.discard(path)
     from roboisf.jit.background import background_enabled
 
-    if background_enabled() or kernel_cached(module_file):
+    if background_enabled() or kernel_cached(path):
         return
     notice_once(
         "building roboisf's compiled kernels (numba) for the first time — "

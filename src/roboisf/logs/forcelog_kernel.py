@@ -1,5 +1,8 @@
-"""Compiled (numba) passes over a force log: row norms, and the running trapezoid integral read
-at chosen samples; imported on first use (built at install: :mod:`roboisf.jit.prebuild`).
+"""Compiled passes over a force log: row norms, and the running trapezoid integral read at
+chosen samples; imported on first use. Two compiled forms, the same bits: C
+(``forcelog_kernel.c``, built at install, called through :mod:`roboisf.jit.native` — no numba in
+the process) when it is built and fresh, else numba (built at install:
+:mod:`roboisf.jit.prebuild`).
 
 A 1 kHz log of a paper-scale part has 2.3 M samples (110 MB per (N, 6) float64 array). The numpy
 forms of these steps allocate several arrays of the log's size each (``norm`` squares all
@@ -19,13 +22,14 @@ the same bits (tests/test_forcelog_kernel.py):
 
 from __future__ import annotations
 
+import ctypes
 import math
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from roboisf.jit import compile_notice, njit
+from roboisf.jit import compile_notice, native, njit
 
 compile_notice(__file__)  # numba compiles these on first call: say so once
 
@@ -33,6 +37,31 @@ __all__ = ["build", "onset", "row_norms", "running_integral_at"]
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
+
+_P, _I, _D = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
+
+#: The C functions of ``forcelog_kernel.c`` (:func:`roboisf.jit.native.library`).
+SIGNATURES: dict[str, native.Signature] = {
+    "row_norms": (None, [_P, _I, _I, _I, _I, _P, _P]),
+    "onset": (_I, [_P, _I, _I, _I, _P, _D, _P]),
+    "running_at": (ctypes.c_int, [_P, _I, _P, _I, _I, _I, _P, _I, _P]),
+}
+
+
+def _c() -> Any:
+    """The C library of this module, or None (the numba kernels serve)."""
+    return native.library(__name__, SIGNATURES)
+
+
+def _strides(a: NDArray[Any]) -> tuple[int, ...]:
+    """``a``'s strides in elements (an array of float64 views: always whole elements)."""
+    return tuple(s // a.itemsize for s in a.strides)
+
+
+def _f64(a: NDArray[Any], name: str) -> NDArray[np.float64]:
+    if a.dtype != np.float64:
+        raise TypeError(f"{name}: float64 expected, got {a.dtype}")
+    return a
 
 
 @njit()
@@ -73,15 +102,28 @@ def onset(X: F64, centre: F64, noise: float) -> tuple[float, int]:
     :func:`roboisf.sensor.unloaded_samples` asks of the whole log, in two passes without the
     (N,) distances (the second stops at the onset, near the log's start)."""
     c = np.ascontiguousarray(centre, dtype=np.float64)
-    span, i = _onset(X, c, float(noise))
-    return float(span), int(i)
+    lib = _c()
+    if lib is None:
+        span, i = _onset(X, c, float(noise))
+        return float(span), int(i)
+    X = _f64(X, "X")
+    rs, cs = _strides(X)
+    out = ctypes.c_double()
+    i = lib.onset(X.ctypes.data, X.shape[0], rs, cs, c.ctypes.data, float(noise), ctypes.byref(out))
+    return float(out.value), int(i)
 
 
 def row_norms(X: F64, j: int = 0, centre: F64 | None = None) -> F64:
     """``|X[:, j:j+3] − centre|`` per row (N,), one pass; ``centre`` (3,) defaults to 0."""
     c = np.zeros(3) if centre is None else np.ascontiguousarray(centre, dtype=np.float64)
     out = np.empty(X.shape[0])
-    _row_norms(X, int(j), c, out)
+    lib = _c()
+    if lib is None:
+        _row_norms(X, int(j), c, out)
+        return out
+    X = _f64(X, "X")
+    rs, cs = _strides(X)
+    lib.row_norms(X.ctypes.data, X.shape[0], rs, cs, int(j), c.ctypes.data, out.ctypes.data)
     return out
 
 
@@ -110,7 +152,29 @@ def running_integral_at(t: F64, y: F64, ks: I64) -> F64:
     """Rows ``ks`` (sorted, unique sample indices) of the running trapezoid integral of ``y``
     (N, K) over ``t`` (N,): (len(ks), K); the pass stops at the last index asked for."""
     out = np.empty((ks.shape[0], y.shape[1]))
-    _running_at(t, y, np.ascontiguousarray(ks, dtype=np.int64), out)
+    ks = np.ascontiguousarray(ks, dtype=np.int64)
+    lib = _c()
+    if lib is None:
+        _running_at(t, y, ks, out)
+        return out
+    t, y = _f64(t, "t"), _f64(y, "y")
+    (ts,) = _strides(t)
+    ys0, ys1 = _strides(y)
+    if ks.size and (ks[-1] >= t.shape[0] or ks[0] < 0):
+        raise IndexError(f"sample index out of range 0..{t.shape[0] - 1}")
+    ok = lib.running_at(
+        t.ctypes.data,
+        ts,
+        y.ctypes.data,
+        y.shape[1],
+        ys0,
+        ys1,
+        ks.ctypes.data,
+        ks.size,
+        out.ctypes.data,
+    )
+    if not ok:
+        raise MemoryError("running_integral_at: no memory for the running sum")
     return out
 
 
