@@ -1,7 +1,10 @@
-"""Compiled (numba) tracking of a logged tool path along the toolpath, for the position alignment.
+"""Compiled tracking of a logged tool path along the toolpath, for the position alignment.
 
-Used by :func:`roboisf.sync.position._track` when numba is there (a dependency;
-``ROBOISF_NUMBA=0`` switches it off); otherwise the numpy path runs. Two kernels:
+Used by :func:`roboisf.sync.position._track` when compiled (:func:`roboisf.jit.ready` of group
+"sync"); otherwise the numpy path runs. Two compiled forms, the same bits: C
+(``position_kernel.c``, built at install, called through :mod:`roboisf.jit.native` — no numba in
+the process) when it is built and fresh, else numba (``ROBOISF_NUMBA=0`` switches it off; built
+at install: :mod:`roboisf.jit.prebuild`). Two kernels:
 
 * :func:`project_segments` — the nearest point of a window of toolpath segments to each sample;
 * :func:`track_blocks` — the whole tracking loop of :func:`roboisf.sync.position._track` (blocks
@@ -12,23 +15,52 @@ Used by :func:`roboisf.sync.position._track` when numba is there (a dependency;
 Same arithmetic in the same order as the numpy path (clip of the segment parameter, squared
 distance, first minimum), so progress agrees to rounding (tests/test_sync_kernel.py checks
 <= 1e-12 m against numpy, and that the compiled loop gives the same bits as the Python loop
-over the compiled projection).
+over the compiled projection); the C form gives the numba form's bits
+(tests/test_native_position.py).
 """
 
 from __future__ import annotations
 
+import ctypes
 import math
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
-from roboisf.jit import HAVE_NUMBA, compile_notice, njit
+from roboisf.jit import HAVE_NUMBA, compile_notice, native, njit
 
 __all__ = ["HAVE_NUMBA", "build", "project_segments", "track_blocks"]
 
 if HAVE_NUMBA:
     compile_notice(__file__)  # numba compiles these on first call: say so once
+
+F64 = NDArray[np.float64]
+
+_P, _I, _D = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
+
+#: An array's C arguments: 2-D (pointer, row and column strides in elements), 1-D (pointer,
+#: stride); the segments: A, D (2-D), L2, S0, seglen (1-D).
+_ARR2, _ARR1 = [_P, _I, _I], [_P, _I]
+_SEGS = [*_ARR2, *_ARR2, *_ARR1, *_ARR1, *_ARR1]
+
+#: The C functions of ``position_kernel.c`` (:func:`roboisf.jit.native.library`).
+SIGNATURES: dict[str, native.Signature] = {
+    # P, M, its strides; the segments, W; s, d
+    "project_segments": (None, [_P, _I, _I, _I, *_SEGS, _I, _P, _P]),
+    # P, M, its strides; travel, its stride, its length; the segments, nseg; tol, block,
+    # margin, max_block; s, its stride; k; &s_prev, &last_on
+    "track_blocks": (
+        _I,
+        [_P, _I, _I, _I, _P, _I, _I, *_SEGS, _I, _D, _D, _D, _I, _P, _I, _I, _P, _P],
+    ),
+}
+
+
+def _c() -> Any:
+    """The C library of this module, or None (the numba kernels serve)."""
+    return native.library(__name__, SIGNATURES)
 
 
 _inline: Callable[[Callable[..., Any]], Callable[..., Any]] = njit(inline="always")
@@ -123,8 +155,130 @@ def _track_py(
     return k, s_prev, last_on
 
 
-project_segments: Any = njit()(_project_py)
-track_blocks: Any = njit()(_track_py)
+#: The numba forms (the fallback, and the C form's oracle in the tests).
+_project_segments: Any = njit()(_project_py)
+_track_blocks: Any = njit()(_track_py)
+
+
+def _f64(a: Any, name: str, ndim: int) -> F64:
+    """``a`` checked as a float64 array of ``ndim`` dimensions (and ≥ 3 columns when 2-D),
+    copied to C order only when a stride is not whole elements (a field of a record array)."""
+    if not isinstance(a, np.ndarray) or a.dtype != np.float64:
+        raise TypeError(f"{name}: a float64 array expected, got {getattr(a, 'dtype', type(a))}")
+    if a.ndim != ndim or (ndim == 2 and a.shape[1] < 3):
+        raise ValueError(f"{name}: {'(n, 3)' if ndim == 2 else '(n,)'} expected, got {a.shape}")
+    if any(st % a.itemsize for st in a.strides):
+        a = np.ascontiguousarray(a)
+    return a
+
+
+def _strides(a: F64) -> tuple[int, ...]:
+    """``a``'s strides in elements."""
+    return tuple(st // a.itemsize for st in a.strides)
+
+
+def _segments(A: Any, D: Any, L2: Any, S0: Any, seglen: Any, n: int) -> tuple[list[F64], list[int]]:
+    """The segment arrays checked to have ``n`` rows at least (the C code reads rows
+    0..n − 1 of each), and their C arguments (pointer, strides ...); keep the arrays alive
+    for the call (one may be a copy: :func:`_f64`)."""
+    arrays: list[F64] = []
+    args: list[int] = []
+    for a, name, ndim in (
+        (A, "A", 2),
+        (D, "D", 2),
+        (L2, "L2", 1),
+        (S0, "S0", 1),
+        (seglen, "seglen", 1),
+    ):
+        a = _f64(a, name, ndim)
+        if a.shape[0] < n:
+            raise IndexError(f"{name}: {n} segments expected, got {a.shape[0]}")
+        arrays.append(a)
+        args += [a.ctypes.data, *_strides(a)]
+    return arrays, args
+
+
+def project_segments(P: F64, A: F64, D: F64, L2: F64, S0: F64, seglen: F64) -> tuple[F64, F64]:
+    """The nearest point of the segments ``A + u D`` (u in [0, 1]; (W, 3) starts and
+    directions, squared lengths ``L2``, arc length at each start ``S0``, lengths ``seglen``) to
+    each sample of ``P`` (M, 3): (progress [m], distance [m]), each (M,); the first nearest
+    segment wins."""
+    lib = _c()
+    if lib is None:
+        s, d = _project_segments(P, A, D, L2, S0, seglen)
+        return s, d
+    P = _f64(P, "P", 2)
+    M, W = P.shape[0], _f64(A, "A", 2).shape[0]
+    s = np.empty(M)
+    d = np.empty(M)
+    if M == 0:
+        return s, d
+    if W == 0:
+        raise ValueError("project_segments: no segments")
+    keep, seg = _segments(A, D, L2, S0, seglen, W)
+    lib.project_segments(P.ctypes.data, M, *_strides(P), *seg, W, s.ctypes.data, d.ctypes.data)
+    del keep  # alive until here
+    return s, d
+
+
+def track_blocks(
+    P: F64,
+    travel: F64,
+    A: F64,
+    D: F64,
+    L2: F64,
+    S0: F64,
+    seglen: F64,
+    tol: float,
+    block: float,
+    margin: float,
+    max_block: int,
+    s: F64,
+    k: int,
+    s_prev: float,
+    last_on: int,
+) -> tuple[int, float, int]:
+    """Track samples ``P`` (M, 3) from ``k`` on while the tool stays in the search window
+    (:func:`_track_py`; ``travel`` (M,) the logged travel, the segments as for
+    :func:`project_segments`, ``S0`` naming how many): the progress into ``s`` (M,); returns
+    ``(k, s_prev, last_on)`` — ``k == M`` when done, else where the caller re-acquires."""
+    lib = _c()
+    if lib is None:
+        k, s_prev, last_on = _track_blocks(
+            P, travel, A, D, L2, S0, seglen, tol, block, margin, max_block, s, k, s_prev,
+            last_on,
+        )  # fmt: skip
+        return int(k), float(s_prev), int(last_on)
+    P = _f64(P, "P", 2)
+    travel = _f64(travel, "travel", 1)
+    M, nt, nseg = P.shape[0], travel.shape[0], _f64(S0, "S0", 1).shape[0]
+    if not isinstance(s, np.ndarray) or s.dtype != np.float64 or s.ndim != 1:
+        raise TypeError("s: a (M,) float64 array expected")
+    if any(st % s.itemsize for st in s.strides) or not s.flags.writeable:
+        raise ValueError("s: a writeable array of whole-element strides expected")
+    k, s_prev, last_on, max_block = int(k), float(s_prev), int(last_on), int(max_block)
+    if k >= M:
+        return k, s_prev, last_on
+    if nt < M or s.shape[0] < M:
+        raise IndexError(f"travel and s: {M} samples expected, got {nt} and {s.shape[0]}")
+    if k < 0 or not 0 <= last_on < nt:
+        raise IndexError(f"k = {k} or last_on = {last_on} out of range 0..{M - 1}")
+    if max_block < 1:
+        raise ValueError(f"max_block must be >= 1, got {max_block}")
+    if nseg == 0 and math.isfinite(s_prev):
+        raise ValueError("track_blocks: no segments")
+    keep, seg = _segments(A, D, L2, S0, seglen, nseg)
+    sp = ctypes.c_double(s_prev)
+    lo = ctypes.c_int64(last_on)
+    k = lib.track_blocks(
+        P.ctypes.data, M, *_strides(P), travel.ctypes.data, *_strides(travel), nt, *seg, nseg,
+        float(tol), float(block), float(margin), min(max_block, M), s.ctypes.data,
+        *_strides(s), k, ctypes.byref(sp), ctypes.byref(lo),
+    )  # fmt: skip
+    if k < 0:
+        raise MemoryError("track_blocks: no memory for a block's projections")
+    del keep  # alive until here
+    return int(k), float(sp.value), int(lo.value)
 
 
 def build() -> None:
