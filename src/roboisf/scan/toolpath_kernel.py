@@ -1,9 +1,12 @@
-"""Compiled (numba) neighbourhood statistics of the toolpath contacts, for
-:func:`roboisf.scan.toolpath_deviations`.
+"""Compiled neighbourhood statistics of the toolpath contacts, for
+:func:`roboisf.scan.toolpath_deviations`. Two compiled forms, the same bits: C
+(``toolpath_kernel.c``, built at install, called through :mod:`roboisf.jit.native` — no numba in
+the process) when it is built and fresh, else numba (the kernels below, and the grid passes of
+:mod:`roboisf.scan.knn_kernel` they share).
 
-Used when numba is there (a dependency; ``ROBOISF_NUMBA=0`` switches it off); otherwise
-:func:`~roboisf.scan.toolpath_deviations` queries scipy's ``cKDTree`` (the reference path, whose
-results these equal — tested).
+Used when a compiled form is there (numba is a dependency; ``ROBOISF_NUMBA=0`` switches it
+off); otherwise :func:`~roboisf.scan.toolpath_deviations` queries scipy's ``cKDTree`` (the
+reference path, whose results these equal — tested).
 
 Per contact ``P`` the scan points used are the ``k`` nearest feet (closest nominal points) at a
 distance ``< radius`` — exactly what ``cKDTree.query(P, k, distance_upper_bound=radius)`` returns:
@@ -31,21 +34,17 @@ of ~200 and ~half the cells (the paper cone's contacts 0.31 → 0.225 CPU-s).
 
 from __future__ import annotations
 
+import ctypes
 import math
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from roboisf.jit import HAVE_NUMBA, compile_notice, run_chunks
+from roboisf.jit import HAVE_NUMBA, compile_notice, native, run_chunks
 from roboisf.parts.mesh_kernel import bounds as _bounds
-from roboisf.scan.knn_kernel import (
-    MAX_CELLS,
-    _cell_keys,
-    _counting_sort,
-    _njit,
-    _shape,
-)
+from roboisf.scan import knn_kernel
+from roboisf.scan.knn_kernel import MAX_CELLS, _njit, _shape
 
 if HAVE_NUMBA:
     compile_notice(__file__)  # numba compiles these on first call: say so once
@@ -55,6 +54,24 @@ __all__ = ["HAVE_NUMBA", "build", "contact_statistics"]
 F64 = NDArray[np.float64]
 
 _NO_ROWS = np.zeros(0, dtype=np.int64)
+
+_P, _I, _D = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
+
+#: The C functions of ``toolpath_kernel.c`` (:func:`roboisf.jit.native.library`).
+SIGNATURES: dict[str, native.Signature] = {
+    "cell_keys": (_I, [_P, _I, _P, _D, _I, _I, _I, _P, _P, _I]),
+    "counting_sort": (None, [_P, _I, _P, _I, _P, _I]),
+    "contacts": (
+        ctypes.c_int,
+        [_P, _P, _P, _P, _I, _P, _D, _I, _I, _I, _P, _D, _I, _D, _D, _I, _I, _P, _P, _P, _P],
+    ),
+}
+
+
+def _c() -> Any:
+    """The C library of this module, or None (the numba kernels serve)."""
+    return native.library(__name__, SIGNATURES)
+
 
 #: Cell side / radius: half the radius, so the cells searched (≤ 5 × 5 × 5 around a contact)
 #: hold ~3x the points in the ball instead of ~5x with cells of the radius.
@@ -337,6 +354,71 @@ def _contacts(
         cnt[i] = c
 
 
+def _wide(a: NDArray[Any], name: str) -> int:
+    """The C functions' integer flag of a grid array: 0 for int32, 1 for int64 (C-contiguous
+    only: no other layout reaches C)."""
+    if not a.flags.c_contiguous:
+        raise ValueError(f"{name}: a C-contiguous array expected")
+    if a.dtype == np.int32:
+        return 0
+    if a.dtype == np.int64:
+        return 1
+    raise TypeError(f"{name}: int32 or int64 expected, got {a.dtype}")
+
+
+def _xyz(a: NDArray[Any], name: str) -> None:
+    """Checks an (N, 3) C-contiguous float64 array for C."""
+    if a.dtype != np.float64 or a.ndim != 2 or a.shape[1] != 3 or not a.flags.c_contiguous:
+        raise TypeError(f"{name}: a C-contiguous (N, 3) float64 array expected")
+
+
+def _keys(
+    lib: Any,
+    F: F64,
+    lo: F64,
+    h: float,
+    nx: int,
+    ny: int,
+    nz: int,
+    key: NDArray[Any],
+    counts: NDArray[Any],
+) -> None:
+    """The cell of every foot in ``key`` and the feet per cell added to ``counts``
+    (:func:`roboisf.scan.knn_kernel._cell_keys` of all rows): by this module's C when ``lib``
+    is its library, else by knn_kernel's (which runs its own C form or numba)."""
+    if lib is None:
+        knn_kernel._cell_keys(F, _NO_ROWS, lo, h, nx, ny, nz, key, counts)
+        return
+    _xyz(F, "feet")
+    wide = _wide(key, "key")
+    if _wide(counts, "counts") != wide or key.size != F.shape[0] or counts.size != nx * ny * nz:
+        raise ValueError("cell keys: arrays of other types or sizes than the grid's")
+    lo = np.ascontiguousarray(lo, dtype=np.float64)
+    if lo.shape != (3,):
+        raise ValueError("lo: (3,) expected")
+    occupied = lib.cell_keys(
+        F.ctypes.data, F.shape[0], lo.ctypes.data, h, nx, ny, nz, key.ctypes.data,
+        counts.ctypes.data, wide,
+    )  # fmt: skip
+    if occupied < 0:
+        raise ValueError("feet outside their bounding box: a non-finite foot?")
+
+
+def _sort(lib: Any, key: NDArray[Any], start: NDArray[Any]) -> NDArray[Any]:
+    """:func:`roboisf.scan.knn_kernel._counting_sort`: by this module's C when ``lib`` is its
+    library, else by knn_kernel's. ``key`` as :func:`_keys` wrote it (every key a cell of
+    ``start``: C does not check them again)."""
+    if lib is None:
+        return knn_kernel._counting_sort(key, start)
+    wide = _wide(key, "key")
+    if _wide(start, "start") != wide:
+        raise TypeError("key and start: the same integer type expected")
+    order = np.empty_like(key)
+    lib.counting_sort(key.ctypes.data, key.size, start.ctypes.data, start.size,
+                      order.ctypes.data, wide)  # fmt: skip
+    return order
+
+
 def contact_statistics(
     feet: F64,
     dn: F64,
@@ -349,34 +431,84 @@ def contact_statistics(
 ) -> tuple[NDArray[np.int64], F64, F64, F64]:
     """Per contact (M, 3) [m]: the number of feet (N, 3) [m] used (the ``k`` nearest at a
     distance ``< radius`` [m]), and the median, the ``trim``-trimmed mean and the MAD [m] of
-    their ``dn`` (N,) [m] — (M,) each, 0 where no foot is near. Needs numba
-    (:data:`HAVE_NUMBA`) and N ≥ 1.
+    their ``dn`` (N,) [m] — (M,) each, 0 where no foot is near. Needs a compiled form (C, or
+    numba: :data:`HAVE_NUMBA`) and N ≥ 1.
 
     Memory: ~3 int32 per foot (cell keys, the permutation) and the grid's row starts; the
     feet are not copied. ``widen``: the small ball's radius in the last contact's ``k``-th
     distances (:data:`EST_WIDEN`; 0: the whole ball for every contact) — the same numbers.
     """
+    lib = _c()
     F = np.ascontiguousarray(feet, dtype=float)
     d = np.ascontiguousarray(dn, dtype=float)
     P = np.ascontiguousarray(contact, dtype=float)
-    n, M = F.shape[0], P.shape[0]
+    n = F.shape[0]
     lo, hi = _bounds(F, _NO_ROWS)
     span = np.maximum(hi - lo, 1e-12)
     nx, ny, nz = _shape(span, CELL * radius, MAX_CELLS)
     h = max(CELL * radius, float(np.max(span / np.array((nx, ny, nz)))))
     cdt = np.int32 if n < 2**31 else np.int64
+    return _statistics(lib, F, d, P, lo, h, (nx, ny, nz), cdt, radius, k, trim, widen)
+
+
+def _statistics(
+    lib: Any,
+    F: F64,
+    d: F64,
+    P: F64,
+    lo: F64,
+    h: float,
+    shape: tuple[int, int, int],
+    cdt: Any,
+    radius: float,
+    k: int,
+    trim: float,
+    widen: float,
+) -> tuple[NDArray[np.int64], F64, F64, F64]:
+    """:func:`contact_statistics` once the grid's origin, cell side and shape are chosen, its
+    keys of integer type ``cdt`` (int32, or int64 from 2³¹ feet on: tests ask for either)."""
+    nx, ny, nz = shape
+    n, M = F.shape[0], P.shape[0]
+    if lib is not None:  # nothing of another type or size reaches C
+        _xyz(F, "feet")
+        _xyz(P, "contact")
+        if d.dtype != np.float64 or d.ndim != 1 or d.shape[0] < n:
+            raise ValueError(f"dn: ({n},) float64 expected, got {d.shape} {d.dtype}")
+        if k < 1:
+            raise ValueError(f"k must be ≥ 1, got {k}")
+        if np.shape(lo) != (3,):
+            raise ValueError("lo: (3,) expected")
     key = np.empty(n, dtype=cdt)
     start = np.zeros(nx * ny * nz + 1, dtype=cdt)  # counts from index 1, summed in place
-    _cell_keys(F, _NO_ROWS, lo, h, nx, ny, nz, key, start[1:])
+    _keys(lib, F, lo, h, nx, ny, nz, key, start[1:])
     np.cumsum(start, out=start)
-    order = _counting_sort(key, start)
+    order = _sort(lib, key, start)
     del key
     cnt = np.empty(M, dtype=np.int64)
     med, trimmed, mad = np.empty(M), np.empty(M), np.empty(M)
 
-    def rows(a: int, b: int) -> None:
-        _contacts(F, d, order, start, lo, h, nx, ny, nz, P, radius, k, trim, widen, a, b,
-                  cnt, med, trimmed, mad)  # fmt: skip
+    if lib is None:
+
+        def rows(a: int, b: int) -> None:
+            _contacts(F, d, order, start, lo, h, nx, ny, nz, P, radius, k, trim, widen, a, b,
+                      cnt, med, trimmed, mad)  # fmt: skip
+
+    else:
+        lo_c = np.ascontiguousarray(lo, dtype=np.float64)
+        wide = _wide(order, "order")
+
+        def rows(a: int, b: int) -> None:
+            status = lib.contacts(
+                F.ctypes.data, d.ctypes.data, order.ctypes.data, start.ctypes.data, wide,
+                lo_c.ctypes.data, h, nx, ny, nz, P.ctypes.data, radius, k, trim, widen, a, b,
+                cnt.ctypes.data, med.ctypes.data, trimmed.ctypes.data, mad.ctypes.data,
+            )  # fmt: skip
+            if status == 1:
+                raise MemoryError("contact_statistics: no memory for a contact's candidates")
+            if status == 2:
+                raise ValueError(f"trim must lie in [0, 1), got {trim}")
+            if status != 0:
+                raise ValueError(f"contact_statistics: C status {status}")
 
     run_chunks(rows, M, 4096)  # on every core: the kernel releases the GIL
     return cnt, med, trimmed, mad
