@@ -1,4 +1,4 @@
-"""Compiled (numba) forward kinematics of the tool tip's position; imported on first use.
+"""Compiled forward kinematics of the tool tip's position; imported on first use.
 
 The position alignment (:mod:`roboisf.sync`) needs only where the tip was at every sample of a
 joint log (250 Hz–1 kHz over a whole run: 0.5–2 M poses), not the orientation or the Jacobian.
@@ -9,6 +9,11 @@ recording the joint axes the Jacobian needs, and writes only the (N, 3) position
 the work frame in the same loop. Same numbers as :meth:`roboisf.robot.RobotModel.fk` to
 rounding (its ``sincos`` is ≤ 1 ulp from numpy's; tests/test_robot_fk_positions.py: ≤ 1e-12 m
 on every preset).
+
+Two compiled forms, the same bits: C (``fk_rows`` of ``vjm_kernel.c``, the library of
+:mod:`roboisf.robot.vjm_kernel`, built at install, called through :mod:`roboisf.jit.native` —
+no numba in the process) when it is built and fresh, else numba (:func:`_rows`, built at
+install: :mod:`roboisf.jit.prebuild`); tests/test_native_robot.py compares them.
 """
 
 from __future__ import annotations
@@ -17,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.jit import compile_notice, njit, run_chunks
+from roboisf.robot import vjm_kernel
 from roboisf.robot.vjm_chain import chain_walk
 from roboisf.robot.vjm_numba import chunk
 
@@ -56,9 +62,25 @@ def tip_positions(
     c = [np.ascontiguousarray(a, dtype=np.float64) for a in (F_tip, sign, offset, T_out_base, q)]
     out = np.empty((c[4].shape[0], 3))
     n = c[4].shape[0]
+    lib = vjm_kernel._c()
+    if lib is None:
 
-    def rows(s: int, e: int) -> None:
-        _rows(c[0], c[1], c[2], float(couple23), c[3], c[4], out, s, e)
+        def rows(s: int, e: int) -> None:
+            _rows(c[0], c[1], c[2], float(couple23), c[3], c[4], out, s, e)
+
+    else:
+        shapes = tuple(a.shape for a in c)
+        if shapes != ((7, 4, 4), (6,), (6,), (4, 4), (n, 6)):
+            raise ValueError(
+                "tip_positions: F_tip (7, 4, 4), sign and offset (6,), T_out_base (4, 4), "
+                f"q (N, 6) expected, got {shapes}"
+            )
+        c23 = float(couple23)
+
+        def rows(s: int, e: int) -> None:
+            # the pointers taken here, from arrays this closure holds: alive during the call
+            F, sg, of, T, qc = (a.ctypes.data for a in c)
+            lib.fk_rows(F, sg, of, c23, T, qc, out.ctypes.data, s, e)
 
     run_chunks(rows, n, chunk(n, BLOCK), any_thread=False)
     return out

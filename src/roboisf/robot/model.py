@@ -222,7 +222,8 @@ class RobotModel:
         """
         qv = self.check_q(q, limits=check_limits)
         b = self.backend if backend is None else vjm_kernel.check_backend(backend)
-        if not vjm_kernel.use_numba(b):
+        # the C form (fk_numba.tip_positions calls it) needs neither numba nor group "robot"
+        if not (vjm_kernel.use_c(b) or vjm_kernel.use_numba(b)):
             # in blocks: each row's FK is elementwise, so the same numbers as one call, but the
             # ~40 temporaries of a block stay in cache and are reused instead of faulting fresh
             # pages in (a 573 k-sample joint log: 0.30–0.79 → 0.15–0.17 s)

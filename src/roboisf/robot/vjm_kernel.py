@@ -4,7 +4,7 @@ One entry point, :func:`vjm_eval`, behind :meth:`RobotModel.deflection`,
 :meth:`RobotModel.compliance`, :func:`roboisf.robot.vjm_batch` and ``roboisf.plan``. Two engines
 give the same numbers (≤ 1e-14 relative, tested on every preset):
 
-``"numba"`` (the default: numba is a dependency, its kernels built at install)
+``"numba"`` (the default: the compiled engine)
     one compiled loop over the poses that walks the chain of
     :mod:`roboisf.robot.kinematics` (seven fixed transforms ``F_0 .. F_6``, the tool folded into
     ``F_6``; ``θ = sign·q + offset``) in scalar registers and writes only the results: no
@@ -12,19 +12,24 @@ give the same numbers (≤ 1e-14 relative, tested on every preset):
     blocks of 1,024 poses (about four per core) on a thread pool
     (:func:`roboisf.jit.run_chunks`; the kernel releases the GIL); called from any other thread
     (a Dask worker, a thread pool) the same loop runs serially without the GIL, so the caller's
-    own parallelism is not oversubscribed. The kernels live in :mod:`roboisf.robot.vjm_numba`,
-    imported (so numba too) only on first use, compiled then and cached on disk (``cache=True``).
+    own parallelism is not oversubscribed. Two compiled forms of it, the same bits: C
+    (``vjm_kernel.c``, built at install, called through :mod:`roboisf.jit.native` — no numba in
+    the process; it also holds :func:`roboisf.robot.fk_numba.tip_positions`' pass) when it is
+    built and fresh (:func:`use_c`), else numba (:mod:`roboisf.robot.vjm_numba`, imported — so
+    numba too — only on first use, compiled then and cached on disk, ``cache=True``).
 ``"numpy"``
     the vectorised closed-form / chain-walk Jacobian of :mod:`roboisf.robot.kinematics` on
     chunks of :data:`CHUNK` poses (memory bounded by the chunk), ~3× slower.
 
-``backend="auto"`` picks numba when it is importable. No BLAS call is made by either engine;
+``backend="auto"`` picks the C form when it is built, else numba when it is importable and its
+kernels are cached (:func:`use_numba`). No BLAS call is made by either engine;
 :func:`single_blas_thread` pins OpenBLAS/MKL to one thread for batched numpy work that is
 already parallel (the plan's placements).
 """
 
 from __future__ import annotations
 
+import ctypes
 import math
 import sys
 from collections.abc import Callable, Iterator
@@ -36,6 +41,7 @@ from numpy.typing import NDArray
 
 from roboisf import jit
 from roboisf.errors import InputError
+from roboisf.jit import native, run_chunks
 from roboisf.progress import Progress, task
 
 __all__ = [
@@ -46,6 +52,8 @@ __all__ = [
     "check_backend",
     "margin_numpy",
     "single_blas_thread",
+    "use_c",
+    "use_numba",
     "vjm_eval",
 ]
 
@@ -63,13 +71,38 @@ CHUNK = 4096
 _CALL = 1 << 20
 
 
+_P, _I, _D = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
+
+#: The C functions of ``vjm_kernel.c`` (:func:`roboisf.jit.native.library`): ``fk_rows`` is
+#: :func:`roboisf.robot.fk_numba._rows`, ``vjm_rows`` :func:`roboisf.robot.vjm_numba._rows`.
+SIGNATURES: dict[str, native.Signature] = {
+    # F, sign, offset, c23, T, q, out, s, e
+    "fk_rows": (None, [_P, _P, _P, _D, _P, _P, _P, _I, _I]),
+    # F, sign, offset, c23, kinv, q, W, one_w, s, e, d, k, J, margin, ok
+    "vjm_rows": (None, [_P, _P, _P, _D, _P, _P, _P, _I, _I, _I, _P, _P, _P, _P, _P]),
+}
+
+
+def _c() -> Any:
+    """The C library of this module, or None (the numba kernels serve)."""
+    return native.library(__name__, SIGNATURES)
+
+
+def use_c(backend: str) -> bool:
+    """True when ``backend`` ("auto", "numba" or "numpy") asks for the compiled engine and its
+    C form is built and fresh: no numba, no :func:`roboisf.jit.ready` (group "robot" holds the
+    numba-only IK kernels of ``roboisf.plan`` too) and no background builder."""
+    return check_backend(backend) != "numpy" and _c() is not None
+
+
 def check_backend(backend: str, field: str = "backend") -> str:
     """Validate a ``backend`` name; ``"numba"`` needs numba installed."""
     return jit.check_backend(backend, field=field, have_numba=HAVE_NUMBA)
 
 
 def use_numba(backend: str) -> bool:
-    """True when ``backend`` ("auto", "numba" or "numpy") resolves to the compiled engine.
+    """True when ``backend`` ("auto", "numba" or "numpy") resolves to the numba engine (the
+    callers of the C form ask :func:`use_c` first).
 
     The first time, imports :mod:`roboisf.robot.vjm_numba`; if numba is installed but fails to
     import, "auto" falls back to numpy and "numba" is an :class:`InputError` saying why. While
@@ -157,6 +190,16 @@ def vjm_eval(
     J = np.empty((n, 6, 6)) if want_jacobian else None
     ok = None if margin is None else np.empty(n, dtype=np.bool_)
     lin_scale, c = (1.0, 0.0) if margin is None else (1.0 / margin[0], float(margin[1]) ** 2)
+    if use_c(backend):
+        rows = _c_rows(
+            F_tip, sign, offset, kinv, q, W, float(couple23), (lin_scale, c), d, k, J, ok
+        )
+        with task(progress, label, n) as advance:
+            for s in range(0, n, _CALL):
+                e = min(n, s + _CALL)
+                rows(s, e)
+                advance(e - s)
+        return VJMResult(d, k, J, ok)
     if use_numba(backend):
         from roboisf.robot import vjm_numba as nb
 
@@ -196,6 +239,87 @@ def vjm_eval(
                 ok[s:e] = margin_numpy(Js, c)
             advance(e - s)
     return VJMResult(d, k, J, ok)
+
+
+def _c_rows(
+    F_tip: F64,
+    sign: F64,
+    offset: F64,
+    kinv: F64,
+    q: F64,
+    W: F64,
+    c23: float,
+    margin: tuple[float, float],
+    d: F64,
+    k: F64 | None,
+    J: F64 | None,
+    ok: NDArray[np.bool_] | None,
+) -> Callable[[int, int], None]:
+    """The C form of the numba engine's kernel call: ``rows(s, e)`` writes poses ``s:e`` of
+    ``d``, ``k``, ``J``, ``ok`` (allocated by :func:`vjm_eval`: C-contiguous, N rows) — on every
+    core from the main thread, in the calling thread from any other (as
+    :func:`roboisf.robot.vjm_numba.kernel`), in chunks of :func:`~roboisf.robot.vjm_numba.chunk`
+    poses (the rows are independent: the chunks do not change the numbers)."""
+    from roboisf.robot.vjm_numba import _c64, chunk  # helpers only: numba is not imported
+
+    lib = _c()
+    n = q.shape[0]
+    one = W.strides[0] == 0 or n == 0 or W.shape[0] == 1  # one wrench for every pose
+    Wc = _c64(W[:1] if one else W)
+    qc = _c64(q)
+    F, sg, of, kv = (_c64(a) for a in (F_tip, sign, offset, kinv))
+    mg = np.array(margin, dtype=np.float64)
+    if (
+        F.shape != (7, 4, 4)
+        or sg.shape != (6,)
+        or of.shape != (6,)
+        or kv.shape != (6,)
+        or qc.shape != (n, 6)
+        or Wc.ndim != 2
+        or Wc.shape[1] != 6
+        or Wc.shape[0] < (min(n, 1) if one else n)
+    ):
+        raise ValueError(
+            f"vjm_eval: F (7, 4, 4), sign/offset/kinv (6,), q (N, 6), W (N or 1, 6) expected, "
+            f"got {F.shape}, {sg.shape}, {of.shape}, {kv.shape}, {qc.shape}, {W.shape}"
+        )
+    for a, shape, dtype in (
+        (d, (n, 6), np.float64),
+        (k, (n, 6, 6), np.float64),
+        (J, (n, 6, 6), np.float64),
+        (ok, (n,), np.bool_),  # one byte, 0 or 1
+    ):
+        if a is not None and not (
+            a.shape == shape and a.dtype == dtype and a.flags.c_contiguous and a.flags.writeable
+        ):
+            raise ValueError(f"vjm_eval: output {shape} {dtype.__name__} C-contiguous expected")
+    c23 = float(c23)
+    one_w = int(one)
+
+    def span(s: int, e: int) -> None:
+        # the pointers taken here, from arrays this closure holds: alive during the call
+        lib.vjm_rows(
+            F.ctypes.data,
+            sg.ctypes.data,
+            of.ctypes.data,
+            c23,
+            kv.ctypes.data,
+            qc.ctypes.data,
+            Wc.ctypes.data,
+            one_w,
+            s,
+            e,
+            d.ctypes.data,
+            None if k is None else k.ctypes.data,
+            None if J is None else J.ctypes.data,
+            mg.ctypes.data,
+            None if ok is None else ok.ctypes.data,
+        )
+
+    def rows(s: int, e: int) -> None:
+        run_chunks(lambda a, b: span(s + a, s + b), e - s, chunk(e - s), any_thread=False)
+
+    return rows
 
 
 def margin_numpy(Js: F64, c: float) -> NDArray[np.bool_]:
