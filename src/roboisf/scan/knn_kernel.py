@@ -1,8 +1,12 @@
-"""Compiled (numba) exact mean distance to the k nearest neighbours, for the scan's statistical
-outlier filter (:func:`roboisf.scan.statistical_outliers`).
-
-Used when numba is there (a dependency; ``ROBOISF_NUMBA=0`` switches it off); otherwise the filter
-queries scipy's ``cKDTree``, which gives the same neighbours.
+"""Compiled exact mean distance to the k nearest neighbours, for the scan's statistical outlier
+filter (:func:`roboisf.scan.statistical_outliers`). Two compiled forms, the same bits: C
+(``knn_kernel.c``, built at install, called through :mod:`roboisf.jit.native` — no numba in the
+process) when it is built and fresh, else numba (``ROBOISF_NUMBA=0`` switches it off; built at
+install: :mod:`roboisf.jit.prebuild`). The kernels keep their names as Python calls them
+(:func:`_cell_keys`, :func:`_counting_sort_into`, :func:`_knn_mean`, :func:`_knn_mean_block9`,
+:func:`_knn_mean_rows`) and go to C when :func:`_c` has the library, else to their numba forms
+(``…_nb``); tests/test_native_knn.py checks the two against each other. Without either the
+filter queries scipy's ``cKDTree``, which gives the same neighbours.
 
 Algorithm (exact, the same idea as :mod:`roboisf.parts.mesh_kernel`):
 
@@ -28,6 +32,7 @@ and releases the GIL: :func:`mean_knn_distance` runs it on chunks in several thr
 
 from __future__ import annotations
 
+import ctypes
 import math
 import os
 from concurrent.futures import ThreadPoolExecutor
@@ -36,7 +41,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from roboisf.jit import HAVE_NUMBA, compile_notice, njit
+from roboisf.jit import HAVE_NUMBA, compile_notice, native, njit
 from roboisf.parts.mesh_kernel import bounds as _bounds
 from roboisf.parts.mesh_kernel import gather_rows as _gather
 from roboisf.parts.mesh_kernel import scatter_rows
@@ -57,6 +62,23 @@ MAX_CELLS = 16_000_000
 F64 = NDArray[np.float64]
 
 _NO_ROWS = np.zeros(0, dtype=np.int64)
+
+_P, _I, _D = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
+_GRID = [_P, _I, _I, _P, _I, _P, _D, _I, _I, _I]  # X, its strides, start, wide, lo, h, shape
+
+#: The C functions of ``knn_kernel.c`` (:func:`roboisf.jit.native.library`).
+SIGNATURES: dict[str, native.Signature] = {
+    "knn_mean": (ctypes.c_int, [*_GRID, _I, _I, _I, _I, _P, _I]),
+    "knn_mean_rows": (ctypes.c_int, [*_GRID, _I, _I, _P, _I, _P, _I]),
+    "knn_mean_block9": (ctypes.c_int, [*_GRID, _P, _I, _I, _P, _I]),
+    "counting_sort_into": (None, [_P, _I, _P, _I, _P, _I]),
+    "cell_keys": (_I, [_P, _I, _I, _I, _P, _I, _P, _D, _I, _I, _I, _P, _I, _P, _I]),
+}
+
+
+def _c() -> Any:
+    """The C library of this module, or None (the numba kernels serve)."""
+    return native.library(__name__, SIGNATURES)
 
 
 _njit = njit
@@ -135,7 +157,7 @@ def _resolved(best: F64, k1: int, bound: float, out: F64, i: int) -> bool:  # pr
 
 
 @_njit()
-def _knn_mean(
+def _knn_mean_nb(
     X: F64,
     start: NDArray[np.int32],
     lo: F64,
@@ -216,7 +238,7 @@ _BLOCK = np.array(
 
 
 @_njit()
-def _knn_mean_block9(
+def _knn_mean_block9_nb(
     X: F64,
     start: NDArray[Any],
     lo: F64,
@@ -316,7 +338,7 @@ def _knn_mean_block9(
 
 
 @_njit()
-def _knn_mean_rows(
+def _knn_mean_rows_nb(
     X: F64,
     start: NDArray[Any],
     lo: F64,
@@ -331,7 +353,7 @@ def _knn_mean_rows(
 ) -> None:  # pragma: no cover - compiled
     """:func:`_knn_mean` of the points ``rows`` only (those the block search left NaN)."""
     for i in rows:
-        _knn_mean(X, start, lo, h, nx, ny, nz, k1, max_rings, i, i + 1, out)
+        _knn_mean_nb(X, start, lo, h, nx, ny, nz, k1, max_rings, i, i + 1, out)
 
 
 def _counting_sort(key: NDArray[Any], start: NDArray[Any]) -> NDArray[Any]:
@@ -345,7 +367,7 @@ def _counting_sort(key: NDArray[Any], start: NDArray[Any]) -> NDArray[Any]:
 
 
 @_njit()
-def _counting_sort_into(
+def _counting_sort_into_nb(
     key: NDArray[Any], start: NDArray[Any], order: NDArray[Any]
 ) -> NDArray[Any]:  # pragma: no cover - compiled
     """:func:`_counting_sort` into ``order`` (the keys' shape and type)."""
@@ -360,6 +382,224 @@ def _counting_sort_into(
     return order
 
 
+# The kernels as Python calls them: the C form when it is built (``_c()``), else numba's.
+
+
+def _points(X: Any) -> tuple[F64, int, int]:
+    """Points (N, ≥ 3) float64 and their row and column strides in elements (a copy only of a
+    view whose strides are not whole elements)."""
+    if not isinstance(X, np.ndarray) or X.dtype != np.float64 or X.ndim != 2 or X.shape[1] < 3:
+        raise TypeError("points: a float64 array (N, 3) expected")
+    if X.strides[0] % 8 or X.strides[1] % 8:
+        X = np.ascontiguousarray(X)
+    return X, X.strides[0] // 8, X.strides[1] // 8
+
+
+def _vector(out: Any, name: str) -> int:
+    """The stride in elements of the float64 vector ``out`` (written by C: never a copy)."""
+    if not isinstance(out, np.ndarray) or out.dtype != np.float64 or out.ndim != 1:
+        raise TypeError(f"{name}: a float64 vector expected")
+    if out.strides[0] % 8:
+        raise ValueError(f"{name}: strides of whole elements expected")
+    return out.strides[0] // 8
+
+
+def _wide(*arrays: Any) -> int:
+    """1 when the integer arrays (C-contiguous vectors of one type) are int64, 0 for int32."""
+    dt = arrays[0].dtype if isinstance(arrays[0], np.ndarray) else None
+    for a in arrays:
+        if not isinstance(a, np.ndarray) or a.dtype != dt or a.ndim != 1:
+            raise TypeError("cell keys, row starts and permutation: one integer type expected")
+        if not a.flags.c_contiguous:
+            raise ValueError("cell keys, row starts and permutation: contiguous arrays expected")
+    if dt not in (np.dtype(np.int32), np.dtype(np.int64)):
+        raise TypeError(f"cell keys, row starts and permutation: int32 or int64, not {dt}")
+    return int(dt == np.dtype(np.int64))
+
+
+def _lo(lo: Any) -> F64:
+    out = np.ascontiguousarray(lo, dtype=np.float64)
+    if out.size < 3:
+        raise ValueError("lo: the grid's origin (3,) expected")
+    return out
+
+
+def _check_grid(X: F64, start: NDArray[Any], nx: int, ny: int, nz: int, out: F64) -> None:
+    """The grid's shape is the row starts', its rows within the points and the output."""
+    if start.size != nx * ny * nz + 1:
+        raise ValueError(f"row starts: {nx * ny * nz + 1} expected (grid {nx}×{ny}×{nz})")
+    if int(start[-1]) > min(X.shape[0], out.size):
+        raise IndexError("row starts beyond the points or the output")
+
+
+def _check_k1(k1: int) -> None:
+    if k1 < 2:
+        raise ValueError(f"k + 1 = {k1}: at least one neighbour (k ≥ 1) is needed")
+
+
+def _knn_mean(
+    X: F64,
+    start: NDArray[Any],
+    lo: F64,
+    h: float,
+    nx: int,
+    ny: int,
+    nz: int,
+    k1: int,
+    max_rings: int,
+    a: int,
+    b: int,
+    out: F64,
+) -> None:
+    """The ring search of the points ``a … b − 1`` of ``X`` sorted by cell (:func:`_knn_mean_nb`):
+    ``out[i]`` their mean distance to their ``k1 − 1`` nearest, NaN beyond ``max_rings``."""
+    lib = _c()
+    if lib is None:
+        _knn_mean_nb(X, start, lo, h, nx, ny, nz, k1, max_rings, a, b, out)
+        return
+    X, rs, cs = _points(X)
+    os_, wide, lo = _vector(out, "out"), _wide(start), _lo(lo)
+    a, b = int(a), int(b)
+    if a >= b:
+        return
+    _check_k1(k1)
+    _check_grid(X, start, nx, ny, nz, out)
+    if a < 0 or b > min(X.shape[0], out.size):
+        raise IndexError(f"points {a}…{b - 1} beyond the points or the output")
+    ok = lib.knn_mean(
+        X.ctypes.data, rs, cs, start.ctypes.data, wide, lo.ctypes.data, float(h),
+        nx, ny, nz, k1, max_rings, a, b, out.ctypes.data, os_,
+    )  # fmt: skip
+    if not ok:
+        raise MemoryError("knn ring search: no memory for its scratch")
+
+
+def _knn_mean_block9(
+    X: F64,
+    start: NDArray[Any],
+    lo: F64,
+    h: float,
+    nx: int,
+    ny: int,
+    nz: int,
+    block: NDArray[np.int64],
+    ca: int,
+    cb: int,
+    out: F64,
+) -> None:
+    """The block search (k = 8) of the points of cells ``ca … cb − 1``
+    (:func:`_knn_mean_block9_nb`); the points it does not settle are left NaN."""
+    lib = _c()
+    if lib is None:
+        _knn_mean_block9_nb(X, start, lo, h, nx, ny, nz, block, ca, cb, out)
+        return
+    X, rs, cs = _points(X)
+    os_, wide, lo = _vector(out, "out"), _wide(start), _lo(lo)
+    B = np.ascontiguousarray(block, dtype=np.int64)
+    if B.shape != (27, 3):
+        raise ValueError("block: the 27 cell offsets (27, 3) expected")
+    ca, cb = int(ca), int(cb)
+    if ca >= cb:
+        return
+    _check_grid(X, start, nx, ny, nz, out)
+    if ca < 0 or cb > start.size - 1:
+        raise IndexError(f"cells {ca}…{cb - 1} beyond the grid")
+    ok = lib.knn_mean_block9(
+        X.ctypes.data, rs, cs, start.ctypes.data, wide, lo.ctypes.data, float(h),
+        nx, ny, nz, B.ctypes.data, ca, cb, out.ctypes.data, os_,
+    )  # fmt: skip
+    if not ok:
+        raise MemoryError("knn block search: no memory for its buffer")
+
+
+def _knn_mean_rows(
+    X: F64,
+    start: NDArray[Any],
+    lo: F64,
+    h: float,
+    nx: int,
+    ny: int,
+    nz: int,
+    k1: int,
+    max_rings: int,
+    rows: NDArray[np.int64],
+    out: F64,
+) -> None:
+    """The ring search of the points ``rows`` only (:func:`_knn_mean_rows_nb`)."""
+    lib = _c()
+    if lib is None:
+        _knn_mean_rows_nb(X, start, lo, h, nx, ny, nz, k1, max_rings, rows, out)
+        return
+    X, rs, cs = _points(X)
+    os_, wide, lo = _vector(out, "out"), _wide(start), _lo(lo)
+    R = np.ascontiguousarray(rows, dtype=np.int64)
+    if R.size == 0:
+        return
+    _check_k1(k1)
+    _check_grid(X, start, nx, ny, nz, out)
+    if int(R.min()) < 0 or int(R.max()) >= min(X.shape[0], out.size):
+        raise IndexError("rows beyond the points or the output")
+    ok = lib.knn_mean_rows(
+        X.ctypes.data, rs, cs, start.ctypes.data, wide, lo.ctypes.data, float(h),
+        nx, ny, nz, k1, max_rings, R.ctypes.data, R.size, out.ctypes.data, os_,
+    )  # fmt: skip
+    if not ok:
+        raise MemoryError("knn ring search: no memory for its scratch")
+
+
+def _counting_sort_into(
+    key: NDArray[Any], start: NDArray[Any], order: NDArray[Any]
+) -> NDArray[Any]:
+    """:func:`_counting_sort` into ``order`` (the keys' shape and type;
+    :func:`_counting_sort_into_nb`)."""
+    lib = _c()
+    if lib is None:
+        return _counting_sort_into_nb(key, start, order)
+    wide = _wide(key, start, order)
+    if order.size != key.size or start.size < 1:
+        raise ValueError("counting sort: a permutation of the keys' size and row starts expected")
+    lib.counting_sort_into(
+        key.ctypes.data, key.size, start.ctypes.data, start.size, order.ctypes.data, wide
+    )
+    return order
+
+
+def _cell_keys(
+    P: F64,
+    rows: NDArray[np.int64],
+    lo: F64,
+    h: float,
+    nx: int,
+    ny: int,
+    nz: int,
+    key: NDArray[Any],
+    counts: NDArray[Any],
+) -> int:
+    """Cell of every point ``P[rows]`` (all of ``P`` when ``rows`` is empty) in ``key``, and
+    points per cell added to ``counts``; the number of occupied cells
+    (:func:`_cell_keys_nb`)."""
+    lib = _c()
+    if lib is None:
+        return int(_cell_keys_nb(P, rows, lo, h, nx, ny, nz, key, counts))
+    P, rs, cs = _points(P)
+    R = np.ascontiguousarray(rows, dtype=np.int64)
+    wide, lo = _wide(key, counts), _lo(lo)
+    n = key.size
+    if counts.size < nx * ny * nz:
+        raise ValueError(f"counts: {nx * ny * nz} cells expected")
+    if R.size:
+        if R.size < n or (n and (int(R.min()) < -P.shape[0] or int(R.max()) >= P.shape[0])):
+            raise IndexError("rows beyond the points, or fewer than the keys")
+    elif n > P.shape[0]:
+        raise IndexError("more keys than points")
+    return int(
+        lib.cell_keys(
+            P.ctypes.data, rs, cs, P.shape[0], R.ctypes.data, R.size, lo.ctypes.data, float(h),
+            nx, ny, nz, key.ctypes.data, n, counts.ctypes.data, wide,
+        )
+    )  # fmt: skip
+
+
 def _shape(span: F64, h: float, max_cells: int) -> tuple[int, int, int]:
     """Cells per axis for side ``h``, coarsened until there are at most ``max_cells`` (a
     degenerate cloud — a line, a plane — has zero-span axes of one cell)."""
@@ -371,7 +611,7 @@ def _shape(span: F64, h: float, max_cells: int) -> tuple[int, int, int]:
 
 
 @_njit()
-def _cell_keys(
+def _cell_keys_nb(
     P: F64,
     rows: NDArray[np.int64],
     lo: F64,
@@ -505,8 +745,8 @@ def mean_knn_distance(
 ) -> F64:
     """(N,) m — mean distance of each point (N, 3) [m] to its ``k`` nearest other points (a
     duplicate counts, at 0), in the caller's order. ``rows``: of the points ``points[rows]``
-    only (in the order of ``rows``; no copy of them is made). Needs numba
-    (:data:`HAVE_NUMBA`) and more than ``k`` points.
+    only (in the order of ``rows``; no copy of them is made). Needs a compiled form (C, or numba:
+    :data:`HAVE_NUMBA`) and more than ``k`` points.
 
     Memory: the points once more, sorted by cell (the only copy), plus ~4 int64/float64 per
     point and the grid's row starts (≤ 64 MB).
