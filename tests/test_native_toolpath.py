@@ -210,48 +210,17 @@ def test_int64_grid_c_equals_numba(cone_dev):
     assert (a64[0] == 16).any()
 
 
-@pytest.mark.parametrize("cdt", [np.int32, np.int64])
-def test_cell_keys_and_counting_sort_c_equal_numba(cone_dev, cdt):
-    """The grid passes: every foot's cell, the feet per cell, the stable permutation by cell
-    and the row starts restored after it."""
-    lib = c_library(tk)
+def test_c_refuses_a_non_finite_foot():
+    """A NaN foot has no cell (numba's kernel writes outside its arrays): a ValueError in C
+    (knn_kernel's grid pass, which this module's grid goes through; its equality with numba is
+    tests/test_native_knn.py's)."""
     from roboisf.scan import knn_kernel
 
-    feet = cone_dev[0]
-    lo, h, (nx, ny, nz) = _grid_args(feet, 1e-3)
-    out = []
-    for form in ("c", "numba"):
-        key = np.empty(len(feet), dtype=cdt)
-        start = np.zeros(nx * ny * nz + 1, dtype=cdt)
-        if form == "c":
-            tk._keys(lib, feet, lo, h, nx, ny, nz, key, start[1:])
-        else:
-            with numba_form(KNN):
-                knn_kernel._cell_keys(feet, tk._NO_ROWS, lo, h, nx, ny, nz, key, start[1:])
-        counts = start.copy()
-        np.cumsum(start, out=start)
-        rows = start.copy()
-        if form == "c":
-            order = tk._sort(lib, key, start)
-        else:
-            with numba_form(KNN):
-                order = knn_kernel._counting_sort(key, start)
-        assert np.array_equal(start, rows)  # restored
-        out.append((key, counts, order, start))
-    for u, v in zip(*out, strict=True):
-        assert u.dtype == v.dtype == cdt and np.array_equal(u, v)
-    key, counts, order = out[0][:3]
-    assert np.array_equal(order, np.argsort(key, kind="stable"))
-    assert counts.max() > 1 and (counts == 0).any()
-
-
-def test_c_refuses_a_non_finite_foot():
-    """A NaN foot has no cell (numba's kernel writes outside its arrays): a ValueError in C."""
-    lib = c_library(tk)
+    c_library(knn_kernel)
     feet = np.random.default_rng(0).uniform(0, 1e-2, (100, 3))
     lo, h, (nx, ny, nz) = _grid_args(feet, 1e-3)
     feet[50, 1] = np.nan
     key = np.empty(100, dtype=np.int32)
     counts = np.zeros(nx * ny * nz, dtype=np.int32)
     with pytest.raises(ValueError, match="non-finite"):
-        tk._keys(lib, feet, lo, h, nx, ny, nz, key, counts)
+        tk._keys(feet, lo, h, nx, ny, nz, key, counts)

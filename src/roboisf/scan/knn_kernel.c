@@ -26,6 +26,12 @@ INLINE double pmax(double a, double b) { return b > a ? b : a; }
 INLINE double pmin(double a, double b) { return b < a ? b : a; }
 INLINE int64_t imax(int64_t a, int64_t b) { return b > a ? b : a; }
 INLINE int64_t imin(int64_t a, int64_t b) { return b < a ? b : a; }
+
+/* float -> int64 as numba's int() on x86-64 (truncation; INT64_MIN for NaN or out of range),
+ * without C's undefined behaviour out of range. */
+INLINE int64_t f2i(double x) {
+    return (x >= -9223372036854775808.0 && x < 9223372036854775808.0) ? (int64_t)x : INT64_MIN;
+}
 INLINE int64_t iabs(int64_t a) { return a < 0 ? -a : a; }
 
 /* Element i of an int32 (wide == 0) or int64 array; the callers pass wide as a constant, so each
@@ -332,9 +338,10 @@ INLINE int64_t cell_keys_t(const double *P, int64_t rs, int64_t cs, int64_t np,
         int64_t r = nrows ? rows[i] : i;
         if (r < 0) r += np; /* numba's index of a negative row: from the end */
         const double *p = P + r * rs;
-        int64_t ci = imin((int64_t)((p[0] - lo[0]) / h), nx - 1);
-        int64_t cj = imin((int64_t)((p[cs] - lo[1]) / h), ny - 1);
-        int64_t ck = imin((int64_t)((p[2 * cs] - lo[2]) / h), nz - 1);
+        int64_t ci = imin(f2i((p[0] - lo[0]) / h), nx - 1);
+        int64_t cj = imin(f2i((p[cs] - lo[1]) / h), ny - 1);
+        int64_t ck = imin(f2i((p[2 * cs] - lo[2]) / h), nz - 1);
+        if (ci < 0 || cj < 0 || ck < 0) return -1; /* below lo, or not finite: no cell */
         int64_t c = (ci * ny + cj) * nz + ck;
         seti(key, wide, i, c);
         int64_t cnt = geti(counts, wide, c);
@@ -345,7 +352,8 @@ INLINE int64_t cell_keys_t(const double *P, int64_t rs, int64_t cs, int64_t np,
 }
 
 /* _cell_keys: the cell of every point P[rows] (all of P, np rows, when nrows == 0) in key (n),
- * points per cell added to counts; the number of cells that were empty before. */
+ * points per cell added to counts; the number of cells that were empty before, or -1 when a
+ * point has no cell (below lo or not finite: numba's kernel would write outside its arrays). */
 int64_t cell_keys(const double *P, int64_t rs, int64_t cs, int64_t np, const int64_t *rows,
                   int64_t nrows, const double *lo, double h, int64_t nx, int64_t ny, int64_t nz,
                   void *key, int64_t n, void *counts, int64_t wide) {

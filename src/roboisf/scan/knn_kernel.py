@@ -592,12 +592,15 @@ def _cell_keys(
             raise IndexError("rows beyond the points, or fewer than the keys")
     elif n > P.shape[0]:
         raise IndexError("more keys than points")
-    return int(
+    occupied = int(
         lib.cell_keys(
             P.ctypes.data, rs, cs, P.shape[0], R.ctypes.data, R.size, lo.ctypes.data, float(h),
             nx, ny, nz, key.ctypes.data, n, counts.ctypes.data, wide,
         )
     )  # fmt: skip
+    if occupied < 0:
+        raise ValueError("points outside their grid: a non-finite point?")
+    return occupied
 
 
 def _shape(span: F64, h: float, max_cells: int) -> tuple[int, int, int]:

@@ -1,5 +1,5 @@
 /* C form of roboisf.scan.toolpath_kernel (the numba kernels that toolpath_kernel.py calls,
- * and the two grid passes it borrows from knn_kernel.py), loaded with ctypes by
+ * its grid's passes are knn_kernel's, in knn_kernel.c), loaded with ctypes by
  * roboisf.jit.native: the same arithmetic in the same order, so the same bits
  * (tests/test_native_toolpath.py). Arrays are C-contiguous (the Python side makes them so);
  * the grid's cell keys, row starts and permutation are int32 below 2^31 feet, else int64:
@@ -44,58 +44,6 @@ INLINE void seti(void *a, int64_t i, int64_t v, int wide) {
         ((int64_t *)a)[i] = v;
     else
         ((int32_t *)a)[i] = (int32_t)v;
-}
-
-/* ---- the grid (knn_kernel._cell_keys and knn_kernel._counting_sort_into) ---------------- */
-
-/* Cell of every row of F (n, 3) in key, and points per cell added to counts (zeroed by the
- * caller); returns the number of occupied cells, or -1 when a row falls outside the grid (a
- * non-finite foot: numba's kernel would write outside its arrays). Cell index per axis:
- * min(int((x - lo) / h), n - 1). */
-INLINE int64_t cell_keys_t(const double *F, int64_t n, const double *lo, double h, int64_t nx,
-                           int64_t ny, int64_t nz, void *key, void *counts, int wide) {
-    int64_t occupied = 0;
-    for (int64_t i = 0; i < n; i++) {
-        int64_t ci = imin(f2i((F[3 * i] - lo[0]) / h), nx - 1);
-        int64_t cj = imin(f2i((F[3 * i + 1] - lo[1]) / h), ny - 1);
-        int64_t ck = imin(f2i((F[3 * i + 2] - lo[2]) / h), nz - 1);
-        if (ci < 0 || cj < 0 || ck < 0) return -1;
-        int64_t c = (ci * ny + cj) * nz + ck;
-        seti(key, i, c, wide);
-        int64_t was = geti(counts, c, wide);
-        if (was == 0) occupied++;
-        seti(counts, c, was + 1, wide);
-    }
-    return occupied;
-}
-
-int64_t cell_keys(const double *F, int64_t n, const double *lo, double h, int64_t nx,
-                  int64_t ny, int64_t nz, void *key, void *counts, int64_t wide) {
-    if (wide) return cell_keys_t(F, n, lo, h, nx, ny, nz, key, counts, 1);
-    return cell_keys_t(F, n, lo, h, nx, ny, nz, key, counts, 0);
-}
-
-/* The stable permutation sorting key (n) by cell into order, given the cells' row starts
- * (nstart = cells + 1 of them), which hold each cell's next row during the pass and are
- * restored at the end. */
-INLINE void counting_sort_t(const void *key, int64_t n, void *start, int64_t nstart,
-                            void *order, int wide) {
-    for (int64_t i = 0; i < n; i++) {
-        int64_t c = geti(key, i, wide);
-        int64_t s = geti(start, c, wide);
-        seti(order, s, i, wide);
-        seti(start, c, s + 1, wide);
-    }
-    for (int64_t c = nstart - 2; c > 0; c--) seti(start, c, geti(start, c - 1, wide), wide);
-    if (nstart > 0) seti(start, 0, 0, wide);
-}
-
-void counting_sort(const void *key, int64_t n, void *start, int64_t nstart, void *order,
-                   int64_t wide) {
-    if (wide)
-        counting_sort_t(key, n, start, nstart, order, 1);
-    else
-        counting_sort_t(key, n, start, nstart, order, 0);
 }
 
 /* ---- the contacts' statistics (toolpath_kernel._contacts and its helpers) ---------------- */

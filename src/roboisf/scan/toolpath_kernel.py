@@ -59,8 +59,6 @@ _P, _I, _D = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
 
 #: The C functions of ``toolpath_kernel.c`` (:func:`roboisf.jit.native.library`).
 SIGNATURES: dict[str, native.Signature] = {
-    "cell_keys": (_I, [_P, _I, _P, _D, _I, _I, _I, _P, _P, _I]),
-    "counting_sort": (None, [_P, _I, _P, _I, _P, _I]),
     "contacts": (
         ctypes.c_int,
         [_P, _P, _P, _P, _I, _P, _D, _I, _I, _I, _P, _D, _I, _D, _D, _I, _I, _P, _P, _P, _P],
@@ -373,7 +371,6 @@ def _xyz(a: NDArray[Any], name: str) -> None:
 
 
 def _keys(
-    lib: Any,
     F: F64,
     lo: F64,
     h: float,
@@ -383,40 +380,14 @@ def _keys(
     key: NDArray[Any],
     counts: NDArray[Any],
 ) -> None:
-    """The cell of every foot in ``key`` and the feet per cell added to ``counts``
-    (:func:`roboisf.scan.knn_kernel._cell_keys` of all rows): by this module's C when ``lib``
-    is its library, else by knn_kernel's (which runs its own C form or numba)."""
-    if lib is None:
-        knn_kernel._cell_keys(F, _NO_ROWS, lo, h, nx, ny, nz, key, counts)
-        return
-    _xyz(F, "feet")
-    wide = _wide(key, "key")
-    if _wide(counts, "counts") != wide or key.size != F.shape[0] or counts.size != nx * ny * nz:
-        raise ValueError("cell keys: arrays of other types or sizes than the grid's")
-    lo = np.ascontiguousarray(lo, dtype=np.float64)
-    if lo.shape != (3,):
-        raise ValueError("lo: (3,) expected")
-    occupied = lib.cell_keys(
-        F.ctypes.data, F.shape[0], lo.ctypes.data, h, nx, ny, nz, key.ctypes.data,
-        counts.ctypes.data, wide,
-    )  # fmt: skip
-    if occupied < 0:
-        raise ValueError("feet outside their bounding box: a non-finite foot?")
+    """The cell of every foot in ``key`` and the feet per cell added to ``counts``:
+    :func:`roboisf.scan.knn_kernel._cell_keys` of all rows (its C form, or numba)."""
+    knn_kernel._cell_keys(F, _NO_ROWS, lo, h, nx, ny, nz, key, counts)
 
 
-def _sort(lib: Any, key: NDArray[Any], start: NDArray[Any]) -> NDArray[Any]:
-    """:func:`roboisf.scan.knn_kernel._counting_sort`: by this module's C when ``lib`` is its
-    library, else by knn_kernel's. ``key`` as :func:`_keys` wrote it (every key a cell of
-    ``start``: C does not check them again)."""
-    if lib is None:
-        return knn_kernel._counting_sort(key, start)
-    wide = _wide(key, "key")
-    if _wide(start, "start") != wide:
-        raise TypeError("key and start: the same integer type expected")
-    order = np.empty_like(key)
-    lib.counting_sort(key.ctypes.data, key.size, start.ctypes.data, start.size,
-                      order.ctypes.data, wide)  # fmt: skip
-    return order
+def _sort(key: NDArray[Any], start: NDArray[Any]) -> NDArray[Any]:
+    """:func:`roboisf.scan.knn_kernel._counting_sort` (its C form, or numba)."""
+    return knn_kernel._counting_sort(key, start)
 
 
 def contact_statistics(
@@ -480,9 +451,9 @@ def _statistics(
             raise ValueError("lo: (3,) expected")
     key = np.empty(n, dtype=cdt)
     start = np.zeros(nx * ny * nz + 1, dtype=cdt)  # counts from index 1, summed in place
-    _keys(lib, F, lo, h, nx, ny, nz, key, start[1:])
+    _keys(F, lo, h, nx, ny, nz, key, start[1:])
     np.cumsum(start, out=start)
-    order = _sort(lib, key, start)
+    order = _sort(key, start)
     del key
     cnt = np.empty(M, dtype=np.int64)
     med, trimmed, mad = np.empty(M), np.empty(M), np.empty(M)
