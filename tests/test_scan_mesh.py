@@ -184,8 +184,14 @@ def test_numba_and_numpy_backends_give_the_same_answers(monkeypatch):
     np.testing.assert_array_equal(np.sign(q1.distance[off]), np.sign(q2.distance[off]))
 
 
-def test_without_numba_the_numpy_path_is_used(monkeypatch):
+def test_without_numba_the_c_form_serves_and_without_it_too_the_numpy_path(monkeypatch):
+    from roboisf.jit import background, native
+
     monkeypatch.setattr(mesh_kernel, "HAVE_NUMBA", False)
+    monkeypatch.setattr(background, "HAVE_NUMBA", False)  # numba not installed, as ready sees it
+    mesh = tessellate(Cone(), chordal_error=0.3e-3, edge=6e-3)
+    assert "grid" in mesh._index  # the C form is built (pip install builds it): compiled
+    monkeypatch.setattr(native, "_suspended", 1)  # and now no C form either
     mesh = tessellate(Cone(), chordal_error=0.3e-3, edge=6e-3)
     assert "grid" not in mesh._index
     X = mesh.vertices[:300] + 1e-3

@@ -1,4 +1,7 @@
-"""Compiled (numba) exact closest point on an axisymmetric part's generatrix.
+"""Compiled exact closest point on an axisymmetric part's generatrix. Two compiled forms, the
+same bits: C (``axisym_kernel.c``, built at install, called through :mod:`roboisf.jit.native` —
+no numba in the process) when it is built and fresh, else numba (built at install:
+:mod:`roboisf.jit.prebuild`; tests/test_native_axisym.py compares them).
 
 The numpy query of :meth:`~roboisf.parts.AxisymmetricPart.closest_point` builds some twenty
 temporaries per point (its primitives' closest points, ``np.where`` merges, the 3-D feet and
@@ -20,19 +23,20 @@ Its numbers equal the numpy query's to rounding (``sqrt`` for numpy's ``hypot``,
 from ``(x, y)/r`` instead of ``cos(arctan2(y, x))``: an ulp; tests/test_parts.py checks every
 field to 1e-12, tests/test_jit.py the dispatch). 44 ns a point on the cone against numpy's 350
 (85 against 420 on the VWACF, one arc; one core, chunks of 65 536 points). The
-kernel is serial and releases the GIL: :func:`roboisf.scan.point_deviations` runs it on
-threads, chunk by chunk.
+kernel is serial and releases the GIL (numba's ``nogil``; :mod:`ctypes` releases it for a C
+call): :func:`roboisf.scan.point_deviations` runs it on threads, chunk by chunk.
 """
 
 from __future__ import annotations
 
+import ctypes
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from roboisf.jit import HAVE_NUMBA, compile_notice, njit
+from roboisf.jit import HAVE_NUMBA, compile_notice, native, njit
 
 if TYPE_CHECKING:
     from roboisf.parts.generatrix import Generatrix
@@ -47,6 +51,18 @@ I64 = NDArray[np.int64]
 
 #: Primitive kinds of the packed generatrix.
 SEGMENT, ARC = 0, 1
+
+_P, _I = ctypes.c_void_p, ctypes.c_int64
+
+#: The C functions of ``axisym_kernel.c`` (:func:`roboisf.jit.native.library`).
+SIGNATURES: dict[str, native.Signature] = {
+    "closest": (ctypes.c_int, [_P, _I, _I, _I, _P, _P, _P, _P, _I, _P, _I, _P, _P, _P, _P, _P, _P]),
+}
+
+
+def _c() -> Any:
+    """The C library of this module, or None (the numba kernel serves)."""
+    return native.library(__name__, SIGNATURES)
 
 
 def pack(g: Generatrix, region_codes: dict[str, int]) -> tuple[I64, F64, F64, I64, I64]:
@@ -132,12 +148,40 @@ def closest(X: F64, packed: tuple[I64, F64, F64, I64, I64]) -> tuple[F64, F64, F
     """Closest point of each of ``X`` (N, 3) [m] on the packed generatrix (:func:`pack`):
     foot (N, 3) m, tool-side normal (N, 3), signed distance (N,) m, wall angle (N,) rad, arc
     length (N,) m, region code (N,)."""
-    X = np.ascontiguousarray(X, dtype=np.float64)
+    lib = _c()
+    # the C form reads X through its strides; numba's gets it C-contiguous, as before
+    X = np.asarray(X, dtype=np.float64) if lib is not None else np.ascontiguousarray(X, np.float64)
     n = X.shape[0]
     foot, normal = np.empty((n, 3)), np.empty((n, 3))
     dist, alpha, s = np.empty(n), np.empty(n), np.empty(n)
     region = np.empty(n, dtype=np.int64)
-    _closest(X, *packed, foot, normal, dist, alpha, s, region)
+    if lib is None:
+        _closest(X, *packed, foot, normal, dist, alpha, s, region)
+        return foot, normal, dist, alpha, s, region
+    if X.ndim != 2 or X.shape[1] < 3:
+        raise ValueError(f"X: (N, 3) points expected, got {X.shape}")
+    kind, par, s0, code, order = (
+        np.ascontiguousarray(packed[0], dtype=np.int64),
+        np.ascontiguousarray(packed[1], dtype=np.float64),
+        np.ascontiguousarray(packed[2], dtype=np.float64),
+        np.ascontiguousarray(packed[3], dtype=np.int64),
+        np.ascontiguousarray(packed[4], dtype=np.int64),
+    )
+    m = kind.shape[0]
+    if par.shape != (m, 8) or s0.shape != (m,) or code.shape != (m,) or order.ndim != 1:
+        raise ValueError("packed: the arrays of pack() expected")
+    if order.size and (order.min() < -m or order.max() >= m):
+        raise IndexError("packed: a primitive index out of range")
+    if n and m == 0:
+        raise ValueError("packed: a generatrix without primitives")
+    rs, cs = (v // X.itemsize for v in X.strides)
+    err = lib.closest(
+        X.ctypes.data, n, rs, cs, kind.ctypes.data, par.ctypes.data, s0.ctypes.data,
+        code.ctypes.data, m, order.ctypes.data, order.size, foot.ctypes.data, normal.ctypes.data,
+        dist.ctypes.data, alpha.ctypes.data, s.ctypes.data, region.ctypes.data,
+    )  # fmt: skip
+    if err:
+        raise ZeroDivisionError("float division by zero")
     return foot, normal, dist, alpha, s, region
 
 

@@ -42,10 +42,13 @@ REGION_CODES = {"flange": 0, "wall": 1, "bottom": 2}
 
 def _compiled(backend: str) -> bool:
     """Whether a closest-point query with ``backend`` (checked) runs the compiled kernel in
-    this process: "numba" always, "auto" once the kernels are built (:func:`roboisf.jit.ready`)."""
-    if jit.check_backend(backend) == "numpy" or not jit.HAVE_NUMBA:
-        return False
-    return backend == "numba" or jit.ready("mesh")
+    this process: "numba" always (with numba installed), "auto" once the kernels are built —
+    their C form (:mod:`roboisf.jit.native`), numba needed or not, or numba's cache
+    (:func:`roboisf.jit.ready`). The compiled kernel runs its C form where it is built."""
+    backend = jit.check_backend(backend)
+    if backend == "numba":
+        return jit.HAVE_NUMBA
+    return backend == "auto" and jit.ready("mesh")
 
 
 def sine_law_thickness(wall_angle: ArrayLike, t0: float) -> F64:
@@ -141,9 +144,10 @@ class AxisymmetricPart:
     def closest_point(self, points: ArrayLike, *, backend: str = "auto") -> SurfaceQuery:
         """Exact closest point on the nominal surface for each of ``points`` (N, 3) [m].
 
-        ``backend``: ``"auto"`` (the compiled kernel of :mod:`roboisf.parts.axisym_kernel` when
-        numba's cache holds it — :func:`roboisf.jit.ready` — else numpy), ``"numba"`` or
-        ``"numpy"``; the same numbers to rounding (1e-12 m)."""
+        ``backend``: ``"auto"`` (the compiled kernel of :mod:`roboisf.parts.axisym_kernel` —
+        its C form when built, else numba's once cached: :func:`roboisf.jit.ready` — else
+        numpy), ``"numba"`` (compiled) or ``"numpy"``; the same numbers to rounding
+        (1e-12 m)."""
         X = np.atleast_2d(np.asarray(points, dtype=float))
         if X.ndim != 2 or X.shape[-1] != 3:
             raise InputError(f"points must have shape (N, 3), got {X.shape}")

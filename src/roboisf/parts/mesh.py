@@ -225,8 +225,12 @@ def read_mesh(path: str | Path, *, unit: str = "mm") -> tuple[F64, NDArray[np.in
 
 def _compiled(backend: str) -> bool:
     """Whether ``backend`` ("auto" or "numba", checked) runs the compiled query in this process:
-    "numba" always, "auto" once the kernels are built (:func:`roboisf.jit.ready`)."""
-    return mesh_kernel.HAVE_NUMBA and (backend == "numba" or jit.ready("mesh"))
+    "numba" always (with numba installed), "auto" once the kernels are built — their C form
+    (:mod:`roboisf.jit.native`), numba needed or not, or numba's cache
+    (:func:`roboisf.jit.ready`). The compiled query runs the C form where it is built."""
+    if backend == "numba":
+        return mesh_kernel.HAVE_NUMBA
+    return jit.ready("mesh")
 
 
 def _check_backend(backend: str) -> str:
@@ -525,7 +529,7 @@ class MeshPart:
             ix["grid"] = mesh_kernel.build_grid(
                 a, a + ix["ab"], a + ix["ac"], spatial_order(ix["centroid"])
             )
-        origin, h, dims, start, items, bvh = ix["grid"]
+        origin, h, dims, start, items, (nlo, nhi, leaf_tri, n_leaves) = ix["grid"]
         tri = (ix["a"], ix["ab"], ix["ac"], ix["abab"], ix["abac"], ix["acac"])
         # absolute rounding margin [m²] of the kernel's pruning tests (distances are computed
         # to ~1e-16 of the squared cell/triangle size): every triangle at the minimum is seen
@@ -533,8 +537,8 @@ class MeshPart:
 
         def rows(lo: int, hi: int) -> None:
             mesh_kernel.closest_grid(
-                X[lo:hi], origin, h, dims, start, items, *tri, ix["bnd"], *bvh,
-                tol2, True, face[lo:hi], d2[lo:hi], P[lo:hi],
+                X[lo:hi], origin, h, dims, start, items, *tri, ix["bnd"], nlo, nhi, leaf_tri,
+                n_leaves, tol2, True, face[lo:hi], d2[lo:hi], P[lo:hi],
             )  # fmt: skip
 
         jit.run_chunks(rows, n, NUMBA_CHUNK)  # on every core: the kernel releases the GIL

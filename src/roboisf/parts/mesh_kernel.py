@@ -1,7 +1,11 @@
-"""Compiled (numba) exact closest-triangle query for :class:`~roboisf.parts.MeshPart`.
+"""Compiled exact closest-triangle query for :class:`~roboisf.parts.MeshPart`, and the compiled
+passes over a scan's points (bounds, Morton order, row gather and scatter).
 
-Used when numba is there (a dependency; ``ROBOISF_NUMBA=0`` switches it off); otherwise
-``MeshPart`` falls back to its pure numpy k-d-tree query, which gives the same answers, ~3× slower.
+Two compiled forms, the same bits: C (``mesh_kernel.c``, built at install, called through
+:mod:`roboisf.jit.native` — no numba in the process) when it is built and fresh, else numba
+(built at install: :mod:`roboisf.jit.prebuild`; tests/test_native_mesh.py compares them). When
+neither serves (``ROBOISF_NUMBA=0`` and no C form) ``MeshPart`` falls back to its pure numpy
+k-d-tree query, which gives the same answers, ~3× slower.
 
 Algorithm (exact):
 
@@ -35,20 +39,22 @@ the minimum is skipped). It therefore does not depend on the seed, the cell size
 the chunking of the queries: a brute force over all triangles with ``argmin`` gives the same
 face, bit for bit (tests/test_mesh_closest.py).
 
-The kernel is serial and releases the GIL (``nogil``): :meth:`MeshPart.closest_faces` and
-:func:`roboisf.scan.point_deviations` run it on several threads. (A ``parallel=True`` kernel
-called from several Python threads would need a thread-safe numba threading layer.)
+The kernel is serial and releases the GIL (numba's ``nogil``; :mod:`ctypes` releases it for a
+C call): :meth:`MeshPart.closest_faces` and :func:`roboisf.scan.point_deviations` run it on
+several threads. (A ``parallel=True`` kernel called from several Python threads would need a
+thread-safe numba threading layer.)
 """
 
 from __future__ import annotations
 
+import ctypes
 import math
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from roboisf.jit import HAVE_NUMBA, compile_notice, njit
+from roboisf.jit import HAVE_NUMBA, compile_notice, native, njit
 
 __all__ = [
     "HAVE_NUMBA",
@@ -79,6 +85,65 @@ MAX_CELLS = 16_000_000
 
 
 _njit = njit
+
+_P, _I, _D = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
+
+#: The C functions of ``mesh_kernel.c`` (:func:`roboisf.jit.native.library`).
+SIGNATURES: dict[str, native.Signature] = {
+    "bounds": (None, [_P, _I, _I, _I, _P, _I, _P, _P]),
+    "gather_rows": (None, [_P, _I, _I, _I, _P, _I, _P, _I, _I, _I, _P]),
+    "scatter_rows": (None, [_P, _I, _I, _P, _I, _I, _I, _P, _I]),
+    "morton_order": (_I, [_P, _I, _I, _I, _P, _D, _I, _P, _P, _I, _P, _P]),
+    "fill_grid_count": (_I, [_P, _P, _I, _P, _D, _P, _P, _P]),
+    "fill_grid_items": (None, [_P, _I, _P, _P, _P]),
+    "closest_grid": (
+        ctypes.c_int,
+        [
+            *(_P, _I, _I, _I, _P, _D, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P, _I),
+            *(_P, _P, _P, _I, _I, _I, _D, _I, _P, _I, _P, _I, _P, _I, _I),
+        ],
+    ),
+}
+
+
+def _c() -> Any:
+    """The C library of this module, or None (the numba kernels serve)."""
+    return native.library(__name__, SIGNATURES)
+
+
+def _strides(a: NDArray[Any]) -> tuple[int, ...]:
+    """``a``'s strides in elements (views of whole elements: always exact)."""
+    return tuple(s // a.itemsize for s in a.strides)
+
+
+def _typed(a: Any, dtype: Any, name: str, ndim: int, cols: int | None = None) -> NDArray[Any]:
+    """``a`` checked for the C form: a numpy array of exactly ``dtype``, ``ndim`` dimensions
+    (``cols`` columns at least); no copy."""
+    if not isinstance(a, np.ndarray) or a.dtype != dtype or a.ndim != ndim:
+        got = f"{a.dtype} {a.ndim}-d" if isinstance(a, np.ndarray) else type(a).__name__
+        raise TypeError(f"{name}: {np.dtype(dtype)} {ndim}-d array expected, got {got}")
+    if cols is not None and a.shape[1] < cols:
+        raise ValueError(f"{name}: at least {cols} columns expected, got {a.shape}")
+    return a
+
+
+def _dense(a: Any, dtype: Any, name: str, shape: tuple[int | None, ...]) -> NDArray[Any]:
+    """``a`` as a C-contiguous array of exactly ``dtype`` and ``shape`` (None: any length) for
+    the C form: a mesh's or grid's own array (contiguous already: no copy), else a copy."""
+    a = np.ascontiguousarray(_typed(a, dtype, name, len(shape)))
+    if any(w is not None and w != g for w, g in zip(shape, a.shape, strict=True)):
+        raise ValueError(f"{name}: shape {shape} expected, got {a.shape}")
+    return a
+
+
+def _index(a: Any, name: str) -> tuple[NDArray[Any], int]:
+    """An index array (1-D, any integer type) for the C form: int32 or int64 as it is (strided
+    or not), another integer type as int64 (the same values); and its element size."""
+    if not isinstance(a, np.ndarray) or a.ndim != 1 or a.dtype.kind not in "iu":
+        raise TypeError(f"{name}: a 1-d integer array expected")
+    if a.dtype != np.int32 and a.dtype != np.int64:
+        a = a.astype(np.int64)
+    return a, a.itemsize
 
 
 @_njit()
@@ -137,8 +202,39 @@ def build_grid(
     while np.prod(np.floor(span / h) + 1) > MAX_CELLS:
         h *= 1.25
     dims = (np.floor(span / h) + 1).astype(np.int64)
-    start, items = _fill_grid(lo, hi, g_lo.astype(np.float64), h, dims)
+    start, items = _grid_rows(lo, hi, g_lo.astype(np.float64), h, dims)
     return g_lo.astype(np.float64), float(h), dims, start, items, build_bvh(a, b, c, order)
+
+
+def _grid_rows(
+    lo: NDArray[np.float64],
+    hi: NDArray[np.float64],
+    origin: NDArray[np.float64],
+    h: float,
+    dims: NDArray[np.int64],
+) -> tuple[NDArray[np.int64], NDArray[np.int32]]:
+    """The grid's compressed rows ``(start, items)`` of the triangles' boxes ``lo, hi`` (F, 3)
+    (:func:`_fill_grid`; in C in two passes, the counts then the items)."""
+    lib = _c()
+    if lib is None:
+        return _fill_grid(lo, hi, origin, h, dims)
+    lo = _dense(lo, np.float64, "lo", (None, 3))
+    hi = _dense(hi, np.float64, "hi", (lo.shape[0], 3))
+    origin = _dense(origin, np.float64, "origin", (3,))
+    dims = _dense(dims, np.int64, "dims", (3,))
+    if not h > 0.0:
+        raise ZeroDivisionError("float division by zero")
+    n_tri = lo.shape[0]
+    rng = np.empty((n_tri, 6), dtype=np.int64)
+    start = np.zeros(int(np.prod(dims)) + 1, dtype=np.int64)
+    d = dims.ctypes.data
+    total = lib.fill_grid_count(
+        lo.ctypes.data, hi.ctypes.data, n_tri, origin.ctypes.data, float(h), d,
+        rng.ctypes.data, start.ctypes.data,
+    )  # fmt: skip
+    items = np.empty(total, dtype=np.int32)
+    lib.fill_grid_items(rng.ctypes.data, n_tri, d, start.ctypes.data, items.ctypes.data)
+    return start, items
 
 
 #: Triangles per leaf of the far-point BVH.
@@ -307,7 +403,7 @@ def _scan(
 
 
 @_njit()
-def closest_grid(
+def _closest_grid(
     X: NDArray[np.float64],
     origin: NDArray[np.float64],
     h: float,
@@ -474,6 +570,91 @@ def closest_grid(
             closest[n, ax] = a[bf, ax] + bv * ab[bf, ax] + bw * ac[bf, ax]
 
 
+def closest_grid(
+    X: NDArray[np.float64],
+    origin: NDArray[np.float64],
+    h: float,
+    dims: NDArray[np.int64],
+    start: NDArray[np.int64],
+    items: NDArray[np.int32],
+    a: NDArray[np.float64],
+    ab: NDArray[np.float64],
+    ac: NDArray[np.float64],
+    abab: NDArray[np.float64],
+    abac: NDArray[np.float64],
+    acac: NDArray[np.float64],
+    bnd: NDArray[np.float64],
+    nlo: NDArray[np.float64],
+    nhi: NDArray[np.float64],
+    leaf_tri: NDArray[np.int32],
+    n_leaves: int,
+    tol2: float,
+    seed: bool,
+    face: NDArray[np.int64],
+    dist2: NDArray[np.float64],
+    closest: NDArray[np.float64],
+) -> None:
+    """Exact closest triangle of each row of ``X`` (N, 3) [m]: fills ``face`` (N,), ``dist2``
+    (N,) [m²] and ``closest`` (N, 3) [m] in place (see the module doc for the algorithm).
+
+    ``bnd`` (F, 8): per triangle centroid (3) [m], bounding radius ρ [m], unit normal (3),
+    ρ² [m²]; ``tol2`` [m²] the absolute rounding margin of the pruning tests. ``seed``: start
+    each point from the previous point's closest triangle (the same answers; faster on points
+    in spatial order). ``origin, h, dims, start, items`` the grid and ``nlo, nhi, leaf_tri,
+    n_leaves`` the BVH of :func:`build_grid`. C when built (:func:`_c`), else numba
+    (:func:`_closest_grid`); both raise ZeroDivisionError where a degenerate input divides by
+    zero.
+    """
+    lib = _c()
+    if lib is None:
+        _closest_grid(
+            X, origin, h, dims, start, items, a, ab, ac, abab, abac, acac, bnd, nlo, nhi,
+            leaf_tri, n_leaves, tol2, seed, face, dist2, closest,
+        )  # fmt: skip
+        return
+    X = _typed(X, np.float64, "X", 2, 3)
+    n = X.shape[0]
+    face = _typed(face, np.int64, "face", 1)
+    dist2 = _typed(dist2, np.float64, "dist2", 1)
+    closest = _typed(closest, np.float64, "closest", 2, 3)
+    if face.shape[0] < n or dist2.shape[0] < n or closest.shape[0] < n:
+        raise ValueError("face, dist2, closest: a row for each point expected")
+    if n == 0:
+        return
+    a = _dense(a, np.float64, "a", (None, 3))
+    F = a.shape[0]
+    if F == 0:
+        raise ValueError("closest_grid: a mesh without triangles")
+    ab = _dense(ab, np.float64, "ab", (F, 3))
+    ac = _dense(ac, np.float64, "ac", (F, 3))
+    abab = _dense(abab, np.float64, "abab", (F,))
+    abac = _dense(abac, np.float64, "abac", (F,))
+    acac = _dense(acac, np.float64, "acac", (F,))
+    bnd = _dense(bnd, np.float64, "bnd", (F, 8))
+    origin = _dense(origin, np.float64, "origin", (3,))
+    dims = _dense(dims, np.int64, "dims", (3,))
+    start = _dense(start, np.int64, "start", (int(np.prod(dims)) + 1,))
+    items = _dense(items, np.int32, "items", (None,))
+    n_leaves = int(n_leaves)
+    nlo = _dense(nlo, np.float64, "nlo", (2 * n_leaves - 1, 3))
+    nhi = _dense(nhi, np.float64, "nhi", (2 * n_leaves - 1, 3))
+    leaf_tri = _dense(leaf_tri, np.int32, "leaf_tri", (n_leaves * LEAF,))
+    xs0, xs1 = _strides(X)
+    (fs,) = _strides(face)
+    (ds,) = _strides(dist2)
+    cs0, cs1 = _strides(closest)
+    err = lib.closest_grid(
+        X.ctypes.data, n, xs0, xs1, origin.ctypes.data, float(h), dims.ctypes.data,
+        start.ctypes.data, items.ctypes.data, a.ctypes.data, ab.ctypes.data, ac.ctypes.data,
+        abab.ctypes.data, abac.ctypes.data, acac.ctypes.data, bnd.ctypes.data, F,
+        nlo.ctypes.data, nhi.ctypes.data, leaf_tri.ctypes.data, n_leaves, LEAF, MAX_RINGS,
+        float(tol2), 1 if seed else 0, face.ctypes.data, fs, dist2.ctypes.data, ds,
+        closest.ctypes.data, cs0, cs1,
+    )  # fmt: skip
+    if err:
+        raise ZeroDivisionError("float division by zero")
+
+
 def gather_rows(
     P: NDArray[np.float64], rows: NDArray[np.int64], order: NDArray[Any]
 ) -> NDArray[np.float64]:
@@ -481,8 +662,22 @@ def gather_rows(
     C-contiguous array, without the ``rows[order]`` index temporary, for ``order`` of any integer
     type (``np.take`` first copies int32 indices to int64: 16 MB and ~30 ms on 2 M points).
 
-    The output is numpy's (:func:`fresh_rows`), filled by a compiled pass."""
-    return _gather_rows_into(P, rows, order, fresh_rows(order.size))
+    The output is numpy's (:func:`fresh_rows`), filled by a compiled pass (C when built, else
+    numba: :func:`_gather_rows_into`)."""
+    out = fresh_rows(order.size)
+    lib = _c()
+    if lib is None:
+        return _gather_rows_into(P, rows, order, out)
+    P = _typed(P, np.float64, "P", 2, 3)
+    rows = np.ascontiguousarray(_typed(rows, np.int64, "rows", 1))
+    o, osz = _index(order, "order")
+    ps0, ps1 = _strides(P)
+    (os_,) = _strides(o)
+    lib.gather_rows(
+        P.ctypes.data, P.shape[0], ps0, ps1, rows.ctypes.data, rows.size, o.ctypes.data, osz,
+        os_, o.size, out.ctypes.data,
+    )  # fmt: skip
+    return out
 
 
 def fresh_rows(n: int) -> NDArray[np.float64]:
@@ -510,8 +705,21 @@ def _gather_rows_into(
 def scatter_rows(Xs: NDArray[np.float64], order: NDArray[Any]) -> NDArray[np.float64]:
     """The points (N, 3) put back where ``order`` took them from: ``out[order[i]] = Xs[i]``,
     the inverse of :func:`gather_rows` (numpy's ``out[order] = Xs`` of rows: ~3x slower); the
-    output numpy's (:func:`fresh_rows`)."""
-    return _scatter_rows_into(Xs, order, fresh_rows(Xs.shape[0]))
+    output numpy's (:func:`fresh_rows`); C when built, else numba (:func:`_scatter_rows_into`)."""
+    out = fresh_rows(Xs.shape[0])
+    lib = _c()
+    if lib is None:
+        return _scatter_rows_into(Xs, order, out)
+    Xs = _typed(Xs, np.float64, "Xs", 2, 3)
+    o, osz = _index(order, "order")
+    if o.size > Xs.shape[0]:
+        raise ValueError(f"order: at most {Xs.shape[0]} rows, got {o.size}")
+    xs0, xs1 = _strides(Xs)
+    (os_,) = _strides(o)
+    lib.scatter_rows(
+        Xs.ctypes.data, xs0, xs1, o.ctypes.data, osz, os_, o.size, out.ctypes.data, out.shape[0]
+    )
+    return out
 
 
 @_njit()
@@ -527,10 +735,31 @@ def _scatter_rows_into(
     return out
 
 
-@_njit()
-def bounds(X: NDArray[np.float64], rows: NDArray[np.int64]) -> tuple[Any, Any]:  # pragma: no cover
+def bounds(X: NDArray[np.float64], rows: NDArray[np.int64]) -> tuple[Any, Any]:
     """Per-axis minimum and maximum of ``X[rows]`` (all of ``X`` (N ≥ 1, 3) when ``rows`` is
-    empty) in one pass (``X.min(axis=0)`` reduces along a strided axis: ~10x slower)."""
+    empty) in one pass (``X.min(axis=0)`` reduces along a strided axis: ~10x slower): two
+    arrays (3,). C when built, else numba (:func:`_bounds_nb`)."""
+    lib = _c()
+    if lib is None:
+        return _bounds_nb(X, rows)
+    X = _typed(X, np.float64, "X", 2, 3)
+    rows = np.ascontiguousarray(_typed(rows, np.int64, "rows", 1))
+    if X.shape[0] == 0:
+        raise ValueError("bounds: no points")
+    lo, hi = np.empty(3), np.empty(3)
+    rs, cs = _strides(X)
+    lib.bounds(
+        X.ctypes.data, X.shape[0], rs, cs, rows.ctypes.data, rows.size, lo.ctypes.data,
+        hi.ctypes.data,
+    )  # fmt: skip
+    return lo, hi
+
+
+@_njit()
+def _bounds_nb(
+    X: NDArray[np.float64], rows: NDArray[np.int64]
+) -> tuple[Any, Any]:  # pragma: no cover - compiled
+    """:func:`bounds`, numba's form."""
     n = rows.size if rows.size else X.shape[0]
     r0 = rows[0] if rows.size else 0
     lo = X[r0].copy()
@@ -561,8 +790,45 @@ def part1by2(v: Any) -> Any:
 _spread3 = _njit()(part1by2)
 
 
-@_njit()
 def morton_order(
+    X: NDArray[np.float64],
+    lo: NDArray[np.float64],
+    scale: float,
+    bits: int,
+    order: NDArray[Any],
+    tmp_o: NDArray[Any],
+    code: NDArray[np.uint64],
+    tmp_c: NDArray[np.uint64],
+) -> NDArray[Any]:
+    """Stable permutation sorting the points (N, 3) by Morton code: ``order`` or ``tmp_o``,
+    whichever holds it (:func:`_morton_order`, numba's form, documents the arguments). C when
+    built: ``order``, ``tmp_o`` C-contiguous, both int32 or both int64, ``code``, ``tmp_c``
+    C-contiguous uint64, all N long, and ``3 bits ≤ 64``."""
+    lib = _c()
+    if lib is None:
+        return _morton_order(X, lo, scale, bits, order, tmp_o, code, tmp_c)
+    X = _typed(X, np.float64, "X", 2, 3)
+    n = X.shape[0]
+    lo = _dense(lo, np.float64, "lo", (3,))
+    if order.dtype not in (np.int32, np.int64) or tmp_o.dtype != order.dtype:
+        raise TypeError("order, tmp_o: both int32 or both int64 expected")
+    for name, v in (("order", order), ("tmp_o", tmp_o), ("code", code), ("tmp_c", tmp_c)):
+        if v.ndim != 1 or v.shape[0] != n or not v.flags.c_contiguous:
+            raise ValueError(f"{name}: a C-contiguous array of the {n} points expected")
+    _typed(code, np.uint64, "code", 1)
+    _typed(tmp_c, np.uint64, "tmp_c", 1)
+    if not 0 <= 3 * int(bits) <= 64:
+        raise ValueError(f"bits: 0 to 21 expected, got {bits}")
+    rs, cs = _strides(X)
+    which = lib.morton_order(
+        X.ctypes.data, n, rs, cs, lo.ctypes.data, float(scale), int(bits), order.ctypes.data,
+        tmp_o.ctypes.data, order.itemsize, code.ctypes.data, tmp_c.ctypes.data,
+    )  # fmt: skip
+    return tmp_o if which else order
+
+
+@_njit()
+def _morton_order(
     X: NDArray[np.float64],
     lo: NDArray[np.float64],
     scale: float,
