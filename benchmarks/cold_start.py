@@ -212,7 +212,8 @@ def main() -> None:
         _wait_builder(setup["NUMBA_CACHE_DIR"], a.wait)
         print(
             f"background build: {os.environ.get('ROBOISF_BACKGROUND_COMPILE', '1') != '0'}; "
-            f"numba: {'off, ROBOISF_NUMBA=0 ROBOISF_NATIVE=0 (plain install)' if a.no_numba else 'installed'}"
+            "compiled kernels: "
+            + ("off, ROBOISF_NUMBA=0 ROBOISF_NATIVE=0 (plain install)" if a.no_numba else "on")
         )
         print(
             f"{'command':32s} {'first s':>8s} {'second s':>9s} {'ratio':>6s} "
