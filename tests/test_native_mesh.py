@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from mesh_oracle import brute_closest
 from native_forms import c_library, numba_form
 from roboisf.jit import HAVE_NUMBA
 from roboisf.parts import Cone, MeshPart, tessellate
@@ -413,24 +414,36 @@ def test_closest_grid_edge_cases() -> None:
     np.testing.assert_array_equal(got[2][0], mesh._index["a"][-1])
 
 
-def test_closest_grid_divides_by_zero_as_numba_does() -> None:
-    """A triangle with two equal vertices (ab = 0) divides 0 by 0 for a point beyond its far
-    vertex: numba raises ZeroDivisionError (Python's error model); so does C, at the same point
-    (the rows before it filled alike)."""
+def test_a_triangle_with_two_equal_vertices_is_its_remaining_edge_in_every_form() -> None:
+    """A triangle with two equal vertices (ab = 0: a mesh file's duplicate vertex, which
+    trimesh's merge leaves as a face) is the segment of its other two: numba raised
+    ZeroDivisionError for a point beyond its far vertex (0 / 0 in the edge ab's region) and the
+    numpy form gave NaN; the three forms now give the brute-force closest point."""
     V = np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0], [0.0, 0.01, 0.0], [0.02, 0.02, 0.0]])
     mesh = MeshPart(V, np.array([[0, 1, 2], [3, 3, 1]]), backend="numba")
-    # near the triangle, then beside the middle of the segment (3, 1): it is evaluated there
-    X = np.array([[0.001, 0.001, 0.001], [0.002, 0.001, 0.0], [0.015, 0.01, 0.0005]])
+    # near the triangle, then beside the middle of the segment (3, 1), then beyond vertex 3
+    X = np.array(
+        [[0.001, 0.001, 0.001], [0.002, 0.001, 0.0], [0.015, 0.01, 0.0005], [0.03, 0.03, 0.0]]
+    )
+    f, d2, P, _ = brute_closest(mesh, X)
+    assert np.isfinite(d2).all() and f.tolist() == [0, 0, 1, 1]
+    # the segment's own closest point, by hand: (0.015, 0.01) projects onto (3, 1) at its middle
+    np.testing.assert_allclose(P[2], [0.015, 0.01, 0.0], atol=1e-15)
+    np.testing.assert_allclose(P[3], V[3], atol=1e-15)
     results = []
     for form in ("c", "numba"):
         c_library(mk)
-        out = (np.full(3, -9), np.full(3, -1.0), np.zeros((3, 3)))
+        out = (np.full(4, -9), np.full(4, -1.0), np.zeros((4, 3)))
         with numba_form(MK) if form == "numba" else contextlib.nullcontext():
-            with pytest.raises(ZeroDivisionError):
-                _query(mesh, X, True, out)
+            _query(mesh, X, True, out)
         results.append(out)
     _same(*results)
-    assert results[0][0][0] == 0 and results[0][0][2] == -9  # stopped at the third point
+    assert results[0][0].tolist() == f.tolist()
+    np.testing.assert_allclose(results[0][1], d2, rtol=1e-12, atol=1e-20)
+    np.testing.assert_allclose(results[0][2], P, atol=1e-15)
+    numpy_face, _, numpy_P = mesh.closest_faces(X, backend="numpy")
+    assert numpy_face.tolist() == f.tolist()
+    np.testing.assert_allclose(numpy_P, P, atol=1e-15)
 
 
 def test_mesh_queries_run_the_c_form() -> None:

@@ -165,14 +165,17 @@ def point_triangle_distance2(
     in_a = (d1 <= 0) & (d2 <= 0)
     in_b = (d3 >= 0) & (d4 <= d3)
     in_c = (d6 >= 0) & (d5 <= d6)
-    on_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
-    on_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
-    on_bc = (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0)
-    conds = [in_a, in_b, on_ab, in_c, on_ac, on_bc]
+    # an edge's region only for an edge of non-zero length, the face only for a non-zero area
+    # (a triangle with two equal vertices, a mesh file's duplicate vertex, divided 0 by 0)
+    on_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0) & (d1 - d3 > 0)
+    on_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0) & (d2 - d6 > 0)
+    on_bc = (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0) & ((d4 - d3) + (d5 - d6) > 0)
+    flat = den == 0  # no area and no edge region (rounding): vertex a, an upper bound
+    conds = [in_a, in_b, on_ab, in_c, on_ac, on_bc, flat]
     zero = np.zeros_like(d1)
     one = np.ones_like(d1)
-    v = np.select(conds, [zero, one, t_ab, zero, zero, 1.0 - t_bc], v_in)
-    w = np.select(conds, [zero, zero, zero, one, t_ac, t_bc], w_in)
+    v = np.select(conds, [zero, one, t_ab, zero, zero, 1.0 - t_bc, zero], v_in)
+    w = np.select(conds, [zero, zero, zero, one, t_ac, t_bc, zero], w_in)
     # |ap − v ab − w ac|² expanded (no closest point needed for the comparison)
     d2_ = _dot3(ap, ap) - 2.0 * (v * d1 + w * d2) + v * v * abab + 2.0 * v * w * abac + w * w * acac
     return np.maximum(d2_, 0.0), v, w

@@ -294,29 +294,26 @@ static inline int tri_d2(double px, double py, double pz, int64_t t, const Mesh 
     double vb = d5 * d2 - d1 * d6;
     double vc = d1 * d4 - d3 * d2;
     double v, w;
+    /* an edge's region only for an edge of non-zero length, the face only for a non-zero
+     * area (mesh_kernel._tri_d2): a triangle with two equal vertices divided 0 by 0 */
     if (d1 <= 0 && d2 <= 0) {
         v = 0.0, w = 0.0;
     } else if (d3 >= 0 && d4 <= d3) {
         v = 1.0, w = 0.0;
-    } else if (vc <= 0 && d1 >= 0 && d3 <= 0) {
-        double q = d1 - d3;
-        if (q == 0.0) return ERR_ZERODIV;
-        v = d1 / q, w = 0.0;
+    } else if (vc <= 0 && d1 >= 0 && d3 <= 0 && d1 - d3 > 0) {
+        v = d1 / (d1 - d3), w = 0.0;
     } else if (d6 >= 0 && d5 <= d6) {
         v = 0.0, w = 1.0;
-    } else if (vb <= 0 && d2 >= 0 && d6 <= 0) {
-        double q = d2 - d6;
-        if (q == 0.0) return ERR_ZERODIV;
-        v = 0.0, w = d2 / q;
-    } else if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0) {
-        double q = (d4 - d3) + (d5 - d6);
-        if (q == 0.0) return ERR_ZERODIV;
-        double t_bc = (d4 - d3) / q;
+    } else if (vb <= 0 && d2 >= 0 && d6 <= 0 && d2 - d6 > 0) {
+        v = 0.0, w = d2 / (d2 - d6);
+    } else if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0 && (d4 - d3) + (d5 - d6) > 0) {
+        double t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6));
         v = 1.0 - t_bc, w = t_bc;
-    } else {
+    } else if (va + vb + vc != 0) {
         double den = va + vb + vc;
-        if (den == 0.0) return ERR_ZERODIV;
         v = vb / den, w = vc / den;
+    } else { /* no area and no edge region (rounding): vertex a, an upper bound */
+        v = 0.0, w = 0.0;
     }
     double r = (apx * apx + apy * apy + apz * apz) - 2.0 * (v * d1 + w * d2) + v * v * s_abab +
                2.0 * v * w * s_abac + w * w * s_acac;

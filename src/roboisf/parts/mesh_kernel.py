@@ -321,22 +321,26 @@ def _tri_d2(
     va = d3 * d6 - d5 * d4
     vb = d5 * d2 - d1 * d6
     vc = d1 * d4 - d3 * d2
+    # an edge's region only for an edge of non-zero length, the face only for a non-zero
+    # area: a triangle with two equal vertices (a mesh file's duplicate vertex) divided 0 by 0
     if d1 <= 0 and d2 <= 0:
         v, w = 0.0, 0.0
     elif d3 >= 0 and d4 <= d3:
         v, w = 1.0, 0.0
-    elif vc <= 0 and d1 >= 0 and d3 <= 0:
+    elif vc <= 0 and d1 >= 0 and d3 <= 0 and d1 - d3 > 0:
         v, w = d1 / (d1 - d3), 0.0
     elif d6 >= 0 and d5 <= d6:
         v, w = 0.0, 1.0
-    elif vb <= 0 and d2 >= 0 and d6 <= 0:
+    elif vb <= 0 and d2 >= 0 and d6 <= 0 and d2 - d6 > 0:
         v, w = 0.0, d2 / (d2 - d6)
-    elif va <= 0 and d4 - d3 >= 0 and d5 - d6 >= 0:
+    elif va <= 0 and d4 - d3 >= 0 and d5 - d6 >= 0 and (d4 - d3) + (d5 - d6) > 0:
         t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
         v, w = 1.0 - t_bc, t_bc
-    else:
+    elif va + vb + vc != 0:
         den = va + vb + vc
         v, w = vb / den, vc / den
+    else:  # no area and no edge region (rounding): vertex a, an upper bound of the distance
+        v, w = 0.0, 0.0
     r = (
         (apx * apx + apy * apy + apz * apz)
         - 2.0 * (v * d1 + w * d2)
