@@ -17,6 +17,7 @@ from native_forms import c_library, numba_form
 from roboisf.jit import background as jit_background
 from roboisf.sync import position
 from roboisf.sync import position_kernel as pk
+from test_sync_kernel import _helix_log  # the same log: approach, pause, retract, restart
 
 PK = "roboisf.sync.position_kernel"
 ROOT = Path(__file__).resolve().parents[1]
@@ -150,28 +151,6 @@ def test_project_degenerate_segments_and_nan() -> None:
 
 
 # ---- track_blocks and the tracking loop ---------------------------------------------------
-
-
-def _helix_log(seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A helix toolpath and a log that approaches, pauses (longer than one block of samples),
-    retracts, comes back, and restarts from a later line after leaving the path (as
-    tests/test_sync_kernel.py's)."""
-    th = np.linspace(0, 6 * np.pi, 3000)
-    tip = np.c_[0.05 * np.cos(th), 0.05 * np.sin(th), -0.001 * th]
-    S = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(tip, axis=0), axis=1))])
-    rng = np.random.default_rng(seed)
-    walk = np.r_[
-        np.linspace(0, 1200, 900),
-        np.full(5000, 1200.0),  # a pause longer than _MAX_BLOCK_SAMPLES
-        np.linspace(1200, 1800, 600),
-        np.linspace(1800, 1800, 300),  # leaves the path here (below) …
-        np.linspace(2100, 2999, 900),  # … and restarts 300 points further on
-    ]
-    P = np.array([tip[int(i)] for i in walk]) + rng.normal(scale=2e-5, size=(len(walk), 3))
-    P[:50] += [0, 0, 0.05]  # approach, off the path
-    P[3000:3100] += [0, 0, 0.02]  # retract during the pause
-    P[6500:6800] += [0, 0, 0.03]  # off the path before the restart
-    return tip, S, P
 
 
 def _track_calls(monkeypatch: pytest.MonkeyPatch) -> list[int]:

@@ -223,4 +223,4 @@ def test_c_refuses_a_non_finite_foot():
     key = np.empty(100, dtype=np.int32)
     counts = np.zeros(nx * ny * nz, dtype=np.int32)
     with pytest.raises(ValueError, match="non-finite"):
-        tk._keys(feet, lo, h, nx, ny, nz, key, counts)
+        knn_kernel._cell_keys(feet, tk._NO_ROWS, lo, h, nx, ny, nz, key, counts)

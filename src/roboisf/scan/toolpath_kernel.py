@@ -370,26 +370,6 @@ def _xyz(a: NDArray[Any], name: str) -> None:
         raise TypeError(f"{name}: a C-contiguous (N, 3) float64 array expected")
 
 
-def _keys(
-    F: F64,
-    lo: F64,
-    h: float,
-    nx: int,
-    ny: int,
-    nz: int,
-    key: NDArray[Any],
-    counts: NDArray[Any],
-) -> None:
-    """The cell of every foot in ``key`` and the feet per cell added to ``counts``:
-    :func:`roboisf.scan.knn_kernel._cell_keys` of all rows (its C form, or numba)."""
-    knn_kernel._cell_keys(F, _NO_ROWS, lo, h, nx, ny, nz, key, counts)
-
-
-def _sort(key: NDArray[Any], start: NDArray[Any]) -> NDArray[Any]:
-    """:func:`roboisf.scan.knn_kernel._counting_sort` (its C form, or numba)."""
-    return knn_kernel._counting_sort(key, start)
-
-
 def contact_statistics(
     feet: F64,
     dn: F64,
@@ -451,9 +431,9 @@ def _statistics(
             raise ValueError("lo: (3,) expected")
     key = np.empty(n, dtype=cdt)
     start = np.zeros(nx * ny * nz + 1, dtype=cdt)  # counts from index 1, summed in place
-    _keys(F, lo, h, nx, ny, nz, key, start[1:])
+    knn_kernel._cell_keys(F, _NO_ROWS, lo, h, nx, ny, nz, key, start[1:])  # C or numba
     np.cumsum(start, out=start)
-    order = _sort(key, start)
+    order = knn_kernel._counting_sort(key, start)
     del key
     cnt = np.empty(M, dtype=np.int64)
     med, trimmed, mad = np.empty(M), np.empty(M), np.empty(M)
