@@ -53,8 +53,13 @@ def test_input_errors_are_one_line_and_exit_2(tmp_path, capsys):
 
 
 def test_version(capsys):
+    from roboisf.jit import native
+
     assert main(["--version"]) == 0
-    assert "roboisf" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "roboisf" in out
+    n = len(native.extensions())
+    assert n >= 7 and f"C kernels: {n} of {n} built\n" in out  # pip install built them all
 
 
 def test_every_registered_command_is_covered():

@@ -138,6 +138,27 @@ def test_a_library_of_another_source_or_switched_off_is_not_loaded(
     assert sha.value == native.source_sha256(src).encode()
 
 
+def test_the_status_says_built_stale_missing_and_off(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    pkg = _package_copy(tmp_path)
+    (pkg / "scan").mkdir()
+    (pkg / "scan" / "knn_kernel.c").write_bytes((PACKAGE / "scan" / "knn_kernel.c").read_bytes())
+    assert native.status(pkg) == {FK: "built", "roboisf.scan.knn_kernel": "missing"}
+    assert native.describe(pkg) == (
+        "C kernels: 1 of 2 built, 1 missing (no C compiler at install? pip install -v shows "
+        "why); numba or numpy serves the others"
+    )
+    src = pkg / "logs" / "forcelog_kernel.c"
+    src.write_text(src.read_text() + "\n/* edited */\n")
+    assert native.status(pkg)[FK] == "stale"
+    assert "1 stale (their sources edited: python -m roboisf.jit.native rebuilds)" in (
+        native.describe(pkg)
+    )
+    monkeypatch.setenv(native.ENV, "0")
+    assert native.describe(pkg) == f"C kernels: switched off ({native.ENV}=0)"
+
+
 def test_a_failing_compile_is_reported_and_leaves_no_library(tmp_path: Path) -> None:
     pkg = tmp_path / "roboisf"
     (pkg / "scan").mkdir(parents=True)

@@ -119,10 +119,12 @@ app = typer.Typer(
         "Typical session:  roboisf demo   ·   roboisf analyze study/ -o results/   ·   "
         "roboisf compensate ...\n\nLengths on the command line are mm, angles degrees; files "
         "declare their own units. -q/-v may come before or after the command.\n\n"
-        "roboisf's compiled kernels (numba) are built at install. Where that cache cannot serve "
-        "(a kernel edited, numba upgraded, another CPU, a read-only install) they are built once "
-        "in the background after the first run, which uses numpy; ROBOISF_BACKGROUND_COMPILE=0 "
-        "builds them in the foreground (and shows why a failed background build failed)."
+        "roboisf's compiled kernels are built at install: the analysis' in C (no numba needed), "
+        "the robot's IK and the online loop with numba; --version says which are there. Where "
+        "numba's cache cannot serve (a kernel edited, numba upgraded, another CPU, a read-only "
+        "install) it is built once in the background after the first run, which uses numpy; "
+        "ROBOISF_BACKGROUND_COMPILE=0 builds it in the foreground (and shows why a failed "
+        "background build failed)."
     ),
     no_args_is_help=True,
     add_completion=False,
@@ -137,7 +139,18 @@ app = typer.Typer(
 
 def _version(value: bool) -> None:
     if value:
+        from roboisf.jit import native
+        from roboisf.jit.shim import HAVE_NUMBA, numba_version_installed
+
         typer.echo(f"roboisf {__version__}")
+        typer.echo(native.describe())
+        numba = (
+            f"numba {numba_version_installed() or '?'} (the robot's IK, the online loop, and any "
+            "kernel whose C form is not built)"
+            if HAVE_NUMBA
+            else "numba: not installed or switched off (ROBOISF_NUMBA=0); numpy serves"
+        )
+        typer.echo(numba)
         raise typer.Exit(0)
 
 

@@ -38,11 +38,13 @@ __all__ = [
     "CFLAGS",
     "ENV",
     "build_inplace",
+    "describe",
     "extension_name",
     "extensions",
     "library",
     "reset",
     "source_sha256",
+    "status",
     "suspended",
 ]
 
@@ -161,6 +163,48 @@ def suspended() -> Iterator[None]:
     finally:
         with _lock:
             _suspended -= 1
+
+
+def status(package: Path = _PACKAGE) -> dict[str, str]:
+    """Each C kernel's state, by kernel module (dotted name): "built" (its library is there and
+    was built from its source), "stale" (built from another version of the source), "missing"
+    (not built: no C compiler at install?), or "off" (:data:`ENV` is "0"). Loads each library
+    once to read its SHA-256; numpy is not imported (``roboisf --version`` says it)."""
+    out = {}
+    for name, source, sha in extensions(package):
+        module = name.rsplit(".", 1)[0] + "." + source.stem
+        built = _find(source)
+        if _switched_off():
+            out[module] = "off"
+        elif built is None:
+            out[module] = "missing"
+        else:
+            try:
+                got = ctypes.c_char_p.in_dll(ctypes.CDLL(str(built)), "roboisf_source_sha256")
+                ok = got.value is not None and got.value.decode() == sha
+            except (OSError, ValueError):
+                ok = False
+            out[module] = "built" if ok else "stale"
+    return out
+
+
+def describe(package: Path = _PACKAGE) -> str:
+    """One line on the C kernels for a person: how many are built, and what to do if not."""
+    states = status(package)
+    n = len(states)
+    built = sum(v == "built" for v in states.values())
+    if n and all(v == "off" for v in states.values()):
+        return f"C kernels: switched off ({ENV}=0)"
+    line = f"C kernels: {built} of {n} built"
+    stale = sum(v == "stale" for v in states.values())
+    missing = n - built - stale
+    if stale:
+        line += f", {stale} stale (their sources edited: python -m roboisf.jit.native rebuilds)"
+    if missing:
+        line += f", {missing} missing (no C compiler at install? pip install -v shows why)"
+    if built < n:
+        line += "; numba or numpy serves the others"
+    return line
 
 
 def reset() -> None:
