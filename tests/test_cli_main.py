@@ -91,3 +91,24 @@ def test_python_dash_m_runs_the_cli():
         timeout=60,
     )
     assert bad.returncode == 2
+
+
+def test_a_crash_in_compiled_code_says_where_python_was(tmp_path):
+    """The console script enables faulthandler: a segmentation fault in a C kernel (here a
+    read of address 0 through ctypes, in place of a command) prints the Python call that
+    reached it, not only the shell's "Segmentation fault"."""
+    import subprocess
+    import sys
+
+    code = (
+        "import ctypes, sys\n"
+        "import roboisf.cli.main as m\n"
+        "def kernel_that_crashes():\n"
+        "    return ctypes.string_at(0)\n"
+        "m.main = lambda: kernel_that_crashes()\n"
+        "sys.argv = ['roboisf', 'analyze']\n"
+        "m.entry()\n"
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode != 0
+    assert "Segmentation fault" in r.stderr and "kernel_that_crashes" in r.stderr, r.stderr

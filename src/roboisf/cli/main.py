@@ -11,6 +11,7 @@ silences progress and info, ``-v`` adds detail. Call :func:`main` with an argv l
 from __future__ import annotations
 
 import contextlib
+import faulthandler
 import gc
 import os
 import sys
@@ -258,6 +259,9 @@ def entry() -> None:
     import signal
 
     state.own_process = True  # a command may set process-wide policies (plan: the C heap's)
+    # a crash in compiled code (the C kernels, numba's, a library's) prints where Python was —
+    # the thread and the call that reached it — instead of a bare "Segmentation fault"
+    faulthandler.enable()
     defer_unused_imports()  # numpy.f2py, which scipy's import runs for nothing (cli/lazy.py)
     try:
         code = main()
