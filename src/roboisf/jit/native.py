@@ -37,6 +37,7 @@ from typing import Any
 __all__ = [
     "CFLAGS",
     "ENV",
+    "SANITIZE",
     "build_inplace",
     "describe",
     "extension_name",
@@ -213,13 +214,28 @@ def reset() -> None:
         _loaded.clear()
 
 
+#: Extra flags of a sanitized build (``python -m roboisf.jit.native --sanitize``): run the
+#: tests with ``LD_PRELOAD="$(gcc -print-file-name=libasan.so) $(gcc -print-file-name=libubsan.so)"
+#: ASAN_OPTIONS=detect_leaks=0``, then rebuild without it.
+SANITIZE = [
+    "-fsanitize=address,undefined,float-cast-overflow",
+    "-fno-sanitize-recover=undefined",
+    "-fno-omit-frame-pointer",
+    "-g",
+]
+
+
 def build_inplace(
-    package: Path = _PACKAGE, *, only: list[Path] | None = None, compiler: str | None = None
+    package: Path = _PACKAGE,
+    *,
+    only: list[Path] | None = None,
+    compiler: str | None = None,
+    extra: list[str] | None = None,
 ) -> list[str]:
     """Compile every C kernel of ``package`` (or the sources ``only``) beside its source with
-    :data:`CFLAGS` — the developer's quick rebuild, ``python -m roboisf.jit.native [SOURCE.c
-    ...]``; ``pip install`` builds the same extensions through setuptools. The failures, one
-    line each."""
+    :data:`CFLAGS` (and ``extra``) — the developer's quick rebuild, ``python -m
+    roboisf.jit.native [--sanitize] [SOURCE.c ...]``; ``pip install`` builds the same extensions
+    through setuptools. The failures, one line each."""
     import subprocess
     import sysconfig
 
@@ -236,6 +252,7 @@ def build_inplace(
         cmd = [
             *cc.split(),
             *CFLAGS,
+            *(extra or []),
             "-fPIC",
             "-shared",
             f"-I{include}",
@@ -255,7 +272,11 @@ def build_inplace(
 
 
 if __name__ == "__main__":  # pragma: no cover - a developer's command
-    problems = build_inplace(only=[Path(a) for a in sys.argv[1:]])
+    args = sys.argv[1:]
+    sanitize = "--sanitize" in args
+    problems = build_inplace(
+        only=[Path(a) for a in args if a != "--sanitize"], extra=SANITIZE if sanitize else None
+    )
     for line in problems:
         print(line, file=sys.stderr)
     sys.exit(1 if problems else 0)
