@@ -107,6 +107,20 @@ def test_one_job_builds_every_missing_group_here_in_order(monkeypatch):
     assert built == [[g for g in bg.GROUPS if g != "sync"]]
 
 
+def test_the_background_builder_leaves_the_groups_the_c_forms_serve(monkeypatch):
+    """The builder compiles numba only for groups that need it: with the C forms of scan and
+    sync loaded, a cold cache builds the others (the install, skip_native False, builds all)."""
+    built: list[list[str]] = []
+    monkeypatch.setattr(bg, "group_cached", lambda g: False)
+    monkeypatch.setattr(bg, "native_ready", lambda g: g in ("scan", "sync"))
+    monkeypatch.setattr(bg, "build_groups", lambda names: built.append(names) or [])
+    assert bg.build_missing(jobs=1, skip_native=True) == []
+    assert built == [[g for g in bg.GROUPS if g not in ("scan", "sync")]]
+    built.clear()
+    assert bg.build_missing(jobs=1) == []
+    assert built == [list(bg.GROUPS)]
+
+
 def test_a_build_process_that_dies_fails_each_of_its_groups(monkeypatch):
     import concurrent.futures as cf
     from concurrent.futures.process import BrokenProcessPool
@@ -267,7 +281,7 @@ def test_builder_waits_for_the_command_that_started_it(monkeypatch, tmp_path):
     slowed the run by half), and the lock stays fresh while it waits."""
     cmd = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(1.0)"])
     started: list[float] = []
-    monkeypatch.setattr(bg, "build_missing", lambda: started.append(time.monotonic()) or [])
+    monkeypatch.setattr(bg, "build_missing", lambda **kw: started.append(time.monotonic()) or [])
     lock = tmp_path / "w.lock"
     lock.write_text("1")
     try:
@@ -349,7 +363,7 @@ def test_after_a_failed_build_no_builder_is_started_and_the_notice_says_how_to_r
 
 
 def test_builder_removes_its_lock_when_interrupted(monkeypatch, tmp_path):
-    def interrupted() -> list[str]:
+    def interrupted(**kw: object) -> list[str]:
         raise KeyboardInterrupt
 
     monkeypatch.setattr(bg, "build_missing", interrupted)
@@ -624,7 +638,7 @@ def test_builder_runs_at_a_lower_priority(monkeypatch, tmp_path):
     """Background work: the user's command gets the CPU first."""
     niced: list[int] = []
     monkeypatch.setattr(bg.os, "nice", lambda n: niced.append(n) or n)
-    monkeypatch.setattr(bg, "build_missing", lambda: [])
+    monkeypatch.setattr(bg, "build_missing", lambda **kw: [])
     assert bg.main([str(tmp_path / "n.lock")]) == 0
     assert niced == [bg.NICE] and bg.NICE > 0
 

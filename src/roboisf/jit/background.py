@@ -340,8 +340,11 @@ def wait_for(
     return True
 
 
-def build_missing(jobs: int | None = None) -> list[str]:
+def build_missing(jobs: int | None = None, *, skip_native: bool = False) -> list[str]:
     """Build every group of :data:`GROUPS` not cached yet; the failures, one line per group.
+    ``skip_native``: not the groups whose C forms serve them here (:func:`native_ready`) — the
+    background builder's choice (the install builds every group: numba is the C forms'
+    fallback).
 
     The lanes (:attr:`Group.lane`) are built side by side, ``jobs`` processes at most (default:
     the cores this process may use, :func:`roboisf.jit.cores`): this one builds the first, a
@@ -351,7 +354,7 @@ def build_missing(jobs: int | None = None) -> list[str]:
 
     by_lane: dict[int, list[str]] = {}
     for name, group in GROUPS.items():
-        if not group_cached(name):
+        if not group_cached(name) and not (skip_native and native_ready(name)):
             by_lane.setdefault(group.lane, []).append(name)
     shares = lane_shares([by_lane[k] for k in sorted(by_lane)], cores() if jobs is None else jobs)
     if len(shares) == 1:
@@ -431,7 +434,9 @@ def main(argv: list[str]) -> int:
         _lower_priority()
         if len(argv) > 2:
             wait_for(int(argv[2]), lock)
-        failures = build_missing()
+        # not the groups the C forms serve: a run asks numba for them only with ROBOISF_NATIVE=0
+        # (inherited by this process, which then builds them too)
+        failures = build_missing(skip_native=True)
         if failures and marker is not None:
             tmp = marker.with_name(marker.name + f".{os.getpid()}.tmp")
             tmp.write_text("\n".join(failures) + "\n", encoding="utf-8")
