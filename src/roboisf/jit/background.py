@@ -123,6 +123,7 @@ GROUPS: dict[str, Group] = {
         ("roboisf.robot.vjm_numba", "roboisf.robot.fk_numba", "roboisf.robot.ik_numba"),
         "roboisf.robot.vjm_numba:build",
         lane=1,
+        native=("roboisf.robot.vjm_kernel",),  # FK, VJM, IK, plan's pass, the margin: one library
     ),
     "online": Group(("roboisf.online.kernel",), "roboisf.online.kernel:build", lane=1),
     "sync": Group(

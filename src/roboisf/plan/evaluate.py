@@ -119,7 +119,8 @@ def _solve(problem: PlanProblem, T_base_work: F64, gamma: ArrayLike) -> _PathEva
     """IK (raises UnreachableError), the singularity-margin test and the tip deflection in work
     axes for a tool rotation γ (scalar or (N,), rad)."""
     model = problem.model
-    if vjm_kernel.use_numba(model.backend) and model.stiffness is not None:
+    b = model.backend  # the C form first: no numba, no jit.ready("robot")
+    if (vjm_kernel.use_c(b) or vjm_kernel.use_numba(b)) and model.stiffness is not None:
         return _solve_compiled(problem, T_base_work, gamma)
     # the margin is tested here (exact, per point, no warnings: thread-safe)
     ik = ik_toolpath(model, problem.tip, T_base_work, tool_rotation=gamma, singular_threshold=None)

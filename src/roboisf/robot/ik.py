@@ -77,7 +77,8 @@ def opw_ik(
         )
     _check_branch(shoulder, elbow, wrist)
     T = np.asarray(T_base_flange, dtype=float).reshape(-1, 4, 4)
-    if vjm_kernel.use_numba(model.backend if backend is None else backend):
+    b = model.backend if backend is None else backend
+    if vjm_kernel.use_c(b) or vjm_kernel.use_numba(b):  # the C form: no numba, no jit.ready
         from roboisf.robot.ik_numba import flange_ik
 
         return flange_ik(model, T, shoulder, elbow, wrist)
@@ -296,9 +297,9 @@ def ik_toolpath(
         )
     if not np.all(np.isfinite(gam)):
         raise InputError("tool_rotation contains NaN or inf", field="tool_rotation")
-    compiled = T_bw.shape == (4, 4) and vjm_kernel.use_numba(
-        model.backend if backend is None else backend
-    )
+    b = model.backend if backend is None else backend
+    # the C form (ik_numba calls it) needs neither numba nor jit.ready("robot")
+    compiled = T_bw.shape == (4, 4) and (vjm_kernel.use_c(b) or vjm_kernel.use_numba(b))
     if compiled:
         from roboisf.robot.ik_numba import path_ik
 

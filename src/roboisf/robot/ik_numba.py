@@ -1,6 +1,10 @@
-"""The compiled (numba) engine of :mod:`roboisf.robot.ik`; imported on first use.
+"""The compiled engine of :mod:`roboisf.robot.ik`; imported on first use.
 
-Kept apart so that ``import roboisf.robot`` does not import numba. Same arithmetic as the numpy
+Two compiled forms, the same bits: C (``roboisf/robot/vjm_kernel.c``, the library of
+:mod:`roboisf.robot.vjm_kernel`, built at install and called through :mod:`roboisf.jit.native`
+— no numba in the process) when it is built and fresh, else the numba kernels below (numba
+imported only when one is first called). Kept apart so that ``import roboisf.robot`` does not
+import numba. Same arithmetic as the numpy
 path of :func:`roboisf.robot.ik.opw_ik` / :func:`roboisf.robot.ik.ik_toolpath` (tested to
 ≤ 1e-12 rad with identical branch choices, reachability and limit flags), in scalar registers
 per pose, with no temporary arrays:
@@ -415,6 +419,33 @@ def _args(model: Any, shoulder: str, elbow: str, wrist: str) -> tuple[F64, F64, 
     return geo, flags, _c64(model.chain.sign), _c64(model.chain.offset), model.chain.couple23
 
 
+def _lib() -> Any:
+    """The C form of this module's kernels (in ``roboisf/robot/vjm_kernel.c``), or None."""
+    from roboisf.robot.vjm_kernel import _c
+
+    return _c()
+
+
+def _need(what: str, a: Any, shape: tuple[int, ...], dtype: Any = np.float64) -> None:
+    """Before a C call: ``a`` is C-contiguous, of ``dtype`` and ``shape`` (−1: any length)."""
+    if not (
+        isinstance(a, np.ndarray)
+        and a.dtype == dtype
+        and a.flags.c_contiguous
+        and a.ndim == len(shape)
+        and all(w in (-1, g) for g, w in zip(a.shape, shape, strict=True))
+    ):
+        got = getattr(a, "shape", None), getattr(a, "dtype", None)
+        raise ValueError(f"{what}: {shape} {np.dtype(dtype).name} C-contiguous expected, got {got}")
+
+
+def _need_branch(geo: F64, flags: F64, sign: F64, offset: F64) -> None:
+    _need("geometry", geo, (10,))
+    _need("branch flags", flags, (3,))
+    _need("sign", sign, (6,))
+    _need("offset", offset, (6,))
+
+
 def flange_ik(
     model: Any, T_base_flange: F64, shoulder: str, elbow: str, wrist: str
 ) -> tuple[F64, NDArray[np.bool_]]:
@@ -424,12 +455,31 @@ def flange_ik(
     q = np.empty((n, 6))
     ok = np.empty(n, dtype=np.bool_)
     geo, flags, sign, offset, c23 = _args(model, shoulder, elbow, wrist)
-    run_chunks(
-        lambda s, e: _flange_rows(T, geo, flags, sign, offset, c23, q, ok, s, e),
-        n,
-        chunk(n),
-        any_thread=False,
-    )
+    lib = _lib()
+    if lib is not None:
+        _need("flange poses", T, (n, 4, 4))
+        _need_branch(geo, flags, sign, offset)
+        c23 = float(c23)
+
+        def rows(s: int, e: int) -> None:
+            lib.flange_rows(
+                T.ctypes.data,
+                geo.ctypes.data,
+                flags.ctypes.data,
+                sign.ctypes.data,
+                offset.ctypes.data,
+                c23,
+                q.ctypes.data,
+                ok.ctypes.data,
+                s,
+                e,
+            )
+    else:
+
+        def rows(s: int, e: int) -> None:
+            _flange_rows(T, geo, flags, sign, offset, c23, q, ok, s, e)
+
+    run_chunks(rows, n, chunk(n), any_thread=False)
     return q, ok
 
 
@@ -471,10 +521,52 @@ def path_ik(
         offset,
         c23,
     )
-    run_chunks(lambda s, e: _tip_rows(*args, q, ok, T_tip, s, e), n, chunk(n), any_thread=False)
+    lib = _lib()
+    if lib is not None:
+        A, B, _, gam, geo, flags, sign, offset, c23 = args
+        _need("T_base_work", A, (4, 4))
+        _need("T_flange_tip⁻¹", B, (4, 4))
+        _need("tip", tip, (n, 3))
+        if gam.shape not in ((1,), (n,)):
+            raise ValueError(f"gamma: (1,) or ({n},) expected, got {gam.shape}")
+        _need_branch(geo, flags, sign, offset)
+        ng, c23 = gam.shape[0], float(c23)
+
+        def rows(s: int, e: int) -> None:
+            lib.tip_rows(
+                A.ctypes.data,
+                B.ctypes.data,
+                tip.ctypes.data,
+                gam.ctypes.data,
+                ng,
+                geo.ctypes.data,
+                flags.ctypes.data,
+                sign.ctypes.data,
+                offset.ctypes.data,
+                c23,
+                q.ctypes.data,
+                ok.ctypes.data,
+                T_tip.ctypes.data if want_tip_poses else None,
+                s,
+                e,
+            )
+    else:
+
+        def rows(s: int, e: int) -> None:
+            _tip_rows(*args, q, ok, T_tip, s, e)
+
+    run_chunks(rows, n, chunk(n), any_thread=False)
     within = False
-    if bool(ok.all()):
-        within = bool(_continuous(q, _c64(model.q_min), _c64(model.q_max)))
+    if n == 0:  # no angle (the kernel would read a first row that is not there)
+        within = True
+    elif bool(ok.all()):
+        q_min, q_max = _c64(model.q_min), _c64(model.q_max)
+        if lib is not None:
+            _need("q_min", q_min, (6,))
+            _need("q_max", q_max, (6,))
+            within = bool(lib.continuous(q.ctypes.data, n, q_min.ctypes.data, q_max.ctypes.data))
+        else:
+            within = bool(_continuous(q, q_min, q_max))
     return q, ok, within, (T_tip if want_tip_poses else None)
 
 
@@ -672,9 +764,86 @@ def path_vjm(
         np.empty(n),  # |δ_robot|
         np.empty(n if normal is not None else 0),  # |δ·n|
     )
-    run_chunks(lambda s, e: _vjm_rows(*args, *out, s, e), n, chunk(n), any_thread=False)
+    lib = _lib()
+    if lib is not None:
+        rows = _c_vjm_rows(lib, args, out, n)
+    else:
+
+        def rows(s: int, e: int) -> None:
+            _vjm_rows(*args, *out, s, e)
+
+    run_chunks(rows, n, chunk(n), any_thread=False)
     abs_normal = None if normal is None else out[9]
     return PathVJM(q, ok, 0, out[2], out[3], out[4], out[5], out[6], out[8], abs_normal)
+
+
+def _c_vjm_rows(lib: Any, args: tuple[Any, ...], out: tuple[Any, ...], n: int) -> Any:
+    """``rows(s, e)``: :func:`_vjm_rows` of poses ``s:e`` in C (``path_vjm_rows``), after
+    checking what reaches it."""
+    F, sign, offset, c23, kinv, q, W_work, A, C_tool, gam, mg, rb = args
+    W_base, d, margin_ok, d_robot, d_total, abs_total, steps, nrm, abs_robot, abs_normal = out
+    _need("F", F, (7, 4, 4))
+    for what, a in (("sign", sign), ("offset", offset), ("kinv", kinv)):
+        _need(what, a, (6,))
+    _need("q", q, (n, 6))
+    if W_work.shape[0] not in (1, n):
+        raise ValueError(f"W_work: (1, 6) or ({n}, 6) expected, got {W_work.shape}")
+    _need("W_work", W_work, (-1, 6))
+    _need("R_base_work", A, (3, 3))
+    if C_tool.shape[0]:
+        _need("C_tool", C_tool, (6, 6))
+    if gam.shape not in ((1,), (n,)):
+        raise ValueError(f"gamma: (1,) or ({n},) expected, got {gam.shape}")
+    _need("gamma", gam, (-1,))
+    _need("margin", mg, (2,))
+    for what, a, shape, dtype in (
+        ("W_base", W_base, (n, 6), np.float64),
+        ("d", d, (n, 6), np.float64),
+        ("margin_ok", margin_ok, (n,), np.bool_),
+        ("d_robot", d_robot, (n, 3), np.float64),
+        ("d_total", d_total, (n, 3), np.float64),
+        ("abs_total", abs_total, (n,), np.float64),
+        ("steps", steps, (n,), np.float64),
+        ("abs_robot", abs_robot, (n,), np.float64),
+    ):
+        _need(what, a, shape, dtype)
+    want_normal = nrm.shape[0] > 0
+    if want_normal:
+        _need("normal", nrm, (n, 3))
+        _need("abs_normal", abs_normal, (n,))
+    c23, rb, nw, ng = float(c23), float(rb), W_work.shape[0], gam.shape[0]
+
+    def rows(s: int, e: int) -> None:
+        lib.path_vjm_rows(
+            F.ctypes.data,
+            sign.ctypes.data,
+            offset.ctypes.data,
+            c23,
+            kinv.ctypes.data,
+            q.ctypes.data,
+            W_work.ctypes.data,
+            nw,
+            A.ctypes.data,
+            C_tool.ctypes.data if C_tool.shape[0] else None,
+            gam.ctypes.data,
+            ng,
+            mg.ctypes.data,
+            rb,
+            W_base.ctypes.data,
+            d.ctypes.data,
+            margin_ok.ctypes.data,
+            d_robot.ctypes.data,
+            d_total.ctypes.data,
+            abs_total.ctypes.data,
+            steps.ctypes.data,
+            nrm.ctypes.data if want_normal else None,
+            abs_robot.ctypes.data,
+            abs_normal.ctypes.data if want_normal else None,
+            s,
+            e,
+        )
+
+    return rows
 
 
 @_njit()

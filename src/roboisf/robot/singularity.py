@@ -41,12 +41,14 @@ def margin_ok(J_scaled: ArrayLike, threshold: float, *, backend: str = "auto") -
     """Exact test ``σ_min(J_s) > threshold`` (N,) bool per pose for scaled Jacobians (N, 6, 6).
 
     All LDLᵀ pivots of ``J_sᵀ J_s − threshold² I`` are > 0 (see the module doc). ``backend``:
-    "auto" (compiled when numba is installed), "numba" or "numpy" (vectorised over N in
-    component-major arrays); the same elimination, which the fused VJM kernel also runs
-    (``RobotModel.vjm(..., margin=…)``).
+    "auto" (compiled: C when built, else numba when installed), "numba" or "numpy"
+    (vectorised over N in component-major arrays); the same elimination, which the fused VJM
+    kernel also runs (``RobotModel.vjm(..., margin=…)``).
     """
     Js = _check(J_scaled)
     c = float(threshold) ** 2
+    if vjm_kernel.use_c(backend):  # the C form of margin_numba: no numba
+        return vjm_kernel.margin_c(Js, 1.0, c)
     if vjm_kernel.use_numba(backend):
         from roboisf.robot.vjm_numba import margin_numba
 

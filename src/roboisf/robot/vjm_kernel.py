@@ -14,7 +14,9 @@ give the same numbers (≤ 1e-14 relative, tested on every preset):
     (a Dask worker, a thread pool) the same loop runs serially without the GIL, so the caller's
     own parallelism is not oversubscribed. Two compiled forms of it, the same bits: C
     (``vjm_kernel.c``, built at install, called through :mod:`roboisf.jit.native` — no numba in
-    the process; it also holds :func:`roboisf.robot.fk_numba.tip_positions`' pass) when it is
+    the process; it also holds :func:`roboisf.robot.fk_numba.tip_positions`' pass, the IK of
+    :mod:`roboisf.robot.ik_numba` and the margin test of
+    :func:`roboisf.robot.singularity.margin_ok`) when it is
     built and fresh (:func:`use_c`), else numba (:mod:`roboisf.robot.vjm_numba`, imported — so
     numba too — only on first use, compiled then and cached on disk, ``cache=True``).
 ``"numpy"``
@@ -50,6 +52,7 @@ __all__ = [
     "HAVE_NUMBA",
     "VJMResult",
     "check_backend",
+    "margin_c",
     "margin_numpy",
     "single_blas_thread",
     "use_c",
@@ -74,12 +77,32 @@ _CALL = 1 << 20
 _P, _I, _D = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
 
 #: The C functions of ``vjm_kernel.c`` (:func:`roboisf.jit.native.library`): ``fk_rows`` is
-#: :func:`roboisf.robot.fk_numba._rows`, ``vjm_rows`` :func:`roboisf.robot.vjm_numba._rows`.
+#: :func:`roboisf.robot.fk_numba._rows`, ``vjm_rows`` :func:`roboisf.robot.vjm_numba._rows`,
+#: ``margin_rows`` :func:`roboisf.robot.vjm_numba._margin_rows`; ``flange_rows``, ``tip_rows``,
+#: ``continuous`` and ``path_vjm_rows`` the kernels of :mod:`roboisf.robot.ik_numba`.
 SIGNATURES: dict[str, native.Signature] = {
     # F, sign, offset, c23, T, q, out, s, e
     "fk_rows": (None, [_P, _P, _P, _D, _P, _P, _P, _I, _I]),
     # F, sign, offset, c23, kinv, q, W, one_w, s, e, d, k, J, margin, ok
     "vjm_rows": (None, [_P, _P, _P, _D, _P, _P, _P, _I, _I, _I, _P, _P, _P, _P, _P]),
+    # the IK of roboisf.robot.ik_numba: _flange_rows, _tip_rows, _continuous, _vjm_rows
+    # T, geo, flags, sign, offset, c23, q, ok, s, e
+    "flange_rows": (None, [_P, _P, _P, _P, _P, _D, _P, _P, _I, _I]),
+    # A, B, tip, gam, n_gam, geo, flags, sign, offset, c23, q, ok, T_tip, s, e
+    "tip_rows": (None, [_P, _P, _P, _P, _I, _P, _P, _P, _P, _D, _P, _P, _P, _I, _I]),
+    # q, n, q_min, q_max → all within the limits (0/1)
+    "continuous": (ctypes.c_int64, [_P, _I, _P, _P]),
+    # F, sign, offset, c23, kinv, q, W_work, n_w, A, C_tool, gam, n_gam, margin, rb, W_base, d,
+    # margin_ok, d_robot, d_total, abs_total, steps, nrm, abs_robot, abs_normal, s, e
+    "path_vjm_rows": (
+        None,
+        [_P, _P, _P, _D, _P, _P, _P, _I, _P, _P, _P, _I, _P, _D, *[_P] * 10, _I, _I],
+    ),
+    # ik_numba._atan2_many (y, x, out, n) and _wrap_many (x, out, n), for the tests
+    "atan2_many": (None, [_P, _P, _P, _I]),
+    "wrap_many": (None, [_P, _P, _I]),
+    # vjm_numba._margin_rows: Js, lin_scale, c, ok, s, e
+    "margin_rows": (None, [_P, _D, _D, _P, _I, _I]),
 }
 
 
@@ -90,8 +113,9 @@ def _c() -> Any:
 
 def use_c(backend: str) -> bool:
     """True when ``backend`` ("auto", "numba" or "numpy") asks for the compiled engine and its
-    C form is built and fresh: no numba, no :func:`roboisf.jit.ready` (group "robot" holds the
-    numba-only IK kernels of ``roboisf.plan`` too) and no background builder."""
+    C form is built and fresh: no numba, no :func:`roboisf.jit.ready` (group "robot" lists no
+    C form, so asking it checks numba's cache) and no background builder. The C form serves
+    every kernel of the group: the FK and VJM passes, the IK and the margin test."""
     return check_backend(backend) != "numpy" and _c() is not None
 
 
@@ -320,6 +344,27 @@ def _c_rows(
         run_chunks(lambda a, b: span(s + a, s + b), e - s, chunk(e - s), any_thread=False)
 
     return rows
+
+
+def margin_c(Js: F64, lin_scale: float, c: float) -> NDArray[np.bool_]:
+    """:func:`roboisf.robot.vjm_numba.margin_numba` in C (``margin_rows``; :func:`use_c` is
+    true): the margin test of Jacobians (N, 6, 6), chunked as that one."""
+    from roboisf.robot.vjm_numba import _c64, chunk  # helpers only: numba is not imported
+
+    lib = _c()
+    Jc = _c64(Js)
+    if Jc.ndim != 3 or Jc.shape[1:] != (6, 6):
+        raise ValueError(f"margin: Jacobians (N, 6, 6) expected, got {Jc.shape}")
+    n = Jc.shape[0]
+    ok = np.empty(n, dtype=np.bool_)
+    ls, cc = float(lin_scale), float(c)
+    run_chunks(
+        lambda s, e: lib.margin_rows(Jc.ctypes.data, ls, cc, ok.ctypes.data, s, e),
+        n,
+        chunk(n),
+        any_thread=False,
+    )
+    return ok
 
 
 def margin_numpy(Js: F64, c: float) -> NDArray[np.bool_]:
