@@ -120,8 +120,8 @@ app = typer.Typer(
         "Typical session:  roboisf demo   ·   roboisf analyze study/ -o results/   ·   "
         "roboisf compensate ...\n\nLengths on the command line are mm, angles degrees; files "
         "declare their own units. -q/-v may come before or after the command.\n\n"
-        "roboisf's compiled kernels are built at install: the analysis' in C (no numba needed), "
-        "the robot's IK and the online loop with numba; --version says which are there. Where "
+        "roboisf's compiled kernels are built at install: in C (no numba needed) all but the "
+        "online loop's, which numba compiles; --version says which are there. Where "
         "numba's cache cannot serve (a kernel edited, numba upgraded, another CPU, a read-only "
         "install) it is built once in the background after the first run, which uses numpy; "
         "ROBOISF_BACKGROUND_COMPILE=0 builds it in the foreground (and shows why a failed "
@@ -146,8 +146,8 @@ def _version(value: bool) -> None:
         typer.echo(f"roboisf {__version__}")
         typer.echo(native.describe())
         numba = (
-            f"numba {numba_version_installed() or '?'} (the robot's IK, the online loop, and any "
-            "kernel whose C form is not built)"
+            f"numba {numba_version_installed() or '?'} (the online loop, and any kernel whose C "
+            "form is not built)"
             if HAVE_NUMBA
             else "numba: not installed or switched off (ROBOISF_NUMBA=0); numpy serves"
         )
