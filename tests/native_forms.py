@@ -7,6 +7,8 @@ import contextlib
 from collections.abc import Iterator
 from typing import Any
 
+import numpy as np
+
 from roboisf.jit import native
 
 _MISSING = object()
@@ -39,3 +41,25 @@ def numba_form(*modules: str) -> Iterator[None]:
                 native._loaded.pop(m, None)
             else:
                 native._loaded[m] = v
+
+
+def same_bits(got: Any, want: Any, *, nan_sign: bool = True) -> None:
+    """``got`` and ``want`` (arrays, or tuples of them) of the same dtype and shape, the same
+    bits: floats compared by their bit patterns where not NaN (so -0.0 is not 0.0), NaN where
+    NaN, and — with ``nan_sign`` — the NaNs' signs too."""
+    if isinstance(got, tuple | list):
+        assert isinstance(want, tuple | list) and len(got) == len(want)
+        for g, w in zip(got, want, strict=True):
+            same_bits(g, w, nan_sign=nan_sign)
+        return
+    got, want = np.asarray(got), np.asarray(want)
+    assert got.dtype == want.dtype and got.shape == want.shape, (got.dtype, want.dtype)
+    if got.dtype.kind != "f":
+        assert np.array_equal(got, want)
+        return
+    nan = np.isnan(got)
+    assert np.array_equal(nan, np.isnan(want))
+    bits = f"u{got.dtype.itemsize}"
+    assert np.array_equal(got.view(bits)[~nan], want.view(bits)[~nan])
+    if nan_sign:
+        assert np.array_equal(np.signbit(got), np.signbit(want))

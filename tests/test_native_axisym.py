@@ -8,7 +8,7 @@ import contextlib
 import numpy as np
 import pytest
 
-from native_forms import c_library, numba_form
+from native_forms import c_library, numba_form, same_bits
 from roboisf.jit import HAVE_NUMBA
 from roboisf.parts import VWACF, Cone, ProfilePart
 from roboisf.parts import axisym_kernel as ak
@@ -51,13 +51,9 @@ def _points(part, n: int, seed: int) -> np.ndarray:
 
 def _same(got, want) -> None:
     assert len(got) == len(want) == 6
-    for g, w in zip(got, want, strict=True):
-        assert g.dtype == w.dtype and g.shape == w.shape
-        # bit for bit: the sign of a zero (a foot on the axis, a point on the surface) and the
-        # NaN point's distance included
-        if g.dtype.kind == "f":
-            g, w = g.view(np.int64), w.view(np.int64)
-        np.testing.assert_array_equal(g, w)
+    # bit for bit: the sign of a zero (a foot on the axis, a point on the surface) and the NaN
+    # point's distance included
+    same_bits(got, want)
 
 
 @pytest.mark.parametrize("name", list(PARTS))

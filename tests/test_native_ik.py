@@ -16,18 +16,18 @@ from typing import Any
 import numpy as np
 import pytest
 
-from native_forms import c_library, numba_form
+from native_forms import c_library, numba_form, same_bits
 from roboisf.frames import invert
 from roboisf.frames.se3 import make_transform
 from roboisf.robot import ik_numba, vjm_kernel
 from roboisf.robot.model import RobotModel
 from roboisf.robot.presets import list_robots, load_robot
 from roboisf.robot.singularity import margin_ok, scaled_jacobian, sigma_min
+from test_native_robot import _model  # the same presets with the same tool
 
 VK = "roboisf.robot.vjm_kernel"
 SRC = Path(__file__).resolve().parents[1] / "src"
 pytestmark = pytest.mark.skipif(not vjm_kernel.HAVE_NUMBA, reason="numba not installed")
-TOOL = make_transform(np.eye(3), [0.01, -0.02, 0.3])  # a spindle's offset (m)
 BRANCHES = [
     (s, e, w) for s in ("front", "back") for e in ("up", "down") for w in ("noflip", "flip")
 ]
@@ -36,20 +36,7 @@ PRESETS = [n for n in list_robots() if load_robot(n).opw is not None]
 
 def _same(a: Any, b: Any) -> None:
     """Same shape, dtype and bits (a NaN equals any NaN; -0.0 differs from 0.0)."""
-    a, b = np.asarray(a), np.asarray(b)
-    assert a.shape == b.shape and a.dtype == b.dtype
-    if a.dtype != np.float64:
-        assert np.array_equal(a, b)
-        return
-    nan = np.isnan(a)
-    assert np.array_equal(nan, np.isnan(b))
-    assert np.array_equal(a.view(np.uint64)[~nan], b.view(np.uint64)[~nan])
-
-
-def _model(name: str) -> RobotModel:
-    """A preset with a tool; the presets without a published stiffness get one (N·m/rad)."""
-    m = replace(load_robot(name), T_flange_tip=TOOL)
-    return m if m.stiffness is not None else m.with_stiffness(np.linspace(4e6, 4e5, 6))
+    same_bits(a, b, nan_sign=False)
 
 
 def _flange_poses(m: RobotModel, n: int, seed: int) -> np.ndarray:

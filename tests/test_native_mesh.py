@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from mesh_oracle import brute_closest
-from native_forms import c_library, numba_form
+from native_forms import c_library, numba_form, same_bits
 from roboisf.jit import HAVE_NUMBA
 from roboisf.parts import Cone, MeshPart, tessellate
 from roboisf.parts import mesh_kernel as mk
@@ -34,15 +34,7 @@ def _both(f: Callable[[], Any]) -> tuple[Any, Any]:
 
 def _same(got: Any, want: Any) -> None:
     """The same arrays bit for bit (the sign of a zero and NaNs included), of the same type."""
-    if isinstance(got, tuple):
-        assert isinstance(want, tuple) and len(got) == len(want)
-        for g, w in zip(got, want, strict=True):
-            _same(g, w)
-        return
-    assert got.dtype == want.dtype and got.shape == want.shape
-    if got.dtype.kind == "f":
-        got, want = got.view(np.int64), want.view(np.int64)
-    np.testing.assert_array_equal(got, want)
+    same_bits(got, want)
 
 
 def _scan(n: int, seed: int = 0) -> np.ndarray:

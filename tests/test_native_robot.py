@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from native_forms import c_library, numba_form
+from native_forms import c_library, numba_form, same_bits
 from roboisf.frames.se3 import make_transform
 from roboisf.robot import fk_numba, vjm_chain, vjm_kernel
 from roboisf.robot.model import RobotModel
@@ -31,14 +31,7 @@ TOOL = make_transform(np.eye(3), [0.01, -0.02, 0.3])  # a spindle's offset (m)
 
 def _same(a: Any, b: Any) -> None:
     """Same shape and the same bits (a NaN equals any NaN; -0.0 differs from 0.0)."""
-    a, b = np.asarray(a), np.asarray(b)
-    assert a.shape == b.shape and a.dtype == b.dtype
-    if a.dtype != np.float64:
-        assert np.array_equal(a, b)
-        return
-    nan = np.isnan(a)
-    assert np.array_equal(nan, np.isnan(b))
-    assert np.array_equal(a.view(np.uint64)[~nan], b.view(np.uint64)[~nan])
+    same_bits(a, b, nan_sign=False)
 
 
 def _model(name: str) -> RobotModel:

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from native_forms import c_library, numba_form
+from native_forms import c_library, numba_form, same_bits
 from roboisf.parts import Cone
 from roboisf.scan import point_deviations, radial_offset, synthetic_scan
 from roboisf.scan import toolpath_kernel as tk
@@ -32,11 +32,7 @@ def _both(feet, dn, P, **kw):
 
 
 def _same(got, want):
-    assert len(got) == len(want)
-    for u, v in zip(got, want, strict=True):
-        assert u.dtype == v.dtype and u.shape == v.shape
-        assert np.array_equal(u, v, equal_nan=u.dtype.kind == "f")
-        assert np.array_equal(np.signbit(u), np.signbit(v))  # ±0 and NaN signs too
+    same_bits(got, want)  # ±0 and NaN signs too
 
 
 @pytest.fixture(scope="module")
