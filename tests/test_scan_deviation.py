@@ -747,3 +747,22 @@ def test_compare_options_refuse_bad_filter_settings(kwargs, field):
 
 def test_compare_options_ignore_the_threshold_of_a_filter_that_is_off():
     assert CompareOptions(outlier_k=0, outlier_std=math.nan).outlier_k == 0
+
+
+@pytest.mark.parametrize("native", [True, False])
+def test_a_point_too_far_to_take_the_spread_is_a_clear_error(native, monkeypatch):
+    """A finite coordinate of 1e300 (a corrupt file): the mean k-NN distances' spread
+    overflows. It used to give a NaN threshold and so every point an outlier, silently; now an
+    InputError naming the distances — on the compiled path and the k-d tree path alike."""
+    from roboisf.errors import InputError
+    from roboisf.jit import native as nt
+    from roboisf.scan import statistical_outliers
+
+    if not native:
+        monkeypatch.setattr(nt, "_suspended", 1)
+        monkeypatch.setitem(jit_background._decided, "scan", False)  # the k-d tree path
+    X = np.random.default_rng(0).normal(size=(2000, 3))
+    assert statistical_outliers(X, 8, 3.0).mean() > 0.9  # an ordinary cloud: mostly inliers
+    X[10] = [1e300, 0.0, 0.0]
+    with pytest.raises(InputError, match="too large to take their spread"):
+        statistical_outliers(X, 8, 3.0)

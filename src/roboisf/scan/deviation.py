@@ -286,13 +286,13 @@ def statistical_outliers(
 
     For each point the mean distance to its ``k`` nearest neighbours; points whose mean exceeds
     the global mean + ``std_ratio`` standard deviations are outliers (the PCL/Open3D filter).
-    With numba the neighbours come from a compiled grid search (:mod:`roboisf.scan.knn_kernel`),
-    else from scipy's k-d tree; both are exact.
+    The neighbours come from a compiled grid search (:mod:`roboisf.scan.knn_kernel`: its C form,
+    else numba), or without either from scipy's k-d tree; all are exact.
     ``ordered=True``: the points (N, 3) [m] are already in spatial order
     (:func:`~roboisf.parts.mesh.spatial_order`), the sort is skipped; the mask is the same.
     ``rows`` (M,) int: filter the points ``points[rows]`` only, mask (M,) in the order of
     ``rows`` — the same mask as ``statistical_outliers(points[rows])``, without that copy
-    (with numba; the k-d tree path makes it).
+    (compiled; the k-d tree path makes it).
     """
     X = np.asarray(points, dtype=float)
     R = None if rows is None else np.asarray(rows, dtype=np.int64)
@@ -303,7 +303,7 @@ def statistical_outliers(
     if jit.ready("scan"):
         # compiled uniform-grid k-NN (exact; 1.5-2x the k-d tree below on a 2 M-point scan)
         m = knn_kernel.mean_knn_distance(X, k, rows=R)
-        return m <= m.mean() + std_ratio * m.std()
+        return _inliers(m, std_ratio)
     if R is not None:
         X = X[R]
     # Queried in Morton order: neighbouring queries walk neighbouring tree nodes, so the query
@@ -333,7 +333,24 @@ def statistical_outliers(
     else:
         m = np.empty(X.shape[0])
         m[order] = ms
-    return m <= m.mean() + std_ratio * m.std()
+    return _inliers(m, std_ratio)
+
+
+def _inliers(m: NDArray[np.float64], std_ratio: float) -> NDArray[np.bool_]:
+    """The filter's verdict from the points' mean k-NN distances ``m`` (N,) [m]: within the
+    mean + ``std_ratio`` standard deviations. A threshold that is not a number — distances so
+    large their squares overflow, a point some 1e154 m or more from the others, which no scan
+    in metres holds — is an :class:`InputError`, not every point silently an outlier."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        limit = m.mean() + std_ratio * m.std()
+    if not np.isfinite(limit):
+        raise InputError(
+            f"the points' neighbour distances reach {float(np.max(m)):.3g} m, too large to "
+            "take their spread: a coordinate far outside the part (a corrupt file, or not "
+            "metres?)",
+            field="points",
+        )
+    return m <= limit
 
 
 def _check_filter_input(X: NDArray[np.float64], R: NDArray[np.int64] | None, k: int) -> None:
@@ -360,7 +377,7 @@ def statistical_outliers_held(
 ) -> NDArray[np.bool_]:
     """:func:`statistical_outliers` of the points (N, 3) [m] in ``box`` (already in spatial
     order, ``ordered=True``), a one-element list to which the caller keeps no other reference.
-    With numba they are taken out while the filter's sorted copy exists and put back (a new
+    Compiled, they are taken out while the filter's sorted copy exists and put back (a new
     array, the same values) before this returns (:func:`~roboisf.scan.knn_kernel.
     mean_knn_distance_held`: ~33 MB less at the filter's peak on a 1.7 M-point scan); the
     same mask."""
@@ -370,7 +387,7 @@ def statistical_outliers_held(
         return statistical_outliers(X, k, std_ratio, ordered=True)
     del X
     m = knn_kernel.mean_knn_distance_held(box, k)
-    return m <= m.mean() + std_ratio * m.std()
+    return _inliers(m, std_ratio)
 
 
 #: The paper's rim band [m]: 20 mm of its 103 mm cone are left out (sheet bending at the clamp).
