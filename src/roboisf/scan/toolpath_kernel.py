@@ -352,18 +352,6 @@ def _contacts(
         cnt[i] = c
 
 
-def _wide(a: NDArray[Any], name: str) -> int:
-    """The C functions' integer flag of a grid array: 0 for int32, 1 for int64 (C-contiguous
-    only: no other layout reaches C)."""
-    if not a.flags.c_contiguous:
-        raise ValueError(f"{name}: a C-contiguous array expected")
-    if a.dtype == np.int32:
-        return 0
-    if a.dtype == np.int64:
-        return 1
-    raise TypeError(f"{name}: int32 or int64 expected, got {a.dtype}")
-
-
 def _xyz(a: NDArray[Any], name: str) -> None:
     """Checks an (N, 3) C-contiguous float64 array for C."""
     if a.dtype != np.float64 or a.ndim != 2 or a.shape[1] != 3 or not a.flags.c_contiguous:
@@ -446,7 +434,7 @@ def _statistics(
 
     else:
         lo_c = np.ascontiguousarray(lo, dtype=np.float64)
-        wide = _wide(order, "order")
+        wide = knn_kernel._wide(order, start)  # one integer type for both, as C reads them
 
         def rows(a: int, b: int) -> None:
             status = lib.contacts(
