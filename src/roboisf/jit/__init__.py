@@ -11,6 +11,8 @@
   missing kernel group in the background (:mod:`roboisf.jit.background`, :data:`GROUPS`).
 * :func:`kernel_cached`, :func:`compile_notice` — whether numba holds a module's cache, and the
   one-line notice of a build in the foreground.
+* :mod:`roboisf.jit.native` — the C forms of the kernels (built at install, loaded with
+  ctypes; a kernel module's ``_c()`` asks for its library): where they are built, no numba.
 
 Importing this package does not import numba.
 """
