@@ -1,6 +1,9 @@
 """Ball-end tool, tool holder and their serial assembly; the compliance JSON file."""
 
 import json
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -255,3 +258,49 @@ def test_inverted_element_is_an_input_error():
     with pytest.raises(InputError, match="inverted") as e:
         assemble_stiffness(bad, np.array([STEEL.lame]))
     assert e.value.field == "mesh_size"
+
+
+_NO_SEARCH = """
+import glob, os, sys
+os.environ.pop("PYPARDISO_MKL_RT", None)
+def refuse(*a, **k):
+    raise AssertionError(f"pypardiso searched for MKL: glob{a}")
+glob.glob = refuse
+import ctypes.util
+ctypes.util.find_library = lambda name: refuse(name)
+import numpy as np, scipy.sparse as sp
+from roboisf.fem.stiffness import MKL_RT_VARIABLE, _factorize
+K = sp.csr_matrix(np.array([[4.0, 1.0], [1.0, 3.0]]))
+solve, name = _factorize(K, "pardiso")
+x = solve(np.array([1.0, 2.0]))
+print(name, os.path.basename(os.environ[MKL_RT_VARIABLE]), np.abs(K @ x - [1.0, 2.0]).max() < 1e-12)
+"""
+
+
+def test_pardiso_is_told_where_mkl_is_and_searches_nothing():
+    """pypardiso's own search for MKL's runtime (``find_library``, which runs ``ldconfig`` and a
+    compiler, then a recursive glob of the whole environment) cost 0.5 s per factorisation and
+    1 s at its import. With the ``mkl`` wheel installed roboisf passes the library's path from
+    the wheel's file record: the search never runs (both are made to fail here), and the
+    solver loads that library and solves."""
+    pytest.importorskip("pypardiso", reason="pypardiso (the pardiso extra) not installed")
+    from roboisf.fem.stiffness import mkl_runtime
+
+    if mkl_runtime() is None:
+        pytest.skip("MKL not from the mkl wheel: pypardiso's own search is what finds it")
+    r = subprocess.run(
+        [sys.executable, "-c", _NO_SEARCH], capture_output=True, text=True, timeout=120
+    )
+    assert r.returncode == 0, r.stderr[-2000:]
+    name, lib, ok = r.stdout.split()
+    assert (name, ok) == ("pardiso", "True")
+    assert "mkl_rt" in lib
+
+
+def test_a_users_mkl_path_is_kept(monkeypatch):
+    from roboisf.fem import stiffness
+
+    pytest.importorskip("pypardiso", reason="pypardiso (the pardiso extra) not installed")
+    monkeypatch.setenv(stiffness.MKL_RT_VARIABLE, "/opt/my/libmkl_rt.so.2")
+    stiffness._import_pypardiso()
+    assert os.environ[stiffness.MKL_RT_VARIABLE] == "/opt/my/libmkl_rt.so.2"
