@@ -428,11 +428,13 @@ def _then(study: Study) -> dict[str, Any]:
     """What the analysis needs besides the scans, for the scans' thread once its scan is done:
     the inputs' fingerprint (which study and files these results came from: compensate
     --results checks it; SHA-256 of ~100 MB on the paper cone) and the report's modules loaded
-    (plotly, pandas: ~0.3 s of write_results otherwise)."""
+    (plotly, pandas: ~0.3 s of write_results otherwise; with plotly's HTML writer, 0.035 s
+    more: :func:`roboisf.report.document.preload`)."""
     fingerprint = study_fingerprint(study)
     import roboisf.report.document
-    import roboisf.report.render  # noqa: F401
+    import roboisf.report.render
 
+    roboisf.report.document.preload()
     return fingerprint
 
 

