@@ -195,16 +195,17 @@ def test_a_position_aligned_runs_joint_log_is_freed_before_its_force_log_is_read
 
 
 def _hold_first_scan(monkeypatch, until: threading.Event) -> None:
-    """The worker's first (cnc) comparison waits for ``until``: the calling thread then reaches
-    the last scan before the worker does, whatever the machine's speed."""
-    real = pipeline._compare
+    """The worker's first (cnc) scan waits for ``until`` before it is read: the calling thread
+    then reaches the last scan — its first half too — before the worker does, whatever the
+    machine's speed. (Call after :func:`_record_prepares`.)"""
+    real = pipeline._prepare
 
-    def compare(study, cell, run, tp, progress, keep_points=False, prepared=None):
+    def prepare(study, cell, run, progress):
         if run.name == "cnc":
             assert until.wait(20)
-        return real(study, cell, run, tp, progress, keep_points, prepared)
+        return real(study, cell, run, progress)
 
-    monkeypatch.setattr(pipeline, "_compare", compare)
+    monkeypatch.setattr(pipeline, "_prepare", prepare)
 
 
 def _record_prepares(monkeypatch, tried: threading.Event, fail=None) -> list[tuple[str, str]]:
@@ -283,6 +284,91 @@ def test_scan_errors_come_in_the_runs_order_whichever_thread_met_them(
     tried.clear()
     with pytest.raises(InputError, match=r"cnc_scan\.ply"):
         analyze(study)
+    assert _scan_threads() == []
+
+
+def _hold_logs(monkeypatch, until: threading.Event) -> None:
+    """The calling thread's logs wait for ``until``: the worker then reaches the last scan's
+    first half before the calling thread does, whatever the machine's speed."""
+    real = pipeline._logs_part
+
+    def logs(*args, **kwargs):
+        assert until.wait(20)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "_logs_part", logs)
+
+
+def test_the_worker_reads_and_registers_the_last_scan_when_it_gets_there_first(
+    small_cone_study, sequential_kept, monkeypatch
+):
+    # the logs' lane is the longer one (the paper cone's 1 kHz logs): the worker reads and
+    # registers the robot scan after the CNC scan's first half, and the calling thread, done
+    # with the logs, only finishes it — the same results
+    tried = threading.Event()
+    seen = _record_prepares(monkeypatch, tried)
+    _hold_logs(monkeypatch, tried)
+    compared: list[tuple[str, str, bool]] = []
+    real = pipeline._compare
+
+    def compare(study, cell, run, tp, progress, keep_points=False, prepared=None):
+        compared.append((run.name, threading.current_thread().name, prepared is not None))
+        return real(study, cell, run, tp, progress, keep_points, prepared)
+
+    monkeypatch.setattr(pipeline, "_compare", compare)
+    ovl = analyze(small_cone_study)
+    assert seen == [("cnc", "roboisf-scans"), ("robot", "roboisf-scans")]
+    assert sorted(compared) == [("cnc", "roboisf-scans", True), ("robot", "MainThread", True)]
+    seq = sequential_kept[0]
+    pd.testing.assert_frame_equal(seq.per_point, ovl.per_point, check_exact=True)
+    assert ovl.scans["robot"].summary() == seq.scans["robot"].without_points().summary()
+    assert list(ovl.scans) == ["cnc", "robot"]
+    assert _scan_threads() == []
+
+
+def test_an_error_in_the_last_scan_read_ahead_comes_in_the_runs_order(
+    small_cone_study, tmp_path, monkeypatch
+):
+    # the worker meets the robot scan's error reading it ahead: it is reported (by the thread
+    # that compares that scan) after the CNC scan, whose own error comes first
+    study = _copy(small_cone_study, tmp_path)
+    bad = b"ply\nformat ascii 1.0\nelement vertex 2\nend_header\n"
+    (study / "robot_scan.ply").write_bytes(bad)
+    tried = threading.Event()
+    seen = _record_prepares(monkeypatch, tried)
+    _hold_logs(monkeypatch, tried)
+    with pytest.raises(InputError, match=r"robot_scan\.ply"):
+        analyze(study)
+    assert ("robot", "roboisf-scans") in seen and ("robot", "MainThread") not in seen
+    (study / "cnc_scan.ply").write_bytes(bad)
+    tried.set()  # the CNC scan fails before the robot's is read ahead: nothing to wait for
+    seen.clear()
+    with pytest.raises(InputError, match=r"cnc_scan\.ply"):
+        analyze(study)
+    assert _scan_threads() == []
+
+
+def test_a_refused_log_stops_the_worker_reading_the_last_scan_ahead(
+    small_cone_study, monkeypatch
+):
+    # the logs are refused while the worker reads the robot scan ahead: the log's error is
+    # the one reported, and no thread outlives the analysis
+    reading = threading.Event()
+    real = pipeline._prepare
+
+    def prepare(study, cell, run, progress):
+        if run.name == "robot":
+            reading.set()
+        return real(study, cell, run, progress)
+
+    def refused(*args, **kwargs):
+        assert reading.wait(20)
+        raise InputError("bad force log", file="robot_forces.parquet")
+
+    monkeypatch.setattr(pipeline, "_prepare", prepare)
+    monkeypatch.setattr(pipeline, "_logs_part", refused)
+    with pytest.raises(InputError, match="bad force log"):
+        analyze(small_cone_study)
     assert _scan_threads() == []
 
 

@@ -457,8 +457,14 @@ class _ScansBeside:
     with the logs, the calling thread compares the last scan itself (:meth:`compare_last`),
     unless the worker has begun it: two lanes, one scan each, whose parallel outlier filters
     fill each other's idle core (issue #31: the worker finishing both scans while the calling
-    thread only waited left a core idle through the last scan's serial steps, ~0.3 s). The peak
-    RSS stays that of one scan beside the other's filter: the logs are freed by then.
+    thread only waited left a core idle through the last scan's serial steps, ~0.3 s).
+
+    The last scan's first half (reading, registration, spatial order: :func:`_prepare`, which
+    needs only the part) is the worker's too, right after the first scan's, unless the calling
+    thread got there first: the logs' lane was the longer one, and its serial steps ran at the
+    end with the other core idle (0.5-0.7 s of a paper-cone run). The peak RSS is then the
+    first scan's filter beside the last scan's registered wall points (~50 MB) and the logs.
+
     :meth:`result` waits for them and re-raises their error (in the runs' order, whichever
     thread met it); :meth:`cancel` stops them at their next step (the logs were refused, or
     Ctrl-C) and waits, so no thread outlives the analysis."""
@@ -489,20 +495,33 @@ class _ScansBeside:
         # the error the calling thread met comparing a scan (None: done), and when
         self._theirs: dict[str, BaseException | None] = {}
         self._ready = {run.name: threading.Event() for run in runs}
+        # the last scan's first half, prepared ahead by the worker (or its error), and when
+        self._ahead: PreparedScan | None = None
+        self._ahead_error: BaseException | None = None
+        self._ahead_ready = threading.Event()
         prog = cancellable(progress, self._cancel)
 
         def work() -> None:
             theirs = []  # the runs the calling thread compares: their errors raised in order
             try:
-                for run in runs:
+                for i, run in enumerate(runs):
                     if not self._claim(run.name):
                         theirs.append(run.name)
                         continue
                     for name in theirs:  # a first scan's error before a later one's
                         self._raise_theirs(name)
                     theirs.clear()
+                    if i == 0 and len(runs) > 1:
+                        with task(prog, f"scan {run.name}: read and register"):
+                            prep = _prepare(study, cell, run, prog)
+                        self._prepare_ahead(prog)  # the last scan's first half, here
+                    elif i == len(runs) - 1 and self._ahead_ready.is_set():
+                        prep = self._take_ahead(run)  # prepared after the first's
+                    else:
+                        prep = None
                     with task(prog, f"scan {run.name}"):
-                        prep = _prepare(study, cell, run, prog)
+                        if prep is None:
+                            prep = _prepare(study, cell, run, prog)
                         self._wait(self._tp_ready, run.name)
                         assert self._tp is not None
                         self._scans[run.name] = _compare(
@@ -524,6 +543,8 @@ class _ScansBeside:
                 pass
             except BaseException as e:  # re-raised in the caller's thread by result()
                 self._error = e
+            finally:
+                self._ahead_ready.set()  # never left waited for
 
         self._thread = threading.Thread(target=work, name="roboisf-scans")
         self._thread.start()
@@ -554,17 +575,54 @@ class _ScansBeside:
             self._claimed.add(name)
             return True
 
+    def _prepare_ahead(self, progress: Progress | None) -> None:
+        """In the worker, after the first scan's first half: the last scan's, unless the
+        calling thread has begun it. Its error is kept for whoever compares that scan (raised
+        in the runs' order); Ctrl-C or a cancel stops the worker as before."""
+        run = self._runs[-1]
+        if not self._claim(f"prepare {run.name}"):
+            return
+        try:
+            with task(progress, f"scan {run.name}: read and register"):
+                self._ahead = _prepare(self._study, self._cell, run, progress)
+        except Exception as e:
+            self._ahead_error = e
+        finally:
+            self._ahead_ready.set()
+
+    def _take_ahead(self, run: RunSpec) -> PreparedScan:
+        """The last scan's first half as the worker prepared it (its error raised here)."""
+        err, self._ahead_error = self._ahead_error, None
+        if err is not None:
+            raise err
+        prep, self._ahead = self._ahead, None
+        if prep is None:  # cancelled while preparing: stop as the worker did
+            raise Cancelled(run.name)
+        return prep
+
+    def _last_first_half(self, run: RunSpec, progress: Progress | None) -> PreparedScan:
+        """In the calling thread: the last scan's first half, prepared here unless the worker
+        has begun it (then waited for: the worker stops only when this thread cancels it)."""
+        if self._claim(f"prepare {run.name}"):
+            with task(progress, f"scan {run.name}: read and register"):
+                return _prepare(self._study, self._cell, run, progress)
+        while not self._ahead_ready.wait(0.05):
+            if not self._thread.is_alive():
+                break
+        return self._take_ahead(run)
+
     def compare_last(self, progress: Progress | None) -> None:
         """In the calling thread: the last run's scan compared (read, registered, filtered,
-        along the toolpath), unless the worker has begun it. An error there is the worker's to
-        raise, in the runs' order (a first scan's error first); Ctrl-C is raised here."""
+        along the toolpath), unless the worker has begun it; its first half is the worker's
+        when it got there first. An error there is the worker's to raise, in the runs' order
+        (a first scan's error first); Ctrl-C is raised here."""
         run = self._runs[-1]
         if len(self._runs) < 2 or not self._thread.is_alive() or not self._claim(run.name):
             return
         err: BaseException | None = None
         try:
+            prep = self._last_first_half(run, progress)
             with task(progress, f"scan {run.name}"):
-                prep = _prepare(self._study, self._cell, run, progress)
                 assert self._tp is not None  # set before the logs (set_toolpath)
                 self._scans[run.name] = _compare(
                     self._study, self._cell, run, self._tp, progress, self._keep, prep
