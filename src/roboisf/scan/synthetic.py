@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import functools
 import math
+import threading
 from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass
 from typing import cast
@@ -31,7 +32,7 @@ from roboisf.errors import InputError
 from roboisf.frames.se3 import transform_points
 from roboisf.parts.axisymmetric import REGION_CODES, AxisymmetricPart
 from roboisf.parts.base import Part
-from roboisf.parts.generatrix import Primitive, Segment
+from roboisf.parts.generatrix import Arc, Primitive, Segment
 from roboisf.parts.mesh import MeshPart
 
 __all__ = [
@@ -90,13 +91,20 @@ def radial_offset(dr: Callable[[F64, F64], F64], part: AxisymmetricPart) -> Offs
 
 def _radius_at(p: Primitive, s: F64) -> F64:
     """``p.at(s)[0]`` — the radius at arc length ``s`` — without the heights and angles: a
-    segment's ``r0 + (s / length)·(r1 − r0)`` (the same operations, in a single new array), any
-    other primitive's through :meth:`at`. ``s`` is kept."""
+    segment's ``r0 + (s / length)·(r1 − r0)``, an arc's ``rc − ρ·sin(β0 + s / ρ)`` (the same
+    operations, in a single new array), any other primitive's through :meth:`at`. ``s`` is
+    kept."""
     if isinstance(p, Segment):
         u = s / p.length
         u *= p.r1 - p.r0
         u += p.r0
         return u
+    if isinstance(p, Arc):
+        b = s / p.radius
+        b += p.beta0
+        np.sin(b, out=b)
+        b *= p.radius
+        return np.subtract(p.rc, b, out=b)
     return p.at(s)[0]
 
 
@@ -106,7 +114,10 @@ def _sample_axisymmetric(
     """``n`` points by area on ``part``'s primitives of ``regions``, their normals and region
     codes. The arrays of a million-point scan are computed in place where the numbers allow
     (fresh memory costs as much as the arithmetic on a virtual machine): the random stream and
-    every value are those of the plain expressions in the comments."""
+    every value are those of the plain expressions in the comments. Each primitive's radii,
+    heights, angles and polar angles go into whole-scan vectors (contiguous scatters, several
+    times faster than scattering rows of three) and the points and normals are made from those
+    in one pass (elementwise: the same numbers as per primitive)."""
     g = part.generatrix
     prims = [(i, p) for i, p in enumerate(g.primitives) if g.regions[i] in regions]
     if not prims:
@@ -119,8 +130,7 @@ def _sample_axisymmetric(
         areas.append(float(np.trapezoid(r, s)))
     w = np.asarray(areas) / np.sum(areas)
     which = rng.choice(len(prims), size=n, p=w)
-    pts = np.empty((n, 3))
-    nrm = np.empty((n, 3))
+    R, Z, A, PHI = (np.empty(n) for _ in range(4))
     reg = np.empty(n, dtype=np.int64)
     for k, (i, p) in enumerate(prims):
         sel = np.flatnonzero(which == k)
@@ -143,21 +153,21 @@ def _sample_axisymmetric(
         phi = rng.random(m)
         phi *= 2  # rng.random(m) * 2 * np.pi
         phi *= np.pi
-        c = np.cos(phi)
-        sn = np.sin(phi, out=phi)
-        rows = np.empty((m, 3))
-        np.multiply(r, c, out=rows[:, 0])  # np.stack([r * c, r * sn, z], axis=1)
-        np.multiply(r, sn, out=rows[:, 1])
-        rows[:, 2] = z
-        pts[sel] = rows
-        ca = np.cos(a)
-        sa = np.sin(a, out=a if a.shape == (m,) and a.dtype == np.float64 else None)
-        np.negative(sa, out=sa)  # [-sin(a) * c, -sin(a) * sn, cos(a)]
-        np.multiply(sa, c, out=rows[:, 0])
-        np.multiply(sa, sn, out=rows[:, 1])
-        rows[:, 2] = ca
-        nrm[sel] = rows
+        R[sel], Z[sel], A[sel], PHI[sel] = r, z, a, phi
         reg[sel] = REGION_CODES[g.regions[i]]
+    c = np.cos(PHI)
+    sn = np.sin(PHI, out=PHI)
+    pts = np.empty((n, 3))
+    np.multiply(R, c, out=pts[:, 0])  # np.stack([r * c, r * sn, z], axis=1)
+    np.multiply(R, sn, out=pts[:, 1])
+    pts[:, 2] = Z
+    nrm = np.empty((n, 3))
+    ca = np.cos(A)
+    sa = np.sin(A, out=A)
+    np.negative(sa, out=sa)  # [-sin(a) * c, -sin(a) * sn, cos(a)]
+    np.multiply(sa, c, out=nrm[:, 0])
+    np.multiply(sa, sn, out=nrm[:, 1])
+    nrm[:, 2] = ca
     return pts, nrm, reg
 
 
@@ -261,19 +271,71 @@ def _tessellation(part: Part) -> tuple[F64, NDArray[np.int64]]:
 _cached_tessellation = functools.lru_cache(maxsize=2)(_tessellation)
 
 
-def _sample_any(part: Part, n: int, seed: int) -> tuple[F64, F64, NDArray[np.int64]]:
-    from roboisf.scan.readers import sample_faces
+#: (a, b − a, c − a, p): each triangle's first corner and edges (F, 3) and its share of the
+#: area (F,) — what :func:`roboisf.scan.readers.sample_faces` computes from the mesh each call.
+_FaceSampler = tuple[F64, F64, F64, F64]
 
+#: :func:`_face_sampler` of the cached tessellations (:data:`_cached_tessellation`), by the
+#: identity of their read-only arrays (held here, so the identity is not reused): the last two.
+_samplers: dict[tuple[int, int], tuple[F64, NDArray[np.int64], _FaceSampler]] = {}
+_samplers_lock = threading.Lock()
+
+
+def _face_sampler(V: F64, F: NDArray[np.int64], cache: bool = False) -> _FaceSampler:
+    """The mesh's :data:`_FaceSampler`, as :func:`~roboisf.scan.readers.sample_faces` makes it
+    (the same operations); kept for the last two meshes when ``cache`` (the arrays of
+    :data:`_cached_tessellation`, which nothing writes)."""
+    key = (id(V), id(F))
+    with _samplers_lock:
+        hit = _samplers.get(key) if cache else None
+    if hit is not None and hit[0] is V and hit[1] is F:
+        return hit[2]
+    a = V[F[:, 0]]
+    ab, ac = V[F[:, 1]], V[F[:, 2]]
+    ab -= a  # b − a
+    ac -= a  # c − a
+    area = np.linalg.norm(np.cross(ab, ac), axis=1)
+    if not np.any(area > 0):
+        raise InputError("mesh has no triangle with a non-zero area")
+    out = (a, ab, ac, area / area.sum())
+    if cache:
+        with _samplers_lock:
+            while len(_samplers) >= 2:
+                del _samplers[next(iter(_samplers))]
+            _samplers[key] = (V, F, out)
+    return out
+
+
+def _sample_faces(sampler: _FaceSampler, n: int, seed: int) -> F64:
+    """``n`` points uniformly distributed over the triangles' area: the points of
+    :func:`roboisf.scan.readers.sample_faces` (the same random stream and operations:
+    ``a[f] + u·(b − a)[f] + v·(c − a)[f]``, in place), without the face normals."""
+    a, ab, ac, p = sampler
+    rng = np.random.default_rng(seed)
+    f = rng.choice(p.shape[0], size=n, p=p)
+    u, v = rng.random(n), rng.random(n)
+    flip = u + v > 1
+    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
+    pts = np.take(ab, f, axis=0)
+    pts *= u[:, None]
+    pts += np.take(a, f, axis=0)
+    t = np.take(ac, f, axis=0)
+    t *= v[:, None]
+    pts += t
+    return pts
+
+
+def _sample_any(part: Part, n: int, seed: int) -> tuple[F64, F64, NDArray[np.int64]]:
     if isinstance(part, MeshPart):
-        V, F = part.vertices, part.faces
+        sampler = _face_sampler(part.vertices, part.faces)
     else:
         try:
             hash(part)
         except TypeError:  # a part that cannot be hashed: not cached
-            V, F = _tessellation(part)
-        else:  # a study's two scans: one tessellation
-            V, F = _cached_tessellation(cast(Hashable, part))
-    nom, _ = sample_faces(V, F, n, seed)
+            sampler = _face_sampler(*_tessellation(part))
+        else:  # a study's two scans: one tessellation, its triangles' areas once
+            sampler = _face_sampler(*_cached_tessellation(cast(Hashable, part)), cache=True)
+    nom = _sample_faces(sampler, n, seed)
     q = part.closest_point(nom)
     return q.point, q.normal, np.asarray(q.region, dtype=np.int64)
 
@@ -283,6 +345,37 @@ def _per_point(values: ArrayLike, n: int) -> F64:
     (n,) float array of its own as it is (× 1 changes no number)."""
     v = np.asarray(values, dtype=float)
     return v if v.shape == (n,) and v.flags.owndata else v * np.ones(n)
+
+
+def _outside_holes(nom: F64, holes: Sequence[tuple[ArrayLike, float]]) -> NDArray[np.bool_] | None:
+    """Which points ``nom`` (N, 3) lie outside every hole: ``|p − centre| > radius``
+    (``np.linalg.norm`` over the rows), or None when all do.
+
+    The norm is computed only for the points within the hole's square in (x, y) (a few per cent
+    of a scan): a point whose |Δx| or |Δy| exceeds ``reach = radius·(1 + 1e-9)`` has a rounded
+    norm of at least ``|Δ|·(1 − 2⁻⁵²)`` (each rounding is monotone; ``reach`` ≥ 1e-150 keeps
+    Δ² clear of underflow), so it is outside — the same answer as the norm of every point.
+    With a non-finite point or centre, or another radius (a NaN norm is not outside), every
+    point's norm is computed."""
+    keep: NDArray[np.bool_] | None = None
+    finite = bool(holes) and bool(np.all(np.isfinite(nom)))
+    for centre, radius in holes:
+        c = np.asarray(centre, dtype=float)
+        reach = radius * (1 + 1e-9)
+        if finite and 1e-150 <= reach < math.inf and c.shape == (3,) and np.all(np.isfinite(c)):
+            near = np.abs(np.subtract(nom[:, 0], c[0])) <= reach
+            near &= np.abs(np.subtract(nom[:, 1], c[1])) <= reach
+            rows = np.flatnonzero(near)
+        else:
+            rows = np.arange(nom.shape[0])
+        if rows.size == 0:
+            continue
+        inside = rows[~(np.linalg.norm(nom[rows] - c, axis=1) > radius)]
+        if inside.size:
+            if keep is None:
+                keep = np.ones(nom.shape[0], dtype=bool)
+            keep[inside] = False
+    return keep
 
 
 def synthetic_scan(
@@ -329,18 +422,18 @@ def synthetic_scan(
         nom, nrm, reg = _sample_axisymmetric(part, n_points, tuple(regions), rng)
     else:
         nom, nrm, reg = _sample_any(part, n_points, seed)
-    keep = np.ones(nom.shape[0], dtype=bool)
-    for centre, radius in holes:
-        keep &= np.linalg.norm(nom - np.asarray(centre, dtype=float), axis=1) > radius
-    nom, nrm, reg = nom[keep], nrm[keep], reg[keep]
+    keep = _outside_holes(nom, holes)
+    if keep is not None:  # nom[keep], nrm[keep], reg[keep]: the rows found once
+        rows = np.flatnonzero(keep)
+        nom, nrm = np.take(nom, rows, axis=0), np.take(nrm, rows, axis=0)
+        reg = np.take(reg, rows)
     n = nom.shape[0]
-    phi = np.arctan2(nom[:, 1], nom[:, 0])
     if offset_at is not None:
         dn = _per_point(offset_at(nom), n)
     elif offset is None:
         dn = np.zeros(n)
     elif callable(offset):
-        dn = _per_point(offset(nom[:, 2], phi), n)
+        dn = _per_point(offset(nom[:, 2], np.arctan2(nom[:, 1], nom[:, 0])), n)
     else:
         dn = np.full(n, float(offset))
     meas = dn + rng.normal(0.0, noise, n) if noise > 0 else dn.copy()

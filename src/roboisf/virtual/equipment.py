@@ -232,7 +232,8 @@ def equipment_force_log(
     duration = float(tp.time[-1])
     tau, r = _samples(eq, duration, rate, force=True)
     t = eq.nominal_time(r, duration)
-    W = _interp(t, tp, W_tip) * eq.contact(r, duration)[:, None]
+    W = _interp(t, tp, W_tip)
+    W *= eq.contact(r, duration)[:, None]
     tip = _interp(t, tp, tp.tip)
     W_s = tip_to_sensor(W, sensor, tip, vertical_tool(tool_rotation))
     W_s[:, :3] += rng.normal(scale=noise, size=(tau.size, 3))

@@ -69,21 +69,53 @@ class NormalField:
         return cls(s_arr[keep], phi, grid[keep])
 
     def __call__(self, s: ArrayLike, phi: ArrayLike) -> F64:
-        """dn [m] at wall arc length ``s`` [m] and polar angle ``phi`` [rad]."""
+        """dn [m] at wall arc length ``s`` [m] and polar angle ``phi`` [rad]: bilinear in
+        (s, φ) on the grid. Computed in place, each quantity once (the floor of the angle
+        index, ``1 − fu``, the grid's corners through flat indices): the operations of
+        ``v0 · (1 − fs) + v1 · fs`` with ``v = g[i, j0] · (1 − fu) + g[i, j1] · fu``, in that
+        order — the same numbers."""
         s = np.asarray(s, dtype=float)
         phi = np.asarray(phi, dtype=float)
+        if s.ndim == 0 or phi.ndim == 0:  # scalars as vectors of one (in-place work below)
+            shape = np.broadcast_shapes(s.shape, phi.shape)
+            return self(np.atleast_1d(s), np.atleast_1d(phi)).reshape(shape)
         A = self.phi.size
-        u = np.mod(phi + np.pi, 2 * np.pi) / (2 * np.pi) * A
-        j0 = np.floor(u).astype(np.int64) % A
-        j1 = (j0 + 1) % A
-        fu = u - np.floor(u)
-        i1 = np.clip(np.searchsorted(self.s_laps, s, side="right"), 1, self.s_laps.size - 1)
+        u = np.add(phi, np.pi)  # mod(phi + π, 2π) / 2π · A
+        np.mod(u, 2 * np.pi, out=u)
+        u /= 2 * np.pi
+        u *= A
+        fl = np.floor(u)
+        j0 = fl.astype(np.int64)
+        j0 %= A
+        j1 = j0 + 1
+        j1 %= A
+        fu = np.subtract(u, fl, out=u)  # u − floor(u)
+        omfu = np.subtract(1, fu, out=fl)  # 1 − fu
+        s_laps = self.s_laps
+        i1 = np.searchsorted(s_laps, s, side="right")
+        np.clip(i1, 1, s_laps.size - 1, out=i1)
         i0 = i1 - 1
-        fs = np.clip((s - self.s_laps[i0]) / (self.s_laps[i1] - self.s_laps[i0]), 0.0, 1.0)
-        g = self.grid
-        v0 = g[i0, j0] * (1 - fu) + g[i0, j1] * fu
-        v1 = g[i1, j0] * (1 - fu) + g[i1, j1] * fu
-        return np.asarray(v0 * (1 - fs) + v1 * fs, dtype=float)
+        s0 = np.take(s_laps, i0)
+        fs = np.subtract(s, s0)  # (s − s0) / (s1 − s0), clipped to [0, 1]
+        fs /= np.subtract(np.take(s_laps, i1), s0, out=s0)
+        np.clip(fs, 0.0, 1.0, out=fs)
+        g = self.grid.ravel()  # g[i, j] = g.ravel()[i·width + j]
+        i0 *= self.grid.shape[1]
+        i1 *= self.grid.shape[1]
+
+        def along(row: NDArray[np.int64]) -> F64:  # g[i, j0] · (1 − fu) + g[i, j1] · fu
+            v = np.take(g, j0 + row)
+            v *= omfu
+            w = np.take(g, j1 + row)
+            w *= fu
+            v += w
+            return v
+
+        v0, v1 = along(i0), along(i1)
+        v1 *= fs
+        v0 *= np.subtract(1, fs, out=fs)
+        v0 += v1
+        return v0
 
     def offset(self, part: AxisymmetricPart) -> Callable[[F64, F64], F64]:
         """The field as ``offset(z, phi)`` [m] for nominal points of ``part`` at height z."""
