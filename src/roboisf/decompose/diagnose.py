@@ -63,6 +63,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
@@ -300,6 +301,54 @@ class Finding:
 # lap-block least squares
 
 
+class _LapSums:
+    """The per-lap sums of :func:`~roboisf.decompose.check.lap_normal_equations` for fits
+    whose columns repeat (the robot term's fits share their VJM, joint, shift and pattern
+    columns: ~360 column products, ~105 distinct): each product of two equilibrated columns,
+    and of a column with a right-hand side, summed once. The same bits: an entry is the same
+    ``bincount`` of the same elementwise product (``a·b = b·a`` exactly).
+
+    Columns are known by identity and their equilibration scale: the caller passes the same
+    array objects for the same columns (kept alive here while cached, so an id is not reused)."""
+
+    def __init__(self, inv: NDArray[np.intp], L: int) -> None:
+        self.inv, self.L = inv, L
+        self._sums: dict[tuple[Any, ...], F64] = {}
+        self._kept: dict[int, F64] = {}
+
+    def _sum(self, key: tuple[Any, ...], a: F64, b: F64) -> F64:
+        v: F64 = np.asarray(np.bincount(self.inv, weights=a * b, minlength=self.L), dtype=float)
+        self._sums[key] = v
+        return v
+
+    def normal_equations(self, cols: Sequence[F64], scale: F64, y: F64) -> tuple[F64, F64]:
+        """``(G, h)`` of :func:`lap_normal_equations` for ``X = column_stack(cols) / scale``."""
+        for c in (*cols, y):
+            self._kept.setdefault(id(c), c)
+        k, L = len(cols), self.L
+        ids = [(id(c), float(s)) for c, s in zip(cols, scale, strict=True)]
+        scaled: list[F64 | None] = [None] * k
+
+        def xs(i: int) -> F64:  # the column X[:, i] / scale[i], as X / scale gives it
+            if scaled[i] is None:
+                scaled[i] = np.asarray(cols[i], dtype=float) / scale[i]
+            out = scaled[i]
+            assert out is not None
+            return out
+
+        G = np.empty((L, k, k))
+        h = np.empty((L, k))
+        for i in range(k):
+            for j in range(i, k):
+                key: tuple[Any, ...] = (*min(ids[i], ids[j]), *max(ids[i], ids[j]))
+                v = self._sums[key] if key in self._sums else self._sum(key, xs(i), xs(j))
+                G[:, i, j] = v
+                G[:, j, i] = v
+            key = ("h", *ids[i], id(y))
+            h[:, i] = self._sums[key] if key in self._sums else self._sum(key, xs(i), y)
+        return G, h
+
+
 def _lap_ls(
     X: F64,
     y: F64,
@@ -309,15 +358,21 @@ def _lap_ls(
     *,
     prior: F64 | None = None,
     penalty: F64 | None = None,
+    sums: _LapSums | None = None,
+    cols: Sequence[F64] | None = None,
 ) -> tuple[F64, F64]:
     """Least squares ``X β ≈ y`` (columns equilibrated to unit norm) and its bootstrap
     replicates (n_boot, k) over the lap weights ``weights`` (n_boot, L). ``penalty`` (k,) adds
     ``Σ penalty_j (β_j − prior_j)²`` in the equilibrated coordinates, per unit of the normal
-    matrix's mean eigenvalue (a ridge towards ``prior``, in β's units)."""
+    matrix's mean eigenvalue (a ridge towards ``prior``, in β's units). ``sums`` and ``cols``
+    (X's columns, as the arrays ``X`` was stacked from): the per-lap sums shared with other
+    fits of the same laps (:class:`_LapSums`)."""
     scale = np.linalg.norm(X, axis=0)
     scale[scale == 0] = 1.0
-    Xs = X / scale
-    G, h = lap_normal_equations(Xs, y, inv, L)
+    if sums is not None and cols is not None:
+        G, h = sums.normal_equations(cols, scale, y)
+    else:
+        G, h = lap_normal_equations(X / scale, y, inv, L)
     k = X.shape[1]
     pen = np.zeros(k) if penalty is None else np.asarray(penalty, dtype=float)
     p0 = np.zeros(k) if prior is None else np.asarray(prior, dtype=float) * scale
@@ -700,7 +755,8 @@ def fit_sensor(
     laps = np.unique(lp)
     if laps.size < 6:
         return None
-    lap_depth = np.array([np.mean(depth[sel][lp == v]) for v in laps])
+    depth_sel = depth[sel]
+    lap_depth = np.array([np.mean(depth_sel[lp == v]) for v in laps])
     deep_laps = laps[lap_depth >= np.median(lap_depth)]
     deep = np.isin(lp, deep_laps)
     Fc, Fr = W_cnc[sel, :3], W_rob[sel, :3]
@@ -1139,17 +1195,27 @@ def fit_robot_term(
     v = np.einsum("i,ij->j", x, Aj[:, live]) / xx
     c_held = float(x @ Aj[:, held].sum(axis=1)) / xx
 
+    # the fits below share their columns: each (the same array object each time) summed per
+    # lap once with each other (_LapSums)
+    sums = _LapSums(inv, L)
+    joint_cols = [Aj[:, i] for i in live]
+    scan_cols = [shift_cols[:, 0], shift_cols[:, 1]] + ([rot_col] if rot_seen else [])
+
     def fits(extra: list[F64]) -> tuple[F64, F64, F64, F64]:
-        """Both fits with the scan's patterns and ``extra`` columns: (β, replicates) of the
-        one scale's and of the per-joint fit."""
-        S = np.column_stack([shift_cols] + ([rot_col] if rot_seen else []) + extra)
-        b1, B1 = _lap_ls(np.column_stack([x, S]), y, inv, L, weights)
-        Xj = np.column_stack([Aj[:, live], S])
+        """Both fits with the scan's patterns and the ``extra`` columns (each (N,), the same
+        objects from fit to fit): (β, replicates) of the one scale's and of the per-joint fit."""
+        S = scan_cols + extra
+        one = [x, *S]
+        b1, B1 = _lap_ls(np.column_stack(one), y, inv, L, weights, sums=sums, cols=one)
+        per_joint = [*joint_cols, *S]
+        Xj = np.column_stack(per_joint)
         prior = np.zeros(Xj.shape[1])
         prior[:k] = r0
         pen = np.zeros(Xj.shape[1])
         pen[:k] = JOINT_RIDGE**2
-        bj, Bj = _lap_ls(Xj, yj, inv, L, weights, prior=prior, penalty=pen)
+        bj, Bj = _lap_ls(
+            Xj, yj, inv, L, weights, prior=prior, penalty=pen, sums=sums, cols=per_joint
+        )
         return b1, B1, bj, Bj
 
     def pattern(f: tuple[F64, F64, F64, F64], i: int, err: float) -> PatternFit:
@@ -1181,14 +1247,16 @@ def fit_robot_term(
             float(np.sum(shift_cols[:, 0] ** 2 * t) / max(np.sum(shift_cols[:, 0] ** 2), 1e-300)),
             float(np.sum(shift_cols[:, 1] ** 2 * t) / max(np.sum(shift_cols[:, 1] ** 2), 1e-300)),
         )
-        m4 = fits([tilt_cols])  # a tilt beside the offset, no drift
+        drift_c = [drift_cols[:, 0], drift_cols[:, 1]]
+        tilt_c = [tilt_cols[:, 0], tilt_cols[:, 1]]
+        m4 = fits(tilt_c)  # a tilt beside the offset, no drift
         tilt_alone = pattern(m4, ns, TILT_MODEL_ERROR)
         # a tilt is seen beyond its limit, as the sideways offset it makes at the deepest point
         lim_t, lever = DETECTION_LIMITS["work_object_tilt"], depth_max * 1e3
         tilt_seen = tilt_alone.verdict(lim_t, lever) == "fault"
         if separable >= DRIFT_SEPARABLE:
-            m2 = fits([drift_cols])
-            m3 = fits([drift_cols, tilt_cols])
+            m2 = fits(drift_c)
+            m3 = fits(drift_c + tilt_c)
             drift = pattern(m2, ns, SHIFT_MODEL_ERROR)
             drift_t = pattern(m3, ns, SHIFT_MODEL_ERROR)
             tilt = pattern(m3, ns + 2, TILT_MODEL_ERROR)
