@@ -61,20 +61,45 @@ def rounded_rectangle_closest(p: F64, a: float, b: float, r: float) -> tuple[F64
     sd : (N,) float, m — signed distance, negative inside (exact inside and outside)
     """
     x, y = p[:, 0], p[:, 1]
-    ax, ay = np.abs(x), np.abs(y)
-    qx, qy = ax - (a - r), ay - (b - r)
-    corner = (qx > 0.0) & (qy > 0.0)
-    nq = np.hypot(qx, qy)
-    scale = np.where(corner, r / np.where(nq > 0, nq, 1.0), 0.0)
-    xside = qx >= qy
-    # |closest| per axis: on the arc, on the x-side (a, |y|) or on the y-side (|x|, b)
-    cx = np.where(corner, (a - r) + qx * scale, np.where(xside, a, ax))
-    cy = np.where(corner, (b - r) + qy * scale, np.where(xside, ay, b))
-    sd = np.where(corner, nq - r, np.where(xside, qx, qy) - r)
+    cx, cy, sd = _rounded_rectangle_abs(np.abs(x), np.abs(y), a, b, r)
     closest = np.empty_like(p)
     closest[:, 0] = np.copysign(cx, x)
     closest[:, 1] = np.copysign(cy, y)
     return closest, sd
+
+
+def _rounded_rectangle_abs(ax: F64, ay: F64, a: float, b: float, r: float) -> tuple[F64, F64, F64]:
+    """:func:`rounded_rectangle_closest` from ``|x|``, ``|y|`` (N,): the closest point's
+    ``|x|``, ``|y|`` and the signed distance. The arcs' square root only where it is used (the
+    points beyond a corner's centre): the same numbers, a fraction of the work."""
+    qx, qy = ax - (a - r), ay - (b - r)
+    xside = qx >= qy
+    # on the x-side (a, |y|) or on the y-side (|x|, b) …
+    cx = np.where(xside, a, ax)
+    cy = np.where(xside, ay, b)
+    sd = np.where(xside, qx, qy)
+    sd -= r
+    # … or on the arc, beyond the corner's centre (there hypot(qx, qy) ≥ max(qx, qy) > 0)
+    k = np.flatnonzero((qx > 0.0) & (qy > 0.0))
+    if k.size:
+        qxk, qyk = qx[k], qy[k]
+        nq = np.hypot(qxk, qyk)
+        scale = r / nq
+        cx[k] = (a - r) + qxk * scale
+        cy[k] = (b - r) + qyk * scale
+        sd[k] = nq - r
+    return cx, cy, sd
+
+
+def _minus(X: F64, o: F64) -> F64:
+    """``X − o`` (X (N, 3), o (3,)), a column at a time when X is C-contiguous: the same
+    numbers and layout, without numpy's broadcast over a 3-long inner loop (3× slower)."""
+    if not X.flags.c_contiguous:
+        return X - o
+    Y = np.empty(X.shape)
+    for c in range(3):
+        np.subtract(X[:, c], o[c], out=Y[:, c])
+    return Y
 
 
 @dataclass(frozen=True)
@@ -103,28 +128,56 @@ class _PlanarPolygon:
 
     def closest(self, X: F64) -> F64:
         """Exact closest points (N, 3) of the polygon (interior and edges) to X (N, 3)."""
-        Y = X - self.o
+        Y = _minus(X, self.o)
         u, v = Y @ self.e1, Y @ self.e2
         uv = self.uv
         k = len(uv)
-        inside = np.ones(len(X), dtype=bool)
-        best = np.full(len(X), np.inf)
+        m = len(X)
+        inside = np.ones(m, dtype=bool)
+        best = np.full(m, np.inf)
         bu, bv = u.copy(), v.copy()
+        # the edges' work in place, in these buffers (the same operations as written out)
+        du, dv, t, cu, cv, d2, w = (np.empty(m) for _ in range(7))
+        better = np.empty(m, dtype=bool)
         for i in range(k):
             a, b = uv[i], uv[(i + 1) % k]
             eu, ev = b[0] - a[0], b[1] - a[1]
-            du, dv = u - a[0], v - a[1]
-            inside &= eu * dv - ev * du >= 0.0
-            t = np.clip((du * eu + dv * ev) / (eu * eu + ev * ev), 0.0, 1.0)
-            cu, cv = a[0] + t * eu, a[1] + t * ev
-            d2 = (u - cu) ** 2 + (v - cv) ** 2
-            better = d2 < best
-            best = np.where(better, d2, best)
+            np.subtract(u, a[0], out=du)
+            np.subtract(v, a[1], out=dv)
+            # inside &= eu·dv − ev·du ≥ 0
+            np.multiply(dv, eu, out=t)
+            np.multiply(du, ev, out=w)
+            np.subtract(t, w, out=t)
+            inside &= np.greater_equal(t, 0.0, out=better)
+            # t = clip((du·eu + dv·ev) / (eu² + ev²), 0, 1)
+            np.multiply(du, eu, out=t)
+            np.multiply(dv, ev, out=w)
+            np.add(t, w, out=t)
+            np.divide(t, eu * eu + ev * ev, out=t)
+            np.clip(t, 0.0, 1.0, out=t)
+            # the foot (cu, cv) = a + t·e and its squared distance (u − cu)² + (v − cv)²
+            np.multiply(t, eu, out=cu)
+            np.add(cu, a[0], out=cu)
+            np.multiply(t, ev, out=cv)
+            np.add(cv, a[1], out=cv)
+            np.subtract(u, cu, out=d2)
+            np.square(d2, out=d2)
+            np.subtract(v, cv, out=w)
+            np.square(w, out=w)
+            np.add(d2, w, out=d2)
+            np.less(d2, best, out=better)
+            np.fmin(best, d2, out=best)  # = where(better, d2, best): best is never NaN
             bu = np.where(better, cu, bu)
             bv = np.where(better, cv, bv)
         bu = np.where(inside, u, bu)
         bv = np.where(inside, v, bv)
-        return self.o + bu[:, None] * self.e1 + bv[:, None] * self.e2
+        P = np.empty((m, 3))
+        for c in range(3):  # o + bu·e1 + bv·e2, a column at a time
+            np.multiply(bu, self.e1[c], out=t)
+            np.add(t, self.o[c], out=t)
+            np.multiply(bv, self.e2[c], out=w)
+            np.add(t, w, out=P[:, c])
+        return P
 
 
 @dataclass(frozen=True)
@@ -297,53 +350,77 @@ class Pyramid:
         if not np.all(np.isfinite(X)):
             raise InputError("points contain NaN or inf coordinates")
         n = X.shape[0]
+        x, y = X[:, 0], X[:, 1]
+        ax, ay = np.abs(x), np.abs(y)
+        # bottom and flange first (cheap): their distance bounds which walls can be nearer
+        bx, by, br = self.section(self.depth)
+        cx, cy, sd = _rounded_rectangle_abs(ax, ay, bx, by, br)
+        inner = sd <= 0
+        P_bot = np.empty((n, 3))
+        P_bot[:, 0] = np.where(inner, x, np.copysign(cx, x))
+        P_bot[:, 1] = np.where(inner, y, np.copysign(cy, y))
+        P_bot[:, 2] = -self.depth
+        slope = self.depth / math.sin(min(self.alpha_x, self.alpha_y))
+        s_bot = slope - np.minimum(sd, 0.0)
+        Y = X - P_bot
+        d_bot = np.einsum("ij,ij->i", Y, Y)
+        bound = d_bot
+        # a patch's squared distances are those of its points gathered (C order): those of X
+        # itself unless X is not C-contiguous (then gathered as such, like the walls' points)
+        Xg = X if X.flags.c_contiguous else X[np.arange(n)]
+        if Xg is not X:
+            Y = Xg - P_bot
+            d_bot = np.einsum("ij,ij->i", Y, Y)
+        fw = self.flange_width
+        if fw > 0:
+            ox, oy, orc = self.top_length / 2, self.top_width / 2, self.corner_radius
+            cix, ciy, sdo = _rounded_rectangle_abs(ax, ay, ox, oy, orc)
+            opening = sdo < 0
+            P_fl = np.zeros((n, 3))
+            P_fl[:, 0] = np.where(opening, np.copysign(cix, x), x)
+            P_fl[:, 1] = np.where(opening, np.copysign(ciy, y), y)
+            # beyond the flange's outer edge (few points): its boundary
+            far = np.flatnonzero(sdo > fw)
+            if far.size:
+                cox, coy, _ = _rounded_rectangle_abs(ax[far], ay[far], ox + fw, oy + fw, orc + fw)
+                P_fl[far, 0] = np.copysign(cox, x[far])
+                P_fl[far, 1] = np.copysign(coy, y[far])
+            s_fl = -np.clip(sdo, 0.0, fw)
+            Y = X - P_fl
+            d_fl = np.einsum("ij,ij->i", Y, Y)
+            bound = np.minimum(bound, d_fl)
+            if Xg is not X:
+                Y = Xg - P_fl
+                d_fl = np.einsum("ij,ij->i", Y, Y)
+        # the patches in priority order (ties keep the first): walls, corners, bottom, flange.
+        # Each patch's squared distances are compared with the best so far; the nearest
+        # patch's number is kept (``win``) and its point, normal, … copied once at the end.
         best_d = np.full(n, np.inf)
-        best_p = np.zeros((n, 3))
-        best_n = np.zeros((n, 3))
-        best_a = np.zeros(n)
-        best_s = np.zeros(n)
-        best_r = np.zeros(n, dtype=np.int64)
+        win = np.full(n, -1, dtype=np.int8)
+        found: list[
+            tuple[int, NDArray[np.int64], F64, F64 | None, float, tuple[F64, F64] | None]
+        ] = []
 
-        def take(idx: NDArray[np.int64], P: F64, N: F64, alpha: float, s: F64, region: int) -> None:
-            """Keep patch results (for the points ``idx``) that are strictly nearer."""
-            Y = X[idx] - P
+        def take(idx: NDArray[np.int64], Xi: F64, P: F64) -> None:
+            """Patch ``len(found)``'s points ``P`` for the points ``idx`` (at ``Xi``): where
+            strictly nearer, it is the nearest so far."""
+            Y = Xi - P
             d = np.einsum("ij,ij->i", Y, Y)
             better = d < best_d[idx]
             j = idx[better]
             best_d[j] = d[better]
-            best_p[j] = P[better]
-            best_n[j] = N[better] if N.ndim == 2 else N
-            best_a[j] = alpha
-            best_s[j] = s[better]
-            best_r[j] = region
+            win[j] = len(found)
 
-        everyone = np.arange(n)
-        up = np.array([0.0, 0.0, 1.0])
-        # bottom and flange first (cheap): their distance bounds which walls can be nearer
-        bx, by, br = self.section(self.depth)
-        c2, sd = rounded_rectangle_closest(X[:, :2], bx, by, br)
-        P_bot = np.c_[np.where((sd <= 0)[:, None], X[:, :2], c2), np.full(n, -self.depth)]
-        slope = self.depth / math.sin(min(self.alpha_x, self.alpha_y))
-        s_bot = slope - np.minimum(sd, 0.0)
-        bound = np.einsum("ij,ij->i", X - P_bot, X - P_bot)
-        if self.flange_width > 0:
-            ox, oy, orc = self.top_length / 2, self.top_width / 2, self.corner_radius
-            fw = self.flange_width
-            ci, sdo = rounded_rectangle_closest(X[:, :2], ox, oy, orc)
-            co, _ = rounded_rectangle_closest(X[:, :2], ox + fw, oy + fw, orc + fw)
-            xy = np.where((sdo < 0)[:, None], ci, np.where((sdo > fw)[:, None], co, X[:, :2]))
-            P_fl = np.c_[xy, np.zeros(n)]
-            s_fl = -np.clip(sdo, 0.0, fw)
-            bound = np.minimum(bound, np.einsum("ij,ij->i", X - P_fl, X - P_fl))
-        # the patches in priority order (ties keep the first): walls, corners, bottom, flange
         wall = REGION_CODES["wall"]
         for poly, nrm, alpha in self._wall_polygons:
-            h = (X - poly.o) @ nrm
+            h = _minus(X, poly.o) @ nrm
             lim = np.minimum(bound, best_d)
             idx = np.flatnonzero(h * h <= lim * (1 + 1e-9) + 1e-30)
             if idx.size:
-                P = poly.closest(X[idx])
-                take(idx, P, nrm, alpha, -P[:, 2] / math.sin(alpha), wall)
+                Xi = np.take(X, idx, axis=0)  # = X[idx], faster
+                P = poly.closest(Xi)
+                take(idx, Xi, P)
+                found.append((len(found), idx, P, nrm, alpha, None))
         # corner cones (one wall angle): apex below the corner centre, generatrix in (r, z)
         hc = self.corner_depth
         if hc > 0:
@@ -352,26 +429,74 @@ class Pyramid:
             r0, r1 = rc, rc - hc / math.tan(a)
             dr, dz = r1 - r0, -hc
             L2 = dr * dr + dz * dz
+            cxs = {s: s * (self.top_length / 2 - rc) for s in (1.0, -1.0)}
+            cys = {s: s * (self.top_width / 2 - rc) for s in (1.0, -1.0)}
+            gx = {s: (x - cxs[s]) * s >= 0 for s in (1.0, -1.0)}
+            gy = {s: (y - cys[s]) * s >= 0 for s in (1.0, -1.0)}
             for sx in (1.0, -1.0):
                 for sy in (1.0, -1.0):
-                    cx = sx * (self.top_length / 2 - rc)
-                    cy = sy * (self.top_width / 2 - rc)
-                    idx = np.flatnonzero(((X[:, 0] - cx) * sx >= 0) & ((X[:, 1] - cy) * sy >= 0))
+                    ccx, ccy = cxs[sx], cys[sy]
+                    idx = np.flatnonzero(gx[sx] & gy[sy])
                     if idx.size == 0:
                         continue
-                    vx, vy, z = X[idx, 0] - cx, X[idx, 1] - cy, X[idx, 2]
+                    Xi = np.take(X, idx, axis=0)
+                    vx, vy, z = Xi[:, 0] - ccx, Xi[:, 1] - ccy, Xi[:, 2]
                     r = np.hypot(vx, vy)
-                    safe = np.where(r > 0, r, 1.0)
-                    ux = np.where(r > 0, vx / safe, sx / math.sqrt(2))
-                    uy = np.where(r > 0, vy / safe, sy / math.sqrt(2))
+                    pos = r > 0
+                    safe = np.where(pos, r, 1.0)
+                    ux = np.where(pos, vx / safe, sx / math.sqrt(2))
+                    uy = np.where(pos, vy / safe, sy / math.sqrt(2))
                     t = np.clip(((r - r0) * dr + z * dz) / L2, 0.0, 1.0)
-                    rp, zp = r0 + t * dr, t * dz
-                    P = np.c_[cx + rp * ux, cy + rp * uy, zp]
-                    N = np.c_[-math.sin(a) * ux, -math.sin(a) * uy, np.full(idx.size, math.cos(a))]
-                    take(idx, P, N, a, -zp / math.sin(a), wall)
-        take(everyone, P_bot, up, 0.0, s_bot, REGION_CODES["bottom"])
-        if self.flange_width > 0:
-            take(everyone, P_fl, up, 0.0, s_fl, REGION_CODES["flange"])
+                    rp = r0 + t * dr
+                    P = np.empty((idx.size, 3))
+                    P[:, 0] = ccx + rp * ux
+                    P[:, 1] = ccy + rp * uy
+                    np.multiply(t, dz, out=P[:, 2])
+                    take(idx, Xi, P)
+                    found.append((len(found), idx, P, None, a, (ux, uy)))
+        BOTTOM, FLANGE = len(found), len(found) + 1
+        # (best_d is never NaN: fmin keeps the smaller, as where(better, d, best_d) does)
+        win = np.where(d_bot < best_d, np.int8(BOTTOM), win)
+        np.fmin(best_d, d_bot, out=best_d)
+        if fw > 0:
+            win = np.where(d_fl < best_d, np.int8(FLANGE), win)
+            np.fmin(best_d, d_fl, out=best_d)
+        # the nearest patch's point, normal, wall angle, s and region
+        on_fl = win == FLANGE
+        best_p = P_bot
+        best_s = s_bot
+        best_r = np.full(n, REGION_CODES["bottom"], dtype=np.int64)
+        if fw > 0:
+            for c in (0, 1):
+                best_p[:, c] = np.where(on_fl, P_fl[:, c], P_bot[:, c])
+            best_p[:, 2] = np.where(on_fl, 0.0, -self.depth)
+            best_s = np.where(on_fl, s_fl, s_bot)
+            best_r[on_fl] = REGION_CODES["flange"]
+        best_n = np.zeros((n, 3))
+        best_n[:, 2] = 1.0
+        best_a = np.zeros(n)
+        for k, idx, Pw, nw, aw, uw in found:
+            sel = np.flatnonzero(win[idx] == k)
+            if sel.size == 0:
+                continue
+            j = idx[sel]
+            Pk = np.take(Pw, sel, axis=0)
+            best_p[j] = Pk
+            if nw is not None:  # a planar wall's normal
+                best_n[j] = nw
+            elif uw is not None:  # a corner cone's normal, of its meridian plane's direction u
+                Nk = np.empty((sel.size, 3))
+                Nk[:, 0] = -math.sin(aw) * uw[0][sel]
+                Nk[:, 1] = -math.sin(aw) * uw[1][sel]
+                Nk[:, 2] = math.cos(aw)
+                best_n[j] = Nk
+            best_a[j] = aw
+            best_s[j] = -Pk[:, 2] / math.sin(aw)
+            best_r[j] = wall
+        none = win < 0  # no patch at a finite distance (a point at overflowing coordinates)
+        if none.any():
+            for arr in (best_p, best_n, best_a, best_s, best_r):
+                arr[none] = 0
         dist = np.sqrt(best_d)
         side = np.einsum("ij,ij->i", X - best_p, best_n)
         signed = np.where(side < 0, -dist, dist)

@@ -47,7 +47,7 @@ import math
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, fields
-from typing import NamedTuple
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -232,8 +232,9 @@ def _huber_weights(r: F64, max_distance: float, sigma: float | None = None) -> t
     if not inside.any():
         return np.zeros_like(r), math.inf
     if sigma is None:
-        ri = r[inside]
-        sigma = 1.4826 * float(np.median(np.abs(ri - np.median(ri))))
+        ri = r[inside]  # a copy: partitioned in place by the medians (the same values)
+        med = np.median(ri, overwrite_input=True)
+        sigma = 1.4826 * float(np.median(np.abs(ri - med), overwrite_input=True))
         sigma = max(sigma, 1e-7)  # 0.1 µm floor: a noise-free synthetic scan
     k = 1.345 * sigma
     a = np.abs(r)
@@ -269,21 +270,29 @@ def _flange_points(part: Part, q: SurfaceQuery, w: F64) -> NDArray[np.bool_]:
     """Points whose foot is on the flange (region 0) and clear of the opening: probes
     ``FLANGE_CLEARANCE`` away in 8 horizontal directions must land on the flange at distance 0,
     or past its outer edge (their foot on the flange, farther from the z axis than the point's):
-    not over the opening, not on the rim bend, whatever the opening's shape."""
+    not over the opening, not on the rim bend, whatever the opening's shape. The 8 probe sets
+    are queried in one call (a part's query is per point: the same numbers as 8 calls)."""
     cand = np.flatnonzero((q.region == 0) & (w > 0))
     out = np.zeros(w.shape, dtype=bool)
     if cand.size == 0:
         return out
+    m = cand.size
     F = q.point[cand]
-    rho = np.hypot(F[:, 0], F[:, 1])
-    ok = np.ones(cand.size, dtype=bool)
-    for a in np.arange(8) * (math.pi / 4):
+    probes = np.empty((8, m, 3))
+    for i, a in enumerate(np.arange(8) * (math.pi / 4)):
         d = np.array([math.cos(a), math.sin(a), 0.0]) * FLANGE_CLEARANCE
-        qq = _closest(part, F + d)
-        on = np.abs(qq.distance) <= 1e-6
-        outward = np.hypot(qq.point[:, 0], qq.point[:, 1]) > rho + 1e-9
-        ok &= (qq.region == 0) & (on | outward)
-    out[cand[ok]] = True
+        np.add(F, d, out=probes[i])
+    qq = _closest(part, probes.reshape(8 * m, 3))
+    # a probe is good on the flange at distance 0, or on it past the point's distance from
+    # the z axis (its foot's, compared only where that decides)
+    on_flange = (qq.region == 0).reshape(8, m)
+    good = on_flange & (np.abs(qq.distance) <= 1e-6).reshape(8, m)
+    undecided = np.flatnonzero(on_flange & ~good)
+    if undecided.size:
+        rho = np.hypot(F[:, 0], F[:, 1])
+        foot = qq.point[undecided]
+        good.reshape(-1)[undecided] = np.hypot(foot[:, 0], foot[:, 1]) > rho[undecided % m] + 1e-9
+    out[cand[good.all(axis=0)]] = True
     return out
 
 
@@ -305,16 +314,19 @@ def _search_rz(
 ) -> F64:
     """Coarse search of the rotation about work z over one ``period`` centred on ``centre``
     [rad] (steps ≤ 5°): the candidate with the lowest truncated mean squared distance, unless it
-    improves on the centre by less than 1 % (a flat part: keep the start)."""
+    improves on the centre by less than 1 % (a flat part: keep the start). The candidates are
+    queried in one call (a part's query is per point: the same numbers as one call each)."""
     rng = np.random.default_rng(seed)
     S = X if X.shape[0] <= 3000 else X[rng.choice(X.shape[0], 3000, replace=False)]
     n = max(4, math.ceil(period / math.radians(5.0)))
     offsets = (np.arange(n) - n // 2) * (period / n)
     base = make_transform(rot_z(centre - twist_about_z(T))) @ T
+    Pc = np.concatenate(
+        [transform_points(make_transform(rot_z(float(off))) @ base, S) for off in offsets]
+    )
+    D = part.signed_distance(Pc).reshape(n, S.shape[0])
     cost = np.empty(n)
-    for i, off in enumerate(offsets):
-        Tc = make_transform(rot_z(float(off))) @ base
-        d = part.signed_distance(transform_points(Tc, S))
+    for i, d in enumerate(D):
         cost[i] = float(np.mean(np.minimum(d * d, max_distance**2)))
     best = int(np.argmin(cost))
     if cost[best] >= 0.99 * cost[n // 2]:
@@ -322,16 +334,29 @@ def _search_rz(
     return make_transform(rot_z(float(offsets[best]))) @ base
 
 
-class _Equations(NamedTuple):
+class _Equations:
     """One Gauss–Newton iteration's weighted normal equations, the rotation columns scaled by
-    the RMS lever arm L (``scale`` = [1, 1, 1, L, L, L, 1]): every column in m."""
+    the RMS lever arm L (``scale`` = [1, 1, 1, L, L, L, 1]): every column in m. ``H`` and ``G``
+    are formed when first asked for (the Newton steps after the scale is frozen, and the last
+    iteration's uncertainty): most iterations need neither."""
 
-    A: F64  # (7, 7) Jᵀ W J (IRLS)
-    b: F64  # (7,) Jᵀ ψ(r): the gradient of the Huber cost
-    H: F64  # (7, 7) Jᵀ 1{|r| ≤ k} J: the Huber cost's Hessian
-    G: F64  # (7, 7) Σ ψ² J Jᵀ: the sandwich covariance's meat
-    quad: F64  # (N,) 1 where the point is in Huber's quadratic zone
-    scale: F64  # (7,)
+    def __init__(self, A: F64, b: F64, quad: F64, scale: F64, Js: F64, wr: F64) -> None:
+        self.A = A  # (7, 7) Jᵀ W J (IRLS)
+        self.b = b  # (7,) Jᵀ ψ(r): the gradient of the Huber cost
+        self.quad = quad  # (N,) 1 where the point is in Huber's quadratic zone
+        self.scale = scale  # (7,)
+        self._Js = Js  # (N, 7) the scaled Jacobian
+        self._wr = wr  # (N,) ψ(r) = w·r
+
+    @cached_property
+    def H(self) -> F64:
+        """(7, 7) Jᵀ 1{|r| ≤ k} J: the Huber cost's Hessian."""
+        return self._Js.T @ (self._Js * self.quad[:, None])
+
+    @cached_property
+    def G(self) -> F64:
+        """(7, 7) Σ ψ² J Jᵀ: the sandwich covariance's meat."""
+        return self._Js.T @ (self._Js * (self._wr**2)[:, None])
 
 
 def _checked_input(
@@ -394,10 +419,20 @@ def _jacobian(P: F64, q: SurfaceQuery) -> F64:
     quadratically)."""
     r = q.distance
     off = np.abs(r) > 1e-9
-    g = np.where(off[:, None], (P - q.point) / np.where(off, r, 1.0)[:, None], q.normal)
+    rs = np.where(off, r, 1.0)
+    D = P - q.point
     J = np.zeros((P.shape[0], 7))
-    J[:, :3] = g
-    J[:, 3:6] = np.cross(P, g)
+    # a column at a time (the same operations as on the (N, 3) arrays, without numpy's
+    # broadcast over 3-long rows): g = (p − q)/r off the surface, else the normal …
+    for c in range(3):
+        J[:, c] = np.where(off, D[:, c] / rs, q.normal[:, c])
+    # … and p × g, as np.cross forms it: (p1 g2 − p2 g1, p2 g0 − p0 g2, p0 g1 − p1 g0)
+    g = J[:, :3]
+    tmp = np.empty(P.shape[0])
+    for c, i, k in ((3, 1, 2), (4, 2, 0), (5, 0, 1)):
+        np.multiply(P[:, i], g[:, k], out=J[:, c])
+        np.multiply(P[:, k], g[:, i], out=tmp)
+        J[:, c] -= tmp
     return J
 
 
@@ -431,15 +466,18 @@ def _flange_weights(
     on_wall = (q.region == 1) & (q.point[:, 2] <= -FLANGE_CLEARANCE) & (w > 0)
     r = r.copy()
     if on_wall.any():
-        r[on_wall] -= np.median(r[on_wall])
+        r[on_wall] -= np.median(r[on_wall], overwrite_input=True)  # of a copy
     w = np.zeros_like(r)
     for name, grp in (("flange", on_flange), ("wall", on_wall)):
         if grp.any():
             w[grp], sg = _huber_weights(r[grp], max_distance, scales.get(name))
             if it == FREEZE_SCALE:
                 scales[name] = sg
-    J[np.ix_(np.flatnonzero(on_flange), np.array([0, 1, 5]))] = 0.0
-    J[np.ix_(np.flatnonzero(~on_flange), np.array([2, 3, 4]))] = 0.0
+    for c in (0, 1, 5):
+        np.copyto(J[:, c], 0.0, where=on_flange)
+    off_flange = ~on_flange
+    for c in (2, 3, 4):
+        np.copyto(J[:, c], 0.0, where=off_flange)
     J[~(on_flange | on_wall)] = 0.0
     J[on_wall, 6] = -1.0  # r_i − e
     return r, w
@@ -456,11 +494,10 @@ def _normal_equations(J: F64, P: F64, r: F64, w: F64) -> _Equations:
     scale = np.array([1.0, 1.0, 1.0, L, L, L, 1.0])
     Js = J / scale
     A = Js.T @ (Js * w[:, None])
-    b = Js.T @ (w * r)
+    wr = w * r
+    b = Js.T @ wr
     quad = (w >= 1.0).astype(float)
-    H = Js.T @ (Js * quad[:, None])
-    G = Js.T @ (Js * ((w * r) ** 2)[:, None])
-    return _Equations(A, b, H, G, quad, scale)
+    return _Equations(A, b, quad, scale, Js, wr)
 
 
 def _lock_unobservable(
@@ -489,9 +526,9 @@ def _lock_unobservable(
 def _step(eq: _Equations, fit_cols: list[int], it: int) -> F64:
     """The Gauss–Newton step ξ (7,) [m, rad, m]: Newton on the frozen Huber cost when enough
     points are in its quadratic zone and H is well conditioned, IRLS otherwise."""
-    Hf = eq.H[np.ix_(fit_cols, fit_cols)]
     newton = it > FREEZE_SCALE and np.count_nonzero(eq.quad) >= 10 * len(fit_cols)
-    if newton and np.linalg.cond(Hf) < 1e12:
+    Hf = eq.H[np.ix_(fit_cols, fit_cols)] if newton else None
+    if Hf is not None and np.linalg.cond(Hf) < 1e12:
         sol = -np.linalg.solve(Hf, eq.b[fit_cols])
     else:
         sol = -np.linalg.solve(eq.A[np.ix_(fit_cols, fit_cols)], eq.b[fit_cols])
