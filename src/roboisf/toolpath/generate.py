@@ -39,6 +39,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
 from roboisf.parts.axisymmetric import AxisymmetricPart
+from roboisf.parts.generatrix import Generatrix, HeightQuery
 from roboisf.path.toolpath import Toolpath
 from roboisf.toolpath.limits import MAX_POINTS
 
@@ -66,6 +67,20 @@ BYTES_PER_POINT = 1000
 _BISECT = 52
 #: A ball closer than R − _FIT_TOL to the surface is gouging (float noise of d is ~1e-17 m).
 _FIT_TOL = 1e-15
+#: Heights solved (and points queried) at a time: bounds the closest-point queries' work arrays
+#: (~0.35 kB a height) whatever the path's size; each height's numbers are its own.
+_CHUNK = 1 << 16
+
+
+class _Geometry:
+    """The part's generatrix and opening radius, taken once per call: ``part.generatrix``
+    builds a new chain of primitives on every access."""
+
+    __slots__ = ("g", "opening")
+
+    def __init__(self, part: AxisymmetricPart) -> None:
+        self.g: Generatrix = part.generatrix
+        self.opening = float(part.opening_radius)
 
 
 def _check(
@@ -102,16 +117,29 @@ def estimate_points(
     generated count on the paper's cone and VWACF from 0.05 to 2 mm step-down (more, on the safe
     side, for paths of a few laps: it adds two laps of margin).
     """
-    n_levels = math.ceil(part.depth / step_down - 1e-9)
+    geo = _Geometry(part)
+    return _estimate_points(geo, part.depth, tool_radius, step_down, spacing, max_wall_step)
+
+
+def _estimate_points(
+    geo: _Geometry,
+    depth: float,
+    tool_radius: float,
+    step_down: float,
+    spacing: float,
+    max_wall_step: float | None,
+) -> int:
+    n_levels = math.ceil(depth / step_down - 1e-9)
     m = min(64, n_levels)
     g = n_levels / m  # levels each sample stands for
-    z = -np.linspace(part.depth / m, part.depth, m)
-    cr, fits = ball_position(part, tool_radius, z)
-    rp, _, _, ss = _meridian_closest(part, cr, z + tool_radius)
+    z = -np.linspace(depth / m, depth, m)
+    cr, mask, q = _ball(geo, tool_radius, z)
+    fits = np.asarray(mask, dtype=bool)
+    rp, _, _, ss = _closest(geo, cr, z + tool_radius, q)
     per_lap = np.maximum(8.0, np.ceil(2 * math.pi * rp / spacing))
     laps = np.full(m, g)
     if max_wall_step is not None and max_wall_step > 0:
-        s0 = _contact_s(part, tool_radius, np.array([0.0]))
+        s0 = _contact_s(geo, tool_radius, np.array([0.0]))
         ds = np.abs(np.diff(np.concatenate([s0, ss])))
         laps = g * np.maximum(1.0, np.ceil(ds / (g * max_wall_step)))
     total = float(np.sum((laps * per_lap)[fits])) if fits.any() else 8.0 * n_levels
@@ -119,6 +147,7 @@ def estimate_points(
 
 
 def _check_size(
+    geo: _Geometry,
     part: AxisymmetricPart,
     tool_radius: float,
     step: float,
@@ -129,8 +158,8 @@ def _check_size(
     """Refuse, before generating, a toolpath larger than ``max_points`` (None: no limit)."""
     if max_points is None:
         return
-    refuse_size(estimate_points(part, tool_radius, step, spacing, max_wall_step), part.depth,
-                step, spacing, max_points)  # fmt: skip
+    n = _estimate_points(geo, part.depth, tool_radius, step, spacing, max_wall_step)
+    refuse_size(n, part.depth, step, spacing, max_points)
 
 
 def refuse_size(n: int, depth: float, step: float, spacing: float, max_points: int | None) -> None:
@@ -145,17 +174,6 @@ def refuse_size(n: int, depth: float, step: float, spacing: float, max_points: i
         )
 
 
-def _meridian_closest(part: AxisymmetricPart, r: F64, z: F64) -> tuple[F64, F64, F64, F64]:
-    """Closest surface point (rp, zp), signed distance (+ tool side) and wall arc length s for
-    meridian points (r, z); ties within 1e-12 m prefer wall primitives (deterministic contacts at
-    the concave bottom corner, where the last ball touches wall and bottom at once)."""
-    rp, zp, alpha, ss, _ = part.generatrix.closest(r, z)
-    nr, nz = -np.sin(alpha), np.cos(alpha)
-    best = np.hypot(r - rp, z - zp)
-    side = (r - rp) * nr + (z - zp) * nz
-    return rp, zp, np.where(side < 0, -best, best), ss
-
-
 def ball_position(
     part: AxisymmetricPart, tool_radius: float, tip_z: ArrayLike
 ) -> tuple[F64, NDArray[np.bool_]]:
@@ -167,18 +185,77 @@ def ball_position(
     The distance to the material never increases when moving outwards at a fixed height (the
     material is closed under outward radial shifts), so bisection finds it exactly.
     """
+    cr, fits, _ = _ball(_Geometry(part), tool_radius, tip_z)
+    return cr, np.asarray(fits, dtype=bool)
+
+
+def _fits(geo: _Geometry, tool_radius: float, tip_z: F64) -> NDArray[np.bool_]:
+    """Whether the ball fits at tip heights ``tip_z``: the mask of :func:`ball_position`, the
+    signed distance of its centre on the axis (without the bisection)."""
+    cz = np.asarray(tip_z, dtype=float) + tool_radius
+    flat = cz.reshape(-1)
+    fits = np.empty(flat.shape, dtype=bool)
+    for a in range(0, flat.size, _CHUNK):
+        q = geo.g.at_heights(flat[a : a + _CHUNK])
+        fits[a : a + _CHUNK] = q.signed(np.zeros(q.n)) >= tool_radius - _FIT_TOL
+    return fits.reshape(cz.shape)
+
+
+def _ball(
+    geo: _Geometry, tool_radius: float, tip_z: ArrayLike, fits: bool = True
+) -> tuple[F64, NDArray[np.bool_] | None, HeightQuery | None]:
+    """:func:`ball_position` (the mask only if ``fits``), and the height query of the ball
+    centres (flattened; None beyond :data:`_CHUNK` heights), for their closest points.
+
+    One bisection for all heights, every height's iterates its own (so a height gives the same
+    bits whatever the other heights of the call). The signed distance of a centre is that to its
+    closest point on the generatrix (ties within 1e-12 m go to wall primitives: deterministic
+    contacts at the concave bottom corner, where the last ball touches wall and bottom at once),
+    + on the tool side; a :class:`~roboisf.parts.generatrix.HeightQuery` at the centres' heights
+    computes it: the bits of :meth:`~roboisf.parts.generatrix.Generatrix.closest` and of the
+    signed distance taken from it, in under half the numpy calls. Where only the mask is
+    wanted, :func:`_fits` asks for it without the bisection."""
     R = tool_radius
     cz = np.asarray(tip_z, dtype=float) + R
-    lo = np.zeros_like(cz)
-    hi = np.full_like(cz, part.opening_radius)
-    fits = _meridian_closest(part, lo, cz)[2] >= R - _FIT_TOL
-    top = _meridian_closest(part, hi, cz)[2] >= R - _FIT_TOL
-    for _ in range(_BISECT):
-        mid = 0.5 * (lo + hi)
-        ok = _meridian_closest(part, mid, cz)[2] >= R - _FIT_TOL
-        lo = np.where(ok, mid, lo)
-        hi = np.where(ok, hi, mid)
-    return np.where(top, hi, lo), fits
+    flat = cz.reshape(-1)
+    thr = R - _FIT_TOL
+    cr = np.empty(flat.shape)
+    fit = np.empty(flat.shape, dtype=bool) if fits else None
+    q = None
+    for a in range(0, flat.size, _CHUNK):
+        b = min(a + _CHUNK, flat.size)
+        q = geo.g.at_heights(flat[a:b])
+        lo = np.zeros(q.n)
+        hi = np.full(q.n, geo.opening)
+        if fit is not None:
+            fit[a:b] = q.signed(lo) >= thr
+        top = q.signed(hi) >= thr
+        mid = np.empty(q.n)
+        for _ in range(_BISECT):
+            np.add(lo, hi, out=mid)
+            mid *= 0.5
+            ok = q.signed(mid) >= thr
+            np.copyto(lo, mid, where=ok)
+            np.copyto(hi, mid, where=~ok)
+        cr[a:b] = np.where(top, hi, lo)
+    q = q if flat.size <= _CHUNK else None
+    return cr.reshape(cz.shape), (None if fit is None else fit.reshape(cz.shape)), q
+
+
+def _closest(
+    geo: _Geometry, r: F64, z: F64, q: HeightQuery | None = None
+) -> tuple[F64, F64, F64, F64]:
+    """``rp, zp, alpha, s`` of :meth:`~roboisf.parts.generatrix.Generatrix.closest` for the
+    meridian points ``(r, z)`` (N,): through ``q``, the height query at ``z`` (from
+    :func:`_ball`), or by queries of :data:`_CHUNK` points."""
+    if q is not None:
+        return q.closest(r)[:4]
+    out = tuple(np.empty(r.shape) for _ in range(4))
+    for a in range(0, r.size, _CHUNK):
+        b = min(a + _CHUNK, r.size)
+        for o, v in zip(out, geo.g.at_heights(z[a:b]).closest(r[a:b])[:4], strict=False):
+            o[a:b] = v
+    return out[0], out[1], out[2], out[3]
 
 
 def tip_levels(
@@ -194,11 +271,20 @@ def tip_levels(
     if ``max_wall_step`` is given, heights inserted where the contacts of neighbouring laps are
     more than ``max_wall_step`` apart along the generatrix.
     """
-    depth = part.depth
+    return _tip_levels(_Geometry(part), part.depth, tool_radius, step_down, max_wall_step)
+
+
+def _tip_levels(
+    geo: _Geometry,
+    depth: float,
+    tool_radius: float,
+    step_down: float,
+    max_wall_step: float | None,
+) -> tuple[F64, bool]:
     n = math.ceil(depth / step_down - 1e-9)
     z: F64 = -np.arange(1, n + 1, dtype=float) * step_down
     z[-1] = -depth
-    _, fits = ball_position(part, tool_radius, z)
+    fits = _fits(geo, tool_radius, z)
     truncated = not bool(fits.all())
     if truncated:
         if not fits[0]:
@@ -212,7 +298,7 @@ def tip_levels(
         lo, hi = z[-1], z[-1] - step_down
         for _ in range(40):
             mid = 0.5 * (lo + hi)
-            if ball_position(part, tool_radius, np.array([mid]))[1][0]:
+            if _fits(geo, tool_radius, np.array([mid]))[0]:
                 lo = mid
             else:
                 hi = mid
@@ -221,23 +307,24 @@ def tip_levels(
     if max_wall_step is not None:
         if not (max_wall_step > 0):
             raise InputError("must be > 0", field="max_wall_step")
-        z = _refine_along_wall(part, tool_radius, z, max_wall_step)
+        z = _refine_along_wall(geo, tool_radius, z, max_wall_step)
     return z, truncated
 
 
-def _contact_s(part: AxisymmetricPart, tool_radius: float, tip_z: F64) -> F64:
-    cr, _ = ball_position(part, tool_radius, tip_z)
-    return _meridian_closest(part, cr, tip_z + tool_radius)[3]
+def _contact_s(geo: _Geometry, tool_radius: float, tip_z: F64) -> F64:
+    """Wall arc length of the contact of the ball at tip heights ``tip_z``."""
+    cr, _, q = _ball(geo, tool_radius, tip_z, fits=False)
+    return _closest(geo, cr, tip_z + tool_radius, q)[3]
 
 
-def _refine_along_wall(part: AxisymmetricPart, R: float, z: F64, max_step: float) -> F64:
+def _refine_along_wall(geo: _Geometry, R: float, z: F64, max_step: float) -> F64:
     """Insert tip heights so that neighbouring contacts are ≤ ``max_step`` apart along the wall.
 
     The contact arc length s(z) is monotone in the tip height, so the heights whose contacts are
     evenly spaced between two laps are found by one vectorised bisection over all gaps.
     """
     z_all = np.concatenate([[0.0], z])
-    s_all = _contact_s(part, R, z_all)
+    s_all = _contact_s(geo, R, z_all)
     m = np.maximum(1, np.ceil(np.abs(np.diff(s_all)) / max_step - 1e-9).astype(np.int64))
     gap = np.repeat(np.arange(len(z)), m - 1)  # gap index of each inserted height
     if gap.size == 0:
@@ -248,7 +335,7 @@ def _refine_along_wall(part: AxisymmetricPart, R: float, z: F64, max_step: float
     lo, hi = z_all[gap].copy(), z_all[gap + 1].copy()
     for _ in range(40):
         mid = 0.5 * (lo + hi)
-        below = _contact_s(part, R, mid) < targets
+        below = _contact_s(geo, R, mid) < targets
         lo = np.where(below, mid, lo)
         hi = np.where(below, hi, mid)
     inserted = 0.5 * (lo + hi)
@@ -264,20 +351,23 @@ def _lap_points(r: float, spacing: float) -> int:
 
 
 def _assemble(
-    part: AxisymmetricPart,
+    geo: _Geometry,
     tip_z: F64,
     phi: F64,
     lap: NDArray[np.int64],
     tool_radius: float,
     feed: float,
     meta: dict[str, object],
+    cr: F64 | None = None,
 ) -> Toolpath:
-    """Toolpath from per-point tip heights and polar angles (ball from :func:`ball_position`)."""
+    """Toolpath from per-point tip heights and polar angles (ball from :func:`ball_position`,
+    or ``cr``: the ball centres' radii of the points, already solved)."""
     R = tool_radius
-    levels, inverse = np.unique(tip_z, return_inverse=True)  # step-down: one solve per lap
-    cr = ball_position(part, R, levels)[0][inverse]
+    if cr is None:
+        levels, inverse = np.unique(tip_z, return_inverse=True)  # one solve per height
+        cr = _ball(geo, R, levels, fits=False)[0][inverse]
     cz = tip_z + R
-    rp, zp, _, _ = _meridian_closest(part, cr, cz)
+    rp, zp, _, _ = _closest(geo, cr, cz)
     nr, nz = cr - rp, cz - zp
     norm = np.hypot(nr, nz)
     nr, nz = nr / norm, nz / norm
@@ -337,23 +427,25 @@ def step_down(
         or a path above ``max_points``.
     """
     _check(part, tool_radius, step_down, spacing, feed)
-    _check_size(part, tool_radius, step_down, spacing, max_wall_step, max_points)
-    z_levels, trunc = tip_levels(part, tool_radius, step_down, max_wall_step)
-    cr, _ = ball_position(part, tool_radius, z_levels)
-    r_contact = _meridian_closest(part, cr, z_levels + tool_radius)[0]
+    geo = _Geometry(part)
+    _check_size(geo, part, tool_radius, step_down, spacing, max_wall_step, max_points)
+    z_levels, trunc = _tip_levels(geo, part.depth, tool_radius, step_down, max_wall_step)
+    cr, _, q = _ball(geo, tool_radius, z_levels, fits=False)
+    r_contact = _closest(geo, cr, z_levels + tool_radius, q)[0]
     sign = -1.0 if clockwise else 1.0
     counts = [_lap_points(float(r), spacing) for r in r_contact]
     phi = np.concatenate([start_angle + sign * 2 * math.pi * np.arange(m) / m for m in counts])
     lap = np.repeat(np.arange(len(counts), dtype=np.int64), counts)
     tip_z = np.repeat(z_levels, counts)
     return _assemble(
-        part,
+        geo,
         tip_z,
         phi,
         lap,
         tool_radius,
         feed,
         _meta("step_down", part, step_down, spacing, z_levels, trunc),
+        cr=np.repeat(cr, counts),  # each lap's ball, solved once (the same bits per height)
     )
 
 
@@ -375,13 +467,14 @@ def spiral(
     (ball resting on the rim); a final closed contour at the last height finishes the bottom edge.
     """
     _check(part, tool_radius, step_down, spacing, feed)
-    _check_size(part, tool_radius, step_down, spacing, max_wall_step, max_points)
-    z_levels, trunc = tip_levels(part, tool_radius, step_down, max_wall_step)
+    geo = _Geometry(part)
+    _check_size(geo, part, tool_radius, step_down, spacing, max_wall_step, max_points)
+    z_levels, trunc = _tip_levels(geo, part.depth, tool_radius, step_down, max_wall_step)
     z_all = np.concatenate([[0.0], z_levels])
     sign = -1.0 if clockwise else 1.0
     z_mid = 0.5 * (z_all[1:] + z_all[:-1])
-    cr_mid, _ = ball_position(part, tool_radius, z_mid)
-    r_mid = _meridian_closest(part, cr_mid, z_mid + tool_radius)[0]
+    cr_mid, _, q = _ball(geo, tool_radius, z_mid, fits=False)
+    r_mid = _closest(geo, cr_mid, z_mid + tool_radius, q)[0]
     z_parts, phi_parts, lap_parts = [], [], []
     for k in range(len(z_levels)):
         m = _lap_points(float(r_mid[k]), spacing)
@@ -395,7 +488,7 @@ def spiral(
     phi_parts.append(start_angle + sign * 2 * math.pi * np.arange(m + 1) / m)
     lap_parts.append(np.full(m + 1, len(z_levels) - 1, dtype=np.int64))
     return _assemble(
-        part,
+        geo,
         np.concatenate(z_parts),
         np.concatenate(phi_parts),
         np.concatenate(lap_parts),
