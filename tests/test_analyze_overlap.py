@@ -348,9 +348,7 @@ def test_an_error_in_the_last_scan_read_ahead_comes_in_the_runs_order(
     assert _scan_threads() == []
 
 
-def test_a_refused_log_stops_the_worker_reading_the_last_scan_ahead(
-    small_cone_study, monkeypatch
-):
+def test_a_refused_log_stops_the_worker_reading_the_last_scan_ahead(small_cone_study, monkeypatch):
     # the logs are refused while the worker reads the robot scan ahead: the log's error is
     # the one reported, and no thread outlives the analysis
     reading = threading.Event()
