@@ -610,9 +610,11 @@ def _prints_ok(code: str, env: dict[str, str]) -> None:
 def test_cold_online_runs_as_python_all_the_way_down_with_the_model_numbers(tmp_path):
     """On a cold cache the online kernels are plain Python, the chain walk too (a private copy
     of roboisf.robot.vjm_chain: calling its numba functions would compile them), and give the
-    model's deflection as the compiled kernels do (tests/test_online_core.py)."""
+    model's deflection as the compiled kernels do (tests/test_online_core.py). Without the C
+    form (ROBOISF_NATIVE=0: no compiler at install), which would serve them compiled."""
     root = Path(__file__).resolve().parents[1]
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), **{bg.ENV: "1"})
+    env["ROBOISF_NATIVE"] = "0"
     env["PYTHONPATH"] = os.pathsep.join([str(SRC.parent), str(root)])
     code = (
         "from roboisf.jit import background as bg\n"

@@ -344,8 +344,8 @@ def test_fk_deflection_equals_the_model_on_fanuc_and_abb(name, monkeypatch):
 
 
 def test_online_kernel_runs_without_numba():
-    """numba blocked in a fresh interpreter: the kernels are plain Python and give the model's
-    deflection on a FANUC preset."""
+    """numba blocked in a fresh interpreter and no C form (ROBOISF_NATIVE=0): the kernels are
+    plain Python and give the model's deflection on a FANUC preset."""
     import os
     import pathlib
     import subprocess
@@ -355,7 +355,7 @@ def test_online_kernel_runs_without_numba():
 
     root = pathlib.Path(__file__).resolve().parents[1]  # `tests` importable from here
     src = str(pathlib.Path(roboisf.__file__).resolve().parents[1])  # this roboisf, not another
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([src, str(root)])}
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([src, str(root)]), "ROBOISF_NATIVE": "0"}
     code = (
         "import sys; sys.modules['numba'] = None\n"
         "from roboisf.online import kernel as kn\n"

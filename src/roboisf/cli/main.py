@@ -146,8 +146,8 @@ def _version(value: bool) -> None:
         typer.echo(f"roboisf {__version__}")
         typer.echo(native.describe())
         numba = (
-            f"numba {numba_version_installed() or '?'} (the online loop, and any kernel whose C "
-            "form is not built)"
+            f"numba {numba_version_installed() or '?'} (any kernel whose C form is not built, "
+            "and the tests' oracle)"
             if HAVE_NUMBA
             else "numba: not installed or switched off (ROBOISF_NUMBA=0); numpy serves"
         )

@@ -125,7 +125,12 @@ GROUPS: dict[str, Group] = {
         lane=1,
         native=("roboisf.robot.vjm_kernel",),  # FK, VJM, IK, plan's pass, the margin: one library
     ),
-    "online": Group(("roboisf.online.kernel",), "roboisf.online.kernel:build", lane=1),
+    "online": Group(
+        ("roboisf.online.kernel",),
+        "roboisf.online.kernel:build",
+        lane=1,
+        native=("roboisf.online.kernel",),  # its C form: online_kernel.c (kernel.NATIVE)
+    ),
     "sync": Group(
         ("roboisf.sync.position_kernel",),
         "roboisf.sync.position_kernel:build",

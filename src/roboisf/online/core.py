@@ -125,7 +125,8 @@ class Limits:
                 self.cycle,
                 self.watchdog,
                 self.ramp_rate,
-            ]
+            ],
+            dtype=float,  # float64 whatever the arguments' types: the C kernel takes no other
         )
 
 
@@ -165,7 +166,10 @@ class Plausibility:
         return cls(2.0 * f, 0.5 * f, f / 0.05, f * tool_length)
 
     def array(self) -> F64:
-        return np.array([self.max_force, self.force_band, self.max_force_rate, self.max_tip_moment])
+        return np.array(
+            [self.max_force, self.force_band, self.max_force_rate, self.max_tip_moment],
+            dtype=float,  # float64 whatever the arguments' types: the C kernel takes no other
+        )
 
 
 @dataclass(frozen=True, eq=False)
