@@ -18,7 +18,7 @@ from roboisf.errors import InputError
 
 
 def _scan_threads() -> list[threading.Thread]:
-    return [t for t in threading.enumerate() if t.name == "roboisf-scans"]
+    return [t for t in threading.enumerate() if t.name in ("roboisf-scans", "roboisf-then")]
 
 
 def _blas_threads() -> set[int]:
@@ -230,8 +230,8 @@ def test_the_calling_thread_compares_the_last_scan_beside_the_first(
     small_cone_study, sequential_kept, monkeypatch
 ):
     # done with the logs, the calling thread compares the robot scan (read, registered,
-    # filtered, along the toolpath) while the worker still compares the CNC scan; the worker,
-    # done, takes the fingerprint: the same results
+    # filtered, along the toolpath) while the worker still compares the CNC scan; the inputs'
+    # fingerprint is taken in a thread of its own, beside the filters: the same results
     tried = threading.Event()
     seen = _record_prepares(monkeypatch, tried)
     _hold_first_scan(monkeypatch, tried)
@@ -254,7 +254,7 @@ def test_the_calling_thread_compares_the_last_scan_beside_the_first(
     assert ("robot", "MainThread") in seen and ("cnc", "roboisf-scans") in seen
     assert len(seen) == 2
     assert sorted(compared) == [("cnc", "roboisf-scans"), ("robot", "MainThread")]
-    assert fingerprinted == ["roboisf-scans"]
+    assert fingerprinted == ["roboisf-then"]
     assert ovl.summary.fingerprint == sequential_kept[0].summary.fingerprint
     seq = sequential_kept[0]
     pd.testing.assert_frame_equal(seq.per_point, ovl.per_point, check_exact=True)

@@ -499,7 +499,24 @@ class _ScansBeside:
         self._ahead: PreparedScan | None = None
         self._ahead_error: BaseException | None = None
         self._ahead_ready = threading.Event()
+        # ``then`` in a thread of its own, started once both scans are read and registered:
+        # beside the scans' filters (compiled code, the lock free) instead of after the
+        # worker's scan, where it came after the last scan too once the lanes ended together
+        self._then_thread: threading.Thread | None = None
+        self._then_error: Exception | None = None
         prog = cancellable(progress, self._cancel)
+
+        def run_then() -> None:
+            assert then is not None
+            try:
+                self.then = then()
+            except Exception as e:  # raised by the worker after the scans' errors
+                self._then_error = e
+
+        def start_then() -> None:
+            if then is not None and self._then_thread is None:
+                self._then_thread = threading.Thread(target=run_then, name="roboisf-then")
+                self._then_thread.start()
 
         def work() -> None:
             theirs = []  # the runs the calling thread compares: their errors raised in order
@@ -515,6 +532,7 @@ class _ScansBeside:
                         with task(prog, f"scan {run.name}: read and register"):
                             prep = _prepare(study, cell, run, prog)
                         self._prepare_ahead(prog)  # the last scan's first half, here
+                        start_then()
                     elif i == len(runs) - 1 and self._ahead_ready.is_set():
                         prep = self._take_ahead(run)  # prepared after the first's
                     else:
@@ -529,22 +547,22 @@ class _ScansBeside:
                         )
                         del prep
                         _trim()
-                then_error: Exception | None = None
-                if then is not None:
-                    try:
-                        self.then = then()
-                    except Exception as e:  # after the calling thread's scan's error
-                        then_error = e
+                if then is not None and self._then_thread is None:
+                    run_then()  # one run: here, after its scan
+                elif self._then_thread is not None:
+                    self._then_thread.join()
                 for name in theirs:
                     self._raise_theirs(name)
-                if then_error is not None:
-                    raise then_error
+                if self._then_error is not None:  # after the calling thread's scan's error
+                    raise self._then_error
             except Cancelled:
                 pass
             except BaseException as e:  # re-raised in the caller's thread by result()
                 self._error = e
             finally:
                 self._ahead_ready.set()  # never left waited for
+                if self._then_thread is not None:  # no thread outlives the analysis
+                    self._then_thread.join()
 
         self._thread = threading.Thread(target=work, name="roboisf-scans")
         self._thread.start()
