@@ -208,6 +208,18 @@ def _hold_first_scan(monkeypatch, until: threading.Event) -> None:
     monkeypatch.setattr(pipeline, "_prepare", prepare)
 
 
+def _hold_logs(monkeypatch, until: threading.Event) -> None:
+    """The calling thread's logs wait for ``until``: the worker then reaches the last scan's
+    first half before the calling thread does, whatever the machine's speed."""
+    real = pipeline._logs_part
+
+    def logs(*args, **kwargs):
+        assert until.wait(20)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "_logs_part", logs)
+
+
 def _record_prepares(monkeypatch, tried: threading.Event, fail=None) -> list[tuple[str, str]]:
     real = pipeline._prepare
     seen: list[tuple[str, str]] = []
@@ -266,37 +278,34 @@ def test_the_calling_thread_compares_the_last_scan_beside_the_first(
     assert _scan_threads() == []
 
 
+@pytest.mark.parametrize("reader", ["MainThread", "roboisf-scans"])
 def test_scan_errors_come_in_the_runs_order_whichever_thread_met_them(
-    small_cone_study, tmp_path, monkeypatch
+    small_cone_study, tmp_path, monkeypatch, reader
 ):
-    # the robot scan's error, met by the calling thread, waits for the CNC scan: the CNC's
-    # error is the one reported, as when one thread compared both
+    # the robot scan's error, met by the calling thread (or by the worker reading that scan
+    # ahead), waits for the CNC scan: the CNC's error is the one reported, as when one thread
+    # compared both
     study = _copy(small_cone_study, tmp_path)
     bad = b"ply\nformat ascii 1.0\nelement vertex 2\nend_header\n"
     (study / "robot_scan.ply").write_bytes(bad)
     tried = threading.Event()
     seen = _record_prepares(monkeypatch, tried)
-    _hold_first_scan(monkeypatch, tried)
+    hold = _hold_first_scan if reader == "MainThread" else _hold_logs
+    hold(monkeypatch, tried)
     with pytest.raises(InputError, match=r"robot_scan\.ply"):
         analyze(study)  # the CNC scan is fine: the robot's error reaches the caller
-    assert ("robot", "MainThread") in seen
+    assert [thread for run, thread in seen if run == "robot"] == [reader]
     (study / "cnc_scan.ply").write_bytes(bad)
-    tried.clear()
+    seen.clear()
+    # held until the robot scan is tried, by the calling thread after the logs; the worker,
+    # stopped by the CNC scan's error, never reads it ahead: nothing to hold the logs for
+    if reader == "MainThread":
+        tried.clear()
+    else:
+        tried.set()
     with pytest.raises(InputError, match=r"cnc_scan\.ply"):
         analyze(study)
     assert _scan_threads() == []
-
-
-def _hold_logs(monkeypatch, until: threading.Event) -> None:
-    """The calling thread's logs wait for ``until``: the worker then reaches the last scan's
-    first half before the calling thread does, whatever the machine's speed."""
-    real = pipeline._logs_part
-
-    def logs(*args, **kwargs):
-        assert until.wait(20)
-        return real(*args, **kwargs)
-
-    monkeypatch.setattr(pipeline, "_logs_part", logs)
 
 
 def test_the_worker_reads_and_registers_the_last_scan_when_it_gets_there_first(
@@ -323,28 +332,6 @@ def test_the_worker_reads_and_registers_the_last_scan_when_it_gets_there_first(
     pd.testing.assert_frame_equal(seq.per_point, ovl.per_point, check_exact=True)
     assert ovl.scans["robot"].summary() == seq.scans["robot"].without_points().summary()
     assert list(ovl.scans) == ["cnc", "robot"]
-    assert _scan_threads() == []
-
-
-def test_an_error_in_the_last_scan_read_ahead_comes_in_the_runs_order(
-    small_cone_study, tmp_path, monkeypatch
-):
-    # the worker meets the robot scan's error reading it ahead: it is reported (by the thread
-    # that compares that scan) after the CNC scan, whose own error comes first
-    study = _copy(small_cone_study, tmp_path)
-    bad = b"ply\nformat ascii 1.0\nelement vertex 2\nend_header\n"
-    (study / "robot_scan.ply").write_bytes(bad)
-    tried = threading.Event()
-    seen = _record_prepares(monkeypatch, tried)
-    _hold_logs(monkeypatch, tried)
-    with pytest.raises(InputError, match=r"robot_scan\.ply"):
-        analyze(study)
-    assert ("robot", "roboisf-scans") in seen and ("robot", "MainThread") not in seen
-    (study / "cnc_scan.ply").write_bytes(bad)
-    tried.set()  # the CNC scan fails before the robot's is read ahead: nothing to wait for
-    seen.clear()
-    with pytest.raises(InputError, match=r"cnc_scan\.ply"):
-        analyze(study)
     assert _scan_threads() == []
 
 
