@@ -1,9 +1,11 @@
 """The outlier filter's k-NN kernels (roboisf.scan.knn_kernel): their C form against their numba
 form, bit for bit — the cell keys, the counting sort, the ring search, the block search of the
-default k and the ring search of the rows it leaves, and the public mean k-NN distance — on the
+default k and the column search of the rows it leaves, and the public mean k-NN distance — on the
 inputs their callers pass (int32 row starts, int64 above 2³¹ points, the points' layouts) and at
-the special paths (strays beyond the rings, a sparse line beyond the block, a dense pile that
-grows the block's buffer, degenerate clouds of one cell per axis)."""
+the special paths (strays beyond the rings, a sparse line and a sparse halo beyond the block, a
+dense pile that grows the block's buffer, degenerate clouds of one cell per axis, points on cell
+faces). The column search against the ring search it replaces for the rows, point by point, and
+the whole filter against scipy's k-d tree, bit for bit."""
 
 from __future__ import annotations
 
@@ -60,6 +62,18 @@ def _cloud(seed: int = 0) -> np.ndarray:
         + d / np.linalg.norm(d, axis=1)[:, None] * (rng.uniform(5e-3, 50e-3, 12)[:, None])
     )
     return np.vstack([X, line, X[:40], strays])
+
+
+def _halo(seed: int = 0) -> np.ndarray:
+    """:func:`_cloud` and what the block search leaves on the paper cone's scans: a sparse halo of
+    scanner points ~5 mm off the wall (~2 of its cells here, as ~1 mm is on the paper cone), each
+    alone in its cell, their 9th neighbour beyond the 3 × 3 × 3 block, most beyond ring 2, a few
+    beyond ring 6; some of them in small clusters."""
+    rng = np.random.default_rng(100 + seed)
+    X = _cloud(seed)
+    halo = X[rng.integers(0, 30_000, 400)] + rng.normal(0.0, 5e-3, (400, 3))
+    clusters = np.repeat(halo[:40], 3, axis=0) + rng.normal(0.0, 1.2e-3, (120, 3))
+    return np.vstack([X, halo, clusters])
 
 
 def _sorted(X: np.ndarray, k: int = 8, wide: bool = False) -> tuple[Any, ...]:
@@ -259,6 +273,146 @@ def test_block_search_c_equals_numba(wide: bool) -> None:
         o = np.full(n, -1.0)
         f(o)
         assert (o == -1).all()
+
+
+# ---- the column search of the rows (_knn_mean_rows) against the ring search ------------------
+
+
+def _ring_and_rows(
+    Xs: np.ndarray, start: Any, lo: Any, h: float, shape: Any, k1: int, rings: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Every point by the ring search (_knn_mean) and by the column search (_knn_mean_rows, the
+    rows in an order of their own and in parts, as _sorted_mean's threads call it)."""
+    n = len(Xs)
+    ring = np.full(n, -1.0)
+    kk._knn_mean(Xs, start, lo, h, *shape, k1, rings, 0, n, ring)
+    rows = np.full(n, -1.0)
+    perm = np.random.default_rng(rings).permutation(n)
+    for part in np.array_split(perm, 3):
+        kk._knn_mean_rows(Xs, start, lo, h, *shape, k1, rings, part, rows)
+    return ring, rows
+
+
+@pytest.mark.parametrize("wide", [False, True])
+@pytest.mark.parametrize("k", [8, 3, 16])
+def test_column_search_gives_the_ring_search_s_numbers(k: int, wide: bool) -> None:
+    """The column search of the rows is the ring search's result for every point and every
+    number of rings — the same k + 1 nearest in the same cube, the same stop test, NaN where the
+    ring search gives up — in both forms; the cloud has what it meets after the block search:
+    a sparse halo resolved at rings 2–7, strays beyond them, a sparse line, repeated points."""
+    Xs, start, lo, h, shape = _sorted(_halo(11), k, wide)
+    block = np.full(len(Xs), -1.0)
+    kk._knn_mean_block9(Xs, start, lo, h, *shape, kk._BLOCK, 0, start.size - 1, block)
+    left = np.isnan(block)  # what the block search leaves (for k = 8: its grid)
+    nan = {}
+    for rings in (0, 1, 2, 4, kk.MAX_RINGS, 40):
+        (ring, rows), (ring_n, rows_n) = _both(
+            lambda rings=rings: _ring_and_rows(Xs, start, lo, h, shape, k + 1, rings)
+        )
+        np.testing.assert_array_equal(ring, ring_n)  # the oracle, both forms alike
+        np.testing.assert_array_equal(rows, rows_n)
+        np.testing.assert_array_equal(rows, ring)
+        assert not (rows == -1).any()
+        nan[rings] = np.isnan(rows)
+    # resolved at every stage: the halo between rings 2 and 6, strays beyond, the rest at 40
+    assert (nan[2] & ~nan[kk.MAX_RINGS]).sum() >= 100
+    assert (nan[1] & ~nan[2]).sum() >= 20
+    assert 5 <= (nan[kk.MAX_RINGS] & ~nan[40]).sum() <= 60
+    assert nan[40].sum() <= 3
+    assert nan[0].sum() > len(Xs) // 10  # the own cell alone settles few (its faces are near)
+    if k == 8:
+        assert left.sum() >= 300
+        assert (left & nan[2] & ~nan[kk.MAX_RINGS]).sum() >= 100
+
+
+def test_column_search_on_cell_faces_and_grid_edges() -> None:
+    """Points of lattices on the cells' faces (a lattice of the cell side, shifted: its points
+    are on faces up to rounding, and a column's run ends where the ring search's per-cell test
+    keeps one cell more than the run's first guess — seeds found by search; a finer lattice),
+    a grid of few cells per axis (the cube clipped on every side, faces outside the grid), one
+    column (no x, y face at all), one cell: the column search is the ring search's numbers, in
+    both forms."""
+    cases = []
+    # seeds found by search: without the run's one cell more below (91, 787) or above (4103,
+    # 4670, 5483), the column search misses a neighbour of the ring search (k + 1 = 9 or 5)
+    for seed in (91, 787, 4103, 4670, 5483):
+        rng = np.random.default_rng(seed)
+        h = [0.3e-3, 0.7e-3, 1.1e-3][seed % 3]
+        g = np.arange(5 + seed % 4) * h
+        lattice = np.stack(np.meshgrid(g, g, g), -1).reshape(-1, 3)
+        cases.append((lattice[rng.random(len(lattice)) < 0.6] + rng.uniform(-1e-3, 1e-3, 3), h))
+    rng = np.random.default_rng(12)
+    g = np.arange(0.0, 8e-3, 0.5e-3)
+    fine = np.stack(np.meshgrid(g, g, [0.0, 1e-3, 3e-3]), -1).reshape(-1, 3)
+    holes = fine[rng.random(len(fine)) > 0.6]  # sparse: beyond the first rings
+    column = np.column_stack([np.zeros(40), np.zeros(40), np.arange(40) * 0.7e-3])
+    cases += [
+        (fine, 1e-3),
+        (holes, 1e-3),
+        (holes, 0.25e-3),
+        (holes, 3e-3),
+        (column, 1e-3),
+        (rng.uniform(0, 1e-3, (30, 3)), 1e-3),
+    ]
+    for X, h in cases:
+        lo = X.min(axis=0)
+        shape = kk._shape(X.max(axis=0) - lo, h, kk.MAX_CELLS)
+        key = np.empty(len(X), np.int32)
+        start = np.zeros(int(np.prod(shape)) + 1, np.int32)
+        kk._cell_keys(X, kk._NO_ROWS, lo, h, *shape, key, start[1:])
+        start = np.cumsum(start).astype(np.int32)
+        Xs = np.ascontiguousarray(X[kk._counting_sort(key, start)])
+        grid = (Xs, start, lo, h, shape)
+        nan = 0
+        for k1, rings in itertools.product((9, 5), (0, 1, 2, 3, 6)):
+            (ring, rows), (ring_n, rows_n) = _both(
+                lambda k1=k1, rings=rings, grid=grid: _ring_and_rows(*grid, k1, rings)
+            )
+            np.testing.assert_array_equal(rows, ring)
+            np.testing.assert_array_equal(rows_n, ring_n)
+            np.testing.assert_array_equal(rows, rows_n)
+            nan += np.isnan(rows).sum()
+        assert nan > 0 or shape[0] * shape[1] <= 4  # some points beyond the rings
+
+
+def test_filter_is_scipy_s_k_d_tree_bit_for_bit() -> None:
+    """The whole filter (k = 8: block search, column search of what it leaves, the strays' wider
+    search, the k-d tree for what is farther still) against scipy's k-d tree: the same nine
+    distances summed in order for every point the compiled searches settle, the tree's own
+    mean for those they leave to it — bit for bit. Each stage has points to do."""
+    from scipy.spatial import cKDTree
+
+    X = np.vstack([_halo(13), [[0.4, 0.4, 0.2], [0.4, 0.4, 0.2005], [-0.3, 0.1, 0.3]]])
+    seen: list[tuple[int, int]] = []
+    rows = kk._knn_mean_rows
+
+    def spy(*a: Any) -> None:
+        seen.append((int(a[8]), int(a[9].size)))
+        rows(*a)
+
+    for form in ("c", "numba"):
+        seen.clear()
+        kk._knn_mean_rows = spy
+        try:
+            if form == "c":
+                c_library(kk)
+                got = kk.mean_knn_distance(X, 8, workers=2)
+            else:
+                with numba_form(KK):
+                    got = kk.mean_knn_distance(X, 8, workers=2)
+        finally:
+            kk._knn_mean_rows = rows
+        assert sum(n for r, n in seen if r == kk.MAX_RINGS) >= 300  # the block's leftovers
+        assert 0 < sum(n for r, n in seen if r > kk.MAX_RINGS) < 60  # strays: more rings
+        d, _ = cKDTree(X).query(X, k=9)
+        s = np.zeros(len(X))
+        for t in range(1, 9):
+            s += d[:, t]
+        want = s / 8
+        tree = np.zeros(len(X), bool)
+        tree[-3:] = True  # beyond every ring: the k-d tree's mean (numpy's sum of the eight)
+        want[tree] = d[tree, 1:].mean(axis=1)
+        np.testing.assert_array_equal(got, want)
 
 
 # ---- the public functions --------------------------------------------------------------------

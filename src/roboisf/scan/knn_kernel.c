@@ -175,18 +175,126 @@ int knn_mean(const double *X, int64_t rs, int64_t cs, const void *start, int64_t
     return 1;
 }
 
-/* _knn_mean_rows: the ring search of the points rows[0 .. m-1] (k1 >= 2). */
+/* _unseen_xy: the distance from p to the faces inside the grid of the square of columns 0 .. r
+ * around column (ci, cj) (x and y faces only); inf when there is no such face. */
+INLINE double unseen_xy(double px, double py, int64_t ci, int64_t cj, int64_t r, const double *lo,
+                        double h, int64_t nx, int64_t ny) {
+    double bound = INFINITY;
+    if (ci - r > 0) bound = pmin(bound, px - (lo[0] + (double)(ci - r) * h));
+    if (ci + r < nx - 1) bound = pmin(bound, lo[0] + (double)(ci + r + 1) * h - px);
+    if (cj - r > 0) bound = pmin(bound, py - (lo[1] + (double)(cj - r) * h));
+    if (cj + r < ny - 1) bound = pmin(bound, lo[1] + (double)(cj + r + 1) * h - py);
+    return bound;
+}
+
+/* _box_gap: the distance from coordinate x to the cell [lo + i h, lo + (i + 1) h] of an axis. */
+INLINE double box_gap(double x, double lo, int64_t i, double h) {
+    return pmax(pmax(lo + (double)i * h - x, 0.0), x - (lo + (double)(i + 1) * h));
+}
+
+/* A hint (no arithmetic): the row starts of the columns of square ring r around column (ci, cj)
+ * at height ck, wanted next (~10 % of knn_mean_rows on the paper cone's scan: a column's row
+ * starts are one of its two cache misses). */
+INLINE void prefetch_ring(const void *start, int wide, int64_t ci, int64_t cj, int64_t ck,
+                          int64_t r, int64_t nx, int64_t ny, int64_t nz) {
+    for (int64_t ii = imax(ci - r, 0); ii <= imin(ci + r, nx - 1); ii++) {
+        int64_t step = (ii == ci - r || ii == ci + r) ? 1 : 2 * r; /* a row, or its two ends */
+        for (int64_t jj = cj - r; jj <= cj + r; jj += step) {
+            if (jj < 0 || jj >= ny) continue;
+            int64_t c = (ii * ny + jj) * nz + ck;
+            __builtin_prefetch(wide ? (const void *)((const int64_t *)start + c)
+                                    : (const void *)((const int32_t *)start + c));
+        }
+    }
+}
+
+/* The column search of _knn_mean_rows for point i (best: k1 doubles of scratch): the k1
+ * smallest squared distances to the points of the cube of rings 0 .. max_rings around p's cell,
+ * then the ring search's stop test after ring max_rings. */
+INLINE void column_point(const double *X, int64_t rs, int64_t cs, const void *start, int wide,
+                         const double *lo, double h, int64_t nx, int64_t ny, int64_t nz,
+                         int64_t k1, int64_t max_rings, int64_t i, double *out, int64_t os,
+                         double *best) {
+    const double *p = X + i * rs;
+    double px = p[0], py = p[cs], pz = p[2 * cs];
+    int64_t ci = imin(imax((int64_t)((px - lo[0]) / h), 0), nx - 1);
+    int64_t cj = imin(imax((int64_t)((py - lo[1]) / h), 0), ny - 1);
+    int64_t ck = imin(imax((int64_t)((pz - lo[2]) / h), 0), nz - 1);
+    int64_t zmin = imax(ck - max_rings, 0), zmax = imin(ck + max_rings, nz - 1);
+    double ih = 1.0 / h, zp = (pz - lo[2]) * ih; /* z in cells (the run's first guess) */
+    for (int64_t t = 0; t < k1; t++) best[t] = INFINITY;
+    for (int64_t r = 0; r <= max_rings; r++) {
+        if (r < max_rings) /* ring r + 1's row starts, fetched from memory meanwhile */
+            prefetch_ring(start, wide, ci, cj, ck, r + 1, nx, ny, nz);
+        /* the columns of square ring r, centre out */
+        for (int64_t qi = 0; qi < 2 * r + 1; qi++) {
+            int64_t di = centre_out(qi);
+            int64_t ii = ci + di;
+            if (ii < 0 || ii >= nx) continue;
+            double ex = box_gap(px, lo[0], ii, h);
+            if (ex * ex > best[k1 - 1]) continue;
+            int edge = iabs(di) == r; /* a whole row of the ring, else its two ends */
+            int64_t nq = edge ? 2 * r + 1 : 2;
+            for (int64_t qj = 0; qj < nq; qj++) {
+                int64_t dj = edge ? centre_out(qj) : (qj ? r : -r);
+                int64_t jj = cj + dj;
+                if (jj < 0 || jj >= ny) continue;
+                double ey = box_gap(py, lo[1], jj, h);
+                double exy = ex * ex + ey * ey;
+                double b = best[k1 - 1];
+                if (exy > b) continue;
+                /* the column's cells within the cube and not farther than the best: one run of
+                 * points (cells are sorted z fastest) */
+                int64_t k0 = zmin, k9 = zmax;
+                if (b < INFINITY) {
+                    double s = sqrt(b - exy);
+                    double t0 = zp - s * ih, t9 = zp + s * ih;
+                    if (t0 > (double)zmin) k0 = t0 < (double)zmax ? (int64_t)t0 : zmax;
+                    if (t9 < (double)zmax) k9 = t9 > (double)zmin ? (int64_t)t9 : zmin;
+                    while (k0 > zmin) { /* one cell more where rounding cut it */
+                        double ez = box_gap(pz, lo[2], k0 - 1, h);
+                        if (exy + ez * ez > b) break;
+                        k0--;
+                    }
+                    while (k9 < zmax) {
+                        double ez = box_gap(pz, lo[2], k9 + 1, h);
+                        if (exy + ez * ez > b) break;
+                        k9++;
+                    }
+                }
+                int64_t c = (ii * ny + jj) * nz;
+                offer(X, rs, cs, geti(start, wide, c + k0), geti(start, wide, c + k9 + 1), px, py,
+                      pz, best, k1);
+            }
+        }
+        if (r == max_rings) break;
+        /* every point of the cube not seen is outside the square of columns 0 .. r */
+        double bxy = pmax(unseen_xy(px, py, ci, cj, r, lo, h, nx, ny), 0.0);
+        if (bxy == INFINITY || best[k1 - 1] <= bxy * bxy) break;
+    }
+    if (!resolved(best, k1, unseen(px, py, pz, ci, cj, ck, max_rings, lo, h, nx, ny, nz), out,
+                  os, i))
+        out[i * os] = NAN; /* far from the others: left to the caller's k-d tree */
+}
+
+/* _knn_mean_rows: the ring search's result (knn_mean) for the points rows[0 .. m-1] (k1 >= 2),
+ * found by columns. 0 when the scratch cannot be had. */
 int knn_mean_rows(const double *X, int64_t rs, int64_t cs, const void *start, int64_t wide,
                   const double *lo, double h, int64_t nx, int64_t ny, int64_t nz, int64_t k1,
                   int64_t max_rings, const int64_t *rows, int64_t m, double *out, int64_t os) {
     double *best = malloc((size_t)(k1 > 0 ? k1 : 1) * sizeof(double));
     if (best == NULL) return 0;
-    if (wide)
-        ring_range(X, rs, cs, start, 1, lo, h, nx, ny, nz, k1, max_rings, rows, 0, m, out, os,
-                   best);
-    else
-        ring_range(X, rs, cs, start, 0, lo, h, nx, ny, nz, k1, max_rings, rows, 0, m, out, os,
-                   best);
+    for (int64_t q = 0; q < m; q++) {
+        if (k1 == 9 && !wide) /* the default k, compiled for its k1 and int32 row starts */
+            column_point(X, rs, cs, start, 0, lo, h, nx, ny, nz, 9, max_rings, rows[q], out, os,
+                         best);
+        else if (wide)
+            column_point(X, rs, cs, start, 1, lo, h, nx, ny, nz, k1, max_rings, rows[q], out, os,
+                         best);
+        else
+            column_point(X, rs, cs, start, 0, lo, h, nx, ny, nz, k1, max_rings, rows[q], out, os,
+                         best);
+    }
     free(best);
     return 1;
 }

@@ -11,23 +11,35 @@ filter queries scipy's ``cKDTree``, which gives the same neighbours.
 Algorithm (exact, the same idea as :mod:`roboisf.parts.mesh_kernel`):
 
 1. a uniform grid of cubic cells of side ``h`` over the points' bounding box, points sorted by
-   cell (compressed rows ``start``); ``h`` is chosen for a few times ``k`` points per occupied
-   cell (a scan is a surface: points per cell grow as h²), with at most :data:`MAX_CELLS` cells;
-2. per point ``p``, cells in Chebyshev rings ``R = 0, 1, …`` around its cell; a cell farther
-   than the current (k+1)-th nearest squared distance is skipped; the k+1 smallest squared
-   distances (the point itself included, as ``cKDTree.query(X, k + 1)``) are kept sorted;
+   cell (compressed rows ``start``; z fastest, so a column's cells are one run of rows); ``h``
+   is chosen for a few times ``k`` points per occupied cell (a scan is a surface: points per
+   cell grow as h²), with at most :data:`MAX_CELLS` cells;
+2. the ring search (:func:`_knn_mean`): per point ``p``, cells in Chebyshev rings
+   ``R = 0, 1, …`` around its cell; a cell farther than the current (k+1)-th nearest squared
+   distance is skipped; the k+1 smallest squared distances (the point itself included, as
+   ``cKDTree.query(X, k + 1)``) are kept sorted;
 3. after ring ``R`` every point not yet seen lies outside the cube of rings ``0..R``, at least
    the distance from ``p`` to that cube's faces inside the grid away: the search stops when the
-   (k+1)-th distance is not larger;
-4. a point not resolved within :data:`MAX_RINGS` rings (far from the rest: a stray point, a
-   sparse line) gets a second ring search, as wide as :data:`FAR_CELLS` allows for all such
-   points together (:func:`_far_rings`: 34 rings for 30 of them, 21 for 120); what is still
-   unresolved is finished by scipy's k-d tree over all points (built only then: 0.25–0.5 s on
-   the paper cone's 1.7 M points, which the ~120 strays of each of its scans used to cost).
+   (k+1)-th distance is not larger; beyond ``max_rings`` rings it gives up (NaN). For the
+   default k = 8 the block search (:func:`_knn_mean_block9`) does rings 0 and 1 of every point
+   at once, query cell by query cell, and leaves NaN what they do not settle;
+4. the points left (~1 % of a scan: a sparse halo of scanner points, each alone in its cell,
+   their 9th neighbour 2–7 cells away) get the ring search's result with :data:`MAX_RINGS`
+   rings from the column search (:func:`_knn_mean_rows`: the k+1 nearest in the same cube, by
+   runs of a column's cells, ~R² columns instead of ~R³ cells), in parts in the threads;
+5. a point not resolved within :data:`MAX_RINGS` rings (far from the rest: a stray point, a
+   sparse line) gets the column search again with as many rings as :data:`FAR_CELLS` allows
+   for all such points together (:func:`_far_rings`: 8 rings for the paper cone's ~1,500 per
+   scan, 34 for 30 of them); what is still unresolved is finished by scipy's k-d tree over all
+   points (built only then: 0.25–0.5 s on the paper cone's 1.7 M points).
+
+The paper cone's scan without its rim (1.26 M wall points, one thread, 2026-11-29): block search
+0.36 s; the ~12 k points it leaves 0.042 s and the ~1.5 k strays 0.013 s by columns, against
+0.085 s and 0.048 s by the ring search (per stray one call) before.
 
 Squared distances are summed x, y, z as scipy does, so the neighbour distances are the same
-numbers; their mean may differ from numpy's pairwise sum in the last bit. The kernel is serial
-and releases the GIL: :func:`mean_knn_distance` runs it on chunks in several threads.
+numbers; their mean may differ from numpy's pairwise sum in the last bit. The kernels are
+serial and release the GIL: :func:`mean_knn_distance` runs them on chunks in several threads.
 """
 
 from __future__ import annotations
@@ -35,6 +47,7 @@ from __future__ import annotations
 import ctypes
 import math
 import os
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
@@ -51,8 +64,11 @@ __all__ = ["HAVE_NUMBA", "mean_knn_distance", "mean_knn_distance_held"]
 if HAVE_NUMBA:
     compile_notice(__file__)  # numba compiles these on first call: say so once
 
-#: Rings searched before a point is left to a k-d tree (the ring search grows as R³ far from
-#: the cloud: a stray point 0.5 m from a scan with 0.4 mm cells would need 10⁹ cells).
+#: Rings searched before a point is left to the wider search of the strays (:func:`_far_rings`)
+#: and then to a k-d tree (the ring search grows as R³ far from the cloud, the column search as
+#: R²: a stray point 0.5 m from a scan with 0.4 mm cells would need 10⁹ cells, 10⁶ columns). It
+#: fixes which points the k-d tree gets (whose mean of the k distances, numpy's, may differ in
+#: the last bit): the column search keeps it, and so the numbers.
 MAX_RINGS = 6
 
 #: Largest number of grid cells (int32 row starts, transient: ≤ 64 MB, summed in place from
@@ -262,8 +278,9 @@ def _knn_mean_block9_nb(
     (registers) by the branch-free ``b[t] = min(b[t], max(b[t − 1], d²))`` — the array an
     insertion sort gives, value for value. The stop test after the block is the ring search's
     after ring 1; a point it does not settle (its ninth distance beyond the block's faces) is
-    left NaN here and finished by the ring search after every cell (:func:`_knn_mean_rows`:
-    ~11–12 k of the paper cone's 1.26 M; calling it from this loop made the loop 1.4× slower).
+    left NaN here and finished after every cell by the column search (:func:`_knn_mean_rows`:
+    ~11–12 k of the paper cone's 1.26 M; calling the ring search from this loop made the loop
+    1.4× slower).
     Same bits as the ring search: the nine smallest of a set that holds every point nearer
     than the block's faces.
 
@@ -273,6 +290,8 @@ def _knn_mean_block9_nb(
     1.26 M wall points (2026-11-29): this kernel 0.42–0.46 s plus 0.10 s of ring search for the
     ~11–12 k points it leaves (the scan's strays), against 0.57–0.59 s for ``_knn_mean_cells9``
     (pruned, the ring search called inside); :func:`mean_knn_distance` 0.66–0.68 → 0.58–0.59 s.
+    (Since the column search, the points it leaves take 0.04 s.) Tried and no faster
+    (2026-11-29): testing four distances at once against the ninth before the merge (0.39 s both).
     Any other k runs the ring search (the same neighbours)."""
     k1 = 9
     cap = 4096
@@ -337,6 +356,31 @@ def _knn_mean_block9_nb(
                 out[i] = np.nan  # for the ring search (_knn_mean_rows), after every cell
 
 
+@_inline()
+def _unseen_xy(
+    px: float, py: float, ci: int, cj: int, r: int, lo: F64, h: float, nx: int, ny: int
+) -> float:  # pragma: no cover - compiled
+    """How far every point outside the square of columns ``0 … r`` around column ``(ci, cj)``
+    is from ``p`` at least: the distance to the square's x and y faces inside the grid (inf: no
+    such face)."""
+    bound = np.inf
+    if ci - r > 0:
+        bound = min(bound, px - (lo[0] + (ci - r) * h))
+    if ci + r < nx - 1:
+        bound = min(bound, lo[0] + (ci + r + 1) * h - px)
+    if cj - r > 0:
+        bound = min(bound, py - (lo[1] + (cj - r) * h))
+    if cj + r < ny - 1:
+        bound = min(bound, lo[1] + (cj + r + 1) * h - py)
+    return bound
+
+
+@_inline()
+def _box_gap(x: float, lo: float, i: int, h: float) -> float:  # pragma: no cover - compiled
+    """The distance from coordinate ``x`` to the cell ``[lo + i h, lo + (i + 1) h]`` of an axis."""
+    return max(lo + i * h - x, 0.0, x - (lo + (i + 1) * h))
+
+
 @_njit()
 def _knn_mean_rows_nb(
     X: F64,
@@ -351,9 +395,92 @@ def _knn_mean_rows_nb(
     rows: NDArray[np.int64],
     out: F64,
 ) -> None:  # pragma: no cover - compiled
-    """:func:`_knn_mean` of the points ``rows`` only (those the block search left NaN)."""
+    """:func:`_knn_mean` of the points ``rows`` (those the block search leaves NaN, the strays
+    beyond it), the same numbers found by columns instead of cells.
+
+    The ring search with ``max_rings`` resolves a point iff the ``k1`` smallest squared
+    distances among the points of the cube of rings ``0 … max_rings`` around its cell have the
+    ``k1``-th within the cube's unseen bound (:func:`_unseen`; the nearest of a smaller cube
+    within its smaller bound are those of the larger cube within the larger bound), and then
+    gives their mean. So this kernel finds the ``k1`` smallest of that cube and makes the same
+    test once. It walks the cube's columns (all cells of one x, y) in square rings centre out:
+    cells are sorted z fastest, so the cells of a column between two heights are one run of
+    rows — two row starts for the whole run where the ring search looks at each cell. A column
+    farther in x, y than the ``k1``-th distance so far is skipped, and of the others only the
+    cells within that distance in z are offered (the ring search's pruning, by runs). After
+    square ring ``r`` every point of the cube not yet seen lies outside the square, at least
+    :func:`_unseen_xy` away: when the ``k1``-th distance is not larger, the cube has no nearer
+    point and the walk stops. A point ``R`` cells from the nearest others costs ~R² columns
+    instead of the ring search's ~R³ cells. Same bits as :func:`_knn_mean_nb`: the same
+    smallest squared distances (x, y, z summed as scipy does) and the same mean of their roots.
+    """
+    best = np.empty(k1)
     for i in rows:
-        _knn_mean_nb(X, start, lo, h, nx, ny, nz, k1, max_rings, i, i + 1, out)
+        px, py, pz = X[i, 0], X[i, 1], X[i, 2]
+        ci = min(max(int((px - lo[0]) / h), 0), nx - 1)
+        cj = min(max(int((py - lo[1]) / h), 0), ny - 1)
+        ck = min(max(int((pz - lo[2]) / h), 0), nz - 1)
+        zmin, zmax = max(ck - max_rings, 0), min(ck + max_rings, nz - 1)
+        ih = 1.0 / h
+        zp = (pz - lo[2]) * ih  # z in cells (a run's first guess)
+        for t in range(k1):
+            best[t] = np.inf
+        for r in range(max_rings + 1):
+            for qi in range(2 * r + 1):  # the columns of square ring r, centre out
+                di = (qi + 1) // 2 * (1 if qi % 2 == 0 else -1)
+                ii = ci + di
+                if ii < 0 or ii >= nx:
+                    continue
+                ex = _box_gap(px, lo[0], ii, h)
+                if ex * ex > best[k1 - 1]:
+                    continue
+                edge = abs(di) == r  # a whole row of the ring, else its two ends
+                for qj in range(2 * r + 1 if edge else 2):
+                    if edge:
+                        dj = (qj + 1) // 2 * (1 if qj % 2 == 0 else -1)
+                    else:
+                        dj = r if qj else -r
+                    jj = cj + dj
+                    if jj < 0 or jj >= ny:
+                        continue
+                    ey = _box_gap(py, lo[1], jj, h)
+                    exy = ex * ex + ey * ey
+                    b = best[k1 - 1]
+                    if exy > b:
+                        continue
+                    # the column's cells within the cube and not farther than the best: one
+                    # run of rows (cells are sorted z fastest)
+                    k0, k9 = zmin, zmax
+                    if b < np.inf:
+                        s = math.sqrt(b - exy)
+                        t0 = zp - s * ih
+                        t9 = zp + s * ih
+                        if t0 > zmin:
+                            k0 = int(t0) if t0 < zmax else zmax
+                        if t9 < zmax:
+                            k9 = int(t9) if t9 > zmin else zmin
+                        while k0 > zmin:  # one cell more where rounding cut it
+                            ez = _box_gap(pz, lo[2], k0 - 1, h)
+                            if exy + ez * ez > b:
+                                break
+                            k0 -= 1
+                        while k9 < zmax:
+                            ez = _box_gap(pz, lo[2], k9 + 1, h)
+                            if exy + ez * ez > b:
+                                break
+                            k9 += 1
+                    c = (ii * ny + jj) * nz
+                    _offer(X, start[c + k0], start[c + k9 + 1], px, py, pz, best, k1)
+            if r == max_rings:
+                break
+            # every point of the cube not seen is outside the square of columns 0..r
+            bxy = max(_unseen_xy(px, py, ci, cj, r, lo, h, nx, ny), 0.0)
+            if bxy == np.inf or best[k1 - 1] <= bxy * bxy:
+                break
+        if not _resolved(
+            best, k1, _unseen(px, py, pz, ci, cj, ck, max_rings, lo, h, nx, ny, nz), out, i
+        ):
+            out[i] = np.nan  # far from the others: left to the caller's k-d tree
 
 
 def _counting_sort(key: NDArray[Any], start: NDArray[Any]) -> NDArray[Any]:
@@ -525,7 +652,9 @@ def _knn_mean_rows(
     rows: NDArray[np.int64],
     out: F64,
 ) -> None:
-    """The ring search of the points ``rows`` only (:func:`_knn_mean_rows_nb`)."""
+    """The ring search's result for the points ``rows`` only, found by columns
+    (:func:`_knn_mean_rows_nb`): ``out[i]`` their mean distance to their ``k1 − 1`` nearest, NaN
+    beyond ``max_rings``, the numbers of :func:`_knn_mean`."""
     lib = _c()
     if lib is None:
         _knn_mean_rows_nb(X, start, lo, h, nx, ny, nz, k1, max_rings, rows, out)
@@ -675,11 +804,13 @@ def _grid(
     return lo, h, (shape[0], shape[1], shape[2]), key, start
 
 
-#: Grid cells the second ring search may visit in all, over every point the first left
-#: unresolved (:func:`_far_rings`): when it resolves none of them (strays farther than its
-#: rings), the k-d tree is built after it all the same — at 3e7 cells that cost up to 0.2 s on
-#: 1.5 M points with 1000 strays, at 1e7 within the run-to-run noise (±0.1 s); when it does
-#: (the paper cone's ~120 strays per scan), it saves the tree's 0.25–0.5 s.
+#: Grid cells the second search's cubes may hold in all, over every point the first left
+#: unresolved (:func:`_far_rings`). Chosen for the ring search, which visited them (at 3e7
+#: cells its misses cost up to 0.2 s on 1.5 M points with 1000 strays before the k-d tree was
+#: built all the same; at 1e7 within the noise); the column search visits ~(2R + 1)² columns
+#: of a cube of (2R + 1)³ cells, far less, but the rings it gives fix which points the k-d tree
+#: gets — and so the last bit of their means — and are kept. The paper cone's ~1,500 strays per
+#: scan get 8 rings and are all resolved (0.013 s), saving the tree's 0.25–0.5 s.
 FAR_CELLS = 10_000_000
 
 
@@ -688,6 +819,17 @@ def _far_rings(n_far: int) -> int:
     cubes of (2R + 1)³ cells of them all stay within :data:`FAR_CELLS` (at most 128)."""
     side = (FAR_CELLS / max(n_far, 1)) ** (1.0 / 3.0)
     return int(min(128, max(0, (side - 1.0) // 2.0)))
+
+
+def _each(f: Callable[[Any], None], items: Sequence[Any], threads: int) -> None:
+    """``f(item)`` for every item, in up to ``threads`` threads (the kernels release the GIL)."""
+    nw = max(1, min(threads, len(items)))
+    if nw == 1:
+        for it in items:
+            f(it)
+    else:
+        with ThreadPoolExecutor(max_workers=nw) as pool:
+            list(pool.map(f, items))
 
 
 def _sorted_mean(
@@ -699,7 +841,13 @@ def _sorted_mean(
     k: int,
     workers: int | None,
 ) -> F64:
-    """Mean k-NN distance of the points ``Xs`` sorted by cell (grid ``start``), their order."""
+    """Mean k-NN distance of the points ``Xs`` sorted by cell (grid ``start``), their order.
+
+    The block search (k = 8) or the ring search over chunks of whole cells in the threads; the
+    column search of what they leave, with :data:`MAX_RINGS` rings, then of what that leaves
+    with :func:`_far_rings` rings, each in parts in the threads (it used to run serially, one
+    call per stray in the second: 0.13 s of the paper cone's 0.55 s on one thread, now 0.055 s);
+    the k-d tree for the rest."""
     n = Xs.shape[0]
     nx, ny, nz = shape
     ms = np.empty(n)
@@ -710,7 +858,7 @@ def _sorted_mean(
     cuts = np.searchsorted(start, np.arange(chunk, n, chunk, dtype=start.dtype), side="right") - 1
     edges = np.unique(np.concatenate(([0], cuts, [start.size - 1])))
     spans = list(zip(edges[:-1].tolist(), edges[1:].tolist(), strict=True))
-    nw = max(1, min(workers or os.cpu_count() or 1, len(spans)))
+    threads = workers or os.cpu_count() or 1
 
     def run(span: tuple[int, int]) -> None:
         if k == 8:  # the default: the nine nearest in registers, query cell by query cell
@@ -719,22 +867,24 @@ def _sorted_mean(
             a, b = int(start[span[0]]), int(start[span[1]])
             _knn_mean(Xs, start, lo, h, nx, ny, nz, k + 1, MAX_RINGS, a, b, ms)
 
-    if nw == 1:
-        for sp in spans:
-            run(sp)
-    else:
-        with ThreadPoolExecutor(max_workers=nw) as pool:
-            list(pool.map(run, spans))
+    def rows(far: NDArray[np.int64], rings: int) -> NDArray[np.int64]:
+        """The ring search's result for the points ``far`` (found by columns), in parts in the
+        threads; those it leaves NaN."""
+
+        def part(p: NDArray[np.int64]) -> None:
+            _knn_mean_rows(Xs, start, lo, h, nx, ny, nz, k + 1, rings, p, ms)
+
+        _each(part, np.array_split(far, min(-(-far.size // 256), 4 * threads)), threads)
+        return far[np.isnan(ms[far])]
+
+    _each(run, spans, threads)
     far = np.flatnonzero(np.isnan(ms))
-    if far.size and k == 8:  # not settled by the block: the ring search, as for any other k
-        _knn_mean_rows(Xs, start, lo, h, nx, ny, nz, k + 1, MAX_RINGS, far, ms)
-        far = far[np.isnan(ms[far])]
+    if far.size and k == 8:  # not settled by the block: the ring search's result, as for any k
+        far = rows(far, MAX_RINGS)
     if far.size:  # points far from every other (stray scanner points): more rings first
         rings = _far_rings(far.size)
         if rings > MAX_RINGS:
-            for i in far.tolist():
-                _knn_mean(Xs, start, lo, h, nx, ny, nz, k + 1, rings, i, i + 1, ms)
-            far = far[np.isnan(ms[far])]
+            far = rows(far, rings)
     if far.size:  # still unresolved (farther still): a k-d tree over all points finishes them
         from scipy.spatial import cKDTree
 
