@@ -1,7 +1,9 @@
 """The toolpath statistics' C form (src/roboisf/scan/toolpath_kernel.c) against its numba form,
 bit for bit: the contacts' neighbourhood statistics (median, trimmed mean, MAD, counts) and the
-grid passes they start with (cell keys, counting sort), on a synthetic cone scan, on lattices of
-ties, and on the edge cases the kernel has special paths for."""
+column-compact grid they start with, on a synthetic cone scan, on lattices of ties, and on the
+edge cases the kernel has special paths for; the compact grid against knn_kernel's whole grid,
+the sorting network and the value quickselect against numpy, the statistics against a numpy
+oracle, and the same numbers whatever order the contacts are taken in."""
 
 from __future__ import annotations
 
@@ -10,7 +12,7 @@ import pytest
 
 from native_forms import c_library, numba_form, same_bits
 from roboisf.parts import Cone
-from roboisf.scan import point_deviations, radial_offset, synthetic_scan
+from roboisf.scan import knn_kernel, point_deviations, radial_offset, synthetic_scan
 from roboisf.scan import toolpath_kernel as tk
 from roboisf.toolpath import step_down
 
@@ -206,17 +208,173 @@ def test_int64_grid_c_equals_numba(cone_dev):
     assert (a64[0] == 16).any()
 
 
-def test_c_refuses_a_non_finite_foot():
-    """A NaN foot has no cell (numba's kernel writes outside its arrays): a ValueError in C
-    (knn_kernel's grid pass, which this module's grid goes through; its equality with numba is
-    tests/test_native_knn.py's)."""
-    from roboisf.scan import knn_kernel
-
-    c_library(knn_kernel)
+def test_grid_refuses_a_non_finite_foot():
+    """A NaN foot has no cell: a ValueError in both forms (numba's knn_kernel pass wrote outside
+    its arrays there)."""
+    lib = c_library(tk)
     feet = np.random.default_rng(0).uniform(0, 1e-2, (100, 3))
-    lo, h, (nx, ny, nz) = _grid_args(feet, 1e-3)
-    feet[50, 1] = np.nan
-    key = np.empty(100, dtype=np.int32)
-    counts = np.zeros(nx * ny * nz, dtype=np.int32)
-    with pytest.raises(ValueError, match="non-finite"):
-        knn_kernel._cell_keys(feet, tk._NO_ROWS, lo, h, nx, ny, nz, key, counts)
+    lo, h, shape = _grid_args(feet, 1e-3)
+    for bad in (np.nan, -np.inf):
+        f = feet.copy()
+        f[50, 1] = bad
+        with pytest.raises(ValueError, match="non-finite"):
+            tk._grid(lib, f, lo, h, shape, np.int32)
+        with numba_form(TK, KNN), pytest.raises(ValueError, match="non-finite"):
+            tk._grid(None, f, lo, h, shape, np.int32)
+
+
+def _dense_grid(feet, lo, h, shape):
+    """knn_kernel's whole grid of the feet (every cell's row start) and its permutation: the
+    grid contact_statistics used before the compact one."""
+    nx, ny, nz = shape
+    key = np.empty(len(feet), dtype=np.int32)
+    start = np.zeros(nx * ny * nz + 1, dtype=np.int32)
+    knn_kernel._cell_keys(feet, tk._NO_ROWS, lo, h, nx, ny, nz, key, start[1:])
+    np.cumsum(start, out=start)
+    return knn_kernel._counting_sort(key, start), start
+
+
+def _two_planes(n=20_000, seed=2):
+    """Feet on two horizontal planes 3 mm apart, and a sloped strip between them: columns
+    whose occupied cells have empty cells between them (their compact range spans those)."""
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(0.0, 0.02, (n, 2))
+    z = np.where(rng.random(n) < 0.5, 0.0, 3e-3) + rng.normal(0.0, 2e-5, n)
+    strip = rng.random(n) < 0.1
+    z[strip] = 0.15 * xy[strip, 0]
+    return np.column_stack([xy, z]), rng.normal(0.0, 1e-4, n)
+
+
+@pytest.mark.parametrize("case", ["cone", "planes"])
+def test_compact_grid_is_the_dense_grid(cone_dev, case):
+    """The compact grid (C and numba, int32 and int64) holds knn_kernel's whole grid: the same
+    permutation, and each column's row starts between its first and last occupied cell, empty
+    cells outside them."""
+    lib = c_library(tk)
+    feet = cone_dev[0] if case == "cone" else _two_planes()[0]
+    lo, h, shape = _grid_args(feet, 2e-3)
+    nx, ny, nz = shape
+    order_d, start_d = _dense_grid(feet, lo, h, shape)
+    got = tk._grid(lib, feet, lo, h, shape, np.int32)
+    with numba_form(TK, KNN):
+        want = tk._grid(None, feet, lo, h, shape, np.int32)
+    same_bits(got, want)
+    same_bits(tk._grid(lib, feet, lo, h, shape, np.int64), tuple(a.astype(np.int64) if i < 2
+              else a for i, a in enumerate(got)))  # fmt: skip
+    order, start, kmin, cbase = got
+    assert np.array_equal(order, order_d)
+    span = np.diff(cbase)
+    assert start.size == cbase[-1] + 1 <= start_d.size
+    counts_d = np.diff(start_d).reshape(nx * ny, nz)
+    counts = np.diff(start)
+    gaps = 0
+    for c in np.flatnonzero(span):  # the occupied columns: the same counts in their range
+        k0 = kmin[c]
+        row = counts_d[c]
+        assert np.array_equal(counts[cbase[c] : cbase[c + 1]], row[k0 : k0 + span[c]])
+        assert row[:k0].sum() == 0 and row[k0 + span[c] :].sum() == 0
+        assert row[k0] > 0 and row[k0 + span[c] - 1] > 0
+        gaps += int((row[k0 : k0 + span[c]] == 0).sum())
+    assert counts_d[span == 0].sum() == 0  # the empty columns
+    if case == "planes":
+        assert gaps > 0  # columns with empty cells between their occupied ones
+    else:
+        assert start.size < start_d.size / 10  # a shell: most cells of its box are empty
+
+
+def _oracle(feet, dn, P, radius, k, trim):
+    """The statistics by numpy, one contact at a time: the k nearest feet within the radius
+    (brute force), their dn sorted by np.sort, the median, the trimmed mean by the sequential
+    prefix sum and the MAD — for data without ties and without ±0 (the same bits then)."""
+    M = len(P)
+    cnt, med, trimmed, mad = np.zeros(M, np.int64), np.zeros(M), np.zeros(M), np.zeros(M)
+    for i, p in enumerate(P):
+        d2 = ((feet - p) ** 2).sum(axis=1)
+        near = np.flatnonzero(d2 < radius * radius)
+        sel = near[np.argsort(d2[near])[:k]]
+        c = len(sel)
+        vv = np.zeros(k)
+        vv[:c] = np.sort(dn[sel])
+        cc = max(c, 1)
+        lo_mid, hi_mid = (cc - 1) // 2, cc // 2
+        md = 0.5 * (vv[lo_mid] + vv[hi_mid])
+        cut = int(np.floor(cc * trim))
+        cs = np.concatenate([[0.0], np.cumsum(vv)])
+        trimmed[i] = (cs[cc - cut] - cs[cut]) / max(cc - 2 * cut, 1)
+        a = np.sort(np.abs(vv[:c] - md))
+        mad[i] = 0.5 * (a[lo_mid] + a[hi_mid]) if c else 0.0
+        cnt[i], med[i] = c, md
+    return cnt, med, trimmed, mad
+
+
+@pytest.mark.parametrize(("k", "trim"), [(64, 0.2), (37, 0.1), (5, 0.2)])
+def test_planes_c_equals_numba_and_numpy(k, trim):
+    """Contacts over the two planes and the strip (columns with gaps; the balls of 2 mm reach
+    both planes): C, numba, the whole ball only, and the numpy oracle agree bit for bit —
+    partial, full (k of more) and empty neighbourhoods, k a power of two or not (the sorting
+    network's padding)."""
+    feet, dn = _two_planes()
+    rng = np.random.default_rng(4)
+    P = np.column_stack([rng.uniform(-0.002, 0.022, (600, 2)), rng.uniform(0.0, 3e-3, 600)])
+    a = _both(feet, dn, P, radius=2e-3, k=k, trim=trim)
+    _same(a, _both(feet, dn, P, radius=2e-3, k=k, trim=trim, widen=0.0))
+    _same(a, _oracle(feet, dn, P, 2e-3, k, trim))
+    cnt = a[0]
+    assert (cnt == k).any() and ((cnt > 0) & (cnt < k)).any() and (cnt == 0).any()
+
+
+def test_sorting_network_and_value_quickselect_against_numpy():
+    """The sorting network and the quickselect on values, C and numba: np.sort's values and its
+    k-th, for sizes around powers of two, duplicates, ±inf. (A wrong k-th would not show in
+    the statistics, only in their time: the tie check sends the contact to the whole ball.)"""
+    lib = c_library(tk)
+    rng = np.random.default_rng(11)
+    for n in (1, 2, 3, 4, 5, 7, 8, 9, 16, 31, 33, 64, 65, 100, 128, 200):
+        for kind in ("normal", "few", "inf"):
+            if kind == "normal":
+                x = rng.normal(0.0, 1.0, n)
+            elif kind == "few":
+                x = rng.integers(1, 4, n) * 0.5  # many duplicates
+            else:
+                x = rng.normal(0.0, 1.0, n)
+                x[rng.random(n) < 0.2] = np.inf
+                x[rng.random(n) < 0.1] = -np.inf
+            n2 = 1 << (n - 1).bit_length()
+            xs = np.sort(x)
+            for form in ("c", "numba"):
+                out = np.full(n, np.nan)
+                xbuf = np.empty(n2)  # (held: C writes it)
+                if form == "c":
+                    lib.sort_values(x.ctypes.data, out.ctypes.data, xbuf.ctypes.data, n, n2)
+                else:
+                    tk._bitonic(x.copy(), out, xbuf, n, n2)
+                same_bits(out, xs)
+            for k in sorted({1, 2, n // 2, n // 2 + 1, n - 1, n} - {0}):
+                if k > n:
+                    continue
+                d = x.copy()
+                a, b = np.empty(n), np.empty(n)
+                got_c = lib.kth_value(d.ctypes.data, n, k, a.ctypes.data, b.ctypes.data)
+                got_nb = tk._kth_smallest(d, n, k, a, b)
+                assert got_c == got_nb == xs[k - 1]
+                assert np.array_equal(d, x)  # d is not touched
+
+
+def test_contact_order_does_not_change_the_numbers(cone_dev, monkeypatch):
+    """The contacts are taken in Z-order; in their own order, or reversed, the numbers are the
+    same (each contact's are its own), in C and in numba."""
+    feet, dn = cone_dev
+    tp = step_down(CONE, 5e-3, 1e-3, spacing=2e-3)
+    P = np.vstack([tp.contact, [[np.nan, 0.0, 0.0], [1e30, 0.0, 0.0]], tp.contact[::7]])
+    lo = tk._bounds(feet, tk._NO_ROWS)[0]
+    perm = tk._contact_order(P, lo, 0.2)
+    assert np.array_equal(np.sort(perm), np.arange(len(P)))
+    assert not np.array_equal(perm, np.arange(len(P)))  # a real reordering
+    kw = dict(radius=1e-3, k=16, trim=0.2)
+    a = _both(feet, dn, P, **kw)
+    for other in (
+        lambda P, lo, span: np.arange(len(P)),
+        lambda P, lo, span: np.arange(len(P))[::-1],
+    ):
+        monkeypatch.setattr(tk, "_contact_order", other)
+        _same(a, _both(feet, dn, P, **kw))

@@ -1,15 +1,17 @@
-/* C form of roboisf.scan.toolpath_kernel (the numba kernels that toolpath_kernel.py calls,
- * its grid's passes are knn_kernel's, in knn_kernel.c), loaded with ctypes by
+/* C form of roboisf.scan.toolpath_kernel (the numba kernels that toolpath_kernel.py calls; the
+ * counting sort of its grid is knn_kernel's, in knn_kernel.c), loaded with ctypes by
  * roboisf.jit.native: the same arithmetic in the same order, so the same bits
  * (tests/test_native_toolpath.py). Arrays are C-contiguous (the Python side makes them so);
- * the grid's cell keys, row starts and permutation are int32 below 2^31 feet, else int64:
- * the functions take a flag `wide` (0: int32, 1: int64), specialised by inlining. Built by
- * pip install with the flags of roboisf.jit.native.CFLAGS (no fused multiply-add, no
- * fast-math).
+ * the grid's keys, row starts and permutation are int32 below 2^31 feet, else int64: the
+ * functions take a flag `wide` (0: int32, 1: int64), specialised by inlining; its columns'
+ * first cells and compact row offsets are int32 (cells < 2^31). Built by pip install with the
+ * flags of roboisf.jit.native.CFLAGS (no fused multiply-add, no fast-math).
  *
  * numba's semantics reproduced: max(a, b) is (b > a ? b : a), min(a, b) is (b < a ? b : a),
  * 3-argument max is max(max(a, b), c); int(x) and math.floor(x) of a float convert as x86's
- * cvttsd2si does (numba's fptosi there): an out-of-range or NaN value gives INT64_MIN. */
+ * cvttsd2si does (numba's fptosi there): an out-of-range or NaN value gives INT64_MIN. The
+ * sorting network's minima and maxima are selects of values without NaN and ±0, whose sorted
+ * bits are unique: any correct sort gives them. */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <math.h>
@@ -46,11 +48,62 @@ INLINE void seti(void *a, int64_t i, int64_t v, int wide) {
         ((int32_t *)a)[i] = (int32_t)v;
 }
 
+/* ---- the grid of the feet (toolpath_kernel._grid_columns, _grid_keys) ---------------------- */
+
+/* _grid_columns: the cell (ci, cj, ck) of every foot of F (n, 3) as knn_kernel's cell_keys
+ * finds it, its column ci * ny + cj in col and ck in kz (n each), the lowest and the highest
+ * ck of each column (nx * ny) lowered into kmin and raised into kmax. 0, or -1 when a foot has
+ * no cell (not finite; numba's kernel says so too). */
+INLINE int64_t grid_columns_t(const double *F, int64_t n, const double *lo, double h,
+                              int64_t nx, int64_t ny, int64_t nz, void *col, void *kz,
+                              int32_t *kmin, int32_t *kmax, int wide) {
+    for (int64_t i = 0; i < n; i++) {
+        const double *p = F + 3 * i;
+        int64_t ci = imin(f2i((p[0] - lo[0]) / h), nx - 1);
+        int64_t cj = imin(f2i((p[1] - lo[1]) / h), ny - 1);
+        int64_t ck = imin(f2i((p[2] - lo[2]) / h), nz - 1);
+        if (ci < 0 || cj < 0 || ck < 0) return -1;
+        int64_t c = ci * ny + cj;
+        seti(col, i, c, wide);
+        seti(kz, i, ck, wide);
+        if (ck < kmin[c]) kmin[c] = (int32_t)ck;
+        if (ck > kmax[c]) kmax[c] = (int32_t)ck;
+    }
+    return 0;
+}
+
+__attribute__((target_clones("avx2", "default"))) int64_t
+grid_columns(const double *F, int64_t n, const double *lo, double h, int64_t nx, int64_t ny,
+             int64_t nz, void *col, void *kz, int64_t wide, int32_t *kmin, int32_t *kmax) {
+    if (wide) return grid_columns_t(F, n, lo, h, nx, ny, nz, col, kz, kmin, kmax, 1);
+    return grid_columns_t(F, n, lo, h, nx, ny, nz, col, kz, kmin, kmax, 0);
+}
+
+/* _grid_keys: key (n, a column on entry) := the compact cell cbase[col] + kz - kmin[col]; the
+ * feet per cell added to counts. */
+INLINE void grid_keys_t(void *key, const void *kz, int64_t n, const int32_t *kmin,
+                        const int32_t *cbase, void *counts, int wide) {
+    for (int64_t i = 0; i < n; i++) {
+        int64_t c = geti(key, i, wide);
+        int64_t cell = (int64_t)cbase[c] + geti(kz, i, wide) - (int64_t)kmin[c];
+        seti(key, i, cell, wide);
+        seti(counts, cell, geti(counts, cell, wide) + 1, wide);
+    }
+}
+
+void grid_keys(void *key, const void *kz, int64_t n, int64_t wide, const int32_t *kmin,
+               const int32_t *cbase, void *counts) {
+    if (wide)
+        grid_keys_t(key, kz, n, kmin, cbase, counts, 1);
+    else
+        grid_keys_t(key, kz, n, kmin, cbase, counts, 0);
+}
+
 /* ---- the contacts' statistics (toolpath_kernel._contacts and its helpers) ---------------- */
 
 /* _select: reorder d[:m] (v alongside) so that its k smallest come first (Hoare quickselect,
  * median-of-three pivot). */
-static void select_k(double *d, double *v, int64_t m, int64_t k) {
+INLINE void select_k(double *d, double *v, int64_t m, int64_t k) {
     int64_t lo = 0, hi = m - 1;
     while (hi > lo) {
         int64_t mid = (lo + hi) / 2; /* both >= 0: // is / */
@@ -83,6 +136,80 @@ static void select_k(double *d, double *v, int64_t m, int64_t k) {
     }
 }
 
+/* _kth_smallest: the k-th smallest of d[:n] (1 <= k <= n, no NaN) — a quickselect on the values
+ * alone, median-of-three pivot, each pass a branch-free three-way split of src into a (below
+ * the pivot) and b (above it); a or b is split in place when it is the source (the write index
+ * never passes the read index). a, b: room for n. */
+INLINE double kth_smallest(const double *d, int64_t n, int64_t k, double *a, double *b) {
+    const double *src = d;
+    int64_t kk = k - 1;
+    for (;;) {
+        double x = src[0], y = src[n / 2], z = src[n - 1]; /* n >= 1: // is / */
+        double mn_xy = y < x ? y : x;
+        double mx_xy = y > x ? y : x;
+        double mn2 = z < mx_xy ? z : mx_xy;
+        double piv = mn2 > mn_xy ? mn2 : mn_xy;
+        int64_t nl = 0, nr = 0;
+        for (int64_t t = 0; t < n; t++) {
+            double v = src[t];
+            a[nl] = v;
+            b[nr] = v;
+            nl += v < piv;
+            nr += v > piv;
+        }
+        if (kk < nl) {
+            src = a;
+            n = nl;
+        } else if (kk < n - nr) {
+            return piv; /* the pivot, one of the values: n falls every pass */
+        } else {
+            kk -= n - nr;
+            src = b;
+            n = nr;
+        }
+    }
+}
+
+/* _bitonic: src[:n] sorted ascending into dst[:n] by a bitonic sorting network on x (room for
+ * np2, the power of two >= n; padded with +inf), each stage's compare-exchanges a branch-free
+ * loop over contiguous rows (vectorised). For values without NaN and without ±0 — the sorted
+ * bits are then unique, those of every sort (the insertion sort's too). */
+INLINE void bitonic(const double *src, double *dst, double *x, int64_t n, int64_t np2) {
+    for (int64_t t = 0; t < n; t++) x[t] = src[t];
+    for (int64_t t = n; t < np2; t++) x[t] = INFINITY;
+    for (int64_t p = 1; p < np2; p *= 2) {
+        /* blocks of 2p: each half sorted; row t against row 2p - 1 - t (the second reversed) */
+        for (int64_t b = 0; b < np2; b += 2 * p) {
+            double *restrict lo = x + b, *restrict hi = x + b + p;
+            for (int64_t t = 0; t < p; t++) {
+                double u = lo[t], w = hi[p - 1 - t];
+                double mn = u < w ? u : w, mx = u < w ? w : u;
+                lo[t] = mn;
+                hi[p - 1 - t] = mx;
+            }
+        }
+        /* then half-cleaners: row t against row t + q within blocks of 2q, q = p / 2 ... 2 */
+        for (int64_t q = p / 2; q > 1; q /= 2)
+            for (int64_t b = 0; b < np2; b += 2 * q) {
+                double *restrict lo = x + b, *restrict hi = x + b + q;
+                for (int64_t t = 0; t < q; t++) {
+                    double u = lo[t], w = hi[t];
+                    double mn = u < w ? u : w, mx = u < w ? w : u;
+                    lo[t] = mn;
+                    hi[t] = mx;
+                }
+            }
+        if (p > 1) /* and q = 1: neighbours */
+            for (int64_t t = 0; t < np2; t += 2) {
+                double u = x[t], w = x[t + 1];
+                double mn = u < w ? u : w, mx = u < w ? w : u;
+                x[t] = mn;
+                x[t + 1] = mx;
+            }
+    }
+    for (int64_t t = 0; t < n; t++) dst[t] = x[t];
+}
+
 typedef struct {
     int64_t i0, i1, j0, j1, k0, k1;
     double rs;
@@ -103,27 +230,36 @@ INLINE Box box_of(double px, double py, double pz, double rad, const double *lo,
     return b;
 }
 
+/* _run: the rows start[r0] .. start[r1] of the box's cells in column col — r0 > r1 when the
+ * column holds none of them (its cells kmin[col] ... in the compact rows cbase[col] ...). */
+INLINE void run_of(const int32_t *kmin, const int32_t *cbase, int64_t col, const Box *b,
+                   int64_t *r0, int64_t *r1) {
+    int64_t c0 = cbase[col], kl = kmin[col];
+    int64_t kh = kl + ((int64_t)cbase[col + 1] - c0) - 1;
+    *r0 = c0 + imax(b->k0, kl) - kl;
+    *r1 = c0 + imin(b->k1, kh) - kl + 1;
+}
+
 /* _need: feet in the box's cells. */
-INLINE int64_t need_of(const void *start, int64_t ny, int64_t nz, const Box *b, int wide) {
+INLINE int64_t need_of(const void *start, const int32_t *kmin, const int32_t *cbase, int64_t ny,
+                       const Box *b, int wide) {
     int64_t need = 0;
-    if (b->k0 <= b->k1) {
-        for (int64_t ii = b->i0; ii <= b->i1; ii++)
-            for (int64_t jj = b->j0; jj <= b->j1; jj++) {
-                int64_t base = (ii * ny + jj) * nz;
-                need += geti(start, base + b->k1 + 1, wide) - geti(start, base + b->k0, wide);
-            }
-    }
+    for (int64_t ii = b->i0; ii <= b->i1; ii++)
+        for (int64_t jj = b->j0; jj <= b->j1; jj++) {
+            int64_t r0, r1;
+            run_of(kmin, cbase, ii * ny + jj, b, &r0, &r1);
+            if (r0 < r1) need += geti(start, r1, wide) - geti(start, r0, wide);
+        }
     return need;
 }
 
 /* _gather: the squared distances to p below keep2 of the feet in the box's cells, in cd
  * (their dn in cv), in the cells' order; how many. Columns farther than prune2 skipped. */
 INLINE int64_t gather(const double *F, const double *dn, const void *order, const void *start,
-                      const double *lo, double h, int64_t ny, int64_t nz, double px, double py,
-                      double pz, const Box *b, double keep2, double prune2, double *cd,
-                      double *cv, int wide) {
+                      const int32_t *kmin, const int32_t *cbase, const double *lo, double h,
+                      int64_t ny, double px, double py, double pz, const Box *b, double keep2,
+                      double prune2, double *cd, double *cv, int wide) {
     int64_t m = 0;
-    if (b->k0 > b->k1) return 0;
     for (int64_t ii = b->i0; ii <= b->i1; ii++) {
         double ex = dmax(dmax(lo[0] + (double)ii * h - px, 0.0),
                          px - (lo[0] + (double)(ii + 1) * h));
@@ -131,8 +267,10 @@ INLINE int64_t gather(const double *F, const double *dn, const void *order, cons
             double ey = dmax(dmax(lo[1] + (double)jj * h - py, 0.0),
                              py - (lo[1] + (double)(jj + 1) * h));
             if (ex * ex + ey * ey > prune2) continue;
-            int64_t base = (ii * ny + jj) * nz;
-            int64_t t0 = geti(start, base + b->k0, wide), t1 = geti(start, base + b->k1 + 1, wide);
+            int64_t r0, r1;
+            run_of(kmin, cbase, ii * ny + jj, b, &r0, &r1);
+            if (r0 >= r1) continue;
+            int64_t t0 = geti(start, r0, wide), t1 = geti(start, r1, wide);
             for (int64_t t = t0; t < t1; t++) {
                 int64_t r = geti(order, t, wide);
                 double dx = F[3 * r] - px;
@@ -154,30 +292,37 @@ typedef struct {
     int64_t cap;
 } Buf;
 
+/* Grows buffers a and b (room for *cap) to room for need; 0, or -1 when out of memory. */
+static int grow2(double **a, double **b, int64_t *cap, int64_t need) {
+    if (need <= *cap) return 0;
+    double *na = malloc((size_t)need * sizeof(double));
+    double *nb = malloc((size_t)need * sizeof(double));
+    if (na == NULL || nb == NULL) {
+        free(na);
+        free(nb);
+        return -1;
+    }
+    free(*a);
+    free(*b);
+    *a = na;
+    *b = nb;
+    *cap = need;
+    return 0;
+}
+
 /* _ball: the feet closer to p than rad, in buf (grown when the cells hold more); -1 when
  * there is no memory for them. */
 INLINE int64_t ball(const double *F, const double *dn, const void *order, const void *start,
-                    const double *lo, double h, int64_t nx, int64_t ny, int64_t nz, double px,
-                    double py, double pz, double rad, Buf *buf, int wide) {
+                    const int32_t *kmin, const int32_t *cbase, const double *lo, double h,
+                    int64_t nx, int64_t ny, int64_t nz, double px, double py, double pz,
+                    double rad, Buf *buf, int wide) {
     Box b = box_of(px, py, pz, rad, lo, h, nx, ny, nz);
-    int64_t need = need_of(start, ny, nz, &b, wide);
-    if (need > buf->cap) {
-        double *cd = malloc((size_t)need * sizeof(double));
-        double *cv = malloc((size_t)need * sizeof(double));
-        if (cd == NULL || cv == NULL) {
-            free(cd);
-            free(cv);
-            return -1;
-        }
-        free(buf->cd);
-        free(buf->cv);
-        buf->cd = cd;
-        buf->cv = cv;
-        buf->cap = need;
-    }
+    if (b.k0 > b.k1) return 0;
+    int64_t need = need_of(start, kmin, cbase, ny, &b, wide);
+    if (grow2(&buf->cd, &buf->cv, &buf->cap, need) < 0) return -1;
     double rs = b.rs;
-    return gather(F, dn, order, start, lo, h, ny, nz, px, py, pz, &b, rad * rad, rs * rs,
-                  buf->cd, buf->cv, wide);
+    return gather(F, dn, order, start, kmin, cbase, lo, h, ny, px, py, pz, &b, rad * rad,
+                  rs * rs, buf->cd, buf->cv, wide);
 }
 
 /* _kth: the largest of cd[:k]. */
@@ -191,18 +336,20 @@ INLINE double kth(const double *cd, int64_t k) {
  * trim would read beyond the k values (numba's kernel reads outside its array there: trim
  * outside [0, 1)), 3 when k < 1. */
 INLINE int contacts_t(const double *F, const double *dn, const void *order, const void *start,
-                      const double *lo, double h, int64_t nx, int64_t ny, int64_t nz,
-                      const double *P, double radius, int64_t k, double trim, double widen,
-                      int64_t a, int64_t b, int64_t *cnt, double *med, double *trimmed,
-                      double *mad, int wide) {
+                      const int32_t *kmin, const int32_t *cbase, const double *lo, double h,
+                      int64_t nx, int64_t ny, int64_t nz, const double *P, double radius,
+                      int64_t k, double trim, double widen, int64_t a, int64_t b, int64_t *cnt,
+                      double *med, double *trimmed, double *mad, int wide) {
     if (k < 1) return 3;
-    Buf buf;
-    buf.cap = 256;
-    buf.cd = malloc(256 * sizeof(double));
-    buf.cv = malloc(256 * sizeof(double));
+    int64_t np2 = 1;
+    while (np2 < k) np2 *= 2;
+    Buf buf = {NULL, NULL, 0};
+    double *sa = NULL, *sb = NULL; /* _kth_smallest's */
+    int64_t scap = 0;
     double *vv = calloc((size_t)k, sizeof(double));
+    double *xs = malloc((size_t)np2 * sizeof(double)); /* _bitonic's (c <= k) */
     int status = 0;
-    if (buf.cd == NULL || buf.cv == NULL || vv == NULL) {
+    if (vv == NULL || xs == NULL || grow2(&buf.cd, &buf.cv, &buf.cap, 256) < 0) {
         status = 1;
         goto done;
     }
@@ -218,51 +365,71 @@ INLINE int contacts_t(const double *F, const double *dn, const void *order, cons
             continue;
         }
         int64_t m = -1;
+        double kd = 0.0; /* the k-th squared distance */
         if (0.0 < est && est < radius) {
-            m = ball(F, dn, order, start, lo, h, nx, ny, nz, px, py, pz, est, &buf, wide);
+            m = ball(F, dn, order, start, kmin, cbase, lo, h, nx, ny, nz, px, py, pz, est, &buf,
+                     wide);
             if (m < 0) {
                 status = 1;
                 goto done;
             }
+            /* k feet or more within est: the k nearest are the feet at <= the k-th squared
+             * distance kd (the set alone counts here, not its order) — k of them unless one
+             * ties with the k-th; a tie, a dn of ±0 or NaN: the whole ball below */
             if (m < k) {
                 m = -1;
             } else {
-                if (m > k) select_k(buf.cd, buf.cv, m, k);
-                double vk = kth(buf.cd, k);
-                for (int64_t t = k; t < m; t++)
-                    if (buf.cd[t] == vk) {
-                        m = -1;
-                        break;
-                    }
-                for (int64_t t = 0; t < k; t++) {
+                if (grow2(&sa, &sb, &scap, m) < 0) {
+                    status = 1;
+                    goto done;
+                }
+                kd = kth_smallest(buf.cd, m, k, sa, sb);
+                int64_t j = 0;
+                for (int64_t t = 0; t < m; t++) {
+                    buf.cv[j] = buf.cv[t];
+                    j += buf.cd[t] <= kd;
+                }
+                if (j != k) m = -1; /* a tie with the k-th distance */
+                for (int64_t t = 0; t < k && m >= 0; t++) {
                     double x = buf.cv[t];
-                    if (x == 0.0 || x != x) {
-                        m = -1;
-                        break;
-                    }
+                    if (x == 0.0 || x != x) m = -1;
                 }
             }
         }
-        if (m < 0) {
-            m = ball(F, dn, order, start, lo, h, nx, ny, nz, px, py, pz, radius, &buf, wide);
+        int whole = m < 0;
+        if (whole) {
+            m = ball(F, dn, order, start, kmin, cbase, lo, h, nx, ny, nz, px, py, pz, radius,
+                     &buf, wide);
             if (m < 0) {
                 status = 1;
                 goto done;
             }
             if (m > k) select_k(buf.cd, buf.cv, m, k);
+            if (m >= k) kd = kth(buf.cd, k);
         }
-        const double *cd = buf.cd, *cv = buf.cv;
+        const double *cv = buf.cv;
         int64_t c = imin(m, k);
         est = 0.0;
-        if (c == k) est = sqrt(kth(cd, k)) * widen;
-        for (int64_t t = 0; t < c; t++) {
-            double x = cv[t];
-            int64_t u = t;
-            while (u > 0 && vv[u - 1] > x) {
-                vv[u] = vv[u - 1];
-                u--;
+        if (c == k) est = sqrt(kd) * widen;
+        /* the values sorted, zero-padded to k: by the network when none is NaN or ±0 (the
+         * small ball's are not: checked above), else by the insertion sort */
+        int plain = 1;
+        if (whole)
+            for (int64_t t = 0; t < c; t++) plain &= (cv[t] == cv[t]) & (cv[t] != 0.0);
+        if (plain) {
+            int64_t n2 = 1;
+            while (n2 < c) n2 *= 2;
+            bitonic(cv, vv, xs, c, n2);
+        } else {
+            for (int64_t t = 0; t < c; t++) {
+                double x = cv[t];
+                int64_t u = t;
+                while (u > 0 && vv[u - 1] > x) {
+                    vv[u] = vv[u - 1];
+                    u--;
+                }
+                vv[u] = x;
             }
-            vv[u] = x;
         }
         for (int64_t t = c; t < k; t++) vv[t] = 0.0;
         int64_t cc = imax(c, 1);
@@ -312,19 +479,36 @@ INLINE int contacts_t(const double *F, const double *dn, const void *order, cons
 done:
     free(buf.cd);
     free(buf.cv);
+    free(sa);
+    free(sb);
     free(vv);
+    free(xs);
     return status;
 }
 
-int contacts(const double *F, const double *dn, const void *order, const void *start,
-             int64_t wide, const double *lo, double h, int64_t nx, int64_t ny, int64_t nz,
-             const double *P, double radius, int64_t k, double trim, double widen, int64_t a,
-             int64_t b, int64_t *cnt, double *med, double *trimmed, double *mad) {
+/* _kth_smallest and _bitonic as Python calls them (tests: a wrong k-th would only cost time —
+ * the tie check sends the contact to the whole ball — so it is checked on its own). */
+double kth_value(const double *d, int64_t n, int64_t k, double *a, double *b) {
+    return kth_smallest(d, n, k, a, b);
+}
+
+void sort_values(const double *src, double *dst, double *x, int64_t n, int64_t n2) {
+    bitonic(src, dst, x, n, n2);
+}
+
+/* Two clones chosen at load by the CPU (AVX2 where there is one: floor inline, the network's
+ * compare-exchanges 4 wide), the same arithmetic, no contraction in either. */
+__attribute__((target_clones("avx2", "default"))) int
+contacts(const double *F, const double *dn, const void *order, const void *start, int64_t wide,
+         const int32_t *kmin, const int32_t *cbase, const double *lo, double h, int64_t nx,
+         int64_t ny, int64_t nz, const double *P, double radius, int64_t k, double trim,
+         double widen, int64_t a, int64_t b, int64_t *cnt, double *med, double *trimmed,
+         double *mad) {
     if (wide)
-        return contacts_t(F, dn, order, start, lo, h, nx, ny, nz, P, radius, k, trim, widen, a,
-                          b, cnt, med, trimmed, mad, 1);
-    return contacts_t(F, dn, order, start, lo, h, nx, ny, nz, P, radius, k, trim, widen, a, b,
-                      cnt, med, trimmed, mad, 0);
+        return contacts_t(F, dn, order, start, kmin, cbase, lo, h, nx, ny, nz, P, radius, k,
+                          trim, widen, a, b, cnt, med, trimmed, mad, 1);
+    return contacts_t(F, dn, order, start, kmin, cbase, lo, h, nx, ny, nz, P, radius, k, trim,
+                      widen, a, b, cnt, med, trimmed, mad, 0);
 }
 
 static struct PyModuleDef module = {
