@@ -278,6 +278,42 @@ def test_the_calling_thread_compares_the_last_scan_beside_the_first(
     assert _scan_threads() == []
 
 
+def test_the_calling_thread_starts_the_work_after_the_scans_when_it_would_wait(
+    small_cone_study, sequential_kept, monkeypatch
+):
+    # the worker reads the robot scan ahead; the calling thread, done with its logs first,
+    # would wait for it with its core idle: it starts the work after the scans (the inputs'
+    # fingerprint, the report's imports) in the "roboisf-then" thread there, not after the
+    # worker's read — held here until that work has begun (the old order: never, timed out)
+    claimed, fp_started = threading.Event(), threading.Event()
+    real = pipeline._prepare
+    waited: list[bool] = []
+
+    def prepare(study, cell, run, progress):
+        if run.name == "robot":
+            claimed.set()
+            waited.append(fp_started.wait(10))
+        return real(study, cell, run, progress)
+
+    monkeypatch.setattr(pipeline, "_prepare", prepare)
+    _hold_logs(monkeypatch, claimed)
+    real_fp = pipeline.study_fingerprint
+    fingerprinted: list[str] = []
+
+    def fingerprint(study):
+        fingerprinted.append(threading.current_thread().name)
+        fp_started.set()
+        return real_fp(study)
+
+    monkeypatch.setattr(pipeline, "study_fingerprint", fingerprint)
+    ovl = analyze(small_cone_study)
+    assert waited == [True]  # begun while the worker read the robot scan
+    assert fingerprinted == ["roboisf-then"]
+    assert ovl.summary.fingerprint == sequential_kept[0].summary.fingerprint
+    pd.testing.assert_frame_equal(sequential_kept[0].per_point, ovl.per_point, check_exact=True)
+    assert _scan_threads() == []
+
+
 @pytest.mark.parametrize("reader", ["MainThread", "roboisf-scans"])
 def test_scan_errors_come_in_the_runs_order_whichever_thread_met_them(
     small_cone_study, tmp_path, monkeypatch, reader
