@@ -63,15 +63,23 @@ INLINE void offer(const double *X, int64_t rs, int64_t cs, int64_t j0, int64_t j
     }
 }
 
-/* _unseen: the distance from p to the faces inside the grid of the cube of rings 0 .. r around
- * cell (ci, cj, ck); inf when there is no such face. */
-INLINE double unseen(double px, double py, double pz, int64_t ci, int64_t cj, int64_t ck,
-                     int64_t r, const double *lo, double h, int64_t nx, int64_t ny, int64_t nz) {
+/* _unseen_xy: the distance from p to the faces inside the grid of the square of columns 0 .. r
+ * around column (ci, cj) (x and y faces only); inf when there is no such face. */
+INLINE double unseen_xy(double px, double py, int64_t ci, int64_t cj, int64_t r, const double *lo,
+                        double h, int64_t nx, int64_t ny) {
     double bound = INFINITY;
     if (ci - r > 0) bound = pmin(bound, px - (lo[0] + (double)(ci - r) * h));
     if (ci + r < nx - 1) bound = pmin(bound, lo[0] + (double)(ci + r + 1) * h - px);
     if (cj - r > 0) bound = pmin(bound, py - (lo[1] + (double)(cj - r) * h));
     if (cj + r < ny - 1) bound = pmin(bound, lo[1] + (double)(cj + r + 1) * h - py);
+    return bound;
+}
+
+/* _unseen: the distance from p to the faces inside the grid of the cube of rings 0 .. r around
+ * cell (ci, cj, ck); inf when there is no such face (the square's x and y faces, then z's). */
+INLINE double unseen(double px, double py, double pz, int64_t ci, int64_t cj, int64_t ck,
+                     int64_t r, const double *lo, double h, int64_t nx, int64_t ny, int64_t nz) {
+    double bound = unseen_xy(px, py, ci, cj, r, lo, h, nx, ny);
     if (ck - r > 0) bound = pmin(bound, pz - (lo[2] + (double)(ck - r) * h));
     if (ck + r < nz - 1) bound = pmin(bound, lo[2] + (double)(ck + r + 1) * h - pz);
     return bound;
@@ -95,6 +103,14 @@ INLINE int resolved(const double *best, int64_t k1, double bound, double *out, i
  * (q >= 0: C's / and % are Python's here) */
 INLINE int64_t centre_out(int64_t q) { return (q + 1) / 2 * (q % 2 == 0 ? 1 : -1); }
 
+/* p's cell (ci, cj, ck), clamped into the grid: min(max(int((x - lo) / h), 0), n - 1). */
+INLINE void cell_of(double px, double py, double pz, const double *lo, double h, int64_t nx,
+                    int64_t ny, int64_t nz, int64_t *ci, int64_t *cj, int64_t *ck) {
+    *ci = imin(imax((int64_t)((px - lo[0]) / h), 0), nx - 1);
+    *cj = imin(imax((int64_t)((py - lo[1]) / h), 0), ny - 1);
+    *ck = imin(imax((int64_t)((pz - lo[2]) / h), 0), nz - 1);
+}
+
 /* The ring search of _knn_mean for point i (best: k1 doubles of scratch). */
 INLINE void ring_point(const double *X, int64_t rs, int64_t cs, const void *start, int wide,
                        const double *lo, double h, int64_t nx, int64_t ny, int64_t nz,
@@ -102,9 +118,8 @@ INLINE void ring_point(const double *X, int64_t rs, int64_t cs, const void *star
                        double *best) {
     const double *p = X + i * rs;
     double px = p[0], py = p[cs], pz = p[2 * cs];
-    int64_t ci = imin(imax((int64_t)((px - lo[0]) / h), 0), nx - 1);
-    int64_t cj = imin(imax((int64_t)((py - lo[1]) / h), 0), ny - 1);
-    int64_t ck = imin(imax((int64_t)((pz - lo[2]) / h), 0), nz - 1);
+    int64_t ci, cj, ck;
+    cell_of(px, py, pz, lo, h, nx, ny, nz, &ci, &cj, &ck);
     for (int64_t t = 0; t < k1; t++) best[t] = INFINITY;
     int64_t r = 0;
     for (;;) {
@@ -175,18 +190,6 @@ int knn_mean(const double *X, int64_t rs, int64_t cs, const void *start, int64_t
     return 1;
 }
 
-/* _unseen_xy: the distance from p to the faces inside the grid of the square of columns 0 .. r
- * around column (ci, cj) (x and y faces only); inf when there is no such face. */
-INLINE double unseen_xy(double px, double py, int64_t ci, int64_t cj, int64_t r, const double *lo,
-                        double h, int64_t nx, int64_t ny) {
-    double bound = INFINITY;
-    if (ci - r > 0) bound = pmin(bound, px - (lo[0] + (double)(ci - r) * h));
-    if (ci + r < nx - 1) bound = pmin(bound, lo[0] + (double)(ci + r + 1) * h - px);
-    if (cj - r > 0) bound = pmin(bound, py - (lo[1] + (double)(cj - r) * h));
-    if (cj + r < ny - 1) bound = pmin(bound, lo[1] + (double)(cj + r + 1) * h - py);
-    return bound;
-}
-
 /* _box_gap: the distance from coordinate x to the cell [lo + i h, lo + (i + 1) h] of an axis. */
 INLINE double box_gap(double x, double lo, int64_t i, double h) {
     return pmax(pmax(lo + (double)i * h - x, 0.0), x - (lo + (double)(i + 1) * h));
@@ -217,9 +220,8 @@ INLINE void column_point(const double *X, int64_t rs, int64_t cs, const void *st
                          double *best) {
     const double *p = X + i * rs;
     double px = p[0], py = p[cs], pz = p[2 * cs];
-    int64_t ci = imin(imax((int64_t)((px - lo[0]) / h), 0), nx - 1);
-    int64_t cj = imin(imax((int64_t)((py - lo[1]) / h), 0), ny - 1);
-    int64_t ck = imin(imax((int64_t)((pz - lo[2]) / h), 0), nz - 1);
+    int64_t ci, cj, ck;
+    cell_of(px, py, pz, lo, h, nx, ny, nz, &ci, &cj, &ck);
     int64_t zmin = imax(ck - max_rings, 0), zmax = imin(ck + max_rings, nz - 1);
     double ih = 1.0 / h, zp = (pz - lo[2]) * ih; /* z in cells (the run's first guess) */
     for (int64_t t = 0; t < k1; t++) best[t] = INFINITY;

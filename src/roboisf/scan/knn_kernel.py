@@ -127,6 +127,25 @@ def _offer(
 
 
 @_inline()
+def _unseen_xy(
+    px: float, py: float, ci: int, cj: int, r: int, lo: F64, h: float, nx: int, ny: int
+) -> float:  # pragma: no cover - compiled
+    """How far every point outside the square of columns ``0 … r`` around column ``(ci, cj)``
+    is from ``p`` at least: the distance to the square's x and y faces inside the grid (inf: no
+    such face)."""
+    bound = np.inf
+    if ci - r > 0:
+        bound = min(bound, px - (lo[0] + (ci - r) * h))
+    if ci + r < nx - 1:
+        bound = min(bound, lo[0] + (ci + r + 1) * h - px)
+    if cj - r > 0:
+        bound = min(bound, py - (lo[1] + (cj - r) * h))
+    if cj + r < ny - 1:
+        bound = min(bound, lo[1] + (cj + r + 1) * h - py)
+    return bound
+
+
+@_inline()
 def _unseen(
     px: float,
     py: float,
@@ -142,16 +161,9 @@ def _unseen(
     nz: int,
 ) -> float:  # pragma: no cover - compiled
     """How far every point outside the cube of rings ``0 … r`` around cell ``(ci, cj, ck)`` is
-    from ``p`` at least: the distance to the cube's faces inside the grid (inf: no such face)."""
-    bound = np.inf
-    if ci - r > 0:
-        bound = min(bound, px - (lo[0] + (ci - r) * h))
-    if ci + r < nx - 1:
-        bound = min(bound, lo[0] + (ci + r + 1) * h - px)
-    if cj - r > 0:
-        bound = min(bound, py - (lo[1] + (cj - r) * h))
-    if cj + r < ny - 1:
-        bound = min(bound, lo[1] + (cj + r + 1) * h - py)
+    from ``p`` at least: the distance to the cube's faces inside the grid (inf: no such face;
+    the square's x and y faces, :func:`_unseen_xy`, then z's)."""
+    bound = _unseen_xy(px, py, ci, cj, r, lo, h, nx, ny)
     if ck - r > 0:
         bound = min(bound, pz - (lo[2] + (ck - r) * h))
     if ck + r < nz - 1:
@@ -354,25 +366,6 @@ def _knn_mean_block9_nb(
                 best, k1, _unseen(px, py, pz, ci, cj, ck, 1, lo, h, nx, ny, nz), out, i
             ):
                 out[i] = np.nan  # for the ring search (_knn_mean_rows), after every cell
-
-
-@_inline()
-def _unseen_xy(
-    px: float, py: float, ci: int, cj: int, r: int, lo: F64, h: float, nx: int, ny: int
-) -> float:  # pragma: no cover - compiled
-    """How far every point outside the square of columns ``0 … r`` around column ``(ci, cj)``
-    is from ``p`` at least: the distance to the square's x and y faces inside the grid (inf: no
-    such face)."""
-    bound = np.inf
-    if ci - r > 0:
-        bound = min(bound, px - (lo[0] + (ci - r) * h))
-    if ci + r < nx - 1:
-        bound = min(bound, lo[0] + (ci + r + 1) * h - px)
-    if cj - r > 0:
-        bound = min(bound, py - (lo[1] + (cj - r) * h))
-    if cj + r < ny - 1:
-        bound = min(bound, lo[1] + (cj + r + 1) * h - py)
-    return bound
 
 
 @_inline()
