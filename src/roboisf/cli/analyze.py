@@ -576,7 +576,7 @@ def _truth_settings(
 
 
 def _print_table(df: object, summary: dict) -> None:
-    if state.verbosity < 1:  # quiet: no table to build (rich's table, 0.02-0.05 s)
+    if state.verbosity < 1:  # quiet: no table to build (rich's table: 0.02-0.07 s)
         return
     import pandas as pd
     from rich.markup import escape
