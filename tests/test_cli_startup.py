@@ -181,6 +181,8 @@ def test_reading_a_study_s_files_loads_no_pandas(small_cone_study):
         "roboisf.logs",
         "roboisf.study",
         "roboisf.robot",
+        "roboisf.online",
+        "roboisf.compensate",
     ],
 )
 def test_lazy_packages_export_the_objects_of_their_modules(package):

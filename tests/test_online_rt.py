@@ -19,9 +19,10 @@ import pytest
 from process_state import running
 from roboisf.errors import InputError
 from roboisf.online import Limits, OnlineCompensator, egm, netft, rt
+from roboisf.online.devices import _recv_stamped, _stamping
 from roboisf.online.loop import RULES_OFF, CycleLog, Loop
 from roboisf.online.rt import GcQuiet, Realtime, apply
-from roboisf.online.sim import _recv_stamped, _stamping, virtual_setup
+from roboisf.online.sim import virtual_setup
 
 #: loops at their real cycle: this module waits on the clock more than it computes (the
 #: collection puts it beside a CPU-bound module, tests/conftest.py)
@@ -436,7 +437,7 @@ def test_the_simulated_controller_counts_by_arrival_and_drops_late_replies():
     (even read afterwards), one that arrived after is a missed cycle, timed in rtt_late."""
     from multiprocessing import Value
 
-    from roboisf.online.sim import _ControllerSim
+    from roboisf.online.devices import _ControllerSim
 
     loop_side = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     loop_side.bind(("127.0.0.1", 0))
@@ -553,7 +554,7 @@ def test_the_status_redraw_comes_after_the_reply_never_between(setup):
 _ORPHAN = """
 import multiprocessing as mp, socket, sys, time
 import numpy as np
-from roboisf.online.sim import controller_process, sensor_process
+from roboisf.online.devices import controller_process, sensor_process
 
 if __name__ == "__main__":
     ctx = mp.get_context("spawn")
@@ -623,3 +624,35 @@ def test_the_simulated_devices_end_when_their_parent_is_killed(tmp_path):
     for c in left:  # not left behind by this test either
         os.kill(c, signal.SIGKILL)
     assert not left, f"simulated devices outlived their parent: {left} of {children}"
+
+
+def test_a_simulated_device_process_imports_only_the_codecs_and_the_clock():
+    """What a spawned device's interpreter imports before its ``ready``: the module of its
+    target, :mod:`roboisf.online.devices`, and what that needs. roboisf.online.sim prepared the
+    devices with the virtual cell, the compensation and pandas, and a child imported all of it —
+    0.6 s of imports per child, twice per simulation, while the loop waited (2026-11-30)."""
+    import subprocess
+    import sys
+
+    from roboisf.online import devices, sim
+
+    code = (
+        "import json, sys\n"
+        "import roboisf.online.devices\n"
+        "heavy = ('pandas', 'pyarrow', 'scipy', 'numba', 'roboisf.virtual', 'roboisf.compensate',"
+        " 'roboisf.online.core', 'roboisf.cell', 'roboisf.robot', 'roboisf.study')\n"
+        "print(json.dumps(sorted(m for m in heavy if m in sys.modules)))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]", out.stdout
+    # and what the simulation spawns is that module's, in both layouts
+    for processes in (1, 2):
+        setup = type("S", (), {"reading": np.zeros((2, 6)), "noise": 0.0, "q": np.zeros((2, 6))})
+        setup.dq_dp, setup.planned = np.zeros((2, 6, 3)), np.zeros((2, 7))
+        simulation = sim.Simulation(setup, "egm", 1, processes=processes)  # not started
+        try:
+            targets = {p._target for p in simulation._procs}  # type: ignore[attr-defined]
+            assert targets == {devices.devices_process}
+            assert all(t.__module__ == "roboisf.online.devices" for t in targets)
+        finally:
+            simulation.close()

@@ -146,11 +146,11 @@ def test_rsi_relative_never_loses_an_increment_in_late_replies():
 
 
 def test_simulated_rsi_controller_sums_relative_increments(tmp_path):
-    """The simulated controller (roboisf.online.sim) with --relative adds the increments it
+    """The simulated controller (roboisf.online.devices) with --relative adds the increments it
     takes: a loop that sends increments moves it to the correction, not to the last step."""
-    from roboisf.online import sim
+    from roboisf.online import devices
 
-    ctl = sim._ControllerSim(
+    ctl = devices._ControllerSim(
         0,
         "rsi",
         (np.zeros((3, 6)), np.zeros((3, 6, 3)), np.zeros((3, 7))),
