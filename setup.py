@@ -6,9 +6,10 @@ built by setuptools' ``build_ext`` with the flags of ``roboisf.jit.native.CFLAGS
 SHA-256 of their source embedded; ``optional``: without a C compiler the install goes on, and the
 numba kernels serve.
 
-``build_kernels`` runs after ``build_py`` in every build pip makes — a wheel (into the
-package copied to ``build/lib``) and an editable install (into ``src``, editable mode) — and
-compiles every numba kernel of the package into numba's cache beside its sources
+``build_kernels`` runs after ``build_py`` and ``build_ext`` in every build pip makes — a wheel
+(into the package copied to ``build/lib``) and an editable install (into ``src``, editable
+mode) — and compiles the numba kernels of the groups no C kernel serves (all of them without a
+C compiler; every group for an editable install) into numba's cache beside its sources
 (``python -m roboisf.jit.prebuild``; docs/speed.md, "Kernels built at install"). The build
 environment has numba and what the kernels' modules import (``[build-system] requires``).
 
@@ -38,7 +39,8 @@ TIMEOUT_S = 900
 
 
 class build_kernels(Command):  # setuptools names its commands in snake case
-    """Compile roboisf's numba kernels into the package's in-tree numba cache."""
+    """Compile roboisf's numba kernels (those no C kernel serves; all for an editable install)
+    into the package's in-tree numba cache."""
 
     description = "compile roboisf's numba kernels into the package's numba cache"
     user_options: ClassVar[list[tuple[str, str | None, str]]] = []
@@ -70,7 +72,12 @@ class build_kernels(Command):  # setuptools names its commands in snake case
         env.pop("ROBOISF_NUMBA", None)
         try:
             r = subprocess.run(
-                [sys.executable, "-m", "roboisf.jit.prebuild", str(root)],
+                # a checkout's editable install builds every group: its tests run the C and
+                # the numba forms side by side (a wheel: only the groups no C form serves)
+                [
+                    *(sys.executable, "-m", "roboisf.jit.prebuild", str(root)),
+                    *(["--all"] if self.editable_mode else []),
+                ],
                 env=env,
                 stdout=subprocess.PIPE,
                 stderr=subprocess.STDOUT,

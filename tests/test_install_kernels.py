@@ -1,11 +1,14 @@
-"""Kernels built at install (issue #31): pip builds roboisf's wheel; setup.py's build_kernels step
-compiles every kernel into numba's cache beside the package's sources; the installed package's
-first analyze and plan run compiled (no background builder, nothing compiled on first use). The
-wheel is built as pip builds it (`pip wheel`), without build isolation: the test venv holds what
+"""Kernels built at install (issue #31): pip builds roboisf's wheel; its C kernels are built as
+extension modules, and setup.py's build_kernels step compiles into numba's cache beside the
+package's sources the kernel groups no C kernel serves (none where a compiler is; all without
+one; all for a checkout's editable install, ``--all``). The installed package's first analyze
+and plan run compiled (no background builder, nothing compiled on first use). The wheel is built
+as pip builds it (`pip wheel`), without build isolation: the test venv holds what
 [build-system] requires lists, and no package index is needed.
 
-A module of its own: its full build runs on the other pytest-xdist worker than test_jit.py's
-(each compiles every kernel, ~35 s on CI)."""
+The numba fallback is checked on the caches this checkout's install built (every group, from an
+empty cache: `pip install -e .` on CI): building them again in a wheel took this module 46 CPU-s
+of the suite's ~470 (2026-11-30)."""
 
 from __future__ import annotations
 
@@ -32,13 +35,12 @@ print(json.dumps({"file": roboisf.__file__, "ready": {g: bg.ready(g) for g in bg
 """
 
 
-#: ``roboisf analyze STUDY -o OUT`` through the console script's entry, then whether numba was
-#: imported.
+#: ``roboisf -q ARGS...`` through the console script's entry, then whether numba was imported.
 _NO_NUMBA = """
 import atexit, sys
 atexit.register(lambda: print("numba imported:", "numba" in sys.modules))
 from roboisf.cli.main import entry
-sys.argv = ["roboisf", "-q", "analyze", sys.argv[1], "-o", sys.argv[2]]
+sys.argv = ["roboisf", "-q", *sys.argv[1:]]
 entry()
 """
 
@@ -56,11 +58,13 @@ def _project_copy(dest: Path) -> Path:
     return dest
 
 
-@needs_numba
 @pytest.mark.slow
 def test_the_wheel_carries_its_kernels_and_the_first_run_compiles_nothing(
     tmp_path, fast_cone_study
 ):
+    """A wheel built where a C compiler is: every C kernel built and in the wheel, no numba
+    kernel compiled (the C forms serve every group); installed, its first analyze and plan run
+    the C forms, import no numba and start no builder."""
     proj = _project_copy(tmp_path / "proj")
     wheels = tmp_path / "wheels"
     env = dict(os.environ)
@@ -69,7 +73,7 @@ def test_the_wheel_carries_its_kernels_and_the_first_run_compiles_nothing(
     env.pop("PYTHONPATH", None)
     r = subprocess.run(
         [
-            *(sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation"),
+            *(sys.executable, "-m", "pip", "wheel", "-v", "--no-deps", "--no-build-isolation"),
             *("-w", str(wheels), str(proj)),
         ],
         env=env,
@@ -78,22 +82,18 @@ def test_the_wheel_carries_its_kernels_and_the_first_run_compiles_nothing(
         timeout=900,
     )
     assert r.returncode == 0, r.stderr[-3000:]
+    if jit.HAVE_NUMBA:  # the step ran and said why it compiled nothing
+        assert "the C kernels serve every group; no numba kernel built" in r.stdout + r.stderr
     (whl,) = wheels.glob("roboisf-*.whl")
-    # not pure Python any more: numba's cache is for this Python and platform
+    # not pure Python: its C kernels are for this Python and platform
     assert f"-cp{sys.version_info[0]}{sys.version_info[1]}-" in whl.name, whl.name
     with zipfile.ZipFile(whl) as z:
         names = z.namelist()
-        record = next(n for n in names if n.endswith(".dist-info/RECORD"))
-        recorded = {line.split(",")[0] for line in z.read(record).decode().splitlines()}
-        kernels = [n for n in names if n.endswith((".nbi", ".nbc"))]
-        # every cache file is in the wheel's RECORD: pip installs and uninstalls it
-        assert kernels and set(kernels) <= recorded
+        assert not [n for n in names if n.endswith((".nbi", ".nbc"))]  # no numba kernel
         site = tmp_path / "site"
         z.extractall(site)
     assert not (tmp_path / "users-cache").exists()
-    # every kernel group's modules have a cache numba takes as its own, beside the sources
-    assert in_tree_missing(site) == []
-    # and every C kernel is built, with its source (roboisf.jit.native checks one by the other)
+    # every C kernel is built, with its source (roboisf.jit.native checks one by the other)
     sources = sorted(p.relative_to(SRC.parent) for p in SRC.rglob("*_kernel.c"))
     assert sources
     for c in sources:
@@ -111,52 +111,84 @@ def test_the_wheel_carries_its_kernels_and_the_first_run_compiles_nothing(
     )
     assert Path(probe["file"]).resolve().is_relative_to(site.resolve())
     assert all(probe["ready"].values()), probe["ready"]  # compiled at once: no builder
-    assert not list(tmp_path.glob("roboisf-kernel-build-*"))
-    built = _signatures(site)
     part = tmp_path / "cone.toml"
-    # the analysis runs the C kernels: numba is never imported
-    r = subprocess.run(
-        [sys.executable, "-c", _NO_NUMBA, str(fast_cone_study), str(tmp_path / "analysis")],
+    subprocess.run(
+        [sys.executable, "-m", "roboisf", "-q", "part", "cone", "-o", str(part)],
         env=run_env,
+        check=True,
         capture_output=True,
-        text=True,
         timeout=600,
     )
-    assert r.returncode == 0, r.stderr[-3000:]
-    assert r.stdout.strip() == "numba imported: False"
-    for args, extra in (
-        # the numba fallback of the same kernels (no compiler at install): built at install too
-        (["analyze", str(fast_cone_study), "-o", str(tmp_path / "analysis-numba")], "0"),
-        (["part", "cone", "-o", str(part)], "1"),
-        (
-            [
-                *("plan", "--part", str(part), "--x-range", "2000:2200:2", "--y-range", "-500"),
-                *("--z-range", "200", "--serial", "-o", str(tmp_path / "plan")),
-            ],
-            "1",
-        ),
-    ):
-        subprocess.run(
-            [sys.executable, "-m", "roboisf", "-q", *args],
-            env={**run_env, "ROBOISF_NATIVE": extra},
-            check=True,
+    plan = [*("plan", "--part", str(part), "--x-range", "2000:2200:2", "--y-range", "-500")]
+    plan += ["--z-range", "200", "--serial", "-o", str(tmp_path / "plan")]
+    for args in (["analyze", str(fast_cone_study), "-o", str(tmp_path / "analysis")], plan):
+        r = subprocess.run(
+            [sys.executable, "-c", _NO_NUMBA, *args],
+            env=run_env,
             capture_output=True,
+            text=True,
             timeout=600,
         )
-    for name in ("analysis", "analysis-numba"):
-        assert (tmp_path / name / "summary.json").is_file()
-    # the two compiled forms, the same numbers
-    a, b = (
-        (tmp_path / name / "contributions.csv").read_bytes()
-        for name in ("analysis", "analysis-numba")
-    )
-    assert a == b
+        assert r.returncode == 0, r.stderr[-3000:]
+        assert r.stdout.strip() == "numba imported: False", args[0]  # the C kernels ran
+    assert (tmp_path / "analysis" / "summary.json").is_file()
+    assert (tmp_path / "plan" / "plan.json").is_file()
     assert not list(tmp_path.glob("roboisf-kernel-build-*"))  # no builder was started
-    # every specialisation they call (array layouts, integer types) is one the build made (the
-    # builder had missed row_norms of a log read backwards and plan's whole inner loop,
-    # 2026-11-29: the first analyze after it compiled for 0.2 s, the first plan for ~1.5 s)
-    missed = _signatures(site) - built
+    assert not list(site.rglob("*.nbi"))  # and nothing was compiled into the install
+
+
+@needs_numba
+def test_the_numba_fallback_built_at_install_serves_analyze_and_plan_compiling_nothing(
+    tmp_path, fast_cone_study
+):
+    """Every numba kernel group the install builds (a wheel without a C compiler; every
+    checkout's editable install, ``--all``) serves analyze and plan without compiling a thing:
+    each specialisation they call is one the build step made (it had missed row_norms of a log
+    read backwards and plan's whole inner loop, 2026-11-29: the first analyze after it compiled
+    for 0.2 s, the first plan for ~1.5 s), with the same bytes as the C forms. Run on a copy of
+    this checkout's package with the caches its install built (numba finds a cache by the
+    source's SHA-256, so the copy keeps it), so a compile writes into the copy and is seen."""
+    missing = in_tree_missing(SRC.parent)
+    assert missing == [], (
+        f"the install built no numba kernels for {missing}: reinstall (`pip install -e .`, "
+        "setup.py builds every group for an editable install)"
+    )
+    root = tmp_path / "pkg"
+    shutil.copytree(SRC, root / "roboisf", ignore=shutil.ignore_patterns("*.pyc", "*.tmp"))
+    assert in_tree_missing(root) == []
+    built = _signatures(root)
+    run_env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "PYTHONPATH")}
+    run_env.update(PYTHONPATH=str(root), ROBOISF_BACKGROUND_COMPILE="1", TMPDIR=str(tmp_path))
+    part = tmp_path / "cone.toml"
+    subprocess.run(
+        [sys.executable, "-m", "roboisf", "-q", "part", "cone", "-o", str(part)],
+        env=run_env,
+        check=True,
+        capture_output=True,
+        timeout=600,
+    )
+    for native in ("1", "0"):
+        out = tmp_path / f"native{native}"
+        plan = [*("plan", "--part", str(part), "--x-range", "2000:2200:2", "--y-range", "-500")]
+        plan += ["--z-range", "200", "--serial", "-o", str(out / "plan")]
+        for args in (["analyze", str(fast_cone_study), "-o", str(out / "analysis")], plan):
+            r = subprocess.run(
+                [sys.executable, "-c", _NO_NUMBA, *args],
+                env={**run_env, "ROBOISF_NATIVE": native},
+                capture_output=True,
+                text=True,
+                timeout=600,
+            )
+            assert r.returncode == 0, r.stderr[-3000:]
+            assert r.stdout.strip() == f"numba imported: {native == '0'}", args[0]
+    assert not list(tmp_path.glob("roboisf-kernel-build-*"))  # no builder was started
+    missed = _signatures(root) - built
     assert not missed, f"analyze or plan compiled what the install did not: {sorted(missed)}"
+    # the two compiled forms, the same numbers
+    for name in ("analysis/contributions.csv", "plan/placements.csv"):
+        assert (tmp_path / "native1" / name).read_bytes() == (
+            tmp_path / "native0" / name
+        ).read_bytes(), name
 
 
 def test_the_build_step_can_be_switched_off_and_fails_softly(tmp_path):
@@ -206,3 +238,30 @@ def test_an_editable_install_gets_its_bytecode_compiled(tmp_path, monkeypatch):
     compiled = [p for p in sources if (p.parent / "__pycache__" / f"{p.stem}.{tag}.pyc").is_file()]
     assert len(compiled) == len(sources) > 100
     assert not any((root / "roboisf").rglob("*.nbi"))  # no kernels: switched off
+
+
+@needs_numba
+def test_the_build_step_compiles_the_groups_no_c_kernel_serves_or_all_when_asked(
+    monkeypatch, capsys
+):
+    """``python -m roboisf.jit.prebuild ROOT``: nothing where the C forms serve every group;
+    the groups they do not serve where one is missing (no C compiler: the wheel's numba
+    fallback); every group with ``--all`` (setup.py passes it for an editable install)."""
+    from roboisf.jit import background, prebuild
+
+    calls: list[bool] = []
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    monkeypatch.delenv(prebuild.SKIP_ENV, raising=False)
+    monkeypatch.setattr(
+        background, "build_missing", lambda *, skip_native: calls.append(skip_native) or []
+    )
+    root = str(SRC.parent)  # this checkout: its C kernels and its install's numba caches
+    assert all(background.native_ready(g) for g in background.GROUPS)
+    assert prebuild.main([root]) == 0 and calls == []
+    assert "the C kernels serve every group; no numba kernel built" in capsys.readouterr().out
+    assert prebuild.main([root, "--all"]) == 0 and calls == [False]
+    ready = background.native_ready
+    monkeypatch.setattr(background, "native_ready", lambda g: g != "scan" and ready(g))
+    assert prebuild.main([root]) == 0 and calls == [False, True]
+    assert "built in" in capsys.readouterr().out
+    assert prebuild.main([]) == 2

@@ -498,8 +498,9 @@ print(json.dumps({"ready": ready, "lock": str(bg.lock_path()), "failed": str(bg.
 #: lanes (the mesh group's axisymmetric kernels, the force-log group), so the builder runs its
 #: second lane in a spawned process. Every other module's cache is copied in from the install's
 #: build (`setup.py`'s build step, beside the sources): compiling every group a second time took
-#: this test 28–36 s of two cores. That every group builds, and that ``analyze`` and ``plan`` then
-#: compile nothing, is tests/test_install_kernels.py's (the same ``build_missing``).
+#: this test 28–36 s of two cores. That every group builds (the editable install, the same
+#: ``build_missing``), and that ``analyze`` and ``plan`` then compile nothing, is
+#: tests/test_install_kernels.py's.
 _BUILT_BY_THE_TEST = ("roboisf.parts.axisym_kernel", "roboisf.logs.forcelog_kernel")
 
 

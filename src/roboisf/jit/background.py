@@ -349,8 +349,8 @@ def wait_for(
 def build_missing(jobs: int | None = None, *, skip_native: bool = False) -> list[str]:
     """Build every group of :data:`GROUPS` not cached yet; the failures, one line per group.
     ``skip_native``: not the groups whose C forms serve them here (:func:`native_ready`) — the
-    background builder's choice (the install builds every group: numba is the C forms'
-    fallback).
+    background builder's choice, and a wheel's build step's (an editable install builds every
+    group: :mod:`roboisf.jit.prebuild`).
 
     The lanes (:attr:`Group.lane`) are built side by side, ``jobs`` processes at most (default:
     the cores this process may use, :func:`roboisf.jit.cores`): this one builds the first, a
