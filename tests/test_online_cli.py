@@ -264,7 +264,7 @@ def test_simulated_run_from_the_command_line(tmp_path):
             "cone",
             "--simulate",
             "--duration",
-            "3",
+            "1",
             "--max-correction",
             "0.3",
             "-o",
@@ -274,8 +274,11 @@ def test_simulated_run_from_the_command_line(tmp_path):
     assert code == 0
     df = pd.read_parquet(out)
     assert len(df) > 50
-    corr = df[["corr_x_mm", "corr_y_mm", "corr_z_mm"]].to_numpy()
-    assert np.linalg.norm(corr, axis=1).max() <= 0.3 * (1 + 1e-12)
+    corr = np.linalg.norm(df[["corr_x_mm", "corr_y_mm", "corr_z_mm"]].to_numpy(), axis=1)
+    assert corr.max() <= 0.3 * (1 + 1e-12)
+    # the limit held the correction, not a force too small to reach it (1 s of the paper cone:
+    # 212 of 267 cycles at the limit, 2026-11-30; 3 s took 3 s more of the suite)
+    assert (corr >= 0.3 * (1 - 1e-9)).sum() > 50
 
 
 def test_ctrl_c_ends_the_loop_and_writes_the_log(tmp_path):
