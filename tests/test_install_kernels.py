@@ -58,6 +58,30 @@ def _project_copy(dest: Path) -> Path:
     return dest
 
 
+def _installed_env(package_root: Path, tmp_path: Path) -> dict[str, str]:
+    """The environment of a user's run of the package under ``package_root``: background
+    building on, no cache folder of numba's set, its own temp folder (where a builder's lock
+    would appear)."""
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "PYTHONPATH")}
+    env.update(PYTHONPATH=str(package_root), ROBOISF_BACKGROUND_COMPILE="1", TMPDIR=str(tmp_path))
+    return env
+
+
+def _plan_args(env: dict[str, str], tmp_path: Path, out: Path) -> list[str]:
+    """``roboisf plan`` of a cone (its part file written first, with ``env``) into ``out``."""
+    part = tmp_path / "cone.toml"
+    if not part.exists():
+        subprocess.run(
+            [sys.executable, "-m", "roboisf", "-q", "part", "cone", "-o", str(part)],
+            env=env,
+            check=True,
+            capture_output=True,
+            timeout=600,
+        )
+    plan = [*("plan", "--part", str(part), "--x-range", "2000:2200:2", "--y-range", "-500")]
+    return [*plan, "--z-range", "200", "--serial", "-o", str(out)]
+
+
 @pytest.mark.slow
 def test_the_wheel_carries_its_kernels_and_the_first_run_compiles_nothing(
     tmp_path, fast_cone_study
@@ -100,10 +124,8 @@ def test_the_wheel_carries_its_kernels_and_the_first_run_compiles_nothing(
         assert (site / c).is_file()
         assert list((site / c).parent.glob(f"_{c.stem}_c.*.so")), f"{c}: no library in the wheel"
 
-    # the installed package, as a user runs it: background building on, no cache folder of
-    # numba's set, its own temp folder (where a builder's lock would appear)
-    run_env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "PYTHONPATH")}
-    run_env.update(PYTHONPATH=str(site), ROBOISF_BACKGROUND_COMPILE="1", TMPDIR=str(tmp_path))
+    # the installed package, as a user runs it
+    run_env = _installed_env(site, tmp_path)
     probe = json.loads(
         subprocess.run(
             [sys.executable, "-c", _READY], env=run_env, check=True, capture_output=True, text=True
@@ -111,16 +133,7 @@ def test_the_wheel_carries_its_kernels_and_the_first_run_compiles_nothing(
     )
     assert Path(probe["file"]).resolve().is_relative_to(site.resolve())
     assert all(probe["ready"].values()), probe["ready"]  # compiled at once: no builder
-    part = tmp_path / "cone.toml"
-    subprocess.run(
-        [sys.executable, "-m", "roboisf", "-q", "part", "cone", "-o", str(part)],
-        env=run_env,
-        check=True,
-        capture_output=True,
-        timeout=600,
-    )
-    plan = [*("plan", "--part", str(part), "--x-range", "2000:2200:2", "--y-range", "-500")]
-    plan += ["--z-range", "200", "--serial", "-o", str(tmp_path / "plan")]
+    plan = _plan_args(run_env, tmp_path, tmp_path / "plan")
     for args in (["analyze", str(fast_cone_study), "-o", str(tmp_path / "analysis")], plan):
         r = subprocess.run(
             [sys.executable, "-c", _NO_NUMBA, *args],
@@ -157,20 +170,10 @@ def test_the_numba_fallback_built_at_install_serves_analyze_and_plan_compiling_n
     shutil.copytree(SRC, root / "roboisf", ignore=shutil.ignore_patterns("*.pyc", "*.tmp"))
     assert in_tree_missing(root) == []
     built = _signatures(root)
-    run_env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "PYTHONPATH")}
-    run_env.update(PYTHONPATH=str(root), ROBOISF_BACKGROUND_COMPILE="1", TMPDIR=str(tmp_path))
-    part = tmp_path / "cone.toml"
-    subprocess.run(
-        [sys.executable, "-m", "roboisf", "-q", "part", "cone", "-o", str(part)],
-        env=run_env,
-        check=True,
-        capture_output=True,
-        timeout=600,
-    )
+    run_env = _installed_env(root, tmp_path)
     for native in ("1", "0"):
         out = tmp_path / f"native{native}"
-        plan = [*("plan", "--part", str(part), "--x-range", "2000:2200:2", "--y-range", "-500")]
-        plan += ["--z-range", "200", "--serial", "-o", str(out / "plan")]
+        plan = _plan_args(run_env, tmp_path, out / "plan")
         for args in (["analyze", str(fast_cone_study), "-o", str(out / "analysis")], plan):
             r = subprocess.run(
                 [sys.executable, "-c", _NO_NUMBA, *args],
