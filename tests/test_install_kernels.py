@@ -151,11 +151,12 @@ def test_the_wheel_carries_its_kernels_and_the_first_run_compiles_nothing(
 
 
 @needs_numba
-def test_the_numba_fallback_built_at_install_serves_analyze_and_plan_compiling_nothing(
+def test_the_numba_fallback_built_at_install_serves_every_command_compiling_nothing(
     tmp_path, fast_cone_study
 ):
     """Every numba kernel group the install builds (a wheel without a C compiler; every
-    checkout's editable install, ``--all``) serves analyze and plan without compiling a thing:
+    checkout's editable install, ``--all``) serves analyze, plan and compensate without
+    compiling a thing (and with the C forms none imports numba):
     each specialisation they call is one the build step made (it had missed row_norms of a log
     read backwards and plan's whole inner loop, 2026-11-29: the first analyze after it compiled
     for 0.2 s, the first plan for ~1.5 s), with the same bytes as the C forms. Run on a copy of
@@ -174,7 +175,10 @@ def test_the_numba_fallback_built_at_install_serves_analyze_and_plan_compiling_n
     for native in ("1", "0"):
         out = tmp_path / f"native{native}"
         plan = _plan_args(run_env, tmp_path, out / "plan")
-        for args in (["analyze", str(fast_cone_study), "-o", str(out / "analysis")], plan):
+        comp = ["compensate", "--virtual", "cone", "--step-down", "2", "--spacing", "3"]
+        comp += ["--iterations", "2", "--no-png", "-o", str(out / "comp")]
+        analysis = ["analyze", str(fast_cone_study), "-o", str(out / "analysis")]
+        for args in (analysis, plan, comp):
             r = subprocess.run(
                 [sys.executable, "-c", _NO_NUMBA, *args],
                 env={**run_env, "ROBOISF_NATIVE": native},
@@ -186,9 +190,16 @@ def test_the_numba_fallback_built_at_install_serves_analyze_and_plan_compiling_n
             assert r.stdout.strip() == f"numba imported: {native == '0'}", args[0]
     assert not list(tmp_path.glob("roboisf-kernel-build-*"))  # no builder was started
     missed = _signatures(root) - built
-    assert not missed, f"analyze or plan compiled what the install did not: {sorted(missed)}"
+    assert not missed, f"a command compiled what the install did not: {sorted(missed)}"
     # the two compiled forms, the same numbers
-    for name in ("analysis/contributions.csv", "plan/placements.csv"):
+    comp = ["compensated.csv", "compensated.mod", "compensated.src", "per_point.csv"]
+    comp += ["compensated.ls", "compensated.nc", "compensation.json"]
+    for name in [
+        "analysis/contributions.csv",
+        "plan/placements.csv",
+        "plan/plan.json",
+        *(f"comp/{n}" for n in comp),
+    ]:
         assert (tmp_path / "native1" / name).read_bytes() == (
             tmp_path / "native0" / name
         ).read_bytes(), name

@@ -1,16 +1,12 @@
 """The robot IK's C form (``vjm_kernel.c``: ik_numba's _flange_rows, _tip_rows, _continuous,
 _vjm_rows with its atan2 and _wrap, and vjm_numba._margin_rows) against the numba form, bit for
-bit, and ``roboisf compensate`` / ``roboisf plan`` without numba."""
+bit. ``roboisf compensate`` / ``roboisf plan`` with each form: tests/test_install_kernels.py."""
 
 from __future__ import annotations
 
 import math
-import os
-import subprocess
-import sys
 import threading
 from dataclasses import replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -26,7 +22,6 @@ from roboisf.robot.singularity import margin_ok, scaled_jacobian, sigma_min
 from test_native_robot import _model  # the same presets with the same tool
 
 VK = "roboisf.robot.vjm_kernel"
-SRC = Path(__file__).resolve().parents[1] / "src"
 pytestmark = pytest.mark.skipif(not vjm_kernel.HAVE_NUMBA, reason="numba not installed")
 BRANCHES = [
     (s, e, w) for s in ("front", "back") for e in ("up", "down") for w in ("noflip", "flip")
@@ -468,55 +463,8 @@ def test_margin_ok_c_equals_numba() -> None:
         _same(got, want)
 
 
-# ---- the commands without numba ------------------------------------------------------------
-
-_RUN = (
-    "import sys\n"
-    "from roboisf.cli.main import main\n"
-    "rc = main(sys.argv[1:])\n"
-    "print('numba imported:', 'numba' in sys.modules)\n"
-    "sys.exit(rc)\n"
-)
-
-
-def _run(args: list[str], native: str) -> str:
-    # ROBOISF_BACKGROUND_COMPILE=0: the numba form compiles in the foreground if its cache is
-    # stale (else numpy would serve the ROBOISF_NATIVE=0 run and give other bits)
-    env = dict(os.environ, ROBOISF_NATIVE=native, ROBOISF_BACKGROUND_COMPILE="0")
-    env["PYTHONPATH"] = str(SRC)
-    r = subprocess.run(
-        [sys.executable, "-c", _RUN, "-q", *args], env=env, capture_output=True, text=True,
-        timeout=900,
-    )  # fmt: skip
-    assert r.returncode == 0, r.stderr[-3000:]
-    return r.stdout.strip().splitlines()[-1]
-
-
-def _same_files(a: Path, b: Path, names: list[str]) -> None:
-    for name in names:
-        assert (a / name).read_bytes() == (b / name).read_bytes(), name
-
-
-def test_compensate_and_plan_run_without_numba(tmp_path: Path) -> None:
-    """``roboisf compensate`` of a virtual cone and a small ``roboisf plan`` (the line of
-    tests/test_install_kernels.py) with the C form: numba never imported; the same files as
-    the numba form's (ROBOISF_NATIVE=0)."""
-    comp = ["compensate", "--virtual", "cone", "--step-down", "2", "--spacing", "3"]
-    comp += ["--iterations", "2", "--no-png"]
-    for native in ("1", "0"):
-        out = _run([*comp, "-o", str(tmp_path / f"comp{native}")], native)
-        assert out == f"numba imported: {native == '0'}"
-    names = ["compensated.csv", "compensated.mod", "compensated.src", "per_point.csv"]
-    names += ["compensated.ls", "compensated.nc", "compensation.json"]
-    _same_files(tmp_path / "comp1", tmp_path / "comp0", names)
-    part = tmp_path / "cone.toml"
-    _run(["part", "cone", "-o", str(part)], "1")
-    plan = ["plan", "--part", str(part), "--x-range", "2000:2200:2", "--y-range", "-500"]
-    plan += ["--z-range", "200", "--serial"]
-    for native in ("1", "0"):
-        out = _run([*plan, "-o", str(tmp_path / f"plan{native}")], native)
-        assert out == f"numba imported: {native == '0'}"
-    _same_files(tmp_path / "plan1", tmp_path / "plan0", ["placements.csv", "plan.json"])
+# ---- the commands without numba: tests/test_install_kernels.py (the C forms import no numba;
+# the numba forms compile nothing and write the same bytes) ----------------------------
 
 
 def test_numpy_backend_is_not_the_c_form() -> None:
