@@ -55,6 +55,19 @@ def in_tree_missing(root: Path, *, skip_native: bool = False) -> list[str]:
     return missing
 
 
+def _not_from(root: Path) -> str:
+    """Why this process's ``roboisf`` is not the package under ``root`` ("" when it is): the
+    C forms and the caches it finds must be that package's."""
+    import roboisf
+
+    here = Path(roboisf.__file__).resolve().parent
+    return (
+        ""
+        if here == (root / "roboisf").resolve()
+        else f"roboisf was imported from {here}, not from {root}"
+    )
+
+
 def build_into(root: Path, *, every_group: bool = False) -> list[str]:
     """Build the kernel groups of the ``roboisf`` package under ``root`` that its C forms do
     not serve (``every_group``: all of them) into their in-tree cache; the problems, one line
@@ -62,12 +75,11 @@ def build_into(root: Path, *, every_group: bool = False) -> list[str]:
 
     Must run in a process that imported ``roboisf`` from ``root`` and has no
     ``NUMBA_CACHE_DIR`` (numba would write there instead): :func:`main` checks both."""
-    import roboisf
     from roboisf.jit.background import build_missing
 
-    here = Path(roboisf.__file__).resolve().parent
-    if here != (root / "roboisf").resolve():
-        return [f"roboisf was imported from {here}, not from {root}"]
+    wrong = _not_from(root)
+    if wrong:
+        return [wrong]
     failures = build_missing(skip_native=not every_group)
     missing = in_tree_missing(root, skip_native=not every_group)
     if missing and not failures:
@@ -94,12 +106,10 @@ def main(argv: list[str]) -> int:
     if os.environ.get("NUMBA_CACHE_DIR"):
         print("roboisf kernels: not built (NUMBA_CACHE_DIR is set: numba would cache there)")
         return 1
-    if not every_group:
-        import roboisf
+    if not every_group and not _not_from(root):
         from roboisf.jit.background import GROUPS, native_ready
 
-        here = Path(roboisf.__file__).resolve().parent
-        if here == (root / "roboisf").resolve() and all(native_ready(g) for g in GROUPS):
+        if all(native_ready(g) for g in GROUPS):
             print(
                 "roboisf kernels: the C kernels serve every group; no numba kernel built "
                 "(numba is their fallback, built in the background if ever needed)"

@@ -18,9 +18,10 @@ Two ways to run the loop against them:
 * :func:`sensor_process` / :func:`controller_process` — separate processes speaking the real
   protocols over localhost UDP (for the CLI's ``--simulate``, the benchmark and the tests),
   sharing only the index of the current toolpath point (the physics: the force depends on where
-  the tool is); or both in one process (:func:`devices_process`). The controller keeps its
-  cycle on absolute times (:class:`~roboisf.online.rt.Pacer`) and reports its own lateness
-  beside the loop's (:func:`missed_causes`).
+  the tool is); or both in one process (:func:`devices_process`). They live in
+  :mod:`roboisf.online.devices` (re-exported here), a module a spawned child imports cheaply.
+  The controller keeps its cycle on absolute times (:class:`~roboisf.online.rt.Pacer`) and
+  reports its own lateness beside the loop's (:func:`missed_causes`).
 
 :func:`evaluate` forms the part with the commanded path (``simulate(cell, commanded=…)``) and
 compares its compliance error with the uncorrected part's and with offline pre-deflection.
