@@ -106,8 +106,8 @@ def test_the_wheel_carries_its_kernels_and_the_first_run_compiles_nothing(
         timeout=900,
     )
     assert r.returncode == 0, r.stderr[-3000:]
-    if jit.HAVE_NUMBA:  # the step ran and said why it compiled nothing
-        assert "the C kernels serve every group; no numba kernel built" in r.stdout + r.stderr
+    # the step ran and said why it compiled nothing (numba installed or not: it is not needed)
+    assert "the C kernels serve every group; no numba kernel built" in r.stdout + r.stderr
     (whl,) = wheels.glob("roboisf-*.whl")
     # not pure Python: its C kernels are for this Python and platform
     assert f"-cp{sys.version_info[0]}{sys.version_info[1]}-" in whl.name, whl.name
