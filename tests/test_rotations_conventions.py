@@ -106,3 +106,78 @@ def test_kuka_abc_order_by_hand():
     R = abc_to_matrix(np.radians([90, 90, 0]))
     np.testing.assert_allclose(R @ [1, 0, 0], [0, 0, -1], atol=1e-15)
     np.testing.assert_allclose(R @ [0, 0, 1], [0, 1, 0], atol=1e-15)
+
+
+def _scipy_wxyz(xyzw):
+    """scipy's scalar-last quaternions as roboisf gives them: (w, x, y, z), w ≥ 0."""
+    wxyz = xyzw[:, [3, 0, 1, 2]]
+    return wxyz * np.where(wxyz[:, :1] < 0, -1.0, 1.0)
+
+
+def test_the_conversions_are_scipys_bit_for_bit():
+    """matrix ↔ quaternion ↔ rotation vector are written out in roboisf.frames.rotations (no
+    scipy.spatial import on analyze's scan thread); scipy's Rotation is the oracle, to the bit:
+    20 000 random rotations, angles under and just over the 1 mrad of the series, zero,
+    half-turns about the axes and about a diagonal, and matrices off orthogonal by 1e-6 (the SVD
+    path)."""
+    from scipy.spatial.transform import Rotation
+
+    from roboisf.frames.rotations import matrix_to_rotvec, rotvec_to_matrix
+
+    rng = np.random.default_rng(31)
+    v = np.concatenate(
+        [
+            rng.normal(size=(20_000, 3)),
+            rng.normal(size=(2_000, 3)) * 1e-4,
+            rng.normal(size=(2_000, 3)) * 6e-4,  # both sides of the series' 1e-3
+            rng.normal(size=(200, 3)) * 1e-9,
+            np.zeros((1, 3)),
+            np.array([[math.pi, 0, 0], [0, math.pi, 0], [0, 0, math.pi]]),
+            np.array([[1.0, 1.0, 1.0]]) * math.pi / math.sqrt(3.0),
+            rng.normal(size=(100, 3)) * 10.0,  # beyond a turn
+        ]
+    )
+    ref = Rotation.from_rotvec(v)
+    M = ref.as_matrix()
+    assert np.array_equal(rotvec_to_matrix(v), M)
+    assert np.array_equal(matrix_to_rotvec(M), Rotation.from_matrix(M).as_rotvec())
+    assert np.array_equal(matrix_to_quat(M), _scipy_wxyz(Rotation.from_matrix(M).as_quat()))
+    off = M[:500] + rng.normal(size=(500, 3, 3)) * 1e-6  # not orthogonal: scipy's SVD first
+    assert np.array_equal(matrix_to_quat(off), _scipy_wxyz(Rotation.from_matrix(off).as_quat()))
+    assert np.array_equal(matrix_to_rotvec(off), Rotation.from_matrix(off).as_rotvec())
+    q = rng.normal(size=(20_000, 4))  # not normalised: both normalise
+    assert np.array_equal(quat_to_matrix(q), Rotation.from_quat(q[:, [1, 2, 3, 0]]).as_matrix())
+    # shapes: one rotation in, one out; a (2, 3) batch keeps its leading shape
+    assert matrix_to_quat(np.eye(3)).shape == (4,)
+    assert matrix_to_rotvec(np.eye(3)).shape == (3,)
+    assert rotvec_to_matrix(v[:6].reshape(2, 3, 3)).shape == (2, 3, 3, 3)
+
+
+def test_a_left_handed_matrix_is_refused():
+    from roboisf.frames.rotations import matrix_to_rotvec
+
+    for f in (matrix_to_quat, matrix_to_rotvec):
+        with pytest.raises(ValueError, match="Non-positive determinant"):
+            f(np.diag([1.0, 1.0, -1.0]))
+
+
+def test_converting_a_rotation_imports_no_scipy_spatial():
+    """The conversions need numpy only (scipy.spatial with scipy.sparse and scipy.linalg is
+    ~0.2 s of import: docs/speed.md); Euler angles still load scipy's Rotation."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, numpy as np\n"
+        "from roboisf.frames import rotations as r\n"
+        "R = r.rotvec_to_matrix([0.1, 0.2, 0.3])\n"
+        "r.matrix_to_quat(R); r.matrix_to_rotvec(R); r.quat_to_matrix([1, 0, 0, 0])\n"
+        "print(sorted(m for m in sys.modules if m.startswith('scipy')))\n"
+        "r.matrix_to_rpy(R)\n"
+        "print('scipy.spatial.transform' in sys.modules)\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout.split("\n")
+    assert out[0] == "[]", out[0]
+    assert out[1] == "True"  # the check can see an import

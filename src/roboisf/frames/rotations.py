@@ -6,11 +6,21 @@ All angles in radians here; degrees are converted at the file boundary (``robois
   A, B, C are exactly yaw, pitch, roll in this order).
 * Quaternions: scalar first ``(w, x, y, z)`` — ABB's ``q1..q4`` order. Output quaternions are
   normalised with ``w ≥ 0``.
+
+The conversions between matrices, quaternions and rotation vectors are scipy's
+(``scipy.spatial.transform.Rotation``, 1.17: the formulas of its ``_rotation_xp.py``, in the same
+order, with the C library's sin, cos and atan2), written out here: importing scipy.spatial
+(with scipy.sparse and scipy.linalg) took 0.2 s of the interpreter lock in the thread of
+``analyze``'s first scan, whose registration converts one rotation. They are scipy's numbers bit
+for bit (tests/test_rotations_conventions.py compares them on 20 000 rotations, small angles,
+half-turns and matrices that are not quite orthogonal). Euler angles (:func:`matrix_to_rpy`)
+still come from scipy.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+import math
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -38,10 +48,10 @@ F64 = NDArray[np.float64]
 
 
 def _rotation() -> type[Rotation]:
-    """scipy's ``Rotation``, imported on first use: ``roboisf.frames`` is imported by almost
-    every command, and scipy.spatial (with scipy.sparse and scipy.linalg) is ~0.2 s and ~60 MB
-    of start-up that one converting no rotation need not pay (``robot show``, reading a study:
-    docs/speed.md)."""
+    """scipy's ``Rotation`` (for Euler angles), imported on first use: ``roboisf.frames`` is
+    imported by almost every command, and scipy.spatial (with scipy.sparse and scipy.linalg) is
+    ~0.2 s and ~60 MB of start-up that one converting no rotation need not pay (``robot show``,
+    reading a study: docs/speed.md)."""
     from scipy.spatial.transform import Rotation as R
 
     return R
@@ -106,13 +116,15 @@ def quat_to_matrix(q: ArrayLike) -> F64:
     norm = np.linalg.norm(flat, axis=1)
     if np.any(norm < 1e-12) or not np.all(np.isfinite(flat)):
         raise ValueError("quaternion must be finite and non-zero")
-    return _rotation().from_quat(flat[:, [1, 2, 3, 0]]).as_matrix().reshape(*q.shape[:-1], 3, 3)
+    xyzw = flat[:, [1, 2, 3, 0]]
+    xyzw = xyzw / np.linalg.norm(xyzw, axis=1, keepdims=True)  # scipy's order: x, y, z, w
+    return _quat_as_matrix(xyzw).reshape(*q.shape[:-1], 3, 3)
 
 
 def matrix_to_quat(R: ArrayLike) -> F64:
     """Rotation matrix (..., 3, 3) → unit quaternion ``(w, x, y, z)`` with ``w ≥ 0``."""
     R = np.asarray(R, dtype=float)
-    xyzw = _rotation().from_matrix(R.reshape(-1, 3, 3)).as_quat()
+    xyzw = _quat_from_matrix(R.reshape(-1, 3, 3))
     wxyz = xyzw[:, [3, 0, 1, 2]]
     wxyz *= np.where(wxyz[:, :1] < 0, -1.0, 1.0)
     return wxyz.reshape(*R.shape[:-2], 4)
@@ -121,13 +133,110 @@ def matrix_to_quat(R: ArrayLike) -> F64:
 def rotvec_to_matrix(phi: ArrayLike) -> F64:
     """Rotation vector (axis·angle) [rad], (..., 3) → (..., 3, 3)."""
     phi = np.asarray(phi, dtype=float)
-    return _rotation().from_rotvec(phi.reshape(-1, 3)).as_matrix().reshape(*phi.shape[:-1], 3, 3)
+    return _quat_as_matrix(_quat_from_rotvec(phi.reshape(-1, 3))).reshape(*phi.shape[:-1], 3, 3)
 
 
 def matrix_to_rotvec(R: ArrayLike) -> F64:
     """Rotation matrix (..., 3, 3) → rotation vector [rad] (..., 3)."""
     R = np.asarray(R, dtype=float)
-    return _rotation().from_matrix(R.reshape(-1, 3, 3)).as_rotvec().reshape(*R.shape[:-2], 3)
+    return _quat_as_rotvec(_quat_from_matrix(R.reshape(-1, 3, 3))).reshape(*R.shape[:-2], 3)
+
+
+# scipy.spatial.transform.Rotation's conversions (scipy 1.17, ``_rotation_xp.py``: the same
+# formulas and order of operations; module docstring), on scalar-last quaternions
+# (x, y, z, w), (M, 4)
+
+
+def _libm(f: Any, nin: int) -> Any:
+    """``f`` (a ``math`` function) element by element on float arrays: the C library's result,
+    as scipy's compiled conversions get it (numpy's own vectorised sin, cos, arctan2 may differ
+    in the last bit on some CPUs)."""
+    uf = np.frompyfunc(f, nin, 1)
+
+    def call(*args: Any) -> F64:
+        return np.asarray(uf(*args), dtype=float)
+
+    return call
+
+
+_libm_sin = _libm(math.sin, 1)
+_libm_cos = _libm(math.cos, 1)
+_libm_atan2 = _libm(math.atan2, 2)
+
+
+def _quat_from_matrix(M: F64) -> F64:
+    """Unit quaternions (M, 4) of rotation matrices (M, 3, 3): refused when a determinant is not
+    positive; a matrix that is not orthogonal (to 1e-12) is replaced by the nearest one (SVD)."""
+    det = np.linalg.det(M)
+    bad = det <= 0  # (NaN passes, as in scipy: the SVD below refuses it)
+    if np.any(bad):
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(
+            "Non-positive determinant (left-handed or null coordinate frame) in rotation "
+            f"matrix {i}: {M[i]}."
+        )
+    gram = M @ np.swapaxes(M, -1, -2)
+    ortho = np.all(np.isclose(gram, np.eye(3), rtol=1e-5, atol=1e-12), axis=(-2, -1))
+    if not np.all(ortho):
+        M = M.copy()
+        U, _, Vt = np.linalg.svd(M[~ortho], full_matrices=False)
+        M[~ortho] = U @ Vt
+    tr = M[:, 0, 0] + M[:, 1, 1] + M[:, 2, 2]
+    choice = np.argmax(np.stack([M[:, 0, 0], M[:, 1, 1], M[:, 2, 2], tr], axis=-1), axis=-1)
+    cases = (
+        (1 - tr + 2 * M[:, 0, 0], M[:, 1, 0] + M[:, 0, 1], M[:, 2, 0] + M[:, 0, 2],
+         M[:, 2, 1] - M[:, 1, 2]),
+        (M[:, 1, 0] + M[:, 0, 1], 1 - tr + 2 * M[:, 1, 1], M[:, 2, 1] + M[:, 1, 2],
+         M[:, 0, 2] - M[:, 2, 0]),
+        (M[:, 2, 0] + M[:, 0, 2], M[:, 2, 1] + M[:, 1, 2], 1 - tr + 2 * M[:, 2, 2],
+         M[:, 1, 0] - M[:, 0, 1]),
+        (M[:, 2, 1] - M[:, 1, 2], M[:, 0, 2] - M[:, 2, 0], M[:, 1, 0] - M[:, 0, 1], 1 + tr),
+    )  # fmt: skip
+    quat = np.empty((M.shape[0], 4))
+    for k, case in enumerate(cases):
+        quat = np.where((choice == k)[:, None], np.stack(case, axis=-1), quat)
+    return quat / np.linalg.norm(quat, axis=-1, keepdims=True)
+
+
+def _quat_from_rotvec(v: F64) -> F64:
+    """Unit quaternions (M, 4) of rotation vectors (M, 3) [rad] (a Taylor series below 1 mrad)."""
+    angle = np.linalg.norm(v, axis=-1, keepdims=True)
+    small = angle <= 1e-3
+    angle2 = angle**2
+    small_scale = 0.5 - angle2 / 48 + angle2**2 / 3840
+    large_scale = _libm_sin(angle / 2) / (angle + small.astype(float))
+    scale = np.where(small, small_scale, large_scale)
+    return np.concatenate([v * scale, _libm_cos(angle / 2)], axis=-1)
+
+
+def _quat_as_matrix(quat: F64) -> F64:
+    """Rotation matrices (M, 3, 3) of unit quaternions (M, 4)."""
+    x, y, z, w = quat[:, 0], quat[:, 1], quat[:, 2], quat[:, 3]
+    x2, y2, z2, w2 = x * x, y * y, z * z, w * w
+    xy, zw, xz, yw, yz, xw = x * y, z * w, x * z, y * w, y * z, x * w
+    m = [
+        x2 - y2 - z2 + w2, 2 * (xy - zw), 2 * (xz + yw),
+        2 * (xy + zw), -x2 + y2 - z2 + w2, 2 * (yz - xw),
+        2 * (xz - yw), 2 * (yz + xw), -x2 - y2 + z2 + w2,
+    ]  # fmt: skip
+    return np.stack(m, axis=-1).reshape(-1, 3, 3)
+
+
+def _quat_as_rotvec(quat: F64) -> F64:
+    """Rotation vectors (M, 3) [rad, angle in [0, π]] of unit quaternions (M, 4): each first
+    made canonical (w > 0, or the first non-zero of x, y, z positive where w = 0), as scipy."""
+    w, x, y = quat[:, 3], quat[:, 0], quat[:, 1]
+    flip = (w < 0) | ((w == 0) & (x < 0))
+    flip |= (w == 0) & (x == 0) & (y < 0)
+    flip |= (w == 0) & (x == 0) & (y == 0) & (quat[:, 2] < 0)
+    quat = np.where(flip[:, None], -quat, quat)
+    ax = np.linalg.norm(quat[:, :3], axis=-1, keepdims=True)
+    angle = 2 * _libm_atan2(ax, quat[:, 3:4])
+    small = angle <= 1e-3
+    angle2 = angle**2
+    small_scale = 2 + angle2 / 12 + 7 * angle2**2 / 2880
+    large_scale = angle / (_libm_sin(angle / 2.0) + small.astype(float))
+    return np.where(small, small_scale, large_scale) * quat[:, :3]
 
 
 def vertical_tool(tool_rotation: ArrayLike = 0.0) -> F64:
