@@ -112,19 +112,26 @@ def matrix_to_abc(R: ArrayLike) -> F64:
 def quat_to_matrix(q: ArrayLike) -> F64:
     """Unit quaternion ``(w, x, y, z)`` (ABB q1..q4), (..., 4) → (..., 3, 3). Normalises input."""
     q = np.asarray(q, dtype=float)
+    if q.shape == (4,):  # one rotation (the online loop's, every cycle): Python floats
+        w, x, y, z = q.tolist()
+        if not all(map(math.isfinite, (w, x, y, z))) or math.hypot(w, x, y, z) < 1e-12:
+            raise ValueError("quaternion must be finite and non-zero")
+        n = math.sqrt(x * x + y * y + z * z + w * w)  # scipy's order: x, y, z, w
+        return _quat_as_matrix1(x / n, y / n, z / n, w / n)
     flat = q.reshape(-1, 4)
     norm = np.linalg.norm(flat, axis=1)
     if np.any(norm < 1e-12) or not np.all(np.isfinite(flat)):
         raise ValueError("quaternion must be finite and non-zero")
     xyzw = flat[:, [1, 2, 3, 0]]
-    xyzw = xyzw / np.linalg.norm(xyzw, axis=1, keepdims=True)  # scipy's order: x, y, z, w
+    xyzw = xyzw / np.linalg.norm(xyzw, axis=1, keepdims=True)
     return _quat_as_matrix(xyzw).reshape(*q.shape[:-1], 3, 3)
 
 
 def matrix_to_quat(R: ArrayLike) -> F64:
     """Rotation matrix (..., 3, 3) → unit quaternion ``(w, x, y, z)`` with ``w ≥ 0``."""
     R = np.asarray(R, dtype=float)
-    xyzw = _quat_from_matrix(R.reshape(-1, 3, 3))
+    one = _quat_from_matrix1(R) if R.shape == (3, 3) else None
+    xyzw = np.array([one]) if one is not None else _quat_from_matrix(R.reshape(-1, 3, 3))
     wxyz = xyzw[:, [3, 0, 1, 2]]
     wxyz *= np.where(wxyz[:, :1] < 0, -1.0, 1.0)
     return wxyz.reshape(*R.shape[:-2], 4)
@@ -133,12 +140,17 @@ def matrix_to_quat(R: ArrayLike) -> F64:
 def rotvec_to_matrix(phi: ArrayLike) -> F64:
     """Rotation vector (axis·angle) [rad], (..., 3) → (..., 3, 3)."""
     phi = np.asarray(phi, dtype=float)
+    if phi.shape == (3,):
+        return _quat_as_matrix1(*_quat_from_rotvec1(*phi.tolist()))
     return _quat_as_matrix(_quat_from_rotvec(phi.reshape(-1, 3))).reshape(*phi.shape[:-1], 3, 3)
 
 
 def matrix_to_rotvec(R: ArrayLike) -> F64:
     """Rotation matrix (..., 3, 3) → rotation vector [rad] (..., 3)."""
     R = np.asarray(R, dtype=float)
+    one = _quat_from_matrix1(R) if R.shape == (3, 3) else None
+    if one is not None:
+        return np.array(_quat_as_rotvec1(*one))
     return _quat_as_rotvec(_quat_from_matrix(R.reshape(-1, 3, 3))).reshape(*R.shape[:-2], 3)
 
 
@@ -237,6 +249,79 @@ def _quat_as_rotvec(quat: F64) -> F64:
     small_scale = 2 + angle2 / 12 + 7 * angle2**2 / 2880
     large_scale = angle / (_libm_sin(angle / 2.0) + small.astype(float))
     return np.where(small, small_scale, large_scale) * quat[:, :3]
+
+
+# The same conversions for one rotation in Python floats (the same operations in the same
+# order, so the same bits: tests/test_rotations_conventions.py) — numpy's calls on arrays of
+# one row cost 35-125 µs a conversion, in the online loop's every cycle.
+
+
+def _quat_from_matrix1(M: F64) -> tuple[float, float, float, float] | None:
+    """:func:`_quat_from_matrix` of one matrix (3, 3); None when it is not orthogonal (to
+    1e-12: the array form's SVD) or not finite."""
+    (a, b, c), (d, e, f), (g, h, i) = M.tolist()
+    det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+    if not math.isfinite(det):
+        return None
+    if det <= 0:
+        raise ValueError(
+            "Non-positive determinant (left-handed or null coordinate frame) in rotation "
+            f"matrix 0: {M}."
+        )
+    rows = ((a, b, c), (d, e, f), (g, h, i))
+    for r in range(3):
+        for k in range(r, 3):
+            dot = rows[r][0] * rows[k][0] + rows[r][1] * rows[k][1] + rows[r][2] * rows[k][2]
+            # scipy's test (np.isclose(M Mᵀ, I, atol=1e-12)) with a margin for the rounding
+            # of this sum: near its limit the array form decides, as scipy does
+            if abs(dot - (1.0 if r == k else 0.0)) > 0.9e-12 + (1e-5 if r == k else 0.0):
+                return None
+    tr = a + e + i
+    choice = max(range(4), key=lambda k: ((a, e, i, tr)[k], -k))  # the first of equal ones
+    if choice == 0:
+        q = (1 - tr + 2 * a, d + b, g + c, h - f)
+    elif choice == 1:
+        q = (d + b, 1 - tr + 2 * e, h + f, c - g)
+    elif choice == 2:
+        q = (g + c, h + f, 1 - tr + 2 * i, d - b)
+    else:
+        q = (h - f, c - g, d - b, 1 + tr)
+    n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    return (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
+
+
+def _quat_from_rotvec1(vx: float, vy: float, vz: float) -> tuple[float, float, float, float]:
+    angle = math.sqrt(vx * vx + vy * vy + vz * vz)
+    if angle <= 1e-3:
+        angle2 = angle * angle
+        scale = 0.5 - angle2 / 48 + angle2 * angle2 / 3840
+    else:
+        scale = math.sin(angle / 2) / angle
+    return (vx * scale, vy * scale, vz * scale, math.cos(angle / 2))
+
+
+def _quat_as_matrix1(x: float, y: float, z: float, w: float) -> F64:
+    x2, y2, z2, w2 = x * x, y * y, z * z, w * w
+    xy, zw, xz, yw, yz, xw = x * y, z * w, x * z, y * w, y * z, x * w
+    return np.array(
+        [
+            [x2 - y2 - z2 + w2, 2 * (xy - zw), 2 * (xz + yw)],
+            [2 * (xy + zw), -x2 + y2 - z2 + w2, 2 * (yz - xw)],
+            [2 * (xz - yw), 2 * (yz + xw), -x2 - y2 + z2 + w2],
+        ]
+    )
+
+
+def _quat_as_rotvec1(x: float, y: float, z: float, w: float) -> tuple[float, float, float]:
+    if w < 0 or (w == 0 and (x < 0 or (x == 0 and (y < 0 or (y == 0 and z < 0))))):
+        x, y, z, w = -x, -y, -z, -w
+    angle = 2 * math.atan2(math.sqrt(x * x + y * y + z * z), w)
+    if angle <= 1e-3:
+        angle2 = angle * angle
+        scale = 2 + angle2 / 12 + 7 * (angle2 * angle2) / 2880
+    else:
+        scale = angle / math.sin(angle / 2.0)
+    return (scale * x, scale * y, scale * z)
 
 
 def vertical_tool(tool_rotation: ArrayLike = 0.0) -> F64:
