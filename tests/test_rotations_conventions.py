@@ -220,3 +220,17 @@ def test_one_rotation_converts_to_the_same_bits_as_a_batch():
         quat_to_matrix([0.0, 0.0, 0.0, 0.0])
     with pytest.raises(ValueError, match="finite and non-zero"):
         quat_to_matrix([1.0, math.nan, 0.0, 0.0])
+
+
+def test_a_rotation_vector_that_is_not_finite_gives_nan_as_scipy():
+    """libm's sin of an infinite angle is NaN in C, an error in Python's math: NaN here too."""
+    from scipy.spatial.transform import Rotation
+
+    from roboisf.frames.rotations import rotvec_to_matrix
+
+    for v in ([math.inf, 0.0, 0.0], [math.nan, 1.0, 0.0]):
+        with np.errstate(invalid="ignore"):
+            ref = Rotation.from_rotvec(v).as_matrix()
+            assert np.isnan(ref).all()
+            assert np.isnan(rotvec_to_matrix(v)).all()
+            assert np.isnan(rotvec_to_matrix([v])).all()

@@ -171,8 +171,16 @@ def _libm(f: Any, nin: int) -> Any:
     return call
 
 
-_libm_sin = _libm(math.sin, 1)
-_libm_cos = _libm(math.cos, 1)
+def _sin(v: float) -> float:
+    return math.sin(v) if math.isfinite(v) else math.nan  # (math.sin(inf) raises; C's is NaN)
+
+
+def _cos(v: float) -> float:
+    return math.cos(v) if math.isfinite(v) else math.nan
+
+
+_libm_sin = _libm(_sin, 1)
+_libm_cos = _libm(_cos, 1)
 _libm_atan2 = _libm(math.atan2, 2)
 
 
@@ -296,8 +304,8 @@ def _quat_from_rotvec1(vx: float, vy: float, vz: float) -> tuple[float, float, f
         angle2 = angle * angle
         scale = 0.5 - angle2 / 48 + angle2 * angle2 / 3840
     else:
-        scale = math.sin(angle / 2) / angle
-    return (vx * scale, vy * scale, vz * scale, math.cos(angle / 2))
+        scale = _sin(angle / 2) / angle
+    return (vx * scale, vy * scale, vz * scale, _cos(angle / 2))
 
 
 def _quat_as_matrix1(x: float, y: float, z: float, w: float) -> F64:
@@ -320,7 +328,7 @@ def _quat_as_rotvec1(x: float, y: float, z: float, w: float) -> tuple[float, flo
         angle2 = angle * angle
         scale = 2 + angle2 / 12 + 7 * (angle2 * angle2) / 2880
     else:
-        scale = angle / math.sin(angle / 2.0)
+        scale = angle / _sin(angle / 2.0)
     return (scale * x, scale * y, scale * z)
 
 
