@@ -11,9 +11,10 @@ The conversions between matrices, quaternions and rotation vectors are scipy's
 (``scipy.spatial.transform.Rotation``, 1.17: the formulas of its ``_rotation_xp.py``, in the same
 order, with the C library's sin, cos and atan2), written out here: importing scipy.spatial
 (with scipy.sparse and scipy.linalg) took 0.2 s of the interpreter lock in the thread of
-``analyze``'s first scan, whose registration converts one rotation. They are scipy's numbers bit
-for bit (tests/test_rotations_conventions.py compares them on 20 000 rotations, small angles,
-half-turns and matrices that are not quite orthogonal). Euler angles (:func:`matrix_to_rpy`)
+``analyze``'s first scan, whose registration converts one rotation. They are scipy 1.17's
+numbers bit for bit (tests/test_rotations_conventions.py compares them on 20 000 rotations,
+small angles, half-turns and matrices that are not quite orthogonal; another scipy may round
+one differently in the last place). Euler angles (:func:`matrix_to_rpy`)
 still come from scipy.
 """
 
