@@ -32,6 +32,7 @@ from typing import Any, ClassVar
 
 from setuptools import Command, Extension, setup
 from setuptools.command.build import build
+from setuptools.command.build_ext import build_ext
 
 #: Longest the kernel build may take [s] before the install goes on without it (it takes
 #: 10-40 s on 2 cores).
@@ -111,7 +112,22 @@ class build_with_kernels(build):
     ]
 
 
-cmdclass: dict[str, type] = {"build": build_with_kernels, "build_kernels": build_kernels}
+class build_ext_parallel(build_ext):
+    """``build_ext`` compiling the C kernels side by side, one per core (setuptools' own
+    ``--parallel``, which a user's ``-j`` still sets): eight sources of 0.3-1.3 s of ``-O3``
+    each, compiled one after another, were ~5 s of every install."""
+
+    def finalize_options(self) -> None:
+        super().finalize_options()
+        if not self.parallel:
+            self.parallel = max(1, min(os.cpu_count() or 1, len(self.extensions or [])))
+
+
+cmdclass: dict[str, type] = {
+    "build": build_with_kernels,
+    "build_kernels": build_kernels,
+    "build_ext": build_ext_parallel,
+}
 
 try:  # setuptools ≥ 70.1 has bdist_wheel itself; older: the wheel keeps the pure tag
     from setuptools.command.bdist_wheel import bdist_wheel
