@@ -176,6 +176,12 @@ def test_a_left_handed_matrix_is_refused():
     for f in (matrix_to_quat, matrix_to_rotvec):
         with pytest.raises(ValueError, match="Non-positive determinant"):
             f(np.diag([1.0, 1.0, -1.0]))
+        bad = np.stack([np.eye(3), np.eye(3)])
+        bad[1, 0, 2] = math.nan  # one rotation in a batch, and alone: named, not an SVD error
+        with pytest.raises(ValueError, match="rotation matrix 1 is not finite"):
+            f(bad)
+        with pytest.raises(ValueError, match="rotation matrix 0 is not finite"):
+            f(bad[1])
 
 
 def test_converting_a_rotation_imports_no_scipy_spatial():

@@ -187,9 +187,13 @@ _libm_atan2 = _libm(math.atan2, 2)
 
 def _quat_from_matrix(M: F64) -> F64:
     """Unit quaternions (M, 4) of rotation matrices (M, 3, 3): refused when a determinant is not
-    positive; a matrix that is not orthogonal (to 1e-12) is replaced by the nearest one (SVD)."""
+    positive or not finite (scipy's SVD failed on NaN with numpy's "did not converge"); a
+    matrix that is not orthogonal (to 1e-12) is replaced by the nearest one (SVD)."""
+    if not np.all(np.isfinite(M)):
+        i = int(np.flatnonzero(~np.isfinite(M).all(axis=(1, 2)))[0])
+        raise ValueError(f"rotation matrix {i} is not finite: {M[i]}")
     det = np.linalg.det(M)
-    bad = det <= 0  # (NaN passes, as in scipy: the SVD below refuses it)
+    bad = det <= 0
     if np.any(bad):
         i = int(np.flatnonzero(bad)[0])
         raise ValueError(
