@@ -44,17 +44,16 @@ def _run(src: Path, args: list[str]) -> tuple[float, float, float]:
     """(wall s, CPU s, peak RSS MiB) of ``python -m roboisf *args`` with ``src`` on the path."""
     env = dict(os.environ, PYTHONPATH=str(src))
     env.pop("PYTHONDONTWRITEBYTECODE", None)  # compiled once, as an install would
-    t = time.perf_counter()
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "roboisf", *args],
-        env=env,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-    )
-    _, status, ru = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - t
-    proc.returncode = os.waitstatus_to_exitcode(status)
-    err = proc.stderr.read().decode(errors="replace") if proc.stderr else ""
+    with tempfile.TemporaryFile() as log:  # (a pipe read after wait4 could fill and block)
+        t = time.perf_counter()
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "roboisf", *args], env=env, stdout=log, stderr=log
+        )
+        _, status, ru = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - t
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        log.seek(0)
+        err = log.read().decode(errors="replace")
     if proc.returncode != 0:
         raise SystemExit(f"roboisf {' '.join(args)} (PYTHONPATH={src}) failed:\n{err[-2000:]}")
     return wall, ru.ru_utime + ru.ru_stime, ru.ru_maxrss / 1024
