@@ -21,7 +21,7 @@ from roboisf.frames.rotations import rot_z
 from roboisf.frames.se3 import make_transform, transform_points
 from roboisf.parts import Cone, Pyramid, tessellate
 from roboisf.parts.axisymmetric import REGION_CODES, SurfaceQuery
-from roboisf.parts.pyramid import rounded_rectangle_closest
+from roboisf.parts.pyramid import TIE, rounded_rectangle_closest
 from roboisf.scan import registration as reg
 from roboisf.scan import synthetic_scan
 
@@ -90,7 +90,8 @@ def _polygon_ref(poly, X):
 
 
 def _pyramid_ref(self, points):
-    """The patch-by-patch form: every patch's results copied wherever strictly nearer."""
+    """The patch-by-patch form: every patch's results copied wherever nearer by more than the
+    tie margin (pyramid.TIE)."""
     X = np.atleast_2d(np.asarray(points, dtype=float))
     n = X.shape[0]
     best_d = np.full(n, np.inf)
@@ -103,7 +104,7 @@ def _pyramid_ref(self, points):
     def take(idx, P, N, alpha, s, region):
         Y = X[idx] - P
         d = np.einsum("ij,ij->i", Y, Y)
-        better = d < best_d[idx]
+        better = np.sqrt(d) < np.sqrt(best_d[idx]) - TIE
         j = idx[better]
         best_d[j] = d[better]
         best_p[j] = P[better]
@@ -133,7 +134,7 @@ def _pyramid_ref(self, points):
     for poly, nrm, alpha in self._wall_polygons:
         h = (X - poly.o) @ nrm
         lim = np.minimum(bound, best_d)
-        idx = np.flatnonzero(h * h <= lim * (1 + 1e-9) + 1e-30)
+        idx = np.flatnonzero(np.abs(h) <= np.sqrt(lim) * (1 + 1e-9) + 2 * TIE)
         if idx.size:
             P = _polygon_ref(poly, X[idx])
             take(idx, P, nrm, alpha, -P[:, 2] / math.sin(alpha), wall)
@@ -207,13 +208,14 @@ def _query_points(part, n, seed):
 def test_pyramid_closest_point_is_the_patch_by_patch_form(name):
     p = PYRAMIDS[name]
     X = _query_points(p, 4000, 5)
-    _same(p.closest_point(X), _pyramid_ref(p, X))
+    numpy = {"backend": "numpy"}  # (the compiled query: tests/test_native_pyramid.py)
+    _same(p.closest_point(X, **numpy), _pyramid_ref(p, X))
     # not C-contiguous: each layout's own sums, as the plain form gathers them
-    _same(p.closest_point(np.asfortranarray(X)), _pyramid_ref(p, np.asfortranarray(X)))
-    _same(p.closest_point(X[::3]), _pyramid_ref(p, X[::3]))
+    _same(p.closest_point(np.asfortranarray(X), **numpy), _pyramid_ref(p, np.asfortranarray(X)))
+    _same(p.closest_point(X[::3], **numpy), _pyramid_ref(p, X[::3]))
     with np.errstate(over="ignore", invalid="ignore"):  # squares overflow: no patch is nearer
         big = np.array([[1e200, 0.0, 0.0], [1e160, 1e160, -1e170], [0.01, 0.0, 1e300]])
-        _same(p.closest_point(big), _pyramid_ref(p, big))
+        _same(p.closest_point(big, **numpy), _pyramid_ref(p, big))
     for r in (0.0, 0.01, 0.03):
         for a, b in zip(rounded_rectangle_closest(X[:, :2], 0.04, 0.03, r),
                         _rr_ref(X[:, :2], 0.04, 0.03, r), strict=True):  # fmt: skip

@@ -106,9 +106,17 @@ class Group:
 #: compiling on the machine of docs/speed.md.
 GROUPS: dict[str, Group] = {
     "mesh": Group(
-        ("roboisf.parts.mesh_kernel", "roboisf.parts.axisym_kernel"),
+        (
+            "roboisf.parts.mesh_kernel",
+            "roboisf.parts.axisym_kernel",
+            "roboisf.parts.pyramid_kernel",
+        ),
         "roboisf.parts.mesh_kernel:build",
-        native=("roboisf.parts.mesh_kernel", "roboisf.parts.axisym_kernel"),
+        native=(
+            "roboisf.parts.mesh_kernel",
+            "roboisf.parts.axisym_kernel",
+            "roboisf.parts.pyramid_kernel",
+        ),
     ),
     "scan": Group(
         ("roboisf.parts.mesh_kernel", "roboisf.scan.knn_kernel", "roboisf.scan.toolpath_kernel"),

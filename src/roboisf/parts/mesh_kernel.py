@@ -888,7 +888,8 @@ def _morton_order(
 
 def build() -> None:
     """Compile (and so cache) these kernels through their callers, on a small mesh, and the
-    axisymmetric parts' (:mod:`roboisf.parts.axisym_kernel`): the background builder of
+    axisymmetric parts' and the pyramid's (:mod:`roboisf.parts.axisym_kernel`,
+    :mod:`roboisf.parts.pyramid_kernel`): the background builder of
     :mod:`roboisf.jit.background` (group "mesh")."""
     from roboisf.parts.mesh import MeshPart, in_spatial_order
 
@@ -903,6 +904,7 @@ def build() -> None:
     in_spatial_order(P)  # the sort and the int32 gather (also the k-NN grid's)
     scatter_rows(P, np.arange(P.shape[0], dtype=np.int32))  # the k-NN filter's points put back
     bounds(P, np.arange(8, dtype=np.int64))
-    from roboisf.parts import axisym_kernel  # the axisymmetric parts' query: same group
+    from roboisf.parts import axisym_kernel, pyramid_kernel  # the analytic parts': same group
 
     axisym_kernel.build()
+    pyramid_kernel.build()

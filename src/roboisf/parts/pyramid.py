@@ -38,12 +38,24 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roboisf.errors import InputError
-from roboisf.parts.axisymmetric import PAPER_SHEET_THICKNESS, REGION_CODES, SurfaceQuery
+from roboisf.parts.axisymmetric import (
+    PAPER_SHEET_THICKNESS,
+    REGION_CODES,
+    SurfaceQuery,
+    _compiled,
+)
 from roboisf.parts.base import Symmetry
 
 __all__ = ["Pyramid", "rounded_rectangle_closest"]
 
 F64 = NDArray[np.float64]
+
+#: The closest-point tie rule [m]: a patch later in the order (walls, corners, bottom, flange) is
+#: taken only when nearer than the best so far by more than this. A point whose foot is an edge
+#: two patches share (above the rim: the wall's top edge and the flange's inner one) is at the
+#: same distance from both up to rounding; without a margin the rounding chose between them,
+#: and differently in the compiled query (:mod:`roboisf.parts.pyramid_kernel`).
+TIE = 1e-12
 
 
 def rounded_rectangle_closest(p: F64, a: float, b: float, r: float) -> tuple[F64, F64]:
@@ -305,6 +317,13 @@ class Pyramid:
 
     # -- patches ---------------------------------------------------------------------------------
     @cached_property
+    def _packed(self) -> tuple[F64, F64, F64, NDArray[np.int64], NDArray[np.int64]]:
+        """The patches as the compiled query's arrays (:func:`.pyramid_kernel.pack`)."""
+        from roboisf.parts import pyramid_kernel
+
+        return pyramid_kernel.pack(self, REGION_CODES)
+
+    @cached_property
     def _wall_polygons(self) -> list[tuple[_PlanarPolygon, F64, float]]:
         return [(_PlanarPolygon.from_vertices(V, n), n, a) for V, n, a in self._walls()]
 
@@ -335,7 +354,7 @@ class Pyramid:
                 out.append((V, nrm, alpha))
         return out
 
-    def closest_point(self, points: ArrayLike) -> SurfaceQuery:
+    def closest_point(self, points: ArrayLike, *, backend: str = "auto") -> SurfaceQuery:
         """Exact closest point on the nominal surface for each of ``points`` (N, 3) [m].
 
         ``normal`` is the tool-side normal of the patch the closest point lies on (on an edge
@@ -343,12 +362,21 @@ class Pyramid:
         the distance down the wall's slope from the rim (on the flange: minus the distance
         outwards from the opening; on the bottom: the wall's slope length plus the distance
         inwards from the bottom edge); ``region`` 0 flange, 1 wall or corner, 2 bottom.
+
+        ``backend``: ``"auto"`` (the compiled kernel of :mod:`roboisf.parts.pyramid_kernel` —
+        its C form when built, else numba's once cached: :func:`roboisf.jit.ready` — else
+        numpy), ``"numba"`` (compiled) or ``"numpy"``; the same numbers to rounding (1e-12 m).
         """
         X = np.atleast_2d(np.asarray(points, dtype=float))
         if X.ndim != 2 or X.shape[1] != 3:
             raise InputError(f"points must have shape (N, 3), got {X.shape}")
         if not np.all(np.isfinite(X)):
             raise InputError("points contain NaN or inf coordinates")
+        if _compiled(backend):
+            from roboisf.parts import pyramid_kernel
+
+            foot, normal, signed, angle, s, region = pyramid_kernel.closest(X, self._packed)
+            return SurfaceQuery(foot, normal, signed, angle, -foot[:, 2], s, region)
         n = X.shape[0]
         x, y = X[:, 0], X[:, 1]
         ax, ay = np.abs(x), np.abs(y)
@@ -406,7 +434,7 @@ class Pyramid:
             strictly nearer, it is the nearest so far."""
             Y = Xi - P
             d = np.einsum("ij,ij->i", Y, Y)
-            better = d < best_d[idx]
+            better = np.sqrt(d) < np.sqrt(best_d[idx]) - TIE
             j = idx[better]
             best_d[j] = d[better]
             win[j] = len(found)
@@ -414,8 +442,10 @@ class Pyramid:
         wall = REGION_CODES["wall"]
         for poly, nrm, alpha in self._wall_polygons:
             h = _minus(X, poly.o) @ nrm
+            # a wall whose plane is farther than the bottom, the flange or the best patch so
+            # far (by more than twice the tie margin) cannot win: skipped
             lim = np.minimum(bound, best_d)
-            idx = np.flatnonzero(h * h <= lim * (1 + 1e-9) + 1e-30)
+            idx = np.flatnonzero(np.abs(h) <= np.sqrt(lim) * (1 + 1e-9) + 2 * TIE)
             if idx.size:
                 Xi = np.take(X, idx, axis=0)  # = X[idx], faster
                 P = poly.closest(Xi)
@@ -455,12 +485,11 @@ class Pyramid:
                     take(idx, Xi, P)
                     found.append((len(found), idx, P, None, a, (ux, uy)))
         BOTTOM, FLANGE = len(found), len(found) + 1
-        # (best_d is never NaN: fmin keeps the smaller, as where(better, d, best_d) does)
-        win = np.where(d_bot < best_d, np.int8(BOTTOM), win)
-        np.fmin(best_d, d_bot, out=best_d)
-        if fw > 0:
-            win = np.where(d_fl < best_d, np.int8(FLANGE), win)
-            np.fmin(best_d, d_fl, out=best_d)
+        last = [(BOTTOM, d_bot)] + ([(FLANGE, d_fl)] if fw > 0 else [])
+        for code, d_patch in last:
+            better = np.sqrt(d_patch) < np.sqrt(best_d) - TIE
+            win = np.where(better, np.int8(code), win)
+            best_d = np.where(better, d_patch, best_d)
         # the nearest patch's point, normal, wall angle, s and region
         on_fl = win == FLANGE
         best_p = P_bot
