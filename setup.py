@@ -115,7 +115,7 @@ class build_with_kernels(build):
 class build_ext_parallel(build_ext):
     """``build_ext`` compiling the C kernels side by side, one per core (setuptools' own
     ``--parallel``, which a user's ``-j`` still sets): eight sources of 0.3-1.3 s of ``-O3``
-    each, compiled one after another, were ~5 s of every install."""
+    each (nine since 2026-11-30), compiled one after another, were ~5 s of every install."""
 
     def finalize_options(self) -> None:
         super().finalize_options()
