@@ -421,19 +421,23 @@ def _jacobian(P: F64, q: SurfaceQuery) -> F64:
     off = np.abs(r) > 1e-9
     rs = np.where(off, r, 1.0)
     D = P - q.point
-    J = np.zeros((P.shape[0], 7))
-    # a column at a time (the same operations as on the (N, 3) arrays, without numpy's
-    # broadcast over 3-long rows): g = (p − q)/r off the surface, else the normal …
+    # built column by column in a (7, N) array, transposed at the end: every column is
+    # contiguous while it is computed (the same operations as on the (N, 3) arrays, without
+    # numpy's broadcast over 3-long rows, nor writes 7 apart); J itself C-ordered, as the
+    # normal equations' matrix products sum in its layout's order — g = (p − q)/r off the
+    # surface, else the normal …
+    Jt = np.zeros((7, P.shape[0]))
     for c in range(3):
-        J[:, c] = np.where(off, D[:, c] / rs, q.normal[:, c])
+        np.divide(D[:, c], rs, out=Jt[c])
+        np.copyto(Jt[c], q.normal[:, c], where=~off)
     # … and p × g, as np.cross forms it: (p1 g2 − p2 g1, p2 g0 − p0 g2, p0 g1 − p1 g0)
-    g = J[:, :3]
+    g = Jt[:3]
     tmp = np.empty(P.shape[0])
     for c, i, k in ((3, 1, 2), (4, 2, 0), (5, 0, 1)):
-        np.multiply(P[:, i], g[:, k], out=J[:, c])
-        np.multiply(P[:, k], g[:, i], out=tmp)
-        J[:, c] -= tmp
-    return J
+        np.multiply(P[:, i], g[k], out=Jt[c])
+        np.multiply(P[:, k], g[i], out=tmp)
+        Jt[c] -= tmp
+    return np.ascontiguousarray(Jt.T)
 
 
 def _flange_weights(
