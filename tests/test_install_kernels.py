@@ -266,6 +266,7 @@ def test_the_build_step_compiles_the_groups_no_c_kernel_serves_or_all_when_asked
     calls: list[bool] = []
     monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
     monkeypatch.delenv(prebuild.SKIP_ENV, raising=False)
+    monkeypatch.setenv(background.ENV, "1")  # as a hand-run has it: the step switches it off
     monkeypatch.setattr(
         background, "build_missing", lambda *, skip_native: calls.append(skip_native) or []
     )
@@ -274,6 +275,9 @@ def test_the_build_step_compiles_the_groups_no_c_kernel_serves_or_all_when_asked
     assert prebuild.main([root]) == 0 and calls == []
     assert "the C kernels serve every group; no numba kernel built" in capsys.readouterr().out
     assert prebuild.main([root, "--all"]) == 0 and calls == [False]
+    # compiled in the foreground: a kernel whose caller asks jit.ready is compiled, not
+    # left to a background builder (the online loop's and the position alignment's were)
+    assert os.environ[background.ENV] == "0"
     ready = background.native_ready
     monkeypatch.setattr(background, "native_ready", lambda g: g != "scan" and ready(g))
     assert prebuild.main([root]) == 0 and calls == [False, True]

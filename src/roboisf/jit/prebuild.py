@@ -120,6 +120,13 @@ def main(argv: list[str]) -> int:
     if not HAVE_NUMBA:
         print("roboisf kernels: not built (numba is not importable here, or ROBOISF_NUMBA=0)")
         return 1
+    from roboisf.jit.background import ENV
+
+    # the kernels are compiled here, in the foreground, never handed to a background builder
+    # (setup.py sets this too; run by hand without it, the kernels whose callers ask
+    # jit.ready — the online loop's, the position alignment's — took their numpy path and
+    # numba compiled nothing for them)
+    os.environ[ENV] = "0"
     t = time.perf_counter()
     failures = build_into(root, every_group=every_group)
     if failures:
