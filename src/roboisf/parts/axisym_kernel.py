@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.jit import HAVE_NUMBA, compile_notice, native, njit
+from roboisf.parts.axisymmetric import query_buffers
 
 if TYPE_CHECKING:
     from roboisf.parts.generatrix import Generatrix
@@ -152,9 +153,7 @@ def closest(X: F64, packed: tuple[I64, F64, F64, I64, I64]) -> tuple[F64, F64, F
     # the C form reads X through its strides; numba's gets it C-contiguous, as before
     X = np.asarray(X, dtype=np.float64) if lib is not None else np.ascontiguousarray(X, np.float64)
     n = X.shape[0]
-    foot, normal = np.empty((n, 3)), np.empty((n, 3))
-    dist, alpha, s = np.empty(n), np.empty(n), np.empty(n)
-    region = np.empty(n, dtype=np.int64)
+    foot, normal, dist, alpha, s, region = query_buffers(n)
     if lib is None:
         _closest(X, *packed, foot, normal, dist, alpha, s, region)
         return foot, normal, dist, alpha, s, region

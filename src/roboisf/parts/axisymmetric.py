@@ -80,6 +80,20 @@ class SurfaceQuery:
     region: NDArray[np.int64]
 
 
+def query_buffers(n: int) -> tuple[F64, F64, F64, F64, F64, NDArray[np.int64]]:
+    """Uninitialised arrays for a compiled closest-point kernel to fill for ``n`` points: foot
+    (n, 3), normal (n, 3), signed distance, wall angle, arc length (n,) and region (n,) int64
+    (:mod:`roboisf.parts.axisym_kernel`, :mod:`roboisf.parts.pyramid_kernel`)."""
+    return (
+        np.empty((n, 3)),
+        np.empty((n, 3)),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n, dtype=np.int64),
+    )
+
+
 @dataclass(frozen=True)
 class AxisymmetricPart:
     """Base of the axisymmetric parts. Subclasses build :attr:`generatrix`."""

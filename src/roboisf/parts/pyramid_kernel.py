@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roboisf.jit import HAVE_NUMBA, compile_notice, native, njit
+from roboisf.parts.axisymmetric import query_buffers
 from roboisf.parts.pyramid import TIE
 
 if TYPE_CHECKING:
@@ -281,13 +282,8 @@ def closest(X: F64, packed: Packed) -> tuple[F64, F64, F64, F64, F64, I64]:
     X = np.asarray(X, dtype=np.float64) if lib is not None else np.ascontiguousarray(X, np.float64)
     if X.ndim != 2 or X.shape[1] != 3:
         raise ValueError(f"X: (N, 3) points expected, got {X.shape}")
-    prm, walls, uv, nv, codes = (
-        np.ascontiguousarray(packed[0], dtype=np.float64),
-        np.ascontiguousarray(packed[1], dtype=np.float64),
-        np.ascontiguousarray(packed[2], dtype=np.float64),
-        np.ascontiguousarray(packed[3], dtype=np.int64),
-        np.ascontiguousarray(packed[4], dtype=np.int64),
-    )
+    prm, walls, uv = (np.ascontiguousarray(a, dtype=np.float64) for a in packed[:3])
+    nv, codes = (np.ascontiguousarray(a, dtype=np.int64) for a in packed[3:])
     nw = walls.shape[0]
     if (
         prm.shape != (NPRM,)
@@ -300,9 +296,7 @@ def closest(X: F64, packed: Packed) -> tuple[F64, F64, F64, F64, F64, I64]:
     if nw and (nv.min() < 2 or nv.max() > MAX_VERTICES):
         raise ValueError(f"packed: a wall polygon needs 2 to {MAX_VERTICES} vertices")
     n = X.shape[0]
-    foot, normal = np.empty((n, 3)), np.empty((n, 3))
-    dist, alpha, s = np.empty(n), np.empty(n), np.empty(n)
-    region = np.empty(n, dtype=np.int64)
+    foot, normal, dist, alpha, s, region = query_buffers(n)
     if lib is None:
         _closest(X, prm, walls, uv, nv, codes, foot, normal, dist, alpha, s, region)
         return foot, normal, dist, alpha, s, region
