@@ -431,7 +431,7 @@ class Pyramid:
 
         def take(idx: NDArray[np.int64], Xi: F64, P: F64) -> None:
             """Patch ``len(found)``'s points ``P`` for the points ``idx`` (at ``Xi``): where
-            strictly nearer, it is the nearest so far."""
+            nearer than the best so far by more than :data:`TIE`, it is the nearest."""
             Y = Xi - P
             d = np.einsum("ij,ij->i", Y, Y)
             better = np.sqrt(d) < np.sqrt(best_d[idx]) - TIE

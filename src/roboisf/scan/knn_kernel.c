@@ -22,10 +22,10 @@
 const char *roboisf_source_sha256 = ROBOISF_SOURCE_SHA256;
 
 #define INLINE static inline __attribute__((always_inline))
-/* four doubles and their comparison masks (GCC/Clang vector extensions: AVX2 in the avx2
- * clone, two SSE2 halves in the default one) */
+/* four doubles (GCC/Clang vector extensions: AVX2 in the avx2 clone, two SSE2 halves in the
+ * default one); a comparison of two is a mask of __auto_type, whatever integer the compiler
+ * makes its lanes */
 typedef double v4d __attribute__((vector_size(32)));
-typedef int64_t v4l __attribute__((vector_size(32)));
 
 INLINE double pmax(double a, double b) { return b > a ? b : a; }
 INLINE double pmin(double a, double b) { return b < a ? b : a; }
@@ -334,8 +334,8 @@ static int buffer_grow(Buffer *B, int64_t need) {
 
 /* _knn_mean_block9 for cells ca .. cb-1 (k1 = 9): each query cell's 3 x 3 x 3 block (offsets
  * `block`, (27, 3) int64 C order) copied into the buffer, each of its points' squared distances
- * to the whole buffer (four at a time), the nine smallest in nine registers; the points the block does not
- * settle are left NaN for knn_mean_rows. 0 when the buffer cannot be had. */
+ * to the whole buffer (four at a time), the nine smallest in nine registers; the points the
+ * block does not settle are left NaN for knn_mean_rows. 0 when the buffer cannot be had. */
 INLINE int block9(const double *X, int64_t rs, int64_t cs, const void *start, int wide,
                   const double *lo, double h, int64_t nx, int64_t ny, int64_t nz,
                   const int64_t *block, int64_t ca, int64_t cb, double *out, int64_t os,
@@ -397,7 +397,7 @@ INLINE int block9(const double *X, int64_t rs, int64_t cs, const void *start, in
                 memcpy(&ez, bz + j, sizeof ez);
                 ex -= vx, ey -= vy, ez -= vz;
                 const v4d e = ex * ex + ey * ey + ez * ez;
-                const v4l below = e < (v4d){b8, b8, b8, b8};
+                const __auto_type below = e < (v4d){b8, b8, b8, b8};
                 if (!(below[0] | below[1] | below[2] | below[3])) continue;
                 INSERT9(e[0])
                 INSERT9(e[1])

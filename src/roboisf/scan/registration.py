@@ -427,9 +427,10 @@ def _jacobian(P: F64, q: SurfaceQuery) -> F64:
     # normal equations' matrix products sum in its layout's order — g = (p − q)/r off the
     # surface, else the normal …
     Jt = np.zeros((7, P.shape[0]))
+    on = ~off
     for c in range(3):
         np.divide(D[:, c], rs, out=Jt[c])
-        np.copyto(Jt[c], q.normal[:, c], where=~off)
+        np.copyto(Jt[c], q.normal[:, c], where=on)
     # … and p × g, as np.cross forms it: (p1 g2 − p2 g1, p2 g0 − p0 g2, p0 g1 − p1 g0)
     g = Jt[:3]
     tmp = np.empty(P.shape[0])
